@@ -1,0 +1,14 @@
+"""Linear operators with adjoints (the 'A' of eq. 7 and 18, and the image-space transforms)."""
+
+from .base import Identity, LinearOperator, MatrixOperator, dottest, power_norm
+from .image import Gradient2D, Wavelet2D
+
+__all__ = [
+    "LinearOperator",
+    "MatrixOperator",
+    "Identity",
+    "Gradient2D",
+    "Wavelet2D",
+    "dottest",
+    "power_norm",
+]

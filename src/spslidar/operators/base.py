@@ -1,0 +1,262 @@
+"""A small real linear-operator base class, its algebra and the adjoint (dot) test.
+
+Modelled on PyLops' ``LinearOperator``: subclasses implement ``_matvec`` and ``_rmatvec``; users
+call ``op @ x``, ``op.H @ y``, compose with ``@``, scale with ``*`` and add with ``+``.
+
+Every operator in spslidar acts on a *block of columns*: ``x`` has shape ``(n,)`` or ``(n, K)``
+(K range slices reconstructed at once), and the result has shape ``(m,)`` or ``(m, K)``. This
+is what lets every solver work on all slices of eq. (7) in one matrix product instead of K
+separate solves. We do not subclass PyLops' operator because its ``matmat`` path goes through
+per-call checks and reshapes that cost more than the products themselves at our sizes, and we
+want a dependency-light core; the tests compare against PyLops where it applies.
+"""
+
+from __future__ import annotations
+
+
+import numpy as np
+
+
+class LinearOperator:
+    """Real linear map from R^n to R^m acting on vectors or column blocks.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        ``(m, n)``: output and input sizes.
+    dtype : numpy dtype, optional
+        Working precision of the operator.
+    """
+
+    def __init__(self, shape: tuple[int, int], dtype=np.float64):
+        self.shape = (int(shape[0]), int(shape[1]))
+        self.dtype = np.dtype(dtype)
+
+    # -- to implement --------------------------------------------------------------------
+    def _matvec(self, x: np.ndarray) -> np.ndarray:  # x: (n, K)
+        raise NotImplementedError
+
+    def _rmatvec(self, y: np.ndarray) -> np.ndarray:  # y: (m, K)
+        raise NotImplementedError
+
+    # -- public --------------------------------------------------------------------------
+    def matvec(self, x: np.ndarray) -> np.ndarray:
+        """Apply the operator to ``x`` of shape ``(n,)`` or ``(n, K)``."""
+        x = np.asarray(x)
+        if x.shape[0] != self.shape[1]:
+            raise ValueError(f"operator of shape {self.shape} applied to array of shape {x.shape}")
+        if x.ndim == 1:
+            return self._matvec(x[:, None])[:, 0]
+        return self._matvec(x)
+
+    def rmatvec(self, y: np.ndarray) -> np.ndarray:
+        """Apply the adjoint to ``y`` of shape ``(m,)`` or ``(m, K)``."""
+        y = np.asarray(y)
+        if y.shape[0] != self.shape[0]:
+            raise ValueError(f"adjoint of shape {self.shape[::-1]} applied to array {y.shape}")
+        if y.ndim == 1:
+            return self._rmatvec(y[:, None])[:, 0]
+        return self._rmatvec(y)
+
+    @property
+    def H(self) -> LinearOperator:  # noqa: N802 - PyLops' name
+        """The adjoint operator."""
+        return _Adjoint(self)
+
+    T = H
+
+    def __matmul__(self, other):
+        if isinstance(other, LinearOperator):
+            return _Product(self, other)
+        return self.matvec(other)
+
+    def __mul__(self, scalar):
+        if np.isscalar(scalar):
+            return _Scaled(self, float(scalar))
+        return NotImplemented
+
+    __rmul__ = __mul__
+
+    def __add__(self, other):
+        if isinstance(other, LinearOperator):
+            return _Sum(self, other)
+        return NotImplemented
+
+    def __sub__(self, other):
+        if isinstance(other, LinearOperator):
+            return _Sum(self, _Scaled(other, -1.0))
+        return NotImplemented
+
+    def todense(self) -> np.ndarray:
+        """The operator as an explicit ``(m, n)`` matrix (for tests and small problems)."""
+        return self.matvec(np.eye(self.shape[1], dtype=self.dtype))
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.shape[0]}x{self.shape[1]} {self.dtype}>"
+
+
+class _Adjoint(LinearOperator):
+    def __init__(self, op: LinearOperator):
+        super().__init__(op.shape[::-1], op.dtype)
+        self.op = op
+
+    def _matvec(self, x):
+        return self.op._rmatvec(x)
+
+    def _rmatvec(self, y):
+        return self.op._matvec(y)
+
+    @property
+    def H(self):  # noqa: N802
+        return self.op
+
+
+class _Product(LinearOperator):
+    def __init__(self, a: LinearOperator, b: LinearOperator):
+        if a.shape[1] != b.shape[0]:
+            raise ValueError(f"cannot compose {a.shape} with {b.shape}")
+        super().__init__((a.shape[0], b.shape[1]), np.result_type(a.dtype, b.dtype))
+        self.a, self.b = a, b
+
+    def _matvec(self, x):
+        return self.a._matvec(self.b._matvec(x))
+
+    def _rmatvec(self, y):
+        return self.b._rmatvec(self.a._rmatvec(y))
+
+
+class _Scaled(LinearOperator):
+    def __init__(self, op: LinearOperator, s: float):
+        super().__init__(op.shape, op.dtype)
+        self.op, self.s = op, s
+
+    def _matvec(self, x):
+        return self.s * self.op._matvec(x)
+
+    def _rmatvec(self, y):
+        return self.s * self.op._rmatvec(y)
+
+
+class _Sum(LinearOperator):
+    def __init__(self, a: LinearOperator, b: LinearOperator):
+        if a.shape != b.shape:
+            raise ValueError(f"cannot add {a.shape} and {b.shape}")
+        super().__init__(a.shape, np.result_type(a.dtype, b.dtype))
+        self.a, self.b = a, b
+
+    def _matvec(self, x):
+        return self.a._matvec(x) + self.b._matvec(x)
+
+    def _rmatvec(self, y):
+        return self.a._rmatvec(y) + self.b._rmatvec(y)
+
+
+class MatrixOperator(LinearOperator):
+    """An explicit dense matrix (the DMD pattern matrix Phi of eq. 7 is one).
+
+    Parameters
+    ----------
+    A : ndarray, shape (m, n)
+    dtype : numpy dtype, optional
+        Cast ``A`` to this precision (float32 halves the cost of the products).
+    """
+
+    def __init__(self, A: np.ndarray, dtype=None):
+        A = np.asarray(A)
+        if dtype is not None:
+            A = A.astype(dtype, copy=False)
+        super().__init__(A.shape, A.dtype)
+        self.A = A
+        self._AT = np.ascontiguousarray(A.T)
+
+    def _matvec(self, x):
+        return self.A @ x.astype(self.dtype, copy=False)
+
+    def _rmatvec(self, y):
+        return self._AT @ y.astype(self.dtype, copy=False)
+
+    def todense(self):
+        return self.A.copy()
+
+
+class Identity(LinearOperator):
+    """The identity on R^n."""
+
+    def __init__(self, n: int, dtype=np.float64):
+        super().__init__((n, n), dtype)
+
+    def _matvec(self, x):
+        return x.copy()
+
+    def _rmatvec(self, y):
+        return y.copy()
+
+
+def dottest(
+    op: LinearOperator,
+    n_cols: int = 1,
+    rng: np.random.Generator | int | None = 0,
+    rtol: float | None = None,
+    raise_error: bool = True,
+) -> float:
+    """Adjoint (dot) test: ``<A x, y>`` must equal ``<x, A^H y>``.
+
+    Parameters
+    ----------
+    op : LinearOperator
+    n_cols : int
+        Number of columns in the random test blocks (checks the batched path).
+    rng : Generator or int or None
+        Random source (``np.random.default_rng`` seed).
+    rtol : float, optional
+        Tolerance; default 1e-4 for float32 operators and 1e-10 for float64.
+    raise_error : bool
+        Raise ``AssertionError`` when the test fails.
+
+    Returns
+    -------
+    float
+        The relative mismatch ``|<Ax,y> - <x,A^H y>| / max(|<Ax,y>|, |<x,A^H y>|)``.
+    """
+    rng = np.random.default_rng(rng)
+    m, n = op.shape
+    shape_x = (n,) if n_cols == 1 else (n, n_cols)
+    shape_y = (m,) if n_cols == 1 else (m, n_cols)
+    x = rng.standard_normal(shape_x)
+    y = rng.standard_normal(shape_y)
+    lhs = float(np.vdot(np.asarray(op.matvec(x), dtype=np.float64), y))
+    rhs = float(np.vdot(x, np.asarray(op.rmatvec(y), dtype=np.float64)))
+    err = abs(lhs - rhs) / max(abs(lhs), abs(rhs), 1e-300)
+    if rtol is None:
+        rtol = 1e-4 if op.dtype == np.float32 else 1e-10
+    if raise_error and err > rtol:
+        raise AssertionError(f"dot test failed for {op!r}: <Ax,y>={lhs:.8g}, <x,A'y>={rhs:.8g}")
+    return err
+
+
+def power_norm(
+    op: LinearOperator,
+    n_iter: int = 50,
+    rtol: float = 1e-4,
+    rng: np.random.Generator | int | None = 0,
+) -> float:
+    """Largest singular value ``||op||_2`` by power iteration on ``op^H op``.
+
+    Returns a slight over-estimate (``1.01 x`` the converged value) so that ``1 / L`` step
+    sizes derived from it stay safe.
+    """
+    rng = np.random.default_rng(rng)
+    x = rng.standard_normal(op.shape[1])
+    x /= np.linalg.norm(x)
+    s_old = 0.0
+    s = 0.0
+    for _ in range(n_iter):
+        z = op.rmatvec(op.matvec(x)).astype(np.float64)
+        s = float(np.linalg.norm(z))
+        if s == 0.0:
+            return 0.0
+        x = z / s
+        if abs(s - s_old) <= rtol * s:
+            break
+        s_old = s
+    return 1.01 * float(np.sqrt(s))

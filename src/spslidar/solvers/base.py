@@ -1,0 +1,197 @@
+"""The problem-agnostic solver interface shared by FISTA, TwIST, TVAL3 and GPSR.
+
+Solvers see a :class:`~spslidar.operators.LinearOperator` ``A``, data ``y`` of shape ``(m, K)``
+(or ``(m,)``), a regulariser ``reg`` (an object with ``__call__`` and ``prox``, see
+:mod:`spslidar.solvers.regularisers`) and its weight ``lam``; they return ``x`` of shape
+``(n, K)`` and a :class:`SolveInfo`. They never know about lidar. Every solver minimises
+
+    F(x) = 1/2 ||A x - y||_2^2 + lam * R(x)                                    (eq. 18)
+
+over the whole block of K columns at once (the sum over columns of the per-column objective),
+unless its docstring says it solves an equivalent constrained form.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class StopRule:
+    """Stopping rules shared by all solvers; the first one met stops the iteration.
+
+    Parameters
+    ----------
+    max_iter : int
+        Maximum number of iterations.
+    rtol : float
+        Stop when ``||x_k - x_{k-1}|| <= rtol * ||x_k||`` (relative change of the iterate).
+    obj_rtol : float or None
+        Stop when the relative decrease of the objective over one iteration falls below this.
+    target : float or None
+        Stop as soon as the objective is at or below this value (used by benchmarks to time
+        solvers to the same objective).
+    max_time : float or None
+        Stop after this many seconds of wall time.
+    """
+
+    max_iter: int = 200
+    rtol: float = 1e-4
+    obj_rtol: float | None = None
+    target: float | None = None
+    max_time: float | None = None
+
+    def __post_init__(self):
+        if int(self.max_iter) < 1:
+            raise ValueError("max_iter must be >= 1")
+        if self.rtol < 0 or (self.obj_rtol is not None and self.obj_rtol < 0):
+            raise ValueError("tolerances must be non-negative")
+
+
+@dataclass
+class SolveInfo:
+    """What a solver reports besides its solution."""
+
+    solver: str
+    iterations: int = 0
+    objective: list[float] = field(default_factory=list)
+    stop_reason: str = ""
+    time_s: float = 0.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "solver": self.solver,
+            "iterations": self.iterations,
+            "final_objective": self.objective[-1] if self.objective else None,
+            "stop_reason": self.stop_reason,
+            "time_s": self.time_s,
+            **self.extra,
+        }
+
+
+class Monitor:
+    """Book-keeping of one solve: objective history, timing and the stop test.
+
+    Solvers call :meth:`check` once per iteration with the new and previous iterates and the
+    current objective value (``None`` when they do not compute it every iteration); it returns
+    the reason to stop or ``''``.
+    """
+
+    def __init__(self, name: str, stop: StopRule):
+        self.stop = stop
+        self.info = SolveInfo(solver=name)
+        self.t0 = time.perf_counter()
+
+    def check(self, it: int, x: np.ndarray, x_old: np.ndarray | None, obj: float | None) -> str:
+        info, stop = self.info, self.stop
+        info.iterations = it
+        if obj is not None:
+            prev = info.objective[-1] if info.objective else None
+            info.objective.append(float(obj))
+            if not np.isfinite(obj):
+                return "diverged"
+            if stop.target is not None and obj <= stop.target:
+                return "target"
+            if stop.obj_rtol is not None and prev is not None and it > 1:
+                if abs(prev - obj) <= stop.obj_rtol * max(abs(obj), 1e-300):
+                    return "obj_rtol"
+        if x_old is not None and stop.rtol > 0 and it > 1:
+            dx = np.linalg.norm(x - x_old)
+            if dx <= stop.rtol * max(np.linalg.norm(x), 1e-300):
+                return "rtol"
+        if stop.max_time is not None and time.perf_counter() - self.t0 >= stop.max_time:
+            return "max_time"
+        if it >= stop.max_iter:
+            return "max_iter"
+        return ""
+
+    def finish(self, reason: str) -> SolveInfo:
+        self.info.stop_reason = reason or "max_iter"
+        self.info.time_s = time.perf_counter() - self.t0
+        return self.info
+
+
+def as_block(y: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Return ``y`` as a 2-D ``(m, K)`` block and whether it was 1-D."""
+    y = np.asarray(y)
+    if y.ndim == 1:
+        return y[:, None], True
+    if y.ndim != 2:
+        raise ValueError(f"data must be 1-D or 2-D, got shape {y.shape}")
+    return y, False
+
+
+def data_misfit(A, x: np.ndarray, y: np.ndarray) -> float:
+    """``1/2 ||A x - y||^2`` summed over all columns."""
+    r = A.matvec(x) - y
+    return 0.5 * float(np.vdot(r, r).real)
+
+
+class Solver:
+    """Base class: subclasses set ``name`` and implement :meth:`_solve`.
+
+    Parameters
+    ----------
+    stop : StopRule, optional
+    **options
+        Solver-specific options (documented on each subclass).
+    """
+
+    name = "base"
+    #: multiplies the data-derived regularisation weight (see ``spslidar.pipeline``); set per
+    #: solver because the solvers state their objectives with different scalings.
+    default_lam_scale = 1.0
+
+    def __init__(self, stop: StopRule | None = None, **options):
+        self.stop = stop if stop is not None else StopRule()
+        self.options = options
+
+    def solve(self, A, y, reg, lam: float, x0: np.ndarray | None = None):
+        """Minimise the solver's objective; return ``(x, info)`` with ``x`` shaped like ``A.H @ y``."""
+        if lam < 0:
+            raise ValueError("lam must be non-negative")
+        yb, was_1d = as_block(y)
+        if yb.shape[0] != A.shape[0]:
+            raise ValueError(f"data has {yb.shape[0]} rows, operator expects {A.shape[0]}")
+        if x0 is not None:
+            x0, _ = as_block(x0)
+        mon = Monitor(self.name, self.stop)
+        x, reason = self._solve(A, yb, reg, float(lam), x0, mon)
+        info = mon.finish(reason)
+        return (x[:, 0] if was_1d else x), info
+
+    def _solve(self, A, y, reg, lam, x0, mon):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+_REGISTRY: dict[str, type[Solver]] = {}
+
+
+def register(cls: type[Solver]) -> type[Solver]:
+    """Class decorator adding a solver to the registry under ``cls.name``."""
+    _REGISTRY[cls.name] = cls
+    return cls
+
+
+def available_solvers() -> list[str]:
+    return sorted(_REGISTRY)
+
+
+def get_solver(name: str) -> type[Solver]:
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise ValueError(
+            f"unknown solver {name!r}; choose one of {', '.join(available_solvers())}"
+        ) from None
+
+
+def solve(A, y, reg, lam: float, method: str = "fista", x0=None, stop: StopRule | None = None,
+          **options):
+    """Solve eq. (18) with the named method: ``x, info = solve(A, y, reg, lam, 'fista')``."""
+    return get_solver(method)(stop=stop, **options).solve(A, y, reg, lam, x0=x0)
