@@ -13,7 +13,6 @@ want a dependency-light core; the tests compare against PyLops where it applies.
 
 from __future__ import annotations
 
-
 import numpy as np
 
 

@@ -1,0 +1,178 @@
+"""The ``spslidar`` command-line tool: a thin layer over the library.
+
+Only argparse is imported at start-up, so ``spslidar --help`` is instant; the numerical stack is
+imported inside each sub-command. Bad input prints one line on stderr and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+EXIT_BAD_INPUT = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are one line (plus exit status 2)."""
+
+    def error(self, message):  # noqa: D401
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _add_run_options(p: argparse.ArgumentParser) -> None:
+    S = argparse.SUPPRESS  # only options given on the command line override the config file
+    g = p.add_argument_group("scene")
+    g.add_argument("--scene", default=S, metavar="NAME|PATH",
+                   help="built-in scene (camera [default], motorcycle, steps, ramp) or a file: "
+                        ".npy depth in metres, .npz with 'depth' (+ 'reflectivity', 'valid'), "
+                        ".png/.tif grey image mapped into [--depth-min, --depth-max]")
+    g.add_argument("--size", type=int, default=S, metavar="N", help="N x N pixels (default 64)")
+    g.add_argument("--depth-min", type=float, default=S, metavar="M",
+                   help="rescale the scene's depth into [MIN, MAX] metres")
+    g.add_argument("--depth-max", type=float, default=S, metavar="M")
+    g = p.add_argument_group("instrument")
+    g.add_argument("--lidar", choices=("psst", "conventional"), default=S,
+                   help="psst: pseudo-random coded laser (default); conventional: periodic "
+                        "single pulses in the same acquisition time")
+    g.add_argument("--code", choices=("mseq", "gold", "random"), default=S,
+                   help="m-sequence (default), Gold code, or Bernoulli random bits")
+    g.add_argument("--code-length", type=int, default=S, metavar="L",
+                   help="bits per code period; 2^n - 1 for mseq/gold (default 16383); sets the "
+                        "acquisition time per pattern (L / bit rate) for both lidars")
+    g.add_argument("--ones-ratio", type=float, default=S, metavar="R",
+                   help="share of '1' bits of a random code, in (0, 1) (default 0.5)")
+    g.add_argument("--code-index", type=int, default=S, metavar="I",
+                   help="member of the Gold family / cyclic shift of the m-sequence")
+    g.add_argument("--bit-rate", type=float, default=S, metavar="HZ",
+                   help="return-to-zero bit rate = TDC bin rate (default 10e9: 1.5 cm bins)")
+    g.add_argument("--pulse-width", type=float, default=S, metavar="BITS",
+                   help="laser pulse width as a fraction of a bit (default 0.5, RZ)")
+    g.add_argument("--rep-rate", type=float, default=S, metavar="HZ",
+                   help="conventional lidar pulse rate (default: the fastest whose unambiguous "
+                        "range covers the range gate)")
+    g.add_argument("--fairness", choices=("energy", "power"), default=S,
+                   help="conventional vs PSST: same pulse energy (default, the paper's) or same "
+                        "average power")
+    g.add_argument("--patterns", choices=("gaussian", "bernoulli"), default=S,
+                   help="DMD patterns: grey-level Gaussian clip(0.5+0.25N,0,1) (default) or "
+                        "binary")
+    g.add_argument("--pattern-sigma", type=float, default=S, metavar="S")
+    g.add_argument("--compression", type=float, default=S, metavar="F",
+                   help="M/Q: patterns per pixel, in (0, 1] (default 0.25)")
+    g = p.add_argument_group("photons")
+    g.add_argument("--signal", type=float, default=S, metavar="MS",
+                   help="m_s: mean signal photons per laser pulse per DMD pixel (mirror on, "
+                        "reflectivity 1); a pattern collects m_s * sum(Phi * alpha) per pulse "
+                        "(eq. 8). Default 5")
+    g.add_argument("--noise", type=float, default=S, metavar="MN",
+                   help="m_n: mean noise counts per TDC bin per pixel, ambient + background + "
+                        "dark, so N^2 * m_n per bin in total (eq. 9-10). Default 10")
+    g.add_argument("--noise-split", type=float, nargs=3, default=S,
+                   metavar=("AMB", "BG", "DARK"),
+                   help="shares of m_n: ambient via the scene, background, dark (default 1/3 "
+                        "each)")
+    g.add_argument("--ambient", choices=("paper", "modulated"), default=S,
+                   help="ambient light unmodulated N^2 m_n1 (paper, default) or through the DMD")
+    g.add_argument("--background-rate", type=float, default=S, metavar="CPS",
+                   help="extra background counts per second (physical units)")
+    g.add_argument("--dark-count-rate", type=float, default=S, metavar="CPS",
+                   help="extra dark counts per second")
+    g.add_argument("--dead-time", type=float, default=S, metavar="S",
+                   help="GMAPD dead time, only for the pile-up warning (default 50e-9)")
+    g.add_argument("--noiseless", action="store_true", default=S,
+                   help="use expected counts (no Poisson noise)")
+    g = p.add_argument_group("processing")
+    g.add_argument("--replica", choices=("auto", "bipolar", "unipolar"), default=S,
+                   help="matched-filter replica (auto: bipolar for psst, unipolar for "
+                        "conventional)")
+    g.add_argument("--range-gate", type=float, nargs=2, default=S, metavar=("MIN", "MAX"),
+                   help="delays to reconstruct, in metres (default: the scene's depth window "
+                        "padded by 3 bins)")
+    g.add_argument("--qcr", action=argparse.BooleanOptionalAction, default=S,
+                   help="quadratic correlation reconstruction (default on)")
+    g.add_argument("--qcr-form", choices=("centred", "covariance"), default=S,
+                   help="centred least squares (default) or the paper's literal ||Delta - Hp||")
+    g.add_argument("--solver", choices=("fista", "twist", "tval3", "gpsr"), default=S,
+                   help="reconstruction algorithm (default fista)")
+    g.add_argument("--regulariser", choices=("auto", "tv", "l1", "wavelet"), default=S,
+                   help="auto: TV (fista, twist, tval3) or Haar-wavelet l1 (gpsr)")
+    g.add_argument("--lam", type=float, default=S, metavar="W",
+                   help="regularisation weight (default: lam-scale x the noise level estimated "
+                        "from the measurements)")
+    g.add_argument("--lam-scale", type=float, default=S, metavar="K")
+    g.add_argument("--iterations", type=int, default=S, metavar="K",
+                   help="maximum solver iterations")
+    g.add_argument("--tol", type=float, default=S, help="relative-change stopping tolerance")
+    g.add_argument("--nonneg", action="store_true", default=S,
+                   help="constrain the reconstruction to be non-negative")
+    g.add_argument("--subbin", action="store_true", default=S,
+                   help="refine the ML peak by a three-bin centroid")
+    g.add_argument("--dtype", choices=("float32", "float64"), default=S)
+    g.add_argument("--seed", type=int, default=S, help="random seed (default 0)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
+    parser = _Parser(
+        prog="spslidar",
+        description="Simulate and reconstruct the pseudo-random spread-spectrum single-pixel "
+                    "photon-counting ToF lidar (Shen et al.).",
+    )
+    parser.add_argument("--version", action="version", version=f"spslidar {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    p = sub.add_parser("run", help="simulate one acquisition, reconstruct it and score it",
+                       description="Simulate one acquisition of a scene, reconstruct the depth "
+                                   "map and score it; writes metrics.json, depth.npy, truth.npy "
+                                   "and depth.png into --out (only when complete).")
+    p.add_argument("--config", metavar="FILE.toml",
+                   help="TOML file with the same keys (command-line options override it)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--no-figure", action="store_true", help="skip depth.png")
+    _add_run_options(p)
+    return parser
+
+
+def _cmd_run(args) -> int:
+    from .config import Config, read_toml
+    from .pipeline import run
+
+    opts = {k: v for k, v in vars(args).items()
+            if k not in ("command", "config", "out", "no_figure", "func")}
+    base = read_toml(args.config) if args.config else {}
+    cfg = Config.from_dict({**base, **opts})
+    result = run(cfg)
+    for w in result.warnings:
+        print(f"spslidar: warning: {w}", file=sys.stderr)
+    out = result.save(args.out, figure=not args.no_figure)
+    print(result.summary())
+    print(f"wrote {out}/: metrics.json depth.npy truth.npy" + ("" if args.no_figure
+                                                              else " depth.png"))
+    return 0
+
+
+COMMANDS = {"run": _cmd_run}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit status (0 success, 2 bad input)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return EXIT_BAD_INPUT
+    from .errors import SpslidarError
+
+    try:
+        return COMMANDS[args.command](args)
+    except SpslidarError as exc:
+        print(f"spslidar {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as exc:
+        print(f"spslidar {args.command}: error: {exc.strerror or exc}: "
+              f"{exc.filename or ''}".rstrip(": "), file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

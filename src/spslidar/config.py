@@ -1,0 +1,235 @@
+"""The run configuration: one dataclass, the same keys on the command line and in TOML files.
+
+Keys are the long option names of ``spslidar run`` with ``-`` or ``_`` (``code-length`` and
+``code_length`` are the same key). Unknown keys and invalid values raise
+:class:`~spslidar.errors.ConfigError` with a one-line message.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import ConfigError
+
+LIDARS = ("psst", "conventional")
+CODES = ("mseq", "gold", "random")
+PATTERNS = ("gaussian", "bernoulli")
+SOLVERS = ("fista", "twist", "tval3", "gpsr")
+REGULARISERS = ("auto", "tv", "l1", "wavelet")
+REPLICAS = ("auto", "bipolar", "unipolar")
+FAIRNESS = ("energy", "power")
+
+
+@dataclass
+class Config:
+    """Everything that defines one simulated acquisition and reconstruction.
+
+    See ``spslidar run --help`` and ``docs/model.md`` for the meaning of each key.
+    """
+
+    # scene
+    scene: str = "camera"
+    size: int = 64
+    depth_min: float | None = None
+    depth_max: float | None = None
+    # lidar and code
+    lidar: str = "psst"
+    code: str = "mseq"
+    code_length: int = 16383
+    ones_ratio: float = 0.5
+    code_index: int = 0
+    bit_rate: float = 10e9
+    pulse_width: float = 0.5
+    rep_rate: float | None = None
+    fairness: str = "energy"
+    # patterns
+    patterns: str = "gaussian"
+    pattern_sigma: float = 0.25
+    compression: float = 0.25
+    # photons
+    signal: float = 5.0
+    noise: float = 10.0
+    noise_split: tuple[float, float, float] = (1 / 3, 1 / 3, 1 / 3)
+    ambient: str = "paper"
+    background_rate: float = 0.0
+    dark_count_rate: float = 0.0
+    dead_time: float = 50e-9
+    noiseless: bool = False
+    # processing
+    replica: str = "auto"
+    range_gate: tuple[float, float] | None = None
+    auto_gate: bool | None = None
+    qcr: bool = True
+    qcr_form: str = "centred"
+    solver: str = "fista"
+    regulariser: str = "auto"
+    lam: float | None = None
+    lam_scale: float | None = None
+    iterations: int | None = None
+    tol: float = 1e-4
+    subbin: bool = False
+    nonneg: bool = False
+    dtype: str = "float32"
+    seed: int = 0
+    extra: dict[str, Any] = field(default_factory=dict, repr=False)
+
+    # -- construction -------------------------------------------------------------------
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None = None, **kw) -> Config:
+        """Build from a mapping (keys with ``-`` or ``_``); unknown keys are an error."""
+        merged = {**(d or {}), **kw}
+        names = {f.name for f in dataclasses.fields(cls)} - {"extra"}
+        clean: dict[str, Any] = {}
+        for k, v in merged.items():
+            key = str(k).replace("-", "_")
+            if key not in names:
+                close = [n for n in names if n.startswith(key[:3])]
+                hint = f" (did you mean {', '.join(sorted(close))}?)" if close else ""
+                raise ConfigError(f"unknown config key {k!r}{hint}")
+            clean[key] = v
+        cfg = cls(**clean)
+        cfg.validate()
+        return cfg
+
+    @classmethod
+    def from_toml(cls, path: str | Path, **overrides) -> Config:
+        """Read a TOML file (top-level keys, or a ``[run]`` table) and apply overrides."""
+        return cls.from_dict({**read_toml(path), **overrides})
+
+    def replace(self, **kw) -> Config:
+        """A validated copy with some keys changed."""
+        return Config.from_dict({**self.to_dict(), **kw})
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d.pop("extra")
+        for k in ("noise_split", "range_gate"):
+            if d[k] is not None:
+                d[k] = list(d[k])
+        return d
+
+    # -- validation ---------------------------------------------------------------------
+    def validate(self) -> None:  # noqa: C901 - a flat list of checks
+        def choice(name, options):
+            v = getattr(self, name)
+            if v not in options:
+                raise ConfigError(f"unknown {name.replace('_', '-')} {v!r}; "
+                                  f"choose one of {', '.join(options)}")
+
+        def number(name, lo=None, hi=None, lo_open=False, hi_open=False, integer=False,
+                   optional=False):
+            v = getattr(self, name)
+            if v is None and optional:
+                return
+            opt = name.replace("_", "-")
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ConfigError(f"--{opt} must be a number, got {v!r}")
+            if integer:
+                if float(v) != int(v):
+                    raise ConfigError(f"--{opt} must be an integer, got {v}")
+                v = int(v)
+                setattr(self, name, v)
+            else:
+                setattr(self, name, float(v))
+            if not math.isfinite(v):
+                raise ConfigError(f"--{opt} must be finite, got {v}")
+            if lo is not None and (v < lo or (lo_open and v == lo)):
+                rng_txt = f"{'(' if lo_open else '['}{lo}, {hi if hi is not None else 'inf'}" \
+                          f"{')' if hi_open or hi is None else ']'}"
+                raise ConfigError(f"--{opt} must be in {rng_txt}, got {v}")
+            if hi is not None and (v > hi or (hi_open and v == hi)):
+                rng_txt = f"{'(' if lo_open else '['}{lo}, {hi}{')' if hi_open else ']'}"
+                raise ConfigError(f"--{opt} must be in {rng_txt}, got {v}")
+
+        choice("lidar", LIDARS)
+        choice("code", CODES)
+        choice("patterns", PATTERNS)
+        choice("solver", SOLVERS)
+        choice("regulariser", REGULARISERS)
+        choice("replica", REPLICAS)
+        choice("fairness", FAIRNESS)
+        choice("ambient", ("paper", "modulated"))
+        choice("qcr_form", ("centred", "covariance"))
+        choice("dtype", ("float32", "float64"))
+        if not isinstance(self.scene, (str, Path)) or str(self.scene) == "":
+            raise ConfigError("--scene must be a built-in scene name or a file path")
+        self.scene = str(self.scene)
+        number("size", 4, 2048, integer=True)
+        number("depth_min", 0, optional=True)
+        number("depth_max", 0, lo_open=True, optional=True)
+        if self.depth_min is not None and self.depth_max is not None \
+                and self.depth_min >= self.depth_max:
+            raise ConfigError(f"--depth-min ({self.depth_min}) must be below --depth-max "
+                              f"({self.depth_max})")
+        number("code_length", 2, 2**24, integer=True)
+        number("ones_ratio", 0, 1, lo_open=True, hi_open=True)
+        number("code_index", 0, integer=True)
+        number("bit_rate", 0, lo_open=True)
+        number("pulse_width", 0, 1, lo_open=True)
+        number("rep_rate", 0, lo_open=True, optional=True)
+        number("pattern_sigma", 0, lo_open=True)
+        number("compression", 0, 1, lo_open=True)
+        number("signal", 0, lo_open=True)
+        number("noise", 0)
+        number("background_rate", 0)
+        number("dark_count_rate", 0)
+        number("dead_time", 0)
+        number("lam", 0, optional=True)
+        number("lam_scale", 0, lo_open=True, optional=True)
+        number("iterations", 1, integer=True, optional=True)
+        number("tol", 0)
+        number("seed", 0, integer=True)
+        if self.auto_gate is not None and not isinstance(self.auto_gate, bool):
+            raise ConfigError(f"auto-gate must be true or false, got {self.auto_gate!r}")
+        for flag in ("qcr", "subbin", "noiseless", "nonneg"):
+            if not isinstance(getattr(self, flag), bool):
+                raise ConfigError(f"{flag} must be true or false, got {getattr(self, flag)!r}")
+        try:
+            split = tuple(float(v) for v in self.noise_split)
+        except (TypeError, ValueError):
+            raise ConfigError(f"noise-split must be three numbers, got {self.noise_split!r}") \
+                from None
+        if len(split) != 3 or min(split) < 0 or abs(sum(split) - 1) > 1e-6:
+            raise ConfigError(f"noise-split must be three non-negative shares summing to 1, "
+                              f"got {list(split)}")
+        self.noise_split = split
+        if self.range_gate is not None:
+            try:
+                g = tuple(float(v) for v in self.range_gate)
+            except (TypeError, ValueError):
+                raise ConfigError(f"--range-gate must be two numbers MIN MAX, got "
+                                  f"{self.range_gate!r}") from None
+            if len(g) != 2 or not all(math.isfinite(v) for v in g) or g[0] < 0 or g[1] <= g[0]:
+                raise ConfigError(f"--range-gate must be MIN MAX with 0 <= MIN < MAX metres, "
+                                  f"got {list(g)}")
+            self.range_gate = g
+        if self.solver == "gpsr" and self.regulariser == "tv":
+            raise ConfigError("the gpsr solver minimises an l1 norm: use --regulariser l1 or "
+                              "wavelet")
+        if self.solver == "tval3" and self.regulariser in ("l1", "wavelet"):
+            raise ConfigError("the tval3 solver minimises total variation: use --regulariser tv")
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """Read a TOML config file into a flat dict (a ``[run]`` table is also accepted)."""
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(f"config file not found: {p}")
+    try:
+        with open(p, "rb") as fh:
+            data = tomllib.load(fh)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot parse config file {p}: {exc}") from None
+    if "run" in data and isinstance(data["run"], dict):
+        rest = {k: v for k, v in data.items() if k != "run"}
+        data = {**rest, **data["run"]}
+    return data

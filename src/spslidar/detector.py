@@ -1,0 +1,172 @@
+"""The photon-counting detector: a Geiger-mode APD with a TDC, and the paper's noise terms.
+
+Noise (eq. 4, 9): three additive Poisson processes per TDC bin,
+
+* ``B1`` ambient light reflected by the scene. The paper adds it unmodulated as
+  ``N^2 m_n^(1)`` per bin (``ambient='paper'``); physically it passes the DMD, so
+  ``ambient='modulated'`` gives ``m_n^(1) sum_j Phi_ij alpha_j`` instead (it is then
+  correlated with the patterns and QCR no longer removes it).
+* ``B2`` sunlight / stray light reaching the detector, pattern-independent: ``N^2 m_n^(2)``.
+* ``B3`` detector noise (dark counts): ``N^2 m_n^(3)``.
+
+``m_n = m_n^(1) + m_n^(2) + m_n^(3)`` is the paper's single noise number, read (see
+``docs/model.md``) as mean noise counts per TDC bin *per pixel*, so that the total per bin is
+``N^2 m_n`` as in eq. (9)-(10); ``noise_split`` divides it among the three terms. Physical rates
+can be added on top: ``background_rate`` and ``dark_count_rate`` in counts per second.
+
+The counting itself is the paper's linear model (no dead time): counts ~ Poisson(lambda) per
+bin. A real GMAPD counts at most one photon per dead time, so :func:`pileup_report` flags runs
+whose flux is far beyond what such a detector could record. The Poisson sampler is NumPy's; the
+detector is written here because no library models a TDC histogram with these noise terms. It
+draws in a fixed number of row blocks, each from its own child generator, on a thread pool, so
+results depend only on the seed, not on the number of threads.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ConfigError
+
+AMBIENT_MODELS = ("paper", "modulated")
+#: row blocks for the Poisson draws (fixed, so results do not depend on the thread count)
+N_BLOCKS = 8
+
+
+@dataclass
+class NoiseModel:
+    """The paper's three noise terms (eq. 4, 9).
+
+    Parameters
+    ----------
+    m_n : float
+        Total mean noise counts per TDC bin per pixel (the paper's ``m_n``).
+    split : tuple of 3 floats
+        Shares of ``m_n`` for ambient (B1), background (B2) and dark counts (B3); sums to 1.
+    ambient : {'paper', 'modulated'}
+        How B1 enters (see module docstring).
+    background_rate, dark_count_rate : float
+        Extra background and dark counts in counts per second (physical units), added on top.
+    """
+
+    m_n: float = 10.0
+    split: tuple[float, float, float] = (1 / 3, 1 / 3, 1 / 3)
+    ambient: str = "paper"
+    background_rate: float = 0.0
+    dark_count_rate: float = 0.0
+
+    def __post_init__(self):
+        if not np.isfinite(self.m_n) or self.m_n < 0:
+            raise ConfigError(f"noise (m_n) must be a non-negative number, got {self.m_n}")
+        s = np.asarray(self.split, dtype=float)
+        if s.shape != (3,) or np.any(s < 0) or not np.isclose(s.sum(), 1.0):
+            raise ConfigError(f"noise_split must be three non-negative shares summing to 1, "
+                              f"got {list(self.split)}")
+        if self.ambient not in AMBIENT_MODELS:
+            raise ConfigError(f"unknown ambient model {self.ambient!r}; choose paper or modulated")
+        if self.background_rate < 0 or self.dark_count_rate < 0:
+            raise ConfigError("background and dark count rates must be non-negative")
+
+    def per_bin(self, patterns: np.ndarray, reflectivity: np.ndarray,
+                bin_width: float) -> np.ndarray:
+        """Noise counts per TDC bin for each pattern (one code period), shape ``(M,)``.
+
+        Notes
+        -----
+        Eq. (9): ``N^2 m_n^(1) + m_n^(2) + m_n^(3)`` with each term per pixel (so x N^2).
+        """
+        m = patterns.shape[0]
+        q = patterns.shape[1]
+        f1, f2, f3 = (float(v) for v in self.split)
+        base = q * self.m_n * (f2 + f3) + (self.background_rate + self.dark_count_rate) * bin_width
+        if self.ambient == "paper":
+            return np.full(m, base + q * self.m_n * f1)
+        a = np.asarray(reflectivity, dtype=np.float64).ravel()
+        return base + self.m_n * f1 * (np.asarray(patterns, dtype=np.float64) @ a)
+
+
+def _threads() -> int:
+    return max(1, min(N_BLOCKS, os.cpu_count() or 1))
+
+
+def poisson_counts(lam: np.ndarray, rng: np.random.Generator | int | None,
+                   parallel: bool = True) -> np.ndarray:
+    """Draw Poisson counts with means ``lam`` (any shape, rows split in fixed blocks).
+
+    Returns float32 counts (exact integers up to 2^24 per bin; a bin with more raises).
+    """
+    rng = np.random.default_rng(rng)
+    lam = np.asarray(lam, dtype=np.float64)
+    if np.any(lam < 0) or not np.all(np.isfinite(lam)):
+        raise ValueError("Poisson means must be finite and non-negative")
+    if lam.size and lam.max() > 2**24 * 0.9:
+        raise ValueError("expected counts per bin exceed float32's exact integer range")
+    out = np.empty(lam.shape, dtype=np.float32)
+    if lam.ndim == 0 or lam.shape[0] < N_BLOCKS:
+        out[...] = rng.poisson(lam)
+        return out
+    children = rng.spawn(N_BLOCKS)
+    edges = np.linspace(0, lam.shape[0], N_BLOCKS + 1).astype(int)
+
+    def work(b):
+        sl = slice(edges[b], edges[b + 1])
+        out[sl] = children[b].poisson(lam[sl])
+
+    if parallel and _threads() > 1:
+        with ThreadPoolExecutor(_threads()) as ex:
+            list(ex.map(work, range(N_BLOCKS)))
+    else:
+        for b in range(N_BLOCKS):
+            work(b)
+    return out
+
+
+@dataclass
+class PhotonCountingDetector:
+    """GMAPD + TDC in the paper's linear (no dead time) photon-counting model.
+
+    Parameters
+    ----------
+    dead_time : float
+        Dead time in seconds, used only to flag pile-up (:meth:`pileup_report`).
+    efficiency : float
+        Photon detection efficiency in (0, 1]; scales the mean counts (1: the paper's model,
+        which folds all losses into ``m_s``).
+    """
+
+    dead_time: float = 50e-9
+    efficiency: float = 1.0
+
+    def __post_init__(self):
+        if not self.dead_time >= 0:
+            raise ConfigError("dead_time must be non-negative")
+        if not 0 < self.efficiency <= 1:
+            raise ConfigError("efficiency must be in (0, 1]")
+
+    def count(self, lam: np.ndarray, rng, parallel: bool = True) -> np.ndarray:
+        """Photon counts per bin: Poisson(efficiency * lam)."""
+        if self.efficiency != 1.0:
+            lam = self.efficiency * np.asarray(lam)
+        return poisson_counts(lam, rng, parallel=parallel)
+
+    def pileup_report(self, counts_per_period: float, period_s: float) -> dict:
+        """Mean detections per dead time, and whether a real GMAPD would saturate.
+
+        Parameters
+        ----------
+        counts_per_period : float
+            Mean total counts per pattern per code period.
+        period_s : float
+            Code period in seconds.
+        """
+        rate = counts_per_period / period_s
+        per_dead = rate * self.dead_time
+        return {
+            "count_rate_hz": float(rate),
+            "counts_per_dead_time": float(per_dead),
+            "gmapd_saturated": bool(per_dead > 0.1),
+        }

@@ -1,0 +1,100 @@
+"""The command-line tool, driven through ``main([...])``."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+
+from spslidar.cli import main
+
+FAST = ["--size", "16", "--code-length", "1023"]
+
+
+def test_run_writes_results(tmp_path, capsys):
+    out = tmp_path / "r"
+    assert main(["run", *FAST, "--out", str(out)]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert "depth RMSE" in lines[1]
+    assert {p.name for p in out.iterdir()} == {"metrics.json", "depth.npy", "truth.npy",
+                                               "depth.png"}
+    m = json.loads((out / "metrics.json").read_text())
+    assert np.load(out / "depth.npy").shape == (16, 16)
+    assert m["config"]["size"] == 16
+
+
+def test_config_file_and_override(tmp_path):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('size = 16\ncode-length = 1023\nnoise = 2.0\nsolver = "twist"\n')
+    out = tmp_path / "r"
+    assert main(["run", "--config", str(cfg), "--noise", "3", "--out", str(out)]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["config"]["noise"] == 3.0 and m["config"]["solver"] == "twist"
+
+
+def _bad(tmp_path):
+    nan = tmp_path / "nan.npy"
+    np.save(nan, np.full((8, 8), np.nan))
+    neg = tmp_path / "neg.npy"
+    np.save(neg, -np.ones((8, 8)))
+    toml = tmp_path / "bad.toml"
+    toml.write_text("sise = 3\n")
+    return {
+        "missing scene": ["--scene", str(tmp_path / "nope.npy")],
+        "nan depth": ["--scene", str(nan)],
+        "negative depth": ["--scene", str(neg)],
+        "unknown scene": ["--scene", "airplane"],
+        "compression 0": ["--compression", "0"],
+        "compression > 1": ["--compression", "1.5"],
+        "mseq length": ["--code-length", "1000"],
+        "gold length": ["--code", "gold", "--code-length", "4095"],
+        "ones ratio": ["--code", "random", "--ones-ratio", "1.5"],
+        "negative signal": ["--signal", "-1"],
+        "negative noise": ["--noise", "-2"],
+        "unknown solver": ["--solver", "newton"],
+        "bad gate": ["--range-gate", "5", "1"],
+        "bad config key": ["--config", str(toml)],
+        "missing config": ["--config", str(tmp_path / "none.toml")],
+        "bad number": ["--size", "big"],
+        "depth window": ["--depth-min", "5", "--depth-max", "4"],
+    }
+
+
+def test_every_bad_input_is_one_line_exit_2_and_no_output(tmp_path, capsys):
+    for name, args in _bad(tmp_path).items():
+        out = tmp_path / f"out-{name.replace(' ', '_')}"
+        try:
+            code = main(["run", "--size", "16", "--code-length", "1023", *args,
+                         "--out", str(out)])
+        except SystemExit as exc:  # argparse errors
+            code = exc.code
+        err = capsys.readouterr().err.strip()
+        assert code == 2, name
+        assert len(err.splitlines()) == 1, (name, err)
+        assert "error" in err and "Traceback" not in err, name
+        assert not out.exists(), name
+    # and no temporary folders were left behind
+    assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name]
+
+
+def test_warns_about_range_ambiguity(tmp_path, capsys):
+    out = tmp_path / "r"
+    code = main(["run", "--size", "16", "--code-length", "511", "--range-gate", "1", "30",
+                 "--out", str(out), "--no-figure"])
+    assert code == 0
+    err = capsys.readouterr().err
+    assert "unambiguous range" in err and "7.66 m" in err
+
+
+def test_help_is_light():
+    code = ("import sys, spslidar.cli as c; c.build_parser().format_help(); "
+            "print(sorted(m for m in ('numpy', 'scipy', 'matplotlib', 'skimage') "
+            "if m in sys.modules))")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert res.stdout.strip() == "[]"
+
+
+def test_no_command_prints_help(capsys):
+    assert main([]) == 2
+    assert "run" in capsys.readouterr().out

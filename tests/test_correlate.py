@@ -1,0 +1,69 @@
+"""The matched filter (eq. 5-6): peak at the true delay, sidelobes, noise estimate."""
+
+import numpy as np
+import pytest
+
+from spslidar.codes import make_code
+from spslidar.correlate import (
+    correlation_gain,
+    correlation_noise_sigma,
+    gate_lags,
+    make_replica,
+    matched_filter,
+)
+from spslidar.errors import ConfigError
+
+
+def test_bipolar_mseq_peak_and_zero_sidelobes():
+    code = make_code("mseq", 1023)
+    f = make_replica(code, "bipolar")
+    k = 417
+    hist = np.roll(code.astype(float), k)[None, :] * 3.0 + 5.0  # return + constant background
+    c = matched_filter(hist, f, np.arange(1023), gain=correlation_gain(code, f),
+                       out_dtype=np.float64)[0]
+    assert np.argmax(c) == k
+    assert c[k] == pytest.approx(3.0 + 5.0 * f.sum() / correlation_gain(code, f))
+    side = np.delete(c, k)
+    # m-sequence, bipolar replica: flat sidelobes; the constant background adds sum(f) = -1 each
+    np.testing.assert_allclose(side, side[0], atol=1e-6)
+
+
+def test_unipolar_replica_keeps_background_as_dc():
+    code = make_code("mseq", 127)
+    f = make_replica(code, "unipolar")
+    hist = np.full((1, 127), 2.0)
+    c = matched_filter(hist, f, np.arange(127), out_dtype=np.float64)[0]
+    np.testing.assert_allclose(c, 2.0 * 64)  # every lag sees the 64 ones of the code
+
+
+def test_fft_path_equals_matrix_path():
+    rng = np.random.default_rng(0)
+    code = make_code("random", 600, 0.3, rng=1)
+    f = make_replica(code, "bipolar")
+    hist = rng.poisson(3.0, (4, 600)).astype(float)
+    lags = np.arange(-5, 700)  # > 256 lags: FFT path, wrapping
+    a = matched_filter(hist, f, lags, out_dtype=np.float64)
+    b = matched_filter(hist, f, lags[:200], out_dtype=np.float64)
+    np.testing.assert_allclose(a[:, :200], b, rtol=1e-5, atol=1e-3)
+    np.testing.assert_allclose(a[:, 5 + 600], a[:, 5], rtol=1e-9)  # lag 600 == lag 0
+
+
+def test_noise_sigma_estimate_matches_monte_carlo():
+    rng = np.random.default_rng(4)
+    code = make_code("mseq", 255)
+    f = make_replica(code, "bipolar")
+    lam = np.roll(code * 2.0, 30) + 6.0
+    hists = rng.poisson(lam, (3000, 255)).astype(float)
+    c = matched_filter(hists, f, np.array([30, 100]), out_dtype=np.float64)
+    est = correlation_noise_sigma(hists, f)
+    assert np.std(c[:, 1]) == pytest.approx(np.mean(est), rel=0.05)
+    assert np.std(c[:, 0]) == pytest.approx(np.mean(est), rel=0.05)
+
+
+def test_gate_lags():
+    lags = gate_lags((0.0, 0.15), 1e-10)  # 15 cm = 10 bins of 1.5 cm
+    assert lags[0] == 0 and lags[-1] == 11  # 0.15 m is 10.007 bins: ceil
+    with pytest.raises(ConfigError):
+        gate_lags((5.0, 1.0), 1e-10)
+    with pytest.raises(ConfigError):
+        make_replica(np.ones(3), "tripolar")

@@ -1,0 +1,71 @@
+"""ML depth (eq. 2-3), RMSE (eq. 19) and Sobel edges."""
+
+import numpy as np
+import pytest
+
+from spslidar.depth import ml_depth
+from spslidar.forward import delay_to_depth
+from spslidar.metrics import depth_errors, edge_agreement, rmse, sobel_edges
+
+BW = 1e-10
+
+
+def test_argmax_picks_the_peak_bin_and_marks_missing():
+    lags = np.arange(100, 110)
+    x = np.zeros((3, 10))
+    x[0, 4] = 1.0
+    x[1, 7] = 0.5
+    x[2] = -0.1  # no positive return
+    depth, peak = ml_depth(x, lags, BW, pulse_width=1.0)
+    np.testing.assert_allclose(depth[:2], delay_to_depth(np.array([104, 107]), BW))
+    assert np.isnan(depth[2])
+    np.testing.assert_allclose(peak, [1.0, 0.5, -0.1])
+
+
+def test_pulse_width_offset_is_half_bin_minus_half_pulse():
+    x = np.zeros((1, 5))
+    x[0, 2] = 1
+    d, _ = ml_depth(x, np.arange(5), BW, pulse_width=0.5)
+    assert d[0] == pytest.approx(delay_to_depth(2 + 0.25, BW))
+
+
+def test_first_of_equal_peaks_wins():
+    x = np.array([[0.0, 1.0, 0.0, 1.0]])
+    d, _ = ml_depth(x, np.array([10, 11, 12, 13]), BW, pulse_width=1.0)
+    assert d[0] == pytest.approx(delay_to_depth(11, BW))
+
+
+def test_subbin_centroid_recovers_fractional_delay():
+    # a pulse of width 1 at delay 20.3 puts 0.7 in bin 20 and 0.3 in bin 21
+    x = np.zeros((1, 8))
+    x[0, 3], x[0, 4] = 0.7, 0.3
+    lags = np.arange(17, 25)
+    d, _ = ml_depth(x, lags, BW, pulse_width=1.0, subbin=True)
+    assert d[0] == pytest.approx(delay_to_depth(20.3, BW), abs=1e-9)
+    d0, _ = ml_depth(x, lags, BW, pulse_width=1.0)
+    assert d0[0] == pytest.approx(delay_to_depth(20.0, BW))
+
+
+def test_rmse_eq19_and_missing():
+    truth = np.array([[1.0, 2.0], [3.0, 4.0]])
+    est = np.array([[1.1, 2.0], [np.nan, 3.8]])
+    e = depth_errors(est, truth)
+    assert e["depth_rmse_m"] == pytest.approx(np.sqrt((0.01 + 0 + 0.04) / 3))
+    assert e["missing_fraction"] == pytest.approx(0.25)
+    valid = np.array([[True, False], [True, True]])
+    assert rmse(est, truth, valid) == pytest.approx(np.sqrt(0.05 / 2))
+    with pytest.raises(ValueError):
+        depth_errors(np.ones(3), np.ones(4))
+    assert np.isnan(depth_errors(np.full(2, np.nan), np.ones(2))["depth_rmse_m"])
+
+
+def test_sobel_edges_match_skimage_and_handle_nan():
+    from skimage.filters import sobel
+
+    d = np.zeros((16, 16))
+    d[:, 8:] = 1.0
+    np.testing.assert_allclose(sobel_edges(d), sobel(d))
+    dn = d.copy()
+    dn[3, 3] = np.nan
+    assert np.all(np.isfinite(sobel_edges(dn)))
+    assert edge_agreement(sobel_edges(d), sobel_edges(d)) == pytest.approx(1.0)

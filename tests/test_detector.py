@@ -1,0 +1,66 @@
+"""Photon counting: Poisson statistics, the three noise terms, pile-up flag."""
+
+import numpy as np
+import pytest
+
+from spslidar import detector as det
+from spslidar.errors import ConfigError
+
+
+@pytest.mark.parametrize("lam", [0.3, 5.0, 4000.0])
+def test_poisson_mean_equals_variance(lam):
+    counts = det.poisson_counts(np.full((64, 4000), lam), np.random.default_rng(3))
+    n = counts.size
+    mean, var = counts.mean(dtype=np.float64), counts.var(dtype=np.float64)
+    assert abs(mean - lam) < 5 * np.sqrt(lam / n)
+    # variance of the sample variance of a Poisson ~ (lam + 2 lam^2) / n
+    assert abs(var - lam) < 5 * np.sqrt((lam + 2 * lam**2) / n)
+    assert np.all(counts == np.round(counts))
+
+
+def test_poisson_depends_on_seed_not_threads(monkeypatch):
+    lam = np.full((40, 300), 7.0)
+    a = det.poisson_counts(lam, 11)
+    monkeypatch.setattr(det, "_threads", lambda: 1)
+    b = det.poisson_counts(lam, 11)
+    c = det.poisson_counts(lam, 12)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+def test_poisson_rejects_bad_means():
+    with pytest.raises(ValueError):
+        det.poisson_counts(np.array([[1.0, -1.0]]), 0)
+    with pytest.raises(ValueError):
+        det.poisson_counts(np.array([[np.nan]]), 0)
+
+
+def test_noise_model_paper_and_modulated():
+    rng = np.random.default_rng(0)
+    phi = rng.random((5, 16))
+    alpha = rng.random(16)
+    paper = det.NoiseModel(10.0, (0.5, 0.25, 0.25), "paper")
+    np.testing.assert_allclose(paper.per_bin(phi, alpha, 1e-10), 16 * 10.0)
+    mod = det.NoiseModel(10.0, (0.5, 0.25, 0.25), "modulated")
+    expect = 16 * 10.0 * 0.5 + 10.0 * 0.5 * phi @ alpha
+    np.testing.assert_allclose(mod.per_bin(phi, alpha, 1e-10), expect)
+    phys = det.NoiseModel(0.0, background_rate=1e6, dark_count_rate=1e5)
+    np.testing.assert_allclose(phys.per_bin(phi, alpha, 1e-9), 1.1e6 * 1e-9)
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [{"m_n": -1.0}, {"split": (0.5, 0.5, 0.5)}, {"split": (1.0, 0.0)}, {"ambient": "x"},
+     {"background_rate": -1.0}],
+)
+def test_noise_model_bad_input(kw):
+    with pytest.raises(ConfigError):
+        det.NoiseModel(**kw)
+
+
+def test_pileup_flag():
+    d = det.PhotonCountingDetector(dead_time=50e-9)
+    low = d.pileup_report(counts_per_period=1.0, period_s=1e-3)
+    high = d.pileup_report(counts_per_period=1e6, period_s=1.6e-6)
+    assert not low["gmapd_saturated"] and high["gmapd_saturated"]
+    assert high["counts_per_dead_time"] == pytest.approx(1e6 / 1.6e-6 * 50e-9)

@@ -1,0 +1,96 @@
+"""One conformance suite run over every linear operator: adjoint, linearity, norm, batching."""
+
+import numpy as np
+import pytest
+
+from spslidar.operators import (
+    Gradient2D,
+    Identity,
+    MatrixOperator,
+    Wavelet2D,
+    dottest,
+    power_norm,
+)
+from spslidar.qcr import CovarianceOperator, qcr_problem
+
+
+def _phi(m=30, q=64, seed=0):
+    return np.clip(0.5 + 0.25 * np.random.default_rng(seed).standard_normal((m, q)), 0, 1)
+
+
+OPERATORS = {
+    "matrix": lambda: MatrixOperator(np.random.default_rng(1).standard_normal((7, 11))),
+    "matrix32": lambda: MatrixOperator(_phi(), dtype=np.float32),
+    "identity": lambda: Identity(9),
+    "gradient": lambda: Gradient2D((6, 5)),
+    "wavelet-haar": lambda: Wavelet2D((8, 8), "haar"),
+    "wavelet-db2": lambda: Wavelet2D((16, 8), "db2"),
+    "covariance": lambda: CovarianceOperator(_phi(), dtype=np.float64),
+    "qcr-centred": lambda: qcr_problem(_phi(), np.zeros((30, 1)), "centred", np.float64)[0],
+    "composite": lambda: MatrixOperator(_phi()) @ Wavelet2D((8, 8)).H * 2.0
+    + MatrixOperator(_phi(seed=3)),
+    "adjoint": lambda: MatrixOperator(_phi()).H @ MatrixOperator(_phi()) - Identity(64),
+}
+
+
+@pytest.fixture(params=sorted(OPERATORS))
+def op(request):
+    return OPERATORS[request.param]()
+
+
+def test_adjoint(op):
+    dottest(op, n_cols=1, rng=0)
+    dottest(op, n_cols=4, rng=1)
+
+
+def test_linearity(op):
+    rng = np.random.default_rng(2)
+    x, z = rng.standard_normal((2, op.shape[1]))
+    a, b = 1.7, -0.3
+    tol = 1e-4 if op.dtype == np.float32 else 1e-10
+    lhs = op @ (a * x + b * z)
+    rhs = a * (op @ x) + b * (op @ z)
+    assert np.linalg.norm(lhs - rhs) <= tol * max(np.linalg.norm(rhs), 1.0)
+
+
+def test_batched_columns_equal_single_vectors(op):
+    rng = np.random.default_rng(3)
+    x = rng.standard_normal((op.shape[1], 3))
+    y = op @ x
+    assert y.shape == (op.shape[0], 3)
+    for k in range(3):
+        np.testing.assert_allclose(y[:, k], op @ x[:, k], rtol=1e-5, atol=1e-6)
+    yh = op.H @ rng.standard_normal((op.shape[0], 3))
+    assert yh.shape == (op.shape[1], 3)
+
+
+def test_power_norm_matches_dense_spectral_norm(op):
+    dense = np.asarray(op.todense(), dtype=np.float64)
+    exact = np.linalg.norm(dense, 2)
+    est = power_norm(op, n_iter=500, rtol=1e-9, rng=0)
+    assert exact <= est <= 1.02 * exact + 1e-12
+
+
+def test_shape_mismatch_is_an_error():
+    with pytest.raises(ValueError):
+        MatrixOperator(np.ones((3, 4))) @ np.ones(5)
+    with pytest.raises(ValueError):
+        MatrixOperator(np.ones((3, 4))) @ MatrixOperator(np.ones((3, 4)))
+
+
+def test_wavelet_is_orthonormal():
+    w = Wavelet2D((16, 16), "db2")
+    x = np.random.default_rng(0).standard_normal((256, 2))
+    np.testing.assert_allclose(w.H @ (w @ x), x, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(w @ x), np.linalg.norm(x))
+
+
+def test_gradient_matches_pylops():
+    pylops = pytest.importorskip("pylops")
+    g = Gradient2D((6, 5))
+    ref = pylops.FirstDerivative((6, 5), axis=0, kind="forward", edge=False)
+    x = np.random.default_rng(0).standard_normal(30)
+    ours = (g @ x)[:30].reshape(6, 5)
+    theirs = (ref @ x).reshape(6, 5)
+    np.testing.assert_allclose(ours[:-1], theirs[:-1], atol=1e-12)
+    assert np.all(ours[-1] == 0)

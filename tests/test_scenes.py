@@ -1,0 +1,291 @@
+"""Tests for spslidar.scenes: built-in scenes, user files and bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spslidar.errors import SceneError
+from spslidar.scenes import BUILTIN_SCENES, Scene, load_scene
+
+WINDOWS = {
+    "camera": (20.0, 20.8),
+    "motorcycle": (1.5, 6.0),
+    "steps": (10.0, 10.6),
+    "ramp": (5.0, 5.5),
+}
+
+
+def _check_scene(sc: Scene, size: int) -> None:
+    assert isinstance(sc, Scene)
+    assert sc.size == size
+    for arr in (sc.depth, sc.reflectivity, sc.valid):
+        assert arr.shape == (size, size)
+    assert sc.depth.dtype == np.float64 and sc.reflectivity.dtype == np.float64
+    assert sc.valid.dtype == bool
+    assert np.isfinite(sc.depth).all()
+    assert sc.reflectivity.min() >= 0.0 and sc.reflectivity.max() <= 1.0
+
+
+@pytest.mark.parametrize("size", [32, 64])
+@pytest.mark.parametrize("name", BUILTIN_SCENES)
+def test_builtin_loads_inside_window(name, size):
+    sc = load_scene(name, size)
+    _check_scene(sc, size)
+    lo, hi = WINDOWS[name]
+    assert sc.depth.min() >= lo - 1e-9 and sc.depth.max() <= hi + 1e-9
+    assert sc.depth_max > sc.depth_min
+    assert sc.name == name
+
+
+def test_default_scene_is_camera():
+    sc = load_scene()
+    assert sc.name == "camera" and sc.size == 64
+
+
+def test_camera_window_exact_and_all_valid():
+    sc = load_scene("camera", 64)
+    assert abs(sc.depth_min - 20.0) < 1e-3 and abs(sc.depth_max - 20.8) < 1e-3
+    assert sc.valid.all()
+    np.testing.assert_array_equal(sc.reflectivity, 1.0)
+    assert np.unique(sc.depth).size > 50  # a real image, not a few plateaus
+
+
+def test_motorcycle_depth_and_mask():
+    sc = load_scene("motorcycle", 64)
+    assert 1.5 < sc.depth_min < sc.depth_max < 6.0
+    assert (~sc.valid).any() and sc.valid.mean() > 0.3
+    # reflectivity is the left image's luminance rescaled to [0.2, 1]
+    assert sc.reflectivity.min() == pytest.approx(0.2) and sc.reflectivity.max() == pytest.approx(
+        1.0
+    )
+    # depth is filled (not zero) at invalid pixels
+    assert sc.depth[~sc.valid].min() > 1.5
+
+
+def test_synthetic_scenes_have_structure():
+    steps = load_scene("steps", 64)
+    assert np.unique(steps.depth).size >= 4
+    assert np.unique(steps.reflectivity).size >= 2
+    ramp = load_scene("ramp", 64)
+    assert np.unique(ramp.depth).size > 500
+    assert ramp.valid.all() and steps.valid.all()
+
+
+@pytest.mark.parametrize("name", ["camera", "steps", "ramp", "motorcycle"])
+def test_remap_window(name):
+    sc = load_scene(name, 32, depth_min=3.0, depth_max=3.5)
+    assert abs(sc.depth_min - 3.0) < 1e-9 and abs(sc.depth_max - 3.5) < 1e-9
+    assert sc.depth.min() >= 3.0 - 1e-12 and sc.depth.max() <= 3.5 + 1e-12
+
+
+def test_one_sided_window_uses_scene_default():
+    sc = load_scene("camera", 32, depth_max=25.0)
+    assert abs(sc.depth_min - 20.0) < 1e-9 and abs(sc.depth_max - 25.0) < 1e-9
+    sc = load_scene("steps", 32, depth_min=10.3)
+    assert abs(sc.depth_min - 10.3) < 1e-9 and abs(sc.depth_max - 10.6) < 1e-9
+    with pytest.raises(SceneError, match="depth_min 21 m must be less than depth_max 20.8 m"):
+        load_scene("camera", 32, depth_min=21.0)
+
+
+def test_case_insensitive_names():
+    assert load_scene("Steps", 16).name == "steps"
+
+
+# ---------------------------------------------------------------------------------------------
+# user files
+
+
+def _ramp_depth(h: int, w: int) -> np.ndarray:
+    y, x = np.mgrid[0:h, 0:w]
+    return 7.0 + 0.01 * x + 0.02 * y
+
+
+def test_npy_round_trip(tmp_path: Path):
+    depth = _ramp_depth(40, 40)
+    path = tmp_path / "d.npy"
+    np.save(path, depth)
+    sc = load_scene(path, 40)  # same size: no resampling
+    np.testing.assert_allclose(sc.depth, depth)
+    assert sc.valid.all() and np.all(sc.reflectivity == 1.0)
+    assert sc.name == "d.npy"
+    sc = load_scene(str(path), 20, depth_min=1.0, depth_max=2.0)
+    assert abs(sc.depth_min - 1.0) < 1e-9 and abs(sc.depth_max - 2.0) < 1e-9
+
+
+def test_npy_non_square_is_centre_cropped(tmp_path: Path):
+    depth = np.full((30, 50), 9.0)
+    depth[:, 10:40] = 4.0  # the centre 30x30 square is the 4 m block
+    np.save(tmp_path / "wide.npy", depth)
+    sc = load_scene(tmp_path / "wide.npy", 16)
+    np.testing.assert_allclose(sc.depth, 4.0)
+
+
+def test_npz_round_trip(tmp_path: Path):
+    depth = _ramp_depth(32, 32)
+    refl = np.linspace(0, 1, 32 * 32).reshape(32, 32)
+    valid = np.ones((32, 32), dtype=bool)
+    valid[5:9, 5:9] = False
+    depth_nan = depth.copy()
+    depth_nan[~valid] = np.nan  # unknown pixels may hold NaN
+    path = tmp_path / "s.npz"
+    np.savez(path, depth=depth_nan, reflectivity=refl, valid=valid)
+    sc = load_scene(path, 32)
+    np.testing.assert_allclose(sc.depth[valid], depth[valid])
+    np.testing.assert_allclose(sc.reflectivity, refl)
+    np.testing.assert_array_equal(sc.valid, valid)
+    assert np.isfinite(sc.depth).all()
+    small = load_scene(path, 16)
+    assert (~small.valid).sum() >= 4 and small.valid.sum() > 200
+
+
+def test_npz_depth_only(tmp_path: Path):
+    np.savez(tmp_path / "only.npz", depth=np.full((8, 8), 3.0))
+    sc = load_scene(tmp_path / "only.npz", 8)
+    assert sc.valid.all() and np.all(sc.depth == 3.0) and np.all(sc.reflectivity == 1.0)
+
+
+def test_png_round_trip(tmp_path: Path):
+    from skimage import io
+
+    img = np.tile(np.arange(0, 256, 4, dtype=np.uint8), (64, 1))
+    io.imsave(tmp_path / "g.png", img, check_contrast=False)
+    sc = load_scene(tmp_path / "g.png", 64)
+    assert abs(sc.depth_min - 20.0) < 1e-9 and abs(sc.depth_max - 20.8) < 1e-9
+    assert np.all(np.diff(sc.depth, axis=1) > 0)  # brighter = farther
+    rgb = np.stack([img] * 3, axis=-1)
+    io.imsave(tmp_path / "c.png", rgb, check_contrast=False)
+    sc2 = load_scene(tmp_path / "c.png", 32, depth_min=1.0, depth_max=1.5)
+    assert abs(sc2.depth_min - 1.0) < 1e-9 and abs(sc2.depth_max - 1.5) < 1e-9
+
+
+def test_tif_round_trip(tmp_path: Path):
+    from skimage import io
+
+    img = np.tile(np.linspace(0, 1, 20, dtype=np.float32), (20, 1))
+    io.imsave(tmp_path / "g.tif", img, check_contrast=False)
+    sc = load_scene(tmp_path / "g.tif", 20)
+    assert abs(sc.depth_min - 20.0) < 1e-9 and abs(sc.depth_max - 20.8) < 1e-9
+
+
+# ---------------------------------------------------------------------------------------------
+# bad input
+
+
+def _one_line(exc: pytest.ExceptionInfo) -> None:
+    assert "\n" not in str(exc.value)
+
+
+def test_missing_file(tmp_path: Path):
+    path = tmp_path / "nope.npy"
+    with pytest.raises(SceneError, match="scene file not found: .*nope.npy") as info:
+        load_scene(path)
+    _one_line(info)
+    with pytest.raises(SceneError, match="scene file not found"):
+        load_scene(str(tmp_path / "nope.png"))
+
+
+def test_unknown_builtin():
+    with pytest.raises(SceneError, match="unknown scene 'airplane'.*camera, motorcycle.*path") as i:
+        load_scene("airplane")
+    _one_line(i)
+
+
+@pytest.mark.parametrize("suffix, fmt", [(".npy", "npy"), (".npz", "npz"), (".png", "image")])
+def test_unreadable_file(tmp_path: Path, suffix, fmt):
+    path = tmp_path / f"junk{suffix}"
+    path.write_bytes(b"this is not a valid file\n" * 4)
+    with pytest.raises(
+        SceneError,
+        match=f"cannot read scene {'image' if fmt == 'image' else 'file'}"
+        rf" junk\{suffix}",
+    ) as info:
+        load_scene(path)
+    _one_line(info)
+
+
+def test_unsupported_suffix(tmp_path: Path):
+    path = tmp_path / "scene.csv"
+    path.write_text("1,2\n3,4\n")
+    with pytest.raises(SceneError, match="scene.csv has an unsupported format: use .npy"):
+        load_scene(path)
+
+
+def test_npz_without_depth(tmp_path: Path):
+    np.savez(tmp_path / "x.npz", z=np.ones((4, 4)))
+    with pytest.raises(SceneError, match="x.npz has no 'depth' array"):
+        load_scene(tmp_path / "x.npz")
+
+
+@pytest.mark.parametrize("shape", [(16,), (4, 4, 4)])
+def test_not_2d(tmp_path: Path, shape):
+    np.save(tmp_path / "a.npy", np.ones(shape))
+    with pytest.raises(SceneError, match="must be a 2-D array"):
+        load_scene(tmp_path / "a.npy")
+
+
+@pytest.mark.parametrize("bad, count", [(np.nan, 3), (np.inf, 1), (-1.0, 5)])
+def test_bad_depth_values(tmp_path: Path, bad, count):
+    depth = np.full((8, 8), 5.0)
+    depth[0, :count] = bad
+    np.save(tmp_path / "b.npy", depth)
+    with pytest.raises(
+        SceneError, match=f"b.npy: {count} pixels? ha(s|ve) NaN, infinite or negative"
+    ):
+        load_scene(tmp_path / "b.npy")
+    np.savez(tmp_path / "b.npz", depth=depth)  # no mask: every pixel must be valid
+    with pytest.raises(SceneError, match=f"{count} pixel"):
+        load_scene(tmp_path / "b.npz")
+
+
+def test_bad_reflectivity(tmp_path: Path):
+    depth = np.full((8, 8), 5.0)
+    refl = np.full((8, 8), 0.5)
+    refl[1, 1] = 1.5
+    np.savez(tmp_path / "r.npz", depth=depth, reflectivity=refl)
+    with pytest.raises(SceneError, match=r"1 reflectivity values lie outside \[0, 1\]"):
+        load_scene(tmp_path / "r.npz")
+    np.savez(tmp_path / "s.npz", depth=depth, reflectivity=np.ones((4, 8)))
+    with pytest.raises(SceneError, match=r"reflectivity has shape \(4, 8\), depth has \(8, 8\)"):
+        load_scene(tmp_path / "s.npz")
+
+
+def test_bad_valid_mask(tmp_path: Path):
+    depth = np.full((8, 8), 5.0)
+    np.savez(tmp_path / "v.npz", depth=depth, valid=np.zeros((8, 8), dtype=bool))
+    with pytest.raises(SceneError, match="marks no pixel as valid"):
+        load_scene(tmp_path / "v.npz")
+    np.savez(tmp_path / "w.npz", depth=depth, valid=np.ones((2, 2), dtype=bool))
+    with pytest.raises(SceneError, match="valid mask has shape"):
+        load_scene(tmp_path / "w.npz")
+
+
+@pytest.mark.parametrize("size", [3, 0, -1, 2049, 32.0, True])
+def test_bad_size(size):
+    with pytest.raises(SceneError, match="size"):
+        load_scene("steps", size)
+
+
+def test_bad_window():
+    with pytest.raises(SceneError, match="depth_min must be >= 0 m"):
+        load_scene("steps", 16, depth_min=-1.0, depth_max=2.0)
+    with pytest.raises(SceneError, match="depth_min 3 m must be less than depth_max 3 m"):
+        load_scene("steps", 16, depth_min=3.0, depth_max=3.0)
+    with pytest.raises(SceneError, match="depth_min 4 m must be less than depth_max 3 m"):
+        load_scene("steps", 16, depth_min=4.0, depth_max=3.0)
+    with pytest.raises(SceneError, match="depth_max must be a finite number"):
+        load_scene("steps", 16, depth_max=float("nan"))
+
+
+def test_bad_scene_type():
+    with pytest.raises(SceneError, match="built-in name"):
+        load_scene(42)
+
+
+def test_scene_dataclass_validates():
+    with pytest.raises(SceneError, match="square"):
+        Scene("x", np.ones((4, 5)), np.ones((4, 5)), np.ones((4, 5), dtype=bool))
+    with pytest.raises(SceneError, match="reflectivity"):
+        Scene("x", np.ones((4, 4)), 2 * np.ones((4, 4)), np.ones((4, 4), dtype=bool))

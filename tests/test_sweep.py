@@ -1,0 +1,619 @@
+"""Tests of the Monte-Carlo sweep engine (spslidar.experiments.sweep)."""
+
+from __future__ import annotations
+
+import csv
+import functools
+import json
+import os
+import subprocess
+import sys
+import uuid
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from spslidar.errors import ConfigError
+from spslidar.experiments import sweep
+from spslidar.experiments.sweep import (
+    SweepSpec,
+    derive_seed,
+    expand_grid,
+    load_sweep_config,
+    point_key,
+    run_point,
+    run_sweep,
+    sweep_main,
+    write_csv,
+)
+
+# Computed once with derive_seed and frozen here: a change means every cached sweep and every
+# published result would silently change, so it must be deliberate.
+FROZEN_PARAMS = {"noise": 5, "code_length": 1023, "size": 32, "rate": 0.25, "trial": 1}
+FROZEN_SEED = 1662874469
+
+
+# ---------------------------------------------------------------------------------------------
+# Toy point functions (module level, so that joblib and Dask can pickle them)
+# ---------------------------------------------------------------------------------------------
+
+
+def toy(params: dict[str, Any]) -> dict[str, Any]:
+    """A pure function of the params whose result depends on the seed."""
+    rng = np.random.default_rng(params["seed"])
+    return {
+        "value": params["x"] * 10.0 + float(rng.normal()),
+        "stats": {"mean": np.float64(params["x"]), "n": np.int64(3)},
+        "curve": np.arange(3) * params["x"],
+    }
+
+
+def counting(params: dict[str, Any], *, calls_dir: str, fail_x: Any = None) -> dict[str, Any]:
+    """Like :func:`toy`, leaving one file per call in ``calls_dir``; raises on ``x == fail_x``."""
+    Path(calls_dir).mkdir(exist_ok=True)
+    (Path(calls_dir) / f"{uuid.uuid4().hex}.json").write_text(json.dumps(params))
+    if params["x"] == fail_x:
+        raise ValueError(f"bad x\n{params['x']}")
+    return toy(params)
+
+
+def interrupting(params: dict[str, Any], *, calls_dir: str, stop_x: Any) -> dict[str, Any]:
+    """Like :func:`counting`, but a Ctrl-C arrives while running the point ``x == stop_x``."""
+    if params["x"] == stop_x:
+        raise KeyboardInterrupt
+    return counting(params, calls_dir=calls_dir)
+
+
+def calls(calls_dir: Path) -> list[dict[str, Any]]:
+    """Params of the calls recorded by :func:`counting`."""
+    if not calls_dir.exists():
+        return []
+    return [json.loads(p.read_text()) for p in calls_dir.glob("*.json")]
+
+
+def not_a_dict(params: dict[str, Any]) -> list[int]:
+    return [1, 2]
+
+
+def unserializable(params: dict[str, Any]) -> dict[str, Any]:
+    return {"obj": object()}
+
+
+POINTS = expand_grid({"size": 8}, {"x": [1, 2, 3]}, trials=2)
+
+
+# ---------------------------------------------------------------------------------------------
+# expand_grid
+# ---------------------------------------------------------------------------------------------
+
+
+def test_expand_grid_order_size_and_trials():
+    points = expand_grid({"size": 32, "noise": 0}, {"noise": [1, 5], "code": [7, 15, 31]}, 2)
+    assert len(points) == 2 * 3 * 2
+    combos = [(p["noise"], p["code"], p["trial"]) for p in points]
+    # First grid key slowest, trial fastest.
+    assert combos[:4] == [(1, 7, 0), (1, 7, 1), (1, 15, 0), (1, 15, 1)]
+    assert combos[-1] == (5, 31, 1)
+    assert len(set(combos)) == len(combos)
+    assert all(p["size"] == 32 for p in points)
+    assert list(points[0]) == ["size", "noise", "code", "trial"]
+    # Grid values override base; the order follows the grid's key order.
+    swapped = expand_grid({}, {"code": [7, 15, 31], "noise": [1, 5]})
+    assert [(p["noise"], p["code"]) for p in swapped][:3] == [(1, 7), (5, 7), (1, 15)]
+
+
+def test_expand_grid_empty_grid_and_deep_copies():
+    base = {"scene": {"depth": 1.0}}
+    points = expand_grid(base, {}, trials=3)
+    assert [p["trial"] for p in points] == [0, 1, 2]
+    points[0]["scene"]["depth"] = 99.0
+    assert points[1]["scene"]["depth"] == 1.0 and base["scene"]["depth"] == 1.0
+    assert expand_grid({}, {"a": (1, 2)}) == [{"a": 1, "trial": 0}, {"a": 2, "trial": 0}]
+
+
+@pytest.mark.parametrize(
+    ("base", "grid", "trials", "match"),
+    [
+        ({}, {"a": []}, 1, "non-empty list"),
+        ({}, {"a": 3}, 1, "non-empty list"),
+        ({}, {"a": "abc"}, 1, "non-empty list"),
+        ({}, {"a": [1]}, 0, "trials must be >= 1"),
+        ({}, {"a": [1]}, 1.5, "trials must be an integer"),
+        ({}, {"trial": [1]}, 1, "reserved"),
+        ({"trial": 0}, {}, 1, "reserved"),
+        ([], {}, 1, "base must be a table"),
+        ({}, [1, 2], 1, "grid must be a table"),
+    ],
+)
+def test_expand_grid_rejects_bad_input(base, grid, trials, match):
+    with pytest.raises(ConfigError, match=match):
+        expand_grid(base, grid, trials)
+
+
+# ---------------------------------------------------------------------------------------------
+# derive_seed
+# ---------------------------------------------------------------------------------------------
+
+
+def test_derive_seed_frozen_value_and_key_order():
+    assert derive_seed(7, FROZEN_PARAMS) == FROZEN_SEED
+    assert derive_seed(7, dict(reversed(list(FROZEN_PARAMS.items())))) == FROZEN_SEED
+    numpy_params = {**FROZEN_PARAMS, "noise": np.int64(5), "rate": np.float64(0.25)}
+    assert derive_seed(np.int64(7), numpy_params) == FROZEN_SEED
+    assert 0 <= FROZEN_SEED < 2**32
+
+
+def test_derive_seed_same_in_another_process():
+    code = (
+        "import json, sys; from spslidar.experiments.sweep import derive_seed; "
+        "print(derive_seed(7, json.loads(sys.argv[1])))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code, json.dumps(FROZEN_PARAMS)],
+        capture_output=True,
+        text=True,
+        check=True,
+        env={**os.environ, "PYTHONHASHSEED": "123"},
+    )
+    assert int(out.stdout) == FROZEN_SEED
+
+
+def test_derive_seed_changes_with_params_and_seed():
+    seeds = {
+        derive_seed(7, FROZEN_PARAMS),
+        derive_seed(8, FROZEN_PARAMS),
+        derive_seed(7, {**FROZEN_PARAMS, "trial": 2}),
+        derive_seed(7, {**FROZEN_PARAMS, "rate": 0.25000000000000006}),
+        derive_seed(7, {**FROZEN_PARAMS, "noise": 5.0}),
+        derive_seed(7, {**FROZEN_PARAMS, "extra": None}),
+    }
+    assert len(seeds) == 6
+    trial_seeds = {p["trial"]: derive_seed(0, p) for p in expand_grid({}, {}, trials=50)}
+    assert len(set(trial_seeds.values())) == 50
+
+
+@pytest.mark.parametrize(
+    ("seed", "params", "match"),
+    [
+        ("1", {}, "seed must be an integer"),
+        (True, {}, "seed must be an integer"),
+        (1, [("a", 1)], "params must be a dict"),
+        (1, {"a": object()}, "unsupported type object"),
+        (1, {"a": {1: 2}}, "is not a string"),
+    ],
+)
+def test_derive_seed_rejects_bad_input(seed, params, match):
+    with pytest.raises(ConfigError, match=match):
+        derive_seed(seed, params)
+
+
+# ---------------------------------------------------------------------------------------------
+# run_sweep: local
+# ---------------------------------------------------------------------------------------------
+
+
+def test_run_sweep_rows_seeds_and_cache_files(tmp_path):
+    rows = run_sweep(toy, POINTS, tmp_path / "out", seed=3, progress=False)
+    assert len(rows) == len(POINTS)
+    for point, row in zip(POINTS, rows, strict=True):
+        assert row["x"] == point["x"] and row["trial"] == point["trial"]
+        assert row["seed"] == derive_seed(3, point)
+        # Results are JSON-normalized: numpy values become plain Python ones.
+        assert type(row["stats"]["n"]) is int and row["curve"] == [0, point["x"], 2 * point["x"]]
+    assert len({row["value"] for row in rows}) == len(rows)  # trials differ
+    assert "seed" not in POINTS[0]  # caller's points are not modified
+    files = sorted((tmp_path / "out" / "runs").glob("*.json"))
+    params = [{k: r[k] for k in ("size", "x", "trial", "seed")} for r in rows]
+    assert [f.stem for f in files] == sorted(point_key(p) for p in params)
+    record = json.loads(files[0].read_text())
+    assert set(record) >= {"key", "params", "result"} and record["key"] == files[0].stem
+    assert not list((tmp_path / "out" / "runs").glob(".*"))  # no temporary files left
+
+
+def test_run_sweep_jobs_1_and_2_give_identical_rows(tmp_path):
+    serial = run_sweep(toy, POINTS, tmp_path / "a", seed=11, jobs=1, progress=False)
+    parallel = run_sweep(toy, POINTS, tmp_path / "b", seed=11, jobs=2, progress=False)
+    assert serial == parallel
+    # Same rows when the points are given in another order: seeds don't depend on order.
+    shuffled = run_sweep(toy, POINTS[::-1], tmp_path / "c", seed=11, progress=False)
+    assert shuffled[::-1] == serial
+
+
+def test_run_sweep_old_joblib_without_generators(tmp_path, monkeypatch):
+    import joblib
+
+    real = joblib.Parallel
+    used = []
+
+    def old_parallel(*args, **kwargs):
+        if "return_as" in kwargs:
+            raise TypeError("unexpected keyword argument 'return_as'")
+        used.append(kwargs)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(joblib, "Parallel", old_parallel)
+    rows = run_sweep(toy, POINTS, tmp_path / "old", seed=11, jobs=2, progress=False)
+    assert used == [{"n_jobs": 2}]
+    assert rows == run_sweep(toy, POINTS, tmp_path / "new", seed=11, progress=False)
+
+
+def test_run_sweep_explicit_seed_is_kept(tmp_path):
+    points = expand_grid({}, {"x": [1], "seed": [5, 6]})
+    rows = run_sweep(toy, points, tmp_path, seed=0, progress=False)
+    assert [row["seed"] for row in rows] == [5, 6]
+    rng = np.random.default_rng(5)
+    assert rows[0]["value"] == 10.0 + rng.normal()
+
+
+def test_run_sweep_resumes_after_interruption(tmp_path):
+    calls_dir = tmp_path / "calls"
+    out = tmp_path / "out"
+    points = expand_grid({}, {"x": [1, 2, 3, 4]})
+    func = functools.partial(interrupting, calls_dir=str(calls_dir), stop_x=3)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(func, points, out, progress=False)
+    assert sorted(c["x"] for c in calls(calls_dir)) == [1, 2]
+    assert len(list((out / "runs").glob("*.json"))) == 2  # finished runs were kept
+
+    for f in calls_dir.iterdir():
+        f.unlink()
+    func = functools.partial(counting, calls_dir=str(calls_dir))
+    rows = run_sweep(func, points, out, progress=False)
+    assert sorted(c["x"] for c in calls(calls_dir)) == [3, 4]  # only the missing points
+    assert [row["x"] for row in rows] == [1, 2, 3, 4] and all("error" not in r for r in rows)
+    assert rows == run_sweep(toy, points, tmp_path / "fresh", progress=False)
+
+    for f in calls_dir.iterdir():
+        f.unlink()
+    assert run_sweep(func, points, out, progress=False) == rows
+    assert calls(calls_dir) == []  # fully cached: nothing recomputed
+
+
+def test_run_sweep_failures_are_recorded_not_cached_and_retried(tmp_path):
+    calls_dir = tmp_path / "calls"
+    out = tmp_path / "out"
+    points = expand_grid({}, {"x": [1, 2, 3]})
+    func = functools.partial(counting, calls_dir=str(calls_dir), fail_x=2)
+    rows = run_sweep(func, points, out, progress=False)
+    assert rows[1]["error"] == "ValueError: bad x 2"
+    assert rows[1]["x"] == 2 and "value" not in rows[1]
+    assert "error" not in rows[0] and "error" not in rows[2]
+    assert len(list((out / "runs").glob("*.json"))) == 2
+
+    for f in calls_dir.iterdir():
+        f.unlink()
+    rows = run_sweep(functools.partial(counting, calls_dir=str(calls_dir)), points, out)
+    assert [c["x"] for c in calls(calls_dir)] == [2]  # only the failed point is retried
+    assert all("error" not in row for row in rows)
+
+
+def test_run_sweep_bad_results_are_failures(tmp_path):
+    rows = run_sweep(not_a_dict, [{"x": 1}], tmp_path / "a", progress=False)
+    assert rows[0]["error"] == "TypeError: func returned list, expected a dict"
+    rows = run_sweep(unserializable, [{"x": 1}], tmp_path / "b", progress=False)
+    assert rows[0]["error"].startswith("TypeError: result.obj has unsupported type object")
+    assert not list((tmp_path / "b" / "runs").glob("*.json"))
+
+
+def test_run_sweep_failures_with_jobs_2(tmp_path):
+    func = functools.partial(counting, calls_dir=str(tmp_path / "calls"), fail_x=2)
+    rows = run_sweep(func, POINTS, tmp_path / "out", jobs=2, progress=False)
+    assert [("error" in row) for row in rows] == [x == 2 for x in (1, 1, 2, 2, 3, 3)]
+    assert len(list((tmp_path / "out" / "runs").glob("*.json"))) == 4
+
+
+def test_run_sweep_recomputes_mismatched_or_corrupt_cache(tmp_path):
+    calls_dir = tmp_path / "calls"
+    func = functools.partial(counting, calls_dir=str(calls_dir))
+    points = expand_grid({}, {"x": [1, 2, 3]})
+    first = run_sweep(func, points, tmp_path, progress=False)
+    files = {json.loads(f.read_text())["params"]["x"]: f for f in (tmp_path / "runs").iterdir()}
+    record = json.loads(files[1].read_text())
+    record["params"]["x"] = 10  # edited (or a hash collision)
+    record["result"]["value"] = -1.0
+    files[1].write_text(json.dumps(record))
+    files[2].write_text('{"params": ')  # truncated by hand
+    for f in calls_dir.iterdir():
+        f.unlink()
+    second = run_sweep(func, points, tmp_path, progress=False)
+    assert sorted(c["x"] for c in calls(calls_dir)) == [1, 2]
+    assert second == first
+    assert json.loads(files[1].read_text())["params"]["x"] == 1  # repaired
+
+
+def test_run_sweep_duplicate_points_computed_once(tmp_path):
+    calls_dir = tmp_path / "calls"
+    func = functools.partial(counting, calls_dir=str(calls_dir))
+    rows = run_sweep(func, [{"x": 1}, {"x": 1}], tmp_path, progress=False)
+    assert len(calls(calls_dir)) == 1 and rows[0] == rows[1] and rows[0] is not rows[1]
+
+
+def test_run_sweep_progress_bar_when_not_a_tty(tmp_path, capsys):
+    rows = run_sweep(toy, POINTS[:2], tmp_path, progress=True)
+    assert len(rows) == 2 and "error" not in rows[0]
+    assert "sweep" not in capsys.readouterr().err  # disabled: stderr is not a terminal
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "points", "match"),
+    [
+        ({"jobs": 0}, [{"x": 1}], "jobs must be >= 1"),
+        ({"jobs": "2"}, [{"x": 1}], "jobs must be an integer"),
+        ({"seed": 1.5}, [{"x": 1}], "seed must be an integer"),
+        ({}, [{"x": 1}, 3], "point 1 must be a dict"),
+        ({}, [{"x": {1, 2}}], "point 0.x has unsupported type set"),
+        ({"scheduler": 42}, [{"x": 1}], "scheduler must be an address"),
+    ],
+)
+def test_run_sweep_rejects_bad_input(tmp_path, kwargs, points, match):
+    with pytest.raises(ConfigError, match=match):
+        run_sweep(toy, points, tmp_path, progress=False, **kwargs)
+
+
+def test_run_sweep_out_dir_created_or_rejected(tmp_path):
+    out = tmp_path / "deep" / "out"
+    run_sweep(toy, [{"x": 1}], out, progress=False)
+    assert len(list((out / "runs").glob("*.json"))) == 1
+    a_file = tmp_path / "file"
+    a_file.write_text("")
+    with pytest.raises(ConfigError, match="not a folder"):
+        run_sweep(toy, [{"x": 1}], a_file, progress=False)
+
+
+# ---------------------------------------------------------------------------------------------
+# run_sweep: Dask
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def dask_cluster():
+    distributed = pytest.importorskip("distributed")
+    cluster = distributed.LocalCluster(
+        n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None
+    )
+    try:
+        yield cluster
+    finally:
+        cluster.close()
+
+
+def test_run_sweep_on_dask_matches_local(tmp_path, dask_cluster):
+    import distributed
+
+    local = run_sweep(toy, POINTS, tmp_path / "local", seed=4, progress=False)
+    with distributed.Client(dask_cluster) as client:
+        on_client = run_sweep(
+            toy, POINTS, tmp_path / "client", seed=4, scheduler=client, progress=False
+        )
+        assert client.status == "running"  # a client we were given is not closed
+    assert on_client == local
+    on_cluster = run_sweep(
+        toy, POINTS, tmp_path / "cluster", seed=4, scheduler=dask_cluster, progress=False
+    )
+    assert on_cluster == local
+    address = dask_cluster.scheduler_address
+    by_address = run_sweep(toy, POINTS, tmp_path / "addr", seed=4, scheduler=address)
+    assert by_address == local
+    assert len(list((tmp_path / "addr" / "runs").glob("*.json"))) == len(POINTS)
+
+
+def test_run_sweep_on_dask_records_failures_and_resumes(tmp_path, dask_cluster):
+    calls_dir = tmp_path / "calls"
+    func = functools.partial(counting, calls_dir=str(calls_dir), fail_x=3)
+    rows = run_sweep(func, POINTS, tmp_path / "out", scheduler=dask_cluster, progress=False)
+    assert [row.get("error") for row in rows][-2:] == ["ValueError: bad x 3"] * 2
+    for f in calls_dir.iterdir():
+        f.unlink()
+    run_sweep(func, POINTS, tmp_path / "out", scheduler=dask_cluster, progress=False)
+    assert sorted(c["x"] for c in calls(calls_dir)) == [3, 3]
+
+
+def test_run_sweep_without_dask_installed(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    with pytest.raises(ConfigError, match=r"install spslidar\[dask\]"):
+        run_sweep(toy, [{"x": 1}], tmp_path, scheduler="tcp://127.0.0.1:1", progress=False)
+    # Fully cached sweeps and local runs never need dask.
+    assert run_sweep(toy, [{"x": 1}], tmp_path, progress=False)[0]["x"] == 1
+
+
+def test_run_sweep_empty_scheduler_address(tmp_path):
+    pytest.importorskip("distributed")
+    with pytest.raises(ConfigError, match="scheduler must be an address"):
+        run_sweep(toy, [{"x": 1}], tmp_path, scheduler=" ", progress=False)
+
+
+# ---------------------------------------------------------------------------------------------
+# TOML sweep configs
+# ---------------------------------------------------------------------------------------------
+
+GOOD_TOML = """\
+seed = 1
+trials = 3
+[base]          # any `spslidar run` config keys
+size = 32
+[base.scene]
+depth = 2.5
+[grid]          # each key a list of values
+noise = [1, 5, 10]
+code_length = [1023, 4095]
+"""
+
+
+def test_load_sweep_config(tmp_path):
+    path = tmp_path / "sweep.toml"
+    path.write_text(GOOD_TOML)
+    spec = load_sweep_config(path)
+    assert spec == SweepSpec(
+        seed=1,
+        trials=3,
+        base={"size": 32, "scene": {"depth": 2.5}},
+        grid={"noise": [1, 5, 10], "code_length": [1023, 4095]},
+        path=path,
+    )
+    points = spec.points()
+    assert len(points) == 3 * 2 * 3
+    assert points[0] == {
+        "size": 32,
+        "scene": {"depth": 2.5},
+        "noise": 1,
+        "code_length": 1023,
+        "trial": 0,
+    }
+    minimal = tmp_path / "minimal.toml"
+    minimal.write_text("[base]\nsize = 8\n")
+    assert load_sweep_config(str(minimal)).points() == [{"size": 8, "trial": 0}]
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("seed = 1\n[base\nsize = 3\n", r"sweep\.toml: invalid TOML: .*line 2"),
+        ("[grid]\nnoise = 5\n", r"sweep\.toml: grid\.noise must be a non-empty list"),
+        ("[grid]\nnoise = []\n", r"grid\.noise must be a non-empty list"),
+        ("[grid]\nnoise = 'abc'\n", r"grid\.noise must be a non-empty list"),
+        ("[grid]\ntrial = [1, 2]\n", "reserved"),
+        ("[base]\ntrial = 1\n", "reserved"),
+        ("[scene]\nsize = 3\n", r"unknown top-level table 'scene' \(allowed"),
+        ("trails = 3\n", "unknown top-level key 'trails'"),
+        ("seed = 'x'\n", "seed must be an integer"),
+        ("seed = 1.5\n", "seed must be an integer"),
+        ("trials = 0\n", "trials must be >= 1"),
+        ("trials = true\n", "trials must be an integer"),
+        ("base = 3\n", "base must be a table"),
+        ("grid = [1, 2]\n", "grid must be a table"),
+        ("trials = 2\n[base]\nseed = 4\n", "base.seed gives every trial the same noise"),
+    ],
+)
+def test_load_sweep_config_rejects_bad_files(tmp_path, text, match):
+    path = tmp_path / "sweep.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=match) as info:
+        load_sweep_config(path)
+    assert "\n" not in str(info.value)
+
+
+def test_load_sweep_config_missing_unreadable(tmp_path):
+    with pytest.raises(ConfigError, match="sweep config not found: .*nope.toml"):
+        load_sweep_config(tmp_path / "nope.toml")
+    with pytest.raises(ConfigError, match="is a directory"):
+        load_sweep_config(tmp_path)
+    binary = tmp_path / "bin.toml"
+    binary.write_bytes(b"\xff\xfe\x00")
+    with pytest.raises(ConfigError, match="cannot read sweep config"):
+        load_sweep_config(binary)
+
+
+def test_base_seed_allowed_with_one_trial(tmp_path):
+    path = tmp_path / "sweep.toml"
+    path.write_text("[base]\nseed = 4\n[grid]\nx = [1, 2]\n")
+    rows = run_sweep(toy, load_sweep_config(path).points(), tmp_path / "out", progress=False)
+    assert [row["seed"] for row in rows] == [4, 4]
+
+
+# ---------------------------------------------------------------------------------------------
+# write_csv and sweep_main
+# ---------------------------------------------------------------------------------------------
+
+
+def read_csv(path: Path) -> tuple[list[str], list[dict[str, str]]]:
+    with open(path, newline="") as fh:
+        reader = csv.DictReader(fh)
+        return list(reader.fieldnames or []), list(reader)
+
+
+def test_write_csv_columns_and_flattening(tmp_path):
+    rows = [
+        {"x": 1, "error": "ValueError: boom", "scene": {"depth": 2.5}},
+        {"x": 2, "scene": {"depth": 3.0, "albedo": {"r": 0.5}}, "curve": [1, 2], "rmse": 0.1},
+        {"x": np.int64(3), "rmse": np.float64(0.30000000000000004), "note": None, "flag": True},
+    ]
+    path = write_csv(rows, tmp_path / "r.csv")
+    columns, data = read_csv(path)
+    assert columns == [
+        "x",
+        "scene.depth",
+        "scene.albedo.r",
+        "curve",
+        "rmse",
+        "note",
+        "flag",
+        "error",
+    ]
+    assert len(data) == 3
+    assert data[0]["error"] == "ValueError: boom" and data[0]["rmse"] == ""
+    assert data[1]["scene.albedo.r"] == "0.5" and json.loads(data[1]["curve"]) == [1, 2]
+    assert data[2]["x"] == "3" and float(data[2]["rmse"]) == 0.30000000000000004
+    assert data[2]["note"] == "" and data[2]["flag"] == "True"
+    assert [p.name for p in tmp_path.iterdir()] == ["r.csv"]  # no temporary file left
+
+
+def test_write_csv_rejects_clashing_columns_and_keeps_old_file(tmp_path):
+    path = tmp_path / "r.csv"
+    path.write_text("old\n")
+    with pytest.raises(ConfigError, match="appears twice"):
+        write_csv([{"a.b": 1, "a": {"b": 2}}], path)
+    with pytest.raises(ConfigError, match="row 0 must be a dict"):
+        write_csv([[1, 2]], path)
+    assert path.read_text() == "old\n"
+
+
+def test_sweep_main_writes_results_and_counts_failures(tmp_path, capsys):
+    config = tmp_path / "sweep.toml"
+    config.write_text("seed = 2\ntrials = 2\n[base]\nsize = 8\n[grid]\nx = [1, 2, 3]\n")
+    out = tmp_path / "out"
+    func = functools.partial(counting, calls_dir=str(tmp_path / "calls"), fail_x=2)
+    failures = sweep_main(config, out, progress=False, func=func)
+    assert failures == 2
+    err = capsys.readouterr().err
+    assert "6 runs, 4 ok, 2 failed" in err and "x=2" in err and "ValueError: bad x 2" in err
+    columns, data = read_csv(out / "results.csv")
+    assert columns[:4] == ["size", "x", "trial", "seed"] and columns[-1] == "error"
+    assert "stats.mean" in columns and "value" in columns
+    assert [d["error"] != "" for d in data] == [False, False, True, True, False, False]
+    expected = run_sweep(toy, load_sweep_config(config).points(), tmp_path / "o2", seed=2)
+    assert [float(d["value"]) for d in data if not d["error"]] == [
+        r["value"] for r in expected if r["x"] != 2
+    ]
+    assert sweep_main(config, out, progress=False, jobs=2, func=toy) == 0
+
+
+def test_sweep_main_interrupted_writes_no_csv(tmp_path):
+    config = tmp_path / "sweep.toml"
+    config.write_text("[grid]\nx = [1, 2, 3]\n")
+    func = functools.partial(interrupting, calls_dir=str(tmp_path / "calls"), stop_x=2)
+    with pytest.raises(KeyboardInterrupt):
+        sweep_main(config, tmp_path / "out", progress=False, func=func)
+    assert not (tmp_path / "out" / "results.csv").exists()
+    assert len(list((tmp_path / "out" / "runs").glob("*.json"))) == 1
+
+
+# ---------------------------------------------------------------------------------------------
+# run_point (needs the lead's spslidar.pipeline)
+# ---------------------------------------------------------------------------------------------
+
+
+def test_run_point_calls_pipeline_run_metrics(monkeypatch):
+    pipeline = pytest.importorskip("spslidar.pipeline")
+    if not hasattr(pipeline, "run_metrics"):
+        pytest.skip("spslidar.pipeline.run_metrics not written yet")
+    seen = []
+
+    def fake(config):
+        seen.append(config)
+        return {"depth_rmse_m": 0.5}
+
+    monkeypatch.setattr(pipeline, "run_metrics", fake)
+    assert run_point({"size": 8, "seed": 3, "trial": 1}) == {"depth_rmse_m": 0.5}
+    assert seen == [{"size": 8, "seed": 3}]  # trial is folded into the seed, not passed on
+    assert sweep.run_point is run_point
+
+
+def test_run_point_runs_the_real_pipeline():
+    pipeline = pytest.importorskip("spslidar.pipeline")
+    if not hasattr(pipeline, "run_metrics"):
+        pytest.skip("spslidar.pipeline.run_metrics not written yet")
+    metrics = run_point({"size": 16, "seed": derive_seed(0, {"size": 16}), "trial": 0})
+    assert np.isfinite(metrics["depth_rmse_m"]) and metrics["depth_rmse_m"] >= 0
+    json.dumps(metrics)  # cacheable as is
