@@ -101,8 +101,7 @@ class Monitor:
                 if abs(prev - obj) <= stop.obj_rtol * max(abs(obj), 1e-300):
                     return "obj_rtol"
         if x_old is not None and stop.rtol > 0 and it > 1:
-            dx = np.linalg.norm(x - x_old)
-            if dx <= stop.rtol * max(np.linalg.norm(x), 1e-300):
+            if _norm(x - x_old) <= stop.rtol * max(_norm(x), 1e-300):
                 return "rtol"
         if stop.max_time is not None and time.perf_counter() - self.t0 >= stop.max_time:
             return "max_time"
@@ -114,6 +113,13 @@ class Monitor:
         self.info.stop_reason = reason or "max_iter"
         self.info.time_s = time.perf_counter() - self.t0
         return self.info
+
+
+def _norm(a: np.ndarray) -> float:
+    """Euclidean norm accumulated in float64 without BLAS (whose threaded float64 dot product
+    is pathologically slow under load on small machines)."""
+    a = np.asarray(a).ravel()
+    return float(np.sqrt(np.einsum("i,i->", a, a, dtype=np.float64)))
 
 
 def as_block(y: np.ndarray) -> tuple[np.ndarray, bool]:

@@ -1,0 +1,289 @@
+"""FISTA and TwIST on eq. (18): against scikit-learn's Lasso, scikit-image and PyProximal."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import spslidar.solvers.fista
+import spslidar.solvers.twist  # noqa: F401 - registers the solvers
+from spslidar.operators import Identity, MatrixOperator
+from spslidar.solvers import StopRule, available_solvers, solve
+from spslidar.solvers.fista import FISTA, fista
+from spslidar.solvers.regularisers import L1, TV, Zero
+from spslidar.solvers.twist import TwIST, twist, twist_parameters
+
+SOLVERS = {"fista": fista, "twist": twist}
+
+
+def _objective(A: np.ndarray, x, y, reg, lam) -> float:
+    return 0.5 * float(np.sum((A @ x - y) ** 2)) + lam * reg(x)
+
+
+# -- problems -------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def lasso():
+    """60 x 120 Gaussian problem with a sparse truth, K = 3 columns."""
+    rng = np.random.default_rng(0)
+    m, n, k = 60, 120, 3
+    A = rng.standard_normal((m, n)) / np.sqrt(m)
+    x_true = np.zeros((n, k))
+    for j in range(k):
+        x_true[rng.choice(n, 8, replace=False), j] = 2 * rng.standard_normal(8)
+    y = A @ x_true + 0.05 * rng.standard_normal((m, k))
+    lam = 0.1 * float(np.abs(A.T @ y).max())
+    return A, y, lam
+
+
+@pytest.fixture(scope="module")
+def lasso_fista(lasso):
+    A, y, lam = lasso
+    x, info = fista(MatrixOperator(A), y, L1(), lam, stop=StopRule(3000, rtol=1e-12), restart=True)
+    return x, info
+
+
+@pytest.fixture(scope="module")
+def tv_problem():
+    """16 x 16 piecewise-constant images, 128 Gaussian measurements, K = 3 columns."""
+    rng = np.random.default_rng(1)
+    ny = nx = 16
+    n, m, k = ny * nx, 128, 3
+    A = rng.standard_normal((m, n)) / np.sqrt(m)
+    x = np.zeros((ny, nx, k))
+    x[3:10, 4:12, 0] = 1
+    x[6:14, 2:8, 1] = 2
+    x[:, 9:, 2] = 1
+    x[2:5, 2:5, 2] = -1
+    y = A @ x.reshape(n, k) + 0.05 * rng.standard_normal((m, k))
+    return A, y, 0.1, (ny, nx)
+
+
+def _tv(shape, **kw):
+    kw.setdefault("inner_tol", 1e-4)
+    kw.setdefault("max_inner", 100)
+    return TV(shape, **kw)
+
+
+@pytest.fixture(scope="module")
+def tv_fista(tv_problem):
+    A, y, lam, shape = tv_problem
+    return fista(MatrixOperator(A), y, _tv(shape), lam, stop=StopRule(400, rtol=0), restart=True)
+
+
+# -- FISTA ------------------------------------------------------------------------------------
+def test_fista_lasso_vs_sklearn(lasso, lasso_fista):
+    from sklearn.linear_model import Lasso
+
+    A, y, lam = lasso
+    x, info = lasso_fista
+    m = A.shape[0]
+    # sklearn minimises 1/(2 m) ||y - A w||^2 + alpha ||w||_1  ->  alpha = lam / m
+    ref = np.stack(
+        [
+            Lasso(alpha=lam / m, fit_intercept=False, tol=1e-12, max_iter=100_000)
+            .fit(A, y[:, j])
+            .coef_
+            for j in range(y.shape[1])
+        ],
+        axis=1,
+    )
+    ours, theirs = _objective(A, x, y, L1(), lam), _objective(A, ref, y, L1(), lam)
+    assert ours == pytest.approx(theirs, rel=1e-3)
+    assert ours <= theirs * (1 + 1e-9)
+    assert info.objective[-1] == pytest.approx(ours, rel=1e-9)
+    # first-order optimality: -A^T(Ax - y) in lam * subdifferential of ||x||_1
+    g = A.T @ (A @ x - y)
+    assert np.all(np.abs(g) <= lam * (1 + 1e-6))
+    support = np.abs(x) > 1e-8
+    assert support.sum() > 0
+    np.testing.assert_allclose(g[support], -lam * np.sign(x[support]), rtol=1e-6)
+
+
+def test_fista_identity_tv_is_denoising():
+    from skimage.restoration import denoise_tv_chambolle
+
+    rng = np.random.default_rng(2)
+    img = np.zeros((20, 24))
+    img[5:15, 6:18] = 1
+    f = img + 0.2 * rng.standard_normal(img.shape)
+    lam = 0.15
+    reg = _tv(f.shape, inner_tol=1e-6, max_inner=500)
+    x, _ = fista(Identity(f.size), f.ravel(), reg, lam, stop=StopRule(20, rtol=0))
+    s = denoise_tv_chambolle(f, weight=lam, eps=1e-7, max_num_iter=5000)
+    ours = _objective(np.eye(f.size), x, f.ravel(), reg, lam)
+    theirs = _objective(np.eye(f.size), s.ravel(), f.ravel(), reg, lam)
+    assert ours <= theirs * (1 + 1e-3)
+    assert ours == pytest.approx(theirs, rel=1e-3)
+
+
+def test_fista_tv_vs_pyproximal(tv_problem, tv_fista):
+    pyproximal = pytest.importorskip("pyproximal")
+    pylops = pytest.importorskip("pylops")
+    from pyproximal.optimization.primal import ProximalGradient
+
+    A, y, lam, shape = tv_problem
+    x, info = tv_fista
+    L = info.extra["L"]
+    cols = []
+    for j in range(y.shape[1]):
+        f = pyproximal.L2(Op=pylops.MatrixMult(A), b=y[:, j])
+        # TV(sigma).prox(v, tau) = argmin 1/2||z - v||^2 + sigma tau TV(z): sigma = lam
+        g = pyproximal.TV(dims=shape, sigma=lam, niter=30, rtol=1e-10)
+        cols.append(
+            ProximalGradient(
+                f, g, x0=np.zeros(A.shape[1]), tau=1 / L, niter=60, acceleration="fista"
+            )
+        )
+    ref = np.stack(cols, axis=1)
+    reg = TV(shape)
+    ours, theirs = _objective(A, x, y, reg, lam), _objective(A, ref, y, reg, lam)
+    assert ours <= theirs * (1 + 1e-3)
+    assert ours == pytest.approx(theirs, rel=1e-3)
+    assert info.objective[-1] == pytest.approx(ours, rel=1e-9)
+
+
+def test_fista_monotone_and_restart(tv_problem, tv_fista):
+    A, y, lam, shape = tv_problem
+    best = tv_fista[1].objective[-1]
+    _, info = fista(
+        MatrixOperator(A), y, _tv(shape), lam, stop=StopRule(300, rtol=0), monotone=True
+    )
+    obj = np.array(info.objective)
+    assert np.all(np.diff(obj) <= 0)
+    assert obj[-1] == pytest.approx(best, rel=1e-3)
+    _, info = fista(
+        MatrixOperator(A),
+        y,
+        _tv(shape),
+        lam,
+        stop=StopRule(300, rtol=0),
+        monotone=True,
+        restart=True,
+    )
+    assert np.all(np.diff(info.objective) <= 0)
+    assert info.objective[-1] == pytest.approx(best, rel=1e-3)
+
+
+def test_fista_least_squares_zero_regulariser():
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((40, 10))
+    y = rng.standard_normal(40)
+    x, info = fista(MatrixOperator(A), y, Zero(), 0.0, stop=StopRule(2000, rtol=1e-12))
+    np.testing.assert_allclose(x, np.linalg.lstsq(A, y, rcond=None)[0], atol=1e-8)
+    xn, _ = fista(MatrixOperator(A), y, Zero(nonneg=True), 0.0, stop=StopRule(50, rtol=0))
+    assert xn.min() >= 0
+
+
+# -- TwIST ------------------------------------------------------------------------------------
+def test_twist_parameters():
+    alpha, beta = twist_parameters(1e-4, 1.0)
+    rho = (1 - 1e-4) / (1 + 1e-4)
+    assert alpha == pytest.approx(2 / (1 + np.sqrt(1 - rho**2)))
+    assert beta == pytest.approx(2 * alpha / (1 + 1e-4))
+    assert twist_parameters(1.0, 1.0) == pytest.approx((1.0, 1.0))  # plain IST
+    with pytest.raises(ValueError):
+        twist_parameters(0.0)
+
+
+def test_twist_lasso_matches_fista(lasso, lasso_fista):
+    A, y, lam = lasso
+    x, info = twist(MatrixOperator(A), y, L1(), lam, stop=StopRule(500, rtol=1e-12))
+    best = lasso_fista[1].objective[-1]
+    assert info.objective[-1] == pytest.approx(best, rel=1e-3)
+    assert _objective(A, x, y, L1(), lam) == pytest.approx(info.objective[-1], rel=1e-9)
+    assert np.all(np.diff(info.objective) <= 0)  # monotone variant
+    # plain (non-monotone) TwIST reaches it too
+    _, info = twist(MatrixOperator(A), y, L1(), lam, stop=StopRule(500, rtol=0), monotone=False)
+    assert info.objective[-1] == pytest.approx(best, rel=1e-3)
+
+
+def test_twist_tv_matches_fista(tv_problem, tv_fista):
+    A, y, lam, shape = tv_problem
+    x, info = twist(MatrixOperator(A), y, _tv(shape), lam, stop=StopRule(200, rtol=0))
+    assert info.objective[-1] == pytest.approx(tv_fista[1].objective[-1], rel=1e-3)
+    assert np.all(np.diff(info.objective) <= 0)
+    assert info.extra["alpha"] > 1 and info.extra["beta"] > info.extra["alpha"]
+
+
+@pytest.mark.parametrize("kind", ["wavelet", "tv_nonneg"])
+def test_twist_and_fista_agree_other_regularisers(kind, tv_problem):
+    from spslidar.operators import Wavelet2D
+
+    A, y, lam, shape = tv_problem
+    make = {
+        "wavelet": lambda: L1(Wavelet2D(shape, "haar")),
+        "tv_nonneg": lambda: _tv(shape, nonneg=True),
+    }[kind]
+    xf, info_f = fista(MatrixOperator(A), y, make(), lam, stop=StopRule(400, rtol=0), restart=True)
+    xt, info_t = twist(MatrixOperator(A), y, make(), lam, stop=StopRule(300, rtol=0))
+    assert info_t.objective[-1] == pytest.approx(info_f.objective[-1], rel=1e-3)
+    assert np.all(np.diff(info_t.objective) <= 0)
+    if kind == "tv_nonneg":
+        assert xf.min() >= 0 and xt.min() >= 0
+
+
+# -- common behaviour -------------------------------------------------------------------------
+@pytest.mark.parametrize("name", ["fista", "twist"])
+def test_stop_rules(name, lasso, lasso_fista):
+    A, y, lam = lasso
+    op = MatrixOperator(A)
+    run = SOLVERS[name]
+    _, info = run(op, y, L1(), lam, stop=StopRule(max_iter=7, rtol=0))
+    assert info.iterations == 7 and info.stop_reason == "max_iter"
+    assert len(info.objective) == 7 and info.solver == name
+    _, info = run(op, y, L1(), lam, stop=StopRule(max_iter=5000, rtol=1e-3))
+    assert info.stop_reason == "rtol" and 1 < info.iterations < 5000
+    target = lasso_fista[1].objective[-1] * 1.01
+    _, info = run(op, y, L1(), lam, stop=StopRule(max_iter=5000, rtol=0, target=target))
+    assert info.stop_reason == "target" and info.objective[-1] <= target
+    _, info = run(op, y, L1(), lam, stop=StopRule(max_iter=5000, rtol=0, max_time=1e-9))
+    assert info.stop_reason == "max_time" and info.iterations == 1
+    _, info = run(op, y, L1(), lam, stop=StopRule(max_iter=5000, rtol=0, obj_rtol=1e-6))
+    assert info.stop_reason == "obj_rtol"
+
+
+@pytest.mark.parametrize("name", ["fista", "twist"])
+def test_batched_equals_separate(name, lasso, tv_problem):
+    run = SOLVERS[name]
+    A, y, lam = lasso
+    stop = StopRule(150, rtol=0)
+    xb, _ = run(MatrixOperator(A), y, L1(), lam, stop=stop)
+    for j in range(y.shape[1]):
+        xj, _ = run(MatrixOperator(A), y[:, j], L1(), lam, stop=stop)
+        assert xj.shape == (A.shape[1],)
+        np.testing.assert_allclose(xb[:, j], xj, atol=1e-8)
+    A, y, lam, shape = tv_problem
+    stop = StopRule(30, rtol=0)
+    tight = dict(inner_tol=1e-6, max_inner=300)  # inner stop test is over the whole block
+    xb, _ = run(MatrixOperator(A), y, _tv(shape, **tight), lam, stop=stop)
+    for j in range(y.shape[1]):
+        xj, _ = run(MatrixOperator(A), y[:, j], _tv(shape, **tight), lam, stop=stop)
+        np.testing.assert_allclose(xb[:, j], xj, atol=1e-5)
+
+
+@pytest.mark.parametrize("name", ["fista", "twist"])
+def test_float32_stays_float32(name, tv_problem):
+    A, y, lam, shape = tv_problem
+    op = MatrixOperator(A, dtype=np.float32)
+    x, info = SOLVERS[name](op, y, _tv(shape), lam, stop=StopRule(30, rtol=0))
+    assert x.dtype == np.float32
+    _, info64 = SOLVERS[name](MatrixOperator(A), y, _tv(shape), lam, stop=StopRule(30, rtol=0))
+    assert info.objective[-1] == pytest.approx(info64.objective[-1], rel=1e-3)
+    x0 = np.ones((A.shape[1], y.shape[1]))
+    x, _ = SOLVERS[name](op, y[:, 0], L1(), lam, x0=x0[:, 0], stop=StopRule(3, rtol=0))
+    assert x.dtype == np.float32 and x.shape == (A.shape[1],)
+
+
+def test_registry_dispatch(lasso):
+    A, y, lam = lasso
+    assert {"fista", "twist"} <= set(available_solvers())
+    for name, cls in (("fista", FISTA), ("twist", TwIST)):
+        x, info = solve(MatrixOperator(A), y, L1(), lam, name, stop=StopRule(5, rtol=0))
+        assert info.solver == cls.name == name and x.shape == (A.shape[1], y.shape[1])
+        with pytest.raises(TypeError):
+            solve(MatrixOperator(A), y, L1(), lam, name, bogus=1)
+    # L= is honoured (and a bad one is refused)
+    _, info = solve(MatrixOperator(A), y, L1(), lam, "fista", stop=StopRule(2), L=123.0)
+    assert info.extra["L"] == 123.0
+    with pytest.raises(ValueError):
+        solve(MatrixOperator(A), y, L1(), lam, "twist", L=0.0)
