@@ -1,3 +1,23 @@
-"""spslidar: the pseudo-random spread-spectrum single-pixel photon-counting ToF lidar."""
+"""spslidar: the pseudo-random spread-spectrum single-pixel photon-counting ToF lidar.
+
+``spslidar.run(config) -> Result`` runs one simulated acquisition and reconstruction end to
+end; ``measure`` and ``reconstruct`` split it so one measurement can be reconstructed several
+ways. The submodules follow the physics chain (see README.md). Heavy modules are imported on
+first use, so ``import spslidar`` stays light.
+"""
 
 __version__ = "0.1.0"
+
+__all__ = ["Config", "Result", "measure", "reconstruct", "run", "__version__"]
+
+
+def __getattr__(name):
+    if name in ("run", "measure", "reconstruct", "Result"):
+        from . import pipeline
+
+        return getattr(pipeline, name)
+    if name == "Config":
+        from .config import Config
+
+        return Config
+    raise AttributeError(f"module 'spslidar' has no attribute {name!r}")

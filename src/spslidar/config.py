@@ -42,7 +42,7 @@ class Config:
     code: str = "mseq"
     code_length: int = 16383
     ones_ratio: float = 0.5
-    code_index: int = 0
+    code_index: int | None = None
     bit_rate: float = 10e9
     pulse_width: float = 0.5
     rep_rate: float | None = None
@@ -73,7 +73,7 @@ class Config:
     iterations: int | None = None
     tol: float = 1e-4
     subbin: bool = False
-    nonneg: bool = False
+    nonneg: bool = True
     dtype: str = "float32"
     seed: int = 0
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
@@ -168,7 +168,7 @@ class Config:
                               f"({self.depth_max})")
         number("code_length", 2, 2**24, integer=True)
         number("ones_ratio", 0, 1, lo_open=True, hi_open=True)
-        number("code_index", 0, integer=True)
+        number("code_index", 0, integer=True, optional=True)
         number("bit_rate", 0, lo_open=True)
         number("pulse_width", 0, 1, lo_open=True)
         number("rep_rate", 0, lo_open=True, optional=True)
