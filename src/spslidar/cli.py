@@ -103,8 +103,9 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--iterations", type=int, default=S, metavar="K",
                    help="maximum solver iterations")
     g.add_argument("--tol", type=float, default=S, help="relative-change stopping tolerance")
-    g.add_argument("--nonneg", action="store_true", default=S,
-                   help="constrain the reconstruction to be non-negative")
+    g.add_argument("--nonneg", action=argparse.BooleanOptionalAction, default=S,
+                   help="constrain the reconstructed return strengths to be non-negative "
+                        "(default on; physical, since photon returns cannot be negative)")
     g.add_argument("--subbin", action="store_true", default=S,
                    help="refine the ML peak by a three-bin centroid")
     g.add_argument("--dtype", choices=("float32", "float64"), default=S)
@@ -130,6 +131,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--no-figure", action="store_true", help="skip depth.png")
     _add_run_options(p)
+    from .snr import add_snr_parser
+
+    add_snr_parser(sub)
     return parser
 
 
@@ -151,7 +155,13 @@ def _cmd_run(args) -> int:
     return 0
 
 
-COMMANDS = {"run": _cmd_run}
+def _cmd_snr(args) -> int:
+    from .snr import cmd_snr
+
+    return cmd_snr(args)
+
+
+COMMANDS = {"run": _cmd_run, "snr": _cmd_snr}
 
 
 def main(argv: list[str] | None = None) -> int:
