@@ -1,0 +1,290 @@
+"""Tests of ``spslidar reproduce`` (spslidar.experiments.reproduce and .report)."""
+
+from __future__ import annotations
+
+import csv
+import functools
+import pickle
+from pathlib import Path
+
+import pytest
+
+from spslidar.errors import ConfigError
+from spslidar.experiments import reproduce
+from spslidar.experiments.report import Claim, build_report, markdown_to_html, md_table
+from spslidar.experiments.reproduce import EXPERIMENTS, reproduce_main
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="", encoding="utf-8") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _stamps(folder: Path) -> dict[str, int]:
+    return {p.name: p.stat().st_mtime_ns for p in sorted(folder.iterdir())}
+
+
+@pytest.fixture(scope="module")
+def quick_dir(tmp_path_factory) -> Path:
+    """fig3 then fig2, quick, into one report folder (fig3 first: the report must reorder)."""
+    out = tmp_path_factory.mktemp("repro")
+    assert reproduce_main("fig3", out, quick=True, progress=False) == 0
+    assert reproduce_main("fig2", out, quick=True, progress=False) == 0
+    return out
+
+
+# -- argument checks ----------------------------------------------------------------------------
+
+
+def test_experiment_names():
+    assert EXPERIMENTS[:-1] == (
+        "fig2", "fig3", "fig4", "fig5", "fig6", "fig7", "fig8", "table1", "snr", "ambiguity"
+    )  # fmt: skip
+    assert EXPERIMENTS[-1] == "all"
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"experiment": "fig9"},
+        {"experiment": "fig2", "trials": 0},
+        {"experiment": "fig2", "trials": 1.5},
+        {"experiment": "fig2", "jobs": 0},
+    ],
+)
+def test_bad_arguments_one_line(tmp_path, kwargs):
+    with pytest.raises(ConfigError) as err:
+        reproduce_main(out=tmp_path / "r", quick=True, progress=False, **kwargs)
+    msg = str(err.value)
+    assert "\n" not in msg and msg
+    assert not (tmp_path / "r").exists()
+
+
+def test_unknown_experiment_lists_choices(tmp_path):
+    with pytest.raises(ConfigError, match="unknown experiment 'fig9'.*fig2.*ambiguity.*all"):
+        reproduce_main("fig9", tmp_path, quick=True)
+
+
+def test_out_is_a_file(tmp_path):
+    f = tmp_path / "file"
+    f.write_text("x")
+    with pytest.raises(ConfigError, match="folder"):
+        reproduce_main("fig2", f, quick=True)
+
+
+def test_run_function_pickles(tmp_path):
+    func = functools.partial(reproduce.reproduce_point, maps_dir=str(tmp_path))
+    assert pickle.loads(pickle.dumps(func)).keywords == {"maps_dir": str(tmp_path)}
+    assert pickle.loads(pickle.dumps(reproduce.snr_point)) is reproduce.snr_point
+
+
+def test_base_params_canonical():
+    ctx = reproduce.Context(Path("."), quick=True)
+    a = reproduce.base_params(ctx, noise=10, compression=0.25)
+    b = reproduce.base_params(ctx, code_length=16383, qcr=True)
+    assert a == b  # same configuration -> same cache key, whichever experiment asks
+    assert isinstance(a["noise"], float) and a["size"] == 32
+
+
+# -- experiments ----------------------------------------------------------------------------------
+
+
+def test_fig3_outputs(quick_dir):
+    d = quick_dir / "fig3"
+    assert (d / "fig3.png").stat().st_size > 10_000
+    rows = _rows(d / "fig3.csv")
+    assert len(rows) == 4  # random 0.1, random 0.3, gold, mseq; one trial each
+    for col in ("experiment", "scene", "size", "code", "code_length", "ones_ratio", "noise",
+                "qcr", "solver", "trial", "seed", "depth_rmse_m", "missing_fraction",
+                "time_total_s", "map_key"):  # fmt: skip
+        assert col in rows[0], col
+    assert {(r["code"], r["code_length"]) for r in rows} == {
+        ("random", "2048"),
+        ("gold", "2047"),
+        ("mseq", "2047"),
+    }
+    assert {r["ones_ratio"] for r in rows if r["code"] == "random"} == {"0.1", "0.3"}
+    assert all(r["noise"] == "1.0" and r["size"] == "32" for r in rows)
+    for r in rows:
+        assert 0 <= float(r["depth_rmse_m"]) < 1.0
+        assert (quick_dir / "cache" / "maps" / f"{r['map_key']}.npy").is_file()
+
+
+def test_fig2_outputs_and_paper_numbers(quick_dir):
+    rows = _rows(quick_dir / "fig2" / "fig2.csv")
+    assert sorted(float(r["compression"]) for r in rows) == [0.05, 0.25, 0.85]
+    assert (quick_dir / "fig2" / "fig2.png").is_file()
+    section = (quick_dir / "fig2" / "section.md").read_text()
+    assert "## Fig. 2" in section
+    assert "8-78 s" in section  # the paper's reconstruction times, next to ours
+    assert "consistent" in section
+
+
+def test_report_sections_in_order(quick_dir):
+    text = (quick_dir / "report.md").read_text()
+    assert text.count("## Fig. 2:") == 1 and text.count("## Fig. 3:") == 1
+    assert text.index("## Fig. 2:") < text.index("## Fig. 3:")  # report order, not run order
+    assert "R_a = 0.3 better than 0.1" in text
+    assert "## Summary" in text and "| fig3 |" in text
+    html = (quick_dir / "report.html").read_text()
+    assert '<img src="fig3/fig3.png"' in html and '<img src="fig2/fig2.png"' in html
+    assert "<table>" in html and "<h2>" in html
+
+
+def test_rerun_replaces_section_and_reuses_cache(quick_dir, capsys):
+    runs = quick_dir / "cache" / "runs"
+    maps = quick_dir / "cache" / "maps"
+    before_runs, before_maps = _stamps(runs), _stamps(maps)
+    capsys.readouterr()
+    assert reproduce_main("fig3", quick_dir, quick=True, progress=False) == 0
+    assert "(0 new runs)" in capsys.readouterr().out
+    assert _stamps(runs) == before_runs  # nothing recomputed or rewritten
+    assert _stamps(maps) == before_maps
+    text = (quick_dir / "report.md").read_text()
+    assert text.count("## Fig. 3:") == 1 and text.count("## Fig. 2:") == 1
+    assert len(_rows(quick_dir / "fig3" / "fig3.csv")) == 4
+
+
+def test_missing_map_is_recomputed(quick_dir):
+    rows = _rows(quick_dir / "fig3" / "fig3.csv")
+    maps = quick_dir / "cache" / "maps"
+    victim = maps / f"{rows[0]['map_key']}.npy"
+    others = {k: v for k, v in _stamps(maps).items() if k != victim.name}
+    victim.unlink()
+    assert reproduce_main("fig3", quick_dir, quick=True, progress=False) == 0
+    assert victim.is_file()
+    after = _stamps(maps)
+    assert {k: after[k] for k in others} == others  # only the lost one was run again
+
+
+# -- report helpers -------------------------------------------------------------------------------
+
+
+def test_markdown_to_html_subset():
+    md = (
+        "## Title\n\nSome `code` and **bold** a < b.\n\n- one\n- two\n\n"
+        + md_table(("a", "b|c"), [(1, "x|y")])
+        + "\n![cap](fig/x.png)\n"
+    )
+    html = markdown_to_html(md, "t")
+    assert "<h2>Title</h2>" in html
+    assert "<code>code</code>" in html and "<strong>bold</strong>" in html
+    assert "a &lt; b" in html
+    assert "<ul><li>one</li><li>two</li></ul>" in html
+    assert "<th>b|c</th>" in html and "<td>x|y</td>" in html
+    assert '<img src="fig/x.png" alt="cap">' in html
+
+
+def test_build_report_from_sections(tmp_path):
+    from spslidar.experiments.report import write_section
+
+    write_section(tmp_path, "b", "## B\n\ntext b\n", [Claim("b", "c", "p", "o", "consistent")])
+    write_section(tmp_path, "a", "## A\n\ntext a\n")
+    write_section(tmp_path, "b", "## B\n\nnew b\n")  # replaces b
+    md, html = build_report(tmp_path, ["a", "b", "missing"])
+    text = md.read_text()
+    assert text.index("## A") < text.index("## B")
+    assert "new b" in text and "text b" not in text
+    assert html.read_text().count("<h2>B</h2>") == 1
+
+
+@pytest.mark.slow
+def test_all_quick(tmp_path):
+    assert reproduce_main("all", tmp_path, quick=True, progress=False) == 0
+    text = (tmp_path / "report.md").read_text()
+    for name in EXPERIMENTS[:-1]:
+        assert (tmp_path / name / "section.md").is_file(), name
+        assert list((tmp_path / name).glob("*.csv")), name
+    for name in EXPERIMENTS[:-1]:
+        if name != "table1":
+            assert list((tmp_path / name).glob("*.png")), name
+    assert "0.201" in text and "0.176" in text and "0.033" in text
+    assert "aliased by 1 x 15.0 m" in text
+    assert (tmp_path / "table1" / "table1.md").is_file()
+
+
+# -- full mode, with the runs faked (full mode itself is too slow for the test suite) -------------
+
+
+@functools.lru_cache(maxsize=8)
+def _scene(name: str, size: int):
+    from spslidar.scenes import load_scene
+
+    return load_scene(name, size)
+
+
+def _fake_sweep(func, points, out_dir, *, seed=0, jobs=1, scheduler=None, progress=True):
+    """Stand-in for run_sweep: truth plus noise of a plausible size, no simulation."""
+    import numpy as np
+
+    from spslidar.experiments.sweep import derive_seed, point_key
+
+    rows = []
+    for point in points:
+        params = dict(point)
+        params.setdefault("seed", derive_seed(seed, params))
+        if "scene" not in params:  # an SNR point: the real one, with few periods
+            rows.append({**params, **reproduce.snr_point({**params, "periods": 20})})
+            continue
+        scene = _scene(params["scene"], params["size"])
+        rng = np.random.default_rng(params["seed"])
+        err = 0.02 if params["qcr"] else 0.1
+        if params["lidar"] == "conventional":
+            err = 0.3
+        depth = scene.depth + rng.normal(0.0, err, scene.depth.shape)
+        if params["lidar"] == "conventional" and params.get("rep_rate"):
+            depth -= 14.99  # the 10 MHz alias
+        key = point_key(params)
+        np.save(Path(func.keywords["maps_dir"]) / f"{key}.npy", depth.astype(np.float32))
+        d = depth[scene.valid] - scene.depth[scene.valid]
+        rows.append(
+            {
+                **params,
+                "depth_rmse_m": float(np.sqrt(np.mean(d**2))),
+                "depth_mae_m": float(np.mean(np.abs(d))),
+                "depth_bias_m": float(np.mean(d)),
+                "missing_fraction": 0.0,
+                "edge_correlation": 0.5,
+                "depth_median_m": float(np.median(depth[scene.valid])),
+                "truth_median_m": float(np.median(scene.depth[scene.valid])),
+                "n_patterns": int(params["compression"] * params["size"] ** 2),
+                "n_slices": 60,
+                "n_slices_solved": 60,
+                "unambiguous_range_m": 15.0 if params.get("rep_rate") else 245.6,
+                "code_description": "fake",
+                "replica": "bipolar",
+                "lam": 0.1,
+                "iterations": 100,
+                "time_total_s": 1.0 + params["compression"],
+                "time_simulate_s": 0.5,
+                "time_solve_s": 0.5,
+                "n_warnings": 0,
+                "map_key": key,
+            }
+        )
+    return rows
+
+
+def test_full_mode_layouts_with_fake_runs(tmp_path, monkeypatch):
+    """Full-mode settings and figure layouts (quick mode covers the other experiments)."""
+    monkeypatch.setattr(reproduce, "run_sweep", _fake_sweep)
+    for name in ("fig2", "fig4", "fig6", "table1"):
+        assert reproduce_main(name, tmp_path, quick=False, trials=2, progress=False) == 0
+        assert list((tmp_path / name).glob("*.csv")), name
+    rows = _rows(tmp_path / "fig4" / "fig4.csv")
+    lengths = {int(r["code_length"]) for r in rows if r["lidar"] == "psst"}
+    assert lengths == {1023, 2047, 4095, 8191, 16383, 32767}
+    assert len(rows) == 2 * (6 * 2 + 2)  # trials x (lengths x QCR + conventional x QCR)
+    assert {r["size"] for r in rows} == {"64"}
+    assert len(_rows(tmp_path / "fig2" / "fig2.csv")) == 2 * 6
+    assert {r["noise"] for r in _rows(tmp_path / "fig6" / "fig6.csv")} == {"5.0", "8.0", "10.0"}
+    summary = _rows(tmp_path / "table1" / "table1_summary.csv")
+    assert len(summary) == 8
+    tval3 = [r for r in summary if r["solver"] == "tval3" and r["noise"] == "10.0"][0]
+    assert tval3["paper_mse_printed_cm"] == "0.011" and tval3["paper_time_s"] == "57.0"
+    text = (tmp_path / "report.md").read_text()
+    assert "Full mode" in text and "Quick mode" not in text
+    assert "± " in text  # two trials: mean ± std
+    assert "0.201" in text and "0.176" in text and "0.033" in text
+    for name in ("fig2", "fig4", "fig6"):
+        assert (tmp_path / name / f"{name}.png").stat().st_size > 10_000
