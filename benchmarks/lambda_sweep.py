@@ -58,11 +58,12 @@ def main(argv=None):
         for scene in args.scenes:
             for noise in args.noise:
                 pts = [(s, e) for sc, n, s, e in rows if sc == scene and n == noise]
-                ax.loglog(*zip(*pts), "o-", label=f"{scene}, m_n={noise:g}")
+                ax.loglog(*zip(*pts, strict=True), "o-", label=f"{scene}, m_n={noise:g}")
         ax.axvline(default, color="k", ls="--", label=f"default lam_scale={default:g}")
         ax.set_xlabel("lam_scale (weight / estimated noise level)")
         ax.set_ylabel("depth RMSE [m]")
-        ax.set_title(f"{args.solver}, {args.size}x{args.size}, QCR {'off' if args.no_qcr else 'on'}")
+        qcr = "off" if args.no_qcr else "on"
+        ax.set_title(f"{args.solver}, {args.size}x{args.size}, QCR {qcr}")
         ax.legend(fontsize=8)
         fig.savefig(args.plot, dpi=110)
         print(f"wrote {args.plot}")

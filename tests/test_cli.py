@@ -5,6 +5,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from spslidar.cli import main
 
@@ -98,3 +99,86 @@ def test_help_is_light():
 def test_no_command_prints_help(capsys):
     assert main([]) == 2
     assert "run" in capsys.readouterr().out
+
+
+# -- spslidar sweep / reproduce through main([...]) ------------------------------------------
+
+
+SWEEP_TOML = """\
+seed = 1
+trials = 2
+[base]
+size = 16
+code_length = 1023
+[grid]
+noise = [1, 10]
+"""
+
+
+def test_sweep_runs_grid_and_resumes(tmp_path, capsys):
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(SWEEP_TOML)
+    out = tmp_path / "sw"
+    assert main(["sweep", str(cfg), "--out", str(out), "--no-progress"]) == 0
+    import csv
+
+    rows = list(csv.DictReader(open(out / "results.csv", newline="")))
+    assert len(rows) == 4
+    assert {(r["noise"], r["trial"]) for r in rows} == {(n, t) for n in ("1", "10")
+                                                         for t in ("0", "1")}
+    assert len({r["seed"] for r in rows}) == 4  # seeds derived from (seed, parameters)
+    assert all(float(r["depth_rmse_m"]) > 0 for r in rows)
+    cached = sorted(p.name for p in (out / "runs").glob("*.json"))
+    assert len(cached) == 4
+    # a second call finds every run in the cache and computes nothing
+    stamps = {p.name: p.stat().st_mtime_ns for p in (out / "runs").glob("*.json")}
+    assert main(["sweep", str(cfg), "--out", str(out), "--no-progress"]) == 0
+    assert stamps == {p.name: p.stat().st_mtime_ns for p in (out / "runs").glob("*.json")}
+
+
+@pytest.mark.parametrize("grid", ["noize = [1]", "noise = [-1]", "solver = ['newton']"])
+def test_sweep_bad_grid_is_one_line_exit_2_no_output(tmp_path, capsys, grid):
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text(f"[grid]\n{grid}\n")
+    out = tmp_path / "sw"
+    assert main(["sweep", str(cfg), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "error" in err and str(cfg) in err
+    assert not out.exists()
+
+
+def test_sweep_missing_config(tmp_path, capsys):
+    assert main(["sweep", str(tmp_path / "none.toml"), "--out", str(tmp_path / "o")]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("args", [["fig9"], ["fig2", "--trials", "0"], ["fig2", "--jobs", "0"],
+                                  ["fig2", "--trials", "x"]])
+def test_reproduce_bad_input_one_line_exit_2(tmp_path, capsys, args):
+    out = tmp_path / "rep"
+    try:
+        code = main(["reproduce", *args, "--out", str(out)])
+    except SystemExit as exc:  # argparse errors
+        code = exc.code
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "error" in err
+    assert not out.exists()
+
+
+def test_reproduce_all_quick(tmp_path, capsys):
+    """`spslidar reproduce all --quick`: every experiment's figure, CSV and report section."""
+    from spslidar.experiments.names import EXPERIMENT_NAMES
+
+    out = tmp_path / "rep"
+    assert main(["reproduce", "all", "--quick", "--out", str(out), "--no-progress"]) == 0
+    text = (out / "report.md").read_text()
+    for name in EXPERIMENT_NAMES:
+        assert (out / name / "section.md").is_file(), name
+        assert list((out / name).glob("*.csv")), name
+        if name != "table1":
+            assert list((out / name).glob("*.png")), name
+    assert (out / "report.html").is_file()
+    assert "0.201" in text and "0.176" in text and "0.033" in text  # the paper's numbers
+    assert "aliased by 1 x 15.0 m" in text  # the conventional lidar wraps, the PSST does not
+    assert (out / "table1" / "table1.md").is_file()

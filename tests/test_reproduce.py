@@ -188,21 +188,6 @@ def test_build_report_from_sections(tmp_path):
     assert html.read_text().count("<h2>B</h2>") == 1
 
 
-@pytest.mark.slow
-def test_all_quick(tmp_path):
-    assert reproduce_main("all", tmp_path, quick=True, progress=False) == 0
-    text = (tmp_path / "report.md").read_text()
-    for name in EXPERIMENTS[:-1]:
-        assert (tmp_path / name / "section.md").is_file(), name
-        assert list((tmp_path / name).glob("*.csv")), name
-    for name in EXPERIMENTS[:-1]:
-        if name != "table1":
-            assert list((tmp_path / name).glob("*.png")), name
-    assert "0.201" in text and "0.176" in text and "0.033" in text
-    assert "aliased by 1 x 15.0 m" in text
-    assert (tmp_path / "table1" / "table1.md").is_file()
-
-
 # -- full mode, with the runs faked (full mode itself is too slow for the test suite) -------------
 
 

@@ -134,7 +134,42 @@ def build_parser() -> argparse.ArgumentParser:
     from .snr import add_snr_parser
 
     add_snr_parser(sub)
+
+    from .experiments.names import EXPERIMENTS
+
+    r = sub.add_parser("reproduce", help="reproduce the paper's figures and numbers beside ours",
+                       description="Run one of the paper's experiments (or all) through the "
+                                   "sweep engine; writes DIR/<experiment>/ (PNG figures, tidy "
+                                   "CSV) and DIR/report.md + report.html with the paper's "
+                                   "numbers next to ours. Finished runs are cached in "
+                                   "DIR/cache, so an interrupted run resumes.")
+    r.add_argument("experiment", choices=EXPERIMENTS, metavar="EXPERIMENT",
+                   help=f"one of: {', '.join(EXPERIMENTS)}")
+    r.add_argument("--out", required=True, metavar="DIR", help="report folder")
+    r.add_argument("--quick", action="store_true",
+                   help="reduced smoke-test version (32x32, fewer settings, one trial)")
+    _add_sweep_options(r, trials=True)
+
+    w = sub.add_parser("sweep", help="run a user-defined parameter grid (TOML) of runs",
+                       description="Run every point of the grid in CONFIG.toml (a [grid] table "
+                                   "of lists of run keys, optional [base] table, seed, trials) "
+                                   "and write DIR/results.csv (one row per run). Finished runs "
+                                   "are cached in DIR/runs, so an interrupted sweep resumes.")
+    w.add_argument("config", metavar="CONFIG.toml", help="sweep definition")
+    w.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    _add_sweep_options(w, trials=False)
     return parser
+
+
+def _add_sweep_options(p: argparse.ArgumentParser, trials: bool) -> None:
+    if trials:
+        p.add_argument("--trials", type=int, metavar="K",
+                       help="Monte-Carlo trials per setting (default: 3 for fig4, else 1)")
+    p.add_argument("--jobs", type=int, default=1, metavar="J",
+                   help="local worker processes (-1: all cores; default 1)")
+    p.add_argument("--scheduler", metavar="ADDR",
+                   help="Dask scheduler address (tcp://HOST:PORT) instead of local processes")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def _cmd_run(args) -> int:
@@ -161,7 +196,22 @@ def _cmd_snr(args) -> int:
     return cmd_snr(args)
 
 
-COMMANDS = {"run": _cmd_run, "snr": _cmd_snr}
+def _cmd_reproduce(args) -> int:
+    from .experiments.reproduce import reproduce_main
+
+    return reproduce_main(args.experiment, args.out, quick=args.quick, trials=args.trials,
+                          jobs=args.jobs, scheduler=args.scheduler,
+                          progress=not args.no_progress)
+
+
+def _cmd_sweep(args) -> int:
+    from .experiments.sweep import sweep_main
+
+    return 1 if sweep_main(args.config, args.out, jobs=args.jobs, scheduler=args.scheduler,
+                           progress=not args.no_progress) else 0
+
+
+COMMANDS = {"run": _cmd_run, "snr": _cmd_snr, "reproduce": _cmd_reproduce, "sweep": _cmd_sweep}
 
 
 def main(argv: list[str] | None = None) -> int:

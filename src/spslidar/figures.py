@@ -37,8 +37,7 @@ def depth_figure(result, path: str | Path) -> Path:
     lim = float(np.nanpercentile(np.abs(err_masked), 99)) if np.isfinite(err_masked).any() else 0
     lim = max(lim, result.metrics["bin_depth_m"])
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), constrained_layout=True)
-    cmap = plt.get_cmap("viridis").copy()
-    cmap.set_bad("white")
+    cmap = plt.get_cmap("viridis").with_extremes(bad="white")
     im = axes[0].imshow(truth, cmap=cmap, vmin=lo, vmax=hi)
     axes[0].set_title(f"ground truth: {result.scene.name}")
     _colorbar(fig, axes[0], im)
@@ -46,8 +45,7 @@ def depth_figure(result, path: str | Path) -> Path:
     m = result.metrics
     axes[1].set_title(f"estimate ({100 * m['missing_fraction']:.1f}% no return, white)")
     _colorbar(fig, axes[1], im)
-    ecmap = plt.get_cmap("RdBu_r").copy()
-    ecmap.set_bad("0.6")
+    ecmap = plt.get_cmap("RdBu_r").with_extremes(bad="0.6")
     im = axes[2].imshow(np.ma.masked_invalid(err_masked), cmap=ecmap, vmin=-lim, vmax=lim)
     axes[2].set_title("error: estimate - truth")
     _colorbar(fig, axes[2], im, "depth error [m]")

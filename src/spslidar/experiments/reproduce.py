@@ -38,6 +38,7 @@ import numpy as np
 
 from spslidar.constants import SPEED_OF_LIGHT
 from spslidar.errors import ConfigError
+from spslidar.experiments.names import ALL, EXPERIMENT_NAMES, EXPERIMENTS
 from spslidar.experiments.report import Claim, build_report, md_table, write_section
 from spslidar.experiments.sweep import (
     ERROR_KEY,
@@ -60,23 +61,6 @@ __all__ = [
     "snr_point",
 ]
 
-#: The experiments in report order.
-EXPERIMENT_NAMES: tuple[str, ...] = (
-    "fig2",
-    "fig3",
-    "fig4",
-    "fig5",
-    "fig6",
-    "fig7",
-    "fig8",
-    "table1",
-    "snr",
-    "ambiguity",
-)
-#: Runs every experiment.
-ALL = "all"
-#: Every accepted experiment name (the ten experiments, then ``'all'``).
-EXPERIMENTS: tuple[str, ...] = (*EXPERIMENT_NAMES, ALL)
 
 #: TDC bin width at the default 10 GHz bit rate, and its depth (1.5 cm).
 BIN_WIDTH_S = 1e-10

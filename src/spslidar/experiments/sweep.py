@@ -806,6 +806,19 @@ def run_point(params: dict[str, Any]) -> dict[str, Any]:
     return run_metrics(config)
 
 
+def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any) -> None:
+    """Check every point's run config before anything runs: a bad grid is bad input (one
+    ConfigError naming the file), not a sweep of failed runs."""
+    from spslidar.config import Config
+
+    for params in points:
+        config = {key: value for key, value in params.items() if key != TRIAL_KEY}
+        try:
+            Config.from_dict(config).validate()
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+
+
 def sweep_main(
     config_path: str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
@@ -841,6 +854,8 @@ def sweep_main(
     """
     spec = load_sweep_config(config_path)
     points = spec.points()
+    if func is None:
+        _validate_run_points(points, config_path)
     rows = run_sweep(
         run_point if func is None else func,
         points,

@@ -1,8 +1,8 @@
 """Problem-agnostic solvers for eq. (18): FISTA, TwIST, TVAL3, GPSR."""
 
 from .base import (
-    Solver,
     SolveInfo,
+    Solver,
     StopRule,
     available_solvers,
     get_solver,
