@@ -10,6 +10,8 @@ from spslidar.correlate import (
     gate_lags,
     make_replica,
     matched_filter,
+    noise_sigma_from_totals,
+    replica_matrix,
 )
 from spslidar.errors import ConfigError
 
@@ -67,3 +69,27 @@ def test_gate_lags():
         gate_lags((5.0, 1.0), 1e-10)
     with pytest.raises(ConfigError):
         make_replica(np.ones(3), "tripolar")
+
+
+def test_replica_matrix_matches_modular_indexing():
+    code = make_code("mseq", 63)
+    f = make_replica(code, "bipolar")
+    lags = np.array([-70, -1, 0, 1, 17, 62, 63, 200])  # negative and beyond one period
+    t = np.arange(63)
+    expect = f[(t[:, None] - lags[None, :]) % 63]
+    bank = replica_matrix(f, lags)
+    assert bank.dtype == np.float32 and bank.flags.c_contiguous
+    np.testing.assert_array_equal(bank, expect)
+    assert replica_matrix(f, np.array([], dtype=int)).shape == (63, 0)
+
+
+def test_noise_sigma_from_totals():
+    code = make_code("mseq", 127)
+    hist = np.random.default_rng(1).poisson(9.0, (5, 127)).astype(float)
+    for kind in ("bipolar", "unipolar"):
+        f = make_replica(code, kind)
+        np.testing.assert_allclose(noise_sigma_from_totals(hist.sum(axis=1), f, 3.0),
+                                   correlation_noise_sigma(hist, f, 3.0))
+    f = make_replica(code, "unipolar")
+    np.testing.assert_allclose(noise_sigma_from_totals(np.array([64.0 * 4]), f, 2.0),
+                               np.sqrt(64.0 * 4 * 64 / 127) / 2.0)

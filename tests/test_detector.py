@@ -33,6 +33,35 @@ def test_poisson_rejects_bad_means():
         det.poisson_counts(np.array([[1.0, -1.0]]), 0)
     with pytest.raises(ValueError):
         det.poisson_counts(np.array([[np.nan]]), 0)
+    for bad in ([[1.0, np.inf]], [[-np.inf, 1.0]], [[2.0**24, 1.0]], [[np.nan, -1.0]]):
+        with pytest.raises(ValueError):
+            det.check_means(np.array(bad, dtype=np.float32))
+    det.check_means(np.zeros((0, 3)))
+    det.check_means(np.array([[0.0, 2.0**23]], dtype=np.float32))
+
+
+@pytest.mark.parametrize("rows", [3, 8, 64, 101])
+def test_poisson_rows_draws_the_counts_of_poisson_counts(rows):
+    """The pipeline's kernel: the same random streams as poisson_counts, in float32 in place,
+    with exact integer totals per row."""
+    lam = np.random.default_rng(0).uniform(0, 50000, (rows, 300)).astype(np.float32)
+    ref = det.poisson_counts(lam, np.random.default_rng(5))
+    out = lam.copy()
+    tot = det.poisson_rows(out, np.random.default_rng(5), out)
+    np.testing.assert_array_equal(out, ref)
+    assert tot.dtype == np.int64
+    np.testing.assert_array_equal(tot, ref.sum(axis=1, dtype=np.float64))
+    # the streams: blocks of rows drawn from children of the generator, whatever the thread count
+    a = det.poisson_rows(lam, np.random.default_rng(6), np.empty_like(lam))
+    b = det.poisson_rows(lam, np.random.default_rng(7), np.empty_like(lam))
+    assert not np.array_equal(a, b)
+
+
+def test_detection_efficiency_scales_the_means():
+    d = det.PhotonCountingDetector(efficiency=0.25)
+    lam = np.full((2, 3), 8.0, dtype=np.float32)
+    np.testing.assert_allclose(d.detected_means(lam), 2.0)
+    assert det.PhotonCountingDetector().detected_means(lam) is lam
 
 
 def test_noise_model_paper_and_modulated():

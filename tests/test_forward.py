@@ -76,3 +76,16 @@ def test_total_signal_matches_eq8():
     lam = expected_counts(amp, shifts, code, signal=5.0, noise_per_bin=0.0)
     m2 = phi.sum(axis=1)
     np.testing.assert_allclose(lam.sum(axis=1), code.sum() * m2 * 0.7 * 5.0, rtol=1e-10)
+
+
+def test_shifted_codes_matches_modular_indexing():
+    rng = np.random.default_rng(3)
+    code = (rng.random(31) < 0.5).astype(np.uint8)
+    shifts = np.array([0, 5, 30, 31, 47, -3])
+    t = np.arange(code.size)
+    expect = code[(t[None, :] - shifts[:, None]) % code.size]
+    got = shifted_codes(code, shifts)
+    assert got.dtype == np.float32 and got.shape == (shifts.size, code.size)
+    np.testing.assert_array_equal(got, expect)
+    assert shifted_codes(code, shifts, np.float64).dtype == np.float64
+    assert shifted_codes(code, np.array([], dtype=int)).shape == (0, code.size)

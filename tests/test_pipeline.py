@@ -98,3 +98,156 @@ def test_run_accepts_config_objects_and_dicts():
     np.testing.assert_array_equal(a.depth, b.depth)
     m = pipeline.run_metrics({"size": 16, "code_length": 1023})
     assert m["depth_rmse_m"] == pytest.approx(a.depth_rmse)
+
+
+# -- the simulation: fast path vs brute force -------------------------------------------------
+
+
+def _small_measurement(**kw):
+    cfg = dict(scene="steps", size=8, code_length=127, compression=1.0, seed=3)
+    cfg.update(kw)
+    return pipeline.measure(**cfg)
+
+
+def _simulate(meas, seed, **kw):
+    from spslidar.detector import NoiseModel, PhotonCountingDetector
+
+    cfg = meas.config
+    noise = NoiseModel(cfg.noise, tuple(cfg.noise_split), cfg.ambient, cfg.background_rate,
+                       cfg.dark_count_rate)
+    det = PhotonCountingDetector(dead_time=cfg.dead_time, efficiency=kw.pop("efficiency", 1.0))
+    return pipeline.simulate_correlations(meas.patterns, meas.scene, meas.acq, meas.ulags, noise,
+                                          det, cfg.pulse_width, np.random.default_rng(seed),
+                                          **kw)
+
+
+def _exact_moments(meas):
+    """Exact mean and covariance of (C(tau_1..tau_K), N) per pattern, from eq. (4) written out
+    pixel by pixel (independently of spslidar.forward's grouping by delay)."""
+    from spslidar.correlate import correlation_gain, make_replica
+    from spslidar.detector import NoiseModel
+    from spslidar.forward import depth_to_delay, pulse_overlaps
+
+    cfg, acq = meas.config, meas.acq
+    period = acq.period
+    code = acq.code.astype(float)
+    phi = meas.patterns.astype(float)
+    alpha = meas.scene.reflectivity.ravel()
+    bins, w = pulse_overlaps(depth_to_delay(meas.scene.depth.ravel(), acq.bin_width),
+                             cfg.pulse_width)
+    per_pixel = np.zeros((alpha.size, period))
+    for j in range(alpha.size):
+        for p in range(bins.shape[1]):
+            per_pixel[j] += alpha[j] * w[j, p] * np.roll(code, bins[j, p] % period)
+    noise = NoiseModel(cfg.noise).per_bin(meas.patterns, alpha, acq.bin_width)
+    lam = acq.n_periods * (acq.signal_per_pulse * phi @ per_pixel + noise[:, None])
+    f = make_replica(acq.code, acq.replica)
+    gain = correlation_gain(acq.code, f) * acq.n_periods * acq.signal_per_pulse
+    # the K+1 linear functionals of the histogram: the replica at each gated lag, and the total
+    weights = np.stack([np.roll(f, int(lag)) / gain for lag in meas.ulags] + [np.ones(period)])
+    mean = lam @ weights.T  # (M, K+1)
+    cov = np.einsum("it,at,bt->iab", lam, weights, weights)  # Poisson: Var h(t) = lam(t)
+    return mean, cov
+
+
+def _stack_runs(meas, seeds, method):
+    out = []
+    for s in seeds:
+        sim = _simulate(meas, s, method=method)
+        out.append(np.column_stack([sim["corr"], sim["counts"]]))
+    return np.asarray(out, dtype=np.float64)  # (R, M, K+1)
+
+
+@pytest.mark.parametrize("lidar,code_length", [("psst", 127), ("conventional", 2047)])
+def test_fast_simulation_equals_brute_force_without_noise(lidar, code_length):
+    meas = _small_measurement(lidar=lidar, code_length=code_length, noise=3.0)
+    a = _simulate(meas, 0, noiseless=True, method="fast", efficiency=0.7)
+    b = _simulate(meas, 0, noiseless=True, method="reference", efficiency=0.7)
+    scale = np.abs(b["corr"]).max()
+    np.testing.assert_allclose(a["corr"], b["corr"], rtol=0, atol=2e-6 * scale)
+    np.testing.assert_allclose(a["counts"], b["counts"], rtol=1e-6)
+    np.testing.assert_allclose(a["sigma"], b["sigma"], rtol=1e-6)
+    mean, _ = _exact_moments(meas)
+    np.testing.assert_allclose(b["corr"], 0.7 * mean[:, :-1], rtol=0, atol=2e-6 * scale)
+
+
+def test_fast_simulation_has_the_distribution_of_the_brute_force_one():
+    """Mean, variance and the covariance between lags (and with the total count) of the gated
+    matched-filter outputs: fast path, brute force, and the exact moments agree."""
+    meas = _small_measurement(noise=2.0, signal=1.0)
+    reps = 300
+    fast = _stack_runs(meas, range(1000, 1000 + reps), "fast")
+    ref = _stack_runs(meas, range(5000, 5000 + reps), "reference")
+    mean, cov = _exact_moments(meas)
+    var = np.einsum("iaa->ia", cov)
+    for sample in (fast, ref):
+        z = (sample.mean(axis=0) - mean) / np.sqrt(var / reps)
+        assert abs(z.mean()) < 0.1 and np.abs(z).max() < 5.5, (z.mean(), np.abs(z).max())
+        ratio = sample.var(axis=0, ddof=1) / var
+        # each ratio ~ chi2(R-1)/(R-1): sd sqrt(2/R) = 0.08; averaged over ~1000 outputs
+        assert abs(ratio.mean() - 1) < 0.02 and ratio.min() > 0.6 and ratio.max() < 1.45
+    # two-sample: the fast and brute-force means and variances agree with each other
+    z2 = (fast.mean(axis=0) - ref.mean(axis=0)) / np.sqrt(2 * var / reps)
+    assert abs(z2.mean()) < 0.1 and np.abs(z2).max() < 5.5
+    assert abs(np.mean(fast.var(axis=0, ddof=1) / ref.var(axis=0, ddof=1)) - 1) < 0.03
+    # joint structure: correlation matrix of (C(tau_1), ..., C(tau_K), N), pooled over patterns
+    # (off the diagonal, which the variance test covers)
+    sd = np.sqrt(var)
+    exact_corr = cov / sd[:, :, None] / sd[:, None, :]
+    off = ~np.eye(exact_corr.shape[1], dtype=bool)
+    for sample in (fast, ref):
+        c = sample - sample.mean(axis=0)
+        emp = np.einsum("ria,rib->iab", c, c) / (reps - 1) / sd[:, :, None] / sd[:, None, :]
+        err = (emp - exact_corr).mean(axis=0)  # mean over 64 patterns: sd <= 1/sqrt(64 R)
+        assert np.abs(err[off]).max() < 5 / np.sqrt(64 * reps)
+        assert abs(err[off].mean()) < 0.1 * abs(exact_corr[:, off].mean())
+    # the lags are weakly but really correlated (the m-sequence's -1 sidelobes, the signal, the
+    # shared total): drawing each lag's output on its own would set this to zero
+    assert abs(exact_corr[:, off].mean()) > 0.005
+
+
+def test_simulation_does_not_depend_on_threads(monkeypatch):
+    meas = _small_measurement(size=16, code_length=255)  # 256 patterns: 4 blocks
+    a = _simulate(meas, 7, threads=1)
+    b = _simulate(meas, 7, threads=3)
+    monkeypatch.setattr(pipeline, "single_threaded_blas", lambda: None)  # no threadpoolctl
+    c = _simulate(meas, 7, threads=2)
+    for k in ("corr", "counts", "sigma"):
+        np.testing.assert_array_equal(a[k], b[k])
+        np.testing.assert_array_equal(a[k], c[k])
+    assert not np.array_equal(a["corr"], _simulate(meas, 8)["corr"])
+
+
+def test_simulation_counts_are_poisson_totals():
+    meas = _small_measurement()
+    sim = _simulate(meas, 1)
+    assert np.all(sim["counts"] == np.round(sim["counts"]))
+    mean, cov = _exact_moments(meas)
+    z = (sim["counts"] - mean[:, -1]) / np.sqrt(cov[:, -1, -1])
+    assert abs(z.mean()) < 4 / np.sqrt(z.size) and np.abs(z).max() < 5
+    from spslidar.correlate import correlation_gain, make_replica
+
+    acq = meas.acq
+    gain = correlation_gain(acq.code, make_replica(acq.code, acq.replica)) * acq.signal_per_pulse
+    np.testing.assert_allclose(sim["sigma"] * gain, np.sqrt(sim["counts"]), rtol=1e-12)
+
+
+def test_simulation_rejects_unknown_method():
+    from spslidar.errors import ConfigError
+
+    with pytest.raises(ConfigError):
+        _simulate(_small_measurement(), 0, method="gaussian")
+
+
+@pytest.mark.parametrize("method", ["fast", "reference"])
+def test_simulation_rejects_means_beyond_float32_counts(method):
+    meas = _small_measurement()
+    meas.acq.signal_per_pulse = 1e7  # ~1e8 photons per bin: not exact in float32
+    with pytest.raises(ValueError, match="float32"):
+        _simulate(meas, 0, method=method)
+    with pytest.raises(ValueError, match="float32"):
+        pipeline.measure(scene="steps", size=8, code_length=127, signal=1e7)
+    meas = _small_measurement()
+    meas.patterns = meas.patterns - 50.0  # negative transmittances give negative means
+    with pytest.raises(ValueError):
+        _simulate(meas, 0, method=method)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from spslidar.operators import dottest
-from spslidar.qcr import CovarianceOperator, centre, qcr_delta, qcr_problem
+from spslidar.qcr import CovarianceOperator, centre, centred_patterns, qcr_delta, qcr_problem
 
 
 @pytest.fixture
@@ -49,3 +49,15 @@ def test_centred_form_gradient_is_h_p_minus_delta(data):
     a2, y2 = qcr_problem(phi, corr, "covariance", dtype=np.float64)
     np.testing.assert_allclose(y2, qcr_delta(phi, corr))
     np.testing.assert_allclose(centre(corr).mean(axis=0), 0, atol=1e-12)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("m", [7, 300])  # one block of rows, several blocks
+def test_centred_patterns_equal_float64_centring(m, dtype):
+    phi = np.clip(0.5 + 0.25 * np.random.default_rng(m).standard_normal((m, 33)), 0, 1)
+    for src in (phi.astype(np.float32), phi):
+        expect = (centre(np.asarray(src, dtype=np.float64)) / np.sqrt(m)).astype(dtype)
+        got = centred_patterns(src, np.sqrt(m), dtype=dtype)
+        assert got.dtype == dtype
+        np.testing.assert_array_equal(got, expect)
+    np.testing.assert_array_equal(centred_patterns(phi, dtype=np.float64), centre(phi))

@@ -28,7 +28,6 @@ from functools import lru_cache
 
 import numpy as np
 from scipy import fft as sp_fft
-from scipy.signal import max_len_seq
 
 from .constants import SPEED_OF_LIGHT
 from .errors import ConfigError
@@ -181,6 +180,8 @@ def _check_length(kind: str, length: int) -> int:
 @lru_cache(maxsize=64)
 def _mseq_cached(n: int, taps: tuple[int, ...] | None) -> np.ndarray:
     """The m-sequence of degree n from the all-ones register state (read-only)."""
+    from scipy.signal import max_len_seq  # heavy (pulls in scipy.stats): imported on first use
+
     seq = max_len_seq(n, taps=None if taps is None else list(taps))[0].astype(np.uint8)
     seq.setflags(write=False)
     return seq

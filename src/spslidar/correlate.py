@@ -57,10 +57,14 @@ def replica_matrix(replica: np.ndarray, lags: np.ndarray) -> np.ndarray:
     ``hist @ F`` is the matched filter at those lags; build it once and pass it to
     :func:`matched_filter` when filtering many blocks of patterns.
     """
-    period = np.asarray(replica).size
-    lags = np.mod(np.asarray(lags, dtype=np.int64), period)
-    t = np.arange(period)
-    return np.asarray(replica, dtype=np.float32)[(t[:, None] - lags[None, :]) % period]
+    f = np.asarray(replica, dtype=np.float32)
+    lags = np.mod(np.asarray(lags, dtype=np.int64).ravel(), f.size)
+    if not lags.size:
+        return np.empty((f.size, 0), dtype=np.float32)
+    # one np.roll per lag (row k of the stack is f delayed by lags[k]), then a single transpose
+    # copy: far cheaper than gathering through an (L, K) table of modular indices
+    rows = np.stack([np.roll(f, int(lag)) for lag in lags])
+    return np.ascontiguousarray(rows.T)
 
 
 def matched_filter(
@@ -121,10 +125,30 @@ def correlation_noise_sigma(hist: np.ndarray, replica: np.ndarray, gain: float =
     bipolar replica ``f^2 = 1`` and it is the pattern's total count). The tau dependence is
     negligible, so one value per pattern is returned.
     """
+    return noise_sigma_from_totals(np.asarray(hist).sum(axis=1, dtype=np.float64), replica,
+                                   gain)
+
+
+def noise_sigma_from_totals(totals: np.ndarray, replica: np.ndarray,
+                            gain: float = 1.0) -> np.ndarray:
+    """:func:`correlation_noise_sigma` from each pattern's total count ``sum_t h_i(t)``.
+
+    Parameters
+    ----------
+    totals : ndarray, shape (M,)
+        Total counts of each pattern's histogram.
+    replica : ndarray, shape (L,)
+    gain : float
+        The matched filter's normalisation (see :func:`correlation_gain`).
+
+    Returns
+    -------
+    ndarray, shape (M,)
+        ``sqrt(totals * mean(f^2)) / gain`` (``mean(f^2) = 1`` for the bipolar replica).
+    """
     f2 = np.asarray(replica, dtype=np.float64) ** 2
-    if np.allclose(f2, 1.0):
-        var = np.asarray(hist, dtype=np.float64).sum(axis=1)
-    else:
+    var = np.asarray(totals, dtype=np.float64)
+    if not np.allclose(f2, 1.0):
         # average over tau of sum_t h(t) f(t - tau)^2 = sum_t h(t) * mean(f^2)
-        var = np.asarray(hist, dtype=np.float64).sum(axis=1) * f2.mean()
+        var = var * f2.mean()
     return np.sqrt(var) / gain

@@ -17,9 +17,21 @@ can be added on top: ``background_rate`` and ``dark_count_rate`` in counts per s
 The counting itself is the paper's linear model (no dead time): counts ~ Poisson(lambda) per
 bin. A real GMAPD counts at most one photon per dead time, so :func:`pileup_report` flags runs
 whose flux is far beyond what such a detector could record. The Poisson sampler is NumPy's; the
-detector is written here because no library models a TDC histogram with these noise terms. It
-draws in a fixed number of row blocks, each from its own child generator, on a thread pool, so
-results depend only on the seed, not on the number of threads.
+detector is written here because no library models a TDC histogram with these noise terms.
+:func:`poisson_counts` draws in a fixed number of row blocks, each from its own child generator,
+on a thread pool, so results depend only on the seed, not on the number of threads;
+:func:`poisson_rows` is the single-block kernel the pipeline runs on its own thread pool.
+
+Every TDC bin gets its own Poisson draw: no cheaper sampler is exact. The pipeline needs the
+joint distribution of the matched-filter outputs at all gated lags (and of each pattern's total
+count); bin ``t`` enters them with the weight vector ``(f(t - tau_1), ..., f(t - tau_K), 1)``,
+and for an m-sequence of degree ``n`` every window of ``K >= n`` consecutive replica values
+occurs once per period, so no two bins share a weight vector and no group of bins can be merged
+into one Poisson draw. Nor are there signal-free bins to shortcut: with more than ``n``
+consecutive occupied delay bins, every bin holds some return (an m-sequence has no run of
+``n`` zeros). Drawing one lag's output as the difference of two Poisson totals is exact for that
+lag alone, but not jointly (it loses the ``-lambda`` covariance between lags and the
+correlation with the total count), so it is not used.
 """
 
 from __future__ import annotations
@@ -35,6 +47,8 @@ from .errors import ConfigError
 AMBIENT_MODELS = ("paper", "modulated")
 #: row blocks for the Poisson draws (fixed, so results do not depend on the thread count)
 N_BLOCKS = 8
+#: largest mean counts per bin: counts are returned as float32, exact integers up to 2^24
+MAX_MEAN = 2**24 * 0.9
 
 
 @dataclass
@@ -93,6 +107,69 @@ def _threads() -> int:
     return max(1, min(N_BLOCKS, os.cpu_count() or 1))
 
 
+def check_means(lam: np.ndarray) -> None:
+    """Raise ``ValueError`` unless all Poisson means are finite, non-negative and small enough
+    for float32 counts (exact integers up to 2^24 per bin).
+
+    Parameters
+    ----------
+    lam : ndarray
+        Means per bin (any shape and float dtype).
+    """
+    lam = np.asarray(lam)
+    if not lam.size:
+        return
+    lo, hi = lam.min(), lam.max()
+    # NaN fails every comparison, so two reductions check finiteness and sign at once
+    if not (lo >= 0 and hi < np.inf):
+        raise ValueError("Poisson means must be finite and non-negative")
+    if hi > MAX_MEAN:
+        raise ValueError("expected counts per bin exceed float32's exact integer range")
+
+
+def _streams(rng: np.random.Generator, n_rows: int) -> list[tuple[slice, np.random.Generator]]:
+    """The fixed split of ``n_rows`` rows into random streams: ``N_BLOCKS`` children of
+    ``rng`` (or ``rng`` itself for fewer rows), whatever the number of threads."""
+    if n_rows < N_BLOCKS:
+        return [(slice(0, n_rows), rng)]
+    children = rng.spawn(N_BLOCKS)
+    edges = np.linspace(0, n_rows, N_BLOCKS + 1).astype(int)
+    return [(slice(edges[b], edges[b + 1]), children[b]) for b in range(N_BLOCKS)]
+
+
+def poisson_rows(lam: np.ndarray, rng: np.random.Generator, out: np.ndarray) -> np.ndarray:
+    """Draw ``Poisson(lam)`` per bin into ``out``; return each row's exact total count.
+
+    The same counts as ``poisson_counts(lam, rng)`` (the same split into random streams), in
+    the calling thread.
+
+    Parameters
+    ----------
+    lam : ndarray, shape (B, L)
+        Means (float32 or float64; NumPy's sampler works on a float64 copy either way, so
+        ``out`` may be ``lam`` itself). Not checked: see :func:`check_means`.
+    rng : numpy.random.Generator
+    out : ndarray, shape (B, L)
+        Receives the counts (float32 is exact below 2^24).
+
+    Returns
+    -------
+    ndarray of int64, shape (B,)
+        ``sum_t counts[b, t]``.
+
+    Notes
+    -----
+    The kernel that :func:`spslidar.pipeline.simulate_correlations` runs on its thread pool
+    (NumPy's Poisson sampler releases the GIL).
+    """
+    totals = np.empty(lam.shape[0], dtype=np.int64)
+    for sl, gen in _streams(rng, lam.shape[0]):
+        counts = gen.poisson(lam[sl])
+        out[sl] = counts
+        totals[sl] = counts.sum(axis=1)
+    return totals
+
+
 def poisson_counts(lam: np.ndarray, rng: np.random.Generator | int | None,
                    parallel: bool = True) -> np.ndarray:
     """Draw Poisson counts with means ``lam`` (any shape, rows split in fixed blocks).
@@ -101,26 +178,22 @@ def poisson_counts(lam: np.ndarray, rng: np.random.Generator | int | None,
     """
     rng = np.random.default_rng(rng)
     lam = np.asarray(lam, dtype=np.float64)
-    if np.any(lam < 0) or not np.all(np.isfinite(lam)):
-        raise ValueError("Poisson means must be finite and non-negative")
-    if lam.size and lam.max() > 2**24 * 0.9:
-        raise ValueError("expected counts per bin exceed float32's exact integer range")
+    check_means(lam)
     out = np.empty(lam.shape, dtype=np.float32)
-    if lam.ndim == 0 or lam.shape[0] < N_BLOCKS:
+    if lam.ndim == 0:
         out[...] = rng.poisson(lam)
         return out
-    children = rng.spawn(N_BLOCKS)
-    edges = np.linspace(0, lam.shape[0], N_BLOCKS + 1).astype(int)
+    streams = _streams(rng, lam.shape[0])
 
     def work(b):
-        sl = slice(edges[b], edges[b + 1])
-        out[sl] = children[b].poisson(lam[sl])
+        sl, gen = streams[b]
+        out[sl] = gen.poisson(lam[sl])
 
-    if parallel and _threads() > 1:
+    if parallel and len(streams) > 1 and _threads() > 1:
         with ThreadPoolExecutor(_threads()) as ex:
-            list(ex.map(work, range(N_BLOCKS)))
+            list(ex.map(work, range(len(streams))))
     else:
-        for b in range(N_BLOCKS):
+        for b in range(len(streams)):
             work(b)
     return out
 
@@ -149,9 +222,24 @@ class PhotonCountingDetector:
 
     def count(self, lam: np.ndarray, rng, parallel: bool = True) -> np.ndarray:
         """Photon counts per bin: Poisson(efficiency * lam)."""
+        return poisson_counts(self.detected_means(lam), rng, parallel=parallel)
+
+    def detected_means(self, lam: np.ndarray) -> np.ndarray:
+        """Mean counts per bin after the detection efficiency.
+
+        Parameters
+        ----------
+        lam : ndarray
+            Mean photons per bin reaching the detector.
+
+        Returns
+        -------
+        ndarray
+            ``efficiency * lam`` (``lam`` itself when the efficiency is 1).
+        """
         if self.efficiency != 1.0:
             lam = self.efficiency * np.asarray(lam)
-        return poisson_counts(lam, rng, parallel=parallel)
+        return lam
 
     def pileup_report(self, counts_per_period: float, period_s: float) -> dict:
         """Mean detections per dead time, and whether a real GMAPD would saturate.

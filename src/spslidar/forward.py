@@ -53,6 +53,46 @@ def pulse_overlaps(delay: np.ndarray, pulse_width: float) -> tuple[np.ndarray, n
     return bins, weights
 
 
+def return_weights(
+    reflectivity: np.ndarray,
+    delay: np.ndarray,
+    pulse_width: float,
+    period: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each pixel's return per occupied delay bin: the map from patterns to return amplitudes.
+
+    ``W[j, s] = alpha_j * w_j(shift_s)``, the share of pixel ``j``'s pulse in circular bin
+    ``shift_s`` times its reflectivity, so that ``Phi @ W`` is :func:`return_amplitudes`.
+
+    Parameters
+    ----------
+    reflectivity : ndarray, shape (Q,)
+    delay : ndarray, shape (Q,)
+        Round-trip delays in (fractional) TDC bins.
+    pulse_width : float
+        Return pulse width in bins.
+    period : int
+        Code period in bins (delays are taken modulo it).
+
+    Returns
+    -------
+    shifts : ndarray of int, shape (S,)
+        The distinct occupied bins, in ``[0, period)``.
+    W : ndarray, shape (Q, S)
+        float64; dense (S, the number of occupied depth bins, is small).
+    """
+    bins, weights = pulse_overlaps(delay, pulse_width)
+    q = bins.shape[0]
+    circ = np.mod(bins, period)
+    shifts, inverse = np.unique(circ, return_inverse=True)
+    inverse = inverse.reshape(circ.shape)
+    w = np.zeros((q, shifts.size), dtype=np.float64)
+    a = np.asarray(reflectivity, dtype=np.float64).ravel()
+    for p in range(bins.shape[1]):
+        np.add.at(w, (np.arange(q), inverse[:, p]), a * weights[:, p])
+    return shifts, w
+
+
 def return_amplitudes(
     patterns: np.ndarray,
     reflectivity: np.ndarray,
@@ -72,17 +112,7 @@ def return_amplitudes(
         The distinct occupied bins, in ``[0, period)``.
     amp : ndarray, shape (M, S)
     """
-    bins, weights = pulse_overlaps(delay, pulse_width)
-    q = bins.shape[0]
-    circ = np.mod(bins, period)
-    shifts, inverse = np.unique(circ, return_inverse=True)
-    inverse = inverse.reshape(circ.shape)
-    # W[j, s] = alpha_j * weight of pixel j in shift s (a sparse Q x S map, built dense: S is
-    # the number of occupied depth bins, small).
-    w = np.zeros((q, shifts.size), dtype=np.float64)
-    a = np.asarray(reflectivity, dtype=np.float64).ravel()
-    for p in range(bins.shape[1]):
-        np.add.at(w, (np.arange(q), inverse[:, p]), a * weights[:, p])
+    shifts, w = return_weights(reflectivity, delay, pulse_width, period)
     amp = np.asarray(patterns, dtype=np.float64) @ w
     return shifts, amp
 
@@ -93,10 +123,11 @@ def shifted_codes(code: np.ndarray, shifts: np.ndarray, dtype=np.float32) -> np.
     Float32 by default: the bits are exact, and the expected counts it produces are accurate to
     ~1e-7 relative, far below the Poisson fluctuations they feed.
     """
-    code = np.asarray(code, dtype=dtype)
-    period = code.size
-    t = np.arange(period)
-    return code[(t[None, :] - np.asarray(shifts)[:, None]) % period]
+    code = np.asarray(code, dtype=dtype).ravel()
+    shifts = np.mod(np.asarray(shifts, dtype=np.int64).ravel(), code.size)
+    if not shifts.size:
+        return np.empty((0, code.size), dtype=code.dtype)
+    return np.stack([np.roll(code, int(s)) for s in shifts])
 
 
 def expected_counts(

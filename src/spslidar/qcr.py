@@ -35,6 +35,39 @@ def centre(a: np.ndarray) -> np.ndarray:
     return a - a.mean(axis=0, keepdims=True)
 
 
+#: rows per block in :func:`centred_patterns` (a float64 block of 4096 pixels stays in cache)
+_CENTRE_ROWS = 128
+
+
+def centred_patterns(patterns: np.ndarray, norm: float = 1.0, dtype=np.float32) -> np.ndarray:
+    """``(Phi - mean_i Phi) / norm`` in ``dtype``: :func:`centre` computed in float64.
+
+    Parameters
+    ----------
+    patterns : ndarray, shape (M, Q)
+    norm : float
+        Divides the centred patterns (``sqrt(M)`` for the centred data term).
+    dtype : numpy dtype
+        Output precision.
+
+    Returns
+    -------
+    ndarray, shape (M, Q)
+        Bitwise the values of ``(centre(patterns.astype(float64)) / norm).astype(dtype)``,
+        without its full-size float64 temporaries: the work is done in float64 a block of rows
+        at a time.
+    """
+    phi = np.asarray(patterns)
+    mean = phi.mean(axis=0, dtype=np.float64, keepdims=True)
+    out = np.empty(phi.shape, dtype=dtype)
+    for r in range(0, phi.shape[0], _CENTRE_ROWS):
+        blk = np.subtract(phi[r:r + _CENTRE_ROWS], mean, dtype=np.float64)
+        if norm != 1.0:
+            blk /= norm
+        out[r:r + _CENTRE_ROWS] = blk
+    return out
+
+
 def qcr_delta(patterns: np.ndarray, corr: np.ndarray) -> np.ndarray:
     """``Delta = Phi_c^T C_c / M`` (eq. 11, 16): the covariance of the measurements with each
     pixel's pattern values, shape ``(Q, K)``."""
@@ -46,7 +79,7 @@ class CovarianceOperator(LinearOperator):
     """``H = Phi_c^T Phi_c / M`` (eq. 17), applied implicitly (never formed)."""
 
     def __init__(self, patterns: np.ndarray, dtype=np.float32):
-        phi_c = centre(np.asarray(patterns, dtype=np.float64)).astype(dtype)
+        phi_c = centred_patterns(patterns, dtype=dtype)
         self.m = patterns.shape[0]
         self._phi = MatrixOperator(phi_c)
         q = patterns.shape[1]
@@ -71,7 +104,7 @@ def qcr_problem(patterns: np.ndarray, corr: np.ndarray, form: str = "centred",
     """
     m = patterns.shape[0]
     if form == "centred":
-        phi_c = centre(np.asarray(patterns, dtype=np.float64)) / np.sqrt(m)
+        phi_c = centred_patterns(patterns, np.sqrt(m), dtype=dtype)
         return MatrixOperator(phi_c, dtype=dtype), (centre(corr) / np.sqrt(m)).astype(dtype)
     if form == "covariance":
         return CovarianceOperator(patterns, dtype=dtype), qcr_delta(patterns, corr).astype(dtype)
