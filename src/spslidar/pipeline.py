@@ -665,6 +665,11 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     stop = StopRule(max_iter=cfg.iterations or DEFAULT_ITERATIONS[cfg.solver], rtol=cfg.tol)
     x, info = solver_cls(stop=stop).solve(A, y, reg, lam)
     timing["solve"] = time.perf_counter() - t0
+    if not cfg.qcr and info.stop_reason == "max_iter":
+        warns.append(
+            f"without QCR the problem is ill-conditioned (the patterns' mean dominates its "
+            f"operator) and {cfg.solver} stopped at its cap of {stop.max_iter} iterations: the "
+            f"estimate is not converged (FISTA needs ~1000-2000 at 64x64; --iterations)")
 
     t0 = time.perf_counter()
     full = np.zeros((q, ulags.size), dtype=np.asarray(x).dtype)
