@@ -259,7 +259,14 @@ def test_full_mode_layouts_with_fake_runs(tmp_path, monkeypatch):
     rows = _rows(tmp_path / "fig4" / "fig4.csv")
     lengths = {int(r["code_length"]) for r in rows if r["lidar"] == "psst"}
     assert lengths == {1023, 2047, 4095, 8191, 16383, 32767}
-    assert len(rows) == 2 * (6 * 2 + 2)  # trials x (lengths x QCR + conventional x QCR)
+    # trials x (lengths x QCR + conventional x QCR), plus no-QCR solved to convergence at the
+    # shortest and the 16383-bit code on trial 0's measurements (same seed)
+    assert len(rows) == 2 * (6 * 2 + 2) + 2
+    from collections import Counter
+
+    twins = Counter((r["code_length"], r["seed"]) for r in rows
+                    if r["lidar"] == "psst" and r["qcr"] == "False" and r["trial"] == "0")
+    assert sorted(int(L) for (L, _), n in twins.items() if n == 2) == [1023, 16383]
     assert {r["size"] for r in rows} == {"64"}
     assert len(_rows(tmp_path / "fig2" / "fig2.csv")) == 2 * 6
     assert {r["noise"] for r in _rows(tmp_path / "fig6" / "fig6.csv")} == {"5.0", "8.0", "10.0"}
