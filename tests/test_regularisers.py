@@ -224,3 +224,103 @@ def test_zero_regulariser():
     assert Zero()(v) == 0.0
     np.testing.assert_array_equal(Zero().prox(v, 5.0), v)
     np.testing.assert_array_equal(Zero(nonneg=True).prox(v, 5.0), np.maximum(v, 0))
+
+
+# -- performance paths: row bands, threads, float32 sums, fast Haar ---------------------------
+
+
+def _large_tv_input(k=33, seed=12):
+    """A block of (64 x 64, k) images big enough for the two-band FGP loop."""
+    rng = np.random.default_rng(seed)
+    v = np.stack([_piecewise_image(64, 64, rng).ravel() for _ in range(k)], 1)
+    return v.astype(np.float32)
+
+
+@pytest.mark.parametrize("isotropic", [True, False])
+@pytest.mark.parametrize("nonneg", [False, True])
+def test_tv_prox_row_bands_and_threads_do_not_change_the_result(isotropic, nonneg, monkeypatch):
+    v = _large_tv_input()
+    kw = dict(isotropic=isotropic, nonneg=nonneg, max_inner=7, inner_tol=0.0)
+    assert len(TV((64, 64))._bands((64, 64, v.shape[1]))) == 2
+    # reference: one band (the split threshold raised above the block size)
+    monkeypatch.setattr(TV, "SPLIT_MIN_SIZE", 1 << 40)
+    one = TV((64, 64), **kw)
+    z1 = [one.prox(v, 0.2), one.prox(v * 1.01, 0.2)]  # second call warm-started
+    monkeypatch.undo()
+    for threads in (1, 2):
+        reg = TV((64, 64), threads=threads, **kw)
+        z = [reg.prox(v, 0.2), reg.prox(v * 1.01, 0.2)]
+        for a, b in zip(z, z1, strict=True):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(reg.dual, one.dual)
+        assert reg.last_inner_iterations == 7
+
+
+def test_tv_prox_in_a_parallel_context_and_stop_test():
+    from spslidar.operators.parallel import parallel
+
+    v = _large_tv_input(k=40)
+    ref = TV((64, 64), max_inner=300, inner_tol=5e-3, threads=1)
+    z_ref = ref.prox(v, 0.1)
+    with parallel(2) as ctx:
+        reg = TV((64, 64), max_inner=300, inner_tol=5e-3)
+        assert reg._n_threads(2)[0] == (ctx.threads if ctx is not None else 1)
+        z = reg.prox(v, 0.1)
+    np.testing.assert_array_equal(z, z_ref)
+    # the stop test fired in both, at the same iteration
+    assert reg.last_inner_iterations == ref.last_inner_iterations < 300
+
+
+def test_tv_prox_error_in_a_band_thread_is_raised(monkeypatch):
+    v = _large_tv_input()
+    reg = TV((64, 64), threads=2, max_inner=5)
+    orig = TV._fgp_band
+    calls = []
+
+    def failing(self, vt, rr, P, Q, R, a, e, *args):
+        calls.append(a)
+        if a > 0 and len(calls) > 3:
+            raise FloatingPointError("boom")
+        return orig(self, vt, rr, P, Q, R, a, e, *args)
+
+    monkeypatch.setattr(TV, "_fgp_band", failing)
+    with pytest.raises(FloatingPointError, match="boom"):
+        reg.prox(v, 0.1)
+
+
+def test_tv_values_float32_accuracy_and_column_subsets():
+    rng = np.random.default_rng(13)
+    x = rng.standard_normal((64 * 64, 9)).astype(np.float32)
+    reg = TV((64, 64))
+    ref = TV((64, 64)).values(x.astype(np.float64))
+    np.testing.assert_allclose(reg.values(x), ref, rtol=1e-5)
+    # subsets of varying width reuse the scratch and stay exact
+    for cols in ([0, 3], [1, 2, 4, 5, 8], [7]):
+        np.testing.assert_allclose(reg.values(x[:, cols]), ref[cols], rtol=1e-5)
+    reg.prox(x, 0.1)  # with the prox's buffers in place
+    np.testing.assert_allclose(reg.values(x), ref, rtol=1e-5)
+
+
+@pytest.mark.parametrize("shape,level", [((64, 64), None), ((16, 8), None), ((32, 48), 2),
+                                         ((8, 8), 1)])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_fast_haar_matches_pywavelets(shape, level, dtype):
+    import pywt
+
+    rng = np.random.default_rng(14)
+    w = Wavelet2D(shape, "haar", level=level)
+    x = rng.standard_normal((shape[0] * shape[1], 3)).astype(dtype)
+    c = w.matvec(x)
+    assert c.dtype == dtype
+    ref = np.stack([
+        pywt.coeffs_to_array(pywt.wavedec2(x[:, j].reshape(shape), "haar",
+                                           mode="periodization", level=w.level))[0].ravel()
+        for j in range(3)
+    ], axis=1)
+    tol = 1e-12 if dtype == np.float64 else 2e-6
+    np.testing.assert_allclose(c, ref, atol=tol * np.abs(ref).max())
+    np.testing.assert_allclose(w.rmatvec(c), x, atol=tol * np.abs(x).max())
+    # the adjoint is the inverse, also on data that did not come from the forward transform
+    d = rng.standard_normal(c.shape).astype(dtype)
+    lhs, rhs = float(np.vdot(w.matvec(x), d)), float(np.vdot(x, w.rmatvec(d)))
+    assert lhs == pytest.approx(rhs, rel=1e-10 if dtype == np.float64 else 1e-4)

@@ -287,3 +287,71 @@ def test_registry_dispatch(lasso):
     assert info.extra["L"] == 123.0
     with pytest.raises(ValueError):
         solve(MatrixOperator(A), y, L1(), lam, "twist", L=0.0)
+
+
+# -- parallel solves --------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def big_tv_problem():
+    """32 x 32 images, 512 measurements, K = 40: large enough for the parallel solve."""
+    rng = np.random.default_rng(21)
+    ny = nx = 32
+    n, m, k = ny * nx, 512, 40
+    A = (rng.standard_normal((m, n)) / np.sqrt(m)).astype(np.float32)
+    x = np.zeros((ny, nx, k), dtype=np.float32)
+    for j in range(k):
+        r0, c0 = rng.integers(2, 14, 2)
+        x[r0 : r0 + 12, c0 : c0 + 10, j] = 1.0 + 0.02 * j
+    y = A @ x.reshape(n, k) + 0.05 * rng.standard_normal((m, k)).astype(np.float32)
+    assert m * n * k >= FISTA.PARALLEL_MIN_WORK
+    return A, y, 0.05, (ny, nx)
+
+
+@pytest.mark.parametrize("name", ["fista", "twist"])
+def test_parallel_solve_matches_serial(name, big_tv_problem):
+    A, y, lam, shape = big_tv_problem
+    op = MatrixOperator(A)
+    runs = {}
+    for threads in (1, 2):
+        reg = _tv(shape, max_inner=5, inner_tol=1e-3, nonneg=True)
+        runs[threads] = SOLVERS[name](op, y, reg, lam, stop=StopRule(25, rtol=0), threads=threads)
+    (x1, i1), (x2, i2) = runs[1], runs[2]
+    pytest.importorskip("threadpoolctl")
+    assert i1.extra["threads"] == 1 and i2.extra["threads"] == 2
+    # products split by rows and the two-band prox: the same numbers up to float32 rounding
+    np.testing.assert_allclose(x2, x1, rtol=0, atol=1e-5 * np.abs(x1).max())
+    assert i2.objective[-1] == pytest.approx(i1.objective[-1], rel=1e-5)
+    assert i2.objective[-1] == pytest.approx(_objective(A, x2, y, TV(shape), lam), rel=1e-4)
+
+
+def test_parallel_products_split_by_rows():
+    from spslidar.operators.parallel import current, parallel
+
+    rng = np.random.default_rng(22)
+    M = rng.standard_normal((1030, 2050)).astype(np.float32)
+    x = rng.standard_normal((2050, 7)).astype(np.float32)
+    yv = rng.standard_normal((1030, 7)).astype(np.float32)
+    op = MatrixOperator(M)
+    ref, ref_t = op.matvec(x), op.rmatvec(yv)
+    assert current() is None
+    with parallel(3) as ctx:
+        assert ctx is not None and current() is ctx and ctx.threads == 3
+        with parallel(2) as inner:  # nested: the enclosing context is reused
+            assert inner is ctx
+        out, out_t = op.matvec(x), op.rmatvec(yv)
+        np.testing.assert_allclose(ctx.matmul(M, x), ref, rtol=1e-5, atol=1e-4)
+    assert current() is None
+    np.testing.assert_allclose(out, ref, rtol=1e-5, atol=1e-4)
+    np.testing.assert_allclose(out_t, ref_t, rtol=1e-5, atol=1e-4)
+    with parallel(1) as none:
+        assert none is None
+    with pytest.raises(ValueError):
+        FISTA(threads=0)
+
+
+def test_twist_objective_history_matches_iterates(tv_problem):
+    # A x_{k+1} is formed by linearity from A x_ist: the recorded objective is still F(x_k)
+    A, y, lam, shape = tv_problem
+    for it in (1, 2, 7, 40):
+        x, info = twist(MatrixOperator(A), y, _tv(shape), lam, stop=StopRule(it, rtol=0))
+        assert info.objective[-1] == pytest.approx(_objective(A, x, y, _tv(shape), lam),
+                                                   rel=1e-9)

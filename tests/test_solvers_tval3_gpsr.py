@@ -392,3 +392,55 @@ def test_tval3_rejects_bad_input():
         tval3(MatrixOperator(a), y, TV((8, 8)), 0.1)
     with pytest.raises(TypeError, match="unknown"):
         TVAL3(betta=1.0)
+
+
+# --------------------------------------------------------------------------------------
+# kernels and defaults of the fast paths
+# --------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("isotropic", [True, False])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_tval3_huber_kernel_matches_definition(isotropic, dtype):
+    from spslidar.solvers.tval3 import _huber
+
+    rng = np.random.default_rng(30)
+    q, k, beta = 50, 4, 3.0
+    v = (rng.standard_normal((2 * q, k)) * 0.5).astype(dtype)
+    mag = np.hypot(v[:q], v[q:]) if isotropic else np.abs(v)
+    thr = 1.0 / beta
+    val = np.where(mag > thr, mag - 0.5 * thr, 0.5 * beta * mag**2).sum(axis=0)
+    scale = np.where(mag > thr, 1.0 / mag, beta)
+    grad = v * (np.concatenate([scale, scale]) if isotropic else scale)
+    hv, hg = _huber(v, beta, isotropic, q)
+    tol = 1e-12 if dtype == np.float64 else 2e-6
+    assert hv.dtype == np.float64 and hg.dtype == dtype
+    np.testing.assert_allclose(hv, val, rtol=tol)
+    np.testing.assert_allclose(hg, grad, rtol=tol, atol=tol)
+
+
+def test_defaults_of_gpsr_and_tval3():
+    # GPSR_BB.m's 'Debias' defaults to 0; TVAL3 needs short inner loops to finish its
+    # continuation within the pipeline's 100 iterations
+    assert GPSR._defaults["debias"] is False
+    assert TVAL3._defaults["max_inner"] == 15
+    a, y = _sparse_problem(seed=31)
+    _, info = gpsr(MatrixOperator(a), y, L1(), 0.05, stop=StopRule(max_iter=50))
+    assert "objective_after_debias" not in info.extra
+
+
+def test_gpsr_and_tval3_parallel_solve_matches_serial():
+    rng = np.random.default_rng(32)
+    ny = nx = 32
+    n, m, k = ny * nx, 512, 40
+    a = (rng.standard_normal((m, n)) / np.sqrt(m)).astype(np.float32)
+    x = np.zeros((ny, nx, k), dtype=np.float32)
+    x[8:20, 6:22] = 1.0
+    y = a @ x.reshape(n, k) + 0.05 * rng.standard_normal((m, k)).astype(np.float32)
+    op = MatrixOperator(a)
+    for solve, reg in ((gpsr, L1(Wavelet2D((ny, nx), "haar"))), (tval3, TV((ny, nx)))):
+        x1, i1 = solve(op, y, reg, 0.05, stop=StopRule(max_iter=30, rtol=0), threads=1)
+        x2, i2 = solve(op, y, reg, 0.05, stop=StopRule(max_iter=30, rtol=0), threads=2)
+        assert i1.extra["threads"] == 1
+        np.testing.assert_allclose(x2, x1, atol=1e-4 * np.abs(x1).max())
+        assert i2.objective[-1] == pytest.approx(i1.objective[-1], rel=1e-4)

@@ -59,8 +59,8 @@ DEFAULT_LAM_SCALE = {"fista": 0.3, "twist": 0.3, "tval3": 0.3, "gpsr": 0.3}
 DEFAULT_ITERATIONS = {"fista": 60, "twist": 60, "tval3": 100, "gpsr": 200}
 #: inner (dual) iterations of the warm-started TV prox per outer iteration: the prox's dual is
 #: carried over between outer iterations, so a few suffice (measured: the same depth RMSE
-#: with 3, 5, 10 or 20 on the default problem; benchmarks/lambda_sweep.py)
-TV_INNER = 5
+#: with 3, 5, 10 or 20 on the default problem, and on the motorcycle with FISTA and TwIST)
+TV_INNER = 3
 #: rows of patterns per random stream: block ``b`` draws its counts from the ``b``-th child of
 #: the counts generator, so the results depend only on the seed (not on threads or chunking)
 BLOCK = 64

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import parallel as _parallel
+
 
 class LinearOperator:
     """Real linear map from R^n to R^m acting on vectors or column blocks.
@@ -158,6 +160,12 @@ class MatrixOperator(LinearOperator):
     A : ndarray, shape (m, n)
     dtype : numpy dtype, optional
         Cast ``A`` to this precision (float32 halves the cost of the products).
+
+    Notes
+    -----
+    Inside a :func:`~spslidar.operators.parallel.parallel` context (which the solvers enter
+    for large problems) a large product is computed as bands of output rows, one
+    single-threaded BLAS call per thread; outside it, one BLAS call.
     """
 
     def __init__(self, A: np.ndarray, dtype=None):
@@ -169,10 +177,19 @@ class MatrixOperator(LinearOperator):
         self._AT = np.ascontiguousarray(A.T)
 
     def _matvec(self, x):
-        return self.A @ x.astype(self.dtype, copy=False)
+        return _product(self.A, x.astype(self.dtype, copy=False))
 
     def _rmatvec(self, y):
-        return self._AT @ y.astype(self.dtype, copy=False)
+        return _product(self._AT, y.astype(self.dtype, copy=False))
+
+
+def _product(M: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``M @ x``, split over the threads of an active :func:`~spslidar.operators.parallel.
+    parallel` context when large enough (same result, one BLAS call per thread)."""
+    ctx = _parallel.current()
+    if ctx is not None and M.size * x.shape[1] >= _parallel.SPLIT_MIN_WORK:
+        return ctx.matmul(M, x)
+    return M @ x
 
     def todense(self):
         return self.A.copy()

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import parallel as _parallel
 from .base import LinearOperator
 
 
@@ -61,6 +62,14 @@ class Wavelet2D(LinearOperator):
         Any orthogonal PyWavelets family (``'haar'``, ``'db2'``, ``'db4'``, ``'sym4'``...).
     level : int, optional
         Decomposition depth; default: as deep as the image sides allow (at most 4).
+
+    Notes
+    -----
+    The Haar transform is computed directly in NumPy on the whole ``(Ny, Nx, K)`` block
+    (sums and differences of the four pixels of each 2 x 2 cell, level by level), with the
+    same coefficients and the same layout as PyWavelets' ``wavedec2`` + ``coeffs_to_array``
+    (checked in the tests); it is about ten times faster than going through PyWavelets,
+    which matters to GPSR (two transforms per iteration). Other wavelets use PyWavelets.
     """
 
     def __init__(self, shape: tuple[int, int], wavelet: str = "haar", level: int | None = None,
@@ -92,6 +101,8 @@ class Wavelet2D(LinearOperator):
         k = x.shape[1]
         if self.level == 0:
             return x.copy()
+        if self.wavelet == "haar":
+            return _haar_split(_haar_forward, x.reshape(ny, nx, k), self.level).reshape(ny * nx, k)
         c = pywt.wavedec2(x.reshape(ny, nx, k), self.wavelet, mode="periodization",
                           level=self.level, axes=(0, 1))
         arr, _ = pywt.coeffs_to_array(c, axes=(0, 1))
@@ -103,5 +114,80 @@ class Wavelet2D(LinearOperator):
         k = y.shape[1]
         if self.level == 0:
             return y.copy()
+        if self.wavelet == "haar":
+            return _haar_split(_haar_inverse, y.reshape(ny, nx, k), self.level).reshape(ny * nx, k)
         c = pywt.array_to_coeffs(y.reshape(ny, nx, k), self._slices, output_format="wavedec2")
         return pywt.waverec2(c, self.wavelet, mode="periodization", axes=(0, 1)).reshape(ny * nx, k)
+
+
+def _haar_split(fn, x: np.ndarray, level: int) -> np.ndarray:
+    """``fn(x, level)`` on a ``(Ny, Nx, K)`` block, as two halves of the K columns run
+    concurrently inside a :func:`~spslidar.operators.parallel.parallel` context (the
+    transform acts on each column separately, so the result is the same)."""
+    dt = x.dtype if x.dtype.kind == "f" else np.dtype(np.float64)
+    k = x.shape[2]
+    if k < 2 or x.size < _parallel.BAND_MIN_SIZE or _parallel.current() is None:
+        return fn(x, level)
+    out = np.empty(x.shape, dtype=dt)
+    halves = [slice(0, k // 2), slice(k // 2, k)]
+    _parallel.run_parts(lambda i: fn(x[:, :, halves[i]], level, out[:, :, halves[i]]), 2)
+    return out
+
+
+def _haar_forward(x: np.ndarray, level: int, out: np.ndarray | None = None) -> np.ndarray:
+    """Orthonormal 2-D Haar analysis of a ``(Ny, Nx, K)`` block, laid out as PyWavelets'
+    ``coeffs_to_array(wavedec2(x, 'haar', mode='periodization', level, axes=(0, 1)))``.
+
+    Per level, with ``a_rc`` the pixel of parity (row r, column c) of each 2 x 2 cell:
+    approximation ``(a00 + a01 + a10 + a11) / 2``, detail along rows ('da', stored below the
+    approximation) ``(a00 + a01 - a10 - a11) / 2``, along columns ('ad', stored right of it)
+    ``(a00 - a01 + a10 - a11) / 2`` and diagonal ('dd') ``(a00 - a01 - a10 + a11) / 2``.
+    """
+    dt = x.dtype if x.dtype.kind == "f" else np.dtype(np.float64)
+    if out is None:
+        out = np.empty(x.shape, dtype=dt)
+    half = dt.type(0.5)
+    a = x
+    for _ in range(level):
+        h, w = a.shape[0] // 2, a.shape[1] // 2
+        s0 = a[0::2, 0::2] + a[0::2, 1::2]  # even rows: column-pair sums and differences
+        d0 = a[0::2, 0::2] - a[0::2, 1::2]
+        s1 = a[1::2, 0::2] + a[1::2, 1::2]  # odd rows
+        d1 = a[1::2, 0::2] - a[1::2, 1::2]
+        np.subtract(s0, s1, out=out[h : 2 * h, :w])
+        np.add(d0, d1, out=out[:h, w : 2 * w])
+        np.subtract(d0, d1, out=out[h : 2 * h, w : 2 * w])
+        s0 += s1
+        out[h : 2 * h, : 2 * w] *= half
+        out[:h, w : 2 * w] *= half
+        s0 *= half
+        a = s0
+    out[: a.shape[0], : a.shape[1]] = a
+    return out
+
+
+def _haar_inverse(c: np.ndarray, level: int, out: np.ndarray | None = None) -> np.ndarray:
+    """Inverse (= adjoint) of :func:`_haar_forward` (written into ``out`` when given)."""
+    dt = c.dtype if c.dtype.kind == "f" else np.dtype(np.float64)
+    ny, nx = c.shape[:2]
+    h, w = ny >> level, nx >> level
+    half = dt.type(0.5)
+    a = np.array(c[:h, :w], dtype=dt)
+    for lev in range(level):
+        ch, cv, cd = c[h : 2 * h, :w], c[:h, w : 2 * w], c[h : 2 * h, w : 2 * w]
+        s0 = a + ch  # 2 x (even-row pair sum), and so on
+        s1 = a - ch
+        d0 = cv + cd
+        d1 = cv - cd
+        if lev == level - 1 and out is not None:
+            nxt = out
+        else:
+            nxt = np.empty((2 * h, 2 * w) + c.shape[2:], dtype=dt)
+        np.add(s0, d0, out=nxt[0::2, 0::2])
+        np.subtract(s0, d0, out=nxt[0::2, 1::2])
+        np.add(s1, d1, out=nxt[1::2, 0::2])
+        np.subtract(s1, d1, out=nxt[1::2, 1::2])
+        nxt *= half
+        a = nxt
+        h, w = 2 * h, 2 * w
+    return a

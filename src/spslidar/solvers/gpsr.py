@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..operators.base import LinearOperator
+from ..operators.parallel import row_bands, run_parts
 from .base import Monitor, SolveInfo, Solver, StopRule, register
 from .regularisers import L1
 
@@ -25,7 +26,12 @@ def _coldot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _colabs(a: np.ndarray) -> np.ndarray:
     """Per-column l1 norms in float64."""
-    return np.sum(np.abs(a), axis=0, dtype=np.float64)
+    return np.einsum("ik->k", np.abs(a), dtype=np.float64)
+
+
+def _colsum(a: np.ndarray) -> np.ndarray:
+    """Per-column sums in float64."""
+    return np.einsum("ik->k", a, dtype=np.float64)
 
 
 class _Synthesis:
@@ -66,7 +72,10 @@ class GPSR(Solver):
         (full projected BB step, ``lambda_k = 1``).
     debias : bool
         After convergence, minimise ``1/2 ||y - A W^H z||^2`` over the support of ``z`` by
-        conjugate gradients (default True, as GPSR_BB's ``'Debias'``).
+        conjugate gradients. Default False, as the ``'Debias'`` option of the authors'
+        ``GPSR_BB.m`` (default 0). On the lidar problems it made the depth worse and cost as
+        much as the GPSR iterations (motorcycle scene, noise 5 / 10: depth RMSE 0.300 / 0.485 m
+        without, 0.368 / 0.546 m with 200 CGLS iterations).
     debias_tol : float
         Debiasing stops when the restricted normal-equation residual of every column has
         dropped by this factor (default 1e-4), or after ``debias_max_iter`` (default 200).
@@ -110,7 +119,7 @@ class GPSR(Solver):
     independent); ``B z`` is updated incrementally, so an iteration costs one ``B`` and one
     ``B^H`` product.
 
-    Debiasing (on by default) solves ``min 1/2 ||y - B z||^2`` with ``z`` restricted to the
+    Debiasing (``debias=True``) solves ``min 1/2 ||y - B z||^2`` with ``z`` restricted to the
     support found, by CGLS (conjugate gradients on the normal equations) started from the l1
     solution; the returned ``x = W^H z`` is the debiased one, which is **no longer the l1
     optimum** (its objective ``F`` is larger; its residual smaller). ``info.objective`` holds
@@ -123,7 +132,7 @@ class GPSR(Solver):
 
     _defaults = {
         "monotone": True,
-        "debias": True,
+        "debias": False,
         "debias_tol": 1e-4,
         "debias_max_iter": 200,
         "continuation": False,
@@ -136,11 +145,11 @@ class GPSR(Solver):
         "nonneg": None,
     }
 
-    def __init__(self, stop: StopRule | None = None, **options):
+    def __init__(self, stop: StopRule | None = None, threads: int | None = None, **options):
         unknown = set(options) - set(self._defaults)
         if unknown:
             raise TypeError(f"unknown GPSR option(s): {', '.join(sorted(unknown))}")
-        super().__init__(stop=stop, **options)
+        super().__init__(stop=stop, threads=threads, **options)
 
     def _solve(self, A: LinearOperator, y, reg, lam, x0, mon: Monitor):
         if not isinstance(reg, L1):
@@ -166,9 +175,9 @@ class GPSR(Solver):
             z = np.zeros((n, k), dtype=dt)
             bz = np.zeros_like(y)
         else:
-            z = B.to_coef(np.array(np.broadcast_to(x0, (n, k)), dtype=dt))
+            z = np.array(B.to_coef(np.array(np.broadcast_to(x0, (n, k)), dtype=dt)), dtype=dt)
             if nonneg:
-                z = np.maximum(z, 0)
+                np.maximum(z, 0, out=z)
             bz = B.fwd(z)
         r = bz - y
         g = B.adj(r)
@@ -189,15 +198,59 @@ class GPSR(Solver):
         def objective(r, z):
             return 0.5 * float(np.sum(_coldot(r, r))) + lam * float(np.sum(_colabs(z)))
 
-        def direction(z, g, tau_dt, alpha_dt):
-            """Projected BB step in (u, v), returned as (du, dv)."""
-            u = np.maximum(z, 0)
-            du = np.maximum(u - alpha_dt * (tau_dt + g), 0) - u
+        # work arrays of the projected step, reused every iteration; the element-wise work is
+        # done in row bands (concurrently inside a parallel context), with per-band partial
+        # sums added in band order
+        du = np.empty((n, k), dtype=dt)
+        dv = None if nonneg else np.empty((n, k), dtype=dt)
+        u_buf = np.empty((n, k), dtype=dt)
+        dz = np.empty((n, k), dtype=dt)
+        bands = row_bands(n, n * k)
+        step_par: dict[str, np.ndarray] = {}  # alpha and alpha * tau of the current step
+
+        def direction_band(i):
+            """Projected BB step in (u, v) on rows ``bands[i]``: fills ``du``, ``dv`` and
+            ``dz = du - dv`` there and returns the partial sums ``||du||^2 + ||dv||^2``,
+            ``sum(du + dv)``, ``<dz, g>`` and ``||dz||^2`` (per column).
+
+            With ``u = max(z, 0)``, ``v = u - z = max(-z, 0)`` and ``ag = alpha g``:
+            ``du = max(u - alpha tau - ag, 0) - u``, ``dv = max(v - alpha tau + ag, 0) - v``.
+            """
+            a, b = bands[i]
+            zb, gb, dub, dzb = z[a:b], g[a:b], du[a:b], dz[a:b]
+            at = step_par["at"]
+            np.multiply(gb, step_par["alpha"], out=dzb)  # dz holds alpha g for now
+            u = np.maximum(zb, 0, out=u_buf[a:b])
+            np.subtract(u, dzb, out=dub)
+            dub -= at
+            np.maximum(dub, 0, out=dub)
+            dub -= u
+            dd, sd = _coldot(dub, dub), _colsum(dub)
             if nonneg:
-                return du, np.zeros_like(du)
-            v = np.maximum(-z, 0)
-            dv = np.maximum(v - alpha_dt * (tau_dt - g), 0) - v
-            return du, dv
+                np.copyto(dzb, dub)
+            else:
+                dvb = dv[a:b]
+                np.subtract(u, zb, out=u)  # v
+                np.add(u, dzb, out=dvb)
+                dvb -= at
+                np.maximum(dvb, 0, out=dvb)
+                dvb -= u
+                np.subtract(dub, dvb, out=dzb)
+                dd += _coldot(dvb, dvb)
+                sd += _colsum(dvb)
+            return dd, sd, _coldot(dzb, gb), _coldot(dzb, dzb)
+
+        def update_band(i):
+            """``z += lam_k dz`` on rows ``bands[i]``; returns the partial ``||z||_1``."""
+            a, b = bands[i]
+            dzb = dz[a:b]
+            dzb *= step_par["lk"]
+            zb = z[a:b]
+            zb += dzb
+            return (_colsum(np.abs(zb, out=u_buf[a:b])),)
+
+        def band_sums(parts):
+            return [sum(p[j] for p in parts) for j in range(len(parts[0]))]
 
         it = 0
         reason = ""
@@ -224,35 +277,39 @@ class GPSR(Solver):
             while True:
                 it += 1
                 stage_it += 1
-                du, dv = direction(z, g, tau_dt, alpha.astype(dt))
-                dz = du - dv
+                adt = alpha.astype(dt)
+                step_par["alpha"], step_par["at"] = adt, adt * tau_dt
+                dd, sdu, dzg, dzz = band_sums(run_parts(direction_band, len(bands)))
                 bd = B.fwd(dz)
                 gam = _coldot(bd, bd)
+                # d/dlam of the split objective at lam = 0: <du, tau + g> + <dv, tau - g>
+                # = tau sum(du + dv) + <dz, g>; ||delta||^2 = ||du||^2 + ||dv||^2
+                slope = dzg + tau * sdu
                 if monotone:
-                    # d/dlam of the split objective at lam = 0: <delta, grad>
-                    slope = _coldot(du, tau_dt + g) + _coldot(dv, tau_dt - g)
                     lam_k = np.where(gam > 0, -slope / np.maximum(gam, _TINY), 1.0)
                     lam_k = np.clip(lam_k, 0.0, 1.0)
                 else:
                     lam_k = np.ones(k)
-                z_old = z
+                # z_{k+1} - z_k = lam_k dz: its per-column norms for the stop tests
+                dzn2 = lam_k * lam_k * dzz
                 lk = lam_k.astype(dt)
-                z = z + lk * dz
-                bz = bz + lk * bd
+                step_par["lk"] = lk
+                (l1,) = band_sums(run_parts(update_band, len(bands)))
+                bz += lk * bd
                 r = bz - y
                 g = B.adj(r)
-                dd = _coldot(du, du) + _coldot(dv, dv)
                 # BB step; a column that did not move keeps its step
                 alpha = np.where(
                     gam > 0, dd / np.maximum(gam, _TINY), np.where(dd > 0, a_max, alpha)
                 )
                 alpha = np.clip(alpha, a_min, a_max)
-                obj = objective(r, z)
-                reason = mon.check(it, z, z_old if last else None, obj)
+                obj = 0.5 * float(np.sum(_coldot(r, r))) + lam * float(np.sum(l1))
+                step = float(np.sqrt(np.sum(dzn2))) if last else None
+                reason = mon.check(it, z, None, obj, step_norm=step)
                 if reason:
                     break
                 if not last:
-                    dzn = np.sqrt(_coldot(z - z_old, z - z_old))
+                    dzn = np.sqrt(dzn2)
                     zn = np.sqrt(_coldot(z, z))
                     if np.all(dzn <= float(o["continuation_rtol"]) * np.maximum(zn, _TINY)):
                         break

@@ -14,8 +14,12 @@ the reported value (iterates produced by the proxes are always feasible).
 
 from __future__ import annotations
 
+import threading
+from typing import Any
+
 import numpy as np
 
+from ..operators import parallel as _parallel
 from ..operators.base import LinearOperator
 from ..operators.image import Gradient2D
 
@@ -42,6 +46,18 @@ def _sqnorm(a: np.ndarray) -> float:
     if a.dtype == np.float32:
         return float(np.dot(a, a))
     return float(np.einsum("i,i->", a, a))
+
+
+def _colsum(a: np.ndarray) -> np.ndarray:
+    """Column sums of a 2-D block as float64.
+
+    float32 goes through BLAS (``sgemv`` with a vector of ones, float32 accumulation with a
+    relative error of about 1e-6, five times faster than NumPy's strided float64 reduction);
+    float64 through ``einsum``.
+    """
+    if a.dtype == np.float32:
+        return (np.ones(a.shape[0], dtype=np.float32) @ a).astype(np.float64)
+    return np.einsum("qk->k", a, dtype=np.float64)
 
 
 def _float_dtype(x: np.ndarray) -> np.dtype:
@@ -201,6 +217,13 @@ class TV(Regulariser):
         (norms over the whole block).
     warm_start : bool
         Start each prox from the dual variable of the previous call when the shapes match.
+    threads : int or None
+        Threads used by the prox of large blocks (at least :attr:`SPLIT_MIN_SIZE` entries),
+        which are processed as two bands of image rows. ``None`` (default): the threads of the
+        active :func:`~spslidar.operators.parallel.parallel` context (which the solvers enter
+        for large problems, with BLAS held to one thread), one outside it. The result does
+        not depend on it (the bands, and the order in which their partial norms are added,
+        are fixed by the shape).
 
     Attributes
     ----------
@@ -234,18 +257,33 @@ class TV(Regulariser):
     on all K columns at once (arrays of shape ``(Ny, Nx, K)`` and ``(2, Ny, Nx, K)``, no loop
     over slices, preallocated buffers and in-place arithmetic, in the dtype of ``v``).
 
+    Implementation: the loop runs on the normalised dual ``p`` (``|p_q| <= 1``) and the scaled
+    primal ``z / t = P_C(v / t - G^T r)``, the same iteration with the radius ``t`` divided
+    out, so the projection is onto unit balls and the step ``1/8`` costs one pass over the
+    primal array. The dual arrays keep zeros on the edges where the forward differences
+    vanish, which makes the divergence a few in-place passes; the last inner iteration skips
+    the extrapolation and the stop test (whose result would not be used). Large blocks are
+    split into two bands of image rows, each of which computes one halo row of ``z`` itself
+    and writes its extrapolated dual into alternating buffers, so the bands only meet once
+    per inner iteration (to add their partial norms for the stop test): with two threads
+    the prox uses both cores of a 2-core machine (NumPy releases the GIL in its loops).
+
     It is written by hand rather than taken from PyProximal because ``pyproximal.TV.prox``
     restarts its iterative solve from zero at every call and handles one image per call: inside
     FISTA/TwIST, which call the prox every iteration with slowly changing input, warm-starting
     the dual variable from the previous call (kept in this object) is what makes the inner
     solve cheap. Consequently the object is stateful: do not share one instance between solves
-    running concurrently in threads; :meth:`reset` drops the state. With the default
-    ``max_inner`` the prox is inexact; the solvers tolerate this (the dual keeps improving
-    across calls), and tighter settings give an accurate prox for a one-off denoising.
+    running concurrently in threads (this includes :meth:`values`, which uses the prox's work
+    buffers); :meth:`reset` drops the state. With the default ``max_inner`` the prox is
+    inexact; the solvers tolerate this (the dual keeps improving across calls), and tighter
+    settings give an accurate prox for a one-off denoising.
 
     The paper being reproduced is Shen et al., pseudo-random spread-spectrum single-pixel ToF
     lidar, eq. (18).
     """
+
+    #: blocks with at least this many entries (Ny * Nx * K) are processed as two row bands
+    SPLIT_MIN_SIZE = 1 << 17
 
     def __init__(
         self,
@@ -255,6 +293,7 @@ class TV(Regulariser):
         max_inner: int = 20,
         inner_tol: float = 1e-3,
         warm_start: bool = True,
+        threads: int | None = None,
     ):
         self.image_shape = (int(image_shape[0]), int(image_shape[1]))
         self.isotropic = bool(isotropic)
@@ -264,12 +303,15 @@ class TV(Regulariser):
         self.max_inner = int(max_inner)
         self.inner_tol = float(inner_tol)
         self.warm_start = bool(warm_start)
+        if threads is not None and int(threads) < 1:
+            raise ValueError("threads must be >= 1")
+        self.threads = None if threads is None else int(threads)
         self.gradient = Gradient2D(self.image_shape, dtype=np.float32)
         self.last_inner_iterations = 0
-        # FGP state kept between calls: work buffers, the scaled dual u = t p and its t
-        self._buf: dict[str, np.ndarray] = {}
-        self._u: np.ndarray | None = None
-        self._t = 0.0
+        # FGP state kept between calls: work buffers and the (normalised) dual of the last call
+        self._buf: dict[str, Any] = {}
+        self._p: np.ndarray | None = None
+        self._scratch: tuple[np.ndarray, np.ndarray] | None = None  # flat, for values()
 
     def __repr__(self) -> str:
         return (
@@ -279,8 +321,8 @@ class TV(Regulariser):
     def reset(self) -> None:
         """Drop the warm-start dual variable and the work buffers."""
         self._buf = {}
-        self._u = None
-        self._t = 0.0
+        self._p = None
+        self._scratch = None
 
     @property
     def dual(self) -> np.ndarray | None:
@@ -290,18 +332,63 @@ class TV(Regulariser):
         ``P_C(v - t G^T p)``. ``None`` before the first call, after :meth:`reset` or when
         ``warm_start`` is off.
         """
-        if self._u is None or self._t == 0.0:
-            return None
-        return self._u / self._u.dtype.type(self._t)
+        return None if self._p is None else self._p.copy()
 
-    def _buffers(self, shape_p: tuple[int, ...], dt: np.dtype) -> dict[str, np.ndarray]:
+    # -- work buffers ---------------------------------------------------------------------
+    def _bands(self, shape3: tuple[int, int, int]) -> list[tuple[int, int]]:
+        """Row bands ``[(a, e), ...]`` of the FGP loop (fixed by the shape alone)."""
+        ny = shape3[0]
+        if ny >= 4 and shape3[0] * shape3[1] * shape3[2] >= self.SPLIT_MIN_SIZE:
+            h = ny // 2
+            return [(0, h), (h, ny)]
+        return [(0, ny)]
+
+    def _buffers(self, shape3: tuple[int, int, int], dt: np.dtype) -> dict[str, Any]:
+        """Work arrays of the FGP loop, kept between calls of the same shape and dtype.
+
+        The dual arrays ``p``, ``q``, ``ra``, ``rb`` (shape ``(2, Ny, Nx, K)``) are created
+        zero and their edges ``[0, -1]`` and ``[1, :, -1]`` (where the forward differences
+        vanish) are never written with anything but zeros: the divergence relies on it. Each
+        row band ``(a, e)`` has its own primal work array with one halo row (``z``) and a
+        scratch array (``w``).
+        """
         b = self._buf
-        if not b or b["q"].shape != shape_p or b["q"].dtype != dt:
-            b = {name: np.empty(shape_p, dtype=dt) for name in ("u", "r", "q")}
-            b.update({name: np.empty(shape_p[1:], dtype=dt) for name in ("w1", "w2")})
+        if not b or b["vt"].shape != shape3 or b["vt"].dtype != dt:
+            ny, nx, k = shape3
+            b = {name: np.zeros((2,) + shape3, dtype=dt) for name in ("p", "q", "ra", "rb")}
+            b["vt"] = np.empty(shape3, dtype=dt)
+            b["bands"] = self._bands(shape3)
+            b["z"] = [np.empty((min(e + 1, ny) - a, nx, k), dtype=dt) for a, e in b["bands"]]
+            b["w"] = [np.empty((e - a, nx, k), dtype=dt) for a, e in b["bands"]]
             self._buf = b
-            self._u = None
+            self._p = None
         return b
+
+    def _scratch_pair(self, shape3: tuple[int, int, int], dt: np.dtype):
+        """Two scratch arrays of ``shape3`` for :meth:`values` (the prox's when they fit)."""
+        b = self._buf
+        if b and b["vt"].shape == shape3 and b["vt"].dtype == dt and len(b["bands"]) == 1:
+            return b["w"][0], b["vt"]
+        size = shape3[0] * shape3[1] * shape3[2]
+        s = self._scratch
+        if s is None or s[0].size < size or s[0].dtype != dt:
+            # flat, grown as needed: values() of column subsets (monotone solvers) of varying
+            # width reuse them
+            s = (np.empty(size, dtype=dt), np.empty(size, dtype=dt))
+            self._scratch = s
+        return s[0][:size].reshape(shape3), s[1][:size].reshape(shape3)
+
+    def _n_threads(self, n_bands: int):
+        """``(threads, pool)``: the threads for ``n_bands`` bands, and the pool of the active
+        parallel context to run them in (``None``: start threads)."""
+        if n_bands < 2:
+            return 1, None
+        if self.threads is not None:
+            return max(1, min(n_bands, self.threads)), None
+        ctx = _parallel.current()
+        if ctx is None:
+            return 1, None
+        return max(1, min(n_bands, ctx.threads)), ctx.pool
 
     # -- helpers on (Ny, Nx, K) / (2, Ny, Nx, K) arrays -------------------------------------
     def _cube(self, x: np.ndarray) -> np.ndarray:
@@ -311,48 +398,48 @@ class TV(Regulariser):
         return x.reshape(ny, nx, x.shape[1])
 
     @staticmethod
-    def _grad_into(z: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """``out = G z`` (forward differences, zero last difference)."""
-        np.subtract(z[1:], z[:-1], out=out[0, :-1])
-        out[0, -1] = 0
-        np.subtract(z[:, 1:], z[:, :-1], out=out[1, :, :-1])
-        out[1, :, -1] = 0
-        return out
+    def _neg_div_rows(p: np.ndarray, a: int, e: int, out: np.ndarray,
+                      v: np.ndarray | None = None) -> np.ndarray:
+        """``out = (v - G^T p)[a:e]`` (``v`` taken as zero when ``None``): the divergence.
 
-    @staticmethod
-    def _primal_into(v: np.ndarray, u: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """``out = v - G^T u`` (``v`` plus the divergence of ``u``; last differences ignored)."""
-        u0, u1 = u[0], u[1]
-        np.copyto(out, v)
-        out[:-1] += u0[:-1]
-        out[1:] -= u0[:-1]
-        out[:, :-1] += u1[:, :-1]
-        out[:, 1:] -= u1[:, :-1]
-        return out
-
-    def _project_dual(self, q: np.ndarray, radius, work: np.ndarray, work2: np.ndarray) -> None:
-        """In place: ``q <- P(q)``, pixel-wise onto the ball (isotropic) or box of ``radius``."""
-        if self.isotropic:
-            np.multiply(q[0], q[0], out=work)
-            work += np.multiply(q[1], q[1], out=work2)
-            np.maximum(work, radius * radius, out=work)
-            np.sqrt(work, out=work)
-            np.divide(radius, work, out=work)
-            q *= work
+        Requires the edges ``p[0, -1]`` and ``p[1, :, -1]`` to be zero (as for every dual
+        array of :meth:`_buffers`): then ``(-G^T p)_{i,j} = p0[i,j] - p0[i-1,j] + p1[i,j] -
+        p1[i,j-1]`` with the out-of-range terms dropped. In-place passes only (NumPy's
+        in-place arithmetic is markedly faster than three-operand arithmetic here).
+        """
+        p0, p1 = p[0], p[1]
+        if v is None:
+            np.copyto(out, p0[a:e])
         else:
-            np.clip(q, -radius, radius, out=q)
+            np.copyto(out, v[a:e])
+            out += p0[a:e]
+        out += p1[a:e]
+        lo = max(a, 1)
+        if lo < e:
+            out[lo - a:] -= p0[lo - 1 : e - 1]
+        out[:, 1:] -= p1[a:e, :-1]
+        return out
 
     # -- Regulariser interface ----------------------------------------------------------
     def _values(self, x):
         x = np.asarray(x)
         x = x.astype(_float_dtype(x), copy=False)
         z = self._cube(x)
-        g = self._grad_into(z, np.empty((2,) + z.shape, dtype=z.dtype))
+        d0, d1 = self._scratch_pair(z.shape, z.dtype)
+        np.subtract(z[1:], z[:-1], out=d0[:-1])
+        d0[-1] = 0
+        np.subtract(z[:, 1:], z[:, :-1], out=d1[:, :-1])
+        d1[:, -1] = 0
         if self.isotropic:
-            mag = np.sqrt(g[0] * g[0] + g[1] * g[1])
+            np.square(d0, out=d0)
+            np.square(d1, out=d1)
+            d0 += d1
+            np.sqrt(d0, out=d0)
         else:
-            mag = np.abs(g[0]) + np.abs(g[1])
-        return np.sum(mag, axis=(0, 1), dtype=np.float64)
+            np.abs(d0, out=d0)
+            np.abs(d1, out=d1)
+            d0 += d1
+        return _colsum(d0.reshape(-1, z.shape[2]))
 
     def _prox(self, v, t):
         dt = v.dtype
@@ -361,46 +448,143 @@ class TV(Regulariser):
             self.last_inner_iterations = 0
             z = np.maximum(v3, 0) if self.nonneg else v3.copy()
             return z.reshape(v.shape)
-        # FGP on the scaled dual u = t p (|u_q| <= t), so that z(u) = P_C(v - G^T u) and the
-        # dual gradient step is the constant 1/8. Buffers persist between calls (no fresh
-        # multi-megabyte allocations per call); the returned z is always a new array.
-        tt = dt.type(t)
-        b = self._buffers((2,) + v3.shape, dt)
-        u, r, q, w1, w2 = b["u"], b["r"], b["q"], b["w1"], b["w2"]
-        if self.warm_start and self._u is not None:
-            u = self._u
-            if self._t != t:
-                u *= dt.type(t / self._t)
+        b = self._buffers(v3.shape, dt)
+        if not (self.warm_start and self._p is not None):
+            b["p"].fill(0)
+        np.multiply(v3, dt.type(1.0 / t), out=b["vt"])
+        out = np.empty_like(v3)
+        bands = b["bands"]
+        n_threads, pool = self._n_threads(len(bands))
+        # per-band partial squared norms ||p_k - p_{k-1}||^2 and ||p_k||^2 (added in band
+        # order, so the stop test does not depend on the number of threads)
+        # (two sets, by iteration parity: a band may start the next iteration while another
+        # still reads the sums of this one)
+        norms = np.zeros((2, len(bands), 2))
+        if n_threads == 1:
+            p_final, it = self._fgp(b, v3, t, out, range(len(bands)), norms, None)
         else:
-            u.fill(0)
-        np.copyto(r, u)
-        z = np.empty_like(v3)
-        eighth = dt.type(0.125)
+            p_final, it = self._fgp_threaded(b, v3, t, out, norms, n_threads, pool)
+        self.last_inner_iterations = it
+        if p_final is b["q"]:
+            b["p"], b["q"] = b["q"], b["p"]
+        self._p = p_final if self.warm_start else None
+        return out.reshape(v.shape)
+
+    def _fgp_threaded(self, b, v3, t, out, norms, n_threads, pool):
+        """Run the FGP loop with one thread per group of row bands (the caller's thread
+        takes the first), in ``pool`` or in threads started for this call."""
+        groups = [tuple(g) for g in np.array_split(np.arange(len(b["bands"])), n_threads)]
+        barrier = threading.Barrier(len(groups))
+        results: list[Any] = [None] * len(groups)
+
+        def run(i):
+            try:
+                results[i] = self._fgp(b, v3, t, out, groups[i], norms, barrier)
+            except BaseException as exc:  # release the other threads, re-raised below
+                results[i] = exc
+                barrier.abort()
+
+        if pool is not None:
+            helpers = [pool.submit(run, i) for i in range(1, len(groups))]
+            run(0)
+            for f in helpers:
+                f.result()
+        else:
+            threads = [threading.Thread(target=run, args=(i,), daemon=True)
+                       for i in range(1, len(groups))]
+            for th in threads:
+                th.start()
+            run(0)
+            for th in threads:
+                th.join()
+        for r in results:  # the original error rather than the other band's BrokenBarrierError
+            if isinstance(r, BaseException) and not isinstance(r, threading.BrokenBarrierError):
+                raise r
+        for r in results:
+            if isinstance(r, BaseException):
+                raise r
+        return results[0]
+
+    def _fgp(self, b, v3, t, out, ids, norms, barrier):
+        """FGP iterations on the row bands ``ids``; writes the prox of those bands into ``out``.
+
+        Every band's thread runs this loop with identical control flow: the decisions depend
+        only on the iteration count and on ``norms``, which all bands fill before meeting at
+        ``barrier``. Returns ``(p, iterations)``.
+        """
+        dt = b["vt"].dtype
+        vt, bands = b["vt"], b["bands"]
+        P, Q, Ra, Rb = b["p"], b["q"], b["ra"], b["rb"]
+        rr = P  # extrapolated dual r_1 = p_0
+        tol2 = self.inner_tol**2
         s = 1.0
         it = 0
-        for it in range(1, self.max_inner + 1):  # noqa: B007 - reported below
-            self._primal_into(v3, r, z)
-            if self.nonneg:
-                np.maximum(z, 0, out=z)
-            self._grad_into(z, q)
-            q *= eighth
-            q += r
-            self._project_dual(q, tt, w1, w2)
+        for it in range(1, self.max_inner + 1):  # noqa: B007 - returned
+            last = it == self.max_inner
             s_new = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * s * s))
-            # r = q + (s - 1)/s_new (q - u), with d = q - u formed in r's buffer first
-            np.subtract(q, u, out=r)
-            dn2 = _sqnorm(r)
-            r *= dt.type((s - 1.0) / s_new)
-            r += q
-            u, q = q, u
-            s = s_new
-            if dn2 <= self.inner_tol**2 * max(_sqnorm(u), 1e-60 * t * t):
+            c = (s - 1.0) / s_new
+            for i in ids:
+                a, e = bands[i]
+                self._fgp_band(
+                    vt, rr, P, Q, Ra, a, e, b["z"][i], b["w"][i], c, last, norms[it % 2, i]
+                )
+            if barrier is not None:
+                barrier.wait()
+            P, Q = Q, P
+            if last:
                 break
-        self.last_inner_iterations = it
-        b["u"], b["q"] = u, q
-        if self.warm_start:
-            self._u, self._t = u, t
-        self._primal_into(v3, u, z)
+            if c > 0.0:  # r_{k+1} was written into Ra; the next one goes to the other buffer
+                rr, Ra, Rb = Ra, Rb, Ra
+            else:
+                rr = P
+            s = s_new
+            dn2, pn2 = norms[it % 2].sum(axis=0)
+            if dn2 <= tol2 * max(pn2, 1e-60):
+                break
+        # z = P_C(v - t G^T p) on these bands (the other bands' p is complete: barrier above)
+        for i in ids:
+            a, e = bands[i]
+            ob = self._neg_div_rows(P, a, e, out[a:e])
+            ob *= dt.type(t)
+            ob += v3[a:e]
+            if self.nonneg:
+                np.maximum(ob, 0, out=ob)
+        return P, it
+
+    def _fgp_band(self, vt, rr, P, Q, R, a, e, z, w, c, last, norms):
+        """One FGP iteration on image rows ``[a, e)``: ``Q = P(rr + G z / 8)`` with
+        ``z = P_C(vt - G^T rr) `` (computed on one halo row more), then, unless ``last``,
+        ``R = Q + c (Q - P)`` and the partial norms ``(||Q - P||^2, ||Q||^2)``."""
+        dt = vt.dtype
+        ny = vt.shape[0]
+        e1 = min(e + 1, ny)
+        self._neg_div_rows(rr, a, e1, z, vt)
         if self.nonneg:
             np.maximum(z, 0, out=z)
-        return z.reshape(v.shape)
+        z *= dt.type(0.125)
+        n = e - a
+        ee = min(e, ny - 1) - a  # rows of this band with a vertical difference
+        q0 = Q[0, a : a + ee]
+        np.subtract(z[1 : ee + 1], z[:ee], out=q0)
+        q0 += rr[0, a : a + ee]
+        q1 = Q[1, a:e, :-1]
+        np.subtract(z[:n, 1:], z[:n, :-1], out=q1)
+        q1 += rr[1, a:e, :-1]
+        qb = Q[:, a:e]
+        one = dt.type(1.0)
+        if self.isotropic:
+            np.einsum("i...,i...->...", qb, qb, out=w)
+            np.maximum(w, one, out=w)
+            np.sqrt(w, out=w)
+            np.divide(qb, w, out=qb)
+        else:
+            np.clip(qb, -one, one, out=qb)
+        if last:
+            return
+        rb = R[:, a:e]
+        np.subtract(qb, P[:, a:e], out=rb)
+        norms[0] = _sqnorm(rb[0]) + _sqnorm(rb[1])
+        norms[1] = _sqnorm(qb[0]) + _sqnorm(qb[1])
+        if c > 0.0:
+            rb *= dt.type(c)
+            rb += qb

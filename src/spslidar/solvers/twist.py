@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Monitor, SolveInfo, Solver, StopRule, register
+from .base import Monitor, SolveInfo, Solver, StopRule, _axpy, register
 from .fista import _col_objective, _lipschitz, _start, _work_dtype
 from .regularisers import L1
 
@@ -85,8 +85,11 @@ class TwIST(Solver):
     and is non-increasing in the monotone variant; for the ``StopRule.rtol`` test a kept
     column counts with the step it tried, so a rejection is not mistaken for convergence.
 
-    One iteration costs one product with ``A^T`` and one with ``A`` (plus a product on the
-    columns that fall back to IST). Works in the dtype of ``A``. ``info.extra`` holds ``L``,
+    One iteration costs one product with ``A^T`` and one with ``A``: ``A x_ist`` is computed
+    and ``A x_{k+1}`` formed from it, ``A x_k`` and ``A x_{k-1}`` by linearity, so the
+    columns that fall back to IST need no further product (with ``sparse`` the two-step
+    point is masked, ``A x_{k+1}`` is computed and the fallback columns cost one more
+    product). Works in the dtype of ``A``. ``info.extra`` holds ``L``,
     ``alpha``, ``beta``, ``ist_fallbacks`` and ``rejected`` (column counts).
     """
 
@@ -113,7 +116,7 @@ class TwIST(Solver):
         thr = lam / L
         c_prev, c_cur, c_ist = (dt.type(c) for c in (1.0 - alpha, alpha - beta, beta))
         f = _col_objective(ax - y, x, reg, lam)
-        xm = x
+        xm, axm = x, ax
         n_fallback = n_reject = 0
         reason = ""
         it = 0
@@ -123,15 +126,26 @@ class TwIST(Solver):
             g *= -inv_l
             g += x
             x_ist = np.asarray(reg.prox(g, thr), dtype=dt)
+            del g
+            a_ist = None  # A x_ist, when computed
             if it == 1:
                 x_new = x_ist
+                ax_new = a_ist = np.asarray(A.matvec(x_ist), dtype=dt)
+            elif sparse:
+                mask = x_ist != 0
+                x_new = c_prev * (xm * mask) + c_cur * (x * mask) + c_ist * x_ist
+                ax_new = np.asarray(A.matvec(x_new), dtype=dt)
             else:
-                if sparse:
-                    mask = x_ist != 0
-                    x_new = c_prev * (xm * mask) + c_cur * (x * mask) + c_ist * x_ist
-                else:
-                    x_new = c_prev * xm + c_cur * x + c_ist * x_ist
-            ax_new = np.asarray(A.matvec(x_new), dtype=dt)
+                # (1 - alpha) x_{k-1} + (alpha - beta) x_k + beta x_ist (one scaling and two
+                # BLAS axpy updates), and its image by linearity from A x_ist, A x_k, A x_{k-1}:
+                # one product with A per iteration, also when columns fall back to IST below
+                a_ist = np.asarray(A.matvec(x_ist), dtype=dt)
+                x_new = np.multiply(x_ist, c_ist)
+                _axpy(x, x_new, c_cur)
+                _axpy(xm, x_new, c_prev)
+                ax_new = np.multiply(a_ist, c_ist)
+                _axpy(ax, ax_new, c_cur)
+                _axpy(axm, ax_new, c_prev)
             f_new = _col_objective(ax_new - y, x_new, reg, lam)
             x_tried = None
             if monotone:
@@ -141,7 +155,10 @@ class TwIST(Solver):
                     n_fallback += int(bad.sum())
                     cols = np.flatnonzero(bad)
                     x_new[:, cols] = x_ist[:, cols]
-                    ax_new[:, cols] = np.asarray(A.matvec(x_ist[:, cols]), dtype=dt)
+                    if a_ist is not None:
+                        ax_new[:, cols] = a_ist[:, cols]
+                    else:
+                        ax_new[:, cols] = np.asarray(A.matvec(x_ist[:, cols]), dtype=dt)
                     f_new[cols] = _col_objective(
                         ax_new[:, cols] - y[:, cols], x_ist[:, cols], reg, lam
                     )
@@ -157,7 +174,8 @@ class TwIST(Solver):
                     f_new[cols] = f[cols]
             x_old = x
             # (a rejected column has x == xm: its next two-step update restarts from itself)
-            xm, x, ax, f = x, x_new, ax_new, f_new
+            xm, axm = x, ax
+            x, ax, f = x_new, ax_new, f_new
             reason = mon.check(it, x if x_tried is None else x_tried, x_old, float(np.sum(f)))
         mon.info.extra.update(
             L=L, alpha=alpha, beta=beta, ist_fallbacks=n_fallback, rejected=n_reject
