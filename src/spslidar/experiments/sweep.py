@@ -392,7 +392,7 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
 # --------------------------------------------------------------------------------------------
 
 
-def _atomic_write_text(path: Path, text: str) -> None:
+def atomic_write_text(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` atomically (temporary file in the same folder + os.replace)."""
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
@@ -434,7 +434,7 @@ def _store(path: Path, key: str, params: Any, result: dict[str, Any], elapsed: f
         "result": result,
         "elapsed_s": round(elapsed, 6),
     }
-    _atomic_write_text(path, json.dumps(record, indent=1, sort_keys=True, allow_nan=True) + "\n")
+    atomic_write_text(path, json.dumps(record, indent=1, sort_keys=True, allow_nan=True) + "\n")
 
 
 # --------------------------------------------------------------------------------------------
@@ -775,7 +775,7 @@ def write_csv(rows: Iterable[Mapping[str, Any]], path: str | os.PathLike[str]) -
     writer.writeheader()
     for row in flat:
         writer.writerow({name: _cell(value) for name, value in row.items()})
-    _atomic_write_text(path, buffer.getvalue())
+    atomic_write_text(path, buffer.getvalue())
     return path
 
 
