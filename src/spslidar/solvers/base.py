@@ -171,7 +171,7 @@ def as_block(y: np.ndarray) -> tuple[np.ndarray, bool]:
     if y.ndim == 1:
         return y[:, None], True
     if y.ndim != 2:
-        raise ValueError(f"data must be 1-D or 2-D, got shape {y.shape}")
+        raise ValueError(f"expected a 1-D (n,) or 2-D (n, K) array, got shape {y.shape}")
     return y, False
 
 

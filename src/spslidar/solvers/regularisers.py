@@ -22,17 +22,9 @@ import numpy as np
 from ..operators import parallel as _parallel
 from ..operators.base import LinearOperator
 from ..operators.image import Gradient2D
+from .base import as_block as _as_block
 
 __all__ = ["Regulariser", "TV", "L1", "Zero"]
-
-
-def _as_block(x: np.ndarray) -> tuple[np.ndarray, bool]:
-    x = np.asarray(x)
-    if x.ndim == 1:
-        return x[:, None], True
-    if x.ndim != 2:
-        raise ValueError(f"expected a 1-D or 2-D array, got shape {x.shape}")
-    return x, False
 
 
 def _sqnorm(a: np.ndarray) -> float:
