@@ -251,3 +251,29 @@ def test_simulation_rejects_means_beyond_float32_counts(method):
     meas.patterns = meas.patterns - 50.0  # negative transmittances give negative means
     with pytest.raises(ValueError):
         _simulate(meas, 0, method=method)
+
+
+def test_run_shared_reuses_the_measurement_and_equals_run(monkeypatch):
+    pipeline.clear_shared()
+    calls = []
+    real = pipeline.measure
+
+    def counting(cfg=None, **kw):
+        calls.append(1)
+        return real(cfg, **kw)
+
+    monkeypatch.setattr(pipeline, "measure", counting)
+    a = pipeline.run_shared(size=16, solver="fista", seed=4)
+    b = pipeline.run_shared(size=16, solver="tval3", lam_scale=0.5, seed=4)
+    assert len(calls) == 1  # the second run only changed processing keys
+    assert not a.metrics["measurement_reused"] and b.metrics["measurement_reused"]
+    assert b.config.solver == "tval3" and b.config.lam_scale == 0.5
+    ref = pipeline.run(size=16, solver="tval3", lam_scale=0.5, seed=4)
+    np.testing.assert_array_equal(b.depth, ref.depth)
+    assert b.timing["simulate"] == a.timing["simulate"]  # the time it took to simulate
+    # another seed is another measurement; the oldest is dropped beyond SHARED_MEASUREMENTS
+    monkeypatch.setattr(pipeline, "SHARED_MEASUREMENTS", 1)
+    pipeline.run_shared(size=16, seed=5)
+    pipeline.run_shared(size=16, seed=4)
+    assert len(calls) == 4  # run() above, then both of these
+    pipeline.clear_shared()

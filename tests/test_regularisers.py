@@ -324,3 +324,22 @@ def test_fast_haar_matches_pywavelets(shape, level, dtype):
     d = rng.standard_normal(c.shape).astype(dtype)
     lhs, rhs = float(np.vdot(w.matvec(x), d)), float(np.vdot(x, w.rmatvec(d)))
     assert lhs == pytest.approx(rhs, rel=1e-10 if dtype == np.float64 else 1e-4)
+
+
+@pytest.mark.parametrize("isotropic", [True, False])
+@pytest.mark.parametrize("ny", [64, 65])
+def test_tv_values_in_row_bands_match_gradient2d(isotropic, ny):
+    # a block large enough to be valued in two row bands (concurrently in a parallel context)
+    from spslidar.operators.parallel import parallel, row_bands
+
+    rng = np.random.default_rng(14)
+    nx, k = 48, 48
+    x = rng.standard_normal((ny * nx, k))
+    assert len(row_bands(ny, x.size)) == 2
+    g = (Gradient2D((ny, nx)) @ x).reshape(2, ny * nx, k)
+    ref = np.sqrt(g[0] ** 2 + g[1] ** 2).sum(axis=0) if isotropic else np.abs(g).sum(axis=(0, 1))
+    reg = TV((ny, nx), isotropic=isotropic)
+    serial = reg.values(x)
+    np.testing.assert_allclose(serial, ref, rtol=1e-12)
+    with parallel(2):
+        np.testing.assert_array_equal(reg.values(x), serial)

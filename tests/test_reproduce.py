@@ -198,7 +198,9 @@ def _scene(name: str, size: int):
     return load_scene(name, size)
 
 
-def _fake_sweep(func, points, out_dir, *, seed=0, jobs=1, scheduler=None, progress=True):
+def _fake_sweep(
+    func, points, out_dir, *, seed=0, jobs=1, scheduler=None, progress=True, seed_ignore=()
+):
     """Stand-in for run_sweep: truth plus noise of a plausible size, no simulation."""
     import numpy as np
 
@@ -207,7 +209,9 @@ def _fake_sweep(func, points, out_dir, *, seed=0, jobs=1, scheduler=None, progre
     rows = []
     for point in points:
         params = dict(point)
-        params.setdefault("seed", derive_seed(seed, params))
+        params.setdefault(
+            "seed", derive_seed(seed, {k: v for k, v in params.items() if k not in seed_ignore})
+        )
         if "scene" not in params:  # an SNR point: the real one, with few periods
             rows.append({**params, **reproduce.snr_point({**params, "periods": 20})})
             continue

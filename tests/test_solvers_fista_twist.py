@@ -355,3 +355,21 @@ def test_twist_objective_history_matches_iterates(tv_problem):
         x, info = twist(MatrixOperator(A), y, _tv(shape), lam, stop=StopRule(it, rtol=0))
         assert info.objective[-1] == pytest.approx(_objective(A, x, y, _tv(shape), lam),
                                                    rel=1e-9)
+
+
+def test_twist_fallback_paths_agree(tv_problem, monkeypatch):
+    # the IST fallback of the monotone variant copies columns either by a masked pass over
+    # the whole block (many fallbacks) or by gathering them (few): same iterates either way
+    import spslidar.solvers.twist as tw
+
+    A, y, lam, shape = tv_problem
+    runs = []
+    for share in (-1.0, 2.0):  # always the masked path / always the gather path
+        monkeypatch.setattr(tw, "_WHOLE_BLOCK_SHARE", share)
+        x, info = twist(MatrixOperator(A), y, _tv(shape, max_inner=5), lam,
+                        stop=StopRule(40, rtol=0))
+        runs.append((x, info))
+    (x1, i1), (x2, i2) = runs
+    assert i1.extra["ist_fallbacks"] == i2.extra["ist_fallbacks"] > 0
+    np.testing.assert_allclose(x1, x2, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(i1.objective, i2.objective, rtol=1e-12)

@@ -247,6 +247,21 @@ def test_run_sweep_explicit_seed_is_kept(tmp_path):
     assert rows[0]["value"] == 10.0 + rng.normal()
 
 
+def test_run_sweep_seed_ignore_pairs_points(tmp_path):
+    # points that differ only in an ignored key share their seed (paired comparisons), and
+    # still are separate runs with their own cache entries
+    points = expand_grid({"x": 1}, {"method": ["a", "b"], "y": [1, 2]})
+    rows = run_sweep(toy, points, tmp_path, seed=3, progress=False, seed_ignore=["method"])
+    seeds = {(r["method"], r["y"]): r["seed"] for r in rows}
+    assert seeds["a", 1] == seeds["b", 1] == derive_seed(3, {"x": 1, "y": 1, "trial": 0})
+    assert seeds["a", 2] == seeds["b", 2] != seeds["a", 1]
+    assert len(list((tmp_path / "runs").glob("*.json"))) == 4
+    plain = run_sweep(toy, points, tmp_path / "plain", seed=3, progress=False)
+    assert plain[0]["seed"] != plain[2]["seed"]  # without seed_ignore: every point its own
+    with pytest.raises(ConfigError, match="not a string"):
+        run_sweep(toy, points, tmp_path, seed_ignore="method", progress=False)
+
+
 def test_run_sweep_resumes_after_interruption(tmp_path):
     calls_dir = tmp_path / "calls"
     out = tmp_path / "out"

@@ -228,10 +228,10 @@ def reproduce_point(params: dict[str, Any], maps_dir: str | None = None) -> dict
         Depth errors, edge correlation, sizes, timing, iterations, the code description and
         replica, the median estimated and true depth, and ``map_key``.
     """
-    from spslidar.pipeline import run
+    from spslidar.pipeline import run_shared
 
     config = {k: v for k, v in params.items() if k != TRIAL_KEY}
-    result = run(config)
+    result = run_shared(config)
     m = result.metrics
     key = point_key(params)
     if maps_dir is not None:
@@ -301,8 +301,11 @@ def snr_point(params: dict[str, Any]) -> dict[str, Any]:
 def _run(ctx: Context, points: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """Run (or load from the cache) the points; make sure every successful run has its map."""
     ctx.maps.mkdir(parents=True, exist_ok=True)
+    from spslidar.pipeline import PROCESSING_KEYS
+
     func = functools.partial(reproduce_point, maps_dir=str(ctx.maps))
     points = list(points)
+    # paired comparisons: points that differ only in processing share their measurement
     rows = run_sweep(
         func,
         points,
@@ -311,6 +314,7 @@ def _run(ctx: Context, points: Sequence[dict[str, Any]]) -> list[dict[str, Any]]
         jobs=ctx.jobs,
         scheduler=ctx.scheduler,
         progress=ctx.progress,
+        seed_ignore=PROCESSING_KEYS,
     )
     # A cached run whose map is gone (deleted, or written on a remote worker's disk): run it
     # again here.
@@ -323,7 +327,12 @@ def _run(ctx: Context, points: Sequence[dict[str, Any]]) -> list[dict[str, Any]]
         for i in missing:
             (ctx.cache / "runs" / f"{rows[i]['map_key']}.json").unlink(missing_ok=True)
         again = run_sweep(
-            func, [points[i] for i in missing], ctx.cache, seed=ctx.seed, progress=ctx.progress
+            func,
+            [points[i] for i in missing],
+            ctx.cache,
+            seed=ctx.seed,
+            progress=ctx.progress,
+            seed_ignore=PROCESSING_KEYS,
         )
         for i, row in zip(missing, again, strict=True):
             rows[i] = row

