@@ -584,9 +584,10 @@ def run_sweep(
     """Run ``func`` on every point, caching each finished point, and return one row per point.
 
     Each point's params get a ``seed`` key, ``derive_seed(seed, point)`` of the point without
-    its ``seed_ignore`` keys, unless the point already has one. A point whose result is cached in ``out_dir/runs/<key>.json`` (for the same
-    params) is loaded, not recomputed; every other point is run and, on success, cached at once
-    (atomically), so an interrupted sweep resumes where it stopped. A point whose ``func``
+    its ``seed_ignore`` keys, unless the point already has one. A point whose result is cached
+    in ``out_dir/runs/<key>.json`` (for the same params) is loaded, not recomputed; every other
+    point is run and, on success, cached at once (atomically), so an interrupted sweep resumes
+    where it stopped. A point whose ``func``
     raises becomes a row with an ``error`` column (``"Type: message"``) and is not cached.
 
     Parameters
