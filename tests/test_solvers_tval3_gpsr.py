@@ -389,6 +389,24 @@ def test_tval3_float32_stop_rules_and_history():
     assert tt.stop_reason == "max_time"
 
 
+@pytest.mark.parametrize("nonneg", [False, True])
+def test_tval3_line_search_paths_agree(nonneg, monkeypatch):
+    # columns failing the Armijo test are backtracked either on gathered copies (few) or by
+    # re-evaluating the whole block (many): the same iterates either way
+    import spslidar.solvers.tval3 as tv
+
+    a, y, _ = _cs_problem(seed=11, k=6)
+    runs = []
+    for share in (-1.0, 2.0):  # always the whole block / always the gathered columns
+        monkeypatch.setattr(tv, "_WHOLE_BLOCK_SHARE", share)
+        reg = TV((16, 16), nonneg=nonneg)
+        runs.append(tval3(MatrixOperator(a), y, reg, 0.05, stop=StopRule(max_iter=80, rtol=0)))
+    (x1, i1), (x2, i2) = runs
+    assert i1.extra["backtracks"] == i2.extra["backtracks"] > 0
+    np.testing.assert_allclose(x1, x2, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(i1.objective, i2.objective, rtol=1e-10)
+
+
 def test_tval3_rejects_bad_input():
     a, y, _ = _cs_problem(k=1)
     with pytest.raises(ValueError, match="TV"):

@@ -18,6 +18,8 @@ from .regularisers import TV
 __all__ = ["TVAL3", "tval3"]
 
 _TINY = 1e-30
+#: share of columns failing the line search above which it re-evaluates the whole block
+_WHOLE_BLOCK_SHARE = 0.2
 #: inner iterations between recomputations of the incrementally updated residual A x - y
 _REFRESH = 100
 
@@ -407,6 +409,16 @@ class TVAL3(Solver):
             np.subtract(dxt, two(nu_b, i), out=two(v, i))
             return (huber_band(i, cur["beta"]),)
 
+        def retry_band(i):
+            """The trial point at the per-column steps ``t`` of every column on band ``i``:
+            ``dx_t = dx + t dd``, ``v = dx_t - nu/beta``; the partial Huber sum."""
+            tb = cur["t_vec"]
+            dxt = two(dx_t, i)
+            np.multiply(two(dd, i), tb, out=dxt)
+            dxt += two(dx, i)
+            np.subtract(dxt, two(nu_b, i), out=two(v, i))
+            return (huber_band(i, cur["beta"]),)
+
         def update_band(i):
             """Accept the step on band ``i``: ``s = t d`` (in ``d``), ``x += s``, the new
             gradient ``g_new``; partial ``||s||^2``, ``<s, g_new - g>``, ``||x||^2`` and TV."""
@@ -450,7 +462,26 @@ class TVAL3(Solver):
                 psi_t = hv + 0.5 * mu * _coldot(r_t, r_t)
                 fresh_mag = True  # mag holds ||v_i|| of every column
                 bad = np.flatnonzero(~(psi_t <= c_ref + delta * t * gd + slack * np.abs(c_ref)))
-                if bad.size:
+                if bad.size > _WHOLE_BLOCK_SHARE * k:
+                    # most columns fail: re-evaluate the whole block at the per-column steps
+                    # (accepted columns keep t and their values), no strided gathers
+                    live = np.zeros(k, dtype=bool)
+                    live[bad] = True
+                    n_bt = 0
+                    while live.any() and n_bt < max_bt:
+                        n_bt += 1
+                        n_backtracks += 1
+                        t[live] *= shrink_t
+                        cur["t_vec"] = t.astype(dt)
+                        (hv,) = _sums(run_parts(retry_band, nb))
+                        np.multiply(ad, cur["t_vec"], out=r_t)
+                        r_t += r
+                        psi_new = hv + 0.5 * mu * _coldot(r_t, r_t)
+                        psi_t[live] = psi_new[live]
+                        ok = psi_t <= c_ref + delta * t * gd + slack * np.abs(c_ref)
+                        live &= ~ok
+                    # dx_t, v, mag and r_t all hold the final steps of every column
+                elif bad.size:
                     # the failing columns, gathered once (strided gathers from the (2Q, K)
                     # arrays are the expensive part); the trial points at smaller t are
                     # formed on these compact copies, and written back once at the end
