@@ -8,7 +8,8 @@ then runs PyProximal's FISTA (``ProximalGradient`` with ``acceleration='fista'``
 PyProximal's TwIST on the same data and reports how long they need to reach that objective
 (time to target, ``F`` evaluated outside the timed steps), and the speed ratio
 ``peer time / our time``. Finally it times the "Table I" workload: the four solvers at noise
-levels 5 and 10 on the motorcycle scene (QCR on) through ``spslidar.run``.
+levels 5 and 10 on the motorcycle scene (QCR on), one simulation per noise level, in one
+process (``spslidar reproduce table1 --jobs 2`` runs it in two).
 
 The peers, and what they are given:
 
@@ -241,14 +242,18 @@ def run_peer(prob: Problem, method: str, lip: float, targets: list[float], cap: 
 
 
 def table1(size: int, solvers, noises=(5.0, 10.0)) -> tuple[list[tuple], float]:
-    """Time ``spslidar.run(scene='motorcycle', noise=..., solver=...)`` for every pair."""
+    """Time the motorcycle runs of every (noise, solver) pair in one process, as
+    ``spslidar reproduce table1 --jobs 1`` does: the solvers of one noise level share its
+    simulated measurement (``spslidar.pipeline.run_shared``)."""
+    pipeline.clear_shared()
     rows = []
     t_all = time.perf_counter()
     for noise in noises:
         for s in solvers:
             t0 = time.perf_counter()
-            r = spslidar.run(scene="motorcycle", noise=noise, solver=s, size=size)
+            r = pipeline.run_shared(scene="motorcycle", noise=noise, solver=s, size=size)
             rows.append((noise, s, time.perf_counter() - t0, r.timing["solve"], r.depth_rmse))
+    pipeline.clear_shared()
     return rows, time.perf_counter() - t_all
 
 
