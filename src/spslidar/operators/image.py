@@ -11,6 +11,27 @@ from . import parallel as _parallel
 from .base import LinearOperator
 
 
+def forward_differences_into(
+    u: np.ndarray, down: np.ndarray, right: np.ndarray, rows: tuple[int, int] | None = None
+) -> None:
+    """The two components of :class:`Gradient2D` written into preallocated arrays.
+
+    ``down[i, j] = u[i + 1, j] - u[i, j]`` (zero on the last row) and ``right[i, j] =
+    u[i, j + 1] - u[i, j]`` (zero on the last column), for ``u``, ``down``, ``right`` of shape
+    ``(Ny, Nx, K)``; only image rows ``rows = (a, b)`` when given (reading row ``b`` of ``u``
+    too), so that bands of rows can be filled concurrently. No temporaries.
+    """
+    ny = u.shape[0]
+    a, b = (0, ny) if rows is None else rows
+    e = min(b, ny - 1)  # rows with a vertical difference
+    if e > a:
+        np.subtract(u[a + 1 : e + 1], u[a:e], out=down[a:e])
+    if b == ny:
+        down[-1] = 0
+    np.subtract(u[a:b, 1:], u[a:b, :-1], out=right[a:b, :-1])
+    right[a:b, -1] = 0
+
+
 class Gradient2D(LinearOperator):
     """Forward-difference gradient with Neumann boundary, ``R^{Q} -> R^{2Q}``.
 
@@ -31,10 +52,8 @@ class Gradient2D(LinearOperator):
     def _matvec(self, x):
         ny, nx = self.image_shape
         k = x.shape[1]
-        u = x.reshape(ny, nx, k)
-        g = np.zeros((2, ny, nx, k), dtype=np.result_type(x.dtype, self.dtype))
-        g[0, :-1] = u[1:] - u[:-1]
-        g[1, :, :-1] = u[:, 1:] - u[:, :-1]
+        g = np.empty((2, ny, nx, k), dtype=np.result_type(x.dtype, self.dtype))
+        forward_differences_into(x.reshape(ny, nx, k), g[0], g[1])
         return g.reshape(2 * ny * nx, k)
 
     def _rmatvec(self, y):

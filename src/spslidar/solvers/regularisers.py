@@ -21,7 +21,7 @@ import numpy as np
 
 from ..operators import parallel as _parallel
 from ..operators.base import LinearOperator
-from ..operators.image import Gradient2D
+from ..operators.image import Gradient2D, forward_differences_into
 from .base import as_block as _as_block
 
 __all__ = ["Regulariser", "TV", "L1", "Zero"]
@@ -429,15 +429,8 @@ class TV(Regulariser):
     def _values_rows(self, z, a, e, d0, d1) -> np.ndarray:
         """Per-column TV of image rows ``[a, e)`` of ``z`` (Ny, Nx, K) (reading row ``e``
         too), with the same rows of ``d0``, ``d1`` as scratch."""
-        ny = z.shape[0]
-        e1 = min(e, ny - 1)  # rows with a vertical difference
+        forward_differences_into(z, d0, d1, (a, e))
         v, h = d0[a:e], d1[a:e]
-        if e1 > a:
-            np.subtract(z[a + 1 : e1 + 1], z[a:e1], out=v[: e1 - a])
-        if e == ny:
-            v[-1] = 0
-        np.subtract(z[a:e, 1:], z[a:e, :-1], out=h[:, :-1])
-        h[:, -1] = 0
         if self.isotropic:
             np.square(v, out=v)
             np.square(h, out=h)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..operators.base import LinearOperator, power_norm
+from ..operators.image import forward_differences_into
 from ..operators.parallel import row_bands, run_parts
 from .base import Monitor, SolveInfo, Solver, StopRule, _axpy, register
 from .regularisers import TV
@@ -110,16 +111,8 @@ def _grad_into(x: np.ndarray, shape: tuple[int, int], out: np.ndarray, rows=None
     (reading row ``b`` of ``x`` too)."""
     ny, nx = shape
     k = x.shape[1]
-    a, b = (0, ny) if rows is None else rows
-    x3 = x.reshape(ny, nx, k)
     o = out.reshape(2, ny, nx, k)
-    e = min(b, ny - 1)
-    if e > a:
-        np.subtract(x3[a + 1 : e + 1], x3[a:e], out=o[0, a:e])
-    if b == ny:
-        o[0, -1] = 0
-    np.subtract(x3[a:b, 1:], x3[a:b, :-1], out=o[1, a:b, :-1])
-    o[1, a:b, -1] = 0
+    forward_differences_into(x.reshape(ny, nx, k), o[0], o[1], rows)
     return out
 
 
@@ -400,24 +393,27 @@ class TVAL3(Solver):
                 db -= xb
             return (_coldot(gb, db),)
 
-        def trial_band(i):
-            """``dd = D d``, the trial point ``dx_t = dx + dd`` (t = 1), ``v = dx_t - nu/beta``
-            and the partial Huber sum, on band ``i``."""
-            _grad_into(d, shape, dd, rbands[i])
+        def point_band(i, tb):
+            """The trial point ``dx_t = dx + t dd`` on band ``i`` (``tb``: the per-column
+            steps ``t``, ``None`` for t = 1), ``v = dx_t - nu/beta`` and the partial Huber
+            sum."""
             dxt = two(dx_t, i)
-            np.add(two(dx, i), two(dd, i), out=dxt)
+            if tb is None:
+                np.add(two(dx, i), two(dd, i), out=dxt)
+            else:
+                np.multiply(two(dd, i), tb, out=dxt)
+                dxt += two(dx, i)
             np.subtract(dxt, two(nu_b, i), out=two(v, i))
             return (huber_band(i, cur["beta"]),)
 
+        def trial_band(i):
+            """``dd = D d`` and the trial point at t = 1 on band ``i``."""
+            _grad_into(d, shape, dd, rbands[i])
+            return point_band(i, None)
+
         def retry_band(i):
-            """The trial point at the per-column steps ``t`` of every column on band ``i``:
-            ``dx_t = dx + t dd``, ``v = dx_t - nu/beta``; the partial Huber sum."""
-            tb = cur["t_vec"]
-            dxt = two(dx_t, i)
-            np.multiply(two(dd, i), tb, out=dxt)
-            dxt += two(dx, i)
-            np.subtract(dxt, two(nu_b, i), out=two(v, i))
-            return (huber_band(i, cur["beta"]),)
+            """The trial point at every column's current step on band ``i``."""
+            return point_band(i, cur["t_vec"])
 
         def update_band(i):
             """Accept the step on band ``i``: ``s = t d`` (in ``d``), ``x += s``, the new
