@@ -94,3 +94,24 @@ def test_gradient_matches_pylops():
     theirs = (ref @ x).reshape(6, 5)
     np.testing.assert_allclose(ours[:-1], theirs[:-1], atol=1e-12)
     assert np.all(ours[-1] == 0)
+
+
+def test_todense_matches_the_products(op):
+    # column j of the dense form is op @ e_j, for every operator (MatrixOperator returns its
+    # matrix directly, the others go through products with the identity)
+    dense = np.asarray(op.todense(), dtype=np.float64)
+    assert dense.shape == op.shape
+    rng = np.random.default_rng(5)
+    x = rng.standard_normal(op.shape[1])
+    tol = 1e-4 if op.dtype == np.float32 else 1e-10
+    np.testing.assert_allclose(dense @ x, np.asarray(op @ x, dtype=np.float64),
+                               rtol=tol, atol=tol * np.abs(dense).sum(axis=1).max())
+
+
+def test_matrix_operator_todense_is_a_copy_of_its_matrix():
+    a = np.arange(12.0).reshape(3, 4)
+    op = MatrixOperator(a)
+    d = op.todense()
+    np.testing.assert_array_equal(d, a)
+    d[0, 0] = 99.0
+    assert op.A[0, 0] == 0.0

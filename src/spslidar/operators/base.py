@@ -182,6 +182,10 @@ class MatrixOperator(LinearOperator):
     def _rmatvec(self, y):
         return _product(self._AT, y.astype(self.dtype, copy=False))
 
+    def todense(self) -> np.ndarray:
+        """A copy of the matrix (rather than its products with the identity)."""
+        return self.A.copy()
+
 
 def _product(M: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``M @ x``, split over the threads of an active :func:`~spslidar.operators.parallel.
@@ -190,9 +194,6 @@ def _product(M: np.ndarray, x: np.ndarray) -> np.ndarray:
     if ctx is not None and M.size * x.shape[1] >= _parallel.SPLIT_MIN_WORK:
         return ctx.matmul(M, x)
     return M @ x
-
-    def todense(self):
-        return self.A.copy()
 
 
 class Identity(LinearOperator):
