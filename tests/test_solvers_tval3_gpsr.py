@@ -119,6 +119,21 @@ def test_gpsr_wavelet_matches_pyproximal_fista():
     assert f <= f_ref * (1 + 1e-6)
 
 
+@pytest.mark.parametrize("wavelet", ["haar", "db2"])
+def test_gpsr_dense_synthesis_matches_composed_operator(wavelet):
+    # with an explicit matrix A, GPSR forms B = A W^H once; with any other operator it applies
+    # A and W in turn: both are the same iteration (float64: equal to rounding)
+    a, y, _ = _cs_problem(seed=4, k=3)
+    w = Wavelet2D((16, 16), wavelet)
+    stop = StopRule(max_iter=60, rtol=0.0)
+    x_dense, i_dense = gpsr(MatrixOperator(a), y, L1(w), 0.02, stop=stop)
+    x_comp, i_comp = gpsr(MatrixOperator(a) * 1.0, y, L1(w), 0.02, stop=stop)
+    np.testing.assert_allclose(x_dense, x_comp, rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose(i_dense.objective, i_comp.objective, rtol=1e-10)
+    np.testing.assert_allclose(_l1_obj(a, y, x_dense, 0.02, w), i_dense.objective[-1],
+                               rtol=1e-10)
+
+
 def test_gpsr_debias_reduces_residual_keeps_support():
     a, y = _sparse_problem(seed=3)
     lam = 0.1
