@@ -212,6 +212,18 @@ def test_run_sweep_rows_seeds_and_cache_files(tmp_path):
     assert not list((tmp_path / "out" / "runs").glob(".*"))  # no temporary files left
 
 
+def test_cached_rows_keep_the_columns_and_their_order(tmp_path):
+    # toy's result keys are not in alphabetical order ("value", "stats", "curve"): a rerun
+    # served from the cache must give the same rows with the same key order, and the same CSV
+    fresh = run_sweep(toy, POINTS, tmp_path / "out", seed=3, progress=False)
+    cached = run_sweep(toy, POINTS, tmp_path / "out", seed=3, progress=False)
+    assert cached == fresh
+    assert [list(r) for r in cached] == [list(r) for r in fresh]
+    assert list(fresh[0]).index("value") < list(fresh[0]).index("curve")
+    a = sweep.write_csv(fresh, tmp_path / "fresh.csv").read_text()
+    assert sweep.write_csv(cached, tmp_path / "cached.csv").read_text() == a
+
+
 def test_run_sweep_jobs_1_and_2_give_identical_rows(tmp_path):
     serial = run_sweep(toy, POINTS, tmp_path / "a", seed=11, jobs=1, progress=False)
     parallel = run_sweep(toy, POINTS, tmp_path / "b", seed=11, jobs=2, progress=False)

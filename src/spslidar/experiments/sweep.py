@@ -434,7 +434,9 @@ def _store(path: Path, key: str, params: Any, result: dict[str, Any], elapsed: f
         "result": result,
         "elapsed_s": round(elapsed, 6),
     }
-    atomic_write_text(path, json.dumps(record, indent=1, sort_keys=True, allow_nan=True) + "\n")
+    # keys in insertion order (not sorted): a cached result then gives the same columns, in
+    # the same order, as a fresh one
+    atomic_write_text(path, json.dumps(record, indent=1, allow_nan=True) + "\n")
 
 
 # --------------------------------------------------------------------------------------------
