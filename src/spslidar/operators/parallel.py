@@ -25,7 +25,10 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ParallelContext", "available_cpus", "current", "parallel", "row_bands", "run_parts"]
+__all__ = [
+    "ParallelContext", "available_cpus", "current", "parallel", "row_bands", "run_parts",
+    "sum_parts",
+]
 
 #: at most this many threads (products split into as many row bands)
 MAX_THREADS = 4
@@ -107,6 +110,12 @@ def run_parts(fn, n_parts: int) -> list:
     finally:
         results = [f.result() for f in futures]
     return [first, *results]
+
+
+def sum_parts(parts: list) -> list:
+    """Add the per-band tuples of partial sums that :func:`run_parts` returned, element by
+    element and in band order (so the totals do not depend on the threads)."""
+    return [sum(p[j] for p in parts) for j in range(len(parts[0]))]
 
 
 def _single_threaded_blas() -> Any:

@@ -152,6 +152,17 @@ def _norm(a: np.ndarray) -> float:
     return float(np.sqrt(np.einsum("i,i->", a, a, dtype=np.float64)))
 
 
+def col_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per-column inner products ``<a[:, k], b[:, k]>`` of two ``(n, K)`` blocks, accumulated
+    in float64 (the solvers' step sizes, line searches and objectives)."""
+    return np.einsum("ik,ik->k", a, b, dtype=np.float64)
+
+
+def col_sum(a: np.ndarray) -> np.ndarray:
+    """Per-column sums of an ``(n, K)`` block, accumulated in float64."""
+    return np.einsum("ik->k", a, dtype=np.float64)
+
+
 def _axpy(x: np.ndarray, y: np.ndarray, a) -> None:
     """In place ``y += a * x`` for C-contiguous arrays of one float dtype (BLAS ``?axpy``)."""
     if a == 0:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..operators.base import power_norm
-from .base import Monitor, SolveInfo, Solver, StopRule, register
+from .base import Monitor, SolveInfo, Solver, StopRule, col_dot, register
 
 __all__ = ["FISTA", "fista"]
 
@@ -17,7 +17,7 @@ def _work_dtype(A) -> np.dtype:
 
 def _col_objective(r: np.ndarray, x: np.ndarray, reg, lam: float) -> np.ndarray:
     """Per-column ``1/2 ||r_k||^2 + lam R(x_k)`` accumulated in float64."""
-    data = 0.5 * np.einsum("ij,ij->j", r, r, dtype=np.float64)
+    data = 0.5 * col_dot(r, r)
     if lam == 0.0:
         return data
     return data + lam * np.asarray(reg.values(x), dtype=np.float64)
@@ -147,7 +147,7 @@ class FISTA(Solver):
             t_new = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * t * t))
             if restart:
                 # gradient-mapping test of O'Donoghue & Candes, per column
-                cond = np.einsum("ij,ij->j", yk - z, z - x, dtype=np.float64) > 0
+                cond = col_dot(yk - z, z - x) > 0
                 if cond.any():
                     n_restart += int(cond.sum())
                     t = np.where(cond, 1.0, t)

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..operators.base import LinearOperator, MatrixOperator
-from ..operators.parallel import row_bands, run_parts
-from .base import Monitor, SolveInfo, Solver, StopRule, register
+from ..operators.parallel import row_bands, run_parts, sum_parts
+from .base import Monitor, SolveInfo, Solver, StopRule, col_dot, col_sum, register
 from .regularisers import L1
 
 __all__ = ["GPSR", "gpsr"]
@@ -19,19 +19,9 @@ __all__ = ["GPSR", "gpsr"]
 _TINY = 1e-30
 
 
-def _coldot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Per-column inner products ``<a[:, k], b[:, k]>`` in float64."""
-    return np.einsum("ik,ik->k", a, b, dtype=np.float64)
-
-
 def _colabs(a: np.ndarray) -> np.ndarray:
     """Per-column l1 norms in float64."""
-    return np.einsum("ik->k", np.abs(a), dtype=np.float64)
-
-
-def _colsum(a: np.ndarray) -> np.ndarray:
-    """Per-column sums in float64."""
-    return np.einsum("ik->k", a, dtype=np.float64)
+    return col_sum(np.abs(a))
 
 
 class _Synthesis:
@@ -221,7 +211,7 @@ class GPSR(Solver):
             taus = [np.full(k, lam)]
 
         def objective(r, z):
-            return 0.5 * float(np.sum(_coldot(r, r))) + lam * float(np.sum(_colabs(z)))
+            return 0.5 * float(np.sum(col_dot(r, r))) + lam * float(np.sum(_colabs(z)))
 
         # work arrays of the projected step, reused every iteration; the element-wise work is
         # done in row bands (concurrently inside a parallel context), with per-band partial
@@ -250,7 +240,7 @@ class GPSR(Solver):
             dub -= at
             np.maximum(dub, 0, out=dub)
             dub -= u
-            dd, sd = _coldot(dub, dub), _colsum(dub)
+            dd, sd = col_dot(dub, dub), col_sum(dub)
             if nonneg:
                 np.copyto(dzb, dub)
             else:
@@ -261,9 +251,9 @@ class GPSR(Solver):
                 np.maximum(dvb, 0, out=dvb)
                 dvb -= u
                 np.subtract(dub, dvb, out=dzb)
-                dd += _coldot(dvb, dvb)
-                sd += _colsum(dvb)
-            return dd, sd, _coldot(dzb, gb), _coldot(dzb, dzb)
+                dd += col_dot(dvb, dvb)
+                sd += col_sum(dvb)
+            return dd, sd, col_dot(dzb, gb), col_dot(dzb, dzb)
 
         def update_band(i):
             """``z += lam_k dz`` on rows ``bands[i]``; returns the partial ``||z||_1``."""
@@ -272,10 +262,7 @@ class GPSR(Solver):
             dzb *= step_par["lk"]
             zb = z[a:b]
             zb += dzb
-            return (_colsum(np.abs(zb, out=u_buf[a:b])),)
-
-        def band_sums(parts):
-            return [sum(p[j] for p in parts) for j in range(len(parts[0]))]
+            return (col_sum(np.abs(zb, out=u_buf[a:b])),)
 
         # nonmonotone: per column, the iterate with the lowest objective seen (the objective of
         # a column is only comparable within one continuation stage)
@@ -300,8 +287,8 @@ class GPSR(Solver):
                     else np.where((z < 0) | (gv < 0), gv, 0).astype(dt, copy=False)
                 )
                 bp = B.fwd(pu - pv)
-                num = _coldot(pu, pu) + _coldot(pv, pv)
-                den = _coldot(bp, bp)
+                num = col_dot(pu, pu) + col_dot(pv, pv)
+                den = col_dot(bp, bp)
                 alpha = np.where(den > 0, num / np.maximum(den, _TINY), 1.0)
                 alpha = np.clip(alpha, a_min, a_max)
             stage_it = 0
@@ -310,9 +297,9 @@ class GPSR(Solver):
                 stage_it += 1
                 adt = alpha.astype(dt)
                 step_par["alpha"], step_par["at"] = adt, adt * tau_dt
-                dd, sdu, dzg, dzz = band_sums(run_parts(direction_band, len(bands)))
+                dd, sdu, dzg, dzz = sum_parts(run_parts(direction_band, len(bands)))
                 bd = B.fwd(dz)
-                gam = _coldot(bd, bd)
+                gam = col_dot(bd, bd)
                 # d/dlam of the split objective at lam = 0: <du, tau + g> + <dv, tau - g>
                 # = tau sum(du + dv) + <dz, g>; ||delta||^2 = ||du||^2 + ||dv||^2
                 slope = dzg + tau * sdu
@@ -325,7 +312,7 @@ class GPSR(Solver):
                 dzn2 = lam_k * lam_k * dzz
                 lk = lam_k.astype(dt)
                 step_par["lk"] = lk
-                (l1,) = band_sums(run_parts(update_band, len(bands)))
+                (l1,) = sum_parts(run_parts(update_band, len(bands)))
                 bz += lk * bd
                 r = bz - y
                 g = B.adj(r)
@@ -334,7 +321,7 @@ class GPSR(Solver):
                     gam > 0, dd / np.maximum(gam, _TINY), np.where(dd > 0, a_max, alpha)
                 )
                 alpha = np.clip(alpha, a_min, a_max)
-                f_col = 0.5 * _coldot(r, r) + lam * l1
+                f_col = 0.5 * col_dot(r, r) + lam * l1
                 if track and last:
                     better = f_col < f_best
                     if better.all():
@@ -351,7 +338,7 @@ class GPSR(Solver):
                     break
                 if not last:
                     dzn = np.sqrt(dzn2)
-                    zn = np.sqrt(_coldot(z, z))
+                    zn = np.sqrt(col_dot(z, z))
                     if np.all(dzn <= float(o["continuation_rtol"]) * np.maximum(zn, _TINY)):
                         break
                     if stage_it >= int(o["max_stage_iter"]):
@@ -394,19 +381,19 @@ class GPSR(Solver):
         z = z.copy()
         s = np.where(mask, -B.adj(r), 0).astype(dt, copy=False)  # restricted -gradient
         p = s.copy()
-        ss = _coldot(s, s)
+        ss = col_dot(s, s)
         ss0 = ss.copy()
         active = ss > 0
         n_iter = 0
         while n_iter < max_iter and np.any(active):
             n_iter += 1
             bp = B.fwd(p)
-            den = _coldot(bp, bp)
+            den = col_dot(bp, bp)
             a = np.where(active & (den > 0), ss / np.maximum(den, _TINY), 0.0).astype(dt)
             z += a * p
             r = r + a * bp
             s = np.where(mask, -B.adj(r), 0).astype(dt, copy=False)
-            ss_new = _coldot(s, s)
+            ss_new = col_dot(s, s)
             b = np.where(active & (ss > 0), ss_new / np.maximum(ss, _TINY), 0.0)
             p = s + b.astype(dt) * p
             ss = ss_new

@@ -12,8 +12,8 @@ import numpy as np
 
 from ..operators.base import LinearOperator, power_norm
 from ..operators.image import forward_differences_into
-from ..operators.parallel import row_bands, run_parts
-from .base import Monitor, SolveInfo, Solver, StopRule, _axpy, register
+from ..operators.parallel import row_bands, run_parts, sum_parts
+from .base import Monitor, SolveInfo, Solver, StopRule, _axpy, col_dot, register
 from .regularisers import TV
 
 __all__ = ["TVAL3", "tval3"]
@@ -25,24 +25,9 @@ _WHOLE_BLOCK_SHARE = 0.2
 _REFRESH = 100
 
 
-def _colsum(a: np.ndarray) -> np.ndarray:
-    """Column sums of a 2-D block, accumulated in float64."""
-    return np.einsum("ik->k", a, dtype=np.float64)
-
-
 def _colsum_nd(a: np.ndarray) -> np.ndarray:
     """Per-column (last axis) sums of a 2-D or 3-D array (any strides), in float64."""
     return np.einsum("ik->k" if a.ndim == 2 else "jik->k", a, dtype=np.float64)
-
-
-def _sums(parts: list) -> list:
-    """Add per-band tuples of partial sums, element by element, in band order."""
-    return [sum(p[j] for p in parts) for j in range(len(parts[0]))]
-
-
-def _coldot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Per-column inner products ``<a[:, k], b[:, k]>`` in float64."""
-    return np.einsum("ik,ik->k", a, b, dtype=np.float64)
 
 
 def _huber(v: np.ndarray, beta: float, isotropic: bool, q: int) -> tuple[np.ndarray, np.ndarray]:
@@ -354,10 +339,10 @@ class TVAL3(Solver):
             """psi per column at ``dx`` (without the constant -||nu||^2 / (2 beta)); grad H
             into ``hg`` and the gradient of psi into ``g``."""
             np.subtract(dx, nu_b, out=v)
-            hv = _sums(run_parts(lambda i: (huber_band(i, beta),), nb))[0]
+            hv = sum_parts(run_parts(lambda i: (huber_band(i, beta),), nb))[0]
             run_parts(lambda i: grad_h_band(i, beta, True), nb)
             run_parts(lambda i: gradient_band(i, mu, g), nb)
-            return hv + 0.5 * mu * _coldot(r, r)
+            return hv + 0.5 * mu * col_dot(r, r)
 
         def gradient_band(i, mu, out):
             """``out = D^T hg + mu A^T r`` (with ``ga = A^T r``) on row band ``i``."""
@@ -374,8 +359,8 @@ class TVAL3(Solver):
         else:
             g0 = g
         ag0, dg0 = A.matvec(g0), _grad_into(g0, shape, dd)
-        curv = mu * _coldot(ag0, ag0) + beta * _coldot(dg0, dg0)
-        gg = _coldot(g0, g0)
+        curv = mu * col_dot(ag0, ag0) + beta * col_dot(dg0, dg0)
+        gg = col_dot(g0, g0)
         alpha = np.where(curv > 0, gg / np.maximum(curv, _TINY), 1.0 / max(beta * 8.0, _TINY))
         c_ref, q_ref = psi.copy(), np.ones(k)
 
@@ -391,7 +376,7 @@ class TVAL3(Solver):
                 db += xb
                 np.maximum(db, 0, out=db)
                 db -= xb
-            return (_coldot(gb, db),)
+            return (col_dot(gb, db),)
 
         def point_band(i, tb):
             """The trial point ``dx_t = dx + t dd`` on band ``i`` (``tb``: the per-column
@@ -426,9 +411,9 @@ class TVAL3(Solver):
             xb += sb
             gradient_band(i, cur["mu"], g_new)
             gn, go = g_new[p0:p1], g[p0:p1]
-            sy = _coldot(sb, gn) - _coldot(sb, go)
+            sy = col_dot(sb, gn) - col_dot(sb, go)
             tv = _colsum_nd(_magnitude(two(dx, i), iso, msl(w1, i)))
-            return _coldot(sb, sb), sy, _coldot(xb, xb), tv
+            return col_dot(sb, sb), sy, col_dot(xb, xb), tv
 
         it = 0
         outer = 0
@@ -448,14 +433,14 @@ class TVAL3(Solver):
                 it += 1
                 # direction d = P(x - alpha g) - x (projected) or -alpha g, per-column alpha
                 cur["neg_alpha"] = -alpha.astype(dt)
-                (gd,) = _sums(run_parts(direction_band, nb))
+                (gd,) = sum_parts(run_parts(direction_band, nb))
                 ad = A.matvec(d).astype(dt, copy=False)
                 # nonmonotone Armijo line search, per column: every column is evaluated at
                 # t = 1, then only the columns that fail are evaluated again at smaller t
                 t = np.ones(k)
-                (hv,) = _sums(run_parts(trial_band, nb))
+                (hv,) = sum_parts(run_parts(trial_band, nb))
                 r_t = r + ad
-                psi_t = hv + 0.5 * mu * _coldot(r_t, r_t)
+                psi_t = hv + 0.5 * mu * col_dot(r_t, r_t)
                 fresh_mag = True  # mag holds ||v_i|| of every column
                 bad = np.flatnonzero(~(psi_t <= c_ref + delta * t * gd + slack * np.abs(c_ref)))
                 if bad.size > _WHOLE_BLOCK_SHARE * k:
@@ -469,10 +454,10 @@ class TVAL3(Solver):
                         n_backtracks += 1
                         t[live] *= shrink_t
                         cur["t_vec"] = t.astype(dt)
-                        (hv,) = _sums(run_parts(retry_band, nb))
+                        (hv,) = sum_parts(run_parts(retry_band, nb))
                         np.multiply(ad, cur["t_vec"], out=r_t)
                         r_t += r
-                        psi_new = hv + 0.5 * mu * _coldot(r_t, r_t)
+                        psi_new = hv + 0.5 * mu * col_dot(r_t, r_t)
                         psi_t[live] = psi_new[live]
                         ok = psi_t <= c_ref + delta * t * gd + slack * np.abs(c_ref)
                         live &= ~ok
@@ -494,7 +479,7 @@ class TVAL3(Solver):
                         vt = dx_c[:, live] + tl * dd_c[:, live]
                         vt -= nub_c[:, live]
                         rt = r_c[:, live] + tl * ad_c[:, live]
-                        psi_t[cols] = _huber_value(vt, beta, iso, q) + 0.5 * mu * _coldot(rt, rt)
+                        psi_t[cols] = _huber_value(vt, beta, iso, q) + 0.5 * mu * col_dot(rt, rt)
                         ok = psi_t[cols] <= c_ref[cols] + delta * t[cols] * gd[cols] + slack * (
                             np.abs(c_ref[cols])
                         )
@@ -514,7 +499,7 @@ class TVAL3(Solver):
                 moved = np.flatnonzero(t != 1.0)
                 cur["t_cols"] = moved if moved.size else None
                 cur["t_dt"] = t.astype(dt)
-                ss, sy, xn2, tv = _sums(run_parts(update_band, nb))
+                ss, sy, xn2, tv = sum_parts(run_parts(update_band, nb))
                 # Barzilai-Borwein step (BB1), per column
                 alpha = np.where((sy > 0) & (ss > 0), ss / np.maximum(sy, _TINY), alpha)
                 # Zhang-Hager reference value
@@ -526,7 +511,7 @@ class TVAL3(Solver):
                 # inner stopping (per-column relative change, all columns)
                 rel = np.sqrt(ss) / np.maximum(np.sqrt(xn2), _TINY)
                 inner_done = bool(np.all(rel <= tol_inner)) or inner == max_inner
-                obj = 0.5 * float(np.sum(_coldot(r, r))) + lam * float(np.sum(tv))
+                obj = 0.5 * float(np.sum(col_dot(r, r))) + lam * float(np.sum(tv))
                 ref = x_outer if (inner_done and final) else None
                 reason = mon.check(it, x, ref, obj)
                 if reason or inner_done:
