@@ -18,7 +18,7 @@ def test_run_writes_results(tmp_path, capsys):
     lines = capsys.readouterr().out.strip().splitlines()
     assert "depth RMSE" in lines[1]
     assert {p.name for p in out.iterdir()} == {"metrics.json", "depth.npy", "truth.npy",
-                                               "depth.png"}
+                                               "valid.npy", "depth.png"}
     m = json.loads((out / "metrics.json").read_text())
     assert np.load(out / "depth.npy").shape == (16, 16)
     assert m["config"]["size"] == 16

@@ -10,6 +10,8 @@ import argparse
 import sys
 
 EXIT_BAD_INPUT = 2
+#: exit status after Ctrl-C (128 + SIGINT), as a shell reports it
+EXIT_INTERRUPTED = 130
 
 
 class _Parser(argparse.ArgumentParser):
@@ -128,7 +130,11 @@ def build_parser() -> argparse.ArgumentParser:
                                    "and depth.png into --out (only when complete).")
     p.add_argument("--config", metavar="FILE.toml",
                    help="TOML file with the same keys (command-line options override it)")
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output folder: new, empty, or a previous result (with --overwrite); "
+                        "a folder holding anything else is refused")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the previous spslidar result in --out")
     p.add_argument("--no-figure", action="store_true", help="skip depth.png")
     _add_run_options(p)
     from .snr import add_snr_parser
@@ -174,19 +180,21 @@ def _add_sweep_options(p: argparse.ArgumentParser, trials: bool) -> None:
 
 def _cmd_run(args) -> int:
     from .config import Config, read_toml
+    from .outdir import check_output
     from .pipeline import run
 
     opts = {k: v for k, v in vars(args).items()
-            if k not in ("command", "config", "out", "no_figure", "func")}
+            if k not in ("command", "config", "out", "no_figure", "overwrite", "func")}
+    check_output(args.out, args.overwrite)  # refuse before any work
     base = read_toml(args.config) if args.config else {}
     cfg = Config.from_dict({**base, **opts})
     result = run(cfg)
     for w in result.warnings:
         print(f"spslidar: warning: {w}", file=sys.stderr)
-    out = result.save(args.out, figure=not args.no_figure)
+    out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite)
     print(result.summary())
-    print(f"wrote {out}/: metrics.json depth.npy truth.npy" + ("" if args.no_figure
-                                                              else " depth.png"))
+    print(f"wrote {out}/: metrics.json depth.npy truth.npy valid.npy"
+          + ("" if args.no_figure else " depth.png"))
     return 0
 
 
@@ -232,6 +240,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"spslidar {args.command}: error: {exc.strerror or exc}: "
               f"{exc.filename or ''}".rstrip(": "), file=sys.stderr)
         return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"spslidar {args.command}: interrupted; nothing was written", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":  # pragma: no cover

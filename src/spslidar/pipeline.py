@@ -15,8 +15,6 @@ from __future__ import annotations
 import importlib
 import json
 import os
-import shutil
-import tempfile
 import threading
 import time
 from collections import OrderedDict
@@ -47,9 +45,10 @@ from .detector import (
     check_means,
     poisson_rows,
 )
-from .errors import ConfigError, SpslidarError
+from .errors import ConfigError
 from .forward import depth_to_delay, expected_counts, return_weights, shifted_codes
 from .metrics import depth_errors, edge_agreement, sobel_edges
+from .outdir import write_result_dir
 from .patterns import make_patterns, n_patterns_for
 from .qcr import centre, plain_problem, qcr_problem
 from .scenes import load_scene
@@ -141,20 +140,21 @@ class Result:
                f"{t['total']:.2f} s (simulate {t['simulate']:.2f}, solve {t['solve']:.2f})")
         return f"{what}\n{out}"
 
-    def save(self, out_dir: str | os.PathLike, figure: bool = True) -> Path:
-        """Write ``metrics.json``, ``depth.npy``, ``truth.npy`` and ``depth.png`` into
-        ``out_dir``, which appears only once complete (written under a temporary name, then
-        moved into place, replacing an older result)."""
-        out = Path(out_dir)
-        if out.exists() and not out.is_dir():
-            raise SpslidarError(f"output path exists and is not a folder: {out}")
-        parent = out.resolve().parent
-        parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=parent))
-        try:
+    def save(self, out_dir: str | os.PathLike, figure: bool = True,
+             overwrite: bool = False) -> Path:
+        """Write ``metrics.json``, ``depth.npy``, ``truth.npy``, ``valid.npy`` and
+        ``depth.png`` into ``out_dir``, all or nothing (see :mod:`spslidar.outdir`).
+
+        ``out_dir`` must not exist, be empty, or (with ``overwrite=True``) hold a previous
+        spslidar result; anything else is refused before a file is written, so a user's
+        files are never touched.
+        """
+
+        def fill(tmp: Path) -> None:
             t0 = time.perf_counter()
             np.save(tmp / "depth.npy", self.depth)
             np.save(tmp / "truth.npy", self.truth)
+            np.save(tmp / "valid.npy", np.asarray(self.scene.valid, dtype=bool))
             if figure:
                 from .figures import depth_figure
 
@@ -163,22 +163,8 @@ class Result:
             self.metrics["timing_s"] = dict(self.timing)
             with open(tmp / "metrics.json", "w") as fh:
                 json.dump(_jsonable(self.metrics), fh, indent=2, allow_nan=True)
-            replace_dir(tmp, out)
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
-        return out
 
-
-def replace_dir(src: Path, dst: Path) -> None:
-    """Move the finished folder ``src`` to ``dst``, replacing any older ``dst``."""
-    old = None
-    if dst.exists():
-        old = dst.with_name(f".{dst.name}.old-{os.getpid()}")
-        os.replace(dst, old)
-    os.replace(src, dst)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+        return write_result_dir(out_dir, fill, overwrite=overwrite)
 
 
 def _jsonable(obj):

@@ -1,0 +1,142 @@
+"""``--out`` never deletes what spslidar did not write (issue 15, item 1)."""
+
+import json
+import os
+import stat
+
+import numpy as np
+import pytest
+
+from spslidar.cli import main
+from spslidar.errors import SpslidarError
+from spslidar.outdir import check_output, is_result, write_result_dir
+
+FAST = ["run", "--size", "8", "--code-length", "127", "--no-figure"]
+
+
+def _run(out, *extra):
+    return main([*FAST, "--out", str(out), *extra])
+
+
+def test_refuses_folder_with_user_files(tmp_path, capsys):
+    # the reported case: --out "$PWD" in a folder holding notes and a sub-folder
+    p = tmp_path / "p"
+    (p / "keep").mkdir(parents=True)
+    (p / "notes.md").write_text("x")
+    (p / "keep" / "data.txt").write_text("y")
+    assert _run(p) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not a spslidar result" in err[0]
+    assert (p / "notes.md").read_text() == "x"
+    assert (p / "keep" / "data.txt").read_text() == "y"
+    assert sorted(x.name for x in p.iterdir()) == ["keep", "notes.md"]
+    assert [x.name for x in tmp_path.iterdir()] == ["p"]  # no temporary folder left
+
+
+def test_out_dot_in_user_folder_is_refused(tmp_path, monkeypatch, capsys):
+    (tmp_path / "mine.txt").write_text("z")
+    monkeypatch.chdir(tmp_path)
+    assert _run(".") == 2
+    assert (tmp_path / "mine.txt").exists()
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_sibling_runs_survive(tmp_path):
+    runs = tmp_path / "runs"
+    assert _run(runs / "a") == 0
+    before = (runs / "a" / "metrics.json").read_bytes()
+    # --out runs (the parent of earlier runs) must not delete them
+    assert _run(runs) == 2
+    assert (runs / "a" / "metrics.json").read_bytes() == before
+
+
+def test_previous_result_needs_overwrite(tmp_path, capsys):
+    out = tmp_path / "r"
+    assert _run(out) == 0
+    assert is_result(out)
+    first = (out / "metrics.json").read_bytes()
+    assert _run(out, "--seed", "1") == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert (out / "metrics.json").read_bytes() == first
+    assert _run(out, "--seed", "1", "--overwrite") == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["seed"] == 1
+
+
+def test_overwrite_never_deletes_a_user_file_in_a_result(tmp_path):
+    out = tmp_path / "r"
+    assert _run(out) == 0
+    (out / "my_notes.txt").write_text("keep me")
+    assert not is_result(out)
+    assert _run(out, "--overwrite") == 2
+    assert (out / "my_notes.txt").read_text() == "keep me"
+
+
+def test_empty_folder_and_cwd(tmp_path, monkeypatch):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert _run(empty) == 0
+    assert is_result(empty)
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    monkeypatch.chdir(cwd)
+    assert _run(".") == 0 and is_result(cwd)
+    assert _run(".", "--overwrite") == 0 and is_result(cwd)
+
+
+@pytest.mark.parametrize("out", ["", "   "])
+def test_empty_out_is_one_line(out, capsys):
+    assert main([*FAST, "--out", out]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_out_is_a_file(tmp_path, capsys):
+    f = tmp_path / "f.txt"
+    f.write_text("mine")
+    assert _run(f) == 2
+    assert f.read_text() == "mine"
+
+
+def test_permissions_follow_umask(tmp_path):
+    old = os.umask(0o022)
+    try:
+        out = tmp_path / "r"
+        assert _run(out) == 0
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(out.stat().st_mode) == 0o755
+    assert stat.S_IMODE((out / "depth.npy").stat().st_mode) == 0o644
+    assert stat.S_IMODE((out / "metrics.json").stat().st_mode) == 0o644
+
+
+def test_failed_fill_leaves_nothing(tmp_path):
+    out = tmp_path / "r"
+
+    def fill(tmp):
+        np.save(tmp / "depth.npy", np.zeros(3))
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        write_result_dir(out, fill)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_interrupt_exits_130_with_one_line(tmp_path, monkeypatch, capsys):
+    import spslidar.pipeline as pipeline
+
+    def boom(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pipeline, "run", boom)
+    out = tmp_path / "r"
+    assert _run(out) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "interrupted" in err[0]
+    assert not out.exists()
+
+
+def test_check_output_messages(tmp_path):
+    (tmp_path / "x").write_text("")
+    with pytest.raises(SpslidarError, match="not a spslidar result"):
+        check_output(tmp_path)
+    assert check_output(tmp_path / "new") == tmp_path / "new"
