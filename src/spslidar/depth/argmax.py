@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .forward import delay_to_depth
+from ..forward import delay_to_depth
+from .base import DepthContext, DepthEstimate, DepthEstimator
 
 
 def ml_depth(
@@ -78,3 +79,31 @@ def ml_depth(
     missing = (peak <= 0) | (peak < min_peak_fraction * ref)
     depth[missing] = np.nan
     return depth, peak
+
+
+class ArgmaxDepth(DepthEstimator):
+    """The paper's ML estimator (eq. 2-3): each pixel's first tallest slice.
+
+    Confidence is the pixel's peak over the 99th percentile of all pixels' peaks, clipped to
+    [0, 1]: a weak return (a dark or distant surface, or a noise peak) has a low confidence.
+    Pixels without a return (see :func:`ml_depth`) get NaN depth and confidence 0.
+    """
+
+    name = "argmax"
+
+    def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:
+        depth, peak = ml_depth(slices, ctx.lags, ctx.bin_width, ctx.pulse_width,
+                               subbin=ctx.subbin)
+        conf = peak_confidence(peak)
+        conf[~np.isfinite(depth)] = 0.0
+        return DepthEstimate(depth, conf, peak, self._flag(depth, conf))
+
+
+def peak_confidence(peak: np.ndarray) -> np.ndarray:
+    """``clip(peak / p99(peak), 0, 1)``: each pixel's return strength against the scene's
+    strong returns (1: as strong as the 99th percentile)."""
+    peak = np.asarray(peak, dtype=np.float64)
+    ref = float(np.percentile(peak, 99)) if peak.size else 0.0
+    if not ref > 0:
+        return np.zeros_like(peak)
+    return np.clip(peak / ref, 0.0, 1.0)

@@ -1,0 +1,94 @@
+"""The depth-estimation stage's contract: reconstructed range slices in, depth and a per-pixel
+confidence out.
+
+The reconstruction gives each pixel a profile over the gated delays (the columns of the
+``(Q, K)`` solution of eq. 18). A :class:`DepthEstimator` turns the whole block into a depth
+map (eq. 2-3 for the paper's ML argmax), a confidence in [0, 1] per pixel and a mask of
+low-confidence pixels, and may use the image structure (``ctx.shape``) to do so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = ["DepthContext", "DepthEstimate", "DepthEstimator"]
+
+
+@dataclass(frozen=True)
+class DepthContext:
+    """What an estimator may know besides the slices.
+
+    Attributes
+    ----------
+    lags : ndarray of int, shape (K,)
+        Absolute delay (TDC bins) of each slice, increasing.
+    bin_width : float
+        TDC bin width in seconds.
+    pulse_width : float
+        Return pulse width in bins.
+    shape : tuple of int
+        Image shape ``(N, N)``; ``Q = N * N`` pixels in C order.
+    subbin : bool
+        Refine peaks below one bin where the estimator supports it.
+    """
+
+    lags: np.ndarray
+    bin_width: float
+    pulse_width: float = 0.5
+    shape: tuple[int, int] = (0, 0)
+    subbin: bool = False
+
+
+@dataclass
+class DepthEstimate:
+    """An estimator's output (all per pixel, flattened in C order, length Q).
+
+    Attributes
+    ----------
+    depth : ndarray
+        Metres; NaN where no return was detected.
+    confidence : ndarray
+        In [0, 1]; 0 where no return was detected.
+    peak : ndarray
+        Reconstructed return strength at the chosen delay.
+    low_confidence : ndarray of bool
+        Pixels with a depth whose confidence is below the estimator's threshold.
+    info : dict
+        Estimator-specific numbers for ``metrics.json``.
+    """
+
+    depth: np.ndarray
+    confidence: np.ndarray
+    peak: np.ndarray
+    low_confidence: np.ndarray
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+class DepthEstimator:
+    """Base class: subclasses set ``name`` and implement :meth:`estimate`.
+
+    Parameters
+    ----------
+    low_confidence : float
+        Confidence below which a pixel with a depth is flagged low-confidence.
+    """
+
+    name = "base"
+    #: default of ``low_confidence``
+    LOW_CONFIDENCE = 0.25
+
+    def __init__(self, low_confidence: float | None = None, **options: Any):
+        self.low_confidence = self.LOW_CONFIDENCE if low_confidence is None else low_confidence
+        if not 0.0 <= self.low_confidence <= 1.0:
+            raise ValueError("low_confidence must be in [0, 1]")
+        self.options = options
+
+    def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:
+        """Depth, confidence and peak per pixel from the ``(Q, K)`` slices."""
+        raise NotImplementedError  # pragma: no cover - abstract
+
+    def _flag(self, depth: np.ndarray, confidence: np.ndarray) -> np.ndarray:
+        return np.isfinite(depth) & (confidence < self.low_confidence)
