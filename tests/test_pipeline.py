@@ -73,7 +73,7 @@ def test_save_is_atomic(tmp_path, monkeypatch):
     r = pipeline.run(size=16, code_length=1023)
     out = r.save(tmp_path / "res")
     assert sorted(p.name for p in out.iterdir()) == [
-        "depth.npy", "depth.png", "metrics.json", "truth.npy"]
+        "depth.npy", "depth.png", "metrics.json", "truth.npy", "valid.npy"]
     m = json.loads((out / "metrics.json").read_text())
     assert m["depth_rmse_m"] == pytest.approx(r.depth_rmse)
     assert {"total", "simulate", "solve"} <= set(m["timing_s"])
@@ -110,12 +110,13 @@ def _small_measurement(**kw):
 
 
 def _simulate(meas, seed, **kw):
-    from spslidar.detector import NoiseModel, PhotonCountingDetector
+    from spslidar.detector import NoiseModel
+    from spslidar.detectors.linear import LinearDetector
 
     cfg = meas.config
     noise = NoiseModel(cfg.noise, tuple(cfg.noise_split), cfg.ambient, cfg.background_rate,
                        cfg.dark_count_rate)
-    det = PhotonCountingDetector(dead_time=cfg.dead_time, efficiency=kw.pop("efficiency", 1.0))
+    det = LinearDetector(dead_time=cfg.dead_time, efficiency=kw.pop("efficiency", 1.0))
     return pipeline.simulate_correlations(meas.patterns, meas.scene, meas.acq, meas.ulags, noise,
                                           det, cfg.pulse_width, np.random.default_rng(seed),
                                           **kw)
@@ -131,7 +132,7 @@ def _exact_moments(meas):
     cfg, acq = meas.config, meas.acq
     period = acq.period
     code = acq.code.astype(float)
-    phi = meas.patterns.astype(float)
+    phi = meas.patterns.todense().astype(float)
     alpha = meas.scene.reflectivity.ravel()
     bins, w = pulse_overlaps(depth_to_delay(meas.scene.depth.ravel(), acq.bin_width),
                              cfg.pulse_width)
@@ -210,7 +211,9 @@ def test_simulation_does_not_depend_on_threads(monkeypatch):
     meas = _small_measurement(size=16, code_length=255)  # 256 patterns: 4 blocks
     a = _simulate(meas, 7, threads=1)
     b = _simulate(meas, 7, threads=3)
-    monkeypatch.setattr(pipeline, "single_threaded_blas", lambda: None)  # no threadpoolctl
+    import spslidar.pipeline.simulate as simulate
+
+    monkeypatch.setattr(simulate, "single_threaded_blas", lambda: None)  # no threadpoolctl
     c = _simulate(meas, 7, threads=2)
     for k in ("corr", "counts", "sigma"):
         np.testing.assert_array_equal(a[k], b[k])
@@ -248,7 +251,7 @@ def test_simulation_rejects_means_beyond_float32_counts(method):
     with pytest.raises(ValueError, match="float32"):
         pipeline.measure(scene="steps", size=8, code_length=127, signal=1e7)
     meas = _small_measurement()
-    meas.patterns = meas.patterns - 50.0  # negative transmittances give negative means
+    meas.patterns = meas.patterns.todense() - 50.0  # negative transmittances: negative means
     with pytest.raises(ValueError):
         _simulate(meas, 0, method=method)
 
@@ -262,7 +265,10 @@ def test_run_shared_reuses_the_measurement_and_equals_run(monkeypatch):
         calls.append(1)
         return real(cfg, **kw)
 
-    monkeypatch.setattr(pipeline, "measure", counting)
+    import spslidar.pipeline.chain as chain
+    import spslidar.pipeline.shared as shared
+
+    monkeypatch.setattr(chain, "measure", counting)
     a = pipeline.run_shared(size=16, solver="fista", seed=4)
     b = pipeline.run_shared(size=16, solver="tval3", lam_scale=0.5, seed=4)
     assert len(calls) == 1  # the second run only changed processing keys
@@ -272,7 +278,7 @@ def test_run_shared_reuses_the_measurement_and_equals_run(monkeypatch):
     np.testing.assert_array_equal(b.depth, ref.depth)
     assert b.timing["simulate"] == a.timing["simulate"]  # the time it took to simulate
     # another seed is another measurement; the oldest is dropped beyond SHARED_MEASUREMENTS
-    monkeypatch.setattr(pipeline, "SHARED_MEASUREMENTS", 1)
+    monkeypatch.setattr(shared, "SHARED_MEASUREMENTS", 1)
     pipeline.run_shared(size=16, seed=5)
     pipeline.run_shared(size=16, seed=4)
     assert len(calls) == 4  # run() above, then both of these

@@ -17,9 +17,6 @@ from typing import Any
 from .errors import ConfigError
 
 LIDARS = ("psst", "conventional")
-CODES = ("mseq", "gold", "random")
-PATTERNS = ("gaussian", "bernoulli")
-SOLVERS = ("fista", "twist", "tval3", "gpsr")
 REGULARISERS = ("auto", "tv", "l1", "wavelet")
 REPLICAS = ("auto", "bipolar", "unipolar")
 FAIRNESS = ("energy", "power")
@@ -29,7 +26,10 @@ FAIRNESS = ("energy", "power")
 class Config:
     """Everything that defines one simulated acquisition and reconstruction.
 
-    See ``spslidar run --help`` and ``docs/model.md`` for the meaning of each key.
+    See ``spslidar run --help`` and ``docs/model.md`` for the meaning of each key. A config is
+    validated (and its values normalised) once, when it is made; the choices of ``code``,
+    ``patterns``, ``detector``, ``solver`` and ``depth`` come from the stages' registries
+    (:func:`registries`), each entry checking the config with its own rules.
     """
 
     # scene
@@ -59,6 +59,7 @@ class Config:
     background_rate: float = 0.0
     dark_count_rate: float = 0.0
     dead_time: float = 50e-9
+    detector: str = "linear"
     noiseless: bool = False
     # processing
     replica: str = "auto"
@@ -74,6 +75,7 @@ class Config:
     tol: float = 1e-4
     subbin: bool = False
     nonneg: bool = True
+    depth: str = "argmax"
     dtype: str = "float32"
     seed: int = 0
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
@@ -92,14 +94,15 @@ class Config:
                 hint = f" (did you mean {', '.join(sorted(close))}?)" if close else ""
                 raise ConfigError(f"unknown config key {k!r}{hint}")
             clean[key] = v
-        cfg = cls(**clean)
-        cfg.validate()
-        return cfg
+        return cls(**clean)
 
     @classmethod
     def from_toml(cls, path: str | Path, **overrides) -> Config:
         """Read a TOML file (top-level keys, or a ``[run]`` table) and apply overrides."""
         return cls.from_dict({**read_toml(path), **overrides})
+
+    def __post_init__(self) -> None:
+        self.validate()
 
     def replace(self, **kw) -> Config:
         """A validated copy with some keys changed."""
@@ -147,9 +150,6 @@ class Config:
                 raise ConfigError(f"--{opt} must be in {rng_txt}, got {v}")
 
         choice("lidar", LIDARS)
-        choice("code", CODES)
-        choice("patterns", PATTERNS)
-        choice("solver", SOLVERS)
         choice("regulariser", REGULARISERS)
         choice("replica", REPLICAS)
         choice("fairness", FAIRNESS)
@@ -208,11 +208,19 @@ class Config:
                 raise ConfigError(f"--range-gate must be MIN MAX with 0 <= MIN < MAX metres, "
                                   f"got {list(g)}")
             self.range_gate = g
-        if self.solver == "gpsr" and self.regulariser == "tv":
-            raise ConfigError("the gpsr solver minimises an l1 norm: use --regulariser l1 or "
-                              "wavelet")
-        if self.solver == "tval3" and self.regulariser in ("l1", "wavelet"):
-            raise ConfigError("the tval3 solver minimises total variation: use --regulariser tv")
+        for reg in registries().values():
+            reg.get(getattr(self, reg.option)).check(self)
+
+
+def registries() -> dict:
+    """The registries whose entries a config chooses among, by config key."""
+    from .codes import CODES
+    from .depth import ESTIMATORS
+    from .detectors import DETECTORS
+    from .patterns import PATTERNS
+    from .solvers import SOLVERS
+
+    return {r.option: r for r in (CODES, PATTERNS, DETECTORS, SOLVERS, ESTIMATORS)}
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:

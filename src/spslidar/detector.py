@@ -93,6 +93,9 @@ class NoiseModel:
         -----
         Eq. (9): ``N^2 m_n^(1) + m_n^(2) + m_n^(3)`` with each term per pixel (so x N^2).
         """
+        from .patterns import as_patterns
+
+        patterns = as_patterns(patterns)
         m = patterns.shape[0]
         q = patterns.shape[1]
         f1, f2, f3 = (float(v) for v in self.split)
@@ -100,7 +103,7 @@ class NoiseModel:
         if self.ambient == "paper":
             return np.full(m, base + q * self.m_n * f1)
         a = np.asarray(reflectivity, dtype=np.float64).ravel()
-        return base + self.m_n * f1 * (np.asarray(patterns, dtype=np.float64) @ a)
+        return base + self.m_n * f1 * patterns.apply_rows(slice(0, m), a[:, None])[:, 0]
 
 
 def _threads() -> int:

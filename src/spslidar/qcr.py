@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import ConfigError
-from .operators import LinearOperator, MatrixOperator
+from .operators import LinearOperator
 
 QCR_FORMS = ("centred", "covariance")
 
@@ -68,21 +68,27 @@ def centred_patterns(patterns: np.ndarray, norm: float = 1.0, dtype=np.float32) 
     return out
 
 
-def qcr_delta(patterns: np.ndarray, corr: np.ndarray) -> np.ndarray:
+def qcr_delta(patterns, corr: np.ndarray) -> np.ndarray:
     """``Delta = Phi_c^T C_c / M`` (eq. 11, 16): the covariance of the measurements with each
-    pixel's pattern values, shape ``(Q, K)``."""
-    phi_c = centre(patterns)
-    return phi_c.T @ centre(corr) / patterns.shape[0]
+    pixel's pattern values, shape ``(Q, K)``. ``patterns``: an ``(M, Q)`` array or a
+    :class:`~spslidar.patterns.PatternOperator`."""
+    if isinstance(patterns, np.ndarray):
+        return centre(patterns).T @ centre(corr) / patterns.shape[0]
+    # Phi_c^T C_c = Phi^T C_c: the centred data sum to zero over the patterns
+    cc = centre(np.asarray(corr, dtype=np.float64))
+    return np.asarray(patterns.rmatvec(cc), dtype=np.float64) / patterns.shape[0]
 
 
 class CovarianceOperator(LinearOperator):
     """``H = Phi_c^T Phi_c / M`` (eq. 17), applied implicitly (never formed)."""
 
-    def __init__(self, patterns: np.ndarray, dtype=np.float32):
-        phi_c = centred_patterns(patterns, dtype=dtype)
-        self.m = patterns.shape[0]
-        self._phi = MatrixOperator(phi_c)
-        q = patterns.shape[1]
+    def __init__(self, patterns, dtype=np.float32):
+        from .patterns import as_patterns
+
+        phi = as_patterns(patterns)
+        self.m = phi.shape[0]
+        self._phi = phi.centred(1.0, dtype=dtype)
+        q = phi.shape[1]
         super().__init__((q, q), dtype)
 
     def _matvec(self, x):
@@ -102,16 +108,20 @@ def qcr_problem(patterns: np.ndarray, corr: np.ndarray, form: str = "centred",
     y : ndarray
         ``C_c / sqrt(M)`` (centred) or ``Delta`` (covariance).
     """
-    m = patterns.shape[0]
+    from .patterns import as_patterns
+
+    phi = as_patterns(patterns)
+    m = phi.shape[0]
     if form == "centred":
-        phi_c = centred_patterns(patterns, np.sqrt(m), dtype=dtype)
-        return MatrixOperator(phi_c, dtype=dtype), (centre(corr) / np.sqrt(m)).astype(dtype)
+        return phi.centred(np.sqrt(m), dtype=dtype), (centre(corr) / np.sqrt(m)).astype(dtype)
     if form == "covariance":
-        return CovarianceOperator(patterns, dtype=dtype), qcr_delta(patterns, corr).astype(dtype)
+        return CovarianceOperator(phi, dtype=dtype), qcr_delta(patterns, corr).astype(dtype)
     raise ConfigError(f"unknown QCR form {form!r}; choose centred or covariance")
 
 
 def plain_problem(patterns: np.ndarray, corr: np.ndarray,
                   dtype=np.float32) -> tuple[LinearOperator, np.ndarray]:
     """Eq. (7) without QCR: ``C = Phi p``."""
-    return MatrixOperator(patterns, dtype=dtype), np.asarray(corr, dtype=dtype)
+    from .patterns import as_patterns
+
+    return as_patterns(patterns).as_dtype(dtype), np.asarray(corr, dtype=dtype)

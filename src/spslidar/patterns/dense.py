@@ -1,4 +1,4 @@
-"""DMD spatial patterns: the rows of the measurement matrix Phi of eq. (7).
+"""Dense DMD pattern sets (the paper's): the rows of the measurement matrix Phi of eq. (7).
 
 A DMD only switches mirrors on or off, so every pattern here is non-negative:
 
@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import ConfigError
+from ..errors import ConfigError
+from ..operators.base import _product
+from .base import PatternOperator
 
 PATTERN_KINDS = ("gaussian", "bernoulli")
 
@@ -81,3 +83,64 @@ def make_patterns(
             raise ConfigError(f"pattern on-fraction must be in (0, 1), got {on_fraction}")
         return (rng.random((n_patterns, n_pixels)) < on_fraction).astype(dtype)
     raise ConfigError(f"unknown pattern kind {kind!r}; choose one of {', '.join(PATTERN_KINDS)}")
+
+
+class DensePatterns(PatternOperator):
+    """A pattern set held as its ``(M, Q)`` matrix (Gaussian grey levels, Bernoulli binary).
+
+    Parameters
+    ----------
+    matrix : ndarray, shape (M, Q)
+        Mirror transmittances in [0, 1].
+    kind : str
+        The pattern kind that made it.
+    """
+
+    def __init__(self, matrix: np.ndarray, kind: str = "dense"):
+        matrix = np.asarray(matrix)
+        if matrix.ndim != 2:
+            raise ValueError(f"patterns must be an (M, Q) array, got shape {matrix.shape}")
+        super().__init__(matrix.shape, matrix.dtype)
+        self.matrix = matrix
+        self.kind = kind
+        self._T = None
+
+    def _matvec(self, x):
+        return _product(self.matrix, x.astype(self.dtype, copy=False))
+
+    def _rmatvec(self, y):
+        if self._T is None:
+            self._T = np.ascontiguousarray(self.matrix.T)
+        return _product(self._T, y.astype(self.dtype, copy=False))
+
+    def todense(self) -> np.ndarray:
+        return self.matrix.copy()
+
+    def mean_pattern(self) -> np.ndarray:
+        return self.matrix.mean(axis=0, dtype=np.float64)
+
+    def apply_rows(self, rows: slice, x: np.ndarray) -> np.ndarray:
+        return np.asarray(self.matrix[rows], dtype=np.float64) @ x
+
+    def centred(self, norm: float = 1.0, dtype=np.float32):
+        from ..operators import MatrixOperator
+        from ..qcr import centred_patterns
+
+        return MatrixOperator(centred_patterns(self.matrix, norm, dtype=dtype), dtype=dtype)
+
+    def as_dtype(self, dtype):
+        from ..operators import MatrixOperator
+
+        return MatrixOperator(self.matrix, dtype=dtype)
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.matrix.nbytes)
+
+
+def dense_patterns(kind: str, n_patterns: int, n_side: int, rng: np.random.Generator,
+                   dtype=np.float32, sigma: float = 0.25, on_fraction: float = 0.5,
+                   **_: object) -> DensePatterns:
+    """The registry's factory for ``gaussian`` and ``bernoulli`` pattern sets."""
+    return DensePatterns(make_patterns(kind, n_patterns, n_side * n_side, rng, sigma=sigma,
+                                       on_fraction=on_fraction, dtype=dtype), kind)

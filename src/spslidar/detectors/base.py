@@ -1,0 +1,74 @@
+"""The detector stage's contract: expected photons per TDC bin in, detected counts out.
+
+The simulation (``spslidar.pipeline.simulate``) computes, for a block of patterns, the expected
+number of photons per TDC bin reaching the detector over one pattern's acquisition (``n_periods``
+code periods, signal plus the noise terms of eq. 9) and hands them to the detector model. The
+model returns the detected-count histogram and each row's total; it also says what the matched
+filter needs to know about the noise of its histograms (the effective count behind each
+pattern's matched-filter variance) and, where the model is not linear, corrects its histograms
+(pile-up) before the matched filter. Models are registered in :data:`spslidar.detectors.DETECTORS`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = ["DetectorModel"]
+
+
+class DetectorModel:
+    """Base class of detector models.
+
+    Subclasses set ``name`` and implement :meth:`detect` and :meth:`expected`.
+    """
+
+    name = "base"
+    #: whether the detected mean is proportional to the incident mean (no pile-up)
+    linear = True
+
+    def detect(self, lam: np.ndarray, rng: np.random.Generator, n_periods: int = 1,
+               out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Detected counts per bin.
+
+        Parameters
+        ----------
+        lam : ndarray, shape (B, L)
+            Expected photons per TDC bin reaching the detector, accumulated over the
+            ``n_periods`` code periods of one pattern (``lam / n_periods`` per period).
+        rng : numpy.random.Generator
+            The block's own random stream.
+        n_periods : int
+            Code periods accumulated per pattern.
+        out : ndarray, shape (B, L), optional
+            Receives the counts (may be ``lam`` itself).
+
+        Returns
+        -------
+        counts : ndarray, shape (B, L)
+            Detected counts (``out`` when given).
+        totals : ndarray, shape (B,)
+            Each row's total count.
+        """
+        raise NotImplementedError  # pragma: no cover - abstract
+
+    def expected(self, lam: np.ndarray, n_periods: int = 1) -> np.ndarray:
+        """Mean detected counts per bin (the noiseless limit of :meth:`detect`)."""
+        raise NotImplementedError  # pragma: no cover - abstract
+
+    def correct(self, counts: np.ndarray, n_periods: int = 1) -> np.ndarray:
+        """Histograms as the matched filter should see them (pile-up corrected); the identity
+        for a linear model."""
+        return counts
+
+    def noise_totals(self, counts: np.ndarray, totals: np.ndarray,
+                     n_periods: int = 1) -> np.ndarray:
+        """Per pattern, the sum over bins of the count variance of the (corrected) histogram,
+        estimated from the measurement: what the matched-filter noise level is built from.
+        For Poisson counts it is the total count itself."""
+        return totals
+
+    def report(self, counts_per_period: float, period_s: float) -> dict[str, Any]:
+        """Numbers for ``metrics.json`` (e.g. detections per dead time)."""
+        return {"model": self.name}

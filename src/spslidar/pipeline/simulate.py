@@ -1,0 +1,244 @@
+"""The simulation engine: expected counts (forward model, eq. 4) -> detector model -> matched
+filter (eq. 5-6), streamed over blocks of patterns on a thread pool."""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from ..correlate import (
+    correlation_gain,
+    make_replica,
+    matched_filter,
+    noise_sigma_from_totals,
+    replica_matrix,
+)
+from ..detector import MAX_MEAN, NoiseModel, check_means
+from ..detectors import DetectorModel
+from ..errors import ConfigError
+from ..forward import depth_to_delay, expected_counts, return_weights, shifted_codes
+from ..patterns import PatternOperator, as_patterns
+from .acquisition import Acquisition
+
+#: rows of patterns per random stream: block ``b`` draws its counts from the ``b``-th child of
+#: the counts generator, so the results depend only on the seed (not on threads or chunking)
+BLOCK = 64
+#: most threads simulating blocks at once (memory: ~ 20 * BLOCK * L bytes per thread)
+MAX_THREADS = 8
+#: implementations of :func:`simulate_correlations`
+SIMULATE_METHODS = ("fast", "reference")
+
+
+def simulate_correlations(
+    patterns: PatternOperator,
+    scene,
+    acq: Acquisition,
+    lags: np.ndarray,
+    noise: NoiseModel,
+    detector: DetectorModel,
+    pulse_width: float,
+    rng_counts: np.random.Generator,
+    noiseless: bool = False,
+    method: str = "fast",
+    threads: int | None = None,
+) -> dict[str, np.ndarray]:
+    """Expected counts -> Poisson counts -> matched filter, streamed over blocks of patterns.
+
+    Parameters
+    ----------
+    patterns : PatternOperator or ndarray, shape (M, Q)
+        The DMD patterns (only products of row blocks are used).
+    scene : Scene
+        Depth and reflectivity per pixel.
+    acq : Acquisition
+    lags : ndarray of int, shape (K,)
+        Delays (bins) at which the matched filter is evaluated.
+    noise : NoiseModel
+    detector : DetectorModel
+        Turns each block's expected photons per bin into detected counts (the stage's
+        contract, :class:`spslidar.detectors.DetectorModel`).
+    pulse_width : float
+        Return pulse width in bins.
+    rng_counts : numpy.random.Generator
+        Source of the photon counts: block ``b`` of ``BLOCK`` patterns draws from the ``b``-th
+        of ``rng_counts.spawn(n_blocks)``, so the counts depend only on the seed.
+    noiseless : bool
+        Use the expected counts themselves (no Poisson draw).
+    method : {'fast', 'reference'}
+        ``'fast'`` (default): the blocks run on a thread pool (NumPy's Poisson sampler and
+        BLAS release the GIL; BLAS itself is held to one thread meanwhile, and without
+        ``threadpoolctl`` the blocks run one after the other). Per block, the expected counts
+        are one BLAS product of the return amplitudes with the matrix of codes shifted to
+        each occupied delay, the counts one Poisson draw per TDC bin, and the matched filter
+        one product with the bank of replicas shifted to each gated lag. ``'reference'``:
+        brute force, kept for the tests: in float64, the return profile of each pattern
+        circularly convolved with the code by FFT, per-bin Poisson draws, the full circular
+        cross-correlation at every lag by FFT, then the gated lags picked out.
+    threads : int, optional
+        Threads (default: the CPUs available); the result does not depend on it.
+
+    Returns
+    -------
+    dict with ``corr`` (M, K) normalised matched-filter outputs at ``lags``, ``sigma`` (M,)
+    their estimated noise standard deviations, ``counts`` (M,) total counts per pattern,
+    ``signal_counts`` (M,) expected signal counts per pattern and ``noise_per_bin`` (M,).
+
+    Notes
+    -----
+    Both methods draw every TDC bin from its own Poisson distribution, so they give the same
+    distribution of the gated outputs (``tests/test_pipeline.py`` checks their means, variances
+    and covariances against each other and against the exact moments); the fast path computes
+    the means in float32 (relative error ~1e-7, far below the Poisson fluctuations). Why no
+    cheaper sampling scheme is exact is explained in :mod:`spslidar.detector`.
+    """
+    if method not in SIMULATE_METHODS:
+        raise ConfigError(f"unknown simulation method {method!r}; choose fast or reference")
+    patterns = as_patterns(patterns)
+    m = patterns.shape[0]
+    lags = np.asarray(lags, dtype=np.int64)
+    delay = depth_to_delay(scene.depth.ravel(), acq.bin_width)
+    refl = scene.reflectivity.ravel()
+    # the return amplitudes of pattern block b are patterns[b] @ weights (eq. 4 without the code)
+    shifts, weights = return_weights(refl, delay, pulse_width, acq.period)
+    noise_bin = noise.per_bin(patterns, refl, acq.bin_width)
+    replica = make_replica(acq.code, acq.replica)
+    gain = correlation_gain(acq.code, replica) * acq.n_periods * acq.signal_per_pulse
+    n_blocks = max(1, int(np.ceil(m / BLOCK)))
+    edges = np.linspace(0, m, n_blocks + 1).astype(int)
+    children = rng_counts.spawn(n_blocks)
+    args = (patterns, weights, shifts, noise_bin, acq, detector, replica, lags, gain, edges,
+            children, noiseless)
+    if method == "fast":
+        corr, totals, noise_tot, amp_sum = _simulate_fast(*args, threads=threads)
+    else:
+        corr, totals, noise_tot, amp_sum = _simulate_reference(*args)
+    n_pulses = float(acq.code.sum()) * acq.n_periods
+    signal_counts = acq.signal_per_pulse * n_pulses * amp_sum
+    sigma = noise_sigma_from_totals(noise_tot, replica, gain)
+    return {"corr": corr, "sigma": sigma, "counts": totals, "signal_counts": signal_counts,
+            "noise_per_bin": noise_bin}
+
+
+def single_threaded_blas():
+    """A context in which BLAS runs on one thread, or ``None`` without ``threadpoolctl``.
+
+    The simulation's own threads each run BLAS products; BLAS's threads on top of them would
+    oversubscribe the cores (OpenBLAS's busy-wait after each product: measured on 2 cores, the
+    simulation ~10-20 % slower, and up to 10x when the machine is loaded).
+
+    Returns
+    -------
+    context manager or None
+        ``threadpoolctl.threadpool_limits(1, user_api='blas')``; the previous limits come back
+        on exit.
+    """
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - threadpoolctl is optional
+        return None
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def simulation_threads(threads: int | None = None) -> int:
+    """Threads for the simulation.
+
+    Parameters
+    ----------
+    threads : int, optional
+        Requested number; default: the CPUs this process may use.
+
+    Returns
+    -------
+    int
+        Between 1 and ``MAX_THREADS``.
+    """
+    if threads is None:
+        try:
+            threads = len(os.sched_getaffinity(0))
+        except AttributeError:  # pragma: no cover - not Linux
+            threads = os.cpu_count() or 1
+    return max(1, min(int(threads), MAX_THREADS))
+
+
+def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica, lags, gain,
+                   edges, children, noiseless, threads=None):
+    """The streamed simulation of :func:`simulate_correlations` (``method='fast'``)."""
+    m = patterns.shape[0]
+    n_blocks = edges.size - 1
+    bank = replica_matrix(replica, lags) if lags.size <= 256 else None
+    code_matrix = shifted_codes(acq.code, shifts)
+    corr = np.empty((m, lags.size), dtype=np.float32)
+    totals = np.empty(m)
+    noise_tot = totals if detector.linear else np.empty(m)
+    amp_sum = np.empty(m)
+    # every bin's mean is at most n_periods * (m_s * sum_s |amp_s| + |noise|) (efficiency <= 1):
+    # only a block whose bound reaches float32's exact integer range is scanned (NumPy's sampler
+    # itself rejects negative or NaN means)
+
+    def block(b):
+        rows = slice(edges[b], edges[b + 1])
+        amp = patterns.apply_rows(rows, weights)
+        amp_sum[rows] = amp.sum(axis=1)
+        lam = expected_counts(amp, shifts, acq.code, acq.signal_per_pulse, noise_bin[rows],
+                              acq.n_periods, code_matrix=code_matrix)
+        if noiseless:
+            lam = detector.expected(lam, acq.n_periods)
+            totals[rows] = lam.sum(axis=1, dtype=np.float64)
+        else:
+            ceiling = acq.n_periods * (acq.signal_per_pulse * np.abs(amp).sum(axis=1)
+                                       + np.abs(noise_bin[rows]))
+            if not np.all(ceiling <= MAX_MEAN * 0.99):
+                check_means(lam)
+            # the counts overwrite their own means (NumPy draws from a float64 copy)
+            lam, totals[rows] = detector.detect(lam, children[b], acq.n_periods, out=lam)
+            if not detector.linear:
+                noise_tot[rows] = detector.noise_totals(lam, totals[rows], acq.n_periods)
+                lam = detector.correct(lam, acq.n_periods)
+        corr[rows] = matched_filter(lam, replica, lags, gain, bank=bank)
+
+    workers = min(simulation_threads(threads), n_blocks)
+    blas_limit = single_threaded_blas() if workers > 1 else None
+    if blas_limit is None:
+        for b in range(n_blocks):
+            block(b)
+    else:
+        with blas_limit, ThreadPoolExecutor(workers) as pool:
+            list(pool.map(block, range(n_blocks)))
+    return corr, totals, noise_tot, amp_sum
+
+
+def _simulate_reference(patterns, weights, shifts, noise_bin, acq, detector, replica, lags, gain,
+                        edges, children, noiseless):
+    """Brute-force :func:`simulate_correlations` (``method='reference'``): slow, for tests."""
+    m = patterns.shape[0]
+    period = acq.period
+    amp = patterns.apply_rows(slice(0, m), weights)
+    code_f = np.fft.rfft(np.asarray(acq.code, dtype=np.float64))
+    rep_f = np.conj(np.fft.rfft(np.asarray(replica, dtype=np.float64)))
+    corr = np.empty((m, lags.size), dtype=np.float32)
+    totals = np.empty(m)
+    noise_tot = np.empty(m)
+    for b in range(edges.size - 1):
+        rows = slice(edges[b], edges[b + 1])
+        # eq. (4): each pattern's return amplitude per delay bin, circularly convolved with the
+        # code by FFT (its round-off, where the signal is exactly 0, set to 0)
+        profile = np.zeros((rows.stop - rows.start, period))
+        profile[:, shifts] = amp[rows]
+        signal = np.fft.irfft(np.fft.rfft(profile, axis=1) * code_f, n=period, axis=1)
+        signal[np.abs(signal) <= 1e-9 * np.abs(amp[rows]).sum(axis=1, keepdims=True)] = 0.0
+        lam = acq.n_periods * (acq.signal_per_pulse * signal + noise_bin[rows, None])
+        if noiseless:
+            hist = detector.expected(lam, acq.n_periods)
+            totals[rows] = noise_tot[rows] = hist.sum(axis=1)
+        else:
+            check_means(lam)
+            hist, totals[rows] = detector.detect(lam, children[b], acq.n_periods,
+                                                 out=np.empty_like(lam))
+            noise_tot[rows] = detector.noise_totals(hist, totals[rows], acq.n_periods)
+            hist = detector.correct(hist, acq.n_periods)
+        # C(tau) = sum_t h(t) f(t - tau) at every tau (eq. 5-6), then the gated lags
+        full = np.fft.irfft(np.fft.rfft(hist, axis=1) * rep_f, n=period, axis=1)
+        corr[rows] = full[:, np.mod(lags, period)] / gain
+    return corr, totals, noise_tot, amp.sum(axis=1)
