@@ -21,8 +21,21 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
+def _choices(option: str):
+    """The registered names and their one-line help for a stage option."""
+    from .config import registries
+
+    reg = registries()[option]
+    return reg.names(), reg.help_text()
+
+
 def _add_run_options(p: argparse.ArgumentParser) -> None:
     S = argparse.SUPPRESS  # only options given on the command line override the config file
+    codes, codes_help = _choices("code")
+    patterns, patterns_help = _choices("patterns")
+    detectors, detectors_help = _choices("detector")
+    solvers, solvers_help = _choices("solver")
+    depths, depths_help = _choices("depth")
     g = p.add_argument_group("scene")
     g.add_argument("--scene", default=S, metavar="NAME|PATH",
                    help="built-in scene (camera [default], motorcycle, steps, ramp) or a file: "
@@ -36,8 +49,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--lidar", choices=("psst", "conventional"), default=S,
                    help="psst: pseudo-random coded laser (default); conventional: periodic "
                         "single pulses in the same acquisition time")
-    g.add_argument("--code", choices=("mseq", "gold", "random"), default=S,
-                   help="m-sequence (default), Gold code, or Bernoulli random bits")
+    g.add_argument("--code", choices=codes, default=S, help=codes_help)
     g.add_argument("--code-length", type=int, default=S, metavar="L",
                    help="bits per code period; 2^n - 1 for mseq/gold (default 16383); sets the "
                         "acquisition time per pattern (L / bit rate) for both lidars")
@@ -55,9 +67,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--fairness", choices=("energy", "power"), default=S,
                    help="conventional vs PSST: same pulse energy (default, the paper's) or same "
                         "average power")
-    g.add_argument("--patterns", choices=("gaussian", "bernoulli"), default=S,
-                   help="DMD patterns: grey-level Gaussian clip(0.5+0.25N,0,1) (default) or "
-                        "binary")
+    g.add_argument("--patterns", choices=patterns, default=S,
+                   help=f"DMD patterns: {patterns_help}")
     g.add_argument("--pattern-sigma", type=float, default=S, metavar="S")
     g.add_argument("--compression", type=float, default=S, metavar="F",
                    help="M/Q: patterns per pixel, in (0, 1] (default 0.25)")
@@ -79,8 +90,11 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="extra background counts per second (physical units)")
     g.add_argument("--dark-count-rate", type=float, default=S, metavar="CPS",
                    help="extra dark counts per second")
+    g.add_argument("--detector", choices=detectors, default=S,
+                   help=f"detector model: {detectors_help}")
     g.add_argument("--dead-time", type=float, default=S, metavar="S",
-                   help="GMAPD dead time, only for the pile-up warning (default 50e-9)")
+                   help="GMAPD dead time in seconds (default 50e-9; the linear model uses it "
+                        "only for its pile-up warning)")
     g.add_argument("--noiseless", action="store_true", default=S,
                    help="use expected counts (no Poisson noise)")
     g = p.add_argument_group("processing")
@@ -94,8 +108,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="quadratic correlation reconstruction (default on)")
     g.add_argument("--qcr-form", choices=("centred", "covariance"), default=S,
                    help="centred least squares (default) or the paper's literal ||Delta - Hp||")
-    g.add_argument("--solver", choices=("fista", "twist", "tval3", "gpsr"), default=S,
-                   help="reconstruction algorithm (default fista)")
+    g.add_argument("--solver", choices=solvers, default=S,
+                   help=f"reconstruction algorithm: {solvers_help}")
     g.add_argument("--regulariser", choices=("auto", "tv", "l1", "wavelet"), default=S,
                    help="auto: TV (fista, twist, tval3) or Haar-wavelet l1 (gpsr)")
     g.add_argument("--lam", type=float, default=S, metavar="W",
@@ -108,6 +122,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--nonneg", action=argparse.BooleanOptionalAction, default=S,
                    help="constrain the reconstructed return strengths to be non-negative "
                         "(default on; physical, since photon returns cannot be negative)")
+    g.add_argument("--depth", choices=depths, default=S,
+                   help=f"depth estimator: {depths_help}")
     g.add_argument("--subbin", action="store_true", default=S,
                    help="refine the ML peak by a three-bin centroid")
     g.add_argument("--dtype", choices=("float32", "float64"), default=S)
