@@ -1,8 +1,14 @@
-"""One conformance suite run over every linear operator: adjoint, linearity, norm, batching."""
+"""One conformance suite run over every linear operator: adjoint, linearity, norm, batching,
+dtype, no side effects. It discovers every ``LinearOperator`` subclass in the package and fails
+when one has no example here, so a new operator cannot go untested."""
+
+import importlib
+import pkgutil
 
 import numpy as np
 import pytest
 
+import spslidar
 from spslidar.operators import (
     Gradient2D,
     Identity,
@@ -11,11 +17,27 @@ from spslidar.operators import (
     dottest,
     power_norm,
 )
+from spslidar.operators.base import LinearOperator
+from spslidar.patterns import CentredPatterns, DensePatterns, PatternOperator
 from spslidar.qcr import CovarianceOperator, qcr_problem
 
 
 def _phi(m=30, q=64, seed=0):
     return np.clip(0.5 + 0.25 * np.random.default_rng(seed).standard_normal((m, q)), 0, 1)
+
+
+class _Implicit(PatternOperator):
+    """A pattern set known only through its products: exercises the contract's defaults."""
+
+    def __init__(self, matrix):
+        super().__init__(matrix.shape, matrix.dtype)
+        self._m = matrix
+
+    def _matvec(self, x):
+        return self._m @ x
+
+    def _rmatvec(self, y):
+        return self._m.T @ y
 
 
 OPERATORS = {
@@ -30,7 +52,56 @@ OPERATORS = {
     "composite": lambda: MatrixOperator(_phi()) @ Wavelet2D((8, 8)).H * 2.0
     + MatrixOperator(_phi(seed=3)),
     "adjoint": lambda: MatrixOperator(_phi()).H @ MatrixOperator(_phi()) - Identity(64),
+    "dense-patterns": lambda: DensePatterns(_phi()),
+    "centred-patterns": lambda: CentredPatterns(DensePatterns(_phi()), 2.0, np.float64),
+    "patterns-cast": lambda: DensePatterns(_phi()).as_dtype(np.float32),
+    "implicit-patterns-cast": lambda: _Implicit(_phi()).as_dtype(np.float32),
+    "implicit-patterns-centred": lambda: _Implicit(_phi()).centred(3.0, np.float64),
+    "qcr-plain": lambda: __import__("spslidar.qcr").qcr.plain_problem(
+        _phi(), np.zeros((30, 1)), np.float64)[0],
 }
+
+
+def _all_operator_classes():
+    for mod in pkgutil.walk_packages(spslidar.__path__, "spslidar."):
+        importlib.import_module(mod.name)
+    seen, todo = set(), [LinearOperator]
+    while todo:
+        for sub in todo.pop().__subclasses__():
+            if sub not in seen and sub.__module__.startswith("spslidar."):
+                seen.add(sub)
+                todo.append(sub)
+    # abstract bases (no products of their own) are covered through their subclasses
+    return {c for c in seen if c._matvec is not LinearOperator._matvec}
+
+
+def _classes_in(op, seen=None):
+    seen = set() if seen is None else seen
+    if isinstance(op, LinearOperator) and id(op) not in {id(o) for o in seen}:
+        seen.add(op)
+        for v in vars(op).values():
+            _classes_in(v, seen)
+    return {type(o) for o in seen}
+
+
+def test_every_operator_class_has_an_example():
+    covered = set()
+    for make in OPERATORS.values():
+        covered |= _classes_in(make())
+    missing = sorted(c.__qualname__ for c in _all_operator_classes() - covered)
+    assert not missing, f"LinearOperator subclasses without an example in OPERATORS: {missing}"
+
+
+def test_dtype_and_no_side_effects(op):
+    rng = np.random.default_rng(7)
+    x = rng.standard_normal((op.shape[1], 2)).astype(op.dtype)
+    y = rng.standard_normal((op.shape[0], 2)).astype(op.dtype)
+    x0, y0 = x.copy(), y.copy()
+    a, b = op @ x, op.H @ y
+    np.testing.assert_array_equal(x, x0)
+    np.testing.assert_array_equal(y, y0)
+    assert np.asarray(a).dtype == op.dtype and np.asarray(b).dtype == op.dtype
+    np.testing.assert_array_equal(op @ x, a)  # no hidden state between calls
 
 
 @pytest.fixture(params=sorted(OPERATORS))
@@ -115,3 +186,16 @@ def test_matrix_operator_todense_is_a_copy_of_its_matrix():
     np.testing.assert_array_equal(d, a)
     d[0, 0] = 99.0
     assert op.A[0, 0] == 0.0
+
+
+def test_pattern_contract_defaults_match_the_dense_forms():
+    phi = _phi()
+    imp, dense = _Implicit(phi), DensePatterns(phi)
+    np.testing.assert_allclose(imp.mean_pattern(), phi.mean(axis=0), rtol=1e-12)
+    x = np.random.default_rng(0).standard_normal((64, 3))
+    np.testing.assert_allclose(imp.apply_rows(slice(5, 9), x), phi[5:9] @ x, rtol=1e-12)
+    np.testing.assert_allclose(imp.centred(2.0, np.float64) @ x,
+                               dense.centred(2.0, np.float64) @ x, rtol=1e-10, atol=1e-12)
+    y = np.random.default_rng(1).standard_normal((30, 2))
+    np.testing.assert_allclose(imp.centred(2.0, np.float64).H @ y,
+                               (phi - phi.mean(axis=0)).T @ y / 2.0, rtol=1e-10, atol=1e-12)
