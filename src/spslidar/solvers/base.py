@@ -9,13 +9,20 @@ Solvers see a :class:`~spslidar.operators.LinearOperator` ``A``, data ``y`` of s
 
 over the whole block of K columns at once (the sum over columns of the per-column objective),
 unless its docstring says it solves an equivalent constrained form.
+
+Solvers are step-wise (:class:`Solver`: ``setup`` / ``step`` / ``done`` / ``run`` / ``finish``,
+as PyLops' ``basesolver`` and SigPy's ``Alg``), with callbacks after every iteration
+(:func:`progress`). They are looked up by name in :data:`spslidar.solvers.SOLVERS`
+(:func:`get_solver`, :func:`solve`), which imports a solver's module on first use.
 """
 
 from __future__ import annotations
 
+import sys
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 from scipy.linalg.blas import get_blas_funcs
@@ -192,8 +199,39 @@ def data_misfit(A, x: np.ndarray, y: np.ndarray) -> float:
     return 0.5 * float(np.vdot(r, r).real)
 
 
+Callback = Callable[["Solver"], Any]
+
+
 class Solver:
-    """Base class: subclasses set ``name`` and implement :meth:`_solve`.
+    """Base class of the step-wise solvers: ``setup`` / ``step`` / ``run`` / ``finish``.
+
+    In the style of PyLops' ``optimization.basesolver.Solver`` and SigPy's ``alg.Alg``, a
+    solve is ``setup(A, y, reg, lam, x0)`` (state, first objective), then :meth:`step` (one
+    iteration) until :meth:`done` (a rule of the :class:`StopRule` met, judged by the
+    :class:`Monitor` at the end of every step), then :meth:`finish`, which returns
+    ``(x, info)``. :meth:`solve` does all of it in one call, inside the parallel context of
+    large problems, with optional callbacks after every iteration::
+
+        x, info = FISTA(stop=StopRule(60)).solve(A, y, reg, lam, callback=progress(10))
+
+        s = FISTA(stop=StopRule(60))       # the same, driven by hand
+        s.setup(A, y, reg, lam)
+        while not s.done():
+            s.step()
+            print(s.it, s.info.objective[-1])
+        x, info = s.finish()
+
+    Subclasses set :attr:`name` and implement :meth:`_setup`, :meth:`_step` (one iteration,
+    returning the stop reason of :meth:`Monitor.check`) and :meth:`_finish`; their state
+    lives in attributes between steps, so an instance serves one solve at a time (not to be
+    shared between threads; a new :meth:`setup` starts afresh). The pipeline's defaults are
+    the class attributes ``default_iterations``, ``default_lam_scale`` and
+    ``default_regulariser`` (for the in-tree solvers read from their registry entries).
+
+    Driving by hand gives the iterates of :meth:`solve` bitwise for problems below
+    :attr:`PARALLEL_MIN_WORK`; above it, enter ``with s.parallel_context(A, y):`` around
+    ``setup`` ... ``finish`` as :meth:`solve` does (:meth:`run` enters it for the iterations
+    only).
 
     Parameters
     ----------
@@ -206,12 +244,26 @@ class Solver:
         ``1`` leaves BLAS alone. The iterates do not depend on it.
     **options
         Solver-specific options (documented on each subclass).
+
+    Attributes
+    ----------
+    A, y, reg, lam
+        The problem of the current solve (``y`` as an ``(m, K)`` block in the working dtype).
+    it : int
+        Iterations done so far.
+    reason : str
+        Why the iteration stopped (``''`` while it goes on).
+    monitor : Monitor or None
+        Book-keeping of the current solve (``None`` before :meth:`setup`).
     """
 
     name = "base"
-    #: multiplies the data-derived regularisation weight (see ``spslidar.pipeline``); set per
-    #: solver because the solvers state their objectives with different scalings.
-    default_lam_scale = 1.0
+    #: iteration cap of the pipeline (``--iterations``) when the config leaves it unset
+    default_iterations: int = 100
+    #: multiplies the data-derived regularisation weight (see ``spslidar.pipeline``)
+    default_lam_scale: float = 0.3
+    #: the regulariser that ``--regulariser auto`` picks (``tv``, ``l1`` or ``wavelet``)
+    default_regulariser: str = "tv"
     #: multiply-adds of one product with the whole block above which the solve is parallel
     PARALLEL_MIN_WORK = 1 << 24
 
@@ -221,51 +273,241 @@ class Solver:
             raise ValueError("threads must be >= 1")
         self.threads = None if threads is None else int(threads)
         self.options = options
+        self.monitor: Monitor | None = None
+        self.it = 0
+        self.reason = ""
+        self._was_1d = False
+        self._threads_used = 1
 
-    def solve(self, A, y, reg, lam: float, x0: np.ndarray | None = None):
-        """Minimise the solver's objective; return ``(x, info)``, ``x`` shaped like ``A.H @ y``."""
+    # -- the step-wise interface -----------------------------------------------------------
+    def setup(self, A, y, reg, lam: float, x0: np.ndarray | None = None) -> None:
+        """Check the problem, reset ``reg``'s state and initialise the iteration.
+
+        Parameters
+        ----------
+        A : LinearOperator
+            Shape ``(m, n)``.
+        y : ndarray, shape (m,) or (m, K)
+        reg : Regulariser
+            Its :meth:`~spslidar.solvers.regularisers.Regulariser.reset` is called first, so a
+            regulariser reused from an earlier solve starts from scratch (no warm start).
+        lam : float
+            Non-negative weight.
+        x0 : ndarray, shape (n,) or (n, K), optional
+            Starting point (default zeros).
+        """
         if lam < 0:
             raise ValueError("lam must be non-negative")
-        yb, was_1d = as_block(y)
+        yb, self._was_1d = as_block(y)
         if yb.shape[0] != A.shape[0]:
             raise ValueError(f"data has {yb.shape[0]} rows, operator expects {A.shape[0]}")
         if x0 is not None:
             x0, _ = as_block(x0)
-        mon = Monitor(self.name, self.stop)
-        big = A.shape[0] * A.shape[1] * yb.shape[1] >= self.PARALLEL_MIN_WORK
-        with parallel(self.threads if big else 1) as ctx:
-            x, reason = self._solve(A, yb, reg, float(lam), x0, mon)
-        info = mon.finish(reason)
-        info.extra["threads"] = ctx.threads if ctx is not None else 1
-        return (x[:, 0] if was_1d else x), info
+        reset = getattr(reg, "reset", None)
+        if callable(reset):
+            reset()
+        self.A, self.y, self.reg, self.lam = A, yb, reg, float(lam)
+        self.monitor = Monitor(self.name, self.stop)
+        self.it = 0
+        self.reason = ""
+        self._threads_used = 1
+        self._setup(A, yb, reg, float(lam), x0)
 
-    def _solve(self, A, y, reg, lam, x0, mon):  # pragma: no cover - abstract
+    def step(self) -> None:
+        """One iteration (the monitor then records it and decides whether to stop)."""
+        if self.monitor is None:
+            raise RuntimeError(f"{type(self).__name__}.step() before setup()")
+        self.it += 1
+        self.reason = self._step() or ""
+
+    def done(self) -> bool:
+        """Whether a stopping rule has been met (see :class:`StopRule`)."""
+        return bool(self.reason)
+
+    def run(self, callback: Callback | Sequence[Callback] | None = None) -> None:
+        """Step until :meth:`done`, calling ``callback(self)`` after every iteration.
+
+        Runs inside the parallel context of large problems (the enclosing one within
+        :meth:`solve`).
+
+        Parameters
+        ----------
+        callback : callable or sequence of callables, optional
+            Each is called as ``callback(solver)`` once per iteration, after the monitor has
+            recorded it (``solver.it``, ``solver.x``, ``solver.info.objective[-1]``); see
+            :func:`progress`. Callbacks must not modify the solver's arrays.
+        """
+        if self.monitor is None:
+            raise RuntimeError(f"{type(self).__name__}.run() before setup()")
+        cbs = _callbacks(callback)
+        with self.parallel_context(self.A, self.y) as ctx:
+            self._threads_used = ctx.threads if ctx is not None else 1
+            while not self.done():
+                self.step()
+                for cb in cbs:
+                    cb(self)
+
+    def finish(self) -> tuple[np.ndarray, SolveInfo]:
+        """Final work (e.g. GPSR's debiasing) and the result ``(x, info)``.
+
+        ``x`` is shaped like ``A.H @ y``; ``info.stop_reason`` is ``'stopped'`` when the
+        iteration was left before a rule was met.
+        """
+        if self.monitor is None:
+            raise RuntimeError(f"{type(self).__name__}.finish() before setup()")
+        x = self._finish()
+        info = self.monitor.finish(self.reason or "stopped")
+        info.extra["threads"] = self._threads_used
+        return (x[:, 0] if self._was_1d else x), info
+
+    def solve(self, A, y, reg, lam: float, x0: np.ndarray | None = None,
+              callback: Callback | Sequence[Callback] | None = None):
+        """Minimise the solver's objective; return ``(x, info)``, ``x`` shaped like ``A.H @ y``.
+
+        :meth:`setup`, :meth:`run` (with ``callback``) and :meth:`finish` in one parallel
+        context (for large problems, see ``threads``).
+        """
+        yb, _ = as_block(y)
+        with self.parallel_context(A, yb):
+            self.setup(A, y, reg, lam, x0)
+            self.run(callback)
+            return self.finish()
+
+    def parallel_context(self, A, y: np.ndarray):
+        """The :func:`~spslidar.operators.parallel.parallel` context for this problem size
+        (``threads`` threads when ``A.shape[0] * A.shape[1] * K >= PARALLEL_MIN_WORK``, else
+        none); :meth:`solve` and :meth:`run` enter it."""
+        k = y.shape[1] if np.ndim(y) == 2 else 1
+        big = A.shape[0] * A.shape[1] * k >= self.PARALLEL_MIN_WORK
+        return parallel(self.threads if big else 1)
+
+    # -- progress of the current solve -----------------------------------------------------
+    @property
+    def info(self) -> SolveInfo:
+        """The :class:`SolveInfo` being filled (objective history so far...)."""
+        if self.monitor is None:
+            raise RuntimeError("no solve set up")
+        return self.monitor.info
+
+    @property
+    def x(self) -> np.ndarray:
+        """The current estimate, shaped like the result (what a stop now would return,
+        before :meth:`finish`'s final work). Do not modify it in place."""
+        if self.monitor is None:
+            raise RuntimeError("no solve set up")
+        x = self._current()
+        return x[:, 0] if self._was_1d else x
+
+    # -- to implement ----------------------------------------------------------------------
+    def _setup(self, A, y: np.ndarray, reg, lam: float,
+               x0: np.ndarray | None) -> None:  # pragma: no cover - abstract
+        """Initialise the state from the problem (``y``, ``x0``: blocks; options parsed)."""
         raise NotImplementedError
 
+    def _step(self) -> str:  # pragma: no cover - abstract
+        """One iteration; returns ``self.monitor.check(...)``'s reason to stop (or ``''``)."""
+        raise NotImplementedError
 
-_REGISTRY: dict[str, type[Solver]] = {}
+    def _current(self) -> np.ndarray:
+        """The current estimate as an ``(n, K)`` block (default: ``self._x``)."""
+        return self._x
+
+    def _finish(self) -> np.ndarray:
+        """Final work and the solution as an ``(n, K)`` block (default: :meth:`_current`)."""
+        return self._current()
+
+
+def _callbacks(callback) -> tuple[Callback, ...]:
+    if callback is None:
+        return ()
+    if callable(callback):
+        return (callback,)
+    cbs = tuple(callback)
+    for cb in cbs:
+        if not callable(cb):
+            raise TypeError(f"callback {cb!r} is not callable")
+    return cbs
+
+
+def progress(every: int = 10, stream: TextIO | None = None) -> Callback:
+    """A callback printing the iteration and objective every ``every`` iterations.
+
+    Parameters
+    ----------
+    every : int
+        Print at iterations ``every, 2 every, ...`` and at the last one.
+    stream : file, optional
+        Default ``sys.stderr``.
+
+    Returns
+    -------
+    callable
+        ``callback(solver)`` for :meth:`Solver.run` / :meth:`Solver.solve`.
+    """
+    if int(every) < 1:
+        raise ValueError("every must be >= 1")
+    every = int(every)
+
+    def callback(solver: Solver) -> None:
+        if solver.it % every and not solver.done():
+            return
+        obj = solver.info.objective
+        f = f"{obj[-1]:.6g}" if obj else "-"
+        end = f" ({solver.reason})" if solver.done() else ""
+        print(f"{solver.name} it {solver.it:5d}  F = {f}{end}", file=stream or sys.stderr)
+
+    return callback
+
+
+def _registry():
+    from . import SOLVERS  # the package's registry (lists the in-tree solvers by path)
+
+    return SOLVERS
+
+
+def registered_defaults(name: str) -> tuple[int, float, str]:
+    """``(iterations, lam_scale, regulariser)`` of the registry entry ``name``: where the
+    in-tree solvers' ``default_*`` class attributes come from (one copy of the numbers)."""
+    d = _registry().get(name).defaults
+    return int(d["iterations"]), float(d["lam_scale"]), str(d["regulariser"])
 
 
 def register(cls: type[Solver]) -> type[Solver]:
-    """Class decorator adding a solver to the registry under ``cls.name``."""
-    _REGISTRY[cls.name] = cls
+    """Class decorator adding a solver class to :data:`spslidar.solvers.SOLVERS`.
+
+    The entry is named ``cls.name``; its defaults are the class's ``default_iterations``,
+    ``default_lam_scale`` and ``default_regulariser``, its help the first line of the
+    docstring. A class already registered by import path under that name keeps its entry.
+    """
+    solvers = _registry()
+    path = f"{cls.__module__}:{cls.__qualname__}"
+    if cls.name in solvers and solvers.get(cls.name).target in (cls, path):
+        return cls
+    doc = (cls.__doc__ or "").strip().splitlines()
+    solvers.add(cls.name, cls, getattr(cls, "display", "") or cls.name,
+                doc[0] if doc else "", iterations=cls.default_iterations,
+                lam_scale=cls.default_lam_scale, regulariser=cls.default_regulariser)
     return cls
 
 
 def available_solvers() -> list[str]:
-    return sorted(_REGISTRY)
+    """Names of the registered solvers, sorted."""
+    return sorted(_registry().names())
 
 
 def get_solver(name: str) -> type[Solver]:
-    try:
-        return _REGISTRY[name]
-    except KeyError:
-        raise ValueError(
-            f"unknown solver {name!r}; choose one of {', '.join(available_solvers())}"
-        ) from None
+    """The solver class registered under ``name`` (its module imported on first use).
+
+    Raises
+    ------
+    ConfigError
+        (a ``ValueError``) for an unknown name, listing the registered ones.
+    """
+    return _registry().load(name)
 
 
 def solve(A, y, reg, lam: float, method: str = "fista", x0=None, stop: StopRule | None = None,
-          **options):
+          callback: Callback | Sequence[Callback] | None = None, **options):
     """Solve eq. (18) with the named method: ``x, info = solve(A, y, reg, lam, 'fista')``."""
-    return get_solver(method)(stop=stop, **options).solve(A, y, reg, lam, x0=x0)
+    return get_solver(method)(stop=stop, **options).solve(A, y, reg, lam, x0=x0,
+                                                          callback=callback)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..operators.base import power_norm
-from .base import Monitor, SolveInfo, Solver, StopRule, col_dot, register
+from .base import SolveInfo, Solver, StopRule, col_dot, registered_defaults
 
 __all__ = ["FISTA", "fista"]
 
@@ -45,7 +45,6 @@ def _lipschitz(A, L: float | None) -> float:
     return L
 
 
-@register
 class FISTA(Solver):
     """Fast iterative shrinkage-thresholding (FISTA / MFISTA) on a block of columns.
 
@@ -102,87 +101,95 @@ class FISTA(Solver):
     """
 
     name = "fista"
-    default_lam_scale = 1.0
+    default_iterations, default_lam_scale, default_regulariser = registered_defaults("fista")
 
-    def _solve(self, A, y, reg, lam, x0, mon: Monitor):
+    def _setup(self, A, y, reg, lam, x0):
         opts = dict(self.options)
         L = _lipschitz(A, opts.pop("L", None))
-        restart = bool(opts.pop("restart", False))
-        monotone = bool(opts.pop("monotone", False))
+        self._restart = bool(opts.pop("restart", False))
+        self._monotone = bool(opts.pop("monotone", False))
         if opts:
             raise TypeError(f"unknown FISTA options: {', '.join(sorted(opts))}")
         dt = _work_dtype(A)
         y, x, ax = _start(A, y, x0, dt)
-        k = y.shape[1]
-        inv_l = dt.type(1.0 / L)
-        thr = lam / L
-        f = _col_objective(ax - y, x, reg, lam)
-        t = np.ones(k)
-        yk, ayk = x, ax
-        spare = None  # a free (n, K) array for the next extrapolated point
-        n_restart = n_reject = 0
-        reason = ""
-        it = 0
-        while not reason:
-            it += 1
-            # gradient step from the extrapolated point: g = y_k - A^T (A y_k - y) / L
-            g = np.asarray(A.rmatvec(ayk - y), dtype=dt)
-            g *= -inv_l
-            g += yk
-            z = np.asarray(reg.prox(g, thr), dtype=dt)
-            del g
-            az = np.asarray(A.matvec(z), dtype=dt)
-            fz = _col_objective(az - y, z, reg, lam)
-            if monotone:
-                keep = fz > f
-                if keep.any():
-                    n_reject += int(keep.sum())
-                    x_new = np.where(keep, x, z)
-                    ax_new = np.where(keep, ax, az)
-                    f_new = np.where(keep, f, fz)
-                else:
-                    x_new, ax_new, f_new = z, az, fz
+        self.y, self._dt, self._L = y, dt, L
+        self._inv_l = dt.type(1.0 / L)
+        self._thr = lam / L
+        self._f = _col_objective(ax - y, x, reg, lam)
+        self._t = np.ones(y.shape[1])
+        self._x, self._ax = x, ax
+        self._yk, self._ayk = x, ax  # the extrapolated point and its image
+        self._spare = None  # a free (n, K) array for the next extrapolated point
+        self._n_restart = self._n_reject = 0
+
+    def _step(self) -> str:
+        A, y, reg, lam, dt = self.A, self.y, self.reg, self.lam, self._dt
+        x, ax, f, t = self._x, self._ax, self._f, self._t
+        yk, ayk = self._yk, self._ayk
+        # gradient step from the extrapolated point: g = y_k - A^T (A y_k - y) / L
+        g = np.asarray(A.rmatvec(ayk - y), dtype=dt)
+        g *= -self._inv_l
+        g += yk
+        z = np.asarray(reg.prox(g, self._thr), dtype=dt)
+        del g
+        az = np.asarray(A.matvec(z), dtype=dt)
+        fz = _col_objective(az - y, z, reg, lam)
+        if self._monotone:
+            keep = fz > f
+            if keep.any():
+                self._n_reject += int(keep.sum())
+                x_new = np.where(keep, x, z)
+                ax_new = np.where(keep, ax, az)
+                f_new = np.where(keep, f, fz)
             else:
                 x_new, ax_new, f_new = z, az, fz
-            t_new = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * t * t))
-            if restart:
-                # gradient-mapping test of O'Donoghue & Candes, per column
-                cond = col_dot(yk - z, z - x) > 0
-                if cond.any():
-                    n_restart += int(cond.sum())
-                    t = np.where(cond, 1.0, t)
-                    t_new = np.where(cond, 1.0, t_new)
-            c_m = (t - 1.0) / t_new
-            c_z = t / t_new
-            x_old, ax_old = x, ax
-            x, ax, f, t = x_new, ax_new, f_new, t_new
-            if monotone:
-                reason = mon.check(it, z, x_old, float(np.sum(f)))
-                if reason:
-                    break
-                # y_{k+1} = x_k + t_k/t_{k+1} (z_k - x_k) + (t_k - 1)/t_{k+1} (x_k - x_{k-1})
-                cz, cm = c_z.astype(dt), c_m.astype(dt)
-                yk = x + cz * (z - x) + cm * (x - x_old)
-                ayk = ax + cz * (az - ax) + cm * (ax - ax_old)
-                continue
-            # plain FISTA: d = x_k - x_{k-1} is both the step of the stop test and, scaled,
-            # the extrapolation y_{k+1} = x_k + c (x_k - x_{k-1}), formed in place in a
-            # spare buffer (the previous y_k, whose last use was the gradient step)
-            d = spare if spare is not None else np.empty_like(x)
-            np.subtract(x, x_old, out=d)
-            reason = mon.check(it, x, x_old, float(np.sum(f)), step=d)
+        else:
+            x_new, ax_new, f_new = z, az, fz
+        t_new = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * t * t))
+        if self._restart:
+            # gradient-mapping test of O'Donoghue & Candes, per column
+            cond = col_dot(yk - z, z - x) > 0
+            if cond.any():
+                self._n_restart += int(cond.sum())
+                t = np.where(cond, 1.0, t)
+                t_new = np.where(cond, 1.0, t_new)
+        c_m = (t - 1.0) / t_new
+        c_z = t / t_new
+        x_old, ax_old = x, ax
+        x, ax, f, t = x_new, ax_new, f_new, t_new
+        self._x, self._ax, self._f, self._t = x, ax, f, t
+        mon = self.monitor
+        if self._monotone:
+            reason = mon.check(self.it, z, x_old, float(np.sum(f)))
             if reason:
-                break
-            if np.all(c_m == c_m[0]):
-                d *= dt.type(c_m[0])
-            else:
-                d *= c_m.astype(dt)
-            d += x
-            spare = yk  # its last use was this iteration's gradient step
-            yk = d
-            ayk = ax + c_m.astype(dt) * (ax - ax_old)
-        mon.info.extra.update(L=L, restarts=n_restart, rejected=n_reject)
-        return x, reason
+                return reason
+            # y_{k+1} = x_k + t_k/t_{k+1} (z_k - x_k) + (t_k - 1)/t_{k+1} (x_k - x_{k-1})
+            cz, cm = c_z.astype(dt), c_m.astype(dt)
+            self._yk = x + cz * (z - x) + cm * (x - x_old)
+            self._ayk = ax + cz * (az - ax) + cm * (ax - ax_old)
+            return ""
+        # plain FISTA: d = x_k - x_{k-1} is both the step of the stop test and, scaled,
+        # the extrapolation y_{k+1} = x_k + c (x_k - x_{k-1}), formed in place in a
+        # spare buffer (the previous y_k, whose last use was the gradient step)
+        d = self._spare if self._spare is not None else np.empty_like(x)
+        np.subtract(x, x_old, out=d)
+        reason = mon.check(self.it, x, x_old, float(np.sum(f)), step=d)
+        if reason:
+            return reason
+        if np.all(c_m == c_m[0]):
+            d *= dt.type(c_m[0])
+        else:
+            d *= c_m.astype(dt)
+        d += x
+        self._spare = yk  # its last use was this iteration's gradient step
+        self._yk = d
+        self._ayk = ax + c_m.astype(dt) * (ax - ax_old)
+        return ""
+
+    def _finish(self) -> np.ndarray:
+        self.monitor.info.extra.update(L=self._L, restarts=self._n_restart,
+                                       rejected=self._n_reject)
+        return self._x
 
 
 def fista(

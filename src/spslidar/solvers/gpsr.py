@@ -11,7 +11,7 @@ import numpy as np
 
 from ..operators.base import LinearOperator, MatrixOperator
 from ..operators.parallel import row_bands, run_parts, sum_parts
-from .base import Monitor, SolveInfo, Solver, StopRule, col_dot, col_sum, register
+from .base import SolveInfo, Solver, StopRule, col_dot, col_sum, registered_defaults
 from .regularisers import L1
 
 __all__ = ["GPSR", "gpsr"]
@@ -59,7 +59,6 @@ class _Synthesis:
         return self.to_coef(g) if self.composed else g
 
 
-@register
 class GPSR(Solver):
     """l1-regularised least squares by GPSR-BB (Figueiredo, Nowak & Wright 2007).
 
@@ -143,7 +142,7 @@ class GPSR(Solver):
     """
 
     name = "gpsr"
-    default_lam_scale = 1.0
+    default_iterations, default_lam_scale, default_regulariser = registered_defaults("gpsr")
 
     _defaults = {
         "monotone": False,
@@ -166,7 +165,7 @@ class GPSR(Solver):
             raise TypeError(f"unknown GPSR option(s): {', '.join(sorted(unknown))}")
         super().__init__(stop=stop, threads=threads, **options)
 
-    def _solve(self, A: LinearOperator, y, reg, lam, x0, mon: Monitor):
+    def _setup(self, A: LinearOperator, y, reg, lam, x0):
         if not isinstance(reg, L1):
             raise ValueError(
                 f"GPSR solves the l1 problem only: reg must be an L1 instance, got {reg!r}"
@@ -183,8 +182,9 @@ class GPSR(Solver):
         y = np.asarray(y).astype(dt, copy=False)
         k = y.shape[1]
         B = _Synthesis(A, W, dt)
-        a_min, a_max = float(o["alpha_min"]), float(o["alpha_max"])
-        monotone = bool(o["monotone"])
+        self.y, self._o, self._nonneg, self._dt, self._B = y, o, nonneg, dt, B
+        self._a_min, self._a_max = float(o["alpha_min"]), float(o["alpha_max"])
+        self._monotone = bool(o["monotone"])
 
         if x0 is None:
             z = np.zeros((n, k), dtype=dt)
@@ -195,7 +195,7 @@ class GPSR(Solver):
                 np.maximum(z, 0, out=z)
             bz = B.fwd(z)
         r = bz - y
-        g = B.adj(r)
+        self._z, self._bz, self._r, self._g = z, bz, r, B.adj(r)
 
         # continuation schedule (per-column weights)
         if o["continuation"]:
@@ -209,155 +209,168 @@ class GPSR(Solver):
             taus[-1] = np.full(k, lam)
         else:
             taus = [np.full(k, lam)]
-
-        def objective(r, z):
-            return 0.5 * float(np.sum(col_dot(r, r))) + lam * float(np.sum(_colabs(z)))
+        self._taus = taus
 
         # work arrays of the projected step, reused every iteration; the element-wise work is
         # done in row bands (concurrently inside a parallel context), with per-band partial
         # sums added in band order
-        du = np.empty((n, k), dtype=dt)
-        dv = None if nonneg else np.empty((n, k), dtype=dt)
-        u_buf = np.empty((n, k), dtype=dt)
-        dz = np.empty((n, k), dtype=dt)
-        bands = row_bands(n, n * k)
-        step_par: dict[str, np.ndarray] = {}  # alpha and alpha * tau of the current step
-
-        def direction_band(i):
-            """Projected BB step in (u, v) on rows ``bands[i]``: fills ``du``, ``dv`` and
-            ``dz = du - dv`` there and returns the partial sums ``||du||^2 + ||dv||^2``,
-            ``sum(du + dv)``, ``<dz, g>`` and ``||dz||^2`` (per column).
-
-            With ``u = max(z, 0)``, ``v = u - z = max(-z, 0)`` and ``ag = alpha g``:
-            ``du = max(u - alpha tau - ag, 0) - u``, ``dv = max(v - alpha tau + ag, 0) - v``.
-            """
-            a, b = bands[i]
-            zb, gb, dub, dzb = z[a:b], g[a:b], du[a:b], dz[a:b]
-            at = step_par["at"]
-            np.multiply(gb, step_par["alpha"], out=dzb)  # dz holds alpha g for now
-            u = np.maximum(zb, 0, out=u_buf[a:b])
-            np.subtract(u, dzb, out=dub)
-            dub -= at
-            np.maximum(dub, 0, out=dub)
-            dub -= u
-            dd, sd = col_dot(dub, dub), col_sum(dub)
-            if nonneg:
-                np.copyto(dzb, dub)
-            else:
-                dvb = dv[a:b]
-                np.subtract(u, zb, out=u)  # v
-                np.add(u, dzb, out=dvb)
-                dvb -= at
-                np.maximum(dvb, 0, out=dvb)
-                dvb -= u
-                np.subtract(dub, dvb, out=dzb)
-                dd += col_dot(dvb, dvb)
-                sd += col_sum(dvb)
-            return dd, sd, col_dot(dzb, gb), col_dot(dzb, dzb)
-
-        def update_band(i):
-            """``z += lam_k dz`` on rows ``bands[i]``; returns the partial ``||z||_1``."""
-            a, b = bands[i]
-            dzb = dz[a:b]
-            dzb *= step_par["lk"]
-            zb = z[a:b]
-            zb += dzb
-            return (col_sum(np.abs(zb, out=u_buf[a:b])),)
+        self._du = np.empty((n, k), dtype=dt)
+        self._dv = None if nonneg else np.empty((n, k), dtype=dt)
+        self._u_buf = np.empty((n, k), dtype=dt)
+        self._dz = np.empty((n, k), dtype=dt)
+        self._bands = row_bands(n, n * k)
+        self._par: dict[str, np.ndarray] = {}  # alpha and alpha * tau of the current step
 
         # nonmonotone: per column, the iterate with the lowest objective seen (the objective of
         # a column is only comparable within one continuation stage)
-        track = not monotone
-        z_best = np.empty_like(z) if track else None
-        f_best = np.full(k, np.inf)
+        self._track = not self._monotone
+        self._z_best = np.empty_like(z) if self._track else None
+        self._f_best = np.full(k, np.inf)
+        self._alpha = None
+        self._start_stage(0)
 
-        it = 0
-        reason = ""
-        alpha = None
-        for stage, tau in enumerate(taus):
-            last = stage == len(taus) - 1
-            tau_dt = tau.astype(dt)
-            if alpha is None:
-                # first step: exact minimiser along the projected negative gradient (the
-                # gradient with the components blocked by the bounds removed)
-                gu, gv = tau_dt + g, tau_dt - g
-                pu = np.where((z > 0) | (gu < 0), gu, 0).astype(dt, copy=False)
-                pv = (
-                    np.zeros_like(pu)
-                    if nonneg
-                    else np.where((z < 0) | (gv < 0), gv, 0).astype(dt, copy=False)
-                )
-                bp = B.fwd(pu - pv)
-                num = col_dot(pu, pu) + col_dot(pv, pv)
-                den = col_dot(bp, bp)
-                alpha = np.where(den > 0, num / np.maximum(den, _TINY), 1.0)
-                alpha = np.clip(alpha, a_min, a_max)
-            stage_it = 0
-            while True:
-                it += 1
-                stage_it += 1
-                adt = alpha.astype(dt)
-                step_par["alpha"], step_par["at"] = adt, adt * tau_dt
-                dd, sdu, dzg, dzz = sum_parts(run_parts(direction_band, len(bands)))
-                bd = B.fwd(dz)
-                gam = col_dot(bd, bd)
-                # d/dlam of the split objective at lam = 0: <du, tau + g> + <dv, tau - g>
-                # = tau sum(du + dv) + <dz, g>; ||delta||^2 = ||du||^2 + ||dv||^2
-                slope = dzg + tau * sdu
-                if monotone:
-                    lam_k = np.where(gam > 0, -slope / np.maximum(gam, _TINY), 1.0)
-                    lam_k = np.clip(lam_k, 0.0, 1.0)
-                else:
-                    lam_k = np.ones(k)
-                # z_{k+1} - z_k = lam_k dz: its per-column norms for the stop tests
-                dzn2 = lam_k * lam_k * dzz
-                lk = lam_k.astype(dt)
-                step_par["lk"] = lk
-                (l1,) = sum_parts(run_parts(update_band, len(bands)))
-                bz += lk * bd
-                r = bz - y
-                g = B.adj(r)
-                # BB step; a column that did not move keeps its step
-                alpha = np.where(
-                    gam > 0, dd / np.maximum(gam, _TINY), np.where(dd > 0, a_max, alpha)
-                )
-                alpha = np.clip(alpha, a_min, a_max)
-                f_col = 0.5 * col_dot(r, r) + lam * l1
-                if track and last:
-                    better = f_col < f_best
-                    if better.all():
-                        np.copyto(z_best, z)
-                    elif better.any():
-                        np.copyto(z_best, z, where=better[None, :])
-                    f_best = np.where(better, f_col, f_best)
-                    obj = float(np.sum(f_best))
-                else:
-                    obj = float(np.sum(f_col))
-                step = float(np.sqrt(np.sum(dzn2))) if last else None
-                reason = mon.check(it, z, None, obj, step_norm=step)
-                if reason:
-                    break
-                if not last:
-                    dzn = np.sqrt(dzn2)
-                    zn = np.sqrt(col_dot(z, z))
-                    if np.all(dzn <= float(o["continuation_rtol"]) * np.maximum(zn, _TINY)):
-                        break
-                    if stage_it >= int(o["max_stage_iter"]):
-                        break
-            if reason:
-                break
-        if track and np.isfinite(f_best).all():
-            z = z_best
+    def _start_stage(self, stage: int) -> None:
+        """Enter continuation stage ``stage`` (weights ``self._taus[stage]``)."""
+        self._stage, self._stage_it = stage, 0
+        self._last = stage == len(self._taus) - 1
+        tau = self._tau = self._taus[stage]
+        dt, z, g = self._dt, self._z, self._g
+        tau_dt = self._tau_dt = tau.astype(dt)
+        if self._alpha is None:
+            # first step: exact minimiser along the projected negative gradient (the
+            # gradient with the components blocked by the bounds removed)
+            gu, gv = tau_dt + g, tau_dt - g
+            pu = np.where((z > 0) | (gu < 0), gu, 0).astype(dt, copy=False)
+            pv = (
+                np.zeros_like(pu)
+                if self._nonneg
+                else np.where((z < 0) | (gv < 0), gv, 0).astype(dt, copy=False)
+            )
+            bp = self._B.fwd(pu - pv)
+            num = col_dot(pu, pu) + col_dot(pv, pv)
+            den = col_dot(bp, bp)
+            alpha = np.where(den > 0, num / np.maximum(den, _TINY), 1.0)
+            self._alpha = np.clip(alpha, self._a_min, self._a_max)
+
+    def _direction_band(self, i: int):
+        """Projected BB step in (u, v) on rows ``bands[i]``: fills ``du``, ``dv`` and
+        ``dz = du - dv`` there and returns the partial sums ``||du||^2 + ||dv||^2``,
+        ``sum(du + dv)``, ``<dz, g>`` and ``||dz||^2`` (per column).
+
+        With ``u = max(z, 0)``, ``v = u - z = max(-z, 0)`` and ``ag = alpha g``:
+        ``du = max(u - alpha tau - ag, 0) - u``, ``dv = max(v - alpha tau + ag, 0) - v``.
+        """
+        a, b = self._bands[i]
+        zb, gb, dub, dzb = self._z[a:b], self._g[a:b], self._du[a:b], self._dz[a:b]
+        at = self._par["at"]
+        np.multiply(gb, self._par["alpha"], out=dzb)  # dz holds alpha g for now
+        u = np.maximum(zb, 0, out=self._u_buf[a:b])
+        np.subtract(u, dzb, out=dub)
+        dub -= at
+        np.maximum(dub, 0, out=dub)
+        dub -= u
+        dd, sd = col_dot(dub, dub), col_sum(dub)
+        if self._nonneg:
+            np.copyto(dzb, dub)
+        else:
+            dvb = self._dv[a:b]
+            np.subtract(u, zb, out=u)  # v
+            np.add(u, dzb, out=dvb)
+            dvb -= at
+            np.maximum(dvb, 0, out=dvb)
+            dvb -= u
+            np.subtract(dub, dvb, out=dzb)
+            dd += col_dot(dvb, dvb)
+            sd += col_sum(dvb)
+        return dd, sd, col_dot(dzb, gb), col_dot(dzb, dzb)
+
+    def _update_band(self, i: int):
+        """``z += lam_k dz`` on rows ``bands[i]``; returns the partial ``||z||_1``."""
+        a, b = self._bands[i]
+        dzb = self._dz[a:b]
+        dzb *= self._par["lk"]
+        zb = self._z[a:b]
+        zb += dzb
+        return (col_sum(np.abs(zb, out=self._u_buf[a:b])),)
+
+    def _step(self) -> str:
+        B, y, lam, dt, o = self._B, self.y, self.lam, self._dt, self._o
+        tau, alpha, last, z = self._tau, self._alpha, self._last, self._z
+        k = y.shape[1]
+        nb = len(self._bands)
+        self._stage_it += 1
+        adt = alpha.astype(dt)
+        self._par["alpha"], self._par["at"] = adt, adt * self._tau_dt
+        dd, sdu, dzg, dzz = sum_parts(run_parts(self._direction_band, nb))
+        bd = B.fwd(self._dz)
+        gam = col_dot(bd, bd)
+        # d/dlam of the split objective at lam = 0: <du, tau + g> + <dv, tau - g>
+        # = tau sum(du + dv) + <dz, g>; ||delta||^2 = ||du||^2 + ||dv||^2
+        slope = dzg + tau * sdu
+        if self._monotone:
+            lam_k = np.where(gam > 0, -slope / np.maximum(gam, _TINY), 1.0)
+            lam_k = np.clip(lam_k, 0.0, 1.0)
+        else:
+            lam_k = np.ones(k)
+        # z_{k+1} - z_k = lam_k dz: its per-column norms for the stop tests
+        dzn2 = lam_k * lam_k * dzz
+        lk = lam_k.astype(dt)
+        self._par["lk"] = lk
+        (l1,) = sum_parts(run_parts(self._update_band, nb))
+        self._bz += lk * bd
+        r = self._r = self._bz - y
+        self._g = B.adj(r)
+        # BB step; a column that did not move keeps its step
+        alpha = np.where(
+            gam > 0, dd / np.maximum(gam, _TINY), np.where(dd > 0, self._a_max, alpha)
+        )
+        self._alpha = np.clip(alpha, self._a_min, self._a_max)
+        f_col = 0.5 * col_dot(r, r) + lam * l1
+        if self._track and last:
+            better = f_col < self._f_best
+            if better.all():
+                np.copyto(self._z_best, z)
+            elif better.any():
+                np.copyto(self._z_best, z, where=better[None, :])
+            self._f_best = np.where(better, f_col, self._f_best)
+            obj = float(np.sum(self._f_best))
+        else:
+            obj = float(np.sum(f_col))
+        step = float(np.sqrt(np.sum(dzn2))) if last else None
+        reason = self.monitor.check(self.it, z, None, obj, step_norm=step)
+        if reason or last:
+            return reason
+        dzn = np.sqrt(dzn2)
+        zn = np.sqrt(col_dot(z, z))
+        if np.all(dzn <= float(o["continuation_rtol"]) * np.maximum(zn, _TINY)) or (
+            self._stage_it >= int(o["max_stage_iter"])
+        ):
+            self._start_stage(self._stage + 1)
+        return ""
+
+    def _best(self) -> np.ndarray:
+        """The coefficients a stop now returns (nonmonotone: the best seen per column)."""
+        if self._track and np.isfinite(self._f_best).all():
+            return self._z_best
+        return self._z
+
+    def _current(self) -> np.ndarray:
+        return self._B.to_image(self._best())
+
+    def _finish(self) -> np.ndarray:
+        B, y, o, nonneg = self._B, self.y, self._o, self._nonneg
+        z = self._best()
         # refresh the residual (incremental B z drifts in float32)
         bz = B.fwd(z)
         r = bz - y
-        f_l1 = objective(r, z)
-        info = mon.info
+        f_l1 = self._objective(r, z)
+        info = self.monitor.info
         info.extra.update(
             {
                 "objective_before_debias": f_l1,
                 "support_size": int(np.count_nonzero(z)),
                 "nonneg": nonneg,
-                "continuation_stages": len(taus),
+                "continuation_stages": len(self._taus),
             }
         )
         if o["debias"]:
@@ -365,10 +378,13 @@ class GPSR(Solver):
             if nonneg:
                 np.maximum(z, 0, out=z)
                 r = B.fwd(z) - y
-            info.extra["objective_after_debias"] = objective(r, z)
+            info.extra["objective_after_debias"] = self._objective(r, z)
             info.extra["debias_iterations"] = n_cg
-        x = B.to_image(z)
-        return x, reason
+        return B.to_image(z)
+
+    def _objective(self, r: np.ndarray, z: np.ndarray) -> float:
+        """``F(z) = 1/2 ||r||^2 + lam ||z||_1`` (``r = B z - y``), summed over the columns."""
+        return 0.5 * float(np.sum(col_dot(r, r))) + self.lam * float(np.sum(_colabs(z)))
 
     @staticmethod
     def _debias(B: _Synthesis, y, z, r, tol: float, max_iter: int):

@@ -13,7 +13,7 @@ import numpy as np
 from ..operators.base import LinearOperator, power_norm
 from ..operators.image import forward_differences_into
 from ..operators.parallel import row_bands, run_parts, sum_parts
-from .base import Monitor, SolveInfo, Solver, StopRule, _axpy, col_dot, register
+from .base import SolveInfo, Solver, StopRule, _axpy, col_dot, registered_defaults
 from .regularisers import TV
 
 __all__ = ["TVAL3", "tval3"]
@@ -123,7 +123,6 @@ def _grad_adj_into(p: np.ndarray, shape: tuple[int, int], out: np.ndarray, rows=
     return out
 
 
-@register
 class TVAL3(Solver):
     """TV-regularised least squares by TVAL3 (augmented Lagrangian, alternating directions).
 
@@ -228,7 +227,7 @@ class TVAL3(Solver):
     """
 
     name = "tval3"
-    default_lam_scale = 1.0
+    default_iterations, default_lam_scale, default_regulariser = registered_defaults("tval3")
 
     _defaults = {
         "beta": None,
@@ -252,7 +251,7 @@ class TVAL3(Solver):
             raise TypeError(f"unknown TVAL3 option(s): {', '.join(sorted(unknown))}")
         super().__init__(stop=stop, threads=threads, **options)
 
-    def _solve(self, A: LinearOperator, y, reg, lam, x0, mon: Monitor):
+    def _setup(self, A: LinearOperator, y, reg, lam, x0):
         if not isinstance(reg, TV):
             raise ValueError(
                 f"TVAL3 solves the TV problem only: reg must be a TV instance, got {reg!r}"
@@ -270,11 +269,16 @@ class TVAL3(Solver):
         k = y.shape[1]
         iso = bool(reg.isotropic)
         nonneg = bool(reg.nonneg if o["nonneg"] is None else o["nonneg"])
-        eta, delta, shrink_t = float(o["eta"]), float(o["delta"]), float(o["backtrack"])
         rate = float(o["rate_ctn"])
-        slack = 10.0 * float(np.finfo(dt).eps)  # rounding allowance in the Armijo test
         if rate < 1.0:
             raise ValueError("rate_ctn must be >= 1")
+        self.y, self._dt, self._q, self._iso, self._nonneg = y, dt, q, iso, nonneg
+        self._eta, self._delta = float(o["eta"]), float(o["delta"])
+        self._shrink_t, self._rate = float(o["backtrack"]), rate
+        self._slack = 10.0 * float(np.finfo(dt).eps)  # rounding allowance in the Armijo test
+        self._max_inner = int(o["max_inner"])
+        self._max_bt = int(o["max_backtrack"])
+        self._tol_inner = float(o["tol_inner"])
 
         mu_f = 1.0 / lam
         if o["beta"] is not None:
@@ -282,274 +286,302 @@ class TVAL3(Solver):
         else:
             norm_a = float(o["opnorm"]) if o["opnorm"] is not None else power_norm(A)
             beta_f = float(o["beta_scale"]) * mu_f * max(norm_a, _TINY) ** 2
-        mu = min(mu_f, mu_f * float(o["mu0_factor"]))
-        beta = min(beta_f, beta_f * float(o["beta0_factor"]))
+        self._mu_f, self._beta_f = mu_f, beta_f
+        mu = self._mu = min(mu_f, mu_f * float(o["mu0_factor"]))
+        beta = self._beta = min(beta_f, beta_f * float(o["beta0_factor"]))
 
         # -- state ---------------------------------------------------------------------
         # All (Q, K) / (2Q, K) arrays are preallocated and updated in place. The element-wise
         # work is done on bands of image rows (concurrently inside a parallel context); a
         # (2Q, K) array is seen as (2, Q, K) and a band of pixels [p0, p1) covers both halves.
-        shape = reg.image_shape
-        rbands = row_bands(ny, 2 * q * k)  # image rows
-        pbands = [(a * nx, b * nx) for a, b in rbands]  # pixels
-        nb = len(rbands)
+        shape = self._shape = reg.image_shape
+        self._rbands = row_bands(ny, 2 * q * k)  # image rows
+        self._pbands = [(a * nx, b * nx) for a, b in self._rbands]  # pixels
+        self._nb = len(self._rbands)
         if x0 is None:
             x = np.zeros((n, k), dtype=dt)
         else:
             x = np.array(np.broadcast_to(x0, (n, k)), dtype=dt)
             if nonneg:
                 np.maximum(x, 0, out=x)
-        nu = np.zeros((2 * q, k), dtype=dt)
-        nu_b = np.zeros_like(nu)  # nu / beta for the current beta
-        dx, dx_t, dd, v = (np.empty((2 * q, k), dtype=dt) for _ in range(4))
-        hg = np.empty((2 * q, k), dtype=dt)  # grad H at the current x
-        g, g_new, d = (np.empty((n, k), dtype=dt) for _ in range(3))
+        self._x = x
+        self._nu = np.zeros((2 * q, k), dtype=dt)
+        self._nu_b = np.zeros_like(self._nu)  # nu / beta for the current beta
+        self._dx, self._dx_t, self._dd, self._v = (
+            np.empty((2 * q, k), dtype=dt) for _ in range(4)
+        )
+        self._hg = np.empty((2 * q, k), dtype=dt)  # grad H at the current x
+        self._g, self._g_new, self._d = (np.empty((n, k), dtype=dt) for _ in range(3))
         mshape = (q, k) if iso else (2, q, k)
-        mag, w1, w2 = (np.empty(mshape, dtype=dt) for _ in range(3))
+        self._mag, self._w1, self._w2 = (np.empty(mshape, dtype=dt) for _ in range(3))
+        self._cur: dict = {}  # per-iteration scalars shared with the band functions
 
-        def two(a, i):
-            """Pixel band ``i`` of a (2Q, K) array, as a (2, P, K) view."""
-            p0, p1 = pbands[i]
-            return a.reshape(2, q, a.shape[1])[:, p0:p1]
-
-        def msl(a, i):
-            """Pixel band ``i`` of a magnitude-shaped buffer."""
-            p0, p1 = pbands[i]
-            return a[p0:p1] if iso else a[:, p0:p1]
-
-        def huber_band(i, beta):
-            """Per-column Huber sum of ``v`` on pixel band ``i`` (``mag`` filled there)."""
-            return _huber_sum(two(v, i), beta, iso, msl(mag, i), msl(w1, i), msl(w2, i))
-
-        def grad_h_band(i, beta, fresh_mag):
-            """``hg = grad H(v)`` on pixel band ``i``."""
-            mb = msl(mag, i)
-            if not fresh_mag:
-                _magnitude(two(v, i), iso, mb)
-            _huber_grad(two(v, i), beta, mb, two(hg, i))
-
-        def refresh(x):
-            r = A.matvec(x).astype(dt, copy=False) - y
-            return r, A.rmatvec(r).astype(dt, copy=False)
-
-        def set_beta(beta):
-            np.multiply(nu, dt.type(1.0 / beta), out=nu_b)
-
-        def merit_and_grad(dx, r, mu, beta):
-            """psi per column at ``dx`` (without the constant -||nu||^2 / (2 beta)); grad H
-            into ``hg`` and the gradient of psi into ``g``."""
-            np.subtract(dx, nu_b, out=v)
-            hv = sum_parts(run_parts(lambda i: (huber_band(i, beta),), nb))[0]
-            run_parts(lambda i: grad_h_band(i, beta, True), nb)
-            run_parts(lambda i: gradient_band(i, mu, g), nb)
-            return hv + 0.5 * mu * col_dot(r, r)
-
-        def gradient_band(i, mu, out):
-            """``out = D^T hg + mu A^T r`` (with ``ga = A^T r``) on row band ``i``."""
-            _grad_adj_into(hg, shape, out, rbands[i])
-            p0, p1 = pbands[i]
-            _axpy(ga[p0:p1], out[p0:p1], mu)
-
-        set_beta(beta)
-        r, ga = refresh(x)
-        _grad_into(x, shape, dx)
-        psi = merit_and_grad(dx, r, mu, beta)
+        self._set_beta(beta)
+        self._r, self._ga = self._refresh(x)
+        _grad_into(x, shape, self._dx)
+        psi = self._merit_and_grad(self._dx, self._r, mu, beta)
+        g = self._g
         if nonneg:  # projected gradient direction for the first (Cauchy) step
             g0 = np.where((x > 0) | (g < 0), g, 0).astype(dt, copy=False)
         else:
             g0 = g
-        ag0, dg0 = A.matvec(g0), _grad_into(g0, shape, dd)
+        ag0, dg0 = A.matvec(g0), _grad_into(g0, shape, self._dd)
         curv = mu * col_dot(ag0, ag0) + beta * col_dot(dg0, dg0)
         gg = col_dot(g0, g0)
-        alpha = np.where(curv > 0, gg / np.maximum(curv, _TINY), 1.0 / max(beta * 8.0, _TINY))
-        c_ref, q_ref = psi.copy(), np.ones(k)
+        self._alpha = np.where(
+            curv > 0, gg / np.maximum(curv, _TINY), 1.0 / max(beta * 8.0, _TINY)
+        )
+        self._c_ref, self._q_ref = psi.copy(), np.ones(k)
 
-        # -- the band phases of one inner iteration --------------------------------------
-        cur: dict = {}  # per-iteration scalars shared with the band functions
+        self._outer = 0
+        self._x_outer = x.copy()
+        self._merit_hist: list[float] = []
+        self._inner_counts: list[int] = []
+        self._n_backtracks = 0
+        self._last_refresh = 0
+        self._begin_outer()
 
-        def direction_band(i):
-            """``d = P(x - alpha g) - x`` (or ``-alpha g``) on band ``i``; partial ``<g, d>``."""
-            p0, p1 = pbands[i]
-            db, xb, gb = d[p0:p1], x[p0:p1], g[p0:p1]
-            np.multiply(gb, cur["neg_alpha"], out=db)
-            if nonneg:
-                db += xb
-                np.maximum(db, 0, out=db)
-                db -= xb
-            return (col_dot(gb, db),)
+    # -- band kernels (pixel / image-row bands of the state arrays) -------------------------
+    def _two(self, a: np.ndarray, i: int) -> np.ndarray:
+        """Pixel band ``i`` of a (2Q, K) array, as a (2, P, K) view."""
+        p0, p1 = self._pbands[i]
+        return a.reshape(2, self._q, a.shape[1])[:, p0:p1]
 
-        def point_band(i, tb):
-            """The trial point ``dx_t = dx + t dd`` on band ``i`` (``tb``: the per-column
-            steps ``t``, ``None`` for t = 1), ``v = dx_t - nu/beta`` and the partial Huber
-            sum."""
-            dxt = two(dx_t, i)
-            if tb is None:
-                np.add(two(dx, i), two(dd, i), out=dxt)
-            else:
-                np.multiply(two(dd, i), tb, out=dxt)
-                dxt += two(dx, i)
-            np.subtract(dxt, two(nu_b, i), out=two(v, i))
-            return (huber_band(i, cur["beta"]),)
+    def _msl(self, a: np.ndarray, i: int) -> np.ndarray:
+        """Pixel band ``i`` of a magnitude-shaped buffer."""
+        p0, p1 = self._pbands[i]
+        return a[p0:p1] if self._iso else a[:, p0:p1]
 
-        def trial_band(i):
-            """``dd = D d`` and the trial point at t = 1 on band ``i``."""
-            _grad_into(d, shape, dd, rbands[i])
-            return point_band(i, None)
+    def _huber_band(self, i: int, beta: float) -> np.ndarray:
+        """Per-column Huber sum of ``v`` on pixel band ``i`` (``mag`` filled there)."""
+        return _huber_sum(self._two(self._v, i), beta, self._iso, self._msl(self._mag, i),
+                          self._msl(self._w1, i), self._msl(self._w2, i))
 
-        def retry_band(i):
-            """The trial point at every column's current step on band ``i``."""
-            return point_band(i, cur["t_vec"])
+    def _grad_h_band(self, i: int, beta: float, fresh_mag: bool) -> None:
+        """``hg = grad H(v)`` on pixel band ``i``."""
+        mb = self._msl(self._mag, i)
+        if not fresh_mag:
+            _magnitude(self._two(self._v, i), self._iso, mb)
+        _huber_grad(self._two(self._v, i), beta, mb, self._two(self._hg, i))
 
-        def update_band(i):
-            """Accept the step on band ``i``: ``s = t d`` (in ``d``), ``x += s``, the new
-            gradient ``g_new``; partial ``||s||^2``, ``<s, g_new - g>``, ``||x||^2`` and TV."""
-            p0, p1 = pbands[i]
-            sb, xb = d[p0:p1], x[p0:p1]
-            if cur["t_cols"] is not None:
-                cols = cur["t_cols"]
-                sb[:, cols] *= cur["t_dt"][cols]
-            xb += sb
-            gradient_band(i, cur["mu"], g_new)
-            gn, go = g_new[p0:p1], g[p0:p1]
-            sy = col_dot(sb, gn) - col_dot(sb, go)
-            tv = _colsum_nd(_magnitude(two(dx, i), iso, msl(w1, i)))
-            return col_dot(sb, sb), sy, col_dot(xb, xb), tv
+    def _gradient_band(self, i: int, mu: float, out: np.ndarray) -> None:
+        """``out = D^T hg + mu A^T r`` (with ``ga = A^T r``) on row band ``i``."""
+        _grad_adj_into(self._hg, self._shape, out, self._rbands[i])
+        p0, p1 = self._pbands[i]
+        _axpy(self._ga[p0:p1], out[p0:p1], mu)
 
-        it = 0
-        outer = 0
-        x_outer = x.copy()
-        merit_hist: list[float] = []
-        inner_counts: list[int] = []
-        n_backtracks = 0
-        last_refresh = 0
-        max_inner = int(o["max_inner"])
-        max_bt = int(o["max_backtrack"])
-        tol_inner = float(o["tol_inner"])
-        while True:
-            outer += 1
-            final = mu >= mu_f and beta >= beta_f
-            cur["beta"], cur["mu"] = beta, mu
-            for inner in range(1, max_inner + 1):
-                it += 1
-                # direction d = P(x - alpha g) - x (projected) or -alpha g, per-column alpha
-                cur["neg_alpha"] = -alpha.astype(dt)
-                (gd,) = sum_parts(run_parts(direction_band, nb))
-                ad = A.matvec(d).astype(dt, copy=False)
-                # nonmonotone Armijo line search, per column: every column is evaluated at
-                # t = 1, then only the columns that fail are evaluated again at smaller t
-                t = np.ones(k)
-                (hv,) = sum_parts(run_parts(trial_band, nb))
-                r_t = r + ad
-                psi_t = hv + 0.5 * mu * col_dot(r_t, r_t)
-                fresh_mag = True  # mag holds ||v_i|| of every column
-                bad = np.flatnonzero(~(psi_t <= c_ref + delta * t * gd + slack * np.abs(c_ref)))
-                if bad.size > _WHOLE_BLOCK_SHARE * k:
-                    # most columns fail: re-evaluate the whole block at the per-column steps
-                    # (accepted columns keep t and their values), no strided gathers
-                    live = np.zeros(k, dtype=bool)
-                    live[bad] = True
-                    n_bt = 0
-                    while live.any() and n_bt < max_bt:
-                        n_bt += 1
-                        n_backtracks += 1
-                        t[live] *= shrink_t
-                        cur["t_vec"] = t.astype(dt)
-                        (hv,) = sum_parts(run_parts(retry_band, nb))
-                        np.multiply(ad, cur["t_vec"], out=r_t)
-                        r_t += r
-                        psi_new = hv + 0.5 * mu * col_dot(r_t, r_t)
-                        psi_t[live] = psi_new[live]
-                        ok = psi_t <= c_ref + delta * t * gd + slack * np.abs(c_ref)
-                        live &= ~ok
-                    # dx_t, v, mag and r_t all hold the final steps of every column
-                elif bad.size:
-                    # the failing columns, gathered once (strided gathers from the (2Q, K)
-                    # arrays are the expensive part); the trial points at smaller t are
-                    # formed on these compact copies, and written back once at the end
-                    dx_c, dd_c, nub_c = dx[:, bad], dd[:, bad], nu_b[:, bad]
-                    r_c, ad_c = r[:, bad], ad[:, bad]
-                    live = np.arange(bad.size)
-                    n_bt = 0
-                    while live.size and n_bt < max_bt:
-                        n_bt += 1
-                        n_backtracks += 1
-                        cols = bad[live]
-                        t[cols] *= shrink_t
-                        tl = t[cols].astype(dt)
-                        vt = dx_c[:, live] + tl * dd_c[:, live]
-                        vt -= nub_c[:, live]
-                        rt = r_c[:, live] + tl * ad_c[:, live]
-                        psi_t[cols] = _huber_value(vt, beta, iso, q) + 0.5 * mu * col_dot(rt, rt)
-                        ok = psi_t[cols] <= c_ref[cols] + delta * t[cols] * gd[cols] + slack * (
-                            np.abs(c_ref[cols])
-                        )
-                        live = live[~ok]
-                    tb = t[bad].astype(dt)
-                    dxb = dx_c + tb * dd_c
-                    dx_t[:, bad] = dxb
-                    v[:, bad] = dxb - nub_c
-                    r_t[:, bad] = r_c + tb * ad_c
-                    fresh_mag = False
-                # accept: grad H at the new point, then s = t d, x += s and the new gradient
-                r = r_t
-                dx, dx_t = dx_t, dx
-                psi = psi_t
-                run_parts(lambda i, fm=fresh_mag, bt=beta: grad_h_band(i, bt, fm), nb)
-                ga = A.rmatvec(r).astype(dt, copy=False)
-                moved = np.flatnonzero(t != 1.0)
-                cur["t_cols"] = moved if moved.size else None
-                cur["t_dt"] = t.astype(dt)
-                ss, sy, xn2, tv = sum_parts(run_parts(update_band, nb))
-                # Barzilai-Borwein step (BB1), per column
-                alpha = np.where((sy > 0) & (ss > 0), ss / np.maximum(sy, _TINY), alpha)
-                # Zhang-Hager reference value
-                q_new = eta * q_ref + 1.0
-                c_ref = (eta * q_ref * c_ref + psi) / q_new
-                q_ref = q_new
-                merit_hist.append(float(np.sum(c_ref)))
-                g, g_new = g_new, g
-                # inner stopping (per-column relative change, all columns)
-                rel = np.sqrt(ss) / np.maximum(np.sqrt(xn2), _TINY)
-                inner_done = bool(np.all(rel <= tol_inner)) or inner == max_inner
-                obj = 0.5 * float(np.sum(col_dot(r, r))) + lam * float(np.sum(tv))
-                ref = x_outer if (inner_done and final) else None
-                reason = mon.check(it, x, ref, obj)
-                if reason or inner_done:
-                    inner_counts.append(inner)
-                if reason:
-                    mon.info.extra.update(
-                        {
-                            "outer_iterations": outer,
-                            "inner_iterations": inner_counts,
-                            "mu": mu,
-                            "beta": beta,
-                            "nonneg": nonneg,
-                            "backtracks": n_backtracks,
-                            "merit": merit_hist,
-                        }
-                    )
-                    return x, reason
-                if inner_done:
-                    break
-            x_outer = x.copy()
-            # multiplier update: nu <- nu - beta (D x - w) = -grad H(D x - nu / beta), where
-            # hg is grad H at the current x (computed after its line search)
-            np.negative(hg, out=nu)
-            # continuation
-            old = (mu, beta)
-            mu = min(mu * rate, mu_f)
-            beta = min(beta * rate, beta_f)
-            if (mu, beta) != old:
-                alpha = alpha * (old[1] / beta)
-            set_beta(beta)
-            if it - last_refresh >= _REFRESH:
-                # recompute the residual, updated incrementally so far (float32 drift)
-                r, ga = refresh(x)
-                _grad_into(x, shape, dx)
-                last_refresh = it
-            # gradient and merit for the new nu, mu, beta (no product with A needed)
-            psi = merit_and_grad(dx, r, mu, beta)
-            c_ref, q_ref = psi.copy(), np.ones(k)
+    def _refresh(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        dt = self._dt
+        r = self.A.matvec(x).astype(dt, copy=False) - self.y
+        return r, self.A.rmatvec(r).astype(dt, copy=False)
+
+    def _set_beta(self, beta: float) -> None:
+        np.multiply(self._nu, self._dt.type(1.0 / beta), out=self._nu_b)
+
+    def _merit_and_grad(self, dx: np.ndarray, r: np.ndarray, mu: float,
+                        beta: float) -> np.ndarray:
+        """psi per column at ``dx`` (without the constant -||nu||^2 / (2 beta)); grad H
+        into ``hg`` and the gradient of psi into ``g``."""
+        nb = self._nb
+        np.subtract(dx, self._nu_b, out=self._v)
+        hv = sum_parts(run_parts(lambda i: (self._huber_band(i, beta),), nb))[0]
+        run_parts(lambda i: self._grad_h_band(i, beta, True), nb)
+        run_parts(lambda i: self._gradient_band(i, mu, self._g), nb)
+        return hv + 0.5 * mu * col_dot(r, r)
+
+    def _direction_band(self, i: int):
+        """``d = P(x - alpha g) - x`` (or ``-alpha g``) on band ``i``; partial ``<g, d>``."""
+        p0, p1 = self._pbands[i]
+        db, xb, gb = self._d[p0:p1], self._x[p0:p1], self._g[p0:p1]
+        np.multiply(gb, self._cur["neg_alpha"], out=db)
+        if self._nonneg:
+            db += xb
+            np.maximum(db, 0, out=db)
+            db -= xb
+        return (col_dot(gb, db),)
+
+    def _point_band(self, i: int, tb):
+        """The trial point ``dx_t = dx + t dd`` on band ``i`` (``tb``: the per-column
+        steps ``t``, ``None`` for t = 1), ``v = dx_t - nu/beta`` and the partial Huber
+        sum."""
+        two = self._two
+        dxt = two(self._dx_t, i)
+        if tb is None:
+            np.add(two(self._dx, i), two(self._dd, i), out=dxt)
+        else:
+            np.multiply(two(self._dd, i), tb, out=dxt)
+            dxt += two(self._dx, i)
+        np.subtract(dxt, two(self._nu_b, i), out=two(self._v, i))
+        return (self._huber_band(i, self._cur["beta"]),)
+
+    def _trial_band(self, i: int):
+        """``dd = D d`` and the trial point at t = 1 on band ``i``."""
+        _grad_into(self._d, self._shape, self._dd, self._rbands[i])
+        return self._point_band(i, None)
+
+    def _retry_band(self, i: int):
+        """The trial point at every column's current step on band ``i``."""
+        return self._point_band(i, self._cur["t_vec"])
+
+    def _update_band(self, i: int):
+        """Accept the step on band ``i``: ``s = t d`` (in ``d``), ``x += s``, the new
+        gradient ``g_new``; partial ``||s||^2``, ``<s, g_new - g>``, ``||x||^2`` and TV."""
+        p0, p1 = self._pbands[i]
+        cur = self._cur
+        sb, xb = self._d[p0:p1], self._x[p0:p1]
+        if cur["t_cols"] is not None:
+            cols = cur["t_cols"]
+            sb[:, cols] *= cur["t_dt"][cols]
+        xb += sb
+        self._gradient_band(i, cur["mu"], self._g_new)
+        gn, go = self._g_new[p0:p1], self._g[p0:p1]
+        sy = col_dot(sb, gn) - col_dot(sb, go)
+        tv = _colsum_nd(_magnitude(self._two(self._dx, i), self._iso, self._msl(self._w1, i)))
+        return col_dot(sb, sb), sy, col_dot(xb, xb), tv
+
+    # -- the iteration -------------------------------------------------------------------
+    def _begin_outer(self) -> None:
+        """Start an outer (multiplier) iteration."""
+        self._outer += 1
+        self._inner = 0
+        self._final = self._mu >= self._mu_f and self._beta >= self._beta_f
+        self._cur["beta"], self._cur["mu"] = self._beta, self._mu
+
+    def _end_outer(self) -> None:
+        """Multiplier update and continuation after an inner loop."""
+        mu, beta = self._mu, self._beta
+        self._x_outer = self._x.copy()
+        # multiplier update: nu <- nu - beta (D x - w) = -grad H(D x - nu / beta), where
+        # hg is grad H at the current x (computed after its line search)
+        np.negative(self._hg, out=self._nu)
+        # continuation
+        old = (mu, beta)
+        mu = self._mu = min(mu * self._rate, self._mu_f)
+        beta = self._beta = min(beta * self._rate, self._beta_f)
+        if (mu, beta) != old:
+            self._alpha = self._alpha * (old[1] / beta)
+        self._set_beta(beta)
+        if self.it - self._last_refresh >= _REFRESH:
+            # recompute the residual, updated incrementally so far (float32 drift)
+            self._r, self._ga = self._refresh(self._x)
+            _grad_into(self._x, self._shape, self._dx)
+            self._last_refresh = self.it
+        # gradient and merit for the new nu, mu, beta (no product with A needed)
+        psi = self._merit_and_grad(self._dx, self._r, mu, beta)
+        self._c_ref, self._q_ref = psi.copy(), np.ones(self.y.shape[1])
+
+    def _step(self) -> str:
+        A, y, dt, cur, nb = self.A, self.y, self._dt, self._cur, self._nb
+        k, q, iso = y.shape[1], self._q, self._iso
+        mu, beta, r, c_ref = self._mu, self._beta, self._r, self._c_ref
+        delta, slack, shrink_t, max_bt = self._delta, self._slack, self._shrink_t, self._max_bt
+        self._inner += 1
+        inner = self._inner
+        # direction d = P(x - alpha g) - x (projected) or -alpha g, per-column alpha
+        cur["neg_alpha"] = -self._alpha.astype(dt)
+        (gd,) = sum_parts(run_parts(self._direction_band, nb))
+        ad = A.matvec(self._d).astype(dt, copy=False)
+        # nonmonotone Armijo line search, per column: every column is evaluated at
+        # t = 1, then only the columns that fail are evaluated again at smaller t
+        t = np.ones(k)
+        (hv,) = sum_parts(run_parts(self._trial_band, nb))
+        r_t = r + ad
+        psi_t = hv + 0.5 * mu * col_dot(r_t, r_t)
+        fresh_mag = True  # mag holds ||v_i|| of every column
+        bad = np.flatnonzero(~(psi_t <= c_ref + delta * t * gd + slack * np.abs(c_ref)))
+        if bad.size > _WHOLE_BLOCK_SHARE * k:
+            # most columns fail: re-evaluate the whole block at the per-column steps
+            # (accepted columns keep t and their values), no strided gathers
+            live = np.zeros(k, dtype=bool)
+            live[bad] = True
+            n_bt = 0
+            while live.any() and n_bt < max_bt:
+                n_bt += 1
+                self._n_backtracks += 1
+                t[live] *= shrink_t
+                cur["t_vec"] = t.astype(dt)
+                (hv,) = sum_parts(run_parts(self._retry_band, nb))
+                np.multiply(ad, cur["t_vec"], out=r_t)
+                r_t += r
+                psi_new = hv + 0.5 * mu * col_dot(r_t, r_t)
+                psi_t[live] = psi_new[live]
+                ok = psi_t <= c_ref + delta * t * gd + slack * np.abs(c_ref)
+                live &= ~ok
+            # dx_t, v, mag and r_t all hold the final steps of every column
+        elif bad.size:
+            # the failing columns, gathered once (strided gathers from the (2Q, K)
+            # arrays are the expensive part); the trial points at smaller t are
+            # formed on these compact copies, and written back once at the end
+            dx_c, dd_c, nub_c = self._dx[:, bad], self._dd[:, bad], self._nu_b[:, bad]
+            r_c, ad_c = r[:, bad], ad[:, bad]
+            live = np.arange(bad.size)
+            n_bt = 0
+            while live.size and n_bt < max_bt:
+                n_bt += 1
+                self._n_backtracks += 1
+                cols = bad[live]
+                t[cols] *= shrink_t
+                tl = t[cols].astype(dt)
+                vt = dx_c[:, live] + tl * dd_c[:, live]
+                vt -= nub_c[:, live]
+                rt = r_c[:, live] + tl * ad_c[:, live]
+                psi_t[cols] = _huber_value(vt, beta, iso, q) + 0.5 * mu * col_dot(rt, rt)
+                ok = psi_t[cols] <= c_ref[cols] + delta * t[cols] * gd[cols] + slack * (
+                    np.abs(c_ref[cols])
+                )
+                live = live[~ok]
+            tb = t[bad].astype(dt)
+            dxb = dx_c + tb * dd_c
+            self._dx_t[:, bad] = dxb
+            self._v[:, bad] = dxb - nub_c
+            r_t[:, bad] = r_c + tb * ad_c
+            fresh_mag = False
+        # accept: grad H at the new point, then s = t d, x += s and the new gradient
+        r = self._r = r_t
+        self._dx, self._dx_t = self._dx_t, self._dx
+        psi = psi_t
+        run_parts(lambda i, fm=fresh_mag, bt=beta: self._grad_h_band(i, bt, fm), nb)
+        self._ga = A.rmatvec(r).astype(dt, copy=False)
+        moved = np.flatnonzero(t != 1.0)
+        cur["t_cols"] = moved if moved.size else None
+        cur["t_dt"] = t.astype(dt)
+        ss, sy, xn2, tv = sum_parts(run_parts(self._update_band, nb))
+        # Barzilai-Borwein step (BB1), per column
+        self._alpha = np.where((sy > 0) & (ss > 0), ss / np.maximum(sy, _TINY), self._alpha)
+        # Zhang-Hager reference value
+        q_new = self._eta * self._q_ref + 1.0
+        self._c_ref = (self._eta * self._q_ref * c_ref + psi) / q_new
+        self._q_ref = q_new
+        self._merit_hist.append(float(np.sum(self._c_ref)))
+        self._g, self._g_new = self._g_new, self._g
+        # inner stopping (per-column relative change, all columns)
+        rel = np.sqrt(ss) / np.maximum(np.sqrt(xn2), _TINY)
+        inner_done = bool(np.all(rel <= self._tol_inner)) or inner == self._max_inner
+        obj = 0.5 * float(np.sum(col_dot(r, r))) + self.lam * float(np.sum(tv))
+        ref = self._x_outer if (inner_done and self._final) else None
+        reason = self.monitor.check(self.it, self._x, ref, obj)
+        if reason or inner_done:
+            self._inner_counts.append(inner)
+        if reason:
+            return reason
+        if inner_done:
+            self._end_outer()
+            self._begin_outer()
+        return ""
+
+    def _finish(self) -> np.ndarray:
+        self.monitor.info.extra.update(
+            {
+                "outer_iterations": self._outer,
+                "inner_iterations": self._inner_counts,
+                "mu": self._mu,
+                "beta": self._beta,
+                "nonneg": self._nonneg,
+                "backtracks": self._n_backtracks,
+                "merit": self._merit_hist,
+            }
+        )
+        return self._x
 
 
 def tval3(

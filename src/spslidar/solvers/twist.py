@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Monitor, SolveInfo, Solver, StopRule, _axpy, register
+from .base import SolveInfo, Solver, StopRule, _axpy, registered_defaults
 from .fista import _col_objective, _lipschitz, _start, _work_dtype
 from .regularisers import L1
 
@@ -39,7 +39,6 @@ def twist_parameters(lambda_1: float = 1e-4, lambda_n: float = 1.0) -> tuple[flo
 _WHOLE_BLOCK_SHARE = 0.25
 
 
-@register
 class TwIST(Solver):
     """Two-step IST (TwIST) with the regulariser's prox as denoiser, on a block of columns.
 
@@ -98,9 +97,9 @@ class TwIST(Solver):
     """
 
     name = "twist"
-    default_lam_scale = 1.0
+    default_iterations, default_lam_scale, default_regulariser = registered_defaults("twist")
 
-    def _solve(self, A, y, reg, lam, x0, mon: Monitor):
+    def _setup(self, A, y, reg, lam, x0):
         opts = dict(self.options)
         L = _lipschitz(A, opts.pop("L", None))
         lambda_1 = float(opts.pop("lambda_1", 1e-4))
@@ -108,90 +107,99 @@ class TwIST(Solver):
         a_opt, b_opt = opts.pop("alpha", None), opts.pop("beta", None)
         alpha = alpha if a_opt is None else float(a_opt)
         beta = beta if b_opt is None else float(b_opt)
-        monotone = bool(opts.pop("monotone", True))
+        self._monotone = bool(opts.pop("monotone", True))
         sparse = opts.pop("sparse", None)
         if opts:
             raise TypeError(f"unknown TwIST options: {', '.join(sorted(opts))}")
         if sparse is None:
             sparse = isinstance(reg, L1) and reg.basis is None
+        self._sparse = bool(sparse)
         dt = _work_dtype(A)
         y, x, ax = _start(A, y, x0, dt)
-        inv_l = dt.type(1.0 / L)
-        thr = lam / L
-        c_prev, c_cur, c_ist = (dt.type(c) for c in (1.0 - alpha, alpha - beta, beta))
-        f = _col_objective(ax - y, x, reg, lam)
-        xm, axm = x, ax
-        n_fallback = n_reject = 0
-        reason = ""
-        it = 0
-        while not reason:
-            it += 1
-            g = np.asarray(A.rmatvec(ax - y), dtype=dt)
-            g *= -inv_l
-            g += x
-            x_ist = np.asarray(reg.prox(g, thr), dtype=dt)
-            del g
-            a_ist = None  # A x_ist, when computed
-            if it == 1:
-                x_new = x_ist
-                ax_new = a_ist = np.asarray(A.matvec(x_ist), dtype=dt)
-            elif sparse:
-                mask = x_ist != 0
-                x_new = c_prev * (xm * mask) + c_cur * (x * mask) + c_ist * x_ist
-                ax_new = np.asarray(A.matvec(x_new), dtype=dt)
-            else:
-                # (1 - alpha) x_{k-1} + (alpha - beta) x_k + beta x_ist (one scaling and two
-                # BLAS axpy updates), and its image by linearity from A x_ist, A x_k, A x_{k-1}:
-                # one product with A per iteration, also when columns fall back to IST below
-                a_ist = np.asarray(A.matvec(x_ist), dtype=dt)
-                x_new = np.multiply(x_ist, c_ist)
-                _axpy(x, x_new, c_cur)
-                _axpy(xm, x_new, c_prev)
-                ax_new = np.multiply(a_ist, c_ist)
-                _axpy(ax, ax_new, c_cur)
-                _axpy(axm, ax_new, c_prev)
-            f_new = _col_objective(ax_new - y, x_new, reg, lam)
-            x_tried = None
-            if monotone:
-                bad = f_new > f
-                if it > 1 and bad.any():
-                    # two-step update failed on these columns: take the IST step there
-                    n_fallback += int(bad.sum())
-                    if a_ist is not None and bad.mean() > _WHOLE_BLOCK_SHARE:
-                        # most columns: masked copies and the objective of the whole IST
-                        # block (a gather of strided columns costs more than the extra ones)
-                        np.copyto(x_new, x_ist, where=bad[None, :])
-                        np.copyto(ax_new, a_ist, where=bad[None, :])
-                        f_new = np.where(bad, _col_objective(a_ist - y, x_ist, reg, lam), f_new)
-                    else:
-                        cols = np.flatnonzero(bad)
-                        x_new[:, cols] = x_ist[:, cols]
-                        if a_ist is not None:
-                            ax_new[:, cols] = a_ist[:, cols]
-                        else:
-                            ax_new[:, cols] = np.asarray(A.matvec(x_ist[:, cols]), dtype=dt)
-                        f_new[cols] = _col_objective(
-                            ax_new[:, cols] - y[:, cols], x_ist[:, cols], reg, lam
-                        )
-                    bad = f_new > f
-                if bad.any():
-                    # even IST went up (rounding / inexact prox): keep the current iterate;
-                    # the stop test still measures the step that was tried
-                    n_reject += int(bad.sum())
+        self.y, self._dt, self._L, self._alpha, self._beta = y, dt, L, alpha, beta
+        self._inv_l = dt.type(1.0 / L)
+        self._thr = lam / L
+        self._c = tuple(dt.type(c) for c in (1.0 - alpha, alpha - beta, beta))
+        self._f = _col_objective(ax - y, x, reg, lam)
+        self._x, self._ax = x, ax
+        self._xm, self._axm = x, ax  # the previous iterate and its image
+        self._n_fallback = self._n_reject = 0
+
+    def _step(self) -> str:
+        A, y, reg, lam, dt, it = self.A, self.y, self.reg, self.lam, self._dt, self.it
+        x, ax, f, xm, axm = self._x, self._ax, self._f, self._xm, self._axm
+        c_prev, c_cur, c_ist = self._c
+        g = np.asarray(A.rmatvec(ax - y), dtype=dt)
+        g *= -self._inv_l
+        g += x
+        x_ist = np.asarray(reg.prox(g, self._thr), dtype=dt)
+        del g
+        a_ist = None  # A x_ist, when computed
+        if it == 1:
+            x_new = x_ist
+            ax_new = a_ist = np.asarray(A.matvec(x_ist), dtype=dt)
+        elif self._sparse:
+            mask = x_ist != 0
+            x_new = c_prev * (xm * mask) + c_cur * (x * mask) + c_ist * x_ist
+            ax_new = np.asarray(A.matvec(x_new), dtype=dt)
+        else:
+            # (1 - alpha) x_{k-1} + (alpha - beta) x_k + beta x_ist (one scaling and two
+            # BLAS axpy updates), and its image by linearity from A x_ist, A x_k, A x_{k-1}:
+            # one product with A per iteration, also when columns fall back to IST below
+            a_ist = np.asarray(A.matvec(x_ist), dtype=dt)
+            x_new = np.multiply(x_ist, c_ist)
+            _axpy(x, x_new, c_cur)
+            _axpy(xm, x_new, c_prev)
+            ax_new = np.multiply(a_ist, c_ist)
+            _axpy(ax, ax_new, c_cur)
+            _axpy(axm, ax_new, c_prev)
+        f_new = _col_objective(ax_new - y, x_new, reg, lam)
+        x_tried = None
+        if self._monotone:
+            bad = f_new > f
+            if it > 1 and bad.any():
+                # two-step update failed on these columns: take the IST step there
+                self._n_fallback += int(bad.sum())
+                if a_ist is not None and bad.mean() > _WHOLE_BLOCK_SHARE:
+                    # most columns: masked copies and the objective of the whole IST
+                    # block (a gather of strided columns costs more than the extra ones)
+                    np.copyto(x_new, x_ist, where=bad[None, :])
+                    np.copyto(ax_new, a_ist, where=bad[None, :])
+                    f_new = np.where(bad, _col_objective(a_ist - y, x_ist, reg, lam), f_new)
+                else:
                     cols = np.flatnonzero(bad)
-                    x_tried = x_new.copy()
-                    x_new[:, cols] = x[:, cols]
-                    ax_new[:, cols] = ax[:, cols]
-                    f_new[cols] = f[cols]
-            x_old = x
-            # (a rejected column has x == xm: its next two-step update restarts from itself)
-            xm, axm = x, ax
-            x, ax, f = x_new, ax_new, f_new
-            reason = mon.check(it, x if x_tried is None else x_tried, x_old, float(np.sum(f)))
-        mon.info.extra.update(
-            L=L, alpha=alpha, beta=beta, ist_fallbacks=n_fallback, rejected=n_reject
+                    x_new[:, cols] = x_ist[:, cols]
+                    if a_ist is not None:
+                        ax_new[:, cols] = a_ist[:, cols]
+                    else:
+                        ax_new[:, cols] = np.asarray(A.matvec(x_ist[:, cols]), dtype=dt)
+                    f_new[cols] = _col_objective(
+                        ax_new[:, cols] - y[:, cols], x_ist[:, cols], reg, lam
+                    )
+                bad = f_new > f
+            if bad.any():
+                # even IST went up (rounding / inexact prox): keep the current iterate;
+                # the stop test still measures the step that was tried
+                self._n_reject += int(bad.sum())
+                cols = np.flatnonzero(bad)
+                x_tried = x_new.copy()
+                x_new[:, cols] = x[:, cols]
+                ax_new[:, cols] = ax[:, cols]
+                f_new[cols] = f[cols]
+        x_old = x
+        # (a rejected column has x == xm: its next two-step update restarts from itself)
+        self._xm, self._axm = x, ax
+        self._x, self._ax, self._f = x_new, ax_new, f_new
+        return self.monitor.check(
+            it, x_new if x_tried is None else x_tried, x_old, float(np.sum(f_new))
         )
-        return x, reason
+
+    def _finish(self) -> np.ndarray:
+        self.monitor.info.extra.update(
+            L=self._L, alpha=self._alpha, beta=self._beta, ist_fallbacks=self._n_fallback,
+            rejected=self._n_reject,
+        )
+        return self._x
 
 
 def twist(
