@@ -15,6 +15,8 @@ WINDOWS = {
     "motorcycle": (1.5, 6.0),
     "steps": (10.0, 10.6),
     "ramp": (5.0, 5.5),
+    "room": (2.0, 5.0),
+    "street": (2.0, 5.0),
 }
 
 
@@ -38,6 +40,20 @@ def test_builtin_loads_inside_window(name, size):
     assert sc.depth.min() >= lo - 1e-9 and sc.depth.max() <= hi + 1e-9
     assert sc.depth_max > sc.depth_min
     assert sc.name == name
+
+
+@pytest.mark.parametrize("name", ["room", "street"])
+def test_wide_depth_scenes_have_one_pixel_structures(name):
+    sc = load_scene(name, 64)
+    assert sc.valid.all() and sc.depth_min == pytest.approx(2.0) and sc.depth_max == 5.0
+    # a column that differs from both its left and right neighbours: a one-pixel pole
+    d = sc.depth
+    thin = (np.abs(d[:, 1:-1] - d[:, :-2]) > 0.3) & (np.abs(d[:, 1:-1] - d[:, 2:]) > 0.3)
+    assert thin.sum(axis=0).max() >= 10
+    assert sc.reflectivity.min() <= 0.12  # low-reflectivity regions
+    # the ground recedes: depth falls monotonically down the bottom rows of the middle column
+    col = d[40:, 32] if name == "room" else d[45:, 40]
+    assert np.all(np.diff(col) <= 0) and col[0] - col[-1] > 1.0
 
 
 def test_default_scene_is_camera():

@@ -8,6 +8,11 @@ Built-in scenes need no network: they use images shipped inside scikit-image or 
   ground-truth disparity in ``skimage.data.stereo_motorcycle`` converted to metres.
 * ``steps``: a back plane with raised rectangles and a disc at distinct depths.
 * ``ramp``: a smooth linear ramp with a sphere-like bump.
+* ``room``: a wide-depth indoor scene (2-5 m): a receding floor, a slanted side wall, a table
+  on one-pixel legs, a one-pixel lamp pole, a dark cabinet and a dark poster on the back wall.
+* ``street``: a wide-depth outdoor scene (2-5 m): a receding road, a slanted facade with dark
+  windows, a parked car, three one-pixel poles (one dark), a slanted one-pixel wire and a dark
+  far backdrop.
 
 User scenes are read from ``.npy``, ``.npz`` or grey images (``.png``, ``.tif``, ``.tiff``,
 ``.jpg``, ``.jpeg``); see :func:`load_scene`.
@@ -35,7 +40,7 @@ __all__ = [
 ]
 
 #: Names of the built-in scenes (the first is the default).
-BUILTIN_SCENES: tuple[str, ...] = ("camera", "motorcycle", "steps", "ramp")
+BUILTIN_SCENES: tuple[str, ...] = ("camera", "motorcycle", "steps", "ramp", "room", "street")
 #: The default scene.
 DEFAULT_SCENE = "camera"
 #: File suffixes accepted for user scenes.
@@ -53,6 +58,11 @@ _MOTO_PINHOLE_PX = 25
 _IMAGE_WINDOW = (20.0, 20.8)  # the paper's 'airplane': 20 to 20.8 m (Sec. III)
 _STEPS_WINDOW = (10.0, 10.6)
 _RAMP_WINDOW = (5.0, 5.5)
+_ROOM_WINDOW = (2.0, 5.0)
+_STREET_WINDOW = (2.0, 5.0)
+#: width of the thin structures (poles, legs, wire) of ``room`` and ``street``: one pixel at
+#: 64 x 64, never less than one pixel
+_THIN = 1.0 / 64
 
 # Calibration of skimage.data.stereo_motorcycle (Middlebury 2014, down-sampled by 4).
 _MOTO_FOCAL_PX = 994.978
@@ -385,11 +395,82 @@ def _ramp(size: int, depth_min: float | None, depth_max: float | None) -> Scene:
     return Scene("ramp", depth, refl, valid)
 
 
+def _nearer(depth: np.ndarray, refl: np.ndarray, surface: np.ndarray, r) -> None:
+    """Z-buffer: where ``surface`` (metres, inf where absent) is nearer than ``depth``, the
+    pixel sees it, with reflectivity ``r`` (scalar or array); in place."""
+    near = surface < depth
+    depth[near] = surface[near]
+    refl[near] = np.broadcast_to(r, depth.shape)[near]
+
+
+def _ground(y: np.ndarray, horizon: float, near: float) -> np.ndarray:
+    """Depth of a horizontal plane below the lidar, ``a / (y - horizon)``, ``near`` metres at
+    the bottom edge (y = 1) and absent (inf) above the horizon."""
+    a = near * (1.0 - horizon)
+    return np.where(y > horizon, a / np.maximum(y - horizon, 1e-12), np.inf)
+
+
+def _band(t: np.ndarray, t0: float, size: int) -> np.ndarray:
+    """A band ``[t0, t0 + w)`` of one pixel's width at 64 x 64 (at least one pixel)."""
+    return (t >= t0) & (t < t0 + max(_THIN, 1.0 / size))
+
+
+def _standing(x, y, x0, top, d, floor, size) -> np.ndarray:
+    """A one-pixel pole at depth ``d`` from ``y = top`` down to where it meets ``floor``."""
+    return np.where(_band(x, x0, size) & (y >= top) & (floor >= d), d, np.inf)
+
+
+def _room(size: int, depth_min: float | None, depth_max: float | None) -> Scene:
+    lo, hi = _window(depth_min, depth_max, _ROOM_WINDOW)
+    y, x = _grid(size)
+    depth = np.full((size, size), 5.0)  # back wall, metres (mapped to [lo, hi] at the end)
+    refl = np.full((size, size), 0.6)
+    refl[(x >= 0.45) & (x < 0.62) & (y >= 0.08) & (y < 0.30)] = 0.08  # dark poster, same depth
+    floor = _ground(y, 0.30, 2.0)  # receding floor, 2 m at the bottom edge, a tiled pattern
+    with np.errstate(divide="ignore"):
+        tiles = (np.floor(8 * x) + np.floor(8 / floor)) % 2
+    _nearer(depth, refl, floor, 0.35 + 0.3 * tiles)
+    _nearer(depth, refl, np.where(x < 0.25, 2.4 + 2.6 * x / 0.25, np.inf), 0.5)  # side wall
+    board = (x >= 0.35) & (x < 0.70) & (y >= 0.50) & (y < 0.54)  # table front at 3 m
+    _nearer(depth, refl, np.where(board, 3.0, np.inf), 0.8)
+    for x0, d, r in ((0.36, 3.0, 0.5), (0.69, 3.0, 0.12), (0.41, 3.4, 0.15), (0.64, 3.4, 0.5)):
+        _nearer(depth, refl, _standing(x, y, x0, 0.54, d, floor, size), r)  # table legs
+    _nearer(depth, refl, _standing(x, y, 0.28, 0.10, 4.2, floor, size), 0.2)  # lamp pole
+    cabinet = (x >= 0.78) & (x < 0.95) & (y >= 0.20) & (y < 0.75)
+    _nearer(depth, refl, np.where(cabinet, 3.8, np.inf), 0.1)
+    valid = np.ones((size, size), dtype=bool)
+    return Scene("room", _remap(depth, valid, lo, hi), refl, valid)
+
+
+def _street(size: int, depth_min: float | None, depth_max: float | None) -> Scene:
+    lo, hi = _window(depth_min, depth_max, _STREET_WINDOW)
+    y, x = _grid(size)
+    depth = np.full((size, size), 5.0)  # dark far backdrop, metres (mapped at the end)
+    refl = np.full((size, size), 0.1)
+    ground = _ground(y, 0.35, 2.0)
+    _nearer(depth, refl, ground, 0.45)
+    windows = ((10 * x) % 1 < 0.5) & ((10 * y) % 1 < 0.5)
+    facade = np.where(x > 0.6, 5.0 - 2.8 * (x - 0.6) / 0.4, np.inf)  # recedes to the left
+    _nearer(depth, refl, facade, np.where(windows, 0.12, 0.7))
+    car = (x >= 0.04) & (x < 0.30) & (y >= 0.55) & (y < 0.82)
+    _nearer(depth, refl, np.where(car, 2.8, np.inf), np.where(y < 0.63, 0.1, 0.6))
+    for x0, d, r in ((0.15, 2.6, 0.4), (0.33, 3.5, 0.12), (0.50, 4.3, 0.6)):
+        _nearer(depth, refl, _standing(x, y, x0, 0.05, d, ground, size), r)  # poles
+    wire = _band(y, 0.12, size) & (x >= 0.15) & (x < 0.34)  # from pole 1 to pole 2, slanted
+    _nearer(depth, refl, np.where(wire, 2.6 + 0.9 * (x - 0.15) / 0.18, np.inf), 0.3)
+    sign = (x >= 0.11) & (x < 0.20) & (y >= 0.20) & (y < 0.29)
+    _nearer(depth, refl, np.where(sign, 2.55, np.inf), 0.9)
+    valid = np.ones((size, size), dtype=bool)
+    return Scene("street", _remap(depth, valid, lo, hi), refl, valid)
+
+
 _BUILTINS: dict[str, Callable[[int, float | None, float | None], Scene]] = {
     "camera": _camera,
     "motorcycle": _motorcycle,
     "steps": _steps,
     "ramp": _ramp,
+    "room": _room,
+    "street": _street,
 }
 
 
@@ -565,7 +646,8 @@ def load_scene(
         ``.npz``) keep their depth unless a bound is given, and are then rescaled linearly so
         that their valid depth range fills the window. A missing bound is taken from the scene's
         default: 20.0-20.8 m for ``camera`` and images, 10.0-10.6 m for ``steps``, 5.0-5.5 m for
-        ``ramp``, the scene's own valid depth range for metric scenes.
+        ``ramp``, 2.0-5.0 m for ``room`` and ``street``, the scene's own valid depth range for
+        metric scenes.
 
     Returns
     -------

@@ -2,17 +2,27 @@
 
 ``ESTIMATORS.load(name)()`` is an estimator; ``estimate.estimate(slices, ctx)`` returns a
 :class:`DepthEstimate` (depth, confidence, peak, low-confidence mask). ``argmax`` is the
-paper's ML estimator.
+paper's ML estimator; ``censor`` (fast) and ``mrf`` (best) use the image structure: each
+pixel sees one surface and surfaces are piecewise smooth in depth.
 """
 
-from ..registry import Registry
-from .argmax import ArgmaxDepth, ml_depth
-from .base import DepthContext, DepthEstimate, DepthEstimator
+from ..registry import Registry, lazy_exports
 
 __all__ = ["ESTIMATORS", "ArgmaxDepth", "DepthContext", "DepthEstimate", "DepthEstimator",
            "ml_depth"]
+
+# the estimators import numpy: re-exported on first access (the registry stays light)
+__getattr__ = lazy_exports(__name__, {
+    "ArgmaxDepth": "argmax", "ml_depth": "argmax", "DepthContext": "base",
+    "DepthEstimate": "base", "DepthEstimator": "base"})
 
 #: depth estimators by name (the ``depth`` config key / ``--depth`` option)
 ESTIMATORS = Registry("depth estimator", "depth")
 ESTIMATORS.add("argmax", "spslidar.depth.argmax:ArgmaxDepth", "ML argmax",
                "the paper's ML estimator: each pixel's tallest slice (eq. 2-3)")
+ESTIMATORS.add("censor", "spslidar.depth.censor:CensorDepth", "censor + recover",
+               "fast: argmax, then pixels that fit no neighbour and have an ambiguous return "
+               "are re-estimated near their neighbours' depths (Shin et al. 2015)")
+ESTIMATORS.add("mrf", "spslidar.depth.mrf:MRFDepth", "MRF (loopy BP)",
+               "best: each pixel's range slice by a truncated-linear Markov random field over "
+               "the image, solved by loopy belief propagation")
