@@ -25,7 +25,7 @@ from typing import Any
 
 from .errors import ConfigError
 
-__all__ = ["Entry", "Registry"]
+__all__ = ["Entry", "Registry", "lazy_exports"]
 
 
 @dataclass(frozen=True)
@@ -138,3 +138,26 @@ class Registry:
 
     def __repr__(self) -> str:
         return f"Registry({self.kind!r}: {', '.join(self.names())})"
+
+
+def lazy_exports(package: str, names: dict[str, str]) -> Callable[[str], Any]:
+    """A module ``__getattr__`` (PEP 562) that imports ``names[attr]`` (a submodule of
+    ``package``) on first access, so a domain package can hold its registry and re-export
+    its numeric API without importing numpy when only the registry is read.
+
+    Parameters
+    ----------
+    package : str
+        The package's ``__name__``.
+    names : dict
+        Public name -> submodule (relative, e.g. ``"sequences"``) defining it.
+    """
+
+    def __getattr__(attr: str) -> Any:
+        try:
+            sub = names[attr]
+        except KeyError:
+            raise AttributeError(f"module {package!r} has no attribute {attr!r}") from None
+        return getattr(importlib.import_module(f"{package}.{sub}"), attr)
+
+    return __getattr__

@@ -29,12 +29,10 @@ from functools import lru_cache
 import numpy as np
 from scipy import fft as sp_fft
 
-from .constants import SPEED_OF_LIGHT
-from .errors import ConfigError
-from .registry import Registry
+from ..constants import SPEED_OF_LIGHT
+from ..errors import ConfigError
 
 __all__ = [
-    "CODES",
     "CODE_KINDS",
     "MSEQ_DEGREES",
     "GOLD_DEGREES",
@@ -523,32 +521,3 @@ def unambiguous_range(length: int, bit_rate: float) -> float:
     if not (np.isfinite(rate) and rate > 0):
         raise ConfigError(f"bit rate must be a positive number in bits/s, got {bit_rate!r}")
     return SPEED_OF_LIGHT * length / (2.0 * rate)
-
-
-# -- the registry of code families ---------------------------------------------------------
-
-
-def _validate_length(cfg) -> None:
-    """Registry hook: the config's code length is one the family can have (one line naming
-    the nearest valid lengths otherwise)."""
-    _check_length(cfg.code, _as_int(cfg.code_length, "code length"))
-
-
-def _validate_fixed_ratio(cfg) -> None:
-    """Registry hook of the m-sequence and Gold families: their share of '1' bits is fixed
-    near 1/2, so a ``ones_ratio`` other than the default is a mistake, not a setting."""
-    _validate_length(cfg)
-    if cfg.ones_ratio != 0.5:
-        raise ConfigError(f"--ones-ratio {cfg.ones_ratio:g} applies to --code random only: "
-                          f"an {cfg.code} code has (length + 1) / 2 ones")
-
-
-#: code families by name (the ``code`` config key / ``--code`` option); each entry's target
-#: makes one code: ``target(kind, length, ones_ratio, rng, index)``
-CODES = Registry("code family", "code")
-CODES.add("mseq", make_code, "m-sequence", "maximal-length sequence, length 2^n - 1 (default)",
-          validate=_validate_fixed_ratio, index=0)
-CODES.add("gold", make_code, "Gold code", "Gold sequence of a preferred pair, length 2^n - 1, "
-          "n not divisible by 4", validate=_validate_fixed_ratio, index=2)
-CODES.add("random", make_code, "Bernoulli code", "iid bits with a chosen share of ones "
-          "(--ones-ratio)", validate=_validate_length, index=0)

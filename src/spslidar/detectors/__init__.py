@@ -6,10 +6,17 @@
 
 from __future__ import annotations
 
-from ..registry import Registry
-from .base import DetectorModel
+from typing import TYPE_CHECKING
+
+from ..registry import Registry, lazy_exports
+
+if TYPE_CHECKING:
+    from .base import DetectorModel
 
 __all__ = ["DETECTORS", "DetectorModel", "build_detector"]
+
+# the models import numpy: re-exported on first access (the registry stays light)
+__getattr__ = lazy_exports(__name__, {"DetectorModel": "base"})
 
 #: detector models by name (the ``detector`` config key / ``--detector`` option)
 DETECTORS = Registry("detector model", "detector")
