@@ -128,6 +128,9 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="refine the ML peak by a three-bin centroid")
     g.add_argument("--dtype", choices=("float32", "float64"), default=S)
     g.add_argument("--seed", type=int, default=S, help="random seed (default 0)")
+    g.add_argument("--max-memory", type=float, default=S, metavar="GB",
+                   help="refuse a run whose estimated peak memory exceeds this (default: the "
+                        "memory available now); the estimate is checked before any work")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -78,6 +78,7 @@ class Config:
     depth: str = "argmax"
     dtype: str = "float32"
     seed: int = 0
+    max_memory: float | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
     # -- construction -------------------------------------------------------------------
@@ -184,6 +185,7 @@ class Config:
         number("iterations", 1, integer=True, optional=True)
         number("tol", 0)
         number("seed", 0, integer=True)
+        number("max_memory", 0, lo_open=True, optional=True)
         if self.auto_gate is not None and not isinstance(self.auto_gate, bool):
             raise ConfigError(f"auto-gate must be true or false, got {self.auto_gate!r}")
         for flag in ("qcr", "subbin", "noiseless", "nonneg"):

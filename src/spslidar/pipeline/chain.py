@@ -26,13 +26,14 @@ from ..detector import NoiseModel
 from ..detectors import build_detector
 from ..errors import ConfigError
 from ..metrics import depth_errors, edge_agreement, sobel_edges
-from ..patterns import PatternOperator, build_patterns, n_patterns_for
+from ..patterns import PATTERNS, PatternOperator, build_patterns, n_patterns_for
 from ..qcr import centre, plain_problem, qcr_problem
 from ..scenes import load_scene
-from .acquisition import Acquisition, default_gate, make_acquisition
+from .acquisition import GATE_PAD_BINS, Acquisition, default_gate, make_acquisition
+from .budget import check_budget, estimate_budget
 from .gate import AUTO_GATE_MIN_SLICES, occupied_lags, unique_lags
 from .results import Result
-from .simulate import simulate_correlations
+from .simulate import simulate_correlations, simulation_threads
 
 #: inner (dual) iterations of the warm-started TV prox per outer iteration: the prox's dual is
 #: carried over between outer iterations, so a few suffice (measured: the same depth RMSE
@@ -99,7 +100,7 @@ def noise_level(A, patterns: PatternOperator, sigma: np.ndarray, cfg: Config, rn
 #: config keys that change only the processing, not the simulated measurement
 PROCESSING_KEYS = frozenset({
     "auto_gate", "qcr", "qcr_form", "solver", "regulariser", "lam", "lam_scale", "iterations",
-    "tol", "subbin", "nonneg", "depth",
+    "tol", "subbin", "nonneg", "depth", "max_memory",
 })
 
 
@@ -167,6 +168,14 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     q = cfg.size * cfg.size
     m = n_patterns_for(cfg.compression, q)
     dtype = np.float32 if cfg.dtype == "float32" else np.float64
+    bin_depth = SPEED_OF_LIGHT * bin_width / 2.0
+    budget = estimate_budget(
+        cfg, n_patterns=m, period=acq.period, n_lags=lags.size, n_ulags=ulags.size,
+        window_bins=int((scene.depth_max - scene.depth_min) / bin_depth) + 2 * GATE_PAD_BINS,
+        pattern_bytes_per_entry=(np.dtype(dtype).itemsize
+                                 if PATTERNS.get(cfg.patterns).defaults.get("dense") else None),
+        threads=simulation_threads())
+    check_budget(budget, cfg.max_memory)
     patterns = build_patterns(cfg.patterns, m, cfg.size, np.random.default_rng(seq_pat),
                               dtype=dtype, sigma=cfg.pattern_sigma)
     timing["setup"] = time.perf_counter() - t0
@@ -180,6 +189,7 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     pile = detector.report(float(np.mean(sim["counts"])) / acq.n_periods,
                            acq.period * bin_width)
     sim["pileup"] = pile
+    sim["estimate"] = {"memory_gb": budget.bytes / 1e9, "time_s": budget.seconds}
     if pile.get("gmapd_saturated") and detector.linear:
         warns.append(
             f"flux of {pile['counts_per_dead_time']:.3g} counts per {cfg.dead_time * 1e9:g} ns "
@@ -292,6 +302,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         "noise_level": sigma_eff,
         "solver_info": dict(info.as_dict()),
         "detector": sim["pileup"],
+        "estimate": sim.get("estimate", {}),
         "warnings": warns,
         "timing_s": dict(timing),
         "config": resolved_config(cfg, acq, meas.gate, auto, iterations, lam_scale),

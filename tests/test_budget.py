@@ -1,0 +1,87 @@
+"""The memory guard: a run that cannot fit is refused from its configuration, before work."""
+
+import tracemalloc
+
+import pytest
+
+from spslidar import pipeline
+from spslidar.cli import main
+from spslidar.config import Config
+from spslidar.errors import SpslidarError
+from spslidar.pipeline import budget as budget_mod
+from spslidar.pipeline.budget import Budget, available_memory, check_budget, estimate_budget
+
+
+def _estimate(size=64, compression=0.25, period=2047, n_ulags=300, dense=True, **cfg):
+    c = Config(size=size, compression=compression, **cfg)
+    m = max(1, round(compression * size * size))
+    return estimate_budget(c, n_patterns=m, period=period, n_lags=n_ulags, n_ulags=n_ulags,
+                           window_bins=200, pattern_bytes_per_entry=4 if dense else None)
+
+
+def _no_patterns(monkeypatch):
+    """Make drawing the patterns an error: a refusal must come before any real work."""
+
+    def boom(*a, **k):
+        raise AssertionError("the patterns were drawn before the memory check")
+
+    monkeypatch.setattr("spslidar.pipeline.chain.build_patterns", boom)
+
+
+@pytest.mark.parametrize("args", [
+    ["--size", "2048"],                                   # 4M pixels: hundreds of GB dense
+    ["--size", "16", "--max-memory", "0.01"],              # an explicit limit below the run
+    ["--size", "256", "--compression", "0.5"],             # dense 32768 x 65536 patterns
+])
+def test_refused_runs_are_one_line_exit_2_and_write_nothing(tmp_path, capsys, monkeypatch,
+                                                            args):
+    _no_patterns(monkeypatch)
+    out = tmp_path / "out"
+    assert main(["run", *args, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert "memory" in err and ("GB" in err or "MB" in err)
+    assert "--max-memory" in err
+    assert not out.exists()
+
+
+def test_estimate_grows_with_the_problem():
+    small, big = _estimate(size=32), _estimate(size=64)
+    assert big.bytes > small.bytes and big.seconds > small.seconds
+    assert _estimate(compression=0.5).bytes > _estimate(compression=0.1).bytes
+    # dense patterns are a large part; an implicit operator needs far less for them
+    assert _estimate(size=128, dense=False).parts["patterns"] < \
+        0.1 * _estimate(size=128).parts["patterns"]
+    assert _estimate(dtype="float64").parts["solver"] == 2 * _estimate().parts["solver"]
+
+
+def test_check_budget_limits():
+    b = Budget(2e9, 10.0, {"patterns": 1.5e9, "solver": 0.5e9})
+    check_budget(b, 3.0)  # fits
+    with pytest.raises(SpslidarError, match=r"~2\.0 GB .*patterns, 1\.5 GB.*1\.0 GB --max-memory"):
+        check_budget(b, 1.0)
+    assert "patterns" in b.describe() and "10 s" in b.describe()
+
+
+def test_available_memory_respects_rlimit(monkeypatch):
+    import resource
+
+    monkeypatch.setattr(resource, "getrlimit", lambda which: (123_000_000, -1))
+    assert available_memory() == pytest.approx(123e6)
+    assert available_memory.__module__ == budget_mod.__name__
+
+
+def test_estimate_covers_what_numpy_allocates():
+    """The traced peak of a real run (NumPy's arrays, without the interpreter) stays below the
+    estimate without its interpreter share: the model does not under-count the big arrays."""
+    cfg = dict(size=48, compression=0.25, code_length=1023, seed=0)
+    tracemalloc.start()
+    try:
+        res = pipeline.run(cfg)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    est = res.metrics["estimate"]["memory_gb"] * 1e9
+    assert peak < est - budget_mod.BASE_BYTES
+    # and it is not absurdly loose either (within a factor of 20 of the arrays)
+    assert est - budget_mod.BASE_BYTES < 20 * peak
