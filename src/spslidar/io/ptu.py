@@ -1,0 +1,453 @@
+"""PicoQuant T3 PTU files: per-pattern histograms in, simulated acquisitions out.
+
+In a PSST single-pixel lidar run on PicoQuant time-tagging electronics (PicoHarp, HydraHarp,
+TimeHarp 260, MultiHarp / PicoHarp 330) the T3 mode maps onto the measurement directly:
+
+* the **sync** input is the code generator's period start, so a record's ``nsync`` counts code
+  periods and its ``dtime`` is the TDC bin inside the code period;
+* a **marker** input is driven by the DMD, one marker record per pattern change.
+
+:func:`read_ptu_histograms` streams the records of such a file (with ``ptufile``) and returns
+the ``(M, L)`` per-pattern histograms that the reconstruction consumes;
+:func:`write_ptu_t3` / :func:`write_acquisition_ptu` write simulated events as a T3 PTU file so
+the reader can be tested end to end.
+
+Record layouts (32-bit little-endian words, PicoQuant's published TTTR formats):
+
+=================  ==========================================================================
+``PicoHarpT3``     channel 4 bits (31-28; photons 1..4, 15 = special), dtime 12 bits (27-16),
+                   nsync 16 bits (15-0). Special: dtime 0 = overflow (+65536 syncs), else
+                   marker with the marker bits in the low 4 bits of dtime.
+``HydraHarpT3``    special 1 bit (31), channel 6 bits (30-25), dtime 15 bits (24-10),
+                   nsync 10 bits (9-0). Special: channel 63 = overflow (+1024 syncs, v1
+                   ignores the nsync field), channel 1..15 = marker bits.
+``HydraHarp2T3``   as ``HydraHarpT3`` but an overflow record adds ``1024 * nsync`` syncs
+                   (``nsync == 0`` counts as 1). ``TimeHarp260NT3``, ``TimeHarp260PT3`` and
+                   ``GenericT3`` (MultiHarp, PicoHarp 330) use the same layout.
+=================  ==========================================================================
+
+All six T3 record types are read (decoded by ``ptufile``) and written (own encoder).
+
+Why an own writer: ``ptufile.PtuWriter`` only encodes TCSPC *image* stacks (line/frame markers
+at fixed pixel times), not event lists. ``tttrlib`` 0.26.2 (9 MB compiled wheel) installs
+cleanly and encodes HydraHarp T3 v2 records correctly (``TTTR.append_events`` +
+``TTTR.write``), but its PTU header writer is documented as unimplemented and in practice
+writes a ``Header_End`` identifier with uninitialised bytes and no
+``TTResultFormat_BitsPerRecord`` / ``TTResult_NumberOfRecords`` tags, so ``ptufile`` cannot open
+its output. The documented format takes ~150 lines of NumPy + ``struct``, with no dependency.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..errors import ConfigError
+
+if TYPE_CHECKING:
+    pass
+
+__all__ = ["PtuAcquisition", "ptu_info", "read_ptu_histograms"]
+
+PathLike = str | os.PathLike
+
+#: T3 record types: name -> (TTResultFormat_TTTRRecType, layout family, hardware name)
+T3_RECORD_TYPES: dict[str, tuple[int, str, str]] = {
+    "PicoHarpT3": (0x00010303, "picoharp", "PicoHarp 300"),
+    "HydraHarpT3": (0x00010304, "hydraharp1", "HydraHarp"),
+    "HydraHarp2T3": (0x01010304, "hydraharp2", "HydraHarp"),
+    "TimeHarp260NT3": (0x00010305, "hydraharp2", "TimeHarp 260 N"),
+    "TimeHarp260PT3": (0x00010306, "hydraharp2", "TimeHarp 260 P"),
+    "GenericT3": (0x00010307, "hydraharp2", "MultiHarp"),
+}
+#: T2 record types (absolute time tags, no sync reference): code -> name
+T2_RECORD_TYPES: dict[int, str] = {
+    0x00010203: "PicoHarpT2", 0x00010204: "HydraHarpT2", 0x01010204: "HydraHarp2T2",
+    0x00010205: "TimeHarp260NT2", 0x00010206: "TimeHarp260PT2", 0x00010207: "GenericT2",
+}
+_T3_BY_CODE = {code: (name, family) for name, (code, family, _) in T3_RECORD_TYPES.items()}
+#: per layout family: (sync counter wrap, dtime limit, photon channel limit)
+_FAMILY = {"picoharp": (65536, 4096, 4), "hydraharp1": (1024, 32768, 64),
+           "hydraharp2": (1024, 32768, 64)}
+
+_MAGIC = b"PQTTTR\x00\x00"
+_TAG = struct.Struct("<32siI")  # ident, index, type; followed by an 8-byte value
+# tag type codes: Empty8, Int8, Float8, TDateTime, AnsiString
+_TY_EMPTY8, _TY_INT8, _TY_FLOAT8 = 0xFFFF0008, 0x10000008, 0x20000008
+_TY_TDATETIME, _TY_ANSISTRING = 0x21000008, 0x4001FFFF
+
+
+# --------------------------------------------------------------------------------------------
+# reading
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class PtuAcquisition:
+    """Per-pattern histograms read from a T3 PTU file (see :func:`read_ptu_histograms`).
+
+    Attributes
+    ----------
+    histograms : numpy.ndarray
+        ``(M, n_bins)`` float32 counts per pattern and code-period bin (exact below 2**24).
+    counts_per_pattern : numpy.ndarray
+        ``(M,)`` int64 photons histogrammed per pattern (row sums of ``histograms``).
+    pattern_start_sync : numpy.ndarray
+        ``(M,)`` int64 global sync count (code period index) of each pattern's marker.
+    last_sync : int
+        Global sync count of the file's last photon or marker (-1 if none); with
+        ``pattern_start_sync`` it gives each pattern's dwell in code periods.
+    sync_period_s, resolution_s : float
+        ``MeasDesc_GlobalResolution`` (the code period) and ``MeasDesc_Resolution`` (dtime unit).
+    bin_width_s : float
+        Histogram bin width, ``resolution_s * binning``.
+    binning : int
+        dtime units per bin (1 unless ``allow_binning``).
+    n_records, n_photons, n_markers, n_overflows : int
+        Records in the file; photon records on the selected channels; markers with the selected
+        bit (= blocks); overflow (sync counter wrap) records.
+    n_dropped_before_first_marker, n_dropped_after_last_pattern, n_out_of_range : int
+        Selected photons dropped: before the first marker; after block ``n_patterns - 1``;
+        with bin ``dtime // binning >= n_bins``.
+    header : dict
+        Header summary, as returned by :func:`ptu_info`.
+    """
+
+    histograms: np.ndarray
+    counts_per_pattern: np.ndarray
+    pattern_start_sync: np.ndarray
+    last_sync: int
+    sync_period_s: float
+    resolution_s: float
+    bin_width_s: float
+    binning: int
+    n_records: int
+    n_photons: int
+    n_markers: int
+    n_overflows: int
+    n_dropped_before_first_marker: int
+    n_dropped_after_last_pattern: int
+    n_out_of_range: int
+    header: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_patterns(self) -> int:
+        """Number of patterns ``M`` (rows of ``histograms``)."""
+        return int(self.histograms.shape[0])
+
+
+def _positive_int(value: Any, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise ConfigError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
+
+
+def _marker_input(marker: Any) -> int:
+    if isinstance(marker, bool) or not isinstance(marker, int | np.integer) or not (
+            1 <= marker <= 4):
+        raise ConfigError(f"marker must be a marker input number 1..4, got {marker!r}")
+    return int(marker)
+
+
+def _import_ptufile():
+    try:
+        import ptufile
+    except ImportError as exc:
+        raise ConfigError(
+            "reading PTU files needs the 'ptufile' package: install spslidar[ptu]"
+        ) from exc
+    return ptufile
+
+
+def _open_ptu(path: PathLike):
+    """Open ``path`` with ``ptufile.PtuFile``, mapping failures to one-line ConfigErrors."""
+    ptufile = _import_ptufile()
+    if not os.path.isfile(path):
+        raise ConfigError(f"PTU file not found: {os.fspath(path)!r}")
+    try:
+        return ptufile.PtuFile(path)
+    except ptufile.PqFileError as exc:
+        msg = (str(exc).splitlines() or [type(exc).__name__])[0][:120]
+        what = ("has a truncated or corrupt PTU tag header" if "corrupted" in msg
+                else "is not a readable PicoQuant PTU file")
+        raise ConfigError(f"{os.fspath(path)!r} {what} ({msg})") from exc
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"cannot open {os.fspath(path)!r} as a PTU file: {exc}") from exc
+
+
+def _header_summary(f, path: PathLike) -> dict[str, Any]:
+    tags = f.tags
+    code = tags.get("TTResultFormat_TTTRRecType")
+    if code in _T3_BY_CODE:
+        rtype = _T3_BY_CODE[code][0]
+    elif code in T2_RECORD_TYPES:
+        rtype = T2_RECORD_TYPES[code]
+    else:
+        rtype = None if code is None else f"unknown(0x{int(code):08x})"
+    mode = tags.get("Measurement_Mode")
+    glob = float(tags.get("MeasDesc_GlobalResolution", 0.0) or 0.0)
+    res = float(tags.get("MeasDesc_Resolution", 0.0) or 0.0)
+    created = tags.get("File_CreatingTime")
+    acq_ms = tags.get("MeasDesc_AcquisitionTime")
+    data_bytes = max(0, os.path.getsize(path) - f.record_offset)
+    return {
+        "path": os.fspath(path),
+        "version": f.version,
+        "record_type": rtype,
+        "record_type_code": None if code is None else int(code),
+        "measurement_mode": {2: "T2", 3: "T3"}.get(mode, mode),
+        "n_records": int(tags.get("TTResult_NumberOfRecords", 0) or 0),
+        "n_records_in_file": data_bytes // 4,
+        "resolution_s": res,
+        "sync_period_s": glob,
+        "sync_rate_hz": tags.get("TTResult_SyncRate"),
+        "bins_per_period": glob / res if res > 0 else None,
+        "acquisition_time_s": None if acq_ms is None else float(acq_ms) * 1e-3,
+        "hardware": tags.get("HW_Type"),
+        "creator": tags.get("CreatorSW_Name"),
+        "comment": tags.get("File_Comment"),
+        "created": created.isoformat() if isinstance(created, datetime) else created,
+    }
+
+
+def ptu_info(path: PathLike) -> dict[str, Any]:
+    """Short summary of a PTU file's header (no records are decoded).
+
+    Returns a dict: ``record_type`` (e.g. ``'HydraHarp2T3'``), ``measurement_mode``
+    (``'T2'``/``'T3'``), ``n_records`` (header) and ``n_records_in_file`` (whole records after
+    the header), ``resolution_s``, ``sync_period_s``, ``sync_rate_hz``, ``bins_per_period``,
+    ``acquisition_time_s``, ``hardware``, ``creator``, ``comment``, ``created``, ``version``,
+    ``path``. Raises :class:`~spslidar.errors.ConfigError` if ``path`` is not a PTU file.
+    """
+    with _open_ptu(path) as f:
+        return _header_summary(f, path)
+
+
+def _overflows(raw: np.ndarray, family: str) -> tuple[int, int]:
+    """(overflow records, sync counter wraps) in a chunk of raw records."""
+    if family == "picoharp":
+        ofl = ((raw >> 28) == 15) & (((raw >> 16) & 0xFFF) == 0)
+        n = int(np.count_nonzero(ofl))
+        return n, n
+    ofl = (raw >> 25) == 0x7F  # special bit and channel 63
+    n = int(np.count_nonzero(ofl))
+    if family == "hydraharp1":
+        return n, n
+    count = (raw[ofl] & 0x3FF).astype(np.int64)
+    return n, int(np.where(count == 0, 1, count).sum())
+
+
+def _check_resolution(res: float, bin_width: float | None, rtol: float, allow_binning: bool,
+                      path: str) -> int:
+    """dtime units per bin; raise if the file's resolution disagrees with ``bin_width``."""
+    if not res > 0:
+        raise ConfigError(f"{path!r}: header has no dtime resolution (MeasDesc_Resolution)")
+    if bin_width is None:
+        return 1
+    if not bin_width > 0:
+        raise ConfigError(f"bin_width must be > 0 seconds, got {bin_width!r}")
+    ratio = bin_width / res
+    k = max(1, round(ratio))
+    close = abs(ratio - k) <= rtol * ratio
+    if close and (k == 1 or allow_binning):
+        return k
+    hint = f" (it is {k} dtime units: pass allow_binning=True to merge them)" if close else ""
+    raise ConfigError(f"{path!r}: dtime resolution {res:.6g} s does not match bin_width "
+                      f"{bin_width:.6g} s (rtol {rtol:g}){hint}")
+
+
+def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
+    """(layout family, number of records) of a T3 file; raise for T2, unknown or truncated."""
+    code = header["record_type_code"]
+    if code is None:
+        raise ConfigError(f"{path!r}: header has no TTResultFormat_TTTRRecType tag")
+    if code in T2_RECORD_TYPES or header["measurement_mode"] == "T2":
+        raise ConfigError(f"{path!r} holds T2 records ({header['record_type']}): absolute time "
+                          "tags without a sync reference; record the lidar in T3 mode")
+    if code not in _T3_BY_CODE:
+        raise ConfigError(f"{path!r}: unsupported TTTR record type 0x{code:08x}")
+    bits = f.tags.get("TTResultFormat_BitsPerRecord", 32)
+    if bits not in (0, 32):
+        raise ConfigError(f"{path!r}: {bits} bits per record, expected 32")
+    n_records = header["n_records"]
+    available = os.path.getsize(path) - f.record_offset
+    if n_records <= 0:  # no record count in the header: use the whole file, as ptufile does
+        if available % 4:
+            raise ConfigError(f"{path!r}: record stream of {available} bytes is not a whole "
+                              "number of 32-bit records (truncated or corrupt file)")
+        n_records = available // 4
+    elif available < 4 * n_records:
+        raise ConfigError(f"{path!r} is truncated: header announces {n_records} records "
+                          f"({4 * n_records} bytes) but only {available} bytes follow the header")
+    return _T3_BY_CODE[code][1], n_records
+
+
+def read_ptu_histograms(
+    path: PathLike,
+    n_bins: int,
+    *,
+    bin_width: float | None = None,
+    marker: int = 1,
+    channel: int | Sequence[int] | None = None,
+    n_patterns: int | None = None,
+    chunk_records: int = 2**22,
+    rtol: float = 1e-3,
+    period_tol_bins: float = 0.5,
+    allow_binning: bool = False,
+    check_sync_period: bool = True,
+) -> PtuAcquisition:
+    """Read a T3 PTU file into per-pattern histograms over the code period.
+
+    Records are read and decoded (``ptufile.PtuFile.decode_records``) ``chunk_records`` at a
+    time, so memory is bounded by the histograms plus one chunk, not by the file.
+
+    **Pattern blocks.** Records are in arrival order. Every marker record whose marker bits
+    include ``marker`` starts a new block: photons between the k-th and (k+1)-th such marker
+    (0-based) belong to pattern k, photons after the last marker to the last pattern. Photons
+    *before the first marker are dropped* (the DMD pattern is unknown; counted in
+    ``n_dropped_before_first_marker``). Without ``n_patterns`` there are as many patterns as
+    markers; with it the first ``n_patterns`` blocks are kept and later photons dropped.
+
+    **Bins.** ``dtime`` is in units of the file's resolution (``MeasDesc_Resolution``). With
+    ``bin_width`` given, the resolution must equal it within relative ``rtol`` (1e-3) or, with
+    ``allow_binning``, ``bin_width`` must be an integer multiple ``k`` of it (within ``rtol``)
+    and bin = ``dtime // k``. Photons with bin ``>= n_bins`` are dropped (``n_out_of_range``).
+
+    **Code period.** With ``check_sync_period`` the sync period (``MeasDesc_GlobalResolution``)
+    must equal ``n_bins * bin_width`` within ``period_tol_bins`` bins (half a bin: a larger
+    mismatch would add or miss a bin at the end of every code period).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        T3 PTU file (PicoHarp, HydraHarp v1/v2, TimeHarp 260 N/P or generic T3 records).
+    n_bins : int
+        Histogram bins per code period ``L``.
+    bin_width : float, optional
+        Expected bin width in seconds; default: the file's dtime resolution.
+    marker : int
+        Marker input (1..4) flagging a DMD pattern change; bit mask ``1 << (marker - 1)``.
+    channel : int or sequence of int, optional
+        Detector channels to keep (``ptufile`` numbering, 0-based); default all.
+    n_patterns : int, optional
+        Number of patterns ``M``; the file must hold at least that many blocks.
+    chunk_records : int
+        Records per read/decode chunk.
+    rtol, period_tol_bins : float
+        Tolerances of the resolution (relative) and sync period (in bins) checks.
+    allow_binning : bool
+        Accept a ``bin_width`` that is an integer multiple of the file's resolution.
+    check_sync_period : bool
+        Check the sync period against ``n_bins * bin_width``.
+
+    Returns
+    -------
+    PtuAcquisition
+
+    Raises
+    ------
+    ConfigError
+        Not a PTU file; a T2 file; unsupported record type; truncated record stream;
+        resolution or sync period disagreeing with ``bin_width`` / ``n_bins``; no markers on
+        input ``marker``; fewer blocks than ``n_patterns``; bad arguments.
+    """
+    n_bins = _positive_int(n_bins, "n_bins")
+    chunk_records = _positive_int(chunk_records, "chunk_records")
+    limit = None if n_patterns is None else _positive_int(n_patterns, "n_patterns")
+    mask = 1 << (_marker_input(marker) - 1)
+    channels = None if channel is None else np.unique(np.atleast_1d(np.asarray(channel)))
+    spath = os.fspath(path)
+
+    with _open_ptu(path) as f:
+        header = _header_summary(f, path)
+        family, n_records = _check_t3(f, header, spath)
+        res, period = header["resolution_s"], header["sync_period_s"]
+        binning = _check_resolution(res, bin_width, rtol, allow_binning, spath)
+        width = res * binning
+        if check_sync_period and not period > 0:
+            raise ConfigError(f"{spath!r}: header has no sync period (MeasDesc_GlobalResolution)"
+                              "; pass check_sync_period=False to skip the check")
+        if check_sync_period and abs(period - n_bins * width) > period_tol_bins * width:
+            raise ConfigError(
+                f"{spath!r}: sync period {period:.6g} s != code period n_bins * bin_width = "
+                f"{n_bins} * {width:.6g} s = {n_bins * width:.6g} s "
+                f"({(period - n_bins * width) / width:+.3g} bins, tolerance {period_tol_bins:g})")
+
+        wrap = _FAMILY[family][0]
+        hist = np.zeros((limit or 16, n_bins), np.int64)
+        starts: list[np.ndarray] = []
+        n_markers = n_photons = n_ofl = carry = n_before = n_after = n_out = bits_seen = 0
+        last_sync = -1
+        fh = f.filehandle
+        fh.seek(f.record_offset)
+        for done in range(0, n_records, chunk_records):
+            raw = np.empty(min(chunk_records, n_records - done), "<u4")
+            got = fh.readinto(memoryview(raw).cast("B")) or 0
+            if got != raw.nbytes:
+                raise ConfigError(f"{spath!r} is truncated: read {done + got // 4} of "
+                                  f"{n_records} records")
+            raw = raw.astype(np.uint32, copy=False)
+            dec = f.decode_records(raw)  # times restart at 0: global = carry + time
+            ch, mk, time = dec["channel"], dec["marker"], dec["time"]
+            special = ch < 0
+            if special.any():
+                bits_seen |= int(np.bitwise_or.reduce(mk[special]))
+            is_mark = special & ((mk & mask) != 0)
+            block = np.cumsum(is_mark, dtype=np.int64) + (n_markers - 1)
+            if is_mark.any():
+                times = time[is_mark].astype(np.int64) + carry
+                starts.append(times if limit is None else times[: max(0, limit - n_markers)])
+            events = np.flatnonzero(~special | (mk != 0))
+            if events.size:
+                last_sync = int(time[events[-1]]) + carry
+
+            photon = ~special if channels is None else ~special & np.isin(ch, channels)
+            pb = block[photon]
+            bins = dec["dtime"][photon].astype(np.int64) // binning
+            n_photons += pb.size
+            keep = pb >= 0
+            n_before += pb.size - int(np.count_nonzero(keep))
+            if limit is not None:
+                n_after += int(np.count_nonzero(pb >= limit))
+                keep &= pb < limit
+            n_out += int(np.count_nonzero(keep & (bins >= n_bins)))
+            keep &= bins < n_bins
+            if keep.any():
+                pb, bins = pb[keep], bins[keep]
+                b0, b1 = int(pb[0]), int(pb[-1])  # blocks are non-decreasing
+                if b1 >= hist.shape[0]:
+                    grown = np.zeros((max(2 * hist.shape[0], b1 + 1), n_bins), np.int64)
+                    grown[: hist.shape[0]] = hist
+                    hist = grown
+                counts = np.bincount((pb - b0) * n_bins + bins, minlength=(b1 - b0 + 1) * n_bins)
+                hist[b0 : b1 + 1] += counts.reshape(-1, n_bins)
+
+            n_markers += int(np.count_nonzero(is_mark))
+            k_ofl, k_wraps = _overflows(raw, family)
+            n_ofl += k_ofl
+            carry += k_wraps * wrap
+
+    if n_markers == 0:
+        seen = [b + 1 for b in range(4) if bits_seen >> b & 1]
+        raise ConfigError(
+            f"{spath!r} has no marker records on marker input {marker} (needed to split photons"
+            " into patterns); "
+            + (f"markers present on inputs {seen}" if seen else "the file has no markers at all"))
+    if limit is not None and n_markers < limit:
+        raise ConfigError(f"{spath!r} has {n_markers} marker-delimited blocks on marker input "
+                          f"{marker}, fewer than n_patterns={limit}")
+    m = limit if limit is not None else n_markers
+    hist = hist[:m]
+    return PtuAcquisition(
+        histograms=hist.astype(np.float32), counts_per_pattern=hist.sum(axis=1),
+        pattern_start_sync=np.concatenate(starts)[:m], last_sync=last_sync,
+        sync_period_s=period, resolution_s=res, bin_width_s=width, binning=binning,
+        n_records=n_records, n_photons=n_photons, n_markers=n_markers, n_overflows=n_ofl,
+        n_dropped_before_first_marker=n_before, n_dropped_after_last_pattern=n_after,
+        n_out_of_range=n_out, header=header)
