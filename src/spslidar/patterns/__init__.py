@@ -14,7 +14,8 @@ from ..registry import Registry, lazy_exports
 if TYPE_CHECKING:
     from .base import PatternOperator
 
-__all__ = ["PATTERNS", "PATTERN_KINDS", "CentredPatterns", "DensePatterns", "PatternOperator",
+__all__ = ["HADAMARD_ORDERS", "HADAMARD_REALISATIONS", "PATTERNS", "PATTERN_KINDS",
+           "CentredPatterns", "DensePatterns", "PatternOperator",
            "as_patterns", "build_patterns", "make_patterns", "n_patterns_for"]
 
 # the operators themselves import numpy: re-exported on first access, so reading the registry
@@ -24,6 +25,11 @@ __getattr__ = lazy_exports(__name__, {
     "PATTERN_KINDS": "dense", "DensePatterns": "dense", "make_patterns": "dense",
     "n_patterns_for": "dense"})
 
+#: row orderings of ``hadamard`` patterns (``hadamard_order`` / ``--hadamard-order``)
+HADAMARD_ORDERS = ("sequency", "cake-cutting", "random", "natural")
+#: how +-1 Hadamard patterns are shown on a 0/1 DMD (``--hadamard-realisation``)
+HADAMARD_REALISATIONS = ("shifted", "differential")
+
 #: pattern kinds by name (the ``patterns`` config key / ``--patterns`` option)
 PATTERNS = Registry("pattern kind", "patterns")
 PATTERNS.add("gaussian", "spslidar.patterns.dense:dense_patterns", "Gaussian grey-level",
@@ -31,6 +37,23 @@ PATTERNS.add("gaussian", "spslidar.patterns.dense:dense_patterns", "Gaussian gre
              dense=True)
 PATTERNS.add("bernoulli", "spslidar.patterns.dense:dense_patterns", "Bernoulli binary",
              "binary, each mirror on with probability 1/2", dense=True)
+PATTERNS.add("hadamard", "spslidar.patterns.hadamard:hadamard_patterns", "Walsh-Hadamard",
+             "Walsh-Hadamard rows by fast transform (N a power of 2; --hadamard-order, "
+             "--hadamard-realisation)", validate=lambda cfg: _check_side(cfg), dense=False)
+PATTERNS.add("scrambled-hadamard", "spslidar.patterns.hadamard:hadamard_patterns",
+             "scrambled Hadamard", "random rows of a Walsh-Hadamard transform with random "
+             "pixel permutation and signs (N a power of 2)", validate=lambda cfg: _check_side(cfg),
+             dense=False)
+
+
+def _check_side(cfg: Any) -> None:
+    n = cfg.size
+    if n < 2 or n & (n - 1):
+        from ..errors import ConfigError
+
+        lo = 1 << max(1, int(n).bit_length() - 1)
+        raise ConfigError(f"{cfg.patterns} patterns need --size a power of two (Q = N^2 = 2^k "
+                          f"for the fast transform), got {n}: use {lo} or {2 * lo}")
 
 
 def build_patterns(kind: str, n_patterns: int, n_side: int, rng: Any,

@@ -1,0 +1,328 @@
+"""Walsh-Hadamard DMD patterns, applied by a fast transform and never formed as a matrix.
+
+For an ``N x N`` DMD with ``N`` a power of two, ``Q = N^2`` and the Sylvester matrix factors as
+``H_Q = H_N (x) H_N``: row ``r = r_y N + r_x`` (natural order) is the image
+``h_{r_y}(i) h_{r_x}(j)`` (row ``i``, column ``j``, flattened in C order like the images), a
+product of two 1-D Walsh functions with ``s_y`` and ``s_x`` sign changes. The ``M`` patterns
+are ``M`` rows of ``H_Q`` picked by an *ordering*:
+
+* ``sequency`` (default): low sequency first, by ``s_x + s_y`` (then ``max(s_x, s_y)``): the
+  coarse, smooth patterns that carry most of a natural image's energy.
+* ``cake-cutting`` (Yu et al. 2019): by the number of constant pieces ``(s_x+1)(s_y+1)``.
+* ``random``: ``M`` rows drawn at random.
+* ``natural``: Sylvester order (rows ``0..M-1``; a poor choice, kept as the reference).
+
+``scrambled-hadamard`` is a structurally random matrix (Do et al. 2012): ``S H_Q D P`` with a
+random pixel permutation ``P``, random signs ``D`` and ``M`` random rows ``S``.
+
+Every product costs one FWHT, ``O(Q log Q)`` per column (:func:`spslidar.operators.hadamard.
+fwht`); memory is the ``(Q, K)`` block itself, never ``M x Q``.
+
+Realisation on a DMD (mirrors 0/1), the ``hadamard_realisation`` key:
+
+* ``shifted`` (default): the DMD shows ``(1 + h)/2``, one exposure per pattern. The DC half
+  ``1/2`` is common to all patterns and is removed by the QCR centring (eq. 11-17) through the
+  mean pattern, exactly as for the grey-level Gaussian patterns: the centred operator is
+  ``(h - mean_i h)/2``. Default because it needs one DMD frame per pattern and, for the shot
+  noise of a background-dominated measurement, gives the same signal-to-noise ratio per unit
+  time as differential pairs (signal halved, noise variance of one full-length exposure).
+* ``differential``: two exposures per pattern, ``(1 + h)/2`` and ``(1 - h)/2``, each for half
+  the acquisition time (the photon budget split honestly: the same total time per pattern);
+  their matched-filter outputs are subtracted (their noise variances added) and the operator
+  of the reconstruction is ``h`` itself (+-1). Background common to both frames cancels in the
+  difference, so it also works without QCR. Twice the DMD frames and simulation work.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..operators.hadamard import fwht, is_power_of_two
+from . import HADAMARD_ORDERS, HADAMARD_REALISATIONS
+from .base import PatternOperator
+
+__all__ = ["HadamardPatterns", "hadamard_order", "hadamard_patterns", "walsh_sequency"]
+
+MODES = ("shifted", "bipolar", "pairs")
+
+
+def walsh_sequency(n: int) -> np.ndarray:
+    """Sign changes of each row of the natural-order ``H_n`` (``n`` a power of two).
+
+    Row ``i`` of the Sylvester matrix is the Walsh function of sequency
+    ``s = gray^-1(bitreverse(i))`` (the bit-reversed index read as a Gray code).
+
+    Parameters
+    ----------
+    n : int
+
+    Returns
+    -------
+    ndarray of int64, shape (n,)
+    """
+    if not is_power_of_two(n):
+        raise ConfigError(f"Walsh functions need a power-of-two length, got {n}")
+    bits = n.bit_length() - 1
+    i = np.arange(n, dtype=np.int64)
+    rev = np.zeros_like(i)
+    for b in range(bits):
+        rev |= ((i >> b) & 1) << (bits - 1 - b)
+    s = rev.copy()
+    shift = rev >> 1
+    while np.any(shift):
+        s ^= shift
+        shift >>= 1
+    return s
+
+
+def hadamard_order(order: str, n_side: int, rng: np.random.Generator | None = None
+                   ) -> np.ndarray:
+    """The natural-order row indices of ``H_Q`` (``Q = n_side^2``) in the given ordering.
+
+    Parameters
+    ----------
+    order : {'sequency', 'cake-cutting', 'random', 'natural'}
+    n_side : int
+        ``N`` (a power of two).
+    rng : numpy.random.Generator, optional
+        For ``random``.
+
+    Returns
+    -------
+    ndarray of int64, shape (Q,)
+        A permutation of ``0..Q-1``; the first ``M`` entries are the rows shown.
+    """
+    check_side(n_side)
+    q = n_side * n_side
+    if order == "natural":
+        return np.arange(q, dtype=np.int64)
+    if order == "random":
+        return np.random.default_rng(rng).permutation(q).astype(np.int64)
+    seq = walsh_sequency(n_side)
+    r = np.arange(q, dtype=np.int64)
+    sy, sx = seq[r // n_side], seq[r % n_side]
+    if order == "sequency":
+        keys = (r, sx, sy, np.maximum(sx, sy), sx + sy)
+    elif order == "cake-cutting":
+        keys = (r, sx, sy, sx + sy, (sx + 1) * (sy + 1))
+    else:
+        raise ConfigError(f"unknown hadamard-order {order!r}; choose one of "
+                          f"{', '.join(HADAMARD_ORDERS)}")
+    return np.lexsort(keys).astype(np.int64)  # the last key is the primary one
+
+
+def check_side(n_side: int) -> None:
+    """One-line :class:`ConfigError` unless ``N`` is a power of two (``Q = N^2 = 2^k``)."""
+    if not is_power_of_two(n_side) or n_side < 2:
+        lo = 1 << max(1, int(n_side).bit_length() - 1)
+        raise ConfigError(f"hadamard patterns need --size a power of two (Q = N^2 = 2^k for the "
+                          f"fast transform), got {n_side}: use {lo} or {2 * lo}")
+
+
+class HadamardPatterns(PatternOperator):
+    """``M`` rows of a (scrambled) Walsh-Hadamard matrix as an implicit pattern operator.
+
+    Parameters
+    ----------
+    n_side : int
+        ``N`` (a power of two); ``Q = N^2``.
+    rows : ndarray of int, shape (M,)
+        Natural-order rows of ``H_Q`` shown (distinct).
+    signs : ndarray of +-1, shape (Q,), optional
+        The sign flips ``D`` of a scrambled set.
+    perm : ndarray of int, shape (Q,), optional
+        The pixel permutation ``P`` of a scrambled set: ``(P x)_i = x[perm[i]]``.
+    mode : {'shifted', 'bipolar', 'pairs'}
+        ``(1 + h)/2`` (M rows, on a DMD), ``h`` (M rows, +-1: the operator of differential
+        measurements) or the differential frames ``(1 + h)/2, (1 - h)/2`` interleaved
+        (2M rows, on a DMD).
+    dtype : numpy dtype
+    kind : str
+        The registered pattern kind.
+    time_share : float
+        Share of the acquisition time per pattern each DMD frame gets (see :meth:`exposures`).
+
+    Notes
+    -----
+    With ``h = S H D P`` the rows: ``Phi x = (1^T x + h x)/2`` and
+    ``Phi^T y = (1 (1^T y) + h^T y)/2`` in ``shifted`` mode; ``h x`` is one FWHT of ``D P x``
+    with the rows ``S`` picked out, ``h^T y`` one FWHT of ``y`` scattered onto the rows.
+    """
+
+    def __init__(self, n_side: int, rows: np.ndarray, signs: np.ndarray | None = None,
+                 perm: np.ndarray | None = None, mode: str = "shifted", dtype=np.float32,
+                 kind: str = "hadamard", time_share: float = 1.0):
+        check_side(n_side)
+        if mode not in MODES:
+            raise ConfigError(f"unknown Hadamard pattern mode {mode!r}; choose one of "
+                              f"{', '.join(MODES)}")
+        q = n_side * n_side
+        rows = np.asarray(rows, dtype=np.int64)
+        if rows.ndim != 1 or rows.size < 1 or rows.size > q:
+            raise ConfigError(f"need between 1 and {q} Hadamard rows, got {rows.size}")
+        m = rows.size * (2 if mode == "pairs" else 1)
+        super().__init__((m, q), dtype)
+        self.n_side, self.rows, self.mode, self.kind = n_side, rows, mode, kind
+        self.signs = None if signs is None else np.asarray(signs, dtype=np.int8)
+        self.perm = None if perm is None else np.asarray(perm, dtype=np.int64)
+        self.time_share = float(time_share)
+
+    # -- the transform -------------------------------------------------------------------
+    def _h(self, x: np.ndarray) -> np.ndarray:
+        """``S H D P x`` for ``x`` of shape (Q, K), in the dtype of ``x``."""
+        z = x[self.perm] if self.perm is not None else np.array(x, copy=True, order="C")
+        if self.signs is not None:
+            z *= self.signs[:, None]
+        fwht(z, out=z)
+        return z[self.rows]
+
+    def _ht(self, y: np.ndarray) -> np.ndarray:
+        """``P^T D H S^T y`` for ``y`` of shape (M_rows, K)."""
+        z = np.zeros((self.shape[1], y.shape[1]), dtype=y.dtype)
+        z[self.rows] = y
+        fwht(z, out=z)
+        if self.signs is not None:
+            z *= self.signs[:, None]
+        if self.perm is None:
+            return z
+        out = np.empty_like(z)
+        out[self.perm] = z
+        return out
+
+    def _apply(self, x: np.ndarray) -> np.ndarray:
+        t = self._h(x)
+        if self.mode == "bipolar":
+            return t
+        s = x.sum(axis=0, dtype=x.dtype)[None, :]
+        if self.mode == "shifted":
+            t += s
+            t *= 0.5
+            return t
+        out = np.empty((self.shape[0], x.shape[1]), dtype=x.dtype)
+        out[0::2] = (s + t) * 0.5
+        out[1::2] = (s - t) * 0.5
+        return out
+
+    def _apply_t(self, y: np.ndarray) -> np.ndarray:
+        if self.mode == "bipolar":
+            return self._ht(y)
+        if self.mode == "shifted":
+            out = self._ht(y)
+            out += y.sum(axis=0, dtype=y.dtype)[None, :]
+        else:
+            out = self._ht(y[0::2] - y[1::2])
+            out += y.sum(axis=0, dtype=y.dtype)[None, :]
+        out *= 0.5
+        return out
+
+    def _matvec(self, x):
+        return self._apply(np.asarray(x, dtype=self.dtype))
+
+    def _rmatvec(self, y):
+        return self._apply_t(np.asarray(y, dtype=self.dtype))
+
+    # -- the PatternOperator contract ----------------------------------------------------
+    def mean_pattern(self) -> np.ndarray:
+        m = self.shape[0]
+        return self._apply_t(np.ones((m, 1))).ravel() / m  # float64 (exact on +-1 sums)
+
+    def apply_rows(self, rows: slice, x: np.ndarray) -> np.ndarray:
+        """``Phi[rows] @ x`` in float64; one transform of ``x`` serves all its row blocks."""
+        cache = getattr(self, "_rows_cache", None)
+        if cache is None or cache[0] is not x:
+            cache = (x, self._apply(np.asarray(x, dtype=np.float64)))
+            self._rows_cache = cache
+        return cache[1][rows]
+
+    def as_dtype(self, dtype) -> HadamardPatterns:
+        if np.dtype(dtype) == self.dtype:
+            return self
+        return HadamardPatterns(self.n_side, self.rows, self.signs, self.perm, self.mode, dtype,
+                                self.kind, self.time_share)
+
+    @property
+    def nbytes(self) -> int:
+        return int(sum(a.nbytes for a in (self.rows, self.signs, self.perm) if a is not None))
+
+    # -- differential pairs --------------------------------------------------------------
+    @property
+    def differential(self) -> bool:
+        """Whether the measurements are differences of two DMD frames (``bipolar`` mode)."""
+        return self.mode == "bipolar"
+
+    def exposures(self) -> tuple[HadamardPatterns, float]:
+        """The DMD frames actually shown and each frame's share of the acquisition time.
+
+        Returns
+        -------
+        frames : HadamardPatterns
+            ``shifted``: the operator itself (share 1). ``bipolar`` (differential
+            measurements): the ``2M`` frames ``(1 +- h)/2``, each shown for half the time.
+        share : float
+        """
+        if self.mode != "bipolar":
+            return self, 1.0
+        return HadamardPatterns(self.n_side, self.rows, self.signs, self.perm, "pairs",
+                                self.dtype, self.kind, 0.5), 0.5
+
+    def combine(self, sim: dict[str, Any]) -> dict[str, Any]:
+        """Turn the simulated outputs of the frames of :meth:`exposures` into one output per
+        pattern: ``C = C+ - C-`` (each frame normalised to the full acquisition time, so ``C``
+        estimates ``h p``), variances added, counts summed."""
+        if self.mode != "bipolar":
+            return sim
+        out = dict(sim)
+        c = np.asarray(sim["corr"])
+        out["corr"] = (c[0::2] - c[1::2]).astype(c.dtype, copy=False)
+        s = np.asarray(sim["sigma"], dtype=np.float64)
+        out["sigma"] = np.sqrt(s[0::2] ** 2 + s[1::2] ** 2)
+        for key in ("counts", "signal_counts"):
+            v = np.asarray(sim[key], dtype=np.float64)
+            out[key] = v[0::2] + v[1::2]
+        nb = np.asarray(sim["noise_per_bin"], dtype=np.float64)
+        out["noise_per_bin"] = 0.5 * (nb[0::2] + nb[1::2])  # each frame lasts half the time
+        return out
+
+
+def hadamard_patterns(kind: str, n_patterns: int, n_side: int, rng: np.random.Generator,
+                      dtype=np.float32, order: str = "sequency", realisation: str = "shifted",
+                      **_: object) -> HadamardPatterns:
+    """The registry's factory for ``hadamard`` and ``scrambled-hadamard`` pattern sets.
+
+    Parameters
+    ----------
+    kind : {'hadamard', 'scrambled-hadamard'}
+    n_patterns : int
+        ``M <= Q``.
+    n_side : int
+        ``N``, a power of two.
+    rng : numpy.random.Generator
+        For the ``random`` ordering and the scrambling (rows, then signs, then permutation).
+    dtype : numpy dtype
+    order : str
+        Row ordering of ``hadamard`` (ignored by ``scrambled-hadamard``, whose rows are random).
+    realisation : {'shifted', 'differential'}
+        How the DMD shows the +-1 patterns (module docstring).
+    """
+    check_side(n_side)
+    if realisation not in HADAMARD_REALISATIONS:
+        raise ConfigError(f"unknown hadamard-realisation {realisation!r}; choose one of "
+                          f"{', '.join(HADAMARD_REALISATIONS)}")
+    q = n_side * n_side
+    if not 1 <= n_patterns <= q:
+        raise ConfigError(f"need between 1 and {q} Hadamard patterns, got {n_patterns}")
+    rng = np.random.default_rng(rng)
+    signs = perm = None
+    if kind == "scrambled-hadamard":
+        rows = np.sort(rng.permutation(q)[:n_patterns])
+        signs = np.where(rng.random(q) < 0.5, -1, 1).astype(np.int8)
+        perm = rng.permutation(q)
+    elif kind == "hadamard":
+        rows = hadamard_order(order, n_side, rng)[:n_patterns]
+    else:
+        raise ConfigError(f"unknown Hadamard pattern kind {kind!r}")
+    mode = "bipolar" if realisation == "differential" else "shifted"
+    return HadamardPatterns(n_side, rows, signs, perm, mode, dtype, kind)

@@ -1,0 +1,236 @@
+"""Walsh-Hadamard patterns: the fast transform, the operators' adjoints, the orderings, the two
+DMD realisations against ideal +-1 patterns, and the refusal of sizes that are not 2^k."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.linalg import hadamard
+
+from spslidar.errors import ConfigError
+from spslidar.operators import dottest
+from spslidar.operators.hadamard import WalshHadamard, fwht
+from spslidar.patterns import HADAMARD_ORDERS, build_patterns
+from spslidar.patterns.hadamard import (
+    HadamardPatterns,
+    hadamard_order,
+    hadamard_patterns,
+    walsh_sequency,
+)
+
+
+@pytest.mark.parametrize("q", [1, 2, 4, 8, 32, 128, 1024])
+def test_fwht_matches_scipy_hadamard(q):
+    x = np.random.default_rng(q).standard_normal((q, 3))
+    np.testing.assert_allclose(fwht(x), hadamard(q) @ x, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(fwht(x[:, 0]), hadamard(q) @ x[:, 0], rtol=1e-12, atol=1e-9)
+
+
+def test_fwht_column_blocks_and_in_place():
+    # Q * K large enough for the cache-blocked path (several column blocks)
+    x = np.random.default_rng(0).standard_normal((4096, 300)).astype(np.float32)
+    x0 = x.copy()
+    ref = fwht(x[:, :7].astype(np.float64))
+    y = fwht(x)
+    np.testing.assert_array_equal(x, x0)  # no side effect
+    np.testing.assert_allclose(y[:, :7], ref, rtol=1e-4, atol=1e-3)
+    z = x.copy()
+    assert fwht(z, out=z) is not None
+    np.testing.assert_array_equal(z, y)
+    # H H = Q I
+    np.testing.assert_allclose(fwht(fwht(x0[:, :5].astype(np.float64))) / 4096, x0[:, :5],
+                               atol=1e-9)
+
+
+def test_fwht_refuses_other_lengths():
+    with pytest.raises(ConfigError, match="power-of-two"):
+        fwht(np.ones(12))
+    with pytest.raises(ConfigError):
+        WalshHadamard(48)
+
+
+def _sets(n=8, m=20, dtype=np.float64):
+    out = {}
+    for kind in ("hadamard", "scrambled-hadamard"):
+        for real in ("shifted", "differential"):
+            p = hadamard_patterns(kind, m, n, np.random.default_rng(3), dtype=dtype,
+                                  realisation=real)
+            out[f"{kind}-{real}"] = p
+            out[f"{kind}-{real}-frames"] = p.exposures()[0]
+    return out
+
+
+@pytest.mark.parametrize("name", sorted(_sets()))
+def test_adjoint_of_every_hadamard_operator(name):
+    op = _sets()[name]
+    dottest(op, n_cols=1, rng=0)
+    dottest(op, n_cols=4, rng=1)
+    dottest(op.as_dtype(np.float32), n_cols=2, rng=2)
+    dottest(op.centred(2.0, np.float64), n_cols=2, rng=3)
+
+
+def test_walsh_hadamard_operator_adjoint():
+    dottest(WalshHadamard(64), n_cols=3, rng=0)
+
+
+@pytest.mark.parametrize("name", sorted(_sets()))
+def test_patterns_match_their_dense_rows(name):
+    op = _sets()[name]
+    dense = op.todense()
+    n = op.n_side
+    h = hadamard(n * n)
+    rows = h[op.rows]
+    if op.signs is not None:
+        rows = (rows * op.signs[None, :])[:, np.argsort(op.perm)]
+    expected = {"shifted": (1 + rows) / 2, "bipolar": rows}.get(op.mode)
+    if op.mode == "pairs":
+        expected = np.empty((2 * rows.shape[0], n * n))
+        expected[0::2], expected[1::2] = (1 + rows) / 2, (1 - rows) / 2
+    np.testing.assert_array_equal(dense, expected)
+    np.testing.assert_allclose(op.mean_pattern(), dense.mean(axis=0), atol=1e-12)
+    x = np.random.default_rng(0).standard_normal((n * n, 2))
+    np.testing.assert_allclose(op.apply_rows(slice(3, 9), x), dense[3:9] @ x, atol=1e-10)
+    if op.mode != "bipolar":  # what the DMD shows: 0/1 mirrors
+        assert set(np.unique(dense)) <= {0.0, 1.0}
+
+
+@pytest.mark.parametrize("order", HADAMARD_ORDERS)
+@pytest.mark.parametrize("n", [2, 8, 32])
+def test_orderings_are_permutations(order, n):
+    perm = hadamard_order(order, n, np.random.default_rng(0))
+    np.testing.assert_array_equal(np.sort(perm), np.arange(n * n))
+
+
+def _sign_changes(img):
+    return int(np.sum(img[:, 1:] != img[:, :-1]) + np.sum(img[1:] != img[:-1]))
+
+
+def test_walsh_sequency_counts_sign_changes():
+    for n in (2, 4, 16, 64):
+        h = hadamard(n)
+        counted = np.sum(h[:, 1:] != h[:, :-1], axis=1)
+        np.testing.assert_array_equal(walsh_sequency(n), counted)
+
+
+def test_sequency_order_is_ordered_by_sign_changes():
+    n = 16
+    h = hadamard(n * n)
+    perm = hadamard_order("sequency", n)
+    changes = [_sign_changes(h[r].reshape(n, n)) for r in perm]
+    assert np.all(np.diff(changes) >= 0)
+    assert perm[0] == 0 and changes[0] == 0  # the DC row first
+    # and the natural order is not (the test could fail)
+    nat = [_sign_changes(h[r].reshape(n, n)) for r in range(n * n)]
+    assert np.any(np.diff(nat) < 0)
+
+
+def test_cake_cutting_order_is_ordered_by_pieces():
+    from scipy import ndimage
+
+    n = 16
+    h = hadamard(n * n)
+    pieces = []
+    for r in hadamard_order("cake-cutting", n)[:64]:
+        img = h[r].reshape(n, n)
+        pieces.append(ndimage.label(img > 0)[1] + ndimage.label(img < 0)[1])
+    assert np.all(np.diff(pieces) >= 0)
+
+
+@pytest.mark.parametrize("size", [6, 12, 100])
+def test_bad_sizes_are_refused_in_one_line(size):
+    from spslidar.config import Config
+
+    with pytest.raises(ConfigError) as exc:
+        Config(patterns="hadamard", size=size)
+    assert "\n" not in str(exc.value) and "power of two" in str(exc.value)
+    with pytest.raises(ConfigError, match="power of two"):
+        build_patterns("scrambled-hadamard", 10, size, np.random.default_rng(0))
+
+
+def test_bad_size_exits_2_on_the_cli(tmp_path, capsys):
+    from spslidar.cli import main
+
+    rc = main(["run", "--out", str(tmp_path / "x"), "--patterns", "hadamard", "--size", "48"])
+    assert rc == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "power of two" in err[0]
+
+
+def _noiseless(realisation):
+    from spslidar.pipeline.chain import measure
+
+    return measure(size=16, patterns="hadamard", hadamard_realisation=realisation,
+                   noiseless=True, compression=0.5, code_length=1023, seed=4)
+
+
+def _ideal_corr(meas):
+    """The noiseless outputs of ideal +-1 patterns (negative transmittances), simulated
+    directly through the bipolar operator."""
+    from spslidar.detector import NoiseModel
+    from spslidar.detectors import build_detector
+    from spslidar.pipeline.simulate import simulate_correlations
+
+    cfg = meas.config
+    p = meas.patterns
+    ideal = HadamardPatterns(p.n_side, p.rows, p.signs, p.perm, "bipolar", np.float64)
+    noise = NoiseModel(cfg.noise, tuple(cfg.noise_split), cfg.ambient, cfg.background_rate,
+                       cfg.dark_count_rate)
+    sim = simulate_correlations(ideal, meas.scene, meas.acq, meas.ulags, noise,
+                                build_detector("linear"), cfg.pulse_width,
+                                np.random.default_rng(0), noiseless=True)
+    return ideal, sim["corr"].astype(np.float64)
+
+
+def _centre(a):
+    return a - a.mean(axis=0)
+
+
+def test_differential_pairs_equal_ideal_patterns_in_the_noiseless_limit():
+    from spslidar.pipeline.chain import reconstruct
+
+    meas = _noiseless("differential")
+    ideal, corr = _ideal_corr(meas)
+    assert meas.patterns.shape == ideal.shape
+    np.testing.assert_array_equal(meas.patterns.todense(), ideal.todense())
+    got = meas.sim["corr"].astype(np.float64)
+    scale = np.abs(corr).max()
+    # C+ - C- is h p itself (the background cancels); the ideal's outputs differ from it by a
+    # per-lag constant only (the bipolar replica's response to a flat background)
+    np.testing.assert_allclose(_centre(got), _centre(corr), atol=1e-5 * scale)
+    twin = dataclasses.replace(meas, sim={**meas.sim, "corr": corr.astype(np.float32)})
+    a, b = reconstruct(meas, lam=1e-3), reconstruct(twin, lam=1e-3)
+    np.testing.assert_allclose(a.slices, b.slices, atol=1e-3 * np.abs(b.slices).max())
+    np.testing.assert_array_equal(a.depth, b.depth)
+    assert a.metrics["depth_rmse_m"] < 0.02
+
+
+def test_shifted_patterns_with_qcr_centring_equal_ideal_in_the_noiseless_limit():
+    from spslidar.qcr import qcr_problem
+
+    meas = _noiseless("shifted")
+    ideal, corr = _ideal_corr(meas)
+    m = meas.patterns.shape[0]
+    # the centred (1 + h)/2 patterns are the centred ideal ones, halved (eq. 11: the DC is gone)
+    a_shift, y_shift = qcr_problem(meas.patterns, meas.sim["corr"], "centred", np.float64)
+    a_ideal, y_ideal = qcr_problem(ideal, corr, "centred", np.float64)
+    np.testing.assert_allclose(a_shift.todense(), 0.5 * a_ideal.todense(), atol=1e-12)
+    np.testing.assert_allclose(y_shift, 0.5 * y_ideal, atol=1e-5 * np.abs(y_ideal).max())
+    assert m == 128
+
+
+def test_differential_halves_the_time_per_frame_honestly():
+    diff, shifted = _noiseless("differential"), _noiseless("shifted")
+    assert shifted.patterns.rows[0] == 0  # sequency order: the all-on (DC) pattern first
+    # the two frames (1 + h)/2 and (1 - h)/2 together are one all-on frame; each is shown for
+    # half the time, so each pair collects half the signal of one full-time all-on exposure
+    np.testing.assert_allclose(diff.sim["signal_counts"], 0.5 * shifted.sim["signal_counts"][0],
+                               rtol=1e-9)
+
+
+def test_hadamard_runs_are_reproducible_and_scrambling_uses_the_seed():
+    a = build_patterns("scrambled-hadamard", 30, 8, np.random.default_rng(1))
+    b = build_patterns("scrambled-hadamard", 30, 8, np.random.default_rng(1))
+    c = build_patterns("scrambled-hadamard", 30, 8, np.random.default_rng(2))
+    np.testing.assert_array_equal(a.todense(), b.todense())
+    assert not np.array_equal(a.todense(), c.todense())
+    assert a.nbytes < 8 * 64 * 3  # tables only, never the (M, Q) matrix
