@@ -61,6 +61,20 @@ OPERATORS = {
         _phi(), np.zeros((30, 1)), np.float64)[0],
 }
 
+    "mean-eliminated": lambda: __import__("spslidar.qcr").qcr.MeanEliminated(
+        DensePatterns(_phi())),
+    "walsh-hadamard": lambda: WalshHadamard(32),
+    "hadamard-patterns": lambda: hadamard_patterns(
+        "hadamard", 20, 8, np.random.default_rng(0), dtype=np.float64),
+    "scrambled-hadamard-differential": lambda: hadamard_patterns(
+        "scrambled-hadamard", 20, 8, np.random.default_rng(0), dtype=np.float64,
+        realisation="differential"),
+    "hadamard-frames-centred": lambda: hadamard_patterns(
+        "hadamard", 20, 8, np.random.default_rng(0), dtype=np.float32,
+        realisation="differential").exposures()[0].centred(2.0, np.float32),
+    "hadamard-centred": lambda: hadamard_patterns(
+        "scrambled-hadamard", 20, 8, np.random.default_rng(0), dtype=np.float64).centred(
+        3.0, np.float64),
 
 def _all_operator_classes():
     for mod in pkgutil.walk_packages(spslidar.__path__, "spslidar."):

@@ -125,3 +125,55 @@ def plain_problem(patterns: np.ndarray, corr: np.ndarray,
     from .patterns import as_patterns
 
     return as_patterns(patterns).as_dtype(dtype), np.asarray(corr, dtype=dtype)
+
+
+class MeanEliminated(LinearOperator):
+    """``B = (I - v v^T) A`` with ``v = A 1 / ||A 1||``: the operator of eq. (7) without QCR,
+    its dominant direction removed exactly (variable projection).
+
+    Without QCR the patterns' mean gives ``A = Phi`` one singular value about ``2 sqrt(Q)``
+    times the others (along the constant image), so a first-order solver stepping at
+    ``1 / ||A||^2`` barely moves in every other direction. A TV-regularised problem is
+    invariant to adding a constant to each slice, so write ``p = z + c 1``: for any ``z`` the
+    best ``c`` is ``c(z) = v^T (C - A z) / ||A 1||`` (a least-squares fit of the constant), and
+    eliminating it leaves ``min_z ||B z - (I - v v^T) C||^2 + lam TV(z)``, which has exactly
+    the optimum of eq. (18) (``p = z + c(z) 1``, :meth:`recover`) and the conditioning of the
+    centred problem. The non-negativity constraint couples ``c`` to ``z`` and is not applied
+    on this path.
+
+    Parameters
+    ----------
+    op : LinearOperator
+        ``A`` (``(M, Q)``), the plain operator of :func:`plain_problem`.
+    """
+
+    def __init__(self, op: LinearOperator):
+        super().__init__(op.shape, op.dtype)
+        self.op = op
+        a1 = np.asarray(op.matvec(np.ones((op.shape[1], 1), dtype=op.dtype)), np.float64)[:, 0]
+        self.norm_a1 = float(np.linalg.norm(a1))
+        if self.norm_a1 == 0.0:
+            raise ConfigError("the patterns sum to zero: no mean direction to eliminate")
+        self.v = a1 / self.norm_a1
+
+    def _project(self, r: np.ndarray) -> np.ndarray:
+        r64 = np.asarray(r, dtype=np.float64)
+        return r64 - self.v[:, None] * (self.v @ r64)[None, :]
+
+    def _matvec(self, x):
+        return self._project(self.op.matvec(x)).astype(self.dtype, copy=False)
+
+    def _rmatvec(self, y):
+        return self.op.rmatvec(self._project(y).astype(self.dtype, copy=False))
+
+    def data(self, corr: np.ndarray) -> np.ndarray:
+        """The reduced data ``(I - v v^T) C``."""
+        return self._project(corr).astype(self.dtype, copy=False)
+
+    def recover(self, z: np.ndarray, corr: np.ndarray) -> np.ndarray:
+        """``p = z + c(z) 1`` with each column's best constant ``c(z)`` (the optimum of eq. 18
+        when ``z`` minimises the reduced problem)."""
+        z64 = np.asarray(z, dtype=np.float64)
+        resid = np.asarray(corr, np.float64) - np.asarray(self.op.matvec(z), np.float64)
+        c = (self.v @ resid) / self.norm_a1
+        return (z64 + c[None, :]).astype(np.asarray(z).dtype, copy=False)

@@ -27,7 +27,7 @@ from ..detectors import build_detector
 from ..errors import ConfigError
 from ..metrics import depth_errors, edge_agreement, sobel_edges
 from ..patterns import PATTERNS, PatternOperator, build_patterns, n_patterns_for
-from ..qcr import centre, plain_problem, qcr_problem
+from ..qcr import MeanEliminated, centre, plain_problem, qcr_problem
 from ..scenes import load_scene
 from .acquisition import GATE_PAD_BINS, Acquisition, default_gate, make_acquisition
 from .budget import check_budget, estimate_budget
@@ -244,13 +244,22 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     t0 = time.perf_counter()
     from ..solvers import StopRule
 
-    reg = build_regulariser(cfg, (cfg.size, cfg.size))
+    reg = build_regulariser(cfg.replace(nonneg=False) if eliminated is not None else cfg,
+                            (cfg.size, cfg.size))
     solver_cls = load_solver(cfg.solver)
     iterations = cfg.iterations or solver_default(cfg.solver, "iterations")
     stop = StopRule(max_iter=iterations, rtol=cfg.tol)
     x, info = solver_cls(stop=stop).solve(A, y, reg, lam)
     timing["solve"] = time.perf_counter() - t0
-    if not cfg.qcr and info.stop_reason == "max_iter":
+    if not cfg.qcr and eliminated is None and info.stop_reason == "max_iter":
+    reg_kind = (solver_default(cfg.solver, "regulariser") if cfg.regulariser == "auto"
+                else cfg.regulariser)
+    eliminated = None
+    if not cfg.qcr and reg_kind == "tv":
+        # TV ignores a constant per slice: eliminate the patterns' mean direction exactly, so
+        # the plain problem converges within the default budget (MeanEliminated)
+        eliminated, y_plain = MeanEliminated(A), y
+        A, y = eliminated, eliminated.data(y)
         warns.append(
             f"without QCR the problem is ill-conditioned (the patterns' mean dominates its "
             f"operator) and {cfg.solver} stopped at its cap of {stop.max_iter} iterations: the "
@@ -264,6 +273,8 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     est = ESTIMATORS.load(cfg.depth)().estimate(
         slices, DepthContext(lags, bin_width, cfg.pulse_width, shape, cfg.subbin))
     depth = est.depth.reshape(shape)
+    if eliminated is not None:
+        x = eliminated.recover(x, y_plain)
     timing["depth"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -347,6 +358,8 @@ def run(config: Config | dict | None = None, **overrides) -> Result:
 
     Returns
     -------
+    if not cfg.qcr and d["regulariser"] == "tv":
+        d["nonneg"] = False  # the mean-eliminated plain problem has no sign constraint
     Result
     """
     return reconstruct(measure(config, **overrides))
