@@ -243,3 +243,13 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         rest = {k: v for k, v in data.items() if k != "run"}
         data = {**rest, **data["run"]}
     return data
+    return resolve_scene_path(data, p.parent)
+
+
+def resolve_scene_path(data: dict[str, Any], base: Path) -> dict[str, Any]:
+    """A relative scene *file* named in a config file is relative to that file's folder (a
+    built-in scene name is left alone), as a user writing ``scene = "data/bike.npz"`` next to
+    the TOML expects wherever the command is run from."""
+    scene = data.get("scene")
+    if isinstance(scene, str) and Path(scene).suffix and not Path(scene).is_absolute():
+        data = {**data, "scene": str(base / scene)}

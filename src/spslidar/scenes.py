@@ -24,7 +24,7 @@ import math
 import os
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +47,9 @@ DEFAULT_SCENE = "camera"
 SCENE_FILE_SUFFIXES: tuple[str, ...] = (".npy", ".npz", ".png", ".tif", ".tiff", ".jpg", ".jpeg")
 
 _IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg")
+#: the farthest depth a scene file may hold, in metres (single-photon lidar has ranged ~200 km;
+#: a larger value is a unit mistake, and would overflow the range gate's arithmetic)
+MAX_SCENE_DEPTH_M = 1e6
 _MIN_SIZE = 4
 _MAX_SIZE = 2048
 # Share of valid source pixels an output pixel needs to stay valid after resizing.
@@ -101,6 +104,8 @@ class Scene:
     depth: np.ndarray
     reflectivity: np.ndarray
     valid: np.ndarray
+    #: what loading did that a user should hear about (e.g. a non-square file cropped)
+    notes: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.depth = np.asarray(self.depth, dtype=np.float64)
@@ -286,10 +291,17 @@ def _remap(depth: np.ndarray, valid: np.ndarray, lo: float, hi: float) -> np.nda
 
 def _grey_to_scene(name: str, grey: np.ndarray, size: int, lo: float, hi: float) -> Scene:
     """A grey image mapped onto the depth window; reflectivity 1."""
+    notes = [_crop_note(name, grey.shape, size)] if grey.shape[0] != grey.shape[1] else []
     grey = _resize(_center_crop(grey), size)
     valid = np.ones((size, size), dtype=bool)
     depth = _remap(grey, valid, lo, hi)
-    return Scene(name, depth, np.ones((size, size)), valid)
+    return Scene(name, depth, np.ones((size, size)), valid, notes)
+
+
+def _crop_note(name: str, shape: tuple[int, ...], size: int) -> str:
+    side = min(shape)
+    return (f"scene {name} is {shape[0]}x{shape[1]}: its centre {side}x{side} is used "
+            f"(resized to {size}x{size})")
 
 
 def _finish(
@@ -302,6 +314,7 @@ def _finish(
     depth_max: float | None,
 ) -> Scene:
     """Fill, crop, resize and optionally remap a full-resolution scene."""
+    notes = [_crop_note(name, depth.shape, size)] if depth.shape[0] != depth.shape[1] else []
     depth = _fill_invalid(depth, valid)
     depth = _resize(_center_crop(depth), size)
     reflectivity = np.clip(_resize(_center_crop(reflectivity), size), 0.0, 1.0)
@@ -314,7 +327,7 @@ def _finish(
         native = (float(depth[valid].min()), float(depth[valid].max()))
         lo, hi = _window(depth_min, depth_max, native)
         depth = _remap(depth, valid, lo, hi)
-    return Scene(name, depth, reflectivity, valid)
+    return Scene(name, depth, reflectivity, valid, notes)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -488,6 +501,12 @@ def _check_depth_values(label: str, depth: np.ndarray, where: np.ndarray | None 
             f"scene file {label}: {_pixels(count)} NaN, infinite or negative depth "
             "(depth must be finite metres >= 0)"
         )
+    far = depth if where is None else depth[where]
+    if far.size and float(far.max()) > MAX_SCENE_DEPTH_M:
+        raise SceneError(
+            f"scene file {label}: depths up to {float(far.max()):.3g} m are beyond any lidar "
+            f"range (at most {MAX_SCENE_DEPTH_M:.0e} m): are the values in metres?"
+        )
 
 
 def _as_2d(label: str, arr: np.ndarray, what: str) -> np.ndarray:
@@ -496,6 +515,11 @@ def _as_2d(label: str, arr: np.ndarray, what: str) -> np.ndarray:
         raise SceneError(f"scene file {label}: {what} must be a 2-D array, got shape {arr.shape}")
     if arr.size == 0:
         raise SceneError(f"scene file {label}: {what} is empty")
+    if np.iscomplexobj(arr):
+        raise SceneError(f"scene file {label}: {what} is complex ({arr.dtype}); it must be real")
+    if arr.dtype == bool and what != "valid mask":
+        raise SceneError(f"scene file {label}: {what} is a boolean array; it must hold numbers "
+                         f"(a boolean array belongs in the 'valid' key of an .npz)")
     if not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
         raise SceneError(f"scene file {label}: {what} must be numeric, got dtype {arr.dtype}")
     return arr

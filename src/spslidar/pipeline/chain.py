@@ -149,6 +149,7 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
 
     t0 = time.perf_counter()
     ss = np.random.SeedSequence(cfg.seed)
+    warns.extend(scene.notes)
     seq_code, seq_pat, seq_counts, seq_probe = ss.spawn(4)
     bin_width = 1.0 / cfg.bit_rate
     gate = cfg.range_gate if cfg.range_gate is not None else default_gate(scene, bin_width)

@@ -1,0 +1,104 @@
+"""Inputs a careful user would not expect to be accepted silently (issue 15, item 5): each is
+refused in one line with exit 2 and nothing written, or run with a warning that says what was
+done."""
+
+import numpy as np
+import pytest
+
+from spslidar.cli import main
+from spslidar.config import Config
+from spslidar.errors import SceneError
+from spslidar.scenes import load_scene
+
+FAST = ["--size", "16", "--code-length", "1023"]
+
+
+def _refused(capsys, argv, out):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert not out.exists()
+    return err
+
+
+@pytest.mark.parametrize("name, array, words", [
+    ("complex", np.full((16, 16), 3.0).astype(complex), "complex"),
+    ("boolean", np.ones((16, 16), dtype=bool), "boolean"),
+    ("far", np.full((16, 16), 1e12), "metres"),
+])
+def test_scene_arrays_a_user_did_not_mean_are_refused(tmp_path, capsys, name, array, words):
+    path = tmp_path / f"{name}.npy"
+    np.save(path, array)
+    out = tmp_path / "out"
+    err = _refused(capsys, ["run", *FAST, "--scene", str(path), "--out", str(out)], out)
+    assert words in err and path.name in err
+
+
+def test_a_complex_npz_reflectivity_is_refused(tmp_path):
+    path = tmp_path / "s.npz"
+    np.savez(path, depth=np.full((8, 8), 3.0), reflectivity=np.full((8, 8), 0.5 + 0j))
+    with pytest.raises(SceneError, match="complex"):
+        load_scene(str(path), 8)
+
+
+def test_boolean_valid_mask_is_still_accepted(tmp_path):
+    path = tmp_path / "s.npz"
+    valid = np.ones((8, 8), dtype=bool)
+    valid[0, 0] = False
+    np.savez(path, depth=np.full((8, 8), 3.0), valid=valid)
+    assert load_scene(str(path), 8).valid.sum() == 63
+
+
+def test_non_square_scene_is_cropped_with_a_warning(tmp_path, capsys):
+    path = tmp_path / "wide.npy"
+    np.save(path, np.full((16, 20), 3.0))
+    scene = load_scene(str(path), 16)
+    assert scene.notes and "16x20" in scene.notes[0] and "centre 16x16" in scene.notes[0]
+    assert load_scene("camera", 16).notes == []
+    out = tmp_path / "out"
+    assert main(["run", *FAST, "--scene", str(path), "--out", str(out), "--no-figure"]) == 0
+    assert "16x20" in capsys.readouterr().err
+
+
+def test_ones_ratio_with_an_msequence_is_refused(tmp_path, capsys):
+    out = tmp_path / "out"
+    err = _refused(capsys, ["run", *FAST, "--ones-ratio", "0.3", "--out", str(out)], out)
+    assert "--code random" in err
+
+
+def test_toml_scene_path_is_relative_to_the_toml(tmp_path, monkeypatch):
+    sub = tmp_path / "project"
+    sub.mkdir()
+    np.save(sub / "flat.npy", np.full((16, 16), 3.0))
+    (sub / "cfg.toml").write_text('scene = "flat.npy"\nsize = 16\ncode_length = 1023\n')
+    monkeypatch.chdir(tmp_path)  # the TOML's folder is not the working directory
+    cfg = Config.from_toml(sub / "cfg.toml")
+    assert cfg.scene == str(sub / "flat.npy")
+    out = tmp_path / "out"
+    assert main(["run", "--config", str(sub / "cfg.toml"), "--out", str(out),
+                 "--no-figure"]) == 0
+    # a built-in scene name is not a path
+    (sub / "b.toml").write_text('scene = "motorcycle"\n')
+    assert Config.from_toml(sub / "b.toml").scene == "motorcycle"
+
+
+@pytest.mark.parametrize("out", ["", "."])
+def test_degenerate_out_paths(tmp_path, capsys, monkeypatch, out):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "notes.md").write_text("mine")
+    assert main(["run", *FAST, "--out", out]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert (tmp_path / "notes.md").read_text() == "mine"
+
+
+def test_huge_code_length_is_one_line(tmp_path, capsys):
+    out = tmp_path / "out"
+    for length in ("1073741823", "16777215"):
+        try:
+            code = main(["run", "--size", "16", "--code-length", length, "--out", str(out)])
+        except SystemExit as exc:
+            code = exc.code
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and len(err.splitlines()) == 1 and "Traceback" not in err, err
+        assert not out.exists()
