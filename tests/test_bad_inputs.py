@@ -102,3 +102,23 @@ def test_huge_code_length_is_one_line(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert code == 2 and len(err.splitlines()) == 1 and "Traceback" not in err, err
         assert not out.exists()
+
+
+def test_scores_can_be_recomputed_from_the_saved_files(tmp_path):
+    """RMSE from depth.npy, truth.npy and valid.npy equals metrics.json's, and the coverage
+    it is computed over is stated (issue 15, item 6)."""
+    import json
+
+    out = tmp_path / "out"
+    assert main(["run", "--scene", "motorcycle", "--size", "32", "--code-length", "1023",
+                 "--out", str(out), "--no-figure"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    depth, truth = np.load(out / "depth.npy"), np.load(out / "truth.npy")
+    valid = np.load(out / "valid.npy")
+    have = valid & np.isfinite(depth)
+    rmse = float(np.sqrt(np.mean((depth[have] - truth[have]) ** 2)))
+    assert rmse == pytest.approx(m["depth_rmse_m"], rel=1e-12)
+    assert m["coverage"] == pytest.approx(have.mean())
+    assert m["coverage"] < 1.0  # the motorcycle has pixels without ground truth
+    for key in ("iterations", "lam_scale", "code_index"):
+        assert m["config"][key] is not None

@@ -19,8 +19,10 @@ def depth_errors(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | No
     -------
     dict
         ``depth_rmse_m`` (eq. 19, over valid pixels that have an estimate), ``depth_mae_m``,
-        ``depth_bias_m``, ``depth_max_abs_error_m``, ``n_valid`` and ``missing_fraction`` (valid
-        pixels without a detected return). If every pixel is missing the errors are NaN.
+        ``depth_bias_m``, ``depth_max_abs_error_m``, ``n_valid``, ``missing_fraction`` (valid
+        pixels without a detected return) and ``coverage`` (the share of *all* pixels the
+        errors are computed over: known truth and a return). If every pixel is missing the
+        errors are NaN.
 
     Notes
     -----
@@ -42,6 +44,7 @@ def depth_errors(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | No
         "depth_max_abs_error_m": float(np.max(np.abs(err))) if err.size else nan,
         "n_valid": n_valid,
         "missing_fraction": float(1.0 - have.sum() / n_valid) if n_valid else nan,
+        "coverage": float(have.sum() / have.size) if have.size else nan,
     }
 
 

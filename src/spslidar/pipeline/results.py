@@ -48,7 +48,9 @@ class Result:
                 f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}")
         t = self.timing
         out = (f"depth RMSE {m['depth_rmse_m']:.4f} m ({m['depth_rmse_m'] / m['bin_depth_m']:.2f} "
-               f"bins), {100 * m['missing_fraction']:.1f}% pixels without return; "
+               f"bins) over {100 * m['coverage']:.0f}% of pixels, "
+               f"{100 * m['missing_fraction']:.1f}% without return, "
+               f"{100 * m.get('low_confidence_fraction', 0.0):.0f}% low-confidence; "
                f"{t['total']:.2f} s (simulate {t['simulate']:.2f}, solve {t['solve']:.2f})")
         return f"{what}\n{out}"
 
