@@ -27,7 +27,6 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from scipy import fft as sp_fft
 
 from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
@@ -177,12 +176,60 @@ def _check_length(kind: str, length: int) -> int:
     return n
 
 
+#: ``scipy.signal.max_len_seq``'s default feedback taps per degree (``scipy.signal.
+#: _max_len_seq._mls_taps``, the first polynomial listed by New Wave Instruments for each n)
+_MLS_TAPS: dict[int, tuple[int, ...]] = {
+    2: (1,), 3: (2,), 4: (3,), 5: (3,), 6: (5,), 7: (6,), 8: (7, 6, 1), 9: (5,), 10: (7,),
+    11: (9,), 12: (11, 10, 4), 13: (12, 11, 8), 14: (13, 12, 2), 15: (14,), 16: (15, 13, 4),
+    17: (14,), 18: (11,), 19: (18, 17, 14), 20: (17,), 21: (19,), 22: (21,), 23: (18,),
+    24: (23, 22, 17), 25: (22,), 26: (25, 24, 20), 27: (26, 25, 22), 28: (25,), 29: (27,),
+    30: (29, 28, 7), 31: (28,), 32: (31, 30, 10)}
+
+
+def lfsr_sequence(n: int, taps: tuple[int, ...] | None = None) -> np.ndarray:
+    """The full period (``2^n - 1`` bits) of the Fibonacci LFSR ``s[t + n] = s[t] ^ s[t + k1]
+    ^ s[t + k2] ^ ...`` from the all-ones state: bitwise the output of
+    ``scipy.signal.max_len_seq(n, taps=taps)[0]`` (same taps convention and defaults).
+
+    Written here so that a run does not import ``scipy.signal`` (0.5-0.8 s: it pulls in
+    ``scipy.stats``) for ~16 k bits. The register is one Python integer; each bit costs a mask,
+    a popcount and a shift (degree 14: ~5 ms; degree 20: ~0.4 s).
+
+    Parameters
+    ----------
+    n : int
+        Register degree (2..32 with the default taps).
+    taps : tuple of int, optional
+        Feedback taps in ``(0, n]``; default :data:`_MLS_TAPS`.
+
+    Returns
+    -------
+    ndarray of uint8, shape (2^n - 1,)
+    """
+    if taps is None:
+        if n not in _MLS_TAPS:
+            raise ConfigError(f"no default m-sequence taps for degree {n}: use 2..32")
+        taps = _MLS_TAPS[n]
+    taps = tuple(sorted(set(int(t) for t in taps), reverse=True))
+    if not taps or min(taps) < 0 or max(taps) > n:
+        raise ConfigError(f"m-sequence taps must lie in [0, {n}], got {list(taps)}")
+    mask = 1  # the feedback reads s[t] and s[t + k] (register bit k mod n) for every tap k
+    for k in taps:
+        mask ^= 1 << (k % n)
+    top = n - 1
+    state = (1 << n) - 1
+    length = (1 << n) - 1
+    out = bytearray(length)
+    for t in range(length):
+        out[t] = state & 1
+        state = (state >> 1) | (((state & mask).bit_count() & 1) << top)
+    return np.frombuffer(bytes(out), dtype=np.uint8).copy()
+
+
 @lru_cache(maxsize=64)
 def _mseq_cached(n: int, taps: tuple[int, ...] | None) -> np.ndarray:
     """The m-sequence of degree n from the all-ones register state (read-only)."""
-    from scipy.signal import max_len_seq  # heavy (pulls in scipy.stats): imported on first use
-
-    seq = max_len_seq(n, taps=None if taps is None else list(taps))[0].astype(np.uint8)
+    seq = lfsr_sequence(n, taps)
     seq.setflags(write=False)
     return seq
 
@@ -340,8 +387,8 @@ def make_code(
     eq. (10) grows as ``T R_a``. Random codes are drawn iid Bernoulli(``R_a``), as the paper's
     MATLAB threshold on uniform random numbers; if the draw has no '1' bit (possible only for
     tiny ``T R_a``), one bit chosen at random is set so the laser fires at least once per
-    period. m-sequences come from :func:`scipy.signal.max_len_seq` with its default taps from
-    the all-ones register state.
+    period. m-sequences are those of :func:`scipy.signal.max_len_seq` with its default taps from
+    the all-ones register state (generated bitwise identically by :func:`lfsr_sequence`).
     """
     kind = canonical_kind(kind)
     length = _as_int(length, "code length")
@@ -428,6 +475,8 @@ def periodic_xcorr(a: np.ndarray, b: np.ndarray, bipolar: bool = True) -> np.nda
         x = 2.0 * x - 1.0
         y = 2.0 * y - 1.0
     period = x.size
+    from scipy import fft as sp_fft  # imported on first use: a run needs no correlation here
+
     spec = np.conj(sp_fft.rfft(x)) * sp_fft.rfft(y)
     return np.rint(sp_fft.irfft(spec, n=period)).astype(np.int64)
 
