@@ -76,14 +76,15 @@ def _figure(rows: Sequence[dict[str, Any]], sizes: Sequence[int], path: Path) ->
     fig, axes = plt.subplots(2, len(sizes), figsize=(4.2 * len(sizes), 6.4), squeeze=False,
                              constrained_layout=True)
     for j, n in enumerate(sizes):
-        for label, _ in KINDS:
+        for i, (label, _) in enumerate(KINDS):
             pts = sorted((r for r in rows if r["size"] == n and r["label"] == label),
                          key=lambda r: r["compression"])
             if not pts:
                 continue
             c = [100 * r["compression"] for r in pts]
-            axes[0, j].plot(c, [r["depth_rmse_m"] for r in pts], "o-", label=label)
-            axes[1, j].plot(c, [r["time_total_s"] for r in pts], "o-", label=label)
+            style = {"color": f"C{i}", "label": label}  # one colour per kind in every panel
+            axes[0, j].plot(c, [r["depth_rmse_m"] for r in pts], "o-", **style)
+            axes[1, j].plot(c, [r["time_total_s"] for r in pts], "o-", **style)
         axes[0, j].set_title(f"{n}x{n}")
         axes[0, j].set_ylabel("depth RMSE [m]")
         axes[0, j].set_yscale("log")
@@ -93,6 +94,8 @@ def _figure(rows: Sequence[dict[str, Any]], sizes: Sequence[int], path: Path) ->
             ax.set_xlabel("compression M/Q [%]")
             ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=8)
+    for ax in axes.ravel():
+        ax.set_xlim(0, None)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
