@@ -234,3 +234,36 @@ def test_hadamard_runs_are_reproducible_and_scrambling_uses_the_seed():
     np.testing.assert_array_equal(a.todense(), b.todense())
     assert not np.array_equal(a.todense(), c.todense())
     assert a.nbytes < 8 * 64 * 3  # tables only, never the (M, Q) matrix
+
+
+@pytest.mark.parametrize("name", ["hadamard-shifted", "scrambled-hadamard-differential",
+                                  "hadamard-differential-frames"])
+def test_centred_operator_matches_the_dense_centred_patterns(name):
+    op = _sets()[name]
+    dense = op.todense()
+    want = (dense - dense.mean(axis=0)) / 3.0
+    np.testing.assert_allclose(op.centred(3.0, np.float64).todense(), want, atol=1e-12)
+    np.testing.assert_allclose(op.centred(3.0, np.float32).todense(), want, atol=1e-6)
+
+
+def _peak_bytes(**cfg):
+    import tracemalloc
+
+    from spslidar.pipeline.chain import measure, reconstruct
+
+    tracemalloc.start()
+    try:
+        meas = measure(**cfg)
+        reconstruct(meas)
+        return tracemalloc.get_traced_memory()[1], meas.patterns.shape
+    finally:
+        tracemalloc.stop()
+
+
+def test_hadamard_chain_memory_grows_with_the_cube_not_m_times_q():
+    # the implicit chain's peak is a few (Q, K) blocks (K ~ 60 slices) whatever M is; an
+    # (M, Q) float32 matrix alone would grow by 4 x 4096 x (1638 -> 4096) B = 40 MB here
+    cfg = dict(size=64, patterns="hadamard", code_length=1023, iterations=3)
+    low, _ = _peak_bytes(compression=0.4, **cfg)
+    high, (m, q) = _peak_bytes(compression=1.0, **cfg)
+    assert high - low < 0.1 * (m - round(0.4 * q)) * q * 4, (low / 1e6, high / 1e6)
