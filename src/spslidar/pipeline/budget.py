@@ -135,7 +135,8 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
     return Budget(sum(parts.values()), seconds, parts)
 
 
-def check_budget(budget: Budget, max_memory_gb: float | None) -> None:
+def check_budget(budget: Budget, max_memory_gb: float | None,
+                 patterns: str | None = None) -> None:
     """Refuse (one line, :class:`SpslidarError`) a run whose estimate exceeds the limit.
 
     Parameters
@@ -143,6 +144,8 @@ def check_budget(budget: Budget, max_memory_gb: float | None) -> None:
     budget : Budget
     max_memory_gb : float or None
         The limit in GB (``--max-memory``); None: the memory available now.
+    patterns : str, optional
+        The run's pattern kind: an implicit kind is suggested only when it is a dense one.
     """
     limit = available_memory() if max_memory_gb is None else max_memory_gb * 1e9
     if budget.bytes > limit:
@@ -150,7 +153,8 @@ def check_budget(budget: Budget, max_memory_gb: float | None) -> None:
         from ..patterns import PATTERNS
 
         implicit = [e.name for e in PATTERNS if not e.defaults.get("dense", False)]
-        alt = f", use --patterns {implicit[0]}" if implicit else ""
+        dense = patterns is None or PATTERNS.get(patterns).defaults.get("dense", False)
+        alt = f", use --patterns {implicit[0]}" if implicit and dense else ""
         raise SpslidarError(
             f"this run needs {budget.describe()}, more than the {_gb(limit)} {src}: reduce "
             f"--size, --compression or the --range-gate{alt}, or raise --max-memory")
