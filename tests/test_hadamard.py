@@ -267,3 +267,19 @@ def test_hadamard_chain_memory_grows_with_the_cube_not_m_times_q():
     low, _ = _peak_bytes(compression=0.4, **cfg)
     high, (m, q) = _peak_bytes(compression=1.0, **cfg)
     assert high - low < 0.1 * (m - round(0.4 * q)) * q * 4, (low / 1e6, high / 1e6)
+
+
+@pytest.mark.parametrize("quick", [True, False])
+def test_pattern_kind_experiment_points_are_valid_configs(quick, tmp_path):
+    from spslidar.config import Config
+    from spslidar.experiments.pattern_kinds import pattern_kind_points
+    from spslidar.experiments.reproduce import Context
+
+    points = pattern_kind_points(Context(tmp_path, quick=quick))
+    sizes = {p["size"] for p in points}
+    assert sizes == ({32, 64} if quick else {128, 256})
+    for p in points:
+        cfg = Config(**{k: v for k, v in p.items() if k != "trial"})
+        assert cfg.patterns != "gaussian" or cfg.size == min(sizes)  # dense only where it fits
+    assert {p["patterns"] for p in points if p["size"] == max(sizes)} == {
+        "hadamard", "scrambled-hadamard"}
