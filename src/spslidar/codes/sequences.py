@@ -3,7 +3,7 @@
 Three families are offered, as in Fig. 3 of the paper: maximal-length sequences
 (m-sequences), Gold sequences, and iid Bernoulli ("random") bits with a chosen share ``R_a`` of
 '1' bits. The matched filter correlates the photon-count histogram with a replica of the code;
-:func:`periodic_xcorr` is the circular correlation it relies on.
+:func:`periodic_xcorr` is the circular correlation it relies on ([1]_, [2]_).
 
 Notes
 -----

@@ -1,7 +1,7 @@
 """Depth as the labelling of a Markov random field over the image grid (loopy belief
 propagation over every range slice).
 
-Each pixel takes one of the ``K`` gated slices as its label. The energy of a labelling ``k`` is
+Each pixel takes one of the ``K`` gated slices as its label. The energy of a labelling ``k`` is::
 
     E(k) = sum_p D_p(k_p) + sum_{p~q} min(s |k_p - k_q|, T)
 

@@ -74,7 +74,7 @@ class TwIST(Solver):
     (monotone fallback) is taken per column. Following J. M. Bioucas-Dias and
     M. A. T. Figueiredo, "A new TwIST: two-step iterative shrinkage/thresholding algorithms for
     image restoration", IEEE TIP 16(12), 2007, with the denoiser
-    ``Psi(u) = prox_{lam/L R}(u)``:
+    ``Psi(u) = prox_{lam/L R}(u)``::
 
         x_1     = Psi(x_0 + A^T (y - A x_0) / L)                             (IST step)
         x_{k+1} = (1 - alpha) x_{k-1} + (alpha - beta) x_k
