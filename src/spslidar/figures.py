@@ -71,6 +71,30 @@ def _panel(draw_img, x0: int, y0: int, rgb: np.ndarray, title: str, lo: float, h
     d.text((x0 + _PANEL + 22, y0 + 10 + _PANEL), f"{lo:.3g}", fill=(0, 0, 0))
 
 
+#: colours (RGB) of the pixels a depth map cannot show, one per reason, named in the legend
+NO_TRUTH = (150, 150, 150)  # grey: the scene has no ground truth there (e.g. a stereo hole)
+NO_RETURN = (255, 255, 255)  # white: the estimator found no return
+LOW_CONFIDENCE = (230, 0, 200)  # magenta dot: a depth the estimator itself does not trust
+
+
+def _classes(result) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Masks of the pixels without ground truth, without a return, and with a low-confidence
+    depth (a return the depth estimator flags)."""
+    valid = np.asarray(result.scene.valid, dtype=bool)
+    no_return = ~np.isfinite(result.depth)
+    low = result.low_confidence
+    low = (np.zeros_like(valid) if low is None
+           else np.asarray(low, dtype=bool).reshape(valid.shape) & ~no_return)
+    return ~valid, no_return, low
+
+
+def _legend_items(result) -> list[tuple[tuple[int, int, int], str]]:
+    no_truth, no_return, low = _classes(result)
+    return [(NO_TRUTH, f"no ground truth ({100 * no_truth.mean():.0f}%)"),
+            (NO_RETURN, f"no return ({100 * no_return.mean():.1f}%)"),
+            (LOW_CONFIDENCE, f"low-confidence depth ({100 * low.mean():.0f}%, dot)")]
+
+
 def _limits(result):
     truth, valid = result.truth, result.scene.valid
     lo = float(np.min(truth[valid])) if valid.any() else float(np.nanmin(truth))
@@ -86,11 +110,19 @@ def _title(result) -> str:
     c, m = result.config, result.metrics
     return (f"{c.lidar.upper()} {m['code_description']}, {m['n_patterns']} {c.patterns} patterns "
             f"({100 * c.compression:g}%), m_s={c.signal:g}, m_n={c.noise:g}, "
-            f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}: depth RMSE = {m['depth_rmse_m']:.4f} m")
+            f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}, {c.depth} depth: RMSE = "
+            f"{m['depth_rmse_m']:.4f} m over {100 * m.get('coverage', float('nan')):.0f}% "
+            f"of pixels")
 
 
 def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
-    """``depth.png``: ground truth | estimate | error, colour bars in metres, RMSE in the title.
+    """``depth.png``: ground truth | estimate | error, colour bars in metres.
+
+    Every pixel without a number has the colour of its reason, named in a legend: grey where
+    the scene has no ground truth (truth and error panels), white where the estimator found no
+    return (estimate and error panels), and a magenta dot on the depths the estimator flags
+    as low-confidence (estimate panel). The title gives the RMSE with the share of pixels it
+    covers (ground truth and a return).
 
     Parameters
     ----------
@@ -105,60 +137,84 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
     from PIL import Image, ImageDraw
 
     lo, hi, err_masked, lim = _limits(result)
+    no_truth, no_return, low = _classes(result)
     m = result.metrics
-    width, height = 3 * (_PANEL + 70) + 20, _PANEL + 80
+    width, height = 3 * (_PANEL + 70) + 20, _PANEL + 100
     fig = Image.new("RGB", (width, height), (255, 255, 255))
-    ImageDraw.Draw(fig).text((10, 4), _title(result), fill=(0, 0, 0))
+    draw = ImageDraw.Draw(fig)
+    draw.text((10, 4), _title(result), fill=(0, 0, 0))
     y0 = 20
-    _panel(fig, 10, y0, _colormap(result.truth, lo, hi, _VIRIDIS, (255, 255, 255)),
-           f"ground truth: {result.scene.name}", lo, hi, _VIRIDIS, "m")
-    _panel(fig, 10 + _PANEL + 70, y0,
-           _colormap(result.depth, lo, hi, _VIRIDIS, (255, 255, 255)),
-           f"estimate ({100 * m['missing_fraction']:.1f}% no return, white)", lo, hi, _VIRIDIS,
-           "m")
-    _panel(fig, 10 + 2 * (_PANEL + 70), y0,
-           _colormap(err_masked, -lim, lim, _RDBU_R, (153, 153, 153)),
-           "error: estimate - truth", -lim, lim, _RDBU_R, "m")
+    truth_rgb = _colormap(result.truth, lo, hi, _VIRIDIS, NO_TRUTH)
+    truth_rgb[no_truth] = NO_TRUTH
+    _panel(fig, 10, y0, truth_rgb, f"ground truth: {result.scene.name}", lo, hi, _VIRIDIS, "m")
+    x1 = 10 + _PANEL + 70
+    _panel(fig, x1, y0, _colormap(result.depth, lo, hi, _VIRIDIS, NO_RETURN),
+           f"estimate: {100 * m['missing_fraction']:.1f}% no return, "
+           f"{100 * low.mean():.0f}% low-confidence", lo, hi, _VIRIDIS, "m")
+    if low.any():  # a dot in the middle of each low-confidence pixel
+        cell = _PANEL / low.shape[0]
+        r = max(1.0, cell / 5)
+        for yy, xx in zip(*np.nonzero(low), strict=True):
+            cx, cy = x1 + (xx + 0.5) * cell, y0 + 22 + (yy + 0.5) * cell
+            draw.ellipse((cx - r, cy - r, cx + r, cy + r), fill=LOW_CONFIDENCE)
+    err_rgb = _colormap(err_masked, -lim, lim, _RDBU_R, NO_RETURN)
+    err_rgb[no_truth] = NO_TRUTH
+    _panel(fig, 10 + 2 * (_PANEL + 70), y0, err_rgb, "error: estimate - truth", -lim, lim,
+           _RDBU_R, "m")
+    x, y = 10, y0 + _PANEL + 50
+    for colour, text in _legend_items(result):
+        draw.rectangle((x, y, x + 14, y + 12), fill=colour, outline=(80, 80, 80))
+        draw.text((x + 20, y + 1), text, fill=(0, 0, 0))
+        x += 28 + 7 * len(text)
     path = Path(path)
     fig.save(path, format="PNG", compress_level=1)
     return path
 
 
 def _depth_figure_mpl(result, path: str | Path) -> Path:
-    """The matplotlib version of :func:`depth_figure`."""
+    """The matplotlib version of :func:`depth_figure` (same colours and legend)."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
     plt = _plt()
-    truth = result.truth
-    est = result.depth
-    valid = result.scene.valid
-    lo = float(np.min(truth[valid])) if valid.any() else float(np.nanmin(truth))
-    hi = float(np.max(truth[valid])) if valid.any() else float(np.nanmax(truth))
-    if hi <= lo:
-        hi = lo + 1e-3
-    err = est - truth
-    err_masked = np.where(valid, err, np.nan)
-    lim = float(np.nanpercentile(np.abs(err_masked), 99)) if np.isfinite(err_masked).any() else 0
-    lim = max(lim, result.metrics["bin_depth_m"])
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), constrained_layout=True)
-    cmap = plt.get_cmap("viridis").with_extremes(bad="white")
-    im = axes[0].imshow(truth, cmap=cmap, vmin=lo, vmax=hi)
+    lo, hi, err_masked, lim = _limits(result)
+    no_truth, no_return, low = _classes(result)
+
+    def paint(ax, mask, colour):
+        if mask.any():
+            ax.imshow(np.ma.masked_where(~mask, np.ones(mask.shape)),
+                      cmap=ListedColormap([np.asarray(colour) / 255]), vmin=0, vmax=1,
+                      interpolation="nearest")
+
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.6), constrained_layout=True)
+    cmap = plt.get_cmap("viridis")
+    im = axes[0].imshow(np.ma.masked_where(no_truth, result.truth), cmap=cmap, vmin=lo, vmax=hi)
+    paint(axes[0], no_truth, NO_TRUTH)
     axes[0].set_title(f"ground truth: {result.scene.name}")
     _colorbar(fig, axes[0], im)
-    im = axes[1].imshow(np.ma.masked_invalid(est), cmap=cmap, vmin=lo, vmax=hi)
+    im = axes[1].imshow(np.ma.masked_invalid(result.depth), cmap=cmap, vmin=lo, vmax=hi)
+    paint(axes[1], no_return, NO_RETURN)
+    if low.any():
+        yy, xx = np.nonzero(low)
+        axes[1].scatter(xx, yy, s=max(1.0, 400.0 / low.shape[0]),
+                        color=np.asarray(LOW_CONFIDENCE) / 255, linewidths=0)
     m = result.metrics
-    axes[1].set_title(f"estimate ({100 * m['missing_fraction']:.1f}% no return, white)")
+    axes[1].set_title(f"estimate: {100 * m['missing_fraction']:.1f}% no return, "
+                      f"{100 * low.mean():.0f}% low-confidence")
     _colorbar(fig, axes[1], im)
-    ecmap = plt.get_cmap("RdBu_r").with_extremes(bad="0.6")
-    im = axes[2].imshow(np.ma.masked_invalid(err_masked), cmap=ecmap, vmin=-lim, vmax=lim)
+    im = axes[2].imshow(np.ma.masked_invalid(err_masked), cmap=plt.get_cmap("RdBu_r"),
+                        vmin=-lim, vmax=lim)
+    paint(axes[2], no_truth, NO_TRUTH)
+    paint(axes[2], ~no_truth & no_return, NO_RETURN)
     axes[2].set_title("error: estimate - truth")
     _colorbar(fig, axes[2], im, "depth error [m]")
     for ax in axes:
         ax.set_xticks([])
         ax.set_yticks([])
-    c = result.config
-    fig.suptitle(
-        f"{c.lidar.upper()} {m['code_description']}, {m['n_patterns']} {c.patterns} patterns "
-        f"({100 * c.compression:g}%), m_s={c.signal:g}, m_n={c.noise:g}, "
-        f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}: depth RMSE = {m['depth_rmse_m']:.4f} m")
+    fig.legend(handles=[Patch(facecolor=np.asarray(c) / 255, edgecolor="0.3", label=t)
+                        for c, t in _legend_items(result)],
+               loc="outside lower center", ncol=3, frameon=False)
+    fig.suptitle(_title(result))
     path = Path(path)
     fig.savefig(path, dpi=110)
     plt.close(fig)
