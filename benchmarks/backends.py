@@ -1,0 +1,182 @@
+"""Every backend and device on the GPU issue's workloads: time per stage, depth RMSE, speed-up.
+
+Workloads (issue 13):
+
+* ``64``: the default run (camera 64x64, 25 % Gaussian patterns, 16383-bit m-sequence, QCR,
+  FISTA + TV 60 iterations, argmax);
+* ``256``: 256x256, 10 % Gaussian patterns, otherwise the defaults;
+* ``512h``: 512x512, 10 % Walsh-Hadamard patterns (skipped when no ``hadamard`` pattern kind
+  is registered);
+* ``sweep``: 64x64 default runs one after the other, seeds 0, 1, 2, ...: runs per second.
+
+Each backend runs each workload with the same seed: once to warm up (imports, CUDA context,
+kernel caches, the scene cache), then ``--repeat`` timed runs; the table gives the stage times
+of the median run, its depth RMSE and its speed-up over the NumPy CPU run of the same workload.
+NumPy is timed once without warm-up on the large workloads (``--numpy-repeat``). Random
+streams differ between NumPy and the device backends (see :mod:`spslidar.backends`), so the
+RMSEs agree statistically, not exactly.
+
+Run::
+
+    python benchmarks/backends.py [--backends numpy:cpu,torch:cuda,cupy:cuda]
+        [--workloads 64,256,512h,sweep] [--repeat 5] [--sweep-runs 40] [--out table.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import sys
+import time
+
+STAGES = ("scene", "setup", "simulate", "qcr", "solve", "depth", "to_host", "metrics")
+WORKLOADS = {
+    "64": {"size": 64},
+    "256": {"size": 256, "compression": 0.1},
+    "512h": {"size": 512, "compression": 0.1, "patterns": "hadamard"},
+}
+
+
+def _device_name() -> str:
+    try:
+        import torch
+
+        if torch.cuda.is_available():
+            return torch.cuda.get_device_name(0)
+    except ImportError:
+        pass
+    return "no CUDA device"
+
+
+def _one(backend: str, device: str, seed: int, **kw):
+    from spslidar.pipeline.chain import run
+
+    t0 = time.perf_counter()
+    r = run(backend=backend, device=device, seed=seed, **kw)
+    return r, time.perf_counter() - t0
+
+
+def bench_workload(backend: str, device: str, kw: dict, repeat: int, warm: bool) -> dict:
+    """Median of ``repeat`` runs (after one warm-up run when ``warm``)."""
+    if warm:
+        _one(backend, device, 0, **kw)
+    runs = [_one(backend, device, 0, **kw) for _ in range(repeat)]
+    runs.sort(key=lambda rt: rt[1])
+    r, wall = runs[len(runs) // 2]
+    return {"wall": wall, "walls": [w for _, w in runs], "rmse": r.depth_rmse,
+            "stages": {s: r.timing.get(s, 0.0) for s in STAGES},
+            "iterations": r.metrics["solver_info"]["iterations"]}
+
+
+def bench_sweep(backend: str, device: str, n: int) -> dict:
+    """Runs per second of ``n`` default 64x64 runs, seeds 0..n-1 (after one warm-up)."""
+    _one(backend, device, 0)
+    t0 = time.perf_counter()
+    rmse = [_one(backend, device, s)[0].depth_rmse for s in range(n)]
+    dt = time.perf_counter() - t0
+    return {"runs_per_s": n / dt, "rmse_mean": statistics.fmean(rmse),
+            "rmse_sd": statistics.pstdev(rmse), "n": n}
+
+
+def markdown(results: dict, sweeps: dict) -> str:
+    """The tables: stage times per workload and backend, then the sweep throughput."""
+    lines = [f"Machine: {platform.node()}, {os.cpu_count()} CPUs, GPU: {_device_name()}", ""]
+    head = "| workload | backend | " + " | ".join(STAGES) + " | total (s) | vs numpy | RMSE (m) |"
+    lines += [head, "|" + " --- |" * (len(STAGES) + 5)]
+    for wl, per in results.items():
+        base = per.get("numpy:cpu", {}).get("wall")
+        for name, res in per.items():
+            if "error" in res:
+                lines.append(f"| {wl} | {name} | " + " | ".join("" for _ in STAGES)
+                             + f" | {res['error']} | | |")
+                continue
+            ratio = f"{base / res['wall']:.0f}x" if base else ""
+            st = " | ".join(f"{res['stages'][s]:.3f}" for s in STAGES)
+            lines.append(f"| {wl} | {name} | {st} | {res['wall']:.3f} | {ratio} | "
+                         f"{res['rmse']:.4f} |")
+    if sweeps:
+        lines += ["", "| 64x64 sweep | runs/s | vs numpy | RMSE mean +- sd (m) |",
+                  "| --- | --- | --- | --- |"]
+        base = sweeps.get("numpy:cpu", {}).get("runs_per_s")
+        for name, s in sweeps.items():
+            ratio = f"{s['runs_per_s'] / base:.0f}x" if base else ""
+            lines.append(f"| {name} ({s['n']} runs) | {s['runs_per_s']:.1f} | {ratio} | "
+                         f"{s['rmse_mean']:.4f} +- {s['rmse_sd']:.4f} |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--backends", default="numpy:cpu,torch:cuda,cupy:cuda")
+    ap.add_argument("--workloads", default="64,256,512h,sweep")
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--numpy-repeat", type=int, default=1,
+                    help="timed NumPy runs of the 256 and 512h workloads (no warm-up)")
+    ap.add_argument("--numpy-workloads", default="64,256,sweep",
+                    help="workloads NumPy runs (512h takes minutes on the CPU)")
+    ap.add_argument("--sweep-runs", type=int, default=40)
+    ap.add_argument("--numpy-sweep-runs", type=int, default=5)
+    ap.add_argument("--out", default=None, help="write the Markdown table (and a .json) here")
+    args = ap.parse_args(argv)
+
+    from spslidar.backends import is_available
+    from spslidar.patterns import PATTERNS
+
+    backends = [tuple(b.split(":")) for b in args.backends.split(",") if b]
+    workloads = [w for w in args.workloads.split(",") if w]
+    np_work = set(args.numpy_workloads.split(","))
+    results: dict[str, dict] = {}
+    sweeps: dict[str, dict] = {}
+    for wl in workloads:
+        if wl == "sweep":
+            continue
+        if wl not in WORKLOADS:
+            print(f"unknown workload {wl!r}; choose from {', '.join(WORKLOADS)}, sweep",
+                  file=sys.stderr)
+            return 2
+        kw = WORKLOADS[wl]
+        if kw.get("patterns", "gaussian") not in PATTERNS.names():
+            print(f"skip {wl}: no {kw['patterns']!r} pattern kind registered", flush=True)
+            continue
+        results[wl] = {}
+        for backend, device in backends:
+            name = f"{backend}:{device}"
+            if not is_available(backend, device):
+                continue
+            if backend == "numpy" and wl not in np_work:
+                continue
+            numpy_big = backend == "numpy" and wl != "64"
+            try:
+                res = bench_workload(backend, device, kw,
+                                     args.numpy_repeat if numpy_big else args.repeat,
+                                     warm=not numpy_big)
+            except Exception as exc:  # noqa: BLE001 - a row saying what failed
+                res = {"error": f"{type(exc).__name__}: {str(exc).splitlines()[0][:80]}"}
+            results[wl][name] = res
+            print(wl, name, json.dumps(res, default=str)[:300], flush=True)
+    if "sweep" in workloads:
+        for backend, device in backends:
+            if not is_available(backend, device):
+                continue
+            n = args.numpy_sweep_runs if backend == "numpy" else args.sweep_runs
+            try:
+                sweeps[f"{backend}:{device}"] = bench_sweep(backend, device, n)
+            except Exception as exc:  # noqa: BLE001 - reported, the others go on
+                print(f"sweep {backend}:{device} failed: {exc!r}", flush=True)
+                continue
+            print("sweep", backend, device, sweeps[f"{backend}:{device}"], flush=True)
+    table = markdown(results, sweeps)
+    print(table)
+    if args.out:
+        with open(args.out, "w") as fh:
+            fh.write(table + "\n")
+        with open(os.path.splitext(args.out)[0] + ".json", "w") as fh:
+            json.dump({"results": results, "sweeps": sweeps}, fh, indent=1, default=str)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

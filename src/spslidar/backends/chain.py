@@ -1,0 +1,314 @@
+"""``measure`` and ``reconstruct`` on an array backend (``--backend torch|cupy|...``).
+
+The same chain as :mod:`spslidar.pipeline.chain` (scene -> code + patterns -> Poisson counts
+per pattern over the code period -> matched filter on the gated lags -> centred QCR -> FISTA +
+TV -> argmax depth -> metrics), with the patterns, the counts, the correlations, the QCR
+problem and the solver's iterates on the backend's device. The scene, the code, the replica
+bank and the small per-pattern and per-pixel vectors are prepared on the host with the NumPy
+path's own functions; the metrics are computed on the host from the depth map.
+
+:func:`spslidar.pipeline.chain.measure` and ``reconstruct`` hand a config whose ``backend`` is
+not ``numpy`` to the functions here. Stage timings wait for the device (``Backend.sync``).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from . import check_supported, get_backend
+from .kernels import (
+    TVProx,
+    argmax_peaks,
+    centre,
+    depth_from_peaks,
+    fista_tv,
+    scalars,
+    simulate_block,
+)
+from .patterns import device_patterns
+from .rng import Stream
+
+#: most TDC bins (patterns x code period) per simulated block on a device stream (fixed, so the
+#: counts depend only on the seed and the shape): 2^27 float32 bins = 512 MB
+DEVICE_BLOCK_BINS = 1 << 27
+
+
+def measure(cfg: Any):
+    """:func:`spslidar.pipeline.chain.measure` on ``cfg.backend`` / ``cfg.device``."""
+    from ..correlate import (
+        correlation_gain,
+        gate_lags,
+        make_replica,
+        noise_sigma_from_totals,
+        replica_matrix,
+    )
+    from ..detector import NoiseModel
+    from ..detectors import build_detector
+    from ..forward import depth_to_delay, return_weights, shifted_codes
+    from ..patterns import n_patterns_for
+    from ..pipeline.acquisition import default_gate, make_acquisition
+    from ..pipeline.chain import Measurement, detector_options
+    from ..pipeline.gate import unique_lags
+    from ..pipeline.simulate import BLOCK
+    check_supported(cfg)
+    be = get_backend(cfg.backend, cfg.device)
+    xp = be.xp
+    timing: dict[str, float] = {}
+    warns: list[str] = []
+
+    t0 = time.perf_counter()
+    scene = _load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
+    timing["scene"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    seq_code, seq_pat, seq_counts, seq_probe = np.random.SeedSequence(cfg.seed).spawn(4)
+    bin_width = 1.0 / cfg.bit_rate
+    gate = cfg.range_gate if cfg.range_gate is not None else default_gate(scene, bin_width)
+    acq = make_acquisition(cfg, gate, np.random.default_rng(seq_code))
+    lags = gate_lags(gate, bin_width)
+    ulags, inverse = unique_lags(lags, acq.period)
+    if lags.size > acq.period:
+        warns.append(f"range gate {gate[0]:g}-{gate[1]:g} m is longer than the "
+                     f"{acq.unambiguous_range:.3g} m unambiguous range of the {acq.description}")
+    m = n_patterns_for(cfg.compression, cfg.size * cfg.size)
+    patterns = device_patterns(be, Stream(be, seq_pat), cfg, m)
+    be.sync()
+    timing["setup"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    noise = NoiseModel(cfg.noise, tuple(cfg.noise_split), cfg.ambient, cfg.background_rate,
+                       cfg.dark_count_rate)
+    detector = build_detector(cfg.detector, **detector_options(cfg))
+    delay = depth_to_delay(scene.depth.ravel(), acq.bin_width)
+    refl = scene.reflectivity.ravel()
+    shifts, weights = return_weights(refl, delay, cfg.pulse_width, acq.period)
+    noise_bin = _noise_per_bin(be, noise, patterns, refl, acq.bin_width)
+    replica = make_replica(acq.code, acq.replica)
+    gain = correlation_gain(acq.code, replica) * acq.n_periods * acq.signal_per_pulse
+    w_dev = be.asarray(weights)
+    codes = be.asarray(shifted_codes(acq.code, shifts))
+    bank = be.asarray(replica_matrix(replica, ulags))
+    noise_dev = be.asarray(noise_bin)
+    counts_stream = Stream(be, seq_counts)
+    if counts_stream.host:  # the NumPy path's blocks and streams
+        n_blocks = max(1, int(np.ceil(m / BLOCK)))
+    else:
+        n_blocks = max(1, int(np.ceil(m * acq.period / DEVICE_BLOCK_BINS)))
+    edges = np.linspace(0, m, n_blocks + 1).astype(int)
+    children = counts_stream.children(n_blocks)
+    corr_parts, tot_parts, amp_parts = [], [], []
+    for b in range(n_blocks):
+        a, e = int(edges[b]), int(edges[b + 1])
+        amp, lam = simulate_block(xp, patterns.rows_apply(a, e, w_dev), codes, noise_dev[a:e],
+                                  acq.signal_per_pulse, acq.n_periods)
+        if cfg.noiseless:
+            counts, totals = lam, xp.sum(lam, axis=1, dtype=xp.float64)
+        else:
+            counts, totals = counts_stream.poisson(lam, children[b], detector, acq.n_periods)
+        del lam
+        corr_parts.append((counts @ bank) / float(gain))
+        tot_parts.append(totals)
+        amp_parts.append(xp.sum(amp, axis=1))
+    corr = corr_parts[0] if n_blocks == 1 else xp.concat(corr_parts, axis=0)
+    totals = be.to_numpy(xp.concat(tot_parts) if n_blocks > 1 else tot_parts[0])
+    amp_sum = be.to_numpy(xp.concat(amp_parts) if n_blocks > 1 else amp_parts[0])
+    n_pulses = float(acq.code.sum()) * acq.n_periods
+    sim = {"corr": corr, "sigma": noise_sigma_from_totals(totals, replica, gain),
+           "counts": totals, "signal_counts": acq.signal_per_pulse * n_pulses * amp_sum,
+           "noise_per_bin": noise_bin}
+    pile = detector.report(float(np.mean(totals)) / acq.n_periods, acq.period * bin_width)
+    sim["pileup"] = pile
+    sim["estimate"] = {}
+    if pile.get("gmapd_saturated"):
+        warns.append(f"flux of {pile['counts_per_dead_time']:.3g} counts per "
+                     f"{cfg.dead_time * 1e9:g} ns dead time: a real GMAPD would saturate (the "
+                     f"paper's linear counting model is used)")
+    be.sync()
+    timing["simulate"] = time.perf_counter() - t0
+    return Measurement(cfg, scene, acq, gate, lags, ulags, inverse, patterns, sim, seq_probe,
+                       warns, timing)
+
+
+#: built-in scenes already made, by (name, size, depth_min, depth_max): sweeps load the same
+#: scene for every point (17 ms at 64x64, as long as a GPU run's simulation)
+_SCENES: dict[tuple, Any] = {}
+#: replay FISTA's iterations from a CUDA graph with PyTorch on CUDA (``torch_graph``)
+USE_CUDA_GRAPHS = True
+
+
+def _load_scene(name: str, size: int, depth_min: Any, depth_max: Any) -> Any:
+    """:func:`spslidar.scenes.load_scene`, built-in scenes cached (a copy each time)."""
+    import copy
+
+    from ..scenes import BUILTIN_SCENES, load_scene
+
+    if str(name).lower() not in BUILTIN_SCENES:
+        return load_scene(name, size, depth_min, depth_max)
+    key = (str(name).lower(), size, depth_min, depth_max)
+    if key not in _SCENES:
+        if len(_SCENES) >= 8:
+            _SCENES.clear()
+        _SCENES[key] = load_scene(name, size, depth_min, depth_max)
+    return copy.deepcopy(_SCENES[key])
+
+
+def _noise_per_bin(be: Any, noise: Any, patterns: Any, refl: np.ndarray,
+                   bin_width: float) -> np.ndarray:
+    """:meth:`spslidar.detector.NoiseModel.per_bin` with the patterns on the device."""
+    m, q = patterns.shape
+    f1, f2, f3 = (float(v) for v in noise.split)
+    base = q * noise.m_n * (f2 + f3) + (noise.background_rate + noise.dark_count_rate) * bin_width
+    if noise.ambient == "paper":
+        return np.full(m, base + q * noise.m_n * f1)
+    a = be.asarray(np.asarray(refl, dtype=np.float64).reshape(-1, 1))
+    mod = be.to_numpy(patterns.rows_apply(0, m, a))[:, 0]
+    return base + noise.m_n * f1 * mod
+
+
+def reconstruct(meas: Any, **processing):
+    """:func:`spslidar.pipeline.chain.reconstruct` of a measurement made on a backend."""
+    from .. import __version__
+    from ..constants import SPEED_OF_LIGHT
+    from ..depth.argmax import ArgmaxDepth, peak_confidence
+    from ..errors import ConfigError
+    from ..metrics import depth_errors, edge_agreement, sobel_edges
+    from ..pipeline.chain import PROCESSING_KEYS, TV_INNER, resolved_config, solver_default
+    from ..pipeline.gate import AUTO_GATE_MIN_SLICES, occupied_lags
+    from ..pipeline.results import Result
+    from ..solvers import SolveInfo
+
+    bad = set(k.replace("-", "_") for k in processing) - PROCESSING_KEYS
+    if bad:
+        raise ConfigError(f"reconstruct() cannot change {', '.join(sorted(bad))}: "
+                          f"simulate again with measure()")
+    cfg = meas.config.replace(**processing) if processing else meas.config
+    check_supported(cfg)
+    be = meas.patterns.backend
+    xp = be.xp
+    timing = dict(meas.timing)
+    warns = list(meas.warnings)
+    scene, acq, sim, patterns = meas.scene, meas.acq, meas.sim, meas.patterns
+    ulags, lags = meas.ulags, meas.lags
+    bin_width = acq.bin_width
+    bin_depth = SPEED_OF_LIGHT * bin_width / 2.0
+    dtype = xp.float32 if cfg.dtype == "float32" else xp.float64
+    m = patterns.shape[0]
+
+    t0 = time.perf_counter()
+    corr = sim["corr"]
+    auto = cfg.auto_gate if cfg.auto_gate is not None else ulags.size > AUTO_GATE_MIN_SLICES
+    if auto:
+        keep = occupied_lags(be.to_numpy(corr), sim["sigma"])
+        corr = xp.take(corr, be.asarray(np.flatnonzero(keep)), axis=1)
+    else:
+        keep = np.ones(ulags.size, dtype=bool)
+    norm = float(np.sqrt(m))
+    if cfg.qcr:
+        A = patterns.centred(norm, dtype)
+        y = xp.astype(centre(xp, xp.astype(corr, xp.float64)) / norm, dtype)
+    else:  # refused by check_supported (the NumPy path's mean elimination is not ported)
+        raise ConfigError("--no-qcr runs on --backend numpy only")
+    # the noise probe of the regularisation default, on the host stream of the NumPy path
+    e = np.random.default_rng(meas.probe_seed).standard_normal((m, 4)) * sim["sigma"][:, None]
+    ey = (e - e.mean(axis=0, keepdims=True)) / np.sqrt(m) if cfg.qcr else e
+    z = A.rmatvec(xp.astype(be.asarray(ey), dtype))
+    sigma_eff = float(np.sqrt(scalars(be, xp.mean(xp.astype(z, xp.float64) ** 2))[0]))
+    lam_scale = (cfg.lam_scale if cfg.lam_scale is not None
+                 else solver_default(cfg.solver, "lam_scale"))
+    lam = cfg.lam if cfg.lam is not None else lam_scale * sigma_eff
+    be.sync()
+    timing["qcr"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    iterations = cfg.iterations or solver_default(cfg.solver, "iterations")
+    reg = TVProx(xp, (cfg.size, cfg.size), nonneg=cfg.nonneg, max_inner=TV_INNER, be=be)
+    solve = fista_tv
+    if USE_CUDA_GRAPHS and be.name == "torch" and be.device.type == "cuda":
+        from .torch_graph import fista_tv_graphed as solve
+    x, finfo = solve(be, A, y, reg, lam, iterations, cfg.tol)
+    be.sync()
+    timing["solve"] = time.perf_counter() - t0
+    info = SolveInfo("fista", finfo.iterations, finfo.objective, finfo.stop_reason,
+                     timing["solve"], {"L": finfo.L, "restarts": 0, "rejected": 0,
+                                       "backend": cfg.backend, "device": cfg.device})
+    if not cfg.qcr and info.stop_reason == "max_iter":
+        warns.append(f"without QCR the problem is ill-conditioned and fista stopped at its cap "
+                     f"of {iterations} iterations: the estimate is not converged")
+
+    t0 = time.perf_counter()
+    if keep.all():
+        full = x
+    else:
+        full = xp.zeros((x.shape[0], ulags.size), dtype=x.dtype, device=x.device)
+        cols = be.asarray(np.flatnonzero(keep))
+        full = _scatter_columns(be, full, x, cols)
+    slices = xp.take(full, be.asarray(np.asarray(meas.inverse, dtype=np.int64)), axis=1)
+    idx, peak, below, above = (be.to_numpy(a) for a in argmax_peaks(xp, slices))
+    shape = (cfg.size, cfg.size)
+    depth_flat = depth_from_peaks(idx, peak, below, above, lags, slices.shape[1], bin_width,
+                                  cfg.pulse_width, cfg.subbin)
+    conf = peak_confidence(peak)
+    conf[~np.isfinite(depth_flat)] = 0.0
+    low = ArgmaxDepth()._flag(depth_flat, conf)
+    depth = depth_flat.reshape(shape)
+    timing["depth"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    slices_host, corr_host = be.to_numpy(slices), be.to_numpy(corr)
+    timing["to_host"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    err = depth_errors(depth, scene.depth, scene.valid)
+    edge_corr = edge_agreement(sobel_edges(depth), sobel_edges(scene.depth))
+    timing["metrics"] = time.perf_counter() - t0
+    timing["total"] = sum(timing.values())
+
+    metrics: dict[str, Any] = {
+        **err,
+        "depth_rmse_bins": err["depth_rmse_m"] / bin_depth,
+        "edge_correlation": edge_corr,
+        "bin_depth_m": bin_depth,
+        "unambiguous_range_m": acq.unambiguous_range,
+        "range_gate_m": list(meas.gate),
+        "n_slices": int(lags.size),
+        "n_slices_solved": int(keep.sum()),
+        "auto_gate": bool(auto),
+        "n_patterns": int(m),
+        "code_description": acq.description,
+        "code_period_bins": acq.period,
+        "code_ones": int(acq.code.sum()),
+        "n_periods": acq.n_periods,
+        "acquisition_time_per_pattern_s": acq.acquisition_time,
+        "signal_per_pulse": acq.signal_per_pulse,
+        "replica": acq.replica,
+        "mean_signal_counts_per_pattern": float(np.mean(sim["signal_counts"])),
+        "mean_noise_counts_per_pattern": float(np.mean(sim["noise_per_bin"]) * acq.period
+                                               * acq.n_periods),
+        "correlation_noise_sigma": float(np.sqrt(np.mean(sim["sigma"] ** 2))),
+        "depth_estimator": cfg.depth,
+        "low_confidence_fraction": float(np.mean(low)),
+        "lam": lam,
+        "lam_scale": lam_scale if cfg.lam is None else None,
+        "noise_level": sigma_eff,
+        "solver_info": dict(info.as_dict()),
+        "detector": sim["pileup"],
+        "estimate": sim.get("estimate", {}),
+        "warnings": warns,
+        "timing_s": dict(timing),
+        "config": resolved_config(cfg, acq, meas.gate, auto, iterations, lam_scale),
+        "seed": cfg.seed,
+        "version": __version__,
+    }
+    return Result(cfg, scene, depth, slices_host, lags, corr_host, metrics, timing, warns,
+                  confidence=conf.reshape(shape), low_confidence=low.reshape(shape))
+
+
+def _scatter_columns(be: Any, full: Any, x: Any, cols: Any) -> Any:
+    """``full[:, cols] = x`` (the array API has no integer-array assignment: one column at a
+    time through basic indexing)."""
+    for j, c in enumerate(be.to_numpy(cols).tolist()):
+        full[:, c] = x[:, j]
+    return full

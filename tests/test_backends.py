@@ -1,0 +1,286 @@
+"""The array-API chain (spslidar.backends): array-api-strict (whose fake devices catch arrays
+that stray from the run's device), NumPy through the same kernels, and PyTorch on the CPU
+where it is installed (skipped otherwise)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from spslidar.backends import BACKENDS, get_backend, is_available
+from spslidar.backends.kernels import DenseOperator, TVProx, centred_matrix, fista_tv, power_norm
+from spslidar.cli import main
+from spslidar.config import Config
+from spslidar.errors import ConfigError
+from spslidar.operators import Gradient2D, MatrixOperator
+from spslidar.pipeline.chain import measure, reconstruct, run
+from spslidar.solvers import StopRule
+from spslidar.solvers.fista import FISTA
+from spslidar.solvers.regularisers import TV
+
+pytest.importorskip("array_api_strict")
+
+HAS_TORCH = is_available("torch", "cpu")
+needs_torch = pytest.mark.skipif(not HAS_TORCH, reason="PyTorch is not installed")
+#: a small run: 16 x 16 pixels, a 1023-bit code
+SMALL = {"size": 16, "code_length": 1023}
+
+
+@pytest.fixture(params=["array-api-strict", pytest.param("torch", marks=needs_torch)])
+def be(request):
+    """A backend on its CPU device (torch held to one thread: the tests share the cores)."""
+    if request.param == "torch":
+        import torch
+
+        threads = torch.get_num_threads()
+        torch.set_num_threads(1)
+        yield get_backend("torch", "cpu")
+        torch.set_num_threads(threads)
+    else:
+        yield get_backend(request.param, "cpu")
+
+
+# -- configuration --------------------------------------------------------------------------
+
+
+def test_numpy_is_the_default():
+    cfg = Config()
+    assert (cfg.backend, cfg.device) == ("numpy", "cpu")
+    assert cfg.to_dict()["backend"] == "numpy"
+
+
+@pytest.mark.parametrize("kw, words", [
+    ({"backend": "jax"}, "unknown backend 'jax'"),
+    ({"device": "tpu"}, "unknown device 'tpu'"),
+    ({"device": "cuda"}, "--backend numpy runs on the CPU only"),
+    ({"backend": "array-api-strict", "solver": "twist"}, "--solver twist runs on --backend numpy"),
+    ({"backend": "array-api-strict", "depth": "mrf"}, "--depth mrf runs on --backend numpy"),
+    ({"backend": "array-api-strict", "qcr": False}, "--no-qcr runs on --backend numpy"),
+])
+def test_bad_backend_configs_are_one_line(kw, words):
+    with pytest.raises(ConfigError) as exc:
+        Config(**kw)
+    assert words in str(exc.value) and "\n" not in str(exc.value)
+
+
+@pytest.mark.skipif(is_available("cupy", "cuda"), reason="CuPy with a GPU is installed")
+def test_missing_library_says_how_to_install(capsys, tmp_path):
+    assert main(["run", "--backend", "cupy", "--device", "cuda", "--size", "8",
+                 "--out", str(tmp_path / "r")]) == 2
+    assert not (tmp_path / "r").exists()
+    err = capsys.readouterr().err.strip()
+    assert "--backend cupy" in err and "pip install" in err and "\n" not in err
+
+
+def test_backends_listed():
+    assert BACKENDS[0] == "numpy"
+
+
+# -- kernels --------------------------------------------------------------------------------
+
+
+def _rand(shape, seed=0):
+    return np.random.default_rng(seed).standard_normal(shape).astype(np.float32)
+
+
+def test_gradient_matches_numpy_and_its_adjoint(be):
+    xp = be.xp
+    ny, nx, k = 5, 7, 3
+    tv = TVProx(xp, (ny, nx), be=be)
+    z = _rand((ny, nx, k))
+    g0, g1 = tv.gradient(be.asarray(z))
+    ref = Gradient2D((ny, nx), dtype=np.float32).matvec(z.reshape(ny * nx, k))
+    ref = ref.reshape(2, ny, nx, k)
+    np.testing.assert_allclose(be.to_numpy(g0), ref[0], atol=1e-6)
+    np.testing.assert_allclose(be.to_numpy(g1), ref[1], atol=1e-6)
+    # adjoint: <G z, p> = <z, G^T p> = -<z, neg_div(p)> (p with zero edges, as the duals)
+    p = _rand((2, ny, nx, k), seed=1)
+    p[0, -1] = 0
+    p[1, :, -1] = 0
+    nd = be.to_numpy(tv.neg_div(be.asarray(p[0]), be.asarray(p[1])))
+    lhs = float(np.sum(ref[0] * p[0]) + np.sum(ref[1] * p[1]))
+    assert lhs == pytest.approx(-float(np.sum(z * nd)), rel=1e-5)
+
+
+def test_dense_operator_adjoint(be):
+    a, x, y = _rand((6, 9)), _rand((9, 2), 1), _rand((6, 2), 2)
+    op = DenseOperator(be.asarray(a))
+    ax = be.to_numpy(op.matvec(be.asarray(x)))
+    aty = be.to_numpy(op.rmatvec(be.asarray(y)))
+    assert float(np.sum(ax * y)) == pytest.approx(float(np.sum(x * aty)), rel=1e-5)
+
+
+def test_centred_matrix_matches_qcr(be):
+    from spslidar.qcr import centred_patterns
+
+    phi = np.abs(_rand((70, 12)))
+    got = be.to_numpy(centred_matrix(be.xp, be.asarray(phi), np.sqrt(70), be.xp.float32))
+    np.testing.assert_allclose(got, centred_patterns(phi, np.sqrt(70)), rtol=0, atol=1e-7)
+
+
+def test_tv_prox_matches_numpy_over_warm_started_calls(be):
+    shape, k = (8, 6), 4
+    ref = TV(shape, nonneg=True, max_inner=3)
+    tv = TVProx(be.xp, shape, nonneg=True, max_inner=3, be=be)
+    for call in range(4):
+        v = _rand((48, k), seed=call)
+        np.testing.assert_allclose(be.to_numpy(tv.prox(be.asarray(v), 0.3)), ref.prox(v, 0.3),
+                                   rtol=0, atol=2e-5)
+    x = np.abs(_rand((48, k), 9))
+    np.testing.assert_allclose(be.to_numpy(tv.values(be.asarray(x))), ref.values(x), rtol=1e-5)
+
+
+def test_power_norm_matches_numpy(be):
+    from spslidar.operators.base import power_norm as np_power_norm
+
+    a = _rand((40, 30))
+    got = power_norm(be, DenseOperator(be.asarray(a)))
+    assert got == pytest.approx(np_power_norm(MatrixOperator(a, dtype=np.float32)), rel=1e-5)
+
+
+def test_fista_tv_matches_numpy_fista(be):
+    """The same problem: the same iterates to float32 round-off, the same stop."""
+    rng = np.random.default_rng(3)
+    shape, k = (8, 8), 5
+    a = (rng.standard_normal((40, 64)) / np.sqrt(40)).astype(np.float32)
+    x_true = np.zeros((64, k), np.float32)
+    x_true[10:30] = 1.0
+    y = (a @ x_true + 0.01 * rng.standard_normal((40, k))).astype(np.float32)
+    stop = StopRule(max_iter=60, rtol=1e-4)
+    ref, info = FISTA(stop=stop).solve(MatrixOperator(a, dtype=np.float32), y,
+                                       TV(shape, nonneg=True, max_inner=3), 0.05)
+    got, ginfo = fista_tv(be, DenseOperator(be.asarray(a)), be.asarray(y),
+                          TVProx(be.xp, shape, nonneg=True, max_inner=3, be=be), 0.05, 60, 1e-4)
+    got = be.to_numpy(got)
+    assert ginfo.iterations == info.iterations and ginfo.stop_reason == info.stop_reason
+    assert np.linalg.norm(got - ref) <= 1e-4 * np.linalg.norm(ref)
+    assert ginfo.objective[-1] == pytest.approx(info.objective[-1], rel=1e-4)
+
+
+@needs_torch
+@pytest.mark.parametrize("max_inner, inner_tol", [(3, 1e-3), (4, 0.3)])
+def test_branch_free_graph_step_matches_numpy_fista(max_inner, inner_tol):
+    """The CUDA-graph iteration of torch_graph, run eagerly on the CPU: NumPy's iterates
+    (a loose inner tolerance makes the prox stop early, exercising the selection)."""
+    import torch
+
+    from spslidar.backends.torch_graph import fista_tv_graphed
+
+    be = get_backend("torch", "cpu")
+    rng = np.random.default_rng(4)
+    shape, k = (8, 8), 5
+    a = (rng.standard_normal((40, 64)) / np.sqrt(40)).astype(np.float32)
+    x_true = np.zeros((64, k), np.float32)
+    x_true[10:30] = 1.0
+    y = (a @ x_true + 0.01 * rng.standard_normal((40, k))).astype(np.float32)
+    reg = TV(shape, nonneg=True, max_inner=max_inner, inner_tol=inner_tol)
+    ref, info = FISTA(stop=StopRule(max_iter=60, rtol=1e-4)).solve(
+        MatrixOperator(a, dtype=np.float32), y, reg, 0.05)
+    with torch.no_grad():
+        got, ginfo = fista_tv_graphed(
+            be, DenseOperator(be.asarray(a)), be.asarray(y),
+            TVProx(be.xp, shape, nonneg=True, max_inner=max_inner, inner_tol=inner_tol, be=be),
+            0.05, 60, 1e-4, graph=False)
+    got = be.to_numpy(got)
+    assert ginfo.iterations == info.iterations and ginfo.stop_reason == info.stop_reason
+    assert np.linalg.norm(got - ref) <= 1e-4 * np.linalg.norm(ref)
+    assert ginfo.objective[-1] == pytest.approx(info.objective[-1], rel=1e-4)
+
+
+# -- whole runs -----------------------------------------------------------------------------
+
+
+def test_strict_run_gives_the_numpy_depth_map():
+    """Shared random streams: the same patterns and counts, so the same depth map."""
+    r0 = run(**SMALL)
+    r1 = run(**SMALL, backend="array-api-strict")
+    np.testing.assert_array_equal(r1.corr, r0.corr)
+    np.testing.assert_allclose(r1.slices, r0.slices, rtol=0, atol=1e-4)
+    np.testing.assert_array_equal(r1.depth, r0.depth)
+    assert r1.metrics["depth_rmse_m"] == r0.metrics["depth_rmse_m"]
+    assert r1.metrics["config"]["backend"] == "array-api-strict"
+    assert r1.metrics["solver_info"]["iterations"] == r0.metrics["solver_info"]["iterations"]
+
+
+def test_strict_run_reconstructs_again_with_other_processing():
+    meas = measure(**SMALL, backend="array-api-strict")
+    a = reconstruct(meas)
+    b = reconstruct(meas, lam_scale=2.0, subbin=True)
+    assert b.metrics["lam"] == pytest.approx(2.0 / a.metrics["lam_scale"] * a.metrics["lam"])
+    assert np.isfinite(b.metrics["depth_rmse_m"])
+    with pytest.raises(ConfigError, match="cannot change"):
+        reconstruct(meas, noise=3.0)
+
+
+def test_strict_run_auto_gate_matches_numpy():
+    kw = {**SMALL, "auto_gate": True}
+    r0, r1 = run(**kw), run(**kw, backend="array-api-strict")
+    assert r1.metrics["n_slices_solved"] == r0.metrics["n_slices_solved"]
+    np.testing.assert_array_equal(r1.depth, r0.depth)
+
+
+@needs_torch
+def test_torch_cpu_runs_are_reproducible_and_as_good_as_numpy():
+    """Own random streams: reproducible with itself; the same RMSE statistics as NumPy."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        a = run(**SMALL, backend="torch", seed=1)
+        b = run(**SMALL, backend="torch", seed=1)
+        np.testing.assert_array_equal(a.depth, b.depth)
+        rmse_t = [run(**SMALL, backend="torch", seed=s).depth_rmse for s in range(4)]
+    finally:
+        torch.set_num_threads(threads)
+    rmse_n = [run(**SMALL, seed=s).depth_rmse for s in range(4)]
+    assert abs(np.mean(rmse_t) - np.mean(rmse_n)) <= 0.25 * np.mean(rmse_n) + 0.01
+
+
+@needs_torch
+def test_cli_runs_on_torch(tmp_path, capsys):
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        out = tmp_path / "r"
+        assert main(["run", "--size", "16", "--code-length", "1023", "--backend", "torch",
+                     "--out", str(out)]) == 0
+    finally:
+        torch.set_num_threads(threads)
+    assert (out / "depth.npy").is_file()
+    assert "fista" in capsys.readouterr().out
+
+
+def _has_hadamard() -> bool:
+    from spslidar.patterns import PATTERNS
+
+    return "hadamard" in PATTERNS.names()
+
+
+@pytest.mark.skipif(not _has_hadamard(), reason="no hadamard pattern kind")
+@pytest.mark.parametrize("kind", ["hadamard", "scrambled-hadamard"])
+def test_device_hadamard_matches_the_host_operator(be, kind):
+    from spslidar.backends.patterns import DeviceHadamard
+    from spslidar.patterns import build_patterns
+
+    host = build_patterns(kind, 40, 8, np.random.default_rng(1))
+    dev = DeviceHadamard(host, be)
+    x, y = _rand((64, 3), 2), _rand((40, 3), 3)
+    np.testing.assert_allclose(be.to_numpy(dev.apply(be.asarray(x))), host.matvec(x),
+                               rtol=0, atol=1e-4)
+    np.testing.assert_allclose(be.to_numpy(dev.apply_t(be.asarray(y))), host.rmatvec(y),
+                               rtol=0, atol=1e-4)
+    c = dev.centred(np.sqrt(40), be.xp.float32)
+    lhs = float(np.sum(be.to_numpy(c.matvec(be.asarray(x))) * y))
+    rhs = float(np.sum(x * be.to_numpy(c.rmatvec(be.asarray(y)))))
+    assert lhs == pytest.approx(rhs, rel=1e-4)
+
+
+@pytest.mark.skipif(not _has_hadamard(), reason="no hadamard pattern kind")
+def test_strict_hadamard_run_gives_the_numpy_depth_map():
+    kw = {**SMALL, "patterns": "hadamard"}
+    r0, r1 = run(**kw), run(**kw, backend="array-api-strict")
+    np.testing.assert_array_equal(r1.corr, r0.corr)
+    np.testing.assert_array_equal(r1.depth, r0.depth)
