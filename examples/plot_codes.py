@@ -31,7 +31,7 @@ print(f"unambiguous range at 10 Gbit/s: {unambiguous_range(T, 10e9):.2f} m")
 # larger side lobes, which spread a bright return's energy over other depths.
 fig, axes = plt.subplots(1, 3, figsize=(11, 3), sharey=True, layout="constrained")
 lags = np.arange(T)
-for ax, (name, c) in zip(axes, codes.items()):
+for ax, (name, c) in zip(axes, codes.items(), strict=True):
     r = periodic_xcorr(c, c)
     ax.plot(lags, r, lw=0.8)
     side = np.abs(r[1:]).max()

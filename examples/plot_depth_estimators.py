@@ -26,20 +26,22 @@ for name, r in results.items():
 # %%
 # Depth maps and errors
 # ---------------------
-# Pixels without ground truth are masked (white) in the error row.
+# Pixels without ground truth are grey in the truth and in the error row.
 truth = results["argmax"].truth
 valid = np.asarray(meas.scene.valid, bool)
 lo, hi = np.nanmin(truth[valid]), np.nanmax(truth[valid])
+depth_cmap = plt.get_cmap("viridis").with_extremes(bad="0.6")
+error_cmap = plt.get_cmap("RdBu_r").with_extremes(bad="0.6")
 fig, axes = plt.subplots(2, 4, figsize=(12, 6), layout="constrained")
-axes[0, 0].imshow(np.where(valid, truth, np.nan), vmin=lo, vmax=hi)
+axes[0, 0].imshow(np.where(valid, truth, np.nan), cmap=depth_cmap, vmin=lo, vmax=hi)
 axes[0, 0].set_title("truth")
 axes[1, 0].imshow(valid, cmap="gray")
-axes[1, 0].set_title("pixels with ground truth")
+axes[1, 0].set_title("with ground truth (white)")
 for col, (name, r) in enumerate(results.items(), start=1):
-    im = axes[0, col].imshow(r.depth, vmin=lo, vmax=hi)
+    im = axes[0, col].imshow(r.depth, cmap=depth_cmap, vmin=lo, vmax=hi)
     axes[0, col].set_title(f"{name}, RMSE {r.depth_rmse:.3f} m")
     err = np.where(valid, r.depth - truth, np.nan)
-    ie = axes[1, col].imshow(err, cmap="RdBu_r", vmin=-0.5, vmax=0.5)
+    ie = axes[1, col].imshow(err, cmap=error_cmap, vmin=-0.5, vmax=0.5)
     axes[1, col].set_title(f"{name} error")
 for ax in axes.flat:
     ax.set_axis_off()
@@ -52,7 +54,7 @@ fig.colorbar(ie, ax=axes[1], label="error [m]", shrink=0.8)
 # Each estimator also returns a per-pixel confidence in [0, 1]; the run summary counts the
 # low-confidence pixels.
 fig, axes = plt.subplots(1, 3, figsize=(10, 3), layout="constrained")
-for ax, (name, r) in zip(axes, results.items()):
+for ax, (name, r) in zip(axes, results.items(), strict=True):
     im = ax.imshow(r.confidence, vmin=0, vmax=1, cmap="cividis")
     ax.set_title(f"{name}: {100 * r.low_confidence.mean():.0f}% low-confidence")
     ax.set_axis_off()

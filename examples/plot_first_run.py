@@ -39,7 +39,7 @@ err = depth - truth
 e = np.nanpercentile(np.abs(err), 99)
 
 fig, axes = plt.subplots(1, 3, figsize=(10, 3.2), layout="constrained")
-for ax, img, title in zip(axes[:2], (truth, depth), ("truth", "estimate")):
+for ax, img, title in zip(axes[:2], (truth, depth), ("truth", "estimate"), strict=True):
     im = ax.imshow(img, cmap="viridis", vmin=lo, vmax=hi)
     ax.set_title(title)
 fig.colorbar(im, ax=axes[:2], label="depth [m]", shrink=0.85)

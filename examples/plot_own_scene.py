@@ -57,7 +57,7 @@ axes[0].imshow(depth, vmin=lo, vmax=hi)
 axes[0].set_title("your depth array")
 axes[1].imshow(scene.reflectivity, cmap="gray", vmin=0, vmax=1)
 axes[1].set_title("reflectivity (.npz)")
-for ax, (name, r) in zip(axes[2:], runs.items()):
+for ax, (name, r) in zip(axes[2:], runs.items(), strict=True):
     im = ax.imshow(r.depth, vmin=lo, vmax=hi)
     ax.set_title(f"{name}\nRMSE {r.depth_rmse:.3f} m")
 for ax in axes:

@@ -27,10 +27,13 @@ for name, r in (("QCR", with_qcr), ("no QCR", without)):
 # %%
 # What QCR removes
 # ----------------
-# The raw matched-filter outputs (left) are dominated by their mean over the patterns; once
-# centred, the covariance of each pixel's pattern values with the outputs (right, at the
-# delay of the strongest return) is already a blurred image of the scene: the quantity QCR
-# reconstructs from.
+# The raw matched-filter outputs (left) are dominated by their mean over the patterns: bright
+# columns at the delays of the scene's surfaces. Centred over the patterns (middle) only the
+# pattern-dependent part is left. The covariance ``Delta`` (right, at the delay with the
+# largest covariance) is a back-projection of it onto the pixels: with 256 patterns for 1024
+# pixels the centred patterns are far from orthogonal (``H = Phi_c^T Phi_c / M`` of eq. 17 is
+# not the identity), so ``Delta`` alone is no image; QCR solves ``H X = Delta`` for all delays
+# with a TV prior.
 corr = with_qcr.corr
 delta = qcr_delta(meas.patterns, corr)
 k = int(np.argmax(np.abs(delta).sum(axis=0)))
@@ -60,7 +63,7 @@ lo, hi = np.nanmin(with_qcr.truth), np.nanmax(with_qcr.truth)
 panels = [(with_qcr.truth, "truth"),
           (with_qcr.depth, f"QCR, RMSE {with_qcr.depth_rmse:.3f} m"),
           (without.depth, f"no QCR, RMSE {without.depth_rmse:.3f} m")]
-for ax, (img, title) in zip(axes, panels):
+for ax, (img, title) in zip(axes, panels, strict=True):
     im = ax.imshow(img, vmin=lo, vmax=hi)
     ax.set_title(title)
     ax.set_axis_off()

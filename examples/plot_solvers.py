@@ -27,7 +27,7 @@ lo, hi = np.nanmin(truth), np.nanmax(truth)
 fig, axes = plt.subplots(1, 5, figsize=(13, 2.9), layout="constrained")
 axes[0].imshow(truth, vmin=lo, vmax=hi)
 axes[0].set_title("truth")
-for ax, (s, r) in zip(axes[1:], results.items()):
+for ax, (s, r) in zip(axes[1:], results.items(), strict=True):
     im = ax.imshow(r.depth, vmin=lo, vmax=hi)
     ax.set_title(f"{s}\n{r.depth_rmse:.3f} m")
 for ax in axes:
