@@ -210,7 +210,36 @@ def _module_page(name: str) -> str:
         text += ("\n" + _underline("Re-exported names", "-") + "\n"
                  f"Importable from ``{name}``; each is documented in its own module.\n\n"
                  + "\n".join(f"* {link}" for link in links) + "\n")
+    used = _example_names(name)
+    if used:  # the gallery examples that use this module's objects (sphinx-gallery backrefs)
+        text += ("\n.. minigallery::\n   :add-heading: Examples using this module\n\n"
+                 + "\n".join(f"   {u}" for u in used) + "\n")
     return text
+
+
+def _example_names(name: str) -> list[str]:
+    """Every name under which the gallery's backreferences may record this module's public
+    objects: ``module.obj`` and ``package.obj`` for each package above it that re-exports it
+    (sphinx-gallery records the shortest public path, e.g. ``spslidar.run``)."""
+    import importlib
+
+    module = importlib.import_module(name)
+    public = getattr(module, "__all__", None) or [a for a in vars(module) if a[0] != "_"]
+    parts = name.split(".")
+    parents = [importlib.import_module(".".join(parts[:i])) for i in range(1, len(parts))]
+    names = []
+    for attr in public:
+        obj = getattr(module, attr, None)
+        if getattr(obj, "__module__", None) != name:
+            continue
+        names.append(f"{name}.{attr}")
+        for pkg in parents:
+            try:
+                if getattr(pkg, attr, None) is obj:
+                    names.append(f"{pkg.__name__}.{attr}")
+            except Exception:  # noqa: BLE001 - a lazy export that fails to import
+                pass
+    return names
 
 
 def _reexports(name: str) -> list[str]:
