@@ -45,7 +45,7 @@ import numpy as np
 import spslidar
 from spslidar.config import Config
 from spslidar.constants import SPEED_OF_LIGHT
-from spslidar.pipeline import DEFAULT_ITERATIONS
+from spslidar.pipeline.chain import solver_default
 
 STAGES = ("scene", "setup", "simulate", "qcr", "solve", "depth", "metrics")
 
@@ -255,7 +255,7 @@ def default_config() -> dict:
     dict
     """
     c = Config().to_dict()
-    c["iterations"] = DEFAULT_ITERATIONS[c["solver"]]
+    c["iterations"] = solver_default(c["solver"], "iterations")
     return c
 
 

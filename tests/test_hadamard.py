@@ -261,12 +261,14 @@ def _peak_bytes(**cfg):
 
 
 def test_hadamard_chain_memory_grows_with_the_cube_not_m_times_q():
-    # the implicit chain's peak is a few (Q, K) blocks (K ~ 60 slices) whatever M is; an
-    # (M, Q) float32 matrix alone would grow by 4 x 4096 x (1638 -> 4096) B = 40 MB here
+    # the implicit chain's peak is a few (Q, K) blocks (K ~ 60 slices) plus O(M K) outputs; an
+    # (M, Q) float32 matrix alone would grow by 4 x 4096 x (1638 -> 4096) B = 40 MB here (the
+    # Gaussian chain's traced peak grows by ~125 MB, the Hadamard one's by ~5 MB)
     cfg = dict(size=64, patterns="hadamard", code_length=1023, iterations=3)
+    _peak_bytes(compression=0.1, **cfg)  # one-time allocations (scene, code caches)
     low, _ = _peak_bytes(compression=0.4, **cfg)
     high, (m, q) = _peak_bytes(compression=1.0, **cfg)
-    assert high - low < 0.1 * (m - round(0.4 * q)) * q * 4, (low / 1e6, high / 1e6)
+    assert high - low < 0.25 * (m - round(0.4 * q)) * q * 4, (low / 1e6, high / 1e6)
 
 
 @pytest.mark.parametrize("quick", [True, False])

@@ -18,7 +18,9 @@ from spslidar.operators import (
     power_norm,
 )
 from spslidar.operators.base import LinearOperator
+from spslidar.operators.hadamard import WalshHadamard
 from spslidar.patterns import CentredPatterns, DensePatterns, PatternOperator
+from spslidar.patterns.hadamard import hadamard_patterns
 from spslidar.qcr import CovarianceOperator, qcr_problem
 
 
@@ -59,8 +61,6 @@ OPERATORS = {
     "implicit-patterns-centred": lambda: _Implicit(_phi()).centred(3.0, np.float64),
     "qcr-plain": lambda: __import__("spslidar.qcr").qcr.plain_problem(
         _phi(), np.zeros((30, 1)), np.float64)[0],
-}
-
     "mean-eliminated": lambda: __import__("spslidar.qcr").qcr.MeanEliminated(
         DensePatterns(_phi())),
     "walsh-hadamard": lambda: WalshHadamard(32),
@@ -75,6 +75,8 @@ OPERATORS = {
     "hadamard-centred": lambda: hadamard_patterns(
         "scrambled-hadamard", 20, 8, np.random.default_rng(0), dtype=np.float64).centred(
         3.0, np.float64),
+}
+
 
 def _all_operator_classes():
     for mod in pkgutil.walk_packages(spslidar.__path__, "spslidar."):

@@ -11,10 +11,11 @@ OpenMP/CUDA backends: here it had to be compiled from source and its install did
 90 s, so it was not adopted), ``fht``/``ffht-unofficial`` (unmaintained since 2017/2023) and the
 PyTorch/CUDA packages would add a compiled or heavy dependency for a loop of additions. The
 version here is vectorised NumPy: radix-4 butterflies (two radix-2 stages fused: half the
-passes over memory of the textbook radix-2 loop) applied to blocks of columns small enough to
-stay in cache (~4 MB). Measured on a loaded 2-core VM, float32, K = 61 columns: Q = 65536 in
-40-70 ms, Q = 262144 in 0.3-0.35 s (the radix-2 loop: 180 ms and 0.8 s; batched matmuls with
-small dense Hadamard blocks: 2-3x slower than radix-2).
+passes over memory of the textbook radix-2 loop), in place, the short-span stages run on
+blocks of rows small enough to stay in cache (~4 MB). Measured interleaved on the loaded
+2-core VM, float32, K = 61 columns: Q = 65536 in 77-130 ms, Q = 262144 in 0.41-0.43 s (plain
+radix-4: 131-155 ms and 0.48-0.63 s; radix-2: ~1.3x and ~2x slower than radix-4; batched
+matmuls with small dense Hadamard blocks: 2-3x slower than radix-2).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from .base import LinearOperator
 
 __all__ = ["WalshHadamard", "fwht", "is_power_of_two"]
 
-#: bytes of a column block transformed at once (kept in cache over the log2(Q) stages)
+#: bytes of a block of rows transformed at once (kept in cache over its short-span stages)
 _CHUNK_BYTES = 4 << 20
 
 
@@ -36,11 +37,11 @@ def is_power_of_two(n: int) -> bool:
     return n > 0 and n & (n - 1) == 0
 
 
-def _fwht_inplace(a: np.ndarray) -> None:
-    """Unnormalised FWHT along axis 0 of a C-contiguous ``(Q, k)`` array, in place."""
+def _stages(a: np.ndarray, h: int, stop: int) -> int:
+    """Butterfly stages of span ``h, 4h, ...`` below ``stop`` on a C-contiguous ``(q, k)``
+    array, in place; returns the next span."""
     q, k = a.shape
-    h = 1
-    while 4 * h <= q:
+    while 4 * h <= stop:
         v = a.reshape(q // (4 * h), 4, h * k)
         x0, x1, x2, x3 = v[:, 0], v[:, 1], v[:, 2], v[:, 3]
         s01 = x0 + x1
@@ -52,12 +53,34 @@ def _fwht_inplace(a: np.ndarray) -> None:
         np.subtract(s01, s23, out=x2)
         np.subtract(d01, d23, out=x3)
         h *= 4
-    if h < q:  # one radix-2 stage left when log2(Q) is odd
+    if 2 * h <= stop and stop == q:  # one radix-2 stage left when log2(Q) is odd
         v = a.reshape(q // (2 * h), 2, h * k)
         x, y = v[:, 0], v[:, 1]
         t = x - y
         x += y
         y[...] = t
+        h *= 2
+    return h
+
+
+def _fwht_inplace(a: np.ndarray) -> None:
+    """Unnormalised FWHT along axis 0 of a C-contiguous ``(Q, k)`` array, in place.
+
+    The stages of span below ``R`` rows act within contiguous blocks of ``R`` rows: they run
+    block by block while the block stays in cache (``R k`` elements of ~4 MB); the few stages
+    of larger span then pass over the whole array.
+    """
+    q, k = a.shape
+    r = 1
+    while r < q and 4 * r * k * a.itemsize <= _CHUNK_BYTES:
+        r *= 4
+    h = 1
+    if 1 < r < q:
+        for b in range(0, q, r):
+            _stages(a[b:b + r], 1, r)
+        h = r
+    if h < q:
+        _stages(a, h, q)
 
 
 def fwht(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -96,16 +119,9 @@ def fwht(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         if out.shape != x.shape or not out.flags.c_contiguous:
             raise ValueError("fwht: out must be C-contiguous with the shape of x")
         res = out.reshape(q, k)
-    kc = max(1, _CHUNK_BYTES // (q * x.itemsize))
-    if kc >= k:
-        if res is not x2:
-            np.copyto(res, x2)
-        _fwht_inplace(res)
-    else:
-        for c in range(0, k, kc):
-            blk = x2[:, c:c + kc].copy()  # C-contiguous, never a view of x
-            _fwht_inplace(blk)
-            res[:, c:c + kc] = blk
+    if res is not x2:
+        np.copyto(res, x2)
+    _fwht_inplace(res)
     return res[:, 0] if vec else res.reshape(x.shape)
 
 

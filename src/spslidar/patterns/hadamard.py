@@ -40,11 +40,13 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
+from ..operators.base import LinearOperator
 from ..operators.hadamard import fwht, is_power_of_two
 from . import HADAMARD_ORDERS, HADAMARD_REALISATIONS
 from .base import PatternOperator
 
-__all__ = ["HadamardPatterns", "hadamard_order", "hadamard_patterns", "walsh_sequency"]
+__all__ = ["CentredHadamard", "HadamardPatterns", "hadamard_order", "hadamard_patterns",
+           "walsh_sequency"]
 
 MODES = ("shifted", "bipolar", "pairs")
 
@@ -237,6 +239,14 @@ class HadamardPatterns(PatternOperator):
             self._rows_cache = cache
         return cache[1][rows]
 
+    def centred(self, norm: float = 1.0, dtype=np.float32) -> LinearOperator:
+        """``(Phi - 1 mu^T) / norm`` (eq. 11), fused into one transform per product in the
+        working precision (:class:`CentredHadamard`); the frames of differential pairs use the
+        generic form."""
+        if self.mode == "pairs":
+            return super().centred(norm, dtype)
+        return CentredHadamard(self, norm, dtype)
+
     def as_dtype(self, dtype) -> HadamardPatterns:
         if np.dtype(dtype) == self.dtype:
             return self
@@ -284,6 +294,45 @@ class HadamardPatterns(PatternOperator):
             out[key] = v[0::2] + v[1::2]
         nb = np.asarray(sim["noise_per_bin"], dtype=np.float64)
         out["noise_per_bin"] = 0.5 * (nb[0::2] + nb[1::2])  # each frame lasts half the time
+        return out
+
+
+class CentredHadamard(LinearOperator):
+    """The centred QCR operator of ``shifted`` or ``bipolar`` Hadamard patterns.
+
+    ``(Phi - 1 mu^T) / norm = c (h - 1 hbar^T)`` with ``hbar = (1/M) h^T 1`` the mean of the
+    +-1 rows and ``c = 1/(2 norm)`` for ``(1 + h)/2`` (the DMD's DC half drops out exactly,
+    eq. 11-17) or ``1/norm`` for ``h``. One FWHT and a rank-one correction per product, all in
+    ``dtype`` (the generic :class:`~spslidar.patterns.base.CentredPatterns` passes through
+    float64 copies of the ``(Q, K)`` block).
+
+    Parameters
+    ----------
+    phi : HadamardPatterns
+        In ``shifted`` or ``bipolar`` mode.
+    norm : float
+    dtype : numpy dtype
+    """
+
+    def __init__(self, phi: HadamardPatterns, norm: float = 1.0, dtype=np.float32):
+        super().__init__(phi.shape, dtype)
+        self.h = HadamardPatterns(phi.n_side, phi.rows, phi.signs, phi.perm, "bipolar", dtype,
+                                  phi.kind)
+        self.scale = (0.5 if phi.mode == "shifted" else 1.0) / float(norm)
+        self.hbar = self.h.mean_pattern().astype(dtype)
+
+    def _matvec(self, x):
+        x = np.asarray(x, dtype=self.dtype)
+        out = self.h._h(x)
+        out -= (self.hbar @ x)[None, :]
+        out *= self.dtype.type(self.scale)
+        return out
+
+    def _rmatvec(self, y):
+        y = np.asarray(y, dtype=self.dtype)
+        out = self.h._ht(y)
+        out -= self.hbar[:, None] * y.sum(axis=0, dtype=self.dtype)[None, :]
+        out *= self.dtype.type(self.scale)
         return out
 
 
