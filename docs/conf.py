@@ -223,7 +223,10 @@ def _example_names(name: str) -> list[str]:
     (sphinx-gallery records the shortest public path, e.g. ``spslidar.run``)."""
     import importlib
 
-    module = importlib.import_module(name)
+    try:
+        module = importlib.import_module(name)
+    except Exception:  # noqa: BLE001 - autodoc reports the failed import as a warning
+        return []
     public = getattr(module, "__all__", None) or [a for a in vars(module) if a[0] != "_"]
     parts = name.split(".")
     parents = [importlib.import_module(".".join(parts[:i])) for i in range(1, len(parts))]
@@ -250,7 +253,10 @@ def _reexports(name: str) -> list[str]:
     import importlib
     import inspect
 
-    module = importlib.import_module(name)
+    try:
+        module = importlib.import_module(name)
+    except Exception:  # noqa: BLE001 - autodoc reports the failed import as a warning
+        return []
     entries = []
     for attr in getattr(module, "__all__", ()):
         try:
