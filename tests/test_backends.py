@@ -284,3 +284,13 @@ def test_strict_hadamard_run_gives_the_numpy_depth_map():
     r0, r1 = run(**kw), run(**kw, backend="array-api-strict")
     np.testing.assert_array_equal(r1.corr, r0.corr)
     np.testing.assert_array_equal(r1.depth, r0.depth)
+
+
+def test_sweep_passes_the_backend_through(tmp_path, capsys):
+    toml = tmp_path / "s.toml"
+    toml.write_text('seed = 1\ntrials = 1\n[base]\nsize = 16\ncode_length = 1023\n'
+                    'backend = "array-api-strict"\n[grid]\nnoise = [1, 10]\n')
+    assert main(["sweep", str(toml), "--out", str(tmp_path / "res"), "--no-progress"]) == 0
+    text = (tmp_path / "res" / "results.csv").read_text()
+    assert "array-api-strict" in text and "Error" not in text
+    assert "2 ok" in capsys.readouterr().err

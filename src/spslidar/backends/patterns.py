@@ -35,6 +35,12 @@ class DevicePatterns:
         self.shape = tuple(matrix.shape)
         self.dtype = matrix.dtype
 
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the matrix (on the device)."""
+        itemsize = 4 if self.dtype == self.backend.xp.float32 else 8
+        return int(self.shape[0] * self.shape[1] * itemsize)
+
     def rows_apply(self, a: int, e: int, w: Any) -> Any:
         """``Phi[a:e] @ w`` in float64 (``w`` float64, shape ``(Q, S)``)."""
         xp = self.backend.xp
@@ -95,6 +101,11 @@ class DeviceHadamard:
         self._h = {}
         self.dtype = xp.float32
         self._dev = dev
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the index and sign tables (on the device)."""
+        return int(8 * (self.shape[0] + 3 * self.shape[1]))
 
     def _hmat(self, dtype: Any) -> Any:
         key = str(dtype)
