@@ -644,3 +644,44 @@ def test_run_point_runs_the_real_pipeline():
     metrics = run_point({"size": 16, "seed": derive_seed(0, {"size": 16}), "trial": 0})
     assert np.isfinite(metrics["depth_rmse_m"]) and metrics["depth_rmse_m"] >= 0
     json.dumps(metrics)  # cacheable as is
+
+
+# ---------------------------------------------------------------------------------------------
+# Files follow the umask (tempfile.mkstemp alone would make them 0600)
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o077, 0o002])
+def test_written_files_follow_the_umask(tmp_path, umask):
+    import stat
+
+    old = os.umask(umask)
+    try:
+        rows = run_sweep(toy, expand_grid({"x": 1}, {}, 1), tmp_path, progress=False)
+        csv_path = write_csv(rows, tmp_path / "results.csv")
+        text_path = tmp_path / "note.txt"
+        sweep.atomic_write_text(text_path, "a\r\nb\n")
+        bytes_path = tmp_path / "blob.bin"
+        sweep.atomic_write_bytes(bytes_path, b"\x00\x01")
+    finally:
+        os.umask(old)
+    expected = 0o666 & ~umask
+    for path in [csv_path, text_path, bytes_path, *(tmp_path / "runs").iterdir()]:
+        assert stat.S_IMODE(path.stat().st_mode) == expected, path.name
+    assert text_path.read_bytes() == b"a\r\nb\n"  # written as given, no newline translation
+    assert bytes_path.read_bytes() == b"\x00\x01"
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
+
+
+def test_atomic_write_leaves_nothing_on_failure(tmp_path, monkeypatch):
+    target = tmp_path / "kept.txt"
+    sweep.atomic_write_text(target, "old")
+
+    def broken(src, dst):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", broken)
+    with pytest.raises(OSError, match="disk full"):
+        sweep.atomic_write_text(target, "new")
+    assert target.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["kept.txt"]

@@ -1,0 +1,426 @@
+"""Running sweep points: the executors (in-process, joblib, Dask), :func:`run_sweep` and the
+``spslidar sweep`` entry point.
+
+:func:`run_sweep` seeds every point (:func:`~spslidar.experiments.sweep.grid.derive_seed`),
+loads the points already cached, runs the others through one executor and caches each as it
+finishes (:mod:`spslidar.experiments.sweep.store`). :func:`run_point` is the one adapter from a
+sweep point to the pipeline's flat metrics; :func:`sweep_main` runs a TOML sweep and writes its
+table.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import sys
+import time
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from spslidar.errors import ConfigError
+from spslidar.experiments.sweep.grid import (
+    ERROR_KEY,
+    KEY_LENGTH,
+    SEED_KEY,
+    TRIAL_KEY,
+    canonical,
+    canonical_json,
+    check_int,
+    derive_seed,
+    load_sweep_config,
+    one_line,
+    sha256_hex,
+)
+from spslidar.experiments.sweep.store import load_cached, store_run, write_csv
+
+__all__ = ["run_point", "run_sweep", "sweep_main"]
+
+# --------------------------------------------------------------------------------------------
+# Running the points
+# --------------------------------------------------------------------------------------------
+
+
+def _error_message(exc: BaseException) -> str:
+    message = one_line(str(exc))
+    name = type(exc).__name__
+    text = f"{name}: {message}" if message else name
+    return text if len(text) <= 500 else text[:497] + "..."
+
+
+def _call(func: Callable[[dict[str, Any]], Any], params: dict[str, Any]) -> tuple[str, Any, float]:
+    """Run one point, catching its exception: ``("ok", result, s)`` or ``("error", message, s)``.
+
+    Top-level so that joblib and Dask can pickle it.
+    """
+    start = time.perf_counter()
+    try:
+        result = func(params)
+    except Exception as exc:
+        return "error", _error_message(exc), time.perf_counter() - start
+    return "ok", result, time.perf_counter() - start
+
+
+def _normalize_result(result: Any) -> dict[str, Any]:
+    """Round-trip a point's result through JSON, so fresh and cached rows are identical."""
+    if not isinstance(result, Mapping):
+        raise TypeError(f"func returned {type(result).__name__}, expected a dict")
+    try:
+        text = json.dumps(canonical(result, "result"), allow_nan=True)
+    except ConfigError as exc:
+        raise TypeError(str(exc)) from None
+    return json.loads(text)
+
+
+def _run_local(
+    func: Callable[[dict[str, Any]], Any], tasks: list[tuple[int, dict[str, Any]]], jobs: int
+) -> Iterator[tuple[int, tuple[str, Any, float]]]:
+    """Yield ``(task index, outcome)`` as tasks finish, in-process or in a joblib pool."""
+    if jobs == 1 or len(tasks) == 1:
+        for index, params in tasks:
+            yield index, _call(func, params)
+        return
+
+    from joblib import Parallel, delayed
+
+    def calls(chunk: list[tuple[int, dict[str, Any]]]) -> Iterator[Any]:
+        return (delayed(_call_indexed)(func, index, params) for index, params in chunk)
+
+    try:
+        parallel = Parallel(n_jobs=jobs, return_as="generator_unordered")
+    except (TypeError, ValueError):  # joblib < 1.4: run in batches, caching after each
+        parallel = Parallel(n_jobs=jobs)
+        batch = 4 * max(1, parallel.n_jobs if parallel.n_jobs > 0 else os.cpu_count() or 1)
+        for start in range(0, len(tasks), batch):
+            yield from parallel(calls(tasks[start : start + batch]))
+        return
+    outputs = parallel(calls(tasks))
+    try:
+        yield from outputs
+    finally:
+        close = getattr(outputs, "close", None)
+        if close is not None:
+            close()
+
+
+def _call_indexed(
+    func: Callable[[dict[str, Any]], Any], index: int, params: dict[str, Any]
+) -> tuple[int, tuple[str, Any, float]]:
+    return index, _call(func, params)
+
+
+def _dask_client(scheduler: Any) -> tuple[Any, bool]:
+    """Return ``(client, owned)`` for a scheduler address, Client or cluster object."""
+    try:
+        import distributed
+    except ImportError:
+        raise ConfigError(
+            "scheduler= needs dask.distributed, which is not installed: install spslidar[dask]"
+        ) from None
+    if isinstance(scheduler, distributed.Client):
+        return scheduler, False
+    if isinstance(scheduler, str):
+        if not scheduler.strip():
+            raise ConfigError("scheduler must be an address like 'tcp://HOST:PORT', got ''")
+        try:
+            return distributed.Client(scheduler), True
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise ConfigError(
+                f"cannot connect to dask scheduler {scheduler}: {_error_message(exc)}"
+            ) from None
+    if isinstance(scheduler, distributed.deploy.Cluster):
+        return distributed.Client(scheduler), True
+    raise ConfigError(
+        "scheduler must be an address like 'tcp://HOST:PORT', a distributed.Client or a cluster, "
+        f"got {type(scheduler).__name__}"
+    )
+
+
+def _run_dask(
+    func: Callable[[dict[str, Any]], Any], tasks: list[tuple[int, dict[str, Any]]], scheduler: Any
+) -> Iterator[tuple[int, tuple[str, Any, float]]]:
+    """Yield ``(task index, outcome)`` as tasks finish on a Dask cluster."""
+    client, owned = _dask_client(scheduler)
+    import distributed
+
+    futures = {}
+    try:
+        for index, params in tasks:
+            futures[client.submit(_call, func, params, pure=False)] = index
+        for future in distributed.as_completed(list(futures)):
+            index = futures[future]
+            try:
+                outcome = future.result()
+            except Exception as exc:  # worker died, lost data...: a failed point
+                outcome = ("error", _error_message(exc), math.nan)
+            yield index, outcome
+    finally:
+        pending = [f for f in futures if not f.done()]
+        if pending:
+            client.cancel(pending)
+        if owned:
+            client.close()
+
+
+def _check_jobs(jobs: Any) -> int:
+    jobs = check_int(jobs, "jobs")
+    if jobs == 0:
+        raise ConfigError("jobs must be >= 1 or negative (-1: all cores), got 0")
+    return jobs
+
+
+def run_sweep(
+    func: Callable[[dict[str, Any]], Mapping[str, Any]],
+    points: Iterable[Mapping[str, Any]],
+    out_dir: str | os.PathLike[str],
+    *,
+    seed: int = 0,
+    jobs: int = 1,
+    scheduler: Any = None,
+    progress: bool = True,
+    seed_ignore: Iterable[str] = (),
+) -> list[dict[str, Any]]:
+    """Run ``func`` on every point, caching each finished point, and return one row per point.
+
+    Each point's params get a ``seed`` key, ``derive_seed(seed, point)`` of the point without
+    its ``seed_ignore`` keys, unless the point already has one. A point whose result is cached
+    in ``out_dir/runs/<key>.json`` (for the same params) is loaded, not recomputed; every other
+    point is run and, on success, cached at once (atomically), so an interrupted sweep resumes
+    where it stopped. A point whose ``func``
+    raises becomes a row with an ``error`` column (``"Type: message"``) and is not cached.
+
+    Parameters
+    ----------
+    func : Callable[[dict], Mapping]
+        A pure function of the params returning a dict of JSON-like results (numpy scalars and
+        arrays are converted). Must be picklable for ``jobs != 1`` or ``scheduler``.
+    points : Iterable[Mapping[str, Any]]
+        The points, e.g. from :func:`expand_grid`; values must be JSON-like.
+    out_dir : str or os.PathLike
+        Output folder (created if missing); runs are cached in ``out_dir/runs``.
+    seed : int, default 0
+        The sweep seed.
+    jobs : int, default 1
+        Local worker processes (joblib ``n_jobs``: ``-1`` for all cores); ``1`` runs
+        in-process with no pool. Ignored when ``scheduler`` is given.
+    scheduler : str, distributed.Client or cluster, optional
+        Run on a Dask cluster instead: a scheduler address (``'tcp://HOST:PORT'``), a
+        ``distributed.Client``, or a cluster object such as ``distributed.LocalCluster``.
+        ``func`` must be importable on the workers.
+    progress : bool, default True
+        Show a tqdm progress bar on stderr (only when stderr is a terminal).
+    seed_ignore : Iterable[str], optional
+        Parameters left out of the seed: points that differ only in them get the same seed,
+        i.e. the same random draws (a paired comparison; e.g. solvers or regularisation
+        weights on the same simulated measurement). They still have their own cache keys.
+
+    Returns
+    -------
+    list[dict[str, Any]]
+        One row per point, in the order of ``points``: the params (with ``seed``) merged with
+        the results (a result key equal to a param name overrides it), or with ``error``.
+
+    Raises
+    ------
+    ConfigError
+        On invalid arguments, non-JSON-like params, an out_dir that is not a folder, or a
+        missing dask installation when ``scheduler`` is given.
+    """
+    seed = check_int(seed, "seed")
+    jobs = _check_jobs(jobs)
+    out_dir = Path(out_dir)
+    if isinstance(seed_ignore, str):
+        raise ConfigError("seed_ignore must be a collection of parameter names, not a string")
+    ignore = frozenset(seed_ignore)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ConfigError(f"out_dir is not a folder: {out_dir}")
+    runs_dir = out_dir / "runs"
+    runs_dir.mkdir(parents=True, exist_ok=True)
+
+    full_params: list[dict[str, Any]] = []
+    keys: list[str] = []
+    params_json: dict[str, str] = {}
+    for i, point in enumerate(points):
+        if not isinstance(point, Mapping):
+            raise ConfigError(f"point {i} must be a dict, got {type(point).__name__}")
+        params = dict(point)
+        canonical(params, f"point {i}")  # validate first, for a clear message
+        if SEED_KEY not in params:
+            seeded = {k: v for k, v in params.items() if k not in ignore}
+            params[SEED_KEY] = derive_seed(seed, seeded)
+        text = canonical_json(params, f"point {i}")
+        key = sha256_hex(text)[:KEY_LENGTH]
+        full_params.append(params)
+        keys.append(key)
+        params_json.setdefault(key, text)
+
+    results: dict[str, dict[str, Any]] = {}
+    errors: dict[str, str] = {}
+    tasks: list[tuple[int, dict[str, Any]]] = []
+    task_keys: list[str] = []
+    seen: set[str] = set()
+    for i, key in enumerate(keys):
+        if key in seen:
+            continue
+        seen.add(key)
+        cached = load_cached(runs_dir / f"{key}.json", params_json[key])
+        if cached is not None:
+            results[key] = cached
+        else:
+            tasks.append((len(tasks), full_params[i]))
+            task_keys.append(key)
+
+    n_unique = len(results) + len(tasks)
+    from tqdm import tqdm
+
+    bar = tqdm(
+        total=n_unique,
+        initial=len(results),
+        desc="sweep",
+        unit="run",
+        disable=None if progress else True,
+        file=sys.stderr,
+    )
+    try:
+        if tasks:
+            if scheduler is not None:
+                outcomes = _run_dask(func, tasks, scheduler)
+            else:
+                outcomes = _run_local(func, tasks, jobs)
+            for index, (status, payload, elapsed) in outcomes:
+                key = task_keys[index]
+                if status == "ok":
+                    try:
+                        result = _normalize_result(payload)
+                    except TypeError as exc:
+                        status, payload = "error", _error_message(exc)
+                    else:
+                        results[key] = result
+                        stored_params = json.loads(params_json[key])
+                        store_run(runs_dir / f"{key}.json", key, stored_params, result, elapsed)
+                if status != "ok":
+                    errors[key] = str(payload)
+                    bar.set_postfix(failed=len(errors), refresh=False)
+                bar.update(1)
+    finally:
+        bar.close()
+
+    rows = []
+    for params, key in zip(full_params, keys, strict=True):
+        if key in results:
+            rows.append({**params, **copy.deepcopy(results[key])})
+        else:
+            rows.append({**params, ERROR_KEY: errors[key]})
+    return rows
+
+
+
+# --------------------------------------------------------------------------------------------
+# Pipeline entry points
+# --------------------------------------------------------------------------------------------
+
+
+def run_point(params: dict[str, Any]) -> dict[str, Any]:
+    """Run the pipeline on one sweep point and return its flat metrics.
+
+    The ``trial`` index is dropped (its effect is already in the point's ``seed``); every other
+    key is passed to :func:`spslidar.pipeline.run_metrics` as a run config. Points that differ
+    only in processing keys (solver, weights, QCR...) share their seed (see
+    :func:`sweep_main`) and, in one process, their simulated measurement
+    (:func:`spslidar.pipeline.run_shared`).
+
+    Parameters
+    ----------
+    params : dict[str, Any]
+        A sweep point: run-config keys, ``seed`` and ``trial``.
+
+    Returns
+    -------
+    dict[str, Any]
+        The metrics (e.g. ``depth_rmse_m``).
+    """
+    from spslidar.pipeline import run_metrics
+
+    config = {key: value for key, value in params.items() if key != TRIAL_KEY}
+    return run_metrics(config)
+
+
+def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any) -> None:
+    """Check every point's run config before anything runs: a bad grid is bad input (one
+    ConfigError naming the file), not a sweep of failed runs."""
+    from spslidar.config import Config
+
+    for params in points:
+        config = {key: value for key, value in params.items() if key != TRIAL_KEY}
+        try:
+            Config.from_dict(config).validate()
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+
+
+def sweep_main(
+    config_path: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str],
+    jobs: int = 1,
+    scheduler: Any = None,
+    progress: bool = True,
+    *,
+    func: Callable[[dict[str, Any]], Mapping[str, Any]] | None = None,
+) -> int:
+    """Run the sweep of a TOML config and write ``out_dir/results.csv``.
+
+    Parameters
+    ----------
+    config_path : str or os.PathLike
+        The sweep TOML file (see :func:`load_sweep_config`).
+    out_dir : str or os.PathLike
+        Output folder: ``runs/`` (cache, filled as points finish) and ``results.csv``
+        (written atomically once every point has been attempted).
+    jobs : int, default 1
+        Local worker processes (see :func:`run_sweep`).
+    scheduler : str, distributed.Client or cluster, optional
+        Dask scheduler (see :func:`run_sweep`).
+    progress : bool, default True
+        Show a progress bar on stderr.
+    func : Callable, optional
+        The function of a point; default :func:`run_point`.
+
+    Returns
+    -------
+    int
+        The number of failed points (0 when all succeeded). A one-line summary, and the first
+        few errors, are printed on stderr.
+    """
+    spec = load_sweep_config(config_path)
+    points = spec.points()
+    ignore: frozenset[str] = frozenset()
+    if func is None:
+        from spslidar.pipeline import PROCESSING_KEYS
+
+        _validate_run_points(points, config_path)
+        ignore = PROCESSING_KEYS
+    rows = run_sweep(
+        run_point if func is None else func,
+        points,
+        out_dir,
+        seed=spec.seed,
+        jobs=jobs,
+        scheduler=scheduler,
+        progress=progress,
+        seed_ignore=ignore,
+    )
+    csv_path = write_csv(rows, Path(out_dir) / "results.csv")
+    failed = [row for row in rows if ERROR_KEY in row]
+    print(
+        f"sweep: {len(rows)} runs, {len(rows) - len(failed)} ok, {len(failed)} failed; "
+        f"results in {csv_path}",
+        file=sys.stderr,
+    )
+    for row in failed[:3]:
+        where = ", ".join(f"{name}={row.get(name)!r}" for name in [*spec.grid, TRIAL_KEY])
+        print(f"sweep: failed ({where}): {row[ERROR_KEY]}", file=sys.stderr)
+    if len(failed) > 3:
+        print(f"sweep: ... and {len(failed) - 3} more failures (see results.csv)", file=sys.stderr)
+    return len(failed)

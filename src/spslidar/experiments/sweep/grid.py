@@ -1,0 +1,364 @@
+"""Sweep points: canonical parameters, seeds, cache keys, grids and TOML sweep definitions.
+
+Everything here is pure bookkeeping (no run is started): :func:`expand_grid` turns a grid into
+points in a deterministic order, :func:`derive_seed` gives a point its seed from the sweep
+seed and its parameters, :func:`point_key` names its cache file, and
+:func:`load_sweep_config` reads and validates a TOML sweep (``seed``, ``trials``, ``[base]``,
+``[grid]``). The canonical JSON written here is what both the seeds and the cache keys hash,
+so it must not change (a change would silently re-seed every published sweep).
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+import os
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spslidar.errors import ConfigError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised only on Python 3.10
+    import tomli as tomllib
+
+__all__ = [
+    "ERROR_KEY",
+    "KEY_LENGTH",
+    "SEED_BOUND",
+    "SEED_KEY",
+    "TRIAL_KEY",
+    "SweepSpec",
+    "canonical",
+    "canonical_json",
+    "derive_seed",
+    "expand_grid",
+    "load_sweep_config",
+    "point_key",
+]
+
+#: Parameter added to every point by :func:`expand_grid` (the Monte-Carlo trial index).
+TRIAL_KEY = "trial"
+#: Parameter holding a point's random seed (set by :func:`run_sweep` unless the point has one).
+SEED_KEY = "seed"
+#: Column holding the one-line error of a failed point.
+ERROR_KEY = "error"
+#: Seeds from :func:`derive_seed` lie in ``[0, SEED_BOUND)`` (valid for every numpy RNG API).
+SEED_BOUND = 2**32
+#: Length (hex digits) of the cache key of a point.
+KEY_LENGTH = 16
+
+_TOP_LEVEL_KEYS = ("seed", "trials", "base", "grid")
+
+
+# --------------------------------------------------------------------------------------------
+# Canonical JSON and seeds
+# --------------------------------------------------------------------------------------------
+
+
+def canonical(obj: Any, where: str = "params") -> Any:
+    """Return a JSON-ready copy of ``obj`` (numpy scalars/arrays and tuples become plain values).
+
+    Parameters
+    ----------
+    obj : Any
+        A JSON-like value: dict with string keys, list/tuple, str, int, float, bool, None,
+        numpy scalar or array, or an ``os.PathLike`` (stored as a string).
+    where : str
+        Dotted location of ``obj``, for error messages.
+
+    Returns
+    -------
+    Any
+        The same value built only from dict, list, str, int, float, bool and None.
+
+    Raises
+    ------
+    ConfigError
+        If ``obj`` holds a value of another type or a dict key that is not a string.
+    """
+    if obj is None or isinstance(obj, (bool, str)):
+        return obj
+    if isinstance(obj, int):
+        return int(obj)
+    if isinstance(obj, float):
+        return float(obj)
+    if isinstance(obj, np.generic):
+        return canonical(obj.item(), where)
+    if isinstance(obj, np.ndarray):
+        return canonical(obj.tolist(), where)
+    if isinstance(obj, Mapping):
+        out = {}
+        for key, value in obj.items():
+            if not isinstance(key, str):
+                raise ConfigError(f"{where}: key {key!r} is not a string")
+            out[key] = canonical(value, f"{where}.{key}")
+        return out
+    if isinstance(obj, (list, tuple)):
+        return [canonical(value, f"{where}[{i}]") for i, value in enumerate(obj)]
+    if isinstance(obj, os.PathLike):
+        return os.fspath(obj)
+    raise ConfigError(
+        f"{where} has unsupported type {type(obj).__name__} (use JSON-like values: "
+        "numbers, strings, booleans, lists, dicts)"
+    )
+
+
+def canonical_json(obj: Any, where: str = "params") -> str:
+    """Serialize ``obj`` as canonical JSON: sorted keys, no spaces, floats as shortest repr."""
+    return json.dumps(
+        canonical(obj, where),
+        sort_keys=True,
+        separators=(",", ":"),
+        ensure_ascii=True,
+        allow_nan=True,
+    )
+
+
+def sha256_hex(text: str) -> str:
+    """Hex sha256 of an ASCII text (the canonical JSON of :func:`canonical_json`)."""
+    return hashlib.sha256(text.encode("ascii")).hexdigest()
+
+
+def check_int(value: Any, name: str) -> int:
+    """``value`` as an int (numpy integers accepted, bools refused), or ConfigError."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ConfigError(f"{name} must be an integer, got {value!r}")
+    return int(value)
+
+
+def derive_seed(seed: int, params: Mapping[str, Any]) -> int:
+    """Derive the random seed of one sweep point from the sweep seed and its parameters.
+
+    The seed is a stable hash (sha256 of the canonical JSON of ``{"seed": seed, "params":
+    params}``, keys sorted, floats written as their shortest round-trip ``repr``): it is the
+    same on every machine, in every process and whatever the order of the dict keys, and it
+    changes with any parameter (``trial`` included), so results do not depend on scheduling.
+    ``1`` and ``1.0`` are different values here.
+
+    Parameters
+    ----------
+    seed : int
+        The sweep seed.
+    params : Mapping[str, Any]
+        The point's parameters (JSON-like values; numpy scalars/arrays are accepted).
+
+    Returns
+    -------
+    int
+        A seed in ``[0, 2**32)``, valid for ``numpy.random.default_rng`` and ``RandomState``.
+
+    Raises
+    ------
+    ConfigError
+        If ``seed`` is not an integer or ``params`` holds a non-JSON-like value.
+    """
+    seed = check_int(seed, "seed")
+    if not isinstance(params, Mapping):
+        raise ConfigError(f"params must be a dict, got {type(params).__name__}")
+    digest = sha256_hex(canonical_json({"seed": seed, "params": canonical(params, "params")}))
+    return int(digest[:16], 16) % SEED_BOUND
+
+
+def point_key(params: Mapping[str, Any]) -> str:
+    """Return the cache key of a point: the first 16 hex digits of the sha256 of its params.
+
+    Parameters
+    ----------
+    params : Mapping[str, Any]
+        The point's full parameters (seed included).
+
+    Returns
+    -------
+    str
+        The key; the point is cached in ``out_dir/runs/<key>.json``.
+    """
+    return sha256_hex(canonical_json(params))[:KEY_LENGTH]
+
+
+# --------------------------------------------------------------------------------------------
+# Grids and TOML sweep configurations
+# --------------------------------------------------------------------------------------------
+
+
+def _check_grid(grid: Mapping[str, Any], where: str = "grid") -> None:
+    if not isinstance(grid, Mapping):
+        raise ConfigError(f"{where} must be a table of lists, got {type(grid).__name__}")
+    for name, values in grid.items():
+        if not isinstance(name, str):
+            raise ConfigError(f"{where}: key {name!r} is not a string")
+        if name == TRIAL_KEY:
+            raise ConfigError(f"{where}.{TRIAL_KEY} is reserved; set the number of trials instead")
+        if not isinstance(values, (list, tuple)) or len(values) == 0:
+            raise ConfigError(f"{where}.{name} must be a non-empty list of values, got {values!r}")
+
+
+def expand_grid(
+    base: Mapping[str, Any], grid: Mapping[str, Sequence[Any]], trials: int = 1
+) -> list[dict[str, Any]]:
+    """Expand a parameter grid into sweep points (cartesian product x trials).
+
+    Points come in a deterministic order: the grid keys in their insertion order, the first key
+    varying slowest, and the trials of one combination adjacent (``trial`` varies fastest).
+
+    Parameters
+    ----------
+    base : Mapping[str, Any]
+        Parameters shared by every point (deep-copied into each one).
+    grid : Mapping[str, Sequence[Any]]
+        For each swept parameter, the non-empty list of its values; overrides ``base``.
+    trials : int, default 1
+        Monte-Carlo trials per grid combination; each point gets ``trial`` in
+        ``0 .. trials - 1``.
+
+    Returns
+    -------
+    list[dict[str, Any]]
+        ``trials * prod(len(values))`` points; an empty grid gives ``trials`` copies of ``base``.
+
+    Raises
+    ------
+    ConfigError
+        If a grid value is not a non-empty list, ``trials < 1``, or ``trial`` is set in
+        ``base`` or ``grid``.
+    """
+    if not isinstance(base, Mapping):
+        raise ConfigError(f"base must be a table, got {type(base).__name__}")
+    if TRIAL_KEY in base:
+        raise ConfigError(f"base.{TRIAL_KEY} is reserved; set the number of trials instead")
+    _check_grid(grid)
+    trials = check_int(trials, "trials")
+    if trials < 1:
+        raise ConfigError(f"trials must be >= 1, got {trials}")
+    names = list(grid)
+    points = []
+    for combo in itertools.product(*(grid[name] for name in names)):
+        for trial in range(trials):
+            point = copy.deepcopy(dict(base))
+            point.update(copy.deepcopy(dict(zip(names, combo, strict=True))))
+            point[TRIAL_KEY] = trial
+            points.append(point)
+    return points
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A sweep read from a TOML file by :func:`load_sweep_config`.
+
+    Attributes
+    ----------
+    seed : int
+        The sweep seed (point seeds are derived from it, see :func:`derive_seed`).
+    trials : int
+        Monte-Carlo trials per grid combination.
+    base : dict[str, Any]
+        Parameters shared by every point.
+    grid : dict[str, list[Any]]
+        Swept parameters and their values.
+    path : Path or None
+        The file it was read from.
+    """
+
+    seed: int = 0
+    trials: int = 1
+    base: dict[str, Any] = field(default_factory=dict)
+    grid: dict[str, list[Any]] = field(default_factory=dict)
+    path: Path | None = None
+
+    def points(self) -> list[dict[str, Any]]:
+        """Return the sweep points, ``expand_grid(base, grid, trials)``.
+
+        Returns
+        -------
+        list[dict[str, Any]]
+            The points, in the deterministic order of :func:`expand_grid`.
+        """
+        return expand_grid(self.base, self.grid, self.trials)
+
+
+def one_line(text: str) -> str:
+    """``text`` with every run of whitespace (newlines included) made one space."""
+    return " ".join(str(text).split())
+
+
+def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
+    """Read a sweep configuration from a TOML file.
+
+    The file has optional top-level ``seed`` (int, default 0) and ``trials`` (int >= 1,
+    default 1), a ``[base]`` table of shared run-config keys, and a ``[grid]`` table whose every
+    value is a non-empty list. ``seed`` inside ``[grid]`` sets explicit point seeds;
+    ``seed`` inside ``[base]`` is refused when ``trials > 1`` (every trial would be identical).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The TOML file.
+
+    Returns
+    -------
+    SweepSpec
+        The validated sweep.
+
+    Raises
+    ------
+    ConfigError
+        If the file is missing or unreadable, is not valid TOML (the message names the file and
+        line), has unknown top-level keys or tables, or holds invalid values.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"sweep config not found: {path}") from None
+    except IsADirectoryError:
+        raise ConfigError(f"sweep config is a directory, not a file: {path}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read sweep config {path}: {one_line(exc)}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: invalid TOML: {one_line(exc)}") from None
+
+    unknown = [key for key in data if key not in _TOP_LEVEL_KEYS]
+    if unknown:
+        kinds = ["table" if isinstance(data[key], dict) else "key" for key in unknown]
+        listed = ", ".join(f"{kind} '{key}'" for kind, key in zip(kinds, unknown, strict=True))
+        raise ConfigError(
+            f"{path}: unknown top-level {listed} (allowed: seed, trials, [base], [grid])"
+        )
+    seed = check_int(data.get("seed", 0), f"{path}: seed")
+    trials = check_int(data.get("trials", 1), f"{path}: trials")
+    if trials < 1:
+        raise ConfigError(f"{path}: trials must be >= 1, got {trials}")
+    base = data.get("base", {})
+    if not isinstance(base, dict):
+        raise ConfigError(f"{path}: base must be a table ([base]), got {base!r}")
+    grid = data.get("grid", {})
+    if not isinstance(grid, dict):
+        raise ConfigError(f"{path}: grid must be a table ([grid]), got {grid!r}")
+    try:
+        _check_grid(grid)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+    if TRIAL_KEY in base:
+        raise ConfigError(f"{path}: base.{TRIAL_KEY} is reserved; set trials instead")
+    if SEED_KEY in base and trials > 1 and SEED_KEY not in grid:
+        raise ConfigError(
+            f"{path}: base.seed gives every trial the same noise; set the top-level seed instead"
+        )
+    return SweepSpec(
+        seed=seed,
+        trials=trials,
+        base=base,
+        grid={name: list(values) for name, values in grid.items()},
+        path=path,
+    )
+

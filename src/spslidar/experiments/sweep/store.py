@@ -1,0 +1,188 @@
+"""What a sweep writes: atomic files, the run cache records and the tidy CSV table.
+
+Every file of a sweep or a reproduction report goes through :func:`atomic_write_text` or
+:func:`atomic_write_bytes` (temporary file in the same folder, fsync, ``os.replace``), so an
+interrupted run never leaves a half-written file, and the files get the permissions of the
+user's umask like every other output of spslidar (:func:`spslidar.outdir.umask_mode`;
+``tempfile.mkstemp`` alone would leave them ``0600``).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import tempfile
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from spslidar.errors import ConfigError
+from spslidar.experiments.sweep.grid import ERROR_KEY, canonical, canonical_json
+from spslidar.outdir import umask_mode
+
+__all__ = [
+    "CACHE_FORMAT",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "load_cached",
+    "store_run",
+    "write_csv",
+]
+
+#: Version of the cache record format (``runs/<key>.json``).
+CACHE_FORMAT = 1
+
+
+# --------------------------------------------------------------------------------------------
+# Atomic files and the run cache
+# --------------------------------------------------------------------------------------------
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically, with the umask's permissions.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file; its folder must exist. An existing file is replaced.
+    data : bytes
+        The whole content.
+
+    Notes
+    -----
+    The data go to a temporary file in the same folder (so ``os.replace`` is atomic), which is
+    flushed to disk before it replaces ``path``; on any error (KeyboardInterrupt included) the
+    temporary file is removed and ``path`` is untouched. The file's mode is ``0o666`` less the
+    process's umask (``0o644`` under umask 022), as for a file opened with ``open(path, 'w')``.
+    """
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, umask_mode(0o666))
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` (UTF-8, newlines as given) to ``path`` atomically.
+
+    See :func:`atomic_write_bytes` (same folder, fsync, ``os.replace``, umask permissions).
+    """
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def load_cached(path: Path, params_json: str) -> dict[str, Any] | None:
+    """Return the cached result at ``path`` if it exists and was computed for these params."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            record = json.load(fh)
+    except (OSError, ValueError):
+        return None
+    if not isinstance(record, dict) or not isinstance(record.get("result"), dict):
+        return None
+    try:
+        if canonical_json(record.get("params")) != params_json:
+            return None
+    except ConfigError:
+        return None
+    return record["result"]
+
+
+def store_run(path: Path, key: str, params: Any, result: dict[str, Any], elapsed: float) -> None:
+    """Cache one finished point at ``path`` (``runs/<key>.json``), atomically."""
+    record = {
+        "format": CACHE_FORMAT,
+        "key": key,
+        "params": params,
+        "result": result,
+        "elapsed_s": round(elapsed, 6),
+    }
+    # keys in insertion order (not sorted): a cached result then gives the same columns, in
+    # the same order, as a fresh one
+    atomic_write_text(path, json.dumps(record, indent=1, allow_nan=True) + "\n")
+
+
+# --------------------------------------------------------------------------------------------
+# Tidy CSV output
+# --------------------------------------------------------------------------------------------
+
+
+def _flatten(row: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in row.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping) and value:
+            items = _flatten(value, f"{name}.")
+        else:
+            items = {name: value}
+        for column, item in items.items():
+            if column in out:
+                raise ConfigError(f"column {column!r} appears twice after flattening nested dicts")
+            out[column] = item
+    return out
+
+
+def _cell(value: Any) -> Any:
+    value = canonical(value, "value")
+    if value is None:
+        return ""
+    if isinstance(value, (list, dict)):
+        return json.dumps(value, allow_nan=True)
+    return value
+
+
+def write_csv(rows: Iterable[Mapping[str, Any]], path: str | os.PathLike[str]) -> Path:
+    """Write sweep rows as a tidy CSV (one row per run, one column per parameter or metric).
+
+    Columns are the union of the rows' keys in first-seen order (``error`` last); nested
+    dicts are flattened as ``a.b``, lists are written as JSON, missing values and None as empty
+    cells. The file is written atomically.
+
+    Parameters
+    ----------
+    rows : Iterable[Mapping[str, Any]]
+        The rows, e.g. from :func:`run_sweep`.
+    path : str or os.PathLike
+        The CSV file; its folder must exist.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    ConfigError
+        If a row is not a dict, a value is not JSON-like, or two keys flatten to one column.
+    """
+    path = Path(path)
+    flat = []
+    for i, row in enumerate(rows):
+        if not isinstance(row, Mapping):
+            raise ConfigError(f"row {i} must be a dict, got {type(row).__name__}")
+        flat.append(_flatten(row))
+    columns: dict[str, None] = {}
+    for row in flat:
+        columns.update(dict.fromkeys(row))
+    if ERROR_KEY in columns:
+        del columns[ERROR_KEY]
+        columns[ERROR_KEY] = None
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(columns), restval="", lineterminator="\n")
+    writer.writeheader()
+    for row in flat:
+        writer.writerow({name: _cell(value) for name, value in row.items()})
+    atomic_write_text(path, buffer.getvalue())
+    return path
+
