@@ -35,6 +35,7 @@ Realisation on a DMD (mirrors 0/1), the ``hadamard_realisation`` key:
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 import numpy as np
@@ -49,6 +50,8 @@ __all__ = ["CentredHadamard", "HadamardPatterns", "hadamard_order", "hadamard_pa
            "walsh_sequency"]
 
 MODES = ("shifted", "bipolar", "pairs")
+#: one transform of the simulation's return weights serves every block of rows
+_ROWS_LOCK = threading.Lock()
 
 
 def walsh_sequency(n: int) -> np.ndarray:
@@ -233,10 +236,11 @@ class HadamardPatterns(PatternOperator):
 
     def apply_rows(self, rows: slice, x: np.ndarray) -> np.ndarray:
         """``Phi[rows] @ x`` in float64; one transform of ``x`` serves all its row blocks."""
-        cache = getattr(self, "_rows_cache", None)
-        if cache is None or cache[0] is not x:
-            cache = (x, self._apply(np.asarray(x, dtype=np.float64)))
-            self._rows_cache = cache
+        with _ROWS_LOCK:  # the simulation's threads ask for their blocks at the same time
+            cache = getattr(self, "_rows_cache", None)
+            if cache is None or cache[0] is not x:
+                cache = (x, self._apply(np.asarray(x, dtype=np.float64)))
+                self._rows_cache = cache
         return cache[1][rows]
 
     def centred(self, norm: float = 1.0, dtype=np.float32) -> LinearOperator:
