@@ -26,6 +26,8 @@ Realisation on a DMD (mirrors 0/1), the ``hadamard_realisation`` key:
   ``(h - mean_i h)/2``. Default because it needs one DMD frame per pattern and, for the shot
   noise of a background-dominated measurement, gives the same signal-to-noise ratio per unit
   time as differential pairs (signal halved, noise variance of one full-length exposure).
+  Measured (camera, 10 %, sequency, defaults): depth RMSE 0.0497 / 0.0406 m shifted against
+  0.0485 / 0.0409 m differential at 128x128 / 256x256, for half the simulation time.
 * ``differential``: two exposures per pattern, ``(1 + h)/2`` and ``(1 - h)/2``, each for half
   the acquisition time (the photon budget split honestly: the same total time per pattern);
   their matched-filter outputs are subtracted (their noise variances added) and the operator
