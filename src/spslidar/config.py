@@ -242,7 +242,6 @@ def read_toml(path: str | Path) -> dict[str, Any]:
     if "run" in data and isinstance(data["run"], dict):
         rest = {k: v for k, v in data.items() if k != "run"}
         data = {**rest, **data["run"]}
-    return data
     return resolve_scene_path(data, p.parent)
 
 

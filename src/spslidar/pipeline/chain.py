@@ -145,11 +145,11 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
 
     t0 = time.perf_counter()
     scene = load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
+    warns.extend(scene.notes)
     timing["scene"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     ss = np.random.SeedSequence(cfg.seed)
-    warns.extend(scene.notes)
     seq_code, seq_pat, seq_counts, seq_probe = ss.spawn(4)
     bin_width = 1.0 / cfg.bit_rate
     gate = cfg.range_gate if cfg.range_gate is not None else default_gate(scene, bin_width)
@@ -237,6 +237,14 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     else:
         A, y = plain_problem(patterns, corr, dtype=dtype)
     sigma_eff = noise_level(A, patterns, sim["sigma"], cfg, np.random.default_rng(meas.probe_seed))
+    reg_kind = (solver_default(cfg.solver, "regulariser") if cfg.regulariser == "auto"
+                else cfg.regulariser)
+    eliminated = None
+    if not cfg.qcr and reg_kind == "tv":
+        # TV ignores a constant per slice: eliminate the patterns' mean direction exactly, so
+        # the plain problem converges within the default budget (MeanEliminated)
+        eliminated, y_plain = MeanEliminated(A), y
+        A, y = eliminated, eliminated.data(y)
     lam_scale = (cfg.lam_scale if cfg.lam_scale is not None
                  else solver_default(cfg.solver, "lam_scale"))
     lam = cfg.lam if cfg.lam is not None else lam_scale * sigma_eff
@@ -251,16 +259,10 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     iterations = cfg.iterations or solver_default(cfg.solver, "iterations")
     stop = StopRule(max_iter=iterations, rtol=cfg.tol)
     x, info = solver_cls(stop=stop).solve(A, y, reg, lam)
+    if eliminated is not None:
+        x = eliminated.recover(x, y_plain)
     timing["solve"] = time.perf_counter() - t0
     if not cfg.qcr and eliminated is None and info.stop_reason == "max_iter":
-    reg_kind = (solver_default(cfg.solver, "regulariser") if cfg.regulariser == "auto"
-                else cfg.regulariser)
-    eliminated = None
-    if not cfg.qcr and reg_kind == "tv":
-        # TV ignores a constant per slice: eliminate the patterns' mean direction exactly, so
-        # the plain problem converges within the default budget (MeanEliminated)
-        eliminated, y_plain = MeanEliminated(A), y
-        A, y = eliminated, eliminated.data(y)
         warns.append(
             f"without QCR the problem is ill-conditioned (the patterns' mean dominates its "
             f"operator) and {cfg.solver} stopped at its cap of {stop.max_iter} iterations: the "
@@ -274,8 +276,6 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     est = ESTIMATORS.load(cfg.depth)().estimate(
         slices, DepthContext(lags, bin_width, cfg.pulse_width, shape, cfg.subbin))
     depth = est.depth.reshape(shape)
-    if eliminated is not None:
-        x = eliminated.recover(x, y_plain)
     timing["depth"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
