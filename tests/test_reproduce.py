@@ -13,6 +13,7 @@ from spslidar.errors import ConfigError
 from spslidar.experiments import reproduce
 from spslidar.experiments.report import Claim, build_report, markdown_to_html, md_table
 from spslidar.experiments.reproduce import EXPERIMENTS, reproduce_main
+from spslidar.experiments.reproduce import context as reproduce_context
 
 
 def _rows(path: Path) -> list[dict[str, str]]:
@@ -37,10 +38,66 @@ def quick_dir(tmp_path_factory) -> Path:
 
 
 def test_experiment_names():
-    assert EXPERIMENTS[:-1] == (
+    assert EXPERIMENTS[:10] == (
         "fig2", "fig3", "fig4", "fig5", "fig6", "fig7", "fig8", "table1", "snr", "ambiguity"
     )  # fmt: skip
     assert EXPERIMENTS[-1] == "all"
+    assert EXPERIMENTS[:-1] == reproduce.EXPERIMENT_REGISTRY.names()  # the CLI's choices
+
+
+def test_registry_is_light_and_complete():
+    """The registry (and the CLI's choices) import no numerics; every entry loads."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from spslidar.experiments.reproduce import EXPERIMENTS; "
+            "from spslidar.experiments.names import EXPERIMENT_NAMES; "
+            "print('numpy' in sys.modules, len(EXPERIMENTS))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.split() == ["False", str(len(EXPERIMENTS))]
+    for entry in reproduce.EXPERIMENT_REGISTRY:
+        assert callable(entry.load()), entry.name
+        assert entry.display and entry.help, entry.name
+
+
+def test_public_names_still_import():
+    from spslidar.experiments.reproduce import (  # noqa: F401
+        ALL,
+        EXPERIMENT_NAMES,
+        PAPER,
+        Context,
+        Stat,
+        base_params,
+        exp_ambiguity,
+        exp_fig2,
+        exp_table1,
+        reproduce_point,
+        snr_point,
+    )
+
+    with pytest.raises(AttributeError):
+        reproduce.no_such_name  # noqa: B018
+
+
+def _exp_toy(ctx):
+    """A one-line-registered experiment: writes a CSV and a section, no runs."""
+    folder = ctx.folder("toy")
+    (folder / "toy.csv").write_text("a\n1\n")
+    text = f"## Toy experiment\n\n{ctx.mode}\n\nData: `toy/toy.csv`.\n"
+    return text, [Claim("toy", "a toy claim", "p", "o", "consistent")]
+
+
+def test_new_experiment_is_one_registry_line(tmp_path, monkeypatch, capsys):
+    reg = reproduce.EXPERIMENT_REGISTRY
+    monkeypatch.setattr(reg, "_entries", dict(reg._entries))  # restored after the test
+    reg.add("toy", f"{__name__}:_exp_toy", "Toy", "a toy experiment", in_all=False)
+    assert reproduce_main("toy", tmp_path, quick=True, progress=False) == 0
+    text = (tmp_path / "report.md").read_text()
+    assert "## Toy experiment" in text and "| toy |" in text
+    assert "toy" not in reproduce.in_all_names()  # in_all=False: not run by 'all'
+    with pytest.raises(ConfigError, match="unknown experiment 'toy2'.*ambiguity, toy, all"):
+        reproduce_main("toy2", tmp_path, quick=True)
 
 
 @pytest.mark.parametrize(
@@ -256,7 +313,7 @@ def _fake_sweep(
 
 def test_full_mode_layouts_with_fake_runs(tmp_path, monkeypatch):
     """Full-mode settings and figure layouts (quick mode covers the other experiments)."""
-    monkeypatch.setattr(reproduce, "run_sweep", _fake_sweep)
+    monkeypatch.setattr(reproduce_context, "run_sweep", _fake_sweep)
     for name in ("fig2", "fig4", "fig6", "table1"):
         assert reproduce_main(name, tmp_path, quick=False, trials=2, progress=False) == 0
         assert list((tmp_path / name).glob("*.csv")), name

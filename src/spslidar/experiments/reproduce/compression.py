@@ -1,0 +1,317 @@
+"""Fig. 2 (depth maps against the compression ratio M/Q) and Fig. 3 (code kinds at m_n = 1)."""
+
+from __future__ import annotations
+
+import math
+
+from spslidar.experiments.report import Claim, md_table
+from spslidar.experiments.reproduce.context import (
+    PAPER,
+    Context,
+    base_params,
+    load_map,
+    run_and_write,
+)
+from spslidar.experiments.reproduce.plotting import (
+    map_panel,
+    new_figure,
+    panel,
+    run_title,
+    save_figure,
+    scene_of,
+    truth_range,
+)
+from spslidar.experiments.reproduce.prose import common_text, section
+from spslidar.experiments.reproduce.stats import (
+    compare,
+    consistent,
+    first_row,
+    floor_note,
+    in_bins,
+    num,
+    pct,
+    safe_ratio,
+    stat,
+)
+from spslidar.experiments.sweep import expand_grid
+
+
+def exp_fig2(ctx: Context) -> tuple[str, list[Claim]]:
+    """Fig. 2: depth maps of the camera scene against the compression ratio M/Q."""
+    name = "fig2"
+    comps = [0.05, 0.25, 0.85] if ctx.quick else [0.05, 0.15, 0.25, 0.45, 0.65, 0.85]
+    points = [
+        p for c in comps for p in expand_grid(base_params(ctx, compression=c), {}, ctx.n_trials())
+    ]
+    rows, csv = run_and_write(ctx, name, points)
+    scene = scene_of(ctx, "camera")
+    lo, hi = truth_range(scene)
+    ncols = 4
+    nrows = math.ceil((len(comps) + 2) / ncols)
+    fig = new_figure(nrows, ncols)
+    axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
+    panel(fig, axes[0], scene.depth, "(a) ground truth", lo, hi)
+    for i, c in enumerate(comps):
+        row = first_row(rows, compression=c)
+        label = f"({chr(98 + i)}) {100 * c:g} % ({row['n_patterns'] if row else '?'} patterns)"
+        map_panel(ctx, fig, axes[i + 1], row, label, lo, hi)
+    ax = axes[len(comps) + 1]
+    rm = [stat(rows, compression=c).mean for c in comps]
+    tm = [stat(rows, "time_total_s", compression=c).mean for c in comps]
+    ax.plot([100 * c for c in comps], rm, "o-", color="C0")
+    ax.set_xlabel("compression M/Q [%]", fontsize=8)
+    ax.set_ylabel("depth RMSE [m]", color="C0", fontsize=8)
+    ax2 = ax.twinx()
+    ax2.plot([100 * c for c in comps], tm, "s--", color="C1")
+    ax2.set_ylabel("time [s]", color="C1", fontsize=8)
+    ax.set_title("RMSE and time vs compression", fontsize=8)
+    for extra in axes[len(comps) + 2 :]:
+        extra.set_visible(False)
+    png = save_figure(
+        ctx,
+        name,
+        fig,
+        f"Fig. 2: camera {ctx.size}x{ctx.size}, PSST m-sequence 16383 bits, m_s=5, m_n=10, "
+        f"QCR, FISTA",
+    )
+
+    table_rows = []
+    for i, c in enumerate(comps):
+        paper_t = "—"
+        if c == 0.05:
+            paper_t = f"{PAPER['fig2_time_s'][0]:g}"
+        elif c == 0.85:
+            paper_t = f"{PAPER['fig2_time_s'][1]:g}"
+        row = first_row(rows, compression=c)
+        table_rows.append(
+            (
+                f"{100 * c:g} %",
+                row["n_patterns"] if row else "—",
+                stat(rows, compression=c).fmt(),
+                pct(stat(rows, "missing_fraction", compression=c).mean),
+                num(tm[i], 1),
+                num(stat(rows, "time_solve_s", compression=c).mean, 1),
+                paper_t,
+            )
+        )
+    table = md_table(
+        (
+            "compression",
+            "patterns M",
+            "RMSE [m]",
+            "missing",
+            "time [s]",
+            "solve [s]",
+            "paper time [s]",
+        ),
+        table_rows,
+    )
+    r_lo, r_hi = rm[0], rm[-1]
+    ups = sum(1 for a, b in zip(rm, rm[1:], strict=False) if b > a * 1.05)
+    quality_ok = math.isfinite(r_lo) and math.isfinite(r_hi) and r_hi < r_lo
+    t_ratio = safe_ratio(tm[-1], tm[0])
+    paper_t_ratio = PAPER["fig2_time_s"][1] / PAPER["fig2_time_s"][0]
+    time_ok = math.isfinite(t_ratio) and t_ratio > 1.0
+    why_time = ""
+    if math.isfinite(t_ratio) and t_ratio < paper_t_ratio / 2:
+        ts = [stat(rows, "time_solve_s", compression=c).mean for c in comps]
+        its = [stat(rows, "iterations", compression=c).mean for c in comps]
+        solve_ratio = safe_ratio(ts[-1], ts[0])
+        if math.isfinite(solve_ratio) and 0.67 <= solve_ratio <= 1.5:
+            why_time = (
+                f" Ours grow less: the solver runs {num(its[0], 0)}-{num(its[-1], 0)} iterations "
+                f"whatever M and its time changes only x{solve_ratio:.1f} from "
+                f"{first_row(rows, compression=comps[0])['n_patterns']} to "
+                f"{first_row(rows, compression=comps[-1])['n_patterns']} patterns, so each "
+                f"iteration's cost is dominated by work that does not scale with M (the "
+                f"regulariser over {ctx.size**2} pixels x range slices), not by the pattern "
+                f"products."
+            )
+        elif t_ratio < 1.0:
+            why_time = (
+                " Here the smaller settings even ran slower, which only timing noise explains "
+                "(runs timed on a shared machine; the first run of a session also pays for "
+                "imports)."
+            )
+    findings = [
+        f"The paper reports better depth maps with more measurements: here the RMSE goes from "
+        f"{num(r_lo)} m at {100 * comps[0]:g} % to {num(r_hi)} m at {100 * comps[-1]:g} %"
+        f"{' and never rises by more than 5 % from one step to the next' if ups == 0 else ''}"
+        f"{f' but rises at {ups} step(s)' if ups else ''}: "
+        f"{consistent(quality_ok)}.{floor_note(r_hi)}",
+        f"The paper's detection plus reconstruction takes {PAPER['fig2_time_s'][0]:g}-"
+        f"{PAPER['fig2_time_s'][1]:g} s (x{paper_t_ratio:.1f} from 5 % to 85 %, MATLAB); here "
+        f"{num(tm[0], 1)}-{num(tm[-1], 1)} s (x{num(t_ratio, 1)}): "
+        f"{'consistent in trend' if time_ok else 'not consistent'}. Absolute times compare "
+        f"different software and machines.{why_time}",
+    ]
+    if 0.25 in comps:
+        r25 = stat(rows, compression=0.25).mean
+        findings.append(
+            f"The paper calls 25 % 'almost acceptable': here 25 % gives {num(r25)} m "
+            f"({in_bins(r25)}) against {num(r_hi)} m at {100 * comps[-1]:g} %."
+        )
+    claims = [
+        Claim(
+            name,
+            "more measurements, better depth",
+            "qualitative (Fig. 2b-g)",
+            f"RMSE {num(r_lo)} -> {num(r_hi)} m",
+            consistent(quality_ok),
+        ),
+        Claim(
+            name,
+            "time grows with compression",
+            "8-78 s",
+            f"{num(tm[0], 1)}-{num(tm[-1], 1)} s",
+            consistent(time_ok),
+        ),
+    ]
+    what = (
+        f"{common_text(ctx)}, PSST m-sequence of 16383 bits (bipolar replica), m_n = 10 (the "
+        f"paper does not give m_n for Fig. 2; this is the default of Fig. 4), QCR, FISTA with "
+        f"default settings; compression M/Q = {', '.join(f'{100 * c:g}' for c in comps)} %; "
+        f"{ctx.n_trials()} trial(s) per setting."
+    )
+    text = section(
+        ctx,
+        "Fig. 2: depth maps against the compression ratio",
+        what,
+        table,
+        findings,
+        rows=rows,
+        figures=[("Fig. 2: ground truth and depth maps against compression", png)],
+        data=[csv],
+    )
+    return text, claims
+
+
+FIG3_CODES = (
+    ("random 0.1", {"code": "random", "code_length": 2048, "ones_ratio": 0.1}),
+    ("random 0.3", {"code": "random", "code_length": 2048, "ones_ratio": 0.3}),
+    ("gold", {"code": "gold", "code_length": 2047}),
+    ("mseq", {"code": "mseq", "code_length": 2047}),
+)
+
+
+def exp_fig3(ctx: Context) -> tuple[str, list[Claim]]:
+    """Fig. 3: Bernoulli codes (R_a = 0.1, 0.3), Gold code and m-sequence at m_n = 1."""
+    name = "fig3"
+    labels = {
+        "random 0.1": "(a) Bernoulli R_a=0.1, 2048 bits",
+        "random 0.3": "(b) Bernoulli R_a=0.3, 2048 bits",
+        "gold": "(c) Gold, 2047 bits",
+        "mseq": "(d) m-sequence, 2047 bits",
+    }
+    points = []
+    for _, kw in FIG3_CODES:
+        points += expand_grid(base_params(ctx, noise=1.0, **kw), {}, ctx.n_trials())
+    rows, csv = run_and_write(ctx, name, points)
+    scene = scene_of(ctx, "camera")
+    lo, hi = truth_range(scene)
+    fig = new_figure(1, 5)
+    axes = fig.subplots(1, 5).ravel()
+    panel(fig, axes[0], scene.depth, "ground truth", lo, hi)
+    sel = {}
+    for i, (key, kw) in enumerate(FIG3_CODES):
+        match = {k: v for k, v in base_params(ctx, noise=1.0, **kw).items() if k in kw}
+        sel[key] = match
+        row = first_row(rows, **match)
+        panel(fig, axes[i + 1], load_map(ctx, row), run_title(row, labels[key]), lo, hi)
+    title = f"Fig. 3: camera {ctx.size}x{ctx.size}, m_s=5, m_n=1, 25 % patterns, QCR, FISTA"
+    png = save_figure(ctx, name, fig, title)
+    st = {k: stat(rows, **sel[k]) for k in sel}
+    miss = {k: stat(rows, "missing_fraction", **sel[k]).mean for k in sel}
+    table = md_table(
+        ("code", "bits", "R_a (share of ones)", "RMSE [m]", "missing", "paper"),
+        [
+            (
+                "Bernoulli",
+                2048,
+                0.1,
+                st["random 0.1"].fmt(),
+                pct(miss["random 0.1"]),
+                "worse than R_a = 0.3",
+            ),
+            (
+                "Bernoulli",
+                2048,
+                0.3,
+                st["random 0.3"].fmt(),
+                pct(miss["random 0.3"]),
+                "better than R_a = 0.1",
+            ),
+            ("Gold", 2047, "~0.5", st["gold"].fmt(), pct(miss["gold"]), "worse than m-sequence"),
+            ("m-sequence", 2047, "~0.5", st["mseq"].fmt(), pct(miss["mseq"]), "better than Gold"),
+        ],
+    )
+    ra_v, ra_why = compare(
+        st["random 0.3"].mean, st["random 0.1"].mean, miss["random 0.3"], miss["random 0.1"]
+    )
+    ms_v, ms_why = compare(st["mseq"].mean, st["gold"].mean, miss["mseq"], miss["gold"])
+    gold_gap = safe_ratio(abs(st["gold"].mean - st["mseq"].mean), st["mseq"].mean)
+    why_ms = ms_why
+    if ms_v == "not consistent":
+        why_ms += (
+            " With the bipolar replica both codes have near-ideal periodic autocorrelation "
+            "(m-sequence sidelobes -1, Gold three-valued and small) and the same share of ones, "
+            "so eq. (10) predicts the same SNR."
+        )
+        n_min = min(st["mseq"].n, st["gold"].n)
+        if n_min > 1:
+            spread = st["mseq"].std + st["gold"].std
+            within = abs(st["gold"].mean - st["mseq"].mean) < spread
+            why_ms += (
+                f" The difference ({num(100 * gold_gap, 0)} % of the m-sequence's RMSE) is "
+                f"{'within' if within else 'larger than'} the trial-to-trial scatter "
+                f"(sum of the two standard deviations {num(spread)} m, {n_min} trials)."
+            )
+        else:
+            why_ms += (
+                f" With one trial per code, the difference ({num(100 * gold_gap, 0)} % of the "
+                f"m-sequence's RMSE) cannot be told from noise (use --trials)."
+            )
+    why_ra = ra_why
+    if ra_v == "not consistent":
+        why_ra += " Eq. (10) predicts the opposite (SNR proportional to R_a T)."
+    findings = [
+        f"The paper reports R_a = 0.3 better than 0.1: here RMSE {st['random 0.3'].fmt()} m vs "
+        f"{st['random 0.1'].fmt()} m (missing {pct(miss['random 0.3'])} vs "
+        f"{pct(miss['random 0.1'])}): {ra_v}.{why_ra}",
+        f"The paper reports the m-sequence better than the Gold code: here RMSE "
+        f"{st['mseq'].fmt()} m vs {st['gold'].fmt()} m: "
+        f"{ms_v}.{why_ms}",
+    ]
+    claims = [
+        Claim(
+            name,
+            "R_a = 0.3 better than 0.1 (m_n = 1)",
+            "qualitative (Fig. 3a, b)",
+            f"{num(st['random 0.3'].mean)} vs {num(st['random 0.1'].mean)} m",
+            ra_v,
+        ),
+        Claim(
+            name,
+            "m-sequence better than Gold",
+            "qualitative (Fig. 3c, d)",
+            f"{num(st['mseq'].mean)} vs {num(st['gold'].mean)} m",
+            ms_v,
+        ),
+    ]
+    what = (
+        f"{common_text(ctx)}, m_n = 1, 25 % patterns, QCR, FISTA; codes: Bernoulli random codes "
+        f"of 2048 bits with R_a = 0.1 and 0.3, a Gold code and an m-sequence of 2047 bits (the "
+        f"paper's 'length 2048': Gold codes and m-sequences exist only for 2^n - 1 bits); "
+        f"PSST with the bipolar replica 2s - 1; {ctx.n_trials()} trial(s) per code."
+    )
+    text = section(
+        ctx,
+        "Fig. 3: code kinds at m_n = 1",
+        what,
+        table,
+        findings,
+        rows=rows,
+        figures=[("Fig. 3: depth maps by code kind", png)],
+        data=[csv],
+    )
+    return text, claims

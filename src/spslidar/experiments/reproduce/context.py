@@ -1,0 +1,427 @@
+"""The reproduction's shared state and runs: :class:`Context`, the canonical run parameters,
+the picklable point functions, and running points through the sweep engine into tidy CSVs.
+
+Every experiment builds its points with :func:`base_params` (so one configuration has one
+cache key whichever experiment asks for it), runs them with :func:`run_points` (cached in
+``DIR/cache/runs``, depth maps in ``DIR/cache/maps``) and writes them with :func:`write_rows`;
+:func:`run_and_write` does both.
+"""
+
+from __future__ import annotations
+
+import functools
+import io
+import json
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spslidar.constants import SPEED_OF_LIGHT
+from spslidar.experiments.sweep import (
+    ERROR_KEY,
+    SEED_KEY,
+    TRIAL_KEY,
+    atomic_write_bytes,
+    atomic_write_text,
+    point_key,
+    run_sweep,
+    write_csv,
+)
+
+__all__ = [
+    "BIN_DEPTH_M",
+    "BIN_WIDTH_S",
+    "CODE_NAMES",
+    "PAPER",
+    "SOLVER_NAMES",
+    "Context",
+    "cached_runs",
+    "base_params",
+    "load_map",
+    "n_cached",
+    "reproduce_point",
+    "run_and_write",
+    "run_points",
+    "snr_point",
+    "write_rows",
+    "write_text",
+]
+
+#: TDC bin width at the default 10 GHz bit rate, and its depth (1.5 cm).
+BIN_WIDTH_S = 1e-10
+BIN_DEPTH_M = SPEED_OF_LIGHT * BIN_WIDTH_S / 2.0
+
+#: The paper's numbers (NOTES.md, "The paper's reported numbers"). RMSE in metres unless noted.
+PAPER: dict[str, Any] = {
+    "fig2_time_s": (8.0, 78.0),  # 5 % and 85 % compression, 64x64, MATLAB
+    "fig4_noqcr_rmse_m": {1023: 0.1, 32767: 0.033},  # printed as 1024 and 32768 bits
+    "fig4_conventional_rmse_m": 0.201,
+    "fig4_qcr_rmse_m": 0.02,  # at 16384 bits
+    "fig6_conventional_rmse_m": 0.176,  # m_n = 10
+    "fig6_noqcr_rmse_m": 0.035,  # m_n = 10
+    "fig6_qcr_rmse_m": (0.005, 0.017),  # m_n = 5 .. 10
+    "fig6_qcr_factor": 10.5,
+    # Table I: MSE as printed ("cm", doubtful unit) and time [s], for m_n = 5 and 10
+    "table1": {
+        "tval3": {5: (0.033, 35.0), 10: (0.011, 57.0)},
+        "gpsr": {5: (0.06, 13.0), 10: (0.018, 24.0)},
+        "fista": {5: (0.042, 16.0), 10: (0.019, 24.0)},
+        "twist": {5: (None, 20.0), 10: (None, 28.0)},  # its MSE: "shown in Fig. 6"
+    },
+}
+
+SOLVER_NAMES = {"fista": "FISTA", "twist": "TwIST", "tval3": "TVAL3", "gpsr": "GPSR"}
+CODE_NAMES = {"mseq": "m-sequence", "gold": "Gold code", "random": "Bernoulli code"}
+
+
+# --------------------------------------------------------------------------------------------
+# Context and run points
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Context:
+    """Where and how one ``reproduce`` invocation runs.
+
+    Attributes
+    ----------
+    out : Path
+        The report folder ``DIR``.
+    quick : bool
+        Smoke-test settings (32x32, fewer and shorter settings, one trial).
+    trials : int or None
+        Monte-Carlo trials per setting; None: the experiment's default (3 for Fig. 4 in full
+        mode, otherwise 1).
+    jobs : int
+        Local worker processes of the sweep engine.
+    scheduler : Any
+        Dask scheduler address or client (None: local).
+    progress : bool
+        Progress bars on stderr.
+    seed : int
+        The sweep seed every run's seed is derived from.
+    failed : int
+        Runs that failed so far (a failed run is a row with an ``error`` column).
+    """
+
+    out: Path
+    quick: bool = False
+    trials: int | None = None
+    jobs: int = 1
+    scheduler: Any = None
+    progress: bool = True
+    seed: int = 0
+    failed: int = 0
+
+    @property
+    def size(self) -> int:
+        """Image side in pixels: 64 (the paper's), 32 in quick mode."""
+        return 32 if self.quick else 64
+
+    @property
+    def cache(self) -> Path:
+        """The shared sweep folder (``runs/`` cache and ``maps/`` depth maps)."""
+        return self.out / "cache"
+
+    @property
+    def maps(self) -> Path:
+        """Folder of the depth maps of every run, ``<key>.npy``."""
+        return self.cache / "maps"
+
+    def n_trials(self, full: int = 1) -> int:
+        """Trials for an experiment whose full-mode default is ``full``."""
+        if self.trials is not None:
+            return self.trials
+        return 1 if self.quick else full
+
+    def folder(self, name: str) -> Path:
+        """``DIR/<name>``, created."""
+        path = self.out / name
+        path.mkdir(parents=True, exist_ok=True)
+        return path
+
+    @property
+    def mode(self) -> str:
+        """One line saying which mode ran."""
+        if self.quick:
+            return (
+                "**Quick mode** (32x32 pixels, fewer and shorter settings, one trial): a smoke "
+                "test whose numbers are not comparable with the paper's 64x64 ones."
+            )
+        return "Full mode (64x64 pixels, the paper's settings)."
+
+
+_FLOAT_KEYS = ("ones_ratio", "compression", "signal", "noise", "rep_rate")
+
+
+def base_params(ctx: Context, **changes: Any) -> dict[str, Any]:
+    """The canonical parameters of a reproduction run, with some changed.
+
+    Every experiment builds its points here, so one configuration has one cache key whichever
+    experiment asks for it (``1`` and ``1.0`` would hash differently: float keys are cast).
+
+    Parameters
+    ----------
+    ctx : Context
+        Gives the image size.
+    **changes
+        Run-config keys to set (see :class:`spslidar.config.Config`).
+
+    Returns
+    -------
+    dict
+        The run's parameters: scene ``camera``, PSST m-sequence of 16383 bits, 25 % Gaussian
+        patterns, ``m_s = 5``, ``m_n = 10``, QCR, FISTA, unless changed.
+    """
+    params: dict[str, Any] = {
+        "scene": "camera",
+        "size": ctx.size,
+        "lidar": "psst",
+        "code": "mseq",
+        "code_length": 16383,
+        "ones_ratio": 0.5,
+        "compression": 0.25,
+        "signal": 5.0,
+        "noise": 10.0,
+        "qcr": True,
+        "solver": "fista",
+    }
+    params.update(changes)
+    for key in _FLOAT_KEYS:
+        if key in params and params[key] is not None:
+            params[key] = float(params[key])
+    return params
+
+
+def reproduce_point(params: dict[str, Any], maps_dir: str | None = None) -> dict[str, Any]:
+    """Run the pipeline on one point, save its depth map, return its metrics.
+
+    Top-level (picklable) so the sweep engine can run it in worker processes or on Dask; bind
+    ``maps_dir`` with :func:`functools.partial`.
+
+    Parameters
+    ----------
+    params : dict
+        Run-config keys plus ``seed`` and ``trial`` (dropped: its effect is in ``seed``).
+    maps_dir : str, optional
+        Folder for the depth map, saved as ``<key>.npy`` (``key`` = the run's cache key,
+        :func:`~spslidar.experiments.sweep.point_key` of ``params``).
+
+    Returns
+    -------
+    dict
+        Depth errors, edge correlation, sizes, timing, iterations, the code description and
+        replica, the median estimated and true depth, and ``map_key``.
+    """
+    from spslidar.pipeline import run_shared
+
+    config = {k: v for k, v in params.items() if k != TRIAL_KEY}
+    result = run_shared(config)
+    m = result.metrics
+    key = point_key(params)
+    if maps_dir is not None:
+        folder = Path(maps_dir)
+        folder.mkdir(parents=True, exist_ok=True)
+        buffer = io.BytesIO()
+        np.save(buffer, result.depth.astype(np.float32))
+        atomic_write_bytes(folder / f"{key}.npy", buffer.getvalue())
+    valid = result.scene.valid
+    est = result.depth[valid]
+    est = est[np.isfinite(est)]
+    return {
+        "depth_rmse_m": m["depth_rmse_m"],
+        "depth_mae_m": m["depth_mae_m"],
+        "depth_bias_m": m["depth_bias_m"],
+        "missing_fraction": m["missing_fraction"],
+        "edge_correlation": m["edge_correlation"],
+        "depth_median_m": float(np.median(est)) if est.size else math.nan,
+        "truth_median_m": float(np.median(result.truth[valid])),
+        "n_patterns": m["n_patterns"],
+        "n_slices": m["n_slices"],
+        "n_slices_solved": m.get("n_slices_solved", m["n_slices"]),
+        "unambiguous_range_m": m["unambiguous_range_m"],
+        "code_description": m["code_description"],
+        "replica": m["replica"],
+        "lam": m["lam"],
+        "iterations": m["solver_info"]["iterations"],
+        "time_total_s": result.timing["total"],
+        "time_simulate_s": result.timing["simulate"],
+        "time_solve_s": result.timing["solve"],
+        "n_warnings": len(result.warnings),
+        "map_key": key,
+    }
+
+
+def snr_point(params: dict[str, Any]) -> dict[str, Any]:
+    """One row of the SNR experiment: eq. (10) against its simulation (top-level, picklable).
+
+    Parameters
+    ----------
+    params : dict
+        ``code``, ``code_length``, ``ones_ratio``, ``signal``, ``noise``, ``size``,
+        ``on_fraction``, ``periods`` (Monte-Carlo code periods), ``method`` and ``seed``.
+
+    Returns
+    -------
+    dict
+        The row of :func:`spslidar.snr.snr_table`.
+    """
+    from spslidar.snr import snr_table
+
+    rows = snr_table(
+        [params["code"]],
+        [params["code_length"]],
+        [params["ones_ratio"]],
+        params["signal"],
+        params["noise"],
+        params["size"],
+        params["on_fraction"],
+        trials=params["periods"],
+        rng=np.random.default_rng(params["seed"]),
+        method=params["method"],
+    )
+    return dict(rows[0])
+
+
+def run_points(
+    ctx: Context,
+    points: Sequence[dict[str, Any]],
+    func: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
+) -> list[dict[str, Any]]:
+    """Run (or load from the cache) the points and count the failed ones in ``ctx.failed``.
+
+    Parameters
+    ----------
+    ctx : Context
+        Where (``ctx.cache``) and how (``jobs``, ``scheduler``, ``progress``, ``seed``) to run.
+    points : sequence of dict
+        The points, e.g. from :func:`~spslidar.experiments.sweep.expand_grid`.
+    func : callable, optional
+        The point function; default :func:`reproduce_point`, whose points that differ only in
+        processing keys share their seed (a paired comparison on one simulated measurement)
+        and whose every successful run must leave its depth map in ``ctx.maps`` (a cached run
+        whose map is gone is run again here). Another function (e.g. :func:`snr_point`) is run
+        as it is, seeded from all its parameters.
+
+    Returns
+    -------
+    list of dict
+        One row per point (see :func:`~spslidar.experiments.sweep.run_sweep`).
+    """
+    if func is not None:
+        rows = run_sweep(func, list(points), ctx.cache, seed=ctx.seed, jobs=ctx.jobs,
+                         scheduler=ctx.scheduler, progress=ctx.progress)
+        ctx.failed += sum(ERROR_KEY in row for row in rows)
+        return rows
+    ctx.maps.mkdir(parents=True, exist_ok=True)
+    from spslidar.pipeline import PROCESSING_KEYS
+
+    func = functools.partial(reproduce_point, maps_dir=str(ctx.maps))
+    points = list(points)
+    # paired comparisons: points that differ only in processing share their measurement
+    rows = run_sweep(
+        func,
+        points,
+        ctx.cache,
+        seed=ctx.seed,
+        jobs=ctx.jobs,
+        scheduler=ctx.scheduler,
+        progress=ctx.progress,
+        seed_ignore=PROCESSING_KEYS,
+    )
+    # A cached run whose map is gone (deleted, or written on a remote worker's disk): run it
+    # again here.
+    missing = [
+        i
+        for i, row in enumerate(rows)
+        if ERROR_KEY not in row and not (ctx.maps / f"{row['map_key']}.npy").is_file()
+    ]
+    if missing:
+        for i in missing:
+            (ctx.cache / "runs" / f"{rows[i]['map_key']}.json").unlink(missing_ok=True)
+        again = run_sweep(
+            func,
+            [points[i] for i in missing],
+            ctx.cache,
+            seed=ctx.seed,
+            progress=ctx.progress,
+            seed_ignore=PROCESSING_KEYS,
+        )
+        for i, row in zip(missing, again, strict=True):
+            rows[i] = row
+    ctx.failed += sum(ERROR_KEY in row for row in rows)
+    return rows
+
+
+def load_map(ctx: Context, row: dict[str, Any] | None) -> np.ndarray | None:
+    """The depth map of a run's row (None for a failed run or a lost map)."""
+    if row is None or ERROR_KEY in row:
+        return None
+    path = ctx.maps / f"{row['map_key']}.npy"
+    return np.load(path) if path.is_file() else None
+
+
+def write_rows(ctx: Context, name: str, rows: Sequence[dict[str, Any]], stem: str = "") -> Path:
+    """``DIR/<name>/<stem or name>.csv``: the rows with an ``experiment`` column first."""
+    path = ctx.folder(name) / f"{stem or name}.csv"
+    return write_csv([{"experiment": name, **row} for row in rows], path)
+
+
+def run_and_write(
+    ctx: Context, name: str, points: Sequence[dict[str, Any]]
+) -> tuple[list[dict[str, Any]], Path]:
+    """Run an experiment's points (:func:`run_points`) and write them as ``DIR/<name>/<name>.csv``.
+
+    Returns
+    -------
+    rows : list of dict
+        One row per point.
+    csv : Path
+        The CSV file.
+    """
+    rows = run_points(ctx, points)
+    return rows, write_rows(ctx, name, rows)
+
+
+def write_text(path: Path, text: str) -> None:
+    """Write a text output (e.g. a Markdown table) atomically."""
+    atomic_write_text(path, text)
+
+
+def cached_runs(ctx: Context, params: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+    """The cached runs of this report folder as rows (params + results).
+
+    Parameters
+    ----------
+    ctx : Context
+        Gives the cache folder.
+    params : dict, optional
+        Only the runs of exactly this configuration (e.g. from :func:`base_params`), whatever
+        their seed and trial; a run with any other key (a range gate, an iteration cap...)
+        is another configuration. Default: every cached run.
+
+    Returns
+    -------
+    list of dict
+        In the order of the cache keys.
+    """
+    out = []
+    for path in sorted((ctx.cache / "runs").glob("*.json")):
+        try:
+            rec = json.loads(path.read_text(encoding="utf-8"))
+            config = {k: v for k, v in rec["params"].items() if k not in (SEED_KEY, TRIAL_KEY)}
+            if params is None or config == params:
+                out.append({**rec["params"], **rec["result"]})
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            continue
+    return out
+
+
+def n_cached(ctx: Context) -> int:
+    """Number of runs in the cache (``DIR/cache/runs/*.json``)."""
+    runs = ctx.cache / "runs"
+    return len(list(runs.glob("*.json"))) if runs.is_dir() else 0

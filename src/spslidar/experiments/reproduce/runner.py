@@ -1,0 +1,119 @@
+"""The ``spslidar reproduce`` entry point: run registered experiments and rebuild the report."""
+
+from __future__ import annotations
+
+import sys
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spslidar.errors import ConfigError
+from spslidar.experiments.report import build_report, write_section
+from spslidar.experiments.reproduce import ALL, EXPERIMENT_REGISTRY, in_all_names
+from spslidar.experiments.reproduce.context import Context, n_cached
+
+__all__ = ["reproduce_main"]
+
+
+def reproduce_main(
+    experiment: str,
+    out: str | Path,
+    quick: bool = False,
+    trials: int | None = None,
+    jobs: int = 1,
+    scheduler: Any = None,
+    progress: bool = True,
+) -> int:
+    """Run one experiment of the paper (or ``'all'``) and update the report.
+
+    Parameters
+    ----------
+    experiment : str
+        A registered experiment (:data:`~spslidar.experiments.reproduce.EXPERIMENT_REGISTRY`:
+        ``fig2`` ... ``fig8``, ``table1``, ``snr``, ``ambiguity``...) or ``all`` (every
+        experiment registered with ``in_all`` true, the default).
+    out : str or Path
+        Report folder ``DIR``: ``DIR/<experiment>/`` (figures, CSV, section), ``DIR/cache/``
+        (runs shared by all experiments, and their depth maps), ``DIR/report.md`` and
+        ``DIR/report.html``.
+    quick : bool, default False
+        Smoke-test settings: 32x32, fewer and shorter settings, one trial.
+    trials : int, optional
+        Monte-Carlo trials per setting (default: 3 for Fig. 4 in full mode, 1 otherwise).
+        Fig. 5, 7 and 8 always show trial 0; ``snr`` has its own number of code periods.
+    jobs : int, default 1
+        Local worker processes (``-1``: all cores).
+    scheduler : str or distributed.Client, optional
+        Dask scheduler instead of local processes.
+    progress : bool, default True
+        Progress bars on stderr.
+
+    Returns
+    -------
+    int
+        0 when every run succeeded, 1 when a run or an experiment failed. The time of each
+        experiment is printed on stdout.
+
+    Raises
+    ------
+    ConfigError
+        Unknown experiment, invalid ``trials`` or ``jobs``, an output path that is a file.
+    """
+    choices = (*EXPERIMENT_REGISTRY.names(), ALL)
+    if not isinstance(experiment, str) or experiment not in choices:
+        raise ConfigError(
+            f"unknown experiment {experiment!r}; choose one of {', '.join(choices)}"
+        )
+    if trials is not None and (
+        isinstance(trials, bool) or not isinstance(trials, (int, np.integer)) or trials < 1
+    ):
+        raise ConfigError(f"--trials must be a positive integer, got {trials!r}")
+    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs == 0:
+        raise ConfigError(f"--jobs must be a positive integer or -1 (all cores), got {jobs!r}")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out must be a folder, got the file {out}")
+    out.mkdir(parents=True, exist_ok=True)
+    ctx = Context(
+        out,
+        bool(quick),
+        None if trials is None else int(trials),
+        int(jobs),
+        scheduler,
+        bool(progress),
+    )
+    names = in_all_names() if experiment == ALL else (experiment,)
+    status = 0
+    t_all = time.perf_counter()
+    for name in names:
+        t0 = time.perf_counter()
+        before, failed_before = n_cached(ctx), ctx.failed
+        try:
+            text, claims = EXPERIMENT_REGISTRY.load(name)(ctx)
+        except ConfigError:
+            raise
+        except Exception as exc:  # an experiment's bug must not lose the others' results
+            traceback.print_exc(file=sys.stderr)
+            print(f"reproduce {name}: failed: {type(exc).__name__}: {exc}", file=sys.stderr)
+            status = 1
+            continue
+        write_section(out, name, text, claims)
+        build_report(out, EXPERIMENT_REGISTRY.names())
+        failed = ctx.failed - failed_before
+        if failed:
+            status = 1
+        dt = time.perf_counter() - t0
+        print(
+            f"reproduce {name}: {dt:.1f} s ({n_cached(ctx) - before} new runs"
+            f"{f', {failed} failed' if failed else ''}) -> {out / name}",
+            flush=True,
+        )
+    print(
+        f"reproduce {experiment}: {time.perf_counter() - t_all:.1f} s in all; report: "
+        f"{out / 'report.md'}, {out / 'report.html'}",
+        flush=True,
+    )
+    return status

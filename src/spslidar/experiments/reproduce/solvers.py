@@ -1,0 +1,268 @@
+"""Fig. 8 and Table I: the four reconstruction methods (TVAL3, GPSR, FISTA, TwIST) on the
+motorcycle scene with QCR; Table I's runs at m_n = 10 are Fig. 8's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from spslidar.experiments.report import Claim, md_table
+from spslidar.experiments.reproduce.context import (
+    PAPER,
+    SOLVER_NAMES,
+    Context,
+    base_params,
+    run_and_write,
+    write_text,
+)
+from spslidar.experiments.reproduce.plotting import (
+    map_panel,
+    new_figure,
+    panel,
+    save_figure,
+    scene_of,
+    truth_range,
+)
+from spslidar.experiments.reproduce.prose import common_text, section
+from spslidar.experiments.reproduce.stats import (
+    TVAL3_NOTE,
+    consistent,
+    count_verdict,
+    first_row,
+    num,
+    stat,
+)
+from spslidar.experiments.sweep import expand_grid, write_csv
+
+SOLVERS = ("tval3", "gpsr", "fista", "twist")
+
+
+def solver_points(ctx: Context, noises: Sequence[float], trials: int) -> list[dict[str, Any]]:
+    points = []
+    for mn in noises:
+        for s in SOLVERS:
+            points += expand_grid(
+                base_params(ctx, scene="motorcycle", noise=mn, qcr=True, solver=s), {}, trials
+            )
+    return points
+
+
+def exp_fig8(ctx: Context) -> tuple[str, list[Claim]]:
+    """Fig. 8: the four solvers on the motorcycle scene at m_n = 10 with QCR."""
+    name = "fig8"
+    rows, csv = run_and_write(ctx, name, solver_points(ctx, [10.0], 1))
+    scene = scene_of(ctx, "motorcycle")
+    lo, hi = truth_range(scene)
+    fig = new_figure(1, 5)
+    axes = fig.subplots(1, 5).ravel()
+    panel(fig, axes[0], np.where(scene.valid, scene.depth, np.nan), "ground truth", lo, hi)
+    for i, s in enumerate(SOLVERS):
+        row = first_row(rows, solver=s)
+        label = f"({chr(97 + i)}) {SOLVER_NAMES[s]}"
+        if row is not None:
+            label += f", {row['iterations']} it."
+        map_panel(ctx, fig, axes[i + 1], row, label, lo, hi)
+    png = save_figure(
+        ctx,
+        name,
+        fig,
+        f"Fig. 8: motorcycle {ctx.size}x{ctx.size}, m_s=5, m_n=10, m-sequence 16383 bits, "
+        f"QCR, 25 % patterns: four solvers",
+    )
+    rm = {s: stat(rows, solver=s).mean for s in SOLVERS}
+    best = min(SOLVERS, key=lambda s: np.nan_to_num(rm[s], nan=9e9))
+    ok = best == "tval3"
+    table = md_table(
+        ("solver", "regulariser", "RMSE [m]", "time [s]", "iterations", "paper (Table I, 'cm')"),
+        [
+            (
+                SOLVER_NAMES[s],
+                "Haar-wavelet l1" if s == "gpsr" else "TV",
+                num(rm[s]),
+                num(stat(rows, "time_total_s", solver=s).mean, 1),
+                num(stat(rows, "iterations", solver=s).mean, 0),
+                "—" if PAPER["table1"][s][10][0] is None else f"{PAPER['table1'][s][10][0]:g}",
+            )
+            for s in SOLVERS
+        ],
+    )
+    findings = [
+        f"The paper finds TVAL3 best: here the lowest RMSE is {SOLVER_NAMES[best]}'s "
+        f"({num(rm[best])} m; TVAL3 {num(rm['tval3'])} m): "
+        f"{consistent(ok)}"
+        f"{'' if ok else TVAL3_NOTE}."
+    ]
+    claims = [
+        Claim(
+            name,
+            "TVAL3 best of the solvers (m_n = 10)",
+            "TVAL3 0.011 'cm'",
+            f"best: {SOLVER_NAMES[best]} {num(rm[best])} m; TVAL3 {num(rm['tval3'])} m",
+            consistent(ok),
+        ),
+    ]
+    what = (
+        f"{common_text(ctx, 'motorcycle')}, m_n = 10, PSST m-sequence of 16383 bits, QCR, 25 % "
+        f"patterns; TVAL3, GPSR, FISTA and TwIST with the pipeline's default iteration caps "
+        f"and regularisation weights (TV for TVAL3, FISTA and TwIST; Haar-wavelet l1 for "
+        f"GPSR); trial 0 (shared with Table I)."
+    )
+    text = section(
+        ctx,
+        "Fig. 8: reconstruction methods",
+        what,
+        table,
+        findings,
+        rows=rows,
+        figures=[("Fig. 8: the four solvers at m_n = 10", png)],
+        data=[csv],
+    )
+    return text, claims
+
+
+def exp_table1(ctx: Context) -> tuple[str, list[Claim]]:
+    """Table I: RMSE, time and iterations of the four solvers at m_n = 5 and 10."""
+    name = "table1"
+    trials = ctx.n_trials()
+    noises = [5.0, 10.0]
+    rows, csv = run_and_write(ctx, name, solver_points(ctx, noises, trials))
+    summary = []
+    for s in SOLVERS:
+        for mn in noises:
+            p_rmse, p_time = PAPER["table1"][s][int(mn)]
+            r = stat(rows, solver=s, noise=mn)
+            summary.append(
+                {
+                    "solver": s,
+                    "noise": mn,
+                    "trials": r.n,
+                    "rmse_m": r.mean,
+                    "rmse_std_m": r.std,
+                    "rmse_cm": 100 * r.mean,
+                    "paper_mse_printed_cm": p_rmse,
+                    "time_total_s": stat(rows, "time_total_s", solver=s, noise=mn).mean,
+                    "time_solve_s": stat(rows, "time_solve_s", solver=s, noise=mn).mean,
+                    "paper_time_s": p_time,
+                    "iterations": stat(rows, "iterations", solver=s, noise=mn).mean,
+                    "missing_fraction": stat(rows, "missing_fraction", solver=s, noise=mn).mean,
+                }
+            )
+    sum_csv = write_csv(summary, ctx.folder(name) / f"{name}_summary.csv")
+
+    def paper_rmse(s: str, mn: float) -> str:
+        v = PAPER["table1"][s][int(mn)][0]
+        return "0.005-0.017 m (Fig. 6)" if v is None else f"{v:g} 'cm'"
+
+    table = md_table(
+        (
+            "method",
+            "m_n",
+            "RMSE [m]",
+            "RMSE [cm]",
+            "paper MSE (as printed)",
+            "time [s]",
+            "solve [s]",
+            "paper time [s]",
+            "iterations",
+        ),
+        [
+            (
+                SOLVER_NAMES[d["solver"]],
+                f"{d['noise']:g}",
+                stat(rows, solver=d["solver"], noise=d["noise"]).fmt(),
+                num(d["rmse_cm"], 2),
+                paper_rmse(d["solver"], d["noise"]),
+                num(d["time_total_s"], 1),
+                num(d["time_solve_s"], 1),
+                f"{d['paper_time_s']:g}",
+                num(d["iterations"], 0),
+            )
+            for d in summary
+        ],
+    )
+    table_md = ctx.folder(name) / f"{name}.md"
+    write_text(table_md, table)
+    get = {(d["solver"], d["noise"]): d for d in summary}
+    best = {
+        mn: min(SOLVERS, key=lambda s, mn=mn: np.nan_to_num(get[(s, mn)]["rmse_m"], nan=9e9))
+        for mn in noises
+    }
+    tval3_best = all(best[mn] == "tval3" for mn in noises)
+    falls = [s for s in SOLVERS if get[(s, 10.0)]["rmse_m"] < get[(s, 5.0)]["rmse_m"]]
+    paper_vals = [v[0] for s in ("tval3", "gpsr", "fista") for v in PAPER["table1"][s].values()]
+    ours_cm = [get[(s, mn)]["rmse_cm"] for s in ("tval3", "gpsr", "fista") for mn in noises]
+    med_ours_cm = float(np.nanmedian(ours_cm))
+    med_paper = float(np.median(paper_vals))
+    closer = (
+        "metres"
+        if abs(np.log(med_ours_cm / (100 * med_paper))) < abs(np.log(med_ours_cm / med_paper))
+        else "centimetres"
+    )
+    fast = [
+        s
+        for s in ("fista", "gpsr")
+        if all(get[(s, mn)]["time_total_s"] < get[("twist", mn)]["time_total_s"] for mn in noises)
+    ]
+    slow = all(
+        get[("tval3", mn)]["time_total_s"] >= max(get[(s, mn)]["time_total_s"] for s in SOLVERS)
+        for mn in noises
+    )
+    findings = [
+        f"The paper finds TVAL3 the most accurate: here the lowest RMSE is "
+        f"{SOLVER_NAMES[best[5.0]]}'s at m_n = 5 and {SOLVER_NAMES[best[10.0]]}'s at m_n = 10: "
+        f"{consistent(tval3_best)}.",
+        f"Table I's errors fall as the noise rises (every method: m_n = 10 below m_n = 5), "
+        f"which a noise-limited estimator should not show; here the RMSE falls with more noise "
+        f"for {len(falls)} of 4 methods"
+        f"{' (' + ', '.join(SOLVER_NAMES[s] for s in falls) + ')' if falls else ''}"
+        f"{': the usual behaviour, unlike the table' if len(falls) < 2 else ''}.",
+        f"Table I's values ({min(paper_vals):g}-{max(paper_vals):g}, printed as cm) would be "
+        f"0.1-0.6 mm, far below the 1.5 cm range bin; our TVAL3/GPSR/FISTA errors (median "
+        f"{med_ours_cm:.2f} cm) are closer to the printed numbers read as {closer}.",
+        f"The paper finds FISTA and GPSR faster than TwIST and TVAL3 the slowest: here faster "
+        f"than TwIST at both noise levels: {', '.join(SOLVER_NAMES[s] for s in fast) or 'none'}; "
+        f"TVAL3 {'the' if slow else 'not the'} slowest. Times are of this implementation, "
+        f"with per-solver default iteration caps.",
+    ]
+    claims = [
+        Claim(
+            name,
+            "TVAL3 most accurate",
+            "TVAL3 0.033/0.011 'cm'",
+            f"best: {SOLVER_NAMES[best[5.0]]} / {SOLVER_NAMES[best[10.0]]}",
+            consistent(tval3_best),
+        ),
+        Claim(
+            name,
+            "error falls as m_n rises (Table I)",
+            "all methods",
+            f"{len(falls)}/4 methods",
+            consistent(len(falls) == 4),
+        ),
+        Claim(
+            name,
+            "FISTA, GPSR faster than TwIST",
+            "16/24, 13/24 vs 20/28 s",
+            ", ".join(SOLVER_NAMES[s] for s in fast) or "neither",
+            count_verdict(len(fast), 2),
+        ),
+    ]
+    what = (
+        f"{common_text(ctx, 'motorcycle')}, PSST m-sequence of 16383 bits, QCR, 25 % patterns, "
+        f"m_n = 5 and 10; TVAL3, GPSR, FISTA, TwIST with the pipeline's defaults (the paper "
+        f"gives no solver settings); {trials} trial(s). The paper's MSE column is quoted as "
+        f"printed, with its doubtful unit 'cm'; its TwIST errors are in Fig. 6."
+    )
+    text = section(
+        ctx,
+        "Table I: reconstruction methods",
+        what,
+        table,
+        findings,
+        rows=rows,
+        data=[csv, sum_csv, table_md],
+    )
+    return text, claims

@@ -1,0 +1,215 @@
+"""Selecting runs, their statistics over trials, number formatting and the verdicts of the
+report ("consistent", "partly consistent", "not consistent" with the paper).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from spslidar.experiments.reproduce.context import BIN_DEPTH_M
+from spslidar.experiments.sweep import ERROR_KEY, TRIAL_KEY
+
+__all__ = [
+    "TVAL3_NOTE",
+    "Stat",
+    "compare",
+    "consistent",
+    "count_verdict",
+    "factor_verdict",
+    "first_row",
+    "floor_note",
+    "in_bins",
+    "loglog_slope",
+    "match_rows",
+    "num",
+    "ok_rows",
+    "pct",
+    "safe_ratio",
+    "same_value",
+    "stat",
+]
+
+
+# --------------------------------------------------------------------------------------------
+# Selecting runs and their statistics
+# --------------------------------------------------------------------------------------------
+
+
+def ok_rows(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The rows of the runs that succeeded."""
+    return [r for r in rows if ERROR_KEY not in r]
+
+
+def match_rows(rows: Sequence[dict[str, Any]], **kw: Any) -> list[dict[str, Any]]:
+    """The successful rows whose every ``kw`` column equals the value (numbers: isclose)."""
+    out = []
+    for r in ok_rows(rows):
+        if all(same_value(r.get(k), v) for k, v in kw.items()):
+            out.append(r)
+    return out
+
+
+def same_value(a: Any, b: Any) -> bool:
+    """``a == b``, with numbers compared to 1e-12 (``10`` matches ``10.0``)."""
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
+        return math.isclose(float(a), float(b), rel_tol=1e-12, abs_tol=1e-12)
+    return a == b
+
+
+def first_row(rows: Sequence[dict[str, Any]], **kw: Any) -> dict[str, Any] | None:
+    """The trial-0 row matching ``kw`` (or None)."""
+    found = match_rows(rows, **kw)
+    for r in found:
+        if r.get(TRIAL_KEY, 0) == 0:
+            return r
+    return found[0] if found else None
+
+
+@dataclass
+class Stat:
+    """Mean, sample standard deviation and count of one metric over trials."""
+
+    mean: float
+    std: float
+    n: int
+
+    def fmt(self, digits: int = 4) -> str:
+        """``mean`` or ``mean ± std`` (n > 1), ``—`` when there is no value."""
+        if self.n == 0 or not math.isfinite(self.mean):
+            return "—"
+        if self.n > 1:
+            return f"{self.mean:.{digits}f} ± {self.std:.{digits}f}"
+        return f"{self.mean:.{digits}f}"
+
+
+def stat(rows: Sequence[dict[str, Any]], metric: str = "depth_rmse_m", **kw: Any) -> Stat:
+    """Mean, sample std and count of ``metric`` over the finite values of the matching rows."""
+    vals = [float(r[metric]) for r in match_rows(rows, **kw) if r.get(metric) is not None]
+    vals = [v for v in vals if math.isfinite(v)]
+    if not vals:
+        return Stat(math.nan, math.nan, 0)
+    std = float(np.std(vals, ddof=1)) if len(vals) > 1 else 0.0
+    return Stat(float(np.mean(vals)), std, len(vals))
+
+
+# --------------------------------------------------------------------------------------------
+# Numbers and verdicts
+# --------------------------------------------------------------------------------------------
+
+
+def num(x: float | None, digits: int = 4) -> str:
+    """``x`` with ``digits`` decimals, ``—`` for None or a non-finite value."""
+    if x is None or not math.isfinite(x):
+        return "—"
+    return f"{x:.{digits}f}"
+
+
+def pct(x: float) -> str:
+    """A share as a percentage with one decimal (``—`` when not finite)."""
+    return "—" if not math.isfinite(x) else f"{100 * x:.1f} %"
+
+
+def safe_ratio(a: float, b: float) -> float:
+    """``a / b``, NaN unless both are finite and ``b > 0``."""
+    if not (math.isfinite(a) and math.isfinite(b)) or b <= 0:
+        return math.nan
+    return a / b
+
+
+def factor_verdict(ours: float, paper: float) -> str:
+    """Direction and size of an improvement factor against the paper's."""
+    if not math.isfinite(ours):
+        return "n/a"
+    if ours <= 1.0:
+        return "not consistent"
+    if paper / 2 <= ours <= paper * 2:
+        return "consistent"
+    return "partly consistent"
+
+
+def compare(rmse_a: float, rmse_b: float, miss_a: float, miss_b: float) -> tuple[str, str]:
+    """Verdict on "a is better than b" from RMSE and missing pixels, and a clause on why.
+
+    The RMSE counts only pixels with a detected return, so a setting that loses many pixels
+    can show a lower RMSE: when RMSE and missing share disagree by more than 5 points of
+    missing pixels, the verdict is "partly consistent".
+    """
+    if not (math.isfinite(rmse_a) and math.isfinite(rmse_b)):
+        return "n/a", ""
+    rmse_better = rmse_a < rmse_b
+    miss_better = miss_a < miss_b - 0.05
+    miss_worse = miss_a > miss_b + 0.05
+    if rmse_better and not miss_worse:
+        return "consistent", ""
+    if not rmse_better and miss_better:
+        return "partly consistent", (
+            f" It detects a return in many more pixels ({pct(1 - miss_a)} against "
+            f"{pct(1 - miss_b)}); the RMSE is over detected pixels only, which flatters the "
+            f"setting that drops its hard pixels."
+        )
+    if rmse_better and miss_worse:
+        return "partly consistent", (
+            f" But it detects a return in fewer pixels ({pct(1 - miss_a)} against "
+            f"{pct(1 - miss_b)})."
+        )
+    return "not consistent", ""
+
+
+def consistent(ok: bool) -> str:
+    """The verdict of a yes/no claim: ``"consistent"`` or ``"not consistent"``."""
+    return "consistent" if ok else "not consistent"
+
+
+def count_verdict(hits: int, total: int) -> str:
+    """``"consistent"`` when every case holds, ``"partly consistent"`` when some do."""
+    if hits == total:
+        return "consistent"
+    return "partly consistent" if hits else "not consistent"
+
+
+TVAL3_NOTE = (
+    " (solver defaults here are not tuned per scene; the paper says TVAL3 needed more parameter"
+    " adjustment)"
+)
+
+
+def in_bins(x: float) -> str:
+    """A depth error in TDC bins (1.5 cm at 10 GHz)."""
+    return "—" if not math.isfinite(x) else f"{x / BIN_DEPTH_M:.2f} bins"
+
+
+def floor_note(rmse: float) -> str:
+    """A clause when an error sits at the TDC's one-bin quantisation floor."""
+    if math.isfinite(rmse) and rmse < BIN_DEPTH_M:
+        return (
+            f" ({num(rmse)} m is {in_bins(rmse)}: at the 1.5 cm TDC-bin quantisation floor, so "
+            f"larger improvement factors cannot show)"
+        )
+    return ""
+
+
+def loglog_slope(
+    x: Sequence[float], y: Sequence[float], se: Sequence[float]
+) -> tuple[float, float] | None:
+    """Weighted least-squares slope of log y against log x and its standard error."""
+    pts = [
+        (math.log(a), math.log(b), s / b)
+        for a, b, s in zip(x, y, se, strict=True)
+        if a > 0 and b > 0 and s > 0
+    ]
+    if len(pts) < 2:
+        return None
+    lx = np.array([p[0] for p in pts])
+    ly = np.array([p[1] for p in pts])
+    w = 1.0 / np.array([p[2] for p in pts]) ** 2
+    xm = np.sum(w * lx) / np.sum(w)
+    ym = np.sum(w * ly) / np.sum(w)
+    sxx = float(np.sum(w * (lx - xm) ** 2))
+    if sxx <= 0:
+        return None
+    return float(np.sum(w * (lx - xm) * (ly - ym)) / sxx), float(1.0 / math.sqrt(sxx))
