@@ -24,6 +24,7 @@ from spslidar.experiments.sweep import expand_grid
 
 
 def has_auto_gate() -> bool:
+    """Whether this version has the automatic range gate (``Config.auto_gate``)."""
     from spslidar.config import Config
 
     return "auto_gate" in {f.name for f in fields(Config)}

@@ -14,7 +14,6 @@ from spslidar.experiments.reproduce.context import (
     PAPER,
     Context,
     base_params,
-    load_map,
     run_points,
     write_rows,
 )
@@ -22,7 +21,6 @@ from spslidar.experiments.reproduce.plotting import (
     map_panel,
     new_figure,
     panel,
-    run_title,
     save_figure,
     scene_of,
     truth_range,
@@ -47,6 +45,7 @@ FIG4_SOLVED_ITERATIONS = 1500
 
 
 def fig4_lengths(ctx: Context) -> list[int]:
+    """Fig. 4's m-sequence lengths: 2^10 - 1 ... 2^15 - 1 bits (three of them in quick mode)."""
     if ctx.quick:
         return [1023, 4095, 16383]
     return [2**n - 1 for n in range(10, 16)]
@@ -65,10 +64,12 @@ def conventional_qcrs(ctx: Context) -> tuple[bool, ...]:
 
 
 def conventional_qcr_text(ctx: Context) -> str:
+    """The clause of a "What was run" on the conventional lidar with QCR."""
     return " and with QCR" if True in conventional_qcrs(ctx) else " (with QCR too in full mode)"
 
 
 def fig4_points(ctx: Context, trials: int) -> list[dict[str, Any]]:
+    """Fig. 4's runs: every length without and with QCR, and the conventional lidar."""
     points = []
     for length in fig4_lengths(ctx):
         for qcr in (False, True):
@@ -121,9 +122,7 @@ def exp_fig4(ctx: Context) -> tuple[str, list[Claim]]:
     for c, qcr in enumerate(conventional_qcrs(ctx)):
         row = first_row(rows, qcr=qcr, **conv)
         label = f"({next(letters)}) conventional, {'QCR' if qcr else 'no QCR'}"
-        panel(
-            fig, fig.add_subplot(gs[2, 1 + c]), load_map(ctx, row), run_title(row, label), lo, hi
-        )
+        map_panel(ctx, fig, fig.add_subplot(gs[2, 1 + c]), row, label, lo, hi)
     ax = fig.add_subplot(gs[0:2, len(lengths) :] if side else gs[2, 3:])
     for qcr, style, label in ((False, "o--", "no QCR"), (True, "s-.", "QCR")):
         s = [stat(rows, code_length=L, qcr=qcr, **psst) for L in lengths]

@@ -5,18 +5,11 @@ from __future__ import annotations
 import math
 
 from spslidar.experiments.report import Claim, md_table
-from spslidar.experiments.reproduce.context import (
-    PAPER,
-    Context,
-    base_params,
-    load_map,
-    run_and_write,
-)
+from spslidar.experiments.reproduce.context import PAPER, Context, base_params, run_and_write
 from spslidar.experiments.reproduce.plotting import (
     map_panel,
     new_figure,
     panel,
-    run_title,
     save_figure,
     scene_of,
     truth_range,
@@ -217,7 +210,7 @@ def exp_fig3(ctx: Context) -> tuple[str, list[Claim]]:
         match = {k: v for k, v in base_params(ctx, noise=1.0, **kw).items() if k in kw}
         sel[key] = match
         row = first_row(rows, **match)
-        panel(fig, axes[i + 1], load_map(ctx, row), run_title(row, labels[key]), lo, hi)
+        map_panel(ctx, fig, axes[i + 1], row, labels[key], lo, hi)
     title = f"Fig. 3: camera {ctx.size}x{ctx.size}, m_s=5, m_n=1, 25 % patterns, QCR, FISTA"
     png = save_figure(ctx, name, fig, title)
     st = {k: stat(rows, **sel[k]) for k in sel}

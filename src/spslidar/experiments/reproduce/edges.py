@@ -26,6 +26,7 @@ from spslidar.experiments.sweep import expand_grid
 
 
 def edge_stats(depth: np.ndarray | None, truth: np.ndarray, valid: np.ndarray) -> dict:
+    """Sobel map of ``depth``, its correlation with the truth's and its mean in flat areas."""
     from spslidar.metrics import edge_agreement, sobel_edges
 
     if depth is None:
@@ -51,6 +52,30 @@ def edges_experiment(
     params_text: str,
     paper_fig: str,
 ) -> tuple[str, list[Claim]]:
+    """An edge-map experiment: Sobel maps of another experiment's trial-0 depth maps.
+
+    Parameters
+    ----------
+    ctx : Context
+        The reproduction.
+    name : str
+        This experiment (``fig5``, ``fig7``).
+    source : str
+        The experiment whose runs are reused (for the text).
+    scene_name : str
+        Its scene.
+    points : list of dict
+        Its runs (served from the cache when it ran first).
+    cases : sequence of (str, dict)
+        Label and row selection of each map: no QCR, QCR, conventional, in that order.
+    fig_label, params_text, paper_fig : str
+        Figure label, parameters and the paper's figure, for titles and text.
+
+    Returns
+    -------
+    tuple of (str, list of Claim)
+        The report section and its claim.
+    """
     rows = run_points(ctx, points)
     scene = scene_of(ctx, scene_name)
     stats = {}

@@ -20,13 +20,12 @@ from spslidar.experiments.reproduce.context import (
     Context,
     base_params,
     cached_runs,
-    load_map,
     run_and_write,
 )
 from spslidar.experiments.reproduce.plotting import (
+    map_panel,
     new_figure,
     panel,
-    run_title,
     save_figure,
     scene_of,
     truth_range,
@@ -44,6 +43,7 @@ from spslidar.experiments.sweep import expand_grid
 
 
 def fig6_noises(ctx: Context) -> list[float]:
+    """Fig. 6's noise levels m_n (5, 8, 10; 5 and 10 in quick mode)."""
     return [5.0, 10.0] if ctx.quick else [5.0, 8.0, 10.0]
 
 
@@ -72,7 +72,7 @@ def exp_fig6(ctx: Context) -> tuple[str, list[Claim]]:
         row = first_row(rows, lidar="conventional", qcr=qcr)
         tag = "(b')" if qcr else "(b)"
         label = f"{tag} conventional, m_n=10, {'QCR' if qcr else 'no QCR'}"
-        panel(fig, axes[0, 1 + c], load_map(ctx, row), run_title(row, label), lo, hi)
+        map_panel(ctx, fig, axes[0, 1 + c], row, label, lo, hi)
     for extra in axes[0, 1 + len(conventional_qcrs(ctx)) :]:
         extra.set_visible(False)
     letters = iter("cdefghijk")
@@ -80,7 +80,7 @@ def exp_fig6(ctx: Context) -> tuple[str, list[Claim]]:
         for c, mn in enumerate(noises):
             row = first_row(rows, lidar="psst", noise=mn, qcr=qcr)
             label = f"({next(letters)}) PSST {'QCR' if qcr else 'no QCR'}, m_n={mn:g}"
-            panel(fig, axes[1 + r, c], load_map(ctx, row), run_title(row, label), lo, hi)
+            map_panel(ctx, fig, axes[1 + r, c], row, label, lo, hi)
         for extra in axes[1 + r, len(noises) :]:
             extra.set_visible(False)
     png = save_figure(

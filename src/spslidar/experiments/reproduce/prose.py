@@ -77,6 +77,7 @@ def section(
 
 
 def _rel(ctx: Context, path: Path) -> str:
+    """``path`` relative to the report folder, with forward slashes."""
     return Path(path).relative_to(ctx.out).as_posix()
 
 

@@ -41,6 +41,7 @@ SOLVERS = ("tval3", "gpsr", "fista", "twist")
 
 
 def solver_points(ctx: Context, noises: Sequence[float], trials: int) -> list[dict[str, Any]]:
+    """The four solvers on the motorcycle scene with QCR at each noise level."""
     points = []
     for mn in noises:
         for s in SOLVERS:
