@@ -8,12 +8,10 @@ import sys
 import numpy as np
 import pytest
 
-from spslidar.cli import _Parser
+from spslidar.cli import _Parser, add_snr_parser, cmd_snr
 from spslidar.codes import make_code
 from spslidar.errors import ConfigError
 from spslidar.snr import (
-    add_snr_parser,
-    cmd_snr,
     mirrors_on,
     plot_snr,
     snr_simulated,
@@ -337,6 +335,21 @@ def test_cli_parse_errors_exit_2(capsys):
 
 
 def test_module_import_does_not_load_numpy():
-    code = "import sys, spslidar.snr; print('numpy' in sys.modules)"
+    code = ("import sys, spslidar.snr; from spslidar.snr import snr_theory, SNR_CODES; "
+            "print('numpy' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_package_exports_every_public_name():
+    import spslidar.cli
+    import spslidar.snr
+
+    for name in spslidar.snr.__all__:
+        assert getattr(spslidar.snr, name) is not None, name
+    # the sub-command lives in the CLI module, with the other sub-commands
+    assert spslidar.snr.add_snr_parser is spslidar.cli.add_snr_parser
+    assert spslidar.snr.cmd_snr is spslidar.cli.cmd_snr
+    assert spslidar.cli.COMMANDS["snr"] is spslidar.cli.cmd_snr
+    with pytest.raises(AttributeError):
+        spslidar.snr.no_such_name  # noqa: B018

@@ -50,6 +50,8 @@ class Config:
     # patterns
     patterns: str = "gaussian"
     pattern_sigma: float = 0.25
+    hadamard_order: str = "sequency"
+    hadamard_realisation: str = "shifted"
     compression: float = 0.25
     # photons
     signal: float = 5.0
@@ -79,6 +81,9 @@ class Config:
     dtype: str = "float32"
     seed: int = 0
     max_memory: float | None = None
+    # where the numeric core runs (spslidar.backends)
+    backend: str = "numpy"
+    device: str = "cpu"
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
     # -- construction -------------------------------------------------------------------
@@ -157,6 +162,10 @@ class Config:
         choice("ambient", ("paper", "modulated"))
         choice("qcr_form", ("centred", "covariance"))
         choice("dtype", ("float32", "float64"))
+        from .patterns import HADAMARD_ORDERS, HADAMARD_REALISATIONS
+
+        choice("hadamard_order", HADAMARD_ORDERS)
+        choice("hadamard_realisation", HADAMARD_REALISATIONS)
         if not isinstance(self.scene, (str, Path)) or str(self.scene) == "":
             raise ConfigError("--scene must be a built-in scene name or a file path")
         self.scene = str(self.scene)
@@ -212,6 +221,10 @@ class Config:
             self.range_gate = g
         for reg in registries().values():
             reg.get(getattr(self, reg.option)).check(self)
+        from .backends import check_backend, check_supported
+
+        check_backend(self.backend, self.device)
+        check_supported(self)
 
 
 def registries() -> dict:
@@ -252,3 +265,4 @@ def resolve_scene_path(data: dict[str, Any], base: Path) -> dict[str, Any]:
     scene = data.get("scene")
     if isinstance(scene, str) and Path(scene).suffix and not Path(scene).is_absolute():
         data = {**data, "scene": str(base / scene)}
+    return data

@@ -12,7 +12,7 @@ changing e.g. the noise level does not change the patterns.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -140,6 +140,10 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     QCR) by :func:`reconstruct` without simulating again.
     """
     cfg = _resolve(config, overrides)
+    if cfg.backend != "numpy":  # the array-API chain on another backend (spslidar.backends)
+        from ..backends.chain import measure as measure_on_backend
+
+        return measure_on_backend(cfg)
     timing: dict[str, float] = {}
     warns: list[str] = []
 
@@ -176,17 +180,24 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
         pattern_bytes_per_entry=(np.dtype(dtype).itemsize
                                  if PATTERNS.get(cfg.patterns).defaults.get("dense") else None),
         threads=simulation_threads())
-    check_budget(budget, cfg.max_memory)
+    check_budget(budget, cfg.max_memory, cfg.patterns)
     patterns = build_patterns(cfg.patterns, m, cfg.size, np.random.default_rng(seq_pat),
-                              dtype=dtype, sigma=cfg.pattern_sigma)
+                              dtype=dtype, sigma=cfg.pattern_sigma, order=cfg.hadamard_order,
+                              realisation=cfg.hadamard_realisation)
     timing["setup"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     noise = NoiseModel(cfg.noise, tuple(cfg.noise_split), cfg.ambient, cfg.background_rate,
                        cfg.dark_count_rate)
     detector = build_detector(cfg.detector, **detector_options(cfg))
-    sim = simulate_correlations(patterns, scene, acq, ulags, noise, detector, cfg.pulse_width,
+    # differential patterns: the DMD shows two frames per pattern, each for its share of the
+    # acquisition time, and the patterns combine the frames' outputs into one per pattern
+    shown, share = patterns.exposures() if hasattr(patterns, "exposures") else (patterns, 1.0)
+    acq_shown = acq if share == 1.0 else replace(acq, n_periods=acq.n_periods * share)
+    sim = simulate_correlations(shown, scene, acq_shown, ulags, noise, detector, cfg.pulse_width,
                                 np.random.default_rng(seq_counts), noiseless=cfg.noiseless)
+    if shown is not patterns:
+        sim = patterns.combine(sim)
     pile = detector.report(float(np.mean(sim["counts"])) / acq.n_periods,
                            acq.period * bin_width)
     sim["pileup"] = pile
@@ -213,6 +224,10 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         ``subbin``, ``nonneg``, ``auto_gate``); anything else would need a new simulation and
         is an error.
     """
+    if meas.config.backend != "numpy":
+        from ..backends.chain import reconstruct as reconstruct_on_backend
+
+        return reconstruct_on_backend(meas, **processing)
     bad = set(k.replace("-", "_") for k in processing) - PROCESSING_KEYS
     if bad:
         raise ConfigError(f"reconstruct() cannot change {', '.join(sorted(bad))}: "
@@ -344,6 +359,8 @@ def resolved_config(cfg: Config, acq: Acquisition, gate, auto_gate: bool, iterat
                         else cfg.regulariser)
     d["range_gate"] = [float(gate[0]), float(gate[1])]
     d["auto_gate"] = bool(auto_gate)
+    if not cfg.qcr and d["regulariser"] == "tv":
+        d["nonneg"] = False  # the mean-eliminated plain problem has no sign constraint
     return d
 
 
@@ -359,8 +376,6 @@ def run(config: Config | dict | None = None, **overrides) -> Result:
 
     Returns
     -------
-    if not cfg.qcr and d["regulariser"] == "tv":
-        d["nonneg"] = False  # the mean-eliminated plain problem has no sign constraint
     Result
     """
     return reconstruct(measure(config, **overrides))

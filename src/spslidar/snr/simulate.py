@@ -1,0 +1,303 @@
+"""Monte-Carlo measurement of the output SNR of eq. (10), with its standard error.
+
+:func:`snr_simulated` counts Poisson photons of one binary pattern over ``trials`` code periods
+(one summed draw per period, or full TDC histograms from the library's forward model and
+matched filter) and correlates them with the **unipolar** replica, the definition eq. (10)
+uses; the interval comes from the delta method or a bootstrap.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+from spslidar.snr.theory import (
+    SNR_INTERVALS,
+    SNR_METHODS,
+    as_integer,
+    as_nonneg,
+    check_choice,
+    check_reflectivity,
+    check_size,
+    check_trials,
+    config_error,
+    eq10,
+    make_code_checked,
+    mirrors_on,
+)
+
+if TYPE_CHECKING:  # pragma: no cover
+    import numpy as np
+
+__all__ = ["snr_simulated"]
+
+# Largest total mean count per period the 'sum' path draws (NumPy's Poisson sampler refuses
+# means near 2^63; far below that, float64 still resolves the variance of the counts).
+_MAX_TOTAL_MEAN = 1e17
+# Bins drawn at once by the 'histogram' path (trials are processed in chunks of this size).
+_HIST_CHUNK_BINS = 4_000_000
+_Z95 = 1.959963984540054
+
+
+def _counts_sum(ones: int, per_bit: float, trials: int, rng) -> np.ndarray:
+    """``C`` for each trial as one Poisson draw with the summed mean of the 'on' bins."""
+    total = ones * per_bit
+    if total > _MAX_TOTAL_MEAN:
+        raise config_error(
+            f"mean counts per period {total:.3g} are too large to simulate (limit "
+            f"{_MAX_TOTAL_MEAN:.0e}): lower the photon numbers, size or code length"
+        )
+    return rng.poisson(total, size=trials).astype("float64")
+
+
+def _counts_histogram(
+    code, m2: int, n: int, a: float, m_s: float, m_n: float, delay: int, trials: int, rng
+) -> np.ndarray:
+    """``C`` for each trial from full Poisson histograms and the library's matched filter."""
+    import numpy as np
+
+    from ..correlate import make_replica, matched_filter, replica_matrix
+    from ..detector import NoiseModel, poisson_counts
+    from ..forward import expected_counts, return_amplitudes
+
+    period = code.size
+    q = n * n
+    pattern = np.zeros((1, q))
+    pattern[0, rng.choice(q, size=m2, replace=False)] = 1.0
+    alpha = np.full(q, a)
+    # every pixel returns after exactly `delay` bins; a full-bin pulse lands in one TDC bin
+    shifts, amp = return_amplitudes(pattern, alpha, np.full(q, float(delay)), 1.0, period)
+    noise_bin = NoiseModel(m_n=m_n).per_bin(pattern, alpha, bin_width=1e-10)
+    lam = expected_counts(amp, shifts, code, m_s, noise_bin)  # (1, T): eq. (4) in expectation
+    replica = make_replica(code, "unipolar")
+    lags = np.array([delay])
+    bank = replica_matrix(replica, lags).astype(np.float64)  # float64: exact sums of counts
+    chunk = max(1, _HIST_CHUNK_BINS // period)
+    out = np.empty(trials)
+    for start in range(0, trials, chunk):
+        rows = min(chunk, trials - start)
+        try:
+            hist = poisson_counts(np.broadcast_to(lam, (rows, period)), rng)
+        except ValueError as exc:
+            raise config_error(f"cannot simulate the histogram: {exc}") from None
+        c = matched_filter(hist, replica, lags, out_dtype=np.float64, bank=bank)
+        out[start : start + rows] = c[:, 0]
+    return out
+
+
+def _delta_stderr(c: np.ndarray, noise_mean: float) -> tuple[float, float]:
+    """SNR estimate and its delta-method standard error from the trials ``c``."""
+    import numpy as np
+
+    k = c.size
+    m = float(c.mean())
+    dev = c - m
+    v = float(dev @ dev) / (k - 1)
+    if v <= 0.0:
+        return math.inf if m != noise_mean else math.nan, math.nan
+    d = m - noise_mean
+    g = d * d / v
+    m3 = float(np.mean(dev**3))
+    m4 = float(np.mean(dev**4))
+    var_m = v / k
+    var_v = max(m4 - v * v * (k - 3) / (k - 1), 0.0) / k
+    cov_mv = m3 / k
+    gm = 2.0 * d / v
+    gv = -d * d / (v * v)
+    var_g = gm * gm * var_m + gv * gv * var_v + 2.0 * gm * gv * cov_mv
+    return g, math.sqrt(max(var_g, 0.0))
+
+
+def _bootstrap(c: np.ndarray, noise_mean: float, n_boot: int, rng) -> tuple[float, float, float]:
+    """Bootstrap standard error and 95 % percentile interval of the SNR estimate."""
+    import numpy as np
+
+    k = c.size
+    reps = np.empty(n_boot)
+    block = max(1, 2_000_000 // k)
+    for start in range(0, n_boot, block):
+        rows = min(block, n_boot - start)
+        s = c[rng.integers(0, k, size=(rows, k))]
+        mean = s.mean(axis=1)
+        var = s.var(axis=1, ddof=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            reps[start : start + rows] = (mean - noise_mean) ** 2 / var
+    finite = reps[np.isfinite(reps)]
+    if finite.size < 2:
+        return math.nan, math.nan, math.nan
+    lo, hi = np.percentile(finite, [2.5, 97.5])
+    return float(finite.std(ddof=1)), float(lo), float(hi)
+
+
+def snr_simulated(
+    code: str,
+    code_length: int,
+    ones_ratio: float,
+    signal: float,
+    noise: float,
+    size: int,
+    on_fraction: float,
+    reflectivity: float = 1.0,
+    trials: int = 200,
+    rng: np.random.Generator | int | None = None,
+    *,
+    method: str = "sum",
+    interval: str = "delta",
+    code_index: int = 0,
+    delay: int | None = None,
+    n_boot: int = 2000,
+) -> dict[str, Any]:
+    """Measure the output SNR of eq. (10) by Monte Carlo, with its standard error.
+
+    ``trials`` independent code periods of one binary pattern with ``M_2`` mirrors on, all
+    returning at the same integer delay ``k``, are counted and correlated with the unipolar
+    replica at lag ``k``.
+
+    Parameters
+    ----------
+    code : {'mseq', 'gold', 'random'}
+        Code kind (aliases as in :func:`spslidar.codes.make_code`).
+    code_length : int
+        Code length ``T`` in bits.
+    ones_ratio : float
+        Share of '1' bits of a random code, in (0, 1) (checked but unused for mseq/gold).
+    signal : float
+        ``m_s``: mean signal photons per laser pulse per DMD pixel (mirror on, reflectivity 1).
+    noise : float
+        ``m_n``: mean noise counts per TDC bin per pixel.
+    size : int
+        Pixels per side ``N``.
+    on_fraction : float
+        Share ``F`` of mirrors on, in (0, 1]; ``M_2 = round(F N^2)``.
+    reflectivity : float, optional
+        Reflectivity ``a`` of every pixel, in [0, 1] (default 1).
+    trials : int, optional
+        Independent code periods simulated (>= 2; default 200). The relative standard error of
+        the SNR estimate is about ``sqrt(2 / trials)``.
+    rng : numpy.random.Generator or int or None, optional
+        Random generator or seed (``np.random.default_rng(rng)``); it draws the random code,
+        the pattern, the counts and the bootstrap resamples.
+    method : {'sum', 'histogram'}, optional
+        ``'sum'`` (default): one Poisson draw per trial for ``C``, whose mean is the sum of the
+        means of the bins the replica selects. ``'histogram'``: the full histogram of ``T``
+        bins per trial from the library's forward model (:func:`spslidar.forward.
+        expected_counts` with an actual ``N x N`` binary pattern), Poisson counts
+        (:func:`spslidar.detector.poisson_counts`) and matched filter
+        (:func:`spslidar.correlate.matched_filter`, unipolar replica).
+    interval : {'delta', 'bootstrap'}, optional
+        Standard error and 95 % interval from the delta method (default; interval
+        ``estimate +- 1.96 se``, clipped at 0) or a percentile bootstrap of the trials.
+    code_index : int, optional
+        Member of the Gold family / cyclic shift of the m-sequence (default 0).
+    delay : int, optional
+        Round-trip delay ``k`` in bins (default ``T // 3``); the result does not depend on it.
+    n_boot : int, optional
+        Bootstrap resamples (default 2000; ``interval='bootstrap'`` only).
+
+    Returns
+    -------
+    dict
+        ``theory`` (eq. 10 with the generated code's number of ones), ``simulated``,
+        ``stderr``, ``ci_low``, ``ci_high`` (95 %), ``ratio`` (simulated / theory); the counts'
+        ``mean_counts`` and ``var_counts`` over the trials and their theoretical
+        ``signal_mean`` (eq. 8), ``noise_mean`` and ``variance`` (eq. 9); and every parameter:
+        ``code``, ``code_length``, ``code_index``, ``ones_ratio`` (the requested share for
+        random codes, the code's share for mseq/gold), ``ones``, ``ones_ratio_actual``,
+        ``signal``, ``noise``, ``size``, ``on_fraction``, ``mirrors_on``, ``reflectivity``,
+        ``trials``, ``method``, ``interval``, ``replica`` (``'unipolar'``), ``delay``.
+
+    Raises
+    ------
+    ConfigError
+        On invalid parameters (see :func:`~spslidar.snr.snr_theory`), ``trials < 2``, an
+        unknown method or interval, or photon numbers too large to draw.
+
+    Notes
+    -----
+    The mean counts in TDC bin ``t`` are ``m_s M_2 a s(t - k) + N^2 m_n`` (eq. 4 with one
+    delay) and the matched filter is ``C = sum_t h(t) s(t - k)`` (eq. 5-6, unipolar replica),
+    so ``C`` sums the ``R_a T`` bins where the code is on: it is Poisson with mean
+    ``R_a T (M_2 a m_s + N^2 m_n)``, which is what ``method='sum'`` draws directly. The SNR
+    of eq. (10) is estimated as
+
+        SNR_sim = (mean(C) - E[C_n])^2 / var(C),   E[C_n] = R_a T N^2 m_n,
+
+    with ``var`` the unbiased sample variance. The noise mean ``E[C_n]`` is the known input of
+    the simulation, not estimated from noise-only trials: it is exact, whereas an estimate
+    would add its own variance to the numerator (and a bias of ``Var[C_n] / trials``) without
+    testing anything eq. (10) states. The plug-in estimator has a relative bias of about
+    ``2 / trials`` (from ``1 / var``), far below its standard error ``~ sqrt(2 / trials)``.
+    The delta-method variance uses the sample central moments ``m3``, ``m4``:
+    ``Var(mean) = v / K``, ``Var(v) = (m4 - v^2 (K - 3) / (K - 1)) / K``,
+    ``Cov(mean, v) = m3 / K``.
+    The delta interval is asymptotic: its coverage of eq. (10) was measured at 94.4 % for 200
+    trials and 89 % for 20 (4000 repetitions each, m-sequence of 1023 bits), so use ``trials``
+    of 100 or more, or ``interval='bootstrap'``, when the interval matters.
+    """
+    import numpy as np
+
+    from ..codes import canonical_kind
+
+    kind = canonical_kind(code)
+    m_s = as_nonneg(signal, "signal m_s")
+    m_n = as_nonneg(noise, "noise m_n")
+    a = check_reflectivity(reflectivity)
+    m2 = mirrors_on(on_fraction, size)
+    n = check_size(size)
+    k = check_trials(trials)
+    method = check_choice(method, SNR_METHODS, "method")
+    interval = check_choice(interval, SNR_INTERVALS, "interval")
+    if interval == "bootstrap":
+        n_boot = as_integer(n_boot, "n_boot")
+        if n_boot < 100:
+            raise config_error(f"n_boot must be at least 100, got {n_boot}")
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    bits = make_code_checked(kind, code_length, ones_ratio, gen, code_index)
+    period = int(bits.size)
+    lag = period // 3 if delay is None else as_integer(delay, "delay") % period
+    ones = int(bits.sum())
+    sig_bit = m2 * a * m_s
+    noise_bin = n * n * m_n
+    theory = eq10(ones, m2, a, m_s, n, m_n)
+
+    if method == "sum":
+        c = _counts_sum(ones, sig_bit + noise_bin, k, gen)
+    else:
+        c = _counts_histogram(bits, m2, n, a, m_s, m_n, lag, k, gen)
+    noise_mean = ones * noise_bin
+    simulated, se = _delta_stderr(c, noise_mean)
+    if interval == "delta":
+        lo, hi = max(simulated - _Z95 * se, 0.0), simulated + _Z95 * se
+    else:
+        se, lo, hi = _bootstrap(c, noise_mean, n_boot, gen)
+    ratio = simulated / theory if theory > 0 else math.nan
+    return {
+        "code": kind,
+        "code_length": period,
+        "code_index": int(code_index),
+        "ones_ratio": float(ones_ratio) if kind == "random" else ones / period,
+        "ones": ones,
+        "ones_ratio_actual": ones / period,
+        "signal": m_s,
+        "noise": m_n,
+        "size": n,
+        "on_fraction": float(on_fraction),
+        "mirrors_on": m2,
+        "reflectivity": a,
+        "trials": k,
+        "method": method,
+        "interval": interval,
+        "replica": "unipolar",
+        "delay": int(lag),
+        "theory": float(theory),
+        "simulated": float(simulated),
+        "stderr": float(se),
+        "ci_low": float(lo),
+        "ci_high": float(hi),
+        "ratio": float(ratio),
+        "mean_counts": float(c.mean()),
+        "var_counts": float(c.var(ddof=1)),
+        "signal_mean": float(ones * sig_bit),
+        "noise_mean": float(noise_mean),
+        "variance": float(ones * (sig_bit + noise_bin)),
+    }
