@@ -54,7 +54,6 @@ def test_numpy_is_the_default():
     ({"device": "tpu"}, "unknown device 'tpu'"),
     ({"device": "cuda"}, "--backend numpy runs on the CPU only"),
     ({"backend": "array-api-strict", "solver": "twist"}, "--solver twist runs on --backend numpy"),
-    ({"backend": "array-api-strict", "depth": "mrf"}, "--depth mrf runs on --backend numpy"),
     ({"backend": "array-api-strict", "qcr": False}, "--no-qcr runs on --backend numpy"),
 ])
 def test_bad_backend_configs_are_one_line(kw, words):
@@ -200,6 +199,16 @@ def test_strict_run_gives_the_numpy_depth_map():
     assert r1.metrics["depth_rmse_m"] == r0.metrics["depth_rmse_m"]
     assert r1.metrics["config"]["backend"] == "array-api-strict"
     assert r1.metrics["solver_info"]["iterations"] == r0.metrics["solver_info"]["iterations"]
+
+
+@pytest.mark.parametrize("depth", ["argmax", "mrf"])
+def test_strict_run_gives_the_numpy_depth_map_for_device_and_host_estimators(depth):
+    """argmax runs on the device, mrf (the default) on the host from the slices brought back:
+    both give NumPy's depth map."""
+    r0 = run(**SMALL, depth=depth)
+    r1 = run(**SMALL, depth=depth, backend="array-api-strict")
+    np.testing.assert_array_equal(r1.depth, r0.depth)
+    assert r1.metrics["depth_estimator"] == depth
 
 
 def test_strict_run_reconstructs_again_with_other_processing():

@@ -220,7 +220,7 @@ def test_shifted_patterns_with_qcr_centring_equal_ideal_in_the_noiseless_limit()
 
 def test_differential_halves_the_time_per_frame_honestly():
     diff, shifted = _noiseless("differential"), _noiseless("shifted")
-    assert shifted.patterns.rows[0] == 0  # sequency order: the all-on (DC) pattern first
+    assert shifted.patterns.rows[0] == 0  # cake-cutting order: the all-on (DC) pattern first
     # the two frames (1 + h)/2 and (1 - h)/2 together are one all-on frame; each is shown for
     # half the time, so each pair collects half the signal of one full-time all-on exposure
     np.testing.assert_allclose(diff.sim["signal_counts"], 0.5 * shifted.sim["signal_counts"][0],

@@ -73,8 +73,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     from .patterns import HADAMARD_ORDERS, HADAMARD_REALISATIONS
 
     g.add_argument("--hadamard-order", choices=HADAMARD_ORDERS, default=S,
-                   help="row ordering of --patterns hadamard: sequency (low first, default), "
-                        "cake-cutting, random or natural")
+                   help="row ordering of --patterns hadamard: cake-cutting (fewest constant "
+                        "pieces first, default), sequency, random or natural")
     g.add_argument("--hadamard-realisation", choices=HADAMARD_REALISATIONS, default=S,
                    help="+-1 Hadamard rows on a 0/1 DMD: shifted ((1+h)/2, DC removed by QCR "
                         "centring; default) or differential (two frames, half the time each)")

@@ -50,7 +50,7 @@ class Config:
     # patterns
     patterns: str = "gaussian"
     pattern_sigma: float = 0.25
-    hadamard_order: str = "sequency"
+    hadamard_order: str = "cake-cutting"
     hadamard_realisation: str = "shifted"
     compression: float = 0.25
     # photons
@@ -77,7 +77,7 @@ class Config:
     tol: float = 1e-4
     subbin: bool = False
     nonneg: bool = True
-    depth: str = "argmax"
+    depth: str = "mrf"
     dtype: str = "float32"
     seed: int = 0
     max_memory: float | None = None

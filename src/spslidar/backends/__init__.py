@@ -50,8 +50,9 @@ SUPPORTED = {
     "regulariser": ("auto", "tv"),
     "qcr_form": ("centred",),
     "detector": ("linear",),
-    "depth": ("argmax",),
 }
+#: depth estimators run on the device; the others run on the host, on the slices brought back
+DEVICE_DEPTH = ("argmax",)
 
 
 def check_backend(backend: str, device: str) -> None:

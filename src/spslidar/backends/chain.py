@@ -246,18 +246,29 @@ def reconstruct(meas: Any, **processing):
         cols = be.asarray(np.flatnonzero(keep))
         full = _scatter_columns(be, full, x, cols)
     slices = xp.take(full, be.asarray(np.asarray(meas.inverse, dtype=np.int64)), axis=1)
-    idx, peak, below, above = (be.to_numpy(a) for a in argmax_peaks(xp, slices))
     shape = (cfg.size, cfg.size)
-    depth_flat = depth_from_peaks(idx, peak, below, above, lags, slices.shape[1], bin_width,
-                                  cfg.pulse_width, cfg.subbin)
-    conf = peak_confidence(peak)
-    conf[~np.isfinite(depth_flat)] = 0.0
-    low = ArgmaxDepth()._flag(depth_flat, conf)
-    depth = depth_flat.reshape(shape)
+    slices_host = None
+    if cfg.depth == "argmax":  # on the device: only the peaks come back
+        idx, peak, below, above = (be.to_numpy(a) for a in argmax_peaks(xp, slices))
+        depth_flat = depth_from_peaks(idx, peak, below, above, lags, slices.shape[1],
+                                      bin_width, cfg.pulse_width, cfg.subbin)
+        conf = peak_confidence(peak)
+        conf[~np.isfinite(depth_flat)] = 0.0
+        low = ArgmaxDepth()._flag(depth_flat, conf)
+    else:  # the image-structured estimators run on the host, on the slices
+        from ..depth import ESTIMATORS, DepthContext
+
+        slices_host = be.to_numpy(slices)
+        est = ESTIMATORS.load(cfg.depth)().estimate(
+            slices_host, DepthContext(lags, bin_width, cfg.pulse_width, shape, cfg.subbin))
+        depth_flat, conf, low = est.depth, est.confidence, est.low_confidence
+    depth = np.asarray(depth_flat).reshape(shape)
     timing["depth"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    slices_host, corr_host = be.to_numpy(slices), be.to_numpy(corr)
+    if slices_host is None:
+        slices_host = be.to_numpy(slices)
+    corr_host = be.to_numpy(corr)
     timing["to_host"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

@@ -24,5 +24,6 @@ ESTIMATORS.add("censor", "spslidar.depth.censor:CensorDepth", "censor + recover"
                "fast: argmax, then pixels that fit no neighbour and have an ambiguous return "
                "are re-estimated near their neighbours' depths (Shin et al. 2015)")
 ESTIMATORS.add("mrf", "spslidar.depth.mrf:MRFDepth", "MRF (loopy BP)",
-               "best: each pixel's range slice by a truncated-linear Markov random field over "
-               "the image, solved by loopy belief propagation")
+               "the default: each pixel's range slice by a truncated-linear Markov random "
+               "field over the image, solved by loopy belief propagation (best or tied on every "
+               "built-in scene and noise level, benchmarks/depth_quality.py)")

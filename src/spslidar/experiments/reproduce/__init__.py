@@ -87,6 +87,9 @@ _add("table1", f"{_PKG}.solvers:exp_table1", "Table I",
 _add("snr", f"{_PKG}.eq10:exp_snr", "Eq. (10)", "output SNR against its simulation")
 _add("ambiguity", f"{_PKG}.ambiguity:exp_ambiguity", "Range ambiguity",
      "a target beyond the conventional lidar's unambiguous range")
+_add("pattern_kinds", "spslidar.experiments.pattern_kinds:exp_pattern_kinds", "Pattern kinds",
+     "Gaussian, Bernoulli and Hadamard orderings at 128x128 and 256x256: RMSE and time "
+     "against compression (long: not in 'all')", in_all=False)
 
 #: Runs every experiment registered with ``in_all`` (the default).
 ALL = "all"

@@ -174,6 +174,7 @@ def exp_fig4(ctx: Context) -> tuple[str, list[Claim]]:
                 L,
                 stat(rows, code_length=L, qcr=False, **psst).fmt(),
                 stat(rows, code_length=L, qcr=True, **psst).fmt(),
+                stat(rows, "depth_rmse_argmax_m", code_length=L, qcr=True, **psst).fmt(),
                 "—" if p_no is None else f"{p_no:g} ({L + 1} bits)",
                 f"{PAPER['fig4_qcr_rmse_m']:g} ({L + 1} bits)" if L == 16383 else "—",
             )
@@ -185,6 +186,7 @@ def exp_fig4(ctx: Context) -> tuple[str, list[Claim]]:
             "conventional, time of 16383 bits",
             c_no.fmt(),
             c_q.fmt(),
+            stat(rows, "depth_rmse_argmax_m", qcr=True, **conv).fmt(),
             f"{PAPER['fig4_conventional_rmse_m']:g}",
             "",
         )
@@ -194,6 +196,7 @@ def exp_fig4(ctx: Context) -> tuple[str, list[Claim]]:
             "code length [bits]",
             "no QCR: RMSE [m]",
             "QCR: RMSE [m]",
+            "QCR, paper's argmax depth [m]",
             "paper, no QCR [m]",
             "paper, QCR [m]",
         ),
