@@ -12,7 +12,7 @@ spslidar reproduce all --out docs/reproduction --jobs 2 "$@"
   echo
   echo "Regenerate with \`bash docs/make_reproduction.sh\` (\`spslidar reproduce all --out"
   echo "docs/reproduction --jobs 2\`); figures, CSV data and an HTML version are in"
-  echo "[\`docs/reproduction/\`](reproduction/)."
+  echo "the folder \`docs/reproduction/\`."
   echo
   sed -E 's#\]\(([a-z0-9]+)/#](reproduction/\1/#g; s#`([a-z0-9]+)/([a-z0-9_]+\.(csv|md))`#`reproduction/\1/\2`#g' \
     docs/reproduction/report.md
