@@ -122,3 +122,33 @@ def test_scores_can_be_recomputed_from_the_saved_files(tmp_path):
     assert m["coverage"] < 1.0  # the motorcycle has pixels without ground truth
     for key in ("iterations", "lam_scale", "code_index"):
         assert m["config"][key] is not None
+
+
+@pytest.mark.parametrize("grid, words", [
+    ('code_length = [1023, 1000]', "code length 1000"),
+    ('scene = ["camera", "missing.npy"]', "not found"),
+    ('size = [16, 2048]\ncompression = [0.5]', "memory"),
+])
+def test_sweep_checks_every_point_before_the_first_run(tmp_path, capsys, grid, words):
+    """A bad point anywhere in the grid stops the sweep before anything runs: one line,
+    exit 2, no partial results.csv (issue 15, item 4)."""
+    cfg = tmp_path / "sweep.toml"
+    cfg.write_text(f"trials = 1\n[base]\nsize = 16\ncode_length = 1023\n[grid]\n{grid}\n")
+    out = tmp_path / "out"
+    assert main(["sweep", str(cfg), "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and words in err, err
+    assert not out.exists()
+
+
+def test_sweep_scene_paths_are_relative_to_the_toml(tmp_path, monkeypatch):
+    from spslidar.experiments.sweep import load_sweep_config
+
+    (tmp_path / "cfgs").mkdir()
+    np.save(tmp_path / "cfgs" / "flat.npy", np.full((16, 16), 3.0))
+    cfg = tmp_path / "cfgs" / "s.toml"
+    cfg.write_text('[base]\nscene = "flat.npy"\n[grid]\nscene = ["flat.npy", "camera"]\n')
+    monkeypatch.chdir(tmp_path)
+    spec = load_sweep_config(cfg)
+    assert spec.base["scene"] == str(tmp_path / "cfgs" / "flat.npy")
+    assert spec.grid["scene"] == [str(tmp_path / "cfgs" / "flat.npy"), "camera"]

@@ -17,6 +17,7 @@ from .chain import (
     load_solver,
     measure,
     noise_level,
+    preflight,
     reconstruct,
     run,
     solver_default,
@@ -30,6 +31,6 @@ __all__ = [
     "AUTO_GATE_MIN_SLICES", "BLOCK", "GATE_PAD_BINS", "PROCESSING_KEYS", "TV_INNER",
     "Acquisition", "Measurement", "Result", "build_regulariser", "clear_shared",
     "default_gate", "load_solver", "make_acquisition", "measure", "noise_level",
-    "occupied_lags", "reconstruct", "run", "run_metrics", "run_shared", "simulate_correlations",
-    "simulation_key", "solver_default", "unique_lags",
+    "occupied_lags", "preflight", "reconstruct", "run", "run_metrics", "run_shared",
+    "simulate_correlations", "simulation_key", "solver_default", "unique_lags",
 ]

@@ -133,26 +133,26 @@ def _resolve(config, overrides) -> Config:
     return cfg
 
 
-def measure(config: Config | dict | None = None, **overrides) -> Measurement:
-    """Simulate one acquisition: scene, code, patterns, photon counts and matched filter.
+@dataclass
+class _Plan:
+    """What a run needs before its first large array: seeds, acquisition, gate and budget."""
 
-    The result can be reconstructed several times (other solvers, weights, with and without
-    QCR) by :func:`reconstruct` without simulating again.
-    """
-    cfg = _resolve(config, overrides)
-    if cfg.backend != "numpy":  # the array-API chain on another backend (spslidar.backends)
-        from ..backends.chain import measure as measure_on_backend
+    seq_pat: np.random.SeedSequence
+    seq_counts: np.random.SeedSequence
+    seq_probe: np.random.SeedSequence
+    acq: Acquisition
+    gate: tuple[float, float]
+    lags: np.ndarray
+    ulags: np.ndarray
+    inverse: np.ndarray
+    m: int
+    dtype: Any
+    budget: Any
 
-        return measure_on_backend(cfg)
-    timing: dict[str, float] = {}
-    warns: list[str] = []
 
-    t0 = time.perf_counter()
-    scene = load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
-    warns.extend(scene.notes)
-    timing["scene"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
+def _plan(cfg: Config, scene, warns: list[str]) -> _Plan:
+    """The cheap part of :func:`measure`: code, range gate and the memory check (refused in
+    one line before any large array exists)."""
     ss = np.random.SeedSequence(cfg.seed)
     seq_code, seq_pat, seq_counts, seq_probe = ss.spawn(4)
     bin_width = 1.0 / cfg.bit_rate
@@ -181,6 +181,44 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
                                  if PATTERNS.get(cfg.patterns).defaults.get("dense") else None),
         threads=simulation_threads())
     check_budget(budget, cfg.max_memory, cfg.patterns)
+    return _Plan(seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse, m, dtype,
+                 budget)
+
+
+def preflight(config: Config | dict | None = None, **overrides):
+    """Check that a configuration can run here, without running it: its scene loads and its
+    estimated memory fits (:func:`~spslidar.pipeline.budget.check_budget`). Sweeps call it for
+    every point before the first run. Returns the :class:`~spslidar.pipeline.budget.Budget`."""
+    cfg = _resolve(config, overrides)
+    scene = load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
+    return _plan(cfg, scene, []).budget
+
+
+def measure(config: Config | dict | None = None, **overrides) -> Measurement:
+    """Simulate one acquisition: scene, code, patterns, photon counts and matched filter.
+
+    The result can be reconstructed several times (other solvers, weights, with and without
+    QCR) by :func:`reconstruct` without simulating again.
+    """
+    cfg = _resolve(config, overrides)
+    if cfg.backend != "numpy":  # the array-API chain on another backend (spslidar.backends)
+        from ..backends.chain import measure as measure_on_backend
+
+        return measure_on_backend(cfg)
+    timing: dict[str, float] = {}
+    warns: list[str] = []
+
+    t0 = time.perf_counter()
+    scene = load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
+    warns.extend(scene.notes)
+    timing["scene"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    plan = _plan(cfg, scene, warns)
+    seq_pat, seq_counts, seq_probe = plan.seq_pat, plan.seq_counts, plan.seq_probe
+    acq, gate, lags, ulags, inverse = plan.acq, plan.gate, plan.lags, plan.ulags, plan.inverse
+    m, dtype, budget = plan.m, plan.dtype, plan.budget
+    bin_width = 1.0 / cfg.bit_rate
     patterns = build_patterns(cfg.patterns, m, cfg.size, np.random.default_rng(seq_pat),
                               dtype=dtype, sigma=cfg.pattern_sigma, order=cfg.hadamard_order,
                               realisation=cfg.hadamard_realisation)

@@ -351,12 +351,21 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any) -> Non
     """Check every point's run config before anything runs: a bad grid is bad input (one
     ConfigError naming the file), not a sweep of failed runs."""
     from spslidar.config import Config
+    from spslidar.errors import SpslidarError
+    from spslidar.pipeline import PROCESSING_KEYS, preflight
 
+    checked: set[str] = set()
     for params in points:
         config = {key: value for key, value in params.items() if key != TRIAL_KEY}
         try:
-            Config.from_dict(config).validate()
-        except ConfigError as exc:
+            cfg = Config.from_dict(config)
+            # the scene loads and the memory fits: once per simulated configuration
+            key = canonical_json({k: v for k, v in cfg.to_dict().items()
+                                  if k not in PROCESSING_KEYS and k != "seed"})
+            if key not in checked:
+                checked.add(key)
+                preflight(cfg)
+        except (ConfigError, SpslidarError) as exc:
             raise ConfigError(f"{where}: {exc}") from None
 
 

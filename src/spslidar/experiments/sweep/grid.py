@@ -354,11 +354,17 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
         raise ConfigError(
             f"{path}: base.seed gives every trial the same noise; set the top-level seed instead"
         )
+    # scene files named relative to the TOML are read from its folder, as in `run --config`
+    from spslidar.config import resolve_scene_path
+
+    base = resolve_scene_path(base, path.parent)
+    grid = {name: ([resolve_scene_path({"scene": v}, path.parent)["scene"] for v in values]
+                   if name == "scene" else list(values)) for name, values in grid.items()}
     return SweepSpec(
         seed=seed,
         trials=trials,
         base=base,
-        grid={name: list(values) for name, values in grid.items()},
+        grid=grid,
         path=path,
     )
 
