@@ -152,3 +152,9 @@ def test_sweep_scene_paths_are_relative_to_the_toml(tmp_path, monkeypatch):
     spec = load_sweep_config(cfg)
     assert spec.base["scene"] == str(tmp_path / "cfgs" / "flat.npy")
     assert spec.grid["scene"] == [str(tmp_path / "cfgs" / "flat.npy"), "camera"]
+
+
+def test_snr_histogram_too_large_is_one_line(capsys):
+    assert main(["snr", "--size", "100000", "--method", "histogram"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "GB" in err and "--method sum" in err

@@ -62,6 +62,16 @@ def _counts_histogram(
 
     period = code.size
     q = n * n
+    from ..pipeline.budget import available_memory
+
+    # the pixel arrays (pattern, reflectivity, delays, amplitudes: ~6 float64 per pixel) and
+    # one chunk of histograms with its correlation (~3 float64 per bin)
+    need = 6 * 8.0 * q + 3 * 8.0 * _HIST_CHUNK_BINS + 150e6
+    if need > available_memory():
+        raise config_error(
+            f"--method histogram at --size {n} needs ~{need / 1e9:.0f} GB of memory, more than "
+            f"the {available_memory() / 1e9:.1f} GB available: use --method sum (the same "
+            f"statistic without per-pixel arrays) or a smaller --size")
     pattern = np.zeros((1, q))
     pattern[0, rng.choice(q, size=m2, replace=False)] = 1.0
     alpha = np.full(q, a)
