@@ -104,6 +104,20 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--dead-time", type=float, default=S, metavar="S",
                    help="GMAPD dead time in seconds (default 50e-9; the linear model uses it "
                         "only for its pile-up warning)")
+    g.add_argument("--jitter", type=float, default=S, metavar="S",
+                   help="gmapd: standard deviation of the Gaussian timing jitter (s)")
+    g.add_argument("--jitter-tail", type=float, default=S, metavar="S",
+                   help="gmapd: mean of the IRF's exponential tail (s), with weight "
+                        "--jitter-tail-weight")
+    g.add_argument("--jitter-tail-weight", type=float, default=S, metavar="W",
+                   help="gmapd: share of photons in the exponential tail, in [0, 1]")
+    g.add_argument("--afterpulse-prob", type=float, default=S, metavar="P",
+                   help="gmapd: probability that an avalanche causes an afterpulse, in [0, 1)")
+    g.add_argument("--afterpulse-delay", type=float, default=S, metavar="S",
+                   help="gmapd: mean afterpulse delay after re-arming (s)")
+    g.add_argument("--pileup-correction", choices=("on", "off"), default=S,
+                   help="gmapd: correct each histogram for pile-up before the matched filter "
+                        "(on, default)")
     g.add_argument("--noiseless", action="store_true", default=S,
                    help="use expected counts (no Poisson noise)")
     g = p.add_argument_group("processing")
@@ -272,6 +286,8 @@ def _cmd_run(args) -> int:
 
     opts = {k: v for k, v in vars(args).items()
             if k not in ("command", "config", "out", "no_figure", "overwrite", "func")}
+    if opts.get("pileup_correction") in ("on", "off"):
+        opts["pileup_correction"] = opts["pileup_correction"] == "on"
     check_output(args.out, args.overwrite)  # refuse before any work
     base = read_toml(args.config) if args.config else {}
     cfg = Config.from_dict({**base, **opts})

@@ -62,6 +62,12 @@ class Config:
     dark_count_rate: float = 0.0
     dead_time: float = 50e-9
     detector: str = "linear"
+    jitter: float = 0.0
+    jitter_tail: float = 0.0
+    jitter_tail_weight: float = 0.0
+    afterpulse_prob: float = 0.0
+    afterpulse_delay: float = 0.0
+    pileup_correction: bool = True
     noiseless: bool = False
     # processing
     replica: str = "auto"
@@ -189,6 +195,17 @@ class Config:
         number("background_rate", 0)
         number("dark_count_rate", 0)
         number("dead_time", 0)
+        number("jitter", 0)
+        number("jitter_tail", 0)
+        number("jitter_tail_weight", 0, 1)
+        number("afterpulse_prob", 0, 1, hi_open=True)
+        number("afterpulse_delay", 0)
+        if self.afterpulse_prob > 0 and self.afterpulse_delay <= 0:
+            raise ConfigError("--afterpulse-prob needs a positive --afterpulse-delay (seconds)")
+        if self.detector == "linear" and any(
+                getattr(self, k) for k in ("jitter", "jitter_tail", "afterpulse_prob")):
+            raise ConfigError("--jitter, --jitter-tail and --afterpulse-prob describe a "
+                              "Geiger-mode detector: add --detector gmapd")
         number("lam", 0, optional=True)
         number("lam_scale", 0, lo_open=True, optional=True)
         number("iterations", 1, integer=True, optional=True)
@@ -197,7 +214,9 @@ class Config:
         number("max_memory", 0, lo_open=True, optional=True)
         if self.auto_gate is not None and not isinstance(self.auto_gate, bool):
             raise ConfigError(f"auto-gate must be true or false, got {self.auto_gate!r}")
-        for flag in ("qcr", "subbin", "noiseless", "nonneg"):
+        if self.pileup_correction in ("on", "off"):
+            self.pileup_correction = self.pileup_correction == "on"
+        for flag in ("qcr", "subbin", "noiseless", "nonneg", "pileup_correction"):
             if not isinstance(getattr(self, flag), bool):
                 raise ConfigError(f"{flag} must be true or false, got {getattr(self, flag)!r}")
         try:

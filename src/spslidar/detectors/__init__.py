@@ -24,6 +24,23 @@ DETECTORS.add("linear", "spslidar.detectors.linear:LinearDetector", "linear coun
               "the paper's linear Poisson counter, no dead time (default)")
 
 
+def _check_gmapd(cfg) -> None:
+    """Config rules of the ``gmapd`` model (light: no numpy)."""
+    from ..errors import ConfigError
+
+    if cfg.dead_time and cfg.dead_time * cfg.bit_rate < 1 - 1e-9:
+        raise ConfigError(f"--dead-time ({cfg.dead_time:g} s) must be 0 or at least one TDC bin "
+                          f"(1 / --bit-rate = {1 / cfg.bit_rate:g} s) for --detector gmapd")
+    if cfg.afterpulse_prob > 0 and not cfg.afterpulse_delay > 0:
+        raise ConfigError("--afterpulse-delay must be positive when --afterpulse-prob > 0")
+
+
+DETECTORS.add("gmapd", "spslidar.detectors.gmapd:GMAPD", "GMAPD",
+              "free-running Geiger-mode APD: non-paralysable --dead-time, --jitter, "
+              "--afterpulse-prob, pile-up corrected before the matched filter "
+              "(--pileup-correction)", validate=_check_gmapd)
+
+
 def build_detector(name: str, **options) -> DetectorModel:
     """The detector model registered under ``name``, built with ``options``."""
     return DETECTORS.load(name)(**options)

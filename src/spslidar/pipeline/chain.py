@@ -380,7 +380,13 @@ def reconstruct(meas: Measurement, **processing) -> Result:
 
 
 def detector_options(cfg: Config) -> dict[str, Any]:
-    """The detector model's options from the config."""
+    """The detector model's options from the config (dark counts are in the noise model)."""
+    if cfg.detector == "gmapd":
+        return {"dead_time": cfg.dead_time, "bin_width": 1.0 / cfg.bit_rate,
+                "jitter": cfg.jitter, "jitter_tail": cfg.jitter_tail,
+                "jitter_tail_weight": cfg.jitter_tail_weight,
+                "afterpulse_prob": cfg.afterpulse_prob, "afterpulse_delay": cfg.afterpulse_delay,
+                "correction": cfg.pileup_correction}
     return {"dead_time": cfg.dead_time}
 
 

@@ -1,0 +1,266 @@
+"""A free-running Geiger-mode APD: dead time, timing jitter, afterpulsing, dark counts.
+
+:class:`GMAPD` implements the detector stage's contract
+(:class:`~spslidar.detectors.base.DetectorModel`). Its fast path is the stationary renewal
+(Markov-chain) model of Rapp, Ma, Dawson & Goyal, "Dead time compensation for high-flux
+ranging", IEEE Trans. Signal Process. 67(13), 2019, for a periodic flux and a detector that
+re-arms after its dead time regardless of code-period boundaries
+(:func:`~spslidar.detectors.pileup.renewal_detection`; the equations are in that module's
+docstring). :func:`~spslidar.detectors.events.simulate_events` is the photon-by-photon
+reference it is tested against.
+
+Counts (``detect``). Over ``n`` periods, bin ``t`` is a sum of ``n`` Bernoulli(``q_t``)
+detections (at most one per bin per period, since the dead time is at least one bin), so it
+is drawn as ``Binomial(n, q_t)``, independently per bin. This has the exact mean and the
+exact variance when successive periods of the same bin are uncorrelated, i.e. when the code
+period is much longer than the dead-time memory (a few dead times). It ignores the
+correlations that dead time creates between neighbouring bins (negative within a dead time),
+so a row's total varies more than for the real detector (whose total-count Fano factor is
+the inter-detection interval's squared coefficient of variation, ``< 1``), and it overstates
+the per-bin variance when the period is shorter than the dead time. Use
+:func:`~spslidar.detectors.events.simulate_events` where those correlations matter.
+
+Written here because no maintained library models a free-running GMAPD under a periodic
+flux (SciPy supplies the IRF's CDF and the FFT).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from .base import DetectorModel
+from .pileup import (
+    auto_oversample,
+    coates_correction,
+    convolve_periodic,
+    jitter_kernel,
+    renewal_detection,
+)
+
+__all__ = ["GMAPD"]
+
+#: largest rows x bins x sub-bins solved at once (memory: ~15 float64 arrays of this size)
+MAX_BLOCK = 2**21
+
+
+def _check(ok: bool, message: str) -> None:
+    if not ok:
+        raise ConfigError(message)
+
+
+@dataclass
+class GMAPD(DetectorModel):
+    """Free-running, non-paralysable Geiger-mode APD with a TDC.
+
+    Parameters
+    ----------
+    dead_time : float
+        Non-paralysable dead time (s); 0 or at least ``bin_width``.
+    bin_width : float
+        TDC bin width (s).
+    efficiency : float
+        Photon detection efficiency, in (0, 1].
+    dark_count_rate : float
+        Dark counts per second (not jittered).
+    jitter : float
+        Standard deviation of the Gaussian timing jitter (s).
+    jitter_tail, jitter_tail_weight : float
+        Mean (s) and weight in [0, 1] of the IRF's exponential (diffusion) tail: with
+        probability ``jitter_tail_weight`` a photon's jitter is Gaussian plus ``Exp(tail)``.
+    afterpulse_prob : float
+        Probability in [0, 1) that an avalanche fills a trap, which empties after an
+        ``Exp(afterpulse_delay)`` delay counted from re-arming and causes an afterpulse if
+        the detector is still armed (at low flux, ``afterpulse_prob`` is the fraction of
+        detections followed by an afterpulse).
+    afterpulse_delay : float
+        Mean afterpulse delay after re-arming (s); > 0 when ``afterpulse_prob > 0``.
+    oversample : int, optional
+        Sub-bins per TDC bin for the renewal model (default: chosen from the largest flux
+        per bin by :func:`~spslidar.detectors.pileup.auto_oversample`; 1 unless a bin gets
+        more than 0.15 photon per period).
+    tol : float
+        Relative tolerance of the renewal fixed point.
+    correction : bool
+        Correct each histogram for pile-up before the matched filter (:meth:`correct`;
+        ``--pileup-correction``); without it the distorted counts go on as measured.
+    """
+
+    dead_time: float = 50e-9
+    bin_width: float = 100e-12
+    efficiency: float = 1.0
+    dark_count_rate: float = 0.0
+    jitter: float = 0.0
+    jitter_tail: float = 0.0
+    jitter_tail_weight: float = 0.0
+    afterpulse_prob: float = 0.0
+    afterpulse_delay: float = 0.0
+    oversample: int | None = None
+    tol: float = 1e-10
+    correction: bool = True
+
+    name = "gmapd"
+    linear = False
+
+    def __post_init__(self):
+        _check(np.isfinite(self.bin_width) and self.bin_width > 0,
+               f"bin_width must be a positive time in seconds, got {self.bin_width}")
+        _check(np.isfinite(self.dead_time) and self.dead_time >= 0,
+               f"dead_time must be a non-negative time in seconds, got {self.dead_time}")
+        _check(self.dead_time == 0 or self.dead_bins >= 1,
+               f"dead_time ({self.dead_time} s) must be 0 or at least one TDC bin "
+               f"({self.bin_width} s)")
+        _check(0 < self.efficiency <= 1,
+               f"efficiency must be in (0, 1], got {self.efficiency}")
+        _check(np.isfinite(self.dark_count_rate) and self.dark_count_rate >= 0,
+               f"dark_count_rate must be non-negative (counts/s), got {self.dark_count_rate}")
+        for key in ("jitter", "jitter_tail", "afterpulse_delay"):
+            val = getattr(self, key)
+            _check(np.isfinite(val) and val >= 0, f"{key} must be a non-negative time in "
+                   f"seconds, got {val}")
+        _check(0 <= self.jitter_tail_weight <= 1,
+               f"jitter_tail_weight must be in [0, 1], got {self.jitter_tail_weight}")
+        _check(0 <= self.afterpulse_prob < 1,
+               f"afterpulse_prob must be in [0, 1), got {self.afterpulse_prob}")
+        _check(self.afterpulse_prob == 0 or self.afterpulse_delay > 0,
+               "afterpulse_delay must be positive when afterpulse_prob > 0")
+        _check(self.oversample is None or (int(self.oversample) == self.oversample
+                                           and 1 <= self.oversample <= 64),
+               f"oversample must be None or an integer in [1, 64], got {self.oversample}")
+        _check(self.tol > 0, f"tol must be positive, got {self.tol}")
+
+    # ------------------------------------------------------------------ units and the flux
+
+    @property
+    def dead_bins(self) -> float:
+        """Dead time in TDC bins (rounded to an integer when within 1e-9 of one)."""
+        d = self.dead_time / self.bin_width
+        return float(round(d)) if abs(d - round(d)) < 1e-9 else d
+
+    def _ap_rate(self) -> float:
+        return self.bin_width / self.afterpulse_delay if self.afterpulse_prob else 0.0
+
+    def flux(self, lam: np.ndarray, n_periods: int = 1, sub: int = 1) -> np.ndarray:
+        """Avalanche-causing events per (sub-)bin per period before dead time, float64:
+        ``efficiency * (IRF (*) lam) / n_periods + dark_count_rate * bin_width``, circular
+        convolution with :func:`~spslidar.detectors.pileup.jitter_kernel`.
+
+        Parameters
+        ----------
+        lam : ndarray, shape (B, L)
+            Expected photons per bin over ``n_periods`` periods (uniform within a bin).
+        n_periods : int
+        sub : int
+            Sub-bins per bin: the result has shape ``(B, L * sub)``.
+        """
+        lam = np.atleast_2d(np.asarray(lam, dtype=np.float64))
+        if sub > 1:
+            lam = np.repeat(lam / sub, sub, axis=1)
+        width = self.bin_width / sub
+        kern = jitter_kernel(lam.shape[1], self.jitter / width, self.jitter_tail / width,
+                             self.jitter_tail_weight)
+        mu = convolve_periodic(lam, kern) * (self.efficiency / n_periods)
+        if self.dark_count_rate:
+            mu = mu + self.dark_count_rate * width
+        return mu
+
+    def detection_probability(self, lam: np.ndarray, n_periods: int = 1) -> np.ndarray:
+        """``q_t``: mean detections per bin per period (steady state), float64 (B, L)."""
+        lam = np.atleast_2d(np.asarray(lam, dtype=np.float64))
+        mu = self.flux(lam, n_periods)
+        sub = self.oversample or auto_oversample(float(mu.max(initial=0.0)))
+        args = (self.afterpulse_prob, self._ap_rate() / sub)
+        if sub == 1:
+            return renewal_detection(mu, self.dead_bins, *args, tol=self.tol)
+        n_rows, period = lam.shape
+        q = np.empty((n_rows, period))
+        step = max(1, MAX_BLOCK // (period * sub))
+        for r in range(0, n_rows, step):
+            fine = renewal_detection(self.flux(lam[r : r + step], n_periods, sub),
+                                     self.dead_bins * sub, *args, tol=self.tol)
+            q[r : r + step] = fine.reshape(-1, period, sub).sum(axis=2)
+        return q
+
+    # -------------------------------------------------------------------------- contract
+
+    def expected(self, lam: np.ndarray, n_periods: int = 1) -> np.ndarray:
+        """Mean detected counts per bin over ``n_periods`` periods, ``n_periods * q_t``.
+
+        ``lam`` (B, L) is accumulated over the ``n_periods`` periods (the contract of
+        :class:`~spslidar.detectors.base.DetectorModel`)."""
+        return n_periods * self.detection_probability(lam, n_periods)
+
+    def variance(self, lam: np.ndarray, n_periods: int = 1) -> np.ndarray:
+        """Per-bin variance of :meth:`detect`'s counts, ``n q (1 - q)`` (binomial; see the
+        module docstring for when the real detector's differs)."""
+        q = self.detection_probability(lam, n_periods)
+        if self.dead_bins == 0:
+            return n_periods * q
+        return n_periods * q * (1.0 - q)
+
+    def detect(self, lam: np.ndarray, rng: np.random.Generator, n_periods: int = 1,
+               out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Detected counts: ``Binomial(n_periods, q_t)`` per bin (Poisson without dead time).
+
+        Parameters
+        ----------
+        lam : ndarray, shape (B, L)
+            Expected photons per bin reaching the detector over the ``n_periods`` periods.
+        rng : numpy.random.Generator
+        n_periods : int
+        out : ndarray, shape (B, L), optional
+            Receives the counts (may be ``lam``).
+
+        Returns
+        -------
+        counts : ndarray, shape (B, L)
+            float32 unless ``out`` says otherwise.
+        totals : ndarray of int64, shape (B,)
+        """
+        q = self.detection_probability(lam, n_periods)
+        if self.dead_bins == 0:
+            counts = rng.poisson(n_periods * q)
+        else:
+            counts = rng.binomial(int(n_periods), np.clip(q, 0.0, 1.0))
+        if out is None:
+            out = np.empty(q.shape, dtype=np.float32)
+        out[...] = counts.reshape(out.shape)
+        return out, counts.sum(axis=1).astype(np.int64)
+
+    def correct(self, counts: np.ndarray, n_periods: int = 1) -> np.ndarray:
+        """Pile-up corrected histograms: the generalised Coates estimate of
+        ``n_periods * flux`` (:func:`~spslidar.detectors.pileup.coates_correction`), i.e. what
+        a detector without dead time or afterpulses would have counted (dark counts
+        included, jitter not undone). Where the model is sub-binned (high flux), the flux
+        within a bin is taken as uniform, or as linear when the jitter is at least half a bin
+        wide (:func:`~spslidar.detectors.pileup.sub_bin_profile`)."""
+        if not self.correction:
+            return counts
+        smooth = max(self.jitter, self.jitter_tail * (self.jitter_tail_weight > 0))
+        return coates_correction(counts, n_periods, self.dead_bins, self.afterpulse_prob,
+                                 self.afterpulse_delay / self.bin_width, self.oversample,
+                                 "linear" if smooth >= 0.5 * self.bin_width else "uniform")
+
+    def noise_totals(self, counts: np.ndarray, totals: np.ndarray,
+                     n_periods: int = 1) -> np.ndarray:
+        """Sum over bins of the corrected histogram's variance, by the delta method:
+        ``Var(n mu_hat_t) ~= n (e^{mu_t} - 1) / alpha_t`` (Coates with ``alpha_t n`` armed
+        periods, binomial counts), estimated from the measurement; the counts themselves
+        without dead time."""
+        if self.dead_bins == 0 or not self.correction:
+            return np.asarray(totals, dtype=np.float64)
+        c = np.atleast_2d(np.asarray(counts, dtype=np.float64))
+        mu = np.atleast_2d(self.correct(c, n_periods)) / n_periods
+        armed = np.clip(c / n_periods / np.maximum(-np.expm1(-mu), 1e-300), 0.0, 1.0)
+        var = np.where(c > 0, n_periods * np.expm1(mu) / np.maximum(armed, 1e-300), 0.0)
+        return var.sum(axis=1)
+
+    def report(self, counts_per_period: float, period_s: float) -> dict[str, Any]:
+        """Detected rate, detections per dead time and the fraction of time dead."""
+        rate = counts_per_period / period_s
+        return {"model": self.name, "count_rate_hz": float(rate),
+                "counts_per_dead_time": float(rate * self.dead_time),
+                "dead_fraction": float(min(rate * self.dead_time, 1.0))}
