@@ -185,6 +185,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-figure", action="store_true", help="skip depth.png")
     _add_run_options(p)
     add_snr_parser(sub)
+    _add_reconstruct_parser(sub)
 
     from .experiments.names import EXPERIMENTS
 
@@ -210,6 +211,63 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--out", required=True, metavar="DIR", help="output folder")
     _add_sweep_options(w, trials=False)
     return parser
+
+
+def _add_reconstruct_parser(sub) -> None:
+    """``spslidar reconstruct``: a measured T3 PTU acquisition -> depth map."""
+    solvers, _ = _choices("solver")
+    depths, _ = _choices("depth")
+    S = argparse.SUPPRESS
+    p = sub.add_parser(
+        "reconstruct", help="reconstruct a measured PicoQuant T3 PTU acquisition",
+        description="Read photon time tags (sync = code period start, a marker per DMD "
+                    "pattern change), histogram them per pattern over the code period and run "
+                    "the matched filter, QCR, solver and depth stages of 'run'; writes "
+                    "depth.npy, metrics.json and depth.png into --out.")
+    p.add_argument("--ptu", required=True, metavar="FILE.ptu", help="T3 PTU file")
+    p.add_argument("--patterns", required=True, metavar="PATTERNS.npy",
+                   help="(M, N, N) mirror states shown, in marker order (0/1 or grey in [0, 1])")
+    p.add_argument("--code", required=True, metavar="CODE.npy|mseq",
+                   help="unipolar bits of one code period (.npy), or mseq with --code-length")
+    p.add_argument("--code-length", type=int, metavar="L", help="m-sequence length (2^n - 1)")
+    p.add_argument("--bit-rate", type=float, required=True, metavar="HZ",
+                   help="bits (TDC bins) per second; must match the file's resolution")
+    p.add_argument("--range-gate", type=float, nargs=2, required=True, metavar=("MIN", "MAX"),
+                   help="depths to reconstruct, metres")
+    p.add_argument("--marker", type=int, default=1, metavar="K",
+                   help="marker input flagging a pattern change (default 1)")
+    p.add_argument("--channel", type=int, metavar="C", help="detector channel (default all)")
+    p.add_argument("--truth", metavar="TRUTH.npy", help="(N, N) true depth for the RMSE")
+    p.add_argument("--solver", choices=solvers, default=S)
+    p.add_argument("--depth", choices=depths, default=S)
+    p.add_argument("--lam-scale", type=float, default=S, metavar="K")
+    p.add_argument("--iterations", type=int, default=S, metavar="K")
+    p.add_argument("--qcr", action=argparse.BooleanOptionalAction, default=S)
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the previous spslidar result in --out")
+    p.add_argument("--no-figure", action="store_true", help="skip depth.png")
+
+
+def _cmd_reconstruct(args) -> int:
+    from .outdir import check_output
+    from .pipeline.real import _load_npy, load_code, load_patterns, reconstruct_ptu
+
+    check_output(args.out, args.overwrite)  # refuse before any work
+    processing = {k: getattr(args, k) for k in ("solver", "depth", "lam_scale", "iterations",
+                                                 "qcr") if hasattr(args, k)}
+    truth = _load_npy(args.truth, "truth") if args.truth else None
+    result = reconstruct_ptu(args.ptu, load_patterns(args.patterns),
+                             load_code(args.code, args.code_length), args.bit_rate,
+                             tuple(args.range_gate), marker=args.marker, channel=args.channel,
+                             truth=truth, **processing)
+    out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite)
+    m = result.metrics
+    rmse = m.get("depth_rmse_m")
+    print(f"{m['n_patterns']} patterns, {int(sum(m['ptu']['counts_per_pattern']))} photons; "
+          + (f"depth RMSE {rmse:.4f} m" if rmse is not None else "no --truth"))
+    print(f"wrote {out}/: metrics.json depth.npy" + ("" if args.no_figure else " depth.png"))
+    return 0
 
 
 def _add_sweep_options(p: argparse.ArgumentParser, trials: bool) -> None:
@@ -376,7 +434,8 @@ def _cmd_sweep(args) -> int:
                            progress=not args.no_progress) else 0
 
 
-COMMANDS = {"run": _cmd_run, "snr": cmd_snr, "reproduce": _cmd_reproduce, "sweep": _cmd_sweep}
+COMMANDS = {"run": _cmd_run, "reconstruct": _cmd_reconstruct, "snr": cmd_snr,
+            "reproduce": _cmd_reproduce, "sweep": _cmd_sweep}
 
 
 def main(argv: list[str] | None = None) -> int:
