@@ -10,7 +10,7 @@ output SNR (eq. 10)::
 with ``T`` the code length, ``R_a`` the share of '1' bits, ``M_2`` the number of mirrors on,
 ``a`` the mean reflectivity, ``m_s`` the mean signal photons per laser pulse per DMD pixel
 (mirror on, reflectivity 1) and ``m_n`` the mean noise counts per TDC bin per pixel (so
-``N^2 m_n`` per bin, see ``NOTES.md`` and ``docs/model.md``).
+``N^2 m_n`` per bin, see ``docs/reading.md`` and ``docs/model.md``).
 
 :func:`snr_theory` evaluates eq. (10) (:mod:`spslidar.snr.theory`, with the input checks);
 :func:`snr_simulated` measures the same quantity from Poisson photon counts correlated with the

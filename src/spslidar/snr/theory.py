@@ -224,7 +224,7 @@ def snr_theory(
     ``E[C_s] = T R_a M_2 a m_s``, to the variance of signal plus noise, eq. (9),
     ``Var[C] = R_a T M_2 a m_s + R_a T N^2 m_n`` (Poisson counts: variance = mean; the
     unipolar replica sums the counts of the ``R_a T`` bits where the code is on). The paper
-    writes the noise as ``N^2 m_n^(1) + m_n^(2) + m_n^(3)``; following ``NOTES.md`` all three
+    writes the noise as ``N^2 m_n^(1) + m_n^(2) + m_n^(3)``; following ``docs/reading.md`` all three
     terms are per pixel here, ``N^2 m_n`` in total (:class:`spslidar.detector.NoiseModel`).
     The SNR grows linearly with ``T`` and ``R_a``.
 
