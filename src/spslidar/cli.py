@@ -183,6 +183,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true",
                    help="replace the previous spslidar result in --out")
     p.add_argument("--no-figure", action="store_true", help="skip depth.png")
+    p.add_argument("--save-ptu", default=argparse.SUPPRESS, metavar="FILE.ptu",
+                   help="also write the simulated acquisition photon by photon as a T3 PTU "
+                        "file (sync = code period, a marker per pattern; low flux only), for "
+                        "'spslidar reconstruct'")
     _add_run_options(p)
     add_snr_parser(sub)
     _add_reconstruct_parser(sub)
@@ -338,18 +342,34 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
 
 
 def _cmd_run(args) -> int:
+    import os
+
     from .config import Config, read_toml
+    from .errors import ConfigError
     from .outdir import check_output
     from .pipeline import run
 
     opts = {k: v for k, v in vars(args).items()
-            if k not in ("command", "config", "out", "no_figure", "overwrite", "func")}
+            if k not in ("command", "config", "out", "no_figure", "overwrite", "func",
+                         "save_ptu")}
+    save_ptu = getattr(args, "save_ptu", None)
+    if save_ptu and os.path.exists(save_ptu) and not args.overwrite:
+        raise ConfigError(f"--save-ptu {save_ptu} exists; use --overwrite to replace it")
     if opts.get("pileup_correction") in ("on", "off"):
         opts["pileup_correction"] = opts["pileup_correction"] == "on"
     check_output(args.out, args.overwrite)  # refuse before any work
     base = read_toml(args.config) if args.config else {}
     cfg = Config.from_dict({**base, **opts})
-    result = run(cfg)
+    if save_ptu:
+        from .pipeline import measure, reconstruct
+        from .pipeline.real import write_measurement_ptu
+
+        meas = measure(cfg)
+        result = reconstruct(meas)
+        info = write_measurement_ptu(meas, save_ptu)
+        print(f"wrote {save_ptu}: {info['photons']} photons, {info['records']} T3 records")
+    else:
+        result = run(cfg)
     for w in result.warnings:
         print(f"spslidar: warning: {w}", file=sys.stderr)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite)

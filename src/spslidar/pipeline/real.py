@@ -30,7 +30,7 @@ from .chain import Measurement, reconstruct
 from .gate import unique_lags
 from .results import Result
 
-__all__ = ["load_code", "load_patterns", "reconstruct_ptu"]
+__all__ = ["load_code", "load_patterns", "reconstruct_ptu", "write_measurement_ptu"]
 
 
 def _load_npy(path: str | os.PathLike, what: str) -> np.ndarray:
@@ -168,3 +168,53 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                     "depth_rmse_bins", "edge_correlation"):
             result.metrics[key] = None
     return result
+
+
+def write_measurement_ptu(meas: Measurement, path: str | os.PathLike, *,
+                          max_photons: float = 2e7) -> dict[str, Any]:
+    """Write a simulated acquisition photon by photon as a T3 PTU file (``run --save-ptu``).
+
+    The expected counts per TDC bin of every pattern are those of the simulation
+    (:func:`spslidar.forward.expected_counts`, eq. 4 plus the noise of eq. 9); the photons are
+    drawn afresh (linear Poisson counting, from the measurement's own seed), each placed in a
+    uniformly drawn code period of the pattern's dwell, and written with a marker per pattern
+    (:func:`spslidar.io.write_acquisition_ptu`). So the file is another realisation of the same
+    acquisition: ``reconstruct`` on it gives ``run``'s depth map to within the photon noise.
+
+    Raises
+    ------
+    ConfigError
+        More than ``max_photons`` expected photons (not a low-flux acquisition), or a code
+        period longer than the T3 dtime field (32768 bins).
+    """
+    from ..forward import depth_to_delay, expected_counts, return_weights
+    from ..io import write_acquisition_ptu
+
+    acq, patterns, scene, cfg = meas.acq, meas.patterns, meas.scene, meas.config
+    if acq.period > 32768:
+        raise ConfigError(f"--save-ptu: a code period of {acq.period} bins exceeds the T3 dtime "
+                          "field (32768 bins)")
+    noise_bin = np.asarray(meas.sim["noise_per_bin"], np.float64)
+    expected = float(np.asarray(meas.sim["signal_counts"]).sum()
+                      + noise_bin.sum() * acq.period * acq.n_periods)
+    if expected > max_photons:
+        raise ConfigError(f"--save-ptu writes photon by photon: {expected:.3g} expected photons "
+                          f"exceed {max_photons:.3g}; lower --signal / --noise")
+    delay = depth_to_delay(scene.depth.ravel(), acq.bin_width)
+    shifts, weights = return_weights(scene.reflectivity.ravel(), delay, cfg.pulse_width,
+                                     acq.period)
+    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0x505455]))
+    m = patterns.shape[0]
+    events = []
+    for k0 in range(0, m, 64):
+        rows = slice(k0, min(m, k0 + 64))
+        amp = np.asarray(patterns.apply_rows(rows, weights), np.float64)
+        lam = expected_counts(amp, shifts, acq.code, acq.signal_per_pulse, noise_bin[rows],
+                              acq.n_periods)
+        counts = rng.poisson(np.asarray(lam, np.float64))
+        for row in counts:
+            bins = np.repeat(np.arange(acq.period), row)
+            events.append(np.stack([rng.integers(0, acq.n_periods, bins.size), bins], axis=1))
+    n = write_acquisition_ptu(path, events, acq.period, acq.bin_width,
+                              periods_per_pattern=acq.n_periods)
+    return {"records": n, "photons": int(sum(len(e) for e in events))}
