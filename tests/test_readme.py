@@ -47,7 +47,7 @@ def _split(line: str) -> list[list[str]]:
 
 
 COMMANDS = [words for line in _commands() for words in _split(line)]
-FAST = {"run", "snr"}
+FAST = {"run", "snr", "reconstruct"}
 
 
 def _kind(words: list[str]) -> str:
@@ -78,10 +78,16 @@ def test_every_referenced_file_exists_or_is_written_first():
             continue
         if words[0] == "python" and not words[1].startswith("-"):
             assert (ROOT / words[1]).is_file(), words
-        for flag in ("--config", "--scene"):
+        written.update(words[i + 1] for i, w in enumerate(words) if w == "--save-ptu")
+        written.update(words[i + 1].replace(".ptu", suffix) for i, w in enumerate(words)
+                       if w == "--save-ptu" for suffix in ("_patterns.npy", "_code.npy"))
+        if "--out" in words:
+            written.update(f"{words[words.index('--out') + 1]}/{f}"
+                           for f in ("truth.npy", "depth.npy", "valid.npy"))
+        for flag in ("--config", "--scene", "--ptu", "--patterns", "--truth"):
             if flag in words:
                 value = words[words.index(flag) + 1]
-                if Path(value).suffix:
+                if Path(value).suffix and flag != "--code":
                     assert (ROOT / value).is_file() or value in written, (flag, value)
         if words[:2] == ["spslidar", "sweep"]:
             assert (ROOT / words[2]).is_file(), words
@@ -109,6 +115,8 @@ def test_tour_commands_run_as_written(tmp_path, monkeypatch):
             _execute(words, cwd)
             if "--out" in words:
                 assert (cwd / words[words.index("--out") + 1] / "metrics.json").is_file()
+            if "--save-ptu" in words:
+                assert (cwd / words[words.index("--save-ptu") + 1]).is_file()
 
 
 @pytest.mark.slow

@@ -362,12 +362,14 @@ def _cmd_run(args) -> int:
     cfg = Config.from_dict({**base, **opts})
     if save_ptu:
         from .pipeline import measure, reconstruct
-        from .pipeline.real import write_measurement_ptu
+        from .pipeline.real import write_measurement_arrays, write_measurement_ptu
 
         meas = measure(cfg)
         result = reconstruct(meas)
         info = write_measurement_ptu(meas, save_ptu)
-        print(f"wrote {save_ptu}: {info['photons']} photons, {info['records']} T3 records")
+        pats, code = write_measurement_arrays(meas, save_ptu)
+        print(f"wrote {save_ptu}: {info['photons']} photons, {info['records']} T3 records; "
+              f"the patterns shown and the code in {pats} and {code}")
     else:
         result = run(cfg)
     for w in result.warnings:

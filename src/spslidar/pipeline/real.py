@@ -218,3 +218,32 @@ def write_measurement_ptu(meas: Measurement, path: str | os.PathLike, *,
     n = write_acquisition_ptu(path, events, acq.period, acq.bin_width,
                               periods_per_pattern=acq.n_periods)
     return {"records": n, "photons": int(sum(len(e) for e in events))}
+
+
+def write_measurement_arrays(meas, ptu_path) -> tuple[str, str]:
+    """Beside a PTU file written by :func:`write_measurement_ptu`, the two arrays
+    ``spslidar reconstruct`` needs with it: ``<stem>_patterns.npy``, the ``(M, N, N)`` mirror
+    states in marker order, and ``<stem>_code.npy``, the unipolar bits of one code period.
+
+    Returns
+    -------
+    (str, str)
+        The two paths.
+    """
+    from pathlib import Path
+
+    base = Path(ptu_path)
+    n = meas.config.size
+    q = n * n
+    pats = np.empty((meas.patterns.shape[0], q), dtype=np.float32)
+    step = 4096  # columns of the identity at a time: memory bounded for implicit patterns
+    for start in range(0, q, step):
+        eye = np.zeros((q, min(step, q - start)))
+        eye[np.arange(start, start + eye.shape[1]), np.arange(eye.shape[1])] = 1.0
+        pats[:, start:start + eye.shape[1]] = meas.patterns.apply_rows(
+            slice(0, meas.patterns.shape[0]), eye)
+    p_path = base.with_name(base.stem + "_patterns.npy")
+    c_path = base.with_name(base.stem + "_code.npy")
+    np.save(p_path, pats.reshape(-1, n, n))
+    np.save(c_path, np.asarray(meas.acq.code, dtype=np.uint8))
+    return str(p_path), str(c_path)

@@ -55,7 +55,8 @@ __all__ = [
 BIN_WIDTH_S = 1e-10
 BIN_DEPTH_M = SPEED_OF_LIGHT * BIN_WIDTH_S / 2.0
 
-#: The paper's numbers (docs/reading.md, "The paper's reported numbers"). RMSE in metres unless noted.
+#: The paper's numbers (docs/reading.md, "The paper's reported numbers"); RMSE in metres
+#: unless noted.
 PAPER: dict[str, Any] = {
     "fig2_time_s": (8.0, 78.0),  # 5 % and 85 % compression, 64x64, MATLAB
     "fig4_noqcr_rmse_m": {1023: 0.1, 32767: 0.033},  # printed as 1024 and 32768 bits
