@@ -2,10 +2,11 @@
 
 ``reconstruct_ptu`` reads the photon records of a PicoQuant T3 file (sync = code period start,
 a marker per DMD pattern change; :func:`spslidar.io.read_ptu_histograms`), applies the
-matched filter of eq. (5)-(6) over the range gate, and hands a :class:`~.chain.Measurement`
-to :func:`~.chain.reconstruct`, so QCR, the solver and the depth estimator are those of
-``spslidar run``. Nothing is simulated: the photon scaling is 1 (the slices are in detected
-counts per pulse), and the ground truth, when given, only feeds the metrics.
+matched filter of eq. (5)-(6) over the range gate, and hands a
+:class:`~spslidar.pipeline.chain.Measurement` to :func:`~spslidar.pipeline.chain.reconstruct`,
+so QCR, the solver and the depth estimator are those of ``spslidar run``. Nothing is
+simulated: the photon scaling is 1 (the slices are in detected counts per pulse), and the
+ground truth, when given, only feeds the metrics.
 """
 
 from __future__ import annotations
