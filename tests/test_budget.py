@@ -75,6 +75,7 @@ def test_estimate_covers_what_numpy_allocates():
     """The traced peak of a real run (NumPy's arrays, without the interpreter) stays below the
     estimate without its interpreter share: the model does not under-count the big arrays."""
     cfg = dict(size=48, compression=0.25, code_length=1023, seed=0)
+    pipeline.run(cfg)  # imports and caches first: trace only what the run itself allocates
     tracemalloc.start()
     try:
         res = pipeline.run(cfg)
@@ -85,3 +86,18 @@ def test_estimate_covers_what_numpy_allocates():
     assert peak < est - budget_mod.BASE_BYTES
     # and it is not absurdly loose either (within a factor of 20 of the arrays)
     assert est - budget_mod.BASE_BYTES < 20 * peak
+
+
+def test_a_dense_matrix_that_cannot_fit_is_refused_before_the_scene_loads(monkeypatch, capsys,
+                                                                          tmp_path):
+    """--size 2048 with dense patterns: refused from the pattern matrix alone, before the
+    scene (whose loading and resizing take a while at that size) is touched."""
+
+    def no_scene(*a, **k):
+        raise AssertionError("the scene was loaded before the memory check")
+
+    monkeypatch.setattr("spslidar.pipeline.chain.load_scene", no_scene)
+    out = tmp_path / "out"
+    assert main(["run", "--size", "2048", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "patterns" in err and "GB" in err and not out.exists()

@@ -46,8 +46,9 @@ class Budget:
 
     def describe(self) -> str:
         big = max(self.parts, key=self.parts.get) if self.parts else "total"
+        time = f" and ~{_secs(self.seconds)}" if self.seconds > 0 else ""
         return (f"~{_gb(self.bytes)} of memory (largest part: {big}, "
-                f"{_gb(self.parts.get(big, self.bytes))}) and ~{_secs(self.seconds)}")
+                f"{_gb(self.parts.get(big, self.bytes))}){time}")
 
 
 def _gb(b: float) -> str:

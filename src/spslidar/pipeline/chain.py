@@ -190,8 +190,23 @@ def preflight(config: Config | dict | None = None, **overrides):
     estimated memory fits (:func:`~spslidar.pipeline.budget.check_budget`). Sweeps call it for
     every point before the first run. Returns the :class:`~spslidar.pipeline.budget.Budget`."""
     cfg = _resolve(config, overrides)
+    _check_pattern_floor(cfg)
     scene = load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
     return _plan(cfg, scene, []).budget
+
+
+def _check_pattern_floor(cfg: Config) -> None:
+    """Refuse at once a run whose dense pattern matrix alone cannot fit (the full estimate
+    needs the scene, whose loading takes a while at large sizes)."""
+    if not PATTERNS.get(cfg.patterns).defaults.get("dense"):
+        return
+    from .budget import BASE_BYTES, DENSE_PATTERN_COPIES, Budget
+
+    q = cfg.size * cfg.size
+    m = n_patterns_for(cfg.compression, q)
+    floor = DENSE_PATTERN_COPIES * m * q * (4 if cfg.dtype == "float32" else 8)
+    check_budget(Budget(BASE_BYTES + floor, 0.0, {"patterns": floor}), cfg.max_memory,
+                 cfg.patterns)
 
 
 def measure(config: Config | dict | None = None, **overrides) -> Measurement:
@@ -209,6 +224,7 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     warns: list[str] = []
 
     t0 = time.perf_counter()
+    _check_pattern_floor(cfg)
     scene = load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
     warns.extend(scene.notes)
     timing["scene"] = time.perf_counter() - t0
