@@ -170,14 +170,10 @@ def _noise_per_bin(be: Any, noise: Any, patterns: Any, refl: np.ndarray,
 
 def reconstruct(meas: Any, **processing):
     """:func:`spslidar.pipeline.chain.reconstruct` of a measurement made on a backend."""
-    from .. import __version__
-    from ..constants import SPEED_OF_LIGHT
     from ..depth.argmax import ArgmaxDepth, peak_confidence
     from ..errors import ConfigError
-    from ..metrics import depth_errors, edge_agreement, sobel_edges
-    from ..pipeline.chain import PROCESSING_KEYS, TV_INNER, resolved_config, solver_default
+    from ..pipeline.chain import PROCESSING_KEYS, TV_INNER, finish_result, solver_default
     from ..pipeline.gate import AUTO_GATE_MIN_SLICES, occupied_lags
-    from ..pipeline.results import Result
     from ..solvers import SolveInfo
 
     bad = set(k.replace("-", "_") for k in processing) - PROCESSING_KEYS
@@ -190,10 +186,9 @@ def reconstruct(meas: Any, **processing):
     xp = be.xp
     timing = dict(meas.timing)
     warns = list(meas.warnings)
-    scene, acq, sim, patterns = meas.scene, meas.acq, meas.sim, meas.patterns
+    acq, sim, patterns = meas.acq, meas.sim, meas.patterns
     ulags, lags = meas.ulags, meas.lags
     bin_width = acq.bin_width
-    bin_depth = SPEED_OF_LIGHT * bin_width / 2.0
     dtype = xp.float32 if cfg.dtype == "float32" else xp.float64
     m = patterns.shape[0]
 
@@ -271,50 +266,10 @@ def reconstruct(meas: Any, **processing):
     corr_host = be.to_numpy(corr)
     timing["to_host"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    err = depth_errors(depth, scene.depth, scene.valid)
-    edge_corr = edge_agreement(sobel_edges(depth), sobel_edges(scene.depth))
-    timing["metrics"] = time.perf_counter() - t0
-    timing["total"] = sum(timing.values())
-
-    metrics: dict[str, Any] = {
-        **err,
-        "depth_rmse_bins": err["depth_rmse_m"] / bin_depth,
-        "edge_correlation": edge_corr,
-        "bin_depth_m": bin_depth,
-        "unambiguous_range_m": acq.unambiguous_range,
-        "range_gate_m": list(meas.gate),
-        "n_slices": int(lags.size),
-        "n_slices_solved": int(keep.sum()),
-        "auto_gate": bool(auto),
-        "n_patterns": int(m),
-        "code_description": acq.description,
-        "code_period_bins": acq.period,
-        "code_ones": int(acq.code.sum()),
-        "n_periods": acq.n_periods,
-        "acquisition_time_per_pattern_s": acq.acquisition_time,
-        "signal_per_pulse": acq.signal_per_pulse,
-        "replica": acq.replica,
-        "mean_signal_counts_per_pattern": float(np.mean(sim["signal_counts"])),
-        "mean_noise_counts_per_pattern": float(np.mean(sim["noise_per_bin"]) * acq.period
-                                               * acq.n_periods),
-        "correlation_noise_sigma": float(np.sqrt(np.mean(sim["sigma"] ** 2))),
-        "depth_estimator": cfg.depth,
-        "low_confidence_fraction": float(np.mean(low)),
-        "lam": lam,
-        "lam_scale": lam_scale if cfg.lam is None else None,
-        "noise_level": sigma_eff,
-        "solver_info": dict(info.as_dict()),
-        "detector": sim["pileup"],
-        "estimate": sim.get("estimate", {}),
-        "warnings": warns,
-        "timing_s": dict(timing),
-        "config": resolved_config(cfg, acq, meas.gate, auto, iterations, lam_scale),
-        "seed": cfg.seed,
-        "version": __version__,
-    }
-    return Result(cfg, scene, depth, slices_host, lags, corr_host, metrics, timing, warns,
-                  confidence=conf.reshape(shape), low_confidence=low.reshape(shape))
+    return finish_result(
+        meas, cfg, depth=depth, slices=slices_host, corr=corr_host, keep=keep, auto=auto,
+        confidence=conf, low_confidence=low, depth_info=None, lam=lam, lam_scale=lam_scale,
+        sigma_eff=sigma_eff, info=info, iterations=iterations, timing=timing, warns=warns)
 
 
 def _scatter_columns(be: Any, full: Any, x: Any, cols: Any) -> Any:

@@ -289,10 +289,9 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     cfg = meas.config.replace(**processing) if processing else meas.config
     timing = dict(meas.timing)
     warns = list(meas.warnings)
-    scene, acq, sim, patterns = meas.scene, meas.acq, meas.sim, meas.patterns
+    acq, sim, patterns = meas.acq, meas.sim, meas.patterns
     ulags, lags = meas.ulags, meas.lags
     bin_width = acq.bin_width
-    bin_depth = SPEED_OF_LIGHT * bin_width / 2.0
     q = cfg.size * cfg.size
     dtype = np.float32 if cfg.dtype == "float32" else np.float64
 
@@ -347,6 +346,24 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     depth = est.depth.reshape(shape)
     timing["depth"] = time.perf_counter() - t0
 
+    return finish_result(
+        meas, cfg, depth=depth, slices=slices, corr=corr, keep=keep, auto=auto,
+        confidence=est.confidence, low_confidence=est.low_confidence, depth_info=est.info,
+        lam=lam, lam_scale=lam_scale, sigma_eff=sigma_eff, info=info, iterations=iterations,
+        timing=timing, warns=warns)
+
+
+def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: np.ndarray,
+                  corr: np.ndarray, keep: np.ndarray, auto: bool, confidence: np.ndarray,
+                  low_confidence: np.ndarray, depth_info: dict | None, lam: float,
+                  lam_scale: float, sigma_eff: float, info: Any, iterations: int,
+                  timing: dict[str, float], warns: list[str]) -> Result:
+    """Score a reconstruction (eq. 19, Sobel edges) and assemble its :class:`Result` and
+    ``metrics.json``: the last step of :func:`reconstruct`, shared by the other backends'
+    reconstruction (:mod:`spslidar.backends.chain`) so both report the same keys."""
+    scene, acq, sim = meas.scene, meas.acq, meas.sim
+    bin_depth = SPEED_OF_LIGHT * acq.bin_width / 2.0
+    shape = (cfg.size, cfg.size)
     t0 = time.perf_counter()
     err = depth_errors(depth, scene.depth, scene.valid)
     edge_corr = edge_agreement(sobel_edges(depth), sobel_edges(scene.depth))
@@ -360,10 +377,10 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         "bin_depth_m": bin_depth,
         "unambiguous_range_m": acq.unambiguous_range,
         "range_gate_m": list(meas.gate),
-        "n_slices": int(lags.size),
+        "n_slices": int(meas.lags.size),
         "n_slices_solved": int(keep.sum()),
         "auto_gate": bool(auto),
-        "n_patterns": int(patterns.shape[0]),
+        "n_patterns": int(meas.patterns.shape[0]),
         "code_description": acq.description,
         "code_period_bins": acq.period,
         "code_ones": int(acq.code.sum()),
@@ -376,8 +393,8 @@ def reconstruct(meas: Measurement, **processing) -> Result:
                                                * acq.n_periods),
         "correlation_noise_sigma": float(np.sqrt(np.mean(sim["sigma"] ** 2))),
         "depth_estimator": cfg.depth,
-        "low_confidence_fraction": float(np.mean(est.low_confidence)),
-        **({"depth_info": est.info} if est.info else {}),
+        "low_confidence_fraction": float(np.mean(low_confidence)),
+        **({"depth_info": depth_info} if depth_info else {}),
         "lam": lam,
         "lam_scale": lam_scale if cfg.lam is None else None,
         "noise_level": sigma_eff,
@@ -390,9 +407,9 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         "seed": cfg.seed,
         "version": __version__,
     }
-    return Result(cfg, scene, depth, slices, lags, corr, metrics, timing, warns,
-                  confidence=est.confidence.reshape(shape),
-                  low_confidence=est.low_confidence.reshape(shape))
+    return Result(cfg, scene, depth, slices, meas.lags, corr, metrics, timing, warns,
+                  confidence=np.asarray(confidence).reshape(shape),
+                  low_confidence=np.asarray(low_confidence).reshape(shape))
 
 
 def detector_options(cfg: Config) -> dict[str, Any]:
