@@ -23,7 +23,6 @@ from .kernels import (
     TVProx,
     argmax_peaks,
     centre,
-    depth_from_peaks,
     fista_tv,
     scalars,
     simulate_block,
@@ -170,7 +169,7 @@ def _noise_per_bin(be: Any, noise: Any, patterns: Any, refl: np.ndarray,
 
 def reconstruct(meas: Any, **processing):
     """:func:`spslidar.pipeline.chain.reconstruct` of a measurement made on a backend."""
-    from ..depth.argmax import ArgmaxDepth, peak_confidence
+    from ..depth.argmax import ArgmaxDepth, depth_from_peaks, peak_confidence
     from ..errors import ConfigError
     from ..pipeline.chain import PROCESSING_KEYS, TV_INNER, finish_result, solver_default
     from ..pipeline.gate import AUTO_GATE_MIN_SLICES, occupied_lags

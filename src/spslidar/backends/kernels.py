@@ -371,29 +371,3 @@ def argmax_peaks(xp: Any, slices: Any) -> tuple[Any, Any, Any, Any]:
     return idx, peak, below, above
 
 
-def depth_from_peaks(idx: np.ndarray, peak: np.ndarray, below: np.ndarray, above: np.ndarray,
-                     lags: np.ndarray, n_slices: int, bin_width: float, pulse_width: float,
-                     subbin: bool, min_peak_fraction: float = 0.05) -> np.ndarray:
-    """:func:`spslidar.depth.argmax.ml_depth`'s depth from the peaks found on the device
-    (host NumPy, O(Q))."""
-    from ..forward import delay_to_depth
-
-    lags = np.asarray(lags, dtype=np.float64)
-    peak = np.asarray(peak, dtype=np.float64)
-    pos = lags[idx]
-    if subbin and n_slices >= 3:
-        lo = np.clip(idx - 1, 0, n_slices - 1)
-        hi = np.clip(idx + 1, 0, n_slices - 1)
-        w_lo = np.clip(np.asarray(below, np.float64), 0, None) * (lo != idx)
-        w_hi = np.clip(np.asarray(above, np.float64), 0, None) * (hi != idx)
-        w_c = np.clip(peak, 0, None)
-        tot = w_lo + w_c + w_hi
-        ok = tot > 0
-        shift = np.zeros_like(pos)
-        num = w_hi * (lags[hi] - pos) + w_lo * (lags[lo] - pos)
-        shift[ok] = num[ok] / tot[ok]
-        pos = pos + shift
-    depth = delay_to_depth(pos + 0.5 - pulse_width / 2.0, bin_width)
-    ref = np.percentile(peak, 99) if peak.size else 0.0
-    depth[(peak <= 0) | (peak < min_peak_fraction * ref)] = np.nan
-    return depth

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..forward import delay_to_depth
 from .base import DepthContext, DepthEstimate, DepthEstimator
+from .profile import no_return
 
 
 def ml_depth(
@@ -56,16 +57,49 @@ def ml_depth(
     tallest correlation peak".
     """
     x = np.asarray(slices, dtype=np.float64)
-    lags = np.asarray(lags, dtype=np.float64)
     idx = np.argmax(x, axis=1)
     rows = np.arange(x.shape[0])
     peak = x[rows, idx]
-    pos = lags[idx]
+    below = above = None
     if subbin and x.shape[1] >= 3:
-        lo = np.clip(idx - 1, 0, x.shape[1] - 1)
-        hi = np.clip(idx + 1, 0, x.shape[1] - 1)
-        w_lo = np.clip(x[rows, lo], 0, None) * (lo != idx)
-        w_hi = np.clip(x[rows, hi], 0, None) * (hi != idx)
+        below = x[rows, np.clip(idx - 1, 0, x.shape[1] - 1)]
+        above = x[rows, np.clip(idx + 1, 0, x.shape[1] - 1)]
+    depth = depth_from_peaks(idx, peak, below, above, lags, x.shape[1], bin_width,
+                             pulse_width, subbin, min_peak_fraction)
+    return depth, peak
+
+
+def depth_from_peaks(idx: np.ndarray, peak: np.ndarray, below: np.ndarray | None,
+                     above: np.ndarray | None, lags: np.ndarray, n_slices: int,
+                     bin_width: float, pulse_width: float = 0.5, subbin: bool = False,
+                     min_peak_fraction: float = 0.05) -> np.ndarray:
+    """Depth from each pixel's tallest slice: the second half of :func:`ml_depth`, also used
+    by the array-API backends, which find the peaks on the device and bring back only these.
+
+    Parameters
+    ----------
+    idx : ndarray of int, shape (Q,)
+        Index of each pixel's (first) tallest slice.
+    peak : ndarray, shape (Q,)
+        Its value.
+    below, above : ndarray, shape (Q,), or None
+        The values at ``idx - 1`` and ``idx + 1`` (clipped to the gate), for ``subbin``.
+    lags, n_slices, bin_width, pulse_width, subbin, min_peak_fraction
+        As in :func:`ml_depth`.
+
+    Returns
+    -------
+    ndarray, shape (Q,)
+        Metres; NaN where no return was detected (:func:`~.profile.no_return`).
+    """
+    lags = np.asarray(lags, dtype=np.float64)
+    peak = np.asarray(peak, dtype=np.float64)
+    pos = lags[idx]
+    if subbin and n_slices >= 3:
+        lo = np.clip(idx - 1, 0, n_slices - 1)
+        hi = np.clip(idx + 1, 0, n_slices - 1)
+        w_lo = np.clip(np.asarray(below, np.float64), 0, None) * (lo != idx)
+        w_hi = np.clip(np.asarray(above, np.float64), 0, None) * (hi != idx)
         w_c = np.clip(peak, 0, None)
         tot = w_lo + w_c + w_hi
         ok = tot > 0
@@ -73,12 +107,9 @@ def ml_depth(
         num = w_hi * (lags[hi] - pos) + w_lo * (lags[lo] - pos)
         shift[ok] = num[ok] / tot[ok]
         pos = pos + shift
-    delay = pos + 0.5 - pulse_width / 2.0
-    depth = delay_to_depth(delay, bin_width)
-    ref = np.percentile(peak, 99) if peak.size else 0.0
-    missing = (peak <= 0) | (peak < min_peak_fraction * ref)
-    depth[missing] = np.nan
-    return depth, peak
+    depth = delay_to_depth(pos + 0.5 - pulse_width / 2.0, bin_width)
+    depth[no_return(peak, min_peak_fraction)] = np.nan
+    return depth
 
 
 class ArgmaxDepth(DepthEstimator):
