@@ -27,6 +27,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from _reference import fista_tv
 
 from spslidar.errors import ConfigError
 from spslidar.operators import Identity, MatrixOperator, Wavelet2D
@@ -50,15 +51,7 @@ def _tv(**kw) -> TV:
 
 def _fista_reference(a: np.ndarray, y: np.ndarray, lam: float, n_iter: int) -> np.ndarray:
     """Plain FISTA with a tightly converged TV prox (independent of the solver classes)."""
-    reg = TV(SHAPE, max_inner=200, inner_tol=1e-8)
-    lip = np.linalg.norm(a, 2) ** 2
-    x = np.zeros((a.shape[1], y.shape[1]))
-    v, t = x.copy(), 1.0
-    for _ in range(n_iter):
-        xn = reg.prox(v - a.T @ (a @ v - y) / lip, lam / lip)
-        tn = 0.5 * (1 + np.sqrt(1 + 4 * t * t))
-        v, x, t = xn + (t - 1) / tn * (xn - x), xn, tn
-    return x
+    return fista_tv(a, y, lam, TV(SHAPE, max_inner=200, inner_tol=1e-8), n_iter)
 
 
 def _lasso(b: np.ndarray, y: np.ndarray, lam: float) -> np.ndarray:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _reference import fista_tv
 
 from spslidar.operators import Identity, MatrixOperator, Wavelet2D
 from spslidar.solvers import StopRule, get_solver
@@ -336,17 +337,6 @@ def test_tval3_compressive_vs_pyproximal_fista():
     assert abs(f - f_ref) <= 1e-3 * f_ref
 
 
-def _fista_tv(a, y, lam, reg, n_iter):
-    """FISTA with the (warm-started FGP) prox of ``reg``: an independent TV reference."""
-    lip = np.linalg.norm(a, 2) ** 2
-    x = np.zeros((a.shape[1], y.shape[1]))
-    v, t = x.copy(), 1.0
-    for _ in range(n_iter):
-        xn = reg.prox(v - a.T @ (a @ v - y) / lip, lam / lip)
-        tn = 0.5 * (1 + np.sqrt(1 + 4 * t * t))
-        v, x, t = xn + (t - 1) / tn * (xn - x), xn, tn
-    return x
-
 
 def test_tval3_nonneg():
     a, y, _ = _cs_problem(seed=3, k=2, noise=0.3)
@@ -362,7 +352,7 @@ def test_tval3_nonneg():
     x2, _ = tval3(op, y, TV((16, 16)), lam, stop=stop, nonneg=True)  # the option also works
     assert x2.min() >= 0
     f = _tv_obj(a, y, x, lam, reg)
-    f_ref = _tv_obj(a, y, _fista_tv(a, y, lam, reg, 150), lam, reg)
+    f_ref = _tv_obj(a, y, fista_tv(a, y, lam, reg, 150), lam, reg)
     assert f <= f_ref * (1 + 1e-4)
     assert f >= _tv_obj(a, y, x_free, lam, reg) * (1 - 1e-9)
 
