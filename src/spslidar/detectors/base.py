@@ -62,11 +62,12 @@ class DetectorModel:
         for a linear model."""
         return counts
 
-    def noise_totals(self, counts: np.ndarray, totals: np.ndarray,
-                     n_periods: int = 1) -> np.ndarray:
+    def noise_totals(self, counts: np.ndarray, totals: np.ndarray, n_periods: int = 1,
+                     corrected: np.ndarray | None = None) -> np.ndarray:
         """Per pattern, the sum over bins of the count variance of the (corrected) histogram,
         estimated from the measurement: what the matched-filter noise level is built from.
-        For Poisson counts it is the total count itself."""
+        For Poisson counts it is the total count itself. ``corrected``: :meth:`correct` of
+        ``counts``, where the caller has computed it (saves a second correction)."""
         return totals
 
     def report(self, counts_per_period: float, period_s: float) -> dict[str, Any]:

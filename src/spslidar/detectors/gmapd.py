@@ -244,19 +244,25 @@ class GMAPD(DetectorModel):
                                  self.afterpulse_delay / self.bin_width, self.oversample,
                                  "linear" if smooth >= 0.5 * self.bin_width else "uniform")
 
-    def noise_totals(self, counts: np.ndarray, totals: np.ndarray,
-                     n_periods: int = 1) -> np.ndarray:
+    def noise_totals(self, counts: np.ndarray, totals: np.ndarray, n_periods: int = 1,
+                     corrected: np.ndarray | None = None) -> np.ndarray:
         """Sum over bins of the corrected histogram's variance, by the delta method:
         ``Var(n mu_hat_t) ~= n (e^{mu_t} - 1) / alpha_t`` (Coates with ``alpha_t n`` armed
-        periods, binomial counts), estimated from the measurement; the counts themselves
-        without dead time."""
+        periods, binomial counts), estimated from the measurement and bounded by
+        ``(n mu_t)^2 + n mu_t`` (saturated bins); the counts themselves without dead time.
+        ``corrected`` is :meth:`correct` of ``counts`` where the caller has it already."""
         if self.dead_bins == 0 or not self.correction:
             return np.asarray(totals, dtype=np.float64)
         c = np.atleast_2d(np.asarray(counts, dtype=np.float64))
-        mu = np.atleast_2d(self.correct(c, n_periods)) / n_periods
+        fixed = self.correct(c, n_periods) if corrected is None else corrected
+        mu = np.atleast_2d(np.asarray(fixed, dtype=np.float64)) / n_periods
         armed = np.clip(c / n_periods / np.maximum(-np.expm1(-mu), 1e-300), 0.0, 1.0)
-        var = np.where(c > 0, n_periods * np.expm1(mu) / np.maximum(armed, 1e-300), 0.0)
-        return var.sum(axis=1)
+        var = n_periods * np.expm1(np.minimum(mu, 700.0)) / np.maximum(armed, 1e-300)
+        # a bin that (nearly) saturated carries almost no information, but its corrected value
+        # is pinned near its cap (coates_correction), so its error is at most of the order of
+        # that value: without this bound one such bin would set the weight of every slice
+        var = np.minimum(var, (n_periods * mu) ** 2 + n_periods * mu)
+        return np.where(c > 0, var, 0.0).sum(axis=1)
 
     def report(self, counts_per_period: float, period_s: float) -> dict[str, Any]:
         """Detected rate, detections per dead time and the fraction of time dead."""

@@ -577,7 +577,9 @@ def coates_correction(hist: np.ndarray, n_periods: int, dead_time_bins: float,
     and the photon map inverted again, until ``mu`` stops changing.
 
     A bin that detected in every armed period (``h_t >= alpha_t + g_t``, only in noisy
-    counts) is set to the flux of half a count less.
+    counts) is set to the flux of half a count less, and no bin's flux exceeds
+    ``log(2 n (alpha_t + g_t))``, where Coates's map is half a count below its ceiling (the
+    most the counts can resolve).
     """
     h = np.asarray(hist, dtype=np.float64)
     one_d = h.ndim == 1
@@ -623,7 +625,8 @@ def _defect_correction(h, mu, sub, profile, args, max_iter: int = 100, tol: floa
     """``mu`` with ``F_S(mu) = h`` for the sub-binned forward model ``F_S``, from the bin-level
     inverse ``C``: ``mu <- mu + w (C(h) - C(F_S(mu)))``, with a per-bin step weight ``w``
     halved whenever that bin's step changes sign (``C`` is ill-conditioned in saturated bins,
-    where a plain iteration oscillates)."""
+    where a plain iteration oscillates). Stops when the forward model matches ``h`` to
+    ``tol`` or when the worst residual has not improved by 1 % in five steps."""
     _, dead, prob, delay, _, _ = args
     rate = 1.0 / delay if prob else 0.0
     period = h.shape[1]
@@ -631,12 +634,17 @@ def _defect_correction(h, mu, sub, profile, args, max_iter: int = 100, tol: floa
     weight = np.ones_like(mu)
     prev = np.zeros_like(mu)
     scale = max(float(h.max(initial=0.0)), 1e-300)
+    best = []
     for _ in range(max_iter):
         fwd = renewal_detection(sub_bin_profile(mu, sub, profile), dead * sub, prob, rate / sub,
                                 tol=1e-8)
         fwd = fwd.reshape(-1, period, sub).sum(axis=2)
-        if np.max(np.abs(fwd - h)) <= tol * scale:
+        worst = float(np.max(np.abs(fwd - h)))
+        # converged, or stuck (capped or saturated bins the model cannot reach: no gain of
+        # 1 % in the worst residual over the last 5 steps)
+        if worst <= tol * scale or (len(best) >= 5 and worst > 0.99 * best[-5]):
             break
+        best.append(min(worst, best[-1]) if best else worst)
         step = base - _coates_bins(fwd, *args)
         weight = np.where(step * prev < 0, 0.5 * weight, np.minimum(1.5 * weight, 1.0))
         prev = step
@@ -658,14 +666,19 @@ def _coates_bins(h: np.ndarray, n_periods: float, dead_time_bins: float,
     limit = alpha + g
     sat = h >= limit
     target = np.where(sat, np.maximum(limit - 0.5 / n_periods, 0.5 * limit), h)
-    mu = _invert_photon_map(target, alpha, g)
+    # the flux at which Coates's map comes within half a count of its ceiling: counts cannot
+    # resolve more (the re-arm term saturates only as 1/mu, so near-saturated bins would
+    # otherwise read thousands of photons per bin from a fraction of a count)
+    cap = np.log(np.maximum(2.0 * n_periods * limit, 1.0))
+    mu = np.minimum(_invert_photon_map(target, alpha, g), cap)
     if afterpulse_prob:
         rate = 1.0 / float(afterpulse_delay_bins)
         for _ in range(max_iter):
             coef = _Coefficients(mu, afterpulse_prob, rate)
             gamma = _periodic_scan(mu + rate, g * coef.coef_gamma)
             extra = g * coef.ap_g + gamma * coef.dexp
-            new = _invert_photon_map(np.maximum(target - extra, 0.0), alpha, g)
+            new = np.minimum(_invert_photon_map(np.maximum(target - extra, 0.0), alpha, g),
+                             cap)
             change = np.max(np.abs(new - mu)) / max(float(np.max(mu)), 1e-300)
             mu = new
             if change <= tol:

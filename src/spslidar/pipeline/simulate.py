@@ -194,8 +194,10 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
             # the counts overwrite their own means (NumPy draws from a float64 copy)
             lam, totals[rows] = detector.detect(lam, children[b], acq.n_periods, out=lam)
             if not detector.linear:
-                noise_tot[rows] = detector.noise_totals(lam, totals[rows], acq.n_periods)
-                lam = detector.correct(lam, acq.n_periods)
+                fixed = detector.correct(lam, acq.n_periods)
+                noise_tot[rows] = detector.noise_totals(lam, totals[rows], acq.n_periods,
+                                                        corrected=fixed)
+                lam = fixed
         corr[rows] = matched_filter(lam, replica, lags, gain, bank=bank)
 
     workers = min(simulation_threads(threads), n_blocks)
@@ -236,8 +238,10 @@ def _simulate_reference(patterns, weights, shifts, noise_bin, acq, detector, rep
             check_means(lam)
             hist, totals[rows] = detector.detect(lam, children[b], acq.n_periods,
                                                  out=np.empty_like(lam))
-            noise_tot[rows] = detector.noise_totals(hist, totals[rows], acq.n_periods)
-            hist = detector.correct(hist, acq.n_periods)
+            fixed = detector.correct(hist, acq.n_periods)
+            noise_tot[rows] = detector.noise_totals(hist, totals[rows], acq.n_periods,
+                                                    corrected=fixed)
+            hist = fixed
         # C(tau) = sum_t h(t) f(t - tau) at every tau (eq. 5-6), then the gated lags
         full = np.fft.irfft(np.fft.rfft(hist, axis=1) * rep_f, n=period, axis=1)
         corr[rows] = full[:, np.mod(lags, period)] / gain
