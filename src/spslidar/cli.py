@@ -68,6 +68,9 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--fairness", choices=("energy", "power"), default=S,
                    help="conventional vs PSST: same pulse energy (default, the paper's) or same "
                         "average power")
+    g.add_argument("--periods", type=int, default=S, metavar="N",
+                   help="code periods accumulated per DMD pattern, the dwell (default 1, the "
+                        "paper's); signal and noise photons grow with it")
     g.add_argument("--patterns", choices=patterns, default=S,
                    help=f"DMD patterns: {patterns_help}")
     g.add_argument("--pattern-sigma", type=float, default=S, metavar="S")

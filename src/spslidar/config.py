@@ -47,6 +47,7 @@ class Config:
     pulse_width: float = 0.5
     rep_rate: float | None = None
     fairness: str = "energy"
+    periods: int = 1
     # patterns
     patterns: str = "gaussian"
     pattern_sigma: float = 0.25
@@ -188,6 +189,7 @@ class Config:
         number("bit_rate", 0, lo_open=True)
         number("pulse_width", 0, 1, lo_open=True)
         number("rep_rate", 0, lo_open=True, optional=True)
+        number("periods", 1, 2**31, integer=True)
         number("pattern_sigma", 0, lo_open=True)
         number("compression", 0, 1, lo_open=True)
         number("signal", 0, lo_open=True)

@@ -171,7 +171,13 @@ def reconstruct(meas: Any, **processing):
     """:func:`spslidar.pipeline.chain.reconstruct` of a measurement made on a backend."""
     from ..depth.argmax import ArgmaxDepth, depth_from_peaks, peak_confidence
     from ..errors import ConfigError
-    from ..pipeline.chain import PROCESSING_KEYS, TV_INNER, finish_result, solver_default
+    from ..pipeline.chain import (
+        PROCESSING_KEYS,
+        TV_INNER,
+        default_weight,
+        finish_result,
+        solver_default,
+    )
     from ..pipeline.gate import AUTO_GATE_MIN_SLICES, occupied_lags
     from ..solvers import SolveInfo
 
@@ -210,9 +216,8 @@ def reconstruct(meas: Any, **processing):
     ey = (e - e.mean(axis=0, keepdims=True)) / np.sqrt(m) if cfg.qcr else e
     z = A.rmatvec(xp.astype(be.asarray(ey), dtype))
     sigma_eff = float(np.sqrt(scalars(be, xp.mean(xp.astype(z, xp.float64) ** 2))[0]))
-    lam_scale = (cfg.lam_scale if cfg.lam_scale is not None
-                 else solver_default(cfg.solver, "lam_scale"))
-    lam = cfg.lam if cfg.lam is not None else lam_scale * sigma_eff
+    lam_max = float(scalars(be, xp.max(xp.abs(xp.astype(A.rmatvec(y), xp.float64))))[0])
+    lam, lam_scale, floored = default_weight(cfg, sigma_eff, lam_max)
     be.sync()
     timing["qcr"] = time.perf_counter() - t0
 
@@ -268,7 +273,8 @@ def reconstruct(meas: Any, **processing):
     return finish_result(
         meas, cfg, depth=depth, slices=slices_host, corr=corr_host, keep=keep, auto=auto,
         confidence=conf, low_confidence=low, depth_info=None, lam=lam, lam_scale=lam_scale,
-        sigma_eff=sigma_eff, info=info, iterations=iterations, timing=timing, warns=warns)
+        sigma_eff=sigma_eff, info=info, iterations=iterations, timing=timing, warns=warns,
+        lam_floored=floored)
 
 
 def _scatter_columns(be: Any, full: Any, x: Any, cols: Any) -> Any:

@@ -53,7 +53,9 @@ def make_acquisition(cfg: Config, gate: tuple[float, float], rng_code) -> Acquis
 
     The conventional lidar fires one pulse per repetition period ``P`` bins and histograms
     ``n = floor(L / P)`` periods, ``L`` being the PSST code length, so both spend the same
-    acquisition time per pattern. ``fairness='energy'`` keeps the PSST pulse energy
+    acquisition time per pattern. ``cfg.periods`` multiplies both dwells (the PSST lidar
+    accumulates that many code periods per pattern, the conventional lidar ``n`` times as many
+    repetition periods). ``fairness='energy'`` keeps the PSST pulse energy
     (``m_s`` per pulse, the paper's premise of no excess laser power); ``'power'`` gives the
     conventional lidar the same average power (its pulses carry ``m_s * ones / n``).
     """
@@ -70,7 +72,8 @@ def make_acquisition(cfg: Config, gate: tuple[float, float], rng_code) -> Acquis
         desc = f"{name} of {cfg.code_length} bits"
         if cfg.code == "random":
             desc += f" (ones ratio {cfg.ones_ratio:g})"
-        return Acquisition("psst", psst_code, bin_width, 1, cfg.signal, replica, desc, index)
+        return Acquisition("psst", psst_code, bin_width, cfg.periods, cfg.signal, replica, desc,
+                           index)
     # conventional periodic-pulse lidar
     if cfg.rep_rate is None:
         period = int(np.ceil(gate[1] * 2.0 / (SPEED_OF_LIGHT * bin_width))) + 1
@@ -92,5 +95,6 @@ def make_acquisition(cfg: Config, gate: tuple[float, float], rng_code) -> Acquis
         per_pulse = cfg.signal * float(psst_code.sum()) / n
     replica = "unipolar" if cfg.replica == "auto" else cfg.replica
     rep = cfg.bit_rate / period
-    desc = f"single pulse at {rep / 1e6:.3g} MHz x {n} shots"
-    return Acquisition("conventional", code, bin_width, n, per_pulse, replica, desc, index)
+    desc = f"single pulse at {rep / 1e6:.3g} MHz x {n * cfg.periods} shots"
+    return Acquisition("conventional", code, bin_width, n * cfg.periods, per_pulse, replica,
+                       desc, index)

@@ -87,6 +87,8 @@ _add("table1", f"{_PKG}.solvers:exp_table1", "Table I",
 _add("snr", f"{_PKG}.eq10:exp_snr", "Eq. (10)", "output SNR against its simulation")
 _add("ambiguity", f"{_PKG}.ambiguity:exp_ambiguity", "Range ambiguity",
      "a target beyond the conventional lidar's unambiguous range")
+_add("pileup", f"{_PKG}.pileup:exp_pileup", "Pile-up",
+     "depth RMSE against flux: linear counter, GMAPD uncorrected and corrected")
 _add("pattern_kinds", "spslidar.experiments.pattern_kinds:exp_pattern_kinds", "Pattern kinds",
      "Gaussian, Bernoulli and Hadamard orderings at 128x128 and 256x256: RMSE and time "
      "against compression (long: not in 'all')", in_all=False)
@@ -130,5 +132,6 @@ __getattr__ = lazy_exports(__name__, {
     "exp_table1": "solvers",
     "exp_snr": "eq10",
     "exp_ambiguity": "ambiguity",
+    "exp_pileup": "pileup",
     "reproduce_main": "runner",
 })

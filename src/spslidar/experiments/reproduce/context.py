@@ -272,6 +272,7 @@ def reproduce_point(params: dict[str, Any], maps_dir: str | None = None) -> dict
         "time_simulate_s": result.timing["simulate"],
         "time_solve_s": result.timing["solve"],
         "n_warnings": len(result.warnings),
+        "counts_per_dead_time": m["detector"]["counts_per_dead_time"],
         "map_key": key,
     }
 

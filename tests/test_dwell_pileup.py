@@ -1,0 +1,99 @@
+"""The dwell (``--periods``), the weight floor of the default regularisation weight, and
+``reproduce pileup`` (depth against flux for the linear counter and the GMAPD)."""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import numpy as np
+import pytest
+
+from spslidar.config import Config
+from spslidar.errors import ConfigError
+from spslidar.pipeline import measure, reconstruct
+from spslidar.pipeline.chain import LAM_FLOOR, default_weight
+
+SMALL = {"size": 16, "code_length": 4095, "depth": "argmax", "seed": 3}
+
+
+@pytest.mark.parametrize("lidar", ["psst", "conventional"])
+def test_periods_scale_the_photons_not_the_physics(lidar):
+    """k periods of m_s, m_n give the expected correlations of one period of k m_s, k m_n:
+    the dwell multiplies the photons and nothing else (noiseless, so exactly)."""
+    k = 7
+    one = measure({**SMALL, "lidar": lidar, "signal": 7e-3, "noise": 7e-4, "noiseless": True})
+    many = measure({**SMALL, "lidar": lidar, "signal": 1e-3, "noise": 1e-4, "periods": k,
+                    "noiseless": True})
+    assert many.acq.n_periods == k * one.acq.n_periods
+    assert many.acq.acquisition_time == pytest.approx(k * one.acq.acquisition_time)
+    # float32 matched filter over a background-dominated histogram: round-off ~1e-4 of scale
+    scale = float(np.abs(one.sim["corr"]).max())
+    np.testing.assert_allclose(many.sim["corr"], one.sim["corr"], rtol=0, atol=3e-4 * scale)
+    np.testing.assert_allclose(many.sim["counts"], one.sim["counts"], rtol=1e-6)
+
+
+def test_periods_in_metrics_and_conventional_shots():
+    r = reconstruct(measure({**SMALL, "lidar": "conventional", "periods": 3, "noise": 1.0}))
+    shots = r.metrics["n_periods"]
+    assert shots % 3 == 0 and f"x {shots} shots" in r.metrics["code_description"]
+    assert r.metrics["config"]["periods"] == 3
+
+
+@pytest.mark.parametrize("bad", [0, -2, 2.5, "many", True])
+def test_bad_periods(bad):
+    with pytest.raises(ConfigError, match="periods"):
+        Config(periods=bad)
+
+
+def test_default_weight_floor():
+    cfg = Config()
+    lam, scale, floored = default_weight(cfg, sigma_eff=1.0, lam_max=10.0)
+    assert (lam, floored) == (pytest.approx(scale * 1.0), False)
+    lam, _, floored = default_weight(cfg, sigma_eff=1e-6, lam_max=10.0)
+    assert floored and lam == pytest.approx(LAM_FLOOR * 10.0)
+    lam, _, floored = default_weight(cfg.replace(lam=1e-9), sigma_eff=1e-6, lam_max=10.0)
+    assert (lam, floored) == (1e-9, False)  # an explicit weight is never floored
+
+
+def test_weight_floor_binds_only_at_high_snr():
+    """At the paper's photon levels the noise term sets the weight; with a long dwell the
+    noise term vanishes and the floor keeps the compressive problem regularised, which
+    beats the vanishing weight (conventional lidar, noiseless, 25 %)."""
+    paper = reconstruct(measure({"size": 32, "depth": "argmax"}))
+    assert paper.metrics["lam_floored"] is False
+    m = measure({"size": 32, "lidar": "conventional", "fairness": "power", "noiseless": True,
+                 "signal": 1e-3, "noise": 1e-4, "periods": 10**5, "depth": "argmax"})
+    floored = reconstruct(m)
+    assert floored.metrics["lam_floored"] is True
+    vanishing = reconstruct(m, lam=floored.metrics["noise_level"]
+                            * floored.metrics["lam_scale"])
+    assert floored.depth_rmse < 0.5 * vanishing.depth_rmse
+
+
+def test_reproduce_pileup_quick(tmp_path):
+    """Quick mode: the GMAPD counts follow n / (1 + n) (PSST flux is nearly flat in time),
+    the PSST lidar is hardly hurt by pile-up while the conventional lidar's uncorrected
+    histogram fails at the top flux, and the correction rescues part of it."""
+    from spslidar.experiments.reproduce import reproduce_main
+    from spslidar.experiments.reproduce.pileup import QUICK_FLUXES
+
+    assert reproduce_main("pileup", tmp_path, quick=True, progress=False) == 0
+    folder = tmp_path / "pileup"
+    assert (folder / "pileup.png").is_file()
+    rows = list(csv.DictReader(open(folder / "pileup.csv")))
+    assert len(rows) == 2 * 3 * len(QUICK_FLUXES)
+    by = {(r["lidar"], float(r["flux_per_dead_time"]), r["label"]): r for r in rows}
+    for flux in QUICK_FLUXES:
+        lin = float(by["psst", flux, "linear counter"]["counts_per_dead_time"])
+        gm = float(by["psst", flux, "GMAPD uncorrected"]["counts_per_dead_time"])
+        assert lin == pytest.approx(flux, rel=0.02)
+        assert gm == pytest.approx(lin / (1 + lin), rel=0.02)
+    top = max(QUICK_FLUXES)
+    rmse = {k: float(v["depth_rmse_m"]) for k, v in by.items()}
+    assert rmse["psst", top, "GMAPD uncorrected"] < 0.02
+    assert rmse["conventional", top, "GMAPD uncorrected"] > 0.1
+    assert rmse["conventional", top, "GMAPD corrected"] < rmse["conventional", top,
+                                                              "GMAPD uncorrected"]
+    text = (folder / "section.md").read_text()
+    assert "operating point" in text and not math.isnan(rmse["psst", top, "linear counter"])
