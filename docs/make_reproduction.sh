@@ -15,5 +15,5 @@ spslidar reproduce all --out docs/reproduction --jobs 2 "$@"
   echo "the folder \`docs/reproduction/\`."
   echo
   sed -E 's#\]\(([a-z0-9]+)/#](reproduction/\1/#g; s#`([a-z0-9]+)/([a-z0-9_]+\.(csv|md))`#`reproduction/\1/\2`#g' \
-    docs/reproduction/report.md
+    docs/reproduction/report.md | sed -E 's#`reproduction/docs/#`docs/#g'
 } > docs/reproduction.md

@@ -87,6 +87,15 @@ def pileup_points(ctx: Context) -> tuple[list[dict[str, Any]], list[float], dict
     return points, flux_of, paper
 
 
+def _mode(ctx: Context) -> str:
+    if ctx.quick:
+        return (f"**Quick mode** ({_size(ctx)}x{_size(ctx)} pixels, {len(QUICK_FLUXES)} fluxes, "
+                f"one realisation): a smoke test.")
+    return (f"Full mode ({_size(ctx)}x{_size(ctx)} pixels: the GMAPD model's cost grows with "
+            f"the flux, and {len(FLUXES)} fluxes x 3 detectors x 2 lidars x {TRIALS} "
+            f"realisations run in about 2-4 minutes on 2 cores).")
+
+
 def _label(row: dict[str, Any]) -> str:
     for det, corr, label in MODELS:
         if row["detector"] == det and (det == "linear" or bool(row["pileup_correction"]) == corr):
@@ -259,5 +268,5 @@ def exp_pileup(ctx: Context) -> tuple[str, list[Claim]]:
         f"beside.")
     text = section(ctx, "Pile-up: depth against flux with a Geiger-mode detector", what,
                    table, findings, rows=rows,
-                   figures=[("pile-up", png)] if png else [], data=[csv])
+                   figures=[("pile-up", png)] if png else [], data=[csv], mode=_mode(ctx))
     return text, []

@@ -38,6 +38,7 @@ def section(
     rows: Sequence[dict[str, Any]] = (),
     figures: Sequence[tuple[str, Path]] = (),
     data: Sequence[Path] = (),
+    mode: str | None = None,
 ) -> str:
     """One experiment's report section (Markdown).
 
@@ -59,13 +60,15 @@ def section(
         Alt text and file of each figure (inside ``ctx.out``).
     data : sequence of Path
         The data files (CSV, Markdown tables) inside ``ctx.out``.
+    mode : str, optional
+        The line saying which mode ran, where it is not ``ctx.mode`` (e.g. another size).
 
     Returns
     -------
     str
         The section, image and data paths relative to the report folder.
     """
-    parts = [f"## {title}\n", ctx.mode + "\n", f"**What was run.** {what}\n"]
+    parts = [f"## {title}\n", (mode or ctx.mode) + "\n", f"**What was run.** {what}\n"]
     for alt, path in figures:
         parts.append(f"![{alt}]({_rel(ctx, path)})\n")
     parts.append(failed_note(rows) + body)
