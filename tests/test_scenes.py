@@ -305,3 +305,34 @@ def test_scene_dataclass_validates():
         Scene("x", np.ones((4, 5)), np.ones((4, 5)), np.ones((4, 5), dtype=bool))
     with pytest.raises(SceneError, match="reflectivity"):
         Scene("x", np.ones((4, 4)), 2 * np.ones((4, 4)), np.ones((4, 4), dtype=bool))
+
+
+@pytest.mark.parametrize("name", ["camera", "motorcycle"])
+@pytest.mark.parametrize("size", [32, 64])
+def test_shipped_scene_cache_matches_scikit_image(name, size):
+    """The precomputed built-ins (spslidar/data/builtin_scenes.npz) equal a fresh computation
+    from scikit-image's sample data; regenerate with ``python -m spslidar.scene_cache``."""
+    from spslidar import scene_cache
+
+    shipped = scene_cache.lookup(name, size)
+    assert shipped is not None, "the cache file is missing from the installation"
+    fresh = scene_cache.compute(name, size)
+    assert shipped.keys() == fresh.keys()
+    for key in shipped:
+        np.testing.assert_allclose(shipped[key], fresh[key], rtol=1e-12, atol=0, err_msg=key)
+
+
+@pytest.mark.parametrize("window", [(None, None), (3.0, 4.0), (1.0, None), (None, 30.0)])
+def test_cached_and_computed_scenes_are_the_same_scene(window, monkeypatch):
+    """Loading through the cache gives bit for bit what the scikit-image path gives, in any
+    depth window (the remap is applied after the cache, as after the resize)."""
+    from spslidar import scene_cache
+
+    for name in ("camera", "motorcycle"):
+        cached = load_scene(name, 64, *window)
+        with monkeypatch.context() as m:
+            m.setattr(scene_cache, "lookup", lambda *_: None)
+            computed = load_scene(name, 64, *window)
+        for key in ("depth", "reflectivity", "valid"):
+            assert np.array_equal(getattr(cached, key), getattr(computed, key)), (name, key)
+        assert cached.notes == computed.notes

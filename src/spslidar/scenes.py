@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import scene_cache
 from .errors import SceneError
 
 __all__ = [
@@ -335,13 +336,33 @@ def _finish(
 
 
 def _camera(size: int, depth_min: float | None, depth_max: float | None) -> Scene:
-    from skimage import data
-
     lo, hi = _window(depth_min, depth_max, _IMAGE_WINDOW)
-    return _grey_to_scene("camera", data.camera(), size, lo, hi)
+    hit = scene_cache.lookup("camera", size)
+    if hit is None:
+        from skimage import data
+
+        return _grey_to_scene("camera", data.camera(), size, lo, hi)
+    valid = np.ones((size, size), dtype=bool)
+    return Scene("camera", _remap(hit["grey"], valid, lo, hi), np.ones((size, size)), valid)
 
 
 def _motorcycle(size: int, depth_min: float | None, depth_max: float | None) -> Scene:
+    hit = scene_cache.lookup("motorcycle", size)
+    if hit is None:
+        scene = _motorcycle_computed(size)
+    else:
+        shape = tuple(int(v) for v in hit["source_shape"])
+        scene = Scene("motorcycle", hit["depth"], hit["reflectivity"], hit["valid"],
+                      [_crop_note("motorcycle", shape, size)])
+    if depth_min is not None or depth_max is not None:  # as _finish, after the resize
+        valid = scene.valid
+        native = (float(scene.depth[valid].min()), float(scene.depth[valid].max()))
+        scene.depth = _remap(scene.depth, valid, *_window(depth_min, depth_max, native))
+    return scene
+
+
+def _motorcycle_computed(size: int) -> Scene:
+    """The motorcycle in its native depth window, from scikit-image's sample data."""
     from skimage import data
     from skimage.color import rgb2gray
 
@@ -358,7 +379,7 @@ def _motorcycle(size: int, depth_min: float | None, depth_max: float | None) -> 
     depth = np.zeros_like(disp)
     depth[valid] = _MOTO_BASELINE_M * _MOTO_FOCAL_PX / (disp[valid] + _MOTO_DOFFS_PX)
     lum = rgb2gray(left)
-    scene = _finish("motorcycle", depth, lum, valid, size, depth_min, depth_max)
+    scene = _finish("motorcycle", depth, lum, valid, size, None, None)
     lum = scene.reflectivity
     span = float(lum.max() - lum.min())
     r_lo, r_hi = _MOTO_REFLECTIVITY
