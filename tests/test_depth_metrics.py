@@ -59,6 +59,15 @@ def test_rmse_eq19_and_missing():
     assert np.isnan(depth_errors(np.full(2, np.nan), np.ones(2))["depth_rmse_m"])
 
 
+@pytest.mark.parametrize("shape", [(64, 64), (5, 7), (2, 3), (1, 1)])
+def test_sobel_edges_equal_skimage_on_any_shape(shape):
+    """The NumPy Sobel is scikit-image's, borders included, to round-off."""
+    from skimage.filters import sobel
+
+    d = np.random.default_rng(4).standard_normal(shape) * 3 + 10
+    np.testing.assert_allclose(sobel_edges(d), sobel(d), rtol=1e-12, atol=1e-13)
+
+
 def test_sobel_edges_match_skimage_and_handle_nan():
     from skimage.filters import sobel
 

@@ -54,19 +54,26 @@ def rmse(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = Non
 
 
 def sobel_edges(depth: np.ndarray) -> np.ndarray:
-    """Sobel gradient magnitude of a depth map (scikit-image), NaNs filled by the median.
+    """Sobel gradient magnitude of a depth map, NaNs filled by the median.
 
-    The paper (Fig. 5, 7) compares these edge maps between reconstructions.
+    The paper (Fig. 5, 7) compares these edge maps between reconstructions. This is
+    ``skimage.filters.sobel`` (kernels ``[1, 0, -1]`` x ``[1, 2, 1] / 4``, ``'reflect'``
+    borders, magnitude ``sqrt((g_y^2 + g_x^2) / 2)``) written out in NumPy: it is the default
+    run's only use of scikit-image, whose import costs about 0.2 s of a 3 s run. It agrees with
+    scikit-image to round-off (``tests/test_metrics.py``).
     """
-    from skimage.filters import sobel
-
     d = np.array(depth, dtype=np.float64)
     bad = ~np.isfinite(d)
     if bad.all():
         return np.zeros_like(d)
     if bad.any():
         d[bad] = np.nanmedian(d)
-    return sobel(d)
+    p = np.pad(d, 1, mode="symmetric")  # scipy.ndimage's 'reflect': d c b a | a b c d
+    dy = p[2:, :] - p[:-2, :]  # central difference along rows (all padded columns)
+    dx = p[:, 2:] - p[:, :-2]
+    gy = (dy[:, :-2] + 2.0 * dy[:, 1:-1] + dy[:, 2:]) / 4.0
+    gx = (dx[:-2, :] + 2.0 * dx[1:-1, :] + dx[2:, :]) / 4.0
+    return np.sqrt((gy * gy + gx * gx) / 2.0)
 
 
 def edge_agreement(est_edges: np.ndarray, true_edges: np.ndarray) -> float:

@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 from typing import Any, TextIO
 
 import numpy as np
-from scipy.linalg.blas import get_blas_funcs
 
 from ..operators.parallel import parallel
 
@@ -171,16 +170,10 @@ def col_sum(a: np.ndarray) -> np.ndarray:
 
 
 def _axpy(x: np.ndarray, y: np.ndarray, a) -> None:
-    """In place ``y += a * x`` for C-contiguous arrays of one float dtype (BLAS ``?axpy``)."""
+    """In place ``y += a * x``."""
     if a == 0:
         return
-    if not (y.flags.c_contiguous and x.dtype == y.dtype):
-        y += y.dtype.type(a) * x
-        return
-    axpy = get_blas_funcs("axpy", (y,))
-    out = axpy(np.ascontiguousarray(x).ravel(), y.ravel(), a=float(a))
-    if not np.shares_memory(out, y):  # pragma: no cover - f2py copied instead of in place
-        y.ravel()[:] = out
+    y += y.dtype.type(a) * x
 
 
 def as_block(y: np.ndarray) -> tuple[np.ndarray, bool]:
