@@ -22,9 +22,12 @@ def test_periods_scale_the_photons_not_the_physics(lidar):
     """k periods of m_s, m_n give the expected correlations of one period of k m_s, k m_n:
     the dwell multiplies the photons and nothing else (noiseless, so exactly)."""
     k = 7
-    one = measure({**SMALL, "lidar": lidar, "signal": 7e-3, "noise": 7e-4, "noiseless": True})
-    many = measure({**SMALL, "lidar": lidar, "signal": 1e-3, "noise": 1e-4, "periods": k,
-                    "noiseless": True})
+    # the conventional pulse period divides the code period, so the dwell holds k times the
+    # pulses of one code period (in general floor(k L / P))
+    base = {**SMALL, "lidar": lidar, "noiseless": True,
+            **({"rep_rate": 10e9 / 4095} if lidar == "conventional" else {})}
+    one = measure({**base, "signal": 7e-3, "noise": 7e-4})
+    many = measure({**base, "signal": 1e-3, "noise": 1e-4, "periods": k})
     assert many.acq.n_periods == k * one.acq.n_periods
     assert many.acq.acquisition_time == pytest.approx(k * one.acq.acquisition_time)
     # float32 matched filter over a background-dominated histogram: round-off ~1e-4 of scale
@@ -34,10 +37,16 @@ def test_periods_scale_the_photons_not_the_physics(lidar):
 
 
 def test_periods_in_metrics_and_conventional_shots():
+    """The conventional lidar fires through the whole dwell: floor(K L / P) pulses, so a
+    repetition period longer than one code period fits once the dwell covers it."""
     r = reconstruct(measure({**SMALL, "lidar": "conventional", "periods": 3, "noise": 1.0}))
-    shots = r.metrics["n_periods"]
-    assert shots % 3 == 0 and f"x {shots} shots" in r.metrics["code_description"]
+    shots, period = r.metrics["n_periods"], r.metrics["code_period_bins"]
+    assert shots == (3 * 4095) // period and f"x {shots} shots" in r.metrics["code_description"]
     assert r.metrics["config"]["periods"] == 3
+    slow = {**SMALL, "code_length": 1023, "lidar": "conventional", "noise": 1.0}
+    with pytest.raises(ConfigError, match="more --periods"):
+        measure(slow)  # the 1392-bin period exceeds one 1023-bit code period
+    assert measure({**slow, "periods": 2}).acq.n_periods == 2046 // 1392
 
 
 @pytest.mark.parametrize("bad", [0, -2, 2.5, "many", True])

@@ -53,9 +53,9 @@ def make_acquisition(cfg: Config, gate: tuple[float, float], rng_code) -> Acquis
 
     The conventional lidar fires one pulse per repetition period ``P`` bins and histograms
     ``n = floor(L / P)`` periods, ``L`` being the PSST code length, so both spend the same
-    acquisition time per pattern. ``cfg.periods`` multiplies both dwells (the PSST lidar
-    accumulates that many code periods per pattern, the conventional lidar ``n`` times as many
-    repetition periods). ``fairness='energy'`` keeps the PSST pulse energy
+    acquisition time per pattern. With ``cfg.periods = K`` the PSST lidar accumulates K code
+    periods per pattern and the conventional lidar fires through the same dwell,
+    ``n = floor(K L / P)`` pulses. ``fairness='energy'`` keeps the PSST pulse energy
     (``m_s`` per pulse, the paper's premise of no excess laser power); ``'power'`` gives the
     conventional lidar the same average power (its pulses carry ``m_s * ones / n``).
     """
@@ -82,19 +82,19 @@ def make_acquisition(cfg: Config, gate: tuple[float, float], rng_code) -> Acquis
     if period < 2:
         raise ConfigError(f"--rep-rate {cfg.rep_rate:g} Hz is too fast for --bit-rate "
                           f"{cfg.bit_rate:g} Hz: the period must be at least 2 TDC bins")
-    if period > cfg.code_length:
+    dwell = cfg.code_length * cfg.periods  # TDC bins per pattern
+    if period > dwell:
         raise ConfigError(
             f"repetition period of {period} bins exceeds the acquisition time of "
-            f"{cfg.code_length} bins per pattern: use a faster --rep-rate or a longer "
-            f"--code-length")
-    n = cfg.code_length // period
+            f"{dwell} bins per pattern: use a faster --rep-rate, a longer --code-length or "
+            f"more --periods")
+    n = dwell // period
     code = np.zeros(period, dtype=np.uint8)
     code[0] = 1
     per_pulse = cfg.signal
-    if cfg.fairness == "power":
-        per_pulse = cfg.signal * float(psst_code.sum()) / n
+    if cfg.fairness == "power":  # the PSST's photons of the whole dwell, over n pulses
+        per_pulse = cfg.signal * float(psst_code.sum()) * cfg.periods / n
     replica = "unipolar" if cfg.replica == "auto" else cfg.replica
     rep = cfg.bit_rate / period
-    desc = f"single pulse at {rep / 1e6:.3g} MHz x {n * cfg.periods} shots"
-    return Acquisition("conventional", code, bin_width, n * cfg.periods, per_pulse, replica,
-                       desc, index)
+    desc = f"single pulse at {rep / 1e6:.3g} MHz x {n} shots"
+    return Acquisition("conventional", code, bin_width, n, per_pulse, replica, desc, index)

@@ -50,13 +50,15 @@ def _size(ctx: Context) -> int:
     return 16 if ctx.quick else 32
 
 
-def incident_per_dead_time(ctx: Context, lidar: str, signal: float, noise: float) -> float:
+def incident_per_dead_time(ctx: Context, lidar: str, signal: float, noise: float,
+                           periods: int = 1) -> float:
     """Mean incident photons per dead time (what a linear counter counts) of one run's
-    patterns, from a noiseless simulation with ``periods = 1``."""
+    patterns, from a noiseless simulation with this dwell (the conventional lidar's pulse
+    count, hence its photons per pulse at equal power, depends on it)."""
     from spslidar.pipeline import measure
 
     cfg = {**base_params(ctx, size=_size(ctx), lidar=lidar, fairness="power", signal=signal,
-                         noise=noise), "noiseless": True, "depth": "argmax"}
+                         noise=noise, periods=periods), "noiseless": True, "depth": "argmax"}
     meas = measure(cfg)
     return float(meas.sim["pileup"]["counts_per_dead_time"])
 
@@ -68,7 +70,7 @@ def pileup_points(ctx: Context) -> tuple[list[dict[str, Any]], list[float], dict
     periods = QUICK_PERIODS if ctx.quick else PERIODS
     points, flux_of, paper = [], [], {}
     for lidar in LIDARS:
-        per_unit = incident_per_dead_time(ctx, lidar, 1.0, NOISE_RATIO)
+        per_unit = incident_per_dead_time(ctx, lidar, 1.0, NOISE_RATIO, periods)
         paper[lidar] = incident_per_dead_time(ctx, lidar, 5.0, 10.0)
         for trial in range(ctx.n_trials(TRIALS)):
             # one seed per lidar and trial: every flux and detector sees the same code,
