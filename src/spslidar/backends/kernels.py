@@ -294,6 +294,22 @@ class FistaInfo:
     L: float = 0.0
 
 
+def stop_reason(finite: bool, dn2: float, xn2: float, it: int, rtol: float,
+                max_iter: int) -> str:
+    """Why FISTA stops after iteration ``it`` (``""``: go on): ``'diverged'`` if the
+    objective or norms are not finite, ``'rtol'`` if ``||x_k - x_{k-1}|| <= rtol ||x_k||``
+    (from the second iteration), ``'max_iter'`` at the cap; the rules of
+    :class:`~spslidar.solvers.base.StopRule`, shared by :func:`fista_tv` and the CUDA-graph
+    loop (:mod:`spslidar.backends.torch_graph`)."""
+    if not finite:
+        return "diverged"
+    if rtol > 0 and it > 1 and math.sqrt(dn2) <= rtol * max(math.sqrt(xn2), 1e-300):
+        return "rtol"
+    if it >= max_iter:
+        return "max_iter"
+    return ""
+
+
 def fista_tv(be: Any, A: DenseOperator, y: Any, reg: TVProx, lam: float, max_iter: int,
              rtol: float, L: float | None = None) -> tuple[Any, FistaInfo]:
     """Plain FISTA on ``1/2 ||A x - y||^2 + lam TV(x)``, all columns at once.
@@ -336,13 +352,7 @@ def fista_tv(be: Any, A: DenseOperator, y: Any, reg: TVProx, lam: float, max_ite
         f, dn2, xn2 = scalars(be, obj, xp.sum(d * d), xp.sum(x * x))
         info.objective.append(f)
         info.iterations = it
-        reason = ""
-        if not math.isfinite(f):
-            reason = "diverged"
-        elif rtol > 0 and it > 1 and math.sqrt(dn2) <= rtol * max(math.sqrt(xn2), 1e-300):
-            reason = "rtol"
-        elif it >= max_iter:
-            reason = "max_iter"
+        reason = stop_reason(math.isfinite(f), dn2, xn2, it, rtol, max_iter)
         if reason:
             info.stop_reason = reason
             break

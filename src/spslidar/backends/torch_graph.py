@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .kernels import FistaInfo, TVProx, power_norm
+from .kernels import FistaInfo, TVProx, power_norm, stop_reason
 
 
 def _grad(z: Any) -> tuple[Any, Any]:
@@ -210,13 +210,8 @@ def fista_tv_graphed(be: Any, A: Any, y: Any, reg: TVProx, lam: float, max_iter:
         run_step()
         dn2, xn2 = it_state.norms.tolist()
         info.iterations = it
-        reason = ""
-        if not (math.isfinite(dn2) and math.isfinite(xn2)):
-            reason = "diverged"
-        elif rtol > 0 and it > 1 and math.sqrt(dn2) <= rtol * max(math.sqrt(xn2), 1e-300):
-            reason = "rtol"
-        elif it >= max_iter:
-            reason = "max_iter"
+        reason = stop_reason(math.isfinite(dn2) and math.isfinite(xn2), dn2, xn2, it, rtol,
+                             max_iter)
         if reason:
             info.stop_reason = reason
             break
