@@ -39,7 +39,6 @@ def measure(cfg: Any):
     """:func:`spslidar.pipeline.chain.measure` on ``cfg.backend`` / ``cfg.device``."""
     from ..correlate import (
         correlation_gain,
-        gate_lags,
         make_replica,
         noise_sigma_from_totals,
         replica_matrix,
@@ -48,9 +47,7 @@ def measure(cfg: Any):
     from ..detectors import build_detector
     from ..forward import depth_to_delay, return_weights, shifted_codes
     from ..patterns import n_patterns_for
-    from ..pipeline.acquisition import default_gate, make_acquisition
-    from ..pipeline.chain import Measurement, detector_options
-    from ..pipeline.gate import unique_lags
+    from ..pipeline.chain import Measurement, detector_options, timeline
     from ..pipeline.simulate import BLOCK
     check_supported(cfg)
     be = get_backend(cfg.backend, cfg.device)
@@ -63,15 +60,9 @@ def measure(cfg: Any):
     timing["scene"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    seq_code, seq_pat, seq_counts, seq_probe = np.random.SeedSequence(cfg.seed).spawn(4)
-    bin_width = 1.0 / cfg.bit_rate
-    gate = cfg.range_gate if cfg.range_gate is not None else default_gate(scene, bin_width)
-    acq = make_acquisition(cfg, gate, np.random.default_rng(seq_code))
-    lags = gate_lags(gate, bin_width)
-    ulags, inverse = unique_lags(lags, acq.period)
-    if lags.size > acq.period:
-        warns.append(f"range gate {gate[0]:g}-{gate[1]:g} m is longer than the "
-                     f"{acq.unambiguous_range:.3g} m unambiguous range of the {acq.description}")
+    seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse = timeline(cfg, scene,
+                                                                                warns)
+    bin_width = acq.bin_width
     m = n_patterns_for(cfg.compression, cfg.size * cfg.size)
     patterns = device_patterns(be, Stream(be, seq_pat), cfg, m)
     be.sync()
@@ -216,7 +207,8 @@ def reconstruct(meas: Any, **processing):
     ey = (e - e.mean(axis=0, keepdims=True)) / np.sqrt(m) if cfg.qcr else e
     z = A.rmatvec(xp.astype(be.asarray(ey), dtype))
     sigma_eff = float(np.sqrt(scalars(be, xp.mean(xp.astype(z, xp.float64) ** 2))[0]))
-    lam_max = float(scalars(be, xp.max(xp.abs(xp.astype(A.rmatvec(y), xp.float64))))[0])
+    lam_max = (float(scalars(be, xp.max(xp.abs(xp.astype(A.rmatvec(y), xp.float64))))[0])
+               if cfg.lam is None else float("nan"))  # the default weight's floor only
     lam, lam_scale, floored = default_weight(cfg, sigma_eff, lam_max)
     be.sync()
     timing["qcr"] = time.perf_counter() - t0

@@ -183,11 +183,16 @@ class _Plan:
     budget: Any
 
 
-def _plan(cfg: Config, scene, warns: list[str]) -> _Plan:
-    """The cheap part of :func:`measure`: code, range gate and the memory check (refused in
-    one line before any large array exists)."""
-    ss = np.random.SeedSequence(cfg.seed)
-    seq_code, seq_pat, seq_counts, seq_probe = ss.spawn(4)
+def timeline(cfg: Config, scene, warns: list[str]):
+    """The run's random streams, code and range gate, shared by every backend's ``measure``.
+
+    Returns ``(seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse)``: the seed
+    sequences of the patterns, the counts and the noise probe (the code's is used here), the
+    :class:`~spslidar.pipeline.acquisition.Acquisition`, the gate (m), its delays (bins) and
+    their distinct values modulo the code period. Appends the range-ambiguity and
+    outside-the-gate warnings to ``warns``.
+    """
+    seq_code, seq_pat, seq_counts, seq_probe = np.random.SeedSequence(cfg.seed).spawn(4)
     bin_width = 1.0 / cfg.bit_rate
     gate = cfg.range_gate if cfg.range_gate is not None else default_gate(scene, bin_width)
     acq = make_acquisition(cfg, gate, np.random.default_rng(seq_code))
@@ -203,6 +208,15 @@ def _plan(cfg: Config, scene, warns: list[str]) -> _Plan:
     if np.any(outside & scene.valid):
         warns.append(f"{int((outside & scene.valid).sum())} pixels lie outside the range gate "
                      f"{gate[0]:g}-{gate[1]:g} m: their returns alias into the gate or are lost")
+    return seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse
+
+
+def _plan(cfg: Config, scene, warns: list[str]) -> _Plan:
+    """The cheap part of :func:`measure`: code, range gate and the memory check (refused in
+    one line before any large array exists)."""
+    seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse = timeline(cfg, scene,
+                                                                                warns)
+    bin_width = 1.0 / cfg.bit_rate
     q = cfg.size * cfg.size
     m = n_patterns_for(cfg.compression, q)
     dtype = np.float32 if cfg.dtype == "float32" else np.float64
@@ -346,7 +360,9 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         # the plain problem converges within the default budget (MeanEliminated)
         eliminated, y_plain = MeanEliminated(A), y
         A, y = eliminated, eliminated.data(y)
-    lam_max = float(np.abs(np.asarray(A.rmatvec(y))).max(initial=0.0))
+    # the floor of the default weight (a given --lam needs no extra product)
+    lam_max = (float(np.abs(np.asarray(A.rmatvec(y))).max(initial=0.0)) if cfg.lam is None
+               else float("nan"))
     lam, lam_scale, floored = default_weight(cfg, sigma_eff, lam_max)
     timing["qcr"] = time.perf_counter() - t0
 
