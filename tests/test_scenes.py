@@ -336,3 +336,18 @@ def test_cached_and_computed_scenes_are_the_same_scene(window, monkeypatch):
         for key in ("depth", "reflectivity", "valid"):
             assert np.array_equal(getattr(cached, key), getattr(computed, key)), (name, key)
         assert cached.notes == computed.notes
+
+
+def test_motorcycle_source_is_what_the_built_in_scene_is_resized_from():
+    """The full-resolution source (used by benchmarks/depth_bounds.py to find mixed-depth
+    pixels) is a valid-masked depth in the motorcycle's native window, and the 32 px scene's
+    valid truth lies within the source's range."""
+    from spslidar import scenes
+
+    depth, lum, valid = scenes.motorcycle_source()
+    assert depth.shape == lum.shape == valid.shape and valid.dtype == bool
+    assert 0.0 <= lum.min() and lum.max() <= 1.0
+    assert np.all(depth[~valid] == 0) and np.all(depth[valid] > 0)
+    lo, hi = float(depth[valid].min()), float(depth[valid].max())
+    s = scenes.load_scene("motorcycle", size=32)
+    assert lo - 1e-9 <= s.depth[s.valid].min() and s.depth[s.valid].max() <= hi + 1e-9

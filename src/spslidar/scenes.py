@@ -38,6 +38,7 @@ __all__ = [
     "SCENE_FILE_SUFFIXES",
     "Scene",
     "load_scene",
+    "motorcycle_source",
 ]
 
 #: Names of the built-in scenes (the first is the default).
@@ -361,8 +362,18 @@ def _motorcycle(size: int, depth_min: float | None, depth_max: float | None) -> 
     return scene
 
 
-def _motorcycle_computed(size: int) -> Scene:
-    """The motorcycle in its native depth window, from scikit-image's sample data."""
+def motorcycle_source() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The motorcycle at full resolution, before cropping and resizing.
+
+    Returns
+    -------
+    depth : ndarray
+        Metres from the Middlebury disparity (pin-holes filled; 0 in the large holes).
+    luminance : ndarray
+        Grey level of the left image in [0, 1].
+    valid : ndarray of bool
+        Pixels with a ground-truth depth (pin-holes counted as valid).
+    """
     from skimage import data
     from skimage.color import rgb2gray
 
@@ -378,7 +389,12 @@ def _motorcycle_computed(size: int) -> Scene:
     disp = _fill_invalid(np.nan_to_num(disp, nan=0.0), np.isfinite(disp))
     depth = np.zeros_like(disp)
     depth[valid] = _MOTO_BASELINE_M * _MOTO_FOCAL_PX / (disp[valid] + _MOTO_DOFFS_PX)
-    lum = rgb2gray(left)
+    return depth, rgb2gray(left), valid
+
+
+def _motorcycle_computed(size: int) -> Scene:
+    """The motorcycle in its native depth window, from scikit-image's sample data."""
+    depth, lum, valid = motorcycle_source()
     scene = _finish("motorcycle", depth, lum, valid, size, None, None)
     lum = scene.reflectivity
     span = float(lum.max() - lum.min())
