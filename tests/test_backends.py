@@ -221,6 +221,15 @@ def test_strict_run_reconstructs_again_with_other_processing():
         reconstruct(meas, noise=3.0)
 
 
+def test_strict_run_gives_the_numpy_warnings():
+    """The device path reports what the NumPy path reports, the scene's notes (the crop of
+    the non-square motorcycle) among them."""
+    kw = {**SMALL, "scene": "motorcycle"}
+    r0, r1 = run(**kw), run(**kw, backend="array-api-strict")
+    assert any("centre" in w for w in r0.warnings)
+    assert r1.warnings == r0.warnings
+
+
 def test_strict_run_auto_gate_matches_numpy():
     kw = {**SMALL, "auto_gate": True}
     r0, r1 = run(**kw), run(**kw, backend="array-api-strict")

@@ -57,6 +57,7 @@ def measure(cfg: Any):
 
     t0 = time.perf_counter()
     scene = _load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
+    warns.extend(scene.notes)  # as the NumPy path: e.g. the crop of a non-square scene
     timing["scene"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
