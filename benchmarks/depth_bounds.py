@@ -40,8 +40,6 @@ import numpy as np
 import spslidar
 from spslidar.depth.mrf import MRFDepth
 from spslidar.depth.profile import index_to_depth, shift2d
-from spslidar.pipeline.chain import AUTO_GATE_MIN_SLICES
-from spslidar.pipeline.gate import occupied_lags
 from spslidar.qcr import qcr_problem
 
 #: a pixel is off, or a neighbour different, beyond this (metres)
@@ -69,9 +67,7 @@ def mixture_share(size: int, truth: np.ndarray, valid: np.ndarray) -> float:
 
     depth, _lum, src_valid = scenes.motorcycle_source()
     src = scenes._center_crop(scenes._fill_invalid(depth, src_valid))
-    s = src.shape[0]
-    edges = np.arange(size + 1) * s
-    start, stop = edges[:-1] // size, -((-edges[1:]) // size)
+    start, stop = scenes.footprints(src.shape[0], size)
     mixed = np.zeros(truth.shape, dtype=bool)
     for i in range(size):
         for j in range(size):
@@ -126,10 +122,9 @@ def bounds(scene: str, noise: float, seed: int, size: int) -> dict[str, float]:
     top = np.argsort(-z, axis=1)[:, :5]
     out["oracle_top5"] = best_of(*(dk[top[:, i]] - flat_truth for i in range(5)))
     # the data's own profile around the reconstruction restricted to the chosen slices
-    keep = (occupied_lags(meas.sim["corr"], meas.sim["sigma"])
-            if meas.ulags.size > AUTO_GATE_MIN_SLICES
-            else np.ones(meas.ulags.size, dtype=bool))
-    if keep.all() and np.array_equal(meas.inverse, np.arange(k)):
+    # the profile needs every slice solved and no aliased (repeated) lag
+    if (r.metrics["n_slices_solved"] == r.metrics["n_slices"] == k
+            and np.array_equal(meas.inverse, np.arange(k))):
         A, y = qcr_problem(meas.patterns, meas.sim["corr"], cfg.qcr_form, dtype=np.float32)
         support = np.zeros((q, k), dtype=bool)
         for d in (-1, 0, 1):

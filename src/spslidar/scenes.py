@@ -232,6 +232,13 @@ def _resize(img: np.ndarray, size: int) -> np.ndarray:
     )
 
 
+def footprints(src: int, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Source rows (or columns) ``start[i] .. stop[i] - 1`` that output pixel ``i`` covers when
+    a side of ``src`` pixels is resized to ``size``."""
+    edges = np.arange(size + 1) * src
+    return edges[:-1] // size, -((-edges[1:]) // size)  # floor and ceiling division
+
+
 def _resize_mask(mask: np.ndarray, size: int) -> np.ndarray:
     """Resize a square validity mask: a pixel stays valid when all its source pixels were valid.
 
@@ -245,9 +252,7 @@ def _resize_mask(mask: np.ndarray, size: int) -> np.ndarray:
     if mask.all():
         return np.ones((size, size), dtype=bool)
     src = mask.shape[0]
-    edges = np.arange(size + 1) * src
-    start = edges[:-1] // size
-    stop = -((-edges[1:]) // size)  # ceiling division
+    start, stop = footprints(src, size)
     integral = np.zeros((src + 1, src + 1))
     integral[1:, 1:] = mask.astype(np.float64).cumsum(0).cumsum(1)
     r0, r1 = start[:, None], stop[:, None]
