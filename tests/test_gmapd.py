@@ -97,9 +97,13 @@ def test_correction_recovers_incident_flux(signal, background):
     peak = _mf(corrected.mean(axis=0), code)[100] / _mf(lam, code)[100]
     assert peak == pytest.approx(1.0, abs=0.02)
     assert _mf(hists.mean(axis=0), code)[100] / _mf(lam, code)[100] < 0.1
-    # on the noiseless fast histogram the inverse is exact
+    # on the noiseless fast histogram the inverse is exact up to the solver's stopping rule:
+    # the sub-binned defect correction stops at a residual of 1e-7 of the scale (or when it
+    # stalls), and near saturation the inverse amplifies a residual by up to ~e^mu, so 1e-5
+    # is the accuracy it guarantees on any BLAS (1.1e-6 seen with numpy 2.4.6); a wrong dead
+    # time or model misses by percents
     exact = det.correct(det.expected(lam[None], n_per), n_per)[0]
-    np.testing.assert_allclose(exact, lam, rtol=1e-6, atol=1e-9 * lam.max())
+    np.testing.assert_allclose(exact, lam, rtol=1e-5, atol=1e-9 * lam.max())
 
 
 def test_correction_off_is_identity():

@@ -324,8 +324,14 @@ def test_shipped_scene_cache_matches_scikit_image(name, size):
 
 @pytest.mark.parametrize("window", [(None, None), (3.0, 4.0), (1.0, None), (None, 30.0)])
 def test_cached_and_computed_scenes_are_the_same_scene(window, monkeypatch):
-    """Loading through the cache gives bit for bit what the scikit-image path gives, in any
-    depth window (the remap is applied after the cache, as after the resize)."""
+    """Loading through the cache gives what the scikit-image path gives, in any depth window
+    (the remap is applied after the cache, as after the resize).
+
+    Depth and reflectivity agree to 1e-12 relative, not bit for bit: the anti-aliased resize
+    sums in an order that depends on the NumPy/SciPy release and the CPU's SIMD kernels
+    (measured: up to 1.8e-15 m on 1165 motorcycle pixels with numpy 2.4.6 / scipy 1.17.1),
+    while a scene error of physical consequence is a thousandth of a 1.5 cm bin (1.5e-5 m).
+    The valid mask is a set of pixels and must be equal."""
     from spslidar import scene_cache
 
     for name in ("camera", "motorcycle"):
@@ -333,8 +339,10 @@ def test_cached_and_computed_scenes_are_the_same_scene(window, monkeypatch):
         with monkeypatch.context() as m:
             m.setattr(scene_cache, "lookup", lambda *_: None)
             computed = load_scene(name, 64, *window)
-        for key in ("depth", "reflectivity", "valid"):
-            assert np.array_equal(getattr(cached, key), getattr(computed, key)), (name, key)
+        for key in ("depth", "reflectivity"):
+            np.testing.assert_allclose(getattr(cached, key), getattr(computed, key),
+                                       rtol=1e-12, atol=1e-12, err_msg=f"{name} {key}")
+        assert np.array_equal(cached.valid, computed.valid), name
         assert cached.notes == computed.notes
 
 
