@@ -17,8 +17,9 @@ def test_run_writes_results(tmp_path, capsys):
     assert main(["run", *FAST, "--out", str(out)]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     assert "depth RMSE" in lines[1]
-    assert {p.name for p in out.iterdir()} == {"metrics.json", "depth.npy", "truth.npy",
-                                               "valid.npy", "depth.png"}
+    assert {p.name for p in out.iterdir() if not p.name.startswith(".")} == {
+        "metrics.json", "depth.npy", "truth.npy", "valid.npy", "depth.png", "confidence.npy",
+        "reflectivity.npy", "points.ply"}
     m = json.loads((out / "metrics.json").read_text())
     assert np.load(out / "depth.npy").shape == (16, 16)
     assert m["config"]["size"] == 16

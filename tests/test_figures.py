@@ -44,3 +44,52 @@ def test_pil_figure_colours_each_missing_kind(result, tmp_path):
 def test_matplotlib_figure_writes(result, tmp_path):
     path = depth_figure(result, tmp_path / "m.png", engine="matplotlib")
     assert path.stat().st_size > 10_000
+
+
+def test_estimate_outside_the_colour_range_is_marked(result, tmp_path):
+    """An aliased depth metres away is drawn at the colour bar's end *and* crossed, so it
+    cannot pass for a plausible depth (issue 24, item 7); a depth within a bin is not."""
+    from PIL import Image
+
+    from spslidar.figures import OUT_OF_RANGE, _legend_items, _title
+
+    r = result
+    saved = r.depth.copy()
+    try:
+        r.depth[3, 3] = float(np.nanmax(r.truth)) + 5.0
+        img = Image.open(depth_figure(r, tmp_path / "o.png")).convert("RGB")
+        assert _pixel(img, 1, 3, 3, r.depth.shape[0]) == OUT_OF_RANGE
+        outside = np.isfinite(r.depth) & (r.depth > np.nanmax(r.truth) + 1)
+        assert "outside the colour range" in " ".join(t for _, t in _legend_items(r, outside))
+        assert "RMSE" in _title(r)
+    finally:
+        r.depth[...] = saved
+
+
+def test_coverage_never_rounds_up_to_100_percent():
+    from spslidar.pipeline.results import _percent
+
+    assert _percent(4095 / 4096) == "99.98%"
+    assert _percent(1.0) == "100%"
+    assert _percent(1 / 4096) == "0.02%"
+    assert _percent(0.5) == "50%"
+
+
+def test_figure_without_truth(result, tmp_path):
+    """A measured acquisition: estimate | reflectivity | confidence, no truth or error panel,
+    and a title that says there is no ground truth."""
+    import copy
+
+    from PIL import Image
+
+    from spslidar.figures import _title
+
+    r = copy.copy(result)
+    r.scene = copy.copy(result.scene)
+    r.scene.has_truth = False
+    r.metrics = {**result.metrics, "depth_rmse_m": None}
+    img = Image.open(depth_figure(r, tmp_path / "n.png"))
+    assert img.size[0] == 3 * (_PANEL + 70) + 20
+    assert _pixel(img.convert("RGB"), 0, 0, 0, r.depth.shape[0]) == NO_RETURN  # estimate first
+    assert "no ground truth" in _title(r)
+    assert depth_figure(r, tmp_path / "m.png", engine="matplotlib").stat().st_size > 10_000

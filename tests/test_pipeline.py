@@ -72,8 +72,10 @@ def test_all_solvers_run_through_the_pipeline():
 def test_save_is_atomic(tmp_path, monkeypatch):
     r = pipeline.run(size=16, code_length=1023)
     out = r.save(tmp_path / "res")
-    assert sorted(p.name for p in out.iterdir()) == [
-        "depth.npy", "depth.png", "metrics.json", "truth.npy", "valid.npy"]
+    # (hidden files: the result's own marker)
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == [
+        "confidence.npy", "depth.npy", "depth.png", "metrics.json", "points.ply",
+        "reflectivity.npy", "truth.npy", "valid.npy"]
     m = json.loads((out / "metrics.json").read_text())
     assert m["depth_rmse_m"] == pytest.approx(r.depth_rmse)
     assert {"total", "simulate", "solve"} <= set(m["timing_s"])

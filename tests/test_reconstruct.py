@@ -47,6 +47,31 @@ def _acquisition(tmp_path, seed=0):
     return ptu, pats, code, truth, counts
 
 
+def test_cli_reconstruct_without_truth(tmp_path, capsys):
+    """A real acquisition has no ground truth: reconstruct without --truth writes the depth,
+    reflectivity, confidence and point cloud, every metric that needs no truth, no truth or
+    RMSE; scored offline against the scene, the depth is right (two bins of 1.5 cm)."""
+    pytest.importorskip("ptufile")
+    ptu, _, _, truth, _ = _acquisition(tmp_path)
+    out = tmp_path / "out"
+    assert main(["reconstruct", "--ptu", str(ptu), "--patterns", str(tmp_path / "patterns.npy"),
+                 "--code", str(tmp_path / "code.npy"), "--bit-rate", "10e9", "--range-gate",
+                 "3.5", "4.8", "--out", str(out)]) == 0
+    stdout = capsys.readouterr().out
+    assert "no ground truth" in stdout
+    names = {p.name for p in out.iterdir()}
+    assert {"metrics.json", "depth.npy", "reflectivity.npy", "confidence.npy", "points.ply",
+            "depth.png"} <= names
+    assert not names & {"truth.npy", "valid.npy"}
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["has_truth"] is False and m["depth_rmse_m"] is None
+    assert m["edge_correlation"] is None and m["coverage"] >= 0.95
+    assert m["mean_reflectivity"] > 0
+    depth = np.load(out / "depth.npy")
+    assert np.nanmedian(np.abs(depth - truth)) <= 0.015
+    assert np.sqrt(np.nanmean((depth - truth) ** 2)) < 0.03
+
+
 def test_reconstruct_ptu_recovers_depth(tmp_path):
     pytest.importorskip("ptufile")
     ptu, pats, code, truth, counts = _acquisition(tmp_path)

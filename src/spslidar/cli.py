@@ -186,6 +186,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true",
                    help="replace the previous spslidar result in --out")
     p.add_argument("--no-figure", action="store_true", help="skip depth.png")
+    _add_fov_option(p)
     p.add_argument("--save-ptu", default=argparse.SUPPRESS, metavar="FILE.ptu",
                    help="also write the simulated acquisition photon by photon as a T3 PTU "
                         "file (sync = code period, a marker per pattern; low flux only), for "
@@ -220,6 +221,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _fov(text: str) -> float:
+    """``--fov`` in degrees, in (0, 180)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0.0 < value < 180.0:
+        raise argparse.ArgumentTypeError(f"must lie in (0, 180) degrees, got {text}")
+    return value
+
+
+def _add_fov_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--fov", type=_fov, default=None, metavar="DEG",
+                   help="full field of view across the image, degrees, for points.ply (default "
+                        "10; the paper gives no optics)")
+
+
 def _add_reconstruct_parser(sub) -> None:
     """``spslidar reconstruct``: a measured T3 PTU acquisition -> depth map."""
     solvers, _ = _choices("solver")
@@ -244,7 +262,10 @@ def _add_reconstruct_parser(sub) -> None:
     p.add_argument("--marker", type=int, default=1, metavar="K",
                    help="marker input flagging a pattern change (default 1)")
     p.add_argument("--channel", type=int, metavar="C", help="detector channel (default all)")
-    p.add_argument("--truth", metavar="TRUTH.npy", help="(N, N) true depth for the RMSE")
+    p.add_argument("--truth", metavar="TRUTH.npy",
+                   help="(N, N) true depth in metres (NaN where unknown), only to score the "
+                        "result: without it every metric that needs no truth is given")
+    _add_fov_option(p)
     p.add_argument("--solver", choices=solvers, default=S)
     p.add_argument("--depth", choices=depths, default=S)
     p.add_argument("--lam-scale", type=float, default=S, metavar="K")
@@ -268,13 +289,30 @@ def _cmd_reconstruct(args) -> int:
                              load_code(args.code, args.code_length), args.bit_rate,
                              tuple(args.range_gate), marker=args.marker, channel=args.channel,
                              truth=truth, **processing)
-    out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite)
+    for w in result.warnings:
+        print(f"spslidar: warning: {w}", file=sys.stderr)
+    out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
+                      fov_deg=args.fov)
     m = result.metrics
     rmse = m.get("depth_rmse_m")
+    from .pipeline.results import _percent
+
     print(f"{m['n_patterns']} patterns, {int(sum(m['ptu']['counts_per_pattern']))} photons; "
-          + (f"depth RMSE {rmse:.4f} m" if rmse is not None else "no --truth"))
-    print(f"wrote {out}/: metrics.json depth.npy" + ("" if args.no_figure else " depth.png"))
+          f"returns in {_percent(m['coverage'])} of pixels, mean reflectivity "
+          f"{m.get('mean_reflectivity') or 0.0:.3g} photons per pulse; "
+          + (f"depth RMSE {rmse:.4f} m" if rmse is not None else "no ground truth (--truth)"))
+    print(f"wrote {out}/: {' '.join(_written(out))}")
     return 0
+
+
+def _written(out) -> list[str]:
+    """The result files in ``out``, in a fixed order, for the closing line."""
+    from pathlib import Path
+
+    order = ("metrics.json", "depth.npy", "reflectivity.npy", "confidence.npy", "depth2.npy",
+             "points.ply", "truth.npy", "valid.npy", "depth.png")
+    have = {p.name for p in Path(out).iterdir()}
+    return [name for name in order if name in have]
 
 
 def _add_sweep_options(p: argparse.ArgumentParser, trials: bool) -> None:
@@ -354,7 +392,7 @@ def _cmd_run(args) -> int:
 
     opts = {k: v for k, v in vars(args).items()
             if k not in ("command", "config", "out", "no_figure", "overwrite", "func",
-                         "save_ptu")}
+                         "save_ptu", "fov")}
     save_ptu = getattr(args, "save_ptu", None)
     if save_ptu and os.path.exists(save_ptu) and not args.overwrite:
         raise ConfigError(f"--save-ptu {save_ptu} exists; use --overwrite to replace it")
@@ -377,10 +415,10 @@ def _cmd_run(args) -> int:
         result = run(cfg)
     for w in result.warnings:
         print(f"spslidar: warning: {w}", file=sys.stderr)
-    out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite)
+    out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
+                      fov_deg=args.fov)
     print(result.summary())
-    print(f"wrote {out}/: metrics.json depth.npy truth.npy valid.npy"
-          + ("" if args.no_figure else " depth.png"))
+    print(f"wrote {out}/: {' '.join(_written(out))}")
     return 0
 
 

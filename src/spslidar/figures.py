@@ -75,12 +75,17 @@ def _panel(draw_img, x0: int, y0: int, rgb: np.ndarray, title: str, lo: float, h
 NO_TRUTH = (150, 150, 150)  # grey: the scene has no ground truth there (e.g. a stereo hole)
 NO_RETURN = (255, 255, 255)  # white: the estimator found no return
 LOW_CONFIDENCE = (230, 0, 200)  # magenta dot: a depth the estimator itself does not trust
+OUT_OF_RANGE = (255, 120, 0)  # orange cross: a depth outside the colour bar's range
+#: colour of the second surface panel's one-surface pixels
+ONE_SURFACE = (235, 235, 235)
 
 
 def _classes(result) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Masks of the pixels without ground truth, without a return, and with a low-confidence
     depth (a return the depth estimator flags)."""
     valid = np.asarray(result.scene.valid, dtype=bool)
+    if not getattr(result, "has_truth", True):
+        valid = np.zeros(np.shape(result.depth), dtype=bool)
     no_return = ~np.isfinite(result.depth)
     low = result.low_confidence
     low = (np.zeros_like(valid) if low is None
@@ -88,17 +93,40 @@ def _classes(result) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return ~valid, no_return, low
 
 
-def _legend_items(result) -> list[tuple[tuple[int, int, int], str]]:
+def _outside(result, lo: float, hi: float) -> np.ndarray:
+    """Depths the colour bar cannot show (drawn at its end colour, marked by a cross)."""
+    d = np.asarray(result.depth, dtype=np.float64)
+    tol = float(result.metrics.get("bin_depth_m", 0.0))  # a bin's error is not "outside"
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(d) & ((d < lo - tol) | (d > hi + tol))
+
+
+def _legend_items(result, outside: np.ndarray) -> list[tuple[tuple[int, int, int], str]]:
     no_truth, no_return, low = _classes(result)
-    return [(NO_TRUTH, f"no ground truth ({100 * no_truth.mean():.0f}%)"),
-            (NO_RETURN, f"no return ({100 * no_return.mean():.1f}%)"),
-            (LOW_CONFIDENCE, f"low-confidence depth ({100 * low.mean():.0f}%, dot)")]
+    items = []
+    if getattr(result, "has_truth", True):
+        items.append((NO_TRUTH, f"no ground truth ({100 * no_truth.mean():.0f}%)"))
+    items += [(NO_RETURN, f"no return ({100 * no_return.mean():.1f}%)"),
+              (LOW_CONFIDENCE, f"low-confidence depth ({100 * low.mean():.0f}%, dot)")]
+    if outside.any():
+        items.append((OUT_OF_RANGE, f"depth outside the colour range ({int(outside.sum())} "
+                                    f"pixels, cross)"))
+    return items
 
 
 def _limits(result):
-    truth, valid = result.truth, result.scene.valid
-    lo = float(np.min(truth[valid])) if valid.any() else float(np.nanmin(truth))
-    hi = float(np.max(truth[valid])) if valid.any() else float(np.nanmax(truth))
+    """Colour range of the depth panels, the masked error map and its symmetric range.
+
+    With a ground truth the depth range is the truth's (an estimate outside it is marked);
+    without one it is the estimate's 1st to 99th percentile."""
+    valid = _classes(result)[0] == 0
+    truth = result.truth
+    if valid.any():
+        lo, hi = float(np.min(truth[valid])), float(np.max(truth[valid]))
+    elif np.isfinite(result.depth).any():
+        lo, hi = (float(v) for v in np.nanpercentile(result.depth, [1, 99]))
+    else:
+        lo, hi = 0.0, 1.0
     if hi <= lo:
         hi = lo + 1e-3
     err_masked = np.where(valid, result.depth - truth, np.nan)
@@ -106,23 +134,77 @@ def _limits(result):
     return lo, hi, err_masked, max(lim, result.metrics["bin_depth_m"])
 
 
+def _percent(share: float) -> str:
+    from .pipeline.results import _percent as percent
+
+    return percent(share)
+
+
 def _title(result) -> str:
     c, m = result.config, result.metrics
-    return (f"{c.lidar.upper()} {m['code_description']}, {m['n_patterns']} {c.patterns} patterns "
-            f"({100 * c.compression:g}%), m_s={c.signal:g}, m_n={c.noise:g}, "
-            f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}, {c.depth} depth: RMSE = "
-            f"{m['depth_rmse_m']:.4f} m over {100 * m.get('coverage', float('nan')):.0f}% "
+    if "ptu" in m:  # a measured acquisition: no simulated photon numbers to show
+        what = (f"measured {Path(m['ptu']['file']).name}: {m['n_patterns']} patterns, "
+                f"{int(sum(m['ptu']['counts_per_pattern']))} photons, "
+                f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}, {c.depth} depth")
+    else:
+        what = (f"{c.lidar.upper()} {m['code_description']}, {m['n_patterns']} {c.patterns} "
+                f"patterns ({100 * c.compression:g}%), m_s={c.signal:g}, m_n={c.noise:g}, "
+                f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}, {c.depth} depth")
+    if m.get("depth_rmse_m") is None:
+        return f"{what}: no ground truth; returns in {_percent(m['coverage'])} of pixels"
+    return (f"{what}: RMSE = {m['depth_rmse_m']:.4f} m over {_percent(m['coverage'])} "
             f"of pixels")
 
 
+def _reflectivity_range(result) -> tuple[float, float]:
+    r = result.reflectivity
+    if r is None or not np.isfinite(r).any():
+        return 0.0, 1.0
+    hi = float(np.nanpercentile(r, 99))
+    return 0.0, hi if hi > 0 else 1.0
+
+
+def _panels(result):
+    """The panels of ``depth.png``, left to right: ``(kind, title, values, lo, hi, table,
+    unit)``. With a ground truth: truth, estimate, error, reflectivity (and a second surface
+    where the estimator found one); without: estimate, reflectivity, confidence."""
+    lo, hi, err_masked, lim = _limits(result)
+    no_truth, no_return, low = _classes(result)
+    m = result.metrics
+    est_title = (f"estimate: {100 * m['missing_fraction']:.1f}% no return, "
+                 f"{100 * low.mean():.0f}% low-confidence")
+    panels = []
+    if getattr(result, "has_truth", True):
+        panels.append(("truth", f"ground truth: {result.scene.name}", result.truth, lo, hi,
+                       _VIRIDIS, "m"))
+    panels.append(("estimate", est_title, result.depth, lo, hi, _VIRIDIS, "m"))
+    if getattr(result, "has_truth", True):
+        panels.append(("error", "error: estimate - truth", err_masked, -lim, lim, _RDBU_R, "m"))
+    if result.reflectivity is not None:
+        rlo, rhi = _reflectivity_range(result)
+        unit = "ph/pulse" if "ptu" in m else "alpha"
+        panels.append(("reflectivity", "reflectivity (intensity)", result.reflectivity, rlo,
+                       rhi, _VIRIDIS, unit))
+    depth2 = getattr(result, "depth2", None)
+    if depth2 is not None and np.isfinite(depth2).any():
+        panels.append(("depth2", f"second surface ({100 * np.isfinite(depth2).mean():.1f}% "
+                                 "of pixels)", depth2, lo, hi, _VIRIDIS, "m"))
+    if not getattr(result, "has_truth", True) and result.confidence is not None:
+        panels.append(("confidence", "confidence", result.confidence, 0.0, 1.0, _VIRIDIS, ""))
+    return panels
+
+
 def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
-    """``depth.png``: ground truth | estimate | error, colour bars in metres.
+    """``depth.png``: ground truth | estimate | error | reflectivity, colour bars in metres
+    (without a ground truth: estimate | reflectivity | confidence).
 
     Every pixel without a number has the colour of its reason, named in a legend: grey where
     the scene has no ground truth (truth and error panels), white where the estimator found no
-    return (estimate and error panels), and a magenta dot on the depths the estimator flags
-    as low-confidence (estimate panel). The title gives the RMSE with the share of pixels it
-    covers (ground truth and a return).
+    return (estimate and error panels), a magenta dot on the depths the estimator flags as
+    low-confidence, and an orange cross on estimated depths outside the colour bar's range
+    (the truth's range; e.g. an aliased return metres away), which are drawn at the bar's end
+    colour. The title gives the RMSE with the share of pixels it covers (ground truth and a
+    return), never rounded up to 100 % while a pixel is missing.
 
     Parameters
     ----------
@@ -136,33 +218,36 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
         return _depth_figure_mpl(result, path)
     from PIL import Image, ImageDraw
 
-    lo, hi, err_masked, lim = _limits(result)
+    lo, hi, _, _ = _limits(result)
     no_truth, no_return, low = _classes(result)
-    m = result.metrics
-    width, height = 3 * (_PANEL + 70) + 20, _PANEL + 100
+    outside = _outside(result, lo, hi)
+    panels = _panels(result)
+    width, height = len(panels) * (_PANEL + 70) + 20, _PANEL + 100
     fig = Image.new("RGB", (width, height), (255, 255, 255))
     draw = ImageDraw.Draw(fig)
     draw.text((10, 4), _title(result), fill=(0, 0, 0))
     y0 = 20
-    truth_rgb = _colormap(result.truth, lo, hi, _VIRIDIS, NO_TRUTH)
-    truth_rgb[no_truth] = NO_TRUTH
-    _panel(fig, 10, y0, truth_rgb, f"ground truth: {result.scene.name}", lo, hi, _VIRIDIS, "m")
-    x1 = 10 + _PANEL + 70
-    _panel(fig, x1, y0, _colormap(result.depth, lo, hi, _VIRIDIS, NO_RETURN),
-           f"estimate: {100 * m['missing_fraction']:.1f}% no return, "
-           f"{100 * low.mean():.0f}% low-confidence", lo, hi, _VIRIDIS, "m")
-    if low.any():  # a dot in the middle of each low-confidence pixel
-        cell = _PANEL / low.shape[0]
+    cell = _PANEL / no_return.shape[0]
+    for i, (kind, title, values, vlo, vhi, table, unit) in enumerate(panels):
+        x0 = 10 + i * (_PANEL + 70)
+        bad = ONE_SURFACE if kind == "depth2" else NO_RETURN
+        rgb = _colormap(values, vlo, vhi, table, bad)
+        if kind in ("truth", "error"):
+            rgb[no_truth] = NO_TRUTH
+        _panel(fig, x0, y0, rgb, title, vlo, vhi, table, unit)
+        if kind != "estimate":
+            continue
         r = max(1.0, cell / 5)
-        for yy, xx in zip(*np.nonzero(low), strict=True):
-            cx, cy = x1 + (xx + 0.5) * cell, y0 + 22 + (yy + 0.5) * cell
+        for yy, xx in zip(*np.nonzero(low), strict=True):  # a dot per low-confidence pixel
+            cx, cy = x0 + (xx + 0.5) * cell, y0 + 22 + (yy + 0.5) * cell
             draw.ellipse((cx - r, cy - r, cx + r, cy + r), fill=LOW_CONFIDENCE)
-    err_rgb = _colormap(err_masked, -lim, lim, _RDBU_R, NO_RETURN)
-    err_rgb[no_truth] = NO_TRUTH
-    _panel(fig, 10 + 2 * (_PANEL + 70), y0, err_rgb, "error: estimate - truth", -lim, lim,
-           _RDBU_R, "m")
+        h = max(1.5, cell / 3)
+        for yy, xx in zip(*np.nonzero(outside), strict=True):  # a cross per clipped depth
+            cx, cy = x0 + (xx + 0.5) * cell, y0 + 22 + (yy + 0.5) * cell
+            draw.line((cx - h, cy - h, cx + h, cy + h), fill=OUT_OF_RANGE, width=2)
+            draw.line((cx - h, cy + h, cx + h, cy - h), fill=OUT_OF_RANGE, width=2)
     x, y = 10, y0 + _PANEL + 50
-    for colour, text in _legend_items(result):
+    for colour, text in _legend_items(result, outside):
         draw.rectangle((x, y, x + 14, y + 12), fill=colour, outline=(80, 80, 80))
         draw.text((x + 20, y + 1), text, fill=(0, 0, 0))
         x += 28 + 7 * len(text)
@@ -172,13 +257,15 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
 
 
 def _depth_figure_mpl(result, path: str | Path) -> Path:
-    """The matplotlib version of :func:`depth_figure` (same colours and legend)."""
+    """The matplotlib version of :func:`depth_figure` (same panels, colours and legend)."""
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
     plt = _plt()
-    lo, hi, err_masked, lim = _limits(result)
+    lo, hi, _, _ = _limits(result)
     no_truth, no_return, low = _classes(result)
+    outside = _outside(result, lo, hi)
+    panels = _panels(result)
 
     def paint(ax, mask, colour):
         if mask.any():
@@ -186,34 +273,34 @@ def _depth_figure_mpl(result, path: str | Path) -> Path:
                       cmap=ListedColormap([np.asarray(colour) / 255]), vmin=0, vmax=1,
                       interpolation="nearest")
 
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.6), constrained_layout=True)
-    cmap = plt.get_cmap("viridis")
-    im = axes[0].imshow(np.ma.masked_where(no_truth, result.truth), cmap=cmap, vmin=lo, vmax=hi)
-    paint(axes[0], no_truth, NO_TRUTH)
-    axes[0].set_title(f"ground truth: {result.scene.name}")
-    _colorbar(fig, axes[0], im)
-    im = axes[1].imshow(np.ma.masked_invalid(result.depth), cmap=cmap, vmin=lo, vmax=hi)
-    paint(axes[1], no_return, NO_RETURN)
-    if low.any():
-        yy, xx = np.nonzero(low)
-        axes[1].scatter(xx, yy, s=max(1.0, 400.0 / low.shape[0]),
-                        color=np.asarray(LOW_CONFIDENCE) / 255, linewidths=0)
-    m = result.metrics
-    axes[1].set_title(f"estimate: {100 * m['missing_fraction']:.1f}% no return, "
-                      f"{100 * low.mean():.0f}% low-confidence")
-    _colorbar(fig, axes[1], im)
-    im = axes[2].imshow(np.ma.masked_invalid(err_masked), cmap=plt.get_cmap("RdBu_r"),
-                        vmin=-lim, vmax=lim)
-    paint(axes[2], no_truth, NO_TRUTH)
-    paint(axes[2], ~no_truth & no_return, NO_RETURN)
-    axes[2].set_title("error: estimate - truth")
-    _colorbar(fig, axes[2], im, "depth error [m]")
-    for ax in axes:
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.4 * len(panels), 4.6),
+                             constrained_layout=True, squeeze=False)
+    for ax, (kind, title, values, vlo, vhi, _table, unit) in zip(axes[0], panels,
+                                                                  strict=True):
+        cmap = plt.get_cmap("RdBu_r" if kind == "error" else "viridis")
+        shown = np.ma.masked_invalid(np.asarray(values, dtype=np.float64))
+        if kind in ("truth", "error"):
+            shown = np.ma.masked_where(no_truth | shown.mask, shown)
+        im = ax.imshow(shown, cmap=cmap, vmin=vlo, vmax=vhi)
+        if kind in ("truth", "error"):
+            paint(ax, no_truth, NO_TRUTH)
+        if kind in ("estimate", "error"):
+            paint(ax, ~no_truth & no_return if kind == "error" else no_return, NO_RETURN)
+        if kind == "estimate":
+            for mask, colour, marker in ((low, LOW_CONFIDENCE, "o"),
+                                         (outside, OUT_OF_RANGE, "x")):
+                if mask.any():
+                    yy, xx = np.nonzero(mask)
+                    ax.scatter(xx, yy, s=max(1.0, 400.0 / mask.shape[0]), marker=marker,
+                               color=np.asarray(colour) / 255, linewidths=1)
+        ax.set_title(title)
+        label = {"m": "depth [m]", "": "confidence"}.get(unit, unit)
+        _colorbar(fig, ax, im, "depth error [m]" if kind == "error" else label)
         ax.set_xticks([])
         ax.set_yticks([])
     fig.legend(handles=[Patch(facecolor=np.asarray(c) / 255, edgecolor="0.3", label=t)
-                        for c, t in _legend_items(result)],
-               loc="outside lower center", ncol=3, frameon=False)
+                        for c, t in _legend_items(result, outside)],
+               loc="outside lower center", ncol=4, frameon=False)
     fig.suptitle(_title(result))
     path = Path(path)
     fig.savefig(path, dpi=110)

@@ -32,7 +32,8 @@ __all__ = ["RESULT_FILES", "check_output", "is_result", "write_result_dir", "uma
 
 #: every file a ``spslidar run`` result folder may hold
 RESULT_FILES = frozenset({"metrics.json", "depth.npy", "truth.npy", "valid.npy",
-                          "confidence.npy", "depth.png"})
+                          "confidence.npy", "reflectivity.npy", "points.ply", "depth2.npy",
+                          "depth.png"})
 
 
 def umask_mode(base: int = 0o777) -> int:

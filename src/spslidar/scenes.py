@@ -91,6 +91,11 @@ class Scene:
         ``(N, N)`` float64 reflectivity ``alpha(x, y)`` in [0, 1].
     valid : numpy.ndarray
         ``(N, N)`` bool, True where the ground-truth depth is known; metrics ignore the others.
+    notes : list of str
+        What loading did that a user should hear about (e.g. a non-square file cropped).
+    has_truth : bool
+        False for a measured acquisition (``spslidar reconstruct`` without ``--truth``): the
+        depth is a placeholder, no pixel is valid, and no truth-based metric is computed.
 
     Raises
     ------
@@ -108,6 +113,7 @@ class Scene:
     valid: np.ndarray
     #: what loading did that a user should hear about (e.g. a non-square file cropped)
     notes: list[str] = field(default_factory=list)
+    has_truth: bool = True
 
     def __post_init__(self) -> None:
         self.depth = np.asarray(self.depth, dtype=np.float64)
@@ -130,7 +136,7 @@ class Scene:
         bad = int(np.count_nonzero(~np.isfinite(r) | (r < 0) | (r > 1)))
         if bad:
             raise SceneError(f"scene {self.name!r}: {bad} reflectivity values lie outside [0, 1]")
-        if not self.valid.any():
+        if self.has_truth and not self.valid.any():
             raise SceneError(f"scene {self.name!r}: no pixel has a valid ground-truth depth")
 
     @property

@@ -27,6 +27,7 @@ from ..detectors import build_detector
 from ..errors import ConfigError
 from ..metrics import depth_errors, edge_agreement, sobel_edges
 from ..patterns import PATTERNS, PatternOperator, build_patterns, n_patterns_for
+from ..products import reflectivity_image
 from ..qcr import MeanEliminated, centre, plain_problem, qcr_problem
 from ..scenes import load_scene
 from .acquisition import GATE_PAD_BINS, Acquisition, default_gate, make_acquisition
@@ -414,14 +415,25 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
     bin_depth = SPEED_OF_LIGHT * acq.bin_width / 2.0
     shape = (cfg.size, cfg.size)
     t0 = time.perf_counter()
-    err = depth_errors(depth, scene.depth, scene.valid)
-    edge_corr = edge_agreement(sobel_edges(depth), sobel_edges(scene.depth))
+    if getattr(scene, "has_truth", True):
+        err = depth_errors(depth, scene.depth, scene.valid)
+        edge_corr = edge_agreement(sobel_edges(depth), sobel_edges(scene.depth))
+    else:  # a measured acquisition: only what needs no truth
+        found = np.isfinite(depth)
+        err = {key: None for key in ("depth_rmse_m", "depth_mae_m", "depth_bias_m",
+                                     "depth_max_abs_error_m")}
+        err.update(n_valid=0, missing_fraction=float(1.0 - found.mean()),
+                   coverage=float(found.mean()))
+        edge_corr = None
+    reflectivity = reflectivity_image(slices, depth, meas.lags, acq.bin_width)
     timing["metrics"] = time.perf_counter() - t0
     timing["total"] = sum(timing.values())
 
     metrics: dict[str, Any] = {
         **err,
-        "depth_rmse_bins": err["depth_rmse_m"] / bin_depth,
+        "depth_rmse_bins": (err["depth_rmse_m"] / bin_depth if err["depth_rmse_m"] is not None
+                            else None),
+        "has_truth": bool(getattr(scene, "has_truth", True)),
         "edge_correlation": edge_corr,
         "bin_depth_m": bin_depth,
         "unambiguous_range_m": acq.unambiguous_range,
@@ -443,6 +455,8 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         "correlation_noise_sigma": float(np.sqrt(np.mean(sim["sigma"] ** 2))),
         "depth_estimator": cfg.depth,
         "low_confidence_fraction": float(np.mean(low_confidence)),
+        "mean_reflectivity": (float(np.nanmean(reflectivity)) if np.isfinite(reflectivity).any()
+                              else None),
         **({"depth_info": depth_info} if depth_info else {}),
         "lam": lam,
         "lam_scale": lam_scale if cfg.lam is None else None,
@@ -459,7 +473,8 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
     }
     return Result(cfg, scene, depth, slices, meas.lags, corr, metrics, timing, warns,
                   confidence=np.asarray(confidence).reshape(shape),
-                  low_confidence=np.asarray(low_confidence).reshape(shape))
+                  low_confidence=np.asarray(low_confidence).reshape(shape),
+                  reflectivity=reflectivity)
 
 
 def detector_options(cfg: Config) -> dict[str, Any]:

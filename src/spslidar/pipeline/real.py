@@ -148,8 +148,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     acq = Acquisition("psst", code, bin_width, max(1, int(round(n_mean))), 1.0,
                       "bipolar" if cfg.replica == "auto" else cfg.replica,
                       f"measured code of {period} bits", 0)
-    if truth is None:
-        scene = Scene(str(ptu), np.zeros((n, n)), np.ones((n, n)), np.zeros((n, n), bool))
+    if truth is None:  # a real acquisition: no truth-based metric, nothing to validate
+        scene = Scene(str(ptu), np.zeros((n, n)), np.ones((n, n)), np.zeros((n, n), bool),
+                      has_truth=False)
     else:
         valid = np.isfinite(truth)
         scene = Scene(str(ptu), np.where(valid, truth, 0.0), np.ones((n, n)), valid)
@@ -164,10 +165,6 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         "n_records": data.n_records, "n_photons": data.n_photons, "n_markers": data.n_markers,
         "n_dropped_before_first_marker": data.n_dropped_before_first_marker,
         "n_out_of_range": data.n_out_of_range, "record_type": data.header.get("record_type")}
-    if truth is None:
-        for key in ("depth_rmse_m", "depth_mae_m", "depth_bias_m", "depth_max_abs_error_m",
-                    "depth_rmse_bins", "edge_correlation"):
-            result.metrics[key] = None
     return result
 
 

@@ -31,9 +31,16 @@ class Result:
     #: per-pixel confidence of the depth estimate in [0, 1], and the low-confidence mask
     confidence: np.ndarray | None = None
     low_confidence: np.ndarray | None = None
+    #: per-pixel reflectivity (intensity) read off the reconstruction
+    #: (:func:`spslidar.products.reflectivity_image`): an estimate of alpha in [0, 1] for a
+    #: simulation, detected photons per pulse for a measured acquisition; NaN without a return
+    reflectivity: np.ndarray | None = None
 
     @property
     def truth(self) -> np.ndarray:
+        """The ground-truth depth (all NaN for a measured acquisition without one)."""
+        if not self.has_truth:
+            return np.full(np.shape(self.scene.depth), np.nan)
         return self.scene.depth
 
     @property
@@ -47,17 +54,38 @@ class Result:
                 f"{m['n_patterns']} {c.patterns} patterns ({100 * c.compression:g}%), "
                 f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}")
         t = self.timing
-        out = (f"depth RMSE {m['depth_rmse_m']:.4f} m ({m['depth_rmse_m'] / m['bin_depth_m']:.2f} "
-               f"bins) over {100 * m['coverage']:.0f}% of pixels, "
-               f"{100 * m['missing_fraction']:.1f}% without return, "
+        if m.get("depth_rmse_m") is None:
+            score = (f"no ground truth: returns in {_percent(m['coverage'])} of pixels, "
+                     f"mean reflectivity {m.get('mean_reflectivity') or 0.0:.3g}, ")
+        else:
+            score = (f"depth RMSE {m['depth_rmse_m']:.4f} m "
+                     f"({m['depth_rmse_m'] / m['bin_depth_m']:.2f} bins) over "
+                     f"{_percent(m['coverage'])} of pixels, "
+                     f"{100 * m['missing_fraction']:.1f}% without return, ")
+        out = (score +
                f"{100 * m.get('low_confidence_fraction', 0.0):.0f}% low-confidence; "
                f"{t['total']:.2f} s (simulate {t['simulate']:.2f}, solve {t['solve']:.2f})")
         return f"{what}\n{out}"
 
+    @property
+    def has_truth(self) -> bool:
+        """Whether the scene has a ground truth (False for a measured acquisition)."""
+        return bool(getattr(self.scene, "has_truth", True))
+
+    def points(self, fov_deg: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The depth map as a point cloud with its reflectivity
+        (:func:`spslidar.products.point_cloud`; ``fov_deg`` default 10 degrees)."""
+        from ..products import DEFAULT_FOV_DEG, point_cloud
+
+        return point_cloud(self.depth, DEFAULT_FOV_DEG if fov_deg is None else fov_deg,
+                           self.reflectivity)
+
     def save(self, out_dir: str | os.PathLike, figure: bool = True,
-             overwrite: bool = False) -> Path:
-        """Write ``metrics.json``, ``depth.npy``, ``truth.npy``, ``valid.npy`` and
-        ``depth.png`` into ``out_dir``, all or nothing (see :mod:`spslidar.outdir`).
+             overwrite: bool = False, fov_deg: float | None = None) -> Path:
+        """Write ``metrics.json``, ``depth.npy``, ``reflectivity.npy``, ``confidence.npy``,
+        ``points.ply``, ``depth.png`` and, where the scene has a ground truth, ``truth.npy``
+        and ``valid.npy`` into ``out_dir``, all or nothing (see :mod:`spslidar.outdir`).
+        ``fov_deg`` is the field of view of the point cloud (default 10 degrees).
 
         ``out_dir`` must not exist, be empty, or (with ``overwrite=True``) hold a previous
         spslidar result; anything else is refused before a file is written, so a user's
@@ -66,9 +94,20 @@ class Result:
 
         def fill(tmp: Path) -> None:
             t0 = time.perf_counter()
+            from ..products import DEFAULT_FOV_DEG, write_ply
+
             np.save(tmp / "depth.npy", self.depth)
-            np.save(tmp / "truth.npy", self.truth)
-            np.save(tmp / "valid.npy", np.asarray(self.scene.valid, dtype=bool))
+            if self.has_truth:
+                np.save(tmp / "truth.npy", self.truth)
+                np.save(tmp / "valid.npy", np.asarray(self.scene.valid, dtype=bool))
+            if self.reflectivity is not None:
+                np.save(tmp / "reflectivity.npy", self.reflectivity)
+            if self.confidence is not None:
+                np.save(tmp / "confidence.npy", self.confidence)
+            fov = DEFAULT_FOV_DEG if fov_deg is None else float(fov_deg)
+            write_ply(tmp / "points.ply", *self.points(fov))
+            self.metrics["point_cloud"] = {"file": "points.ply", "fov_deg": fov,
+                                           "n_points": int(np.isfinite(self.depth).sum())}
             if figure:
                 from ..figures import depth_figure
 
@@ -79,6 +118,15 @@ class Result:
                 json.dump(_jsonable(self.metrics), fh, indent=2, allow_nan=True)
 
         return write_result_dir(out_dir, fill, overwrite=overwrite)
+
+
+def _percent(share: float) -> str:
+    """A share as a percentage that never rounds up to 100 % (or down to 0 %) while a pixel
+    is missing (or present): 4095 of 4096 is '99.98%', not '100%'."""
+    p = 100.0 * float(share)
+    if 99.5 <= p < 100.0 or 0.0 < p < 0.5:
+        return f"{p:.2f}%"
+    return f"{p:.0f}%"
 
 
 def _jsonable(obj):
