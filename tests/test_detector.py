@@ -93,3 +93,14 @@ def test_pileup_flag():
     high = d.pileup_report(counts_per_period=1e6, period_s=1.6e-6)
     assert not low["gmapd_saturated"] and high["gmapd_saturated"]
     assert high["counts_per_dead_time"] == pytest.approx(1e6 / 1.6e-6 * 50e-9)
+
+
+def test_linear_saturation_is_said_once_in_the_metrics():
+    """The paper's photon levels saturate a real GMAPD on every run: a note in metrics.json's
+    detector report, not a warning on every run (issue 24, item 7)."""
+    from spslidar import pipeline
+
+    r = pipeline.run(size=16, code_length=127, seed=0)
+    assert r.metrics["detector"]["gmapd_saturated"]
+    assert "would saturate" in r.metrics["detector"]["note"]
+    assert not any("saturate" in w for w in r.warnings)

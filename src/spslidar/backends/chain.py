@@ -113,10 +113,6 @@ def measure(cfg: Any):
     pile = detector.report(float(np.mean(totals)) / acq.n_periods, acq.period * bin_width)
     sim["pileup"] = pile
     sim["estimate"] = {}
-    if pile.get("gmapd_saturated"):
-        warns.append(f"flux of {pile['counts_per_dead_time']:.3g} counts per "
-                     f"{cfg.dead_time * 1e9:g} ns dead time: a real GMAPD would saturate (the "
-                     f"paper's linear counting model is used)")
     be.sync()
     timing["simulate"] = time.perf_counter() - t0
     return Measurement(cfg, scene, acq, gate, lags, ulags, inverse, patterns, sim, seq_probe,

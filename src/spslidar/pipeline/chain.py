@@ -304,11 +304,6 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
                            acq.period * bin_width)
     sim["pileup"] = pile
     sim["estimate"] = {"memory_gb": budget.bytes / 1e9, "time_s": budget.seconds}
-    if pile.get("gmapd_saturated") and detector.linear:
-        warns.append(
-            f"flux of {pile['counts_per_dead_time']:.3g} counts per {cfg.dead_time * 1e9:g} ns "
-            f"dead time: a real GMAPD would saturate (the paper's linear counting model is "
-            f"used)")
     timing["simulate"] = time.perf_counter() - t0
     return Measurement(cfg, scene, acq, gate, lags, ulags, inverse, patterns, sim, seq_probe,
                        warns, timing)
