@@ -1,0 +1,124 @@
+"""A measured acquisition that nobody here wrote: a PicoHarp T3 PTU file produced by a writer
+written in this test from PicoQuant's published record layout (not spslidar.io's writer), of a
+scene simulated here by its own model (not spslidar.forward), reconstructed by
+``spslidar reconstruct`` *without* a ground truth, and scored afterwards against the scene.
+
+PicoHarp T3 record (32 bits, little-endian): bits 0-15 the sync counter, 16-27 dtime (TDC bins
+since the sync), 28-31 the channel: 1-4 a photon, 15 special, where dtime 0 is an overflow of
+the sync counter (+65536) and dtime 1-15 a marker bit mask.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+
+import numpy as np
+import pytest
+
+from spslidar.cli import main
+
+C = 299_792_458.0
+BIT_RATE = 10e9
+N, M, L, DWELL = 32, 256, 2047, 40
+
+
+def _tag(ident: str, typ: int, value: bytes) -> bytes:
+    return struct.pack("<32siI", ident.encode("ascii"), -1, typ) + value
+
+
+def write_picoharp_t3(path, sync, dtime, marker, resolution, sync_rate) -> int:
+    """Write time-ordered events (``marker`` True: a marker on input 1 at that sync) as a
+    PicoHarp T3 PTU file; returns the number of records."""
+    sync = np.asarray(sync, np.int64)
+    wrap = sync >> 16
+    n_ofl = np.diff(np.concatenate([[0], wrap]))  # overflow records before each event
+    assert np.all(n_ofl >= 0), "events must be time-ordered"
+    low = (sync & 0xFFFF).astype(np.uint32)
+    ev = np.where(marker, (np.uint32(15) << 28) | (np.uint32(1) << 16) | low,
+                  (np.uint32(1) << 28) | (dtime.astype(np.uint32) << 16) | low).astype(np.uint32)
+    ofl = np.uint32(15 << 28)  # channel 15, dtime 0, nsync 0: one overflow
+    # interleave: each event preceded by its overflow records
+    counts = n_ofl + 1
+    records = np.full(int(counts.sum()), ofl, dtype=np.uint32)
+    records[np.cumsum(counts) - 1] = ev
+    int8, float8, empty = 0x10000008, 0x20000008, 0xFFFF0008
+    tags = [("Measurement_Mode", int8, 3), ("Measurement_SubMode", int8, 0),
+            ("MeasDesc_BinningFactor", int8, 1),
+            ("MeasDesc_Resolution", float8, resolution),
+            ("MeasDesc_GlobalResolution", float8, 1.0 / sync_rate),
+            ("TTResult_SyncRate", int8, int(round(sync_rate))),
+            ("TTResult_NumberOfRecords", int8, records.size),
+            ("TTResultFormat_TTTRRecType", int8, 0x00010303),
+            ("TTResultFormat_BitsPerRecord", int8, 32)]
+    header = b"PQTTTR\x00\x001.0.00\x00\x00"
+    for ident, typ, value in tags:
+        header += _tag(ident, typ, struct.pack("<q" if typ == int8 else "<d", value))
+    header += _tag("Header_End", empty, bytes(8))
+    with open(path, "wb") as fh:
+        fh.write(header)
+        fh.write(records.tobytes())
+    return int(records.size)
+
+
+def _scene():
+    """32x32 at 29.8-30.6 m: a back wall, a slanted panel, a box and a one-pixel pole, and
+    reflectivities from 0.3 to 1."""
+    depth = np.full((N, N), 30.6)
+    refl = np.full((N, N), 0.8)
+    depth[:, :12] = np.linspace(29.9, 30.4, N)[:, None]  # slanted panel
+    refl[:, :12] = 0.5
+    depth[14:26, 16:28] = 29.8  # box
+    refl[14:26, 16:28] = 1.0
+    depth[:, 30] = 30.1  # pole
+    refl[:, 30] = 0.3
+    return depth, refl
+
+
+def _acquire(tmp_path, seed=0):
+    rng = np.random.default_rng(seed)
+    depth, refl = _scene()
+    code = np.zeros(L)
+    code[rng.permutation(L)[: L // 2 + 1]] = 1.0  # a balanced random code, not an m-sequence
+    pats = (rng.random((M, N, N)) < 0.5).astype(np.float32)
+    delay = np.rint(2 * depth.ravel() / (C / BIT_RATE)).astype(int)  # whole bins
+    # expected photons per bin per period: sum_j phi_kj alpha_j code(t - d_j) + background
+    amp = np.zeros((M, L))
+    w = pats.reshape(M, -1) * refl.ravel()[None, :]
+    for d in np.unique(delay):
+        amp[:, d % L] += w[:, delay == d].sum(axis=1)
+    spectrum = np.fft.ifft(np.fft.fft(amp, axis=1) * np.fft.fft(code)[None, :], axis=1).real
+    lam = DWELL * (2e-3 * spectrum + 0.05)
+    counts = rng.poisson(np.clip(lam, 0, None))
+    syncs, dtimes, markers = [], [], []
+    for k in range(M):
+        t = np.repeat(np.arange(L), counts[k])
+        s = k * DWELL + rng.integers(0, DWELL, t.size)
+        order = np.argsort(s, kind="stable")
+        syncs += [np.array([k * DWELL]), s[order]]
+        dtimes += [np.zeros(1, int), t[order]]
+        markers += [np.ones(1, bool), np.zeros(t.size, bool)]
+    n = write_picoharp_t3(tmp_path / "scan.ptu", np.concatenate(syncs), np.concatenate(dtimes),
+                          np.concatenate(markers), 1 / BIT_RATE, BIT_RATE / L)
+    np.save(tmp_path / "patterns.npy", pats)
+    np.save(tmp_path / "code.npy", code.astype(np.uint8))
+    return depth, int(counts.sum()), n
+
+
+def test_independent_picoharp_file_reconstructs_without_truth(tmp_path, capsys):
+    """Median error within one 1.5 cm bin, RMSE <= 0.15 m and returns in >= 95 % of pixels
+    (the targets of issue 20 for a hidden acquisition of this kind); the photon count read
+    equals the one written."""
+    pytest.importorskip("ptufile")
+    depth, photons, _ = _acquire(tmp_path)
+    out = tmp_path / "rec"
+    assert main(["reconstruct", "--ptu", str(tmp_path / "scan.ptu"), "--patterns",
+                 str(tmp_path / "patterns.npy"), "--code", str(tmp_path / "code.npy"),
+                 "--bit-rate", "10e9", "--range-gate", "29.5", "30.9", "--out", str(out)]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert int(sum(m["ptu"]["counts_per_pattern"])) == photons
+    assert m["depth_rmse_m"] is None and m["coverage"] >= 0.95
+    est = np.load(out / "depth.npy")
+    err = est - depth
+    assert np.nanmedian(np.abs(err)) <= 0.015
+    assert np.sqrt(np.nanmean(err ** 2)) <= 0.15
