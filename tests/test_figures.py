@@ -67,7 +67,7 @@ def test_estimate_outside_the_colour_range_is_marked(result, tmp_path):
 
 
 def test_coverage_never_rounds_up_to_100_percent():
-    from spslidar.pipeline.results import _percent
+    from spslidar.metrics import percent as _percent
 
     assert _percent(4095 / 4096) == "99.98%"
     assert _percent(1.0) == "100%"

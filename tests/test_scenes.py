@@ -311,12 +311,14 @@ def test_scene_dataclass_validates():
 @pytest.mark.parametrize("size", [32, 64])
 def test_shipped_scene_cache_matches_scikit_image(name, size):
     """The precomputed built-ins (spslidar/data/builtin_scenes.npz) equal a fresh computation
-    from scikit-image's sample data; regenerate with ``python -m spslidar.scene_cache``."""
+    from scikit-image's sample data; regenerate with ``python -m spslidar.scene_build``."""
     from spslidar import scene_cache
 
     shipped = scene_cache.lookup(name, size)
     assert shipped is not None, "the cache file is missing from the installation"
-    fresh = scene_cache.compute(name, size)
+    from spslidar.scene_build import compute
+
+    fresh = compute(name, size)
     assert shipped.keys() == fresh.keys()
     for key in shipped:
         np.testing.assert_allclose(shipped[key], fresh[key], rtol=1e-12, atol=0, err_msg=key)

@@ -295,7 +295,7 @@ def _cmd_reconstruct(args) -> int:
                       fov_deg=args.fov)
     m = result.metrics
     rmse = m.get("depth_rmse_m")
-    from .pipeline.results import _percent
+    from .metrics import percent as _percent
 
     print(f"{m['n_patterns']} patterns, {int(sum(m['ptu']['counts_per_pattern']))} photons; "
           f"returns in {_percent(m['coverage'])} of pixels, mean reflectivity "

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .metrics import percent as _percent
+
 #: matplotlib's ``viridis`` and ``RdBu_r`` at 17 evenly spaced points (interpolated linearly)
 _VIRIDIS = ((68, 1, 84), (72, 24, 106), (71, 45, 123), (66, 64, 134), (59, 82, 139),
             (51, 99, 141), (44, 114, 142), (38, 130, 142), (33, 145, 140), (31, 160, 136),
@@ -132,12 +134,6 @@ def _limits(result):
     err_masked = np.where(valid, result.depth - truth, np.nan)
     lim = float(np.nanpercentile(np.abs(err_masked), 99)) if np.isfinite(err_masked).any() else 0
     return lo, hi, err_masked, max(lim, result.metrics["bin_depth_m"])
-
-
-def _percent(share: float) -> str:
-    from .pipeline.results import _percent as percent
-
-    return percent(share)
 
 
 def _title(result) -> str:

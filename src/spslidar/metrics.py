@@ -83,3 +83,12 @@ def edge_agreement(est_edges: np.ndarray, true_edges: np.ndarray) -> float:
     if a.std() == 0 or b.std() == 0:
         return 0.0
     return float(np.corrcoef(a, b)[0, 1])
+
+
+def percent(share: float) -> str:
+    """A share as a percentage that never rounds up to 100 % (or down to 0 %) while a pixel
+    is missing (or present): 4095 of 4096 is '99.98%', not '100%'."""
+    p = 100.0 * float(share)
+    if 99.5 <= p < 100.0 or 0.0 < p < 0.5:
+        return f"{p:.2f}%"
+    return f"{p:.0f}%"

@@ -25,6 +25,7 @@ import numpy as np
 
 from .errors import ConfigError
 from .operators import LinearOperator
+from .patterns.dense import centred_patterns  # noqa: F401 - re-exported (eq. 11's Phi_c)
 
 QCR_FORMS = ("centred", "covariance")
 
@@ -33,39 +34,6 @@ def centre(a: np.ndarray) -> np.ndarray:
     """Subtract the mean over patterns (axis 0)."""
     a = np.asarray(a)
     return a - a.mean(axis=0, keepdims=True)
-
-
-#: rows per block in :func:`centred_patterns` (a float64 block of 4096 pixels stays in cache)
-_CENTRE_ROWS = 128
-
-
-def centred_patterns(patterns: np.ndarray, norm: float = 1.0, dtype=np.float32) -> np.ndarray:
-    """``(Phi - mean_i Phi) / norm`` in ``dtype``: :func:`centre` computed in float64.
-
-    Parameters
-    ----------
-    patterns : ndarray, shape (M, Q)
-    norm : float
-        Divides the centred patterns (``sqrt(M)`` for the centred data term).
-    dtype : numpy dtype
-        Output precision.
-
-    Returns
-    -------
-    ndarray, shape (M, Q)
-        Bitwise the values of ``(centre(patterns.astype(float64)) / norm).astype(dtype)``,
-        without its full-size float64 temporaries: the work is done in float64 a block of rows
-        at a time.
-    """
-    phi = np.asarray(patterns)
-    mean = phi.mean(axis=0, dtype=np.float64, keepdims=True)
-    out = np.empty(phi.shape, dtype=dtype)
-    for r in range(0, phi.shape[0], _CENTRE_ROWS):
-        blk = np.subtract(phi[r:r + _CENTRE_ROWS], mean, dtype=np.float64)
-        if norm != 1.0:
-            blk /= norm
-        out[r:r + _CENTRE_ROWS] = blk
-    return out
 
 
 def qcr_delta(patterns, corr: np.ndarray) -> np.ndarray:

@@ -7,7 +7,9 @@ what :mod:`spslidar.scenes` computes from them at :data:`CACHED_SIZES` (the came
 grey levels before they are mapped onto the depth window; the motorcycle's depth,
 reflectivity and validity in its native window, before an optional remap), so those sizes
 load without scikit-image. ``tests/test_scenes.py`` checks the file against a fresh
-computation; :func:`build` regenerates it (``python -m spslidar.scene_cache``).
+computation; :func:`spslidar.scene_build.build` regenerates it
+(``python -m spslidar.scene_build``). This module only reads the file, so the scenes can use
+it without a circular import.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CACHED_SIZES", "CACHE_FILE", "build", "lookup"]
+__all__ = ["CACHED_SIZES", "CACHE_FILE", "FIELDS", "lookup"]
 
 #: image sides shipped precomputed (the default run's and the quick reproduction's)
 CACHED_SIZES: tuple[int, ...] = (32, 64)
@@ -47,37 +49,3 @@ def lookup(name: str, size: int) -> dict[str, np.ndarray] | None:
     if not all(k in arc for k in keys):
         return None
     return {f: arc[k].copy() for f, k in zip(FIELDS[name], keys, strict=True)}
-
-
-def compute(name: str, size: int) -> dict[str, np.ndarray]:
-    """The arrays of ``name`` at ``size``, computed from scikit-image's sample data."""
-    from skimage import data
-
-    from . import scenes
-
-    if name == "camera":
-        return {"grey": scenes._resize(scenes._center_crop(data.camera()), size)}
-    if name == "motorcycle":
-        scene = scenes._motorcycle_computed(size)
-        return {"depth": scene.depth, "reflectivity": scene.reflectivity,
-                "valid": scene.valid,
-                "source_shape": np.asarray(data.stereo_motorcycle()[2].shape, dtype=np.int64)}
-    raise ValueError(f"no cached arrays for scene {name!r}")
-
-
-def build(path: str | Path = CACHE_FILE) -> Path:
-    """Write the cache file: every scene of :data:`FIELDS` at every :data:`CACHED_SIZES`."""
-    arrays = {}
-    for name in FIELDS:
-        for size in CACHED_SIZES:
-            for field, arr in compute(name, size).items():
-                arrays[f"{name}_{size}_{field}"] = arr
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, **arrays)
-    _archive.cache_clear()
-    return path
-
-
-if __name__ == "__main__":  # pragma: no cover
-    print(build())

@@ -9,7 +9,7 @@ through this path) the results agree with the NumPy path to float32 precision:
 
 * :func:`simulate_block` - :func:`spslidar.pipeline.simulate._simulate_fast`'s block
   (:func:`spslidar.forward.expected_counts`, :func:`spslidar.correlate.matched_filter`);
-* :func:`centred_matrix` - :func:`spslidar.qcr.centred_patterns`;
+* :func:`centred_matrix` - :func:`spslidar.patterns.dense.centred_patterns`;
 * :func:`power_norm` - :func:`spslidar.operators.base.power_norm`;
 * :class:`TVProx` - the FGP loop of :class:`spslidar.solvers.regularisers.TV`
   (isotropic, warm-started);

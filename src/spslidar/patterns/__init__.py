@@ -21,7 +21,7 @@ __all__ = ["HADAMARD_ORDERS", "HADAMARD_REALISATIONS", "PATTERNS", "PATTERN_KIND
 # the operators themselves import numpy: re-exported on first access, so reading the registry
 # (``--help``, config validation) stays light
 __getattr__ = lazy_exports(__name__, {
-    "CentredPatterns": "base", "PatternOperator": "base", "as_patterns": "base",
+    "CentredPatterns": "base", "PatternOperator": "base", "as_patterns": "dense",
     "PATTERN_KINDS": "dense", "DensePatterns": "dense", "make_patterns": "dense",
     "n_patterns_for": "dense"})
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..operators import LinearOperator
 
-__all__ = ["CentredPatterns", "PatternOperator", "as_patterns"]
+__all__ = ["CentredPatterns", "PatternOperator"]
 
 
 class PatternOperator(LinearOperator):
@@ -104,12 +104,3 @@ class CentredPatterns(LinearOperator):
         out = np.asarray(self.phi._rmatvec(np.asarray(y, dtype=self.phi.dtype)), np.float64)
         out -= np.outer(self.mu, y64.sum(axis=0))
         return (out / self.norm).astype(self.dtype, copy=False)
-
-
-def as_patterns(patterns) -> PatternOperator:
-    """A :class:`PatternOperator` from an operator or an ``(M, Q)`` array (wrapped as dense)."""
-    if isinstance(patterns, PatternOperator):
-        return patterns
-    from .dense import DensePatterns
-
-    return DensePatterns(np.asarray(patterns))

@@ -124,7 +124,6 @@ class DensePatterns(PatternOperator):
 
     def centred(self, norm: float = 1.0, dtype=np.float32):
         from ..operators import MatrixOperator
-        from ..qcr import centred_patterns
 
         return MatrixOperator(centred_patterns(self.matrix, norm, dtype=dtype), dtype=dtype)
 
@@ -144,3 +143,44 @@ def dense_patterns(kind: str, n_patterns: int, n_side: int, rng: np.random.Gener
     """The registry's factory for ``gaussian`` and ``bernoulli`` pattern sets."""
     return DensePatterns(make_patterns(kind, n_patterns, n_side * n_side, rng, sigma=sigma,
                                        on_fraction=on_fraction, dtype=dtype), kind)
+
+
+#: rows per block in :func:`centred_patterns` (a float64 block of 4096 pixels stays in cache)
+_CENTRE_ROWS = 128
+
+
+def centred_patterns(patterns: np.ndarray, norm: float = 1.0, dtype=np.float32) -> np.ndarray:
+    """``(Phi - mean_i Phi) / norm`` in ``dtype``: :func:`spslidar.qcr.centre` in float64.
+
+    Parameters
+    ----------
+    patterns : ndarray, shape (M, Q)
+    norm : float
+        Divides the centred patterns (``sqrt(M)`` for the centred data term).
+    dtype : numpy dtype
+        Output precision.
+
+    Returns
+    -------
+    ndarray, shape (M, Q)
+        Bitwise the values of ``(centre(patterns.astype(float64)) / norm).astype(dtype)``,
+        without its full-size float64 temporaries: the work is done in float64 a block of rows
+        at a time.
+    """
+    phi = np.asarray(patterns)
+    mean = phi.mean(axis=0, dtype=np.float64, keepdims=True)
+    out = np.empty(phi.shape, dtype=dtype)
+    for r in range(0, phi.shape[0], _CENTRE_ROWS):
+        blk = np.subtract(phi[r:r + _CENTRE_ROWS], mean, dtype=np.float64)
+        if norm != 1.0:
+            blk /= norm
+        out[r:r + _CENTRE_ROWS] = blk
+    return out
+
+
+def as_patterns(patterns) -> PatternOperator:
+    """A :class:`~spslidar.patterns.base.PatternOperator` from an operator or an ``(M, Q)``
+    array (wrapped as :class:`DensePatterns`)."""
+    if isinstance(patterns, PatternOperator):
+        return patterns
+    return DensePatterns(np.asarray(patterns))

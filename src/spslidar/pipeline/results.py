@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..config import Config
+from ..metrics import percent as _percent
 from ..outdir import write_result_dir
 
 
@@ -118,15 +119,6 @@ class Result:
                 json.dump(_jsonable(self.metrics), fh, indent=2, allow_nan=True)
 
         return write_result_dir(out_dir, fill, overwrite=overwrite)
-
-
-def _percent(share: float) -> str:
-    """A share as a percentage that never rounds up to 100 % (or down to 0 %) while a pixel
-    is missing (or present): 4095 of 4096 is '99.98%', not '100%'."""
-    p = 100.0 * float(share)
-    if 99.5 <= p < 100.0 or 0.0 < p < 0.5:
-        return f"{p:.2f}%"
-    return f"{p:.0f}%"
 
 
 def _jsonable(obj):

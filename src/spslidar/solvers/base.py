@@ -453,7 +453,7 @@ def progress(every: int = 10, stream: TextIO | None = None) -> Callback:
 
 
 def _registry():
-    from . import SOLVERS  # the package's registry (lists the in-tree solvers by path)
+    from .entries import SOLVERS  # the registry (lists the in-tree solvers by path)
 
     return SOLVERS
 

@@ -1,0 +1,46 @@
+"""The solver registry, :data:`SOLVERS` (re-exported by :mod:`spslidar.solvers`).
+
+A module of its own so that :mod:`spslidar.solvers.base` can read the entries' defaults
+without importing its own package (no import circle). Light: no NumPy.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ..errors import ConfigError
+from ..registry import Registry
+
+__all__ = ["SOLVERS"]
+
+
+def _regulariser_in(allowed: tuple[str, ...], message: str):
+    """A ``validate(cfg)`` hook accepting the regularisers ``allowed`` (``cfg.regulariser``)."""
+
+    def validate(cfg: Any) -> None:
+        if getattr(cfg, "regulariser", "auto") not in allowed:
+            raise ConfigError(message)
+
+    return validate
+
+
+#: the solvers, by name (``--solver``)
+SOLVERS = Registry("solver", "solver")
+SOLVERS.add("fista", "spslidar.solvers.fista:FISTA", "FISTA",
+            "FISTA, accelerated proximal gradient (default)",
+            iterations=60, lam_scale=0.3, regulariser="tv")
+SOLVERS.add("twist", "spslidar.solvers.twist:TwIST", "TwIST",
+            "TwIST, two-step iterative shrinkage (the paper's)",
+            iterations=60, lam_scale=0.3, regulariser="tv")
+SOLVERS.add("tval3", "spslidar.solvers.tval3:TVAL3", "TVAL3",
+            "TVAL3, augmented Lagrangian for TV (regulariser tv)",
+            validate=_regulariser_in(
+                ("auto", "tv"),
+                "the tval3 solver minimises total variation: use --regulariser tv"),
+            iterations=100, lam_scale=0.3, regulariser="tv")
+SOLVERS.add("gpsr", "spslidar.solvers.gpsr:GPSR", "GPSR",
+            "GPSR-BB, gradient projection for l1 (regulariser l1 or wavelet)",
+            validate=_regulariser_in(
+                ("auto", "l1", "wavelet"),
+                "the gpsr solver minimises an l1 norm: use --regulariser l1 or wavelet"),
+            iterations=120, lam_scale=0.3, regulariser="wavelet")
