@@ -6,7 +6,7 @@ ways. The submodules follow the physics chain (see README.md). Heavy modules are
 first use, so ``import spslidar`` stays light.
 """
 
-__version__ = "0.1.0"
+from .version import __version__
 
 __all__ = ["Config", "Result", "measure", "reconstruct", "run", "__version__"]
 

@@ -173,7 +173,7 @@ def build_report(out: str | os.PathLike[str], order: Sequence[str]) -> tuple[Pat
     (Path, Path)
         The Markdown and HTML reports.
     """
-    from spslidar import __version__
+    from spslidar.version import __version__
 
     out = Path(out)
     parts = [_HEADER.format(version=__version__)]

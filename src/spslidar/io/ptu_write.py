@@ -11,8 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .. import __version__
 from ..errors import ConfigError
+from ..version import __version__
 from .ptu import (
     _FAMILY,
     _MAGIC,

@@ -17,7 +17,6 @@ from typing import Any
 
 import numpy as np
 
-from .. import __version__
 from ..config import Config
 from ..constants import SPEED_OF_LIGHT
 from ..correlate import gate_lags
@@ -30,6 +29,7 @@ from ..patterns import PATTERNS, PatternOperator, build_patterns, n_patterns_for
 from ..products import reflectivity_image
 from ..qcr import MeanEliminated, centre, plain_problem, qcr_problem
 from ..scenes import load_scene
+from ..version import __version__
 from .acquisition import GATE_PAD_BINS, Acquisition, default_gate, make_acquisition
 from .budget import check_budget, estimate_budget
 from .gate import AUTO_GATE_MIN_SLICES, occupied_lags, unique_lags
