@@ -47,7 +47,8 @@ def measure(cfg: Any):
     from ..detectors import build_detector
     from ..forward import depth_to_delay, return_weights, shifted_codes
     from ..patterns import n_patterns_for
-    from ..pipeline.chain import Measurement, detector_options, timeline
+    from ..pipeline.measurement import Measurement
+    from ..pipeline.plan import detector_options, timeline
     from ..pipeline.simulate import BLOCK
     check_supported(cfg)
     be = get_backend(cfg.backend, cfg.device)
@@ -159,14 +160,10 @@ def reconstruct(meas: Any, **processing):
     """:func:`spslidar.pipeline.chain.reconstruct` of a measurement made on a backend."""
     from ..depth.argmax import ArgmaxDepth, depth_from_peaks, peak_confidence
     from ..errors import ConfigError
-    from ..pipeline.chain import (
-        PROCESSING_KEYS,
-        TV_INNER,
-        default_weight,
-        finish_result,
-        solver_default,
-    )
     from ..pipeline.gate import AUTO_GATE_MIN_SLICES, occupied_lags
+    from ..pipeline.measurement import PROCESSING_KEYS
+    from ..pipeline.score import finish_result
+    from ..pipeline.weights import TV_INNER, default_weight, solver_default
     from ..solvers import SolveInfo
 
     bad = set(k.replace("-", "_") for k in processing) - PROCESSING_KEYS

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..config import Config
 from . import chain as _chain
-from .chain import PROCESSING_KEYS, Measurement, _resolve
+from .measurement import PROCESSING_KEYS, Measurement, _resolve
 from .results import Result
 
 #: measurements kept per process by :func:`run_shared` (most recently used first out last)

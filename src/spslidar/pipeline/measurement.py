@@ -1,0 +1,49 @@
+"""A simulated or measured acquisition ready to reconstruct (:class:`Measurement`), the
+config keys that change only its processing, and how a config is resolved.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..config import Config
+from ..patterns import PatternOperator
+from .acquisition import Acquisition
+
+#: config keys that change only the processing, not the simulated measurement
+PROCESSING_KEYS = frozenset({
+    "auto_gate", "qcr", "qcr_form", "solver", "regulariser", "lam", "lam_scale", "iterations",
+    "tol", "subbin", "nonneg", "depth", "max_memory",
+})
+
+
+@dataclass
+class Measurement:
+    """A simulated acquisition: the matched-filter outputs of every pattern over the gate,
+    and everything needed to reconstruct them (see :func:`measure`, :func:`reconstruct`)."""
+
+    config: Config
+    scene: Any
+    acq: Acquisition
+    gate: tuple[float, float]
+    lags: np.ndarray  # absolute gated delays (bins)
+    ulags: np.ndarray  # distinct delays modulo the code period
+    inverse: np.ndarray  # lags -> index into ulags
+    patterns: PatternOperator
+    sim: dict[str, np.ndarray]
+    probe_seed: np.random.SeedSequence
+    warnings: list[str]
+    timing: dict[str, float]
+
+
+def _resolve(config, overrides) -> Config:
+    if config is None:
+        cfg = Config.from_dict(overrides)
+    elif isinstance(config, Config):
+        cfg = config.replace(**overrides) if overrides else config
+    else:
+        cfg = Config.from_dict({**dict(config), **overrides})
+    return cfg

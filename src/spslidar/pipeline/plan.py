@@ -1,0 +1,122 @@
+"""What a run needs before its first large array: random streams, code, range gate, the
+memory estimate (refused in one line before any work), and the detector's options.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..config import Config
+from ..constants import SPEED_OF_LIGHT
+from ..correlate import gate_lags
+from ..patterns import PATTERNS, n_patterns_for
+from ..scenes import load_scene
+from .acquisition import GATE_PAD_BINS, Acquisition, default_gate, make_acquisition
+from .budget import check_budget, estimate_budget
+from .gate import unique_lags
+from .measurement import _resolve
+from .simulate import simulation_threads
+
+
+@dataclass
+class _Plan:
+    """What a run needs before its first large array: seeds, acquisition, gate and budget."""
+
+    seq_pat: np.random.SeedSequence
+    seq_counts: np.random.SeedSequence
+    seq_probe: np.random.SeedSequence
+    acq: Acquisition
+    gate: tuple[float, float]
+    lags: np.ndarray
+    ulags: np.ndarray
+    inverse: np.ndarray
+    m: int
+    dtype: Any
+    budget: Any
+
+
+def timeline(cfg: Config, scene, warns: list[str]):
+    """The run's random streams, code and range gate, shared by every backend's ``measure``.
+
+    Returns ``(seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse)``: the seed
+    sequences of the patterns, the counts and the noise probe (the code's is used here), the
+    :class:`~spslidar.pipeline.acquisition.Acquisition`, the gate (m), its delays (bins) and
+    their distinct values modulo the code period. Appends the range-ambiguity and
+    outside-the-gate warnings to ``warns``.
+    """
+    seq_code, seq_pat, seq_counts, seq_probe = np.random.SeedSequence(cfg.seed).spawn(4)
+    bin_width = 1.0 / cfg.bit_rate
+    gate = cfg.range_gate if cfg.range_gate is not None else default_gate(scene, bin_width)
+    acq = make_acquisition(cfg, gate, np.random.default_rng(seq_code))
+    lags = gate_lags(gate, bin_width)
+    ulags, inverse = unique_lags(lags, acq.period)
+    if lags.size > acq.period:
+        warns.append(
+            f"range gate {gate[0]:g}-{gate[1]:g} m is longer than the "
+            f"{acq.unambiguous_range:.3g} m unambiguous range of the {acq.description}: returns "
+            f"at d and d + {acq.unambiguous_range:.3g} m are indistinguishable and the estimate "
+            f"takes the nearest alias inside the gate")
+    outside = (scene.depth < gate[0]) | (scene.depth > gate[1])
+    if np.any(outside & scene.valid):
+        warns.append(f"{int((outside & scene.valid).sum())} pixels lie outside the range gate "
+                     f"{gate[0]:g}-{gate[1]:g} m: their returns alias into the gate or are lost")
+    return seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse
+
+
+def _plan(cfg: Config, scene, warns: list[str]) -> _Plan:
+    """The cheap part of :func:`measure`: code, range gate and the memory check (refused in
+    one line before any large array exists)."""
+    seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse = timeline(cfg, scene,
+                                                                                warns)
+    bin_width = 1.0 / cfg.bit_rate
+    q = cfg.size * cfg.size
+    m = n_patterns_for(cfg.compression, q)
+    dtype = np.float32 if cfg.dtype == "float32" else np.float64
+    bin_depth = SPEED_OF_LIGHT * bin_width / 2.0
+    budget = estimate_budget(
+        cfg, n_patterns=m, period=acq.period, n_lags=lags.size, n_ulags=ulags.size,
+        window_bins=int((scene.depth_max - scene.depth_min) / bin_depth) + 2 * GATE_PAD_BINS,
+        pattern_bytes_per_entry=(np.dtype(dtype).itemsize
+                                 if PATTERNS.get(cfg.patterns).defaults.get("dense") else None),
+        threads=simulation_threads())
+    check_budget(budget, cfg.max_memory, cfg.patterns)
+    return _Plan(seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse, m, dtype,
+                 budget)
+
+
+def preflight(config: Config | dict | None = None, **overrides):
+    """Check that a configuration can run here, without running it: its scene loads and its
+    estimated memory fits (:func:`~spslidar.pipeline.budget.check_budget`). Sweeps call it for
+    every point before the first run. Returns the :class:`~spslidar.pipeline.budget.Budget`."""
+    cfg = _resolve(config, overrides)
+    _check_pattern_floor(cfg)
+    scene = load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
+    return _plan(cfg, scene, []).budget
+
+
+def _check_pattern_floor(cfg: Config) -> None:
+    """Refuse at once a run whose dense pattern matrix alone cannot fit (the full estimate
+    needs the scene, whose loading takes a while at large sizes)."""
+    if not PATTERNS.get(cfg.patterns).defaults.get("dense"):
+        return
+    from .budget import BASE_BYTES, DENSE_PATTERN_COPIES, Budget
+
+    q = cfg.size * cfg.size
+    m = n_patterns_for(cfg.compression, q)
+    floor = DENSE_PATTERN_COPIES * m * q * (4 if cfg.dtype == "float32" else 8)
+    check_budget(Budget(BASE_BYTES + floor, 0.0, {"patterns": floor}), cfg.max_memory,
+                 cfg.patterns)
+
+
+def detector_options(cfg: Config) -> dict[str, Any]:
+    """The detector model's options from the config (dark counts are in the noise model)."""
+    if cfg.detector == "gmapd":
+        return {"dead_time": cfg.dead_time, "bin_width": 1.0 / cfg.bit_rate,
+                "jitter": cfg.jitter, "jitter_tail": cfg.jitter_tail,
+                "jitter_tail_weight": cfg.jitter_tail_weight,
+                "afterpulse_prob": cfg.afterpulse_prob, "afterpulse_delay": cfg.afterpulse_delay,
+                "correction": cfg.pileup_correction}
+    return {"dead_time": cfg.dead_time}

@@ -1,0 +1,114 @@
+"""Scoring a reconstruction (eq. 19, Sobel edges, the metrics that need no truth) and
+assembling its :class:`~spslidar.pipeline.results.Result` and ``metrics.json``: the last
+step of every backend's reconstruction.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from ..config import Config
+from ..constants import SPEED_OF_LIGHT
+from ..metrics import depth_errors, edge_agreement, sobel_edges
+from ..products import reflectivity_image
+from ..version import __version__
+from .acquisition import Acquisition
+from .measurement import Measurement
+from .results import Result
+from .weights import solver_default
+
+
+def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: np.ndarray,
+                  corr: np.ndarray, keep: np.ndarray, auto: bool, confidence: np.ndarray,
+                  low_confidence: np.ndarray, depth_info: dict | None, lam: float,
+                  lam_scale: float, sigma_eff: float, info: Any, iterations: int,
+                  timing: dict[str, float], warns: list[str],
+                  lam_floored: bool = False) -> Result:
+    """Score a reconstruction (eq. 19, Sobel edges) and assemble its :class:`Result` and
+    ``metrics.json``: the last step of :func:`reconstruct`, shared by the other backends'
+    reconstruction (:mod:`spslidar.backends.chain`) so both report the same keys."""
+    scene, acq, sim = meas.scene, meas.acq, meas.sim
+    bin_depth = SPEED_OF_LIGHT * acq.bin_width / 2.0
+    shape = (cfg.size, cfg.size)
+    t0 = time.perf_counter()
+    if getattr(scene, "has_truth", True):
+        err = depth_errors(depth, scene.depth, scene.valid)
+        edge_corr = edge_agreement(sobel_edges(depth), sobel_edges(scene.depth))
+    else:  # a measured acquisition: only what needs no truth
+        found = np.isfinite(depth)
+        err = {key: None for key in ("depth_rmse_m", "depth_mae_m", "depth_bias_m",
+                                     "depth_max_abs_error_m")}
+        err.update(n_valid=0, missing_fraction=float(1.0 - found.mean()),
+                   coverage=float(found.mean()))
+        edge_corr = None
+    reflectivity = reflectivity_image(slices, depth, meas.lags, acq.bin_width)
+    timing["metrics"] = time.perf_counter() - t0
+    timing["total"] = sum(timing.values())
+
+    metrics: dict[str, Any] = {
+        **err,
+        "depth_rmse_bins": (err["depth_rmse_m"] / bin_depth if err["depth_rmse_m"] is not None
+                            else None),
+        "has_truth": bool(getattr(scene, "has_truth", True)),
+        "edge_correlation": edge_corr,
+        "bin_depth_m": bin_depth,
+        "unambiguous_range_m": acq.unambiguous_range,
+        "range_gate_m": list(meas.gate),
+        "n_slices": int(meas.lags.size),
+        "n_slices_solved": int(keep.sum()),
+        "auto_gate": bool(auto),
+        "n_patterns": int(meas.patterns.shape[0]),
+        "code_description": acq.description,
+        "code_period_bins": acq.period,
+        "code_ones": int(acq.code.sum()),
+        "n_periods": acq.n_periods,
+        "acquisition_time_per_pattern_s": acq.acquisition_time,
+        "signal_per_pulse": acq.signal_per_pulse,
+        "replica": acq.replica,
+        "mean_signal_counts_per_pattern": float(np.mean(sim["signal_counts"])),
+        "mean_noise_counts_per_pattern": float(np.mean(sim["noise_per_bin"]) * acq.period
+                                               * acq.n_periods),
+        "correlation_noise_sigma": float(np.sqrt(np.mean(sim["sigma"] ** 2))),
+        "depth_estimator": cfg.depth,
+        "low_confidence_fraction": float(np.mean(low_confidence)),
+        "mean_reflectivity": (float(np.nanmean(reflectivity)) if np.isfinite(reflectivity).any()
+                              else None),
+        **({"depth_info": depth_info} if depth_info else {}),
+        "lam": lam,
+        "lam_scale": lam_scale if cfg.lam is None else None,
+        "lam_floored": bool(lam_floored),
+        "noise_level": sigma_eff,
+        "solver_info": dict(info.as_dict()),
+        "detector": sim["pileup"],
+        "estimate": sim.get("estimate", {}),
+        "warnings": warns,
+        "timing_s": dict(timing),
+        "config": resolved_config(cfg, acq, meas.gate, auto, iterations, lam_scale),
+        "seed": cfg.seed,
+        "version": __version__,
+    }
+    return Result(cfg, scene, depth, slices, meas.lags, corr, metrics, timing, warns,
+                  confidence=np.asarray(confidence).reshape(shape),
+                  low_confidence=np.asarray(low_confidence).reshape(shape),
+                  reflectivity=reflectivity)
+
+
+def resolved_config(cfg: Config, acq: Acquisition, gate, auto_gate: bool, iterations: int,
+                    lam_scale: float) -> dict[str, Any]:
+    """The config with every ``auto``/unset key replaced by the value the run used, so a
+    score can be recomputed from ``metrics.json`` alone."""
+    d = cfg.to_dict()
+    d["iterations"] = int(iterations)
+    d["lam_scale"] = float(lam_scale)
+    d["code_index"] = acq.code_index
+    d["replica"] = acq.replica
+    d["regulariser"] = (solver_default(cfg.solver, "regulariser") if cfg.regulariser == "auto"
+                        else cfg.regulariser)
+    d["range_gate"] = [float(gate[0]), float(gate[1])]
+    d["auto_gate"] = bool(auto_gate)
+    if not cfg.qcr and d["regulariser"] == "tv":
+        d["nonneg"] = False  # the mean-eliminated plain problem has no sign constraint
+    return d
