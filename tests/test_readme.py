@@ -129,3 +129,13 @@ def test_slow_commands_run_as_written(tmp_path, monkeypatch):
             continue  # installs, the docs build and the test suite itself
         if _kind(words) == "slow":
             _execute(words, cwd)
+
+
+def test_python_blocks_run_as_written(tmp_path, monkeypatch):
+    """The README's Python API blocks run as written (in a fresh working directory)."""
+    blocks = re.findall(r"```python\n(.*?)```", README.read_text(encoding="utf-8"), flags=re.S)
+    assert blocks, "the README shows the Python API"
+    monkeypatch.chdir(_workdir(tmp_path))
+    for code in blocks:
+        exec(compile(code, "README.md", "exec"), {"__name__": "__readme__"})
+    assert (tmp_path / "runs" / "api" / "metrics.json").is_file()
