@@ -66,7 +66,9 @@ def mixture_share(size: int, truth: np.ndarray, valid: np.ndarray) -> float:
     from spslidar import scenes
 
     depth, _lum, src_valid = scenes.motorcycle_source()
-    src = scenes._center_crop(scenes._fill_invalid(depth, src_valid))
+    from spslidar.scenes.base import _center_crop, _fill_invalid
+
+    src = _center_crop(_fill_invalid(depth, src_valid))
     start, stop = scenes.footprints(src.shape[0], size)
     mixed = np.zeros(truth.shape, dtype=bool)
     for i in range(size):

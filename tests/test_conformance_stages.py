@@ -174,3 +174,28 @@ def test_depth_estimator_without_returns(name):
     est = ESTIMATORS.load(name)().estimate(np.zeros_like(slices), ctx)
     assert np.all(np.isnan(est.depth))
     assert np.all(np.asarray(est.confidence) == 0)
+
+
+def _scene_specs():
+    from spslidar.scenes import SCENES
+
+    for e in SCENES:
+        arg = e.defaults.get("argument")
+        yield f"{e.name}:{e.defaults.get('example', '0')}" if arg else e.name
+
+
+@pytest.mark.parametrize("spec", list(_scene_specs()))
+def test_scene_kind_contract(spec):
+    """Every registered scene kind loads by name at any size, as a valid :class:`Scene`
+    inside its depth window, the same twice, and rescales into a window given."""
+    from spslidar.scenes import load_scene
+
+    a, b = load_scene(spec, 16), load_scene(spec, 16)
+    assert a.depth.shape == a.reflectivity.shape == a.valid.shape == (16, 16)
+    assert a.valid.any() and np.all(np.isfinite(a.depth)) and a.depth.min() >= 0
+    assert 0 <= a.reflectivity.min() and a.reflectivity.max() <= 1
+    np.testing.assert_array_equal(a.depth, b.depth)
+    w = load_scene(spec, 16, 7.0, 8.0)
+    d = w.depth[w.valid]
+    # the window is filled to round-off (a linear remap in float64)
+    assert d.min() == pytest.approx(7.0, abs=1e-9) and d.max() == pytest.approx(8.0, abs=1e-9)

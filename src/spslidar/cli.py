@@ -37,11 +37,12 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     solvers, solvers_help = _choices("solver")
     depths, depths_help = _choices("depth")
     g = p.add_argument_group("scene")
+    from .scenes import SCENES
+
     g.add_argument("--scene", default=S, metavar="NAME|PATH",
-                   help="built-in scene (camera [default], motorcycle, steps, ramp, room, "
-                        "street) or a file: .npy depth in metres, .npz with 'depth' "
-                        "(+ 'reflectivity', 'valid'), .png/.tif grey image mapped into "
-                        "[--depth-min, --depth-max]")
+                   help=f"built-in scene ({SCENES.help_text()}) or a file: .npy depth in "
+                        "metres, .npz with 'depth' (+ 'reflectivity', 'valid'), .png/.tif grey "
+                        "image mapped into [--depth-min, --depth-max]")
     g.add_argument("--size", type=int, default=S, metavar="N", help="N x N pixels (default 64)")
     g.add_argument("--depth-min", type=float, default=S, metavar="M",
                    help="rescale the scene's depth into [MIN, MAX] metres")

@@ -2,7 +2,7 @@
 :mod:`spslidar.scene_cache` from scikit-image's sample data: ``python -m spslidar.scene_build``.
 
 Kept apart from :mod:`spslidar.scene_cache`, which only reads the file and is imported by
-:mod:`spslidar.scenes`; computing the arrays needs :mod:`spslidar.scenes` itself.
+:mod:`spslidar.scenes`; computing the arrays needs the scenes themselves.
 """
 
 from __future__ import annotations
@@ -11,8 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import scenes
 from .scene_cache import CACHE_FILE, CACHED_SIZES, FIELDS, _archive
+from .scenes.base import _center_crop, _resize
+from .scenes.builtin import _motorcycle_computed
 
 __all__ = ["build", "compute"]
 
@@ -22,9 +23,9 @@ def compute(name: str, size: int) -> dict[str, np.ndarray]:
     from skimage import data
 
     if name == "camera":
-        return {"grey": scenes._resize(scenes._center_crop(data.camera()), size)}
+        return {"grey": _resize(_center_crop(data.camera()), size)}
     if name == "motorcycle":
-        scene = scenes._motorcycle_computed(size)
+        scene = _motorcycle_computed(size)
         return {"depth": scene.depth, "reflectivity": scene.reflectivity,
                 "valid": scene.valid,
                 "source_shape": np.asarray(data.stereo_motorcycle()[2].shape, dtype=np.int64)}

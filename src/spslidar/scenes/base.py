@@ -1,0 +1,291 @@
+"""The scene a lidar sees (:class:`Scene`) and the resampling every scene goes through
+(centre crop, anti-aliased resize, validity mask, depth window).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import SceneError
+
+SCENE_FILE_SUFFIXES: tuple[str, ...] = (".npy", ".npz", ".png", ".tif", ".tiff", ".jpg", ".jpeg")
+
+_IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg")
+#: the farthest depth a scene file may hold, in metres (single-photon lidar has ranged ~200 km;
+#: a larger value is a unit mistake, and would overflow the range gate's arithmetic)
+MAX_SCENE_DEPTH_M = 1e6
+_MIN_SIZE = 4
+_MAX_SIZE = 2048
+#: default depth window (m) of scenes given by a grey level: the paper's 'airplane', 20 to
+#: 20.8 m (Sec. III)
+_IMAGE_WINDOW = (20.0, 20.8)
+# Share of valid source pixels an output pixel needs to stay valid after resizing.
+_MASK_VALID_SHARE = 0.999
+
+@dataclass
+class Scene:
+    """A scene seen by the lidar.
+
+    Parameters
+    ----------
+    name : str
+        Built-in name or file name.
+    depth : numpy.ndarray
+        ``(N, N)`` float64 depth in metres (finite and non-negative everywhere; pixels without
+        ground truth hold a plausible fill value).
+    reflectivity : numpy.ndarray
+        ``(N, N)`` float64 reflectivity ``alpha(x, y)`` in [0, 1].
+    valid : numpy.ndarray
+        ``(N, N)`` bool, True where the ground-truth depth is known; metrics ignore the others.
+    notes : list of str
+        What loading did that a user should hear about (e.g. a non-square file cropped).
+    has_truth : bool
+        False for a measured acquisition (``spslidar reconstruct`` without ``--truth``): the
+        depth is a placeholder, no pixel is valid, and no truth-based metric is computed.
+
+    Raises
+    ------
+    SceneError
+        If the arrays are not square, of different shapes, or out of range.
+
+    Notes
+    -----
+    ``depth`` and ``reflectivity`` are the ``d(x, y)`` and ``alpha(x, y)`` of eqs. (1)-(8).
+    """
+
+    name: str
+    depth: np.ndarray
+    reflectivity: np.ndarray
+    valid: np.ndarray
+    #: what loading did that a user should hear about (e.g. a non-square file cropped)
+    notes: list[str] = field(default_factory=list)
+    has_truth: bool = True
+
+    def __post_init__(self) -> None:
+        self.depth = np.asarray(self.depth, dtype=np.float64)
+        self.reflectivity = np.asarray(self.reflectivity, dtype=np.float64)
+        self.valid = np.asarray(self.valid, dtype=bool)
+        d = self.depth
+        if d.ndim != 2 or d.shape[0] != d.shape[1]:
+            raise SceneError(
+                f"scene {self.name!r}: depth must be a square 2-D array, got {d.shape}"
+            )
+        for what, arr in (("reflectivity", self.reflectivity), ("valid mask", self.valid)):
+            if arr.shape != d.shape:
+                raise SceneError(
+                    f"scene {self.name!r}: {what} has shape {arr.shape}, depth has {d.shape}"
+                )
+        bad = int(np.count_nonzero(~np.isfinite(d) | (d < 0)))
+        if bad:
+            raise SceneError(f"scene {self.name!r}: {_pixels(bad)} NaN, infinite or negative depth")
+        r = self.reflectivity
+        bad = int(np.count_nonzero(~np.isfinite(r) | (r < 0) | (r > 1)))
+        if bad:
+            raise SceneError(f"scene {self.name!r}: {bad} reflectivity values lie outside [0, 1]")
+        if self.has_truth and not self.valid.any():
+            raise SceneError(f"scene {self.name!r}: no pixel has a valid ground-truth depth")
+
+    @property
+    def size(self) -> int:
+        """Side ``N`` of the square scene, in pixels."""
+        return int(self.depth.shape[0])
+
+    @property
+    def depth_min(self) -> float:
+        """Smallest depth over the valid pixels, in metres."""
+        return float(self.depth[self.valid].min())
+
+    @property
+    def depth_max(self) -> float:
+        """Largest depth over the valid pixels, in metres."""
+        return float(self.depth[self.valid].max())
+
+# ---------------------------------------------------------------------------------------------
+# helpers
+
+
+def _one_line(text: object, limit: int = 120) -> str:
+    """Collapse whitespace and truncate, so a reader's error fits on one line."""
+    line = " ".join(str(text).split())
+    return line if len(line) <= limit else line[: limit - 3] + "..."
+
+
+def _reason(exc: BaseException) -> str:
+    """A short one-line reason for a reader's exception (its type and message)."""
+    msg = _one_line(exc)
+    return f"{type(exc).__name__}: {msg}" if msg else type(exc).__name__
+
+
+def _pixels(count: int) -> str:
+    return "1 pixel has" if count == 1 else f"{count} pixels have"
+
+
+def _check_size(size) -> int:
+    if isinstance(size, (bool, np.bool_)) or not isinstance(size, (int, np.integer)):
+        raise SceneError(
+            f"scene size must be an integer from {_MIN_SIZE} to {_MAX_SIZE}, got {size!r}"
+        )
+    size = int(size)
+    if not _MIN_SIZE <= size <= _MAX_SIZE:
+        raise SceneError(f"scene size {size} is out of range: use {_MIN_SIZE} to {_MAX_SIZE}")
+    return size
+
+
+def _check_bound(value, what: str) -> float | None:
+    if value is None:
+        return None
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise SceneError(f"{what} must be a number of metres, got {value!r}") from None
+    if not math.isfinite(v):
+        raise SceneError(f"{what} must be a finite number of metres, got {value!r}")
+    if v < 0:
+        raise SceneError(f"{what} must be >= 0 m, got {v:g}")
+    return v
+
+
+def _window(
+    depth_min: float | None, depth_max: float | None, default: tuple[float, float]
+) -> tuple[float, float]:
+    """The depth window, each missing end taken from the scene's default."""
+    lo = default[0] if depth_min is None else depth_min
+    hi = default[1] if depth_max is None else depth_max
+    if lo >= hi:
+        raise SceneError(
+            f"depth window is empty: depth_min {lo:g} m must be less than depth_max {hi:g} m"
+        )
+    return lo, hi
+
+
+def _center_crop(arr: np.ndarray) -> np.ndarray:
+    h, w = arr.shape[:2]
+    s = min(h, w)
+    top = (h - s) // 2
+    left = (w - s) // 2
+    return arr[top : top + s, left : left + s]
+
+
+def _resize(img: np.ndarray, size: int) -> np.ndarray:
+    """Bilinear resize of a square float image, anti-aliased when down-sampling."""
+    from skimage.transform import resize
+
+    img = np.asarray(img, dtype=np.float64)
+    if img.shape == (size, size):
+        return img.copy()
+    return resize(
+        img,
+        (size, size),
+        order=1,
+        mode="edge",
+        anti_aliasing=size < img.shape[0],
+        preserve_range=True,
+    )
+
+
+def footprints(src: int, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Source rows (or columns) ``start[i] .. stop[i] - 1`` that output pixel ``i`` covers when
+    a side of ``src`` pixels is resized to ``size``."""
+    edges = np.arange(size + 1) * src
+    return edges[:-1] // size, -((-edges[1:]) // size)  # floor and ceiling division
+
+
+def _resize_mask(mask: np.ndarray, size: int) -> np.ndarray:
+    """Resize a square validity mask: a pixel stays valid when all its source pixels were valid.
+
+    Output pixel ``i`` covers source rows ``floor(i s / N) .. ceil((i + 1) s / N) - 1`` (and
+    likewise for columns); the share of valid pixels over that footprint, from an integral
+    image, must reach ``_MASK_VALID_SHARE`` (0.999).
+    """
+    mask = np.asarray(mask, dtype=bool)
+    if mask.shape == (size, size):
+        return mask.copy()
+    if mask.all():
+        return np.ones((size, size), dtype=bool)
+    src = mask.shape[0]
+    start, stop = footprints(src, size)
+    integral = np.zeros((src + 1, src + 1))
+    integral[1:, 1:] = mask.astype(np.float64).cumsum(0).cumsum(1)
+    r0, r1 = start[:, None], stop[:, None]
+    c0, c1 = start[None, :], stop[None, :]
+    count = integral[r1, c1] - integral[r0, c1] - integral[r1, c0] + integral[r0, c0]
+    area = (r1 - r0) * (c1 - c0)
+    return count >= _MASK_VALID_SHARE * area
+
+
+def _small_holes(valid: np.ndarray, max_area: int) -> np.ndarray:
+    """Invalid pixels in connected holes of at most ``max_area`` pixels."""
+    from scipy.ndimage import label
+
+    lab, n = label(~valid)
+    if n == 0:
+        return np.zeros_like(valid)
+    sizes = np.bincount(lab.ravel())
+    small = sizes <= max_area
+    small[0] = False
+    return small[lab]
+
+
+def _fill_invalid(depth: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Fill invalid pixels from the nearest valid pixel."""
+    if valid.all():
+        return depth
+    from scipy.ndimage import distance_transform_edt
+
+    idx = distance_transform_edt(~valid, return_distances=False, return_indices=True)
+    return depth[tuple(idx)]
+
+
+def _remap(depth: np.ndarray, valid: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Map the valid depth range linearly onto [lo, hi] (a flat scene goes to ``lo``)."""
+    dmin = float(depth[valid].min())
+    dmax = float(depth[valid].max())
+    if dmax > dmin:
+        out = lo + (depth - dmin) * ((hi - lo) / (dmax - dmin))
+    else:
+        out = np.full_like(depth, lo)
+    return np.clip(out, lo, hi)
+
+
+def _grey_to_scene(name: str, grey: np.ndarray, size: int, lo: float, hi: float) -> Scene:
+    """A grey image mapped onto the depth window; reflectivity 1."""
+    notes = [_crop_note(name, grey.shape, size)] if grey.shape[0] != grey.shape[1] else []
+    grey = _resize(_center_crop(grey), size)
+    valid = np.ones((size, size), dtype=bool)
+    depth = _remap(grey, valid, lo, hi)
+    return Scene(name, depth, np.ones((size, size)), valid, notes)
+
+
+def _crop_note(name: str, shape: tuple[int, ...], size: int) -> str:
+    side = min(shape)
+    return (f"scene {name} is {shape[0]}x{shape[1]}: its centre {side}x{side} is used "
+            f"(resized to {size}x{size})")
+
+
+def _finish(
+    name: str,
+    depth: np.ndarray,
+    reflectivity: np.ndarray,
+    valid: np.ndarray,
+    size: int,
+    depth_min: float | None,
+    depth_max: float | None,
+) -> Scene:
+    """Fill, crop, resize and optionally remap a full-resolution scene."""
+    notes = [_crop_note(name, depth.shape, size)] if depth.shape[0] != depth.shape[1] else []
+    depth = _fill_invalid(depth, valid)
+    depth = _resize(_center_crop(depth), size)
+    reflectivity = np.clip(_resize(_center_crop(reflectivity), size), 0.0, 1.0)
+    valid = _resize_mask(_center_crop(valid), size)
+    if not valid.any():
+        raise SceneError(
+            f"scene {name!r}: no pixel keeps a valid depth at size {size}: use a larger size"
+        )
+    if depth_min is not None or depth_max is not None:
+        native = (float(depth[valid].min()), float(depth[valid].max()))
+        lo, hi = _window(depth_min, depth_max, native)
+        depth = _remap(depth, valid, lo, hi)
+    return Scene(name, depth, reflectivity, valid, notes)

@@ -1,0 +1,176 @@
+"""Scenes from the user's files: ``.npy`` depth, ``.npz`` with depth / reflectivity / valid,
+or a grey image mapped into the depth window (see :func:`spslidar.scenes.load_scene`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SceneError
+from .base import (
+    _IMAGE_SUFFIXES,
+    _IMAGE_WINDOW,
+    MAX_SCENE_DEPTH_M,
+    SCENE_FILE_SUFFIXES,
+    Scene,
+    _finish,
+    _grey_to_scene,
+    _pixels,
+    _reason,
+    _window,
+)
+
+
+def _check_depth_values(label: str, depth: np.ndarray, where: np.ndarray | None = None) -> None:
+    bad = ~np.isfinite(depth) | (np.nan_to_num(depth, nan=0.0) < 0)
+    if where is not None:
+        bad &= where
+    count = int(np.count_nonzero(bad))
+    if count:
+        raise SceneError(
+            f"scene file {label}: {_pixels(count)} NaN, infinite or negative depth "
+            "(depth must be finite metres >= 0)"
+        )
+    far = depth if where is None else depth[where]
+    if far.size and float(far.max()) > MAX_SCENE_DEPTH_M:
+        raise SceneError(
+            f"scene file {label}: depths up to {float(far.max()):.3g} m are beyond any lidar "
+            f"range (at most {MAX_SCENE_DEPTH_M:.0e} m): are the values in metres?"
+        )
+
+
+def _as_2d(label: str, arr: np.ndarray, what: str) -> np.ndarray:
+    arr = np.asarray(arr)
+    if arr.ndim != 2:
+        raise SceneError(f"scene file {label}: {what} must be a 2-D array, got shape {arr.shape}")
+    if arr.size == 0:
+        raise SceneError(f"scene file {label}: {what} is empty")
+    if np.iscomplexobj(arr):
+        raise SceneError(f"scene file {label}: {what} is complex ({arr.dtype}); it must be real")
+    if arr.dtype == bool and what != "valid mask":
+        raise SceneError(f"scene file {label}: {what} is a boolean array; it must hold numbers "
+                         f"(a boolean array belongs in the 'valid' key of an .npz)")
+    if not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
+        raise SceneError(f"scene file {label}: {what} must be numeric, got dtype {arr.dtype}")
+    return arr
+
+
+def _check_magic(path: Path, label: str, magic: bytes, kind: str) -> None:
+    """Raise SceneError unless the file starts with ``magic``."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(len(magic))
+    except OSError as exc:
+        raise SceneError(f"cannot read scene file {label}: {_reason(exc)}") from None
+    if head != magic:
+        raise SceneError(f"cannot read scene file {label}: it is not a {kind} file")
+
+
+def _load_npy(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    _check_magic(path, label, b"\x93NUMPY", "NumPy .npy")
+    try:
+        depth = np.load(path, allow_pickle=False)
+    except Exception as exc:
+        raise SceneError(f"cannot read scene file {label} as .npy: {_reason(exc)}") from None
+    depth = _as_2d(label, depth, "depth").astype(np.float64)
+    _check_depth_values(label, depth)
+    return depth, np.ones_like(depth), np.ones(depth.shape, dtype=bool)
+
+
+def _load_npz(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    _check_magic(path, label, b"PK", "NumPy .npz (zip)")
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            keys = set(npz.files)
+            if "depth" not in keys:
+                raise SceneError(
+                    f"scene file {label} has no 'depth' array (found: "
+                    f"{', '.join(sorted(keys)) or 'none'}); optional keys are 'reflectivity' "
+                    "and 'valid'"
+                )
+            arrays = {k: npz[k] for k in ("depth", "reflectivity", "valid") if k in keys}
+    except SceneError:
+        raise
+    except Exception as exc:
+        raise SceneError(f"cannot read scene file {label} as .npz: {_reason(exc)}") from None
+    depth = _as_2d(label, arrays["depth"], "depth").astype(np.float64)
+    if "valid" in arrays:
+        valid = _as_2d(label, arrays["valid"], "valid mask")
+        if valid.shape != depth.shape:
+            raise SceneError(
+                f"scene file {label}: valid mask has shape {valid.shape}, depth has {depth.shape}"
+            )
+        valid = valid.astype(bool)
+        if not valid.any():
+            raise SceneError(f"scene file {label}: the valid mask marks no pixel as valid")
+    else:
+        valid = np.ones(depth.shape, dtype=bool)
+    _check_depth_values(label, depth, valid)
+    depth = np.where(valid, depth, 0.0)
+    if "reflectivity" in arrays:
+        refl = _as_2d(label, arrays["reflectivity"], "reflectivity").astype(np.float64)
+        if refl.shape != depth.shape:
+            raise SceneError(
+                f"scene file {label}: reflectivity has shape {refl.shape}, depth has {depth.shape}"
+            )
+        bad = int(np.count_nonzero(~np.isfinite(refl) | (refl < 0) | (refl > 1)))
+        if bad:
+            raise SceneError(
+                f"scene file {label}: {bad} reflectivity values lie outside [0, 1] "
+                "(reflectivity must be in [0, 1])"
+            )
+    else:
+        refl = np.ones_like(depth)
+    return depth, refl, valid
+
+
+def _load_image(path: Path, label: str) -> np.ndarray:
+    from skimage import io
+    from skimage.color import rgb2gray
+
+    try:
+        with warnings.catch_warnings():  # imageio warns while probing plugins on bad files
+            warnings.simplefilter("ignore")
+            img = np.asarray(io.imread(path))
+    except Exception as exc:
+        raise SceneError(
+            f"cannot read scene image {label} ({type(exc).__name__}): use a grey or RGB "
+            f"{'/'.join(_IMAGE_SUFFIXES)} image"
+        ) from None
+    if img.ndim == 3 and img.shape[-1] in (3, 4):
+        if img.shape[-1] == 4:
+            img = img[..., :3]
+        img = rgb2gray(img)
+    if img.ndim != 2 or img.size == 0:
+        raise SceneError(
+            f"scene image {label} must be a 2-D grey or RGB image, got shape {img.shape}"
+        )
+    img = img.astype(np.float64)
+    if not np.isfinite(img).all():
+        count = int(np.count_nonzero(~np.isfinite(img)))
+        raise SceneError(f"scene image {label}: {_pixels(count)} NaN or infinite values")
+    return img
+
+
+def _load_file(path: Path, size: int, depth_min: float | None, depth_max: float | None) -> Scene:
+    label = path.name
+    if not path.exists():
+        raise SceneError(f"scene file not found: {path}")
+    if not path.is_file():
+        raise SceneError(f"scene path is not a file: {path}")
+    suffix = path.suffix.lower()
+    if suffix in _IMAGE_SUFFIXES:
+        lo, hi = _window(depth_min, depth_max, _IMAGE_WINDOW)
+        return _grey_to_scene(label, _load_image(path, label), size, lo, hi)
+    if suffix == ".npy":
+        depth, refl, valid = _load_npy(path, label)
+    elif suffix == ".npz":
+        depth, refl, valid = _load_npz(path, label)
+    else:
+        raise SceneError(
+            f"scene file {label} has an unsupported format: use {', '.join(SCENE_FILE_SUFFIXES)}"
+        )
+    return _finish(label, depth, refl, valid, size, depth_min, depth_max)
