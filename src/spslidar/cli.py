@@ -137,8 +137,10 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="centred least squares (default) or the paper's literal ||Delta - Hp||")
     g.add_argument("--solver", choices=solvers, default=S,
                    help=f"reconstruction algorithm: {solvers_help}")
-    g.add_argument("--regulariser", choices=("auto", "tv", "l1", "wavelet"), default=S,
-                   help="auto: TV (fista, twist, tval3) or Haar-wavelet l1 (gpsr)")
+    from .solvers import REGULARISERS
+
+    g.add_argument("--regulariser", choices=("auto", *REGULARISERS.names()), default=S,
+                   help=f"auto: the solver's default; {REGULARISERS.help_text()}")
     g.add_argument("--lam", type=float, default=S, metavar="W",
                    help="regularisation weight (default: lam-scale x the noise level estimated "
                         "from the measurements)")

@@ -17,7 +17,6 @@ from typing import Any
 from .errors import ConfigError
 
 LIDARS = ("psst", "conventional")
-REGULARISERS = ("auto", "tv", "l1", "wavelet")
 REPLICAS = ("auto", "bipolar", "unipolar")
 FAIRNESS = ("energy", "power")
 
@@ -163,7 +162,9 @@ class Config:
                 raise ConfigError(f"--{opt} must be in {rng_txt}, got {v}")
 
         choice("lidar", LIDARS)
-        choice("regulariser", REGULARISERS)
+        from .solvers import REGULARISERS
+
+        choice("regulariser", ("auto", *REGULARISERS.names()))
         choice("replica", REPLICAS)
         choice("fairness", FAIRNESS)
         choice("ambient", ("paper", "modulated"))

@@ -17,20 +17,14 @@ TV_INNER = 3
 
 
 def build_regulariser(cfg: Config, shape: tuple[int, int]):
-    """The regulariser of eq. (18) the config asks for (``auto``: the solver's default)."""
-    from ..operators import Wavelet2D
-    from ..solvers.regularisers import L1, TV
+    """The regulariser of eq. (18) the config asks for (``auto``: the solver's default), from
+    the registry :data:`spslidar.solvers.REGULARISERS`."""
+    from ..solvers import REGULARISERS
 
     kind = cfg.regulariser
     if kind == "auto":
         kind = solver_default(cfg.solver, "regulariser")
-    if kind == "tv":
-        return TV(shape, nonneg=cfg.nonneg, max_inner=TV_INNER)
-    if kind == "l1":
-        return L1(None, nonneg=cfg.nonneg)
-    # the prox of a wavelet l1 norm under a non-negativity constraint has no closed form:
-    # --nonneg applies to the TV and pixel-l1 regularisers only
-    return L1(Wavelet2D(shape, "haar"))
+    return REGULARISERS.load(kind)(shape, nonneg=cfg.nonneg, max_inner=TV_INNER)
 
 
 def load_solver(name: str):

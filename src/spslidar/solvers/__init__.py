@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from .entries import SOLVERS
+from .entries import REGULARISERS, SOLVERS
 
 if TYPE_CHECKING:  # pragma: no cover
     from .base import (
@@ -37,6 +37,7 @@ if TYPE_CHECKING:  # pragma: no cover
     )
 
 __all__ = [
+    "REGULARISERS",
     "SOLVERS",
     "Monitor",
     "Solver",
@@ -49,7 +50,7 @@ __all__ = [
     "solve",
 ]
 
-_FROM_BASE = frozenset(__all__) - {"SOLVERS"}
+_FROM_BASE = frozenset(__all__) - {"SOLVERS", "REGULARISERS"}
 
 
 def __getattr__(name: str) -> Any:

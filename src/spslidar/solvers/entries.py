@@ -1,4 +1,5 @@
-"""The solver registry, :data:`SOLVERS` (re-exported by :mod:`spslidar.solvers`).
+"""The solver and regulariser registries, :data:`SOLVERS` and :data:`REGULARISERS`
+(re-exported by :mod:`spslidar.solvers`).
 
 A module of its own so that :mod:`spslidar.solvers.base` can read the entries' defaults
 without importing its own package (no import circle). Light: no NumPy.
@@ -11,7 +12,7 @@ from typing import Any
 from ..errors import ConfigError
 from ..registry import Registry
 
-__all__ = ["SOLVERS"]
+__all__ = ["REGULARISERS", "SOLVERS"]
 
 
 def _regulariser_in(allowed: tuple[str, ...], message: str):
@@ -44,3 +45,13 @@ SOLVERS.add("gpsr", "spslidar.solvers.gpsr:GPSR", "GPSR",
                 ("auto", "l1", "wavelet"),
                 "the gpsr solver minimises an l1 norm: use --regulariser l1 or wavelet"),
             iterations=120, lam_scale=0.3, regulariser="wavelet")
+
+#: the regularisers of eq. (18), by name (``--regulariser``; ``auto`` is the solver's default);
+#: each target is a factory ``make(shape, nonneg=..., max_inner=...)`` -> Regulariser
+REGULARISERS = Registry("regulariser", "regulariser")
+REGULARISERS.add("tv", "spslidar.solvers.regularisers:make_tv", "TV",
+                 "isotropic total variation of each range slice (default of fista, twist, tval3)")
+REGULARISERS.add("l1", "spslidar.solvers.regularisers:make_l1", "l1",
+                 "l1 norm of the pixels (sparse returns)")
+REGULARISERS.add("wavelet", "spslidar.solvers.regularisers:make_wavelet_l1", "Haar l1",
+                 "l1 norm of the Haar wavelet coefficients (default of gpsr)")

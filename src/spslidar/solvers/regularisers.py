@@ -24,7 +24,7 @@ from ..operators.base import LinearOperator
 from ..operators.image import Gradient2D, forward_differences_into
 from .base import as_block as _as_block
 
-__all__ = ["Regulariser", "TV", "L1", "Zero"]
+__all__ = ["Regulariser", "TV", "L1", "Zero", "make_tv", "make_l1", "make_wavelet_l1"]
 
 
 def _sqnorm(a: np.ndarray) -> float:
@@ -589,3 +589,23 @@ class TV(Regulariser):
         if c > 0.0:
             rb *= dt.type(c)
             rb += qb
+
+
+# -- factories of the registry entries (spslidar.solvers.REGULARISERS) -------------------------
+def make_tv(shape: tuple[int, int], nonneg: bool = False, max_inner: int = 3) -> TV:
+    """The isotropic TV of eq. (18) on ``shape`` images (``--regulariser tv``)."""
+    return TV(shape, nonneg=nonneg, max_inner=max_inner)
+
+
+def make_l1(shape: tuple[int, int], nonneg: bool = False, max_inner: int = 3) -> L1:
+    """The pixel l1 norm (``--regulariser l1``)."""
+    return L1(None, nonneg=nonneg)
+
+
+def make_wavelet_l1(shape: tuple[int, int], nonneg: bool = False, max_inner: int = 3) -> L1:
+    """The l1 norm of the Haar wavelet coefficients (``--regulariser wavelet``). The prox of a
+    wavelet l1 norm under a non-negativity constraint has no closed form: ``nonneg`` is
+    ignored (it applies to the TV and pixel-l1 regularisers only)."""
+    from ..operators import Wavelet2D
+
+    return L1(Wavelet2D(shape, "haar"))
