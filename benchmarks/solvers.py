@@ -47,7 +47,7 @@ import spslidar
 from spslidar import pipeline
 from spslidar.operators.base import power_norm
 from spslidar.qcr import plain_problem, qcr_problem
-from spslidar.solvers import StopRule
+from spslidar.solvers import StopRule, get_solver
 from spslidar.solvers.regularisers import L1, TV
 
 SOLVERS = ("fista", "twist", "tval3", "gpsr")
@@ -124,7 +124,7 @@ def build_problem(meas, solver: str, nonneg: bool | None = None) -> Problem:
 
 def run_ours(prob: Problem) -> dict:
     """One solve as ``reconstruct`` runs it; returns time, objective and iterations."""
-    cls = pipeline.load_solver(prob.solver)
+    cls = get_solver(prob.solver)
     reg = prob.fresh_reg()
     t0 = time.perf_counter()
     x, info = cls(stop=StopRule(max_iter=prob.max_iter, rtol=prob.rtol)).solve(

@@ -14,7 +14,6 @@ from .chain import (
     TV_INNER,
     Measurement,
     build_regulariser,
-    load_solver,
     measure,
     noise_level,
     preflight,
@@ -30,7 +29,7 @@ from .simulate import BLOCK, simulate_correlations
 __all__ = [
     "AUTO_GATE_MIN_SLICES", "BLOCK", "GATE_PAD_BINS", "PROCESSING_KEYS", "TV_INNER",
     "Acquisition", "Measurement", "Result", "build_regulariser", "clear_shared",
-    "default_gate", "load_solver", "make_acquisition", "measure", "noise_level",
+    "default_gate", "make_acquisition", "measure", "noise_level",
     "occupied_lags", "preflight", "reconstruct", "run", "run_metrics", "run_shared",
     "simulate_correlations", "simulation_key", "solver_default", "unique_lags",
 ]

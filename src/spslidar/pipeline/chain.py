@@ -35,13 +35,12 @@ from .weights import (
     TV_INNER,
     build_regulariser,
     default_weight,
-    load_solver,
     noise_level,
     solver_default,
 )
 
 __all__ = ["LAM_FLOOR", "PROCESSING_KEYS", "TV_INNER", "Measurement", "build_regulariser",
-           "default_weight", "detector_options", "finish_result", "load_solver", "measure",
+           "default_weight", "detector_options", "finish_result", "measure",
            "noise_level", "preflight", "reconstruct", "resolved_config", "run",
            "solver_default", "timeline"]
 
@@ -152,11 +151,11 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     timing["qcr"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    from ..solvers import StopRule
+    from ..solvers import StopRule, get_solver
 
     reg = build_regulariser(cfg.replace(nonneg=False) if eliminated is not None else cfg,
                             (cfg.size, cfg.size))
-    solver_cls = load_solver(cfg.solver)
+    solver_cls = get_solver(cfg.solver)
     iterations = cfg.iterations or solver_default(cfg.solver, "iterations")
     stop = StopRule(max_iter=iterations, rtol=cfg.tol)
     x, info = solver_cls(stop=stop).solve(A, y, reg, lam)

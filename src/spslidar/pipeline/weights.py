@@ -27,13 +27,6 @@ def build_regulariser(cfg: Config, shape: tuple[int, int]):
     return REGULARISERS.load(kind)(shape, nonneg=cfg.nonneg, max_inner=TV_INNER)
 
 
-def load_solver(name: str):
-    """The solver class registered under ``name``."""
-    from ..solvers import SOLVERS
-
-    return SOLVERS.load(name)
-
-
 def solver_default(name: str, key: str):
     """A registered solver's default ``key`` (``iterations``, ``lam_scale``, ``regulariser``):
     its registry entry's, else the solver class's ``default_<key>``."""
@@ -42,7 +35,7 @@ def solver_default(name: str, key: str):
     defaults = SOLVERS.get(name).defaults
     if key in defaults:
         return defaults[key]
-    return getattr(load_solver(name), f"default_{key}")
+    return getattr(SOLVERS.load(name), f"default_{key}")
 
 
 def noise_level(A, patterns: PatternOperator, sigma: np.ndarray, cfg: Config, rng) -> float:
