@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from spslidar import detector as det
+from spslidar.detectors import counting as det
 from spslidar.errors import ConfigError
 
 

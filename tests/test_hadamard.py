@@ -166,8 +166,8 @@ def _noiseless(realisation):
 def _ideal_corr(meas):
     """The noiseless outputs of ideal +-1 patterns (negative transmittances), simulated
     directly through the bipolar operator."""
-    from spslidar.detector import NoiseModel
     from spslidar.detectors import build_detector
+    from spslidar.detectors.counting import NoiseModel
     from spslidar.pipeline.simulate import simulate_correlations
 
     cfg = meas.config

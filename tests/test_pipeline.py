@@ -112,7 +112,7 @@ def _small_measurement(**kw):
 
 
 def _simulate(meas, seed, **kw):
-    from spslidar.detector import NoiseModel
+    from spslidar.detectors.counting import NoiseModel
     from spslidar.detectors.linear import LinearDetector
 
     cfg = meas.config
@@ -128,7 +128,7 @@ def _exact_moments(meas):
     """Exact mean and covariance of (C(tau_1..tau_K), N) per pattern, from eq. (4) written out
     pixel by pixel (independently of spslidar.forward's grouping by delay)."""
     from spslidar.correlate import correlation_gain, make_replica
-    from spslidar.detector import NoiseModel
+    from spslidar.detectors.counting import NoiseModel
     from spslidar.forward import depth_to_delay, pulse_overlaps
 
     cfg, acq = meas.config, meas.acq

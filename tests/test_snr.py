@@ -149,7 +149,7 @@ def test_sum_and_histogram_methods_agree():
 
 def test_histogram_path_expectation_is_exact(monkeypatch):
     # replace the Poisson draw by its mean: C is then exactly E[C] of eq. (8)-(9)
-    import spslidar.detector as det
+    import spslidar.detectors.counting as det
 
     monkeypatch.setattr(det, "poisson_counts", lambda lam, rng, parallel=True: np.array(lam))
     h = snr_simulated(

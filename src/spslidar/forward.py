@@ -4,7 +4,7 @@ Chain: scene (depth, reflectivity) -> round-trip delays -> each pixel's return p
 between the TDC bins it overlaps -> per pattern, the sum over pixels weighted by the pattern
 (eq. 4) -> convolved (circularly, one code period) with the transmitted bit code -> plus the
 noise floor. The random detection process (Poisson counting) lives in
-:mod:`spslidar.detector`; everything here is an expectation.
+:mod:`spslidar.detectors.counting`; everything here is an expectation.
 
 Time is measured in TDC bins of width ``bin_width`` (the bit width 1 / bit_rate). A pixel at
 depth ``d`` returns after ``delta = 2 d / (c * bin_width)`` bins (a real number). A return-to-zero
@@ -153,7 +153,7 @@ def expected_counts(
         reflectivity 1).
     noise_per_bin : float or ndarray of shape (M,)
         Noise counts per TDC bin per period for each pattern (see
-        :meth:`spslidar.detector.NoiseModel.per_bin`).
+        :meth:`spslidar.detectors.counting.NoiseModel.per_bin`).
     n_periods : int
         Code periods accumulated per pattern (1 for the PSST lidar; the number of laser shots
         for the conventional one).

@@ -43,8 +43,8 @@ def measure(cfg: Any):
         noise_sigma_from_totals,
         replica_matrix,
     )
-    from ..detector import NoiseModel
     from ..detectors import build_detector
+    from ..detectors.counting import NoiseModel
     from ..forward import depth_to_delay, return_weights, shifted_codes
     from ..patterns import n_patterns_for
     from ..pipeline.measurement import Measurement
@@ -145,7 +145,7 @@ def _load_scene(name: str, size: int, depth_min: Any, depth_max: Any) -> Any:
 
 def _noise_per_bin(be: Any, noise: Any, patterns: Any, refl: np.ndarray,
                    bin_width: float) -> np.ndarray:
-    """:meth:`spslidar.detector.NoiseModel.per_bin` with the patterns on the device."""
+    """:meth:`spslidar.detectors.counting.NoiseModel.per_bin` with the patterns on the device."""
     m, q = patterns.shape
     f1, f2, f3 = (float(v) for v in noise.split)
     base = q * noise.m_n * (f2 + f3) + (noise.background_rate + noise.dark_count_rate) * bin_width

@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..detector import PhotonCountingDetector, poisson_rows
 from .base import DetectorModel
+from .counting import PhotonCountingDetector, poisson_rows
 
 __all__ = ["LinearDetector"]
 
@@ -16,8 +16,8 @@ class LinearDetector(PhotonCountingDetector, DetectorModel):
     """Counts ~ Poisson(efficiency * lambda) per bin (the paper's model, eq. 4).
 
     The fused fast path of the simulation: the counts overwrite their means in place and each
-    row's exact total comes with them (:func:`spslidar.detector.poisson_rows`). ``dead_time``
-    only feeds :meth:`report`'s pile-up flag.
+    row's exact total comes with them (:func:`spslidar.detectors.counting.poisson_rows`).
+    ``dead_time`` only feeds :meth:`report`'s pile-up flag.
     """
 
     name = "linear"

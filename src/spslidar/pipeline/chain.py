@@ -18,8 +18,8 @@ import numpy as np
 
 from ..config import Config
 from ..depth import ESTIMATORS, DepthContext
-from ..detector import NoiseModel
 from ..detectors import build_detector
+from ..detectors.counting import NoiseModel
 from ..errors import ConfigError
 from ..patterns import build_patterns
 from ..qcr import MeanEliminated, plain_problem, qcr_problem

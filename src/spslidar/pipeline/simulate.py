@@ -15,8 +15,8 @@ from ..correlate import (
     noise_sigma_from_totals,
     replica_matrix,
 )
-from ..detector import MAX_MEAN, NoiseModel, check_means
 from ..detectors import DetectorModel
+from ..detectors.counting import MAX_MEAN, NoiseModel, check_means
 from ..errors import ConfigError
 from ..forward import depth_to_delay, expected_counts, return_weights, shifted_codes
 from ..patterns import PatternOperator, as_patterns
@@ -91,7 +91,7 @@ def simulate_correlations(
     distribution of the gated outputs (``tests/test_pipeline.py`` checks their means, variances
     and covariances against each other and against the exact moments); the fast path computes
     the means in float32 (relative error ~1e-7, far below the Poisson fluctuations). Why no
-    cheaper sampling scheme is exact is explained in :mod:`spslidar.detector`.
+    cheaper sampling scheme is exact is explained in :mod:`spslidar.detectors.counting`.
     """
     if method not in SIMULATE_METHODS:
         raise ConfigError(f"unknown simulation method {method!r}; choose fast or reference")

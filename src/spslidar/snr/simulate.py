@@ -57,7 +57,7 @@ def _counts_histogram(
     import numpy as np
 
     from ..correlate import make_replica, matched_filter, replica_matrix
-    from ..detector import NoiseModel, poisson_counts
+    from ..detectors.counting import NoiseModel, poisson_counts
     from ..forward import expected_counts, return_amplitudes
 
     period = code.size
@@ -192,7 +192,7 @@ def snr_simulated(
         means of the bins the replica selects. ``'histogram'``: the full histogram of ``T``
         bins per trial from the library's forward model (:func:`spslidar.forward.
         expected_counts` with an actual ``N x N`` binary pattern), Poisson counts
-        (:func:`spslidar.detector.poisson_counts`) and matched filter
+        (:func:`spslidar.detectors.counting.poisson_counts`) and matched filter
         (:func:`spslidar.correlate.matched_filter`, unipolar replica).
     interval : {'delta', 'bootstrap'}, optional
         Standard error and 95 % interval from the delta method (default; interval

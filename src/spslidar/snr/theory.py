@@ -225,7 +225,8 @@ def snr_theory(
     ``Var[C] = R_a T M_2 a m_s + R_a T N^2 m_n`` (Poisson counts: variance = mean; the
     unipolar replica sums the counts of the ``R_a T`` bits where the code is on). The paper
     writes the noise as ``N^2 m_n^(1) + m_n^(2) + m_n^(3)``; following ``docs/reading.md`` all three
-    terms are per pixel here, ``N^2 m_n`` in total (:class:`spslidar.detector.NoiseModel`).
+    terms are per pixel here, ``N^2 m_n`` in total
+    (:class:`spslidar.detectors.counting.NoiseModel`).
     The SNR grows linearly with ``T`` and ``R_a``.
 
     Examples

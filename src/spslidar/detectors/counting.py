@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 AMBIENT_MODELS = ("paper", "modulated")
 #: row blocks for the Poisson draws (fixed, so results do not depend on the thread count)
@@ -93,7 +93,7 @@ class NoiseModel:
         -----
         Eq. (9): ``N^2 m_n^(1) + m_n^(2) + m_n^(3)`` with each term per pixel (so x N^2).
         """
-        from .patterns import as_patterns
+        from ..patterns import as_patterns
 
         patterns = as_patterns(patterns)
         m = patterns.shape[0]
