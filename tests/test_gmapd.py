@@ -142,7 +142,7 @@ def test_jitter_widens_matched_filter_peak_as_predicted():
     ({"detector": "gmapd", "jitter": -1e-12}, "--jitter"),
     ({"detector": "gmapd", "afterpulse_prob": 1.0}, "--afterpulse-prob"),
     ({"detector": "gmapd", "afterpulse_prob": 0.1}, "afterpulse-delay"),
-    ({"detector": "gmapd", "pileup_correction": "maybe"}, "pileup_correction"),
+    ({"detector": "gmapd", "pileup_correction": "maybe"}, "pileup-correction"),
     ({"jitter": 1e-10}, "--detector gmapd"),
 ])
 def test_bad_options_one_line(bad, msg):

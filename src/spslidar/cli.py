@@ -105,23 +105,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="extra dark counts per second")
     g.add_argument("--detector", choices=detectors, default=S,
                    help=f"detector model: {detectors_help}")
-    g.add_argument("--dead-time", type=float, default=S, metavar="S",
-                   help="GMAPD dead time in seconds (default 50e-9; the linear model uses it "
-                        "only for its pile-up warning)")
-    g.add_argument("--jitter", type=float, default=S, metavar="S",
-                   help="gmapd: standard deviation of the Gaussian timing jitter (s)")
-    g.add_argument("--jitter-tail", type=float, default=S, metavar="S",
-                   help="gmapd: mean of the IRF's exponential tail (s), with weight "
-                        "--jitter-tail-weight")
-    g.add_argument("--jitter-tail-weight", type=float, default=S, metavar="W",
-                   help="gmapd: share of photons in the exponential tail, in [0, 1]")
-    g.add_argument("--afterpulse-prob", type=float, default=S, metavar="P",
-                   help="gmapd: probability that an avalanche causes an afterpulse, in [0, 1)")
-    g.add_argument("--afterpulse-delay", type=float, default=S, metavar="S",
-                   help="gmapd: mean afterpulse delay after re-arming (s)")
-    g.add_argument("--pileup-correction", choices=("on", "off"), default=S,
-                   help="gmapd: correct each histogram for pile-up before the matched filter "
-                        "(on, default)")
+    _add_stage_options(g, "detector")
     g.add_argument("--noiseless", action="store_true", default=S,
                    help="use expected counts (no Poisson noise)")
     g = p.add_argument_group("processing")
@@ -165,6 +149,23 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--max-memory", type=float, default=S, metavar="GB",
                    help="refuse a run whose estimated peak memory exceeds this (default: the "
                         "memory available now); the estimate is checked before any work")
+
+
+def _add_stage_options(g, option: str) -> None:
+    """The flags of the options that the stages of one registry declare
+    (:class:`~spslidar.registry.Option`): type, help, unit and default from the declaration,
+    the stages that take each named in its help."""
+    from .config import registries
+
+    reg = registries()[option]
+    for name, opt in reg.options().items():
+        owners = ", ".join(reg.owners(name))
+        kind = {"float": float, "int": int}.get(opt.kind.__name__)
+        extra = ({"choices": ("on", "off")} if opt.kind is bool else
+                 {"choices": opt.choices} if opt.choices else
+                 {"type": kind, "metavar": opt.unit.upper() or "X"} if kind else {})
+        g.add_argument(opt.flag, default=argparse.SUPPRESS, **extra,
+                       help=f"{owners}: {opt.describe()}")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -399,8 +400,6 @@ def _cmd_run(args) -> int:
     save_ptu = getattr(args, "save_ptu", None)
     if save_ptu and os.path.exists(save_ptu) and not args.overwrite:
         raise ConfigError(f"--save-ptu {save_ptu} exists; use --overwrite to replace it")
-    if opts.get("pileup_correction") in ("on", "off"):
-        opts["pileup_correction"] = opts["pileup_correction"] == "on"
     check_output(args.out, args.overwrite)  # refuse before any work
     base = read_toml(args.config) if args.config else {}
     cfg = Config.from_dict({**base, **opts})

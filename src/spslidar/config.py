@@ -8,6 +8,7 @@ Keys are the long option names of ``spslidar run`` with ``-`` or ``_`` (``code-l
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import sys
 from dataclasses import dataclass, field
@@ -60,14 +61,7 @@ class Config:
     ambient: str = "paper"
     background_rate: float = 0.0
     dark_count_rate: float = 0.0
-    dead_time: float = 50e-9
     detector: str = "linear"
-    jitter: float = 0.0
-    jitter_tail: float = 0.0
-    jitter_tail_weight: float = 0.0
-    afterpulse_prob: float = 0.0
-    afterpulse_delay: float = 0.0
-    pileup_correction: bool = True
     noiseless: bool = False
     # processing
     replica: str = "auto"
@@ -90,23 +84,36 @@ class Config:
     # where the numeric core runs (spslidar.backends)
     backend: str = "numpy"
     device: str = "cpu"
-    extra: dict[str, Any] = field(default_factory=dict, repr=False)
+    #: the options the stages declare (:func:`stage_options`: ``dead_time``, ``jitter``...),
+    #: read as attributes (``cfg.dead_time``); every declared option is here once validated
+    extra: dict[str, Any] = field(default_factory=dict)
 
     # -- construction -------------------------------------------------------------------
     @classmethod
     def from_dict(cls, d: dict[str, Any] | None = None, **kw) -> Config:
         """Build from a mapping (keys with ``-`` or ``_``); unknown keys are an error."""
         merged = {**(d or {}), **kw}
-        names = {f.name for f in dataclasses.fields(cls)} - {"extra"}
+        declared = stage_options()
+        names = ({f.name for f in dataclasses.fields(cls)} - {"extra"}) | set(declared)
         clean: dict[str, Any] = {}
+        extra: dict[str, Any] = {}
         for k, v in merged.items():
             key = str(k).replace("-", "_")
             if key not in names:
                 close = [n for n in names if n.startswith(key[:3])]
                 hint = f" (did you mean {', '.join(sorted(close))}?)" if close else ""
                 raise ConfigError(f"unknown config key {k!r}{hint}")
-            clean[key] = v
-        return cls(**clean)
+            (extra if key in declared else clean)[key] = v
+        return cls(**clean, extra=extra)
+
+    def __getattr__(self, name: str) -> Any:
+        # a stage's declared option (only called when normal lookup fails)
+        if name.startswith("__") or name == "extra":
+            raise AttributeError(name)
+        declared = stage_options()
+        if name in declared:
+            return self.__dict__.get("extra", {}).get(name, declared[name][1].default)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @classmethod
     def from_toml(cls, path: str | Path, **overrides) -> Config:
@@ -122,7 +129,7 @@ class Config:
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
-        d.pop("extra")
+        d.update(d.pop("extra"))
         for k in ("noise_split", "range_gate"):
             if d[k] is not None:
                 d[k] = list(d[k])
@@ -197,18 +204,7 @@ class Config:
         number("noise", 0)
         number("background_rate", 0)
         number("dark_count_rate", 0)
-        number("dead_time", 0)
-        number("jitter", 0)
-        number("jitter_tail", 0)
-        number("jitter_tail_weight", 0, 1)
-        number("afterpulse_prob", 0, 1, hi_open=True)
-        number("afterpulse_delay", 0)
-        if self.afterpulse_prob > 0 and self.afterpulse_delay <= 0:
-            raise ConfigError("--afterpulse-prob needs a positive --afterpulse-delay (seconds)")
-        if self.detector == "linear" and any(
-                getattr(self, k) for k in ("jitter", "jitter_tail", "afterpulse_prob")):
-            raise ConfigError("--jitter, --jitter-tail and --afterpulse-prob describe a "
-                              "Geiger-mode detector: add --detector gmapd")
+        self._validate_stage_options()
         number("lam", 0, optional=True)
         number("lam_scale", 0, lo_open=True, optional=True)
         number("iterations", 1, integer=True, optional=True)
@@ -217,9 +213,7 @@ class Config:
         number("max_memory", 0, lo_open=True, optional=True)
         if self.auto_gate is not None and not isinstance(self.auto_gate, bool):
             raise ConfigError(f"auto-gate must be true or false, got {self.auto_gate!r}")
-        if self.pileup_correction in ("on", "off"):
-            self.pileup_correction = self.pileup_correction == "on"
-        for flag in ("qcr", "subbin", "noiseless", "nonneg", "pileup_correction"):
+        for flag in ("qcr", "subbin", "noiseless", "nonneg"):
             if not isinstance(getattr(self, flag), bool):
                 raise ConfigError(f"{flag} must be true or false, got {getattr(self, flag)!r}")
         try:
@@ -247,6 +241,50 @@ class Config:
 
         check_backend(self.backend, self.device)
         check_supported(self)
+
+
+    def _validate_stage_options(self) -> None:
+        """Each option a stage declares: normalised and bounded by its declaration, and
+        refused (one line) when given to a stage that does not take it."""
+        declared = stage_options()
+        unknown = set(self.extra) - set(declared)
+        if unknown:
+            raise ConfigError(f"unknown config key {sorted(unknown)[0]!r}")
+        for name, (reg, opt) in declared.items():
+            given = name in self.extra
+            value = opt.check(self.extra.get(name, opt.default))
+            chosen = getattr(self, reg.option)
+            takes = any(o.name == name for o in reg.get(chosen).options)
+            if given and not takes and value != opt.default:
+                owners = ", ".join(reg.owners(name))
+                mine = ", ".join(o.flag for o in reg.get(chosen).options) or "no options"
+                raise ConfigError(f"{opt.flag} is an option of --{reg.option} {owners}, not of "
+                                  f"--{reg.option} {chosen} (which takes {mine})")
+            self.extra[name] = value
+
+
+_dataclass_init = Config.__init__
+
+
+@functools.wraps(_dataclass_init)
+def _init(self, *args: Any, extra: dict[str, Any] | None = None, **kw: Any) -> None:
+    # Config(dead_time=..., jitter=...): the options the stages declare are keywords too
+    declared = stage_options()
+    options = {k: kw.pop(k) for k in list(kw) if k in declared}
+    _dataclass_init(self, *args, extra={**(extra or {}), **options}, **kw)
+
+
+Config.__init__ = _init
+
+
+def stage_options() -> dict:
+    """Every option the stages declare (:class:`~spslidar.registry.Option`), by config key:
+    ``{name: (registry, option)}``."""
+    out = {}
+    for reg in registries().values():
+        for name, opt in reg.options().items():
+            out.setdefault(name, (reg, opt))
+    return out
 
 
 def registries() -> dict:

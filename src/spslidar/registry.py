@@ -25,7 +25,102 @@ from typing import Any
 
 from .errors import ConfigError
 
-__all__ = ["Entry", "Registry", "lazy_exports"]
+__all__ = ["Entry", "Option", "Registry", "lazy_exports"]
+
+
+@dataclass(frozen=True)
+class Option:
+    """An option a stage declares: the config key, the CLI flag ``--name-with-dashes``, its
+    help, unit, default and the values it admits. ``Config`` accepts it, validates it and
+    records it in ``metrics.json``; the CLI adds its flag; the stage receives it as the
+    keyword ``param`` (default: ``name``) when it is built.
+
+    Attributes
+    ----------
+    name : str
+        Config key (``snake_case``).
+    default : object
+        Value when not given.
+    help : str
+        One line for ``--help`` and the docs.
+    unit : str
+        Physical unit (``"s"``, ``"m"``, ``""`` for a pure number).
+    kind : type
+        ``float``, ``int``, ``bool`` (``on``/``off``/``true``/``false`` accepted) or ``str``.
+    lo, hi : float, optional
+        Bounds of a number; ``lo_open`` / ``hi_open`` exclude them.
+    why : str
+        The physical reason of the bounds, said when a value is refused.
+    choices : tuple, optional
+        The admissible values of a ``str`` option.
+    param : str, optional
+        The stage's keyword for it, when it differs from ``name``.
+    """
+
+    name: str
+    default: Any
+    help: str = ""
+    unit: str = ""
+    kind: type = float
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    why: str = ""
+    choices: tuple | None = None
+    param: str | None = None
+
+    @property
+    def flag(self) -> str:
+        """The command-line flag, ``--name-with-dashes``."""
+        return "--" + self.name.replace("_", "-")
+
+    def describe(self) -> str:
+        """Help with unit and default, for ``--help``."""
+        unit = f" [{self.unit}]" if self.unit else ""
+        default = ("on" if self.default else "off") if self.kind is bool else self.default
+        return f"{self.help}{unit} (default {default})"
+
+    def check(self, value: Any) -> Any:
+        """``value`` normalised to ``kind``; a value out of bounds or of the wrong type is a
+        one-line :class:`~spslidar.errors.ConfigError`."""
+        import math
+
+        if self.kind is bool:
+            if isinstance(value, str) and value.lower() in ("on", "off", "true", "false"):
+                return value.lower() in ("on", "true")
+            if isinstance(value, bool):
+                return value
+            raise ConfigError(f"{self.flag} must be on or off, got {value!r}")
+        if self.kind is str:
+            if self.choices is not None and value not in self.choices:
+                raise ConfigError(f"{self.flag} must be one of {', '.join(self.choices)}, "
+                                  f"got {value!r}")
+            return str(value)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            try:
+                value = float(value)
+            except (TypeError, ValueError):
+                raise ConfigError(f"{self.flag} must be a number, got {value!r}") from None
+        if not math.isfinite(value):
+            raise ConfigError(f"{self.flag} must be finite, got {value}")
+        if self.kind is int:
+            if float(value) != int(value):
+                raise ConfigError(f"{self.flag} must be an integer, got {value}")
+            value = int(value)
+        else:
+            value = float(value)
+        low = self.lo is not None and (value < self.lo or (self.lo_open and value == self.lo))
+        high = self.hi is not None and (value > self.hi or (self.hi_open and value == self.hi))
+        if low or high:
+            lo = "-inf" if self.lo is None else f"{self.lo:g}"
+            hi = "inf" if self.hi is None else f"{self.hi:g}"
+            span = (f"{'(' if self.lo_open or self.lo is None else '['}{lo}, {hi}"
+                    f"{')' if self.hi_open or self.hi is None else ']'}")
+            unit = f" {self.unit}" if self.unit else ""
+            why = f": {self.why}" if self.why else ""
+            raise ConfigError(f"{self.flag} must be in {span}{unit}, got {value:g}{why}")
+        return value
 
 
 @dataclass(frozen=True)
@@ -47,6 +142,9 @@ class Entry:
     validate : callable, optional
         ``validate(cfg)`` raises :class:`~spslidar.errors.ConfigError` when the config cannot
         use this choice. Must not import heavy modules.
+    options : tuple of Option
+        The options this choice takes (its constructor's keywords), declared once: the
+        config, the CLI flags, ``--help`` and ``metrics.json`` follow them.
     """
 
     name: str
@@ -55,6 +153,7 @@ class Entry:
     help: str = ""
     defaults: dict[str, Any] = field(default_factory=dict)
     validate: Callable[[Any], None] | None = None
+    options: tuple[Option, ...] = ()
 
     def load(self) -> Any:
         """The implementation (imported on first use)."""
@@ -89,23 +188,49 @@ class Registry:
         self._entries: dict[str, Entry] = {}
 
     def add(self, name: str, target: Any, display: str = "", help: str = "",
-            validate: Callable[[Any], None] | None = None, **defaults: Any) -> Entry:
-        """Register ``target`` under ``name`` (replacing an entry of that name)."""
+            validate: Callable[[Any], None] | None = None,
+            options: tuple[Option, ...] = (), **defaults: Any) -> Entry:
+        """Register ``target`` under ``name`` (replacing an entry of that name).
+
+        An option declared by several entries (``dead_time`` of every detector) must be
+        declared alike (same default, kind and bounds): it is one config key."""
         if not name or not isinstance(name, str):
             raise ValueError(f"a {self.kind} needs a non-empty name")
-        entry = Entry(name, target, display or name, help, dict(defaults), validate)
+        for opt in options:
+            for other in self._entries.values():
+                for o in other.options:
+                    if o.name == opt.name and (o.default, o.kind, o.lo, o.hi) != (
+                            opt.default, opt.kind, opt.lo, opt.hi):
+                        raise ValueError(f"option {opt.name!r} of {self.kind} {name!r} differs "
+                                         f"from {other.name!r}'s declaration")
+        entry = Entry(name, target, display or name, help, dict(defaults), validate,
+                      tuple(options))
         self._entries[name] = entry
         return entry
 
     def register(self, name: str, display: str = "", help: str = "",
-                 validate: Callable[[Any], None] | None = None, **defaults: Any):
+                 validate: Callable[[Any], None] | None = None,
+                 options: tuple[Option, ...] = (), **defaults: Any):
         """Decorator form of :meth:`add` for objects defined in user code."""
 
         def deco(obj):
-            self.add(name, obj, display, help, validate, **defaults)
+            self.add(name, obj, display, help, validate, options, **defaults)
             return obj
 
         return deco
+
+    def options(self) -> dict[str, Option]:
+        """Every option any entry declares, by config key (first declaration)."""
+        out: dict[str, Option] = {}
+        for entry in self._entries.values():
+            for opt in entry.options:
+                out.setdefault(opt.name, opt)
+        return out
+
+    def owners(self, option: str) -> list[str]:
+        """The entries that take ``option``."""
+        return [e.name for e in self._entries.values()
+                if any(o.name == option for o in e.options)]
 
     def get(self, name: str) -> Entry:
         """The entry for ``name``; an unknown name is a one-line :class:`ConfigError`."""

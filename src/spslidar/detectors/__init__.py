@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..registry import Registry, lazy_exports
+from ..registry import Option, Registry, lazy_exports
 
 if TYPE_CHECKING:
     from .base import DetectorModel
@@ -21,8 +21,16 @@ __getattr__ = lazy_exports(__name__, {"DetectorModel": "base"})
 
 #: detector models by name (the ``detector`` config key / ``--detector`` option)
 DETECTORS = Registry("detector model", "detector")
+
+#: the dead time: the GMAPD's, and the linear counter's pile-up report's
+DEAD_TIME = Option("dead_time", 50e-9, "dead time after a detection (linear: only for the "
+                   "pile-up report)", "s", lo=0.0, hi=1e-3,
+                   why="GMAPD dead times are 10 ns to 10 us; a millisecond is a unit mistake")
+_JITTER_WHY = "a microsecond of timing jitter blurs the range by 150 m"
+
 DETECTORS.add("linear", "spslidar.detectors.linear:LinearDetector", "linear counter",
-              "the paper's linear Poisson counter, no dead time (default)")
+              "the paper's linear Poisson counter, no dead time (default)",
+              options=(DEAD_TIME,))
 
 
 def _check_gmapd(cfg) -> None:
@@ -39,7 +47,22 @@ def _check_gmapd(cfg) -> None:
 DETECTORS.add("gmapd", "spslidar.detectors.gmapd:GMAPD", "GMAPD",
               "free-running Geiger-mode APD: non-paralysable --dead-time, --jitter, "
               "--afterpulse-prob, pile-up corrected before the matched filter "
-              "(--pileup-correction)", validate=_check_gmapd)
+              "(--pileup-correction)", validate=_check_gmapd, context=("bin_width",),
+              options=(
+                  DEAD_TIME,
+                  Option("jitter", 0.0, "standard deviation of the Gaussian timing jitter",
+                         "s", lo=0.0, hi=1e-6, why=_JITTER_WHY),
+                  Option("jitter_tail", 0.0, "mean of the IRF's exponential tail, with weight "
+                         "--jitter-tail-weight", "s", lo=0.0, hi=1e-6, why=_JITTER_WHY),
+                  Option("jitter_tail_weight", 0.0, "share of photons in the exponential tail",
+                         lo=0.0, hi=1.0),
+                  Option("afterpulse_prob", 0.0, "probability that an avalanche causes an "
+                         "afterpulse", lo=0.0, hi=1.0, hi_open=True),
+                  Option("afterpulse_delay", 0.0, "mean afterpulse delay after re-arming", "s",
+                         lo=0.0, hi=1e-3, why="afterpulses follow within microseconds"),
+                  Option("pileup_correction", True, "correct each histogram for pile-up "
+                         "before the matched filter", kind=bool, param="correction"),
+              ))
 
 
 def build_detector(name: str, **options) -> DetectorModel:

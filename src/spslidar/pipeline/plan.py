@@ -112,11 +112,13 @@ def _check_pattern_floor(cfg: Config) -> None:
 
 
 def detector_options(cfg: Config) -> dict[str, Any]:
-    """The detector model's options from the config (dark counts are in the noise model)."""
-    if cfg.detector == "gmapd":
-        return {"dead_time": cfg.dead_time, "bin_width": 1.0 / cfg.bit_rate,
-                "jitter": cfg.jitter, "jitter_tail": cfg.jitter_tail,
-                "jitter_tail_weight": cfg.jitter_tail_weight,
-                "afterpulse_prob": cfg.afterpulse_prob, "afterpulse_delay": cfg.afterpulse_delay,
-                "correction": cfg.pileup_correction}
-    return {"dead_time": cfg.dead_time}
+    """The chosen detector model's keyword arguments: the options its registry entry declares
+    (each under its ``param`` name) and the context it asks for (``context=("bin_width",)``:
+    the TDC bin width); dark counts are in the noise model."""
+    from ..detectors import DETECTORS
+
+    entry = DETECTORS.get(cfg.detector)
+    context = {"bin_width": 1.0 / cfg.bit_rate}
+    out = {name: context[name] for name in entry.defaults.get("context", ())}
+    out.update({opt.param or opt.name: getattr(cfg, opt.name) for opt in entry.options})
+    return out
