@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from spslidar.cli import _Parser, add_snr_parser, cmd_snr
+from spslidar.cli import _Parser, add_snr_parser, cmd_snr, main
 from spslidar.codes import make_code
 from spslidar.errors import ConfigError
 from spslidar.snr import (
@@ -43,9 +43,12 @@ def test_theory_matches_hand_computation():
     )
     # Gold member: whatever its weight is
     ones = int(make_code("gold", 1023, 0.5, None, 5).sum())
-    assert snr_theory(1023, 0.9, 5.0, 10.0, 64, 0.5, code="gold", code_index=5) == pytest.approx(
+    assert snr_theory(1023, 0.5, 5.0, 10.0, 64, 0.5, code="gold", code_index=5) == pytest.approx(
         ones * 10240.0**2 / 51200.0, rel=1e-12
     )
+    # its share of ones is the code's: another one asked for is a mistake (as for run)
+    with pytest.raises(ConfigError, match="ones-ratio"):
+        snr_theory(1023, 0.9, 5.0, 10.0, 64, 0.5, code="gold", code_index=5)
     # random: the nominal share
     assert snr_theory(1000, 0.1, 5.0, 10.0, 64, 0.5, code="random") == pytest.approx(
         snr_theory(1000, 0.1, 5.0, 10.0, 64, 0.5), rel=1e-12
@@ -347,9 +350,28 @@ def test_package_exports_every_public_name():
 
     for name in spslidar.snr.__all__:
         assert getattr(spslidar.snr, name) is not None, name
-    # the sub-command lives in the CLI module, with the other sub-commands
-    assert spslidar.snr.add_snr_parser is spslidar.cli.add_snr_parser
-    assert spslidar.snr.cmd_snr is spslidar.cli.cmd_snr
+    # the sub-command lives in the CLI module, with the other sub-commands; the package does
+    # not reach back up into the command line
+    assert not hasattr(spslidar.snr, "cmd_snr")
     assert spslidar.cli.COMMANDS["snr"] is spslidar.cli.cmd_snr
     with pytest.raises(AttributeError):
         spslidar.snr.no_such_name  # noqa: B018
+
+
+def test_snr_takes_the_registered_code_families(capsys):
+    """``snr --code`` lists the code registry (a family added there is one here), and a
+    family's own checks apply: an m-sequence has no ones ratio to set (issue 24)."""
+    from spslidar.codes import CODES
+    from spslidar.snr.theory import SNR_CODES
+
+    assert SNR_CODES == CODES.names()
+    assert main(["snr", "--code", "mseq", "--code-length", "127", "--ones-ratio", "0.1",
+                 "--trials", "2"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "ones-ratio" in err[0]
+    CODES.add("mseq2", "spslidar.codes.sequences:make_code", "m-sequence again",
+              validate=CODES.get("mseq").validate)
+    try:
+        assert "mseq2" in _parser().parse_args(["snr", "--code", "mseq2"]).code
+    finally:
+        CODES._entries.pop("mseq2")

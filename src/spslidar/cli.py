@@ -344,7 +344,8 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
     argparse.ArgumentParser
         The new sub-parser; :func:`cmd_snr` runs it.
     """
-    from .snr import SNR_CODES, SNR_INTERVALS, SNR_METHODS  # standard library only
+    from .codes import CODES
+    from .snr import SNR_INTERVALS, SNR_METHODS  # standard library only
 
     p = subparsers.add_parser(
         "snr", help="output SNR of one pattern: eq. (10) against a Monte-Carlo simulation",
@@ -352,8 +353,8 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
                     "period, eq. (10) of Shen et al., with a simulation of Poisson photon "
                     "counts and the unipolar replica. Prints theory and simulation (with a "
                     "95% interval).")
-    p.add_argument("--code", choices=SNR_CODES, default="mseq",
-                   help="m-sequence (default), Gold code, or Bernoulli random bits")
+    p.add_argument("--code", choices=CODES.names(), default="mseq",
+                   help=f"code family: {CODES.help_text()}")
     p.add_argument("--code-length", type=int, default=16383, metavar="L",
                    help="code length T in bits; 2^n - 1 for mseq/gold (default 16383)")
     p.add_argument("--ones-ratio", type=float, default=0.5, metavar="R",

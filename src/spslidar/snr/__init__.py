@@ -18,7 +18,7 @@ with ``T`` the code length, ``R_a`` the share of '1' bits, ``M_2`` the number of
 "on" bits of the replica; :mod:`spslidar.snr.simulate`); :func:`snr_table` sweeps code kinds,
 lengths and ones ratios and :func:`plot_snr` draws the sweep (:mod:`spslidar.snr.table`). The
 ``spslidar snr`` sub-command is in :mod:`spslidar.cli` (:func:`~spslidar.cli.add_snr_parser`,
-:func:`~spslidar.cli.cmd_snr`, also importable from here).
+:func:`~spslidar.cli.cmd_snr`); the package does not import the command line.
 
 Only the standard library is imported with this package, so the command-line tool can import it
 at start-up without loading NumPy; the numerical modules are imported on first use.
@@ -26,11 +26,10 @@ at start-up without loading NumPy; the numerical modules are imported on first u
 
 from __future__ import annotations
 
-import importlib
 from typing import Any
 
 from spslidar.registry import lazy_exports
-from spslidar.snr.theory import SNR_CODES, SNR_INTERVALS, SNR_METHODS, mirrors_on, snr_theory
+from spslidar.snr.theory import SNR_INTERVALS, SNR_METHODS, mirrors_on, snr_theory
 
 __all__ = [
     "SNR_CODES",
@@ -41,8 +40,6 @@ __all__ = [
     "snr_simulated",
     "snr_table",
     "plot_snr",
-    "add_snr_parser",
-    "cmd_snr",
 ]
 
 _numeric = lazy_exports(__name__, {
@@ -53,7 +50,8 @@ _numeric = lazy_exports(__name__, {
 
 
 def __getattr__(name: str) -> Any:
-    # the sub-command lives with the other sub-commands, in spslidar.cli
-    if name in ("add_snr_parser", "cmd_snr"):
-        return getattr(importlib.import_module("spslidar.cli"), name)
+    if name == "SNR_CODES":  # the code families of the registry
+        from spslidar.snr import theory
+
+        return theory.SNR_CODES
     return _numeric(name)

@@ -20,6 +20,7 @@ from spslidar.snr.theory import (
     check_reflectivity,
     check_size,
     check_trials,
+    code_family,
     config_error,
     eq10,
     make_code_checked,
@@ -246,9 +247,7 @@ def snr_simulated(
     """
     import numpy as np
 
-    from ..codes import canonical_kind
-
-    kind = canonical_kind(code)
+    kind = code_family(code)
     m_s = as_nonneg(signal, "signal m_s")
     m_n = as_nonneg(noise, "noise m_n")
     a = check_reflectivity(reflectivity)

@@ -78,17 +78,18 @@ def snr_table(
     """
     import numpy as np
 
-    from ..codes import canonical_kind
     from ..errors import ConfigError
+    from .theory import code_family
 
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     rows: list[dict[str, Any]] = []
     ratios = _as_list(ones_ratios)
     if not ratios:
         raise config_error("ones_ratios is empty: give at least one share of '1' bits")
-    for kind in (canonical_kind(c) for c in _as_list(codes)):
+    for kind in (code_family(c) for c in _as_list(codes)):
         for length in _as_list(lengths):
-            for ratio in ratios if kind == "random" else ratios[:1]:
+            # a family with a fixed share of ones (m-sequence, Gold) gets one row, at 0.5
+            for ratio in ratios if kind == "random" else [0.5]:
                 try:
                     row = snr_simulated(
                         kind,

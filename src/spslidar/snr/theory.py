@@ -12,7 +12,6 @@ from collections.abc import Sequence
 from typing import Any
 
 __all__ = [
-    "SNR_CODES",
     "SNR_INTERVALS",
     "SNR_METHODS",
     "as_integer",
@@ -25,14 +24,21 @@ __all__ = [
     "check_trials",
     "config_error",
     "eq10",
+    "code_family",
     "make_code_checked",
     "mirrors_on",
     "snr_theory",
 ]
 
-#: Code kinds accepted by :func:`~spslidar.snr.snr_simulated` (aliases as in
-#: :func:`spslidar.codes.make_code`).
-SNR_CODES: tuple[str, ...] = ("mseq", "gold", "random")
+
+def __getattr__(name: str) -> Any:
+    # SNR_CODES: the code families of the registry (a family added there is one here too)
+    if name == "SNR_CODES":
+        from ..codes import CODES
+
+        return CODES.names()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 #: Simulation paths of :func:`~spslidar.snr.snr_simulated`.
 SNR_METHODS: tuple[str, ...] = ("sum", "histogram")
 #: Interval estimators of :func:`~spslidar.snr.snr_simulated`.
@@ -159,11 +165,27 @@ def eq10(ones: int, m2: int, a: float, m_s: float, n: int, m_n: float) -> float:
     return ones * sig * sig / (sig + noise)
 
 
-def make_code_checked(kind: str, length: Any, ones_ratio: Any, rng, index: Any):
-    """The code (uint8 0/1) from :func:`spslidar.codes.make_code`, ConfigError on bad input."""
-    from ..codes import make_code
+def code_family(kind: str) -> str:
+    """The registered code family (:data:`spslidar.codes.CODES`) that ``kind`` names, or
+    whose alias it is (``'m-sequence'``, ``'bernoulli'``...)."""
+    from ..codes import CODES, canonical_kind
 
-    return make_code(kind, as_integer(length, "code length"), ones_ratio, rng, index)
+    return kind if kind in CODES else canonical_kind(kind)
+
+
+def make_code_checked(kind: str, length: Any, ones_ratio: Any, rng, index: Any):
+    """The code (uint8 0/1) of a registered family, built by its registry entry after the
+    entry's own checks (the lengths it can have; a ones ratio only where the family has one),
+    so ``snr`` takes exactly the codes ``run`` takes; ConfigError on bad input."""
+    from types import SimpleNamespace
+
+    from ..codes import CODES
+
+    name = code_family(kind)
+    length = as_integer(length, "code length")
+    entry = CODES.get(name)
+    entry.check(SimpleNamespace(code=name, code_length=length, ones_ratio=ones_ratio))
+    return entry.load()(name, length, ones_ratio, rng, index)
 
 
 
@@ -187,8 +209,8 @@ def snr_theory(
         Code length ``T`` in bits (``2^n - 1`` for m-sequences and Gold codes).
     ones_ratio : float
         Share ``R_a`` of '1' bits. Used as given when ``code`` is None or ``'random'`` (the
-        expected share of a Bernoulli code); ignored (but still checked to lie in (0, 1)) for
-        ``'mseq'`` and ``'gold'``, whose share is that of the actual code.
+        expected share of a Bernoulli code); for ``'mseq'`` and ``'gold'``, whose share is that
+        of the actual code, it must be left at 0.5 (another value is refused, as by ``run``).
     signal : float
         ``m_s``: mean signal photons per laser pulse per DMD pixel (mirror on, reflectivity 1).
     noise : float
@@ -248,9 +270,7 @@ def snr_theory(
             raise config_error(f"ones ratio must lie in (0, 1], got {ones_ratio!r}")
         ones: float = r * t
     else:
-        from ..codes import canonical_kind
-
-        kind = canonical_kind(code)
+        kind = code_family(code)
         if kind == "random":
             t = as_integer(code_length, "code length")
             if t < 2:
