@@ -388,10 +388,8 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
 
 
 def _cmd_run(args) -> int:
-    import os
 
     from .config import Config, read_toml
-    from .errors import ConfigError
     from .outdir import check_output
     from .pipeline import run
 
@@ -399,21 +397,31 @@ def _cmd_run(args) -> int:
             if k not in ("command", "config", "out", "no_figure", "overwrite", "func",
                          "save_ptu", "fov")}
     save_ptu = getattr(args, "save_ptu", None)
-    if save_ptu and os.path.exists(save_ptu) and not args.overwrite:
-        raise ConfigError(f"--save-ptu {save_ptu} exists; use --overwrite to replace it")
+    if save_ptu:
+        from .outdir import check_files
+        from .pipeline.real import ptu_companions
+
+        ptu_files = [save_ptu, *ptu_companions(save_ptu)]
+        check_files(ptu_files, args.overwrite)  # refuse before any work
     check_output(args.out, args.overwrite)  # refuse before any work
     base = read_toml(args.config) if args.config else {}
     cfg = Config.from_dict({**base, **opts})
     if save_ptu:
+        from .outdir import write_files
         from .pipeline import measure, reconstruct
         from .pipeline.real import write_measurement_arrays, write_measurement_ptu
 
         meas = measure(cfg)
         result = reconstruct(meas)
-        info = write_measurement_ptu(meas, save_ptu)
-        pats, code = write_measurement_arrays(meas, save_ptu)
+        info: dict = {}
+
+        def write(tmps) -> None:  # under temporary names, moved into place all together
+            info.update(write_measurement_ptu(meas, tmps[0]))
+            write_measurement_arrays(meas, tmps[0], paths=tmps[1:])
+
+        write_files(ptu_files, write, args.overwrite)
         print(f"wrote {save_ptu}: {info['photons']} photons, {info['records']} T3 records; "
-              f"the patterns shown and the code in {pats} and {code}")
+              f"the patterns shown and the code in {ptu_files[1]} and {ptu_files[2]}")
     else:
         result = run(cfg)
     for w in result.warnings:

@@ -10,8 +10,13 @@ it into place only once complete. ``DIR`` may be
 
 Anything else (a file, or a folder holding anything but a spslidar result's files) is refused
 with a one-line :class:`~spslidar.errors.SpslidarError` before any work is done. Nothing is
-ever deleted that spslidar did not write: a previous result is recognised by its
-``metrics.json`` and by holding nothing but result files.
+ever deleted or replaced that spslidar did not write: spslidar knows its own outputs by a
+marker file, :data:`MARKER`, that it writes with them (the kind of output, a random id, the
+version and the names of the files it wrote), not by their names; a folder that merely holds
+a ``metrics.json`` is not a result. The same rule holds for every command that writes:
+``sweep`` and ``reproduce`` write into a folder that is new, empty or marked as theirs
+(:func:`claim_folder`), ``run --save-ptu`` replaces a PTU file and its two arrays only when
+their own marker proves they are what it wrote (:func:`check_files`, :func:`write_files`).
 
 Folders and files are created with the user's umask (``tempfile.mkdtemp`` alone would leave
 the folder ``0700``).
@@ -19,16 +24,23 @@ the folder ``0700``).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
 import tempfile
+import uuid
 from collections.abc import Callable
 from pathlib import Path
 
-from .errors import SpslidarError
+from .errors import ConfigError, SpslidarError
 
-__all__ = ["RESULT_FILES", "check_output", "is_result", "write_result_dir", "umask_mode"]
+__all__ = ["MARKER", "RESULT_FILES", "atomic_write_bytes", "atomic_write_text", "check_files",
+           "check_output", "claim_folder", "is_result", "read_marker", "umask_mode",
+           "write_files", "write_result_dir"]
+
+#: the marker file spslidar writes into every output folder it owns
+MARKER = ".spslidar-output.json"
 
 #: every file a ``spslidar run`` result folder may hold
 RESULT_FILES = frozenset({"metrics.json", "depth.npy", "truth.npy", "valid.npy",
@@ -43,20 +55,42 @@ def umask_mode(base: int = 0o777) -> int:
     return base & ~mask
 
 
-def is_result(folder: Path) -> bool:
-    """Whether ``folder`` holds a previous spslidar result and nothing else."""
+def read_marker(folder: str | os.PathLike) -> dict | None:
+    """The marker of an output folder spslidar wrote (``kind``, ``id``, ``version``,
+    ``files``), or None."""
     try:
-        names = {p.name for p in folder.iterdir()}
-    except OSError:
-        return False
-    if "metrics.json" not in names or not names <= RESULT_FILES:
-        return False
-    try:
-        with open(folder / "metrics.json") as fh:
+        with open(Path(folder) / MARKER) as fh:
             meta = json.load(fh)
     except (OSError, ValueError):
+        return None
+    if not (isinstance(meta, dict) and isinstance(meta.get("files"), list)
+            and isinstance(meta.get("kind"), str)):
+        return None
+    return meta
+
+
+def _marker_text(kind: str, files, run_id: str | None = None) -> str:
+    from .version import __version__
+
+    return json.dumps({"kind": kind, "id": run_id or uuid.uuid4().hex, "version": __version__,
+                       "files": sorted(files)}, indent=1) + "\n"
+
+
+def _write_marker(folder: Path, kind: str, files, run_id: str | None = None) -> None:
+    atomic_write_text(folder / MARKER, _marker_text(kind, files, run_id))
+
+
+def is_result(folder: Path) -> bool:
+    """Whether ``folder`` holds a result spslidar wrote (its marker says so) and nothing else
+    (every file in it is one the marker lists)."""
+    meta = read_marker(folder)
+    if meta is None or meta["kind"] != "result":
         return False
-    return isinstance(meta, dict) and "version" in meta and "config" in meta
+    try:
+        names = {p.name for p in Path(folder).iterdir()} - {MARKER}
+    except OSError:
+        return False
+    return names <= set(meta["files"])
 
 
 def check_output(out: str | os.PathLike, overwrite: bool = False) -> Path:
@@ -91,9 +125,13 @@ def check_output(out: str | os.PathLike, overwrite: bool = False) -> Path:
             raise SpslidarError(f"--out {out}: cannot read the folder ({exc.strerror})") from None
         if not empty:
             if not is_result(path):
+                why = ("it holds a metrics.json but no spslidar marker, so spslidar did not "
+                       "write it (or wrote it before version 0.1.1)"
+                       if (path / "metrics.json").exists() and read_marker(path) is None else
+                       "it holds files spslidar did not write")
                 raise SpslidarError(
-                    f"--out {out}: the folder is not empty and is not a spslidar result; "
-                    f"refusing to write into it (choose a new or empty folder)")
+                    f"--out {out}: the folder is not empty and is not a spslidar result "
+                    f"({why}); refusing to write into it (choose a new or empty folder)")
             if not overwrite:
                 raise SpslidarError(f"--out {out}: holds a previous spslidar result; pass "
                                     f"--overwrite to replace it, or choose a new folder")
@@ -108,8 +146,9 @@ def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
     """Create the result folder ``out`` through ``fill(tmp)``, all or nothing.
 
     ``fill`` writes the files (names from :data:`RESULT_FILES`) into a fresh temporary folder
-    beside ``out``; on any exception (KeyboardInterrupt included) the temporary folder is
-    removed and ``out`` is untouched.
+    beside ``out``; the marker listing them is added; on any exception (KeyboardInterrupt
+    included) the temporary folder is removed and ``out`` is untouched. Replacing a previous
+    result removes only the files its marker lists.
     """
     path = check_output(out, overwrite)
     parent = path.parent
@@ -122,18 +161,162 @@ def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
         unknown = written - RESULT_FILES
         if unknown:  # pragma: no cover - a programming error, not user input
             raise RuntimeError(f"unexpected result files {sorted(unknown)}")
+        _write_marker(tmp, "result", written)
         path = check_output(out, overwrite)  # nothing appeared meanwhile
         if not path.exists():
             os.replace(tmp, path)
             return path
+        previous = set((read_marker(path) or {"files": []})["files"])
         for name in sorted(written):
             os.replace(tmp / name, path / name)
-        for name in RESULT_FILES - written:
+        for name in previous - written:  # only what the previous result's marker lists
             stale = path / name
             if stale.is_file():
                 stale.unlink()
+        os.replace(tmp / MARKER, path / MARKER)
         tmp.rmdir()
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return path
+
+
+def claim_folder(out: str | os.PathLike, kind: str, option: str = "--out") -> Path:
+    """The output folder of a command that fills it over time (``sweep``, ``reproduce``):
+    created (with its marker) when new or empty, taken as it is when its marker says this
+    kind of command wrote it (an interrupted run resumes there), refused in one line
+    otherwise, before any work: a folder holding a user's ``results.csv`` or ``report.md``
+    is never written into.
+
+    Returns
+    -------
+    Path
+        ``out`` made absolute.
+    """
+    if out is None or str(out).strip() == "":
+        raise ConfigError(f"{option} must name an output folder")
+    path = Path(os.path.abspath(os.fspath(out)))
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{option} {out}: exists and is not a folder")
+    try:
+        empty = not path.exists() or next(path.iterdir(), None) is None
+    except OSError as exc:
+        raise ConfigError(f"{option} {out}: cannot read the folder ({exc.strerror})") from None
+    if empty:
+        path.mkdir(parents=True, exist_ok=True)
+        _write_marker(path, kind, [])
+        return path
+    meta = read_marker(path)
+    if meta is None or meta["kind"] != kind:
+        what = "no spslidar marker" if meta is None else f"a spslidar {meta['kind']}"
+        raise ConfigError(
+            f"{option} {out}: the folder is not empty and holds {what}, not the output of an "
+            f"earlier 'spslidar {kind}' (which it would resume); refusing to write into it "
+            f"(choose a new or empty folder)")
+    return path
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _files_marker(first: Path) -> Path:
+    return first.with_name(f".{first.name}.spslidar.json")
+
+
+def check_files(paths, overwrite: bool = False, option: str = "--save-ptu") -> None:
+    """Refuse (one line, before any work) to write files that exist, unless ``overwrite``
+    and their marker (written by :func:`write_files` beside the first) proves that spslidar
+    wrote them, unchanged since (the SHA-256 of each)."""
+    paths = [Path(p) for p in paths]
+    present = [p for p in paths if p.exists() or p.is_symlink()]
+    if not present:
+        return
+    if not overwrite:
+        raise SpslidarError(f"{option}: {present[0]} exists; use --overwrite to replace it")
+    try:
+        with open(_files_marker(paths[0])) as fh:
+            sums = json.load(fh).get("sha256", {})
+    except (OSError, ValueError, AttributeError):
+        sums = {}
+    for p in present:
+        if not p.is_file() or sums.get(p.name) != _sha256(p):
+            raise SpslidarError(f"{option}: {p} exists and is not a file spslidar wrote (or it "
+                                f"changed since); refusing to replace it, even with --overwrite")
+
+
+def write_files(paths, write: Callable[[list[Path]], None], overwrite: bool = False,
+                option: str = "--save-ptu") -> None:
+    """Write a group of files all or nothing: ``write(tmp_paths)`` writes each under a
+    temporary name in its own folder; on success they are moved into place and a marker
+    (names and SHA-256) is written beside the first; on any failure (a full disk, Ctrl-C) the
+    temporary files are removed and nothing of the user's is touched."""
+    paths = [Path(os.path.abspath(os.fspath(p))) for p in paths]
+    check_files(paths, overwrite, option)
+    tmps = [p.with_name(f".{p.name}.tmp-{uuid.uuid4().hex[:8]}") for p in paths]
+    try:
+        write(tmps)
+        for t in tmps:
+            os.chmod(t, umask_mode(0o666))
+        sums = {p.name: _sha256(t) for p, t in zip(paths, tmps, strict=True)}
+        check_files(paths, overwrite, option)  # nothing appeared meanwhile
+        marker = _files_marker(paths[0])
+        from .version import __version__
+
+        for p, t in zip(paths, tmps, strict=True):
+            os.replace(t, p)
+        atomic_write_text(marker, json.dumps({"kind": "files", "version": __version__,
+                                              "sha256": sums}, indent=1) + "\n")
+    except BaseException:
+        for t in tmps:
+            try:
+                t.unlink()
+            except OSError:
+                pass
+        raise
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically, with the umask's permissions.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file; its folder must exist. An existing file is replaced.
+    data : bytes
+        The whole content.
+
+    Notes
+    -----
+    The data go to a temporary file in the same folder (so ``os.replace`` is atomic), which is
+    flushed to disk before it replaces ``path``; on any error (KeyboardInterrupt included) the
+    temporary file is removed and ``path`` is untouched. The file's mode is ``0o666`` less the
+    process's umask (``0o644`` under umask 022), as for a file opened with ``open(path, 'w')``.
+    """
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, umask_mode(0o666))
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` (UTF-8, newlines as given) to ``path`` atomically.
+
+    See :func:`atomic_write_bytes` (same folder, fsync, ``os.replace``, umask permissions).
+    """
+    atomic_write_bytes(path, text.encode("utf-8"))

@@ -218,19 +218,26 @@ def write_measurement_ptu(meas: Measurement, path: str | os.PathLike, *,
     return {"records": n, "photons": int(sum(len(e) for e in events))}
 
 
-def write_measurement_arrays(meas, ptu_path) -> tuple[str, str]:
+def ptu_companions(ptu_path) -> tuple[str, str]:
+    """The two arrays written beside a PTU file by ``run --save-ptu``:
+    ``<stem>_patterns.npy`` and ``<stem>_code.npy``."""
+    base = Path(ptu_path)
+    return (str(base.with_name(base.stem + "_patterns.npy")),
+            str(base.with_name(base.stem + "_code.npy")))
+
+
+def write_measurement_arrays(meas, ptu_path, paths=None) -> tuple[str, str]:
     """Beside a PTU file written by :func:`write_measurement_ptu`, the two arrays
     ``spslidar reconstruct`` needs with it: ``<stem>_patterns.npy``, the ``(M, N, N)`` mirror
-    states in marker order, and ``<stem>_code.npy``, the unipolar bits of one code period.
+    states in marker order, and ``<stem>_code.npy``, the unipolar bits of one code period
+    (:func:`ptu_companions`), or into the two ``paths`` given (written as ``.npy`` whatever
+    their names).
 
     Returns
     -------
     (str, str)
         The two paths.
     """
-    from pathlib import Path
-
-    base = Path(ptu_path)
     n = meas.config.size
     q = n * n
     pats = np.empty((meas.patterns.shape[0], q), dtype=np.float32)
@@ -240,8 +247,9 @@ def write_measurement_arrays(meas, ptu_path) -> tuple[str, str]:
         eye[np.arange(start, start + eye.shape[1]), np.arange(eye.shape[1])] = 1.0
         pats[:, start:start + eye.shape[1]] = meas.patterns.apply_rows(
             slice(0, meas.patterns.shape[0]), eye)
-    p_path = base.with_name(base.stem + "_patterns.npy")
-    c_path = base.with_name(base.stem + "_code.npy")
-    np.save(p_path, pats.reshape(-1, n, n))
-    np.save(c_path, np.asarray(meas.acq.code, dtype=np.uint8))
+    p_path, c_path = ptu_companions(ptu_path) if paths is None else (str(p) for p in paths)
+    with open(p_path, "wb") as fh:
+        np.save(fh, pats.reshape(-1, n, n))
+    with open(c_path, "wb") as fh:
+        np.save(fh, np.asarray(meas.acq.code, dtype=np.uint8))
     return str(p_path), str(c_path)

@@ -73,10 +73,9 @@ def reproduce_main(
         raise ConfigError(f"--trials must be a positive integer, got {trials!r}")
     if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs == 0:
         raise ConfigError(f"--jobs must be a positive integer or -1 (all cores), got {jobs!r}")
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"--out must be a folder, got the file {out}")
-    out.mkdir(parents=True, exist_ok=True)
+    from spslidar.outdir import claim_folder
+
+    out = claim_folder(out, "reproduce")  # new, empty or an earlier report: never a user's
     ctx = Context(
         out,
         bool(quick),

@@ -410,6 +410,9 @@ def sweep_main(
 
         _validate_run_points(points, config_path)
         ignore = PROCESSING_KEYS
+    from spslidar.outdir import claim_folder
+
+    claim_folder(out_dir, "sweep")  # new, empty or an earlier sweep's: never a user's files
     rows = run_sweep(
         run_point if func is None else func,
         points,

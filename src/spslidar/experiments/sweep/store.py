@@ -13,14 +13,13 @@ import csv
 import io
 import json
 import os
-import tempfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 from spslidar.errors import ConfigError
 from spslidar.experiments.sweep.grid import ERROR_KEY, canonical, canonical_json
-from spslidar.outdir import umask_mode
+from spslidar.outdir import atomic_write_bytes, atomic_write_text
 
 __all__ = [
     "CACHE_FORMAT",
@@ -38,48 +37,6 @@ CACHE_FORMAT = 1
 # --------------------------------------------------------------------------------------------
 # Atomic files and the run cache
 # --------------------------------------------------------------------------------------------
-
-
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically, with the umask's permissions.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The file; its folder must exist. An existing file is replaced.
-    data : bytes
-        The whole content.
-
-    Notes
-    -----
-    The data go to a temporary file in the same folder (so ``os.replace`` is atomic), which is
-    flushed to disk before it replaces ``path``; on any error (KeyboardInterrupt included) the
-    temporary file is removed and ``path`` is untouched. The file's mode is ``0o666`` less the
-    process's umask (``0o644`` under umask 022), as for a file opened with ``open(path, 'w')``.
-    """
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, umask_mode(0o666))
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-
-
-def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
-    """Write ``text`` (UTF-8, newlines as given) to ``path`` atomically.
-
-    See :func:`atomic_write_bytes` (same folder, fsync, ``os.replace``, umask permissions).
-    """
-    atomic_write_bytes(path, text.encode("utf-8"))
 
 
 def load_cached(path: Path, params_json: str) -> dict[str, Any] | None:
