@@ -126,7 +126,7 @@ def check_output(out: str | os.PathLike, overwrite: bool = False) -> Path:
         if not empty:
             if not is_result(path):
                 why = ("it holds a metrics.json but no spslidar marker, so spslidar did not "
-                       "write it (or wrote it before version 0.1.1)"
+                       "write it (or wrote it before version 0.2.0)"
                        if (path / "metrics.json").exists() and read_marker(path) is None else
                        "it holds files spslidar did not write")
                 raise SpslidarError(
