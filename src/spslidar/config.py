@@ -195,11 +195,23 @@ class Config:
         number("ones_ratio", 0, 1, lo_open=True, hi_open=True)
         number("code_index", 0, integer=True, optional=True)
         number("bit_rate", 0, lo_open=True)
+        if not 1e6 <= self.bit_rate <= 1e13:
+            # a bin of 150 m or more resolves no depth; one shorter than 0.1 ps (15 um) is
+            # beyond any time-to-digital converter (the fastest bin at about 1 ps)
+            raise ConfigError(f"--bit-rate must be in [1e6, 1e13] bits (TDC bins) per second, "
+                              f"got {self.bit_rate:g}: its bins would be "
+                              f"{149896229.0 / self.bit_rate:.3g} m deep")
         number("pulse_width", 0, 1, lo_open=True)
         number("rep_rate", 0, lo_open=True, optional=True)
         number("periods", 1, 2**31, integer=True)
         number("pattern_sigma", 0, lo_open=True)
         number("compression", 0, 1, lo_open=True)
+        n_pat = max(1, int(round(self.compression * self.size * self.size)))
+        if n_pat < 2:
+            # QCR centres the measurements over the patterns: one pattern leaves nothing
+            raise ConfigError(f"--compression {self.compression:g} gives {n_pat} pattern at "
+                              f"{self.size}x{self.size}; at least 2 are needed (use at least "
+                              f"{2 / self.size ** 2:.3g})")
         number("signal", 0, lo_open=True)
         number("noise", 0)
         number("background_rate", 0)

@@ -163,7 +163,7 @@ def reconstruct(meas: Any, **processing):
     from ..pipeline.gate import AUTO_GATE_MIN_SLICES, occupied_lags
     from ..pipeline.measurement import PROCESSING_KEYS
     from ..pipeline.score import finish_result
-    from ..pipeline.weights import TV_INNER, default_weight, solver_default
+    from ..pipeline.weights import TV_INNER, default_weight, solver_default, weight_warnings
     from ..solvers import SolveInfo
 
     bad = set(k.replace("-", "_") for k in processing) - PROCESSING_KEYS
@@ -201,9 +201,9 @@ def reconstruct(meas: Any, **processing):
     ey = (e - e.mean(axis=0, keepdims=True)) / np.sqrt(m) if cfg.qcr else e
     z = A.rmatvec(xp.astype(be.asarray(ey), dtype))
     sigma_eff = float(np.sqrt(scalars(be, xp.mean(xp.astype(z, xp.float64) ** 2))[0]))
-    lam_max = (float(scalars(be, xp.max(xp.abs(xp.astype(A.rmatvec(y), xp.float64))))[0])
-               if cfg.lam is None else float("nan"))  # the default weight's floor only
+    lam_max = float(scalars(be, xp.max(xp.abs(xp.astype(A.rmatvec(y), xp.float64))))[0])
     lam, lam_scale, floored = default_weight(cfg, sigma_eff, lam_max)
+    warns.extend(weight_warnings(cfg, lam, lam_max))
     be.sync()
     timing["qcr"] = time.perf_counter() - t0
 

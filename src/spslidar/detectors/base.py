@@ -73,3 +73,8 @@ class DetectorModel:
     def report(self, counts_per_period: float, period_s: float) -> dict[str, Any]:
         """Numbers for ``metrics.json`` (e.g. detections per dead time)."""
         return {"model": self.name}
+
+    def notes(self) -> list[str]:
+        """What a user should hear about this model's settings (legal but suspicious ones),
+        said as warnings by the run."""
+        return []

@@ -110,9 +110,18 @@ def _threads() -> int:
     return max(1, min(N_BLOCKS, os.cpu_count() or 1))
 
 
+def too_many_counts(per_bin: float) -> str:
+    """The one-line refusal of a run whose expected counts per TDC bin exceed what a float32
+    count holds exactly (:data:`MAX_MEAN`)."""
+    return (f"about {per_bin:.3g} expected photons per TDC bin exceed the {MAX_MEAN:.3g} a "
+            f"count holds exactly: lower --signal, --noise or --periods (a real detector "
+            f"saturates at about one count per dead time)")
+
+
 def check_means(lam: np.ndarray) -> None:
     """Raise ``ValueError`` unless all Poisson means are finite, non-negative and small enough
-    for float32 counts (exact integers up to 2^24 per bin).
+    for float32 counts (exact integers up to 2^24 per bin; a
+    :class:`~spslidar.errors.ConfigError`, one line for the user, when too large).
 
     Parameters
     ----------
@@ -127,7 +136,7 @@ def check_means(lam: np.ndarray) -> None:
     if not (lo >= 0 and hi < np.inf):
         raise ValueError("Poisson means must be finite and non-negative")
     if hi > MAX_MEAN:
-        raise ValueError("expected counts per bin exceed float32's exact integer range")
+        raise ConfigError(too_many_counts(float(hi)))
 
 
 def _streams(rng: np.random.Generator, n_rows: int) -> list[tuple[slice, np.random.Generator]]:

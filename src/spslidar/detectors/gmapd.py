@@ -264,6 +264,12 @@ class GMAPD(DetectorModel):
         var = np.minimum(var, (n_periods * mu) ** 2 + n_periods * mu)
         return np.where(c > 0, var, 0.0).sum(axis=1)
 
+    def notes(self) -> list[str]:
+        if self.dead_time == 0:
+            return ["--dead-time 0: this GMAPD never goes dead, so it counts linearly (no "
+                    "pile-up to correct); its jitter and afterpulses still apply"]
+        return []
+
     def report(self, counts_per_period: float, period_s: float) -> dict[str, Any]:
         """Detected rate, detections per dead time and the fraction of time dead."""
         rate = counts_per_period / period_s

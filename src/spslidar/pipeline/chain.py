@@ -37,6 +37,7 @@ from .weights import (
     default_weight,
     noise_level,
     solver_default,
+    weight_warnings,
 )
 
 __all__ = ["LAM_FLOOR", "PROCESSING_KEYS", "TV_INNER", "Measurement", "build_regulariser",
@@ -80,6 +81,7 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     noise = NoiseModel(cfg.noise, tuple(cfg.noise_split), cfg.ambient, cfg.background_rate,
                        cfg.dark_count_rate)
     detector = build_detector(cfg.detector, **detector_options(cfg))
+    warns.extend(detector.notes())
     # differential patterns: the DMD shows two frames per pattern, each for its share of the
     # acquisition time, and the patterns combine the frames' outputs into one per pattern
     shown, share = patterns.exposures() if hasattr(patterns, "exposures") else (patterns, 1.0)
@@ -144,10 +146,10 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         # the plain problem converges within the default budget (MeanEliminated)
         eliminated, y_plain = MeanEliminated(A), y
         A, y = eliminated, eliminated.data(y)
-    # the floor of the default weight (a given --lam needs no extra product)
-    lam_max = (float(np.abs(np.asarray(A.rmatvec(y))).max(initial=0.0)) if cfg.lam is None
-               else float("nan"))
+    # the floor of the default weight, and the scale a given --lam is checked against
+    lam_max = float(np.abs(np.asarray(A.rmatvec(y))).max(initial=0.0))
     lam, lam_scale, floored = default_weight(cfg, sigma_eff, lam_max)
+    warns.extend(weight_warnings(cfg, lam, lam_max))
     timing["qcr"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

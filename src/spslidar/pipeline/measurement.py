@@ -40,10 +40,22 @@ class Measurement:
 
 
 def _resolve(config, overrides) -> Config:
+    """The config of ``run(config, **overrides)``: a :class:`Config`, a mapping of its keys,
+    None (the defaults) or a scene (a built-in name or a file path: ``run('camera')``)."""
+    import os
+    from collections.abc import Mapping
+
+    if isinstance(config, (str, os.PathLike)):
+        config, overrides = None, {"scene": os.fspath(config), **overrides}
     if config is None:
         cfg = Config.from_dict(overrides)
     elif isinstance(config, Config):
         cfg = config.replace(**overrides) if overrides else config
-    else:
+    elif isinstance(config, Mapping):
         cfg = Config.from_dict({**dict(config), **overrides})
+    else:
+        from ..errors import ConfigError
+
+        raise ConfigError(f"the first argument must be a Config, a dict of its keys or a scene "
+                          f"name or path, got {type(config).__name__}")
     return cfg

@@ -12,6 +12,7 @@ import numpy as np
 from ..config import Config
 from ..constants import SPEED_OF_LIGHT
 from ..correlate import gate_lags
+from ..errors import ConfigError
 from ..patterns import PATTERNS, n_patterns_for
 from ..scenes import load_scene
 from .acquisition import GATE_PAD_BINS, Acquisition, default_gate, make_acquisition
@@ -83,8 +84,27 @@ def _plan(cfg: Config, scene, warns: list[str]) -> _Plan:
                                  if PATTERNS.get(cfg.patterns).defaults.get("dense") else None),
         threads=simulation_threads())
     check_budget(budget, cfg.max_memory, cfg.patterns)
+    check_count_range(cfg, scene, acq)
     return _Plan(seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse, m, dtype,
                  budget)
+
+
+def check_count_range(cfg: Config, scene, acq: Acquisition) -> None:
+    """Refuse, before any work, a run whose expected counts per TDC bin cannot be held
+    exactly (:data:`~spslidar.detectors.counting.MAX_MEAN`): the signal of a pattern with
+    half its mirrors on (eq. 8) in the delay bin where the scene's reflectivity piles up most,
+    plus the noise ``N^2 m_n`` and the physical rates per bin, over the dwell."""
+    from ..detectors.counting import MAX_MEAN, too_many_counts
+    from ..forward import depth_to_delay
+
+    q = cfg.size * cfg.size
+    delay = np.floor(depth_to_delay(scene.depth.ravel(), acq.bin_width)) % acq.period
+    piled = float(np.bincount(delay.astype(np.int64), weights=scene.reflectivity.ravel()).max())
+    per_bin = acq.n_periods * (
+        acq.signal_per_pulse * 0.5 * piled
+        + cfg.noise * q + (cfg.background_rate + cfg.dark_count_rate) / cfg.bit_rate)
+    if per_bin > MAX_MEAN:
+        raise ConfigError(too_many_counts(per_bin))
 
 
 def preflight(config: Config | dict | None = None, **overrides):

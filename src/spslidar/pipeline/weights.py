@@ -90,3 +90,14 @@ def default_weight(cfg: Config, sigma_eff: float, lam_max: float) -> tuple[float
         return float(cfg.lam), lam_scale, False
     noise_term, floor = lam_scale * sigma_eff, LAM_FLOOR * lam_max
     return max(noise_term, floor), lam_scale, bool(floor > noise_term)
+
+
+def weight_warnings(cfg: Config, lam: float, lam_max: float) -> list[str]:
+    """A given ``--lam`` at or above ``lam_max = max |A^H y|`` makes the regulariser win
+    outright: the l1 solution is zero and every TV slice flat, so the depth map carries no
+    information (``--lam 1e12`` ran silently). The default weight is about 0.01 ``lam_max``."""
+    if cfg.lam is None or not lam_max > 0 or lam < lam_max:
+        return []
+    return [f"--lam {lam:g} is {lam / lam_max:.3g} times max|A^H y| = {lam_max:.3g}: the "
+            f"regulariser wins outright (every slice zero or flat), so the depth map carries no "
+            f"information; the default weight is about 0.01 max|A^H y|"]

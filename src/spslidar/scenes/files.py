@@ -173,4 +173,9 @@ def _load_file(path: Path, size: int, depth_min: float | None, depth_max: float 
         raise SceneError(
             f"scene file {label} has an unsupported format: use {', '.join(SCENE_FILE_SUFFIXES)}"
         )
+    known = np.asarray(depth)[np.asarray(valid, dtype=bool)]
+    if known.size and not np.any(known > 0) and depth_min is None and depth_max is None:
+        # a lidar measures distance: a scene entirely at 0 m is a wrong file or wrong units
+        raise SceneError(f"scene file {label}: every depth is 0 m; give distances from the "
+                         f"lidar in metres (or a window with --depth-min/--depth-max)")
     return _finish(label, depth, refl, valid, size, depth_min, depth_max)

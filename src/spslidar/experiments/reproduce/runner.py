@@ -71,8 +71,9 @@ def reproduce_main(
         isinstance(trials, bool) or not isinstance(trials, (int, np.integer)) or trials < 1
     ):
         raise ConfigError(f"--trials must be a positive integer, got {trials!r}")
-    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs == 0:
-        raise ConfigError(f"--jobs must be a positive integer or -1 (all cores), got {jobs!r}")
+    from spslidar.experiments.sweep.engine import _check_jobs
+
+    jobs = _check_jobs(jobs)
     from spslidar.outdir import claim_folder
 
     out = claim_folder(out, "reproduce")  # new, empty or an earlier report: never a user's

@@ -165,10 +165,27 @@ def _run_dask(
 
 
 def _check_jobs(jobs: Any) -> int:
+    """``jobs`` as given: a positive number of workers or -1 (all cores); anything else is a
+    one-line ConfigError (``--jobs -5`` was passed on to joblib as given)."""
     jobs = check_int(jobs, "jobs")
-    if jobs == 0:
-        raise ConfigError("jobs must be >= 1 or negative (-1: all cores), got 0")
+    if jobs == 0 or jobs < -1:
+        raise ConfigError(f"--jobs must be a positive number of worker processes or -1 (all "
+                          f"cores), got {jobs}")
     return jobs
+
+
+def clamp_jobs(jobs: int, n_tasks: int) -> int:
+    """The worker processes worth starting: at most one per task and per core (``-1``: the
+    cores); a clamp is said on stderr (``--jobs 1000`` for 3 runs started a 1000-process
+    pool)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
+        os.cpu_count() or 1)
+    want = cores if jobs == -1 else jobs
+    use = max(1, min(want, cores, max(1, n_tasks)))
+    if jobs != -1 and use < jobs:
+        print(f"spslidar: --jobs {jobs} clamped to {use} ({n_tasks} runs to do, {cores} cores)",
+              file=sys.stderr)
+    return use
 
 
 def run_sweep(
@@ -288,7 +305,7 @@ def run_sweep(
             if scheduler is not None:
                 outcomes = _run_dask(func, tasks, scheduler)
             else:
-                outcomes = _run_local(func, tasks, jobs)
+                outcomes = _run_local(func, tasks, clamp_jobs(jobs, len(tasks)))
             for index, (status, payload, elapsed) in outcomes:
                 key = task_keys[index]
                 if status == "ok":

@@ -289,6 +289,11 @@ def one_line(text: str) -> str:
     return " ".join(str(text).split())
 
 
+#: most runs one sweep may have (grid points times trials): at a second or more per run,
+#: 10^4 runs are hours of work, and a 10^6-point grid was killed by the kernel after 130 s
+MAX_RUNS = 10_000
+
+
 def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
     """Read a sweep configuration from a TOML file.
 
@@ -335,6 +340,8 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
             f"{path}: unknown top-level {listed} (allowed: seed, trials, [base], [grid])"
         )
     seed = check_int(data.get("seed", 0), f"{path}: seed")
+    if seed < 0:
+        raise ConfigError(f"{path}: seed must be a non-negative integer, got {seed}")
     trials = check_int(data.get("trials", 1), f"{path}: trials")
     if trials < 1:
         raise ConfigError(f"{path}: trials must be >= 1, got {trials}")
@@ -344,10 +351,20 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
     grid = data.get("grid", {})
     if not isinstance(grid, dict):
         raise ConfigError(f"{path}: grid must be a table ([grid]), got {grid!r}")
+    if not grid:
+        raise ConfigError(f"{path}: [grid] is empty, so there is nothing to sweep: give a list "
+                          f"of values for at least one key (or use 'spslidar run --config')")
     try:
         _check_grid(grid)
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}") from None
+    n_runs = trials
+    for values in grid.values():
+        n_runs *= len(values)
+    if n_runs > MAX_RUNS:
+        raise ConfigError(f"{path}: the grid has {n_runs:.3g} runs (with its trials), more than "
+                          f"the {MAX_RUNS} one sweep takes (a run takes a second or more: "
+                          f"hours of work); split it into several sweeps")
     if TRIAL_KEY in base:
         raise ConfigError(f"{path}: base.{TRIAL_KEY} is reserved; set trials instead")
     if SEED_KEY in base and trials > 1 and SEED_KEY not in grid:

@@ -1,0 +1,85 @@
+"""Absurd numbers and silent acceptances (issue 24, items 3 and 4): each is one line on
+stderr and exit 2 (before any work), or a warning where the input is legal but suspicious.
+Every case here ended in a traceback (exit 1) or ran silently before."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from spslidar.cli import main
+
+SMALL = ["--size", "16", "--code-length", "127", "--no-figure"]
+
+
+@pytest.mark.parametrize("args,match", [
+    (["run", "--compression", "1e-12"], "at least 2 are needed"),
+    (["run", "--signal", "1e12", *SMALL], "expected photons per TDC bin"),
+    (["run", "--noise", "1e12", *SMALL], "expected photons per TDC bin"),
+    (["run", "--periods", "100000000", *SMALL], "expected photons per TDC bin"),
+    (["run", "--detector", "gmapd", "--signal", "1e6", "--noise", "1e5", *SMALL],
+     "expected photons per TDC bin"),
+    (["run", "--bit-rate", "1e30"], "--bit-rate must be in"),
+    (["run", "--bit-rate", "1", *SMALL], "--bit-rate must be in"),
+    (["run", "--detector", "gmapd", "--dead-time", "1e12"], "unit mistake"),
+    (["run", "--detector", "gmapd", "--jitter", "1e12"], "150 m"),
+    (["snr", "--trials", "1000000000"], "--trials"),
+    (["snr", "--code", "mseq", "--ones-ratio", "0.1"], "ones-ratio"),
+    (["reproduce", "snr", "--quick", "--jobs", "-5"], "--jobs"),
+])
+def test_refused_in_one_line(args, match, tmp_path, capsys):
+    out = tmp_path / "o"
+    argv = args + (["--out", str(out)] if args[0] in ("run", "reproduce") else [])
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and match in err[0], err
+    assert not out.exists()
+
+
+def test_all_zero_depth_scene_is_refused(tmp_path, capsys):
+    np.save(tmp_path / "zero.npy", np.zeros((16, 16)))
+    assert main(["run", "--scene", str(tmp_path / "zero.npy"), *SMALL, "--out",
+                 str(tmp_path / "o")]) == 2
+    assert "every depth is 0 m" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("toml,match", [
+    ("seed = 1\n[base]\nsize = 8\n[grid]\n", "[grid] is empty"),
+    ("seed = -1\n[base]\nsize = 8\n[grid]\nnoise = [1]\n", "non-negative"),
+    ("[grid]\nnoise = [" + ", ".join(["1"] * 200) + "]\nseed = [" +
+     ", ".join(str(i) for i in range(100)) + "]\n", "split it"),
+])
+def test_sweep_definitions_refused(toml, match, tmp_path, capsys):
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(toml)
+    assert main(["sweep", str(cfg), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and match in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("args,match", [
+    (["--lam", "1e12"], "the regulariser wins outright"),
+    (["--detector", "gmapd", "--dead-time", "0"], "never goes dead"),
+])
+def test_suspicious_but_legal_warns(args, match, tmp_path, capsys):
+    assert main(["run", *SMALL, *args, "--out", str(tmp_path / "o")]) == 0
+    assert match in capsys.readouterr().err
+
+
+def test_run_takes_a_scene_positionally():
+    import spslidar
+    from spslidar.errors import ConfigError
+
+    r = spslidar.run("steps", size=8, code_length=127)
+    assert r.scene.name == "steps"
+    with pytest.raises(ConfigError, match="first argument"):
+        spslidar.run(3)
+
+
+def test_jobs_clamped_to_the_work(capsys):
+    from spslidar.experiments.sweep.engine import clamp_jobs
+
+    assert clamp_jobs(1000, 3) <= 3
+    assert "clamped" in capsys.readouterr().err
+    assert clamp_jobs(-1, 100) >= 1
