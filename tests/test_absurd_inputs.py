@@ -44,7 +44,7 @@ def test_all_zero_depth_scene_is_refused(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("toml,match", [
-    ("seed = 1\n[base]\nsize = 8\n[grid]\n", "[grid] is empty"),
+    ("seed = 1\n[base]\nsize = 8\n[grid]\n", "[grid] is empty and trials = 1"),
     ("seed = -1\n[base]\nsize = 8\n[grid]\nnoise = [1]\n", "non-negative"),
     ("[grid]\nnoise = [" + ", ".join(["1"] * 200) + "]\nseed = [" +
      ", ".join(str(i) for i in range(100)) + "]\n", "split it"),
@@ -83,3 +83,39 @@ def test_jobs_clamped_to_the_work(capsys):
     assert clamp_jobs(1000, 3) <= 3
     assert "clamped" in capsys.readouterr().err
     assert clamp_jobs(-1, 100) >= 1
+
+
+@pytest.mark.parametrize("argv,match", [
+    (["run", "--iterations", "1000000000", "--tol", "0"], "--max-time"),
+    (["run", "--patterns", "hadamard", "--hadamard-order", "natural", "--size", "1024",
+      "--compression", "1"], "--max-time"),
+    (["run", "--max-time", "0.001"], "--max-time"),
+    (["reproduce", "fig4", "--quick", "--trials", "1000000000"], "--trials"),
+])
+def test_time_guard_refuses_before_work(argv, match, tmp_path, capsys):
+    """Time is estimated from the configuration, as memory is (issue 24, item 2): work that
+    would exceed --max-time (default 1 h) is refused in one line before it starts."""
+    import time
+
+    t0 = time.perf_counter()
+    assert main([*argv, "--out", str(tmp_path / "o")]) == 2
+    assert time.perf_counter() - t0 < 30  # refused, not run (these ran until killed)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and match in err[0], err
+
+
+def test_long_work_says_its_estimate_first(tmp_path, capsys, monkeypatch):
+    import spslidar.pipeline.budget as budget
+
+    monkeypatch.setattr(budget, "ANNOUNCE_SECONDS", 0.0)
+    assert main(["run", *SMALL, "--out", str(tmp_path / "o")]) == 0
+    assert "will take about" in capsys.readouterr().err
+
+
+def test_sweep_time_guard(tmp_path, capsys):
+    cfg = tmp_path / "s.toml"
+    cfg.write_text("[base]\nsize = 64\n[grid]\nnoise = [1, 2, 3]\n")
+    assert main(["sweep", str(cfg), "--out", str(tmp_path / "o"), "--max-time", "0.5",
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "this sweep of 3 runs" in err[0]

@@ -366,7 +366,7 @@ def test_run_sweep_progress_bar_when_not_a_tty(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("kwargs", "points", "match"),
     [
-        ({"jobs": 0}, [{"x": 1}], "jobs must be >= 1"),
+        ({"jobs": 0}, [{"x": 1}], "--jobs must be a positive number"),
         ({"jobs": "2"}, [{"x": 1}], "jobs must be an integer"),
         ({"seed": 1.5}, [{"x": 1}], "seed must be an integer"),
         ({}, [{"x": 1}, 3], "point 1 must be a dict"),
@@ -489,8 +489,9 @@ def test_load_sweep_config(tmp_path):
         "trial": 0,
     }
     minimal = tmp_path / "minimal.toml"
-    minimal.write_text("[base]\nsize = 8\n")
-    assert load_sweep_config(str(minimal)).points() == [{"size": 8, "trial": 0}]
+    minimal.write_text("trials = 2\n[base]\nsize = 8\n")
+    assert load_sweep_config(str(minimal)).points() == [{"size": 8, "trial": 0},
+                                                         {"size": 8, "trial": 1}]
 
 
 @pytest.mark.parametrize(

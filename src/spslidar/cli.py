@@ -149,6 +149,9 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--max-memory", type=float, default=S, metavar="GB",
                    help="refuse a run whose estimated peak memory exceeds this (default: the "
                         "memory available now); the estimate is checked before any work")
+    g.add_argument("--max-time", type=float, default=S, metavar="SECONDS",
+                   help="refuse a run whose estimated time exceeds this (default 3600); a run "
+                        "estimated over 30 s says so before it starts")
 
 
 def _add_stage_options(g, option: str) -> None:
@@ -328,6 +331,8 @@ def _add_sweep_options(p: argparse.ArgumentParser, trials: bool) -> None:
     p.add_argument("--scheduler", metavar="ADDR",
                    help="Dask scheduler address (tcp://HOST:PORT) instead of local processes")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--max-time", type=float, default=3600.0, metavar="SECONDS",
+                   help="refuse work whose estimated total time exceeds this (default 3600)")
 
 
 def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -498,14 +503,14 @@ def _cmd_reproduce(args) -> int:
 
     return reproduce_main(args.experiment, args.out, quick=args.quick, trials=args.trials,
                           jobs=args.jobs, scheduler=args.scheduler,
-                          progress=not args.no_progress)
+                          progress=not args.no_progress, max_time=args.max_time)
 
 
 def _cmd_sweep(args) -> int:
     from .experiments.sweep import sweep_main
 
     return 1 if sweep_main(args.config, args.out, jobs=args.jobs, scheduler=args.scheduler,
-                           progress=not args.no_progress) else 0
+                           progress=not args.no_progress, max_time=args.max_time) else 0
 
 
 COMMANDS = {"run": _cmd_run, "reconstruct": _cmd_reconstruct, "snr": cmd_snr,

@@ -81,6 +81,8 @@ class Config:
     dtype: str = "float32"
     seed: int = 0
     max_memory: float | None = None
+    #: refuse a run whose estimated time exceeds this many seconds (default 1 h)
+    max_time: float = 3600.0
     # where the numeric core runs (spslidar.backends)
     backend: str = "numpy"
     device: str = "cpu"
@@ -223,6 +225,7 @@ class Config:
         number("tol", 0)
         number("seed", 0, integer=True)
         number("max_memory", 0, lo_open=True, optional=True)
+        number("max_time", 0, lo_open=True)
         if self.auto_gate is not None and not isinstance(self.auto_gate, bool):
             raise ConfigError(f"auto-gate must be true or false, got {self.auto_gate!r}")
         for flag in ("qcr", "subbin", "noiseless", "nonneg"):

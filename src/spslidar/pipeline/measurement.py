@@ -16,7 +16,7 @@ from .acquisition import Acquisition
 #: config keys that change only the processing, not the simulated measurement
 PROCESSING_KEYS = frozenset({
     "auto_gate", "qcr", "qcr_form", "solver", "regulariser", "lam", "lam_scale", "iterations",
-    "tol", "subbin", "nonneg", "depth", "max_memory",
+    "tol", "subbin", "nonneg", "depth", "max_memory", "max_time",
 })
 
 

@@ -12,7 +12,6 @@ import numpy as np
 from ..config import Config
 from ..constants import SPEED_OF_LIGHT
 from ..correlate import gate_lags
-from ..errors import ConfigError
 from ..patterns import PATTERNS, n_patterns_for
 from ..scenes import load_scene
 from .acquisition import GATE_PAD_BINS, Acquisition, default_gate, make_acquisition
@@ -67,7 +66,7 @@ def timeline(cfg: Config, scene, warns: list[str]):
     return seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse
 
 
-def _plan(cfg: Config, scene, warns: list[str]) -> _Plan:
+def _plan(cfg: Config, scene, warns: list[str], announce: bool = True) -> _Plan:
     """The cheap part of :func:`measure`: code, range gate and the memory check (refused in
     one line before any large array exists)."""
     seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse = timeline(cfg, scene,
@@ -83,28 +82,9 @@ def _plan(cfg: Config, scene, warns: list[str]) -> _Plan:
         pattern_bytes_per_entry=(np.dtype(dtype).itemsize
                                  if PATTERNS.get(cfg.patterns).defaults.get("dense") else None),
         threads=simulation_threads())
-    check_budget(budget, cfg.max_memory, cfg.patterns)
-    check_count_range(cfg, scene, acq)
+    check_budget(budget, cfg.max_memory, cfg.patterns, cfg.max_time, announce=announce)
     return _Plan(seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse, m, dtype,
                  budget)
-
-
-def check_count_range(cfg: Config, scene, acq: Acquisition) -> None:
-    """Refuse, before any work, a run whose expected counts per TDC bin cannot be held
-    exactly (:data:`~spslidar.detectors.counting.MAX_MEAN`): the signal of a pattern with
-    half its mirrors on (eq. 8) in the delay bin where the scene's reflectivity piles up most,
-    plus the noise ``N^2 m_n`` and the physical rates per bin, over the dwell."""
-    from ..detectors.counting import MAX_MEAN, too_many_counts
-    from ..forward import depth_to_delay
-
-    q = cfg.size * cfg.size
-    delay = np.floor(depth_to_delay(scene.depth.ravel(), acq.bin_width)) % acq.period
-    piled = float(np.bincount(delay.astype(np.int64), weights=scene.reflectivity.ravel()).max())
-    per_bin = acq.n_periods * (
-        acq.signal_per_pulse * 0.5 * piled
-        + cfg.noise * q + (cfg.background_rate + cfg.dark_count_rate) / cfg.bit_rate)
-    if per_bin > MAX_MEAN:
-        raise ConfigError(too_many_counts(per_bin))
 
 
 def preflight(config: Config | dict | None = None, **overrides):
@@ -114,7 +94,7 @@ def preflight(config: Config | dict | None = None, **overrides):
     cfg = _resolve(config, overrides)
     _check_pattern_floor(cfg)
     scene = load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
-    return _plan(cfg, scene, []).budget
+    return _plan(cfg, scene, [], announce=False).budget
 
 
 def _check_pattern_floor(cfg: Config) -> None:

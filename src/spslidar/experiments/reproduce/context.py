@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from spslidar.constants import SPEED_OF_LIGHT
+from spslidar.errors import ConfigError
 from spslidar.experiments.sweep import (
     ERROR_KEY,
     SEED_KEY,
@@ -107,6 +108,8 @@ class Context:
         The sweep seed every run's seed is derived from.
     failed : int
         Runs that failed so far (a failed run is a row with an ``error`` column).
+    max_time : float or None
+        Refuse a batch of runs estimated to take longer (seconds; ``--max-time``).
     """
 
     out: Path
@@ -117,6 +120,7 @@ class Context:
     progress: bool = True
     seed: int = 0
     failed: int = 0
+    max_time: float | None = None
 
     @property
     def size(self) -> int:
@@ -308,6 +312,26 @@ def snr_point(params: dict[str, Any]) -> dict[str, Any]:
     return dict(rows[0])
 
 
+def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
+    """Refuse a batch of runs whose estimated time (each distinct configuration's budget,
+    :func:`spslidar.pipeline.preflight`, times its runs, over the workers) exceeds
+    ``ctx.max_time``; one over 30 s says its estimate first."""
+    from spslidar.experiments.sweep.grid import TRIAL_KEY
+    from spslidar.pipeline import PROCESSING_KEYS, preflight
+    from spslidar.pipeline.budget import check_time
+
+    seconds: dict[str, float] = {}
+    total = 0.0
+    for params in points:
+        cfg = {k: v for k, v in params.items() if k != TRIAL_KEY and k not in PROCESSING_KEYS}
+        key = repr(sorted(cfg.items()))
+        if key not in seconds:
+            seconds[key] = preflight(cfg).seconds
+        total += seconds[key]
+    workers = max(1, min(len(points), ctx.jobs if ctx.jobs > 0 else 2))
+    check_time(total / workers, ctx.max_time, f"this batch of {len(points)} runs")
+
+
 def run_points(
     ctx: Context,
     points: Sequence[dict[str, Any]],
@@ -333,6 +357,14 @@ def run_points(
     list of dict
         One row per point (see :func:`~spslidar.experiments.sweep.run_sweep`).
     """
+    points = list(points)
+    from spslidar.experiments.sweep.grid import MAX_RUNS
+
+    if len(points) > MAX_RUNS:
+        raise ConfigError(f"this experiment has {len(points)} runs, more than the {MAX_RUNS} "
+                          f"one batch takes; use fewer --trials")
+    if func is None and ctx.max_time is not None:
+        _check_batch_time(ctx, points)
     if func is not None:
         rows = run_sweep(func, list(points), ctx.cache, seed=ctx.seed, jobs=ctx.jobs,
                          scheduler=ctx.scheduler, progress=ctx.progress)

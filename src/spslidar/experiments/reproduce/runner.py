@@ -18,6 +18,10 @@ from spslidar.experiments.reproduce.context import Context, n_cached
 __all__ = ["reproduce_main"]
 
 
+#: most Monte-Carlo trials per setting
+MAX_TRIALS = 1000
+
+
 def reproduce_main(
     experiment: str,
     out: str | Path,
@@ -26,6 +30,7 @@ def reproduce_main(
     jobs: int = 1,
     scheduler: Any = None,
     progress: bool = True,
+    max_time: float | None = None,
 ) -> int:
     """Run one experiment of the paper (or ``'all'``) and update the report.
 
@@ -50,6 +55,9 @@ def reproduce_main(
         Dask scheduler instead of local processes.
     progress : bool, default True
         Progress bars on stderr.
+    max_time : float, optional
+        Refuse a batch of runs whose estimated time exceeds this many seconds (checked before
+        each experiment's runs start).
 
     Returns
     -------
@@ -71,6 +79,10 @@ def reproduce_main(
         isinstance(trials, bool) or not isinstance(trials, (int, np.integer)) or trials < 1
     ):
         raise ConfigError(f"--trials must be a positive integer, got {trials!r}")
+    if trials is not None and trials > MAX_TRIALS:
+        raise ConfigError(f"--trials {trials} is more than {MAX_TRIALS}: the standard error of a "
+                          f"mean RMSE falls as 1/sqrt(trials), 3 % at {MAX_TRIALS} "
+                          f"(10^9 trials were killed by the kernel building their points)")
     from spslidar.experiments.sweep.engine import _check_jobs
 
     jobs = _check_jobs(jobs)
@@ -85,6 +97,7 @@ def reproduce_main(
         scheduler,
         bool(progress),
     )
+    ctx.max_time = max_time
     names = in_all_names() if experiment == ALL else (experiment,)
     status = 0
     t_all = time.perf_counter()

@@ -364,14 +364,16 @@ def run_point(params: dict[str, Any]) -> dict[str, Any]:
     return run_metrics(config)
 
 
-def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any) -> None:
+def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any) -> float:
     """Check every point's run config before anything runs: a bad grid is bad input (one
-    ConfigError naming the file), not a sweep of failed runs."""
+    ConfigError naming the file), not a sweep of failed runs. Returns the estimated total
+    time of the runs (seconds, from each configuration's budget)."""
     from spslidar.config import Config
     from spslidar.errors import SpslidarError
     from spslidar.pipeline import PROCESSING_KEYS, preflight
 
-    checked: set[str] = set()
+    seconds: dict[str, float] = {}
+    total = 0.0
     for params in points:
         config = {key: value for key, value in params.items() if key != TRIAL_KEY}
         try:
@@ -379,11 +381,12 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any) -> Non
             # the scene loads and the memory fits: once per simulated configuration
             key = canonical_json({k: v for k, v in cfg.to_dict().items()
                                   if k not in PROCESSING_KEYS and k != "seed"})
-            if key not in checked:
-                checked.add(key)
-                preflight(cfg)
+            if key not in seconds:
+                seconds[key] = preflight(cfg).seconds
+            total += seconds[key]
         except (ConfigError, SpslidarError) as exc:
             raise ConfigError(f"{where}: {exc}") from None
+    return total
 
 
 def sweep_main(
@@ -394,6 +397,7 @@ def sweep_main(
     progress: bool = True,
     *,
     func: Callable[[dict[str, Any]], Mapping[str, Any]] | None = None,
+    max_time: float | None = None,
 ) -> int:
     """Run the sweep of a TOML config and write ``out_dir/results.csv``.
 
@@ -412,6 +416,9 @@ def sweep_main(
         Show a progress bar on stderr.
     func : Callable, optional
         The function of a point; default :func:`run_point`.
+    max_time : float, optional
+        Refuse a sweep whose estimated total time (the sum of its runs' estimates, before
+        any runs) exceeds this many seconds; one over 30 s says its estimate first.
 
     Returns
     -------
@@ -425,8 +432,12 @@ def sweep_main(
     if func is None:
         from spslidar.pipeline import PROCESSING_KEYS
 
-        _validate_run_points(points, config_path)
+        total = _validate_run_points(points, config_path)
         ignore = PROCESSING_KEYS
+        from spslidar.pipeline.budget import check_time
+
+        check_time(total / max(1, min(len(points), abs(jobs) if jobs != -1 else 2)), max_time,
+                   f"this sweep of {len(points)} runs")
     from spslidar.outdir import claim_folder
 
     claim_folder(out_dir, "sweep")  # new, empty or an earlier sweep's: never a user's files

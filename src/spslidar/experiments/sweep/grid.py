@@ -351,9 +351,6 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
     grid = data.get("grid", {})
     if not isinstance(grid, dict):
         raise ConfigError(f"{path}: grid must be a table ([grid]), got {grid!r}")
-    if not grid:
-        raise ConfigError(f"{path}: [grid] is empty, so there is nothing to sweep: give a list "
-                          f"of values for at least one key (or use 'spslidar run --config')")
     try:
         _check_grid(grid)
     except ConfigError as exc:
@@ -371,6 +368,10 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
         raise ConfigError(
             f"{path}: base.seed gives every trial the same noise; set the top-level seed instead"
         )
+    if not grid and trials == 1:
+        raise ConfigError(f"{path}: [grid] is empty and trials = 1, so there is nothing to "
+                          f"sweep: give a list of values for at least one key, or trials > 1 "
+                          f"(or use 'spslidar run --config')")
     # scene files named relative to the TOML are read from its folder, as in `run --config`
     from spslidar.config import resolve_scene_path
 
