@@ -2,7 +2,7 @@
 
 :mod:`spslidar.io.ptu` reads PicoQuant T3 PTU time-tag files into per-pattern histograms over
 the code period and writes simulated acquisitions as T3 PTU files. Reading needs the optional
-``ptufile`` package (``pip install spslidar[ptu]``); writing needs only NumPy.
+``ptufile`` package (a dependency of spslidar); writing needs only NumPy.
 """
 
 from __future__ import annotations

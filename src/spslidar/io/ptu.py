@@ -160,7 +160,8 @@ def _import_ptufile():
         import ptufile
     except ImportError as exc:
         raise ConfigError(
-            "reading PTU files needs the 'ptufile' package: install spslidar[ptu]"
+            "reading PTU files needs the 'ptufile' package (a dependency of spslidar): "
+            "pip install ptufile"
         ) from exc
     return ptufile
 
