@@ -12,6 +12,17 @@ import sys
 EXIT_BAD_INPUT = 2
 #: exit status after Ctrl-C (128 + SIGINT), as a shell reports it
 EXIT_INTERRUPTED = 130
+#: exit status after SIGTERM (128 + SIGTERM)
+EXIT_TERMINATED = 143
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread so that the same clean-up as Ctrl-C runs (temporary
+    files removed, worker processes stopped)."""
+
+
+def _on_sigterm(signum, frame):  # noqa: ARG001 - the signal handler's signature
+    raise Terminated()
 
 
 class _Parser(argparse.ArgumentParser):
@@ -524,8 +535,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return EXIT_BAD_INPUT
+    import signal
+    import threading
+
     from .errors import SpslidarError
 
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         return COMMANDS[args.command](args)
     except SpslidarError as exc:
@@ -535,9 +552,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f"spslidar {args.command}: error: {exc.strerror or exc}: "
               f"{exc.filename or ''}".rstrip(": "), file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print(f"spslidar {args.command}: interrupted; nothing was written", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as exc:
+        what = "terminated" if isinstance(exc, Terminated) else "interrupted"
+        done = ("nothing was written" if args.command not in ("sweep", "reproduce") else
+                "the runs that finished are cached: run it again to resume")
+        print(f"spslidar {args.command}: {what}; {done}", file=sys.stderr)
+        return EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":  # pragma: no cover

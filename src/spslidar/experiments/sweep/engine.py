@@ -99,6 +99,9 @@ def _run_local(
     outputs = parallel(calls(tasks))
     try:
         yield from outputs
+    except BaseException:
+        _stop_workers()
+        raise
     finally:
         close = getattr(outputs, "close", None)
         if close is not None:
@@ -108,7 +111,23 @@ def _run_local(
 def _call_indexed(
     func: Callable[[dict[str, Any]], Any], index: int, params: dict[str, Any]
 ) -> tuple[int, tuple[str, Any, float]]:
+    # in a pool worker: Ctrl-C reaches the whole process group, but only the parent acts on
+    # it (it stops the pool); a worker's own KeyboardInterrupt traceback would be noise
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     return index, _call(func, params)
+
+
+def _stop_workers() -> None:
+    """Kill the pool's worker processes now (after Ctrl-C or SIGTERM): none may outlive the
+    command (SIGTERM to 'sweep --jobs 2' left four processes running)."""
+    try:
+        from joblib.externals.loky import get_reusable_executor
+
+        get_reusable_executor().shutdown(wait=True, kill_workers=True)
+    except Exception:  # pragma: no cover - best effort on the way out
+        pass
 
 
 def _dask_client(scheduler: Any) -> tuple[Any, bool]:

@@ -1,0 +1,57 @@
+"""Interrupts and workers (issue 24, item 5): SIGTERM or Ctrl-C (SIGINT to the process group)
+during 'sweep --jobs 2' leaves no process behind, prints one line, no worker traceback and no
+'leaked semaphore' warning, and exits 143 / 130."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+psutil = pytest.importorskip("psutil")
+
+SWEEP = "seed = 1\n[base]\nsize = 48\n[grid]\nnoise = [1, 2, 3, 4, 5, 6, 7, 8]\n"
+
+
+def _start(tmp_path):
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(SWEEP)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "spslidar.cli", "sweep", str(cfg), "--out", str(tmp_path / "o"),
+         "--jobs", "2", "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, start_new_session=True)
+    parent = psutil.Process(proc.pid)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:  # until the pool's workers run
+        if sum("loky" in " ".join(c.cmdline()) for c in parent.children(recursive=True)
+               if c.is_running()) >= 2:
+            break
+        time.sleep(0.2)
+    else:
+        proc.kill()
+        pytest.fail("the worker pool never started")
+    return proc, parent.children(recursive=True)
+
+
+@pytest.mark.parametrize("sig,code,word", [(signal.SIGTERM, 143, "terminated"),
+                                           (signal.SIGINT, 130, "interrupted")])
+def test_signal_leaves_no_worker_and_one_line(tmp_path, sig, code, word):
+    proc, children = _start(tmp_path)
+    time.sleep(1.0)
+    if sig == signal.SIGINT:
+        os.killpg(proc.pid, sig)  # Ctrl-C: the whole foreground process group
+    else:
+        proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    gone, alive = psutil.wait_procs(children, timeout=10)
+    for p in alive:
+        p.kill()
+    assert not alive, [p.cmdline() for p in alive]
+    assert proc.returncode == code, err
+    lines = [line for line in err.strip().splitlines() if line.strip()]
+    assert len(lines) == 1 and word in lines[0], err
+    assert "Traceback" not in err and "leaked" not in err
