@@ -119,3 +119,19 @@ def test_sweep_time_guard(tmp_path, capsys):
                  "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "this sweep of 3 runs" in err[0]
+
+
+def test_no_scheduler_listening_is_said_within_seconds(tmp_path, capsys):
+    """Nothing listening at --scheduler: one line within a few seconds (it took 31 s), and no
+    output folder made."""
+    import time
+
+    cfg = tmp_path / "s.toml"
+    cfg.write_text("[base]\nsize = 8\ncode_length = 127\n[grid]\nnoise = [1, 2]\n")
+    t0 = time.perf_counter()
+    assert main(["sweep", str(cfg), "--out", str(tmp_path / "o"), "--scheduler",
+                 "tcp://127.0.0.1:1", "--no-progress"]) == 2
+    assert time.perf_counter() - t0 < 10
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot connect" in err[0]
+    assert not (tmp_path / "o").exists()

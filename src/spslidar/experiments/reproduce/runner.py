@@ -88,6 +88,10 @@ def reproduce_main(
     jobs = _check_jobs(jobs)
     from spslidar.outdir import claim_folder
 
+    if isinstance(scheduler, str):
+        from spslidar.experiments.sweep.engine import _probe_scheduler
+
+        _probe_scheduler(scheduler)  # before the folder is made
     out = claim_folder(out, "reproduce")  # new, empty or an earlier report: never a user's
     ctx = Context(
         out,

@@ -130,6 +130,35 @@ def _stop_workers() -> None:
         pass
 
 
+#: seconds to wait for a TCP connection to a Dask scheduler before saying it is not there
+SCHEDULER_PROBE_S = 3.0
+
+
+def _probe_scheduler(address: str) -> None:
+    """A plain TCP connection to a ``tcp://HOST:PORT`` scheduler first, with a short timeout,
+    so that nothing listening is said within seconds (``distributed.Client`` retried for
+    31 s). Other protocols are left to the client."""
+    import socket
+    from urllib.parse import urlsplit
+
+    if not address.startswith("tcp://"):
+        return
+    try:
+        parts = urlsplit(address)
+        host, port = parts.hostname, parts.port
+    except ValueError:
+        host = port = None
+    if not host or not port:
+        raise ConfigError(f"scheduler address {address!r} is not tcp://HOST:PORT")
+    try:
+        with socket.create_connection((host, port), timeout=SCHEDULER_PROBE_S):
+            pass
+    except OSError as exc:
+        reason = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        raise ConfigError(f"cannot connect to dask scheduler {address}: {reason} (is a "
+                          f"scheduler running there?)") from None
+
+
 def _dask_client(scheduler: Any) -> tuple[Any, bool]:
     """Return ``(client, owned)`` for a scheduler address, Client or cluster object."""
     try:
@@ -143,8 +172,9 @@ def _dask_client(scheduler: Any) -> tuple[Any, bool]:
     if isinstance(scheduler, str):
         if not scheduler.strip():
             raise ConfigError("scheduler must be an address like 'tcp://HOST:PORT', got ''")
+        _probe_scheduler(scheduler)
         try:
-            return distributed.Client(scheduler), True
+            return distributed.Client(scheduler, timeout=10), True
         except (OSError, TimeoutError, ValueError) as exc:
             raise ConfigError(
                 f"cannot connect to dask scheduler {scheduler}: {_error_message(exc)}"
@@ -459,6 +489,8 @@ def sweep_main(
                    f"this sweep of {len(points)} runs")
     from spslidar.outdir import claim_folder
 
+    if isinstance(scheduler, str):
+        _probe_scheduler(scheduler)  # before the folder is made
     claim_folder(out_dir, "sweep")  # new, empty or an earlier sweep's: never a user's files
     rows = run_sweep(
         run_point if func is None else func,
