@@ -686,3 +686,16 @@ def test_atomic_write_leaves_nothing_on_failure(tmp_path, monkeypatch):
         sweep.atomic_write_text(target, "new")
     assert target.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["kept.txt"]
+
+
+def test_progress_lines_without_a_terminal(tmp_path, capsys, monkeypatch):
+    """Without a terminal (a log file, CI) tqdm is silent: a plain line every few seconds
+    and one at the end (issue 24, item 7: reproduce fig4 ran 136 s silently)."""
+    import spslidar.experiments.sweep.engine as engine
+
+    monkeypatch.setattr(engine, "PLAIN_PROGRESS_S", 0.0)
+    rows = engine.run_sweep(lambda p: {"y": p["x"]}, [{"x": i} for i in range(3)], tmp_path,
+                            progress=True)
+    assert len(rows) == 3
+    lines = [x for x in capsys.readouterr().err.splitlines() if x.startswith("sweep: ")]
+    assert lines[-1].startswith("sweep: 3/3 runs done") and len(lines) == 3

@@ -223,6 +223,17 @@ def _check_jobs(jobs: Any) -> int:
     return jobs
 
 
+#: seconds between the plain progress lines written when stderr is not a terminal
+PLAIN_PROGRESS_S = 5.0
+
+
+def _is_tty(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
+
+
 def clamp_jobs(jobs: int, n_tasks: int) -> int:
     """The worker processes worth starting: at most one per task and per core (``-1``: the
     cores); a clamp is said on stderr (``--jobs 1000`` for 3 runs started a 1000-process
@@ -349,6 +360,9 @@ def run_sweep(
         disable=None if progress else True,
         file=sys.stderr,
     )
+    # without a terminal (a log, CI, nohup) tqdm is silent: a plain line every few seconds
+    plain = progress and not _is_tty(sys.stderr) and bool(tasks)
+    t_start = t_last = time.monotonic()
     try:
         if tasks:
             if scheduler is not None:
@@ -370,6 +384,13 @@ def run_sweep(
                     errors[key] = str(payload)
                     bar.set_postfix(failed=len(errors), refresh=False)
                 bar.update(1)
+                now = time.monotonic()
+                done = len(results) + len(errors)
+                if plain and (now - t_last >= PLAIN_PROGRESS_S or done == n_unique):
+                    t_last = now
+                    print(f"sweep: {done}/{n_unique} runs done"
+                          + (f" ({len(errors)} failed)" if errors else "")
+                          + f", {now - t_start:.0f} s", file=sys.stderr, flush=True)
     finally:
         bar.close()
 
