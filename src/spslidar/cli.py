@@ -7,6 +7,7 @@ imported inside each sub-command. Bad input prints one line on stderr and exits 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 EXIT_BAD_INPUT = 2
@@ -80,6 +81,12 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--fairness", choices=("energy", "power"), default=S,
                    help="conventional vs PSST: same pulse energy (default, the paper's) or same "
                         "average power")
+    g.add_argument("--system-delay", type=float, default=S, metavar="SECONDS",
+                   help="extra delay of every return by the instrument's cables and "
+                        "electronics (default 0; 'spslidar calibrate' measures it)")
+    g.add_argument("--irf", default=S, metavar="SPEC",
+                   help="instrument response of every return: gaussian:FWHM[,tail:TAU"
+                        "[,weight:W]] (seconds) or a .npy file per TDC bin (default none)")
     g.add_argument("--periods", type=int, default=S, metavar="N",
                    help="code periods accumulated per DMD pattern, the dwell (default 1, the "
                         "paper's); signal and noise photons grow with it")
@@ -212,6 +219,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_run_options(p)
     add_snr_parser(sub)
     _add_reconstruct_parser(sub)
+    _add_calibrate_parser(sub)
 
     from .experiments.names import EXPERIMENTS
 
@@ -280,6 +288,9 @@ def _add_reconstruct_parser(sub) -> None:
     p.add_argument("--marker", type=int, default=1, metavar="K",
                    help="marker input flagging a pattern change (default 1)")
     p.add_argument("--channel", type=int, metavar="C", help="detector channel (default all)")
+    p.add_argument("--calibration", metavar="CAL.json",
+                   help="remove the system delay and match the IRF measured by 'spslidar "
+                        "calibrate' (the range gate is then in true metres)")
     p.add_argument("--truth", metavar="TRUTH.npy",
                    help="(N, N) true depth in metres (NaN where unknown), only to score the "
                         "result: without it every metric that needs no truth is given")
@@ -306,7 +317,7 @@ def _cmd_reconstruct(args) -> int:
     result = reconstruct_ptu(args.ptu, load_patterns(args.patterns),
                              load_code(args.code, args.code_length), args.bit_rate,
                              tuple(args.range_gate), marker=args.marker, channel=args.channel,
-                             truth=truth, **processing)
+                             truth=truth, calibration=args.calibration, **processing)
     for w in result.warnings:
         print(f"spslidar: warning: {w}", file=sys.stderr)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
@@ -331,6 +342,53 @@ def _written(out) -> list[str]:
              "points.ply", "truth.npy", "valid.npy", "depth.png")
     have = {p.name for p in Path(out).iterdir()}
     return [name for name in order if name in have]
+
+
+def _add_calibrate_parser(sub) -> None:
+    """``spslidar calibrate``: a flat target at a known distance -> system delay and IRF."""
+    p = sub.add_parser(
+        "calibrate", help="measure the system delay and IRF from a flat target",
+        description="Measure the instrument's system delay (sub-bin) and response (IRF) from a "
+                    "T3 PTU acquisition of a flat target at a known distance (any patterns) "
+                    "and write them, with what they were measured from, to CAL.json for "
+                    "'spslidar reconstruct --calibration'.")
+    p.add_argument("--ptu", required=True, metavar="FLAT.ptu", help="T3 PTU file of the target")
+    p.add_argument("--patterns", required=True, metavar="PATTERNS.npy",
+                   help="(M, N, N) mirror states shown, in marker order")
+    p.add_argument("--code", required=True, metavar="CODE.npy|mseq",
+                   help="unipolar bits of one code period (.npy), or mseq with --code-length")
+    p.add_argument("--code-length", type=int, metavar="L", help="m-sequence length (2^n - 1)")
+    p.add_argument("--bit-rate", type=float, required=True, metavar="HZ",
+                   help="bits (TDC bins) per second; must match the file's resolution")
+    p.add_argument("--distance", type=float, required=True, metavar="M",
+                   help="the flat target's distance from the lidar, metres")
+    p.add_argument("--marker", type=int, default=1, metavar="K",
+                   help="marker input flagging a pattern change (default 1)")
+    p.add_argument("--channel", type=int, metavar="C",
+                   help="detector channel, numbered from 0 as in the file (default all)")
+    p.add_argument("--out", required=True, metavar="CAL.json", help="calibration file to write")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a calibration file spslidar wrote")
+
+
+def _cmd_calibrate(args) -> int:
+    from .pipeline.calibration import calibrate_ptu, write_calibration
+    from .pipeline.real import load_code, load_patterns
+
+    if os.path.exists(args.out) and not args.overwrite:  # refuse before any work
+        from .errors import SpslidarError
+
+        raise SpslidarError(f"--out {args.out} exists; use --overwrite to replace it")
+    cal = calibrate_ptu(args.ptu, load_patterns(args.patterns),
+                        load_code(args.code, args.code_length), args.bit_rate, args.distance,
+                        marker=args.marker, channel=args.channel)
+    path = write_calibration(cal, args.out, args.overwrite)
+    print(f"system delay {cal['delay_s'] * 1e9:.4f} ns ({cal['delay_bins']:.3f} bins, "
+          f"{cal['delay_s'] * 149896229.0:.4f} m); IRF FWHM {cal['irf_fwhm_bins']:g} bins; "
+          f"{cal['measured_from']['photons']} photons, peak {cal['peak_to_noise']:.3g} noise "
+          f"standard deviations")
+    print(f"wrote {path}")
+    return 0
 
 
 def _add_sweep_options(p: argparse.ArgumentParser, trials: bool) -> None:
@@ -524,7 +582,8 @@ def _cmd_sweep(args) -> int:
                            progress=not args.no_progress, max_time=args.max_time) else 0
 
 
-COMMANDS = {"run": _cmd_run, "reconstruct": _cmd_reconstruct, "snr": cmd_snr,
+COMMANDS = {"run": _cmd_run, "reconstruct": _cmd_reconstruct, "calibrate": _cmd_calibrate,
+            "snr": cmd_snr,
             "reproduce": _cmd_reproduce, "sweep": _cmd_sweep}
 
 

@@ -48,6 +48,9 @@ class Config:
     rep_rate: float | None = None
     fairness: str = "energy"
     periods: int = 1
+    #: a real instrument (spslidar.instrument): extra delay of every return (s) and its IRF
+    system_delay: float = 0.0
+    irf: str | None = None
     # patterns
     patterns: str = "gaussian"
     pattern_sigma: float = 0.25
@@ -226,6 +229,12 @@ class Config:
         number("seed", 0, integer=True)
         number("max_memory", 0, lo_open=True, optional=True)
         number("max_time", 0, lo_open=True)
+        number("system_delay", 0, 1e-3)
+        if self.irf is not None:
+            from .instrument import parse_irf
+
+            self.irf = str(self.irf) if str(self.irf).strip() else None
+            parse_irf(self.irf)  # one line for a malformed spec
         if self.auto_gate is not None and not isinstance(self.auto_gate, bool):
             raise ConfigError(f"auto-gate must be true or false, got {self.auto_gate!r}")
         for flag in ("qcr", "subbin", "noiseless", "nonneg"):

@@ -45,7 +45,8 @@ def measure(cfg: Any):
     )
     from ..detectors import build_detector
     from ..detectors.counting import NoiseModel
-    from ..forward import depth_to_delay, return_weights, shifted_codes
+    from ..forward import shifted_codes
+    from ..instrument import instrument_weights
     from ..patterns import n_patterns_for
     from ..pipeline.measurement import Measurement
     from ..pipeline.plan import detector_options, timeline
@@ -74,9 +75,8 @@ def measure(cfg: Any):
     noise = NoiseModel(cfg.noise, tuple(cfg.noise_split), cfg.ambient, cfg.background_rate,
                        cfg.dark_count_rate)
     detector = build_detector(cfg.detector, **detector_options(cfg))
-    delay = depth_to_delay(scene.depth.ravel(), acq.bin_width)
     refl = scene.reflectivity.ravel()
-    shifts, weights = return_weights(refl, delay, cfg.pulse_width, acq.period)
+    shifts, weights = instrument_weights(scene, acq, cfg)  # as the NumPy path (host-side)
     noise_bin = _noise_per_bin(be, noise, patterns, refl, acq.bin_width)
     replica = make_replica(acq.code, acq.replica)
     gain = correlation_gain(acq.code, replica) * acq.n_periods * acq.signal_per_pulse

@@ -87,7 +87,8 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     shown, share = patterns.exposures() if hasattr(patterns, "exposures") else (patterns, 1.0)
     acq_shown = acq if share == 1.0 else replace(acq, n_periods=acq.n_periods * share)
     sim = simulate_correlations(shown, scene, acq_shown, ulags, noise, detector, cfg.pulse_width,
-                                np.random.default_rng(seq_counts), noiseless=cfg.noiseless)
+                                np.random.default_rng(seq_counts), noiseless=cfg.noiseless,
+                                instrument=cfg)
     if shown is not patterns:
         sim = patterns.combine(sim)
     pile = detector.report(float(np.mean(sim["counts"])) / acq.n_periods,

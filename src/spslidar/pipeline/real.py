@@ -74,6 +74,7 @@ def load_code(code: str | os.PathLike, code_length: int | None = None) -> np.nda
 def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray,
                     bit_rate: float, range_gate: tuple[float, float], *, marker: int = 1,
                     channel: int | None = None, truth: np.ndarray | None = None,
+                    calibration: str | os.PathLike | dict | None = None,
                     **processing: Any) -> Result:
     """Depth map from a measured T3 PTU acquisition.
 
@@ -94,6 +95,11 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         Marker input (1..4) and detector channel (default all).
     truth : ndarray, shape (N, N), optional
         Ground-truth depth (metres; NaN where unknown): the RMSE goes into the metrics.
+    calibration : path or dict, optional
+        A calibration of this instrument (``spslidar calibrate``,
+        :mod:`spslidar.pipeline.calibration`): the system delay is removed (the range gate is
+        in true metres) and the matched filter uses the replica convolved with the measured
+        IRF; ``metrics['calibration']`` says which.
     **processing
         Config keys of the processing (``solver``, ``qcr``, ``depth``, ``lam_scale``...).
 
@@ -133,9 +139,18 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     n_mean = float(n_k.mean())
     hist = data.histograms.astype(np.float64) * (n_mean / n_k)[:, None]
     replica = make_replica(code, "bipolar" if cfg.replica == "auto" else cfg.replica)
-    gain = correlation_gain(code, replica) * n_mean
     lags = gate_lags(cfg.range_gate, bin_width)
-    ulags, inverse = unique_lags(lags, period)
+    cal, shift, signal_code = None, 0, code
+    if calibration is not None:
+        from .calibration import calibrated_filter, load_calibration
+
+        cal = (calibration if isinstance(calibration, dict)
+               else load_calibration(calibration, bit_rate, code))
+        replica, signal_code, shift = calibrated_filter(code, replica, cal)
+    gain = correlation_gain(signal_code, replica) * n_mean
+    # a calibrated instrument's returns arrive lag_shift bins late: filter there, while the
+    # depths stay those of the gated lags (true metres)
+    ulags, inverse = unique_lags(lags + shift, period)
     corr = matched_filter(hist.astype(np.float32), replica, ulags, gain)
     totals = hist.sum(axis=1)
     signal = np.asarray(corr, np.float64).sum(axis=1) * n_mean * code.sum()
@@ -164,7 +179,12 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         float(background.mean() / n_mean), "background_per_pattern": background.tolist(),
         "n_records": data.n_records, "n_photons": data.n_photons, "n_markers": data.n_markers,
         "n_dropped_before_first_marker": data.n_dropped_before_first_marker,
+
         "n_out_of_range": data.n_out_of_range, "record_type": data.header.get("record_type")}
+    result.metrics["calibration"] = None if cal is None else {
+        "file": cal.get("file"), "delay_s": cal["delay_s"], "lag_shift": cal["lag_shift"],
+        "irf_fwhm_bins": cal["irf_fwhm_bins"], "distance_m": cal.get("distance_m"),
+        "measured_from": cal.get("measured_from")}
     return result
 
 
@@ -185,7 +205,7 @@ def write_measurement_ptu(meas: Measurement, path: str | os.PathLike, *,
         More than ``max_photons`` expected photons (not a low-flux acquisition), or a code
         period longer than the T3 dtime field (32768 bins).
     """
-    from ..forward import depth_to_delay, expected_counts, return_weights
+    from ..forward import expected_counts
     from ..io import write_acquisition_ptu
 
     acq, patterns, scene, cfg = meas.acq, meas.patterns, meas.scene, meas.config
@@ -198,9 +218,9 @@ def write_measurement_ptu(meas: Measurement, path: str | os.PathLike, *,
     if expected > max_photons:
         raise ConfigError(f"--save-ptu writes photon by photon: {expected:.3g} expected photons "
                           f"exceed {max_photons:.3g}; lower --signal / --noise")
-    delay = depth_to_delay(scene.depth.ravel(), acq.bin_width)
-    shifts, weights = return_weights(scene.reflectivity.ravel(), delay, cfg.pulse_width,
-                                     acq.period)
+    from ..instrument import instrument_weights
+
+    shifts, weights = instrument_weights(scene, acq, cfg)  # system delay and IRF as run's
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0x505455]))
     m = patterns.shape[0]
     events = []

@@ -18,7 +18,7 @@ from ..correlate import (
 from ..detectors import DetectorModel
 from ..detectors.counting import MAX_MEAN, NoiseModel, check_means
 from ..errors import ConfigError
-from ..forward import depth_to_delay, expected_counts, return_weights, shifted_codes
+from ..forward import expected_counts, shifted_codes
 from ..patterns import PatternOperator, as_patterns
 from .acquisition import Acquisition
 
@@ -43,6 +43,7 @@ def simulate_correlations(
     noiseless: bool = False,
     method: str = "fast",
     threads: int | None = None,
+    instrument=None,
 ) -> dict[str, np.ndarray]:
     """Expected counts -> Poisson counts -> matched filter, streamed over blocks of patterns.
 
@@ -76,6 +77,9 @@ def simulate_correlations(
         brute force, kept for the tests: in float64, the return profile of each pattern
         circularly convolved with the code by FFT, per-bin Poisson draws, the full circular
         cross-correlation at every lag by FFT, then the gated lags picked out.
+    instrument : object, optional
+        Its ``system_delay`` (s) and ``irf`` (spec) are applied to every return
+        (:func:`spslidar.instrument.instrument_weights`); default an ideal instrument.
     threads : int, optional
         Threads (default: the CPUs available); the result does not depend on it.
 
@@ -98,10 +102,16 @@ def simulate_correlations(
     patterns = as_patterns(patterns)
     m = patterns.shape[0]
     lags = np.asarray(lags, dtype=np.int64)
-    delay = depth_to_delay(scene.depth.ravel(), acq.bin_width)
     refl = scene.reflectivity.ravel()
-    # the return amplitudes of pattern block b are patterns[b] @ weights (eq. 4 without the code)
-    shifts, weights = return_weights(refl, delay, pulse_width, acq.period)
+    # the return amplitudes of pattern block b are patterns[b] @ weights (eq. 4 without the
+    # code), as the instrument records them (system delay and IRF; spslidar.instrument)
+    from types import SimpleNamespace
+
+    from ..instrument import instrument_weights
+
+    shifts, weights = instrument_weights(scene, acq, SimpleNamespace(
+        pulse_width=pulse_width, system_delay=getattr(instrument, "system_delay", 0.0),
+        irf=getattr(instrument, "irf", None)))
     noise_bin = noise.per_bin(patterns, refl, acq.bin_width)
     replica = make_replica(acq.code, acq.replica)
     gain = correlation_gain(acq.code, replica) * acq.n_periods * acq.signal_per_pulse

@@ -1,0 +1,169 @@
+"""A real instrument is not ideal: a system delay and an instrument response (IRF).
+
+Photons arrive later than their time of flight by the cables and electronics (the *system
+delay*, nanoseconds, i.e. metres), and the laser pulse and the detector's jitter spread each
+return over several TDC bins, often with a diffusion tail (the *IRF*). ``spslidar run``
+simulates both (``--system-delay SECONDS``, ``--irf SPEC``) on every return of eq. (4) (the
+noise is neither delayed nor spread); ``spslidar calibrate`` measures them from a flat target
+(:mod:`spslidar.pipeline.calibration`) and ``spslidar reconstruct --calibration`` removes
+them.
+
+An IRF is given as
+
+* ``gaussian:FWHM`` (seconds), optionally ``gaussian:FWHM,tail:TAU`` or
+  ``gaussian:FWHM,tail:TAU,weight:W``: a Gaussian of that full width at half maximum, and with
+  probability ``W`` (default 0.3 when a tail is given) an added exponential delay of mean
+  ``TAU`` (an ex-Gaussian, the usual shape of a SPAD's diffusion tail);
+* a ``.npy`` file: the response sampled per TDC bin (non-negative; normalised here; its time
+  origin is its peak).
+
+The kernel is :func:`spslidar.detectors.pileup.jitter_kernel` (exact for a photon uniform in
+its bin, however narrow the Gaussian), truncated where it holds less than ``1e-7`` of the
+photons.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import ConfigError
+
+__all__ = ["IRF", "instrument_weights", "irf_kernel", "parse_irf"]
+
+#: FWHM / sigma of a Gaussian
+_FWHM_PER_SIGMA = 2.3548200450309493
+#: the tail weight when a tail is given without one
+DEFAULT_TAIL_WEIGHT = 0.3
+#: widest IRF accepted (seconds): a microsecond is 150 m of blur, a unit mistake
+MAX_IRF_S = 1e-6
+
+
+@dataclass(frozen=True)
+class IRF:
+    """A parsed ``--irf`` specification (seconds, or a file)."""
+
+    fwhm: float = 0.0
+    tail: float = 0.0
+    weight: float = 0.0
+    path: str | None = None
+
+    def describe(self) -> str:
+        if self.path is not None:
+            return f"file {self.path}"
+        text = f"gaussian:{self.fwhm:g}"
+        if self.tail > 0:
+            text += f",tail:{self.tail:g},weight:{self.weight:g}"
+        return text
+
+
+def parse_irf(spec: str | os.PathLike | None) -> IRF | None:
+    """Parse ``--irf`` (see the module docstring); a malformed one is one ConfigError line."""
+    if spec is None or str(spec).strip() == "":
+        return None
+    text = os.fspath(spec).strip()
+    if text.lower().endswith(".npy"):
+        if not Path(text).is_file():
+            raise ConfigError(f"--irf file not found: {text}")
+        return IRF(path=text)
+    fields: dict[str, float] = {}
+    for i, part in enumerate(text.split(",")):
+        key, sep, value = part.partition(":")
+        key = key.strip().lower()
+        if not sep or key not in ("gaussian", "tail", "weight") or (i == 0) != (key == "gaussian"):
+            raise ConfigError(f"--irf {text!r}: write gaussian:FWHM[,tail:TAU[,weight:W]] "
+                              f"(seconds) or a .npy file of the response per TDC bin")
+        try:
+            fields[key] = float(value)
+        except ValueError:
+            raise ConfigError(f"--irf {text!r}: {key} must be a number, got {value!r}") from None
+    fwhm, tail = fields["gaussian"], fields.get("tail", 0.0)
+    weight = fields.get("weight", DEFAULT_TAIL_WEIGHT if tail > 0 else 0.0)
+    for name, v in (("FWHM", fwhm), ("tail", tail)):
+        if not 0.0 <= v <= MAX_IRF_S:
+            raise ConfigError(f"--irf {name} must be in [0, {MAX_IRF_S:g}] s, got {v:g}: a "
+                              f"microsecond of response blurs the range by 150 m")
+    if not 0.0 <= weight <= 1.0:
+        raise ConfigError(f"--irf weight must be in [0, 1], got {weight:g}")
+    return IRF(fwhm, tail, weight)
+
+
+def irf_kernel(irf: IRF | None, bin_width: float, period: int):
+    """The IRF as ``(offsets, values)``: bin offsets from the return's own bin (may be
+    negative; the time origin of a sampled file is its peak) and the share of the photons
+    recorded there (sum 1). ``None`` for an ideal instrument."""
+    import numpy as np
+
+    if irf is None:
+        return None
+    if irf.path is not None:
+        try:
+            h = np.load(irf.path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise ConfigError(f"cannot read --irf {irf.path} as a .npy array: {exc}") from None
+        h = np.asarray(h, dtype=np.float64)
+        if h.ndim != 1 or h.size < 1 or not np.all(np.isfinite(h)) or h.min() < 0 or h.sum() <= 0:
+            raise ConfigError(f"--irf {irf.path}: a 1-D array of non-negative numbers, one per "
+                              f"TDC bin, with a positive sum is expected")
+        if h.size > period:
+            raise ConfigError(f"--irf {irf.path}: {h.size} bins, longer than the code period "
+                              f"({period} bins)")
+        offsets = np.arange(h.size) - int(np.argmax(h))
+        keep = h > 0
+        return offsets[keep], h[keep] / h.sum()
+    from .detectors.pileup import jitter_kernel
+
+    sigma = irf.fwhm / _FWHM_PER_SIGMA / bin_width
+    kern = jitter_kernel(period, sigma, irf.tail / bin_width, irf.weight)
+    idx = np.flatnonzero(kern > 1e-7 * kern.max())
+    offsets = np.where(idx > period // 2, idx - period, idx)
+    values = kern[idx]
+    order = np.argsort(offsets)
+    return offsets[order], values[order] / values.sum()
+
+
+def apply_kernel(shifts, weights, kernel, period: int):
+    """Spread each return over the kernel: ``W'[:, (s + o) mod L] += W[:, s] h(o)``.
+
+    Parameters
+    ----------
+    shifts : ndarray of int, shape (S,)
+    weights : ndarray, shape (Q, S)
+        :func:`spslidar.forward.return_weights`.
+    kernel : (offsets, values) or None
+    period : int
+
+    Returns
+    -------
+    (shifts, weights)
+        The occupied bins after the spread, and the spread weights (Q, S').
+    """
+    import numpy as np
+
+    if kernel is None:
+        return shifts, weights
+    offsets, values = kernel
+    target = np.mod(np.asarray(shifts)[:, None] + np.asarray(offsets)[None, :], period)
+    new_shifts, inverse = np.unique(target, return_inverse=True)
+    inverse = inverse.reshape(target.shape)
+    spread = np.zeros((shifts.size, new_shifts.size))
+    for k in range(offsets.size):
+        np.add.at(spread, (np.arange(shifts.size), inverse[:, k]), values[k])
+    return new_shifts, np.asarray(weights, dtype=np.float64) @ spread
+
+
+def instrument_weights(scene, acq, cfg):
+    """Each pixel's return per occupied delay bin as the instrument records it: the time of
+    flight (eq. 2-3) plus the system delay, the RZ pulse over its bins, spread by the IRF.
+
+    Returns ``(shifts, weights)`` as :func:`spslidar.forward.return_weights`.
+    """
+    from .forward import depth_to_delay, return_weights
+
+    delay = depth_to_delay(scene.depth.ravel(), acq.bin_width)
+    delay = delay + float(getattr(cfg, "system_delay", 0.0) or 0.0) / acq.bin_width
+    shifts, weights = return_weights(scene.reflectivity.ravel(), delay, cfg.pulse_width,
+                                     acq.period)
+    kernel = irf_kernel(parse_irf(getattr(cfg, "irf", None)), acq.bin_width, acq.period)
+    return apply_kernel(shifts, weights, kernel, acq.period)
