@@ -267,4 +267,4 @@ def test_bad_arguments(tmp_path, monkeypatch):
     with pytest.raises(ConfigError, match="bins in 0..62"):
         write_acquisition_ptu(path, [np.array([[0, L]])], L, BW)
     monkeypatch.setitem(sys.modules, "ptufile", None)
-    _raises("install spslidar\\[ptu\\]", path, L)
+    _raises("pip install ptufile", path, L)

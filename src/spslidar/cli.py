@@ -287,7 +287,8 @@ def _add_reconstruct_parser(sub) -> None:
                    help="depths to reconstruct, metres")
     p.add_argument("--marker", type=int, default=1, metavar="K",
                    help="marker input flagging a pattern change (default 1)")
-    p.add_argument("--channel", type=int, metavar="C", help="detector channel (default all)")
+    p.add_argument("--channel", type=int, metavar="C",
+                   help="detector channel, numbered from 0 as in the file (default all)")
     p.add_argument("--calibration", metavar="CAL.json",
                    help="remove the system delay and match the IRF measured by 'spslidar "
                         "calibrate' (the range gate is then in true metres)")

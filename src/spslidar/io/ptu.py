@@ -289,6 +289,19 @@ def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
     return _T3_BY_CODE[code][1], n_records
 
 
+def _check_histogram_memory(rows: int, n_bins: int, path: str) -> None:
+    """Refuse (one line) per-pattern histograms that cannot fit: ``rows x n_bins`` counts
+    (int64, and a float32 copy at the end) against the memory available."""
+    from ..machine import _gb, available_memory
+
+    need = float(rows) * n_bins * 12
+    avail = available_memory()
+    if need > 0.8 * avail:
+        raise ConfigError(f"{path!r}: {rows} patterns of {n_bins} bins need {_gb(need)} of "
+                          f"histograms, more than the {_gb(avail)} available: check n_bins "
+                          f"(the code length) and the marker input, or give n_patterns")
+
+
 def read_ptu_histograms(
     path: PathLike,
     n_bins: int,
@@ -381,7 +394,9 @@ def read_ptu_histograms(
                 f"({(period - n_bins * width) / width:+.3g} bins, tolerance {period_tol_bins:g})")
 
         wrap = _FAMILY[family][0]
+        _check_histogram_memory(limit or 16, n_bins, spath)
         hist = np.zeros((limit or 16, n_bins), np.int64)
+        seen_channels: set[int] = set()
         starts: list[np.ndarray] = []
         n_markers = n_photons = n_ofl = carry = n_before = n_after = n_out = bits_seen = 0
         last_sync = -1
@@ -408,6 +423,8 @@ def read_ptu_histograms(
             if events.size:
                 last_sync = int(time[events[-1]]) + carry
 
+            if (~special).any():
+                seen_channels.update(int(c) for c in np.unique(ch[~special]))
             photon = ~special if channels is None else ~special & np.isin(ch, channels)
             pb = block[photon]
             bins = dec["dtime"][photon].astype(np.int64) // binning
@@ -423,7 +440,9 @@ def read_ptu_histograms(
                 pb, bins = pb[keep], bins[keep]
                 b0, b1 = int(pb[0]), int(pb[-1])  # blocks are non-decreasing
                 if b1 >= hist.shape[0]:
-                    grown = np.zeros((max(2 * hist.shape[0], b1 + 1), n_bins), np.int64)
+                    rows = max(2 * hist.shape[0], b1 + 1)
+                    _check_histogram_memory(rows, n_bins, spath)
+                    grown = np.zeros((rows, n_bins), np.int64)
                     grown[: hist.shape[0]] = hist
                     hist = grown
                 counts = np.bincount((pb - b0) * n_bins + bins, minlength=(b1 - b0 + 1) * n_bins)
@@ -443,7 +462,15 @@ def read_ptu_histograms(
     if limit is not None and n_markers < limit:
         raise ConfigError(f"{spath!r} has {n_markers} marker-delimited blocks on marker input "
                           f"{marker}, fewer than n_patterns={limit}")
+    if channels is not None and not set(int(c) for c in channels) & seen_channels:
+        raise ConfigError(
+            f"{spath!r} has no photons on channel {', '.join(str(int(c)) for c in channels)} "
+            f"(channels are numbered from 0 as in the file; photons on "
+            f"{', '.join(map(str, sorted(seen_channels))) or 'no channel'})")
     m = limit if limit is not None else n_markers
+    if hist.shape[0] < m:  # trailing blocks without photons are patterns too
+        _check_histogram_memory(m, n_bins, spath)
+        hist = np.concatenate([hist, np.zeros((m - hist.shape[0], n_bins), np.int64)])
     hist = hist[:m]
     return PtuAcquisition(
         histograms=hist.astype(np.float32), counts_per_pattern=hist.sum(axis=1),

@@ -13,10 +13,10 @@ order of magnitude, from the dominant products at a conservative BLAS rate.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 
 from ..errors import SpslidarError
+from ..machine import _gb, available_memory
 
 __all__ = ["Budget", "available_memory", "check_budget", "check_time", "estimate_budget"]
 
@@ -53,44 +53,12 @@ class Budget:
                 f"{_gb(self.parts.get(big, self.bytes))}){time}")
 
 
-def _gb(b: float) -> str:
-    return f"{b / 1e9:.1f} GB" if b >= 1e8 else f"{b / 1e6:.0f} MB"
-
-
 def _secs(s: float) -> str:
     if s < 120:
         return f"{s:.0f} s"
     if s < 7200:
         return f"{s / 60:.0f} min"
     return f"{s / 3600:.0f} h"
-
-
-def available_memory() -> float:
-    """Bytes of memory this process may still use: ``MemAvailable`` of ``/proc/meminfo``
-    (falling back to the physical memory), capped by ``RLIMIT_AS`` when one is set."""
-    avail = None
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    avail = float(line.split()[1]) * 1024
-                    break
-    except OSError:
-        pass
-    if avail is None:
-        try:
-            avail = float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
-        except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
-            avail = float("inf")
-    try:
-        import resource
-
-        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
-        if soft not in (resource.RLIM_INFINITY, -1) and soft > 0:
-            avail = min(avail, float(soft))
-    except (ImportError, ValueError, OSError):  # pragma: no cover - not POSIX
-        pass
-    return avail
 
 
 def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: int,

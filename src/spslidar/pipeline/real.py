@@ -137,6 +137,12 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     ends = np.append(data.pattern_start_sync[1:], data.last_sync + 1)
     n_k = np.maximum(ends - data.pattern_start_sync, 1).astype(np.float64)
     n_mean = float(n_k.mean())
+    short = np.flatnonzero(n_k < 0.5 * np.median(n_k))
+    dwell_warning = (
+        [f"{short.size} pattern(s) (first: {int(short[0])}) have less than half the median "
+         f"dwell of {np.median(n_k):.0f} code periods (the last block of a cut acquisition, or "
+         f"markers missed?); their histograms are scaled up to the mean dwell"]
+        if short.size else [])
     hist = data.histograms.astype(np.float64) * (n_mean / n_k)[:, None]
     replica = make_replica(code, "bipolar" if cfg.replica == "auto" else cfg.replica)
     lags = gate_lags(cfg.range_gate, bin_width)
@@ -172,6 +178,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     meas = Measurement(cfg, scene, acq, tuple(cfg.range_gate), lags, ulags, inverse,
                        as_patterns(patterns), sim, np.random.SeedSequence(cfg.seed), [],
                        {"simulate": 0.0})
+    meas.warnings.extend(dwell_warning)
     result = reconstruct(meas)
     result.metrics["ptu"] = {
         "file": os.fspath(ptu), "counts_per_pattern": data.counts_per_pattern.tolist(),

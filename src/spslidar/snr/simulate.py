@@ -63,7 +63,7 @@ def _counts_histogram(
 
     period = code.size
     q = n * n
-    from ..pipeline.budget import available_memory
+    from ..machine import available_memory
 
     # the pixel arrays (pattern, reflectivity, delays, amplitudes: ~6 float64 per pixel) and
     # one chunk of histograms with its correlation (~3 float64 per bin)
