@@ -146,3 +146,46 @@ def test_run_save_ptu_round_trip(tmp_path):
     agree = np.mean(np.abs(a - b) <= 0.016)
     assert abs(m_rec["depth_rmse_m"] - m_run["depth_rmse_m"]) < 0.03
     assert agree >= 0.9
+
+
+@pytest.mark.parametrize("change,match", [
+    ({"--ptu": "trunc"}, "truncated or corrupt"),
+    ({"--ptu": "empty"}, "not a readable PicoQuant PTU"),
+    ({"--patterns": "huge"}, "cannot read patterns"),
+    ({"--patterns": "two"}, "marker-delimited blocks but --patterns has 2 rows"),
+    ({"--code": "zeros"}, "needs both 0 and 1 bits"),
+    ({"--bit-rate": "0"}, "--bit-rate must be in"),
+    ({"--bit-rate": "1"}, "--bit-rate must be in"),
+    ({"--range-gate": ["0", "1e9"]}, "narrow the range gate"),
+    ({"--channel": "99"}, "no photons on channel 99"),
+])
+def test_reconstruct_bad_inputs_are_one_line(tmp_path, capsys, change, match):
+    """Inputs nobody should feed it (issue 24, items 3-4): one line, exit 2, nothing written,
+    before the large work (these were tracebacks, a 6.9 GB MemoryError, or silent runs)."""
+    import numpy.lib.format as npformat
+
+    ptu, pats, *_ = _acquisition(tmp_path)
+    (tmp_path / "trunc.ptu").write_bytes(ptu.read_bytes()[:12])
+    (tmp_path / "empty.ptu").write_bytes(b"")
+    with open(tmp_path / "huge.npy", "wb") as fh:  # a header over a body it cannot hold
+        npformat.write_array_header_1_0(fh, {"descr": "<f4", "fortran_order": False,
+                                             "shape": (100000, 1000, 1000)})
+        fh.write(b"\0" * 64)
+    np.save(tmp_path / "two.npy", pats[:2])
+    np.save(tmp_path / "zeros.npy", np.zeros(L, np.uint8))
+    files = {"trunc": "trunc.ptu", "empty": "empty.ptu", "huge": "huge.npy", "two": "two.npy",
+             "zeros": "zeros.npy"}
+    args = {"--ptu": str(ptu), "--patterns": str(tmp_path / "patterns.npy"),
+            "--code": str(tmp_path / "code.npy"), "--bit-rate": "10e9",
+            "--range-gate": ["3.5", "4.8"]}
+    for key, value in change.items():
+        args[key] = (str(tmp_path / files[value]) if isinstance(value, str) and value in files
+                     else value)
+    argv = ["reconstruct"]
+    for key, value in args.items():
+        argv += [key, *value] if isinstance(value, list) else [key, value]
+    out = tmp_path / "out"
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and match in err[0], err
+    assert not out.exists()

@@ -180,6 +180,9 @@ def _open_ptu(path: PathLike):
         raise ConfigError(f"{os.fspath(path)!r} {what} ({msg})") from exc
     except (OSError, ValueError) as exc:
         raise ConfigError(f"cannot open {os.fspath(path)!r} as a PTU file: {exc}") from exc
+    except Exception as exc:  # ptufile's parser on a header cut short (UnboundLocalError...)
+        raise ConfigError(f"{os.fspath(path)!r} has a truncated or corrupt PTU tag header "
+                          f"({type(exc).__name__})") from exc
 
 
 def _header_summary(f, path: PathLike) -> dict[str, Any]:

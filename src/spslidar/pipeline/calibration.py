@@ -140,7 +140,10 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     with what it was measured from (file, hash, photons, patterns, bit rate, code)."""
     from ..io import read_ptu_histograms
     from ..version import __version__
+    from .real import check_real_inputs
 
+    check_real_inputs(bit_rate, (0.0, 1.0), int(patterns.shape[1]), int(patterns.shape[0]),
+                      int(code.size))
     bin_width = 1.0 / float(bit_rate)
     data = read_ptu_histograms(ptu, int(code.size), bin_width=bin_width, marker=marker,
                                channel=channel, n_patterns=int(patterns.shape[0]))

@@ -39,9 +39,19 @@ def _load_npy(path: str | os.PathLike, what: str) -> np.ndarray:
     if not p.is_file():
         raise ConfigError(f"{what} file not found: {p}")
     try:
-        return np.load(p, allow_pickle=False)
+        # the header first (a memory map reads no data): a shape the file cannot hold, or one
+        # too large for this machine, is refused before anything is allocated
+        head = np.load(p, allow_pickle=False, mmap_mode="r")
     except (ValueError, OSError) as exc:
-        raise ConfigError(f"cannot read {what} {p} as a .npy array: {exc}") from None
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ConfigError(f"cannot read {what} {p} as a .npy array: {msg}") from None
+    from ..machine import _gb, available_memory
+
+    need = float(head.size) * 8 * 2  # float64 copies while checking
+    if need > 0.8 * available_memory():
+        raise ConfigError(f"{what} {p} holds an array of shape {head.shape}: {_gb(need)} to "
+                          f"check, more than the memory available")
+    return np.array(head)
 
 
 def load_patterns(path: str | os.PathLike) -> np.ndarray:
@@ -68,7 +78,40 @@ def load_code(code: str | os.PathLike, code_length: int | None = None) -> np.nda
     arr = _load_npy(code, "code")
     if arr.ndim != 1 or arr.size < 2 or not np.all((arr == 0) | (arr == 1)):
         raise ConfigError(f"--code must be a 1-D array of 0/1 bits, got shape {arr.shape}")
+    ones = int(arr.sum())
+    if ones in (0, arr.size):  # no modulation: nothing to correlate with
+        raise ConfigError(f"--code {code}: all {arr.size} bits are {int(ones > 0)}; a code "
+                          f"needs both 0 and 1 bits (the laser is modulated by them)")
     return arr.astype(np.uint8)
+
+
+def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: int,
+                      period: int) -> None:
+    """Refuse, in one line and before the file is read, what no real acquisition can be: a
+    bit rate outside [1e6, 1e13] (as ``run``), and a range gate whose slices would not fit in
+    memory (``--range-gate 0 100000`` reached 6.9 GB, then a MemoryError)."""
+    import math
+
+    from ..machine import _gb, available_memory
+
+    try:
+        rate = float(bit_rate)
+    except (TypeError, ValueError):
+        raise ConfigError(f"--bit-rate must be a number, got {bit_rate!r}") from None
+    if not (math.isfinite(rate) and 1e6 <= rate <= 1e13):
+        raise ConfigError(f"--bit-rate must be in [1e6, 1e13] bits (TDC bins) per second, got "
+                          f"{bit_rate!r}")
+    lo, hi = (float(v) for v in range_gate)
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
+        raise ConfigError(f"--range-gate must be MIN MAX with 0 <= MIN < MAX metres, got "
+                          f"{lo:g} {hi:g}")
+    n_lags = (hi - lo) * 2.0 * rate / 299792458.0 + 2
+    # range slices (float32 and the estimator's float64 copies) and the solver's blocks
+    need = float(n_pixels) * n_lags * 20 + 16.0 * n_pixels * min(n_lags, period) * 4
+    if need > 0.8 * available_memory():
+        raise ConfigError(f"--range-gate {lo:g} {hi:g} spans {n_lags:.3g} TDC bins: "
+                          f"{_gb(need)} of range slices for {n_pixels} pixels, more than the "
+                          f"memory available; narrow the range gate")
 
 
 def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray,
@@ -123,6 +166,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
 
     m, q = patterns.shape
     n = int(round(np.sqrt(q)))
+    check_real_inputs(bit_rate, range_gate, q, m, int(code.size))
     bin_width = 1.0 / float(bit_rate)
     period = int(code.size)
     cfg = Config.from_dict({"size": n, "bit_rate": float(bit_rate), "code": "random",
@@ -134,6 +178,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
             raise ConfigError(f"--truth must be an ({n}, {n}) depth map, got {truth.shape}")
     data = read_ptu_histograms(ptu, period, bin_width=bin_width, marker=marker,
                                channel=channel, n_patterns=m)
+    if data.n_markers > m + 1:  # one trailing end-of-acquisition marker is common
+        raise ConfigError(f"{os.fspath(ptu)!r} has {data.n_markers} marker-delimited blocks "
+                          f"but --patterns has {m} rows: the patterns shown do not match the "
+                          f"file (or --marker names the wrong input)")
     ends = np.append(data.pattern_start_sync[1:], data.last_sync + 1)
     n_k = np.maximum(ends - data.pattern_start_sync, 1).astype(np.float64)
     n_mean = float(n_k.mean())
