@@ -297,7 +297,7 @@ def _check_histogram_memory(rows: int, n_bins: int, path: str) -> None:
     (int64, and a float32 copy at the end) against the memory available."""
     from ..machine import _gb, available_memory
 
-    need = float(rows) * n_bins * 12
+    need = float(rows) * n_bins * 8  # int32 counts and their float32 copy
     avail = available_memory()
     if need > 0.8 * avail:
         raise ConfigError(f"{path!r}: {rows} patterns of {n_bins} bins need {_gb(need)} of "
@@ -398,7 +398,7 @@ def read_ptu_histograms(
 
         wrap = _FAMILY[family][0]
         _check_histogram_memory(limit or 16, n_bins, spath)
-        hist = np.zeros((limit or 16, n_bins), np.int64)
+        hist = np.zeros((limit or 16, n_bins), np.int32)  # counts per bin: < 2^31
         seen_channels: set[int] = set()
         starts: list[np.ndarray] = []
         n_markers = n_photons = n_ofl = carry = n_before = n_after = n_out = bits_seen = 0
@@ -445,7 +445,7 @@ def read_ptu_histograms(
                 if b1 >= hist.shape[0]:
                     rows = max(2 * hist.shape[0], b1 + 1)
                     _check_histogram_memory(rows, n_bins, spath)
-                    grown = np.zeros((rows, n_bins), np.int64)
+                    grown = np.zeros((rows, n_bins), np.int32)
                     grown[: hist.shape[0]] = hist
                     hist = grown
                 counts = np.bincount((pb - b0) * n_bins + bins, minlength=(b1 - b0 + 1) * n_bins)
@@ -473,7 +473,7 @@ def read_ptu_histograms(
     m = limit if limit is not None else n_markers
     if hist.shape[0] < m:  # trailing blocks without photons are patterns too
         _check_histogram_memory(m, n_bins, spath)
-        hist = np.concatenate([hist, np.zeros((m - hist.shape[0], n_bins), np.int64)])
+        hist = np.concatenate([hist, np.zeros((m - hist.shape[0], n_bins), np.int32)])
     hist = hist[:m]
     return PtuAcquisition(
         histograms=hist.astype(np.float32), counts_per_pattern=hist.sum(axis=1),
