@@ -268,3 +268,20 @@ def test_bad_arguments(tmp_path, monkeypatch):
         write_acquisition_ptu(path, [np.array([[0, L]])], L, BW)
     monkeypatch.setitem(sys.modules, "ptufile", None)
     _raises("pip install ptufile", path, L)
+
+
+def test_negative_record_count_is_refused(tmp_path):
+    """A header announcing -5 records was read as if it gave none (issue 24, item 4)."""
+    import struct
+
+    from spslidar.io import write_acquisition_ptu
+
+    path = tmp_path / "neg.ptu"
+    write_acquisition_ptu(path, [np.array([[0, 5]]), np.array([[0, 6]])], 127, 1e-10,
+                          periods_per_pattern=1)
+    data = bytearray(path.read_bytes())
+    at = data.find(b"TTResult_NumberOfRecords")
+    struct.pack_into("<q", data, at + 40, -5)  # the tag's 8-byte value follows its 40 bytes
+    path.write_bytes(bytes(data))
+    with pytest.raises(ConfigError, match="-5 records"):
+        read_ptu_histograms(path, 127, bin_width=1e-10)

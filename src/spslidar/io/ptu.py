@@ -281,7 +281,9 @@ def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
         raise ConfigError(f"{path!r}: {bits} bits per record, expected 32")
     n_records = header["n_records"]
     available = os.path.getsize(path) - f.record_offset
-    if n_records <= 0:  # no record count in the header: use the whole file, as ptufile does
+    if n_records < 0:  # a corrupt header: no reader can say which records are meant
+        raise ConfigError(f"{path!r}: header announces {n_records} records (corrupt file)")
+    if n_records == 0:  # no record count in the header: use the whole file, as ptufile does
         if available % 4:
             raise ConfigError(f"{path!r}: record stream of {available} bytes is not a whole "
                               "number of 32-bit records (truncated or corrupt file)")
