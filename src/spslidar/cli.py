@@ -264,6 +264,22 @@ def _add_fov_option(p: argparse.ArgumentParser) -> None:
                         "10; the paper gives no optics)")
 
 
+def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help: str) -> None:
+    """The flags that describe a measured acquisition (reconstruct, calibrate)."""
+    p.add_argument("--ptu", required=True, metavar=ptu_metavar, help=ptu_help)
+    p.add_argument("--patterns", required=True, metavar="PATTERNS.npy",
+                   help="(M, N, N) mirror states shown, in marker order (0/1 or grey in [0, 1])")
+    p.add_argument("--code", required=True, metavar="CODE.npy|mseq",
+                   help="unipolar bits of one code period (.npy), or mseq with --code-length")
+    p.add_argument("--code-length", type=int, metavar="L", help="m-sequence length (2^n - 1)")
+    p.add_argument("--bit-rate", type=float, required=True, metavar="HZ",
+                   help="bits (TDC bins) per second; must match the file's resolution")
+    p.add_argument("--marker", type=int, default=1, metavar="K",
+                   help="marker input flagging a pattern change (default 1)")
+    p.add_argument("--channel", type=int, metavar="C",
+                   help="detector channel, numbered from 0 as in the file (default all)")
+
+
 def _add_reconstruct_parser(sub) -> None:
     """``spslidar reconstruct``: a measured T3 PTU acquisition -> depth map."""
     solvers, _ = _choices("solver")
@@ -275,20 +291,9 @@ def _add_reconstruct_parser(sub) -> None:
                     "pattern change), histogram them per pattern over the code period and run "
                     "the matched filter, QCR, solver and depth stages of 'run'; writes "
                     "depth.npy, metrics.json and depth.png into --out.")
-    p.add_argument("--ptu", required=True, metavar="FILE.ptu", help="T3 PTU file")
-    p.add_argument("--patterns", required=True, metavar="PATTERNS.npy",
-                   help="(M, N, N) mirror states shown, in marker order (0/1 or grey in [0, 1])")
-    p.add_argument("--code", required=True, metavar="CODE.npy|mseq",
-                   help="unipolar bits of one code period (.npy), or mseq with --code-length")
-    p.add_argument("--code-length", type=int, metavar="L", help="m-sequence length (2^n - 1)")
-    p.add_argument("--bit-rate", type=float, required=True, metavar="HZ",
-                   help="bits (TDC bins) per second; must match the file's resolution")
+    _add_acquisition_args(p, "FILE.ptu", "T3 PTU file")
     p.add_argument("--range-gate", type=float, nargs=2, required=True, metavar=("MIN", "MAX"),
                    help="depths to reconstruct, metres")
-    p.add_argument("--marker", type=int, default=1, metavar="K",
-                   help="marker input flagging a pattern change (default 1)")
-    p.add_argument("--channel", type=int, metavar="C",
-                   help="detector channel, numbered from 0 as in the file (default all)")
     p.add_argument("--calibration", metavar="CAL.json",
                    help="remove the system delay and match the IRF measured by 'spslidar "
                         "calibrate' (the range gate is then in true metres)")
@@ -353,20 +358,9 @@ def _add_calibrate_parser(sub) -> None:
                     "T3 PTU acquisition of a flat target at a known distance (any patterns) "
                     "and write them, with what they were measured from, to CAL.json for "
                     "'spslidar reconstruct --calibration'.")
-    p.add_argument("--ptu", required=True, metavar="FLAT.ptu", help="T3 PTU file of the target")
-    p.add_argument("--patterns", required=True, metavar="PATTERNS.npy",
-                   help="(M, N, N) mirror states shown, in marker order")
-    p.add_argument("--code", required=True, metavar="CODE.npy|mseq",
-                   help="unipolar bits of one code period (.npy), or mseq with --code-length")
-    p.add_argument("--code-length", type=int, metavar="L", help="m-sequence length (2^n - 1)")
-    p.add_argument("--bit-rate", type=float, required=True, metavar="HZ",
-                   help="bits (TDC bins) per second; must match the file's resolution")
+    _add_acquisition_args(p, "FLAT.ptu", "T3 PTU file of the target")
     p.add_argument("--distance", type=float, required=True, metavar="M",
                    help="the flat target's distance from the lidar, metres")
-    p.add_argument("--marker", type=int, default=1, metavar="K",
-                   help="marker input flagging a pattern change (default 1)")
-    p.add_argument("--channel", type=int, metavar="C",
-                   help="detector channel, numbered from 0 as in the file (default all)")
     p.add_argument("--out", required=True, metavar="CAL.json", help="calibration file to write")
     p.add_argument("--overwrite", action="store_true",
                    help="replace a calibration file spslidar wrote")

@@ -35,6 +35,7 @@ import numpy as np
 
 from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
+from ..outdir import _sha256 as sha256_file  # one file hasher for the project
 
 __all__ = ["calibrate_ptu", "calibrated_filter", "load_calibration", "measure_response",
            "write_calibration"]
@@ -45,14 +46,6 @@ IRF_BEFORE, IRF_AFTER = 8, 40
 IRF_FLOOR_SIGMA = 3.0
 #: format tag of a calibration file
 CAL_KIND = "spslidar-calibration"
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _shift(g: np.ndarray, a: float) -> np.ndarray:
@@ -155,7 +148,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
             "code_sha256": hashlib.sha256(np.asarray(code, np.uint8).tobytes()).hexdigest(),
             "pulse_width": float(pulse_width), "distance_m": float(distance),
             "measured_from": {"ptu": path.name, "bytes": path.stat().st_size,
-                              "sha256": _sha256(path), "photons": int(data.n_photons),
+                              "sha256": sha256_file(path), "photons": int(data.n_photons),
                               "patterns": int(patterns.shape[0])}}
 
 
