@@ -140,3 +140,30 @@ def test_check_output_messages(tmp_path):
     with pytest.raises(SpslidarError, match="not a spslidar result"):
         check_output(tmp_path)
     assert check_output(tmp_path / "new") == tmp_path / "new"
+
+
+def test_result_of_an_older_version_is_not_replaced(tmp_path, capsys):
+    """A result folder written before markers existed (0.1.0: no marker) is not known to be
+    spslidar's: --overwrite refuses it in one line saying why, and nothing in it changes."""
+    out = tmp_path / "r"
+    assert _run(out) == 0
+    (out / ".spslidar-output.json").unlink()
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    capsys.readouterr()
+    assert _run(out, "--seed", "1", "--overwrite") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "before version 0.2.0" in err[0], err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_replaced_result_marker_lists_the_new_files(tmp_path):
+    """Replacing a result: files the old marker listed and the new run did not write are
+    removed, the new marker names exactly what is there, with a new id."""
+    out = tmp_path / "r"
+    assert _run(out) == 0
+    first = json.loads((out / ".spslidar-output.json").read_text())
+    (out / "confidence.npy").unlink()  # a file of ours the user removed: not an error
+    assert _run(out, "--overwrite", "--seed", "2") == 0
+    second = json.loads((out / ".spslidar-output.json").read_text())
+    assert second["id"] != first["id"] and second["kind"] == "result"
+    assert set(second["files"]) == {p.name for p in out.iterdir()} - {".spslidar-output.json"}

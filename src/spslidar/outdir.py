@@ -24,28 +24,41 @@ the folder ``0700``).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
 import shutil
 import tempfile
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import BinaryIO
 
 from .errors import ConfigError, SpslidarError
 
-__all__ = ["MARKER", "RESULT_FILES", "atomic_write_bytes", "atomic_write_text", "check_files",
-           "check_output", "claim_folder", "is_result", "read_marker", "umask_mode",
-           "write_files", "write_result_dir"]
+__all__ = ["MARKER", "RESULT_FILES", "atomic_file", "atomic_write_bytes", "atomic_write_text",
+           "check_files", "check_output", "claim_folder", "is_result", "read_marker",
+           "sha256_file", "umask_mode", "write_files", "write_result_dir"]
 
 #: the marker file spslidar writes into every output folder it owns
 MARKER = ".spslidar-output.json"
 
-#: every file a ``spslidar run`` result folder may hold
-RESULT_FILES = frozenset({"metrics.json", "depth.npy", "truth.npy", "valid.npy",
-                          "confidence.npy", "reflectivity.npy", "points.ply", "depth2.npy",
-                          "depth.png"})
+#: Every file a ``spslidar run`` / ``reconstruct`` result folder may hold. A new output of
+#: :meth:`~spslidar.pipeline.results.Result.save` needs its name here (one line): a name not
+#: listed stops the save as a programming error. The marker of each result lists the files
+#: that result actually wrote, and only those are ever replaced or removed.
+RESULT_FILES = frozenset({
+    "metrics.json",
+    "depth.npy",
+    "truth.npy",
+    "valid.npy",
+    "confidence.npy",
+    "reflectivity.npy",
+    "points.ply",
+    "depth2.npy",
+    "depth.png",
+})
 
 
 def umask_mode(base: int = 0o777) -> int:
@@ -160,7 +173,8 @@ def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
         written = {p.name for p in tmp.iterdir()}
         unknown = written - RESULT_FILES
         if unknown:  # pragma: no cover - a programming error, not user input
-            raise RuntimeError(f"unexpected result files {sorted(unknown)}")
+            raise RuntimeError(f"Result.save wrote {sorted(unknown)}, not named in "
+                               f"spslidar.outdir.RESULT_FILES: add them there")
         _write_marker(tmp, "result", written)
         path = check_output(out, overwrite)  # nothing appeared meanwhile
         if not path.exists():
@@ -208,7 +222,8 @@ def claim_folder(out: str | os.PathLike, kind: str, option: str = "--out") -> Pa
         return path
     meta = read_marker(path)
     if meta is None or meta["kind"] != kind:
-        what = "no spslidar marker" if meta is None else f"a spslidar {meta['kind']}"
+        what = ("no spslidar marker (outputs of spslidar before 0.2.0 have none)"
+                if meta is None else f"a spslidar {meta['kind']}")
         raise ConfigError(
             f"{option} {out}: the folder is not empty and holds {what}, not the output of an "
             f"earlier 'spslidar {kind}' (which it would resume); refusing to write into it "
@@ -216,12 +231,16 @@ def claim_folder(out: str | os.PathLike, kind: str, option: str = "--out") -> Pa
     return path
 
 
-def _sha256(path: Path) -> str:
+def sha256_file(path: str | os.PathLike) -> str:
+    """The SHA-256 of a file's content (hex), read in 1 MiB blocks."""
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+_sha256 = sha256_file  # the name calibration.py imports
 
 
 def _files_marker(first: Path) -> Path:
@@ -238,15 +257,18 @@ def check_files(paths, overwrite: bool = False, option: str = "--save-ptu") -> N
         return
     if not overwrite:
         raise SpslidarError(f"{option}: {present[0]} exists; use --overwrite to replace it")
+    marker = _files_marker(paths[0])
     try:
-        with open(_files_marker(paths[0])) as fh:
+        with open(marker) as fh:
             sums = json.load(fh).get("sha256", {})
     except (OSError, ValueError, AttributeError):
         sums = {}
     for p in present:
-        if not p.is_file() or sums.get(p.name) != _sha256(p):
-            raise SpslidarError(f"{option}: {p} exists and is not a file spslidar wrote (or it "
-                                f"changed since); refusing to replace it, even with --overwrite")
+        if not p.is_file() or sums.get(p.name) != sha256_file(p):
+            why = ("or it changed since" if marker.exists() else
+                   f"no marker {marker.name} beside it; spslidar before 0.2.0 wrote none")
+            raise SpslidarError(f"{option}: {p} exists and is not a file spslidar wrote ({why}); "
+                                f"refusing to replace it, even with --overwrite")
 
 
 def write_files(paths, write: Callable[[list[Path]], None], overwrite: bool = False,
@@ -262,7 +284,7 @@ def write_files(paths, write: Callable[[list[Path]], None], overwrite: bool = Fa
         write(tmps)
         for t in tmps:
             os.chmod(t, umask_mode(0o666))
-        sums = {p.name: _sha256(t) for p, t in zip(paths, tmps, strict=True)}
+        sums = {p.name: sha256_file(t) for p, t in zip(paths, tmps, strict=True)}
         check_files(paths, overwrite, option)  # nothing appeared meanwhile
         marker = _files_marker(paths[0])
         from .version import __version__
@@ -280,6 +302,45 @@ def write_files(paths, write: Callable[[list[Path]], None], overwrite: bool = Fa
         raise
 
 
+@contextlib.contextmanager
+def atomic_file(path: str | os.PathLike[str]) -> Iterator[BinaryIO]:
+    """Open ``path`` for writing, all or nothing: a context manager yielding a binary file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file; its folder must exist. An existing file is replaced only once the block
+        has finished without an exception.
+
+    Yields
+    ------
+    BinaryIO
+        A temporary file in the same folder (so ``os.replace`` is atomic).
+
+    Notes
+    -----
+    When the block ends the file is flushed to disk and moved onto ``path``; on any error
+    (a full disk, KeyboardInterrupt included) the temporary file is removed and ``path`` is
+    untouched. The file's mode is ``0o666`` less the process's umask (``0o644`` under umask
+    022), as for a file opened with ``open(path, 'w')``.
+    """
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, umask_mode(0o666))
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
     """Write ``data`` to ``path`` atomically, with the umask's permissions.
 
@@ -292,26 +353,11 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
 
     Notes
     -----
-    The data go to a temporary file in the same folder (so ``os.replace`` is atomic), which is
-    flushed to disk before it replaces ``path``; on any error (KeyboardInterrupt included) the
-    temporary file is removed and ``path`` is untouched. The file's mode is ``0o666`` less the
-    process's umask (``0o644`` under umask 022), as for a file opened with ``open(path, 'w')``.
+    See :func:`atomic_file` (temporary file in the same folder, fsync, ``os.replace``; on any
+    error ``path`` is untouched and nothing is left behind).
     """
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, umask_mode(0o666))
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    with atomic_file(path) as fh:
+        fh.write(data)
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:

@@ -104,7 +104,8 @@ def write_ptu_t3(
     Parameters
     ----------
     path : str or os.PathLike
-        Output file (overwritten).
+        Output file, replaced (written under a temporary name in its folder and moved onto
+        ``path`` once complete: a failed write leaves ``path`` as it was and no partial file).
     nsync : array_like of int
         ``(n,)`` global (unwrapped) sync count of each event, non-decreasing.
     dtime : array_like of int
@@ -197,10 +198,18 @@ def write_ptu_t3(
     header = [_MAGIC, b"1.0.00\x00\x00"]
     header += [_encode_tag(key, value) for key, value in tags.items()]
     header.append(_encode_tag("Header_End", None))
-    with open(path, "wb") as fh:
-        fh.write(b"".join(header))
-        fh.write(records.astype("<u4", copy=False).tobytes())
+    from ..outdir import atomic_file
+
+    with atomic_file(path) as fh:  # a failed write (a full disk) leaves no partial file
+        _dump(fh, b"".join(header), records)
     return total
+
+
+def _dump(fh: Any, header: bytes, records: np.ndarray) -> None:
+    """The header, then the records as little-endian 32-bit words (no copy on a
+    little-endian machine)."""
+    fh.write(header)
+    fh.write(memoryview(np.ascontiguousarray(records.astype("<u4", copy=False))).cast("B"))
 
 
 def _concat(parts: list[np.ndarray]) -> np.ndarray:
@@ -233,7 +242,8 @@ def write_acquisition_ptu(
     Parameters
     ----------
     path : str or os.PathLike
-        Output file (overwritten).
+        Output file, replaced (written under a temporary name in its folder and moved onto
+        ``path`` once complete: a failed write leaves ``path`` as it was and no partial file).
     pattern_events : sequence of array_like
         Per pattern, an ``(n_k, 2)`` integer array of ``(period index, bin)`` photon events,
         ``0 <= period < P_k`` and ``0 <= bin < period_bins``, in any order.

@@ -323,8 +323,10 @@ def write_measurement_arrays(meas, ptu_path, paths=None) -> tuple[str, str]:
         pats[:, start:start + eye.shape[1]] = meas.patterns.apply_rows(
             slice(0, meas.patterns.shape[0]), eye)
     p_path, c_path = ptu_companions(ptu_path) if paths is None else (str(p) for p in paths)
-    with open(p_path, "wb") as fh:
+    from ..outdir import atomic_file
+
+    with atomic_file(p_path) as fh:  # a failed write leaves no partial file
         np.save(fh, pats.reshape(-1, n, n))
-    with open(c_path, "wb") as fh:
+    with atomic_file(c_path) as fh:
         np.save(fh, np.asarray(meas.acq.code, dtype=np.uint8))
     return str(p_path), str(c_path)
