@@ -21,7 +21,7 @@ from spslidar.scenes import load_scene
 BW = 1e-10  # 100 ps bins
 BIN_M = SPEED_OF_LIGHT * BW / 2  # 1.5 cm
 PW = 0.5
-SPATIAL = ("censor", "mrf")
+SPATIAL = ("censor", "mrf", "guarded")
 ALL = ("argmax",) + SPATIAL
 
 
@@ -110,7 +110,7 @@ def test_slanted_plane_and_one_pixel_pole_survive_noise(name, seed):
     est = ESTIMATORS.load(name)().estimate(slices, ctx)
     am = ESTIMATORS.load("argmax")().estimate(slices, ctx)
     bad, bad_am = off(est, depth), off(am, depth)
-    limit = 0.05 if name == "mrf" else 0.1
+    limit = 0.1 if name == "censor" else 0.05
     assert bad[weak].mean() < limit < bad_am[weak].mean()  # weak slanted band recovered
     assert bad[pole].mean() <= 0.1  # the one-pixel pole is not smoothed away
     plane = ~weak & ~pole
@@ -243,3 +243,96 @@ def test_mrf_beats_argmax_on_the_motorcycle_end_to_end():
         rmse[name] = float(np.sqrt(np.mean((d[have] - truth[have]) ** 2)))
     assert rmse["mrf"] < 0.5 * rmse["argmax"]
     assert rmse["mrf"] < 0.1
+
+
+def poles_and_fence(n: int = 24):
+    """A wall at 4 m with one-pixel poles at 3 m (one bright, one dark: 0.05 against the
+    wall's 0.6) and a mesh at 2.5 m over the middle rows in front of it (half a pixel's
+    footprint each: returns of 0.45 from the mesh and 0.3 from the wall)."""
+    depth = np.full((n, n), 4.0)
+    amp = np.full((n, n), 0.6)
+    depth[:, 5], amp[:, 5] = 3.0, 1.0
+    depth[:, 9], amp[:, 9] = 3.0, 0.05
+    mesh = np.zeros((n, n), bool)
+    mesh[14:20, 12:22] = True
+    depth[mesh], amp[mesh] = 2.5, 0.45
+    front, ctx = cube(depth, amp, margin=12)
+    behind = np.where(mesh, 4.0, depth)
+    back, _ = cube(behind, np.where(mesh, 0.3, 0.0), margin=12)
+    lag0 = int(np.floor(depth_to_delay(np.array([behind.min()]), BW)[0])) - 12
+    lags0 = int(np.floor(depth_to_delay(np.array([depth.min()]), BW)[0])) - 12
+    # both blocks on the front block's lags (the wall behind lies inside them)
+    shift = lag0 - lags0
+    slices = front.copy()
+    slices[:, shift:shift + back.shape[1]] += back[:, : slices.shape[1] - shift]
+    return slices, ctx, depth, mesh
+
+
+def test_poles_and_fence_setup_is_meaningful():
+    slices, ctx, depth, mesh = poles_and_fence()
+    am = ESTIMATORS.load("argmax")().estimate(slices, ctx)
+    assert not off(am, depth).any()  # noiseless: the mesh, stronger, is each pixel's tallest
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_noiseless_one_pixel_poles_and_fence_recovered(name):
+    slices, ctx, depth, mesh = poles_and_fence()
+    est = ESTIMATORS.load(name)().estimate(slices, ctx)
+    err = np.abs(est.depth.reshape(depth.shape) - depth)
+    assert np.all(err <= BIN_M / 2 + 1e-9)  # the dark pole and the mesh's first surface too
+
+
+def test_guarded_reports_the_second_surface_of_a_fence():
+    slices, ctx, depth, mesh = poles_and_fence()
+    est = ESTIMATORS.load("guarded")().estimate(slices, ctx)
+    d2 = est.depth2.reshape(depth.shape)
+    assert np.isfinite(d2[mesh]).all()
+    assert np.all(np.abs(d2[mesh] - 4.0) <= BIN_M / 2 + 1e-9)  # the wall behind the mesh
+    assert np.isnan(d2[~mesh]).all()  # one surface elsewhere, poles included
+    assert est.info["two_surface_fraction"] == pytest.approx(mesh.mean())
+
+
+def test_second_surface_needs_significance_not_just_a_second_maximum():
+    from spslidar.depth.guarded import GuardedDepth
+
+    slices, ctx, depth, weak, pole = noisy_scene(4)
+    est = GuardedDepth().estimate(slices, ctx)
+    # one surface per pixel, with noise spikes: every profile has a second maximum, but
+    # few pass the test
+    assert np.isfinite(est.depth2).mean() < 0.03
+    assert all(ESTIMATORS.load(n)().estimate(slices, ctx).depth2 is None
+               for n in ("argmax", "censor", "mrf"))
+
+
+def test_guard_keeps_a_strong_one_pixel_pole_that_the_mrf_smooths_away():
+    from spslidar.depth.guarded import GuardedDepth
+
+    slices, ctx, depth, weak, pole = noisy_scene(0)
+    strict = MRFDepth(truncation=8.0).estimate(slices, ctx)  # an MRF that erases the pole
+    guarded = GuardedDepth(truncation=8.0).estimate(slices, ctx)
+    assert off(strict, depth)[pole].mean() > 0.9
+    assert off(guarded, depth)[pole & ~weak].mean() < 0.1
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [
+    pytest.param(3, marks=pytest.mark.xfail(
+        reason="issue 21, open: at 32x32, 50 % the MRF replaces thin objects that argmax "
+               "keeps (mrf 0.369 m, guarded 0.366 m against argmax 0.275 m)", strict=True)),
+    11, 5])
+def test_default_within_five_percent_of_argmax_on_procedural_scenes(seed):
+    import spslidar
+    from spslidar.config import Config
+
+    meas = spslidar.measure(scene=f"procedural:{seed}", size=32, noise=5, compression=0.5,
+                            seed=seed)
+    r = spslidar.reconstruct(meas)
+    ctx = DepthContext(np.asarray(r.lags), meas.acq.bin_width, r.config.pulse_width,
+                       (32, 32), False)
+    truth, valid = r.scene.depth, r.scene.valid
+    rmse = {}
+    for name in ("argmax", Config().depth):
+        d = ESTIMATORS.load(name)().estimate(r.slices, ctx).depth.reshape(truth.shape)
+        have = valid & np.isfinite(d)
+        rmse[name] = float(np.sqrt(np.mean((d[have] - truth[have]) ** 2)))
+    assert rmse[Config().depth] <= 1.05 * rmse["argmax"]

@@ -159,11 +159,19 @@ def instrument_weights(scene, acq, cfg):
 
     Returns ``(shifts, weights)`` as :func:`spslidar.forward.return_weights`.
     """
+    import numpy as np
+
     from .forward import depth_to_delay, return_weights
 
-    delay = depth_to_delay(scene.depth.ravel(), acq.bin_width)
+    depth, refl = scene.depth.ravel(), scene.reflectivity.ravel()
+    behind = getattr(scene, "behind_depth", None)  # a second surface (scenes.procedural)
+    if behind is not None:
+        depth = np.concatenate([depth, np.nan_to_num(behind.ravel(), nan=depth.max())])
+        refl = np.concatenate([refl, scene.behind_reflectivity.ravel()])
+    delay = depth_to_delay(depth, acq.bin_width)
     delay = delay + float(getattr(cfg, "system_delay", 0.0) or 0.0) / acq.bin_width
-    shifts, weights = return_weights(scene.reflectivity.ravel(), delay, cfg.pulse_width,
-                                     acq.period)
+    shifts, weights = return_weights(refl, delay, cfg.pulse_width, acq.period)
+    if behind is not None:  # each pixel's two returns add up
+        weights = weights[: scene.depth.size] + weights[scene.depth.size:]
     kernel = irf_kernel(parse_irf(getattr(cfg, "irf", None)), acq.bin_width, acq.period)
     return apply_kernel(shifts, weights, kernel, acq.period)

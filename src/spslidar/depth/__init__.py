@@ -23,6 +23,10 @@ ESTIMATORS.add("argmax", "spslidar.depth.argmax:ArgmaxDepth", "ML argmax",
 ESTIMATORS.add("censor", "spslidar.depth.censor:CensorDepth", "censor + recover",
                "fast: argmax, then pixels that fit no neighbour and have an ambiguous return "
                "are re-estimated near their neighbours' depths (Shin et al. 2015)")
+ESTIMATORS.add("guarded", "spslidar.depth.guarded:GuardedDepth", "guarded MRF",
+               "MRF labelling that never overrides a pixel's own significant return (an "
+               "evidence test against the block's noise maxima), plus a second surface per "
+               "pixel where the profile holds two significant returns")
 ESTIMATORS.add("mrf", "spslidar.depth.mrf:MRFDepth", "MRF (loopy BP)",
                "the default: each pixel's range slice by a truncated-linear Markov random "
                "field over the image, solved by loopy belief propagation (best or tied on every "

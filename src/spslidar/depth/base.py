@@ -58,6 +58,10 @@ class DepthEstimate:
         Pixels with a depth whose confidence is below the estimator's threshold.
     info : dict
         Estimator-specific numbers for ``metrics.json``.
+    depth2 : ndarray or None
+        A second surface per pixel, metres: where the profile holds a second return that
+        passes the estimator's significance test, its depth; NaN where the pixel shows one
+        surface. None: the estimator does not look for a second surface.
     """
 
     depth: np.ndarray
@@ -65,6 +69,7 @@ class DepthEstimate:
     peak: np.ndarray
     low_confidence: np.ndarray
     info: dict[str, Any] = field(default_factory=dict)
+    depth2: np.ndarray | None = None
 
 
 class DepthEstimator:

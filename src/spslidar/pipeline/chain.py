@@ -185,7 +185,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         meas, cfg, depth=depth, slices=slices, corr=corr, keep=keep, auto=auto,
         confidence=est.confidence, low_confidence=est.low_confidence, depth_info=est.info,
         lam=lam, lam_scale=lam_scale, sigma_eff=sigma_eff, info=info, iterations=iterations,
-        timing=timing, warns=warns, lam_floored=floored)
+        timing=timing, warns=warns, lam_floored=floored, depth2=est.depth2)
 
 
 def run(config: Config | dict | None = None, **overrides) -> Result:

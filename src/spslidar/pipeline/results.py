@@ -36,6 +36,9 @@ class Result:
     #: (:func:`spslidar.products.reflectivity_image`): an estimate of alpha in [0, 1] for a
     #: simulation, detected photons per pulse for a measured acquisition; NaN without a return
     reflectivity: np.ndarray | None = None
+    #: a second surface per pixel (metres; NaN where the pixel shows one surface), where the
+    #: depth estimator looks for one (:attr:`spslidar.depth.DepthEstimate.depth2`)
+    depth2: np.ndarray | None = None
 
     @property
     def truth(self) -> np.ndarray:
@@ -84,8 +87,9 @@ class Result:
     def save(self, out_dir: str | os.PathLike, figure: bool = True,
              overwrite: bool = False, fov_deg: float | None = None) -> Path:
         """Write ``metrics.json``, ``depth.npy``, ``reflectivity.npy``, ``confidence.npy``,
-        ``points.ply``, ``depth.png`` and, where the scene has a ground truth, ``truth.npy``
-        and ``valid.npy`` into ``out_dir``, all or nothing (see :mod:`spslidar.outdir`).
+        ``points.ply``, ``depth.png``, ``depth2.npy`` where the estimator looks for a second
+        surface and, where the scene has a ground truth, ``truth.npy`` and ``valid.npy`` into
+        ``out_dir``, all or nothing (see :mod:`spslidar.outdir`).
         ``fov_deg`` is the field of view of the point cloud (default 10 degrees).
 
         ``out_dir`` must not exist, be empty, or (with ``overwrite=True``) hold a previous
@@ -105,6 +109,8 @@ class Result:
                 np.save(tmp / "reflectivity.npy", self.reflectivity)
             if self.confidence is not None:
                 np.save(tmp / "confidence.npy", self.confidence)
+            if self.depth2 is not None:  # the estimator looked for a second surface
+                np.save(tmp / "depth2.npy", self.depth2)
             fov = DEFAULT_FOV_DEG if fov_deg is None else float(fov_deg)
             write_ply(tmp / "points.ply", *self.points(fov))
             self.metrics["point_cloud"] = {"file": "points.ply", "fov_deg": fov,

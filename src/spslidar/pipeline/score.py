@@ -26,7 +26,7 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
                   low_confidence: np.ndarray, depth_info: dict | None, lam: float,
                   lam_scale: float, sigma_eff: float, info: Any, iterations: int,
                   timing: dict[str, float], warns: list[str],
-                  lam_floored: bool = False) -> Result:
+                  lam_floored: bool = False, depth2: np.ndarray | None = None) -> Result:
     """Score a reconstruction (eq. 19, Sobel edges) and assemble its :class:`Result` and
     ``metrics.json``: the last step of :func:`reconstruct`, shared by the other backends'
     reconstruction (:mod:`spslidar.backends.chain`) so both report the same keys."""
@@ -74,6 +74,9 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         "correlation_noise_sigma": float(np.sqrt(np.mean(sim["sigma"] ** 2))),
         "depth_estimator": cfg.depth,
         "low_confidence_fraction": float(np.mean(low_confidence)),
+        # share of pixels where the estimator found a second surface (None: not looked for)
+        "two_surface_fraction": (float(np.mean(np.isfinite(depth2))) if depth2 is not None
+                                 else None),
         "mean_reflectivity": (float(np.nanmean(reflectivity)) if np.isfinite(reflectivity).any()
                               else None),
         **({"depth_info": depth_info} if depth_info else {}),
@@ -93,7 +96,8 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
     return Result(cfg, scene, depth, slices, meas.lags, corr, metrics, timing, warns,
                   confidence=np.asarray(confidence).reshape(shape),
                   low_confidence=np.asarray(low_confidence).reshape(shape),
-                  reflectivity=reflectivity)
+                  reflectivity=reflectivity,
+                  depth2=None if depth2 is None else np.asarray(depth2).reshape(shape))
 
 
 def resolved_config(cfg: Config, acq: Acquisition, gate, auto_gate: bool, iterations: int,

@@ -61,16 +61,16 @@ SCENES.add("room", "spslidar.scenes.builtin:_room", "room",
            "wide-depth indoor scene, 2-5 m: floor, slanted wall, one-pixel legs and pole")
 SCENES.add("street", "spslidar.scenes.builtin:_street", "street",
            "wide-depth outdoor scene, 2-5 m: road, slanted facade, poles, a wire")
+SCENES.add("fence", "spslidar.scenes.procgen:fence_scene", "fence",
+           "a wire-mesh fence at 3 m in front of a wall at 4 m: two surfaces per mesh pixel")
+SCENES.add("procedural", "spslidar.scenes.procgen:procedural_scene", "procedural",
+           "a seeded wide-depth room, street or clutter scene (poles, wires, legs, fences, "
+           "boxes; reflectivity 0.05-1)", argument="SEED")
 
 #: Names of the built-in scenes without an argument (the first is the default).
 BUILTIN_SCENES: tuple[str, ...] = tuple(e.name for e in SCENES if not e.defaults.get("argument"))
 #: The default scene.
 DEFAULT_SCENE = "camera"
-
-
-def _scene_names() -> list[str]:
-    return [f"{e.name}:{e.defaults['argument']}" if e.defaults.get("argument") else e.name
-            for e in SCENES]
 
 
 def _scene_names() -> list[str]:
