@@ -105,3 +105,21 @@ def test_irf_kernel_is_normalised_and_centred():
     mean = float(np.dot(offsets + 0.5, values))  # a photon uniform in its bin: +0.5
     # ex-Gaussian mean: 0.3 * 4 bins of tail (the Gaussian is centred)
     assert mean == pytest.approx(0.5 + 0.3 * 4.0, abs=0.05)
+
+
+def test_calibrate_refuses_a_users_file_before_the_work(tmp_path, monkeypatch, capsys):
+    """--out X --overwrite over a file that is not a calibration: refused before the PTU is
+    read (it was refused only after the whole calibration had run)."""
+    import spslidar.pipeline.calibration as calibration
+
+    def never(*a, **k):
+        raise AssertionError("the calibration ran before the output was checked")
+
+    monkeypatch.setattr(calibration, "calibrate_ptu", never)
+    mine = tmp_path / "mine.json"
+    mine.write_text('{"not": "a calibration"}')
+    assert main(["calibrate", "--ptu", str(tmp_path / "none.ptu"), "--patterns", "p.npy",
+                 "--code", "mseq", "--code-length", "127", "--bit-rate", "10e9",
+                 "--distance", "25", "--out", str(mine), "--overwrite"]) == 2
+    assert "not a spslidar calibration" in capsys.readouterr().err
+    assert mine.read_text() == '{"not": "a calibration"}'

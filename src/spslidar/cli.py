@@ -7,7 +7,6 @@ imported inside each sub-command. Bad input prints one line on stderr and exits 
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 
 EXIT_BAD_INPUT = 2
@@ -367,13 +366,10 @@ def _add_calibrate_parser(sub) -> None:
 
 
 def _cmd_calibrate(args) -> int:
-    from .pipeline.calibration import calibrate_ptu, write_calibration
+    from .pipeline.calibration import calibrate_ptu, check_calibration_out, write_calibration
     from .pipeline.real import load_code, load_patterns
 
-    if os.path.exists(args.out) and not args.overwrite:  # refuse before any work
-        from .errors import SpslidarError
-
-        raise SpslidarError(f"--out {args.out} exists; use --overwrite to replace it")
+    check_calibration_out(args.out, args.overwrite)  # refuse before any work
     cal = calibrate_ptu(args.ptu, load_patterns(args.patterns),
                         load_code(args.code, args.code_length), args.bit_rate, args.distance,
                         marker=args.marker, channel=args.channel)

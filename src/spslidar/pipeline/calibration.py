@@ -152,11 +152,10 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                               "patterns": int(patterns.shape[0])}}
 
 
-def write_calibration(cal: dict[str, Any], out: str | os.PathLike, overwrite: bool = False):
-    """Write ``CAL.json``: a new file, or (with ``overwrite``) a calibration spslidar wrote;
-    never a user's other file (all or nothing, under a temporary name)."""
+def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Path:
+    """Refuse (one line) to write ``CAL.json`` over anything but a calibration spslidar
+    wrote, and that only with ``overwrite``: checked before the work and again at the end."""
     from ..errors import SpslidarError
-    from ..outdir import atomic_write_text
 
     path = Path(out)
     if path.exists():
@@ -171,6 +170,15 @@ def write_calibration(cal: dict[str, Any], out: str | os.PathLike, overwrite: bo
                                 f"refusing to replace it")
     if not path.parent.is_dir():
         raise SpslidarError(f"--out {out}: the folder {path.parent} does not exist")
+    return path
+
+
+def write_calibration(cal: dict[str, Any], out: str | os.PathLike, overwrite: bool = False):
+    """Write ``CAL.json``: a new file, or (with ``overwrite``) a calibration spslidar wrote;
+    never a user's other file (all or nothing, under a temporary name)."""
+    from ..outdir import atomic_write_text
+
+    path = check_calibration_out(out, overwrite)
     atomic_write_text(path, json.dumps(cal, indent=1) + "\n")
     return path
 
