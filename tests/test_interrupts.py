@@ -14,7 +14,8 @@ import pytest
 
 psutil = pytest.importorskip("psutil")
 
-SWEEP = "seed = 1\n[base]\nsize = 48\n[grid]\nnoise = [1, 2, 3, 4, 5, 6, 7, 8]\n"
+SWEEP = ("seed = 1\n[base]\nsize = 32\ncode_length = 4095\n[grid]\n"
+         "noise = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]\n")
 
 
 def _start(tmp_path):
@@ -41,9 +42,14 @@ def _start(tmp_path):
                                            (signal.SIGINT, 130, "interrupted")])
 def test_signal_leaves_no_worker_and_one_line(tmp_path, sig, code, word):
     proc, children = _start(tmp_path)
-    # let the pool finish starting: a worker still importing when Ctrl-C arrives prints
-    # Python's own start-up traceback, which no handler of ours can catch
-    time.sleep(3.0)
+    # let the pool finish starting (two runs done: both workers past their imports): a worker
+    # still importing when Ctrl-C arrives prints Python's own start-up traceback, which no
+    # handler of ours can catch
+    runs = tmp_path / "o" / "runs"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and len(list(runs.glob("*.json"))) < 2:
+        time.sleep(0.2)
+    time.sleep(0.5)
     if sig == signal.SIGINT:
         os.killpg(proc.pid, sig)  # Ctrl-C: the whole foreground process group
     else:
