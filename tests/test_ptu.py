@@ -285,3 +285,205 @@ def test_negative_record_count_is_refused(tmp_path):
     path.write_bytes(bytes(data))
     with pytest.raises(ConfigError, match="-5 records"):
         read_ptu_histograms(path, 127, bin_width=1e-10)
+
+
+# --- the reader's edges and memory (issue 20 item 5, issue 24 items 3, 6, 8) -----------------
+
+
+def _marker_file(path, blocks, period_bins=L, tail_marker=False, record_type="HydraHarp2T3"):
+    """A T3 file of ``blocks`` (per marker, the (sync offset, bin) of its photons; blocks are
+    10 syncs apart), optionally ending with a marker that is the file's last event."""
+    nsync, dtime, mark = [], [], []
+    for k, photons in enumerate(blocks):
+        nsync.append(10 * k)
+        dtime.append(0)
+        mark.append(1)
+        for off, b in sorted(photons):
+            nsync.append(10 * k + off)
+            dtime.append(b)
+            mark.append(0)
+    if tail_marker:
+        nsync.append(10 * len(blocks))
+        dtime.append(0)
+        mark.append(1)
+    write_ptu_t3(path, nsync=nsync, dtime=dtime, marker=mark, resolution_s=BW,
+                 sync_rate_hz=1 / (period_bins * BW), record_type=record_type)
+
+
+def test_empty_blocks_are_rows_whatever_the_chunking(tmp_path):
+    """Blocks without photons, in the middle and at the end, are rows of zeros: the row
+    count is the number of markers at every chunk size (it was 1279 rows for 1280 markers
+    at one chunk size and 1280 at another), with each block's dwell."""
+    blocks = [[(1, 5), (2, 5)], [], [(3, 7)], [], []]
+    path = tmp_path / "gaps.ptu"
+    _marker_file(path, blocks)
+    expected = np.zeros((5, L))
+    expected[0, 5], expected[2, 7] = 2, 1
+    for chunk in (1, 2, 3, 5, 97, 2**20):
+        acq = read_ptu_histograms(path, L, chunk_records=chunk)
+        np.testing.assert_array_equal(acq.histograms, expected)
+        np.testing.assert_array_equal(acq.pattern_start_sync, [0, 10, 20, 30, 40])
+        # the last block's dwell: its marker is the last event, so one code period
+        np.testing.assert_array_equal(acq.periods_per_pattern, [10, 10, 10, 10, 1])
+        assert len(acq.warnings) == 1 and "last of the 5 marker blocks" in acq.warnings[0]
+    # asked for 4 patterns, the fifth marker ends the fourth: no warning, a full dwell
+    acq = read_ptu_histograms(path, L, n_patterns=4)
+    assert acq.warnings == [] and acq.periods_per_pattern.tolist() == [10, 10, 10, 10]
+
+
+def test_trailing_marker_with_photons_before_it_is_no_warning(tmp_path):
+    path = tmp_path / "ok.ptu"
+    _marker_file(path, [[(1, 5)], [(9, 6)]])
+    acq = read_ptu_histograms(path, L)
+    assert acq.warnings == [] and acq.periods_per_pattern.tolist() == [10, 10]
+    path2 = tmp_path / "end.ptu"  # an end-of-acquisition marker after the last pattern
+    _marker_file(path2, [[(1, 5)], [(9, 6)]], tail_marker=True)
+    acq = read_ptu_histograms(path2, L)
+    assert acq.n_patterns == 3 and "n_patterns=2 leaves it out" in acq.warnings[0]
+
+
+@pytest.mark.parametrize("n_bins,chunk", [(L, 7), (L, 2**20), (32768, 7), (32768, 2**20)])
+def test_sparse_and_dense_accumulation_agree(tmp_path, n_bins, chunk):
+    """Few photons over many blocks (the sparse path) and many photons over few blocks
+    (one bincount) give the same exact histograms as np.add.at."""
+    rng = np.random.default_rng(5)
+    m = 400
+    blocks = [[(int(o), int(b)) for o, b in zip(rng.integers(0, 10, n), rng.integers(0, L, n),
+                                                strict=True)]
+              for n in rng.integers(0, 4, m)]
+    path = tmp_path / "s.ptu"
+    _marker_file(path, blocks, period_bins=n_bins)
+    expected = np.zeros((m, n_bins))
+    for k, photons in enumerate(blocks):
+        for _off, b in photons:
+            expected[k, b] += 1
+    acq = read_ptu_histograms(path, n_bins, chunk_records=chunk)
+    np.testing.assert_array_equal(acq.histograms, expected)
+    np.testing.assert_array_equal(acq.counts_per_pattern, expected.sum(axis=1))
+
+
+def test_memory_is_bounded_by_the_histograms(tmp_path):
+    """20 000 markers of one photon each, a 1023-bin code, n_patterns unset: the peak is the
+    (M, L) histograms and one chunk (the old reader grew its array by doubling, bincounted
+    int64 over every block of a chunk and copied the result: 3-4 times the histograms)."""
+    import tracemalloc
+
+    m, period = 20_000, 1023
+    rng = np.random.default_rng(6)
+    nsync = np.repeat(np.arange(m) * 10, 2)
+    dtime = np.zeros(2 * m, np.int64)
+    dtime[1::2] = rng.integers(0, period, m)
+    mark = np.zeros(2 * m, np.int64)
+    mark[::2] = 1
+    path = tmp_path / "many.ptu"
+    write_ptu_t3(path, nsync=nsync, dtime=dtime, marker=mark, resolution_s=BW,
+                 sync_rate_hz=1 / (period * BW))
+    hist_bytes = m * period * 4
+    tracemalloc.start()
+    try:
+        acq = read_ptu_histograms(path, period, chunk_records=2**16)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert acq.histograms.shape == (m, period) and acq.counts_per_pattern.sum() == m
+    np.testing.assert_array_equal(np.argmax(acq.histograms, axis=1), dtime[1::2])
+    # the histograms, a 16 MB block of their float32 conversion and one chunk's work
+    # (2**16 records at well under 256 bytes each)
+    assert peak < hist_bytes + 16 * 2**20 + 2**16 * 256, peak / hist_bytes
+
+
+def test_histograms_are_refused_up_front_when_they_do_not_fit(tmp_path, monkeypatch):
+    """Known before reading (markers counted first): refused where M x L 4-byte counts
+    exceed the memory available, read where they fit in 1.5 times that."""
+    import spslidar.machine
+
+    events, _ = _random_acquisition(7)
+    path = tmp_path / "a.ptu"
+    write_acquisition_ptu(path, events, L, BW)
+    kw = {"chunk_records": 16, "check_sync_period": False}  # histograms of 2**15 bins
+    hist_bytes = 6 * 2**15 * 4 + 16 * 64  # the histograms and one chunk
+    monkeypatch.setattr(spslidar.machine, "available_memory", lambda: 1.5 * hist_bytes / 0.8)
+    acq = read_ptu_histograms(path, 2**15, **kw)
+    np.testing.assert_array_equal(acq.histograms[:, :L], _random_acquisition(7)[1])
+    monkeypatch.setattr(spslidar.machine, "available_memory", lambda: 0.9 * hist_bytes / 0.8)
+    msg = _raises("6 patterns of 32768 bins need .* of histograms", path, 2**15, **kw)
+    assert "more than the" in msg
+    _raises("1000000000 patterns of 63 bins", path, L, n_patterns=10**9)
+    # n_bins=10**12 (issue 24 item 3): the sync period disagrees, and without that check
+    # the histograms cannot fit
+    _raises("sync period", path, 10**12)
+    _raises("of histograms", path, 10**12, check_sync_period=False)
+
+
+def test_channel_numbering_and_impossible_channels(tmp_path):
+    """Channels are 0-based: a PicoHarp's detector inputs 1-4 (its records' channel field)
+    are 0-3; a channel no record of the type can hold is refused before reading."""
+    res, n_bins = 8e-12, 100
+    recs = [_ph(15, 1, 0), _ph(1, 3, 1), _ph(4, 9, 2), _ph(4, 9, 3)]  # inputs 1 and 4
+    path = tmp_path / "ph.ptu"
+    path.write_bytes(_ptu_bytes(_tags(0x00010303, len(recs), res, n_bins * res), recs))
+    assert read_ptu_histograms(path, n_bins, channel=0).histograms[0, 3] == 1
+    assert read_ptu_histograms(path, n_bins, channel=3).histograms[0, 9] == 2
+    assert read_ptu_histograms(path, n_bins, channel=[0, 3]).counts_per_pattern[0] == 3
+    _raises("no photons on channel 1 .*photons on 0, 3", path, n_bins, channel=1)
+    _raises("no photons on channel 4: PicoHarpT3 records number detector channels 0..3",
+            path, n_bins, channel=4)
+    _raises("channel must be", path, n_bins, channel=-1)
+    _raises("channel must be", path, n_bins, channel=1.5)
+    good = tmp_path / "hh.ptu"
+    write_acquisition_ptu(good, [np.array([[0, 1]])], L, BW)
+    _raises("no photons on channel 99: HydraHarp2T3 records number detector channels 0..63",
+            good, L, channel=99)
+
+
+def test_empty_and_cut_files_are_one_line(tmp_path):
+    good = tmp_path / "good.ptu"
+    write_acquisition_ptu(good, [np.array([[0, 1]])], L, BW)
+    empty = tmp_path / "empty.ptu"
+    empty.write_bytes(b"")
+    _raises("not a readable PicoQuant PTU file", empty, L)
+    cut = tmp_path / "cut.ptu"
+    cut.write_bytes(good.read_bytes()[:12])
+    _raises("truncated or corrupt PTU tag header", cut, L)
+
+
+def test_reconstruct_refuses_histograms_that_cannot_fit(monkeypatch):
+    """``reconstruct``'s input check (before the file is read): 400 000 patterns of a
+    1023-bit code are 9.8 GB of histograms and their copies, refused where 4 GB are free."""
+    import spslidar.machine
+    from spslidar.pipeline.real import check_real_inputs
+
+    monkeypatch.setattr(spslidar.machine, "available_memory", lambda: 4e9)
+    with pytest.raises(ConfigError, match="400000 patterns of 1023 bins .* of histograms"):
+        check_real_inputs(10e9, (1.0, 2.0), 16, 400_000, 1023)
+    check_real_inputs(10e9, (1.0, 2.0), 16, 4000, 1023)  # 98 MB: fine
+
+
+def test_reconstruct_input_arrays_checked_by_their_header(tmp_path):
+    """``.npy`` inputs of ``reconstruct``: a header declaring (100000, 1000, 1000) float32
+    over a 64-byte body (issue 24 item 3), a cut body, Python objects, an ``.npz`` and text
+    are one line each, before any data is read."""
+    import numpy.lib.format as npformat
+
+    from spslidar.pipeline.real import load_code, load_patterns
+
+    huge = tmp_path / "huge.npy"
+    with open(huge, "wb") as fh:
+        npformat.write_array_header_1_0(fh, {"descr": "<f4", "fortran_order": False,
+                                             "shape": (100000, 1000, 1000)})
+        fh.write(b"\0" * 64)
+    np.save(tmp_path / "ok.npy", np.zeros((4, 2, 2), np.float32))
+    (tmp_path / "cut.npy").write_bytes((tmp_path / "ok.npy").read_bytes()[:-5])
+    np.save(tmp_path / "obj.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    np.savez(tmp_path / "z.npz", a=np.zeros(3))
+    (tmp_path / "t.npy").write_text("hello")
+    cases = {"huge.npy": r"declares an array of shape \(100000, 1000, 1000\) \(float32, 400",
+             "cut.npy": "only 59 bytes follow it", "obj.npy": "Python objects",
+             "z.npz": "as a .npy array", "t.npy": "as a .npy array"}
+    for name, match in cases.items():
+        with pytest.raises(ConfigError, match=match) as info:
+            load_patterns(tmp_path / name)
+        assert "\n" not in str(info.value) and "cannot read patterns" in str(info.value)
+    with pytest.raises(ConfigError, match="cannot read code"):
+        load_code(tmp_path / "cut.npy")
+    assert load_patterns(tmp_path / "ok.npy").shape == (4, 4)

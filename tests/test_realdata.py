@@ -1,17 +1,22 @@
 """The PTU reader on files nobody here wrote (issue 20, items 5 and 7): real PicoQuant
 recordings from public repositories in ``../shared/realdata/`` (never copied into the
-project; skipped where the folder is absent). Per-block photon counts and histograms must
+project; skipped where the folder is absent; a test that needs a changed file writes it to
+pytest's temporary folder). Per-block photon counts, histograms, marker syncs and dwells must
 equal an independent decoder written here from PicoQuant's published record layouts; the
 files the reader cannot use are refused in one line.
 
-Record layouts (32-bit little-endian):
+Record layouts (32-bit little-endian words), from PicoQuant's PTU demo readers:
 
-* PicoHarp T3: bits 0-15 nsync, 16-27 dtime, 28-31 channel; channel 15 is special: dtime 0 an
-  overflow (+65536 syncs), else a marker bit mask in dtime's low 4 bits; photon channels 1-4
-  are 0-3 in the file's 0-based numbering.
-* HydraHarp T3 v2: bits 0-9 nsync, 10-24 dtime, 25-30 channel, 31 special; special channel 63
-  is an overflow of ``nsync`` (``1024 * max(nsync, 1)`` syncs), special channels 1-15 marker
-  bit masks; photon channels are 0-based.
+* PicoHarp T3 (``0x00010303``): bits 0-15 nsync, 16-27 dtime, 28-31 channel; channel 15 is
+  special: dtime 0 an overflow (+65536 syncs), else a marker bit mask in dtime's low 4 bits;
+  photon channels 1-4 are 0-3 in the 0-based numbering the reader uses.
+* HydraHarp T3 v1 (``0x00010304``): bits 0-9 nsync, 10-24 dtime, 25-30 channel, 31 special;
+  special channel 63 is an overflow of 1024 syncs, special channels 1-15 marker bit masks;
+  photon channels are 0-based.
+* HydraHarp T3 v2 (``0x01010304``; TimeHarp 260 N/P ``0x00010305/6`` and generic T3
+  ``0x00010307`` alike): as v1, but an overflow adds ``1024 * nsync`` syncs (0 counts as 1).
+* HydraHarp T2 v2 (``0x01010204``): bits 0-24 time tag, 25-30 channel, 31 special; only its
+  photon count is checked (the reader refuses T2).
 """
 
 from __future__ import annotations
@@ -22,115 +27,188 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from spslidar.cli import main
 from spslidar.errors import ConfigError
-from spslidar.io import read_ptu_histograms
+from spslidar.io import ptu_info, read_ptu_histograms
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "realdata"
 pytestmark = pytest.mark.skipif(not REAL.is_dir(), reason="../shared/realdata is absent")
 
 _AnsiString, _WideString, _Blob = 0x4001FFFF, 0x4002FFFF, 0xFFFFFFFF
+PICOHARP_T3, HYDRAHARP_T3_V1, HYDRAHARP_T3_V2, HYDRAHARP_T2_V2 = (
+    0x00010303, 0x00010304, 0x01010304, 0x01010204)
+_V2_LIKE = {HYDRAHARP_T3_V2, 0x00010305, 0x00010306, 0x00010307}
 
 
-def _header(path: Path) -> tuple[dict, int]:
-    """The tags of a PTU header and the byte offset of its first record."""
-    data = path.read_bytes()
+def _header(data: bytes) -> tuple[dict, int, int]:
+    """The tags of a PTU header, the byte offset of its first record and the byte offset of
+    the record-type tag's value."""
     assert data[:6] == b"PQTTTR"
-    pos, tags = 16, {}
+    pos, tags, at = 16, {}, -1
     while True:
         # a tag: 32-byte ident, int32 index, uint32 type, then an 8-byte value (a length for
         # strings and blobs, whose bytes follow)
         ident, _idx, typ = struct.unpack_from("<32siI", data, pos)
         name = ident.split(b"\0")[0].decode()
         value = struct.unpack_from("<d" if typ == 0x20000008 else "<q", data, pos + 40)[0]
+        if name == "TTResultFormat_TTTRRecType":
+            at = pos + 40
         pos += 48
         if typ in (_AnsiString, _WideString, _Blob):
             pos += int(value)
             value = None
         tags[name] = value
         if name == "Header_End":
-            return tags, pos
+            return tags, pos, at
 
 
-def _decode(path: Path):
-    """(absolute sync, dtime, channel, marker mask) per record, photons and markers only."""
-    tags, offset = _header(path)
-    rec = np.frombuffer(path.read_bytes()[offset:], "<u4").astype(np.int64)
-    rtype = tags["TTResultFormat_TTTRRecType"]
-    if rtype == 0x00010303:  # PicoHarp T3
+def _records(data: bytes) -> tuple[int, np.ndarray]:
+    tags, offset, _ = _header(data)
+    return tags["TTResultFormat_TTTRRecType"], np.frombuffer(data[offset:], "<u4").astype(
+        np.int64)
+
+
+def _decode(data: bytes):
+    """(absolute sync, dtime, channel (-1: marker), marker mask) of every photon and marker
+    record, in file order, and the number of overflow records."""
+    rtype, rec = _records(data)
+    if rtype == PICOHARP_T3:
         nsync, dtime, chan = rec & 0xFFFF, (rec >> 16) & 0xFFF, rec >> 28
         special = chan == 15
         ofl = special & (dtime == 0)
         wraps = np.where(ofl, 65536, 0)
         mark = np.where(special & ~ofl, dtime & 0xF, 0)
         photon_ch = chan - 1
-    elif rtype in (0x01010304, 0x01010204):  # HydraHarp / TimeHarp260 T3 v2
+    elif rtype == HYDRAHARP_T3_V1 or rtype in _V2_LIKE:
         nsync, dtime, chan = rec & 0x3FF, (rec >> 10) & 0x7FFF, (rec >> 25) & 0x3F
         special = (rec >> 31) == 1
         ofl = special & (chan == 63)
-        wraps = np.where(ofl, 1024 * np.maximum(nsync, 1), 0)
+        per = 1 if rtype == HYDRAHARP_T3_V1 else np.maximum(nsync, 1)
+        wraps = np.where(ofl, 1024 * per, 0)
         mark = np.where(special & ~ofl & (chan >= 1) & (chan <= 15), chan, 0)
         photon_ch = chan
     else:
         raise ValueError(f"not a T3 record type: {rtype:#x}")
-    base = np.cumsum(wraps) - wraps  # overflows before each record
-    sync = base + nsync
+    sync = np.cumsum(wraps) - wraps + nsync  # overflows before each record, plus its nsync
     keep = ~ofl
-    return sync[keep], dtime[keep], np.where(special, -1, photon_ch)[keep], mark[keep]
+    return (sync[keep], dtime[keep], np.where(special, -1, photon_ch)[keep], mark[keep],
+            int(ofl.sum()))
 
 
-def _reference(path: Path, n_bins: int, marker: int, binning: int = 1):
-    """Per-block photon histograms: block k = photons after marker k (on input ``marker``)."""
-    _sync, dtime, ch, mark = _decode(path)
+def _reference(data: bytes, n_bins: int, marker: int, channel: int | None = None):
+    """Per-block histograms (block k = photons from marker k on input ``marker`` to the
+    next), the markers' syncs, the blocks' dwells and the photons before the first marker."""
+    sync, dtime, ch, mark, _ = _decode(data)
     is_mark = (mark & (1 << (marker - 1))) != 0
     block = np.cumsum(is_mark) - 1
-    photon = (ch >= 0) & (block >= 0)
-    bins = dtime[photon] // binning
-    ok = bins < n_bins
-    n_blocks = int(is_mark.sum())
-    hist = np.zeros((n_blocks, n_bins), np.int64)
-    np.add.at(hist, (block[photon][ok], bins[ok]), 1)
-    return hist
+    photon = (ch >= 0) if channel is None else (ch == channel)
+    before = int((photon & (block < 0)).sum())
+    photon &= block >= 0
+    ok = dtime[photon] < n_bins
+    hist = np.zeros((int(is_mark.sum()), n_bins), np.int64)
+    np.add.at(hist, (block[photon][ok], dtime[photon][ok]), 1)
+    starts = sync[is_mark]
+    events = (ch >= 0) | (mark != 0)
+    last = int(sync[events][-1])
+    dwell = np.diff(np.append(starts, last + 1))
+    return hist, starts, dwell, before, last
 
 
 @pytest.mark.parametrize("name,n_bins,marker", [
     ("hazelnut_z1.ptu", 132, 1),        # PicoHarp T3, line-start markers
     ("hazelnut_z1.ptu", 132, 2),        # line stops: every line's tail is an empty block
-    ("tttrlib_MT200_HH400_beads.ptu", 1562, 3),  # HydraHarp T3 v2
+    ("hazelnut_z1.ptu", 4096, 1),       # many bins over few photons: the sparse path
+    ("hazelnut_z10.ptu", 132, 3),       # 5 frame markers, 0.7 M records
+    ("tttrlib_MT200_HH400_beads.ptu", 1563, 3),  # HydraHarp T3 v2
 ])
 def test_blocks_equal_an_independent_decoder(name, n_bins, marker):
-    path = REAL / name
-    ref = _reference(path, n_bins, marker)
-    for chunk in (2**22, 997):  # the row count must not depend on the chunk size
-        got = read_ptu_histograms(path, n_bins, marker=marker, chunk_records=chunk,
+    data = (REAL / name).read_bytes()
+    hist, starts, dwell, before, last = _reference(data, n_bins, marker)
+    for chunk in (2**20, 997):  # nothing may depend on the chunk size
+        got = read_ptu_histograms(REAL / name, n_bins, marker=marker, chunk_records=chunk,
                                   check_sync_period=False)
-        assert got.histograms.shape == ref.shape
-        np.testing.assert_array_equal(got.counts_per_pattern, ref.sum(axis=1))
-        np.testing.assert_array_equal(got.histograms, ref)
+        assert got.histograms.shape == hist.shape
+        np.testing.assert_array_equal(got.counts_per_pattern, hist.sum(axis=1))
+        np.testing.assert_array_equal(got.histograms, hist)
+        np.testing.assert_array_equal(got.pattern_start_sync, starts)
+        np.testing.assert_array_equal(got.periods_per_pattern, dwell)
+        assert got.last_sync == last and got.n_dropped_before_first_marker == before
+        assert got.n_markers == hist.shape[0]
+
+
+def test_first_blocks_only_with_n_patterns():
+    data = (REAL / "hazelnut_z1.ptu").read_bytes()
+    hist, starts, _dwell, _before, _last = _reference(data, 132, 1)
+    got = read_ptu_histograms(REAL / "hazelnut_z1.ptu", 132, marker=1, n_patterns=100,
+                              check_sync_period=False)
+    np.testing.assert_array_equal(got.histograms, hist[:100])
+    np.testing.assert_array_equal(got.periods_per_pattern, np.diff(starts[:101]))
+    assert got.n_dropped_after_last_pattern >= hist[100:].sum()
+    assert got.warnings == []
+
+
+def test_hydraharp_v1_records(tmp_path):
+    """No HydraHarp T3 v1 file is at hand: the v2 beads file's records, with the header's
+    record type set to v1, are a v1 file whose overflow records count 1024 syncs each (the
+    v2 reading counts 1024 * nsync). Marker syncs follow the record type."""
+    data = bytearray((REAL / "tttrlib_MT200_HH400_beads.ptu").read_bytes())
+    _tags, _offset, at = _header(bytes(data))
+    struct.pack_into("<q", data, at, HYDRAHARP_T3_V1)
+    path = tmp_path / "beads_v1.ptu"
+    path.write_bytes(bytes(data))
+    hist, starts, dwell, _before, last = _reference(bytes(data), 1563, 3)
+    _h2, starts_v2, *_ = _reference((REAL / "tttrlib_MT200_HH400_beads.ptu").read_bytes(),
+                                    1563, 3)
+    assert not np.array_equal(starts, starts_v2)  # the two layouts do read differently here
+    got = read_ptu_histograms(path, 1563, marker=3, chunk_records=4099,
+                              check_sync_period=False)
+    assert got.header["record_type"] == "HydraHarpT3"
+    np.testing.assert_array_equal(got.histograms, hist)
+    np.testing.assert_array_equal(got.pattern_start_sync, starts)
+    np.testing.assert_array_equal(got.periods_per_pattern, dwell)
+    assert got.last_sync == last
 
 
 def test_readme_counts_of_the_files():
-    """The decoded counts the folder's README gives (photons per channel, markers)."""
-    _s, _d, ch, mark = _decode(REAL / "hazelnut_z1.ptu")
-    assert int((ch == 0).sum()) == 150_363
-    assert [int(((mark >> b) & 1).sum()) for b in range(3)] == [1280, 1280, 5]
-    _s, _d, ch, mark = _decode(REAL / "tttrlib_MT200_HH400_beads.ptu")
-    assert (int((ch == 0).sum()), int((ch == 1).sum())) == (52_833, 20_954)
+    """The counts the folder's README gives: records, photons per channel, markers per input
+    (and the decoder's overflow records are the rest of the records)."""
+    readme = {  # name: (records, photons per 0-based channel, markers per input 1-4)
+        "hazelnut_z1.ptu": (155_398, {0: 150_363}, [1280, 1280, 5, 0]),
+        "hazelnut_z10.ptu": (731_977, {0: 726_942}, [1280, 1280, 5, 0]),
+        "tttrlib_MT200_HH400_beads.ptu": (104_776, {0: 52_833, 1: 20_954}, [0, 0, 50, 50]),
+        "feda_H2O_300s.ptu": (336_332, {0: 45_652, 1: 22_988, 2: 77_582, 3: 23_161},
+                              [0, 0, 0, 0]),
+        "feda_bg_HighFRET_30s.ptu": (66_940, {0: 9252, 1: 5228, 2: 16_425, 3: 3048},
+                                     [0, 0, 0, 0]),
+    }
+    for name, (records, photons, markers) in readme.items():
+        data = (REAL / name).read_bytes()
+        _s, _d, ch, mark, n_ofl = _decode(data)
+        assert ptu_info(REAL / name)["n_records"] == records
+        assert ch.size + n_ofl == records
+        assert {int(c): int((ch == c).sum()) for c in np.unique(ch[ch >= 0])} == photons
+        assert [int(((mark >> b) & 1).sum()) for b in range(4)] == markers
+    rtype, rec = _records((REAL / "libpicoquant_hh_v30_t2.ptu").read_bytes())
+    assert rtype == HYDRAHARP_T2_V2 and rec.size == 435_319
+    assert int(((rec >> 31 == 0) & ((rec >> 25) & 0x3F == 0)).sum()) == 305_565
 
 
 def test_channel_selection_and_a_channel_without_photons():
     path = REAL / "tttrlib_MT200_HH400_beads.ptu"
-    one = read_ptu_histograms(path, 1562, marker=3, channel=1, check_sync_period=False)
-    _s, _d, ch, mark = _decode(path)
-    block = np.cumsum((mark & 4) != 0) - 1
-    assert int(one.counts_per_pattern.sum()) == int(((ch == 1) & (block >= 0)
-                                                    & (_d < 1562)).sum())
-    with pytest.raises(ConfigError, match="no photons on channel 7"):
-        read_ptu_histograms(path, 1562, marker=3, channel=7, check_sync_period=False)
+    hist, *_ = _reference(path.read_bytes(), 1563, 3, channel=1)
+    one = read_ptu_histograms(path, 1563, marker=3, channel=1, check_sync_period=False)
+    np.testing.assert_array_equal(one.histograms, hist)
+    with pytest.raises(ConfigError, match="no photons on channel 7") as info:
+        read_ptu_histograms(path, 1563, marker=3, channel=7, check_sync_period=False)
+    assert "photons on 0, 1" in str(info.value)
+    with pytest.raises(ConfigError, match="PicoHarpT3 records number detector channels 0..3"):
+        read_ptu_histograms(REAL / "hazelnut_z1.ptu", 132, channel=4,
+                            check_sync_period=False)
 
 
 @pytest.mark.parametrize("name,match", [
-    ("feda_H2O_300s.ptu", "no marker"),
-    ("libpicoquant_hh_v30_t2.ptu", "T2"),
+    ("feda_H2O_300s.ptu", "the file has no markers at all"),
+    ("libpicoquant_hh_v30_t2.ptu", "holds T2 records"),
     ("libpicoquant_hh_v20.ht3", "not a readable PicoQuant PTU"),
     ("README.md", "not a readable PicoQuant PTU"),
 ])
@@ -138,3 +216,20 @@ def test_refusals_are_one_line(name, match):
     with pytest.raises(ConfigError, match=match) as info:
         read_ptu_histograms(REAL / name, 100, check_sync_period=False)
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("name,match", [
+    ("libpicoquant_hh_v30_t2.ptu", "holds T2 records"),
+    ("libpicoquant_hh_v20.ht3", "not a readable PicoQuant PTU"),
+    ("hazelnut_z1.ptu", "dtime resolution"),  # 96.97 ps bins are not --bit-rate 10e9's
+])
+def test_reconstruct_refuses_them_in_one_line(tmp_path, capsys, name, match):
+    pats = np.random.default_rng(0).integers(0, 2, (8, 4, 4)).astype(np.float32)
+    np.save(tmp_path / "p.npy", pats)
+    out = tmp_path / "out"
+    assert main(["reconstruct", "--ptu", str(REAL / name), "--patterns", str(tmp_path / "p.npy"),
+                 "--code", "mseq", "--code-length", "127", "--bit-rate", "10e9",
+                 "--range-gate", "1", "2", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and match in err[0], err
+    assert not out.exists()

@@ -1,8 +1,8 @@
 """Reading and writing measured data.
 
 :mod:`spslidar.io.ptu` reads PicoQuant T3 PTU time-tag files into per-pattern histograms over
-the code period and writes simulated acquisitions as T3 PTU files. Reading needs the optional
-``ptufile`` package (a dependency of spslidar); writing needs only NumPy.
+the code period and writes simulated acquisitions as T3 PTU files. Reading decodes records with
+the ``ptufile`` package (a core dependency of spslidar); writing needs only NumPy.
 """
 
 from __future__ import annotations

@@ -44,14 +44,11 @@ import struct
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ..errors import ConfigError
-
-if TYPE_CHECKING:
-    pass
 
 __all__ = ["PtuAcquisition", "ptu_info", "read_ptu_histograms"]
 
@@ -117,6 +114,12 @@ class PtuAcquisition:
         with bin ``dtime // binning >= n_bins``.
     header : dict
         Header summary, as returned by :func:`ptu_info`.
+    periods_per_pattern : numpy.ndarray
+        ``(M,)`` int64 dwell of each pattern in code periods: from its marker to the next
+        block's marker (for the file's last block, to ``last_sync + 1``).
+    warnings : list of str
+        What the caller should know but that is no error (a trailing block without photons
+        and of at most one code period, see :func:`read_ptu_histograms`).
     """
 
     histograms: np.ndarray
@@ -135,6 +138,8 @@ class PtuAcquisition:
     n_dropped_after_last_pattern: int
     n_out_of_range: int
     header: dict[str, Any] = field(default_factory=dict)
+    periods_per_pattern: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def n_patterns(self) -> int:
@@ -182,7 +187,8 @@ def _open_ptu(path: PathLike):
         raise ConfigError(f"cannot open {os.fspath(path)!r} as a PTU file: {exc}") from exc
     except Exception as exc:  # ptufile's parser on a header cut short (UnboundLocalError...)
         raise ConfigError(f"{os.fspath(path)!r} has a truncated or corrupt PTU tag header "
-                          f"({type(exc).__name__})") from exc
+                          f"(the file ends after {os.path.getsize(path)} bytes, or a tag is "
+                          f"malformed)") from exc
 
 
 def _header_summary(f, path: PathLike) -> dict[str, Any]:
@@ -294,17 +300,86 @@ def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
     return _T3_BY_CODE[code][1], n_records
 
 
-def _check_histogram_memory(rows: int, n_bins: int, path: str) -> None:
-    """Refuse (one line) per-pattern histograms that cannot fit: ``rows x n_bins`` counts
-    (int64, and a float32 copy at the end) against the memory available."""
+#: bytes of working memory per record of a chunk (raw word, ptufile's 12-byte decoded record,
+#: the block index, masks and the flat histogram indices of its photons)
+_BYTES_PER_CHUNK_RECORD = 64
+
+
+def _check_histogram_memory(rows: int, n_bins: int, chunk_records: int, path: str) -> None:
+    """Refuse (one line) per-pattern histograms that cannot fit: ``rows x n_bins`` 4-byte
+    counts (converted to float32 in place) plus one chunk of records, against the memory
+    available."""
     from ..machine import _gb, available_memory
 
-    need = float(rows) * n_bins * 8  # int32 counts and their float32 copy
+    need = float(rows) * n_bins * 4 + float(chunk_records) * _BYTES_PER_CHUNK_RECORD
     avail = available_memory()
     if need > 0.8 * avail:
-        raise ConfigError(f"{path!r}: {rows} patterns of {n_bins} bins need {_gb(need)} of "
+        raise ConfigError(f"{path!r}: {rows} pattern{'s' if rows != 1 else ''} of {n_bins} "
+                          f"bins need {_gb(need)} of "
                           f"histograms, more than the {_gb(avail)} available: check n_bins "
                           f"(the code length) and the marker input, or give n_patterns")
+
+
+def _channels(channel: Any, family: str, record_type: str, path: str) -> np.ndarray | None:
+    """The selected photon channels as a sorted int array (``None``: all)."""
+    if channel is None:
+        return None
+    values = np.atleast_1d(np.asarray(channel))
+    if values.size == 0 or values.ndim != 1 or values.dtype.kind not in "iu" or (
+            values.min() < 0):
+        raise ConfigError(f"channel must be a detector channel number >= 0 (or a list of them),"
+                          f" got {channel!r}")
+    top = _FAMILY[family][2]
+    if values.max() >= top:  # no record of this type can hold it
+        raise ConfigError(
+            f"{path!r} has no photons on channel {int(values.max())}: {record_type} records "
+            f"number detector channels 0..{top - 1} (from 0; a PicoHarp's inputs 1-4 are 0-3)")
+    return np.unique(values).astype(np.int64)
+
+
+def _chunks(f, n_records: int, chunk_records: int, path: str):
+    """The file's records, ``chunk_records`` at a time: ``(raw words, ptufile decode)``."""
+    fh = f.filehandle
+    fh.seek(f.record_offset)
+    for done in range(0, n_records, chunk_records):
+        raw = np.empty(min(chunk_records, n_records - done), "<u4")
+        got = fh.readinto(memoryview(raw).cast("B")) or 0
+        if got != raw.nbytes:
+            raise ConfigError(f"{path!r} is truncated: read {done + got // 4} of "
+                              f"{n_records} records")
+        raw = raw.astype(np.uint32, copy=False)
+        yield raw, f.decode_records(raw)  # times restart at 0 in every chunk
+
+
+def _count_markers(f, n_records: int, chunk_records: int, mask: int, path: str) -> int:
+    """Marker records with bit ``mask`` in the file (the number of pattern blocks)."""
+    n = 0
+    for _raw, dec in _chunks(f, n_records, chunk_records, path):
+        n += int(np.count_nonzero((dec["channel"] < 0) & ((dec["marker"] & mask) != 0)))
+    return n
+
+
+def _accumulate(hist: np.ndarray, blocks: np.ndarray, bins: np.ndarray) -> None:
+    """``hist[blocks[i], bins[i]] += 1`` for every photon of a chunk, in memory bounded by the
+    chunk (``blocks`` non-decreasing)."""
+    n_bins = hist.shape[1]
+    b0, b1 = int(blocks[0]), int(blocks[-1])
+    flat = (blocks - b0) * n_bins + bins
+    span = (b1 - b0 + 1) * n_bins
+    if span <= max(1 << 16, 4 * flat.size):  # dense: one bincount over the chunk's blocks
+        hist[b0 : b1 + 1] += np.bincount(flat, minlength=span).reshape(-1, n_bins)
+    else:  # sparse (a few photons over many blocks): add each occupied bin once
+        cells, counts = np.unique(flat, return_counts=True)
+        hist.reshape(-1)[b0 * n_bins + cells] += counts.astype(hist.dtype)
+
+
+def _to_float32(hist: np.ndarray) -> np.ndarray:
+    """The int32 counts as float32 in the same memory (block by block: no full copy)."""
+    out = hist.view(np.float32)
+    step = max(1, (1 << 22) // max(1, hist.shape[1]))
+    for r in range(0, hist.shape[0], step):
+        out[r : r + step] = hist[r : r + step].copy()  # the copy: source and target overlap
+    return out
 
 
 def read_ptu_histograms(
@@ -315,7 +390,7 @@ def read_ptu_histograms(
     marker: int = 1,
     channel: int | Sequence[int] | None = None,
     n_patterns: int | None = None,
-    chunk_records: int = 2**22,
+    chunk_records: int = 2**20,
     rtol: float = 1e-3,
     period_tol_bins: float = 0.5,
     allow_binning: bool = False,
@@ -324,14 +399,25 @@ def read_ptu_histograms(
     """Read a T3 PTU file into per-pattern histograms over the code period.
 
     Records are read and decoded (``ptufile.PtuFile.decode_records``) ``chunk_records`` at a
-    time, so memory is bounded by the histograms plus one chunk, not by the file.
+    time. Memory is the histograms (``M x n_bins`` 4-byte counts, turned into float32 in
+    place) plus one chunk, whatever the file's length and the number of markers; histograms
+    that would not fit are refused before they are allocated (with ``n_patterns`` unset the
+    markers are counted in a first, cheap pass over the file, so ``M`` is known up front).
+    The result does not depend on ``chunk_records``.
 
     **Pattern blocks.** Records are in arrival order. Every marker record whose marker bits
     include ``marker`` starts a new block: photons between the k-th and (k+1)-th such marker
     (0-based) belong to pattern k, photons after the last marker to the last pattern. Photons
     *before the first marker are dropped* (the DMD pattern is unknown; counted in
-    ``n_dropped_before_first_marker``). Without ``n_patterns`` there are as many patterns as
-    markers; with it the first ``n_patterns`` blocks are kept and later photons dropped.
+    ``n_dropped_before_first_marker``). Without ``n_patterns`` there is one pattern per marker,
+    including blocks that hold no photons (a row of zeros), wherever they are in the file; with
+    it the first ``n_patterns`` blocks are kept and later photons dropped
+    (``n_dropped_after_last_pattern``).
+
+    **A trailing empty block.** A marker that is the file's last event (an end-of-acquisition
+    marker, or a pattern cut off at once) opens a block with no photons and a dwell of at most
+    one code period. It is kept as a pattern (the row count is always the number of blocks, or
+    ``n_patterns``) and named in ``warnings``; pass ``n_patterns`` = blocks - 1 to leave it out.
 
     **Bins.** ``dtime`` is in units of the file's resolution (``MeasDesc_Resolution``). With
     ``bin_width`` given, the resolution must equal it within relative ``rtol`` (1e-3) or, with
@@ -341,6 +427,10 @@ def read_ptu_histograms(
     **Code period.** With ``check_sync_period`` the sync period (``MeasDesc_GlobalResolution``)
     must equal ``n_bins * bin_width`` within ``period_tol_bins`` bins (half a bin: a larger
     mismatch would add or miss a bin at the end of every code period).
+
+    **Channels** are numbered from 0: the channel field of HydraHarp, TimeHarp 260 and
+    MultiHarp / generic T3 records as it is, and a PicoHarp's detector inputs 1-4 (its
+    records' channel field) as 0-3. This is ``ptufile``'s numbering.
 
     Parameters
     ----------
@@ -353,11 +443,12 @@ def read_ptu_histograms(
     marker : int
         Marker input (1..4) flagging a DMD pattern change; bit mask ``1 << (marker - 1)``.
     channel : int or sequence of int, optional
-        Detector channels to keep (``ptufile`` numbering, 0-based); default all.
+        Detector channels to keep, numbered from 0 (see above); default all. A channel on
+        which the file holds no photon is refused.
     n_patterns : int, optional
         Number of patterns ``M``; the file must hold at least that many blocks.
     chunk_records : int
-        Records per read/decode chunk.
+        Records per read/decode chunk (about 64 bytes of working memory each).
     rtol, period_tol_bins : float
         Tolerances of the resolution (relative) and sync period (in bins) checks.
     allow_binning : bool
@@ -374,18 +465,19 @@ def read_ptu_histograms(
     ConfigError
         Not a PTU file; a T2 file; unsupported record type; truncated record stream;
         resolution or sync period disagreeing with ``bin_width`` / ``n_bins``; no markers on
-        input ``marker``; fewer blocks than ``n_patterns``; bad arguments.
+        input ``marker``; fewer blocks than ``n_patterns``; no photons on ``channel``;
+        histograms too large for the memory available; bad arguments.
     """
     n_bins = _positive_int(n_bins, "n_bins")
     chunk_records = _positive_int(chunk_records, "chunk_records")
     limit = None if n_patterns is None else _positive_int(n_patterns, "n_patterns")
     mask = 1 << (_marker_input(marker) - 1)
-    channels = None if channel is None else np.unique(np.atleast_1d(np.asarray(channel)))
     spath = os.fspath(path)
 
     with _open_ptu(path) as f:
         header = _header_summary(f, path)
         family, n_records = _check_t3(f, header, spath)
+        channels = _channels(channel, family, header["record_type"], spath)
         res, period = header["resolution_s"], header["sync_period_s"]
         binning = _check_resolution(res, bin_width, rtol, allow_binning, spath)
         width = res * binning
@@ -398,62 +490,52 @@ def read_ptu_histograms(
                 f"{n_bins} * {width:.6g} s = {n_bins * width:.6g} s "
                 f"({(period - n_bins * width) / width:+.3g} bins, tolerance {period_tol_bins:g})")
 
+        if limit is None:  # a cheap first pass: how many blocks, so memory is known up front
+            _check_histogram_memory(1, n_bins, chunk_records, spath)
+            rows = _count_markers(f, n_records, chunk_records, mask, spath)
+        else:
+            rows = limit
+        _check_histogram_memory(rows, n_bins, chunk_records, spath)
         wrap = _FAMILY[family][0]
-        _check_histogram_memory(limit or 16, n_bins, spath)
-        hist = np.zeros((limit or 16, n_bins), np.int32)  # counts per bin: < 2^31
-        seen_channels: set[int] = set()
-        starts: list[np.ndarray] = []
+        hist = np.zeros((rows, n_bins), np.int32)  # counts per bin: < 2^31
+        starts = np.zeros(rows + 1, np.int64)  # marker syncs, and the next block's if any
+        seen_channels = np.zeros(128, bool)  # ptufile's channel is an int8
         n_markers = n_photons = n_ofl = carry = n_before = n_after = n_out = bits_seen = 0
         last_sync = -1
-        fh = f.filehandle
-        fh.seek(f.record_offset)
-        for done in range(0, n_records, chunk_records):
-            raw = np.empty(min(chunk_records, n_records - done), "<u4")
-            got = fh.readinto(memoryview(raw).cast("B")) or 0
-            if got != raw.nbytes:
-                raise ConfigError(f"{spath!r} is truncated: read {done + got // 4} of "
-                                  f"{n_records} records")
-            raw = raw.astype(np.uint32, copy=False)
-            dec = f.decode_records(raw)  # times restart at 0: global = carry + time
+        for raw, dec in _chunks(f, n_records, chunk_records, spath):
             ch, mk, time = dec["channel"], dec["marker"], dec["time"]
             special = ch < 0
             if special.any():
                 bits_seen |= int(np.bitwise_or.reduce(mk[special]))
             is_mark = special & ((mk & mask) != 0)
-            block = np.cumsum(is_mark, dtype=np.int64) + (n_markers - 1)
-            if is_mark.any():
-                times = time[is_mark].astype(np.int64) + carry
-                starts.append(times if limit is None else times[: max(0, limit - n_markers)])
+            k = int(np.count_nonzero(is_mark))
+            if k and n_markers <= rows:
+                take = time[is_mark][: rows + 1 - n_markers].astype(np.int64) + carry
+                starts[n_markers : n_markers + take.size] = take
             events = np.flatnonzero(~special | (mk != 0))
             if events.size:
                 last_sync = int(time[events[-1]]) + carry
 
-            if (~special).any():
-                seen_channels.update(int(c) for c in np.unique(ch[~special]))
-            photon = ~special if channels is None else ~special & np.isin(ch, channels)
-            pb = block[photon]
-            bins = dec["dtime"][photon].astype(np.int64) // binning
-            n_photons += pb.size
-            keep = pb >= 0
-            n_before += pb.size - int(np.count_nonzero(keep))
-            if limit is not None:
-                n_after += int(np.count_nonzero(pb >= limit))
-                keep &= pb < limit
-            n_out += int(np.count_nonzero(keep & (bins >= n_bins)))
-            keep &= bins < n_bins
-            if keep.any():
-                pb, bins = pb[keep], bins[keep]
-                b0, b1 = int(pb[0]), int(pb[-1])  # blocks are non-decreasing
-                if b1 >= hist.shape[0]:
-                    rows = max(2 * hist.shape[0], b1 + 1)
-                    _check_histogram_memory(rows, n_bins, spath)
-                    grown = np.zeros((rows, n_bins), np.int32)
-                    grown[: hist.shape[0]] = hist
-                    hist = grown
-                counts = np.bincount((pb - b0) * n_bins + bins, minlength=(b1 - b0 + 1) * n_bins)
-                hist[b0 : b1 + 1] += counts.reshape(-1, n_bins)
-
-            n_markers += int(np.count_nonzero(is_mark))
+            photon = ~special
+            if photon.any():
+                seen_channels[np.unique(ch[photon]).astype(np.int64)] = True
+            if channels is not None:
+                photon &= np.isin(ch, channels)
+            n_sel = int(np.count_nonzero(photon))
+            n_photons += n_sel
+            if n_sel:
+                block = (np.cumsum(is_mark, dtype=np.int64) + (n_markers - 1))[photon]
+                bins = dec["dtime"][photon].astype(np.int64) // binning
+                keep = block >= 0
+                n_before += n_sel - int(np.count_nonzero(keep))
+                late = block >= rows
+                n_after += int(np.count_nonzero(late))
+                keep &= ~late
+                n_out += int(np.count_nonzero(keep & (bins >= n_bins)))
+                keep &= bins < n_bins
+                if keep.any():
+                    _accumulate(hist, block[keep], bins[keep])
+            n_markers += k
             k_ofl, k_wraps = _overflows(raw, family)
             n_ofl += k_ofl
             carry += k_wraps * wrap
@@ -464,23 +546,26 @@ def read_ptu_histograms(
             f"{spath!r} has no marker records on marker input {marker} (needed to split photons"
             " into patterns); "
             + (f"markers present on inputs {seen}" if seen else "the file has no markers at all"))
-    if limit is not None and n_markers < limit:
+    if n_markers < rows:
         raise ConfigError(f"{spath!r} has {n_markers} marker-delimited blocks on marker input "
-                          f"{marker}, fewer than n_patterns={limit}")
-    if channels is not None and not set(int(c) for c in channels) & seen_channels:
+                          f"{marker}, fewer than n_patterns={rows}")
+    if channels is not None and not seen_channels[channels].any():
+        have = ", ".join(map(str, np.flatnonzero(seen_channels))) or "no channel"
         raise ConfigError(
-            f"{spath!r} has no photons on channel {', '.join(str(int(c)) for c in channels)} "
-            f"(channels are numbered from 0 as in the file; photons on "
-            f"{', '.join(map(str, sorted(seen_channels))) or 'no channel'})")
-    m = limit if limit is not None else n_markers
-    if hist.shape[0] < m:  # trailing blocks without photons are patterns too
-        _check_histogram_memory(m, n_bins, spath)
-        hist = np.concatenate([hist, np.zeros((m - hist.shape[0], n_bins), np.int32)])
-    hist = hist[:m]
+            f"{spath!r} has no photons on channel {', '.join(map(str, channels))} "
+            f"(channels are numbered from 0; photons on {have})")
+    counts = hist.sum(axis=1, dtype=np.int64)
+    end = starts[rows] if n_markers > rows else last_sync + 1
+    dwell = np.diff(np.append(starts[:rows], end))
+    notes = []
+    if n_markers == rows and counts[-1] == 0 and dwell[-1] <= 1:
+        notes.append(f"the last of the {rows} marker blocks holds no photons and lasts "
+                     f"{int(dwell[-1])} code period(s) (an end-of-acquisition marker?): it is "
+                     f"kept as a pattern of zeros; n_patterns={rows - 1} leaves it out")
     return PtuAcquisition(
-        histograms=hist.astype(np.float32), counts_per_pattern=hist.sum(axis=1),
-        pattern_start_sync=np.concatenate(starts)[:m], last_sync=last_sync,
+        histograms=_to_float32(hist), counts_per_pattern=counts,
+        pattern_start_sync=starts[:rows], last_sync=last_sync,
         sync_period_s=period, resolution_s=res, bin_width_s=width, binning=binning,
         n_records=n_records, n_photons=n_photons, n_markers=n_markers, n_overflows=n_ofl,
         n_dropped_before_first_marker=n_before, n_dropped_after_last_pattern=n_after,
-        n_out_of_range=n_out, header=header)
+        n_out_of_range=n_out, header=header, periods_per_pattern=dwell, warnings=notes)

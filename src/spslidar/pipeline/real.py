@@ -35,18 +35,40 @@ __all__ = ["load_code", "load_patterns", "reconstruct_ptu", "write_measurement_p
 
 
 def _load_npy(path: str | os.PathLike, what: str) -> np.ndarray:
+    """A ``.npy`` array, its header checked first: a shape the file's body cannot hold, Python
+    objects, or an array too large for this machine are refused in one line before anything
+    is allocated."""
+    import numpy.lib.format as npformat
+
+    from ..machine import _gb, available_memory
+
     p = Path(path)
     if not p.is_file():
         raise ConfigError(f"{what} file not found: {p}")
     try:
-        # the header first (a memory map reads no data): a shape the file cannot hold, or one
-        # too large for this machine, is refused before anything is allocated
-        head = np.load(p, allow_pickle=False, mmap_mode="r")
-    except (ValueError, OSError) as exc:
+        with open(p, "rb") as fh:
+            version = npformat.read_magic(fh)
+            read_header = {(1, 0): npformat.read_array_header_1_0,
+                           (2, 0): npformat.read_array_header_2_0}.get(version)
+            if read_header is not None:  # (version 3.0: np.load below checks the same)
+                shape, _fortran, dtype = read_header(fh)
+                body = p.stat().st_size - fh.tell()
+                if dtype.hasobject:
+                    raise ConfigError(f"cannot read {what} {p}: it holds Python objects, "
+                                      "not numbers")
+                size = float(np.prod(shape, dtype=np.float64)) * dtype.itemsize
+                if size > body:
+                    amount = _gb(size) if size >= 1e6 else f"{size:.0f} bytes"
+                    raise ConfigError(
+                        f"cannot read {what} {p}: its header declares an array of shape "
+                        f"{tuple(shape)} ({dtype}, {amount}) but only {body} bytes follow it "
+                        f"(a truncated or corrupt .npy file)")
+        head = np.load(p, allow_pickle=False, mmap_mode="r")  # a memory map reads no data
+    except ConfigError:
+        raise
+    except (ValueError, OSError, EOFError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise ConfigError(f"cannot read {what} {p} as a .npy array: {msg}") from None
-    from ..machine import _gb, available_memory
-
     need = float(head.size) * 8 * 2  # float64 copies while checking
     if need > 0.8 * available_memory():
         raise ConfigError(f"{what} {p} holds an array of shape {head.shape}: {_gb(need)} to "
@@ -88,8 +110,10 @@ def load_code(code: str | os.PathLike, code_length: int | None = None) -> np.nda
 def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: int,
                       period: int) -> None:
     """Refuse, in one line and before the file is read, what no real acquisition can be: a
-    bit rate outside [1e6, 1e13] (as ``run``), and a range gate whose slices would not fit in
-    memory (``--range-gate 0 100000`` reached 6.9 GB, then a MemoryError)."""
+    bit rate outside [1e6, 1e13] (as ``run``), per-pattern histograms that would not fit in
+    memory (``n_patterns x period`` bins: the reader's float32 counts, their rescaled float64
+    copy and a float32 one for the matched filter), and a range gate whose slices would not
+    fit (``--range-gate 0 100000`` reached 6.9 GB, then a MemoryError)."""
     import math
 
     from ..machine import _gb, available_memory
@@ -106,6 +130,10 @@ def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: in
         raise ConfigError(f"--range-gate must be MIN MAX with 0 <= MIN < MAX metres, got "
                           f"{lo:g} {hi:g}")
     n_lags = (hi - lo) * 2.0 * rate / 299792458.0 + 2
+    hists = float(n_patterns) * period * 24 + float(n_patterns) * min(n_lags, period) * 8
+    if hists > 0.8 * available_memory():
+        raise ConfigError(f"{n_patterns} patterns of {period} bins (the code length) need "
+                          f"{_gb(hists)} of histograms, more than the memory available")
     # range slices (float32 and the estimator's float64 copies) and the solver's blocks
     need = float(n_pixels) * n_lags * 20 + 16.0 * n_pixels * min(n_lags, period) * 4
     if need > 0.8 * available_memory():
