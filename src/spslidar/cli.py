@@ -166,9 +166,10 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--max-memory", type=float, default=S, metavar="GB",
                    help="refuse a run whose estimated peak memory exceeds this (default: the "
                         "memory available now); the estimate is checked before any work")
-    g.add_argument("--max-time", type=float, default=S, metavar="SECONDS",
-                   help="refuse a run whose estimated time exceeds this (default 3600); a run "
-                        "estimated over 30 s says so before it starts")
+    g.add_argument("--max-time", type=_duration, default=S, metavar="TIME",
+                   help="refuse a run whose estimated time exceeds this: seconds, or with a "
+                        "unit (90s, 10min, 2h; default 1h); a run estimated over 30 s says so "
+                        "before it starts")
 
 
 def _add_stage_options(g, option: str) -> None:
@@ -246,6 +247,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _duration(text: str) -> float:
+    """``--max-time``: seconds, or a number with a unit (``90s``, ``10min``, ``2h``, ``1d``)."""
+    from .pipeline.budget import parse_duration
+
+    try:
+        return parse_duration(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).replace("--max-time must be", "must be")) \
+            from None
+
+
 def _fov(text: str) -> float:
     """``--fov`` in degrees, in (0, 180)."""
     try:
@@ -276,7 +288,9 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
     p.add_argument("--marker", type=int, default=1, metavar="K",
                    help="marker input flagging a pattern change (default 1)")
     p.add_argument("--channel", type=int, metavar="C",
-                   help="detector channel, numbered from 0 as in the file (default all)")
+                   help="detector channel, numbered from 0: the channel field of HydraHarp, "
+                        "TimeHarp and MultiHarp records; a PicoHarp's inputs 1-4 are 0-3 "
+                        "(default all; a channel without photons is refused)")
 
 
 def _add_reconstruct_parser(sub) -> None:
@@ -391,8 +405,9 @@ def _add_sweep_options(p: argparse.ArgumentParser, trials: bool) -> None:
     p.add_argument("--scheduler", metavar="ADDR",
                    help="Dask scheduler address (tcp://HOST:PORT) instead of local processes")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--max-time", type=float, default=3600.0, metavar="SECONDS",
-                   help="refuse work whose estimated total time exceeds this (default 3600)")
+    p.add_argument("--max-time", type=_duration, default=3600.0, metavar="TIME",
+                   help="refuse work whose estimated total time exceeds this: seconds, or with "
+                        "a unit (90s, 10min, 2h; default 1h)")
 
 
 def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -446,6 +461,9 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
     p.add_argument("--interval", choices=SNR_INTERVALS, default="delta",
                    help="standard error by the delta method (default) or a bootstrap")
     p.add_argument("--seed", type=int, default=0, help="random seed, >= 0 (default 0)")
+    p.add_argument("--max-time", type=_duration, default=3600.0, metavar="TIME",
+                   help="refuse a simulation estimated to take longer: seconds, or with a unit "
+                        "(90s, 10min, 2h; default 1h)")
     p.add_argument("--json", action="store_true",
                    help='print {"theory", "simulated", "stderr", "ci95", "ratio", "params"} '
                         'as JSON')
@@ -534,7 +552,8 @@ def cmd_snr(args: argparse.Namespace) -> int:
         raise config_error(f"seed must be a non-negative integer, got {seed}")
     r = snr_simulated(args.code, args.code_length, args.ones_ratio, args.signal, args.noise,
                       args.size, args.on_fraction, args.reflectivity, args.trials, seed,
-                      method=args.method, interval=args.interval, code_index=args.code_index)
+                      method=args.method, interval=args.interval, code_index=args.code_index,
+                      max_time=args.max_time)
     params = {key: r[key] for key in (
         "code", "code_length", "code_index", "ones_ratio", "ones", "ones_ratio_actual", "signal",
         "noise", "size", "on_fraction", "mirrors_on", "reflectivity", "trials", "method",

@@ -84,7 +84,8 @@ class Config:
     dtype: str = "float32"
     seed: int = 0
     max_memory: float | None = None
-    #: refuse a run whose estimated time exceeds this many seconds (default 1 h)
+    #: refuse a run whose estimated time exceeds this many seconds (default 1 h; a string
+    #: with a unit, "10min" or "2h", is read as on the command line)
     max_time: float = 3600.0
     # where the numeric core runs (spslidar.backends)
     backend: str = "numpy"
@@ -228,6 +229,10 @@ class Config:
         number("tol", 0)
         number("seed", 0, integer=True)
         number("max_memory", 0, lo_open=True, optional=True)
+        if isinstance(self.max_time, str):  # "90s", "10min", "2h" as on the command line
+            from .pipeline.budget import parse_duration
+
+            self.max_time = parse_duration(self.max_time)
         number("max_time", 0, lo_open=True)
         number("system_delay", 0, 1e-3)
         if self.irf is not None:

@@ -18,7 +18,8 @@ from dataclasses import dataclass, field
 from ..errors import SpslidarError
 from ..machine import _gb, available_memory
 
-__all__ = ["Budget", "available_memory", "check_budget", "check_time", "estimate_budget"]
+__all__ = ["Budget", "available_memory", "check_budget", "check_time", "estimate_budget",
+           "parse_duration"]
 
 #: memory of the interpreter with NumPy, SciPy and spslidar imported
 BASE_BYTES = 150e6
@@ -54,6 +55,8 @@ class Budget:
 
 
 def _secs(s: float) -> str:
+    if s < 10:
+        return f"{s:.2g} s"
     if s < 120:
         return f"{s:.0f} s"
     if s < 7200:
@@ -106,25 +109,79 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
     return Budget(sum(parts.values()), seconds, parts)
 
 
+#: units ``--max-time`` takes after its number (seconds when none is given)
+DURATION_UNITS = {"s": 1.0, "sec": 1.0, "second": 1.0, "seconds": 1.0,
+                  "m": 60.0, "min": 60.0, "minute": 60.0, "minutes": 60.0,
+                  "h": 3600.0, "hour": 3600.0, "hours": 3600.0,
+                  "d": 86400.0, "day": 86400.0, "days": 86400.0}
+
+
+def parse_duration(text: str | float | int, what: str = "--max-time") -> float:
+    """A time limit in seconds from ``90``, ``90s``, ``2min``, ``1.5h`` or ``1d``.
+
+    Parameters
+    ----------
+    text : str or float or int
+        A positive number of seconds, or a number followed by one of
+        :data:`DURATION_UNITS` (spaces allowed, case ignored).
+    what : str
+        The option named in the error message.
+
+    Returns
+    -------
+    float
+        Seconds, positive and finite.
+
+    Raises
+    ------
+    ConfigError
+        On anything else (one line).
+    """
+    import math
+    import re
+
+    from ..errors import ConfigError
+
+    if isinstance(text, bool):
+        raise ConfigError(f"{what} must be a duration such as 600, 10min or 2h, got {text!r}")
+    if isinstance(text, (int, float)):
+        value, unit = float(text), 1.0
+    else:
+        match = re.fullmatch(r"\s*([0-9.eE+-]+)\s*([A-Za-z]*)\s*", str(text))
+        try:
+            value = float(match.group(1)) if match else math.nan
+        except ValueError:
+            value = math.nan
+        unit = DURATION_UNITS.get(match.group(2).lower() if match and match.group(2) else "s")
+        if unit is None or math.isnan(value):
+            raise ConfigError(f"{what} must be a duration such as 600, 10min or 2h (units: s, "
+                              f"min, h, d), got {text!r}")
+    seconds = value * unit
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise ConfigError(f"{what} must be a positive, finite duration, got {text!r}")
+    return seconds
+
+
 #: a run estimated to take longer than this says so on stderr before it starts (seconds)
 ANNOUNCE_SECONDS = 30.0
 
 
 def check_time(seconds: float, max_time: float | None, what: str = "this run",
-               announce: bool = True) -> None:
+               announce: bool = True,
+               reduce: str = "--size, --compression, --iterations or the range gate") -> None:
     """Refuse (one line) work whose estimated time exceeds ``max_time`` seconds
     (``--max-time``); say the estimate on stderr before long work (over
-    :data:`ANNOUNCE_SECONDS`)."""
+    :data:`ANNOUNCE_SECONDS`). ``reduce`` names what to lower in the refusal."""
     import sys
 
     if max_time is not None and seconds > max_time:
         raise SpslidarError(
             f"{what} would take ~{_secs(seconds)} (estimated from its configuration), more "
-            f"than --max-time {_secs(max_time)}: reduce --size, --compression, --iterations or "
-            f"the range gate, or raise --max-time (seconds)")
+            f"than --max-time {_secs(max_time)}: reduce {reduce}, or raise --max-time (e.g. "
+            f"--max-time 2h)")
     if announce and seconds > ANNOUNCE_SECONDS:
         print(f"spslidar: {what} will take about {_secs(seconds)} (an estimate; --max-time "
-              f"sets the limit)", file=sys.stderr, flush=True)
+              f"to change the limit)", file=sys.stderr, flush=True)
 
 
 def check_budget(budget: Budget, max_memory_gb: float | None,

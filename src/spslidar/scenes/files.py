@@ -136,10 +136,17 @@ def _load_image(path: Path, label: str) -> np.ndarray:
             warnings.simplefilter("ignore")
             img = np.asarray(io.imread(path))
     except Exception as exc:
+        reason = _reason(exc)
+        reason = reason if len(reason) <= 120 else reason[:117] + "..."
         raise SceneError(
-            f"cannot read scene image {label} ({type(exc).__name__}): use a grey or RGB "
+            f"cannot read scene image {label} ({reason}): use a grey or RGB "
             f"{'/'.join(_IMAGE_SUFFIXES)} image"
         ) from None
+    if np.iscomplexobj(img) or not (np.issubdtype(img.dtype, np.number)
+                                    or img.dtype == bool):
+        # a complex TIFF (e.g. a saved FFT) has no grey level to map onto depth
+        raise SceneError(f"scene image {label} holds {img.dtype} values, not grey levels: use "
+                         f"a grey or RGB image (or a real .npy depth map)")
     if img.ndim == 3 and img.shape[-1] in (3, 4):
         if img.shape[-1] == 4:
             img = img[..., :3]

@@ -96,7 +96,14 @@ def _run_local(
         for start in range(0, len(tasks), batch):
             yield from parallel(calls(tasks[start : start + batch]))
         return
-    outputs = parallel(calls(tasks))
+    try:
+        outputs = parallel(calls(tasks))
+    except (RuntimeError, OSError) as exc:
+        _stop_workers()
+        if _out_of_processes(exc):
+            raise ConfigError(f"cannot start {jobs} worker processes: {exc} (the process "
+                              f"limit, ulimit -u, is reached): use --jobs 1") from None
+        raise
     try:
         yield from outputs
     except BaseException:
@@ -106,6 +113,15 @@ def _run_local(
         close = getattr(outputs, "close", None)
         if close is not None:
             close()
+
+
+def _out_of_processes(exc: BaseException) -> bool:
+    """Whether starting the pool failed for want of processes or threads (``ulimit -u``)."""
+    import errno
+
+    if isinstance(exc, OSError):
+        return exc.errno in (errno.EAGAIN, errno.ENOMEM)
+    return "can't start new thread" in str(exc)
 
 
 def _call_indexed(
@@ -234,17 +250,66 @@ def _is_tty(stream) -> bool:
         return False
 
 
+#: tasks (processes and threads: Linux counts both against ``ulimit -u``) a pool adds to the
+#: parent: the executor's manager and queue threads and the two resource trackers (6 measured
+#: with loky 3.4, rounded up)
+POOL_PARENT_TASKS = 8
+
+
+def _tasks_per_worker(cores: int) -> int:
+    """Tasks one pool worker may hold: itself and the thread pools of NumPy's and SciPy's
+    BLAS (one thread per core each; 3 measured at start-up on 2 cores, before SciPy loads)."""
+    return 2 + 2 * cores
+
+
+def _process_headroom() -> tuple[int, int] | None:
+    """``(limit, in use)`` of the tasks this user may run (``ulimit -u``, RLIMIT_NPROC, which
+    Linux counts in threads), or None where there is no such limit (none set, root, or no
+    ``/proc`` to count them)."""
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_NPROC)
+    except (ImportError, AttributeError, OSError, ValueError):
+        return None
+    if soft == resource.RLIM_INFINITY or soft <= 0 or os.getuid() == 0:
+        return None  # root is not held to RLIMIT_NPROC
+    uid, used = os.getuid(), 0
+    try:
+        pids = [d for d in os.listdir("/proc") if d.isdigit()]
+    except OSError:
+        return None
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/status") as fh:
+                fields = dict(line.split(":", 1) for line in fh if ":" in line)
+            if int(fields["Uid"].split()[0]) == uid:
+                used += int(fields.get("Threads", "1"))
+        except (OSError, KeyError, ValueError, IndexError):
+            continue  # a process that ended while we looked, or one we may not read
+    return int(soft), used
+
+
 def clamp_jobs(jobs: int, n_tasks: int) -> int:
-    """The worker processes worth starting: at most one per task and per core (``-1``: the
-    cores); a clamp is said on stderr (``--jobs 1000`` for 3 runs started a 1000-process
-    pool)."""
+    """The worker processes worth starting: at most one per task, per core and per what the
+    process limit (``ulimit -u``) leaves room for (``-1``: the cores); a clamp is said on
+    stderr (``--jobs 1000`` for 3 runs started a 1000-process pool, and where the process
+    limit was low it ended in a traceback). 1 means run in this process, without a pool."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
         os.cpu_count() or 1)
     want = cores if jobs == -1 else jobs
     use = max(1, min(want, cores, max(1, n_tasks)))
-    if jobs != -1 and use < jobs:
-        print(f"spslidar: --jobs {jobs} clamped to {use} ({n_tasks} runs to do, {cores} cores)",
-              file=sys.stderr)
+    why = f"{n_tasks} runs to do, {cores} cores"
+    room = _process_headroom() if use > 1 else None
+    if room is not None:
+        limit, used = room
+        fit = (limit - used - POOL_PARENT_TASKS) // _tasks_per_worker(cores)
+        if fit < use:
+            use = max(1, fit)
+            why = (f"the process limit, ulimit -u {limit} with {used} in use, leaves room for "
+                   f"{'no worker pool' if fit < 2 else f'{fit} workers'}")
+    if use < want:
+        print(f"spslidar: --jobs {jobs} clamped to {use} ({why})", file=sys.stderr)
     return use
 
 
