@@ -17,9 +17,12 @@ An IRF is given as
 * a ``.npy`` file: the response sampled per TDC bin (non-negative; normalised here; its time
   origin is its peak).
 
-The kernel is :func:`spslidar.detectors.pileup.jitter_kernel` (exact for a photon uniform in
-its bin, however narrow the Gaussian), truncated where it holds less than ``1e-7`` of the
-photons.
+A parametric IRF is applied to each return in continuous time (:func:`exact_weights`: the
+share of each TDC bin from the antiderivative of the jitter's CDF,
+:func:`spslidar.detectors.pileup.jitter_antiderivative`), so the sub-bin delay of a return
+survives the jitter, as in a real instrument; a sampled one is a per-bin kernel
+(:func:`irf_kernel`). The ``gmapd`` detector's own ``--jitter`` is a further convolution in
+the detector.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from pathlib import Path
 
 from .errors import ConfigError
 
-__all__ = ["IRF", "instrument_weights", "irf_kernel", "parse_irf"]
+__all__ = ["IRF", "exact_weights", "instrument_weights", "irf_kernel", "parse_irf"]
 
 #: FWHM / sigma of a Gaussian
 _FWHM_PER_SIGMA = 2.3548200450309493
@@ -153,9 +156,59 @@ def apply_kernel(shifts, weights, kernel, period: int):
     return new_shifts, np.asarray(weights, dtype=np.float64) @ spread
 
 
+def exact_weights(reflectivity, delay, pulse_width: float, irf: IRF, bin_width: float,
+                  period: int):
+    """Each return through a parametric IRF, per TDC bin, exactly below a bin.
+
+    A photon of a return at ``delay`` (bins) leaves at ``delay + U pulse_width`` (``U``
+    uniform: the RZ pulse), is recorded ``J`` later (the IRF's jitter) and lands in bin
+    ``floor(delay + U pulse_width + J)``; with ``G`` the antiderivative of the jitter's CDF
+    (:func:`spslidar.detectors.pileup.jitter_antiderivative`) the share of bin ``b + o``
+    (``b = floor(delay)``, ``r = delay - b``) is
+    ``(G(o + 1 - r) - G(o + 1 - r - p) - G(o - r) + G(o - r - p)) / p``. So the sub-bin delay
+    survives the jitter as in a real instrument (the per-bin kernel of
+    :func:`irf_kernel` treats a photon as uniform in its bin).
+
+    Returns ``(shifts, weights)`` as :func:`spslidar.forward.return_weights`.
+    """
+    import numpy as np
+
+    from .detectors.pileup import jitter_antiderivative
+
+    sigma = irf.fwhm / _FWHM_PER_SIGMA / bin_width
+    tail = irf.tail / bin_width
+    delay = np.asarray(delay, dtype=np.float64).ravel()
+    base = np.floor(delay)
+    frac = delay - base
+    lo = -int(np.ceil(10 * sigma)) - 2
+    hi = int(np.ceil(10 * sigma + (40 * tail if irf.weight else 0.0) + pulse_width)) + 2
+    offsets = np.arange(lo, hi + 1, dtype=np.float64)
+    share = np.zeros((delay.size, offsets.size))
+    for rows in np.array_split(np.arange(delay.size), max(1, delay.size // 4096)):
+        y = offsets[None, :] - frac[rows, None]
+
+        def g(v):
+            return jitter_antiderivative(v, sigma, tail, irf.weight)
+
+        share[rows] = (g(y + 1) - g(y + 1 - pulse_width) - g(y) + g(y - pulse_width))
+    share = np.maximum(share / pulse_width, 0.0)
+    col = share.max(axis=0) > 1e-7 * share.max()  # drop offsets no return reaches
+    share, offsets = share[:, col], offsets[col].astype(np.int64)
+    share /= share.sum(axis=1, keepdims=True)
+    circ = np.mod(base.astype(np.int64)[:, None] + offsets[None, :], period)
+    shifts, inverse = np.unique(circ, return_inverse=True)
+    inverse = inverse.reshape(circ.shape)
+    w = np.zeros((delay.size, shifts.size))
+    a = np.asarray(reflectivity, dtype=np.float64).ravel()
+    for k in range(offsets.size):
+        np.add.at(w, (np.arange(delay.size), inverse[:, k]), a * share[:, k])
+    return shifts, w
+
+
 def instrument_weights(scene, acq, cfg):
     """Each pixel's return per occupied delay bin as the instrument records it: the time of
-    flight (eq. 2-3) plus the system delay, the RZ pulse over its bins, spread by the IRF.
+    flight (eq. 2-3) plus the system delay, the RZ pulse over its bins, spread by the IRF
+    (:func:`exact_weights` for a parametric IRF, the per-bin kernel of a sampled one).
 
     Returns ``(shifts, weights)`` as :func:`spslidar.forward.return_weights`.
     """
@@ -170,8 +223,14 @@ def instrument_weights(scene, acq, cfg):
         refl = np.concatenate([refl, scene.behind_reflectivity.ravel()])
     delay = depth_to_delay(depth, acq.bin_width)
     delay = delay + float(getattr(cfg, "system_delay", 0.0) or 0.0) / acq.bin_width
-    shifts, weights = return_weights(refl, delay, cfg.pulse_width, acq.period)
+    irf = parse_irf(getattr(cfg, "irf", None))
+    if irf is not None and irf.path is None:
+        shifts, weights = exact_weights(refl, delay, cfg.pulse_width, irf, acq.bin_width,
+                                        acq.period)
+    else:
+        shifts, weights = return_weights(refl, delay, cfg.pulse_width, acq.period)
+        shifts, weights = apply_kernel(shifts, weights,
+                                       irf_kernel(irf, acq.bin_width, acq.period), acq.period)
     if behind is not None:  # each pixel's two returns add up
         weights = weights[: scene.depth.size] + weights[scene.depth.size:]
-    kernel = irf_kernel(parse_irf(getattr(cfg, "irf", None)), acq.bin_width, acq.period)
-    return apply_kernel(shifts, weights, kernel, acq.period)
+    return shifts, weights

@@ -75,6 +75,7 @@ __all__ = [
     "bin_map",
     "coates_correction",
     "convolve_periodic",
+    "jitter_antiderivative",
     "jitter_kernel",
     "renewal_detection",
     "sub_bin_profile",
@@ -162,6 +163,16 @@ def _g_exgauss(y: np.ndarray, sigma: float, tau: float) -> np.ndarray:
     else:
         cdf = stats.exponnorm.cdf(y, tau / sigma, scale=sigma)
     return _g_gauss(y, sigma) - tau * cdf
+
+
+def jitter_antiderivative(y: np.ndarray, sigma: float, tail: float = 0.0,
+                          tail_weight: float = 0.0) -> np.ndarray:
+    """``G(y) = E[(y - J)^+]`` of the jitter of :func:`jitter_kernel` (Gaussian, with
+    probability ``tail_weight`` plus an exponential tail of mean ``tail``; bins): the
+    antiderivative of its CDF, from which the share of any time interval follows exactly."""
+    tw = float(tail_weight) if tail > 0 else 0.0
+    out = (1.0 - tw) * _g_gauss(y, sigma)
+    return out + tw * _g_exgauss(y, sigma, tail) if tw else out
 
 
 def jitter_kernel(period: int, sigma: float, tail: float = 0.0,

@@ -222,20 +222,24 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     hist = data.histograms.astype(np.float64) * (n_mean / n_k)[:, None]
     replica = make_replica(code, "bipolar" if cfg.replica == "auto" else cfg.replica)
     lags = gate_lags(cfg.range_gate, bin_width)
-    cal, shift, signal_code = None, 0, code
+    cal, shift, signal_code, frac, scale, spread = None, 0, code, 0.0, 1.0, 1.0
     if calibration is not None:
         from .calibration import calibrated_filter, load_calibration
 
         cal = (calibration if isinstance(calibration, dict)
                else load_calibration(calibration, bit_rate, code))
-        replica, signal_code, shift = calibrated_filter(code, replica, cal)
-    gain = correlation_gain(signal_code, replica) * n_mean
+        replica, signal_code, shift, frac, scale, spread = calibrated_filter(code, replica,
+                                                                             cal)
+    gain = correlation_gain(signal_code, replica) * n_mean * scale
     # a calibrated instrument's returns arrive lag_shift bins late: filter there, while the
     # depths stay those of the gated lags (true metres)
     ulags, inverse = unique_lags(lags + shift, period)
+    if cal is not None:  # the part of a bin the whole-bin shift misses, read into the depths
+        lags = lags + frac
     corr = matched_filter(hist.astype(np.float32), replica, ulags, gain)
     totals = hist.sum(axis=1)
-    signal = np.asarray(corr, np.float64).sum(axis=1) * n_mean * code.sum()
+    # (a calibrated filter spreads a return over several lags: counted once)
+    signal = np.asarray(corr, np.float64).sum(axis=1) * n_mean * code.sum() / spread
     background = np.maximum(totals - signal, 0.0) / period
     sim = {"corr": corr, "sigma": noise_sigma_from_totals(totals, replica, gain),
            "counts": totals, "signal_counts": signal, "noise_per_bin": background / n_mean,
@@ -265,7 +269,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
 
         "n_out_of_range": data.n_out_of_range, "record_type": data.header.get("record_type")}
     result.metrics["calibration"] = None if cal is None else {
-        "file": cal.get("file"), "delay_s": cal["delay_s"], "lag_shift": cal["lag_shift"],
+        "file": cal.get("file"), "sha256": cal.get("file_sha256"), "delay_s": cal["delay_s"],
+        "lag_shift": cal["lag_shift"], "lag_fraction": frac,
         "irf_fwhm_bins": cal["irf_fwhm_bins"], "distance_m": cal.get("distance_m"),
         "measured_from": cal.get("measured_from")}
     return result
