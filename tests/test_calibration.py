@@ -221,3 +221,24 @@ def test_calibrate_refuses_a_users_file_before_the_work(tmp_path, monkeypatch, c
                  "--distance", "25", "--out", str(mine), "--overwrite"]) == 2
     assert "not a spslidar calibration" in capsys.readouterr().err
     assert mine.read_text() == '{"not": "a calibration"}'
+
+
+def test_delay_filter_gathers_a_spread_return_without_moving_it():
+    """The delay-axis matched filter: a profile in the response's shape keeps its peak where
+    it was, an isolated one-slice spike (a solve's error) is damped by the response's centre
+    weight, and a gate of non-consecutive lags is left alone."""
+    from spslidar.pipeline.calibration import delay_filter
+
+    response = np.array([0.1, 0.3, 0.7, 1.0, 0.7, 0.3, 0.1])
+    lags = np.arange(40) + 0.3  # calibrated lags carry the fraction of a bin
+    slices = np.zeros((3, 40), np.float32)
+    slices[0, 17:24] = response  # a return at lag 20
+    slices[1, 9] = 1.0  # a spike
+    slices[2, 30:37] = 0.5 * response
+    slices[2, 12] = 0.45  # a spike nearly as tall as pixel 2's return
+    out = delay_filter(slices, lags, response)
+    assert out.dtype == slices.dtype and out.shape == slices.shape
+    assert np.argmax(out[0]) == 20 and np.argmax(out[2]) == 33  # the spike no longer wins
+    assert out[1].max() == pytest.approx(1.0 / response.sum(), rel=1e-6)
+    gaps = np.array([0, 1, 2, 4, 5, 6, 7])
+    assert np.array_equal(delay_filter(slices[:, :7], gaps, response), slices[:, :7])

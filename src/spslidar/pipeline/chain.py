@@ -176,8 +176,13 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     full[:, keep] = x
     slices = full[:, meas.inverse]
     shape = (cfg.size, cfg.size)
+    seen = slices
+    if sim.get("delay_response") is not None:  # a calibrated instrument's spread returns
+        from .calibration import delay_filter
+
+        seen = delay_filter(slices, lags, sim["delay_response"])
     est = ESTIMATORS.load(cfg.depth)().estimate(
-        slices, DepthContext(lags, bin_width, cfg.pulse_width, shape, cfg.subbin))
+        seen, DepthContext(lags, bin_width, cfg.pulse_width, shape, cfg.subbin))
     depth = est.depth.reshape(shape)
     timing["depth"] = time.perf_counter() - t0
 

@@ -223,13 +223,14 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     replica = make_replica(code, "bipolar" if cfg.replica == "auto" else cfg.replica)
     lags = gate_lags(cfg.range_gate, bin_width)
     cal, shift, signal_code, frac, scale, spread = None, 0, code, 0.0, 1.0, 1.0
+    response = None
     if calibration is not None:
         from .calibration import calibrated_filter, load_calibration
 
         cal = (calibration if isinstance(calibration, dict)
                else load_calibration(calibration, bit_rate, code))
-        replica, signal_code, shift, frac, scale, spread = calibrated_filter(code, replica,
-                                                                             cal)
+        replica, signal_code, shift, frac, scale, spread, response = calibrated_filter(
+            code, replica, cal)
     gain = correlation_gain(signal_code, replica) * n_mean * scale
     # a calibrated instrument's returns arrive lag_shift bins late: filter there, while the
     # depths stay those of the gated lags (true metres)
@@ -245,7 +246,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
            "counts": totals, "signal_counts": signal, "noise_per_bin": background / n_mean,
            "pileup": {"model": "measured", "count_rate_hz": float(totals.mean() / n_mean
                                                                   / (period * bin_width))},
-           "estimate": {}}
+           "estimate": {}, "delay_response": response}
     acq = Acquisition("psst", code, bin_width, max(1, int(round(n_mean))), 1.0,
                       "bipolar" if cfg.replica == "auto" else cfg.replica,
                       f"measured code of {period} bits", 0)
