@@ -53,8 +53,6 @@ def test_numpy_is_the_default():
     ({"backend": "jax"}, "unknown backend 'jax'"),
     ({"device": "tpu"}, "unknown device 'tpu'"),
     ({"device": "cuda"}, "--backend numpy runs on the CPU only"),
-    ({"backend": "array-api-strict", "solver": "twist"}, "--solver twist runs on --backend numpy"),
-    ({"backend": "array-api-strict", "qcr": False}, "--no-qcr runs on --backend numpy"),
 ])
 def test_bad_backend_configs_are_one_line(kw, words):
     with pytest.raises(ConfigError) as exc:
@@ -294,6 +292,38 @@ def test_device_hadamard_matches_the_host_operator(be, kind):
     lhs = float(np.sum(be.to_numpy(c.matvec(be.asarray(x))) * y))
     rhs = float(np.sum(x * be.to_numpy(c.rmatvec(be.asarray(y)))))
     assert lhs == pytest.approx(rhs, rel=1e-4)
+
+
+def _every_stage_choice():
+    """One run per choice of every registry of the reconstruction and the detector (each
+    entry discovered, so a new one is picked up), and the two QCR forms and no QCR."""
+    from spslidar.depth import ESTIMATORS
+    from spslidar.detectors import DETECTORS
+    from spslidar.solvers import REGULARISERS, SOLVERS
+
+    cases = [{"solver": s} for s in SOLVERS.names()]
+    cases += [{"regulariser": r} for r in REGULARISERS.names()]
+    # a detector at a flux a GMAPD counts without piling up (the default flux saturates it)
+    cases += [{"detector": d, "signal": 2e-4, "noise": 2e-5, "compression": 0.5}
+              for d in DETECTORS.names()]
+    cases += [{"depth": d} for d in ESTIMATORS.names()]
+    cases += [{"qcr_form": "covariance"}, {"qcr": False}]
+    return cases
+
+
+@pytest.mark.parametrize("choice", _every_stage_choice(), ids=lambda c: "-".join(
+    f"{k}={v}" for k, v in list(c.items())[:1]))
+def test_every_stage_choice_runs_on_strict_with_the_numpy_answer(choice):
+    """Issue 22: every stage choice runs through the one chain on array-api-strict (on the
+    device where it has a kernel, else on the host from the arrays brought back) and gives
+    NumPy's depth map: the strict backend draws from NumPy's streams, so the same patterns
+    and counts (a device kernel's float32 round-off is below the slices' resolution here:
+    the maps are equal, and the RMSE within 10 % is the issue's floor)."""
+    kw = {"size": 8, "code_length": 1023, "noise": 2.0, **choice}
+    r0, r1 = run(**kw), run(**kw, backend="array-api-strict")
+    assert r1.metrics["config"]["backend"] == "array-api-strict"
+    assert abs(r1.depth_rmse - r0.depth_rmse) <= 0.1 * r0.depth_rmse + 1e-9
+    np.testing.assert_array_equal(r1.depth, r0.depth)
 
 
 @pytest.mark.skipif(not _has_hadamard(), reason="no hadamard pattern kind")

@@ -33,62 +33,136 @@ class Config:
     """
 
     # scene
+    #: built-in scene name (``camera``, ``motorcycle``...) or a file: ``.npy`` depth in metres,
+    #: ``.npz`` with ``depth`` (+ ``reflectivity``, ``valid``), ``.png``/``.tif`` grey image mapped
+    #: into [``depth_min``, ``depth_max``]
     scene: str = "camera"
+    #: [pixels] the scene and the DMD are ``size`` x ``size`` pixels (Q = size^2 unknowns per range
+    #: slice)
     size: int = 64
+    #: [m] rescale the scene's depth into [``depth_min``, ``depth_max``] (default: the scene's own
+    #: range)
     depth_min: float | None = None
+    #: [m] upper end of the rescaled depth range (see ``depth_min``)
     depth_max: float | None = None
     # lidar and code
+    #: ``psst``: the laser gated by a pseudo-random code (the paper's lidar); ``conventional``:
+    #: periodic single pulses in the same acquisition time (the paper's baseline)
     lidar: str = "psst"
+    #: code family that gates the laser (its registry: ``spslidar.codes.CODES``)
     code: str = "mseq"
+    #: [bits] bits per code period T; 2^n - 1 for ``mseq`` and ``gold``; sets the acquisition time
+    #: per pattern (T / ``bit_rate``) for both lidars
     code_length: int = 16383
+    #: share R_a of '1' bits of a ``random`` (Bernoulli) code, in (0, 1)
     ones_ratio: float = 0.5
+    #: member of the Gold family, or cyclic shift of the m-sequence (default: the first)
     code_index: int | None = None
+    #: [Hz] return-to-zero bit rate, equal to the TDC bin rate (10 GHz: 100 ps, 1.5 cm bins)
     bit_rate: float = 10e9
+    #: [bits] laser pulse width as a fraction of a bit (0.5: return-to-zero)
     pulse_width: float = 0.5
+    #: [Hz] pulse rate of the conventional lidar (default: the fastest whose unambiguous range
+    #: covers the range gate)
     rep_rate: float | None = None
+    #: conventional against PSST: the same pulse energy (``energy``, the paper's premise) or the
+    #: same average power (``power``)
     fairness: str = "energy"
+    #: code periods accumulated per DMD pattern (the dwell); signal and noise photons grow with it
     periods: int = 1
-    #: a real instrument (spslidar.instrument): extra delay of every return (s) and its IRF
+    #: [s] extra delay of every return by the instrument's cables and electronics (a real
+    #: instrument, :mod:`spslidar.instrument`; ``spslidar calibrate`` measures it)
     system_delay: float = 0.0
+    #: instrument response of every return: ``gaussian:FWHM[,tail:TAU[,weight:W]]`` (seconds) or a
+    #: ``.npy`` file per TDC bin; ``None``: none
     irf: str | None = None
     # patterns
+    #: DMD pattern kind (its registry: ``spslidar.patterns.PATTERNS``)
     patterns: str = "gaussian"
+    #: spread of the grey-level ``gaussian`` patterns, ``clip(0.5 + sigma N(0, 1), 0, 1)``
     pattern_sigma: float = 0.25
+    #: row ordering of ``hadamard`` patterns: ``cake-cutting`` (fewest constant pieces first),
+    #: ``sequency``, ``random`` or ``natural``
     hadamard_order: str = "cake-cutting"
+    #: how +-1 Hadamard rows are shown on a 0/1 DMD: ``shifted`` ((1 + h) / 2, the DC removed by
+    #: QCR) or ``differential`` (two frames, half the time each)
     hadamard_realisation: str = "shifted"
+    #: M / Q, DMD patterns per pixel, in (0, 1]
     compression: float = 0.25
     # photons
+    #: [photons] m_s: mean signal photons per laser pulse per DMD pixel (mirror on, reflectivity
+    #: 1); a pattern collects m_s sum(Phi alpha) per pulse (equation 8)
     signal: float = 5.0
+    #: [counts] m_n: mean noise counts per TDC bin per pixel (ambient + background + dark), N^2 m_n
+    #: per bin in all (equations 9-10)
     noise: float = 10.0
+    #: shares of ``noise`` that are ambient light (through the scene), background and dark counts;
+    #: three non-negative numbers summing to 1
     noise_split: tuple[float, float, float] = (1 / 3, 1 / 3, 1 / 3)
+    #: ambient light added unmodulated as N^2 m_n1 (``paper``) or through the DMD patterns
+    #: (``modulated``)
     ambient: str = "paper"
+    #: [counts/s] extra background counts per second, in physical units
     background_rate: float = 0.0
+    #: [counts/s] extra dark counts per second
     dark_count_rate: float = 0.0
+    #: detector model (its registry: ``spslidar.detectors.DETECTORS``); its options
+    #: (``dead_time``, ``jitter``...) are listed below
     detector: str = "linear"
+    #: use the expected counts (no Poisson noise)
     noiseless: bool = False
     # processing
+    #: matched-filter replica of the code: ``bipolar`` (2s - 1), ``unipolar`` (s) or ``auto``
+    #: (bipolar for ``psst``, unipolar for ``conventional``)
     replica: str = "auto"
+    #: [m] the delays reconstructed, (MIN, MAX) in metres (default: the scene's depth window padded
+    #: by 3 bins)
     range_gate: tuple[float, float] | None = None
+    #: drop the range slices without returns before solving (default: on for large gates)
     auto_gate: bool | None = None
+    #: quadratic correlation reconstruction (equations 11-17): solve with the covariance of the
+    #: measurements and the patterns instead of the raw matched-filter outputs
     qcr: bool = True
+    #: ``centred`` least squares or the paper's literal ``covariance`` form ||Delta - H p||
     qcr_form: str = "centred"
+    #: compressive-sensing solver of all range slices (its registry:
+    #: ``spslidar.solvers.SOLVERS``)
     solver: str = "fista"
+    #: regulariser of the solver: ``auto`` (the solver's default) or one of
+    #: ``spslidar.solvers.REGULARISERS``
     regulariser: str = "auto"
+    #: regularisation weight (default: ``lam_scale`` x the noise level estimated from the
+    #: measurements)
     lam: float | None = None
+    #: multiple of the estimated noise level used as the weight (default: the solver's)
     lam_scale: float | None = None
+    #: maximum solver iterations (default: the solver's)
     iterations: int | None = None
+    #: relative-change stopping tolerance of the solver
     tol: float = 1e-4
+    #: refine the ML depth peak by a three-bin centroid
     subbin: bool = False
+    #: constrain the reconstructed return strengths to be non-negative (photon returns cannot be
+    #: negative)
     nonneg: bool = True
+    #: depth estimator (its registry: ``spslidar.depth.ESTIMATORS``)
     depth: str = "mrf"
+    #: floating-point precision of the reconstruction
     dtype: str = "float32"
+    #: random seed of the patterns, the code (random) and the photon counts
     seed: int = 0
+    #: [GB] refuse a run whose estimated peak memory exceeds this (default: the memory available
+    #: now)
     max_memory: float | None = None
-    #: refuse a run whose estimated time exceeds this many seconds (default 1 h; a string
-    #: with a unit, "10min" or "2h", is read as on the command line)
+    #: [s] refuse a run whose estimated time exceeds this many seconds (default 1 h; a
+    #: string with a unit, "10min" or "2h", is read as on the command line)
     max_time: float = 3600.0
     # where the numeric core runs (spslidar.backends)
+    #: array library of the numeric core: ``numpy``, ``torch`` or ``cupy`` (``pip install
+    #: spslidar[gpu]``); every stage choice runs, on the device where it has a kernel
+    #: (:mod:`spslidar.backends.device`), else on the host through the same chain
     backend: str = "numpy"
+    #: where the backend runs: ``cpu`` or ``cuda`` (needs ``torch`` or ``cupy``)
     device: str = "cpu"
     #: the options the stages declare (:func:`stage_options`: ``dead_time``, ``jitter``...),
     #: read as attributes (``cfg.dead_time``); every declared option is here once validated
@@ -266,10 +340,9 @@ class Config:
             self.range_gate = g
         for reg in registries().values():
             reg.get(getattr(self, reg.option)).check(self)
-        from .backends import check_backend, check_supported
+        from .backends import check_backend
 
         check_backend(self.backend, self.device)
-        check_supported(self)
 
 
     def _validate_stage_options(self) -> None:

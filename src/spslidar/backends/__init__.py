@@ -1,11 +1,14 @@
 """Array backends: where the numeric core runs (``--backend numpy|torch|cupy --device cpu|cuda``).
 
-NumPy is the default and the only required dependency; its path is the package's own (BLAS,
-SciPy, threads) and is untouched by this package. Any other backend runs the chain through
-:mod:`spslidar.backends.chain`, whose kernels (:mod:`spslidar.backends.kernels`) are written
-against the Python array API (``array_api_compat.array_namespace``), so PyTorch (CPU or CUDA),
-CuPy (CUDA) and ``array-api-strict`` (the tests' strict namespace with fake devices) arrays all
-work.
+NumPy is the default and the only required dependency. There is one chain,
+:func:`spslidar.pipeline.chain.measure` and ``reconstruct``, for every backend: on another
+one the patterns live on its device, and each stage runs there when it has a device kernel
+(:mod:`spslidar.backends.device`, written against the Python array API with
+:mod:`spslidar.backends.kernels`, so PyTorch (CPU or CUDA), CuPy (CUDA) and
+``array-api-strict``, the tests' strict namespace with fake devices, all work), or else runs
+its NumPy implementation on the host through the same chain, so every stage choice runs on
+every backend. Device kernels: the simulation with the ``linear`` detector, the centred QCR
+problem, FISTA with TV (a CUDA graph on PyTorch + CUDA) and the argmax depth.
 
 This module imports nothing numeric: the config validates ``backend`` and ``device`` here
 without importing NumPy, and a GPU library is imported only when a run asks for it.
@@ -44,15 +47,15 @@ _PROVIDER = {
     "cupy": ("cupy", "CuPy", "pip install spslidar[cupy] (or the cupy wheel for your CUDA)"),
     "array-api-strict": ("array_api_strict", "array-api-strict", "pip install array-api-strict"),
 }
-#: what each non-NumPy backend supports (anything else is refused in one line)
-SUPPORTED = {
+#: the stage choices with a device kernel (:mod:`spslidar.backends.device`); every other choice
+#: runs its NumPy implementation on the host, through the same chain
+DEVICE_KERNELS = {
     "solver": ("fista",),
     "regulariser": ("auto", "tv"),
     "qcr_form": ("centred",),
     "detector": ("linear",),
+    "depth": ("argmax",),
 }
-#: depth estimators run on the device; the others run on the host, on the slices brought back
-DEVICE_DEPTH = ("argmax",)
 
 
 def check_backend(backend: str, device: str) -> None:
@@ -102,23 +105,6 @@ def cuda_available(backend: str) -> bool:
     except Exception:  # noqa: BLE001 - a broken driver or library is "no CUDA"
         return False
     return False
-
-
-def check_supported(cfg: Any) -> None:
-    """Raise :class:`ConfigError` for a config key the array-API chain does not implement."""
-    if cfg.backend == "numpy":
-        return
-    if not cfg.qcr:
-        raise ConfigError(f"--no-qcr runs on --backend numpy only (--backend {cfg.backend} "
-                          f"solves the centred QCR problem)")
-    if getattr(cfg, "hadamard_realisation", "shifted") != "shifted":
-        raise ConfigError(f"--hadamard-realisation {cfg.hadamard_realisation} runs on "
-                          f"--backend numpy only (--backend {cfg.backend} supports shifted)")
-    for key, ok in SUPPORTED.items():
-        value = getattr(cfg, key)
-        if value not in ok:
-            raise ConfigError(f"--{key.replace('_', '-')} {value} runs on --backend numpy only "
-                              f"(--backend {cfg.backend} supports {', '.join(ok)})")
 
 
 @dataclass(frozen=True)

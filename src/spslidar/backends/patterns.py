@@ -17,7 +17,7 @@ import numpy as np
 
 from .kernels import DenseOperator, centred_matrix
 
-__all__ = ["DeviceHadamard", "DevicePatterns", "device_patterns", "fwht"]
+__all__ = ["DeviceHadamard", "DevicePatterns", "device_patterns", "fwht", "host_patterns"]
 
 
 class DevicePatterns:
@@ -30,10 +30,12 @@ class DevicePatterns:
     kind : str
     """
 
-    def __init__(self, matrix: Any, backend: Any, kind: str):
+    def __init__(self, matrix: Any, backend: Any, kind: str, host: Any = None):
         self.matrix, self.backend, self.kind = matrix, backend, kind
         self.shape = tuple(matrix.shape)
         self.dtype = matrix.dtype
+        #: the host operator it was copied from (None: drawn on the device)
+        self.host = host
 
     @property
     def nbytes(self) -> int:
@@ -101,6 +103,8 @@ class DeviceHadamard:
         self._h = {}
         self.dtype = xp.float32
         self._dev = dev
+        #: the host operator (a stage with no device kernel runs on it)
+        self.host = host
 
     @property
     def nbytes(self) -> int:
@@ -195,7 +199,20 @@ def device_patterns(be: Any, stream: Any, cfg: Any, m: int) -> Any:
     host = build_patterns(cfg.patterns, m, cfg.size, stream.host_generator(),
                           dtype=np.float32 if cfg.dtype == "float32" else np.float64, **options)
     if hasattr(host, "matrix"):
-        return DevicePatterns(be.asarray(host.matrix), be, cfg.patterns)
+        return DevicePatterns(be.asarray(host.matrix), be, cfg.patterns, host)
     if hasattr(host, "rows") and getattr(host, "mode", "shifted") == "shifted":
         return DeviceHadamard(host, be)
-    return DevicePatterns(be.asarray(host.todense()), be, cfg.patterns)
+    return DevicePatterns(be.asarray(host.todense()), be, cfg.patterns, host)
+
+
+def host_patterns(patterns: Any) -> Any:
+    """The NumPy pattern operator of a device pattern set, for a stage that runs on the
+    host: the operator it was built from, or its matrix brought back (patterns drawn on the
+    device); a NumPy operator is returned as it is."""
+    from ..patterns import as_patterns
+
+    if not isinstance(patterns, (DevicePatterns, DeviceHadamard)):
+        return patterns
+    if patterns.host is not None:
+        return patterns.host
+    return as_patterns(patterns.backend.to_numpy(patterns.matrix))

@@ -16,12 +16,14 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..backends.device import reconstructs_on_device, simulates_on_device
+from ..backends.patterns import host_patterns
 from ..config import Config
 from ..depth import ESTIMATORS, DepthContext
 from ..detectors import build_detector
 from ..detectors.counting import NoiseModel
 from ..errors import ConfigError
-from ..patterns import build_patterns
+from ..patterns import build_patterns, n_patterns_for
 from ..qcr import MeanEliminated, plain_problem, qcr_problem
 from ..scenes import load_scene
 from .gate import AUTO_GATE_MIN_SLICES, occupied_lags
@@ -29,7 +31,7 @@ from .measurement import PROCESSING_KEYS, Measurement, _resolve
 from .plan import _check_pattern_floor, _plan, detector_options, preflight, timeline
 from .results import Result
 from .score import finish_result, resolved_config
-from .simulate import simulate_correlations
+from .simulate import BLOCK, simulate_correlations
 from .weights import (
     LAM_FLOOR,
     TV_INNER,
@@ -50,31 +52,48 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     """Simulate one acquisition: scene, code, patterns, photon counts and matched filter.
 
     The result can be reconstructed several times (other solvers, weights, with and without
-    QCR) by :func:`reconstruct` without simulating again.
+    QCR) by :func:`reconstruct` without simulating again. On another array backend
+    (``backend='torch'``, ...) the patterns live on its device and the simulation runs there
+    when it has a device kernel (:mod:`spslidar.backends.device`), else on the host with the
+    NumPy kernel, through this same function.
     """
     cfg = _resolve(config, overrides)
-    if cfg.backend != "numpy":  # the array-API chain on another backend (spslidar.backends)
-        from ..backends.chain import measure as measure_on_backend
+    be = None
+    if cfg.backend != "numpy":
+        from ..backends import get_backend
 
-        return measure_on_backend(cfg)
+        be = get_backend(cfg.backend, cfg.device)
     timing: dict[str, float] = {}
     warns: list[str] = []
 
     t0 = time.perf_counter()
-    _check_pattern_floor(cfg)
+    if be is None:  # a device holds its own patterns: the host's memory floor is NumPy's
+        _check_pattern_floor(cfg)
     scene = load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
     warns.extend(scene.notes)
     timing["scene"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    plan = _plan(cfg, scene, warns)
-    seq_pat, seq_counts, seq_probe = plan.seq_pat, plan.seq_counts, plan.seq_probe
-    acq, gate, lags, ulags, inverse = plan.acq, plan.gate, plan.lags, plan.ulags, plan.inverse
-    m, dtype, budget = plan.m, plan.dtype, plan.budget
+    if be is None:
+        plan = _plan(cfg, scene, warns)
+        seq_pat, seq_counts, seq_probe = plan.seq_pat, plan.seq_counts, plan.seq_probe
+        acq, gate, lags, ulags, inverse = (plan.acq, plan.gate, plan.lags, plan.ulags,
+                                           plan.inverse)
+        m, dtype, budget = plan.m, plan.dtype, plan.budget
+        patterns = build_patterns(cfg.patterns, m, cfg.size, np.random.default_rng(seq_pat),
+                                  dtype=dtype, sigma=cfg.pattern_sigma,
+                                  order=cfg.hadamard_order,
+                                  realisation=cfg.hadamard_realisation)
+    else:
+        from ..backends.patterns import device_patterns
+        from ..backends.rng import Stream
+
+        seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse = timeline(cfg, scene,
+                                                                                    warns)
+        m, budget = n_patterns_for(cfg.compression, cfg.size * cfg.size), None
+        patterns = device_patterns(be, Stream(be, seq_pat), cfg, m)
+        be.sync()
     bin_width = 1.0 / cfg.bit_rate
-    patterns = build_patterns(cfg.patterns, m, cfg.size, np.random.default_rng(seq_pat),
-                              dtype=dtype, sigma=cfg.pattern_sigma, order=cfg.hadamard_order,
-                              realisation=cfg.hadamard_realisation)
     timing["setup"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -82,19 +101,30 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
                        cfg.dark_count_rate)
     detector = build_detector(cfg.detector, **detector_options(cfg))
     warns.extend(detector.notes())
-    # differential patterns: the DMD shows two frames per pattern, each for its share of the
-    # acquisition time, and the patterns combine the frames' outputs into one per pattern
-    shown, share = patterns.exposures() if hasattr(patterns, "exposures") else (patterns, 1.0)
-    acq_shown = acq if share == 1.0 else replace(acq, n_periods=acq.n_periods * share)
-    sim = simulate_correlations(shown, scene, acq_shown, ulags, noise, detector, cfg.pulse_width,
-                                np.random.default_rng(seq_counts), noiseless=cfg.noiseless,
-                                instrument=cfg)
-    if shown is not patterns:
-        sim = patterns.combine(sim)
+    if be is not None and simulates_on_device(cfg, patterns):
+        from ..backends.device import simulate
+        from ..instrument import instrument_weights
+
+        shifts, weights = instrument_weights(scene, acq, cfg)
+        sim = simulate(be, patterns, acq, ulags, noise, detector, shifts, weights,
+                       scene.reflectivity.ravel(), seq_counts, cfg.noiseless, BLOCK)
+        be.sync()
+    else:  # the NumPy kernel (on the host patterns of a device pattern set)
+        host = patterns if be is None else host_patterns(patterns)
+        # differential patterns: the DMD shows two frames per pattern, each for its share of
+        # the acquisition time, and the patterns combine the frames' outputs into one each
+        shown, share = host.exposures() if hasattr(host, "exposures") else (host, 1.0)
+        acq_shown = acq if share == 1.0 else replace(acq, n_periods=acq.n_periods * share)
+        sim = simulate_correlations(shown, scene, acq_shown, ulags, noise, detector,
+                                    cfg.pulse_width, np.random.default_rng(seq_counts),
+                                    noiseless=cfg.noiseless, instrument=cfg)
+        if shown is not host:
+            sim = host.combine(sim)
     pile = detector.report(float(np.mean(sim["counts"])) / acq.n_periods,
                            acq.period * bin_width)
     sim["pileup"] = pile
-    sim["estimate"] = {"memory_gb": budget.bytes / 1e9, "time_s": budget.seconds}
+    sim["estimate"] = ({} if budget is None else
+                       {"memory_gb": budget.bytes / 1e9, "time_s": budget.seconds})
     timing["simulate"] = time.perf_counter() - t0
     return Measurement(cfg, scene, acq, gate, lags, ulags, inverse, patterns, sim, seq_probe,
                        warns, timing)
@@ -111,11 +141,14 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         ``lam_scale``, ``qcr``, ``qcr_form``, ``regulariser``, ``iterations``, ``tol``,
         ``subbin``, ``nonneg``, ``auto_gate``); anything else would need a new simulation and
         is an error.
-    """
-    if meas.config.backend != "numpy":
-        from ..backends.chain import reconstruct as reconstruct_on_backend
 
-        return reconstruct_on_backend(meas, **processing)
+    Notes
+    -----
+    A measurement made on another array backend is reconstructed here too: the QCR problem,
+    the solve and the argmax run on its device where they have device kernels
+    (:func:`spslidar.backends.device.reconstructs_on_device`), and every other stage choice
+    runs its NumPy implementation on the arrays brought back to the host.
+    """
     bad = set(k.replace("-", "_") for k in processing) - PROCESSING_KEYS
     if bad:
         raise ConfigError(f"reconstruct() cannot change {', '.join(sorted(bad))}: "
@@ -128,69 +161,128 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     bin_width = acq.bin_width
     q = cfg.size * cfg.size
     dtype = np.float32 if cfg.dtype == "float32" else np.float64
+    be = getattr(patterns, "backend", None)  # None: NumPy arrays
+    device = be is not None and reconstructs_on_device(cfg)
 
     t0 = time.perf_counter()
     corr = sim["corr"]
+    if be is not None and not device:  # stages without a device kernel: on the host
+        corr, patterns = _host(be, corr), host_patterns(patterns)
     auto = cfg.auto_gate if cfg.auto_gate is not None else ulags.size > AUTO_GATE_MIN_SLICES
-    keep = occupied_lags(corr, sim["sigma"]) if auto else np.ones(ulags.size, dtype=bool)
-    corr = corr[:, keep]
-    if cfg.qcr:
-        A, y = qcr_problem(patterns, corr, cfg.qcr_form, dtype=dtype)
-    else:
-        A, y = plain_problem(patterns, corr, dtype=dtype)
-    sigma_eff = noise_level(A, patterns, sim["sigma"], cfg, np.random.default_rng(meas.probe_seed))
-    reg_kind = (solver_default(cfg.solver, "regulariser") if cfg.regulariser == "auto"
-                else cfg.regulariser)
+    keep = (occupied_lags(_host(be, corr), sim["sigma"]) if auto
+            else np.ones(ulags.size, dtype=bool))
     eliminated = None
-    if not cfg.qcr and reg_kind == "tv":
-        # TV ignores a constant per slice: eliminate the patterns' mean direction exactly, so
-        # the plain problem converges within the default budget (MeanEliminated)
-        eliminated, y_plain = MeanEliminated(A), y
-        A, y = eliminated, eliminated.data(y)
-    # the floor of the default weight, and the scale a given --lam is checked against
-    lam_max = float(np.abs(np.asarray(A.rmatvec(y))).max(initial=0.0))
+    if device:
+        from ..backends import device as kernels
+
+        xp = be.xp
+        corr = be.asarray(corr)
+        if not keep.all():
+            corr = xp.take(corr, be.asarray(np.flatnonzero(keep)), axis=1)
+        A, y, sigma_eff, lam_max = kernels.problem(
+            be, patterns, corr, sim["sigma"], meas.probe_seed,
+            xp.float32 if cfg.dtype == "float32" else xp.float64)
+    else:
+        corr = corr[:, keep]
+        if cfg.qcr:
+            A, y = qcr_problem(patterns, corr, cfg.qcr_form, dtype=dtype)
+        else:
+            A, y = plain_problem(patterns, corr, dtype=dtype)
+        sigma_eff = noise_level(A, patterns, sim["sigma"], cfg,
+                                np.random.default_rng(meas.probe_seed))
+        reg_kind = (solver_default(cfg.solver, "regulariser") if cfg.regulariser == "auto"
+                    else cfg.regulariser)
+        if not cfg.qcr and reg_kind == "tv":
+            # TV ignores a constant per slice: eliminate the patterns' mean direction
+            # exactly, so the plain problem converges within the default budget
+            eliminated, y_plain = MeanEliminated(A), y
+            A, y = eliminated, eliminated.data(y)
+        # the floor of the default weight, and the scale a given --lam is checked against
+        lam_max = float(np.abs(np.asarray(A.rmatvec(y))).max(initial=0.0))
     lam, lam_scale, floored = default_weight(cfg, sigma_eff, lam_max)
     warns.extend(weight_warnings(cfg, lam, lam_max))
+    if be is not None:
+        be.sync()
     timing["qcr"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    from ..solvers import StopRule, get_solver
+    from ..solvers import SolveInfo, StopRule, get_solver
 
-    reg = build_regulariser(cfg.replace(nonneg=False) if eliminated is not None else cfg,
-                            (cfg.size, cfg.size))
-    solver_cls = get_solver(cfg.solver)
     iterations = cfg.iterations or solver_default(cfg.solver, "iterations")
-    stop = StopRule(max_iter=iterations, rtol=cfg.tol)
-    x, info = solver_cls(stop=stop).solve(A, y, reg, lam)
-    if eliminated is not None:
-        x = eliminated.recover(x, y_plain)
+    if device:
+        x, finfo = kernels.solve(be, A, y, (cfg.size, cfg.size), cfg.nonneg, lam, iterations,
+                                 cfg.tol, TV_INNER)
+        be.sync()
+        info = SolveInfo("fista", finfo.iterations, finfo.objective, finfo.stop_reason,
+                         time.perf_counter() - t0,
+                         {"L": finfo.L, "restarts": 0, "rejected": 0, "backend": cfg.backend,
+                          "device": cfg.device})
+        stop_cap = iterations
+    else:
+        reg = build_regulariser(cfg.replace(nonneg=False) if eliminated is not None else cfg,
+                                (cfg.size, cfg.size))
+        stop = StopRule(max_iter=iterations, rtol=cfg.tol)
+        x, info = get_solver(cfg.solver)(stop=stop).solve(A, y, reg, lam)
+        if eliminated is not None:
+            x = eliminated.recover(x, y_plain)
+        stop_cap = stop.max_iter
     timing["solve"] = time.perf_counter() - t0
     if not cfg.qcr and eliminated is None and info.stop_reason == "max_iter":
         warns.append(
             f"without QCR the problem is ill-conditioned (the patterns' mean dominates its "
-            f"operator) and {cfg.solver} stopped at its cap of {stop.max_iter} iterations: the "
+            f"operator) and {cfg.solver} stopped at its cap of {stop_cap} iterations: the "
             f"estimate is not converged (FISTA needs ~1000-2000 at 64x64; --iterations)")
 
     t0 = time.perf_counter()
-    full = np.zeros((q, ulags.size), dtype=np.asarray(x).dtype)
-    full[:, keep] = x
-    slices = full[:, meas.inverse]
     shape = (cfg.size, cfg.size)
-    seen = slices
-    if sim.get("delay_response") is not None:  # a calibrated instrument's spread returns
-        from .calibration import delay_filter
+    if device:
+        full = x
+        if not keep.all():
+            full = xp.zeros((x.shape[0], ulags.size), dtype=x.dtype, device=x.device)
+            full = kernels.scatter_columns(be, full, x, np.flatnonzero(keep))
+        slices = xp.take(full, be.asarray(np.asarray(meas.inverse, dtype=np.int64)), axis=1)
+    else:
+        full = np.zeros((q, ulags.size), dtype=np.asarray(x).dtype)
+        full[:, keep] = x
+        slices = full[:, meas.inverse]
+    depth2 = depth_info = None
+    if device and cfg.depth == "argmax" and sim.get("delay_response") is None:
+        from ..depth.argmax import ArgmaxDepth, depth_from_peaks, peak_confidence
 
-        seen = delay_filter(slices, lags, sim["delay_response"])
-    est = ESTIMATORS.load(cfg.depth)().estimate(
-        seen, DepthContext(lags, bin_width, cfg.pulse_width, shape, cfg.subbin))
-    depth = est.depth.reshape(shape)
+        idx, peak, below, above = kernels.argmax_depth(be, slices)  # only the peaks come back
+        depth = depth_from_peaks(idx, peak, below, above, lags, slices.shape[1], bin_width,
+                                 cfg.pulse_width, cfg.subbin)
+        confidence = peak_confidence(peak)
+        confidence[~np.isfinite(depth)] = 0.0
+        low = ArgmaxDepth()._flag(depth, confidence)
+    else:
+        slices = _host(be, slices)
+        seen = slices
+        if sim.get("delay_response") is not None:  # a calibrated instrument's spread returns
+            from .calibration import delay_filter
+
+            seen = delay_filter(slices, lags, sim["delay_response"])
+        est = ESTIMATORS.load(cfg.depth)().estimate(
+            seen, DepthContext(lags, bin_width, cfg.pulse_width, shape, cfg.subbin))
+        depth, confidence, low = est.depth, est.confidence, est.low_confidence
+        depth_info, depth2 = est.info, est.depth2
+    depth = np.asarray(depth).reshape(shape)
     timing["depth"] = time.perf_counter() - t0
+    if be is not None:
+        t0 = time.perf_counter()
+        slices, corr = _host(be, slices), _host(be, corr)
+        timing["to_host"] = time.perf_counter() - t0
 
     return finish_result(
         meas, cfg, depth=depth, slices=slices, corr=corr, keep=keep, auto=auto,
-        confidence=est.confidence, low_confidence=est.low_confidence, depth_info=est.info,
+        confidence=confidence, low_confidence=low, depth_info=depth_info,
         lam=lam, lam_scale=lam_scale, sigma_eff=sigma_eff, info=info, iterations=iterations,
-        timing=timing, warns=warns, lam_floored=floored, depth2=est.depth2)
+        timing=timing, warns=warns, lam_floored=floored, depth2=depth2)
+
+
+def _host(be, a):
+    """``a`` as a NumPy array on the host (``be`` None: it is one already)."""
+    return a if be is None or isinstance(a, np.ndarray) else be.to_numpy(a)
 
 
 def run(config: Config | dict | None = None, **overrides) -> Result:

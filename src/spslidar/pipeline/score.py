@@ -1,4 +1,4 @@
-"""Scoring a reconstruction (eq. 19, Sobel edges, the metrics that need no truth) and
+"""Scoring a reconstruction (equation 19, Sobel edges, the metrics that need no truth) and
 assembling its :class:`~spslidar.pipeline.results.Result` and ``metrics.json``: the last
 step of every backend's reconstruction.
 """
@@ -28,8 +28,8 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
                   timing: dict[str, float], warns: list[str],
                   lam_floored: bool = False, depth2: np.ndarray | None = None) -> Result:
     """Score a reconstruction (eq. 19, Sobel edges) and assemble its :class:`Result` and
-    ``metrics.json``: the last step of :func:`reconstruct`, shared by the other backends'
-    reconstruction (:mod:`spslidar.backends.chain`) so both report the same keys."""
+    ``metrics.json``: the last step of :func:`reconstruct` (on every backend) and of a
+    measured acquisition's reconstruction, so all report the same keys."""
     scene, acq, sim = meas.scene, meas.acq, meas.sim
     bin_depth = SPEED_OF_LIGHT * acq.bin_width / 2.0
     shape = (cfg.size, cfg.size)

@@ -1,0 +1,186 @@
+"""The device kernels of the chain's stages: what :mod:`spslidar.pipeline.chain` runs on a
+backend's device when the stage choice has one (``--backend torch|cupy|array-api-strict``).
+
+There is one chain, :func:`spslidar.pipeline.chain.measure` and ``reconstruct``; for each
+stage it asks :func:`simulates_on_device` / :func:`reconstructs_on_device` whether this
+backend has a device kernel for the configured choice, and otherwise runs the stage's NumPy
+implementation on the host, on the arrays brought back (:func:`spslidar.backends.patterns.
+host_patterns`), so every stage choice runs on every backend through the same path. The
+kernels here are written against the array API (:mod:`spslidar.backends.kernels`):
+
+* :func:`simulate` - expected counts, Poisson counts and the matched filter of a block of
+  patterns at a time (eq. 4-6), for the ``linear`` detector;
+* :func:`problem` - the centred QCR problem (eq. 15-18) with the noise probe of the
+  regularisation default and ``max |A^T y|``;
+* :func:`solve` - FISTA with the TV prox (a CUDA graph on PyTorch + CUDA);
+* :func:`argmax_depth` - the argmax estimator's peaks (eq. 2-3), only the peaks come back.
+
+Nothing here imports the pipeline: the chain hands each kernel what it needs.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .kernels import TVProx, argmax_peaks, centre, fista_tv, scalars, simulate_block
+from .rng import Stream
+
+__all__ = ["DEVICE_BLOCK_BINS", "argmax_depth", "noise_per_bin", "problem",
+           "reconstructs_on_device", "simulate", "simulates_on_device", "solve"]
+
+#: most TDC bins (patterns x code period) per simulated block on a device stream (fixed, so the
+#: counts depend only on the seed and the shape): 2^27 float32 bins = 512 MB
+DEVICE_BLOCK_BINS = 1 << 27
+#: the stage choices with a device kernel; any other runs on the host through the same chain
+DEVICE_SOLVERS = {("fista", "tv"), ("fista", "auto")}
+#: replay FISTA's iterations from a CUDA graph with PyTorch on CUDA (``torch_graph``)
+USE_CUDA_GRAPHS = True
+
+
+def simulates_on_device(cfg: Any, patterns: Any) -> bool:
+    """Whether the simulation stage has a device kernel for this run: the ``linear``
+    detector (another detector's counts are drawn by its NumPy kernel on the host) and
+    patterns shown as they are (differential patterns, shown as two exposures, are
+    simulated on the host)."""
+    host = getattr(patterns, "host", None)
+    return cfg.detector == "linear" and not hasattr(host, "exposures")
+
+
+def reconstructs_on_device(cfg: Any) -> bool:
+    """Whether the QCR problem and the solve have device kernels for this configuration:
+    the centred QCR form and FISTA with TV."""
+    return bool(cfg.qcr) and cfg.qcr_form == "centred" and (
+        (cfg.solver, cfg.regulariser) in DEVICE_SOLVERS)
+
+
+def noise_per_bin(be: Any, noise: Any, patterns: Any, refl: np.ndarray,
+                  bin_width: float) -> np.ndarray:
+    """:meth:`spslidar.detectors.counting.NoiseModel.per_bin` with the patterns on the
+    device."""
+    m, q = patterns.shape
+    f1, f2, f3 = (float(v) for v in noise.split)
+    base = q * noise.m_n * (f2 + f3) + (noise.background_rate + noise.dark_count_rate) * bin_width
+    if noise.ambient == "paper":
+        return np.full(m, base + q * noise.m_n * f1)
+    a = be.asarray(np.asarray(refl, dtype=np.float64).reshape(-1, 1))
+    mod = be.to_numpy(patterns.rows_apply(0, m, a))[:, 0]
+    return base + noise.m_n * f1 * mod
+
+
+def simulate(be: Any, patterns: Any, acq: Any, ulags: np.ndarray, noise: Any, detector: Any,
+             shifts: np.ndarray, weights: np.ndarray, refl: np.ndarray, seq_counts: Any,
+             noiseless: bool, block_rows: int) -> dict[str, Any]:
+    """The simulation stage on the device: eq. (4) per block of patterns, the detector's
+    counts (:class:`~spslidar.backends.rng.Stream`), the matched filter (eq. 5-6).
+
+    Parameters
+    ----------
+    shifts, weights : ndarray
+        Each pixel's returns per occupied delay (:func:`spslidar.instrument.
+        instrument_weights`, host-side).
+    block_rows : int
+        Patterns per block on a host stream (the NumPy path's ``BLOCK``, so the streams are
+        split as it splits them).
+
+    Returns
+    -------
+    dict
+        The simulation record of :func:`spslidar.pipeline.simulate.simulate_correlations`,
+        ``corr`` on the device.
+    """
+    from ..correlate import (
+        correlation_gain,
+        make_replica,
+        noise_sigma_from_totals,
+        replica_matrix,
+    )
+    from ..forward import shifted_codes
+
+    xp = be.xp
+    m = patterns.shape[0]
+    noise_bin = noise_per_bin(be, noise, patterns, refl, acq.bin_width)
+    replica = make_replica(acq.code, acq.replica)
+    gain = correlation_gain(acq.code, replica) * acq.n_periods * acq.signal_per_pulse
+    w_dev = be.asarray(weights)
+    codes = be.asarray(shifted_codes(acq.code, shifts))
+    bank = be.asarray(replica_matrix(replica, ulags))
+    noise_dev = be.asarray(noise_bin)
+    counts_stream = Stream(be, seq_counts)
+    if counts_stream.host:  # the NumPy path's blocks and streams
+        n_blocks = max(1, int(np.ceil(m / block_rows)))
+    else:
+        n_blocks = max(1, int(np.ceil(m * acq.period / DEVICE_BLOCK_BINS)))
+    edges = np.linspace(0, m, n_blocks + 1).astype(int)
+    children = counts_stream.children(n_blocks)
+    corr_parts, tot_parts, amp_parts = [], [], []
+    for b in range(n_blocks):
+        a, e = int(edges[b]), int(edges[b + 1])
+        amp, lam = simulate_block(xp, patterns.rows_apply(a, e, w_dev), codes, noise_dev[a:e],
+                                  acq.signal_per_pulse, acq.n_periods)
+        if noiseless:
+            counts, totals = lam, xp.sum(lam, axis=1, dtype=xp.float64)
+        else:
+            counts, totals = counts_stream.poisson(lam, children[b], detector, acq.n_periods)
+        del lam
+        corr_parts.append((counts @ bank) / float(gain))
+        tot_parts.append(totals)
+        amp_parts.append(xp.sum(amp, axis=1))
+    corr = corr_parts[0] if n_blocks == 1 else xp.concat(corr_parts, axis=0)
+    totals = be.to_numpy(xp.concat(tot_parts) if n_blocks > 1 else tot_parts[0])
+    amp_sum = be.to_numpy(xp.concat(amp_parts) if n_blocks > 1 else amp_parts[0])
+    n_pulses = float(acq.code.sum()) * acq.n_periods
+    return {"corr": corr, "sigma": noise_sigma_from_totals(totals, replica, gain),
+            "counts": totals, "signal_counts": acq.signal_per_pulse * n_pulses * amp_sum,
+            "noise_per_bin": noise_bin}
+
+
+def problem(be: Any, patterns: Any, corr: Any, sigma: np.ndarray, probe_seed: Any,
+            dtype: Any) -> tuple[Any, Any, float, float]:
+    """The centred QCR problem of eq. (18) on the device (:func:`spslidar.qcr.qcr_problem`),
+    the regularisation default's noise level (:func:`spslidar.pipeline.weights.noise_level`,
+    its probe drawn on the host stream of the NumPy path) and ``max |A^T y|``.
+
+    Returns
+    -------
+    A, y : device operator and array
+    sigma_eff, lam_max : float
+    """
+    xp = be.xp
+    m = patterns.shape[0]
+    norm = float(np.sqrt(m))
+    A = patterns.centred(norm, dtype)
+    y = xp.astype(centre(xp, xp.astype(corr, xp.float64)) / norm, dtype)
+    e = np.random.default_rng(probe_seed).standard_normal((m, 4)) * sigma[:, None]
+    ey = (e - e.mean(axis=0, keepdims=True)) / np.sqrt(m)
+    z = A.rmatvec(xp.astype(be.asarray(ey), dtype))
+    sigma_eff = float(np.sqrt(scalars(be, xp.mean(xp.astype(z, xp.float64) ** 2))[0]))
+    lam_max = float(scalars(be, xp.max(xp.abs(xp.astype(A.rmatvec(y), xp.float64))))[0])
+    return A, y, sigma_eff, lam_max
+
+
+def solve(be: Any, A: Any, y: Any, shape: tuple[int, int], nonneg: bool, lam: float,
+          iterations: int, tol: float, inner: int) -> tuple[Any, Any]:
+    """FISTA + TV on the device (:class:`spslidar.solvers.fista.FISTA` with
+    :class:`spslidar.solvers.regularisers.TV`, iterate for iterate); a CUDA graph replays the
+    iterations with PyTorch on CUDA. Returns ``(x, FistaInfo)``."""
+    reg = TVProx(be.xp, shape, nonneg=nonneg, max_inner=inner, be=be)
+    run = fista_tv
+    if USE_CUDA_GRAPHS and be.name == "torch" and be.device.type == "cuda":
+        from .torch_graph import fista_tv_graphed as run
+    return run(be, A, y, reg, lam, iterations, tol)
+
+
+def argmax_depth(be: Any, slices: Any) -> tuple[np.ndarray, ...]:
+    """The argmax estimator's peaks found on the device; only ``(idx, peak, below, above)``
+    (one value per pixel) come back to the host."""
+    return tuple(be.to_numpy(a) for a in argmax_peaks(be.xp, slices))
+
+
+def scatter_columns(be: Any, full: Any, x: Any, cols: np.ndarray) -> Any:
+    """``full[:, cols] = x`` (the array API has no integer-array assignment: one column at a
+    time through basic indexing)."""
+    for j, c in enumerate(np.asarray(cols).tolist()):
+        full[:, c] = x[:, j]
+    return full
