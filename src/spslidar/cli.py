@@ -249,7 +249,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _duration(text: str) -> float:
     """``--max-time``: seconds, or a number with a unit (``90s``, ``10min``, ``2h``, ``1d``)."""
-    from .pipeline.budget import parse_duration
+    from .machine import parse_duration
 
     try:
         return parse_duration(text)

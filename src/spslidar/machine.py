@@ -1,11 +1,12 @@
 """What this machine offers a run: the memory it may still use (read before any large array
-is made, by the run's budget and by the PTU reader)."""
+is made, by the run's budget and by the PTU reader), and the time limits a run is given
+(``--max-time``, :func:`parse_duration`)."""
 
 from __future__ import annotations
 
 import os
 
-__all__ = ["available_memory"]
+__all__ = ["DURATION_UNITS", "available_memory", "parse_duration"]
 
 
 def _gb(b: float) -> str:
@@ -38,3 +39,56 @@ def available_memory() -> float:
     except (ImportError, ValueError, OSError):  # pragma: no cover - not POSIX
         pass
     return avail
+
+
+#: units ``--max-time`` takes after its number (seconds when none is given)
+DURATION_UNITS = {"s": 1.0, "sec": 1.0, "second": 1.0, "seconds": 1.0,
+                  "m": 60.0, "min": 60.0, "minute": 60.0, "minutes": 60.0,
+                  "h": 3600.0, "hour": 3600.0, "hours": 3600.0,
+                  "d": 86400.0, "day": 86400.0, "days": 86400.0}
+
+
+def parse_duration(text: str | float | int, what: str = "--max-time") -> float:
+    """A time limit in seconds from ``90``, ``90s``, ``2min``, ``1.5h`` or ``1d``.
+
+    Parameters
+    ----------
+    text : str or float or int
+        A positive number of seconds, or a number followed by one of
+        :data:`DURATION_UNITS` (spaces allowed, case ignored).
+    what : str
+        The option named in the error message.
+
+    Returns
+    -------
+    float
+        Seconds, positive and finite.
+
+    Raises
+    ------
+    ConfigError
+        On anything else (one line).
+    """
+    import math
+    import re
+
+    from .errors import ConfigError
+
+    if isinstance(text, bool):
+        raise ConfigError(f"{what} must be a duration such as 600, 10min or 2h, got {text!r}")
+    if isinstance(text, (int, float)):
+        value, unit = float(text), 1.0
+    else:
+        match = re.fullmatch(r"\s*([0-9.eE+-]+)\s*([A-Za-z]*)\s*", str(text))
+        try:
+            value = float(match.group(1)) if match else math.nan
+        except ValueError:
+            value = math.nan
+        unit = DURATION_UNITS.get(match.group(2).lower() if match and match.group(2) else "s")
+        if unit is None or math.isnan(value):
+            raise ConfigError(f"{what} must be a duration such as 600, 10min or 2h (units: s, "
+                              f"min, h, d), got {text!r}")
+    seconds = value * unit
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise ConfigError(f"{what} must be a positive, finite duration, got {text!r}")
+    return seconds

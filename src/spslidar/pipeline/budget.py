@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..errors import SpslidarError
-from ..machine import _gb, available_memory
+from ..machine import _gb, available_memory, parse_duration
 
 __all__ = ["Budget", "available_memory", "check_budget", "check_time", "estimate_budget",
            "parse_duration"]
@@ -107,59 +107,6 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
     seconds = (m * period * SECONDS_PER_BIN + m * q * shifts / FLOP_RATE
                + iterations * 2 * per_product / FLOP_RATE)
     return Budget(sum(parts.values()), seconds, parts)
-
-
-#: units ``--max-time`` takes after its number (seconds when none is given)
-DURATION_UNITS = {"s": 1.0, "sec": 1.0, "second": 1.0, "seconds": 1.0,
-                  "m": 60.0, "min": 60.0, "minute": 60.0, "minutes": 60.0,
-                  "h": 3600.0, "hour": 3600.0, "hours": 3600.0,
-                  "d": 86400.0, "day": 86400.0, "days": 86400.0}
-
-
-def parse_duration(text: str | float | int, what: str = "--max-time") -> float:
-    """A time limit in seconds from ``90``, ``90s``, ``2min``, ``1.5h`` or ``1d``.
-
-    Parameters
-    ----------
-    text : str or float or int
-        A positive number of seconds, or a number followed by one of
-        :data:`DURATION_UNITS` (spaces allowed, case ignored).
-    what : str
-        The option named in the error message.
-
-    Returns
-    -------
-    float
-        Seconds, positive and finite.
-
-    Raises
-    ------
-    ConfigError
-        On anything else (one line).
-    """
-    import math
-    import re
-
-    from ..errors import ConfigError
-
-    if isinstance(text, bool):
-        raise ConfigError(f"{what} must be a duration such as 600, 10min or 2h, got {text!r}")
-    if isinstance(text, (int, float)):
-        value, unit = float(text), 1.0
-    else:
-        match = re.fullmatch(r"\s*([0-9.eE+-]+)\s*([A-Za-z]*)\s*", str(text))
-        try:
-            value = float(match.group(1)) if match else math.nan
-        except ValueError:
-            value = math.nan
-        unit = DURATION_UNITS.get(match.group(2).lower() if match and match.group(2) else "s")
-        if unit is None or math.isnan(value):
-            raise ConfigError(f"{what} must be a duration such as 600, 10min or 2h (units: s, "
-                              f"min, h, d), got {text!r}")
-    seconds = value * unit
-    if not (math.isfinite(seconds) and seconds > 0):
-        raise ConfigError(f"{what} must be a positive, finite duration, got {text!r}")
-    return seconds
 
 
 #: a run estimated to take longer than this says so on stderr before it starts (seconds)
