@@ -88,21 +88,28 @@ def _acquire(tmp_path, seed=0):
     for d in np.unique(delay):
         amp[:, d % L] += w[:, delay == d].sum(axis=1)
     spectrum = np.fft.ifft(np.fft.fft(amp, axis=1) * np.fft.fft(code)[None, :], axis=1).real
-    lam = DWELL * (2e-3 * spectrum + 0.05)
-    counts = rng.poisson(np.clip(lam, 0, None))
-    syncs, dtimes, markers = [], [], []
-    for k in range(M):
-        t = np.repeat(np.arange(L), counts[k])
-        s = k * DWELL + rng.integers(0, DWELL, t.size)
-        order = np.argsort(s, kind="stable")
-        syncs += [np.array([k * DWELL]), s[order]]
-        dtimes += [np.zeros(1, int), t[order]]
-        markers += [np.ones(1, bool), np.zeros(t.size, bool)]
-    n = write_picoharp_t3(tmp_path / "scan.ptu", np.concatenate(syncs), np.concatenate(dtimes),
-                          np.concatenate(markers), 1 / BIT_RATE, BIT_RATE / L)
+    counts, n = _write_acquisition(tmp_path / "scan.ptu", spectrum, DWELL, rng)
     np.save(tmp_path / "patterns.npy", pats)
     np.save(tmp_path / "code.npy", code.astype(np.uint8))
     return depth, int(counts.sum()), n
+
+
+def _write_acquisition(path, spectrum, dwell, rng):
+    """Poisson photons of ``dwell`` code periods per pattern at ``2e-3 spectrum + 0.05`` per
+    bin per period, each at a random sync of its pattern's dwell, after the pattern's marker;
+    written as PicoHarp T3. Returns the counts and the number of records."""
+    counts = rng.poisson(np.clip(dwell * (2e-3 * spectrum + 0.05), 0, None))
+    syncs, dtimes, markers = [], [], []
+    for k in range(M):
+        t = np.repeat(np.arange(L), counts[k])
+        s = k * dwell + rng.integers(0, dwell, t.size)
+        order = np.argsort(s, kind="stable")
+        syncs += [np.array([k * dwell]), s[order]]
+        dtimes += [np.zeros(1, int), t[order]]
+        markers += [np.ones(1, bool), np.zeros(t.size, bool)]
+    n = write_picoharp_t3(path, np.concatenate(syncs), np.concatenate(dtimes),
+                          np.concatenate(markers), 1 / BIT_RATE, BIT_RATE / L)
+    return counts, n
 
 
 def test_independent_picoharp_file_reconstructs_without_truth(tmp_path, capsys):
@@ -156,17 +163,7 @@ def _acquire_instrument(path, name, depth, refl, seed, dwell=60):
         np.add.at(amp, (slice(None), (base + offsets) % L),
                   w[:, j:j + 1] * _irf_share(tau[j] - base, offsets)[None, :])
     spectrum = np.fft.ifft(np.fft.fft(amp, axis=1) * np.fft.fft(code)[None, :], axis=1).real
-    counts = rng.poisson(np.clip(dwell * (2e-3 * spectrum + 0.05), 0, None))
-    syncs, dtimes, markers = [], [], []
-    for k in range(M):
-        t = np.repeat(np.arange(L), counts[k])
-        s = k * dwell + rng.integers(0, dwell, t.size)
-        order = np.argsort(s, kind="stable")
-        syncs += [np.array([k * dwell]), s[order]]
-        dtimes += [np.zeros(1, int), t[order]]
-        markers += [np.ones(1, bool), np.zeros(t.size, bool)]
-    write_picoharp_t3(path / f"{name}.ptu", np.concatenate(syncs), np.concatenate(dtimes),
-                      np.concatenate(markers), 1 / BIT_RATE, BIT_RATE / L)
+    _write_acquisition(path / f"{name}.ptu", spectrum, dwell, rng)
     np.save(path / f"{name}_patterns.npy", pats)
     np.save(path / f"{name}_code.npy", code.astype(np.uint8))
 
