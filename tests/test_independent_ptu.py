@@ -171,7 +171,7 @@ def _acquire_instrument(path, name, depth, refl, seed, dwell=60):
 def test_independent_instrument_calibrated_on_a_wall(tmp_path, capsys):
     """Issue 20's hidden instrument, written and jittered here: calibrated on a flat wall at
     25 m, the scene reconstructs without truth with the delay gone. Measured (seed 0, 12.9 M
-    photons): bias 1.2 cm, median 8.9 mm, RMSE 0.111 m (0.070 m without the one-pixel pole,
+    photons): bias 1.2 cm, median 5.9 mm, RMSE 0.111 m (0.070 m without the one-pixel pole,
     which no estimator recovers at 25 % patterns, ideal instrument included: its +0.5 m over
     32 pixels is the bias); removing the offset by hand instead: 0.129 m; uncalibrated the
     depths fall outside the gate."""
@@ -195,7 +195,7 @@ def test_independent_instrument_calibrated_on_a_wall(tmp_path, capsys):
     assert main(["reconstruct", *files("scan"), "--range-gate", "29.5", "30.9", "--calibration",
                  str(tmp_path / "cal.json"), "--out", str(out), "--no-figure"]) == 0
     err = np.load(out / "depth.npy") - depth
-    assert np.nanmedian(np.abs(err)) <= 0.012
+    assert np.nanmedian(np.abs(err)) <= 0.008  # 8.9 mm on the lags' grid, 5.9 mm below it
     assert abs(np.nanmean(err)) <= 0.02  # the lost pole alone is +1.6 cm
     assert np.sqrt(np.nanmean(err ** 2)) <= 0.125
     assert np.sqrt(np.nanmean(np.delete(err, 30, axis=1) ** 2)) <= 0.085

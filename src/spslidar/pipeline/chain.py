@@ -259,12 +259,14 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         slices = _host(be, slices)
         seen = slices
         if sim.get("delay_response") is not None:  # a calibrated instrument's spread returns
-            from .calibration import delay_filter
+            from .calibration import delay_filter, refine_depth
 
             seen = delay_filter(slices, lags, sim["delay_response"])
         est = ESTIMATORS.load(cfg.depth)().estimate(
             seen, DepthContext(lags, bin_width, cfg.pulse_width, shape, cfg.subbin))
         depth, confidence, low = est.depth, est.confidence, est.low_confidence
+        if seen is not slices:
+            depth = refine_depth(depth, seen, lags, bin_width, cfg.pulse_width)
         depth_info, depth2 = est.info, est.depth2
     depth = np.asarray(depth).reshape(shape)
     timing["depth"] = time.perf_counter() - t0
