@@ -21,7 +21,7 @@ from spslidar.scenes import load_scene
 BW = 1e-10  # 100 ps bins
 BIN_M = SPEED_OF_LIGHT * BW / 2  # 1.5 cm
 PW = 0.5
-SPATIAL = ("censor", "mrf", "guarded")
+SPATIAL = ("censor", "mrf", "guarded", "evidence")
 ALL = ("argmax",) + SPATIAL
 
 
@@ -110,7 +110,9 @@ def test_slanted_plane_and_one_pixel_pole_survive_noise(name, seed):
     est = ESTIMATORS.load(name)().estimate(slices, ctx)
     am = ESTIMATORS.load("argmax")().estimate(slices, ctx)
     bad, bad_am = off(est, depth), off(am, depth)
-    limit = 0.1 if name == "censor" else 0.05
+    # censor and evidence keep a pixel's own return wherever it passes their tests, so a few
+    # noise spikes of the weak band survive (evidence: 6-7 %, against 0-3 % for the MRFs)
+    limit = 0.1 if name in ("censor", "evidence") else 0.05
     assert bad[weak].mean() < limit < bad_am[weak].mean()  # weak slanted band recovered
     assert bad[pole].mean() <= 0.1  # the one-pixel pole is not smoothed away
     plane = ~weak & ~pole
@@ -302,6 +304,7 @@ def test_second_surface_needs_significance_not_just_a_second_maximum():
     assert np.isfinite(est.depth2).mean() < 0.03
     assert all(ESTIMATORS.load(n)().estimate(slices, ctx).depth2 is None
                for n in ("argmax", "censor", "mrf"))
+    assert np.isfinite(ESTIMATORS.load("evidence")().estimate(slices, ctx).depth2).mean() < 0.03
 
 
 def test_guard_keeps_a_strong_one_pixel_pole_that_the_mrf_smooths_away():
@@ -336,3 +339,64 @@ def test_default_within_five_percent_of_argmax_on_procedural_scenes(seed):
         have = valid & np.isfinite(d)
         rmse[name] = float(np.sqrt(np.mean((d[have] - truth[have]) ** 2)))
     assert rmse[Config().depth] <= 1.05 * rmse["argmax"]
+
+
+def test_line_evidence_supports_a_pole_not_a_spike():
+    from spslidar.depth.evidence import line_evidence, neighbour_share
+
+    n, k = 7, 12
+    z = np.zeros((n, n, k))
+    z[:, 3, 5] = 2.0  # a one-pixel pole at slice 5, whole column
+    z[1, 1, 9] = 6.0  # an isolated spike at slice 9
+    z[5, 5, 8] = 1.0  # slanted: a neighbour of the pole's line one slice off still counts
+    lab = np.argmax(z, axis=2).ravel()
+    ev = line_evidence(z.reshape(n * n, k), lab, (n, n)).reshape(n, n)
+    assert ev[3, 3] == pytest.approx(6.0)  # itself and both pole neighbours
+    assert ev[0, 3] == pytest.approx(4.0)  # the pole's end: one neighbour inside the image
+    assert ev[1, 1] == pytest.approx(6.0)  # the spike: its own evidence only
+    share = neighbour_share(np.eye(n, dtype=bool), (n, n)).reshape(n, n)
+    assert share[3, 3] == pytest.approx(3 / 9) and share[0, 0] == pytest.approx(2 / 9)
+
+
+def test_evidence_keeps_a_one_pixel_pole_the_mrf_erases_by_its_line_alone():
+    from spslidar.depth.evidence import EvidenceDepth
+
+    slices, ctx, depth, weak, pole = noisy_scene(0)
+    strict = MRFDepth(truncation=8.0).estimate(slices, ctx)
+    assert off(strict, depth)[pole].mean() > 0.9
+    # only the line test: no strong-return or occluder keeps
+    line_only = EvidenceDepth(truncation=8.0, strong=1e9, occluder=1e9).estimate(slices, ctx)
+    assert off(line_only, depth)[pole].mean() < 0.1
+    assert line_only.info["kept_line"] > 0
+    # and the weak band is still the MRF's: the line test does not keep noise spikes
+    am = ESTIMATORS.load("argmax")().estimate(slices, ctx)
+    assert off(line_only, depth)[weak & ~pole].mean() < 0.5 * off(am, depth)[weak & ~pole].mean()
+
+
+def test_evidence_options_validated():
+    from spslidar.depth.evidence import EvidenceDepth
+
+    with pytest.raises(ValueError):
+        EvidenceDepth(strong=-1)
+    with pytest.raises(ValueError):
+        EvidenceDepth(share=1.5)
+
+
+@pytest.mark.parametrize("seed", [3, 11, 5])
+def test_evidence_within_five_percent_of_argmax_on_procedural_scenes(seed):
+    # the case the MRF loses (seed 3: mrf 1.34x argmax at 32x32, 50 %) and two it wins
+    import spslidar
+
+    meas = spslidar.measure(scene=f"procedural:{seed}", size=32, noise=5, compression=0.5,
+                            seed=seed)
+    r = spslidar.reconstruct(meas)
+    ctx = DepthContext(np.asarray(r.lags), meas.acq.bin_width, r.config.pulse_width,
+                       (32, 32), False)
+    truth, valid = r.scene.depth, r.scene.valid
+    rmse = {}
+    for name in ("argmax", "evidence"):
+        d = ESTIMATORS.load(name)().estimate(r.slices, ctx).depth.reshape(truth.shape)
+        have = valid & np.isfinite(d)
+        rmse[name] = float(np.sqrt(np.mean((d[have] - truth[have]) ** 2)))
+    assert rmse["evidence"] <= 1.05 * rmse["argmax"]
+    assert rmse["evidence"] < 0.95 * rmse["argmax"]  # and better: noise is what argmax gets wrong

@@ -1,4 +1,4 @@
-"""Depth estimation from the reconstructed range slices (eq. 2-3): the registry of estimators.
+"""Depth estimation from the reconstructed range slices (equations 2-3): the registry of estimators.
 
 ``ESTIMATORS.load(name)()`` is an estimator; ``estimate.estimate(slices, ctx)`` returns a
 :class:`DepthEstimate` (depth, confidence, peak, low-confidence mask). ``argmax`` is the
@@ -23,6 +23,12 @@ ESTIMATORS.add("argmax", "spslidar.depth.argmax:ArgmaxDepth", "ML argmax",
 ESTIMATORS.add("censor", "spslidar.depth.censor:CensorDepth", "censor + recover",
                "fast: argmax, then pixels that fit no neighbour and have an ambiguous return "
                "are re-estimated near their neighbours' depths (Shin et al. 2015)")
+ESTIMATORS.add("evidence", "spslidar.depth.evidence:EvidenceDepth", "evidence-tested MRF",
+               "MRF labelling that overrides a pixel's own tallest slice only where the data "
+               "give it no support (a strong return, a thin line of neighbours at the same "
+               "depth, or a cluster of returns in front of the MRF's surface keep it), plus a "
+               "second surface per pixel; loses less than mrf where mrf loses to argmax, but "
+               "gives back part of mrf's gain where noise spikes are dense")
 ESTIMATORS.add("guarded", "spslidar.depth.guarded:GuardedDepth", "guarded MRF",
                "MRF labelling that never overrides a pixel's own significant return (an "
                "evidence test against the block's noise maxima), plus a second surface per "

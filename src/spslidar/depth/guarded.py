@@ -141,11 +141,7 @@ class GuardedDepth(MRFDepth):
         belief, sweeps = min_sum_bp(cost, self.smoothness, cap, self.iterations)
         belief = belief.reshape(k, q).T
         smooth = np.argmin(belief, axis=1)
-        own = np.argmax(z, axis=1)
-        null = noise_maxima(z)
-        tau = self.scale * float(np.quantile(null, self.quantile)) if q else np.inf
-        z_own = z[rows, own].astype(np.float64)
-        keep = z_own >= tau
+        own, keep, extra = self.guard(x, z, smooth, (n1, n2))
         label = np.where(keep, own, smooth)
         conf = _pseudo_marginal(belief, label)
         guarded = keep & (own != smooth)
@@ -162,8 +158,19 @@ class GuardedDepth(MRFDepth):
         depth2[missing] = np.nan
         conf[missing] = 0.0
         strength = x[rows, label].astype(np.float64)
-        info = {"sweeps": sweeps, "tau": tau, "kept_by_guard": float(np.mean(guarded)),
+        info = {"sweeps": sweeps, **extra, "kept_by_guard": float(np.mean(guarded)),
                 "changed_from_argmax": float(np.mean(label != np.argmax(x, axis=1))),
                 "two_surface_fraction": float(np.mean(np.isfinite(depth2))),
                 "smoothness": self.smoothness, "truncation": cap, "quantile": self.quantile}
         return DepthEstimate(depth, conf, strength, self._flag(depth, conf), info, depth2)
+
+    def guard(self, x: np.ndarray, z: np.ndarray, smooth: np.ndarray,
+              shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, dict]:
+        """Each pixel's own slice, where it is kept against the MRF's label ``smooth``, and
+        numbers for ``info``: here the evidence's argmax, kept where it reaches ``tau``."""
+        q = z.shape[0]
+        own = np.argmax(z, axis=1)
+        null = noise_maxima(z)
+        tau = self.scale * float(np.quantile(null, self.quantile)) if q else np.inf
+        keep = z[np.arange(q), own].astype(np.float64) >= tau
+        return own, keep, {"tau": tau}
