@@ -16,6 +16,7 @@ from __future__ import annotations
 import fnmatch
 import os
 import pkgutil
+import re
 import sys
 from pathlib import Path
 
@@ -23,6 +24,7 @@ import spslidar
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
+sys.path.insert(0, str(HERE / "_ext"))  # spslidar_docs: the CLI, Config and metrics directives
 
 # -- project --------------------------------------------------------------------------------
 project = "spslidar"
@@ -31,15 +33,21 @@ copyright = "the spslidar authors, BSD-3-Clause"  # noqa: A001 - Sphinx's name
 release = spslidar.__version__
 version = ".".join(release.split(".")[:2])
 
+# No intersphinx (its inventories are fetched over the network) and no viewcode (its "[docs]"
+# back-links point to the objects' defining modules, which re-exports leave without anchors).
+# MathJax is served by the site itself (sphinx-mathjax-offline copies it into _static/): the
+# pages typeset their math offline, with no CDN.
 extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
-    "sphinx.ext.viewcode",
-    "sphinx.ext.intersphinx",
+    "sphinx-mathjax-offline",
     "numpydoc",
     "myst_parser",
+    "sphinx_design",
     "sphinx_gallery.gen_gallery",
+    "matplotlib.sphinxext.plot_directive",
+    "spslidar_docs",
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
@@ -49,12 +57,21 @@ root_doc = "index"
 # fragments of it) and the gallery's generated .ipynb/.py/.zip are not
 exclude_patterns = [
     "_build",
+    "_ext",
     "reproduction/**",
+    "auto_examples/**/*.ipynb",
+    "auto_examples/**/*.py",
+    "auto_examples/**/*.zip",
+    "auto_examples/**/*.md5",
+    "auto_examples/**/*.json",
     "auto_examples/*.ipynb",
     "auto_examples/*.py",
     "auto_examples/*.zip",
     "auto_examples/*.md5",
     "auto_examples/*.json",
+    "check_site.py",
+    "sg_execution_times.rst",
+    "**/sg_execution_times.rst",
     "**/.ipynb_checkpoints",
     "Thumbs.db",
     ".DS_Store",
@@ -62,37 +79,94 @@ exclude_patterns = [
 templates_path: list[str] = []
 
 # -- HTML -----------------------------------------------------------------------------------
-html_theme = "alabaster"
+html_theme = "pydata_sphinx_theme"
 html_title = f"spslidar {release}"
+html_short_title = "spslidar"
 html_theme_options = {
-    "description": "Single-pixel photon-counting spread-spectrum ToF lidar: simulate and "
-                   "reconstruct",
-    "fixed_sidebar": True,
-    "page_width": "1100px",
-    "sidebar_width": "240px",
+    "logo": {"text": "spslidar"},
+    "navbar_align": "left",
+    "header_links_before_dropdown": 8,
+    "navigation_with_keys": False,
+    "show_toc_level": 2,
+    "secondary_sidebar_items": ["page-toc"],
+    "footer_start": ["copyright"],
+    "footer_end": ["sphinx-version"],
+    "icon_links": [],
+    "show_prev_next": True,
+    "pygments_light_style": "default",
+    "pygments_dark_style": "monokai",
 }
-html_static_path: list[str] = []
+# pages without sub-pages, and the architecture page whose diagrams need the full width
+html_sidebars = {"index": [], "install": [], "getting_started": [], "reproduction": [],
+                 "changelog": [], "architecture": []}
+html_context = {"default_mode": "light"}
+html_static_path = ["_static"]
+html_css_files = ["spslidar.css"]
 html_show_sourcelink = False
+html_copy_source = False
 
 # -- MyST (the Markdown pages) --------------------------------------------------------------
-myst_enable_extensions = ["dollarmath", "amsmath"]
+myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist", "substitution"]
+myst_substitutions = {"release": release}
 myst_heading_anchors = 3
+myst_dmath_double_inline = True
+
+# -- cross-references: every one must resolve (nitpicky), except the names of other
+# libraries' types in signatures (no intersphinx inventories offline)
+nitpicky = True
+nitpick_ignore_regex = [
+    (r"py:.*", r"(np|numpy|scipy|torch|cupy|dask|matplotlib|pathlib|os|argparse|typing|"
+               r"collections|concurrent|numbers|types|io|json|enum|dataclasses|tomllib|"
+               r"threading|multiprocessing|joblib|ptufile|functools)(\..*)?"),
+    (r"py:.*", r"(Path|PathLike|Any|Callable|Iterator|Iterable|Sequence|Mapping|"
+               r"ArrayLike|NDArray|Figure|Axes|Self|Literal|Union|Optional|Namespace|"
+               r"ArgumentParser|Executor|Future|Generator|TypeVar|Protocol|ModuleType)"),
+    (r"py:.*", r"(int|float|str|bool|dict|list|tuple|set|object|type|bytes|callable|"
+               r"None|optional|array|array-like|ndarray|path|default|or|of|shape|"
+               r"iterable|sequence|mapping|datetime)"),
+    (r"py:.*", r"(dict|tuple|list|set|type)\[.*"),
+    # private helpers and undocumented internals that docstrings name for the code's readers
+    # (left as code text, not links)
+    (r"py:.*", r"(.*\.)?_[A-Za-z].*"),
+    # module constants without documentation of their own, objects built at run time (the
+    # registries) and helpers the package does not export: named in docstrings, not
+    # documented, so left as code text
+    (r"py:.*", r"(.*\.)?(ANNOUNCE_SECONDS|BAND_MIN_SIZE|MAX_TRIALS|POWER_CHUNK|WIENER_REG|"
+               r"SOLVERS|REGULARISERS|CalibratedFilter(\.response)?|FistaInfo|"
+               r"auto_truncation|estimate_seconds|lfsr_sequence|DepthEstimate\.depth2|"
+               r"Solver\.solve)"),
+    (r"py:.*", r"spslidar(\.\w+)*\.(\s.*)?"),  # a reference broken across two lines
+]
+
+# -- matplotlib's plot directive (the user guide's figures are drawn by the library) --------
+plot_include_source = True
+plot_html_show_source_link = False
+plot_html_show_formats = False
+plot_formats = [("png", 110)]
+plot_rcparams = {"figure.autolayout": False}
+plot_pre_code = "import numpy as np\nimport matplotlib.pyplot as plt\n"
 
 # -- autodoc / numpydoc ---------------------------------------------------------------------
 autodoc_default_options = {
     "members": True,
+    "undoc-members": True,
     "show-inheritance": True,
 }
 autodoc_member_order = "bysource"
 autodoc_typehints = "signature"
 autodoc_preserve_defaults = True
 autosummary_generate = False  # module pages are written by _write_api_pages() below
+# autosummary's one-line summaries end at the first ". " that is not a known abbreviation: the
+# docstrings cite the paper as "eq. (5)" and "Fig. 4", which must not end a summary
+import sphinx.ext.autosummary as _autosummary  # noqa: E402
+
+_autosummary.WELL_KNOWN_ABBREVIATIONS = (*_autosummary.WELL_KNOWN_ABBREVIATIONS, "eq.", "Eq.",
+                                         "eqs.", "Fig.", "fig.", "cf.", "approx.", "no.")
 numpydoc_show_class_members = False  # autodoc's :members: lists them once
 numpydoc_class_members_toctree = False
 numpydoc_attributes_as_param_list = False
 numpydoc_xref_param_type = False
 
-intersphinx_mapping: dict[str, tuple[str, None]] = {}  # no network at build time
 
 # -- sphinx-gallery -------------------------------------------------------------------------
 os.environ.setdefault("MPLBACKEND", "Agg")
@@ -100,11 +174,13 @@ sphinx_gallery_conf = {
     "examples_dirs": str(ROOT / "examples"),
     "gallery_dirs": "auto_examples",
     "filename_pattern": r"/plot_",
+    "ignore_repr_types": r"matplotlib\.(text|axes|colorbar|image|lines|legend)",
     "ignore_pattern": r"__init__\.py",
     "backreferences_dir": "gen_modules/backreferences",
     "doc_module": ("spslidar",),
     "reference_url": {"spslidar": None},
     "within_subsection_order": "FileNameSortKey",
+    "nested_sections": True,
     "image_scrapers": ("matplotlib",),
     "remove_config_comments": True,
     "abort_on_example_error": False,
@@ -112,6 +188,8 @@ sphinx_gallery_conf = {
     "show_memory": False,
     "min_reported_time": 0,
     "download_all_examples": False,
+    # the computation-time pages load jQuery and DataTables from CDNs: not on an offline site
+    "write_computation_times": False,
     "plot_gallery": "True",
 }
 
@@ -120,13 +198,18 @@ sphinx_gallery_conf = {
 #: A module goes to the first section with a matching pattern (fnmatch); a new module is
 #: placed by adding its name (or a pattern) to one list.
 API_SECTIONS: list[tuple[str, str, str, list[str]]] = [
-    ("top", "Package and scenes",
-     "The top-level entry points (``spslidar.run``, ``measure``, ``reconstruct``, "
-     "``Config``) and the scenes the lidar looks at.",
-     ["spslidar", "spslidar.scenes", "spslidar.constants", "spslidar.errors",
-      "spslidar.registry"]),
+    ("top", "Package, configuration and results",
+     "The four entry points, ``spslidar.run(config) -> Result`` and its two halves "
+     "``measure`` and ``reconstruct``, the :class:`~spslidar.config.Config` every run is made "
+     "from (every key below, with its unit, default and choices) and the "
+     ":class:`~spslidar.pipeline.results.Result` it returns.",
+     ["spslidar", "spslidar.config", "spslidar.version", "spslidar.errors",
+      "spslidar.constants", "spslidar.registry"]),
+    ("scenes", "Scenes",
+     "What the lidar looks at: built-in scenes, procedural scenes and your own depth maps.",
+     ["spslidar.scenes", "spslidar.scenes.*", "spslidar.scene_cache", "spslidar.scene_build"]),
     ("codes", "Codes",
-     "Temporal pseudo-random codes that modulate the laser: m-sequences, Gold codes, "
+     "Temporal pseudo-random codes that gate the laser: m-sequences, Gold codes, "
      "Bernoulli bits and their periodic correlation.",
      ["spslidar.codes", "spslidar.codes.*"]),
     ("patterns", "Patterns",
@@ -137,40 +220,128 @@ API_SECTIONS: list[tuple[str, str, str, list[str]]] = [
      "Hadamard transforms, adjoint tests.",
      ["spslidar.operators", "spslidar.operators.*"]),
     ("forward", "Forward model",
-     "Expected photon counts per TDC bin (eq. 4 of the paper).",
+     "Expected photon counts per TDC bin (equation 4 of the paper).",
      ["spslidar.forward"]),
-    ("detectors", "Detectors",
-     "Detector models: noise terms, photon counting, dead time and pile-up, time tags.",
-     ["spslidar.detector", "spslidar.detectors", "spslidar.detectors.*"]),
+    ("detectors", "Detectors and the instrument",
+     "Detector models (linear counting, the Geiger-mode APD with dead time and pile-up), time "
+     "tags, and a real instrument's system delay and response (IRF).",
+     ["spslidar.detector", "spslidar.detectors", "spslidar.detectors.*",
+      "spslidar.instrument"]),
     ("correlate", "Correlation and QCR",
-     "The matched filter (eq. 5-6) and quadratic correlation reconstruction (eq. 11-17).",
-     ["spslidar.correlate", "spslidar.qcr", "spslidar.snr"]),
+     "The matched filter (equations 5-6) and quadratic correlation reconstruction "
+     "(equations 11-17).",
+     ["spslidar.correlate", "spslidar.qcr"]),
+    ("snr", "Output SNR",
+     "The output SNR of one pattern's matched filter, equation (10), against its Monte-Carlo "
+     "simulation (``spslidar snr``).",
+     ["spslidar.snr", "spslidar.snr.*"]),
     ("solvers", "Solvers",
-     "Sparse/TV reconstruction solvers (FISTA, TwIST, TVAL3, GPSR) and regularisers.",
+     "Sparse/TV reconstruction solvers (FISTA, TwIST, TVAL3, GPSR) and regularisers "
+     "(equation 18).",
      ["spslidar.solvers", "spslidar.solvers.*"]),
     ("depth", "Depth estimators",
-     "Depth from the reconstructed range slices: ML argmax (eq. 2-3), censoring, MRF.",
+     "Depth from the reconstructed range slices: ML argmax (equations 2-3), censoring, "
+     "guarded, MRF.",
      ["spslidar.depth", "spslidar.depth.*"]),
-    ("metrics", "Metrics and figures",
-     "Depth RMSE (eq. 19), coverage, edges, and the library's figures.",
-     ["spslidar.metrics", "spslidar.figures"]),
+    ("metrics", "Metrics, products and figures",
+     "Depth RMSE (equation 19), coverage, edges; the reflectivity image and point cloud; the "
+     "library's figures.",
+     ["spslidar.metrics", "spslidar.products", "spslidar.figures"]),
     ("pipeline", "Pipeline",
-     "One acquisition and reconstruction end to end: ``run(config) -> Result``.",
-     ["spslidar.pipeline", "spslidar.pipeline.*", "spslidar.outdir"]),
+     "One acquisition and reconstruction end to end, measured acquisitions (PTU) and "
+     "calibration, and the result folder.",
+     ["spslidar.pipeline", "spslidar.pipeline.*", "spslidar.outdir", "spslidar.machine"]),
     ("backends", "Backends",
      "Where the numeric core runs (NumPy, array-API libraries, GPU).",
      ["spslidar.backends", "spslidar.backends.*"]),
     ("io", "Input and output",
-     "Real time-tag data: PicoQuant PTU files read into per-pattern histograms.",
+     "Real time-tag data: PicoQuant PTU files read into per-pattern histograms, and written.",
      ["spslidar.io", "spslidar.io.*"]),
     ("experiments", "Experiments",
      "Parameter sweeps and the reproduction of the paper's experiments.",
      ["spslidar.experiments", "spslidar.experiments.*"]),
-    ("config", "Configuration and command line",
-     "The run configuration (the same keys on the command line and in TOML files) and the "
-     "``spslidar`` command.",
-     ["spslidar.config", "spslidar.cli"]),
+    ("cli", "Command line",
+     "The ``spslidar`` command; its options are listed in full in the :doc:`../cli`.",
+     ["spslidar.cli"]),
 ]
+
+#: Extra reST at the top of a section page (after its introduction).
+SECTION_HEAD = {
+    "top": """
+Entry points
+------------
+
+.. autosummary::
+   :nosignatures:
+
+   spslidar.run
+   spslidar.measure
+   spslidar.reconstruct
+   spslidar.config.Config
+   spslidar.pipeline.results.Result
+
+.. _config-keys:
+
+Every configuration key
+-----------------------
+
+A :class:`~spslidar.config.Config` is made from keyword arguments, a dict, a TOML file
+(:meth:`~spslidar.config.Config.from_toml`) or the options of ``spslidar run``: the same keys
+everywhere (``code_length`` in Python and TOML, ``--code-length`` on the command line). This
+table is generated from the declarations the command line is built from (the dataclass fields
+and their ``#:`` comments in ``config.py``, the stage registries and the options each stage
+declares), so it lists every key of this version.
+
+.. spslidar-config::
+
+.. _result-attributes:
+
+What a run returns: ``Result``
+------------------------------
+
+:func:`spslidar.run` and :func:`spslidar.reconstruct` return a
+:class:`~spslidar.pipeline.results.Result`:
+
+.. list-table::
+   :header-rows: 1
+   :widths: 22 78
+
+   * - attribute
+     - meaning
+   * - ``depth``
+     - The estimated depth map, ``(N, N)`` metres; NaN where no return was detected.
+   * - ``truth``
+     - The ground-truth depth, ``(N, N)`` metres (all NaN for a measured acquisition).
+   * - ``depth_rmse``
+     - The depth RMSE of equation (19) in metres (``metrics["depth_rmse_m"]``); ``None``
+       without a truth.
+   * - ``reflectivity``
+     - Per-pixel reflectivity read off the reconstruction: an estimate of alpha in [0, 1] for
+       a simulation, detected photons per pulse for a measured acquisition; NaN without a
+       return.
+   * - ``confidence``, ``low_confidence``
+     - Per-pixel confidence of the depth in [0, 1], and the mask of low-confidence pixels.
+   * - ``depth2``
+     - A second surface per pixel (metres; NaN where one surface), where the depth estimator
+       looks for one (``guarded``), else ``None``.
+   * - ``slices``
+     - The reconstructed range slices, one image per gated delay: ``(K, N, N)``.
+   * - ``lags``, ``corr``
+     - The gated delays (TDC bins) and the matched-filter outputs ``(M, K)`` the solver used.
+   * - ``metrics``
+     - Everything ``metrics.json`` holds (:doc:`../outputs`).
+   * - ``timing``
+     - Wall-clock seconds by stage.
+   * - ``warnings``
+     - Warnings of the run (also printed by the command line).
+   * - ``config``, ``scene``
+     - The validated :class:`~spslidar.config.Config` and the scene that was measured.
+   * - ``has_truth``
+     - Whether the scene has a ground truth.
+   * - ``summary()``, ``points()``, ``save()``
+     - Two lines of text; the point cloud; the result folder (:doc:`../outputs`).
+""",
+}
 
 API_DIR = HERE / "api"  # generated at build time (git-ignored)
 
@@ -286,6 +457,38 @@ def _reexports(name: str) -> list[str]:
     return entries
 
 
+def _public_objects(name: str) -> list[str]:
+    """The functions and classes a module defines and documents (its ``__all__`` when it has
+    one), for the section page's summary table; a package's re-exports are listed under the
+    module that defines them."""
+    import importlib
+    import inspect
+
+    try:
+        module = importlib.import_module(name)
+    except Exception:  # noqa: BLE001 - autodoc reports the failed import as a warning
+        return []
+    names = getattr(module, "__all__", None) or [a for a in vars(module) if a[0] != "_"]
+    out = []
+    for attr in names:
+        try:
+            obj = getattr(module, attr)
+        except Exception:  # noqa: BLE001 - a lazy export that fails to import
+            continue
+        if not (inspect.isclass(obj) or inspect.isfunction(obj)):
+            continue
+        doc = inspect.getdoc(obj)
+        if getattr(obj, "__module__", None) != name or not doc:
+            continue
+        # autosummary cuts the summary at the first ". ": skip (from the table only) an
+        # object whose first sentence would be cut inside an inline literal
+        first = re.split(r"\.\s", doc.split("\n\n")[0], maxsplit=1)[0]
+        if first.count("``") % 2:
+            continue
+        out.append(attr)
+    return out
+
+
 def _write_api_pages() -> None:
     modules = _discover()
     placed: dict[str, list[str]] = {key: [] for key, *_ in API_SECTIONS}
@@ -306,9 +509,15 @@ def _write_api_pages() -> None:
     index = [".. This page is generated by docs/conf.py at build time; do not edit.\n",
              _underline("API reference", "="),
              "The modules follow the physics chain of the lidar, from the laser's code to the "
-             "depth map. Each section lists its modules; each module's page documents its "
-             "public functions and classes from their (numpydoc) docstrings.\n",
-             ".. toctree::\n   :maxdepth: 2\n"]
+             "depth map. Each section's page has a table of its modules and of their public "
+             "functions and classes; each module's page documents them in full from their "
+             "(numpydoc) docstrings. Start with :doc:`top`: ``run``, ``Config`` (every key) "
+             "and ``Result``.\n",
+             ".. list-table::\n   :header-rows: 1\n   :widths: 25 75\n",
+             "   * - section\n     - what it holds"]
+    index += [f"   * - :doc:`{key}`\n     - {intro}" for key, _t, intro, mods in sections
+              if mods]
+    index += ["", ".. toctree::\n   :hidden:\n   :maxdepth: 2\n"]
     index += [f"   {key}" for key, *_, mods in sections if mods]
     _write(API_DIR / "index.rst", "\n".join(index) + "\n")
     wanted = {"index.rst"}
@@ -316,9 +525,17 @@ def _write_api_pages() -> None:
         if not mods:
             continue
         lines = [".. This page is generated by docs/conf.py at build time; do not edit.\n",
-                 _underline(title, "="), intro + "\n",
-                 ".. autosummary::\n"]
+                 _underline(title, "="), intro + "\n", SECTION_HEAD.get(key, "")]
+        lines += [_underline("Modules", "-"), ".. autosummary::\n   :nosignatures:\n"]
         lines += [f"   {m}" for m in mods]
+        lines.append("")
+        for m in mods:
+            objs = _public_objects(m)
+            if not objs:
+                continue
+            lines += [_underline(f":mod:`{m}`", "-"), ".. autosummary::\n   :nosignatures:\n"]
+            lines += [f"   {m}.{o}" for o in objs]
+            lines.append("")
         lines += ["", ".. toctree::\n   :hidden:\n"]
         lines += [f"   {m}" for m in mods]
         _write(API_DIR / f"{key}.rst", "\n".join(lines) + "\n")

@@ -304,7 +304,7 @@ class Config:
         number("seed", 0, integer=True)
         number("max_memory", 0, lo_open=True, optional=True)
         if isinstance(self.max_time, str):  # "90s", "10min", "2h" as on the command line
-            from .pipeline.budget import parse_duration
+            from .machine import parse_duration
 
             self.max_time = parse_duration(self.max_time)
         number("max_time", 0, lo_open=True)

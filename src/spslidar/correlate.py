@@ -1,4 +1,4 @@
-"""The matched filter (eq. 5-6) and the range gate.
+"""The matched filter (equations 5-6) and the range gate.
 
 The histogram ``h_i(t)`` of pattern ``i`` over one code period is cross-correlated with the code
 replica ``f``:

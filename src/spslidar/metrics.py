@@ -1,4 +1,4 @@
-"""Scores: depth RMSE (eq. 19) and Sobel edge maps."""
+"""Scores: depth RMSE (equation 19) and Sobel edge maps."""
 
 from __future__ import annotations
 

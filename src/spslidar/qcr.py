@@ -1,4 +1,4 @@
-"""Quadratic Correlation Reconstruction (QCR), eq. (11)-(17).
+"""Quadratic Correlation Reconstruction (QCR), equations (11)-(17).
 
 QCR correlates the measurements with the patterns *after removing their means*:
 

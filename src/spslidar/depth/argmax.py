@@ -1,4 +1,4 @@
-"""Maximum-likelihood depth from the reconstructed range slices (eq. 2-3).
+"""Maximum-likelihood depth from the reconstructed range slices (equations 2-3).
 
 The reconstruction gives, for each pixel, a profile over the gated delays (the columns of the
 ``(Q, K)`` solution). The ML delay is the first tallest peak (eq. 2), converted to depth by

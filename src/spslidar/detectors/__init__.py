@@ -1,5 +1,5 @@
 """Detector models (the stage after the forward model) and their registry; the noise terms of
-eq. (4), (9) and the Poisson counting they share are in :mod:`spslidar.detectors.counting`.
+equations (4), (9) and the Poisson counting they share are in :mod:`spslidar.detectors.counting`.
 
 ``DETECTORS.load(name)(**options)`` is a :class:`~spslidar.detectors.base.DetectorModel`;
 ``linear`` is the paper's counter (the default).

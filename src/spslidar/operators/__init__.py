@@ -1,4 +1,4 @@
-"""Linear operators with adjoints (the 'A' of eq. 7 and 18, and the image-space transforms)."""
+"""Linear operators with adjoints (the A of equations 7 and 18, and image-space transforms)."""
 
 from .base import Identity, LinearOperator, MatrixOperator, dottest, power_norm
 from .image import Gradient2D, Wavelet2D

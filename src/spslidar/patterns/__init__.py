@@ -1,4 +1,4 @@
-"""DMD spatial patterns as operators (the rows of Phi, eq. 7), and the registry of pattern
+"""DMD spatial patterns as operators (the rows of Phi, equation 7), and the registry of pattern
 kinds.
 
 ``PATTERNS.load(kind)(kind, M, N, rng, dtype, **options)`` builds a

@@ -1,4 +1,4 @@
-"""Dense DMD pattern sets (the paper's): the rows of the measurement matrix Phi of eq. (7).
+"""Dense DMD pattern sets (the paper's): the rows of the measurement matrix Phi of equation (7).
 
 A DMD only switches mirrors on or off, so every pattern here is non-negative:
 

@@ -1,5 +1,5 @@
-"""The simulation engine: expected counts (forward model, eq. 4) -> detector model -> matched
-filter (eq. 5-6), streamed over blocks of patterns on a thread pool."""
+"""The simulation engine: expected counts (forward model, equation 4) -> detector model -> matched
+filter (equations 5-6), streamed over blocks of patterns on a thread pool."""
 
 from __future__ import annotations
 

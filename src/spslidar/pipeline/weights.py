@@ -1,4 +1,4 @@
-"""The regularisation of eq. (18) a run uses: the regulariser, the solver's registered
+"""The regularisation of equation (18) a run uses: the regulariser, the solver's registered
 defaults, and the default weight read from the measurements' noise level (never the truth).
 """
 

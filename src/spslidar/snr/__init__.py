@@ -1,4 +1,4 @@
-"""Output SNR of one pattern's matched filter: eq. (10) against a Monte-Carlo simulation.
+"""Output SNR of one pattern's matched filter: equation (10) against a Monte-Carlo simulation.
 
 Shen et al. (section II.B.2) derive the signal (eq. 8) and the noise variance (eq. 9) of the
 matched-filter output ``C_i(tau)`` of one DMD pattern over one code period, and from them the

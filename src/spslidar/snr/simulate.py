@@ -1,4 +1,4 @@
-"""Monte-Carlo measurement of the output SNR of eq. (10), with its standard error.
+"""Monte-Carlo measurement of the output SNR of equation (10), with its standard error.
 
 :func:`snr_simulated` counts Poisson photons of one binary pattern over ``trials`` code periods
 (one summed draw per period, or full TDC histograms from the library's forward model and

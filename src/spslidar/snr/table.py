@@ -1,4 +1,4 @@
-"""Sweeps of eq. (10) against its simulation (:func:`snr_table`) and their figure
+"""Sweeps of equation (10) against its simulation (:func:`snr_table`) and their figure
 (:func:`plot_snr`)."""
 
 from __future__ import annotations

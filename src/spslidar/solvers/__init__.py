@@ -1,4 +1,4 @@
-"""Problem-agnostic solvers for eq. (18): FISTA, TwIST, TVAL3, GPSR.
+"""Problem-agnostic solvers for equation (18): FISTA, TwIST, TVAL3, GPSR.
 
 :data:`SOLVERS` lists them by import path, with the defaults the pipeline uses (``iterations``,
 ``lam_scale``, the ``regulariser`` that ``auto`` picks) and a ``validate`` hook for the

@@ -1,4 +1,4 @@
-"""FISTA (Beck & Teboulle 2009) for eq. (18), batched over column blocks."""
+"""FISTA (Beck & Teboulle 2009) for equation (18), batched over column blocks."""
 
 from __future__ import annotations
 

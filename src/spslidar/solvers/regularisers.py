@@ -1,4 +1,4 @@
-"""Regularisers ``R`` of eq. (18) with their proximal operators, batched over column blocks.
+"""Regularisers ``R`` of equation (18) with their proximal operators, batched over column blocks.
 
 Every regulariser acts on a block ``x`` of shape ``(Q, K)`` (K images of ``Q = Ny * Nx``
 pixels, one per range slice, flattened in C order) or on a single column ``(Q,)``:

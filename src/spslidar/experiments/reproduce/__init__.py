@@ -1,4 +1,4 @@
-"""Reproduce the computer simulations of Shen et al. (Section III: Fig. 2-8, Table I).
+"""Reproduce the computer simulations of Shen et al (Section III: Figures 2-8, Table I).
 
 ``spslidar reproduce EXPERIMENT --out DIR`` calls :func:`reproduce_main`. Each experiment
 

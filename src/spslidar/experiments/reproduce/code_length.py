@@ -1,4 +1,4 @@
-"""Fig. 4: RMSE against the code length without and with QCR, and the conventional lidar.
+"""Figure 4: RMSE against the code length without and with QCR, and the conventional lidar.
 
 Also the conventional-lidar points every comparison with it shares (Fig. 4-7): one pulse per
 repetition period, for the acquisition time of 16383 PSST bits, same energy per pulse.

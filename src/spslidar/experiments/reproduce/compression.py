@@ -1,4 +1,4 @@
-"""Fig. 2 (depth maps against the compression ratio M/Q) and Fig. 3 (code kinds at m_n = 1)."""
+"""Figure 2 (depth maps against the compression ratio M/Q) and Figure 3 (code kinds at m_n = 1)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""Fig. 5 and Fig. 7: Sobel edge maps of Fig. 4's and Fig. 6's depth maps (no QCR, QCR,
-conventional), scored against the truth's edges; the runs are Fig. 4's and Fig. 6's, cached.
+"""Figures 5 and 7: Sobel edge maps of Figure 4's and Figure 6's depth maps (no QCR, QCR,
+conventional), scored against the truth's edges; the runs are Figure 4's and Figure 6's, cached.
 """
 
 from __future__ import annotations

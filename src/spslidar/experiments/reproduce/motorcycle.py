@@ -1,4 +1,4 @@
-"""Fig. 6: the real-object stand-in (motorcycle, for the paper's 'doll') at m_n = 5-10 without
+"""Figure 6: the real-object stand-in (motorcycle, for the paper's 'doll') at m_n = 5-10 without
 and with QCR, and the conventional lidar.
 """
 

@@ -1,5 +1,5 @@
-"""Fig. 8 and Table I: the four reconstruction methods (TVAL3, GPSR, FISTA, TwIST) on the
-motorcycle scene with QCR; Table I's runs at m_n = 10 are Fig. 8's.
+"""Figure 8 and Table I: the four reconstruction methods (TVAL3, GPSR, FISTA, TwIST) on the
+motorcycle scene with QCR; Table I's runs at m_n = 10 are Figure 8's.
 """
 
 from __future__ import annotations
