@@ -56,6 +56,25 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     (``backend='torch'``, ...) the patterns live on its device and the simulation runs there
     when it has a device kernel (:mod:`spslidar.backends.device`), else on the host with the
     NumPy kernel, through this same function.
+
+    Parameters
+    ----------
+    config : Config or dict, optional
+        The acquisition's configuration (defaults: the paper's default experiment).
+    **overrides
+        Config keys to change, e.g. ``measure(scene="motorcycle", noise=5)``.
+
+    Returns
+    -------
+    Measurement
+        The scene, acquisition (code, bin width, periods), range gate and lags, the patterns
+        and the simulation record: per pattern the matched-filter outputs at the gated lags
+        (``sim["corr"]``, eq. 5-6), their noise levels and the photon counts.
+
+    Raises
+    ------
+    ConfigError
+        A configuration that cannot run here (one line; its memory or time estimate too).
     """
     cfg = _resolve(config, overrides)
     be = None
