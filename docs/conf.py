@@ -178,7 +178,6 @@ sphinx_gallery_conf = {
     "ignore_pattern": r"__init__\.py",
     "backreferences_dir": "gen_modules/backreferences",
     "doc_module": ("spslidar",),
-    "reference_url": {"spslidar": None},
     "within_subsection_order": "FileNameSortKey",
     "nested_sections": True,
     "image_scrapers": ("matplotlib",),
