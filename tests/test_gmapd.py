@@ -173,3 +173,57 @@ def test_run_with_gmapd_low_flux():
     gm = run({**base, "detector": "gmapd"})
     assert gm.metrics["detector"]["model"] == "gmapd"
     assert gm.depth_rmse <= lin.depth_rmse + 0.05
+
+
+def test_noiseless_gmapd_noise_level_is_its_expected_totals():
+    """A noiseless GMAPD run's noise level comes from its expected histogram, as the brute-force
+    simulation computes it (the fast path left a non-linear model's totals unset: the level
+    read uninitialised memory and changed from run to run)."""
+    from spslidar.detectors import build_detector
+    from spslidar.detectors.counting import NoiseModel
+    from spslidar.pipeline import measure
+    from spslidar.pipeline.plan import detector_options
+    from spslidar.pipeline.simulate import simulate_correlations
+
+    meas = measure(size=8, code_length=127, signal=2e-3, noise=2e-4, compression=0.5,
+                   detector="gmapd")
+    cfg = meas.config
+    det = build_detector("gmapd", **detector_options(cfg))
+    out = [simulate_correlations(meas.patterns, meas.scene, meas.acq, meas.ulags,
+                                 NoiseModel(cfg.noise), det, cfg.pulse_width,
+                                 np.random.default_rng(0), noiseless=True, method=method)
+           for method in ("fast", "reference", "fast")]
+    assert np.all(np.isfinite(out[0]["sigma"])) and np.all(out[0]["sigma"] > 0)
+    # float32 means on the fast path against float64 on the brute-force one
+    np.testing.assert_allclose(out[0]["sigma"], out[1]["sigma"], rtol=1e-5)
+    np.testing.assert_array_equal(out[0]["sigma"], out[2]["sigma"])
+
+
+def test_gmapd_run_priced_from_its_first_block(tmp_path, capsys):
+    """The GMAPD's cost depends on the flux, not only the configuration: the first block of
+    64 patterns is timed and the rest priced from it; beyond --max-time, one line and exit 2,
+    nothing written. The answer does not depend on the blocks' order (each its own stream)."""
+    from spslidar.cli import main
+    from spslidar.detectors.counting import NoiseModel
+    from spslidar.pipeline import measure
+    from spslidar.pipeline.plan import detector_options
+    from spslidar.pipeline.simulate import simulate_correlations
+
+    base = ["run", "--detector", "gmapd", "--size", "16", "--compression", "0.5",
+            "--code-length", "1023", "--signal", "2e-4", "--noise", "2e-5", "--no-figure"]
+    out = tmp_path / "r"
+    # above the configuration's estimate (0.03 s), far below the first block's (~1 s)
+    assert main([*base, "--max-time", "0.05", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "first block" in err[0] and "--max-time" in err[0]
+    assert not out.exists()
+    meas = measure(detector="gmapd", size=16, compression=0.5, code_length=1023,
+                   signal=2e-4, noise=2e-5)
+    assert meas.patterns.shape[0] == 128  # two blocks
+    cfg = meas.config
+    timed, untimed = (simulate_correlations(
+        meas.patterns, meas.scene, meas.acq, meas.ulags, NoiseModel(cfg.noise),
+        build_detector("gmapd", **detector_options(cfg)), cfg.pulse_width,
+        np.random.default_rng(3), max_time=limit) for limit in (1e9, None))
+    np.testing.assert_array_equal(timed["corr"], untimed["corr"])
+    np.testing.assert_array_equal(timed["sigma"], untimed["sigma"])

@@ -115,7 +115,8 @@ ANNOUNCE_SECONDS = 30.0
 
 def check_time(seconds: float, max_time: float | None, what: str = "this run",
                announce: bool = True,
-               reduce: str = "--size, --compression, --iterations or the range gate") -> None:
+               reduce: str = "--size, --compression, --iterations or the range gate",
+               basis: str = "its configuration") -> None:
     """Refuse (one line) work whose estimated time exceeds ``max_time`` seconds
     (``--max-time``); say the estimate on stderr before long work (over
     :data:`ANNOUNCE_SECONDS`). ``reduce`` names what to lower in the refusal."""
@@ -123,7 +124,7 @@ def check_time(seconds: float, max_time: float | None, what: str = "this run",
 
     if max_time is not None and seconds > max_time:
         raise SpslidarError(
-            f"{what} would take ~{_secs(seconds)} (estimated from its configuration), more "
+            f"{what} would take ~{_secs(seconds)} (estimated from {basis}), more "
             f"than --max-time {_secs(max_time)}: reduce {reduce}, or raise --max-time (e.g. "
             f"--max-time 2h)")
     if announce and seconds > ANNOUNCE_SECONDS:

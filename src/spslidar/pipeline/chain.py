@@ -136,7 +136,8 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
         acq_shown = acq if share == 1.0 else replace(acq, n_periods=acq.n_periods * share)
         sim = simulate_correlations(shown, scene, acq_shown, ulags, noise, detector,
                                     cfg.pulse_width, np.random.default_rng(seq_counts),
-                                    noiseless=cfg.noiseless, instrument=cfg)
+                                    noiseless=cfg.noiseless, instrument=cfg,
+                                    max_time=cfg.max_time)
         if shown is not host:
             sim = host.combine(sim)
     pile = detector.report(float(np.mean(sim["counts"])) / acq.n_periods,

@@ -44,6 +44,7 @@ def simulate_correlations(
     method: str = "fast",
     threads: int | None = None,
     instrument=None,
+    max_time: float | None = None,
 ) -> dict[str, np.ndarray]:
     """Expected counts -> Poisson counts -> matched filter, streamed over blocks of patterns.
 
@@ -82,6 +83,12 @@ def simulate_correlations(
         (:func:`spslidar.instrument.instrument_weights`); default an ideal instrument.
     threads : int, optional
         Threads (default: the CPUs available); the result does not depend on it.
+    max_time : float, optional
+        For a detector model other than the linear counter, whose cost depends on the flux
+        (a saturated GMAPD's dead-time fixed point takes thousands of sweeps), the first block
+        of patterns is simulated alone and timed, and the rest estimated from it is refused
+        beyond ``max_time`` seconds or said on stderr when over 30 s
+        (:func:`spslidar.pipeline.budget.check_time`). None: not timed.
 
     Returns
     -------
@@ -121,7 +128,8 @@ def simulate_correlations(
     args = (patterns, weights, shifts, noise_bin, acq, detector, replica, lags, gain, edges,
             children, noiseless)
     if method == "fast":
-        corr, totals, noise_tot, amp_sum = _simulate_fast(*args, threads=threads)
+        corr, totals, noise_tot, amp_sum = _simulate_fast(*args, threads=threads,
+                                                          max_time=max_time)
     else:
         corr, totals, noise_tot, amp_sum = _simulate_reference(*args)
     n_pulses = float(acq.code.sum()) * acq.n_periods
@@ -173,7 +181,7 @@ def simulation_threads(threads: int | None = None) -> int:
 
 
 def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica, lags, gain,
-                   edges, children, noiseless, threads=None):
+                   edges, children, noiseless, threads=None, max_time=None):
     """The streamed simulation of :func:`simulate_correlations` (``method='fast'``)."""
     m = patterns.shape[0]
     n_blocks = edges.size - 1
@@ -195,7 +203,9 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
                               acq.n_periods, code_matrix=code_matrix)
         if noiseless:
             lam = detector.expected(lam, acq.n_periods)
-            totals[rows] = lam.sum(axis=1, dtype=np.float64)
+            # (the noise level's totals too: a non-linear model's are a separate array, left
+            # unset here before, so a noiseless GMAPD run read uninitialised memory)
+            totals[rows] = noise_tot[rows] = lam.sum(axis=1, dtype=np.float64)
         else:
             ceiling = acq.n_periods * (acq.signal_per_pulse * np.abs(amp).sum(axis=1)
                                        + np.abs(noise_bin[rows]))
@@ -210,14 +220,31 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
                 lam = fixed
         corr[rows] = matched_filter(lam, replica, lags, gain, bank=bank)
 
-    workers = min(simulation_threads(threads), n_blocks)
+    first = 0
+    if max_time is not None and not detector.linear and n_blocks > 1:
+        # a flux-dependent detector model: time the first block, price the rest from it (each
+        # block draws from its own stream, so the order does not change the result)
+        import time
+
+        from .budget import check_time
+
+        t0 = time.perf_counter()
+        block(0)
+        took = time.perf_counter() - t0
+        rest = took * (n_blocks - 1) / min(simulation_threads(threads), n_blocks - 1)
+        check_time(took + rest, max_time, f"the {detector.name} detector model's simulation",
+                   reduce="--size, --compression, --code-length or the flux (--signal, "
+                          "--noise)", basis="its first block of patterns")
+        first = 1
+    todo = range(first, n_blocks)
+    workers = min(simulation_threads(threads), len(todo))
     blas_limit = single_threaded_blas() if workers > 1 else None
     if blas_limit is None:
-        for b in range(n_blocks):
+        for b in todo:
             block(b)
     else:
         with blas_limit, ThreadPoolExecutor(workers) as pool:
-            list(pool.map(block, range(n_blocks)))
+            list(pool.map(block, todo))
     return corr, totals, noise_tot, amp_sum
 
 
