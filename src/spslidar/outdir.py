@@ -240,9 +240,6 @@ def sha256_file(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
-_sha256 = sha256_file  # the name calibration.py imports
-
-
 def _files_marker(first: Path) -> Path:
     return first.with_name(f".{first.name}.spslidar.json")
 

@@ -57,16 +57,13 @@ def reconstructs_on_device(cfg: Any) -> bool:
 
 def noise_per_bin(be: Any, noise: Any, patterns: Any, refl: np.ndarray,
                   bin_width: float) -> np.ndarray:
-    """:meth:`spslidar.detectors.counting.NoiseModel.per_bin` with the patterns on the
-    device."""
-    m, q = patterns.shape
-    f1, f2, f3 = (float(v) for v in noise.split)
-    base = q * noise.m_n * (f2 + f3) + (noise.background_rate + noise.dark_count_rate) * bin_width
-    if noise.ambient == "paper":
-        return np.full(m, base + q * noise.m_n * f1)
-    a = be.asarray(np.asarray(refl, dtype=np.float64).reshape(-1, 1))
-    mod = be.to_numpy(patterns.rows_apply(0, m, a))[:, 0]
-    return base + noise.m_n * f1 * mod
+    """:meth:`spslidar.detectors.counting.NoiseModel.per_bin` with the patterns' products
+    with the reflectivity (the modulated ambient light) taken on the device."""
+    mod = None
+    if noise.ambient != "paper":
+        a = be.asarray(np.asarray(refl, dtype=np.float64).reshape(-1, 1))
+        mod = be.to_numpy(patterns.rows_apply(0, patterns.shape[0], a))[:, 0]
+    return noise.per_bin(patterns, refl, bin_width, modulation=mod)
 
 
 def simulate(be: Any, patterns: Any, acq: Any, ulags: np.ndarray, noise: Any, detector: Any,

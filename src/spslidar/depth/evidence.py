@@ -42,19 +42,11 @@ the choice when thin dark structures and occluders matter more than the noise fl
 from __future__ import annotations
 
 import numpy as np
+from scipy.ndimage import correlate, maximum_filter1d
 
 from .guarded import GuardedDepth, noise_maxima
 
 __all__ = ["EvidenceDepth", "line_evidence", "neighbour_share"]
-
-
-def _window_max(z: np.ndarray, half: int) -> np.ndarray:
-    """Each profile's running maximum over ``+-half`` slices."""
-    out = z.copy()
-    for d in range(1, half + 1):
-        np.maximum(out[:, d:], z[:, :-d], out=out[:, d:])
-        np.maximum(out[:, :-d], z[:, d:], out=out[:, :-d])
-    return out
 
 
 def line_evidence(z: np.ndarray, label: np.ndarray, shape: tuple[int, int],
@@ -79,7 +71,8 @@ def line_evidence(z: np.ndarray, label: np.ndarray, shape: tuple[int, int],
     """
     q, k = z.shape
     n1, n2 = shape
-    zw = _window_max(z, tol).reshape(n1, n2, k)
+    # each profile's running maximum over +-tol slices (within the gate)
+    zw = maximum_filter1d(z, 2 * tol + 1, axis=1, mode="nearest").reshape(n1, n2, k)
     lab = np.asarray(label).reshape(n1, n2)
     ii, jj = np.meshgrid(np.arange(n1), np.arange(n2), indexing="ij")
 
@@ -99,11 +92,8 @@ def line_evidence(z: np.ndarray, label: np.ndarray, shape: tuple[int, int],
 def neighbour_share(mask: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """Share of each pixel's 3 x 3 neighbourhood (itself included; outside the image counts
     as not set) where ``mask`` is set."""
-    m = np.pad(np.asarray(mask, dtype=np.float64).reshape(shape), 1)
-    n1, n2 = shape
-    tot = sum(m[1 + dy:1 + dy + n1, 1 + dx:1 + dx + n2]
-              for dy in (-1, 0, 1) for dx in (-1, 0, 1))
-    return (tot / 9.0).ravel()
+    m = np.asarray(mask, dtype=np.float64).reshape(shape)
+    return (correlate(m, np.ones((3, 3)), mode="constant") / 9.0).ravel()
 
 
 class EvidenceDepth(GuardedDepth):

@@ -86,24 +86,28 @@ class NoiseModel:
             raise ConfigError("background and dark count rates must be non-negative")
 
     def per_bin(self, patterns: np.ndarray, reflectivity: np.ndarray,
-                bin_width: float) -> np.ndarray:
+                bin_width: float, modulation: np.ndarray | None = None) -> np.ndarray:
         """Noise counts per TDC bin for each pattern (one code period), shape ``(M,)``.
+
+        ``modulation``: the patterns' products with the reflectivity, ``Phi alpha`` (``(M,)``),
+        where the caller computes them (patterns on a device); default computed here. Only
+        the ``modulated`` ambient light uses them.
 
         Notes
         -----
         Eq. (9): ``N^2 m_n^(1) + m_n^(2) + m_n^(3)`` with each term per pixel (so x N^2).
         """
-        from ..patterns import as_patterns
-
-        patterns = as_patterns(patterns)
-        m = patterns.shape[0]
-        q = patterns.shape[1]
+        m, q = patterns.shape
         f1, f2, f3 = (float(v) for v in self.split)
         base = q * self.m_n * (f2 + f3) + (self.background_rate + self.dark_count_rate) * bin_width
         if self.ambient == "paper":
             return np.full(m, base + q * self.m_n * f1)
-        a = np.asarray(reflectivity, dtype=np.float64).ravel()
-        return base + self.m_n * f1 * patterns.apply_rows(slice(0, m), a[:, None])[:, 0]
+        if modulation is None:
+            from ..patterns import as_patterns
+
+            a = np.asarray(reflectivity, dtype=np.float64).ravel()
+            modulation = as_patterns(patterns).apply_rows(slice(0, m), a[:, None])[:, 0]
+        return base + self.m_n * f1 * modulation
 
 
 def _threads() -> int:

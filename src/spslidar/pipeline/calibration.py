@@ -45,7 +45,7 @@ import numpy as np
 
 from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
-from ..outdir import _sha256 as sha256_file  # one file hasher for the project
+from ..outdir import sha256_file  # one file hasher for the project
 
 __all__ = ["calibrate_ptu", "calibrated_filter", "delay_filter", "load_calibration",
            "measure_response", "refine_depth", "write_calibration"]
@@ -79,10 +79,17 @@ def _peak(g: np.ndarray, p0: int) -> float:
     idx = (p0 * UPSAMPLE + np.arange(-UPSAMPLE, UPSAMPLE + 1)) % fine.size
     k = int(np.argmax(fine[idx]))
     k = min(max(k, 1), idx.size - 2)
-    y0, y1, y2 = fine[idx[k - 1]], fine[idx[k]], fine[idx[k + 1]]
-    den = y0 - 2 * y1 + y2
-    frac = 0.5 * (y0 - y2) / den if den < 0 else 0.0
+    frac = float(_vertex(fine[idx[k - 1]], fine[idx[k]], fine[idx[k + 1]]))
     return p0 + (k - UPSAMPLE + float(np.clip(frac, -1.0, 1.0))) / UPSAMPLE
+
+
+def _vertex(y0, y1, y2):
+    """Offset from the middle sample of the vertex of the parabola through three equally
+    spaced samples ``y0, y1, y2``; 0 where the parabola is not concave (no maximum)."""
+    y0, y1, y2 = (np.asarray(v, dtype=np.float64) for v in (y0, y1, y2))
+    den = y0 - 2.0 * y1 + y2
+    concave = den < 0
+    return np.where(concave, 0.5 * (y0 - y2) / np.where(concave, den, -1.0), 0.0)
 
 
 def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, distance: float,
@@ -375,7 +382,7 @@ def refine_depth(depth: np.ndarray, seen: np.ndarray, lags: np.ndarray, bin_widt
     parabola finds its centre (an ideal instrument's one- or two-bin profile is what the
     estimators' centroid is for). A depth between two lags otherwise reads whichever of them
     its noise favours: measured on a 32x32 acquisition with a 1.5-bin IRF and a 4-bin tail,
-    the median error goes from 8.9 to 5.0 mm; the RMSE (its outliers) is unchanged.
+    the median error goes from 8.9 to 5.9 mm; the RMSE (its outliers) is unchanged.
 
     Parameters
     ----------
@@ -406,7 +413,6 @@ def refine_depth(depth: np.ndarray, seen: np.ndarray, lags: np.ndarray, bin_widt
     k = np.clip(k, 1, lags.size - 2)
     rows = np.arange(depth.size)
     y0, y1, y2 = (np.asarray(seen[rows, k + o], np.float64) for o in (-1, 0, 1))
-    den = y0 - 2.0 * y1 + y2
-    peak = ok & (den < 0) & (y1 >= y0) & (y1 >= y2)  # a local maximum only
-    frac = np.where(peak, 0.5 * (y0 - y2) / np.where(peak, den, -1.0), 0.0)
+    peak = ok & (y1 >= y0) & (y1 >= y2)  # a local maximum only
+    frac = np.where(peak, _vertex(y0, y1, y2), 0.0)
     return depth + np.clip(frac, -0.5, 0.5) * delay_to_depth(1.0, bin_width)

@@ -193,13 +193,13 @@ def reconstruct(meas: Measurement, **processing) -> Result:
             else np.ones(ulags.size, dtype=bool))
     eliminated = None
     if device:
-        from ..backends import device as kernels
+        from ..backends import device as dev
 
         xp = be.xp
         corr = be.asarray(corr)
         if not keep.all():
             corr = xp.take(corr, be.asarray(np.flatnonzero(keep)), axis=1)
-        A, y, sigma_eff, lam_max = kernels.problem(
+        A, y, sigma_eff, lam_max = dev.problem(
             be, patterns, corr, sim["sigma"], meas.probe_seed,
             xp.float32 if cfg.dtype == "float32" else xp.float64)
     else:
@@ -230,7 +230,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
 
     iterations = cfg.iterations or solver_default(cfg.solver, "iterations")
     if device:
-        x, finfo = kernels.solve(be, A, y, (cfg.size, cfg.size), cfg.nonneg, lam, iterations,
+        x, finfo = dev.solve(be, A, y, (cfg.size, cfg.size), cfg.nonneg, lam, iterations,
                                  cfg.tol, TV_INNER)
         be.sync()
         info = SolveInfo("fista", finfo.iterations, finfo.objective, finfo.stop_reason,
@@ -259,7 +259,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         full = x
         if not keep.all():
             full = xp.zeros((x.shape[0], ulags.size), dtype=x.dtype, device=x.device)
-            full = kernels.scatter_columns(be, full, x, np.flatnonzero(keep))
+            full = dev.scatter_columns(be, full, x, np.flatnonzero(keep))
         slices = xp.take(full, be.asarray(np.asarray(meas.inverse, dtype=np.int64)), axis=1)
     else:
         full = np.zeros((q, ulags.size), dtype=np.asarray(x).dtype)
@@ -269,7 +269,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     if device and cfg.depth == "argmax" and sim.get("delay_response") is None:
         from ..depth.argmax import ArgmaxDepth, depth_from_peaks, peak_confidence
 
-        idx, peak, below, above = kernels.argmax_depth(be, slices)  # only the peaks come back
+        idx, peak, below, above = dev.argmax_depth(be, slices)  # only the peaks come back
         depth = depth_from_peaks(idx, peak, below, above, lags, slices.shape[1], bin_width,
                                  cfg.pulse_width, cfg.subbin)
         confidence = peak_confidence(peak)

@@ -282,12 +282,10 @@ def snr_simulated(
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     bits = make_code_checked(kind, code_length, ones_ratio, gen, code_index)
     period = int(bits.size)
-    seconds = estimate_seconds(period, k, method)
-    if seconds > 30.0 or (max_time is not None and seconds > max_time):
-        from ..pipeline.budget import check_time
+    from ..pipeline.budget import check_time  # refuses beyond max_time, says over 30 s
 
-        check_time(seconds, max_time, "this SNR simulation",
-                   reduce="--trials or --code-length, use --method sum")
+    check_time(estimate_seconds(period, k, method), max_time, "this SNR simulation",
+               reduce="--trials or --code-length, use --method sum")
     lag = period // 3 if delay is None else as_integer(delay, "delay") % period
     ones = int(bits.sum())
     sig_bit = m2 * a * m_s
