@@ -75,7 +75,7 @@ def _scene():
     return depth, refl
 
 
-def _acquire(tmp_path, seed=0):
+def _acquire(tmp_path, seed=0, name="scan", binning=1):
     rng = np.random.default_rng(seed)
     depth, refl = _scene()
     code = np.zeros(L)
@@ -88,27 +88,30 @@ def _acquire(tmp_path, seed=0):
     for d in np.unique(delay):
         amp[:, d % L] += w[:, delay == d].sum(axis=1)
     spectrum = np.fft.ifft(np.fft.fft(amp, axis=1) * np.fft.fft(code)[None, :], axis=1).real
-    counts, n = _write_acquisition(tmp_path / "scan.ptu", spectrum, DWELL, rng)
+    counts, n = _write_acquisition(tmp_path / f"{name}.ptu", spectrum, DWELL, rng, binning)
     np.save(tmp_path / "patterns.npy", pats)
     np.save(tmp_path / "code.npy", code.astype(np.uint8))
     return depth, int(counts.sum()), n
 
 
-def _write_acquisition(path, spectrum, dwell, rng):
+def _write_acquisition(path, spectrum, dwell, rng, binning=1):
     """Poisson photons of ``dwell`` code periods per pattern at ``2e-3 spectrum + 0.05`` per
     bin per period, each at a random sync of its pattern's dwell, after the pattern's marker;
-    written as PicoHarp T3. Returns the counts and the number of records."""
+    written as PicoHarp T3 whose dtime unit is ``1 / binning`` of a bin (each photon at a
+    random unit of its bin). Returns the counts and the number of records."""
     counts = rng.poisson(np.clip(dwell * (2e-3 * spectrum + 0.05), 0, None))
     syncs, dtimes, markers = [], [], []
     for k in range(M):
         t = np.repeat(np.arange(L), counts[k])
         s = k * dwell + rng.integers(0, dwell, t.size)
+        if binning > 1:
+            t = t * binning + rng.integers(0, binning, t.size)
         order = np.argsort(s, kind="stable")
         syncs += [np.array([k * dwell]), s[order]]
         dtimes += [np.zeros(1, int), t[order]]
         markers += [np.ones(1, bool), np.zeros(t.size, bool)]
     n = write_picoharp_t3(path, np.concatenate(syncs), np.concatenate(dtimes),
-                          np.concatenate(markers), 1 / BIT_RATE, BIT_RATE / L)
+                          np.concatenate(markers), 1 / (BIT_RATE * binning), BIT_RATE / L)
     return counts, n
 
 
@@ -200,3 +203,29 @@ def test_independent_instrument_calibrated_on_a_wall(tmp_path, capsys):
     assert np.sqrt(np.nanmean(err ** 2)) <= 0.125
     assert np.sqrt(np.nanmean(np.delete(err, 30, axis=1) ** 2)) <= 0.085
     capsys.readouterr()
+
+
+def test_a_tdc_finer_than_the_code_bits_is_merged_on_request(tmp_path, capsys):
+    """A TDC of twice the code's bit rate (5 ps units, one photon at a random unit of its
+    bin): without --allow-binning one line naming the flag, exit 2, nothing written; with it
+    the histograms, and so the depth map, are those of the same photons at the bits' own
+    resolution."""
+    pytest.importorskip("ptufile")
+    _acquire(tmp_path)  # scan.ptu, patterns.npy, code.npy at the bits' resolution
+    _acquire(tmp_path, name="fine", binning=2)  # the same photons (drawn before the units)
+
+    def rec(ptu, out, *extra):
+        return main(["reconstruct", "--ptu", str(tmp_path / ptu), "--patterns",
+                     str(tmp_path / "patterns.npy"), "--code", str(tmp_path / "code.npy"),
+                     "--bit-rate", "10e9", "--range-gate", "29.5", "30.9", "--out",
+                     str(tmp_path / out), "--no-figure", *extra])
+
+    capsys.readouterr()
+    assert rec("fine.ptu", "refused") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--allow-binning" in err[0]
+    assert not (tmp_path / "refused").exists()
+    assert rec("fine.ptu", "fine", "--allow-binning") == 0
+    assert rec("scan.ptu", "coarse") == 0
+    np.testing.assert_array_equal(np.load(tmp_path / "fine" / "depth.npy"),
+                                  np.load(tmp_path / "coarse" / "depth.npy"))

@@ -291,6 +291,9 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                    help="detector channel, numbered from 0: the channel field of HydraHarp, "
                         "TimeHarp and MultiHarp records; a PicoHarp's inputs 1-4 are 0-3 "
                         "(default all; a channel without photons is refused)")
+    p.add_argument("--allow-binning", action="store_true",
+                   help="merge k dtime units into one bin where the file's resolution is "
+                        "1/k of 1/--bit-rate (a TDC finer than the code's bits)")
 
 
 def _add_reconstruct_parser(sub) -> None:
@@ -336,7 +339,8 @@ def _cmd_reconstruct(args) -> int:
     result = reconstruct_ptu(args.ptu, load_patterns(args.patterns),
                              load_code(args.code, args.code_length), args.bit_rate,
                              tuple(args.range_gate), marker=args.marker, channel=args.channel,
-                             truth=truth, calibration=args.calibration, **processing)
+                             allow_binning=args.allow_binning, truth=truth,
+                             calibration=args.calibration, **processing)
     for w in result.warnings:
         print(f"spslidar: warning: {w}", file=sys.stderr)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
@@ -386,7 +390,8 @@ def _cmd_calibrate(args) -> int:
     check_calibration_out(args.out, args.overwrite)  # refuse before any work
     cal = calibrate_ptu(args.ptu, load_patterns(args.patterns),
                         load_code(args.code, args.code_length), args.bit_rate, args.distance,
-                        marker=args.marker, channel=args.channel)
+                        marker=args.marker, channel=args.channel,
+                        allow_binning=args.allow_binning)
     path = write_calibration(cal, args.out, args.overwrite)
     print(f"system delay {cal['delay_s'] * 1e9:.4f} ns ({cal['delay_bins']:.3f} bins, "
           f"{cal['delay_s'] * 149896229.0:.4f} m); IRF FWHM {cal['irf_fwhm_bins']:g} bins; "

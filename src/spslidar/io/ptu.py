@@ -267,7 +267,8 @@ def _check_resolution(res: float, bin_width: float | None, rtol: float, allow_bi
     close = abs(ratio - k) <= rtol * ratio
     if close and (k == 1 or allow_binning):
         return k
-    hint = f" (it is {k} dtime units: pass allow_binning=True to merge them)" if close else ""
+    hint = (f" (it is {k} dtime units: merge them with --allow-binning, allow_binning=True in "
+            f"Python)" if close else "")
     raise ConfigError(f"{path!r}: dtime resolution {res:.6g} s does not match bin_width "
                       f"{bin_width:.6g} s (rtol {rtol:g}){hint}")
 

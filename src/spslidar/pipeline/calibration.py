@@ -173,9 +173,11 @@ def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, dista
 
 def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray,
                   bit_rate: float, distance: float, *, marker: int = 1,
-                  channel: int | None = None, pulse_width: float = 0.5) -> dict[str, Any]:
+                  channel: int | None = None, pulse_width: float = 0.5,
+                  allow_binning: bool = False) -> dict[str, Any]:
     """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target,
-    with what it was measured from (file, hash, photons, patterns, bit rate, code)."""
+    with what it was measured from (file, hash, photons, patterns, bit rate, code);
+    ``allow_binning`` as :func:`~spslidar.pipeline.real.reconstruct_ptu`."""
     from ..io import read_ptu_histograms
     from ..version import __version__
     from .real import check_real_inputs
@@ -184,7 +186,8 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                       int(code.size))
     bin_width = 1.0 / float(bit_rate)
     data = read_ptu_histograms(ptu, int(code.size), bin_width=bin_width, marker=marker,
-                               channel=channel, n_patterns=int(patterns.shape[0]))
+                               channel=channel, n_patterns=int(patterns.shape[0]),
+                               allow_binning=allow_binning)
     total = data.histograms.astype(np.float64).sum(axis=0)
     cal = measure_response(total, code, bin_width, distance, pulse_width)
     path = Path(ptu)

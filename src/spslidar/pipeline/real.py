@@ -146,7 +146,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                     bit_rate: float, range_gate: tuple[float, float], *, marker: int = 1,
                     channel: int | None = None, truth: np.ndarray | None = None,
                     calibration: str | os.PathLike | dict | None = None,
-                    **processing: Any) -> Result:
+                    allow_binning: bool = False, **processing: Any) -> Result:
     """Depth map from a measured T3 PTU acquisition.
 
     Parameters
@@ -171,6 +171,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         :mod:`spslidar.pipeline.calibration`): the system delay is removed (the range gate is
         in true metres) and the matched filter uses the replica convolved with the measured
         IRF; ``metrics['calibration']`` says which.
+    allow_binning : bool
+        Merge ``k`` dtime units into one bin where the file's resolution is ``1 / k`` of
+        ``1 / bit_rate`` (:func:`~spslidar.io.read_ptu_histograms`); default: they must agree.
     **processing
         Config keys of the processing (``solver``, ``qcr``, ``depth``, ``lam_scale``...).
 
@@ -205,7 +208,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         if truth.shape != (n, n):
             raise ConfigError(f"--truth must be an ({n}, {n}) depth map, got {truth.shape}")
     data = read_ptu_histograms(ptu, period, bin_width=bin_width, marker=marker,
-                               channel=channel, n_patterns=m)
+                               channel=channel, n_patterns=m, allow_binning=allow_binning)
     if data.n_markers > m + 1:  # one trailing end-of-acquisition marker is common
         raise ConfigError(f"{os.fspath(ptu)!r} has {data.n_markers} marker-delimited blocks "
                           f"but --patterns has {m} rows: the patterns shown do not match the "
