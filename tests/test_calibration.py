@@ -105,6 +105,27 @@ def test_calibrated_reconstruction_holds_the_ideal_error(acquisitions):
     assert np.nanmedian(raw - truth) == pytest.approx(DELAY * SPEED_OF_LIGHT / 2, abs=0.02)
 
 
+def test_calibrated_weight_is_scaled_by_the_filters_spread(acquisitions):
+    """The default weight of a calibrated reconstruction is the solver's lam_scale times the
+    spread of the calibrated filter (> 1 for this IRF, 1 for an ideal one); a weight the user
+    gives is kept as given."""
+    from spslidar.pipeline.real import calibrated_lam_scale
+    from spslidar.pipeline.weights import solver_default
+
+    base = float(solver_default("fista", "lam_scale"))
+    cal = str(acquisitions / "cal.json")
+    m, _ = _reconstruct(acquisitions, "scene", "--calibration", cal)
+    spread = m["calibration"]["spread"]
+    assert 1.3 < spread < 2.5  # a 1.5-bin Gaussian with a 30 % 4-bin tail spreads a return
+    assert m["lam_scale"] == pytest.approx(base * spread, rel=1e-12)
+    m, _ = _reconstruct(acquisitions, "scene", "--calibration", cal, "--lam-scale", "0.2")
+    assert m["lam_scale"] == pytest.approx(0.2, rel=1e-12)
+    m, _ = _reconstruct(acquisitions, "ideal")
+    assert m["lam_scale"] == pytest.approx(base, rel=1e-12)
+    assert calibrated_lam_scale("fista", 1.0) == pytest.approx(base, rel=1e-12)
+    assert calibrated_lam_scale("fista", 0.5) == pytest.approx(base, rel=1e-12)  # never below
+
+
 def test_instrument_keeps_the_sub_bin_delay():
     """A return's photons through the IRF arrive on average at delay + half the pulse + the
     tail's mean, below a bin (the per-bin kernel took each photon as uniform in its bin: up

@@ -313,8 +313,9 @@ METRICS: dict[str, str] = {
     "version": "spslidar version that wrote the file.",
     "point_cloud": "``points.ply``: file name, field of view (degrees), number of points.",
     "ptu": "``reconstruct`` only: the PTU file read and its photons per pattern.",
-    "calibration": "``reconstruct`` only: the calibration applied (``--calibration``), or "
-                   "null.",
+    "calibration": "``reconstruct`` only: the calibration applied (``--calibration``: its file "
+                   "and SHA-256, delay, lag shift and fraction, IRF width, and the filter's "
+                   "``spread``, the factor on the default ``lam_scale``), or null.",
 }
 
 
