@@ -307,6 +307,35 @@ def test_second_surface_needs_significance_not_just_a_second_maximum():
     assert np.isfinite(ESTIMATORS.load("evidence")().estimate(slices, ctx).depth2).mean() < 0.03
 
 
+def test_neighbour_support_keeps_surfaces_and_drops_lone_peaks():
+    from spslidar.depth.guarded import neighbour_support
+
+    first = np.full((6, 6), 10)
+    second = np.full((6, 6), -1)
+    second[1:4, 1:4] = 20  # a surface seen through a 3x3 mesh
+    second[5, 5] = 30  # a lone peak
+    second[0, 5] = 9  # the wall beside it, behind a one-pixel occluder: its neighbours' first
+    out = neighbour_support(first.ravel(), second.ravel(), (6, 6)).reshape(6, 6)
+    assert np.all(out[1:4, 1:4] == 20)  # every mesh pixel has >= 3 mesh neighbours
+    assert out[5, 5] == -1 and out[0, 5] == 9
+    assert np.all(out[second < 0] == -1)  # nothing added
+    assert np.array_equal(neighbour_support(first.ravel(), second.ravel(), (6, 6), need=0),
+                          second.ravel())
+    strict = neighbour_support(first.ravel(), second.ravel(), (6, 6), need=4).reshape(6, 6)
+    assert strict[1, 1] == -1 and strict[2, 2] == 20  # a mesh corner has 3 such neighbours
+
+
+def test_second_surfaces_of_lone_noise_peaks_are_dropped():
+    from spslidar.depth.guarded import GuardedDepth
+
+    slices, ctx, depth, weak, pole = noisy_scene(4)
+    plain = np.isfinite(GuardedDepth(support=0).estimate(slices, ctx).depth2).sum()
+    kept = np.isfinite(GuardedDepth().estimate(slices, ctx).depth2).sum()
+    assert kept < plain  # one surface per pixel here: every second surface is a false one
+    with pytest.raises(ValueError, match="support"):
+        GuardedDepth(support=9)
+
+
 def test_guard_keeps_a_strong_one_pixel_pole_that_the_mrf_smooths_away():
     from spslidar.depth.guarded import GuardedDepth
 
