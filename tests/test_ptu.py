@@ -472,13 +472,14 @@ def test_reconstruct_input_arrays_checked_by_their_header(tmp_path):
         npformat.write_array_header_1_0(fh, {"descr": "<f4", "fortran_order": False,
                                              "shape": (100000, 1000, 1000)})
         fh.write(b"\0" * 64)
-    np.save(tmp_path / "ok.npy", np.zeros((4, 2, 2), np.float32))
+    # four distinct 4x4 patterns (2x2 ones, or all alike, are refused: no image)
+    np.save(tmp_path / "ok.npy", (np.arange(64).reshape(4, 4, 4) % 3 == 0).astype(np.float32))
     (tmp_path / "cut.npy").write_bytes((tmp_path / "ok.npy").read_bytes()[:-5])
     np.save(tmp_path / "obj.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
     np.savez(tmp_path / "z.npz", a=np.zeros(3))
     (tmp_path / "t.npy").write_text("hello")
     cases = {"huge.npy": r"declares an array of shape \(100000, 1000, 1000\) \(float32, 400",
-             "cut.npy": "only 59 bytes follow it", "obj.npy": "Python objects",
+             "cut.npy": "only 251 bytes follow it", "obj.npy": "Python objects",
              "z.npz": "as a .npy array", "t.npy": "as a .npy array"}
     for name, match in cases.items():
         with pytest.raises(ConfigError, match=match) as info:
@@ -486,4 +487,4 @@ def test_reconstruct_input_arrays_checked_by_their_header(tmp_path):
         assert "\n" not in str(info.value) and "cannot read patterns" in str(info.value)
     with pytest.raises(ConfigError, match="cannot read code"):
         load_code(tmp_path / "cut.npy")
-    assert load_patterns(tmp_path / "ok.npy").shape == (4, 4)
+    assert load_patterns(tmp_path / "ok.npy").shape == (4, 16)

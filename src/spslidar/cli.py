@@ -7,7 +7,10 @@ imported inside each sub-command. Bad input prints one line on stderr and exits 
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
+import warnings
+from pathlib import Path
 
 EXIT_BAD_INPUT = 2
 #: exit status after Ctrl-C (128 + SIGINT), as a shell reports it
@@ -132,6 +135,9 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--range-gate", type=float, nargs=2, default=S, metavar=("MIN", "MAX"),
                    help="delays to reconstruct, in metres (default: the scene's depth window "
                         "padded by 3 bins)")
+    g.add_argument("--auto-gate", action=argparse.BooleanOptionalAction, default=S,
+                   help="drop the range slices without returns before solving (default: on "
+                        "for large gates)")
     g.add_argument("--qcr", action=argparse.BooleanOptionalAction, default=S,
                    help="quadratic correlation reconstruction (default on)")
     g.add_argument("--qcr-form", choices=("centred", "covariance"), default=S,
@@ -322,6 +328,9 @@ def _add_reconstruct_parser(sub) -> None:
     p.add_argument("--lam-scale", type=float, default=S, metavar="K")
     p.add_argument("--iterations", type=int, default=S, metavar="K")
     p.add_argument("--qcr", action=argparse.BooleanOptionalAction, default=S)
+    p.add_argument("--max-time", type=_duration, default=S, metavar="TIME",
+                   help="refuse a reconstruction whose estimated solve time exceeds this: "
+                        "seconds, or with a unit (90s, 10min, 2h; default 1h)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--overwrite", action="store_true",
                    help="replace the previous spslidar result in --out")
@@ -334,7 +343,7 @@ def _cmd_reconstruct(args) -> int:
 
     check_output(args.out, args.overwrite)  # refuse before any work
     processing = {k: getattr(args, k) for k in ("solver", "depth", "lam_scale", "iterations",
-                                                 "qcr") if hasattr(args, k)}
+                                                 "qcr", "max_time") if hasattr(args, k)}
     truth = _load_npy(args.truth, "truth") if args.truth else None
     result = reconstruct_ptu(args.ptu, load_patterns(args.patterns),
                              load_code(args.code, args.code_length), args.bit_rate,
@@ -388,7 +397,7 @@ def _cmd_calibrate(args) -> int:
     from .pipeline.real import load_code, load_patterns
 
     check_calibration_out(args.out, args.overwrite)  # refuse before any work
-    cal = calibrate_ptu(args.ptu, load_patterns(args.patterns),
+    cal = calibrate_ptu(args.ptu, load_patterns(args.patterns, distinct=False),
                         load_code(args.code, args.code_length), args.bit_rate, args.distance,
                         marker=args.marker, channel=args.channel,
                         allow_binning=args.allow_binning)
@@ -602,6 +611,14 @@ COMMANDS = {"run": _cmd_run, "reconstruct": _cmd_reconstruct, "calibrate": _cmd_
             "reproduce": _cmd_reproduce, "sweep": _cmd_sweep}
 
 
+def _one_line_warning(command, message, category, filename, lineno, file=None, line=None):
+    """``warnings.showwarning`` of the command line: ``spslidar CMD: warning: ...`` on stderr,
+    one line, without the warning's source line."""
+    text = " ".join(str(message).split())
+    print(f"spslidar {command}: warning: {text} ({category.__name__} in "
+          f"{Path(filename).name}:{lineno})", file=sys.stderr if file is None else file)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 success, 2 bad input)."""
     parser = build_parser()
@@ -618,7 +635,9 @@ def main(argv: list[str] | None = None) -> int:
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
-        return COMMANDS[args.command](args)
+        with warnings.catch_warnings():  # a library's warning: one line, not its source line
+            warnings.showwarning = functools.partial(_one_line_warning, args.command)
+            return COMMANDS[args.command](args)
     except SpslidarError as exc:
         print(f"spslidar {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -151,7 +151,32 @@ def check_output(out: str | os.PathLike, overwrite: bool = False) -> Path:
     parent = path.parent
     if parent.exists() and not parent.is_dir():
         raise SpslidarError(f"--out {out}: {parent} is not a folder")
+    _check_writable(path, f"--out {out}", make_parents=True)
     return path
+
+
+def _check_writable(path: Path, what: str, make_parents: bool) -> None:
+    """Refuse, before any work, a place nothing can be written to: the folder that would hold
+    ``path`` (or, with ``make_parents``, its nearest existing ancestor, since the missing
+    folders are created) must exist and be writable."""
+    if make_parents:
+        base = path.parent
+        while not base.exists() and base != base.parent:
+            base = base.parent
+    else:
+        base = path.parent
+        if not base.exists():
+            raise SpslidarError(f"{what}: the folder {base} does not exist")
+    if not base.is_dir():
+        raise SpslidarError(f"{what}: {base} is not a folder")
+    import tempfile
+
+    try:  # (os.access says yes to root everywhere, /proc included: try it)
+        with tempfile.TemporaryFile(dir=base):
+            pass
+    except OSError as exc:
+        raise SpslidarError(f"{what}: cannot write in {base} "
+                            f"({exc.strerror or type(exc).__name__})") from None
 
 
 def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
@@ -217,6 +242,7 @@ def claim_folder(out: str | os.PathLike, kind: str, option: str = "--out") -> Pa
     except OSError as exc:
         raise ConfigError(f"{option} {out}: cannot read the folder ({exc.strerror})") from None
     if empty:
+        _check_writable(path, f"{option} {out}", make_parents=True)
         path.mkdir(parents=True, exist_ok=True)
         _write_marker(path, kind, [])
         return path
@@ -249,6 +275,8 @@ def check_files(paths, overwrite: bool = False, option: str = "--save-ptu") -> N
     and their marker (written by :func:`write_files` beside the first) proves that spslidar
     wrote them, unchanged since (the SHA-256 of each)."""
     paths = [Path(p) for p in paths]
+    for p in paths:
+        _check_writable(Path(os.path.abspath(p)), f"{option} {paths[0]}", make_parents=False)
     present = [p for p in paths if p.exists() or p.is_symlink()]
     if not present:
         return

@@ -66,11 +66,29 @@ def timeline(cfg: Config, scene, warns: list[str]):
     return seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse
 
 
+def ignored_options(cfg: Config) -> list[str]:
+    """A warning for each option set away from its default where the rest of the
+    configuration gives it no effect (a sweep may cross such options, so they are said, not
+    refused): ``rep_rate`` of a PSST lidar (its period is the code's), ``hadamard_order`` of
+    patterns that are not Hadamard rows, ``qcr_form`` without QCR."""
+    out = []
+    if cfg.rep_rate is not None and cfg.lidar != "conventional":
+        out.append(f"--rep-rate {cfg.rep_rate:g} is ignored: it sets the pulse period of "
+                   f"--lidar conventional; a {cfg.lidar} lidar repeats its code")
+    if cfg.hadamard_order != "cake-cutting" and cfg.patterns != "hadamard":
+        out.append(f"--hadamard-order {cfg.hadamard_order} is ignored: it orders the rows of "
+                   f"--patterns hadamard, not {cfg.patterns}")
+    if cfg.qcr_form != "centred" and not cfg.qcr:
+        out.append(f"--qcr-form {cfg.qcr_form} is ignored with --no-qcr")
+    return out
+
+
 def _plan(cfg: Config, scene, warns: list[str], announce: bool = True) -> _Plan:
     """The cheap part of :func:`measure`: code, range gate and the memory check (refused in
     one line before any large array exists)."""
     seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse = timeline(cfg, scene,
                                                                                 warns)
+    warns.extend(ignored_options(cfg))
     bin_width = 1.0 / cfg.bit_rate
     q = cfg.size * cfg.size
     m = n_patterns_for(cfg.compression, q)

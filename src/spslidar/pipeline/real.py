@@ -77,16 +77,39 @@ def _load_npy(path: str | os.PathLike, what: str) -> np.ndarray:
     return np.array(head)
 
 
-def load_patterns(path: str | os.PathLike) -> np.ndarray:
-    """``(M, N, N)`` mirror states (0/1 or grey levels in [0, 1]) as float32 ``(M, N*N)``."""
+def load_patterns(path: str | os.PathLike, distinct: bool = True) -> np.ndarray:
+    """``(M, N, N)`` mirror states (0/1 or grey levels in [0, 1]) as float32 ``(M, N*N)``.
+
+    Patterns with every mirror off are refused, and with ``distinct`` (a scene's
+    reconstruction) so are M copies of one pattern; a calibration may show one pattern
+    throughout (``distinct=False``)."""
     arr = _load_npy(path, "patterns")
-    if arr.ndim != 3 or arr.shape[1] != arr.shape[2] or arr.shape[0] < 2:
-        raise ConfigError(f"--patterns must be an (M, N, N) array with M >= 2, got shape "
-                          f"{arr.shape}")
+    if arr.ndim != 3 or arr.shape[1] != arr.shape[2] or arr.shape[0] < 2 or arr.shape[1] < 4:
+        raise ConfigError(f"--patterns must be an (M, N, N) array with M >= 2 patterns of "
+                          f"N x N >= 4 x 4 mirrors, got shape {arr.shape}")
+    _real_numbers(arr, "--patterns")
     arr = np.asarray(arr, dtype=np.float64)
     if not np.all(np.isfinite(arr)) or arr.min() < 0 or arr.max() > 1:
         raise ConfigError("--patterns must hold mirror states in [0, 1] (0/1 or grey levels)")
-    return arr.reshape(arr.shape[0], -1).astype(np.float32)
+    flat = arr.reshape(arr.shape[0], -1)
+    if not flat.any():
+        raise ConfigError(f"--patterns {path}: every mirror of every pattern is off, so no "
+                          f"light reaches the scene")
+    if distinct and np.all(flat == flat[0]):
+        # the reconstruction (QCR, eq. 10-11) uses how the patterns differ from their mean:
+        # the same pattern M times measures one number per delay, not an image
+        raise ConfigError(f"--patterns {path}: all {arr.shape[0]} patterns are the same, so "
+                          f"they hold no spatial information (single-pixel imaging needs "
+                          f"patterns that differ)")
+    return flat.astype(np.float32)
+
+
+def _real_numbers(arr: np.ndarray, what: str) -> None:
+    """Refuse an array whose dtype is not real numbers (complex, strings, booleans are fine as
+    0/1 and are taken as such)."""
+    if not (np.issubdtype(arr.dtype, np.number) or arr.dtype == np.bool_) or \
+            np.issubdtype(arr.dtype, np.complexfloating):
+        raise ConfigError(f"{what} must hold real numbers, got dtype {arr.dtype}")
 
 
 def load_code(code: str | os.PathLike, code_length: int | None = None) -> np.ndarray:
@@ -99,8 +122,16 @@ def load_code(code: str | os.PathLike, code_length: int | None = None) -> np.nda
             raise ConfigError("--code mseq needs --code-length L (2^n - 1)")
         return np.asarray(make_code("mseq", int(code_length), 0.5), dtype=np.uint8)
     arr = _load_npy(code, "code")
-    if arr.ndim != 1 or arr.size < 2 or not np.all((arr == 0) | (arr == 1)):
+    if arr.ndim != 1 or arr.size < 2:
         raise ConfigError(f"--code must be a 1-D array of 0/1 bits, got shape {arr.shape}")
+    _real_numbers(arr, "--code")
+    bad = ~((arr == 0) | (arr == 1))
+    if bad.any():
+        raise ConfigError(f"--code must hold 0/1 bits (unipolar, one period), got "
+                          f"{int(bad.sum())} other values (first: {arr[bad][0].item()!r})")
+    if code_length is not None and int(code_length) != arr.size:
+        raise ConfigError(f"--code-length {code_length} disagrees with --code {code}, which "
+                          f"holds {arr.size} bits (--code-length is for --code mseq)")
     ones = int(arr.sum())
     if ones in (0, arr.size):  # no modulation: nothing to correlate with
         raise ConfigError(f"--code {code}: all {arr.size} bits are {int(ones > 0)}; a code "
@@ -141,6 +172,21 @@ def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: in
         raise ConfigError(f"--range-gate {lo:g} {hi:g} spans {n_lags:.3g} TDC bins: "
                           f"{_gb(need)} of range slices for {n_pixels} pixels, more than the "
                           f"memory available; narrow the range gate")
+
+
+def _check_solve_time(cfg: Config, n_patterns: int, n_pixels: int, n_lags: int,
+                      period: int) -> None:
+    """Refuse (one line, before the file is read) a reconstruction whose solve would outlast
+    ``max_time`` (``--max-time``; as ``run``'s estimate: two dense ``(M, Q) x (Q, K)``
+    products per iteration)."""
+    from .budget import FLOP_RATE, check_time
+    from .weights import solver_default
+
+    iterations = cfg.iterations or int(solver_default(cfg.solver, "iterations"))
+    k = min(n_lags, period)
+    seconds = iterations * 2.0 * 2.0 * n_patterns * n_pixels * k / FLOP_RATE
+    check_time(seconds, cfg.max_time, "this reconstruction", reduce="--iterations or the "
+               "range gate")
 
 
 def calibrated_lam_scale(solver: str, spread: float) -> float:
@@ -229,6 +275,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         truth = np.asarray(truth, dtype=np.float64)
         if truth.shape != (n, n):
             raise ConfigError(f"--truth must be an ({n}, {n}) depth map, got {truth.shape}")
+    _check_solve_time(cfg, m, q, int(gate_lags(cfg.range_gate, bin_width).size), period)
     data = read_ptu_histograms(ptu, period, bin_width=bin_width, marker=marker,
                                channel=channel, n_patterns=m, allow_binning=allow_binning)
     if data.n_markers > m + 1:  # one trailing end-of-acquisition marker is common
@@ -287,6 +334,13 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                        as_patterns(patterns), sim, np.random.SeedSequence(cfg.seed), [],
                        {"simulate": 0.0})
     meas.warnings.extend(dwell_warning)
+    if lags.size > period:  # as run's plan: the gate is longer than the code's period
+        lo, hi = cfg.range_gate
+        meas.warnings.append(
+            f"range gate {lo:g}-{hi:g} m is longer than the {acq.unambiguous_range:.3g} m "
+            f"unambiguous range of the {period}-bit code at {bit_rate:g} bits/s: returns at d "
+            f"and d + {acq.unambiguous_range:.3g} m are indistinguishable and the estimate "
+            f"takes the nearest alias inside the gate")
     result = reconstruct(meas)
     result.metrics["ptu"] = {
         "file": os.fspath(ptu), "counts_per_pattern": data.counts_per_pattern.tolist(),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
 from dataclasses import dataclass, field
@@ -122,7 +123,7 @@ class Result:
             self.timing["write"] = time.perf_counter() - t0
             self.metrics["timing_s"] = dict(self.timing)
             with open(tmp / "metrics.json", "w") as fh:
-                json.dump(_jsonable(self.metrics), fh, indent=2, allow_nan=True)
+                json.dump(_jsonable(self.metrics), fh, indent=2, allow_nan=False)
 
         return write_result_dir(out_dir, fill, overwrite=overwrite)
 
@@ -135,5 +136,7 @@ def _jsonable(obj):
     if isinstance(obj, np.ndarray):
         return _jsonable(obj.tolist())
     if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return obj.item()
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None  # JSON has no NaN or infinity: null (what a reader without truth sees too)
     return obj

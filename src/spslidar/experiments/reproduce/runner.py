@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from spslidar.errors import ConfigError
+from spslidar.errors import ConfigError, SpslidarError
 from spslidar.experiments.report import build_report, write_section
 from spslidar.experiments.reproduce import ALL, EXPERIMENT_REGISTRY, in_all_names
 from spslidar.experiments.reproduce.context import Context, n_cached
@@ -20,6 +20,23 @@ __all__ = ["reproduce_main"]
 
 #: most Monte-Carlo trials per setting
 MAX_TRIALS = 1000
+
+
+def _only_marker(folder: Path) -> bool:
+    """Whether ``folder`` holds nothing but spslidar's marker."""
+    from spslidar.outdir import MARKER
+
+    return {p.name for p in folder.iterdir()} <= {MARKER}
+
+
+def _release(folder: Path, existed: bool) -> None:
+    """Take back a folder claimed by this call that received nothing: the marker, and the
+    folder itself where it did not exist before."""
+    from spslidar.outdir import MARKER
+
+    (folder / MARKER).unlink(missing_ok=True)
+    if not existed:
+        folder.rmdir()
 
 
 def reproduce_main(
@@ -92,7 +109,9 @@ def reproduce_main(
         from spslidar.experiments.sweep.engine import _probe_scheduler
 
         _probe_scheduler(scheduler)  # before the folder is made
+    existed = Path(out).exists()
     out = claim_folder(out, "reproduce")  # new, empty or an earlier report: never a user's
+    fresh = _only_marker(out)
     ctx = Context(
         out,
         bool(quick),
@@ -110,7 +129,9 @@ def reproduce_main(
         before, failed_before = n_cached(ctx), ctx.failed
         try:
             text, claims = EXPERIMENT_REGISTRY.load(name)(ctx)
-        except ConfigError:
+        except SpslidarError:  # bad input (a time budget too small...): one line, exit 2
+            if fresh and _only_marker(out):  # nothing written: leave no folder behind
+                _release(out, existed)
             raise
         except Exception as exc:  # an experiment's bug must not lose the others' results
             traceback.print_exc(file=sys.stderr)

@@ -1,0 +1,175 @@
+"""Inputs a new user gives that the developers' fixtures never did (a sweep of every command
+without them, 2026-11-25): degenerate or complex patterns and codes, a time budget too small
+for `reproduce`, places nothing can be written to, options the rest of the configuration
+ignores, a gate longer than the code's range on measured data, library warnings and a
+non-finite number in `metrics.json`. Each is one line and exit 2 with nothing written, or a
+one-line warning; never a traceback."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spslidar.cli import main
+
+FAST = ["--size", "8", "--code-length", "127", "--no-figure"]
+
+
+def _one_line(capsys) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    return err[0]
+
+
+@pytest.fixture(scope="module")
+def measured(tmp_path_factory):
+    """A small PTU acquisition written by ``run --save-ptu`` (8x8, 127-bit code)."""
+    d = tmp_path_factory.mktemp("measured")
+    assert main(["run", *FAST, "--signal", "1", "--noise", "0.02", "--compression", "0.5",
+                 "--save-ptu", str(d / "scan.ptu"), "--out", str(d / "run")]) == 0
+    return d
+
+
+def _reconstruct(d: Path, out: Path, *extra: str, patterns=None, code=None) -> int:
+    return main(["reconstruct", "--ptu", str(d / "scan.ptu"), "--patterns",
+                 str(patterns or d / "scan_patterns.npy"), "--code",
+                 str(code or d / "scan_code.npy"), "--bit-rate", "10e9", "--range-gate",
+                 "1", "3", "--out", str(out), "--no-figure", *extra])
+
+
+@pytest.mark.parametrize("make,match", [
+    (lambda p: np.ones_like(p), "all 32 patterns are the same"),
+    (lambda p: np.repeat(p[:1], len(p), axis=0), "all 32 patterns are the same"),
+    (lambda p: np.zeros_like(p), "every mirror of every pattern is off"),
+    (lambda p: p.astype(complex), "must hold real numbers, got dtype complex128"),
+    (lambda p: p[:, :1, :1], "N x N >= 4 x 4 mirrors"),
+])
+def test_reconstruct_refuses_patterns_that_hold_no_image(measured, tmp_path, capsys, make,
+                                                         match):
+    """Identical patterns made FISTA's Lipschitz constant 0 (a traceback); complex ones were
+    cast to real with a NumPy warning."""
+    bad = tmp_path / "p.npy"
+    np.save(bad, make(np.load(measured / "scan_patterns.npy")))
+    out = tmp_path / "rec"
+    assert _reconstruct(measured, out, patterns=bad) == 2
+    assert match in _one_line(capsys)
+    assert not out.exists()
+
+
+def test_calibration_may_show_one_pattern_throughout(measured):
+    from spslidar.pipeline.real import load_patterns
+
+    p = np.load(measured / "scan_patterns.npy")
+    path = measured / "same.npy"
+    np.save(path, np.ones_like(p))
+    assert load_patterns(path, distinct=False).shape == (p.shape[0], p[0].size)
+
+
+@pytest.mark.parametrize("make,extra,match", [
+    (lambda c: 2 * c, (), "other values (first: 2)"),
+    (lambda c: c.astype(complex), (), "must hold real numbers"),
+    (lambda c: c, ("--code-length", "99"), "--code-length 99 disagrees with --code"),
+])
+def test_reconstruct_refuses_codes_it_cannot_use(measured, tmp_path, capsys, make, extra, match):
+    bad = tmp_path / "c.npy"
+    np.save(bad, make(np.load(measured / "scan_code.npy")))
+    out = tmp_path / "rec"
+    assert _reconstruct(measured, out, *extra, code=bad) == 2
+    assert match in _one_line(capsys)
+    assert not out.exists()
+
+
+def test_reconstruct_time_is_checked_before_the_file_is_read(measured, tmp_path, capsys):
+    out = tmp_path / "rec"
+    assert _reconstruct(measured, out, "--iterations", "100000000") == 2
+    assert "this reconstruction would take" in _one_line(capsys)
+    assert _reconstruct(measured, out, "--iterations", "200", "--max-time", "1e-6") == 2
+    assert "--max-time" in _one_line(capsys)
+    assert not out.exists()
+
+
+def test_reconstruct_warns_of_a_gate_longer_than_the_codes_range(measured, tmp_path, capsys):
+    """127 bits at 10 Gbit/s repeat every 1.90 m: a 1-6 m gate aliases (run warned, reconstruct
+    did not)."""
+    out = tmp_path / "rec"
+    assert main(["reconstruct", "--ptu", str(measured / "scan.ptu"), "--patterns",
+                 str(measured / "scan_patterns.npy"), "--code", str(measured / "scan_code.npy"),
+                 "--bit-rate", "10e9", "--range-gate", "1", "6", "--out", str(out),
+                 "--no-figure"]) == 0
+    err = capsys.readouterr().err
+    assert "longer than the 1.9 m unambiguous range" in err
+    m = json.loads((out / "metrics.json").read_text())
+    assert any("unambiguous range" in w for w in m["warnings"])
+
+
+def test_reproduce_with_too_small_a_time_budget_leaves_nothing(tmp_path, capsys):
+    out = tmp_path / "rp"
+    assert main(["reproduce", "fig2", "--quick", "--out", str(out), "--max-time", "0.001"]) == 2
+    assert "--max-time" in _one_line(capsys)
+    assert not out.exists()
+    out.mkdir()  # the user's empty folder stays, empty
+    assert main(["reproduce", "fig2", "--quick", "--out", str(out), "--max-time", "0.001"]) == 2
+    capsys.readouterr()
+    assert out.is_dir() and not list(out.iterdir())
+
+
+def test_nowhere_to_write_is_refused_before_the_work(tmp_path, capsys):
+    out = tmp_path / "r"
+    assert main(["run", *FAST, "--save-ptu", str(tmp_path / "nodir" / "x.ptu"), "--out",
+                 str(out)]) == 2
+    line = _one_line(capsys)
+    assert "the folder" in line and "does not exist" in line
+    assert not out.exists()
+    if Path("/proc/self").is_dir():  # a file system nothing can be created in, even by root
+        for cmd in (["run", *FAST], ["reproduce", "fig2", "--quick"]):
+            assert main([*cmd, "--out", "/proc/spslidar-test"]) == 2
+            assert "cannot write in /proc" in _one_line(capsys)
+
+
+def test_options_the_configuration_ignores_are_said(tmp_path, capsys):
+    out = tmp_path / "r"
+    assert main(["run", *FAST, "--rep-rate", "10e6", "--hadamard-order", "sequency",
+                 "--qcr-form", "covariance", "--no-qcr", "--out", str(out)]) == 0
+    warns = json.loads((out / "metrics.json").read_text())["warnings"]
+    assert any("--rep-rate 1e+07 is ignored" in w for w in warns)
+    assert any("--hadamard-order sequency is ignored" in w for w in warns)
+    assert any("--qcr-form covariance is ignored with --no-qcr" in w for w in warns)
+    capsys.readouterr()
+    out2 = tmp_path / "r2"  # and not where they apply
+    assert main(["run", *FAST, "--lidar", "conventional", "--rep-rate", "200e6", "--out",
+                 str(out2)]) == 0
+    warns = json.loads((out2 / "metrics.json").read_text())["warnings"]
+    assert not any("is ignored" in w for w in warns)
+
+
+def test_auto_gate_is_an_option_of_run(tmp_path):
+    for flag, value in (("--auto-gate", True), ("--no-auto-gate", False)):
+        out = tmp_path / flag
+        assert main(["run", *FAST, flag, "--out", str(out)]) == 0
+        assert json.loads((out / "metrics.json").read_text())["config"]["auto_gate"] is value
+
+
+def test_library_warnings_are_one_line_and_metrics_stay_strict_json(tmp_path, capsys):
+    """--lam 1e300 overflows the TV prox: NumPy's RuntimeWarning came with its source line and
+    metrics.json held a bare NaN (not JSON)."""
+    out = tmp_path / "r"
+    assert main(["run", *FAST, "--lam", "1e300", "--out", str(out)]) == 0
+    err = capsys.readouterr().err.splitlines()
+    lib = [e for e in err if "RuntimeWarning" in e]
+    assert lib and all(e.startswith("spslidar run: warning: ") for e in lib)
+    assert not any(e.startswith(" ") for e in err)  # no source lines
+    text = (out / "metrics.json").read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    json.loads(text, parse_constant=lambda c: pytest.fail(f"non-standard JSON {c}"))
+
+
+def test_non_finite_metrics_are_written_as_null():
+    from spslidar.pipeline.results import _jsonable
+
+    got = _jsonable({"a": float("nan"), "b": [np.float32("inf"), 1.5], "c": np.int64(3)})
+    assert got == {"a": None, "b": [None, 1.5], "c": 3}
+    assert not any(isinstance(v, float) and not math.isfinite(v) for v in got["b"] if v)
