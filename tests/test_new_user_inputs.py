@@ -173,3 +173,21 @@ def test_non_finite_metrics_are_written_as_null():
     got = _jsonable({"a": float("nan"), "b": [np.float32("inf"), 1.5], "c": np.int64(3)})
     assert got == {"a": None, "b": [None, 1.5], "c": 3}
     assert not any(isinstance(v, float) and not math.isfinite(v) for v in got["b"] if v)
+
+
+def test_snr_refuses_a_dmd_beyond_where_its_simulation_holds(capsys):
+    assert main(["snr", "--size", "65536"]) == 2
+    assert "in [1, 8192], got 65536" in _one_line(capsys)
+
+
+def test_a_ptu_path_that_is_not_a_regular_file(measured, tmp_path, capsys):
+    for path in (tmp_path, Path("/dev/null")):
+        if not path.exists():
+            continue
+        out = tmp_path / "rec"
+        assert main(["reconstruct", "--ptu", str(path), "--patterns",
+                     str(measured / "scan_patterns.npy"), "--code",
+                     str(measured / "scan_code.npy"), "--bit-rate", "10e9", "--range-gate",
+                     "1", "3", "--out", str(out)]) == 2
+        assert "is not a PTU file (a folder or a device" in _one_line(capsys)
+        assert not out.exists()

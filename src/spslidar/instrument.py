@@ -104,7 +104,9 @@ def irf_kernel(irf: IRF | None, bin_width: float, period: int):
         try:
             h = np.load(irf.path, allow_pickle=False)
         except (OSError, ValueError) as exc:
-            raise ConfigError(f"cannot read --irf {irf.path} as a .npy array: {exc}") from None
+            why = ("not a .npy file" if "pickled" in str(exc) or "magic" in str(exc).lower()
+                   else str(exc).splitlines()[0])
+            raise ConfigError(f"cannot read --irf {irf.path} as a .npy array: {why}") from None
         h = np.asarray(h, dtype=np.float64)
         if h.ndim != 1 or h.size < 1 or not np.all(np.isfinite(h)) or h.min() < 0 or h.sum() <= 0:
             raise ConfigError(f"--irf {irf.path}: a 1-D array of non-negative numbers, one per "

@@ -174,8 +174,11 @@ def _import_ptufile():
 def _open_ptu(path: PathLike):
     """Open ``path`` with ``ptufile.PtuFile``, mapping failures to one-line ConfigErrors."""
     ptufile = _import_ptufile()
-    if not os.path.isfile(path):
+    if not os.path.exists(path):
         raise ConfigError(f"PTU file not found: {os.fspath(path)!r}")
+    if not os.path.isfile(path):
+        raise ConfigError(f"{os.fspath(path)!r} is not a PTU file (a folder or a device, not a "
+                          f"regular file)")
     try:
         return ptufile.PtuFile(path)
     except ptufile.PqFileError as exc:
@@ -328,8 +331,8 @@ def _channels(channel: Any, family: str, record_type: str, path: str) -> np.ndar
     values = np.atleast_1d(np.asarray(channel))
     if values.size == 0 or values.ndim != 1 or values.dtype.kind not in "iu" or (
             values.min() < 0):
-        raise ConfigError(f"channel must be a detector channel number >= 0 (or a list of them),"
-                          f" got {channel!r}")
+        raise ConfigError(f"channel must be a detector channel number >= 0 (in Python also a "
+                          f"list of them), got {channel!r}")
     top = _FAMILY[family][2]
     if values.max() >= top:  # no record of this type can hold it
         raise ConfigError(

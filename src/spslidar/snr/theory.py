@@ -85,11 +85,18 @@ def as_nonneg(value: Any, what: str) -> float:
     return x
 
 
+#: the largest ``N`` accepted: the simulation matches eq. (10) within its 95 % interval up to
+#: here (N = 2048 and 8192: simulated / theory 1.014 and 1.013, 400 periods), while at
+#: N = 65536 (4.3 G mirrors, no DMD has them) its sums lose precision (0.84)
+MAX_SIZE = 8192
+
+
 def check_size(size: Any) -> int:
-    """Pixels per side ``N``: a positive integer, or ConfigError."""
+    """Pixels per side ``N``: an integer in [1, :data:`MAX_SIZE`], or ConfigError."""
     n = as_integer(size, "size N")
-    if n < 1:
-        raise config_error(f"size N must be a positive number of pixels per side, got {size!r}")
+    if not 1 <= n <= MAX_SIZE:
+        raise config_error(f"size N must be a number of pixels per side in [1, {MAX_SIZE}], "
+                           f"got {size!r}")
     return n
 
 
