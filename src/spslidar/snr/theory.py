@@ -92,7 +92,7 @@ MAX_SIZE = 8192
 
 
 def check_size(size: Any) -> int:
-    """Pixels per side ``N``: an integer in [1, :data:`MAX_SIZE`], or ConfigError."""
+    """Pixels per side ``N``: an integer in [1, ``MAX_SIZE``] (8192), or ConfigError."""
     n = as_integer(size, "size N")
     if not 1 <= n <= MAX_SIZE:
         raise config_error(f"size N must be a number of pixels per side in [1, {MAX_SIZE}], "
