@@ -79,9 +79,10 @@ def _counts_histogram(
     q = n * n
     from ..machine import available_memory
 
-    # the pixel arrays (pattern, reflectivity, delays, amplitudes: ~6 float64 per pixel) and
+    # the pixel arrays (pattern, reflectivity, delays, the (Q, 2) shifts and amplitudes and
+    # their temporaries: 160 bytes per pixel at the peak, measured from N = 1024 to 2048) and
     # one chunk of histograms with its correlation (~3 float64 per bin)
-    need = 6 * 8.0 * q + 3 * 8.0 * _HIST_CHUNK_BINS + 150e6
+    need = 160.0 * q + 3 * 8.0 * _HIST_CHUNK_BINS + 150e6
     if need > available_memory():
         raise config_error(
             f"--method histogram at --size {n} needs ~{need / 1e9:.0f} GB of memory, more than "
