@@ -191,3 +191,116 @@ def test_a_ptu_path_that_is_not_a_regular_file(measured, tmp_path, capsys):
                      "1", "3", "--out", str(out)]) == 2
         assert "is not a PTU file (a folder or a device" in _one_line(capsys)
         assert not out.exists()
+
+
+# --- the Python API (a second sweep, of the functions a script calls) -----------------------
+
+def _rp_args(d: Path) -> dict:
+    return {"ptu": d / "scan.ptu", "patterns": np.load(d / "scan_patterns.npy"),
+            "code": np.load(d / "scan_code.npy"), "bit_rate": 10e9, "range_gate": (1, 3)}
+
+
+#: a change to a good call of reconstruct_ptu, by name (built from the fixture's arrays)
+_CHANGES = {
+    "patterns as a list": lambda a: {"patterns": a["patterns"].tolist()},
+    "patterns not square": lambda a: {"patterns": a["patterns"].reshape(32, -1)[:, :60]},
+    "NaN in patterns": lambda a: {"patterns": np.where(a["patterns"] > 0.5, np.nan, 0.2)},
+    "patterns all off": lambda a: {"patterns": 0 * a["patterns"]},
+    "code of 0/2": lambda a: {"code": 2 * a["code"]},
+    "code all 0": lambda a: {"code": 0 * a["code"]},
+    "code 2-D": lambda a: {"code": a["code"][None, :]},
+    "gate a number": lambda a: {"range_gate": 1.5},
+    "gate a string": lambda a: {"range_gate": "1 3"},
+    "truth a string": lambda a: {"truth": "x"},
+    "calibration empty": lambda a: {"calibration": {}},
+    "a simulation key": lambda a: {"noise": 3},
+    "size": lambda a: {"size": 16},
+    "no path": lambda a: {"ptu": None},
+}
+
+
+@pytest.mark.parametrize("name,match", [
+    ("patterns as a list", None),  # a list of lists is an array: accepted
+    ("patterns not square", "(M, N, N) array (or (M, N*N))"),
+    ("NaN in patterns", "mirror states in [0, 1]"),
+    ("patterns all off", "every mirror of every pattern is off"),
+    ("code of 0/2", "other values (first: 2)"),
+    ("code all 0", "all 127 bits are 0"),
+    ("code 2-D", "1-D array of 0/1 bits"),
+    ("gate a number", "range_gate must be two numbers"),
+    ("gate a string", "range_gate must be two numbers"),
+    ("truth a string", "depth map in metres"),
+    ("calibration empty", "calibration is incomplete or damaged (KeyError: 'irf_offsets')"),
+    ("a simulation key", "takes processing keys only"),
+    ("size", "takes processing keys only"),
+    ("no path", "must be the path of a PTU file"),
+])
+def test_reconstruct_ptu_checks_what_a_script_passes(measured, name, match):
+    """From Python these reached NumPy (unpacking, Lipschitz, KeyError) or were accepted
+    (a 0/2 code, an all-zero code, noise=3 ignored)."""
+    from spslidar.errors import ConfigError
+    from spslidar.pipeline.real import reconstruct_ptu
+
+    args = _rp_args(measured)
+    args.update(_CHANGES[name](args))
+    if match is None:
+        assert reconstruct_ptu(**args).depth.shape == (8, 8)
+        return
+    with pytest.raises(ConfigError) as info:
+        reconstruct_ptu(**args)
+    assert match in str(info.value) and "\n" not in str(info.value)
+
+
+def test_reconstruct_ptu_takes_patterns_as_saved(measured):
+    """(M, N, N), as `--save-ptu` writes them and the user guide describes, or (M, N*N)."""
+    from spslidar.pipeline.real import reconstruct_ptu
+
+    args = _rp_args(measured)
+    a = reconstruct_ptu(**args).depth
+    args["patterns"] = args["patterns"].reshape(len(args["patterns"]), -1)
+    assert np.array_equal(reconstruct_ptu(**args).depth, a, equal_nan=True)
+
+
+def test_api_errors_are_the_packages(tmp_path):
+    import spslidar
+    from spslidar.errors import ConfigError
+
+    m = spslidar.measure(size=8, code_length=127)
+    for bad in ("camera", None):
+        with pytest.raises(ConfigError, match="takes a Measurement"):
+            spslidar.reconstruct(bad)
+    with pytest.raises(ConfigError, match="unknown key 'solvr' \\(did you mean 'solver'\\?\\)"):
+        spslidar.reconstruct(m, solvr="twist")
+    with pytest.raises(ConfigError, match="did you mean noise"):
+        spslidar.run(nosie=5)
+    r = spslidar.reconstruct(m)
+    for fov in (0, -10, float("nan"), 180, "10"):
+        with pytest.raises(ConfigError, match="field of view"):
+            r.points(fov_deg=fov)
+
+
+def test_numpy_scalars_are_numbers():
+    """Values from np.arange loops: np.int64(8) was 'not a number' while np.float64 passed."""
+    import spslidar
+
+    a = spslidar.run(size=np.int64(8), code_length=np.int64(127), noise=np.float32(5),
+                     seed=np.int64(3), qcr=np.bool_(True))
+    b = spslidar.run(size=8, code_length=127, noise=5.0, seed=3, qcr=True)
+    assert type(a.config.size) is int and a.config.qcr is True
+    assert np.array_equal(a.depth, b.depth, equal_nan=True)
+
+
+@pytest.mark.parametrize("kw,match", [
+    ({"bin_width": float("inf")}, "bin_width must be a finite number > 0"),
+    ({"bin_width": "1e-10"}, "bin_width must be a number"),
+    ({"period_tol_bins": float("nan")}, "period_tol_bins must be a finite number >= 0"),
+    ({"rtol": -1}, "rtol must be a finite number >= 0"),
+])
+def test_read_ptu_histograms_checks_its_numbers(measured, kw, match):
+    from spslidar.errors import ConfigError
+    from spslidar.io import read_ptu_histograms
+
+    with pytest.raises(ConfigError, match=match):
+        read_ptu_histograms(measured / "scan.ptu", 127, **kw)
+    with pytest.raises(ConfigError, match="must be the path of a PTU file"):
+        read_ptu_histograms(None, 127)

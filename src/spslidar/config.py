@@ -180,7 +180,10 @@ class Config:
         for k, v in merged.items():
             key = str(k).replace("-", "_")
             if key not in names:
-                close = [n for n in names if n.startswith(key[:3])]
+                import difflib
+
+                close = set(difflib.get_close_matches(key, sorted(names), 3, 0.7))
+                close |= {n for n in names if n.startswith(key[:3])}
                 hint = f" (did you mean {', '.join(sorted(close))}?)" if close else ""
                 raise ConfigError(f"unknown config key {k!r}{hint}")
             (extra if key in declared else clean)[key] = v
@@ -217,6 +220,11 @@ class Config:
 
     # -- validation ---------------------------------------------------------------------
     def validate(self) -> None:  # noqa: C901 - a flat list of checks
+        for f in dataclasses.fields(self):  # NumPy scalars (np.int64(8), np.bool_) as Python's
+            v = getattr(self, f.name)
+            if type(v).__module__ == "numpy" and getattr(v, "ndim", None) == 0:
+                setattr(self, f.name, v.item())
+
         def choice(name, options):
             v = getattr(self, name)
             if v not in options:

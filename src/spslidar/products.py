@@ -107,8 +107,12 @@ def point_cloud(depth: np.ndarray, fov_deg: float = DEFAULT_FOV_DEG,
     d = np.asarray(depth, dtype=np.float64)
     if d.ndim != 2:
         raise ValueError(f"depth must be a 2-D image, got shape {d.shape}")
+    from .errors import ConfigError
+
+    if isinstance(fov_deg, (str, bytes)) or not isinstance(fov_deg, (int, float, np.number)):
+        raise ConfigError(f"the field of view must be a number of degrees, got {fov_deg!r}")
     if not 0.0 < float(fov_deg) < 180.0:
-        raise ValueError(f"the field of view must lie in (0, 180) degrees, got {fov_deg}")
+        raise ConfigError(f"the field of view must lie in (0, 180) degrees, got {fov_deg}")
     rows, cols = d.shape
     scale = 2.0 * np.tan(np.radians(float(fov_deg)) / 2.0) / max(rows, cols)
     v, u = np.meshgrid((np.arange(rows) + 0.5 - rows / 2.0) * scale,

@@ -256,6 +256,22 @@ def _overflows(raw: np.ndarray, family: str) -> tuple[int, int]:
     return n, int(np.where(count == 0, 1, count).sum())
 
 
+def _finite_number(value, name: str, positive: bool = False) -> float:
+    """``value`` as a finite float >= 0 (> 0 with ``positive``), or one line."""
+    import math
+
+    if isinstance(value, (bool, str, bytes)):
+        raise ConfigError(f"{name} must be a number, got {value!r}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v) or v < 0 or (positive and v == 0):
+        raise ConfigError(f"{name} must be a finite number {'>' if positive else '>='} 0, "
+                          f"got {value!r}")
+    return v
+
+
 def _check_resolution(res: float, bin_width: float | None, rtol: float, allow_binning: bool,
                       path: str) -> int:
     """dtime units per bin; raise if the file's resolution disagrees with ``bin_width``."""
@@ -476,7 +492,13 @@ def read_ptu_histograms(
     chunk_records = _positive_int(chunk_records, "chunk_records")
     limit = None if n_patterns is None else _positive_int(n_patterns, "n_patterns")
     mask = 1 << (_marker_input(marker) - 1)
+    if not isinstance(path, (str, os.PathLike)):
+        raise ConfigError(f"path must be the path of a PTU file, got {type(path).__name__}")
     spath = os.fspath(path)
+    if bin_width is not None:
+        bin_width = _finite_number(bin_width, "bin_width", positive=True)
+    rtol = _finite_number(rtol, "rtol")
+    period_tol_bins = _finite_number(period_tol_bins, "period_tol_bins")
 
     with _open_ptu(path) as f:
         header = _header_summary(f, path)

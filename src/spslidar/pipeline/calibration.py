@@ -47,7 +47,8 @@ from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
 from ..outdir import sha256_file  # one file hasher for the project
 
-__all__ = ["calibrate_ptu", "calibrated_filter", "delay_filter", "load_calibration",
+__all__ = ["calibrate_ptu", "calibrated_filter", "check_calibration", "delay_filter",
+           "load_calibration",
            "measure_response", "refine_depth", "write_calibration"]
 
 #: bins of the IRF kept before and after its peak (a diffusion tail of a few bins fits)
@@ -180,8 +181,11 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     ``allow_binning`` as :func:`~spslidar.pipeline.real.reconstruct_ptu`."""
     from ..io import read_ptu_histograms
     from ..version import __version__
-    from .real import check_real_inputs
+    from .real import check_code, check_patterns, check_ptu_path, check_real_inputs
 
+    check_ptu_path(ptu)
+    patterns = check_patterns(patterns, False, "patterns")
+    code = check_code(code, None, "code")
     check_real_inputs(bit_rate, (0.0, 1.0), int(patterns.shape[1]), int(patterns.shape[0]),
                       int(code.size))
     bin_width = 1.0 / float(bit_rate)
@@ -243,6 +247,15 @@ def load_calibration(path: str | os.PathLike, bit_rate: float, code: np.ndarray)
         raise ConfigError(f"--calibration {p} is not a calibration file (not JSON)") from None
     if not isinstance(cal, dict) or cal.get("kind") != CAL_KIND:
         raise ConfigError(f"--calibration {p} is not a file written by 'spslidar calibrate'")
+    cal = check_calibration(cal, f"--calibration {p}", bit_rate, code)
+    cal["file"] = str(p)
+    cal["file_sha256"] = sha256_file(p)
+    return cal
+
+
+def check_calibration(cal: dict, what: str, bit_rate: float, code: np.ndarray) -> dict:
+    """A calibration's fields (IRF, delay, bit rate, code length), checked against this
+    instrument setting; one line (:class:`ConfigError`) naming what is missing or wrong."""
     try:
         offsets = np.asarray(cal["irf_offsets"], dtype=np.int64)
         values = np.asarray(cal["irf_values"], dtype=np.float64)
@@ -250,20 +263,18 @@ def load_calibration(path: str | os.PathLike, bit_rate: float, code: np.ndarray)
         whole = [int(cal[k]) for k in ("code_length", "lag_shift")]
         numbers.append(float(cal.get("lag_fraction", 0.0)))
     except (KeyError, TypeError, ValueError) as exc:
-        raise ConfigError(f"--calibration {p} is incomplete or damaged ({type(exc).__name__}: "
+        raise ConfigError(f"{what} is incomplete or damaged ({type(exc).__name__}: "
                           f"{exc}); calibrate again") from None
     if (offsets.shape != values.shape or values.ndim != 1 or not values.size
             or not np.all(np.isfinite(values)) or values.min() < 0 or values.sum() <= 0
             or not all(np.isfinite(numbers)) or whole[0] < 2):
-        raise ConfigError(f"--calibration {p}: its IRF or numbers are damaged; calibrate again")
-    if abs(cal["bit_rate_hz"] - float(bit_rate)) > 1e-9 * float(bit_rate):
-        raise ConfigError(f"--calibration {p} was measured at {cal['bit_rate_hz']:g} bits/s, "
+        raise ConfigError(f"{what}: its IRF or numbers are damaged; calibrate again")
+    if abs(numbers[0] - float(bit_rate)) > 1e-9 * float(bit_rate):
+        raise ConfigError(f"{what} was measured at {numbers[0]:g} bits/s, "
                           f"not {float(bit_rate):g}")
     if int(cal["code_length"]) != int(np.asarray(code).size):
-        raise ConfigError(f"--calibration {p} was measured with a code of "
+        raise ConfigError(f"{what} was measured with a code of "
                           f"{cal['code_length']} bits, not {np.asarray(code).size}")
-    cal["file"] = str(p)
-    cal["file_sha256"] = sha256_file(p)
     return cal
 
 

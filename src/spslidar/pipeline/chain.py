@@ -169,8 +169,23 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     (:func:`spslidar.backends.device.reconstructs_on_device`), and every other stage choice
     runs its NumPy implementation on the arrays brought back to the host.
     """
+    if not isinstance(meas, Measurement):
+        raise ConfigError(f"reconstruct() takes a Measurement (from spslidar.measure()), got "
+                          f"{type(meas).__name__}")
     bad = set(k.replace("-", "_") for k in processing) - PROCESSING_KEYS
     if bad:
+        from dataclasses import fields
+
+        known = {f.name for f in fields(Config)}
+        unknown = sorted(bad - known)
+        if unknown:
+            import difflib
+
+            hints = [difflib.get_close_matches(k, sorted(PROCESSING_KEYS), 1) for k in unknown]
+            said = ", ".join(f"{k!r}" + (f" (did you mean {h[0]!r}?)" if h else "")
+                             for k, h in zip(unknown, hints, strict=True))
+            raise ConfigError(f"reconstruct(): unknown key {said}; it takes "
+                              f"{', '.join(sorted(PROCESSING_KEYS))}")
         raise ConfigError(f"reconstruct() cannot change {', '.join(sorted(bad))}: "
                           f"simulate again with measure()")
     cfg = meas.config.replace(**processing) if processing else meas.config

@@ -31,7 +31,8 @@ from .chain import Measurement, reconstruct
 from .gate import unique_lags
 from .results import Result
 
-__all__ = ["calibrated_lam_scale", "load_code", "load_patterns", "reconstruct_ptu",
+__all__ = ["calibrated_lam_scale", "check_code", "check_gate", "check_patterns",
+           "check_ptu_path", "load_code", "load_patterns", "reconstruct_ptu",
            "write_measurement_ptu"]
 
 
@@ -78,30 +79,50 @@ def _load_npy(path: str | os.PathLike, what: str) -> np.ndarray:
 
 
 def load_patterns(path: str | os.PathLike, distinct: bool = True) -> np.ndarray:
-    """``(M, N, N)`` mirror states (0/1 or grey levels in [0, 1]) as float32 ``(M, N*N)``.
+    """``(M, N, N)`` mirror states (0/1 or grey levels in [0, 1]) as float32 ``(M, N*N)``,
+    checked by :func:`check_patterns`."""
+    return check_patterns(_load_npy(path, "patterns"), distinct, f"--patterns {path}")
 
-    Patterns with every mirror off are refused, and with ``distinct`` (a scene's
-    reconstruction) so are M copies of one pattern; a calibration may show one pattern
-    throughout (``distinct=False``)."""
-    arr = _load_npy(path, "patterns")
+
+def check_patterns(patterns: Any, distinct: bool = True, what: str = "patterns") -> np.ndarray:
+    """Mirror states shown, ``(M, N, N)`` or ``(M, N*N)``, as float32 ``(M, N*N)``; refused in
+    one line (:class:`ConfigError`) where they cannot be (fewer than 2 patterns, fewer than
+    4 x 4 mirrors, not square, not real numbers in [0, 1]) or cannot form an image: every
+    mirror off, or (with ``distinct``, a scene's reconstruction) M copies of one pattern. A
+    calibration may show one pattern throughout (``distinct=False``)."""
+    arr = _as_array(patterns, what)
+    if arr.ndim == 2 and arr.shape[0] >= 2:
+        side = int(round(np.sqrt(arr.shape[1])))
+        if side * side == arr.shape[1]:
+            arr = arr.reshape(arr.shape[0], side, side)
     if arr.ndim != 3 or arr.shape[1] != arr.shape[2] or arr.shape[0] < 2 or arr.shape[1] < 4:
-        raise ConfigError(f"--patterns must be an (M, N, N) array with M >= 2 patterns of "
-                          f"N x N >= 4 x 4 mirrors, got shape {arr.shape}")
-    _real_numbers(arr, "--patterns")
+        raise ConfigError(f"{what} must be an (M, N, N) array (or (M, N*N)) with M >= 2 "
+                          f"patterns of N x N >= 4 x 4 mirrors, got shape {arr.shape}")
+    _real_numbers(arr, what)
     arr = np.asarray(arr, dtype=np.float64)
     if not np.all(np.isfinite(arr)) or arr.min() < 0 or arr.max() > 1:
-        raise ConfigError("--patterns must hold mirror states in [0, 1] (0/1 or grey levels)")
+        raise ConfigError(f"{what} must hold mirror states in [0, 1] (0/1 or grey levels)")
     flat = arr.reshape(arr.shape[0], -1)
     if not flat.any():
-        raise ConfigError(f"--patterns {path}: every mirror of every pattern is off, so no "
-                          f"light reaches the scene")
+        raise ConfigError(f"{what}: every mirror of every pattern is off, so no light reaches "
+                          f"the scene")
     if distinct and np.all(flat == flat[0]):
         # the reconstruction (QCR, eq. 10-11) uses how the patterns differ from their mean:
         # the same pattern M times measures one number per delay, not an image
-        raise ConfigError(f"--patterns {path}: all {arr.shape[0]} patterns are the same, so "
-                          f"they hold no spatial information (single-pixel imaging needs "
-                          f"patterns that differ)")
+        raise ConfigError(f"{what}: all {arr.shape[0]} patterns are the same, so they hold no "
+                          f"spatial information (single-pixel imaging needs patterns that "
+                          f"differ)")
     return flat.astype(np.float32)
+
+
+def _as_array(value: Any, what: str) -> np.ndarray:
+    """``value`` as a NumPy array (a list is fine), or one line."""
+    if isinstance(value, np.ndarray):
+        return value
+    try:
+        return np.asarray(value)
+    except (ValueError, TypeError) as exc:
+        raise ConfigError(f"{what} must be an array of numbers ({exc})") from None
 
 
 def _real_numbers(arr: np.ndarray, what: str) -> None:
@@ -121,22 +142,50 @@ def load_code(code: str | os.PathLike, code_length: int | None = None) -> np.nda
         if code_length is None:
             raise ConfigError("--code mseq needs --code-length L (2^n - 1)")
         return np.asarray(make_code("mseq", int(code_length), 0.5), dtype=np.uint8)
-    arr = _load_npy(code, "code")
+    return check_code(_load_npy(code, "code"), code_length, f"--code {code}")
+
+
+def check_code(code: Any, code_length: int | None = None, what: str = "code") -> np.ndarray:
+    """The unipolar bits of one code period as uint8; refused in one line
+    (:class:`ConfigError`) unless a 1-D array of real 0/1 values with both present (and of
+    ``code_length`` bits where that is given)."""
+    arr = _as_array(code, what)
     if arr.ndim != 1 or arr.size < 2:
-        raise ConfigError(f"--code must be a 1-D array of 0/1 bits, got shape {arr.shape}")
-    _real_numbers(arr, "--code")
+        raise ConfigError(f"{what} must be a 1-D array of 0/1 bits, got shape {arr.shape}")
+    _real_numbers(arr, what)
     bad = ~((arr == 0) | (arr == 1))
     if bad.any():
-        raise ConfigError(f"--code must hold 0/1 bits (unipolar, one period), got "
+        raise ConfigError(f"{what} must hold 0/1 bits (unipolar, one period), got "
                           f"{int(bad.sum())} other values (first: {arr[bad][0].item()!r})")
     if code_length is not None and int(code_length) != arr.size:
-        raise ConfigError(f"--code-length {code_length} disagrees with --code {code}, which "
-                          f"holds {arr.size} bits (--code-length is for --code mseq)")
+        raise ConfigError(f"--code-length {code_length} disagrees with {what}, which holds "
+                          f"{arr.size} bits (--code-length is for --code mseq)")
     ones = int(arr.sum())
     if ones in (0, arr.size):  # no modulation: nothing to correlate with
-        raise ConfigError(f"--code {code}: all {arr.size} bits are {int(ones > 0)}; a code "
-                          f"needs both 0 and 1 bits (the laser is modulated by them)")
+        raise ConfigError(f"{what}: all {arr.size} bits are {int(ones > 0)}; a code needs "
+                          f"both 0 and 1 bits (the laser is modulated by them)")
     return arr.astype(np.uint8)
+
+
+def check_ptu_path(ptu: Any) -> None:
+    """A path (str or os.PathLike) of an existing regular file, or one line."""
+    if not isinstance(ptu, (str, os.PathLike)):
+        raise ConfigError(f"ptu must be the path of a PTU file, got {type(ptu).__name__}")
+
+
+def check_gate(range_gate: Any) -> tuple[float, float]:
+    """``(MIN, MAX)`` metres, two finite numbers with ``0 <= MIN < MAX``, or one line."""
+    import math
+
+    try:
+        lo, hi = (float(v) for v in range_gate)
+    except (TypeError, ValueError):
+        raise ConfigError(f"range_gate must be two numbers (MIN, MAX) in metres, got "
+                          f"{range_gate!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
+        raise ConfigError(f"--range-gate must be MIN MAX with 0 <= MIN < MAX metres, got "
+                          f"{lo:g} {hi:g}")
+    return lo, hi
 
 
 def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: int,
@@ -157,10 +206,7 @@ def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: in
     if not (math.isfinite(rate) and 1e6 <= rate <= 1e13):
         raise ConfigError(f"--bit-rate must be in [1e6, 1e13] bits (TDC bins) per second, got "
                           f"{bit_rate!r}")
-    lo, hi = (float(v) for v in range_gate)
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
-        raise ConfigError(f"--range-gate must be MIN MAX with 0 <= MIN < MAX metres, got "
-                          f"{lo:g} {hi:g}")
+    lo, hi = check_gate(range_gate)
     n_lags = (hi - lo) * 2.0 * rate / 299792458.0 + 2
     hists = float(n_patterns) * period * 24 + float(n_patterns) * min(n_lags, period) * 8
     if hists > 0.8 * available_memory():
@@ -199,8 +245,8 @@ def calibrated_lam_scale(solver: str, spread: float) -> float:
     weight scaled by the same factor. Measured with ``benchmarks/instrument.py`` (a 1.5-bin
     IRF with a 4-bin tail, ``spread`` 1.67, so 0.3 -> 0.50; chosen on seeds 0-2 among
     ``lam_scale`` 0.2, 0.3, 0.5, 0.7 and 1.0, reported on seeds 3-5): on seeds 3-5 the RMSE
-    goes from 0.092 / 0.140 / 0.087 m to 0.089 / 0.094 / 0.081 m without the scene's
-    one-pixel pole and from 0.124 / 0.113 / 0.111 to 0.125 / 0.109 / 0.108 m with it, while
+    goes from 0.092 / 0.140 / 0.087 m to 0.089 / 0.098 / 0.081 m without the scene's
+    one-pixel pole and from 0.124 / 0.113 / 0.111 to 0.125 / 0.109 / 0.114 m with it, while
     the same factor on the ideal instrument's acquisitions (``spread`` 1) would cost it
     (0.041 / 0.036 / 0.031 -> 0.043 / 0.044 / 0.037 m): the factor belongs to the filter, not
     to the scene. An ideal instrument's calibration has ``spread`` 1 and keeps the default.
@@ -262,7 +308,17 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     from ..io import read_ptu_histograms
     from ..patterns import as_patterns
     from ..scenes import Scene
+    from .measurement import PROCESSING_KEYS
 
+    check_ptu_path(ptu)
+    patterns = check_patterns(patterns, True, "patterns")
+    code = check_code(code, None, "code")
+    range_gate = check_gate(range_gate)
+    bad = {k.replace("-", "_") for k in processing} - PROCESSING_KEYS
+    if bad:
+        raise ConfigError(f"reconstruct_ptu() takes processing keys only "
+                          f"({', '.join(sorted(PROCESSING_KEYS))}), not "
+                          f"{', '.join(sorted(bad))}: the acquisition sets the rest")
     m, q = patterns.shape
     n = int(round(np.sqrt(q)))
     check_real_inputs(bit_rate, range_gate, q, m, int(code.size))
@@ -272,7 +328,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                             "code_length": period, "range_gate": list(range_gate),
                             "compression": m / q if m <= q else 1.0, **processing})
     if truth is not None:
-        truth = np.asarray(truth, dtype=np.float64)
+        try:
+            truth = np.asarray(truth, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ConfigError(f"truth must be an ({n}, {n}) depth map in metres") from None
         if truth.shape != (n, n):
             raise ConfigError(f"--truth must be an ({n}, {n}) depth map, got {truth.shape}")
     _check_solve_time(cfg, m, q, int(gate_lags(cfg.range_gate, bin_width).size), period)
@@ -297,9 +356,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     cal, shift, signal_code, frac, scale, spread = None, 0, code, 0.0, 1.0, 1.0
     response = None
     if calibration is not None:
-        from .calibration import calibrated_filter, load_calibration
+        from .calibration import calibrated_filter, check_calibration, load_calibration
 
-        cal = (calibration if isinstance(calibration, dict)
+        cal = (check_calibration(dict(calibration), "calibration", bit_rate, code)
+               if isinstance(calibration, dict)
                else load_calibration(calibration, bit_rate, code))
         replica, signal_code, shift, frac, scale, spread, response = calibrated_filter(
             code, replica, cal)
