@@ -304,3 +304,17 @@ def test_read_ptu_histograms_checks_its_numbers(measured, kw, match):
         read_ptu_histograms(measured / "scan.ptu", 127, **kw)
     with pytest.raises(ConfigError, match="must be the path of a PTU file"):
         read_ptu_histograms(None, 127)
+
+
+def test_config_mappings_say_what_is_wrong():
+    from spslidar import Config
+    from spslidar.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="mapping of keys to values, got list"):
+        Config.from_dict([1, 2])
+    with pytest.raises(ConfigError, match="'code_length' given twice"):
+        Config.from_dict({"code-length": 127, "code_length": 255})
+    # a keyword overrides the mapping, whatever its spelling (a TOML file and the command line)
+    assert Config.from_dict({"code-length": 127}, code_length=255).code_length == 255
+    with pytest.raises(ConfigError, match="detector must be a name, one of linear, gmapd"):
+        Config.from_dict({"detector": {"dead_time": 1e-8}})

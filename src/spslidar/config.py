@@ -11,6 +11,7 @@ import dataclasses
 import functools
 import math
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -172,7 +173,17 @@ class Config:
     @classmethod
     def from_dict(cls, d: dict[str, Any] | None = None, **kw) -> Config:
         """Build from a mapping (keys with ``-`` or ``_``); unknown keys are an error."""
-        merged = {**(d or {}), **kw}
+        if d is not None and not isinstance(d, Mapping):
+            raise ConfigError(f"a configuration is a mapping of keys to values, got "
+                              f"{type(d).__name__}")
+        seen: dict[str, str] = {}
+        for k in d or {}:  # code-length and code_length are one key: twice in one mapping is a
+            key = str(k).replace("-", "_")  # mistake (the keywords override the mapping)
+            if key in seen:
+                raise ConfigError(f"config key {key!r} given twice ({seen[key]!r} and {k!r})")
+            seen[key] = str(k)
+        merged = {str(k).replace("-", "_"): v for k, v in (d or {}).items()}
+        merged.update({str(k).replace("-", "_"): v for k, v in kw.items()})
         declared = stage_options()
         names = ({f.name for f in dataclasses.fields(cls)} - {"extra"}) | set(declared)
         clean: dict[str, Any] = {}

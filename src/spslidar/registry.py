@@ -237,7 +237,13 @@ class Registry:
         try:
             return self._entries[name]
         except (KeyError, TypeError):
-            raise ConfigError(f"unknown {self.option.replace('_', '-')} {name!r}; choose one of "
+            opt = self.option.replace("_", "-")
+            if not isinstance(name, str):  # e.g. a TOML table [detector] with its options
+                raise ConfigError(f"{opt} must be a name, one of {', '.join(self.names())}, "
+                                  f"got {type(name).__name__} {name!r} (a stage's options are "
+                                  f"keys of their own, e.g. dead_time = 1e-8 beside "
+                                  f"{opt} = \"gmapd\")") from None
+            raise ConfigError(f"unknown {opt} {name!r}; choose one of "
                               f"{', '.join(self.names())}") from None
 
     def load(self, name: str) -> Any:
