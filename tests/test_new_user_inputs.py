@@ -312,6 +312,8 @@ def test_config_mappings_say_what_is_wrong():
 
     with pytest.raises(ConfigError, match="mapping of keys to values, got list"):
         Config.from_dict([1, 2])
+    with pytest.raises(ConfigError, match="unknown config key 'nosie' \\(did you mean noise"):
+        Config(nosie=5)  # was Python's TypeError: unexpected keyword argument
     with pytest.raises(ConfigError, match="'code_length' given twice"):
         Config.from_dict({"code-length": 127, "code_length": 255})
     # a keyword overrides the mapping, whatever its spelling (a TOML file and the command line)

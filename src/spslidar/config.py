@@ -392,6 +392,10 @@ def _init(self, *args: Any, extra: dict[str, Any] | None = None, **kw: Any) -> N
     # Config(dead_time=..., jitter=...): the options the stages declare are keywords too
     declared = stage_options()
     options = {k: kw.pop(k) for k in list(kw) if k in declared}
+    names = {f.name for f in dataclasses.fields(Config)}
+    unknown = sorted(set(kw) - names)
+    if unknown:  # as from_dict says it, not Python's "unexpected keyword argument"
+        Config.from_dict({unknown[0]: kw[unknown[0]]})
     _dataclass_init(self, *args, extra={**(extra or {}), **options}, **kw)
 
 
