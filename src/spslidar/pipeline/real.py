@@ -126,8 +126,8 @@ def _as_array(value: Any, what: str) -> np.ndarray:
 
 
 def _real_numbers(arr: np.ndarray, what: str) -> None:
-    """Refuse an array whose dtype is not real numbers (complex, strings, booleans are fine as
-    0/1 and are taken as such)."""
+    """Refuse an array whose dtype is not real numbers (complex numbers, strings, objects);
+    booleans are taken as 0/1."""
     if not (np.issubdtype(arr.dtype, np.number) or arr.dtype == np.bool_) or \
             np.issubdtype(arr.dtype, np.complexfloating):
         raise ConfigError(f"{what} must hold real numbers, got dtype {arr.dtype}")
@@ -168,7 +168,8 @@ def check_code(code: Any, code_length: int | None = None, what: str = "code") ->
 
 
 def check_ptu_path(ptu: Any) -> None:
-    """A path (str or os.PathLike) of an existing regular file, or one line."""
+    """A path (str or os.PathLike), or one line (the reader checks that it names a regular
+    file)."""
     if not isinstance(ptu, (str, os.PathLike)):
         raise ConfigError(f"ptu must be the path of a PTU file, got {type(ptu).__name__}")
 
