@@ -263,7 +263,7 @@ def test_reconstruct_ptu_takes_patterns_as_saved(measured):
 
 def test_api_errors_are_the_packages(tmp_path):
     import spslidar
-    from spslidar.errors import ConfigError
+    from spslidar.errors import ConfigError, SpslidarError
 
     m = spslidar.measure(size=8, code_length=127)
     for bad in ("camera", None):
@@ -277,6 +277,10 @@ def test_api_errors_are_the_packages(tmp_path):
     for fov in (0, -10, float("nan"), 180, "10"):
         with pytest.raises(ConfigError, match="field of view"):
             r.points(fov_deg=fov)
+    r.save(tmp_path / "r", figure=False)
+    with pytest.raises(SpslidarError) as info:  # Python's names, not the command line's
+        r.save(tmp_path / "r", figure=False)
+    assert "pass overwrite=True" in str(info.value) and "--" not in str(info.value)
 
 
 def test_numpy_scalars_are_numbers():

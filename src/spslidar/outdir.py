@@ -106,7 +106,8 @@ def is_result(folder: Path) -> bool:
     return names <= set(meta["files"])
 
 
-def check_output(out: str | os.PathLike, overwrite: bool = False) -> Path:
+def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = "--out",
+                 replace: str = "--overwrite") -> Path:
     """Check that a result can be written to ``out`` without losing anything.
 
     Parameters
@@ -115,6 +116,10 @@ def check_output(out: str | os.PathLike, overwrite: bool = False) -> Path:
         The output folder.
     overwrite : bool
         Allow replacing a previous spslidar result.
+    option, replace : str
+        How the messages name the folder's argument and the permission to replace
+        (the command line's ``--out`` and ``--overwrite``; Python's ``out_dir`` and
+        ``overwrite=True``).
 
     Returns
     -------
@@ -127,15 +132,16 @@ def check_output(out: str | os.PathLike, overwrite: bool = False) -> Path:
         One line saying why ``out`` cannot be used and what to do instead.
     """
     if out is None or str(out).strip() == "":
-        raise SpslidarError("--out must name an output folder")
+        raise SpslidarError(f"{option} must name an output folder")
     path = Path(os.path.abspath(os.fspath(out)))
     if path.exists() or path.is_symlink():
         if not path.is_dir():
-            raise SpslidarError(f"--out {out}: exists and is not a folder")
+            raise SpslidarError(f"{option} {out}: exists and is not a folder")
         try:
             empty = next(path.iterdir(), None) is None
         except OSError as exc:
-            raise SpslidarError(f"--out {out}: cannot read the folder ({exc.strerror})") from None
+            raise SpslidarError(f"{option} {out}: cannot read the folder "
+                                f"({exc.strerror})") from None
         if not empty:
             if not is_result(path):
                 why = ("it holds a metrics.json but no spslidar marker, so spslidar did not "
@@ -143,15 +149,15 @@ def check_output(out: str | os.PathLike, overwrite: bool = False) -> Path:
                        if (path / "metrics.json").exists() and read_marker(path) is None else
                        "it holds files spslidar did not write")
                 raise SpslidarError(
-                    f"--out {out}: the folder is not empty and is not a spslidar result "
+                    f"{option} {out}: the folder is not empty and is not a spslidar result "
                     f"({why}); refusing to write into it (choose a new or empty folder)")
             if not overwrite:
-                raise SpslidarError(f"--out {out}: holds a previous spslidar result; pass "
-                                    f"--overwrite to replace it, or choose a new folder")
+                raise SpslidarError(f"{option} {out}: holds a previous spslidar result; pass "
+                                    f"{replace} to replace it, or choose a new folder")
     parent = path.parent
     if parent.exists() and not parent.is_dir():
-        raise SpslidarError(f"--out {out}: {parent} is not a folder")
-    _check_writable(path, f"--out {out}", make_parents=True)
+        raise SpslidarError(f"{option} {out}: {parent} is not a folder")
+    _check_writable(path, f"{option} {out}", make_parents=True)
     return path
 
 
@@ -180,7 +186,8 @@ def _check_writable(path: Path, what: str, make_parents: bool) -> None:
 
 
 def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
-                     overwrite: bool = False) -> Path:
+                     overwrite: bool = False, option: str = "--out",
+                     replace: str = "--overwrite") -> Path:
     """Create the result folder ``out`` through ``fill(tmp)``, all or nothing.
 
     ``fill`` writes the files (names from :data:`RESULT_FILES`) into a fresh temporary folder
@@ -188,7 +195,7 @@ def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
     included) the temporary folder is removed and ``out`` is untouched. Replacing a previous
     result removes only the files its marker lists.
     """
-    path = check_output(out, overwrite)
+    path = check_output(out, overwrite, option, replace)
     parent = path.parent
     parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=parent))
@@ -201,7 +208,7 @@ def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
             raise RuntimeError(f"Result.save wrote {sorted(unknown)}, not named in "
                                f"spslidar.outdir.RESULT_FILES: add them there")
         _write_marker(tmp, "result", written)
-        path = check_output(out, overwrite)  # nothing appeared meanwhile
+        path = check_output(out, overwrite, option, replace)  # nothing appeared meanwhile
         if not path.exists():
             os.replace(tmp, path)
             return path

@@ -125,7 +125,8 @@ class Result:
             with open(tmp / "metrics.json", "w") as fh:
                 json.dump(_jsonable(self.metrics), fh, indent=2, allow_nan=False)
 
-        return write_result_dir(out_dir, fill, overwrite=overwrite)
+        return write_result_dir(out_dir, fill, overwrite=overwrite, option="out_dir",
+                                replace="overwrite=True")
 
 
 def _jsonable(obj):
