@@ -176,27 +176,26 @@ class Config:
         if d is not None and not isinstance(d, Mapping):
             raise ConfigError(f"a configuration is a mapping of keys to values, got "
                               f"{type(d).__name__}")
-        seen: dict[str, str] = {}
-        for k in d or {}:  # code-length and code_length are one key: twice in one mapping is a
-            key = str(k).replace("-", "_")  # mistake (the keywords override the mapping)
-            if key in seen:
-                raise ConfigError(f"config key {key!r} given twice ({seen[key]!r} and {k!r})")
-            seen[key] = str(k)
-        merged = {str(k).replace("-", "_"): v for k, v in (d or {}).items()}
-        merged.update({str(k).replace("-", "_"): v for k, v in kw.items()})
+        merged: dict[str, Any] = {}
+        spelled: dict[str, str] = {}  # each key as the user wrote it
+        for k, v in (d or {}).items():
+            key = str(k).replace("-", "_")
+            if key in merged:  # code-length and code_length are one key: twice is a mistake
+                raise ConfigError(f"config key {key!r} given twice ({spelled[key]!r} and "
+                                  f"{k!r})")
+            merged[key], spelled[key] = v, str(k)
+        for k, v in kw.items():  # the keywords override the mapping
+            key = str(k).replace("-", "_")
+            merged[key], spelled[key] = v, str(k)
         declared = stage_options()
         names = ({f.name for f in dataclasses.fields(cls)} - {"extra"}) | set(declared)
         clean: dict[str, Any] = {}
         extra: dict[str, Any] = {}
-        for k, v in merged.items():
-            key = str(k).replace("-", "_")
+        for key, v in merged.items():
             if key not in names:
-                import difflib
-
-                close = set(difflib.get_close_matches(key, sorted(names), 3, 0.7))
-                close |= {n for n in names if n.startswith(key[:3])}
-                hint = f" (did you mean {', '.join(sorted(close))}?)" if close else ""
-                raise ConfigError(f"unknown config key {k!r}{hint}")
+                close = close_names(key, names)
+                hint = f" (did you mean {', '.join(close)}?)" if close else ""
+                raise ConfigError(f"unknown config key {spelled[key]!r}{hint}")
             (extra if key in declared else clean)[key] = v
         return cls(**clean, extra=extra)
 
@@ -392,11 +391,20 @@ def _init(self, *args: Any, extra: dict[str, Any] | None = None, **kw: Any) -> N
     # Config(dead_time=..., jitter=...): the options the stages declare are keywords too
     declared = stage_options()
     options = {k: kw.pop(k) for k in list(kw) if k in declared}
-    names = {f.name for f in dataclasses.fields(Config)}
-    unknown = sorted(set(kw) - names)
-    if unknown:  # as from_dict says it, not Python's "unexpected keyword argument"
+    unknown = sorted(set(kw) - {f.name for f in dataclasses.fields(Config)})
+    if unknown:  # as from_dict says it (with its hint), not Python's "unexpected keyword"
         Config.from_dict({unknown[0]: kw[unknown[0]]})
     _dataclass_init(self, *args, extra={**(extra or {}), **options}, **kw)
+
+
+def close_names(key: str, names) -> list[str]:
+    """The names a misspelt ``key`` may have meant, sorted: those similar to it by
+    ``difflib`` (up to three) and those sharing its first three letters."""
+    import difflib
+
+    names = sorted(names)
+    close = set(difflib.get_close_matches(key, names, 3, 0.7))
+    return sorted(close | {n for n in names if n.startswith(key[:3])})
 
 
 Config.__init__ = _init

@@ -39,6 +39,7 @@ from .errors import ConfigError, SpslidarError
 
 __all__ = ["MARKER", "RESULT_FILES", "atomic_file", "atomic_write_bytes", "atomic_write_text",
            "check_files", "check_output", "claim_folder", "is_result", "read_marker",
+           "release_folder",
            "sha256_file", "umask_mode", "write_files", "write_result_dir"]
 
 #: the marker file spslidar writes into every output folder it owns
@@ -157,22 +158,20 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
     parent = path.parent
     if parent.exists() and not parent.is_dir():
         raise SpslidarError(f"{option} {out}: {parent} is not a folder")
-    _check_writable(path, f"{option} {out}", make_parents=True)
+    _check_writable(path.parent, f"{option} {out}", make_parents=True)
     return path
 
 
-def _check_writable(path: Path, what: str, make_parents: bool) -> None:
-    """Refuse, before any work, a place nothing can be written to: the folder that would hold
-    ``path`` (or, with ``make_parents``, its nearest existing ancestor, since the missing
-    folders are created) must exist and be writable."""
+def _check_writable(folder: Path, what: str, make_parents: bool) -> None:
+    """Refuse, before any work, a place nothing can be written to: ``folder`` (or, with
+    ``make_parents``, its nearest existing ancestor, since the missing folders are created)
+    must exist and be writable."""
+    base = folder
     if make_parents:
-        base = path.parent
         while not base.exists() and base != base.parent:
             base = base.parent
-    else:
-        base = path.parent
-        if not base.exists():
-            raise SpslidarError(f"{what}: the folder {base} does not exist")
+    elif not base.exists():
+        raise SpslidarError(f"{what}: the folder {base} does not exist")
     if not base.is_dir():
         raise SpslidarError(f"{what}: {base} is not a folder")
     import tempfile
@@ -249,7 +248,7 @@ def claim_folder(out: str | os.PathLike, kind: str, option: str = "--out") -> Pa
     except OSError as exc:
         raise ConfigError(f"{option} {out}: cannot read the folder ({exc.strerror})") from None
     if empty:
-        _check_writable(path, f"{option} {out}", make_parents=True)
+        _check_writable(path.parent, f"{option} {out}", make_parents=True)
         path.mkdir(parents=True, exist_ok=True)
         _write_marker(path, kind, [])
         return path
@@ -262,6 +261,18 @@ def claim_folder(out: str | os.PathLike, kind: str, option: str = "--out") -> Pa
             f"earlier 'spslidar {kind}' (which it would resume); refusing to write into it "
             f"(choose a new or empty folder)")
     return path
+
+
+def release_folder(folder: Path, existed: bool) -> bool:
+    """Take back a folder :func:`claim_folder` claimed if nothing but its marker is in it
+    (the work was refused before it wrote anything): the marker goes, and the folder too
+    where it did not exist before. Returns whether it was taken back."""
+    if {p.name for p in folder.iterdir()} - {MARKER}:
+        return False
+    (folder / MARKER).unlink(missing_ok=True)
+    if not existed:
+        folder.rmdir()
+    return True
 
 
 def sha256_file(path: str | os.PathLike) -> str:
@@ -282,8 +293,8 @@ def check_files(paths, overwrite: bool = False, option: str = "--save-ptu") -> N
     and their marker (written by :func:`write_files` beside the first) proves that spslidar
     wrote them, unchanged since (the SHA-256 of each)."""
     paths = [Path(p) for p in paths]
-    for p in paths:
-        _check_writable(Path(os.path.abspath(p)), f"{option} {paths[0]}", make_parents=False)
+    for folder in dict.fromkeys(Path(os.path.abspath(p)).parent for p in paths):
+        _check_writable(folder, f"{option} {paths[0]}", make_parents=False)
     present = [p for p in paths if p.exists() or p.is_symlink()]
     if not present:
         return

@@ -176,14 +176,14 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     if bad:
         from dataclasses import fields
 
-        known = {f.name for f in fields(Config)}
-        unknown = sorted(bad - known)
-        if unknown:
-            import difflib
+        from ..config import close_names
 
-            hints = [difflib.get_close_matches(k, sorted(PROCESSING_KEYS), 1) for k in unknown]
-            said = ", ".join(f"{k!r}" + (f" (did you mean {h[0]!r}?)" if h else "")
-                             for k, h in zip(unknown, hints, strict=True))
+        unknown = sorted(bad - {f.name for f in fields(Config)})
+        if unknown:
+            said = ", ".join(
+                f"{k!r}" + (f" (did you mean {' or '.join(map(repr, close))}?)"
+                            if (close := close_names(k, PROCESSING_KEYS)) else "")
+                for k in unknown)
             raise ConfigError(f"reconstruct(): unknown key {said}; it takes "
                               f"{', '.join(sorted(PROCESSING_KEYS))}")
         raise ConfigError(f"reconstruct() cannot change {', '.join(sorted(bad))}: "

@@ -22,23 +22,6 @@ __all__ = ["reproduce_main"]
 MAX_TRIALS = 1000
 
 
-def _only_marker(folder: Path) -> bool:
-    """Whether ``folder`` holds nothing but spslidar's marker."""
-    from spslidar.outdir import MARKER
-
-    return {p.name for p in folder.iterdir()} <= {MARKER}
-
-
-def _release(folder: Path, existed: bool) -> None:
-    """Take back a folder claimed by this call that received nothing: the marker, and the
-    folder itself where it did not exist before."""
-    from spslidar.outdir import MARKER
-
-    (folder / MARKER).unlink(missing_ok=True)
-    if not existed:
-        folder.rmdir()
-
-
 def reproduce_main(
     experiment: str,
     out: str | Path,
@@ -103,7 +86,7 @@ def reproduce_main(
     from spslidar.experiments.sweep.engine import _check_jobs
 
     jobs = _check_jobs(jobs)
-    from spslidar.outdir import claim_folder
+    from spslidar.outdir import claim_folder, release_folder
 
     if isinstance(scheduler, str):
         from spslidar.experiments.sweep.engine import _probe_scheduler
@@ -111,7 +94,6 @@ def reproduce_main(
         _probe_scheduler(scheduler)  # before the folder is made
     existed = Path(out).exists()
     out = claim_folder(out, "reproduce")  # new, empty or an earlier report: never a user's
-    fresh = _only_marker(out)
     ctx = Context(
         out,
         bool(quick),
@@ -130,8 +112,7 @@ def reproduce_main(
         try:
             text, claims = EXPERIMENT_REGISTRY.load(name)(ctx)
         except SpslidarError:  # bad input (a time budget too small...): one line, exit 2
-            if fresh and _only_marker(out):  # nothing written: leave no folder behind
-                _release(out, existed)
+            release_folder(out, existed)  # nothing written yet: leave no folder behind
             raise
         except Exception as exc:  # an experiment's bug must not lose the others' results
             traceback.print_exc(file=sys.stderr)
