@@ -289,3 +289,19 @@ def test_refine_depth_finds_a_symmetric_profile_below_a_lag():
     assert np.abs(got[:4] - at(centres[:4])).max() < np.abs(on_grid[:4] - at(centres[:4])).max()
     assert got[4] == on_grid[4] or abs(got[4] - at(centres[4])) <= 0.1 * bin_m
     assert np.isnan(got[5])
+
+
+def test_figure_title_names_the_calibration(acquisitions):
+    """depth.png of a calibrated reconstruction says which calibration corrected it."""
+    from spslidar.figures import _title
+    from spslidar.pipeline.real import load_code, load_patterns, reconstruct_ptu
+
+    d = acquisitions
+    r = reconstruct_ptu(d / "scene.ptu", load_patterns(d / "scene_patterns.npy"),
+                        load_code(d / "scene_code.npy"), 10e9, (24, 26),
+                        calibration=d / "cal.json")
+    title = _title(r)
+    assert "calibrated (cal.json: delay 13.7" in title and "IRF FWHM" in title
+    plain = reconstruct_ptu(d / "ideal.ptu", load_patterns(d / "ideal_patterns.npy"),
+                            load_code(d / "ideal_code.npy"), 10e9, (24, 26))
+    assert "calibrated" not in _title(plain)

@@ -93,3 +93,17 @@ def test_figure_without_truth(result, tmp_path):
     assert _pixel(img.convert("RGB"), 0, 0, 0, r.depth.shape[0]) == NO_RETURN  # estimate first
     assert "no ground truth" in _title(r)
     assert depth_figure(r, tmp_path / "m.png", engine="matplotlib").stat().st_size > 10_000
+
+
+def test_legend_names_the_second_surface_panels_grey():
+    import spslidar
+    from spslidar.figures import _legend_items
+
+    r = spslidar.run(scene="fence", size=16, code_length=1023, noise=1, compression=0.5,
+                     depth="guarded")
+    texts = [t for _, t in _legend_items(r, np.zeros(r.depth.shape, bool))]
+    assert np.isfinite(r.depth2).any()
+    assert any(t.startswith("one surface (second-surface panel") for t in texts)
+    r = spslidar.run(scene="fence", size=16, code_length=1023, noise=1, compression=0.5)
+    texts = [t for _, t in _legend_items(r, np.zeros(r.depth.shape, bool))]
+    assert texts and not any("one surface" in t for t in texts)  # mrf: no second-surface panel

@@ -110,6 +110,10 @@ def _legend_items(result, outside: np.ndarray) -> list[tuple[tuple[int, int, int
         items.append((NO_TRUTH, f"no ground truth ({100 * no_truth.mean():.0f}%)"))
     items += [(NO_RETURN, f"no return ({100 * no_return.mean():.1f}%)"),
               (LOW_CONFIDENCE, f"low-confidence depth ({100 * low.mean():.0f}%, dot)")]
+    depth2 = getattr(result, "depth2", None)
+    if depth2 is not None and np.isfinite(depth2).any():  # the second-surface panel's grey
+        items.append((ONE_SURFACE, f"one surface (second-surface panel, "
+                                   f"{100 * np.mean(~np.isfinite(depth2)):.0f}%)"))
     if outside.any():
         items.append((OUT_OF_RANGE, f"depth outside the colour range ({int(outside.sum())} "
                                     f"pixels, cross)"))
@@ -142,6 +146,12 @@ def _title(result) -> str:
         what = (f"measured {Path(m['ptu']['file']).name}: {m['n_patterns']} patterns, "
                 f"{int(sum(m['ptu']['counts_per_pattern']))} photons, "
                 f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}, {c.depth} depth")
+        cal = m.get("calibration")
+        if cal:  # which instrument calibration the depths are corrected by
+            name = f"{Path(cal['file']).name}: " if cal.get("file") else ""
+            fwhm = float(cal["irf_fwhm_bins"])
+            what += (f", calibrated ({name}delay {1e9 * cal['delay_s']:.3f} ns, IRF FWHM "
+                     f"{fwhm:g} bin{'' if fwhm == 1 else 's'})")
     else:
         what = (f"{c.lidar.upper()} {m['code_description']}, {m['n_patterns']} {c.patterns} "
                 f"patterns ({100 * c.compression:g}%), m_s={c.signal:g}, m_n={c.noise:g}, "
