@@ -619,6 +619,17 @@ def _one_line_warning(command, message, category, filename, lineno, file=None, l
           f"{Path(filename).name}:{lineno})", file=sys.stderr if file is None else file)
 
 
+def _stop_pool() -> None:
+    """Stop joblib's worker pool while a Ctrl-C is still this command's to report: left to
+    Python's exit hook, which joins loky's threads after ``main`` returned, a Ctrl-C then
+    printed a ``KeyboardInterrupt`` traceback and the command exited 0. Only for a process of
+    its own (``argv`` None): in a Python session the pool is kept for the next call."""
+    reusable = sys.modules.get("joblib.externals.loky.reusable_executor")
+    executor = getattr(reusable, "_executor", None)  # None: no pool was started
+    if executor is not None:
+        executor.shutdown(wait=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 success, 2 bad input)."""
     parser = build_parser()
@@ -637,7 +648,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with warnings.catch_warnings():  # a library's warning: one line, not its source line
             warnings.showwarning = functools.partial(_one_line_warning, args.command)
-            return COMMANDS[args.command](args)
+            status = COMMANDS[args.command](args)
+        if argv is None:
+            _stop_pool()
+        return status
     except SpslidarError as exc:
         print(f"spslidar {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
