@@ -324,3 +324,24 @@ def test_config_mappings_say_what_is_wrong():
     assert Config.from_dict({"code-length": 127}, code_length=255).code_length == 255
     with pytest.raises(ConfigError, match="detector must be a name, one of linear, gmapd"):
         Config.from_dict({"detector": {"dead_time": 1e-8}})
+
+
+def test_config_assignment_is_checked_and_reaches_the_run():
+    """``cfg.KEY = value`` after construction: checked as ``Config(KEY=value)`` is (a typo, a
+    bad value, an unknown choice: ConfigError with its hint), and a stage's option lands where
+    the run reads it (``cfg.dead_time = 1e-7`` read back 1e-7 but the run used 5e-8)."""
+    from spslidar.config import Config
+    from spslidar.errors import ConfigError
+
+    cfg = Config(detector="gmapd", size=16)
+    cfg.dead_time = 1e-7
+    assert cfg.dead_time == 1e-7 and cfg.to_dict()["dead_time"] == 1e-7
+    cfg.noise = 3
+    assert cfg.noise == 3.0 and cfg.to_dict()["noise"] == 3.0
+    for key, value, said in [("nosie", 5, "did you mean noise"), ("noise", -5, "--noise"),
+                             ("solver", "fistaa", "unknown solver"), ("jitter", "x", "--jitter")]:
+        with pytest.raises(ConfigError, match=said):
+            setattr(cfg, key, value)
+    assert cfg.noise == 3.0 and cfg.solver == "fista"  # a refused assignment changes nothing
+    with pytest.raises(AttributeError):
+        cfg._private = 1

@@ -215,6 +215,20 @@ class Config:
 
     def __post_init__(self) -> None:
         self.validate()
+        object.__setattr__(self, "_checked", True)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        # once built, an assignment is checked as Config(...) checks a keyword, and a stage's
+        # option goes where the run reads it: ``cfg.dead_time = 1e-7`` was kept on the object
+        # but ignored by the run, ``cfg.nosie = 5`` was accepted, ``cfg.noise = -5`` waited
+        # for the run to be refused
+        if not self.__dict__.get("_checked", False):  # while __init__ fills the fields
+            object.__setattr__(self, name, value)
+            return
+        if name.startswith("_"):
+            raise AttributeError(f"Config has no attribute {name!r}")
+        checked = Config.from_dict({**self.to_dict(), name: value})
+        self.__dict__.update(checked.__dict__)
 
     def replace(self, **kw) -> Config:
         """A validated copy with some keys changed."""
