@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import struct
 import sys
 
@@ -245,6 +246,10 @@ def test_bad_files_raise_config_error(tmp_path):
     _raises("6 marker-delimited blocks .* fewer than n_patterns=7", good, L, n_patterns=7)
 
     _raises("dtime resolution .* does not match bin_width", good, L, bin_width=1.5 * BW)
+    # a bit rate a little off names the one the file's bins are (a user typed 10.3e9 for a
+    # PicoHarp's 1.03125e10)
+    _raises(re.escape(f"bit rate of {1 / BW:.6g} Hz: --bit-rate {1 / BW:.6g}"), good, L,
+            bin_width=1.1 * BW)
     _raises("sync period .* != code period", good, L - 1, bin_width=BW)
     _raises("sync period", good, 2 * L)
     # the check can be switched off: the extra bins just stay empty

@@ -287,7 +287,8 @@ def _check_resolution(res: float, bin_width: float | None, rtol: float, allow_bi
     if close and (k == 1 or allow_binning):
         return k
     hint = (f" (it is {k} dtime units: merge them with --allow-binning, allow_binning=True in "
-            f"Python)" if close else "")
+            f"Python)" if close else
+            f" (a bin of {res:.6g} s is a bit rate of {1 / res:.6g} Hz: --bit-rate {1 / res:.6g})")
     raise ConfigError(f"{path!r}: dtime resolution {res:.6g} s does not match bin_width "
                       f"{bin_width:.6g} s (rtol {rtol:g}){hint}")
 
