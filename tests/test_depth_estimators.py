@@ -100,7 +100,11 @@ def test_noisy_scene_is_meaningful():
     # cost more than the pole's evidence
     smooth = median_filter(am.depth.reshape(depth.shape), 3)
     assert (np.abs(smooth - depth) > 3 * BIN_M)[pole].mean() > 0.9
-    assert off(MRFDepth(truncation=8.0).estimate(slices, ctx), depth)[pole].mean() > 0.9
+    strict = MRFDepth(truncation=8.0, lines=False).estimate(slices, ctx)
+    assert off(strict, depth)[pole].mean() > 0.9
+    # ... unless the pole's argmax returns, which line up, are kept (spslidar.depth.lines)
+    kept = MRFDepth(truncation=8.0).estimate(slices, ctx)
+    assert off(kept, depth)[pole].mean() < 0.1 and kept.info["thin_structure_pixels"] >= 25
 
 
 @pytest.mark.parametrize("name", SPATIAL)
@@ -340,7 +344,7 @@ def test_guard_keeps_a_strong_one_pixel_pole_that_the_mrf_smooths_away():
     from spslidar.depth.guarded import GuardedDepth
 
     slices, ctx, depth, weak, pole = noisy_scene(0)
-    strict = MRFDepth(truncation=8.0).estimate(slices, ctx)  # an MRF that erases the pole
+    strict = MRFDepth(truncation=8.0, lines=False).estimate(slices, ctx)  # erases the pole
     guarded = GuardedDepth(truncation=8.0).estimate(slices, ctx)
     assert off(strict, depth)[pole].mean() > 0.9
     assert off(guarded, depth)[pole & ~weak].mean() < 0.1
@@ -399,7 +403,7 @@ def test_evidence_keeps_a_one_pixel_pole_the_mrf_erases_by_its_line_alone():
     from spslidar.depth.evidence import EvidenceDepth
 
     slices, ctx, depth, weak, pole = noisy_scene(0)
-    strict = MRFDepth(truncation=8.0).estimate(slices, ctx)
+    strict = MRFDepth(truncation=8.0, lines=False).estimate(slices, ctx)
     assert off(strict, depth)[pole].mean() > 0.9
     # only the line test: no strong-return or occluder keeps
     line_only = EvidenceDepth(truncation=8.0, strong=1e9, occluder=1e9).estimate(slices, ctx)

@@ -35,5 +35,7 @@ ESTIMATORS.add("guarded", "spslidar.depth.guarded:GuardedDepth", "guarded MRF",
                "pixel where the profile holds two significant returns")
 ESTIMATORS.add("mrf", "spslidar.depth.mrf:MRFDepth", "MRF (loopy BP)",
                "the default: each pixel's range slice by a truncated-linear Markov random "
-               "field over the image, solved by loopy belief propagation (best or tied on every "
-               "built-in scene and noise level, benchmarks/depth_quality.py)")
+               "field over the image, solved by loopy belief propagation, keeping the argmax "
+               "of pixels whose returns in front of its surface line up (poles, wires: "
+               "spslidar.depth.lines; best or tied on every built-in scene and noise level, "
+               "benchmarks/depth_quality.py)")

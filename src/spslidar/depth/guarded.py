@@ -29,20 +29,10 @@ from __future__ import annotations
 import numpy as np
 
 from .base import DepthContext, DepthEstimate
-from .mrf import MRFDepth, _pseudo_marginal, auto_truncation, min_sum_bp
+from .mrf import MRFDepth, _pseudo_marginal, auto_truncation, min_sum_bp, noise_maxima
 from .profile import grid_shape, index_to_depth, no_return, refine_subbin
 
-__all__ = ["GuardedDepth", "neighbour_support", "noise_maxima", "second_surface",
-           "third_maxima"]
-
-
-def noise_maxima(z: np.ndarray, exclude: int = 2) -> np.ndarray:
-    """Per pixel, the largest evidence outside +-``exclude`` slices of its tallest slice: a
-    sample of the noise maximum of a profile (the return itself left out)."""
-    q, k = z.shape
-    idx = np.argmax(z, axis=1)
-    far = np.abs(np.arange(k)[None, :] - idx[:, None]) > exclude
-    return np.max(np.where(far, z, 0.0), axis=1) if far.any() else np.zeros(q)
+__all__ = ["GuardedDepth", "neighbour_support", "second_surface", "third_maxima"]
 
 
 def third_maxima(z: np.ndarray, label: np.ndarray, second: np.ndarray, gap: int = 3
@@ -144,7 +134,7 @@ class GuardedDepth(MRFDepth):
     ----------
     quantile : float
         The significance threshold ``tau`` is this quantile, over the pixels, of a profile's
-        noise maximum (:func:`noise_maxima`).
+        noise maximum (:func:`~.mrf.noise_maxima`).
     scale : float
         ... times this factor.
     gap, ratio : float

@@ -34,7 +34,7 @@ import numpy as np
 from .base import DepthContext, DepthEstimate, DepthEstimator
 from .profile import grid_shape, index_to_depth, no_return, noise_scale, pulse_filter, refine_subbin
 
-__all__ = ["MRFDepth", "min_sum_bp", "truncated_linear_envelope"]
+__all__ = ["MRFDepth", "min_sum_bp", "noise_maxima", "truncated_linear_envelope"]
 
 
 def truncated_linear_envelope(h: np.ndarray, slope: float, cap: float,
@@ -158,6 +158,10 @@ class MRFDepth(DepthEstimator):
         (8-12 sweeps on the built-in scenes).
     subbin : bool or None
         Refine the chosen slice by the local centroid (``None``: follow ``ctx.subbin``).
+    lines : bool
+        Keep the argmax of pixels that line up in front of the MRF's surface (a pole, a wire,
+        a leg the smoothness would give the wall behind: :mod:`spslidar.depth.lines`);
+        ``info['thin_structure_pixels']`` counts them. Default True.
     low_confidence : float
         Confidence below which a pixel is flagged.
 
@@ -193,7 +197,7 @@ class MRFDepth(DepthEstimator):
     def __init__(self, low_confidence: float | None = None, *,
                  smoothness: float = SMOOTHNESS, truncation: float | None = None,
                  iterations: int = ITERATIONS,
-                 subbin: bool | None = None):
+                 subbin: bool | None = None, lines: bool = True):
         super().__init__(low_confidence)
         if smoothness < 0 or (truncation is not None and truncation < 0):
             raise ValueError("smoothness and truncation must be >= 0")
@@ -203,6 +207,7 @@ class MRFDepth(DepthEstimator):
         self.truncation = None if truncation is None else float(truncation)
         self.iterations = int(iterations)
         self.subbin = subbin
+        self.lines = bool(lines)
 
     def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:
         x = np.asarray(slices, dtype=np.float32)
@@ -215,6 +220,15 @@ class MRFDepth(DepthEstimator):
         belief, sweeps = min_sum_bp(cost, self.smoothness, cap, self.iterations)
         belief = belief.reshape(k, q).T
         label = np.argmin(belief, axis=1)
+        thin = 0
+        if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
+            from .lines import thin_structures
+
+            a = np.argmax(x, axis=1)
+            keep = thin_structures(a, label, z[np.arange(q), a],
+                                   float(np.median(noise_maxima(z))), (n1, n2))
+            label = np.where(keep, a, label)
+            thin = int(keep.sum())
         conf = _pseudo_marginal(belief, label)
         subbin = ctx.subbin if self.subbin is None else self.subbin
         index = refine_subbin(x, label) if subbin and k >= 3 else label.astype(np.float64)
@@ -226,7 +240,7 @@ class MRFDepth(DepthEstimator):
         changed = float(np.mean(label != np.argmax(x, axis=1))) if q else 0.0
         info = {"sweeps": sweeps, "changed_from_argmax": changed,
                 "smoothness": self.smoothness, "truncation": cap,
-                "iterations": self.iterations}
+                "iterations": self.iterations, "thin_structure_pixels": thin}
         return DepthEstimate(depth, conf, strength, self._flag(depth, conf), info)
 
     def evidence(self, x: np.ndarray) -> np.ndarray:
@@ -246,14 +260,19 @@ def auto_truncation(z: np.ndarray, exclude: int = 2) -> float:
     ``4 T``, is outvoted unless it is twice as tall. The noise maximum grows with the number
     of slices (about 2.8 noise scales for 61 slices, 3.6 for 200 on the built-in scenes).
     """
-    q, k = z.shape
-    if k <= 2 * exclude + 1:
+    if z.shape[1] <= 2 * exclude + 1:
         return 1.0
+    t = 0.5 * float(np.median(noise_maxima(z, exclude)))
+    return t if t > 0 else 1.0
+
+
+def noise_maxima(z: np.ndarray, exclude: int = 2) -> np.ndarray:
+    """Per pixel, the largest evidence outside +-``exclude`` slices of its tallest slice: a
+    sample of the noise maximum of a profile (the return itself left out)."""
+    q, k = z.shape
     idx = np.argmax(z, axis=1)
     far = np.abs(np.arange(k)[None, :] - idx[:, None]) > exclude
-    second = np.max(np.where(far, z, 0.0), axis=1)
-    t = 0.5 * float(np.median(second))
-    return t if t > 0 else 1.0
+    return np.max(np.where(far, z, 0.0), axis=1) if far.any() else np.zeros(q)
 
 
 def _pseudo_marginal(belief: np.ndarray, label: np.ndarray, half: int = 1) -> np.ndarray:

@@ -1,0 +1,79 @@
+"""The MRF's thin-structure rule (spslidar.depth.lines): argmax returns in front of the MRF's
+surface are kept where, and only where, they line up."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from spslidar.depth.lines import thin_structures
+
+SHAPE = (32, 32)
+WALL = 200  # the MRF's label everywhere: a wall at slice 200
+NU = 3.0  # the block's typical noise maximum
+
+
+def _blank():
+    a = np.full(SHAPE, WALL)
+    strength = np.full(SHAPE, 2.0 * NU)
+    return a, strength
+
+
+def _keep(a, strength, **kw):
+    label = np.full(a.size, WALL)
+    return thin_structures(a.ravel(), label, strength.ravel(), NU, SHAPE, **kw).reshape(SHAPE)
+
+
+def test_a_pole_at_one_depth_is_kept():
+    a, s = _blank()
+    a[4:20, 10] = 120  # a one-pixel pole 80 slices in front of the wall
+    keep = _keep(a, s)
+    assert keep[4:20, 10].all() and keep.sum() == 16
+
+
+def test_a_slanted_wire_is_kept():
+    # the depth changes by 12 slices a pixel along the wire (procedural seed 13's lost wire)
+    a, s = _blank()
+    cols = np.arange(5, 16)
+    a[19, cols] = 40 + 12 * (cols - 5)
+    s[19, cols] = np.array([1.5, 3.0, 2.6, 2.7, 3.4, 1.4, 1.3, 2.4, 2.3, 3.3, 2.3]) * NU
+    keep = _keep(a, s)
+    assert keep[19, cols].all() and keep.sum() == cols.size
+
+
+@pytest.mark.parametrize("case", ["blob", "behind", "weak", "short", "curved"])
+def test_what_is_not_a_line_is_left_to_the_mrf(case):
+    a, s = _blank()
+    if case == "blob":  # a compact cluster in front: the MRF's to judge
+        a[10:14, 10:14] = 120
+    elif case == "behind":  # a line behind the MRF's surface
+        a[4:20, 10] = 230
+    elif case == "weak":  # each return below the floor (0.8 noise maxima)
+        a[4:20, 10] = 120
+        s[4:20, 10] = 0.7 * NU
+    elif case == "short":  # three pixels whose evidence sums to 3 noise maxima, not 5
+        a[4:7, 10] = 120
+        s[4:7, 10] = 1.0 * NU
+    else:  # a line whose depth is not linear along it (a zigzag of 5 slices)
+        a[4:20, 10] = 120 + 5 * (np.arange(16) % 2)
+    assert not _keep(a, s).any()
+
+
+def test_scattered_noise_spikes_do_not_line_up():
+    # 5 % of the pixels with a spike in front of the wall at a random slice and a strength
+    # of 1-3 noise maxima: a line of them by chance is rare (none at this seed; the rule
+    # takes groups of 3+ joined pixels 3.5 times longer than wide with a linear depth)
+    rng = np.random.default_rng(7)
+    a, s = _blank()
+    spikes = rng.random(SHAPE) < 0.05
+    a[spikes] = rng.integers(0, WALL - 4, spikes.sum())
+    s[spikes] = rng.uniform(1.0, 3.0, spikes.sum()) * NU
+    assert _keep(a, s).mean() < 0.002
+
+
+def test_degenerate_inputs():
+    a, s = _blank()
+    a[4:20, 10] = 120
+    assert not thin_structures(a.ravel(), np.full(a.size, WALL), s.ravel(), 0.0, SHAPE).any()
+    empty = np.zeros(0, int)
+    assert thin_structures(empty, empty, empty.astype(float), NU, (0, 0)).size == 0
