@@ -41,6 +41,20 @@ def test_a_slanted_wire_is_kept():
     assert keep[19, cols].all() and keep.sum() == cols.size
 
 
+def test_a_wire_found_on_every_other_pixel_is_kept_by_the_two_pixel_pass():
+    # procedural seed 101's dark staircase wire: argmax finds half its pixels, none of them
+    # 8-neighbours; only the pass joining pixels two apart sees the line
+    from spslidar.depth.lines import PASSES
+
+    a, s = _blank()
+    cols = np.arange(4, 30, 2)
+    a[10, cols] = 120 + (cols - 4) // 2
+    s[10, cols] = 1.5 * NU
+    keep = _keep(a, s)
+    assert keep[10, cols].all() and keep.sum() == cols.size
+    assert not _keep(a, s, passes=PASSES[:2]).any()
+
+
 @pytest.mark.parametrize("case", ["blob", "behind", "weak", "short", "curved"])
 def test_what_is_not_a_line_is_left_to_the_mrf(case):
     a, s = _blank()

@@ -10,20 +10,21 @@ form, together, a line:
 
 * each candidate's argmax lies more than ``gap`` slices in front of the MRF's label and
   reaches ``floor`` times the block's typical noise maximum ``nu`` (a weak but real return);
-* candidates are joined to their 8 neighbours whose argmax is within ``step`` slices, once
-  with a small step (a structure at one depth: a pole, a leg, a fence slat) and once with a
-  large one (a slanted wire, whose depth changes by up to ``16`` slices a pixel);
-* a group is kept when it has at least ``min_pixels`` pixels, is ``elongation`` times longer
-  than wide (the square root of the ratio of its coordinates' principal variances), its
-  argmax depth is a linear function of the position along it to within ``residual``
-  slices, and its evidence sums to ``total`` times ``nu``.
+* candidates are joined to their neighbours whose argmax is within ``step`` slices, in three
+  passes (:data:`PASSES`): 8-neighbours with a small step (a structure at one depth: a pole,
+  a leg, a fence slat), 8-neighbours with a large one (a slanted wire, whose depth changes
+  by up to 16 slices a pixel), and neighbours up to two pixels away with the large step (a
+  wire found on every other pixel), this last with stricter size and evidence tests;
+* a group is kept when it has at least the pass's minimum of pixels, is ``elongation`` times
+  longer than wide (the square root of the ratio of its coordinates' principal variances),
+  its argmax depth is a linear function of the position along it to within ``residual``
+  slices, and its evidence sums to the pass's total times ``nu``.
 
 Chosen on the procedural scenes of seeds 0-19 (64x64, m_n 5 and 10, 25 % and 50 %
-patterns; ``benchmarks/depth_quality.py``) among minimum sizes 3-5, elongations 2.5-3.5 and
-evidence totals 0-8 ``nu``, as the setting that never made a scene of those seeds or of the
-built-in scenes more than 1 % worse than the MRF alone; on held-out seeds 100-149 it moves
-the median RMSE over argmax's from 0.596 to 0.571 (m_n 5, 25 %) and from 0.528 to 0.487
-(m_n 10, 50 %), and the worst from 1.296 to 1.075 (m_n 5, 25 %). The connected groups are
+patterns; ``benchmarks/depth_quality.py``) among minimum sizes 3-6, elongations 2.5-3.5,
+evidence totals 0-12 ``nu`` and reaches of 1-2 pixels, as the setting that never made a
+scene of those seeds or of the built-in scenes more than 1 % worse than the MRF alone (the
+numbers it gives on held-out seeds are in the README). The connected groups are
 SciPy's (:func:`scipy.sparse.csgraph.connected_components`); the line test is a few lines
 of NumPy per group, written here because no library tests a pixel group's shape and depth
 together.
@@ -36,13 +37,16 @@ import numpy as np
 __all__ = ["thin_structures"]
 
 #: defaults of :func:`thin_structures` (see the module docstring for how they were chosen)
-GAP, FLOOR, MIN_PIXELS, ELONGATION, RESIDUAL, TOTAL, STEPS = 3, 0.8, 3, 3.5, 2.0, 5.0, (2, 16)
+GAP, FLOOR, ELONGATION, RESIDUAL = 3, 0.8, 3.5, 2.0
+#: the joining passes: (step in slices, reach in pixels, minimum pixels, evidence total in nu)
+PASSES = ((2, 1, 3, 5.0), (16, 1, 3, 5.0), (16, 2, 4, 12.0))
 
 
-def _groups(cand: np.ndarray, a: np.ndarray, shape: tuple[int, int], step: int
-            ) -> tuple[np.ndarray, np.ndarray, int]:
-    """Candidates (flat indices), their group labels and the number of groups: 8-neighbours
-    joined where their argmax slices differ by at most ``step``."""
+def _groups(cand: np.ndarray, a: np.ndarray, shape: tuple[int, int], step: int,
+            reach: int = 1) -> tuple[np.ndarray, np.ndarray, int]:
+    """Candidates (flat indices), their group labels and the number of groups: candidates up
+    to ``reach`` pixels apart (in x and in y) joined where their argmax slices differ by at
+    most ``step``."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -54,7 +58,9 @@ def _groups(cand: np.ndarray, a: np.ndarray, shape: tuple[int, int], step: int
     lag = a.reshape(shape)
     rows, cols = [], []
     ys, xs = np.divmod(pix, n2)
-    for dy, dx in ((0, 1), (1, -1), (1, 0), (1, 1)):  # each pair once
+    half = [(dy, dx) for dy in range(reach + 1) for dx in range(-reach, reach + 1)
+            if dy > 0 or dx > 0]  # each pair once
+    for dy, dx in half:
         y2, x2 = ys + dy, xs + dx
         ok = (y2 < n1) & (x2 >= 0) & (x2 < n2)
         y1, x1, y2, x2 = ys[ok], xs[ok], y2[ok], x2[ok]
@@ -69,9 +75,8 @@ def _groups(cand: np.ndarray, a: np.ndarray, shape: tuple[int, int], step: int
 
 def thin_structures(a: np.ndarray, label: np.ndarray, strength: np.ndarray, nu: float,
                     shape: tuple[int, int], *, gap: int = GAP, floor: float = FLOOR,
-                    min_pixels: int = MIN_PIXELS, elongation: float = ELONGATION,
-                    residual: float = RESIDUAL, total: float = TOTAL,
-                    steps: tuple[int, ...] = STEPS) -> np.ndarray:
+                    elongation: float = ELONGATION, residual: float = RESIDUAL,
+                    passes: tuple[tuple[int, int, int, float], ...] = PASSES) -> np.ndarray:
     """Pixels whose argmax belongs to a line in front of the MRF's surface.
 
     Parameters
@@ -87,8 +92,9 @@ def thin_structures(a: np.ndarray, label: np.ndarray, strength: np.ndarray, nu: 
         away from each profile's return).
     shape : (int, int)
         The image grid.
-    gap, floor, min_pixels, elongation, residual, total, steps
-        The tests of the module docstring.
+    gap, floor, elongation, residual, passes
+        The tests of the module docstring; ``passes`` holds, per joining pass, the step in
+        slices, the reach in pixels, the minimum number of pixels and the evidence total.
 
     Returns
     -------
@@ -102,10 +108,10 @@ def thin_structures(a: np.ndarray, label: np.ndarray, strength: np.ndarray, nu: 
     z = np.asarray(strength, dtype=np.float64) / nu
     cand = (a < np.asarray(label) - gap) & (z >= floor)
     n2 = shape[1]
-    for step in steps:
+    for step, reach, min_pixels, total in passes:
         if cand.sum() < min_pixels:
-            break
-        pix, groups, n = _groups(cand, a, shape, step)
+            continue
+        pix, groups, n = _groups(cand, a, shape, step, reach)
         sizes = np.bincount(groups, minlength=n)
         sums = np.bincount(groups, weights=z[pix], minlength=n)
         for g in np.flatnonzero((sizes >= min_pixels) & (sums >= total)):
