@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .base import DepthContext, DepthEstimate
-from .mrf import MRFDepth, _pseudo_marginal, auto_truncation, min_sum_bp, noise_maxima
+from .mrf import MRFDepth, _pseudo_marginal, noise_maxima
 from .profile import grid_shape, index_to_depth, no_return, refine_subbin
 
 __all__ = ["GuardedDepth", "neighbour_support", "second_surface", "third_maxima"]
@@ -179,11 +179,7 @@ class GuardedDepth(MRFDepth):
         rows = np.arange(q)
         peak = x.max(axis=1).astype(np.float64)
         z = self.evidence(x)
-        cap = self.truncation if self.truncation is not None else auto_truncation(z)
-        cost = np.ascontiguousarray(-z.T).reshape(k, n1, n2)
-        belief, sweeps = min_sum_bp(cost, self.smoothness, cap, self.iterations)
-        belief = belief.reshape(k, q).T
-        smooth = np.argmin(belief, axis=1)
+        smooth, belief, found = self.labelling(x, z, (n1, n2))
         own, keep, extra = self.guard(x, z, smooth, (n1, n2))
         label = np.where(keep, own, smooth)
         conf = _pseudo_marginal(belief, label)
@@ -203,10 +199,10 @@ class GuardedDepth(MRFDepth):
         depth2[missing] = np.nan
         conf[missing] = 0.0
         strength = x[rows, label].astype(np.float64)
-        info = {"sweeps": sweeps, **extra, "kept_by_guard": float(np.mean(guarded)),
+        info = {**found, **extra, "kept_by_guard": float(np.mean(guarded)),
                 "changed_from_argmax": float(np.mean(label != np.argmax(x, axis=1))),
                 "two_surface_fraction": float(np.mean(np.isfinite(depth2))),
-                "smoothness": self.smoothness, "truncation": cap, "quantile": self.quantile}
+                "smoothness": self.smoothness, "quantile": self.quantile}
         return DepthEstimate(depth, conf, strength, self._flag(depth, conf), info, depth2)
 
     def guard(self, x: np.ndarray, z: np.ndarray, smooth: np.ndarray,

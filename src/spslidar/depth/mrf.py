@@ -209,14 +209,14 @@ class MRFDepth(DepthEstimator):
         self.subbin = subbin
         self.lines = bool(lines)
 
-    def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:
-        x = np.asarray(slices, dtype=np.float32)
+    def labelling(self, x: np.ndarray, z: np.ndarray, shape: tuple[int, int]
+                  ) -> tuple[np.ndarray, np.ndarray, dict]:
+        """The MRF's slice per pixel (loopy BP), with the thin structures' argmax kept where
+        ``lines``; also the beliefs ``(Q, K)`` and numbers for ``info``. Shared by the
+        estimators built on this MRF (``guarded``, ``evidence``)."""
         q, k = x.shape
-        n1, n2 = grid_shape(ctx, q)
-        peak = x.max(axis=1).astype(np.float64)
-        z = self.evidence(x)
         cap = self.truncation if self.truncation is not None else auto_truncation(z)
-        cost = np.ascontiguousarray(-z.T).reshape(k, n1, n2)  # labels leading
+        cost = np.ascontiguousarray(-z.T).reshape(k, *shape)  # labels leading
         belief, sweeps = min_sum_bp(cost, self.smoothness, cap, self.iterations)
         belief = belief.reshape(k, q).T
         label = np.argmin(belief, axis=1)
@@ -226,9 +226,19 @@ class MRFDepth(DepthEstimator):
 
             a = np.argmax(x, axis=1)
             keep = thin_structures(a, label, z[np.arange(q), a],
-                                   float(np.median(noise_maxima(z))), (n1, n2))
+                                   float(np.median(noise_maxima(z))), shape)
             label = np.where(keep, a, label)
             thin = int(keep.sum())
+        return label, belief, {"sweeps": sweeps, "truncation": cap,
+                               "thin_structure_pixels": thin}
+
+    def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:
+        x = np.asarray(slices, dtype=np.float32)
+        q, k = x.shape
+        n1, n2 = grid_shape(ctx, q)
+        peak = x.max(axis=1).astype(np.float64)
+        z = self.evidence(x)
+        label, belief, found = self.labelling(x, z, (n1, n2))
         conf = _pseudo_marginal(belief, label)
         subbin = ctx.subbin if self.subbin is None else self.subbin
         index = refine_subbin(x, label) if subbin and k >= 3 else label.astype(np.float64)
@@ -238,9 +248,8 @@ class MRFDepth(DepthEstimator):
         conf[missing] = 0.0
         strength = x[np.arange(q), label].astype(np.float64)
         changed = float(np.mean(label != np.argmax(x, axis=1))) if q else 0.0
-        info = {"sweeps": sweeps, "changed_from_argmax": changed,
-                "smoothness": self.smoothness, "truncation": cap,
-                "iterations": self.iterations, "thin_structure_pixels": thin}
+        info = {**found, "changed_from_argmax": changed, "smoothness": self.smoothness,
+                "iterations": self.iterations}
         return DepthEstimate(depth, conf, strength, self._flag(depth, conf), info)
 
     def evidence(self, x: np.ndarray) -> np.ndarray:
