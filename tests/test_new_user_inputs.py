@@ -345,3 +345,14 @@ def test_config_assignment_is_checked_and_reaches_the_run():
     assert cfg.noise == 3.0 and cfg.solver == "fista"  # a refused assignment changes nothing
     with pytest.raises(AttributeError):
         cfg._private = 1
+
+
+def test_a_key_in_both_base_and_grid_is_said(tmp_path):
+    """A [base] value the grid replaces never runs: said in one warning (it was silent)."""
+    from spslidar.experiments.sweep.grid import load_sweep_config
+
+    cfg = tmp_path / "s.toml"
+    cfg.write_text("seed = 1\n[base]\nsize = 8\nnoise = 5\n[grid]\nnoise = [1, 2]\n")
+    with pytest.warns(UserWarning, match=r"noise is in both \[base\] and \[grid\]"):
+        spec = load_sweep_config(cfg)
+    assert [p["noise"] for p in spec.points()] == [1, 2]

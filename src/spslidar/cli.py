@@ -660,6 +660,11 @@ def main(argv: list[str] | None = None) -> int:
               f"{exc.filename or ''}".rstrip(": "), file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt as exc:
+        # a sweep's result generator, held by this exception's traceback, is closed when the
+        # exception goes; joblib then warns of the tasks it cancelled, after this command's
+        # one line and with its source line: the line below says it
+        warnings.filterwarnings("ignore", message=r".*tasks .*(cancelled|not used)\. You could",
+                                category=UserWarning)
         what = "terminated" if isinstance(exc, Terminated) else "interrupted"
         done = ("nothing was written" if args.command not in ("sweep", "reproduce") else
                 "the runs that finished are cached: run it again to resume")

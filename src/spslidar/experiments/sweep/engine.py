@@ -112,14 +112,7 @@ def _run_local(
     finally:
         close = getattr(outputs, "close", None)
         if close is not None:
-            import warnings
-
-            # joblib warns, on a generator closed early, of the tasks it cancelled: after a
-            # Ctrl-C this command says so itself (and the warning came after its one line,
-            # with its source line, when Python closed this generator on the way out)
-            with warnings.catch_warnings():
-                warnings.filterwarnings("ignore", message=r".*(cancelled|not used)\. You could")
-                close()
+            close()
 
 
 def _out_of_processes(exc: BaseException) -> bool:

@@ -368,6 +368,13 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
         raise ConfigError(
             f"{path}: base.seed gives every trial the same noise; set the top-level seed instead"
         )
+    both = sorted(set(base) & set(grid))
+    if both:  # the grid wins: said, since a [base] value that never runs looks like an error
+        import warnings
+
+        warnings.warn(f"{path}: {', '.join(both)} {'is' if len(both) == 1 else 'are'} in both "
+                      f"[base] and [grid]: the [grid] values are used and the [base] one "
+                      f"ignored", UserWarning, stacklevel=2)
     if not grid and trials == 1:
         raise ConfigError(f"{path}: [grid] is empty and trials = 1, so there is nothing to "
                           f"sweep: give a list of values for at least one key, or trials > 1 "
