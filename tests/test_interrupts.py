@@ -85,6 +85,8 @@ def test_late_ctrl_c_after_the_summary_is_one_line(tmp_path):
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
-    # 130 when the signal found the pool still stopping (what was measured here every time);
-    # 0 if it came after the command had finished
-    assert proc.returncode in (0, 130), err
+    # 130 when the signal found the pool still stopping (what was measured here with no
+    # delay); 0 if it came after the command had finished; -2 (a shell shows 130) if it came
+    # while Python was exiting, which then re-raises SIGINT on itself without a traceback
+    # (measured with a 0.1 s delay: 2 of 6)
+    assert proc.returncode in (0, 130, -signal.SIGINT), err
