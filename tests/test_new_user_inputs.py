@@ -215,6 +215,7 @@ _CHANGES = {
     "calibration empty": lambda a: {"calibration": {}},
     "a simulation key": lambda a: {"noise": 3},
     "size": lambda a: {"size": 16},
+    "a typo": lambda a: {"solvr": "fista"},
     "no path": lambda a: {"ptu": None},
 }
 
@@ -233,6 +234,7 @@ _CHANGES = {
     ("calibration empty", "calibration is incomplete or damaged (KeyError: 'irf_offsets')"),
     ("a simulation key", "takes processing keys only"),
     ("size", "takes processing keys only"),
+    ("a typo", "reconstruct_ptu(): unknown key 'solvr' (did you mean 'solver'?)"),
     ("no path", "must be the path of a PTU file"),
 ])
 def test_reconstruct_ptu_checks_what_a_script_passes(measured, name, match):

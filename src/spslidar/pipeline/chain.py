@@ -27,7 +27,7 @@ from ..patterns import build_patterns, n_patterns_for
 from ..qcr import MeanEliminated, plain_problem, qcr_problem
 from ..scenes import load_scene
 from .gate import AUTO_GATE_MIN_SLICES, occupied_lags
-from .measurement import PROCESSING_KEYS, Measurement, _resolve
+from .measurement import PROCESSING_KEYS, Measurement, _resolve, check_processing_keys
 from .plan import _check_pattern_floor, _plan, detector_options, preflight, timeline
 from .results import Result
 from .score import finish_result, resolved_config
@@ -172,22 +172,8 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     if not isinstance(meas, Measurement):
         raise ConfigError(f"reconstruct() takes a Measurement (from spslidar.measure()), got "
                           f"{type(meas).__name__}")
-    bad = set(k.replace("-", "_") for k in processing) - PROCESSING_KEYS
-    if bad:
-        from dataclasses import fields
-
-        from ..config import close_names
-
-        unknown = sorted(bad - {f.name for f in fields(Config)})
-        if unknown:
-            said = ", ".join(
-                f"{k!r}" + (f" (did you mean {' or '.join(map(repr, close))}?)"
-                            if (close := close_names(k, PROCESSING_KEYS)) else "")
-                for k in unknown)
-            raise ConfigError(f"reconstruct(): unknown key {said}; it takes "
-                              f"{', '.join(sorted(PROCESSING_KEYS))}")
-        raise ConfigError(f"reconstruct() cannot change {', '.join(sorted(bad))}: "
-                          f"simulate again with measure()")
+    check_processing_keys(processing, "reconstruct()",
+                          "reconstruct() cannot change {keys}: simulate again with measure()")
     cfg = meas.config.replace(**processing) if processing else meas.config
     timing = dict(meas.timing)
     warns = list(meas.warnings)

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..config import Config
+from ..errors import ConfigError
 from ..patterns import PatternOperator
 from .acquisition import Acquisition
 
@@ -18,6 +19,28 @@ PROCESSING_KEYS = frozenset({
     "auto_gate", "qcr", "qcr_form", "solver", "regulariser", "lam", "lam_scale", "iterations",
     "tol", "subbin", "nonneg", "depth", "max_memory", "max_time",
 })
+
+
+def check_processing_keys(processing: dict[str, Any], caller: str, fixed: str) -> None:
+    """Refuse keyword arguments of ``caller`` that are not :data:`PROCESSING_KEYS`, in one
+    line: an unknown key with its did-you-mean hint, a configuration key the caller cannot
+    change with ``fixed``, the caller's own sentence for it (``{keys}`` stands for them)."""
+    bad = {k.replace("-", "_") for k in processing} - PROCESSING_KEYS
+    if not bad:
+        return
+    from dataclasses import fields
+
+    from ..config import close_names
+
+    unknown = sorted(bad - {f.name for f in fields(Config)})
+    if unknown:
+        said = ", ".join(
+            f"{k!r}" + (f" (did you mean {' or '.join(map(repr, close))}?)"
+                        if (close := close_names(k, PROCESSING_KEYS)) else "")
+            for k in unknown)
+        raise ConfigError(f"{caller}: unknown key {said}; it takes "
+                          f"{', '.join(sorted(PROCESSING_KEYS))}")
+    raise ConfigError(fixed.format(keys=", ".join(sorted(bad))))
 
 
 @dataclass

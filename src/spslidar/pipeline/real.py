@@ -313,17 +313,16 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     from ..io import read_ptu_histograms
     from ..patterns import as_patterns
     from ..scenes import Scene
-    from .measurement import PROCESSING_KEYS
+    from .measurement import PROCESSING_KEYS, check_processing_keys
 
     check_ptu_path(ptu)
     patterns = check_patterns(patterns, True, "patterns")
     code = check_code(code, None, "code")
     range_gate = check_gate(range_gate)
-    bad = {k.replace("-", "_") for k in processing} - PROCESSING_KEYS
-    if bad:
-        raise ConfigError(f"reconstruct_ptu() takes processing keys only "
-                          f"({', '.join(sorted(PROCESSING_KEYS))}), not "
-                          f"{', '.join(sorted(bad))}: the acquisition sets the rest")
+    check_processing_keys(processing, "reconstruct_ptu()",
+                          f"reconstruct_ptu() takes processing keys only "
+                          f"({', '.join(sorted(PROCESSING_KEYS))}), not {{keys}}: "
+                          f"the acquisition sets the rest")
     m, q = patterns.shape
     n = int(round(np.sqrt(q)))
     check_real_inputs(bit_rate, range_gate, q, m, int(code.size))
