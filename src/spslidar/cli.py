@@ -630,6 +630,37 @@ def _stop_pool() -> None:
         executor.shutdown(wait=True)
 
 
+def _kill_pool() -> None:
+    """Kill the worker processes of joblib's pool, if any: after Ctrl-C or SIGTERM in a
+    process of its own. A signal that lands while :func:`_stop_pool` shuts the pool down
+    can leave its idle workers waiting on their task queue for a stop message that never
+    comes, and Python's exit then joins them forever (seen here: a late Ctrl-C left the
+    command and both workers hanging, in ``multiprocessing``'s exit hook)."""
+    import os
+    import signal
+
+    reusable = sys.modules.get("joblib.externals.loky.reusable_executor")
+    executor = getattr(reusable, "_executor", None)
+    for process in list((getattr(executor, "_processes", None) or {}).values()):
+        try:  # (loky's process handle has no kill())
+            os.kill(process.pid, signal.SIGKILL)
+        except (ProcessLookupError, TypeError):  # gone already, or never started
+            pass
+
+
+def _quiet_resource_tracker() -> None:
+    """Silence, through the environment it inherits, the warnings of loky's resource tracker
+    (a process the worker pool starts): after Ctrl-C or SIGTERM this command kills the
+    workers so that none outlives it, the tracker then cleans up the semaphores they held
+    and warns of each on the command's stderr (five lines after its one, seen on CI). Only
+    for a process of its own (``argv`` None), before any pool exists."""
+    import os
+
+    rule = "ignore::UserWarning:joblib.externals.loky.backend.resource_tracker"
+    old = os.environ.get("PYTHONWARNINGS")
+    os.environ["PYTHONWARNINGS"] = f"{old},{rule}" if old else rule
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 success, 2 bad input)."""
     parser = build_parser()
@@ -643,6 +674,8 @@ def main(argv: list[str] | None = None) -> int:
     from .errors import SpslidarError
 
     previous = None
+    if argv is None:
+        _quiet_resource_tracker()
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
@@ -665,6 +698,8 @@ def main(argv: list[str] | None = None) -> int:
         # one line and with its source line: the line below says it
         warnings.filterwarnings("ignore", message=r".*tasks .*(cancelled|not used)\. You could",
                                 category=UserWarning)
+        if argv is None:
+            _kill_pool()
         what = "terminated" if isinstance(exc, Terminated) else "interrupted"
         done = ("nothing was written" if args.command not in ("sweep", "reproduce") else
                 "the runs that finished are cached: run it again to resume")
