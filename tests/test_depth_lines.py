@@ -91,3 +91,68 @@ def test_degenerate_inputs():
     assert not thin_structures(a.ravel(), np.full(a.size, WALL), s.ravel(), 0.0, SHAPE).any()
     empty = np.zeros(0, int)
     assert thin_structures(empty, empty, empty.astype(float), NU, (0, 0)).size == 0
+
+
+def _extend(a, label, strength, **kw):
+    from spslidar.depth.lines import extend_lines
+
+    label_strength = np.full(a.size, 2.0 * NU)
+    return extend_lines(a.ravel(), label.ravel(), strength.ravel(), label_strength, NU, SHAPE,
+                        **kw).reshape(SHAPE)
+
+
+def _piecewise_pole():
+    # the room's lamp pole at m_n = 1: the MRF labels rows 4-9 and 14-19 of the pole and gives
+    # rows 10-12 the wall, whose argmax is the pole's slice at 1-1.5 noise maxima; three
+    # candidate pixels alone are too short for thin_structures
+    a, s = _blank()
+    label = np.full(SHAPE, WALL)
+    label[4:10, 10] = label[14:20, 10] = 120
+    a[4:20, 10] = 120
+    a[13, 10] = WALL
+    s[10:13, 10] = 1.2 * NU
+    return a, s, label
+
+
+def test_a_pole_the_mrf_keeps_in_pieces_is_continued():
+    a, s, label = _piecewise_pole()
+    assert not thin_structures(a.ravel(), label.ravel(), s.ravel(), NU, SHAPE).any()
+    keep = _extend(a, label, s)
+    assert keep[10:13, 10].all() and keep.sum() == 3
+
+
+def test_a_pole_s_bleed_beside_it_is_not_continued():
+    # the pixel beside the pole whose argmax is the pole's slice joins the group but lies a
+    # pixel off its axis (street, m_n = 1: kept, it cost 2.4 m)
+    a, s, label = _piecewise_pole()
+    a[7, 11] = 120
+    keep = _extend(a, label, s)
+    assert not keep[7, 11] and keep[10:13, 10].all()
+    assert _extend(a, label, s, axis=1.5)[7, 11]  # the axis test is what refuses it
+
+
+@pytest.mark.parametrize("case", ["no anchor", "other depth", "weak"])
+def test_what_continues_no_structure_is_left_alone(case):
+    a, s, label = _piecewise_pole()
+    if case == "no anchor":  # the MRF holds no one-pixel structure
+        label[:] = WALL
+    elif case == "other depth":  # the candidates 30 slices off the pole's depth
+        a[10:13, 10] = 90
+    else:  # below the floor
+        s[10:13, 10] = 0.7 * NU
+    assert not _extend(a, label, s).any()
+
+
+def test_one_pixel_wide():
+    from spslidar.depth.lines import one_pixel_wide
+
+    label = np.full(SHAPE, WALL)
+    label[4:20, 10] = 120  # a pole: one pixel wide
+    label[4:20, 20:23] = 120  # a panel three pixels wide: not
+    label[25, 3:9] = 150  # a wire along a row
+    thin = one_pixel_wide(label.ravel(), SHAPE).reshape(SHAPE)
+    assert thin[4:20, 10].all() and thin[25, 3:9].all()
+    # a rectangle's corners are one pixel wide along a diagonal; nothing else of the panel is
+    corners = [(4, 20), (4, 22), (19, 20), (19, 22)]
+    assert all(thin[c] for c in corners) and thin[:, 20:23].sum() == 4
+    assert thin.sum() == 16 + 6 + 4

@@ -160,8 +160,9 @@ class MRFDepth(DepthEstimator):
         Refine the chosen slice by the local centroid (``None``: follow ``ctx.subbin``).
     lines : bool
         Keep the argmax of pixels that line up in front of the MRF's surface (a pole, a wire,
-        a leg the smoothness would give the wall behind: :mod:`spslidar.depth.lines`);
-        ``info['thin_structure_pixels']`` counts them. Default True.
+        a leg the smoothness would give the wall behind), then of those that continue a
+        one-pixel structure the labelling holds in part (:mod:`spslidar.depth.lines`);
+        ``info['thin_structure_pixels']`` counts both. Default True.
     low_confidence : float
         Confidence below which a pixel is flagged.
 
@@ -222,13 +223,16 @@ class MRFDepth(DepthEstimator):
         label = np.argmin(belief, axis=1)
         thin = 0
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
-            from .lines import thin_structures
+            from .lines import extend_lines, thin_structures
 
             a = np.argmax(x, axis=1)
-            keep = thin_structures(a, label, z[np.arange(q), a],
-                                   float(np.median(noise_maxima(z))), shape)
+            za = z[np.arange(q), a]
+            nu = float(np.median(noise_maxima(z)))
+            keep = thin_structures(a, label, za, nu, shape)
             label = np.where(keep, a, label)
-            thin = int(keep.sum())
+            more = extend_lines(a, label, za, z[np.arange(q), label], nu, shape)
+            label = np.where(more, a, label)
+            thin = int(keep.sum() + more.sum())
         return label, belief, {"sweeps": sweeps, "truncation": cap,
                                "thin_structure_pixels": thin}
 
