@@ -156,3 +156,68 @@ def test_one_pixel_wide():
     corners = [(4, 20), (4, 22), (19, 20), (19, 22)]
     assert all(thin[c] for c in corners) and thin[:, 20:23].sum() == 4
     assert thin.sum() == 16 + 6 + 4
+
+
+def _evidence_cube(label, line_rows, col, line_slice, level):
+    """Evidence (Q, K): 2 nu at each pixel's label, ``level`` (per row, in nu) at the line's
+    slice along ``col`` for ``line_rows``, zero elsewhere."""
+    k = WALL + 10
+    z = np.zeros((SHAPE[0] * SHAPE[1], k))
+    z[np.arange(z.shape[0]), label.ravel()] = 2.0 * NU
+    for r, lv in zip(line_rows, level, strict=True):
+        z[r * SHAPE[1] + col, line_slice] = lv * NU
+    return z
+
+
+def test_a_pole_is_followed_beyond_its_labelled_end():
+    # the MRF holds rows 10-19 of a pole at slice 120; rows 2-9 are labelled wall, with the
+    # pole's evidence there at 0.7-1.3 noise maxima (the room's pole at m_n = 5, 50 %); above
+    # row 2 nothing. The walk takes a pixel while the mean over the pixel before it, it and the
+    # next holds, so it stops one pixel short of the pole's top (row 2: a window reaching
+    # past the end)
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    label[10:20, 10] = 120
+    rows = np.arange(2, 10)
+    z = _evidence_cube(label, rows, 10, 120, [0.9, 1.0, 1.0, 0.8, 1.3, 0.8, 1.1, 1.2])
+    z[np.arange(10, 20) * SHAPE[1] + 10, 120] = 2.0 * NU
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert added == 7 and (new[3:20, 10] == 120).all()
+    assert (new[:3, 10] == WALL).all() and (new[:, 11] == WALL).all()
+
+
+def test_a_strong_pole_s_bleed_beyond_its_end_is_not_taken():
+    # procedural seed 17 (m_n = 5, 25 %): a pole at 8-10 noise maxima ends at row 3; above
+    # it the reconstruction's bleed at the pole's slice is 1.6, 1.0, 0.7: enough for the
+    # window alone, not a fifth of the pole's own evidence (kept, it cost 1.1 m on one pixel)
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    label[3:12, 10] = 120
+    z = _evidence_cube(label, np.arange(0, 3), 10, 120, [0.7, 1.0, 1.6])
+    z[np.arange(3, 12) * SHAPE[1] + 10, 120] = 9.0 * NU
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    assert added == 0 and (new == label.ravel()).all()
+    assert track_lines(z, label.ravel(), NU, SHAPE, relative=0.0)[1] == 2
+
+
+@pytest.mark.parametrize("case", ["weak", "one strong pixel", "in front", "short"])
+def test_the_walk_stops_where_the_evidence_does(case):
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    label[10:20, 10] = 120
+    level = [1.0] * 6
+    if case == "weak":  # below 0.5 noise maxima
+        level = [0.4] * 6
+    elif case == "one strong pixel":  # a 2-nu spike at the line's slice, a pixel past a gap
+        level = [0, 0, 0, 0, 2.0, 0]
+    elif case == "in front":  # the next pixels hold something nearer than the pole
+        label[4:10, 10] = 100
+    else:  # three labelled pixels are no structure
+        label[13:20, 10] = WALL
+    z = _evidence_cube(label, np.arange(4, 10), 10, 120, level)
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    assert added == 0 and (new == label.ravel()).all()

@@ -161,8 +161,9 @@ class MRFDepth(DepthEstimator):
     lines : bool
         Keep the argmax of pixels that line up in front of the MRF's surface (a pole, a wire,
         a leg the smoothness would give the wall behind), then of those that continue a
-        one-pixel structure the labelling holds in part (:mod:`spslidar.depth.lines`);
-        ``info['thin_structure_pixels']`` counts both. Default True.
+        one-pixel structure the labelling holds in part, then follow each such structure
+        beyond its ends where the evidence at its slice holds (:mod:`spslidar.depth.lines`);
+        ``info['thin_structure_pixels']`` counts the pixels relabelled. Default True.
     low_confidence : float
         Confidence below which a pixel is flagged.
 
@@ -223,7 +224,7 @@ class MRFDepth(DepthEstimator):
         label = np.argmin(belief, axis=1)
         thin = 0
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
-            from .lines import extend_lines, thin_structures
+            from .lines import extend_lines, thin_structures, track_lines
 
             a = np.argmax(x, axis=1)
             za = z[np.arange(q), a]
@@ -231,8 +232,8 @@ class MRFDepth(DepthEstimator):
             keep = thin_structures(a, label, za, nu, shape)
             label = np.where(keep, a, label)
             more = extend_lines(a, label, za, z[np.arange(q), label], nu, shape)
-            label = np.where(more, a, label)
-            thin = int(keep.sum() + more.sum())
+            label, tracked = track_lines(z, np.where(more, a, label), nu, shape)
+            thin = int(keep.sum() + more.sum()) + tracked
         return label, belief, {"sweeps": sweeps, "truncation": cap,
                                "thin_structure_pixels": thin}
 
