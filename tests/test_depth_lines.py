@@ -203,7 +203,7 @@ def test_a_strong_pole_s_bleed_beyond_its_end_is_not_taken():
     assert track_lines(z, label.ravel(), NU, SHAPE, relative=0.0)[1] == 2
 
 
-@pytest.mark.parametrize("case", ["weak", "one strong pixel", "in front", "short"])
+@pytest.mark.parametrize("case", ["weak", "one strong pixel", "in front", "short", "blob"])
 def test_the_walk_stops_where_the_evidence_does(case):
     from spslidar.depth.lines import track_lines
 
@@ -216,8 +216,25 @@ def test_the_walk_stops_where_the_evidence_does(case):
         level = [0, 0, 0, 0, 2.0, 0]
     elif case == "in front":  # the next pixels hold something nearer than the pole
         label[4:10, 10] = 100
-    else:  # three labelled pixels are no structure
+    elif case == "short":  # three labelled pixels are no structure
         label[13:20, 10] = WALL
     z = _evidence_cube(label, np.arange(4, 10), 10, 120, level)
+    if case == "blob":  # the reconstruction's bleed over a patch, as high beside the line
+        for col in (9, 11):  # (procedural seed 117, m_n = 1, 50 %: it cost 2.5 m on a pixel)
+            z[np.arange(4, 10) * SHAPE[1] + col, 120] = 1.0 * NU
     new, added = track_lines(z, label.ravel(), NU, SHAPE)
     assert added == 0 and (new == label.ravel()).all()
+
+
+def test_one_wrong_argmax_does_not_refuse_a_line():
+    # procedural seed 109 (m_n = 1, 50 %): a dark pole argmax finds on 13 of 20 rows, one of
+    # them 13 slices off; the least-squares line fails the 2-slice test, the Theil-Sen line's
+    # inliers (12 of 13) are kept, the stray pixel is not
+    a, s = _blank()
+    rows = np.array([2, 4, 5, 6, 8, 9, 10, 11, 12, 14, 15, 17, 18])
+    a[rows, 10] = 72
+    a[11, 10] = 85
+    s[rows, 10] = 1.3 * NU
+    keep = _keep(a, s)
+    assert keep[rows[rows != 11], 10].all() and not keep[11, 10] and keep.sum() == 12
+    assert not _keep(a, s, robust=None).any()
