@@ -261,7 +261,7 @@ API_SECTIONS: list[tuple[str, str, str, list[str]]] = [
      ["spslidar.experiments", "spslidar.experiments.*"]),
     ("cli", "Command line",
      "The ``spslidar`` command; its options are listed in full in the :doc:`../cli`.",
-     ["spslidar.cli"]),
+     ["spslidar.cli", "spslidar.interrupts"]),
 ]
 
 #: Extra reST at the top of a section page (after its introduction).

@@ -90,3 +90,82 @@ def test_late_ctrl_c_after_the_summary_is_one_line(tmp_path):
     # while Python was exiting, which then re-raises SIGINT on itself without a traceback
     # (measured with a 0.1 s delay: 2 of 6)
     assert proc.returncode in (0, 130, -signal.SIGINT), err
+
+
+# a command whose clean-up hangs after the signal (what a signal landing in the wrong place in
+# loky's shutdown did): the watchdog must end it with the signal's status and one line
+HANGING = """
+import sys, time
+from spslidar.interrupts import Stopper
+stopper = Stopper(lambda t: "cmd: " + ("terminated" if t else "interrupted"), grace=1.0)
+stopper.install()
+try:  # (a signal that lands inside print() must find the try too)
+    print("ready", flush=True)
+    time.sleep(60)
+except KeyboardInterrupt:
+    print("cleaning", flush=True)
+    time.sleep(60)  # a clean-up that never ends
+"""
+
+
+@pytest.mark.parametrize("sig,code,word", [(signal.SIGTERM, 143, "terminated"),
+                                           (signal.SIGINT, 130, "interrupted")])
+def test_a_hanging_clean_up_is_ended_by_the_watchdog(sig, code, word):
+    proc = subprocess.Popen([sys.executable, "-c", HANGING], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    assert proc.stdout.readline().strip() == "ready"
+    t0 = time.monotonic()
+    proc.send_signal(sig)
+    assert proc.stdout.readline().strip() == "cleaning"
+    proc.send_signal(sig)  # a second signal does not interrupt the clean-up
+    out, err = proc.communicate(timeout=30)
+    # grace 1 s: well before the clean-up's 60 s (the bound leaves a loaded machine 20 s)
+    assert time.monotonic() - t0 < 21
+    assert proc.returncode == code, err
+    assert err.strip() == f"cmd: {word}", err
+
+
+def test_a_command_that_said_its_line_is_not_said_twice():
+    """The watchdog ends a process whose exit hangs after the command said its line: still
+    one line."""
+    script = HANGING.replace('print("cleaning", flush=True)',
+                             'print("cleaning", flush=True); stopper.say(False)')
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    assert proc.stdout.readline().strip() == "ready"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130 and err.strip() == "cmd: interrupted", err
+
+
+def test_handlers_are_put_back_without_a_signal():
+    from spslidar.interrupts import Stopper
+
+    before = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
+    stopper = Stopper(lambda t: "x")
+    stopper.install()
+    assert signal.getsignal(signal.SIGINT) == stopper._handle
+    stopper.restore()
+    assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
+    assert stopper.timer is None and not stopper.said
+
+
+def test_a_signal_while_exit_hooks_hang_arms_the_watchdog_without_a_traceback():
+    """After the command returned (``exiting``), a Ctrl-C during an exit hook that hangs (a
+    pool's thread joined forever) raises nothing there and the watchdog ends the process."""
+    script = """
+import atexit, sys, time
+from spslidar.interrupts import Stopper
+stopper = Stopper(lambda t: "cmd: interrupted", grace=1.0)
+stopper.install()
+atexit.register(time.sleep, 60)
+stopper.exiting = True
+print("exiting", flush=True)
+"""
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    assert proc.stdout.readline().strip() == "exiting"
+    time.sleep(0.3)  # into the exit hook
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130 and err.strip() == "cmd: interrupted", err

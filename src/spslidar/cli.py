@@ -13,19 +13,6 @@ import warnings
 from pathlib import Path
 
 EXIT_BAD_INPUT = 2
-#: exit status after Ctrl-C (128 + SIGINT), as a shell reports it
-EXIT_INTERRUPTED = 130
-#: exit status after SIGTERM (128 + SIGTERM)
-EXIT_TERMINATED = 143
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised in the main thread so that the same clean-up as Ctrl-C runs (temporary
-    files removed, worker processes stopped)."""
-
-
-def _on_sigterm(signum, frame):  # noqa: ARG001 - the signal handler's signature
-    raise Terminated()
 
 
 class _Parser(argparse.ArgumentParser):
@@ -619,48 +606,6 @@ def _one_line_warning(command, message, category, filename, lineno, file=None, l
           f"{Path(filename).name}:{lineno})", file=sys.stderr if file is None else file)
 
 
-def _stop_pool() -> None:
-    """Stop joblib's worker pool while a Ctrl-C is still this command's to report: left to
-    Python's exit hook, which joins loky's threads after ``main`` returned, a Ctrl-C then
-    printed a ``KeyboardInterrupt`` traceback and the command exited 0. Only for a process of
-    its own (``argv`` None): in a Python session the pool is kept for the next call."""
-    reusable = sys.modules.get("joblib.externals.loky.reusable_executor")
-    executor = getattr(reusable, "_executor", None)  # None: no pool was started
-    if executor is not None:
-        executor.shutdown(wait=True)
-
-
-def _kill_pool() -> None:
-    """Kill the worker processes of joblib's pool, if any: after Ctrl-C or SIGTERM in a
-    process of its own. A signal that lands while :func:`_stop_pool` shuts the pool down
-    can leave its idle workers waiting on their task queue for a stop message that never
-    comes, and Python's exit then joins them forever (seen here: a late Ctrl-C left the
-    command and both workers hanging, in ``multiprocessing``'s exit hook)."""
-    import os
-    import signal
-
-    reusable = sys.modules.get("joblib.externals.loky.reusable_executor")
-    executor = getattr(reusable, "_executor", None)
-    for process in list((getattr(executor, "_processes", None) or {}).values()):
-        try:  # (loky's process handle has no kill())
-            os.kill(process.pid, signal.SIGKILL)
-        except (ProcessLookupError, TypeError):  # gone already, or never started
-            pass
-
-
-def _quiet_resource_tracker() -> None:
-    """Silence, through the environment it inherits, the warnings of loky's resource tracker
-    (a process the worker pool starts): after Ctrl-C or SIGTERM this command kills the
-    workers so that none outlives it, the tracker then cleans up the semaphores they held
-    and warns of each on the command's stderr (five lines after its one, seen on CI). Only
-    for a process of its own (``argv`` None), before any pool exists."""
-    import os
-
-    rule = "ignore::UserWarning:joblib.externals.loky.backend.resource_tracker"
-    old = os.environ.get("PYTHONWARNINGS")
-    os.environ["PYTHONWARNINGS"] = f"{old},{rule}" if old else rule
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 success, 2 bad input)."""
     parser = build_parser()
@@ -672,18 +617,34 @@ def main(argv: list[str] | None = None) -> int:
     import threading
 
     from .errors import SpslidarError
+    from .interrupts import (
+        EXIT_INTERRUPTED,
+        EXIT_TERMINATED,
+        Stopper,
+        Terminated,
+        kill_pool,
+        quiet_resource_tracker,
+        stop_pool,
+    )
 
-    previous = None
-    if argv is None:
-        _quiet_resource_tracker()
-    if threading.current_thread() is threading.main_thread():
+    def line(terminated: bool) -> str:
+        done = ("nothing was written" if args.command not in ("sweep", "reproduce") else
+                "the runs that finished are cached: run it again to resume")
+        return f"spslidar {args.command}: {'terminated' if terminated else 'interrupted'}; {done}"
+
+    own = argv is None  # a process of its own, not a call inside a Python session
+    stopper, previous = Stopper(line), None
+    if own:
+        quiet_resource_tracker()
+        stopper.install()
+    elif threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         with warnings.catch_warnings():  # a library's warning: one line, not its source line
             warnings.showwarning = functools.partial(_one_line_warning, args.command)
             status = COMMANDS[args.command](args)
-        if argv is None:
-            _stop_pool()
+        if own:
+            stop_pool()
         return status
     except SpslidarError as exc:
         print(f"spslidar {args.command}: error: {exc}", file=sys.stderr)
@@ -698,16 +659,22 @@ def main(argv: list[str] | None = None) -> int:
         # one line and with its source line: the line below says it
         warnings.filterwarnings("ignore", message=r".*tasks .*(cancelled|not used)\. You could",
                                 category=UserWarning)
-        if argv is None:
-            _kill_pool()
-        what = "terminated" if isinstance(exc, Terminated) else "interrupted"
-        done = ("nothing was written" if args.command not in ("sweep", "reproduce") else
-                "the runs that finished are cached: run it again to resume")
-        print(f"spslidar {args.command}: {what}; {done}", file=sys.stderr)
-        return EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED
+        terminated = isinstance(exc, Terminated)
+        if own:
+            kill_pool()
+        stopper.say(terminated)
+        return EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
     finally:
+        stopper.exiting = True  # (own: the handlers stay until the process ends)
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _on_sigterm(signum, frame):  # noqa: ARG001 - the signal handler's signature
+    """SIGTERM inside a Python session (``main([...])``): the clean-up of Ctrl-C, no watchdog."""
+    from .interrupts import Terminated
+
+    raise Terminated()
 
 
 if __name__ == "__main__":  # pragma: no cover
