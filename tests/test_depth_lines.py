@@ -55,6 +55,24 @@ def test_a_wire_found_on_every_other_pixel_is_kept_by_the_two_pixel_pass():
     assert not _keep(a, s, passes=PASSES[:2]).any()
 
 
+def test_a_shallow_wire_found_on_one_pixel_in_three_is_kept_by_the_three_pixel_pass():
+    # held-out procedural seed 101 (m_n = 10, 50 %): a wire 1 row down every 5-6 columns,
+    # its depth 4 slices nearer a column; argmax finds 14 of its 28 pixels, some 3 apart
+    from spslidar.depth.lines import PASSES
+
+    a, s = _blank()
+    cols = np.array([10, 13, 15, 17, 18, 20, 23, 26, 28, 29])
+    rows = 20 - (cols - 10) // 6
+    a[rows, cols] = 160 - 4 * (cols - 10)
+    s[rows, cols] = 1.5 * NU
+    keep = _keep(a, s)
+    assert keep[rows, cols].all() and keep.sum() == cols.size
+    assert not _keep(a, s, passes=PASSES[:3]).any()
+    # the same pixels at depths that do not line up: nothing
+    a[rows, cols] = 160 - 4 * (cols - 10) + 9 * (np.arange(cols.size) % 2)
+    assert not _keep(a, s).any()
+
+
 @pytest.mark.parametrize("case", ["blob", "behind", "weak", "short", "curved"])
 def test_what_is_not_a_line_is_left_to_the_mrf(case):
     a, s = _blank()
@@ -188,6 +206,20 @@ def test_a_pole_is_followed_beyond_its_labelled_end():
     assert (new[:3, 10] == WALL).all() and (new[:, 11] == WALL).all()
 
 
+def test_a_table_leg_labelled_on_three_rows_is_followed():
+    # the room's table legs at m_n = 1, 25 %: the MRF holds 3 rows of a leg, the rows below
+    # it hold the leg's evidence at 1 noise maximum
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    label[20:23, 10] = 120
+    z = _evidence_cube(label, np.arange(23, 28), 10, 120, [1.0] * 5)
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert added == 4 and (new[20:27, 10] == 120).all() and (new[27:, 10] == WALL).all()
+    assert track_lines(z, label.ravel(), NU, SHAPE, min_pixels=4)[1] == 0
+
+
 def test_a_strong_pole_s_bleed_beyond_its_end_is_not_taken():
     # procedural seed 17 (m_n = 5, 25 %): a pole at 8-10 noise maxima ends at row 3; above
     # it the reconstruction's bleed at the pole's slice is 1.6, 1.0, 0.7: enough for the
@@ -216,8 +248,8 @@ def test_the_walk_stops_where_the_evidence_does(case):
         level = [0, 0, 0, 0, 2.0, 0]
     elif case == "in front":  # the next pixels hold something nearer than the pole
         label[4:10, 10] = 100
-    elif case == "short":  # three labelled pixels are no structure
-        label[13:20, 10] = WALL
+    elif case == "short":  # two labelled pixels are no structure
+        label[12:20, 10] = WALL
     z = _evidence_cube(label, np.arange(4, 10), 10, 120, level)
     if case == "blob":  # the reconstruction's bleed over a patch, as high beside the line
         for col in (9, 11):  # (procedural seed 117, m_n = 1, 50 %: it cost 2.5 m on a pixel)
