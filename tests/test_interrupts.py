@@ -19,6 +19,23 @@ SWEEP = ("seed = 1\n[base]\nsize = 32\ncode_length = 4095\n[grid]\n"
          f"noise = {list(range(1, 401))}\n")
 
 
+def _communicate(proc, timeout=60):
+    """``proc.communicate`` that, when the command hangs, kills its whole session (the
+    command, its workers, loky's resource tracker) before failing: a hung run must not leave
+    orphans behind on the machine (seen: two idle workers an hour after a failed run)."""
+    import os
+
+    try:
+        return proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)  # start_new_session: its own group
+        except ProcessLookupError:
+            pass
+        proc.communicate()
+        pytest.fail(f"the command was still running {timeout} s after the signal")
+
+
 def _start(tmp_path):
     cfg = tmp_path / "s.toml"
     cfg.write_text(SWEEP)
@@ -55,7 +72,7 @@ def test_signal_leaves_no_worker_and_one_line(tmp_path, sig, code, word):
     # loky's resource tracker included, whose own clean-up warnings (seen on a loaded CI
     # machine) are loky's, not this command's
     proc.send_signal(sig)
-    _, err = proc.communicate(timeout=60)
+    _, err = _communicate(proc)
     gone, alive = psutil.wait_procs(children, timeout=10)
     for p in alive:
         p.kill()
@@ -83,7 +100,7 @@ def test_late_ctrl_c_after_the_summary_is_one_line(tmp_path):
     first = proc.stderr.readline()
     assert first.startswith("sweep: 4 runs, 4 ok"), first
     proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
+    _, err = _communicate(proc)
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
     # 130 when the signal found the pool still stopping (what was measured here with no
     # delay); 0 if it came after the command had finished; -2 (a shell shows 130) if it came
