@@ -186,3 +186,25 @@ print("exiting", flush=True)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 130 and err.strip() == "cmd: interrupted", err
+
+
+def test_sigterm_inside_a_python_session_is_the_ctrl_c_clean_up_without_a_watchdog(
+        monkeypatch, capsys, tmp_path):
+    """``main([...])`` in a session: SIGTERM raises the same clean-up as Ctrl-C (exit 143, one
+    line), arms no watchdog, and the session's own SIGTERM handler is back afterwards."""
+    import os
+
+    from spslidar import cli
+
+    def terminated_run(args):
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)  # the handler raises before this ends
+        return 0
+
+    monkeypatch.setitem(cli.COMMANDS, "run", terminated_run)
+    before = signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)
+    t0 = time.monotonic()
+    assert cli.main(["run", "--out", str(tmp_path / "o")]) == 143
+    assert time.monotonic() - t0 < 4
+    assert capsys.readouterr().err.strip() == "spslidar run: terminated; nothing was written"
+    assert (signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)) == before

@@ -614,12 +614,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return EXIT_BAD_INPUT
     import signal
-    import threading
 
     from .errors import SpslidarError
     from .interrupts import (
         EXIT_INTERRUPTED,
         EXIT_TERMINATED,
+        STOP_GRACE_S,
         Stopper,
         Terminated,
         kill_pool,
@@ -633,12 +633,12 @@ def main(argv: list[str] | None = None) -> int:
         return f"spslidar {args.command}: {'terminated' if terminated else 'interrupted'}; {done}"
 
     own = argv is None  # a process of its own, not a call inside a Python session
-    stopper, previous = Stopper(line), None
+    stopper = Stopper(line, STOP_GRACE_S if own else None)
     if own:
         quiet_resource_tracker()
         stopper.install()
-    elif threading.current_thread() is threading.main_thread():
-        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    else:  # SIGTERM in a session: the clean-up of Ctrl-C, no watchdog
+        stopper.install((signal.SIGTERM,))
     try:
         with warnings.catch_warnings():  # a library's warning: one line, not its source line
             warnings.showwarning = functools.partial(_one_line_warning, args.command)
@@ -665,16 +665,10 @@ def main(argv: list[str] | None = None) -> int:
         stopper.say(terminated)
         return EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
     finally:
-        stopper.exiting = True  # (own: the handlers stay until the process ends)
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
-
-
-def _on_sigterm(signum, frame):  # noqa: ARG001 - the signal handler's signature
-    """SIGTERM inside a Python session (``main([...])``): the clean-up of Ctrl-C, no watchdog."""
-    from .interrupts import Terminated
-
-    raise Terminated()
+        if own:  # the handlers stay until the process ends
+            stopper.exiting = True
+        else:
+            stopper.restore()
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,8 +1,8 @@
 """Ctrl-C and SIGTERM for the command line: one line, exit 130 / 143, no process left behind,
 and a bounded time to get there.
 
-A command run as a process of its own (``spslidar ...``, ``main(argv=None)``) installs
-:func:`install` for both signals. The first signal raises :class:`KeyboardInterrupt` (or
+A command run as a process of its own (``spslidar ...``, ``main(argv=None)``) installs a
+:class:`Stopper` for both signals. The first signal raises :class:`KeyboardInterrupt` (or
 :class:`Terminated`) in the main thread, so the same clean-up runs as for any exception
 (temporary files removed, the worker pool stopped), and arms a watchdog: if the command has not
 exited :data:`STOP_GRACE_S` seconds later, the watchdog kills the pool's workers, says the
@@ -16,8 +16,9 @@ threads in Python's exit hooks), and a signal that lands in the wrong place ther
 the command waiting forever on a worker or a thread (seen twice: once in ``multiprocessing``'s
 exit hook after a late Ctrl-C, once on a loaded 2-core CI machine, where ``sweep --jobs 2``
 was still running 60 s after its Ctrl-C). No library offers a time-bounded shutdown for this,
-hence the few lines here. Inside a Python session (``main([...])``) nothing is installed: a
-session is never ended by :func:`os._exit`.
+hence the few lines here. Inside a Python session (``main([...])``) the stopper has no
+watchdog (``grace=None``: a session is never ended by :func:`os._exit`), handles SIGTERM
+alone, and its previous handler is put back when the command returns.
 """
 
 from __future__ import annotations
@@ -47,11 +48,12 @@ class Stopper:
     ----------
     line : callable
         ``line(terminated) -> str``: the command's one line for the signal.
-    grace : float
-        Seconds before the watchdog ends the process.
+    grace : float or None
+        Seconds before the watchdog ends the process; None: no watchdog (every signal
+        raises, nothing ends the process).
     """
 
-    def __init__(self, line, grace: float = STOP_GRACE_S):
+    def __init__(self, line, grace: float | None = STOP_GRACE_S):
         self.line = line
         self.grace = grace
         self.said = False
@@ -61,11 +63,11 @@ class Stopper:
         self.exiting = False
         self._previous: dict[int, object] = {}
 
-    def install(self) -> None:
-        """Handle SIGINT and SIGTERM (main thread only; a no-op elsewhere)."""
+    def install(self, signals=(signal.SIGINT, signal.SIGTERM)) -> None:
+        """Handle ``signals`` (main thread only; a no-op elsewhere)."""
         if threading.current_thread() is not threading.main_thread():
             return
-        for sig in (signal.SIGINT, signal.SIGTERM):
+        for sig in signals:
             self._previous[sig] = signal.signal(sig, self._handle)
 
     def restore(self) -> None:
@@ -84,6 +86,8 @@ class Stopper:
         if self.timer is not None:  # already stopping: let the clean-up finish
             return
         terminated = signum == signal.SIGTERM
+        if self.grace is None:
+            raise Terminated() if terminated else KeyboardInterrupt()
         self.timer = threading.Timer(self.grace, self._fire, (terminated,))
         self.timer.daemon = True
         self.timer.start()
