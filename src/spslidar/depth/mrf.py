@@ -164,6 +164,10 @@ class MRFDepth(DepthEstimator):
         one-pixel structure the labelling holds in part, then follow each such structure
         beyond its ends where the evidence at its slice holds (:mod:`spslidar.depth.lines`);
         ``info['thin_structure_pixels']`` counts the pixels relabelled. Default True.
+    halo : bool
+        Discount, in the MRF's data cost only, a pixel's evidence in a slice where it reads as
+        the halo the per-slice TV leaves around a brighter neighbour's region
+        (:func:`spslidar.depth.halo.halo_discount`). Default True.
     low_confidence : float
         Confidence below which a pixel is flagged.
 
@@ -199,7 +203,7 @@ class MRFDepth(DepthEstimator):
     def __init__(self, low_confidence: float | None = None, *,
                  smoothness: float = SMOOTHNESS, truncation: float | None = None,
                  iterations: int = ITERATIONS,
-                 subbin: bool | None = None, lines: bool = True):
+                 subbin: bool | None = None, lines: bool = True, halo: bool = True):
         super().__init__(low_confidence)
         if smoothness < 0 or (truncation is not None and truncation < 0):
             raise ValueError("smoothness and truncation must be >= 0")
@@ -210,6 +214,7 @@ class MRFDepth(DepthEstimator):
         self.iterations = int(iterations)
         self.subbin = subbin
         self.lines = bool(lines)
+        self.halo = bool(halo)
 
     def labelling(self, x: np.ndarray, z: np.ndarray, shape: tuple[int, int]
                   ) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -218,7 +223,12 @@ class MRFDepth(DepthEstimator):
         estimators built on this MRF (``guarded``, ``evidence``)."""
         q, k = x.shape
         cap = self.truncation if self.truncation is not None else auto_truncation(z)
-        cost = np.ascontiguousarray(-z.T).reshape(k, *shape)  # labels leading
+        cost = np.ascontiguousarray(z.T).reshape(k, *shape)  # labels leading
+        if self.halo:  # the per-slice TV's halo around bright regions (halo.py)
+            from .halo import halo_discount
+
+            cost = halo_discount(cost)
+        cost = np.negative(cost)  # a new array: z.T may be a view of z
         belief, sweeps = min_sum_bp(cost, self.smoothness, cap, self.iterations)
         belief = belief.reshape(k, q).T
         label = np.argmin(belief, axis=1)

@@ -1,0 +1,69 @@
+"""The per-slice TV's halo discounted in the MRF's data cost (spslidar.depth.halo)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from spslidar.depth import DepthContext
+from spslidar.depth.halo import HALO_POWER, HALO_RATIO, halo_discount
+from spslidar.depth.mrf import MRFDepth
+
+
+def test_halo_pixel_discounted_plateau_and_interior_unchanged():
+    """A value beside a bright region that falls off again beyond it is lowered by
+    ``(z / (ratio m)) ** power``; a region's interior, its edge at its own level and an
+    isolated spike are not."""
+    z = np.zeros((1, 5, 7), np.float32)
+    z[0, :, :3] = 20.0  # a bright region, columns 0-2
+    z[0, :, 3] = 4.0  # its halo, column 3
+    z[0, :, 4] = 1.0  # falling off beyond
+    z[0, 2, 6] = 6.0  # an isolated spike
+    out = halo_discount(z)
+    expect = 4.0 * (4.0 / (HALO_RATIO * 20.0)) ** HALO_POWER
+    np.testing.assert_allclose(out[0, :, 3], expect, rtol=1e-6)
+    np.testing.assert_array_equal(out[0, :, :3], z[0, :, :3])  # interior and own edge
+    assert out[0, 2, 6] == 6.0  # a local maximum
+    assert out.dtype == z.dtype and out is not z
+    assert z[0, 0, 3] == 4.0  # the input untouched
+
+
+def test_dim_pixel_on_a_plateau_of_its_own_surface_kept():
+    """A dim pixel between a bright pixel and more of its own surface (no fall-off on the
+    opposite side) is a texture, not a halo: unchanged."""
+    z = np.full((1, 5, 5), 5.0, np.float32)
+    z[0, 1, 2] = 60.0  # a bright pixel above (2, 2)
+    out = halo_discount(z)
+    assert out[0, 2, 2] == 5.0
+
+
+def test_halo_discount_bad_options():
+    z = np.ones((2, 3, 3))
+    for kw in ({"ratio": 0.0}, {"ratio": 1.5}, {"power": -1.0}):
+        with pytest.raises(ValueError, match="halo ratio"):
+            halo_discount(z, **kw)
+    with pytest.raises(ValueError, match="shape"):
+        halo_discount(np.ones((3, 3)))
+    np.testing.assert_array_equal(halo_discount(z * 3.0, power=0.0), z * 3.0)
+
+
+def test_room_shelf_edge_kept_end_to_end():
+    """The case the discount is for (its docstring): the built-in room at 64x64, m_n = 5,
+    50 % patterns, seed 0, where the wall's halo took the dark shelf's edge column. Measured
+    with today's releases: RMSE 0.054 m without the discount, 0.039 m with it (argmax
+    0.28 m); the bound leaves room for other BLAS and SciPy builds to move a pixel or two."""
+    import spslidar
+
+    meas = spslidar.measure(scene="room", size=64, noise=5, compression=0.5, seed=0)
+    r = spslidar.reconstruct(meas)
+    ctx = DepthContext(np.asarray(r.lags), meas.acq.bin_width, r.config.pulse_width,
+                       (64, 64), False)
+    truth, valid = r.scene.depth, r.scene.valid
+    err = {}
+    for halo in (False, True):
+        d = MRFDepth(halo=halo).estimate(r.slices, ctx).depth.reshape(truth.shape)
+        have = valid & np.isfinite(d)
+        err[halo] = np.abs(d[have] - truth[have])
+    rmse = {h: float(np.sqrt(np.mean(e ** 2))) for h, e in err.items()}
+    assert rmse[True] < 0.85 * rmse[False]
+    assert (err[True] > 0.5).sum() < (err[False] > 0.5).sum()
