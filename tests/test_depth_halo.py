@@ -28,6 +28,23 @@ def test_halo_pixel_discounted_plateau_and_interior_unchanged():
     assert z[0, 0, 3] == 4.0  # the input untouched
 
 
+def test_two_pixel_deep_halo_discounted_at_its_first_pixel():
+    """A halo two pixels deep (the room's shelf top edge in the wall's slice: 26.4 on the
+    wall, 3.4 and 3.4 on the shelf's first two rows, then 1.0) is discounted on the pixel next
+    to the bright region; a level that does not fall off within two pixels is not."""
+    z = np.zeros((1, 6, 3), np.float32)
+    z[0, 0] = 26.4
+    z[0, 1] = 3.4
+    z[0, 2] = 3.4
+    z[0, 3:] = 1.0
+    out = halo_discount(z)
+    expect = 3.4 * (3.4 / (HALO_RATIO * 26.4)) ** HALO_POWER
+    np.testing.assert_allclose(out[0, 1], expect, rtol=1e-6)
+    np.testing.assert_array_equal(out[0, 2:], z[0, 2:])
+    z[0, 3] = 3.4  # three pixels at the same level: a plateau, not a halo
+    np.testing.assert_array_equal(halo_discount(z)[0, 1], z[0, 1])
+
+
 def test_dim_pixel_on_a_plateau_of_its_own_surface_kept():
     """A dim pixel between a bright pixel and more of its own surface (no fall-off on the
     opposite side) is a texture, not a halo: unchanged."""
@@ -50,7 +67,7 @@ def test_halo_discount_bad_options():
 def test_room_shelf_edge_kept_end_to_end():
     """The case the discount is for (its docstring): the built-in room at 64x64, m_n = 5,
     50 % patterns, seed 0, where the wall's halo took the dark shelf's edge column. Measured
-    with today's releases: RMSE 0.054 m without the discount, 0.039 m with it (argmax
+    with today's releases: RMSE 0.054 m without the discount, 0.029 m with it (argmax
     0.28 m); the bound leaves room for other BLAS and SciPy builds to move a pixel or two."""
     import spslidar
 
@@ -65,5 +82,5 @@ def test_room_shelf_edge_kept_end_to_end():
         have = valid & np.isfinite(d)
         err[halo] = np.abs(d[have] - truth[have])
     rmse = {h: float(np.sqrt(np.mean(e ** 2))) for h, e in err.items()}
-    assert rmse[True] < 0.85 * rmse[False]
+    assert rmse[True] < 0.75 * rmse[False]
     assert (err[True] > 0.5).sum() < (err[False] > 0.5).sum()
