@@ -86,13 +86,12 @@ class Stopper:
         if self.timer is not None:  # already stopping: let the clean-up finish
             return
         terminated = signum == signal.SIGTERM
-        if self.grace is None:
-            raise Terminated() if terminated else KeyboardInterrupt()
-        self.timer = threading.Timer(self.grace, self._fire, (terminated,))
-        self.timer.daemon = True
-        self.timer.start()
-        if self.exiting:
-            return
+        if self.grace is not None:  # arm the watchdog
+            self.timer = threading.Timer(self.grace, self._fire, (terminated,))
+            self.timer.daemon = True
+            self.timer.start()
+            if self.exiting:
+                return
         raise Terminated() if terminated else KeyboardInterrupt()
 
     def _fire(self, terminated: bool) -> None:
@@ -105,13 +104,19 @@ class Stopper:
             os._exit(EXIT_TERMINATED if terminated else EXIT_INTERRUPTED)
 
 
+def _executor():
+    """joblib's reusable loky executor, or None where no pool was started (loky not even
+    imported: nothing is imported here to find out)."""
+    reusable = sys.modules.get("joblib.externals.loky.reusable_executor")
+    return getattr(reusable, "_executor", None)
+
+
 def stop_pool() -> None:
     """Stop joblib's worker pool while a Ctrl-C is still this command's to report: left to
     Python's exit hook, which joins loky's threads after ``main`` returned, a Ctrl-C then
     printed a ``KeyboardInterrupt`` traceback and the command exited 0. Only for a process of
     its own: in a Python session the pool is kept for the next call."""
-    reusable = sys.modules.get("joblib.externals.loky.reusable_executor")
-    executor = getattr(reusable, "_executor", None)  # None: no pool was started
+    executor = _executor()
     if executor is not None:
         executor.shutdown(wait=True)
 
@@ -122,8 +127,7 @@ def kill_pool() -> None:
     can leave its idle workers waiting on their task queue for a stop message that never
     comes, and Python's exit then joins them forever (seen here: a late Ctrl-C left the
     command and both workers hanging, in ``multiprocessing``'s exit hook)."""
-    reusable = sys.modules.get("joblib.externals.loky.reusable_executor")
-    executor = getattr(reusable, "_executor", None)
+    executor = _executor()
     try:
         processes = list((getattr(executor, "_processes", None) or {}).values())
     except RuntimeError:  # the dict changed under us (the watchdog's thread): none listed

@@ -82,8 +82,7 @@ def halo_discount(z: np.ndarray, ratio: float = HALO_RATIO,
     About eight ``(K, N1, N2)`` blocks at its peak (the summed slices and their padded copy,
     the half and slack levels, the neighbours' maximum, the result and temporaries), all
     freed before the BP allocates its own eleven; 1.3 s for 256 x 256 x 200 float32 on one
-    core (the MRF's time
-    at 64 x 64 is unchanged within its noise, 0.25 s for 208 slices).
+    core (the MRF's time at 64 x 64 is unchanged within its noise, 0.25 s for 208 slices).
     """
     if not 0.0 < ratio <= 1.0 or power < 0.0:
         raise ValueError("halo ratio must be in (0, 1] and power >= 0")

@@ -223,12 +223,13 @@ class MRFDepth(DepthEstimator):
         estimators built on this MRF (``guarded``, ``evidence``)."""
         q, k = x.shape
         cap = self.truncation if self.truncation is not None else auto_truncation(z)
-        cost = np.ascontiguousarray(z.T).reshape(k, *shape)  # labels leading
         if self.halo:  # the per-slice TV's halo around bright regions (halo.py)
             from .halo import halo_discount
 
-            cost = halo_discount(cost)
-        cost = np.negative(cost)  # a new array: z.T may be a view of z
+            cost = halo_discount(z.T.reshape(k, *shape))  # labels leading; a new array
+            np.negative(cost, out=cost)
+        else:
+            cost = np.ascontiguousarray(-z.T).reshape(k, *shape)
         belief, sweeps = min_sum_bp(cost, self.smoothness, cap, self.iterations)
         belief = belief.reshape(k, q).T
         label = np.argmin(belief, axis=1)
