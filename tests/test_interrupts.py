@@ -36,6 +36,13 @@ def _communicate(proc, timeout=60):
         pytest.fail(f"the command was still running {timeout} s after the signal")
 
 
+def _python(script):
+    """``script`` in a Python process of its own session (so :func:`_communicate` can kill
+    all of it), stdout and stderr as text."""
+    return subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+
 def _start(tmp_path):
     cfg = tmp_path / "s.toml"
     cfg.write_text(SWEEP)
@@ -128,14 +135,13 @@ except KeyboardInterrupt:
 @pytest.mark.parametrize("sig,code,word", [(signal.SIGTERM, 143, "terminated"),
                                            (signal.SIGINT, 130, "interrupted")])
 def test_a_hanging_clean_up_is_ended_by_the_watchdog(sig, code, word):
-    proc = subprocess.Popen([sys.executable, "-c", HANGING], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    proc = _python(HANGING)
     assert proc.stdout.readline().strip() == "ready"
     t0 = time.monotonic()
     proc.send_signal(sig)
     assert proc.stdout.readline().strip() == "cleaning"
     proc.send_signal(sig)  # a second signal does not interrupt the clean-up
-    out, err = proc.communicate(timeout=30)
+    out, err = _communicate(proc, 30)
     # grace 1 s: well before the clean-up's 60 s (the bound leaves a loaded machine 20 s)
     assert time.monotonic() - t0 < 21
     assert proc.returncode == code, err
@@ -147,11 +153,10 @@ def test_a_command_that_said_its_line_is_not_said_twice():
     one line."""
     script = HANGING.replace('print("cleaning", flush=True)',
                              'print("cleaning", flush=True); stopper.say(False)')
-    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    proc = _python(script)
     assert proc.stdout.readline().strip() == "ready"
     proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=30)
+    _, err = _communicate(proc, 30)
     assert proc.returncode == 130 and err.strip() == "cmd: interrupted", err
 
 
@@ -179,12 +184,11 @@ atexit.register(time.sleep, 60)
 stopper.exiting = True
 print("exiting", flush=True)
 """
-    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    proc = _python(script)
     assert proc.stdout.readline().strip() == "exiting"
     time.sleep(0.3)  # into the exit hook
     proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=30)
+    _, err = _communicate(proc, 30)
     assert proc.returncode == 130 and err.strip() == "cmd: interrupted", err
 
 
