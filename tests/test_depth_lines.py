@@ -270,3 +270,92 @@ def test_one_wrong_argmax_does_not_refuse_a_line():
     keep = _keep(a, s)
     assert keep[rows[rows != 11], 10].all() and not keep[11, 10] and keep.sum() == 12
     assert not _keep(a, s, robust=None).any()
+
+
+def test_a_pole_s_weak_pixel_between_two_pieces_is_mended():
+    # the room's lamp pole at m_n = 5, 50 %, seed 2: the MRF holds the pole above and below
+    # one row whose evidence at the pole's slice is too weak for the walk (here 0.3 noise
+    # maxima, below its sides): the walk steps over it because the pole's own pixels hold the
+    # next two, and takes it because the pole runs through it straight at one depth
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    label[4:12, 10] = 120
+    label[13:22, 10] = 120
+    z = _evidence_cube(label, [12], 10, 120, [0.3])
+    for col in (9, 11):
+        z[12 * SHAPE[1] + col, 120] = 0.6 * NU
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert added == 1 and (new[4:22, 10] == 120).all()
+    assert (new[:4, 10] == WALL).all() and (new[22:, 10] == WALL).all()
+
+
+def test_the_walk_steps_over_one_weak_pixel_to_the_pole_beyond():
+    # the room's table leg at m_n = 5, 50 %, seed 2: rows 10-19 held, row 9 weak, rows 7-8
+    # held (too short to be a structure of their own), rows 4-6 with the leg's evidence at 1
+    # noise maximum: one walk mends row 9 and goes on through 7-8 to take 4-6 (it stops a
+    # pixel short of the top, as the window test does)
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    label[10:20, 10] = 120
+    label[7:9, 10] = 120
+    z = _evidence_cube(label, [4, 5, 6, 9], 10, 120, [1.0, 1.0, 1.0, 0.2])
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert (new[5:20, 10] == 120).all() and added == 3
+    assert (new[:4, 10] == WALL).all() and (new[:, 11] == WALL).all()
+
+
+@pytest.mark.parametrize("case", ["two weak", "one held beyond", "in front", "slanted"])
+def test_what_the_walk_does_not_step_over(case):
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    label[12:22, 10] = 120
+    weak = [11]
+    if case == "two weak":  # two failing pixels in a row end the walk (the next is not held)
+        label[7:10, 10] = 120
+        weak = [10, 11]
+    elif case == "one held beyond":  # the line's pixels must hold the next two
+        label[10, 10] = 120
+    elif case == "in front":  # a pixel nearer than the line is not stepped over
+        label[11, 10] = 100
+        label[8:11, 10] = 120
+    else:  # a slanted wire (2 slices a row): stepped over, not taken (not at one depth)
+        rows = np.r_[8:11, 12:22]
+        label[rows, 10] = 100 + 2 * rows
+    z = _evidence_cube(label, weak, 10, 122 if case == "slanted" else 120, [0.2] * len(weak))
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    assert added == 0 and (new == label.ravel()).all()
+
+
+@pytest.mark.parametrize("width", [3, 16])
+def test_a_leg_s_walk_does_not_cross_the_table_top(width):
+    # a leg under a table top at its depth: the top is wider than a pole and its bleed, so
+    # the walk up the leg stops there and never takes the top's bleed into the wall above
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    label[12:24, 10] = 120  # the leg
+    label[10:12, 10 - width // 2:10 + (width + 1) // 2] = 120  # the table top, two rows
+    z = _evidence_cube(label, [7, 8, 9], 10, 120, [1.5, 1.5, 1.5])
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    assert added == 0 and (new == label.ravel()).all()
+
+
+def test_a_pole_with_its_bleed_labelled_beside_it_is_still_the_line():
+    # the room's lamp pole, seed 2: where the MRF gave the pixel beside the pole the pole's
+    # depth too, the pole is no longer one pixel wide there, yet still the line (one pixel at
+    # its depth across it, where a table top has four): the walk goes on through it
+    from spslidar.depth.lines import one_pixel_wide, track_lines
+
+    label = np.full(SHAPE, WALL)
+    label[4:12, 10] = 120
+    label[13:22, 10] = 120
+    label[13:16, 11] = 120  # the bleed
+    assert not one_pixel_wide(label.ravel(), SHAPE).reshape(SHAPE)[14, 10]
+    z = _evidence_cube(label, [12], 10, 120, [0.3])
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    assert added == 1 and new.reshape(SHAPE)[12, 10] == 120
