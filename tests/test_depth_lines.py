@@ -310,23 +310,30 @@ def test_the_walk_steps_over_one_weak_pixel_to_the_pole_beyond():
 
 @pytest.mark.parametrize("case", ["two weak", "one held beyond", "in front", "slanted"])
 def test_what_the_walk_does_not_step_over(case):
+    # on a slanted wire (2 slices a row), where neither the row-or-column joining nor the
+    # bridge to a surface applies, so that the step-over rule alone is tested
     from spslidar.depth.lines import track_lines
 
+    rows = np.arange(SHAPE[0])
+    wire = 100 + 2 * rows  # the wire's slice on each row
     label = np.full(SHAPE, WALL)
-    label[12:22, 10] = 120
+    label[12:22, 10] = wire[12:22]
     weak = [11]
     if case == "two weak":  # two failing pixels in a row end the walk (the next is not held)
-        label[7:10, 10] = 120
+        label[7:10, 10] = wire[7:10]
         weak = [10, 11]
-    elif case == "one held beyond":  # the line's pixels must hold the next two
-        label[10, 10] = 120
+    elif case == "one held beyond":  # the line's pixels must hold the next two, or the walk
+        label[10, 10] = wire[10]  # would go on to take rows 6-9 (1 noise maximum each)
+        weak = [6, 7, 8, 9, 11]
     elif case == "in front":  # a pixel nearer than the line is not stepped over
         label[11, 10] = 100
-        label[8:11, 10] = 120
-    else:  # a slanted wire (2 slices a row): stepped over, not taken (not at one depth)
-        rows = np.r_[8:11, 12:22]
-        label[rows, 10] = 100 + 2 * rows
-    z = _evidence_cube(label, weak, 10, 122 if case == "slanted" else 120, [0.2] * len(weak))
+        label[8:11, 10] = wire[8:11]
+    else:  # stepped over, not taken: the line is not at one depth through it
+        label[8:11, 10] = wire[8:11]
+    z = np.zeros((SHAPE[0] * SHAPE[1], WALL + 10))
+    z[np.arange(z.shape[0]), label.ravel()] = 2.0 * NU
+    for r in weak:
+        z[r * SHAPE[1] + 10, wire[r]] = (0.2 if r in (10, 11) else 1.0) * NU
     new, added = track_lines(z, label.ravel(), NU, SHAPE)
     assert added == 0 and (new == label.ravel()).all()
 
@@ -359,3 +366,62 @@ def test_a_pole_with_its_bleed_labelled_beside_it_is_still_the_line():
     z = _evidence_cube(label, [12], 10, 120, [0.3])
     new, added = track_lines(z, label.ravel(), NU, SHAPE)
     assert added == 1 and new.reshape(SHAPE)[12, 10] == 120
+
+
+def test_a_leg_in_pieces_a_pixel_apart_is_joined_and_mended():
+    # the room's table leg at m_n = 5, 50 %, seed 7: the MRF holds a leg only on scattered
+    # rows, one pixel apart (no piece of 3): pieces along one column, at one depth, are joined
+    # up to two pixels apart and the single rows between them taken, however weak
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    rows = [10, 12, 13, 15, 17]
+    label[rows, 10] = 120
+    z = _evidence_cube(label, [11, 14, 16], 10, 120, [0.2, 0.2, 0.2])
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert added == 3 and (new[10:18, 10] == 120).all()
+    assert (new[:10, 10] == WALL).all() and (new[18:, 10] == WALL).all()
+    # the same pieces off one column (a diagonal) are not joined across the gaps
+    diag = np.full(SHAPE, WALL)
+    diag[rows, [10, 11, 12, 13, 14]] = 120
+    assert track_lines(_evidence_cube(diag, [], 10, 120, []), diag.ravel(), NU, SHAPE)[1] == 0
+
+
+def test_a_leg_s_walk_bridges_a_short_gap_to_its_table_top():
+    # the room at m_n = 5, 50 %, seed 5: under the table top the TV left the leg's top four
+    # rows at 0.3-2 noise maxima, too weak for the walk, yet above the pixels beside them; a
+    # gap of at most 4 pixels that ends at a surface at the line's own depth is taken
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    label[6:8, 4:20] = 120  # the table top
+    label[12:24, 10] = 120  # the leg, four rows short of it
+    level = [1.9, 0.4, 0.4, 0.3]
+    z = _evidence_cube(label, [8, 9, 10, 11], 10, 120, level)
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert added == 4 and (new[6:24, 10] == 120).all()
+    assert (new[:6, 10] == WALL).all() and (new[24:, 10] == WALL).all()
+
+
+@pytest.mark.parametrize("case", ["too long", "other depth", "beside as high"])
+def test_what_the_walk_does_not_bridge(case):
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    top = 120
+    rows = [8, 9, 10, 11]
+    if case == "too long":  # five rows short of the top
+        rows = [7, 8, 9, 10, 11]
+    elif case == "other depth":  # the surface the gap ends at is not at the leg's depth
+        top = 100
+    label[rows[0] - 2:rows[0], 4:20] = top
+    label[12:24, 10] = 120
+    z = _evidence_cube(label, rows, 10, 120, [1.0] * len(rows) if case == "beside as high"
+                       else [0.4] * len(rows))
+    if case == "beside as high":  # the top's bleed below it, as high beside the leg
+        for col in (9, 11):
+            z[np.array(rows) * SHAPE[1] + col, 120] = 1.2 * NU
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    assert added == 0 and (new == label.ravel()).all()
