@@ -425,3 +425,17 @@ def test_what_the_walk_does_not_bridge(case):
             z[np.array(rows) * SHAPE[1] + col, 120] = 1.2 * NU
     new, added = track_lines(z, label.ravel(), NU, SHAPE)
     assert added == 0 and (new == label.ravel()).all()
+
+
+@pytest.mark.parametrize("line_slice", [0, WALL + 9])
+def test_a_line_at_the_gate_s_first_or_last_slice_is_left_alone(line_slice):
+    # the walk tests a slice and its two neighbours, so a structure at the gate's edge is not
+    # walked (a README example's pole at the first slice once raised on an empty selection)
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    label[4:12, 10] = line_slice
+    label[14:20, 10] = line_slice
+    z = _evidence_cube(label, [12, 13], 10, line_slice, [1.0, 1.0])
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    assert added == 0 and (new == label.ravel()).all()

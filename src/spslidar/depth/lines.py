@@ -433,7 +433,9 @@ def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int,
     behind = inside & (cur > ks + gap)
     ends = np.rint(centre[major] + t * v[major]).astype(np.int64)
     taken = []
-    straight = np.ptp(other) == 0 and np.ptp(ks[inside]) <= 1  # along a row or a column
+    # along a row or a column at one depth (nothing inside: a line at the gate's first or
+    # last slice, which the walk cannot test)
+    straight = bool(inside.any()) and np.ptp(other) == 0 and np.ptp(ks[inside]) <= 1
     if interior:  # the gaps between a row's or a column's pieces
         for i in range(ends.min() + 1, ends.max()):
             if on[i] or not behind[i]:
