@@ -64,9 +64,9 @@ not continue (room at m_n = 1, 50 %, seed 0: 0.0043 -> 0.032 m).
 Two more rules hold for a *straight* structure only, along a row or a column at one depth (a
 pole, a leg), whose line's rounding is exact. Its pieces are joined up to two pixels apart
 (a leg the MRF holds on every other row has no piece of three), and each single pixel between
-two of them is taken. And where its walk stops at most :data:`BRIDGE_REACH` (4) pixels short
+two of them is taken. And where its walk stops at most ``BRIDGE_REACH`` (4) pixels short
 of a surface at its own depth, the pixels between, all labelled more than
-:data:`BRIDGE_BEHIND` (10) slices behind it, are taken if their evidence at its slice stands,
+``BRIDGE_BEHIND`` (10) slices behind it, are taken if their evidence at its slice stands,
 on average, above their sides' (a leg whose top rows, under its table top, the TV left at 0.3-2
 noise maxima). Chosen on the room at m_n = 5, 50 %, seeds 3-7 (0.027 / 0.034 / 0.066 / 0.049
 / 0.054 -> 0.027 / 0.029 / 0.030 / 0.022 / 0.005 m); held out, seeds 8-15: 0.009 / 0.066 /
@@ -351,7 +351,7 @@ def track_lines(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, i
         pixel failing these is stepped over where the line's pixels hold the next two (and
         taken where the line is straight and at one depth through it). A straight line's
         pieces are also joined up to two pixels apart, the single pixels between them taken,
-        and its walk bridges up to :data:`BRIDGE_REACH` pixels to a surface at its depth.
+        and its walk bridges up to ``BRIDGE_REACH`` pixels to a surface at its depth.
 
     Returns
     -------
