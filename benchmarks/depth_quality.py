@@ -16,6 +16,10 @@ argmax's on the same measurement, and the mean share of pixels off by more than 
         [--size 64] [--estimators argmax censor mrf evidence] [--cache DIR] [--jobs 2]
         [--out table.md]
     python benchmarks/depth_quality.py --scenes camera motorcycle --noise 10 --compression 0.25
+    python benchmarks/depth_quality.py --scenes room --noise 5 --compression 0.5 --seed 8-15
+
+(``--seed`` takes a list or ranges as ``--procedural`` does; with several, each case is named
+``scene:s<seed>``.)
 """
 
 from __future__ import annotations
@@ -76,8 +80,9 @@ def case_data(scene: str, noise: float, ratio: float, size: int, seed: int,
 
 
 def run_case(scene: str, noise: float, ratio: float, size: int, seed: int,
-             estimators: list[str], cache: Path | None) -> list[dict]:
-    """One measurement and reconstruction; every estimator on its slices."""
+             estimators: list[str], cache: Path | None, label: str | None = None) -> list[dict]:
+    """One measurement and reconstruction; every estimator on its slices (``label``: how the
+    tables name the case, default the scene)."""
     d = case_data(scene, noise, ratio, size, seed, cache)
     truth, valid = d["truth"], d["valid"]
     ctx = DepthContext(d["lags"], float(d["bin_width"]), float(d["pulse_width"]), truth.shape,
@@ -90,7 +95,7 @@ def run_case(scene: str, noise: float, ratio: float, size: int, seed: int,
         t_est = time.perf_counter() - t1
         two = getattr(out, "depth2", None)
         rows.append({
-            "scene": scene, "noise": noise, "ratio": ratio, "estimator": name,
+            "scene": label or scene, "noise": noise, "ratio": ratio, "estimator": name,
             **score(out.depth.reshape(truth.shape), truth, valid),
             "low": float(np.mean(out.low_confidence)), "time": t_est,
             "two": float(np.mean(np.isfinite(two))) if two is not None else 0.0,
@@ -156,7 +161,8 @@ def main(argv=None) -> int:
     ap.add_argument("--noise", type=float, nargs="+", default=[5.0, 10.0])
     ap.add_argument("--compression", type=float, nargs="+", default=[0.25, 0.5])
     ap.add_argument("--estimators", nargs="+", default=list(ESTIMATORS.names()))
-    ap.add_argument("--seed", type=int, default=0, help="measurement seed of --scenes")
+    ap.add_argument("--seed", default="0",
+                    help="measurement seed(s) of --scenes, e.g. 0 or 8-15 (as --procedural)")
     ap.add_argument("--cache", type=Path, default=None, help="keep the slices here")
     ap.add_argument("--out", default=None, help="also write the Markdown to this file")
     ap.add_argument("--per-case", action="store_true", help="also print the per-case table")
@@ -164,11 +170,15 @@ def main(argv=None) -> int:
                     help="reconstruct the measurements missing from --cache in this many "
                          "processes first (each about 150 MB at 64x64; 2 on a 2-core machine)")
     args = ap.parse_args(argv)
-    cases = [(s, args.seed) for s in (args.scenes or [])]
+    seeds = _seeds(args.seed)
+    cases = [(s, seed) for s in (args.scenes or []) for seed in seeds]
+    # several seeds of one built-in scene: the tables name each case scene:s<seed>
+    label = {c: (f"{c[0]}:s{c[1]}" if len(seeds) > 1 else c[0]) for c in cases}
     if args.procedural:
         cases += [(f"procedural:{s}", s) for s in _seeds(args.procedural)]
     if not cases:
-        cases = [("camera", args.seed)]
+        cases = [("camera", seed) for seed in seeds]
+        label = {c: (f"camera:s{c[1]}" if len(seeds) > 1 else "camera") for c in cases}
     if "argmax" not in args.estimators:
         args.estimators.insert(0, "argmax")
     if args.jobs > 1:
@@ -187,9 +197,9 @@ def main(argv=None) -> int:
         for noise in args.noise:
             for ratio in args.compression:
                 case = run_case(scene, noise, ratio, args.size, seed, args.estimators,
-                                args.cache)
+                                args.cache, label.get((scene, seed)))
                 rows.extend(case)
-                print(f"{scene} m_n={noise:g} {100 * ratio:g}%: "
+                print(f"{label.get((scene, seed), scene)} m_n={noise:g} {100 * ratio:g}%: "
                       + ", ".join(f"{r['estimator']} {r['rmse']:.4f}" for r in case)
                       + f" (chain {case[0]['chain']:.1f} s; {time.perf_counter() - t0:.0f} s)",
                       file=sys.stderr, flush=True)
