@@ -172,13 +172,12 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     seeds = _seeds(args.seed)
     cases = [(s, seed) for s in (args.scenes or []) for seed in seeds]
+    if not cases and not args.procedural:
+        cases = [("camera", seed) for seed in seeds]
     # several seeds of one built-in scene: the tables name each case scene:s<seed>
-    label = {c: (f"{c[0]}:s{c[1]}" if len(seeds) > 1 else c[0]) for c in cases}
+    label = {c: f"{c[0]}:s{c[1]}" for c in cases} if len(seeds) > 1 else {}
     if args.procedural:
         cases += [(f"procedural:{s}", s) for s in _seeds(args.procedural)]
-    if not cases:
-        cases = [("camera", seed) for seed in seeds]
-        label = {c: (f"camera:s{c[1]}" if len(seeds) > 1 else "camera") for c in cases}
     if "argmax" not in args.estimators:
         args.estimators.insert(0, "argmax")
     if args.jobs > 1:

@@ -330,8 +330,7 @@ def test_what_the_walk_does_not_step_over(case):
         label[8:11, 10] = wire[8:11]
     else:  # stepped over, not taken: the line is not at one depth through it
         label[8:11, 10] = wire[8:11]
-    z = np.zeros((SHAPE[0] * SHAPE[1], WALL + 10))
-    z[np.arange(z.shape[0]), label.ravel()] = 2.0 * NU
+    z = _evidence_cube(label, [], 10, 0, [])  # 2 nu at each pixel's label
     for r in weak:
         z[r * SHAPE[1] + 10, wire[r]] = (0.2 if r in (10, 11) else 1.0) * NU
     new, added = track_lines(z, label.ravel(), NU, SHAPE)

@@ -415,15 +415,14 @@ def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int,
     inside = (other >= 0) & (other < (n2 if major == 0 else n1)) & (ks >= 1) & (ks < k - 1)
     ys, xs = (s, other) if major == 0 else (other, s)
     flat = np.where(inside, ys * n2 + xs, 0)
-    around = zn[flat[:, None], np.clip(ks, 1, k - 2)[:, None] + np.arange(-1, 2)]  # slice +-1
+    near = np.clip(ks, 1, k - 2)[:, None] + np.arange(-1, 2)  # the line's slice +-1
+    around = zn[flat[:, None], near]
     e = np.where(inside, around.max(axis=1), 0.0)
     # the same beside the line (the two pixels across its minor coordinate): a line stands
     # above its sides at its slice, a blob of the reconstruction's bleed does not
     side = np.zeros_like(e)
     for off in (-1, 1):
-        o2 = np.clip(other + off, 0, (n2 if major == 0 else n1) - 1)
-        f2 = np.where(inside, (s * n2 + o2) if major == 0 else (o2 * n2 + s), 0)
-        side += 0.5 * zn[f2[:, None], np.clip(ks, 1, k - 2)[:, None] + np.arange(-1, 2)].max(1)
+        side += 0.5 * zn[_across(inside, s, other, major, shape, off)[0][:, None], near].max(1)
     cur = label[flat]
     at_depth = inside & (np.abs(cur - ks) <= gap)
     # on the line: one pixel wide, or with at most one more pixel at its depth within two
@@ -432,40 +431,42 @@ def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int,
                                                      gap) <= 1))
     behind = inside & (cur > ks + gap)
     ends = np.rint(centre[major] + t * v[major]).astype(np.int64)
-    taken = []
+    taken: list[int] = []
+
+    def holds(i: int, direction: int) -> bool:  # the evidence tests at pixel i
+        ahead = np.arange(i - direction * back, i + direction * (window - back), direction)
+        full = ((ahead >= 0) & (ahead < s.size)).all() and inside[ahead].all()
+        return bool(behind[i] and e[i] >= lo and full and e[ahead].mean() >= tau
+                    and e[i] - side[i] >= contrast)
+
+    def mends(b: int, i: int, j: int) -> bool:  # i, between two of the line's own pixels
+        return bool((on[b] or b in taken) and on[j] and abs(int(ks[b]) - int(ks[j])) <= 1
+                    and other[b] == other[i] == other[j])
+
     # along a row or a column at one depth (nothing inside: a line at the gate's first or
     # last slice, which the walk cannot test)
     straight = bool(inside.any()) and np.ptp(other) == 0 and np.ptp(ks[inside]) <= 1
     if interior:  # the gaps between a row's or a column's pieces
         for i in range(ends.min() + 1, ends.max()):
-            if on[i] or not behind[i]:
-                continue
-            ahead = np.arange(i - 1, i + 2)
-            if ((e[i] >= lo and e[ahead].mean() >= tau and e[i] - side[i] >= contrast)
-                    or ((on[i - 1] or i - 1 in taken) and on[i + 1]
-                        and abs(int(ks[i - 1]) - int(ks[i + 1])) <= 1)):
+            if not on[i] and behind[i] and (holds(i, 1) or mends(i - 1, i, i + 1)):
                 taken.append(i)
     for start, direction in ((ends.max() + 1, 1), (ends.min() - 1, -1)):
         i = start
         while 0 <= i < s.size and inside[i]:
-            ahead = np.arange(i - direction * back, i + direction * (window - back), direction)
-            full = ((ahead >= 0) & (ahead < s.size)).all() and inside[ahead].all()
-            if (behind[i] and e[i] >= lo and full and e[ahead].mean() >= tau
-                    and e[i] - side[i] >= contrast):
+            if holds(i, direction):
                 taken.append(i)
             elif not on[i]:
                 # one pixel behind the line that fails the tests is stepped over where the
                 # line's own pixels hold the next two, and taken where the line runs through
                 # it straight and at one depth (a pole's or a leg's weak pixel between two of
                 # its pieces)
-                j, jj, b = i + direction, i + 2 * direction, i - direction
+                j, jj = i + direction, i + 2 * direction
                 if not (behind[i] and 0 <= jj < s.size and on[j] and on[jj]):
                     if straight:  # a leg that stops short of its table top
                         taken.extend(_bridge(i, direction, inside, cur > ks + BRIDGE_BEHIND,
                                              at_depth, e, side))
                     break
-                if ((on[b] or b in taken) and abs(int(ks[b]) - int(ks[j])) <= 1
-                        and other[b] == other[i] == other[j]):
+                if mends(i - direction, i, j):
                     taken.append(i)
             i += direction
     for i in taken:  # the best of the line's slice and its two neighbours
@@ -475,12 +476,13 @@ def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int,
 
 def _across(line_px: np.ndarray, s: np.ndarray, other: np.ndarray, major: int,
             shape: tuple[int, int], off: int) -> tuple[np.ndarray, np.ndarray]:
-    """Flat indices of the pixels ``off`` across a line's pixels, and which lie inside."""
+    """Flat indices of the pixels ``off`` across a line's pixels (clipped to the image; 0 off
+    the line), and which of them lie inside the image."""
     n1, n2 = shape
     o2 = other + off
     ok = line_px & (o2 >= 0) & (o2 < (n2 if major == 0 else n1))
     o2 = np.clip(o2, 0, (n2 if major == 0 else n1) - 1)
-    return np.where(ok, (s * n2 + o2) if major == 0 else (o2 * n2 + s), 0), ok
+    return np.where(line_px, (s * n2 + o2) if major == 0 else (o2 * n2 + s), 0), ok
 
 
 def _across_at_depth(label: np.ndarray, ks: np.ndarray, s: np.ndarray, other: np.ndarray,
