@@ -438,3 +438,51 @@ def test_a_line_at_the_gate_s_first_or_last_slice_is_left_alone(line_slice):
     z = _evidence_cube(label, [12, 13], 10, line_slice, [1.0, 1.0])
     new, added = track_lines(z, label.ravel(), NU, SHAPE)
     assert added == 0 and (new == label.ravel()).all()
+
+
+# held-out room at m_n = 5, 50 %, seed 9: the lamp pole's evidence at its slice on rows 6-20
+# (in nu), where the MRF gave the wall; the walk from the pole's lower piece stops at row 20
+POLE_ROWS_6_TO_20 = [2.31, 1.67, 1.56, 1.41, 1.73, 1.55, 1.33, 0.94, 1.46, 0.77, 0.73, 0.90,
+                     0.55, 0.55, 0.76]
+
+
+def _stretch_case(level, strong=2.0):
+    label = np.full(SHAPE, WALL)
+    label[22:30, 10] = 120
+    rows = np.arange(2, 22)  # above the pole's top (row 6) the evidence falls to 0.2-0.5
+    z = _evidence_cube(label, rows, 10, 120, [0.22, 0.25, 0.32, 0.48, *level, 0.86])
+    z[np.arange(22, 30) * SHAPE[1] + 10, 120] = strong * NU
+    return label, z
+
+
+def test_a_pole_s_weak_stretch_is_crossed_where_its_summed_evidence_holds():
+    # the walk takes row 21 and stops at row 20 (window mean 0.72 < 0.9); the stretch from
+    # row 20 whose summed evidence less 0.5 a pixel is largest ends at row 6, the pole's top
+    from spslidar.depth.lines import track_lines
+
+    label, z = _stretch_case(POLE_ROWS_6_TO_20)
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert added == 16 and (new[6:30, 10] == 120).all()
+    assert (new[:6, 10] == WALL).all() and (new[:, 11] == WALL).all()
+
+
+@pytest.mark.parametrize("case", ["weak", "too short", "strong pole's bleed", "as high beside"])
+def test_what_a_stretch_does_not_take(case):
+    from spslidar.depth.lines import track_lines
+
+    level = POLE_ROWS_6_TO_20
+    strong = 2.0
+    if case == "weak":  # 0.65 nu a pixel: 15 x 0.15 = 2.25 < 3 summed
+        level = [0.65] * 15
+    elif case == "too short":  # 3 held rows beyond 12 weak ones do not make up for them
+        level = [1.6, 1.2, 1.0] + [0.3] * 12
+    elif case == "strong pole's bleed":  # beyond a 9-nu pole, below 0.3 of its evidence
+        strong = 9.0
+    label, z = _stretch_case(level, strong)
+    if case == "as high beside":  # a blob of the reconstruction's bleed, not a line
+        for col in (9, 11):
+            z[np.arange(6, 21) * SHAPE[1] + col, 120] = np.array(level) * NU
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert (new[:21, 10] == WALL).all() and (new[:, 11] == WALL).all()
