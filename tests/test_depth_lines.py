@@ -486,3 +486,23 @@ def test_what_a_stretch_does_not_take(case):
     new, added = track_lines(z, label.ravel(), NU, SHAPE)
     new = new.reshape(SHAPE)
     assert (new[:21, 10] == WALL).all() and (new[:, 11] == WALL).all()
+
+
+@pytest.mark.parametrize("top", [1.2, 0.4])
+def test_a_leg_s_top_pixel_under_a_nearer_table_top(top):
+    # held-out room at m_n = 5, 50 %, seed 10: a leg (1 noise maximum at its slice) ends under
+    # a table top nearer than it; its top pixel, labelled wall, holds 1.4 at the leg's slice.
+    # The window reaching past it reads the table top, which hides the line, so that pixel is
+    # left out of the window: the top pixel is taken where its own evidence holds (1.2 nu),
+    # not where it does not (0.4 nu, below the walk's least of 0.5)
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    label[20:23, 5:16] = 60  # the table top, in front of the leg
+    label[24:32, 10] = 120
+    z = _evidence_cube(label, [23], 10, 120, [top])
+    z[np.arange(24, 32) * SHAPE[1] + 10, 120] = 1.0 * NU
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert (new[24:32, 10] == 120).all() and (new[20:23, 5:16] == 60).all()
+    assert new[23, 10] == (120 if top > 1 else WALL) and added == (1 if top > 1 else 0)

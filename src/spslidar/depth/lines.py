@@ -78,6 +78,15 @@ most; the other built-ins: street at m_n = 1, 25 %, seeds 1 / 2: 0.076 / 0.091 -
 another at its depth (m_n = 10, 25 %, seed 2: 0.068 -> 0.070 m), and without the 10 slices
 a slat 4 cm in front of its wall (procedural seed 115).
 
+The window leaves out a pixel where a surface nearer than the line hides it: a leg's top
+pixel under a table top nearer than the leg is tested on itself and the leg's pixel before
+it, since the top tells nothing of the leg (held-out room at m_n = 5, 50 %, seed 10: the top
+pixel holds 1.4 noise maxima at the leg's slice, but the window's mean with the top's 0.05
+fell below ``tau``). On procedural seeds 0-19 and the built-ins with the room's seeds 3-15:
+3 of 171 measurements better (room seeds 3 / 10 / 15: 0.027 / 0.034 / 0.030 -> 0.011 / 0.023
+/ 0.015 m), none worse; held out, procedural seeds 100-149 at m_n 1-10: 9 of 280 better (to
+0.95), none worse.
+
 Where a walk stops, it may go on through a *stretch* of weak pixels
 (:func:`_stretch`): the pixels from the stop along the line, behind it, up to
 ``STRETCH_REACH`` (16) of them and never through the line's own pixels or a surface at its
@@ -371,7 +380,8 @@ def track_lines(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, i
         is labelled more than ``gap`` slices behind the line, its evidence at the line's
         slice (+-1) reaches ``lo`` and ``relative`` times the structure's median evidence
         and exceeds the mean of its two pixels beside the line by ``contrast``, and the mean
-        over ``window`` pixels, ``back`` of them before it, reaches ``tau`` (in ``nu``); one
+        over ``window`` pixels, ``back`` of them before it, reaches ``tau`` (in ``nu``; a
+        pixel that a surface nearer than the line hides is left out of the window); one
         pixel failing these is stepped over where the line's pixels hold the next two (and
         taken where the line is straight and at one depth through it). A straight line's
         pieces are also joined up to two pixels apart, the single pixels between them taken,
@@ -459,9 +469,13 @@ def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int,
     ends = np.rint(centre[major] + t * v[major]).astype(np.int64)
     taken: list[int] = []
 
+    front = inside & (cur < ks - gap)  # a nearer surface hides the line there
+
     def holds(i: int, direction: int) -> bool:  # the evidence tests at pixel i
         ahead = np.arange(i - direction * back, i + direction * (window - back), direction)
         full = ((ahead >= 0) & (ahead < s.size)).all() and inside[ahead].all()
+        if full:  # the window leaves out what a nearer surface hides (a leg under its top)
+            ahead = ahead[~front[ahead]]
         return bool(behind[i] and e[i] >= lo and full and e[ahead].mean() >= tau
                     and e[i] - side[i] >= contrast)
 
