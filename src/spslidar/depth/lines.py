@@ -466,10 +466,9 @@ def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int,
     on = at_depth & (thin[flat] | (_across_at_depth(label, ks, s, other, inside, major, shape,
                                                      gap) <= 1))
     behind = inside & (cur > ks + gap)
+    front = inside & (cur < ks - gap)  # a nearer surface hides the line there
     ends = np.rint(centre[major] + t * v[major]).astype(np.int64)
     taken: list[int] = []
-
-    front = inside & (cur < ks - gap)  # a nearer surface hides the line there
 
     def holds(i: int, direction: int) -> bool:  # the evidence tests at pixel i
         ahead = np.arange(i - direction * back, i + direction * (window - back), direction)
@@ -509,7 +508,7 @@ def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int,
                             taken.extend(got)
                             break
                     # a weak stretch whose summed evidence holds, and the walk goes on
-                    got = _stretch(i, direction, inside, behind, at_depth & ~on, e, side, lo)
+                    got = _stretch(i, direction, behind, e, side, lo)
                     if not got:
                         break
                     taken.extend(got)
@@ -568,24 +567,25 @@ def _bridge(i: int, direction: int, inside: np.ndarray, behind: np.ndarray,
     return gap_px
 
 
-def _stretch(i: int, direction: int, inside: np.ndarray, behind: np.ndarray,
-             blocked: np.ndarray, e: np.ndarray, side: np.ndarray, least: float) -> list[int]:
+def _stretch(i: int, direction: int, behind: np.ndarray, e: np.ndarray, side: np.ndarray,
+             least: float) -> list[int]:
     """Where a walk stops at pixel ``i``, the stretch of pixels from ``i`` on whose summed
     evidence at the line's slice holds (a pole's weak middle rows, and its stronger rows
     beyond them); else none.
 
-    Over at most ``STRETCH_REACH`` pixels behind the line (not through its own pixels or a
-    surface at its depth, ``blocked``), the stretch ends where ``sum (e - STRETCH_LEVEL)``
-    from ``i`` is largest: the most likely end of a line whose pixels hold more than
-    ``STRETCH_LEVEL`` and whose continuation beyond holds less (a one-sided CUSUM). It is
-    taken where that sum reaches ``STRETCH_TOTAL``, its mean evidence reaches the walk's
-    least (``least``: a strong pole's bleed beyond its end is refused, as by the walk), and
-    it stands on average ``STRETCH_CONTRAST`` above its pixels beside the line.
+    Over at most ``STRETCH_REACH`` pixels behind the line (``behind``: so never through its
+    own pixels, a surface at its depth or one in front), the stretch ends where
+    ``sum (e - STRETCH_LEVEL)`` from ``i`` is largest: the most likely end of a line whose
+    pixels hold more than ``STRETCH_LEVEL`` and whose continuation beyond holds less (a
+    one-sided CUSUM). It is taken where that sum reaches ``STRETCH_TOTAL``, its mean evidence
+    reaches the walk's least (``least``: a strong pole's bleed beyond its end is refused, as
+    by the walk), and it stands on average ``STRETCH_CONTRAST`` above its pixels beside the
+    line.
     """
     total, best, best_n = 0.0, -np.inf, -1
     for n in range(STRETCH_REACH):
         j = i + n * direction
-        if not (0 <= j < inside.size and inside[j]) or blocked[j] or not behind[j]:
+        if not (0 <= j < behind.size and behind[j]):
             break
         total += e[j] - STRETCH_LEVEL
         if total > best:
