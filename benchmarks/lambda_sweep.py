@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 import spslidar
-from spslidar.pipeline import DEFAULT_LAM_SCALE
+from spslidar.pipeline import solver_default
 
 
 def main(argv=None):
@@ -30,7 +30,7 @@ def main(argv=None):
     ap.add_argument("--no-qcr", action="store_true")
     ap.add_argument("--plot", default=None, help="write a PNG of RMSE vs lam_scale")
     args = ap.parse_args(argv)
-    default = DEFAULT_LAM_SCALE[args.solver]
+    default = solver_default(args.solver, "lam_scale")
     scales = sorted(set(args.scales) | {default})
     rows = []
     for scene in args.scenes:

@@ -111,11 +111,12 @@ def build_problem(meas, solver: str, nonneg: bool | None = None) -> Problem:
         A, y = plain_problem(patterns, corr, dtype=dtype)
     sigma_eff = pipeline.noise_level(A, patterns, sim["sigma"], cfg,
                                      np.random.default_rng(meas.probe_seed))
-    scale = cfg.lam_scale if cfg.lam_scale is not None else pipeline.DEFAULT_LAM_SCALE[solver]
+    scale = (cfg.lam_scale if cfg.lam_scale is not None
+             else pipeline.solver_default(solver, "lam_scale"))
     lam = cfg.lam if cfg.lam is not None else scale * sigma_eff
     shape = (cfg.size, cfg.size)
     reg = pipeline.build_regulariser(cfg, shape)
-    iters = cfg.iterations or pipeline.DEFAULT_ITERATIONS[solver]
+    iters = cfg.iterations or pipeline.solver_default(solver, "iterations")
     return Problem(solver, A, np.asarray(y), reg, float(lam), int(iters), float(cfg.tol), shape)
 
 

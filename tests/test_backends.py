@@ -115,10 +115,11 @@ def test_centred_matrix_matches_qcr(be):
     np.testing.assert_allclose(got, centred_patterns(phi, np.sqrt(70)), rtol=0, atol=1e-7)
 
 
-def test_tv_prox_matches_numpy_over_warm_started_calls(be):
+@pytest.mark.parametrize("isotropic", [True, False])
+def test_tv_prox_matches_numpy_over_warm_started_calls(be, isotropic):
     shape, k = (8, 6), 4
-    ref = TV(shape, nonneg=True, max_inner=3)
-    tv = TVProx(be.xp, shape, nonneg=True, max_inner=3, be=be)
+    ref = TV(shape, isotropic=isotropic, nonneg=True, max_inner=3)
+    tv = TVProx(be.xp, shape, nonneg=True, max_inner=3, be=be, isotropic=isotropic)
     for call in range(4):
         v = _rand((48, k), seed=call)
         np.testing.assert_allclose(be.to_numpy(tv.prox(be.asarray(v), 0.3)), ref.prox(v, 0.3),
@@ -155,8 +156,9 @@ def test_fista_tv_matches_numpy_fista(be):
 
 
 @needs_torch
-@pytest.mark.parametrize("max_inner, inner_tol", [(3, 1e-3), (4, 0.3)])
-def test_branch_free_graph_step_matches_numpy_fista(max_inner, inner_tol):
+@pytest.mark.parametrize("max_inner, inner_tol, isotropic",
+                         [(3, 1e-3, True), (4, 0.3, True), (3, 1e-3, False)])
+def test_branch_free_graph_step_matches_numpy_fista(max_inner, inner_tol, isotropic):
     """The CUDA-graph iteration of torch_graph, run eagerly on the CPU: NumPy's iterates
     (a loose inner tolerance makes the prox stop early, exercising the selection)."""
     import torch
@@ -170,13 +172,14 @@ def test_branch_free_graph_step_matches_numpy_fista(max_inner, inner_tol):
     x_true = np.zeros((64, k), np.float32)
     x_true[10:30] = 1.0
     y = (a @ x_true + 0.01 * rng.standard_normal((40, k))).astype(np.float32)
-    reg = TV(shape, nonneg=True, max_inner=max_inner, inner_tol=inner_tol)
+    reg = TV(shape, isotropic=isotropic, nonneg=True, max_inner=max_inner, inner_tol=inner_tol)
     ref, info = FISTA(stop=StopRule(max_iter=60, rtol=1e-4)).solve(
         MatrixOperator(a, dtype=np.float32), y, reg, 0.05)
     with torch.no_grad():
         got, ginfo = fista_tv_graphed(
             be, DenseOperator(be.asarray(a)), be.asarray(y),
-            TVProx(be.xp, shape, nonneg=True, max_inner=max_inner, inner_tol=inner_tol, be=be),
+            TVProx(be.xp, shape, nonneg=True, max_inner=max_inner, inner_tol=inner_tol, be=be,
+                   isotropic=isotropic),
             0.05, 60, 1e-4, graph=False)
     got = be.to_numpy(got)
     assert ginfo.iterations == info.iterations and ginfo.stop_reason == info.stop_reason

@@ -22,11 +22,15 @@ def test_noiseless_full_sampling_recovers_every_pixel_within_one_bin(qcr):
 
 
 def test_noiseless_subbin_beats_bin_quantisation():
+    """On a noiseless, fully sampled ramp the sub-bin estimate beats the bins' quantisation
+    (measured: 0.0043 -> 0.0034-0.0035 m with either TV). The default path (QCR): without
+    QCR the noiseless ramp's TV optimum erodes its thin slices with either TV (0.024 m at 1500
+    iterations), so that path's error depends on where the iterations stop."""
     kw = dict(scene="ramp", size=16, compression=1.0, code_length=1023, noiseless=True,
-              qcr=False, iterations=300)
+              iterations=300)
     plain = pipeline.run(**kw)
     sub = pipeline.run(**kw, subbin=True)
-    assert sub.depth_rmse < plain.depth_rmse
+    assert sub.depth_rmse < 0.9 * plain.depth_rmse
 
 
 def test_psst_with_qcr_beats_conventional_at_mn10():

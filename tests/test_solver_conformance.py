@@ -7,6 +7,9 @@ file); each is run on every small problem whose regulariser its ``validate`` hoo
   Reference: a plain FISTA loop written here (only ``reg.prox`` of a tightly converged
   :class:`TV`), run to a fixed point; its optimality is checked by the proximal fixed-point
   residual, the prox itself against scikit-image in ``test_regularisers.py``.
+* ``tv-aniso``: the same problem with the anisotropic TV (the default of the TV solvers), the
+  same plain FISTA reference with the anisotropic prox (checked against an exact reference in
+  ``test_solvers_tval3_gpsr.py``).
 * ``tv-denoise``: ``A = I`` (two noisy images): the optimum is scikit-image's
   ``denoise_tv_chambolle``, which also cross-checks the FISTA reference.
 * ``l1`` (sparse spikes) and ``wavelet`` (Haar l1 of the images): scikit-learn's ``Lasso``
@@ -40,7 +43,7 @@ N = SHAPE[0] * SHAPE[1]
 REL_TOL = 1e-4
 #: ... within this many iterations (all in-tree solvers need at most ~130)
 MAX_ITER = 1000
-KINDS = ("tv", "tv-denoise", "l1", "wavelet")
+KINDS = ("tv", "tv-aniso", "tv-denoise", "l1", "wavelet")
 
 
 # -- problems and references -------------------------------------------------------------------
@@ -49,9 +52,11 @@ def _tv(**kw) -> TV:
     return TV(SHAPE, **{"max_inner": 100, "inner_tol": 1e-6, **kw})
 
 
-def _fista_reference(a: np.ndarray, y: np.ndarray, lam: float, n_iter: int) -> np.ndarray:
+def _fista_reference(a: np.ndarray, y: np.ndarray, lam: float, n_iter: int,
+                     isotropic: bool = True) -> np.ndarray:
     """Plain FISTA with a tightly converged TV prox (independent of the solver classes)."""
-    return fista_tv(a, y, lam, TV(SHAPE, max_inner=200, inner_tol=1e-8), n_iter)
+    return fista_tv(a, y, lam, TV(SHAPE, isotropic=isotropic, max_inner=200, inner_tol=1e-8),
+                    n_iter)
 
 
 def _lasso(b: np.ndarray, y: np.ndarray, lam: float) -> np.ndarray:
@@ -95,6 +100,9 @@ def problems() -> dict[str, Problem]:
     out = {
         "tv": Problem(op=MatrixOperator(a), a=a, y=y_img, lam=0.05, make_reg=_tv,
                       x_ref=_fista_reference(a, y_img, 0.05, 300)),
+        "tv-aniso": Problem(op=MatrixOperator(a), a=a, y=y_img, lam=0.05,
+                            make_reg=lambda: _tv(isotropic=False),
+                            x_ref=_fista_reference(a, y_img, 0.05, 300, isotropic=False)),
         "tv-denoise": Problem(
             op=Identity(N), a=None, y=noisy, lam=0.1, make_reg=_tv,
             x_ref=np.stack([denoise_tv_chambolle(noisy[:, j].reshape(SHAPE), weight=0.1,
@@ -195,30 +203,30 @@ def test_entry_loads_a_solver_with_the_entry_defaults(name):
     for key in ("iterations", "lam_scale", "regulariser"):
         assert key in entry.defaults
         assert getattr(cls, f"default_{key}") == entry.defaults[key]
-    assert entry.defaults["regulariser"] in ("tv", "l1", "wavelet")
+    assert entry.defaults["regulariser"] in ("tv", "tv-aniso", "l1", "wavelet")
     assert _accepts(name, entry.defaults["regulariser"])  # its default passes its own hook
 
 
 def test_registry_defaults_of_the_paper_solvers():
     d = {n: SOLVERS.get(n).defaults for n in ("fista", "twist", "tval3", "gpsr")}
     assert [d[n]["iterations"] for n in d] == [60, 60, 100, 120]
-    assert all(d[n]["lam_scale"] == 0.3 for n in d)
-    assert [d[n]["regulariser"] for n in d] == ["tv", "tv", "tv", "wavelet"]
+    assert [d[n]["lam_scale"] for n in d] == [0.4, 0.4, 0.4, 0.3]
+    assert [d[n]["regulariser"] for n in d] == ["tv-aniso", "tv-aniso", "tv-aniso", "wavelet"]
 
 
 def test_validate_hooks():
     from spslidar.config import Config
 
-    for kind in ("tv", "l1", "wavelet", "auto"):
+    for kind in ("tv", "tv-aniso", "l1", "wavelet", "auto"):
         assert _accepts("fista", kind) and _accepts("twist", kind)
-    kinds = ("tv", "l1", "wavelet", "auto")
-    assert [_accepts("tval3", k) for k in kinds] == [True, False, False, True]
-    assert [_accepts("gpsr", k) for k in kinds] == [False, True, True, True]
+    kinds = ("tv", "tv-aniso", "l1", "wavelet", "auto")
+    assert [_accepts("tval3", k) for k in kinds] == [True, True, False, False, True]
+    assert [_accepts("gpsr", k) for k in kinds] == [False, False, True, True, True]
     with pytest.raises(ConfigError, match=r"^the gpsr solver minimises an l1 norm: use "
                                           r"--regulariser l1 or wavelet$"):
         Config(solver="gpsr", regulariser="tv")
     with pytest.raises(ConfigError, match=r"^the tval3 solver minimises total variation: use "
-                                          r"--regulariser tv$"):
+                                          r"--regulariser tv or tv-aniso$"):
         Config(solver="tval3", regulariser="wavelet")
     with pytest.raises(ValueError, match="unknown solver 'nope'; choose one of fista"):
         get_solver("nope")
@@ -431,3 +439,16 @@ def test_reset_restores_the_fresh_state(make):
     reg.prox(v1 * 1.1, 0.2)
     reg.reset()
     np.testing.assert_array_equal(reg.prox(v2, 0.3), make().prox(v2, 0.3))
+
+
+def test_tv_registry_entries_and_the_default():
+    """``tv`` is the isotropic TV, ``tv-aniso`` the anisotropic one, and ``auto`` resolves to
+    ``tv-aniso`` for FISTA, recorded as such in ``metrics.json``."""
+    from spslidar import run
+    from spslidar.solvers import REGULARISERS
+
+    assert REGULARISERS.load("tv")((4, 4)).isotropic is True
+    assert REGULARISERS.load("tv-aniso")((4, 4)).isotropic is False
+    r = run(size=8, code_length=127, noise=1.0)
+    assert r.metrics["config"]["regulariser"] == "tv-aniso"
+    assert r.metrics["config"]["lam_scale"] == 0.4

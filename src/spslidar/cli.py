@@ -311,6 +311,11 @@ def _add_reconstruct_parser(sub) -> None:
                         "result: without it every metric that needs no truth is given")
     _add_fov_option(p)
     p.add_argument("--solver", choices=solvers, default=S)
+    from .solvers import REGULARISERS
+
+    p.add_argument("--regulariser", choices=("auto", *REGULARISERS.names()), default=S,
+                   help="auto: the solver's default (tv-aniso for fista, twist, tval3); tv: "
+                        "isotropic, for scenes of oblique edges")
     p.add_argument("--depth", choices=depths, default=S)
     p.add_argument("--lam-scale", type=float, default=S, metavar="K")
     p.add_argument("--iterations", type=int, default=S, metavar="K")
@@ -329,8 +334,9 @@ def _cmd_reconstruct(args) -> int:
     from .pipeline.real import _load_npy, load_code, load_patterns, reconstruct_ptu
 
     check_output(args.out, args.overwrite)  # refuse before any work
-    processing = {k: getattr(args, k) for k in ("solver", "depth", "lam_scale", "iterations",
-                                                 "qcr", "max_time") if hasattr(args, k)}
+    processing = {k: getattr(args, k) for k in ("solver", "regulariser", "depth", "lam_scale",
+                                                 "iterations", "qcr", "max_time")
+                  if hasattr(args, k)}
     truth = _load_npy(args.truth, "truth") if args.truth else None
     result = reconstruct_ptu(args.ptu, load_patterns(args.patterns),
                              load_code(args.code, args.code_length), args.bit_rate,

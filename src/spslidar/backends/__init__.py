@@ -51,7 +51,7 @@ _PROVIDER = {
 #: runs its NumPy implementation on the host, through the same chain
 DEVICE_KERNELS = {
     "solver": ("fista",),
-    "regulariser": ("auto", "tv"),
+    "regulariser": ("auto", "tv", "tv-aniso"),
     "qcr_form": ("centred",),
     "detector": ("linear",),
     "depth": ("argmax",),

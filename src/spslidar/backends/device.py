@@ -34,7 +34,7 @@ __all__ = ["DEVICE_BLOCK_BINS", "argmax_depth", "noise_per_bin", "problem",
 #: counts depend only on the seed and the shape): 2^27 float32 bins = 512 MB
 DEVICE_BLOCK_BINS = 1 << 27
 #: the stage choices with a device kernel; any other runs on the host through the same chain
-DEVICE_SOLVERS = {("fista", "tv"), ("fista", "auto")}
+DEVICE_SOLVERS = {("fista", "tv"), ("fista", "tv-aniso"), ("fista", "auto")}
 #: replay FISTA's iterations from a CUDA graph with PyTorch on CUDA (``torch_graph``)
 USE_CUDA_GRAPHS = True
 
@@ -158,11 +158,12 @@ def problem(be: Any, patterns: Any, corr: Any, sigma: np.ndarray, probe_seed: An
 
 
 def solve(be: Any, A: Any, y: Any, shape: tuple[int, int], nonneg: bool, lam: float,
-          iterations: int, tol: float, inner: int) -> tuple[Any, Any]:
+          iterations: int, tol: float, inner: int, isotropic: bool = True) -> tuple[Any, Any]:
     """FISTA + TV on the device (:class:`spslidar.solvers.fista.FISTA` with
     :class:`spslidar.solvers.regularisers.TV`, iterate for iterate); a CUDA graph replays the
-    iterations with PyTorch on CUDA. Returns ``(x, FistaInfo)``."""
-    reg = TVProx(be.xp, shape, nonneg=nonneg, max_inner=inner, be=be)
+    iterations with PyTorch on CUDA; ``isotropic`` False: the anisotropic TV of
+    ``--regulariser tv-aniso``. Returns ``(x, FistaInfo)``."""
+    reg = TVProx(be.xp, shape, nonneg=nonneg, max_inner=inner, be=be, isotropic=isotropic)
     run = fista_tv
     if USE_CUDA_GRAPHS and be.name == "torch" and be.device.type == "cuda":
         from .torch_graph import fista_tv_graphed as run

@@ -172,13 +172,17 @@ def power_norm(be: Any, A: DenseOperator, n_iter: int = 50, rtol: float = 1e-4,
 
 
 class TVProx:
-    """Isotropic TV (forward differences, Neumann edges) with the warm-started FGP prox of
-    :class:`spslidar.solvers.regularisers.TV`, on ``(Q, K)`` blocks of any namespace.
+    """Isotropic or anisotropic TV (forward differences, Neumann edges) with the warm-started
+    FGP prox of :class:`spslidar.solvers.regularisers.TV`, on ``(Q, K)`` blocks of any
+    namespace.
 
     Parameters
     ----------
     xp : namespace
     image_shape : (Ny, Nx)
+    isotropic : bool
+        Project the dual onto unit disks (isotropic TV, ``--regulariser tv``) or unit boxes
+        (anisotropic, ``tv-aniso``).
     nonneg : bool
         Project the prox onto ``z >= 0``.
     max_inner : int
@@ -188,8 +192,10 @@ class TVProx:
     """
 
     def __init__(self, xp: Any, image_shape: tuple[int, int], nonneg: bool = True,
-                 max_inner: int = 20, inner_tol: float = 1e-3, be: Any = None):
+                 max_inner: int = 20, inner_tol: float = 1e-3, be: Any = None,
+                 isotropic: bool = True):
         self.xp, self.be = xp, be
+        self.isotropic = bool(isotropic)
         self.image_shape = (int(image_shape[0]), int(image_shape[1]))
         self.nonneg = bool(nonneg)
         self.max_inner = int(max_inner)
@@ -231,8 +237,17 @@ class TVProx:
         """Per-column TV, shape ``(K,)`` (float64)."""
         xp = self.xp
         g0, g1 = self.gradient(self._cube(x))
-        mag = xp.sqrt(g0 * g0 + g1 * g1)
+        mag = xp.sqrt(g0 * g0 + g1 * g1) if self.isotropic else xp.abs(g0) + xp.abs(g1)
         return xp.astype(xp.sum(xp.reshape(mag, (-1, x.shape[1])), axis=0), xp.float64)
+
+    def project(self, q0: Any, q1: Any) -> tuple[Any, Any]:
+        """The dual ``(q0, q1)`` projected onto the pixel-wise unit disks (isotropic) or unit
+        boxes (anisotropic)."""
+        xp = self.xp
+        if not self.isotropic:
+            return xp.clip(q0, min=-1.0, max=1.0), xp.clip(q1, min=-1.0, max=1.0)
+        w = xp.sqrt(xp.clip(q0 * q0 + q1 * q1, min=1.0))
+        return q0 / w, q1 / w
 
     def prox(self, v: Any, t: float) -> Any:
         """``argmin_z 1/2 ||z - v||^2 + t TV(z)`` (``+ i_{z >= 0}``) per column of ``v``."""
@@ -260,8 +275,7 @@ class TVProx:
             z = z * 0.125
             g0, g1 = self.gradient(z)
             q0, q1 = g0 + r0, g1 + r1
-            w = xp.sqrt(xp.clip(q0 * q0 + q1 * q1, min=1.0))
-            q0, q1 = q0 / w, q1 / w
+            q0, q1 = self.project(q0, q1)
             if last:
                 p0, p1 = q0, q1
                 break

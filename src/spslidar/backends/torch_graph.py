@@ -71,6 +71,7 @@ class _Iteration:
                                                        for _ in range(4))
         self.norms = torch.zeros(2, dtype=torch.float64, device=dev)
         self.nonneg = reg.nonneg
+        self.isotropic = reg.isotropic
         self.tol2 = reg.inner_tol ** 2
         # the prox's extrapolation coefficients (the same at every call: s restarts at 1)
         self.coefs, s = [], 1.0
@@ -117,8 +118,11 @@ class _Iteration:
             z *= 0.125
             g0, g1 = _grad(z)
             q0, q1 = g0.add_(r0), g1.add_(r1)
-            w = torch.sqrt(torch.clamp(q0 * q0 + q1 * q1, min=1.0))
-            q0, q1 = q0 / w, q1 / w
+            if self.isotropic:
+                w = torch.sqrt(torch.clamp(q0 * q0 + q1 * q1, min=1.0))
+                q0, q1 = q0 / w, q1 / w
+            else:
+                q0, q1 = q0.clamp(-1.0, 1.0), q1.clamp(-1.0, 1.0)
             if i == len(self.coefs) - 1:
                 break
             d0, d1 = q0 - q_prev[0], q1 - q_prev[1]

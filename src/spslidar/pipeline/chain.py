@@ -26,6 +26,7 @@ from ..errors import ConfigError
 from ..patterns import build_patterns, n_patterns_for
 from ..qcr import MeanEliminated, plain_problem, qcr_problem
 from ..scenes import load_scene
+from ..solvers.entries import TV_REGULARISERS
 from .gate import AUTO_GATE_MIN_SLICES, occupied_lags
 from .measurement import PROCESSING_KEYS, Measurement, _resolve, check_processing_keys
 from .plan import _check_pattern_floor, _plan, detector_options, preflight, timeline
@@ -213,7 +214,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
                                 np.random.default_rng(meas.probe_seed))
         reg_kind = (solver_default(cfg.solver, "regulariser") if cfg.regulariser == "auto"
                     else cfg.regulariser)
-        if not cfg.qcr and reg_kind == "tv":
+        if not cfg.qcr and reg_kind in TV_REGULARISERS:
             # TV ignores a constant per slice: eliminate the patterns' mean direction
             # exactly, so the plain problem converges within the default budget
             eliminated, y_plain = MeanEliminated(A), y
@@ -231,8 +232,10 @@ def reconstruct(meas: Measurement, **processing) -> Result:
 
     iterations = cfg.iterations or solver_default(cfg.solver, "iterations")
     if device:
+        reg_kind = (solver_default(cfg.solver, "regulariser") if cfg.regulariser == "auto"
+                    else cfg.regulariser)
         x, finfo = dev.solve(be, A, y, (cfg.size, cfg.size), cfg.nonneg, lam, iterations,
-                                 cfg.tol, TV_INNER)
+                             cfg.tol, TV_INNER, isotropic=reg_kind == "tv")
         be.sync()
         info = SolveInfo("fista", finfo.iterations, finfo.objective, finfo.stop_reason,
                          time.perf_counter() - t0,

@@ -14,6 +14,7 @@ from ..config import Config
 from ..constants import SPEED_OF_LIGHT
 from ..metrics import depth_errors, edge_agreement, sobel_edges
 from ..products import reflectivity_image
+from ..solvers.entries import TV_REGULARISERS
 from ..version import __version__
 from .acquisition import Acquisition
 from .measurement import Measurement
@@ -113,6 +114,6 @@ def resolved_config(cfg: Config, acq: Acquisition, gate, auto_gate: bool, iterat
                         else cfg.regulariser)
     d["range_gate"] = [float(gate[0]), float(gate[1])]
     d["auto_gate"] = bool(auto_gate)
-    if not cfg.qcr and d["regulariser"] == "tv":
+    if not cfg.qcr and d["regulariser"] in TV_REGULARISERS:
         d["nonneg"] = False  # the mean-eliminated plain problem has no sign constraint
     return d

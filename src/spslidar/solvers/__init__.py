@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from .entries import REGULARISERS, SOLVERS
+from .entries import REGULARISERS, SOLVERS, TV_REGULARISERS
 
 if TYPE_CHECKING:  # pragma: no cover
     from .base import (
@@ -37,6 +37,7 @@ if TYPE_CHECKING:  # pragma: no cover
     )
 
 __all__ = [
+    "TV_REGULARISERS",
     "REGULARISERS",
     "SOLVERS",
     "Monitor",
