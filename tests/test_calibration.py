@@ -107,8 +107,8 @@ def test_calibrated_reconstruction_holds_the_ideal_error(acquisitions):
 
 def test_calibrated_weight_is_scaled_by_the_filters_spread(acquisitions):
     """The default weight of a calibrated reconstruction is the solver's lam_scale times the
-    square root of the calibrated filter's spread (> 1 for this IRF, 1 for an ideal one); a
-    weight the user gives is kept as given."""
+    spread of the calibrated filter (> 1 for this IRF, 1 for an ideal one); a weight the user
+    gives is kept as given."""
     from spslidar.pipeline.real import calibrated_lam_scale
     from spslidar.pipeline.weights import solver_default
 
@@ -117,7 +117,7 @@ def test_calibrated_weight_is_scaled_by_the_filters_spread(acquisitions):
     m, _ = _reconstruct(acquisitions, "scene", "--calibration", cal)
     spread = m["calibration"]["spread"]
     assert 1.3 < spread < 2.5  # a 1.5-bin Gaussian with a 30 % 4-bin tail spreads a return
-    assert m["lam_scale"] == pytest.approx(base * np.sqrt(spread), rel=1e-12)
+    assert m["lam_scale"] == pytest.approx(base * spread, rel=1e-12)
     m, _ = _reconstruct(acquisitions, "scene", "--calibration", cal, "--lam-scale", "0.2")
     assert m["lam_scale"] == pytest.approx(0.2, rel=1e-12)
     m, _ = _reconstruct(acquisitions, "ideal")

@@ -7,7 +7,7 @@ file); each is run on every small problem whose regulariser its ``validate`` hoo
   Reference: a plain FISTA loop written here (only ``reg.prox`` of a tightly converged
   :class:`TV`), run to a fixed point; its optimality is checked by the proximal fixed-point
   residual, the prox itself against scikit-image in ``test_regularisers.py``.
-* ``tv-aniso``: the same problem with the anisotropic TV (the default of the TV solvers), the
+* ``tv-aniso``: the same problem with the anisotropic TV (``--regulariser tv-aniso``), the
   same plain FISTA reference with the anisotropic prox (checked against an exact reference in
   ``test_solvers_tval3_gpsr.py``).
 * ``tv-denoise``: ``A = I`` (two noisy images): the optimum is scikit-image's
@@ -210,8 +210,8 @@ def test_entry_loads_a_solver_with_the_entry_defaults(name):
 def test_registry_defaults_of_the_paper_solvers():
     d = {n: SOLVERS.get(n).defaults for n in ("fista", "twist", "tval3", "gpsr")}
     assert [d[n]["iterations"] for n in d] == [60, 60, 100, 120]
-    assert [d[n]["lam_scale"] for n in d] == [0.4, 0.4, 0.4, 0.3]
-    assert [d[n]["regulariser"] for n in d] == ["tv-aniso", "tv-aniso", "tv-aniso", "wavelet"]
+    assert all(d[n]["lam_scale"] == 0.3 for n in d)
+    assert [d[n]["regulariser"] for n in d] == ["tv", "tv", "tv", "wavelet"]
 
 
 def test_validate_hooks():
@@ -442,13 +442,15 @@ def test_reset_restores_the_fresh_state(make):
 
 
 def test_tv_registry_entries_and_the_default():
-    """``tv`` is the isotropic TV, ``tv-aniso`` the anisotropic one, and ``auto`` resolves to
-    ``tv-aniso`` for FISTA, recorded as such in ``metrics.json``."""
+    """``tv`` is the isotropic TV, ``tv-aniso`` the anisotropic one; ``auto`` resolves to
+    ``tv`` for FISTA and an explicit ``tv-aniso`` is recorded as such in ``metrics.json``."""
     from spslidar import run
     from spslidar.solvers import REGULARISERS
 
     assert REGULARISERS.load("tv")((4, 4)).isotropic is True
     assert REGULARISERS.load("tv-aniso")((4, 4)).isotropic is False
     r = run(size=8, code_length=127, noise=1.0)
+    assert r.metrics["config"]["regulariser"] == "tv"
+    assert r.metrics["config"]["lam_scale"] == 0.3
+    r = run(size=8, code_length=127, noise=1.0, regulariser="tv-aniso")
     assert r.metrics["config"]["regulariser"] == "tv-aniso"
-    assert r.metrics["config"]["lam_scale"] == 0.4

@@ -314,8 +314,8 @@ def _add_reconstruct_parser(sub) -> None:
     from .solvers import REGULARISERS
 
     p.add_argument("--regulariser", choices=("auto", *REGULARISERS.names()), default=S,
-                   help="auto: the solver's default (tv-aniso for fista, twist, tval3); tv: "
-                        "isotropic, for scenes of oblique edges")
+                   help="auto: the solver's default (tv for fista, twist, tval3); tv-aniso: "
+                        "the anisotropic TV")
     p.add_argument("--depth", choices=depths, default=S)
     p.add_argument("--lam-scale", type=float, default=S, metavar="K")
     p.add_argument("--iterations", type=int, default=S, metavar="K")

@@ -242,25 +242,23 @@ def _check_solve_time(cfg: Config, n_patterns: int, n_pixels: int, n_lags: int,
 
 def calibrated_lam_scale(solver: str, spread: float) -> float:
     """The default weight factor of a calibrated instrument: the solver's ``lam_scale``
-    times the square root of the calibrated filter's ``spread``
-    (:class:`~.calibration.CalibratedFilter`).
+    times the calibrated filter's ``spread`` (:class:`~.calibration.CalibratedFilter`).
 
     The matched filter for a measured IRF spreads each return over ``spread`` times the lags
     an ideal instrument's does, and ``reconstruct`` then averages each profile over that
-    response (:func:`~.calibration.delay_filter`): the slices are best solved with a larger
-    weight. Measured with ``benchmarks/instrument.py`` (a 1.5-bin IRF with a 4-bin tail,
-    ``spread`` 1.67) under the anisotropic TV at ``lam_scale`` 0.4, chosen on seeds 0-2
-    without the scene's pole among the factors 1, sqrt(spread) and spread (the issue's three
-    targets met on all three seeds, then the lowest mean RMSE: 0.070 / 0.058 / 0.064 m; the
-    factor ``spread`` misses the bias target on seed 1 by 0.004 mm). Reported on seeds 3-5:
-    RMSE 0.079 / 0.099 / 0.078 m (factor 1), 0.035 / 0.094 / 0.075 m (sqrt), 0.063 / 0.093 /
-    0.075 m (spread); the bias grows with the weight (mean over seeds 0-5: 0.58 / 0.76 / 0.91
-    cm), so the factor 1 meets the bias target on seed 5 (0.85 cm) where the others do not
-    (1.14 cm). An ideal instrument's calibration has ``spread`` 1 and keeps the default.
+    response (:func:`~.calibration.delay_filter`): the slices are best solved with the
+    weight scaled by the same factor. Measured with ``benchmarks/instrument.py`` (a 1.5-bin
+    IRF with a 4-bin tail, ``spread`` 1.67, so 0.3 -> 0.50; chosen on seeds 0-2 among
+    ``lam_scale`` 0.2, 0.3, 0.5, 0.7 and 1.0, reported on seeds 3-5): on seeds 3-5 the RMSE
+    goes from 0.092 / 0.140 / 0.087 m to 0.089 / 0.098 / 0.081 m without the scene's
+    one-pixel pole and from 0.124 / 0.113 / 0.111 to 0.125 / 0.109 / 0.114 m with it, while
+    the same factor on the ideal instrument's acquisitions (``spread`` 1) would cost it
+    (0.041 / 0.036 / 0.031 -> 0.043 / 0.044 / 0.037 m): the factor belongs to the filter, not
+    to the scene. An ideal instrument's calibration has ``spread`` 1 and keeps the default.
     """
     from .weights import solver_default
 
-    return float(solver_default(solver, "lam_scale")) * float(np.sqrt(max(float(spread), 1.0)))
+    return float(solver_default(solver, "lam_scale")) * max(float(spread), 1.0)
 
 
 def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray,

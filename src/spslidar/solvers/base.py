@@ -254,10 +254,10 @@ class Solver:
     #: iteration cap of the pipeline (``--iterations``) when the config leaves it unset
     default_iterations: int = 100
     #: multiplies the data-derived regularisation weight (see ``spslidar.pipeline``)
-    default_lam_scale: float = 0.4
-    #: the regulariser that ``--regulariser auto`` picks (``tv-aniso``, ``tv``, ``l1`` or
+    default_lam_scale: float = 0.3
+    #: the regulariser that ``--regulariser auto`` picks (``tv``, ``tv-aniso``, ``l1`` or
     #: ``wavelet``)
-    default_regulariser: str = "tv-aniso"
+    default_regulariser: str = "tv"
     #: multiply-adds of one product with the whole block above which the solve is parallel
     PARALLEL_MIN_WORK = 1 << 24
 

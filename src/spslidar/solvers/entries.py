@@ -32,16 +32,16 @@ def _regulariser_in(allowed: tuple[str, ...], message: str):
 SOLVERS = Registry("solver", "solver")
 SOLVERS.add("fista", "spslidar.solvers.fista:FISTA", "FISTA",
             "FISTA, accelerated proximal gradient (default)",
-            iterations=60, lam_scale=0.4, regulariser="tv-aniso")
+            iterations=60, lam_scale=0.3, regulariser="tv")
 SOLVERS.add("twist", "spslidar.solvers.twist:TwIST", "TwIST",
             "TwIST, two-step iterative shrinkage (the paper's)",
-            iterations=60, lam_scale=0.4, regulariser="tv-aniso")
+            iterations=60, lam_scale=0.3, regulariser="tv")
 SOLVERS.add("tval3", "spslidar.solvers.tval3:TVAL3", "TVAL3",
             "TVAL3, augmented Lagrangian for TV (regulariser tv)",
             validate=_regulariser_in(
                 ("auto", *TV_REGULARISERS),
                 "the tval3 solver minimises total variation: use --regulariser tv or tv-aniso"),
-            iterations=100, lam_scale=0.4, regulariser="tv-aniso")
+            iterations=100, lam_scale=0.3, regulariser="tv")
 SOLVERS.add("gpsr", "spslidar.solvers.gpsr:GPSR", "GPSR",
             "GPSR-BB, gradient projection for l1 (regulariser l1 or wavelet)",
             validate=_regulariser_in(
@@ -53,10 +53,9 @@ SOLVERS.add("gpsr", "spslidar.solvers.gpsr:GPSR", "GPSR",
 #: each target is a factory ``make(shape, nonneg=..., max_inner=...)`` -> Regulariser
 REGULARISERS = Registry("regulariser", "regulariser")
 REGULARISERS.add("tv", "spslidar.solvers.regularisers:make_tv", "TV",
-                 "isotropic total variation of each range slice")
+                 "isotropic total variation of each range slice (default of fista, twist, tval3)")
 REGULARISERS.add("tv-aniso", "spslidar.solvers.regularisers:make_tv_aniso", "anisotropic TV",
-                 "anisotropic total variation of each range slice, |D_y| + |D_x| "
-                 "(default of fista, twist, tval3)")
+                 "anisotropic total variation of each range slice, |D_y| + |D_x|")
 REGULARISERS.add("l1", "spslidar.solvers.regularisers:make_l1", "l1",
                  "l1 norm of the pixels (sparse returns)")
 REGULARISERS.add("wavelet", "spslidar.solvers.regularisers:make_wavelet_l1", "Haar l1",
