@@ -39,6 +39,7 @@ from .weights import (
     build_regulariser,
     default_weight,
     noise_level,
+    regulariser_kind,
     solver_default,
     weight_warnings,
 )
@@ -185,6 +186,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     dtype = np.float32 if cfg.dtype == "float32" else np.float64
     be = getattr(patterns, "backend", None)  # None: NumPy arrays
     device = be is not None and reconstructs_on_device(cfg)
+    reg_kind = regulariser_kind(cfg)
 
     t0 = time.perf_counter()
     corr = sim["corr"]
@@ -212,8 +214,6 @@ def reconstruct(meas: Measurement, **processing) -> Result:
             A, y = plain_problem(patterns, corr, dtype=dtype)
         sigma_eff = noise_level(A, patterns, sim["sigma"], cfg,
                                 np.random.default_rng(meas.probe_seed))
-        reg_kind = (solver_default(cfg.solver, "regulariser") if cfg.regulariser == "auto"
-                    else cfg.regulariser)
         if not cfg.qcr and reg_kind in TV_REGULARISERS:
             # TV ignores a constant per slice: eliminate the patterns' mean direction
             # exactly, so the plain problem converges within the default budget
@@ -232,8 +232,6 @@ def reconstruct(meas: Measurement, **processing) -> Result:
 
     iterations = cfg.iterations or solver_default(cfg.solver, "iterations")
     if device:
-        reg_kind = (solver_default(cfg.solver, "regulariser") if cfg.regulariser == "auto"
-                    else cfg.regulariser)
         x, finfo = dev.solve(be, A, y, (cfg.size, cfg.size), cfg.nonneg, lam, iterations,
                              cfg.tol, TV_INNER, isotropic=reg_kind == "tv")
         be.sync()

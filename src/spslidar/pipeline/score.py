@@ -19,7 +19,7 @@ from ..version import __version__
 from .acquisition import Acquisition
 from .measurement import Measurement
 from .results import Result
-from .weights import solver_default
+from .weights import regulariser_kind
 
 
 def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: np.ndarray,
@@ -110,8 +110,7 @@ def resolved_config(cfg: Config, acq: Acquisition, gate, auto_gate: bool, iterat
     d["lam_scale"] = float(lam_scale)
     d["code_index"] = acq.code_index
     d["replica"] = acq.replica
-    d["regulariser"] = (solver_default(cfg.solver, "regulariser") if cfg.regulariser == "auto"
-                        else cfg.regulariser)
+    d["regulariser"] = regulariser_kind(cfg)
     d["range_gate"] = [float(gate[0]), float(gate[1])]
     d["auto_gate"] = bool(auto_gate)
     if not cfg.qcr and d["regulariser"] in TV_REGULARISERS:

@@ -16,15 +16,21 @@ from ..qcr import centre
 TV_INNER = 3
 
 
+def regulariser_kind(cfg: Config) -> str:
+    """The name of the regulariser the config asks for, ``auto`` resolved to the solver's
+    default."""
+    if cfg.regulariser == "auto":
+        return solver_default(cfg.solver, "regulariser")
+    return cfg.regulariser
+
+
 def build_regulariser(cfg: Config, shape: tuple[int, int]):
     """The regulariser of eq. (18) the config asks for (``auto``: the solver's default), from
     the registry :data:`spslidar.solvers.REGULARISERS`."""
     from ..solvers import REGULARISERS
 
-    kind = cfg.regulariser
-    if kind == "auto":
-        kind = solver_default(cfg.solver, "regulariser")
-    return REGULARISERS.load(kind)(shape, nonneg=cfg.nonneg, max_inner=TV_INNER)
+    return REGULARISERS.load(regulariser_kind(cfg))(shape, nonneg=cfg.nonneg,
+                                                     max_inner=TV_INNER)
 
 
 def solver_default(name: str, key: str):
