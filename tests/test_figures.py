@@ -62,6 +62,8 @@ def test_estimate_outside_the_colour_range_is_marked(result, tmp_path):
         outside = np.isfinite(r.depth) & (r.depth > np.nanmax(r.truth) + 1)
         assert "outside the colour range" in " ".join(t for _, t in _legend_items(r, outside))
         assert "RMSE" in _title(r)
+        # the title names the solver with the regulariser it ran ('auto' resolved)
+        assert f"{r.config.solver} + {r.metrics['config']['regulariser']}," in _title(r)
     finally:
         r.depth[...] = saved
 

@@ -142,10 +142,13 @@ def _limits(result):
 
 def _title(result) -> str:
     c, m = result.config, result.metrics
+    # the solver with the regulariser it ran (the resolved config: 'auto' named)
+    reg = m.get("config", {}).get("regulariser", c.regulariser)
+    solve = f"{c.solver} + {reg}"
     if "ptu" in m:  # a measured acquisition: no simulated photon numbers to show
         what = (f"measured {Path(m['ptu']['file']).name}: {m['n_patterns']} patterns, "
                 f"{int(sum(m['ptu']['counts_per_pattern']))} photons, "
-                f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}, {c.depth} depth")
+                f"{'QCR' if c.qcr else 'no QCR'}, {solve}, {c.depth} depth")
         cal = m.get("calibration")
         if cal:  # which instrument calibration the depths are corrected by
             name = f"{Path(cal['file']).name}: " if cal.get("file") else ""
@@ -155,7 +158,7 @@ def _title(result) -> str:
     else:
         what = (f"{c.lidar.upper()} {m['code_description']}, {m['n_patterns']} {c.patterns} "
                 f"patterns ({100 * c.compression:g}%), m_s={c.signal:g}, m_n={c.noise:g}, "
-                f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}, {c.depth} depth")
+                f"{'QCR' if c.qcr else 'no QCR'}, {solve}, {c.depth} depth")
     if m.get("depth_rmse_m") is None:
         return f"{what}: no ground truth; returns in {_percent(m['coverage'])} of pixels"
     return (f"{what}: RMSE = {m['depth_rmse_m']:.4f} m over {_percent(m['coverage'])} "
