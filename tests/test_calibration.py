@@ -52,6 +52,19 @@ def _reconstruct(d, ptu="scene", *extra, gate=("24", "26")):
     return json.loads((out / "metrics.json").read_text()), np.load(out / "depth.npy")
 
 
+def test_run_says_what_a_simulated_delay_does_to_its_own_depths(acquisitions):
+    """run reads depths as an uncalibrated instrument: a simulated delay puts every return
+    c delay / 2 = 2.06 m too far (here beyond the 24-26 m gate, 24.6-25.4 m + 2.06 m), and
+    the run says so once; the ideal instrument's run says nothing of it."""
+    said = [w for w in json.loads((acquisitions / "scenerun" / "metrics.json").read_text())[
+        "warnings"] if w.startswith("--system-delay")]
+    assert len(said) == 1
+    assert "2.06 m too far; 64 pixels' delayed returns fall outside the range gate 24-26 m" \
+        in said[0]
+    ideal = json.loads((acquisitions / "idealrun" / "metrics.json").read_text())["warnings"]
+    assert not any("--system-delay" in w for w in ideal)
+
+
 def test_calibration_measures_the_delay_and_irf(acquisitions):
     import hashlib
 

@@ -63,7 +63,28 @@ def timeline(cfg: Config, scene, warns: list[str]):
     if np.any(outside & scene.valid):
         warns.append(f"{int((outside & scene.valid).sum())} pixels lie outside the range gate "
                      f"{gate[0]:g}-{gate[1]:g} m: their returns alias into the gate or are lost")
+    warns.extend(delay_warnings(cfg, scene, gate))
     return seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse
+
+
+def delay_warnings(cfg: Config, scene, gate: tuple[float, float]) -> list[str]:
+    """What a simulated ``system_delay`` does to ``run``'s own depths: ``run`` reconstructs
+    as an uncalibrated instrument would, so every return reads ``c delay / 2`` too far, and
+    with the default gate (set from the scene's true depths) the returns fall beyond it and
+    the depth map is noise (measured: the camera with 13.74 ns, RMSE 0.34 m and no warning).
+    The delay is for ``--save-ptu`` acquisitions that ``spslidar calibrate`` and
+    ``reconstruct --calibration`` remove it from."""
+    if not cfg.system_delay > 0:
+        return []
+    shift = SPEED_OF_LIGHT * float(cfg.system_delay) / 2.0
+    seen = scene.depth + shift
+    beyond = int(np.sum(((seen < gate[0]) | (seen > gate[1])) & scene.valid))
+    where = (f"; {beyond} pixels' delayed returns fall outside the range gate "
+             f"{gate[0]:g}-{gate[1]:g} m" if beyond else "")
+    return [f"--system-delay {cfg.system_delay:g} s delays every return by {shift:.3g} m and "
+            f"run reads its depths as an uncalibrated instrument does ({shift:.3g} m too "
+            f"far{where}): calibrate on a flat target and reconstruct --calibration, as in the "
+            f"README's 'From your hardware to a depth map'"]
 
 
 def ignored_options(cfg: Config) -> list[str]:
