@@ -72,7 +72,9 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                         "average power")
     g.add_argument("--system-delay", type=float, default=S, metavar="SECONDS",
                    help="extra delay of every return by the instrument's cables and "
-                        "electronics (default 0; 'spslidar calibrate' measures it)")
+                        "electronics (default 0; run's own depths keep it, as an "
+                        "uncalibrated instrument's do; 'spslidar calibrate' measures it "
+                        "and 'reconstruct --calibration' removes it)")
     g.add_argument("--irf", default=S, metavar="SPEC",
                    help="instrument response of every return: gaussian:FWHM[,tail:TAU"
                         "[,weight:W]] (seconds) or a .npy file per TDC bin (default none)")
