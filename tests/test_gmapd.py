@@ -227,3 +227,17 @@ def test_gmapd_run_priced_from_its_first_block(tmp_path, capsys):
         np.random.default_rng(3), max_time=limit) for limit in (1e9, None))
     np.testing.assert_array_equal(timed["corr"], untimed["corr"])
     np.testing.assert_array_equal(timed["sigma"], untimed["sigma"])
+
+
+def test_unconverged_fixed_point_says_the_flux_and_what_to_do():
+    """At thousands of photons per dead time the detector fires at nearly every re-arm and the
+    sweeps barely forget their phase (measured: 10^4-10^5 photons per 500-bin dead time stop
+    unconverged at the cap): the warning names the flux and the operating range; below 100
+    photons per dead time it stays the bare numerical message."""
+    code = make_code("mseq", 1023, 0.5, np.random.default_rng(0)).astype(float)
+    with pytest.warns(RuntimeWarning, match=r"at 2e\+04 photons per dead time: the detector "
+                                            r"fires at nearly every re-arm.*1-10 photons"):
+        renewal_detection((40.0 * (0.5 + code))[None, :], 500, max_sweeps=3)
+    with pytest.warns(RuntimeWarning) as caught:
+        renewal_detection((0.02 * (0.5 + code))[None, :], 500, max_sweeps=1, tol=0.0)
+    assert "photons per dead time" not in str(caught[0].message)

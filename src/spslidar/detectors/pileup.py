@@ -470,8 +470,14 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
         else:
             state = out
     else:
+        per_dead = float(mu2.mean()) * float(dead_bins)
+        why = (f" at {per_dead:.3g} photons per dead time: the detector fires at nearly every "
+               f"re-arm, so its histograms carry little timing information and the model's "
+               f"period map barely forgets its phase; a GMAPD works at about 1-10 photons per "
+               f"dead time (lower --signal / --noise; --periods makes up the photons)"
+               if per_dead > 100.0 else "")
         warnings.warn(f"dead-time fixed point not converged after {max_sweeps} sweeps "
-                      f"(relative change {change:.2e})", RuntimeWarning, stacklevel=2)
+                      f"(relative change {change:.2e}){why}", RuntimeWarning, stacklevel=2)
     h = hist[:, d + 1 :].copy()
     h = h[0] if one_d else h
     info = {"sweeps": sweeps, "change": change}
