@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from . import DEVICE_KERNELS
 from .kernels import TVProx, argmax_peaks, centre, fista_tv, scalars, simulate_block
 from .rng import Stream
 
@@ -33,8 +34,6 @@ __all__ = ["DEVICE_BLOCK_BINS", "argmax_depth", "noise_per_bin", "problem",
 #: most TDC bins (patterns x code period) per simulated block on a device stream (fixed, so the
 #: counts depend only on the seed and the shape): 2^27 float32 bins = 512 MB
 DEVICE_BLOCK_BINS = 1 << 27
-#: the stage choices with a device kernel; any other runs on the host through the same chain
-DEVICE_SOLVERS = {("fista", "tv"), ("fista", "tv-aniso"), ("fista", "auto")}
 #: replay FISTA's iterations from a CUDA graph with PyTorch on CUDA (``torch_graph``)
 USE_CUDA_GRAPHS = True
 
@@ -45,14 +44,15 @@ def simulates_on_device(cfg: Any, patterns: Any) -> bool:
     patterns shown as they are (differential patterns, shown as two exposures, are
     simulated on the host)."""
     host = getattr(patterns, "host", None)
-    return cfg.detector == "linear" and not hasattr(host, "exposures")
+    return cfg.detector in DEVICE_KERNELS["detector"] and not hasattr(host, "exposures")
 
 
 def reconstructs_on_device(cfg: Any) -> bool:
-    """Whether the QCR problem and the solve have device kernels for this configuration:
-    the centred QCR form and FISTA with TV."""
-    return bool(cfg.qcr) and cfg.qcr_form == "centred" and (
-        (cfg.solver, cfg.regulariser) in DEVICE_SOLVERS)
+    """Whether the QCR problem and the solve have device kernels for this configuration
+    (:data:`spslidar.backends.DEVICE_KERNELS`): the centred QCR form and FISTA with a TV."""
+    k = DEVICE_KERNELS
+    return (bool(cfg.qcr) and cfg.qcr_form in k["qcr_form"] and cfg.solver in k["solver"]
+            and cfg.regulariser in k["regulariser"])
 
 
 def noise_per_bin(be: Any, noise: Any, patterns: Any, refl: np.ndarray,
