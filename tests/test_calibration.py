@@ -65,6 +65,22 @@ def test_run_says_what_a_simulated_delay_does_to_its_own_depths(acquisitions):
     assert not any("--system-delay" in w for w in ideal)
 
 
+def test_figure_title_names_the_simulated_instrument():
+    """depth.png's title of a run through a simulated instrument says its delay (read
+    uncalibrated) and IRF; an ideal run's says neither."""
+    from spslidar import run
+    from spslidar.figures import _title
+
+    r = run(size=8, code_length=1023, noise=0.02, compression=0.5, range_gate=[24, 26],
+            scene="steps", depth_min=24.5, depth_max=25.5, system_delay=DELAY,
+            irf="gaussian:150e-12,tail:400e-12,weight:0.3")
+    assert ("instrument: delay 13.74 ns (uncalibrated), IRF gaussian:150e-12,tail:400e-12,"
+            "weight:0.3:") in _title(r)
+    ideal = run(size=8, code_length=1023, noise=0.02, compression=0.5, range_gate=[24, 26],
+                scene="steps", depth_min=24.5, depth_max=25.5)
+    assert "instrument" not in _title(ideal)
+
+
 def test_calibration_measures_the_delay_and_irf(acquisitions):
     import hashlib
 

@@ -159,6 +159,11 @@ def _title(result) -> str:
         what = (f"{c.lidar.upper()} {m['code_description']}, {m['n_patterns']} {c.patterns} "
                 f"patterns ({100 * c.compression:g}%), m_s={c.signal:g}, m_n={c.noise:g}, "
                 f"{'QCR' if c.qcr else 'no QCR'}, {solve}, {c.depth} depth")
+        # a simulated instrument, which run reads as an uncalibrated one
+        inst = ([f"delay {1e9 * c.system_delay:g} ns (uncalibrated)"] if c.system_delay else []
+                ) + ([f"IRF {c.irf}"] if c.irf else [])
+        if inst:
+            what += f", instrument: {', '.join(inst)}"
     if m.get("depth_rmse_m") is None:
         return f"{what}: no ground truth; returns in {_percent(m['coverage'])} of pixels"
     return (f"{what}: RMSE = {m['depth_rmse_m']:.4f} m over {_percent(m['coverage'])} "
