@@ -4,8 +4,9 @@ scenes, each estimator against the paper's argmax on the same measurement.
 Each case (scene, m_n, pattern ratio) is simulated and reconstructed once (the pipeline's
 defaults otherwise, the measurement's seed the scene's seed for ``procedural:SEED``); every
 estimator then runs on the same reconstructed slices ``result.slices``, so the table compares
-the depth stage alone. ``--cache DIR`` keeps each case's slices (``.npz``), so a second run
-with other estimators reconstructs nothing.
+the depth stage alone (``--draw K`` measures the procedural scenes again under seed + 1000 K,
+to see which losses are the noise draw's). ``--cache DIR`` keeps each case's slices
+(``.npz``), so a second run with other estimators reconstructs nothing.
 
 Per case: RMSE (eq. 19), median absolute error, the share of valid pixels off by more than
 5 cm, the low-confidence and missing shares, and the estimator's time. The summary gives, per
@@ -17,6 +18,7 @@ argmax's on the same measurement, and the mean share of pixels off by more than 
         [--out table.md]
     python benchmarks/depth_quality.py --scenes camera motorcycle --noise 10 --compression 0.25
     python benchmarks/depth_quality.py --scenes room --noise 5 --compression 0.5 --seed 8-15
+    python benchmarks/depth_quality.py --procedural 100-149 --draw 1 --estimators argmax mrf
 
 (``--seed`` takes a list or ranges as ``--procedural`` does; with several, each case is named
 ``scene:s<seed>``.)
@@ -163,6 +165,9 @@ def main(argv=None) -> int:
     ap.add_argument("--estimators", nargs="+", default=list(ESTIMATORS.names()))
     ap.add_argument("--seed", default="0",
                     help="measurement seed(s) of --scenes, e.g. 0 or 8-15 (as --procedural)")
+    ap.add_argument("--draw", type=int, default=0,
+                    help="another noise draw of --procedural: measurement seed = scene seed + "
+                         "1000 * DRAW (new code, patterns and photons; 0: the scene's seed)")
     ap.add_argument("--cache", type=Path, default=None, help="keep the slices here")
     ap.add_argument("--out", default=None, help="also write the Markdown to this file")
     ap.add_argument("--per-case", action="store_true", help="also print the per-case table")
@@ -170,6 +175,8 @@ def main(argv=None) -> int:
                     help="reconstruct the measurements missing from --cache in this many "
                          "processes first (each about 150 MB at 64x64; 2 on a 2-core machine)")
     args = ap.parse_args(argv)
+    if args.draw < 0:
+        ap.error(f"--draw must be 0 or more, got {args.draw}")
     seeds = _seeds(args.seed)
     cases = [(s, seed) for s in (args.scenes or []) for seed in seeds]
     if not cases and not args.procedural:
@@ -177,7 +184,7 @@ def main(argv=None) -> int:
     # several seeds of one built-in scene: the tables name each case scene:s<seed>
     label = {c: f"{c[0]}:s{c[1]}" for c in cases} if len(seeds) > 1 else {}
     if args.procedural:
-        cases += [(f"procedural:{s}", s) for s in _seeds(args.procedural)]
+        cases += [(f"procedural:{s}", s + 1000 * args.draw) for s in _seeds(args.procedural)]
     if "argmax" not in args.estimators:
         args.estimators.insert(0, "argmax")
     if args.jobs > 1:
