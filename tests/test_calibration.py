@@ -334,3 +334,18 @@ def test_figure_title_names_the_calibration(acquisitions):
     plain = reconstruct_ptu(d / "ideal.ptu", load_patterns(d / "ideal_patterns.npy"),
                             load_code(d / "ideal_code.npy"), 10e9, (24, 26))
     assert "calibrated" not in _title(plain)
+
+
+def test_a_gate_without_the_scene_is_said_to_be_noise(acquisitions):
+    """Without a truth nothing scores the depths: a reconstruction through a gate that holds
+    none of the scene (24.6-25.4 m, 9.3-10.1 m modulo the code's 15.3 m; the gate 27-29 m
+    reads 11.7-13.7 m) says its map is noise, and the same acquisition through its own gate
+    does not; so does `run` whose simulated delay moved every return out of its gate."""
+    m, _ = _reconstruct(acquisitions, "ideal", gate=("27", "29"))
+    assert [w for w in m["warnings"] if w.startswith("no return stands above the noise")]
+    assert m["peak_to_noise_p90"] < m["peak_to_noise_floor"]
+    m, _ = _reconstruct(acquisitions, "ideal")
+    assert not [w for w in m["warnings"] if w.startswith("no return stands above the noise")]
+    assert m["peak_to_noise_p90"] > 2 * m["peak_to_noise_floor"]
+    run = json.loads((acquisitions / "scenerun" / "metrics.json").read_text())
+    assert [w for w in run["warnings"] if w.startswith("no return stands above the noise")]

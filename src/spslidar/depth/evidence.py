@@ -10,7 +10,7 @@ hole in a slice costs its perimeter), so that the MRF snaps them back to the wal
 :mod:`.guarded` (keep a return above the block's 99.9th-percentile noise maximum) keeps too few
 of them, since those returns are weak. Here three tests, all in units of ``nu``, the median
 over the pixels of a profile's noise maximum (the largest evidence away from its tallest return,
-:func:`~.mrf.noise_maxima`), decide whether a pixel keeps its argmax ``a`` against the MRF
+:func:`~.profile.noise_maxima`), decide whether a pixel keeps its argmax ``a`` against the MRF
 label ``m``:
 
 * **strong**: its own evidence ``z(a)`` reaches ``strong * nu``: a return that few profiles'
@@ -45,7 +45,7 @@ import numpy as np
 from scipy.ndimage import correlate, maximum_filter1d
 
 from .guarded import GuardedDepth
-from .mrf import noise_maxima
+from .profile import noise_maxima
 
 __all__ = ["EvidenceDepth", "line_evidence", "neighbour_share"]
 

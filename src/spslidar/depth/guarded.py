@@ -29,8 +29,8 @@ from __future__ import annotations
 import numpy as np
 
 from .base import DepthContext, DepthEstimate
-from .mrf import MRFDepth, _pseudo_marginal, noise_maxima
-from .profile import grid_shape, index_to_depth, no_return, refine_subbin
+from .mrf import MRFDepth, _pseudo_marginal
+from .profile import grid_shape, index_to_depth, no_return, noise_maxima, refine_subbin
 
 __all__ = ["GuardedDepth", "neighbour_support", "second_surface", "third_maxima"]
 
@@ -134,7 +134,7 @@ class GuardedDepth(MRFDepth):
     ----------
     quantile : float
         The significance threshold ``tau`` is this quantile, over the pixels, of a profile's
-        noise maximum (:func:`~.mrf.noise_maxima`).
+        noise maximum (:func:`~.profile.noise_maxima`).
     scale : float
         ... times this factor.
     gap, ratio : float

@@ -32,9 +32,17 @@ from __future__ import annotations
 import numpy as np
 
 from .base import DepthContext, DepthEstimate, DepthEstimator
-from .profile import grid_shape, index_to_depth, no_return, noise_scale, pulse_filter, refine_subbin
+from .profile import (
+    grid_shape,
+    index_to_depth,
+    no_return,
+    noise_maxima,
+    noise_scale,
+    pulse_filter,
+    refine_subbin,
+)
 
-__all__ = ["MRFDepth", "min_sum_bp", "noise_maxima", "truncated_linear_envelope"]
+__all__ = ["MRFDepth", "min_sum_bp", "truncated_linear_envelope"]
 
 
 def truncated_linear_envelope(h: np.ndarray, slope: float, cap: float,
@@ -289,15 +297,6 @@ def auto_truncation(z: np.ndarray, exclude: int = 2) -> float:
         return 1.0
     t = 0.5 * float(np.median(noise_maxima(z, exclude)))
     return t if t > 0 else 1.0
-
-
-def noise_maxima(z: np.ndarray, exclude: int = 2) -> np.ndarray:
-    """Per pixel, the largest evidence outside +-``exclude`` slices of its tallest slice: a
-    sample of the noise maximum of a profile (the return itself left out)."""
-    q, k = z.shape
-    idx = np.argmax(z, axis=1)
-    far = np.abs(np.arange(k)[None, :] - idx[:, None]) > exclude
-    return np.max(np.where(far, z, 0.0), axis=1) if far.any() else np.zeros(q)
 
 
 def _pseudo_marginal(belief: np.ndarray, label: np.ndarray, half: int = 1) -> np.ndarray:

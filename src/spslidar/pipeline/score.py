@@ -12,6 +12,7 @@ import numpy as np
 
 from ..config import Config
 from ..constants import SPEED_OF_LIGHT
+from ..depth.profile import NOISE_ONLY_MARGIN, effective_slices, noise_only_ratio, peak_to_noise
 from ..metrics import depth_errors, edge_agreement, sobel_edges
 from ..products import reflectivity_image
 from ..solvers.entries import TV_REGULARISERS
@@ -20,6 +21,9 @@ from .acquisition import Acquisition
 from .measurement import Measurement
 from .results import Result
 from .weights import regulariser_kind
+
+#: ``peak_to_noise_p90``'s ceiling (a noiseless run's profiles have no noise beside the peak)
+PEAK_TO_NOISE_CAP = 1000.0
 
 
 def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: np.ndarray,
@@ -46,6 +50,26 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
                    coverage=float(found.mean()))
         edge_corr = None
     reflectivity = reflectivity_image(slices, depth, meas.lags, acq.bin_width)
+    # the estimators' no-return rule is relative to the brightest pixels: an image of noise
+    # (nothing in the gate, too little signal) would come out as a full depth map, silently
+    peak_ratio = peak_floor = None
+    sl = np.asarray(slices)
+    # a solve that diverged (NaN slices) has its own warning: no verdict on it
+    null = noise_only_ratio(effective_slices(sl)) if np.isfinite(sl).all() else float("nan")
+    if np.isfinite(null):
+        # capped: a noiseless profile has nothing beside its peak (an infinite ratio)
+        peak_ratio = float(np.percentile(np.minimum(peak_to_noise(sl),
+                                                    PEAK_TO_NOISE_CAP), 90))
+        peak_floor = NOISE_ONLY_MARGIN * null
+        if peak_ratio < peak_floor:
+            warns.append(
+                f"no return stands above the noise: the brightest tenth of the pixels peak at "
+                f"{peak_ratio:.2f} times their own profile's noise maximum, and noise alone "
+                f"gives {null:.2f} here ({np.shape(slices)[1]} slices; a return stands at "
+                f"{peak_floor:.2f} or more), so the depth map is mostly noise: check that the "
+                f"range gate "
+                f"{meas.gate[0]:g}-{meas.gate[1]:g} m holds the scene, the signal level, or "
+                f"acquire longer")
     timing["metrics"] = time.perf_counter() - t0
     timing["total"] = sum(timing.values())
 
@@ -75,6 +99,11 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         "correlation_noise_sigma": float(np.sqrt(np.mean(sim["sigma"] ** 2))),
         "depth_estimator": cfg.depth,
         "low_confidence_fraction": float(np.mean(low_confidence)),
+        # 90th percentile of each pixel's peak over its own profile's noise maximum
+        # (spslidar.depth.profile.peak_to_noise), and the level below which the image is said
+        # to be noise (None under 16 slices)
+        "peak_to_noise_p90": peak_ratio,
+        "peak_to_noise_floor": peak_floor,
         # share of pixels where the estimator found a second surface (None: not looked for)
         "two_surface_fraction": (float(np.mean(np.isfinite(depth2))) if depth2 is not None
                                  else None),

@@ -1,0 +1,124 @@
+"""An image of noise is said to be one: ``peak_to_noise`` and the pipeline's warning.
+
+The depth estimators' no-return rule is relative to the brightest pixels, so a black scene, a
+range gate that misses the scene or too little signal came out as a full depth map with 0 %
+of pixels without a return and no word of it.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import spslidar
+from spslidar.cli import main
+from spslidar.depth.profile import (
+    NOISE_ONLY_MARGIN,
+    NOISE_ONLY_MIN_SLICES,
+    effective_slices,
+    noise_only_ratio,
+    peak_to_noise,
+)
+
+WARNING = "no return stands above the noise"
+
+
+def test_peak_to_noise_on_profiles_of_known_peaks():
+    """The tallest pulse-filtered slice over the tallest one outside +-2 slices of it."""
+    x = np.zeros((4, 30))
+    x[0, 5], x[0, 20] = 10.0, 4.0  # 10 / 4 (isolated spikes: the filter keeps their heights)
+    x[1, 5], x[1, 6] = 3.0, 3.0    # a split return (filtered 4.5 at both) and no noise: inf
+    x[1, 25] = 0.0
+    x[3, 10], x[3, 11], x[3, 25] = 2.0, 2.0, 1.0  # filtered peak 3.0, noise maximum 1.0
+    r = peak_to_noise(x)
+    assert r[0] == pytest.approx(2.5)
+    assert r[1] == np.inf
+    assert r[2] == 1.0  # an empty profile says nothing of a return
+    assert r[3] == pytest.approx(3.0)
+    np.testing.assert_array_equal(peak_to_noise(x, block=1), r)  # blocks change nothing
+    assert np.all(peak_to_noise(np.ones((3, 5))) == 1.0)  # no room beside the peak
+
+
+def test_noise_only_ratio_falls_with_the_number_of_slices():
+    """Non-negative white noise: the peak over the noise maximum beside it, 90th percentile,
+    falls as the noise maximum is taken over more slices (measured 2.45 at 16 slices, 1.48 at
+    68, 1.23 at 1023; a fixed threshold would miss noise at a narrow gate), is NaN where too
+    few slices are left beside the peak, and does not depend on the draw by more than the
+    4096-pixel sampling error (under 0.05)."""
+    r = [noise_only_ratio(k) for k in (16, 28, 68, 200, 1023)]
+    assert np.all(np.diff(r) < 0)
+    assert 2.2 < r[0] < 2.8 and 1.1 < r[-1] < 1.4
+    assert np.isnan(noise_only_ratio(NOISE_ONLY_MIN_SLICES - 1))
+    assert noise_only_ratio(68, pixels=4096, seed=3) == pytest.approx(r[2], abs=0.05)
+
+
+def test_effective_slices_counts_correlated_noise_as_fewer():
+    """Non-negative white noise is its own reference (within the draw's error); the same
+    noise averaged over 3 lags, as a spread IRF's matched filter correlates it, counts as
+    fewer slices (its integrated autocorrelation is longer), and never as more than K."""
+    rng = np.random.default_rng(11)
+    white = np.maximum(rng.standard_normal((4096, 120)), 0.0)
+    assert 108 <= effective_slices(white) <= 120
+    g = rng.standard_normal((4096, 122))
+    smooth = np.maximum((g[:, :-2] + g[:, 1:-1] + g[:, 2:]) / 3.0, 0.0)
+    assert effective_slices(smooth) < 0.75 * 120
+    assert effective_slices(white[:, :10]) == 10  # too few to judge: K itself
+
+
+def _warned(result) -> list[str]:
+    return [w for w in result.warnings if w.startswith(WARNING)]
+
+
+def _black(tmp_path):
+    depth = np.full((16, 16), 12.0)
+    depth[4:10, 4:10] = 11.0
+    np.savez(tmp_path / "black.npz", depth=depth, reflectivity=np.zeros((16, 16)))
+    return str(tmp_path / "black.npz")
+
+
+@pytest.mark.parametrize("gate", [None, (11.85, 12.15)])
+def test_a_black_scene_is_said_to_be_noise(tmp_path, gate):
+    """A scene that reflects nothing, through its default gate (73 slices) and a narrow one
+    (22 slices, where noise alone reaches 2.3-2.4, above any fixed threshold that the default
+    gate's 1.7-1.8 would suggest): the map is nearly full (the relative no-return rule keeps
+    the pixels) and the run says, once, that it is noise."""
+    r = spslidar.run(scene=_black(tmp_path), size=16, code_length=1023, seed=1,
+                     range_gate=gate)
+    assert np.mean(np.isfinite(r.depth)) > 0.9
+    assert r.metrics["peak_to_noise_p90"] < r.metrics["peak_to_noise_floor"]
+    assert len(_warned(r)) == 1
+    if gate is None:
+        assert "range gate 10.955-12.045 m" in _warned(r)[0]
+
+
+def test_too_narrow_a_gate_is_not_judged(tmp_path):
+    """Under 16 slices too few are left beside a peak to tell a return from noise: no
+    verdict (None), no warning."""
+    r = spslidar.run(scene=_black(tmp_path), size=16, code_length=1023, seed=1,
+                     range_gate=(11.95, 12.05))
+    assert r.metrics["n_slices"] < NOISE_ONLY_MIN_SLICES
+    assert r.metrics["peak_to_noise_p90"] is None and not _warned(r)
+
+
+def test_a_range_gate_that_misses_the_scene_is_said_to_be_noise():
+    """The camera (5-5.9 m by default) through a gate at 30-31 m; through its own gate it
+    stands far above the noise (11.6 at 32x32, 7-13 at 64x64 with m_n = 10)."""
+    missed = spslidar.run(size=32, range_gate=(30.0, 31.0), seed=1)
+    assert _warned(missed)
+    seen = spslidar.run(size=32, seed=1)
+    assert not _warned(seen)
+    assert seen.metrics["peak_to_noise_p90"] > 2 * seen.metrics["peak_to_noise_floor"]
+    assert seen.metrics["peak_to_noise_floor"] == pytest.approx(
+        NOISE_ONLY_MARGIN * noise_only_ratio(effective_slices(seen.slices)))
+
+
+def test_the_warning_reaches_the_cli_and_metrics(tmp_path, capsys):
+    assert main(["run", "--scene", _black(tmp_path), "--size", "16",
+                 "--code-length", "1023", "--no-figure", "--out", str(tmp_path / "o")]) == 0
+    err = capsys.readouterr().err
+    assert err.count(f"spslidar: warning: {WARNING}") == 1
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert any(w.startswith(WARNING) for w in m["warnings"])
+    assert m["peak_to_noise_p90"] < m["peak_to_noise_floor"]
