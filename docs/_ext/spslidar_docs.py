@@ -290,6 +290,15 @@ METRICS: dict[str, str] = {
     "depth_estimator": "The depth estimator used.",
     "low_confidence_fraction": "Share of the pixels whose depth has a low confidence "
                                "(``confidence.npy``).",
+    "peak_to_noise_p90": "90th percentile over the pixels of each profile's peak over its "
+                         "own largest noise peak beside it "
+                         "(:func:`~spslidar.depth.profile.peak_to_noise`); null under 16 "
+                         "slices.",
+    "peak_to_noise_floor": "The level below which no return stands above the noise and the "
+                           "run warns: 1.4 times what non-negative white noise gives at as "
+                           "many effective slices "
+                           "(:func:`~spslidar.depth.profile.noise_only_ratio`); null under 16 "
+                           "slices.",
     "two_surface_fraction": "Share of the pixels with a second surface (``depth2.npy``), "
                             "where the estimator looks for one; else null.",
     "mean_reflectivity": "Mean of ``reflectivity.npy`` over the pixels with a return.",
