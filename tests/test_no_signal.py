@@ -122,3 +122,13 @@ def test_the_warning_reaches_the_cli_and_metrics(tmp_path, capsys):
     m = json.loads((tmp_path / "o" / "metrics.json").read_text())
     assert any(w.startswith(WARNING) for w in m["warnings"])
     assert m["peak_to_noise_p90"] < m["peak_to_noise_floor"]
+
+
+def test_the_figure_title_says_so(tmp_path):
+    """depth.png's title said "100% of pixels" of an image of noise; it now says that no
+    return stands above the noise, and says nothing of it for a scene."""
+    from spslidar.figures import _title
+
+    r = spslidar.run(scene=_black(tmp_path), size=16, code_length=1023, seed=1)
+    assert "NO RETURN STANDS ABOVE THE NOISE" in _title(r)
+    assert "NO RETURN" not in _title(spslidar.run(size=16, code_length=1023, seed=1))

@@ -164,10 +164,15 @@ def _title(result) -> str:
                 ) + ([f"IRF {c.irf}"] if c.irf else [])
         if inst:
             what += f", instrument: {', '.join(inst)}"
+    # the no-return rule is relative: "returns in 100 % of pixels" of an image of noise
+    noise = ("; NO RETURN STANDS ABOVE THE NOISE (see the warnings)"
+             if m.get("peak_to_noise_p90") is not None and m.get("peak_to_noise_floor")
+             is not None and m["peak_to_noise_p90"] < m["peak_to_noise_floor"] else "")
     if m.get("depth_rmse_m") is None:
-        return f"{what}: no ground truth; returns in {_percent(m['coverage'])} of pixels"
+        return (f"{what}: no ground truth; returns in {_percent(m['coverage'])} of "
+                f"pixels{noise}")
     return (f"{what}: RMSE = {m['depth_rmse_m']:.4f} m over {_percent(m['coverage'])} "
-            f"of pixels")
+            f"of pixels{noise}")
 
 
 def _reflectivity_range(result) -> tuple[float, float]:
