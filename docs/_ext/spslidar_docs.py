@@ -294,11 +294,11 @@ METRICS: dict[str, str] = {
                          "own largest noise peak beside it "
                          "(:func:`~spslidar.depth.profile.peak_to_noise`); null under 16 "
                          "slices.",
-    "peak_to_noise_floor": "The level below which no return stands above the noise and the "
-                           "run warns: 1.4 times what non-negative white noise gives at as "
-                           "many effective slices "
-                           "(:func:`~spslidar.depth.profile.noise_only_ratio`); null under 16 "
-                           "slices.",
+    "peak_to_noise_floor": "The level below which at most a tenth of the pixels hold a "
+                           "return and the run warns that the map is mostly noise: 1.4 "
+                           "times what non-negative white noise gives at as many effective "
+                           "slices (:func:`~spslidar.depth.profile.noise_only_ratio`); null "
+                           "under 16 slices.",
     "two_surface_fraction": "Share of the pixels with a second surface (``depth2.npy``), "
                             "where the estimator looks for one; else null.",
     "mean_reflectivity": "Mean of ``reflectivity.npy`` over the pixels with a return.",

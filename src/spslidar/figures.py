@@ -165,9 +165,10 @@ def _title(result) -> str:
         if inst:
             what += f", instrument: {', '.join(inst)}"
     # the no-return rule is relative: "returns in 100 % of pixels" of an image of noise
-    noise = ("; NO RETURN STANDS ABOVE THE NOISE (see the warnings)"
-             if m.get("peak_to_noise_p90") is not None and m.get("peak_to_noise_floor")
-             is not None and m["peak_to_noise_p90"] < m["peak_to_noise_floor"] else "")
+    noise = ""
+    if (m.get("peak_to_noise_p90") is not None and m.get("peak_to_noise_floor") is not None
+            and m["peak_to_noise_p90"] < m["peak_to_noise_floor"]):
+        noise = "; MOSTLY NOISE: at most a tenth of the pixels hold a return (see the warnings)"
     if m.get("depth_rmse_m") is None:
         return (f"{what}: no ground truth; returns in {_percent(m['coverage'])} of "
                 f"pixels{noise}")

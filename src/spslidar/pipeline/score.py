@@ -58,18 +58,16 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
     null = noise_only_ratio(effective_slices(sl)) if np.isfinite(sl).all() else float("nan")
     if np.isfinite(null):
         # capped: a noiseless profile has nothing beside its peak (an infinite ratio)
-        peak_ratio = float(np.percentile(np.minimum(peak_to_noise(sl),
-                                                    PEAK_TO_NOISE_CAP), 90))
+        peak_ratio = float(np.percentile(np.minimum(peak_to_noise(sl), PEAK_TO_NOISE_CAP), 90))
         peak_floor = NOISE_ONLY_MARGIN * null
         if peak_ratio < peak_floor:
             warns.append(
-                f"no return stands above the noise: the brightest tenth of the pixels peak at "
-                f"{peak_ratio:.2f} times their own profile's noise maximum, and noise alone "
-                f"gives {null:.2f} here ({np.shape(slices)[1]} slices; a return stands at "
-                f"{peak_floor:.2f} or more), so the depth map is mostly noise: check that the "
-                f"range gate "
-                f"{meas.gate[0]:g}-{meas.gate[1]:g} m holds the scene, the signal level, or "
-                f"acquire longer")
+                f"the depth map is mostly noise: at most a tenth of the pixels hold a return "
+                f"above it (the 90th percentile of each pixel's peak over its own profile's "
+                f"noise maximum is {peak_ratio:.2f}, under the {peak_floor:.2f} a return stands "
+                f"at; noise alone gives {null:.2f} here, {sl.shape[1]} slices): check that the "
+                f"range gate {meas.gate[0]:g}-{meas.gate[1]:g} m holds the scene, the signal "
+                f"level, or acquire longer")
     timing["metrics"] = time.perf_counter() - t0
     timing["total"] = sum(timing.values())
 
@@ -101,7 +99,7 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         "low_confidence_fraction": float(np.mean(low_confidence)),
         # 90th percentile of each pixel's peak over its own profile's noise maximum
         # (spslidar.depth.profile.peak_to_noise), and the level below which the image is said
-        # to be noise (None under 16 slices)
+        # to be mostly noise (None under 16 slices)
         "peak_to_noise_p90": peak_ratio,
         "peak_to_noise_floor": peak_floor,
         # share of pixels where the estimator found a second surface (None: not looked for)
