@@ -15,7 +15,7 @@ from .base import DepthContext
 
 __all__ = ["NOISE_ONLY_MARGIN", "NOISE_ONLY_MIN_SLICES", "effective_slices", "grid_shape",
            "index_to_depth", "no_return", "noise_maxima", "noise_only_ratio", "noise_scale",
-           "peak_to_noise", "pulse_filter", "refine_subbin", "shift2d"]
+           "noise_verdict", "peak_to_noise", "pulse_filter", "refine_subbin", "shift2d"]
 
 #: An image is said to be noise where the 90th percentile of :func:`peak_to_noise` is below
 #: this many times what non-negative white noise gives at as many effective slices
@@ -169,6 +169,36 @@ def noise_maxima(z: np.ndarray, exclude: int = 2) -> np.ndarray:
     return np.max(np.where(far, z, 0.0), axis=1) if far.any() else np.zeros(q)
 
 
+def _noise_stats(slices: np.ndarray, exclude: int = 2, corr_exclude: int = 3,
+                 max_lag: int = 4, block: int = 65536) -> tuple[np.ndarray, float]:
+    """One pass over the pulse-filtered profiles, ``block`` pixels at a time (bounds the
+    temporary copy at 512x512): :func:`peak_to_noise` per pixel, and ``1 + 2 sum_{l=1..max_lag}
+    rho_l``, the integrated autocorrelation along the delay of the profiles' noise (each slice
+    farther than ``corr_exclude`` from its pixel's tallest one, less that pixel's mean there).
+    """
+    x = np.asarray(slices)
+    q, k = x.shape
+    ratio = np.ones(q)
+    num = np.zeros(max_lag + 1)
+    for start in range(0, q, block):
+        z = pulse_filter(x[start:start + block]).astype(np.float64)
+        if k > 2 * exclude + 1:  # room for a noise maximum beside the peak
+            peak, null = np.max(z, axis=1), noise_maxima(z, exclude)
+            r = np.ones(peak.size)
+            pos = peak > 0
+            r[pos] = np.divide(peak[pos], null[pos], out=np.full(int(pos.sum()), np.inf),
+                               where=null[pos] > 0)
+            ratio[start:start + block] = r
+        far = np.abs(np.arange(k)[None, :] - np.argmax(z, axis=1)[:, None]) > corr_exclude
+        n = np.maximum(far.sum(axis=1, keepdims=True), 1)
+        z = np.where(far, z - (z * far).sum(axis=1, keepdims=True) / n, 0.0)
+        for lag in range(max_lag + 1):
+            both = far[:, lag:] & far[:, :k - lag]
+            num[lag] += float(np.sum(z[:, lag:] * z[:, :k - lag] * both)) / max(both.sum(), 1)
+    tau = float(1.0 + 2.0 * np.sum(num[1:] / num[0])) if num[0] > 0 else 1.0
+    return ratio, tau
+
+
 def peak_to_noise(slices: np.ndarray, exclude: int = 2, block: int = 65536) -> np.ndarray:
     """Per pixel, its tallest pulse-filtered slice over the tallest one outside +-``exclude``
     slices of it (:func:`noise_maxima`): how far the return stands above its own profile's
@@ -190,48 +220,14 @@ def peak_to_noise(slices: np.ndarray, exclude: int = 2, block: int = 65536) -> n
     Returns
     -------
     ndarray, shape (Q,)
-        float64; 1.0 where the profile has no positive value, ``inf`` where it has a peak and
-        nothing else above zero.
+        float64; 1.0 where the profile has no positive value (or ``K <= 2 exclude + 1``),
+        ``inf`` where it has a peak and nothing else above zero.
     """
-    x = np.asarray(slices)
-    q, k = x.shape
-    out = np.ones(q)
-    if k <= 2 * exclude + 1:  # no room for a noise maximum beside the peak
-        return out
-    for start in range(0, q, block):
-        z = pulse_filter(x[start:start + block])
-        peak = np.max(z, axis=1).astype(np.float64)
-        null = noise_maxima(z, exclude).astype(np.float64)
-        r = np.ones(peak.size)
-        pos = peak > 0
-        r[pos] = np.divide(peak[pos], null[pos], out=np.full(int(pos.sum()), np.inf),
-                           where=null[pos] > 0)
-        out[start:start + block] = r
-    return out
+    return _noise_stats(slices, exclude, block=block)[0]
 
 
-def _noise_correlation_time(slices: np.ndarray, exclude: int = 3, max_lag: int = 4,
-                            block: int = 65536) -> float:
-    """``1 + 2 sum_{l=1..max_lag} rho_l``: the integrated autocorrelation along the delay of the
-    pulse-filtered profiles, over their noise (each slice farther than ``exclude`` from its
-    pixel's tallest one, less that pixel's mean there)."""
-    x = np.asarray(slices)
-    k = x.shape[1]
-    num = np.zeros(max_lag + 1)
-    for start in range(0, x.shape[0], block):
-        z = pulse_filter(x[start:start + block]).astype(np.float64)
-        far = np.abs(np.arange(k)[None, :] - np.argmax(z, axis=1)[:, None]) > exclude
-        n = np.maximum(far.sum(axis=1, keepdims=True), 1)
-        z = np.where(far, z - (z * far).sum(axis=1, keepdims=True) / n, 0.0)
-        for lag in range(max_lag + 1):
-            both = far[:, lag:] & far[:, :k - lag]
-            num[lag] += float(np.sum(z[:, lag:] * z[:, :k - lag] * both)) / max(both.sum(), 1)
-    if num[0] <= 0:
-        return 1.0
-    return float(1.0 + 2.0 * np.sum(num[1:] / num[0]))
-
-
-def _reference_noise(k: int, pixels: int, seed: int) -> np.ndarray:
+def _reference_noise(k: int, pixels: int = 2048, seed: int = 0) -> np.ndarray:
+    """White Gaussian noise clipped at zero: the non-negative solve's noise floor."""
     return np.maximum(np.random.default_rng(seed).standard_normal((pixels, k)), 0.0)
 
 
@@ -251,6 +247,14 @@ def noise_only_ratio(k: int, pixels: int = 2048, seed: int = 0) -> float:
     return float(np.percentile(peak_to_noise(_reference_noise(k, pixels, seed)), 90))
 
 
+def _effective(k: int, tau: float) -> int:
+    """``K tau_ref / tau``, at most ``K`` (see :func:`effective_slices`)."""
+    if k < NOISE_ONLY_MIN_SLICES or not np.isfinite(tau):
+        return k
+    tau_ref = _noise_stats(_reference_noise(k))[1]
+    return int(min(k, max(round(k * tau_ref / max(tau, 1e-12)), 1)))
+
+
 def effective_slices(slices: np.ndarray) -> int:
     """The number of slices of the reference noise of :func:`noise_only_ratio` that are as
     many independent draws as these profiles' ``K``: ``K tau_ref / tau``, with ``tau`` the
@@ -261,14 +265,30 @@ def effective_slices(slices: np.ndarray) -> int:
     drawn from fewer independent slices and stand lower beside a noise peak: read against
     ``K`` slices of white noise, an image of noise through it came within 1 % of the floor.
     """
-    k = int(np.shape(slices)[1])
-    if k < NOISE_ONLY_MIN_SLICES:
-        return k
-    tau = _noise_correlation_time(slices)
-    if not np.isfinite(tau):
-        return k
-    tau_ref = _noise_correlation_time(_reference_noise(k, 2048, 0))
-    return int(min(k, max(round(k * tau_ref / max(tau, 1e-12)), 1)))
+    return _effective(int(np.shape(slices)[1]), _noise_stats(slices)[1])
+
+
+def noise_verdict(slices: np.ndarray, cap: float = 1000.0) -> tuple[float, float, float] | None:
+    """Whether these slices hold any return above the noise, in one pass over them.
+
+    Returns
+    -------
+    (p90, floor, null) or None
+        The 90th percentile of :func:`peak_to_noise` (capped at ``cap``: a noiseless
+        profile has nothing beside its peak), :data:`NOISE_ONLY_MARGIN` times ``null``, and
+        ``null``, :func:`noise_only_ratio` at :func:`effective_slices`; ``p90 < floor``
+        means that at most a tenth of the pixels hold a return. None where there is no
+        verdict: fewer than :data:`NOISE_ONLY_MIN_SLICES` (effective) slices, or slices that
+        are not finite (a diverged solve).
+    """
+    sl = np.asarray(slices)
+    if not np.isfinite(sl).all():
+        return None
+    ratio, tau = _noise_stats(sl)
+    null = noise_only_ratio(_effective(sl.shape[1], tau))
+    if not np.isfinite(null):
+        return None
+    return float(np.percentile(np.minimum(ratio, cap), 90)), NOISE_ONLY_MARGIN * null, null
 
 
 def no_return(peak: np.ndarray, fraction: float = 0.05) -> np.ndarray:

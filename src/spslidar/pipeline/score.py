@@ -12,7 +12,7 @@ import numpy as np
 
 from ..config import Config
 from ..constants import SPEED_OF_LIGHT
-from ..depth.profile import NOISE_ONLY_MARGIN, effective_slices, noise_only_ratio, peak_to_noise
+from ..depth.profile import noise_verdict
 from ..metrics import depth_errors, edge_agreement, sobel_edges
 from ..products import reflectivity_image
 from ..solvers.entries import TV_REGULARISERS
@@ -21,9 +21,6 @@ from .acquisition import Acquisition
 from .measurement import Measurement
 from .results import Result
 from .weights import regulariser_kind
-
-#: ``peak_to_noise_p90``'s ceiling (a noiseless run's profiles have no noise beside the peak)
-PEAK_TO_NOISE_CAP = 1000.0
 
 
 def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: np.ndarray,
@@ -52,22 +49,16 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
     reflectivity = reflectivity_image(slices, depth, meas.lags, acq.bin_width)
     # the estimators' no-return rule is relative to the brightest pixels: an image of noise
     # (nothing in the gate, too little signal) would come out as a full depth map, silently
-    peak_ratio = peak_floor = None
-    sl = np.asarray(slices)
-    # a solve that diverged (NaN slices) has its own warning: no verdict on it
-    null = noise_only_ratio(effective_slices(sl)) if np.isfinite(sl).all() else float("nan")
-    if np.isfinite(null):
-        # capped: a noiseless profile has nothing beside its peak (an infinite ratio)
-        peak_ratio = float(np.percentile(np.minimum(peak_to_noise(sl), PEAK_TO_NOISE_CAP), 90))
-        peak_floor = NOISE_ONLY_MARGIN * null
-        if peak_ratio < peak_floor:
-            warns.append(
-                f"the depth map is mostly noise: at most a tenth of the pixels hold a return "
-                f"above it (the 90th percentile of each pixel's peak over its own profile's "
-                f"noise maximum is {peak_ratio:.2f}, under the {peak_floor:.2f} a return stands "
-                f"at; noise alone gives {null:.2f} here, {sl.shape[1]} slices): check that the "
-                f"range gate {meas.gate[0]:g}-{meas.gate[1]:g} m holds the scene, the signal "
-                f"level, or acquire longer")
+    verdict = noise_verdict(slices)  # None: no verdict (too few slices, a diverged solve)
+    peak_ratio, peak_floor, null = verdict if verdict is not None else (None, None, None)
+    if verdict is not None and peak_ratio < peak_floor:
+        warns.append(
+            f"the depth map is mostly noise: at most a tenth of the pixels hold a return above "
+            f"it (the 90th percentile of each pixel's peak over its own profile's noise maximum "
+            f"is {peak_ratio:.2f}, under the {peak_floor:.2f} a return stands at; noise alone "
+            f"gives {null:.2f} here, {np.shape(slices)[1]} slices): check that the range gate "
+            f"{meas.gate[0]:g}-{meas.gate[1]:g} m holds the scene, the signal level, or "
+            f"acquire longer")
     timing["metrics"] = time.perf_counter() - t0
     timing["total"] = sum(timing.values())
 
