@@ -154,7 +154,7 @@ def _title(result) -> str:
             name = f"{Path(cal['file']).name}: " if cal.get("file") else ""
             fwhm = float(cal["irf_fwhm_bins"])
             what += (f", calibrated ({name}delay {1e9 * cal['delay_s']:.3f} ns, IRF FWHM "
-                     f"{fwhm:g} bin{'' if fwhm == 1 else 's'})")
+                     f"{fwhm:.2f} bin{'' if fwhm == 1 else 's'})")
     else:
         what = (f"{c.lidar.upper()} {m['code_description']}, {m['n_patterns']} {c.patterns} "
                 f"patterns ({100 * c.compression:g}%), m_s={c.signal:g}, m_n={c.noise:g}, "

@@ -165,11 +165,33 @@ def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, dista
     if values.sum() <= 0:  # pragma: no cover - guarded by the peak test above
         raise ConfigError("the measured response is empty")
     values /= values.sum()
-    above = np.flatnonzero(values >= values.max() / 2)
     return {"delay_bins": float(delay), "delay_s": float(delay * bin_width),
             "lag_shift": lag_shift, "lag_fraction": float(lag_shift - exact),
             "irf_offsets": offsets.tolist(), "irf_values": values.tolist(),
-            "irf_fwhm_bins": float(above[-1] - above[0] + 1), "peak_to_noise": peak_to_noise}
+            "irf_fwhm_bins": fwhm_bins(values), "peak_to_noise": peak_to_noise}
+
+
+def fwhm_bins(values: np.ndarray) -> float:
+    """Full width at half maximum of a response sampled on whole bins, in bins: the half-
+    maximum crossings on either side of the peak, each placed by linear interpolation
+    between the last bin above half and the first below (one bin for a response in a single
+    bin; a Gaussian integrated over the TDC's bins reads, from 3 bins' FWHM up, within 5 % of
+    ``sqrt(FWHM**2 + 1)``, its width as the TDC sees it, and at 1.5 bins 1.5-2.2 as its centre
+    moves across a bin). Counting the bins above half instead read 1 or 2 for that last
+    response, whichever way its centre fell."""
+    v = np.asarray(values, dtype=np.float64)
+    p = int(np.argmax(v))
+    half = v[p] / 2.0
+    left = p
+    while left > 0 and v[left - 1] >= half:
+        left -= 1
+    right = p
+    while right < v.size - 1 and v[right + 1] >= half:
+        right += 1
+    lo = left - 0.5 if left == 0 else left - (v[left] - half) / (v[left] - v[left - 1])
+    hi = (right + 0.5 if right == v.size - 1
+          else right + (v[right] - half) / (v[right] - v[right + 1]))
+    return float(hi - lo)
 
 
 def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray,
