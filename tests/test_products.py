@@ -3,6 +3,8 @@ reflectivity of a noiseless reconstruction against the scene's."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -45,6 +47,72 @@ def test_ply_round_trip(tmp_path):
     # stored as float32: 2^-24 relative
     np.testing.assert_allclose(back, pts, rtol=1e-6, atol=1e-6)
     np.testing.assert_allclose(bvals, vals, rtol=1e-6, atol=1e-7)
+
+
+def test_ply_extra_fields_read_by_an_independent_reader(tmp_path):
+    """Further per-point scalars follow the intensity: a float array as ``float`` (NaN kept),
+    an integer one as ``uchar``; plyfile (an independent PLY reader) reads every property
+    back, and so does :func:`read_ply` with ``fields=True``."""
+    from plyfile import PlyData
+
+    rng = np.random.default_rng(1)
+    pts, vals = rng.normal(size=(20, 3)), rng.random(20)
+    conf = rng.random(20)
+    conf[3] = np.nan
+    number = np.r_[np.ones(15, np.uint8), np.full(5, 2, np.uint8)]
+    path = write_ply(tmp_path / "p.ply", pts, vals, confidence=conf, return_number=number)
+    vertex = PlyData.read(str(path))["vertex"]
+    assert [p.name for p in vertex.properties] == ["x", "y", "z", "intensity", "confidence",
+                                                   "return_number"]
+    assert vertex["return_number"].dtype == np.uint8
+    np.testing.assert_array_equal(vertex["return_number"], number)
+    np.testing.assert_allclose(vertex["confidence"], conf, rtol=1e-6)  # float32; NaN kept
+    np.testing.assert_allclose(np.c_[vertex["x"], vertex["y"], vertex["z"]], pts, rtol=1e-6,
+                               atol=1e-6)
+    back, bvals, extra = read_ply(path, fields=True)
+    np.testing.assert_allclose(back, pts, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(extra["confidence"], conf, rtol=1e-6)
+    np.testing.assert_array_equal(extra["return_number"], number)
+
+
+@pytest.mark.parametrize("fields, match", [
+    ({"intensity": np.zeros(4)}, "property name"),
+    ({"not a name": np.zeros(4)}, "property name"),
+    ({"confidence": np.zeros(3)}, "4 points but 3"),
+    ({"return_number": np.array([0, 1, 2, 256])}, "0..255"),
+])
+def test_ply_refuses_bad_fields(tmp_path, fields, match):
+    with pytest.raises(ValueError, match=match):
+        write_ply(tmp_path / "p.ply", np.zeros((4, 3)), np.zeros(4), **fields)
+    assert not (tmp_path / "p.ply").exists()
+
+
+def test_second_surfaces_in_the_point_cloud(tmp_path):
+    """With an estimator that reports second surfaces (``guarded`` on the fence), the cloud
+    holds each first surface with its reflectivity and confidence (return 1), then each
+    second surface at its own range (return 2, intensity and confidence NaN)."""
+    from spslidar.cli import main
+
+    out = tmp_path / "f"
+    assert main(["run", "--scene", "fence", "--size", "16", "--code-length", "1023",
+                 "--noise", "1", "--compression", "0.5", "--depth", "guarded", "--out",
+                 str(out), "--no-figure"]) == 0
+    pts, vals, extra = read_ply(out / "points.ply", fields=True)
+    depth, depth2 = np.load(out / "depth.npy"), np.load(out / "depth2.npy")
+    first, second = np.isfinite(depth), np.isfinite(depth2)
+    assert second.sum() > 0  # the wall behind the mesh
+    number = extra["return_number"]
+    assert (number == 1).sum() == first.sum() and (number == 2).sum() == second.sum()
+    r = np.linalg.norm(pts, axis=1)
+    np.testing.assert_allclose(r[number == 1], depth[first], rtol=1e-6)
+    np.testing.assert_allclose(r[number == 2], depth2[second], rtol=1e-6)
+    np.testing.assert_allclose(extra["confidence"][number == 1],
+                               np.load(out / "confidence.npy")[first], rtol=1e-6, atol=1e-7)
+    assert np.isnan(vals[number == 2]).all() and np.isnan(extra["confidence"][number == 2]).all()
+    cloud = json.loads((out / "metrics.json").read_text())["point_cloud"]
+    assert cloud["n_points"] == first.sum() + second.sum()
+    assert cloud["n_second_surface"] == second.sum()
+    assert cloud["fields"] == ["x", "y", "z", "intensity", "confidence", "return_number"]
 
 
 def test_reflectivity_window_sums_the_return():
@@ -93,3 +161,5 @@ def test_run_writes_reflectivity_and_points(tmp_path):
                                rtol=1e-6)
     np.testing.assert_allclose(vals, np.load(out / "reflectivity.npy")[np.isfinite(depth)],
                                rtol=1e-6, atol=1e-7)
+    _, _, extra = read_ply(out / "points.ply", fields=True)  # mrf: first surfaces only
+    assert (extra["return_number"] == 1).all()

@@ -320,7 +320,8 @@ METRICS: dict[str, str] = {
     "config": "The full validated configuration (every key of :class:`~spslidar.Config`).",
     "seed": "The random seed.",
     "version": "spslidar version that wrote the file.",
-    "point_cloud": "``points.ply``: file name, field of view (degrees), number of points.",
+    "point_cloud": ("``points.ply``: file name, field of view (degrees), number of points "
+                    "and of second-surface points among them, the per-point fields."),
     "ptu": "``reconstruct`` only: the PTU file read and its photons per pattern.",
     "calibration": "``reconstruct`` only: the calibration applied (``--calibration``: its file "
                    "and SHA-256, delay, lag shift and fraction, IRF width, and the filter's "

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["DEFAULT_FOV_DEG", "point_cloud", "reflectivity_image", "write_ply"]
+__all__ = ["DEFAULT_FOV_DEG", "point_cloud", "read_ply", "reflectivity_image", "write_ply"]
 
 #: full field of view across the image (degrees) when none is given
 DEFAULT_FOV_DEG = 10.0
@@ -128,24 +128,48 @@ def point_cloud(depth: np.ndarray, fov_deg: float = DEFAULT_FOV_DEG,
     return points, values
 
 
-def write_ply(path: str | os.PathLike, points: np.ndarray, values: np.ndarray) -> Path:
-    """Write points and their intensity as a binary little-endian PLY file.
+_PLY_TYPES = {"float": "<f4", "uchar": "u1"}
 
-    The vertex element has ``float x, y, z, intensity`` (float32), readable by CloudCompare,
-    MeshLab, Open3D and PDAL. Written by hand: the format is a ten-line header and a packed
-    array, and no dependency the project has writes it.
+
+def write_ply(path: str | os.PathLike, points: np.ndarray, values: np.ndarray,
+              **fields: np.ndarray) -> Path:
+    """Write points, their intensity and any further per-point scalars as a binary
+    little-endian PLY file.
+
+    The vertex element has ``float x, y, z, intensity`` (float32), then one property per
+    keyword in the order given: ``float`` for a float array (NaN where unknown),
+    ``uchar`` for an integer one (0-255; ``return_number``: 1 for a pixel's first surface,
+    2 for its second, as LAS numbers returns). Readable by CloudCompare, MeshLab, Open3D,
+    PDAL and ``plyfile`` (each extra property a scalar field). Written by hand: the format
+    is a short header and a packed array, and no dependency the project has writes it.
     """
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     vals = np.asarray(values, dtype=np.float64).ravel()
-    if vals.size != pts.shape[0]:
-        raise ValueError(f"{pts.shape[0]} points but {vals.size} intensity values")
-    rec = np.empty(pts.shape[0], dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
-                                        ("intensity", "<f4")])
-    rec["x"], rec["y"], rec["z"], rec["intensity"] = pts[:, 0], pts[:, 1], pts[:, 2], vals
+    n = pts.shape[0]
+    if vals.size != n:
+        raise ValueError(f"{n} points but {vals.size} intensity values")
+    columns = {"x": pts[:, 0], "y": pts[:, 1], "z": pts[:, 2], "intensity": vals}
+    kinds = dict.fromkeys(columns, "float")
+    for name, arr in fields.items():
+        a = np.asarray(arr).ravel()
+        if not name.isidentifier() or name in columns:
+            raise ValueError(f"bad PLY property name {name!r}")
+        if a.size != n:
+            raise ValueError(f"{n} points but {a.size} values of {name!r}")
+        if np.issubdtype(a.dtype, np.integer) or a.dtype == bool:
+            if a.size and (a.min() < 0 or a.max() > 255):
+                raise ValueError(f"{name!r} must lie in 0..255 (a PLY uchar)")
+            kinds[name] = "uchar"
+        else:
+            kinds[name] = "float"
+        columns[name] = a
+    rec = np.empty(n, dtype=[(k, _PLY_TYPES[t]) for k, t in kinds.items()])
+    for k, col in columns.items():
+        rec[k] = col
     header = ("ply\nformat binary_little_endian 1.0\ncomment spslidar point cloud: x right, "
               "y down, z forward (m)\n"
-              f"element vertex {rec.size}\nproperty float x\nproperty float y\n"
-              "property float z\nproperty float intensity\nend_header\n")
+              f"element vertex {n}\n"
+              + "".join(f"property {t} {k}\n" for k, t in kinds.items()) + "end_header\n")
     path = Path(path)
     with open(path, "wb") as fh:
         fh.write(header.encode("ascii"))
@@ -153,13 +177,20 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, values: np.ndarray) -
     return path
 
 
-def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
-    """Read back a file of :func:`write_ply`: ``(points (P, 3), intensity (P,))``."""
+def read_ply(path: str | os.PathLike, fields: bool = False):
+    """Read back a file of :func:`write_ply`: ``(points (P, 3), intensity (P,))``, and with
+    ``fields=True`` also a dict of its further properties (float64 or uint8 arrays)."""
     data = Path(path).read_bytes()
     end = data.index(b"end_header\n") + len(b"end_header\n")
     header = data[:end].decode("ascii").splitlines()
     n = next(int(line.split()[2]) for line in header if line.startswith("element vertex"))
-    rec = np.frombuffer(data[end:], dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
-                                           ("intensity", "<f4")], count=n)
-    return (np.stack([rec["x"], rec["y"], rec["z"]], axis=1).astype(np.float64),
-            rec["intensity"].astype(np.float64))
+    props = [line.split()[1:3] for line in header if line.startswith("property ")]
+    rec = np.frombuffer(data[end:], dtype=[(name, _PLY_TYPES[t]) for t, name in props],
+                        count=n)
+    out = (np.stack([rec["x"], rec["y"], rec["z"]], axis=1).astype(np.float64),
+           rec["intensity"].astype(np.float64))
+    if not fields:
+        return out
+    extra = {name: (rec[name].astype(np.float64) if t == "float" else rec[name].copy())
+             for t, name in props if name not in ("x", "y", "z", "intensity")}
+    return (*out, extra)

@@ -85,6 +85,28 @@ class Result:
         return point_cloud(self.depth, DEFAULT_FOV_DEG if fov_deg is None else fov_deg,
                            self.reflectivity)
 
+    def cloud(self, fov_deg: float | None = None
+              ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """The point cloud ``points.ply`` holds: each pixel's first surface with its
+        reflectivity and confidence, then each second surface (:attr:`depth2`, where the
+        estimator found one) with NaN for both; ``fields`` holds ``confidence`` (float) and
+        ``return_number`` (1 or 2, as LAS numbers returns)."""
+        from ..products import DEFAULT_FOV_DEG, point_cloud
+
+        fov = DEFAULT_FOV_DEG if fov_deg is None else fov_deg
+        pts, intensity = point_cloud(self.depth, fov, self.reflectivity)
+        conf = (point_cloud(self.depth, fov, self.confidence)[1] if self.confidence is not None
+                else np.full(pts.shape[0], np.nan))
+        if self.depth2 is not None and np.isfinite(self.depth2).any():
+            pts2, _ = point_cloud(self.depth2, fov)
+            nan = np.full(pts2.shape[0], np.nan)
+            pts, intensity, conf = (np.concatenate([pts, pts2]), np.concatenate([intensity, nan]),
+                                    np.concatenate([conf, nan]))
+            number = np.r_[np.ones(len(pts) - len(pts2), np.uint8), np.full(len(pts2), 2, np.uint8)]
+        else:
+            number = np.ones(pts.shape[0], np.uint8)
+        return pts, intensity, {"confidence": conf, "return_number": number}
+
     def save(self, out_dir: str | os.PathLike, figure: bool = True,
              overwrite: bool = False, fov_deg: float | None = None) -> Path:
         """Write ``metrics.json``, ``depth.npy``, ``reflectivity.npy``, ``confidence.npy``,
@@ -113,9 +135,13 @@ class Result:
             if self.depth2 is not None:  # the estimator looked for a second surface
                 np.save(tmp / "depth2.npy", self.depth2)
             fov = DEFAULT_FOV_DEG if fov_deg is None else float(fov_deg)
-            write_ply(tmp / "points.ply", *self.points(fov))
+            points, intensity, fields = self.cloud(fov)
+            write_ply(tmp / "points.ply", points, intensity, **fields)
+            second = int(np.sum(fields["return_number"] == 2))
             self.metrics["point_cloud"] = {"file": "points.ply", "fov_deg": fov,
-                                           "n_points": int(np.isfinite(self.depth).sum())}
+                                           "n_points": int(points.shape[0]),
+                                           "n_second_surface": second,
+                                           "fields": ["x", "y", "z", "intensity", *fields]}
             if figure:
                 from ..figures import depth_figure
 
