@@ -506,3 +506,50 @@ def test_a_leg_s_top_pixel_under_a_nearer_table_top(top):
     new = new.reshape(SHAPE)
     assert (new[24:32, 10] == 120).all() and (new[20:23, 5:16] == 60).all()
     assert new[23, 10] == (120 if top > 1 else WALL) and added == (1 if top > 1 else 0)
+
+
+def test_a_short_piece_of_a_pole_is_walked_at_its_one_slice():
+    """The room's lamp pole on seed 28 (m_n = 5, 50 %): the MRF holds three of its rows,
+    labelled 149 / 149 / 150, whose line fit leaves the pole's slice by a slice every two
+    rows. The piece is also walked at its median slice, and that walk, which the pole's
+    evidence holds for 16 rows, is kept; with the fit alone the walk stops within a few
+    rows."""
+    from spslidar.depth import lines
+
+    label = np.full(SHAPE, WALL)
+    label[14:17, 10] = [149, 149, 150]
+    rows = [r for r in range(4, 28) if not 14 <= r < 17]
+    z = _evidence_cube(label, rows, 10, 149, [1.2] * len(rows))
+    new, added = lines.track_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert (np.abs(new[5:27, 10] - 149) <= 1).all() and added >= 19
+    assert (new[:, 9] == WALL).all() and (new[:, 11] == WALL).all()
+    old = lines.SNAP_EXTENT
+    try:  # the fit's walk alone
+        lines.SNAP_EXTENT = 0
+        _, fit_only = lines.track_lines(z, label.ravel(), NU, SHAPE)
+    finally:
+        lines.SNAP_EXTENT = old
+    assert fit_only < added - 10
+
+
+def test_a_short_piece_of_a_slanted_wire_keeps_its_slope():
+    """A wire along a row whose slice grows by one every two columns (procedural seed 113): a
+    piece of three labelled 120 / 121 / 121 is as close to one slice as the pole's, but the
+    walk along the slope goes further, so the slope is kept."""
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    cols = np.arange(2, 30)
+    slices = 113 + (cols + 1) // 2  # 114, 114, 115, 115, ...
+    label[12, 13:16] = slices[11:14]
+    assert np.ptp(label[12, 13:16]) == 1
+    k = WALL + 10
+    z = np.zeros((SHAPE[0] * SHAPE[1], k))
+    z[np.arange(z.shape[0]), label.ravel()] = 2.0 * NU
+    for c, sl in zip(cols, slices, strict=True):
+        z[12 * SHAPE[1] + c, sl] = 1.2 * NU
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert added >= 20
+    assert (np.abs(new[12, 4:28] - slices[2:26]) <= 1).all()
