@@ -125,7 +125,7 @@ and structures of 3 pixels for :func:`track_lines` came later, after held-out se
 shallow wire (so that case is not held out from them): on seeds 0-19 the worst is 1.6 %
 worse than before, on the built-ins one measurement 3 % (the motorcycle at m_n = 10, 50 %,
 seed 0: one mixed pixel at a depth edge), elongation 2.9 instead of 3.5 changed nothing.
-A short structure along a row or a column (its ends less than :data:`SNAP_EXTENT` pixels
+A short structure along a row or a column (its ends less than ``SNAP_EXTENT`` pixels
 apart, its slices within one of their median) is walked twice, along its fitted line and at
 its median slice, and the walk that takes more pixels is kept: three pixels of the room's
 lamp pole labelled 149 / 149 / 150 (a sub-bin delay rounded either way) fit a slope that
