@@ -440,27 +440,26 @@ def track_lines(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, i
             coef = np.polyfit(t, label[members].astype(np.float64), 1)
             if np.abs(np.polyval(coef, t) - label[members]).max() > residual:
                 continue
-            level = float(np.median(label[members]))
             done[members] = True
             least = max(lo, relative * float(np.median(zn[members, label[members]])))
-            args = (zn, label, anchor, shape, centre, v, coef, t, gap, window, tau, least, back,
-                    contrast)
-            if (np.ptp(t) < SNAP_EXTENT
-                    and (np.ptp(yx[:, 0]) == 0 or np.ptp(yx[:, 1]) == 0)
+            # a short piece along a row or a column at one slice, give or take one, is also
+            # walked at its median slice; the walk that takes more pixels is kept (the fit
+            # first, so a tie keeps the fit)
+            level = float(np.median(label[members]))
+            lines_ = [coef]
+            if (np.ptp(t) < SNAP_EXTENT and (np.ptp(yx[:, 0]) == 0 or np.ptp(yx[:, 1]) == 0)
                     and np.abs(label[members] - level).max() <= 1):
-                alt = label.copy()
-                flat_n = _walk(zn, alt, anchor, shape, centre, v, np.array([0.0, level]), t,
-                               gap, window, tau, least, back, contrast, interior=reach > 1)
-                tilt = label.copy()
-                tilt_n = _walk(*args[:1], tilt, *args[2:], interior=reach > 1)
-                if flat_n > tilt_n:
-                    label[:] = alt
-                    added += flat_n
-                else:
-                    label[:] = tilt
-                    added += tilt_n
-                continue
-            added += _walk(*args, interior=reach > 1)
+                lines_.append(np.array([0.0, level]))
+            best, best_n = label, -1
+            for line in lines_:
+                trial = label.copy() if len(lines_) > 1 else label
+                n = _walk(zn, trial, anchor, shape, centre, v, line, t, gap, window, tau, least,
+                          back, contrast, interior=reach > 1)
+                if n > best_n:
+                    best, best_n = trial, n
+            if best is not label:
+                label[:] = best
+            added += best_n
     return label, added
 
 
