@@ -95,16 +95,17 @@ class Result:
 
         fov = DEFAULT_FOV_DEG if fov_deg is None else fov_deg
         pts, intensity = point_cloud(self.depth, fov, self.reflectivity)
-        conf = (point_cloud(self.depth, fov, self.confidence)[1] if self.confidence is not None
-                else np.full(pts.shape[0], np.nan))
+        # the points are the finite depths in row-major order: their confidence the same way
+        # (NaN read as 0, as point_cloud reads the intensity)
+        conf = (np.nan_to_num(np.asarray(self.confidence, float)[np.isfinite(self.depth)])
+                if self.confidence is not None else np.full(pts.shape[0], np.nan))
+        number = np.ones(pts.shape[0], np.uint8)
         if self.depth2 is not None and np.isfinite(self.depth2).any():
             pts2, _ = point_cloud(self.depth2, fov)
             nan = np.full(pts2.shape[0], np.nan)
-            pts, intensity, conf = (np.concatenate([pts, pts2]), np.concatenate([intensity, nan]),
-                                    np.concatenate([conf, nan]))
-            number = np.r_[np.ones(len(pts) - len(pts2), np.uint8), np.full(len(pts2), 2, np.uint8)]
-        else:
-            number = np.ones(pts.shape[0], np.uint8)
+            pts, intensity = np.concatenate([pts, pts2]), np.concatenate([intensity, nan])
+            conf = np.concatenate([conf, nan])
+            number = np.concatenate([number, np.full(pts2.shape[0], 2, np.uint8)])
         return pts, intensity, {"confidence": conf, "return_number": number}
 
     def save(self, out_dir: str | os.PathLike, figure: bool = True,
