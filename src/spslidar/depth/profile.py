@@ -8,6 +8,8 @@ shift label images, without ever looking at a ground truth.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ..forward import delay_to_depth
@@ -244,14 +246,23 @@ def noise_only_ratio(k: int, pixels: int = 2048, seed: int = 0) -> float:
     """
     if k < NOISE_ONLY_MIN_SLICES:
         return float("nan")
-    return float(np.percentile(peak_to_noise(_reference_noise(k, pixels, seed)), 90))
+    return _reference_stats(k, pixels, seed)[0]
+
+
+@functools.lru_cache(maxsize=32)
+def _reference_stats(k: int, pixels: int = 2048, seed: int = 0) -> tuple[float, float]:
+    """The reference noise's 90th percentile of :func:`peak_to_noise` and its integrated
+    autocorrelation, from one draw and one pass (deterministic in its arguments, so kept:
+    :func:`noise_verdict` needs both, often at the same ``k``, on every run)."""
+    ratio, tau = _noise_stats(_reference_noise(k, pixels, seed))
+    return float(np.percentile(ratio, 90)), tau
 
 
 def _effective(k: int, tau: float) -> int:
     """``K tau_ref / tau``, at most ``K`` (see :func:`effective_slices`)."""
     if k < NOISE_ONLY_MIN_SLICES or not np.isfinite(tau):
         return k
-    tau_ref = _noise_stats(_reference_noise(k))[1]
+    tau_ref = _reference_stats(k)[1]
     return int(min(k, max(round(k * tau_ref / max(tau, 1e-12)), 1)))
 
 
