@@ -188,10 +188,9 @@ STRETCH_REACH, STRETCH_LEVEL, STRETCH_TOTAL, STRETCH_CONTRAST = 16, 0.5, 3.0, 0.
 TRACK_MIN = 3
 #: :func:`track_lines`: a structure along a row or a column whose ends lie fewer than this
 #: many pixels apart, its slices within one of their median, is also walked at that one
-#: slice, and the walk that
-#: takes more pixels is kept (a pole's piece of three, labelled 149 / 149 / 150, fits a slope
-#: that leaves the pole's slice by 10 slices within 20 rows; a slanted wire's short piece fits
-#: the same labels, so the data, not the fit, choose)
+#: slice, and the walk that takes more pixels is kept (a pole's piece of three, labelled
+#: 149 / 149 / 150, fits a slope that leaves the pole's slice by 10 slices within 20 rows; a
+#: slanted wire's short piece fits the same labels, so the data, not the fit, choose)
 SNAP_EXTENT = 6
 
 
