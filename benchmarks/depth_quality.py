@@ -15,7 +15,7 @@ argmax's on the same measurement, and the mean share of pixels off by more than 
 
     python benchmarks/depth_quality.py --procedural 100-149 --noise 5 10 --compression 0.25 0.5
         [--size 64] [--estimators argmax censor mrf evidence] [--cache DIR] [--jobs 2]
-        [--out table.md]
+        [--lam-scale K] [--out table.md]
     python benchmarks/depth_quality.py --scenes camera motorcycle --noise 10 --compression 0.25
     python benchmarks/depth_quality.py --scenes room --noise 5 --compression 0.5 --seed 8-15
     python benchmarks/depth_quality.py --procedural 100-149 --draw 1 --estimators argmax mrf
@@ -54,10 +54,12 @@ def score(depth: np.ndarray, truth: np.ndarray, valid: np.ndarray) -> dict[str, 
 
 
 def case_data(scene: str, noise: float, ratio: float, size: int, seed: int,
-              cache: Path | None) -> dict:
+              cache: Path | None, lam_scale: float | None = None) -> dict:
     """The reconstructed slices of one measurement with what the estimators and the scoring
-    need (from ``cache`` when there)."""
-    name = f"{scene.replace(':', '-')}_mn{noise:g}_c{ratio:g}_n{size}_s{seed}.npz"
+    need (from ``cache`` when there); ``lam_scale``: the solve's weight factor (default the
+    solver's)."""
+    weight = "" if lam_scale is None else f"_ls{lam_scale:g}"
+    name = f"{scene.replace(':', '-')}_mn{noise:g}_c{ratio:g}_n{size}_s{seed}{weight}.npz"
     path = cache / name if cache is not None else None
     if path is not None and path.exists():
         with np.load(path) as f:
@@ -67,7 +69,7 @@ def case_data(scene: str, noise: float, ratio: float, size: int, seed: int,
     t0 = time.perf_counter()
     meas = spslidar.measure(scene=scene, size=size, noise=noise, compression=ratio, seed=seed,
                             depth="argmax")
-    r = spslidar.reconstruct(meas)
+    r = spslidar.reconstruct(meas, **({} if lam_scale is None else {"lam_scale": lam_scale}))
     data = {"slices": np.asarray(r.slices, dtype=np.float32), "lags": np.asarray(r.lags),
             "bin_width": np.float64(meas.acq.bin_width),
             "pulse_width": np.float64(r.config.pulse_width),
@@ -82,10 +84,11 @@ def case_data(scene: str, noise: float, ratio: float, size: int, seed: int,
 
 
 def run_case(scene: str, noise: float, ratio: float, size: int, seed: int,
-             estimators: list[str], cache: Path | None, label: str | None = None) -> list[dict]:
+             estimators: list[str], cache: Path | None, label: str | None = None,
+             lam_scale: float | None = None) -> list[dict]:
     """One measurement and reconstruction; every estimator on its slices (``label``: how the
     tables name the case, default the scene)."""
-    d = case_data(scene, noise, ratio, size, seed, cache)
+    d = case_data(scene, noise, ratio, size, seed, cache, lam_scale)
     truth, valid = d["truth"], d["valid"]
     ctx = DepthContext(d["lags"], float(d["bin_width"]), float(d["pulse_width"]), truth.shape,
                        False)
@@ -169,6 +172,9 @@ def main(argv=None) -> int:
                     help="another noise draw of --procedural: measurement seed = scene seed + "
                          "1000 * DRAW (new code, patterns and photons; 0: the scene's seed)")
     ap.add_argument("--cache", type=Path, default=None, help="keep the slices here")
+    ap.add_argument("--lam-scale", type=float, default=None, metavar="K",
+                    help="the solve's weight factor (default the solver's); every estimator, "
+                         "argmax included, reads the slices of that weight")
     ap.add_argument("--out", default=None, help="also write the Markdown to this file")
     ap.add_argument("--per-case", action="store_true", help="also print the per-case table")
     ap.add_argument("--jobs", type=int, default=1,
@@ -177,6 +183,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.draw < 0:
         ap.error(f"--draw must be 0 or more, got {args.draw}")
+    if args.lam_scale is not None and not args.lam_scale > 0:
+        ap.error(f"--lam-scale must be positive, got {args.lam_scale}")
     seeds = _seeds(args.seed)
     cases = [(s, seed) for s in (args.scenes or []) for seed in seeds]
     if not cases and not args.procedural:
@@ -195,7 +203,7 @@ def main(argv=None) -> int:
         todo = [(scene, noise, ratio, seed) for scene, seed in cases for noise in args.noise
                 for ratio in args.compression]
         Parallel(n_jobs=args.jobs)(delayed(case_data)(scene, noise, ratio, args.size, seed,
-                                                      args.cache)
+                                                      args.cache, args.lam_scale)
                                    for scene, noise, ratio, seed in todo)
     rows: list[dict] = []
     t0 = time.perf_counter()
@@ -203,7 +211,7 @@ def main(argv=None) -> int:
         for noise in args.noise:
             for ratio in args.compression:
                 case = run_case(scene, noise, ratio, args.size, seed, args.estimators,
-                                args.cache, label.get((scene, seed)))
+                                args.cache, label.get((scene, seed)), args.lam_scale)
                 rows.extend(case)
                 print(f"{label.get((scene, seed), scene)} m_n={noise:g} {100 * ratio:g}%: "
                       + ", ".join(f"{r['estimator']} {r['rmse']:.4f}" for r in case)
