@@ -94,7 +94,7 @@ class Result:
         from ..products import DEFAULT_FOV_DEG, point_cloud
 
         fov = DEFAULT_FOV_DEG if fov_deg is None else fov_deg
-        pts, intensity = point_cloud(self.depth, fov, self.reflectivity)
+        pts, intensity = self.points(fov)
         # the points are the finite depths in row-major order: their confidence the same way
         # (NaN read as 0, as point_cloud reads the intensity)
         conf = (np.nan_to_num(np.asarray(self.confidence, float)[np.isfinite(self.depth)])
