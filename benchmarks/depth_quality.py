@@ -69,7 +69,7 @@ def case_data(scene: str, noise: float, ratio: float, size: int, seed: int,
     t0 = time.perf_counter()
     meas = spslidar.measure(scene=scene, size=size, noise=noise, compression=ratio, seed=seed,
                             depth="argmax")
-    r = spslidar.reconstruct(meas, **({} if lam_scale is None else {"lam_scale": lam_scale}))
+    r = spslidar.reconstruct(meas, lam_scale=lam_scale)  # None: the solver's default
     data = {"slices": np.asarray(r.slices, dtype=np.float32), "lags": np.asarray(r.lags),
             "bin_width": np.float64(meas.acq.bin_width),
             "pulse_width": np.float64(r.config.pulse_width),
