@@ -137,10 +137,10 @@ def test_calibrated_reconstruction_holds_the_ideal_error(acquisitions):
 
 
 def test_calibrated_weight_is_scaled_by_the_filters_spread(acquisitions):
-    """The default weight of a calibrated reconstruction is the solver's lam_scale times the
-    spread of the calibrated filter (> 1 for this IRF, 1 for an ideal one); a weight the user
-    gives is kept as given."""
-    from spslidar.pipeline.real import calibrated_lam_scale
+    """The default weight of a calibrated reconstruction is 0.3 times the spread of the
+    calibrated filter (> 1 for this IRF, 1 for an ideal one), never below the solver's own
+    lam_scale; a weight the user gives is kept as given."""
+    from spslidar.pipeline.real import FILTER_LAM_SCALE, calibrated_lam_scale
     from spslidar.pipeline.weights import solver_default
 
     base = float(solver_default("fista", "lam_scale"))
@@ -148,13 +148,16 @@ def test_calibrated_weight_is_scaled_by_the_filters_spread(acquisitions):
     m, _ = _reconstruct(acquisitions, "scene", "--calibration", cal)
     spread = m["calibration"]["spread"]
     assert 1.3 < spread < 2.5  # a 1.5-bin Gaussian with a 30 % 4-bin tail spreads a return
-    assert m["lam_scale"] == pytest.approx(base * spread, rel=1e-12)
+    assert m["lam_scale"] == pytest.approx(max(FILTER_LAM_SCALE * spread, base), rel=1e-12)
+    assert m["lam_scale"] > base  # this spread takes the weight above FISTA's default
     m, _ = _reconstruct(acquisitions, "scene", "--calibration", cal, "--lam-scale", "0.2")
     assert m["lam_scale"] == pytest.approx(0.2, rel=1e-12)
     m, _ = _reconstruct(acquisitions, "ideal")
     assert m["lam_scale"] == pytest.approx(base, rel=1e-12)
     assert calibrated_lam_scale("fista", 1.0) == pytest.approx(base, rel=1e-12)
     assert calibrated_lam_scale("fista", 0.5) == pytest.approx(base, rel=1e-12)  # never below
+    assert calibrated_lam_scale("twist", 2.0) == pytest.approx(0.6, rel=1e-12)
+    assert calibrated_lam_scale("fista", 1.2) == pytest.approx(base, rel=1e-12)  # 0.36 < 0.45
 
 
 def test_instrument_keeps_the_sub_bin_delay():

@@ -164,15 +164,18 @@ def test_cli_bad_option_exit_2(tmp_path, capsys):
 
 def test_run_with_gmapd_low_flux():
     """The chain runs end to end with the GMAPD at a GMAPD-friendly flux and the correction
-    brings the depth back close to the linear model's."""
+    brings the depth back close to the linear model's: the mean RMSE over three seeds within
+    0.05 m of it (measured 2026-11-27: 0.346 / 0.365 m; one seed alone moves by 0.03-0.05 m
+    with the weight, seed 1 at lam_scale 0.3 / 0.45: 0.024 / 0.054 m apart)."""
     from spslidar.pipeline import run
 
-    base = dict(size=16, code_length=1023, signal=2e-4, noise=2e-5, compression=0.5, seed=1,
+    base = dict(size=16, code_length=1023, signal=2e-4, noise=2e-5, compression=0.5,
                 depth="argmax")
-    lin = run(base)
-    gm = run({**base, "detector": "gmapd"})
-    assert gm.metrics["detector"]["model"] == "gmapd"
-    assert gm.depth_rmse <= lin.depth_rmse + 0.05
+    lin = [run({**base, "seed": s}) for s in (1, 2, 3)]
+    gm = [run({**base, "seed": s, "detector": "gmapd"}) for s in (1, 2, 3)]
+    assert all(g.metrics["detector"]["model"] == "gmapd" for g in gm)
+    assert (np.mean([g.depth_rmse for g in gm])
+            <= np.mean([r.depth_rmse for r in lin]) + 0.05)
 
 
 def test_noiseless_gmapd_noise_level_is_its_expected_totals():

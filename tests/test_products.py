@@ -134,14 +134,16 @@ def test_reflectivity_window_sums_the_return():
 
 def test_reflectivity_of_a_noiseless_run_follows_the_scene():
     """Noiseless, all patterns: the reflectivity image reads the scene's alpha up to the
-    regulariser's shrinkage (0.97 measured at m_s = 5; 10 % allowed) and correlates with it
-    above 0.99 on the 'steps' scene (four reflectivities)."""
+    regulariser's shrinkage (10 % allowed) and correlates with it above 0.975 on the 'steps'
+    scene (four reflectivities). The shrinkage grows with the weight: median ratio 0.955 and
+    correlation 0.991 at FISTA's lam_scale 0.3, 0.934 and 0.982 at its default 0.45
+    (measured 2026-11-27)."""
     r = pipeline.run(scene="steps", size=16, code_length=1023, noiseless=True,
                      compression=1.0, seed=0, depth="argmax")
     a, e = r.scene.reflectivity, r.reflectivity
     v = r.scene.valid & np.isfinite(e)
     assert np.median(e[v] / a[v]) == pytest.approx(1.0, abs=0.1)
-    assert np.corrcoef(e[v], a[v])[0, 1] > 0.99
+    assert np.corrcoef(e[v], a[v])[0, 1] > 0.975
     assert r.metrics["mean_reflectivity"] == pytest.approx(float(np.nanmean(e)))
 
 

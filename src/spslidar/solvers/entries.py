@@ -28,11 +28,14 @@ def _regulariser_in(allowed: tuple[str, ...], message: str):
     return validate
 
 
-#: the solvers, by name (``--solver``)
+#: the solvers, by name (``--solver``). FISTA, the default, weighs its prior at 0.45 times the
+#: noise level (0.3 until 2026-11-27): chosen on procedural seeds 0-19 among 0.3, 0.45 and 0.6
+#: with the ``mrf`` depth, and measured on held-out seeds 100-149, the camera and the built-ins
+#: (README, "Depth on real scenes"); the other solvers keep the 0.3 they were compared at.
 SOLVERS = Registry("solver", "solver")
 SOLVERS.add("fista", "spslidar.solvers.fista:FISTA", "FISTA",
             "FISTA, accelerated proximal gradient (default)",
-            iterations=60, lam_scale=0.3, regulariser="tv")
+            iterations=60, lam_scale=0.45, regulariser="tv")
 SOLVERS.add("twist", "spslidar.solvers.twist:TwIST", "TwIST",
             "TwIST, two-step iterative shrinkage (the paper's)",
             iterations=60, lam_scale=0.3, regulariser="tv")
