@@ -19,7 +19,8 @@ RMSEs agree statistically, not exactly.
 Run::
 
     python benchmarks/backends.py [--backends numpy:cpu,torch:cuda,cupy:cuda]
-        [--workloads 64,256,512h,sweep] [--repeat 5] [--sweep-runs 40] [--out table.md]
+        [--workloads 64,256,512h,sweep] [--repeat 5] [--sweep-runs 40] [--depth argmax]
+        [--out table.md]
 """
 
 from __future__ import annotations
@@ -51,11 +52,16 @@ def _device_name() -> str:
     return "no CUDA device"
 
 
+#: the depth estimator of every run (``--depth``): argmax has a device kernel, the
+#: image-structured estimators run on the host on the slices brought back
+DEPTH = {"depth": "argmax"}
+
+
 def _one(backend: str, device: str, seed: int, **kw):
     from spslidar.pipeline.chain import run
 
     t0 = time.perf_counter()
-    r = run(backend=backend, device=device, seed=seed, **kw)
+    r = run(backend=backend, device=device, seed=seed, **{**DEPTH, **kw})
     return r, time.perf_counter() - t0
 
 
@@ -120,7 +126,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sweep-runs", type=int, default=40)
     ap.add_argument("--numpy-sweep-runs", type=int, default=5)
     ap.add_argument("--out", default=None, help="write the Markdown table (and a .json) here")
+    ap.add_argument("--depth", default="argmax",
+                    help="depth estimator of every run (default argmax, the one with a device "
+                         "kernel; mrf runs on the host)")
     args = ap.parse_args(argv)
+    DEPTH["depth"] = args.depth
 
     from spslidar.backends import is_available
     from spslidar.patterns import PATTERNS

@@ -44,7 +44,8 @@ def simulates_on_device(cfg: Any, patterns: Any) -> bool:
     patterns shown as they are (differential patterns, shown as two exposures, are
     simulated on the host)."""
     host = getattr(patterns, "host", None)
-    return cfg.detector in DEVICE_KERNELS["detector"] and not hasattr(host, "exposures")
+    return (cfg.detector in DEVICE_KERNELS["detector"]
+            and not getattr(host, "differential", False))
 
 
 def reconstructs_on_device(cfg: Any) -> bool:
