@@ -15,9 +15,10 @@ import numpy as np
 from ..forward import delay_to_depth
 from .base import DepthContext
 
-__all__ = ["NOISE_ONLY_MARGIN", "NOISE_ONLY_MIN_SLICES", "effective_slices", "grid_shape",
-           "index_to_depth", "no_return", "noise_maxima", "noise_only_ratio", "noise_scale",
-           "noise_verdict", "peak_to_noise", "pulse_filter", "refine_subbin", "shift2d"]
+__all__ = ["NOISE_ONLY_MARGIN", "NOISE_ONLY_MIN_SLICES", "NOISE_VERDICT_PIXELS",
+           "effective_slices", "grid_shape", "index_to_depth", "no_return", "noise_maxima",
+           "noise_only_ratio", "noise_scale", "noise_verdict", "peak_to_noise", "pulse_filter",
+           "refine_subbin", "shift2d"]
 
 #: An image is said to be noise where the 90th percentile of :func:`peak_to_noise` is below
 #: this many times what non-negative white noise gives at as many effective slices
@@ -279,8 +280,19 @@ def effective_slices(slices: np.ndarray) -> int:
     return _effective(int(np.shape(slices)[1]), _noise_stats(slices)[1])
 
 
-def noise_verdict(slices: np.ndarray, cap: float = 1000.0) -> tuple[float, float, float] | None:
-    """Whether these slices hold any return above the noise, in one pass over them.
+#: :func:`noise_verdict` reads at most this many pixels, a fixed random subset of a larger
+#: image: its 90th percentile and the noise's autocorrelation describe the image, not each
+#: pixel. Measured 2026-11-27 on a reconstructed 512x512 cube of 61 slices (a 256x256
+#: Hadamard run tiled): 0.763 s -> 0.082 s on a 2-core machine, the 90th percentile 77.84 ->
+#: 77.90 and the floor unchanged; on 256x256 noise, 1.514 -> 1.511 against a floor of 2.13
+#: (the time at 512x512 was most of a torch run's host work on an H100).
+NOISE_VERDICT_PIXELS = 32768
+
+
+def noise_verdict(slices: np.ndarray, cap: float = 1000.0,
+                  max_pixels: int = NOISE_VERDICT_PIXELS) -> tuple[float, float, float] | None:
+    """Whether these slices hold any return above the noise, in one pass over them (over
+    ``max_pixels`` of them, drawn with a fixed seed, where there are more).
 
     Returns
     -------
@@ -295,6 +307,9 @@ def noise_verdict(slices: np.ndarray, cap: float = 1000.0) -> tuple[float, float
     sl = np.asarray(slices)
     if not np.isfinite(sl).all():
         return None
+    if sl.shape[0] > max_pixels:
+        keep = np.random.default_rng(0).choice(sl.shape[0], max_pixels, replace=False)
+        sl = sl[np.sort(keep)]
     ratio, tau = _noise_stats(sl)
     null = noise_only_ratio(_effective(sl.shape[1], tau))
     if not np.isfinite(null):
