@@ -52,16 +52,11 @@ def _device_name() -> str:
     return "no CUDA device"
 
 
-#: the depth estimator of every run (``--depth``): argmax has a device kernel, the
-#: image-structured estimators run on the host on the slices brought back
-DEPTH = {"depth": "argmax"}
-
-
 def _one(backend: str, device: str, seed: int, **kw):
     from spslidar.pipeline.chain import run
 
     t0 = time.perf_counter()
-    r = run(backend=backend, device=device, seed=seed, **{**DEPTH, **kw})
+    r = run(backend=backend, device=device, seed=seed, **kw)
     return r, time.perf_counter() - t0
 
 
@@ -77,11 +72,12 @@ def bench_workload(backend: str, device: str, kw: dict, repeat: int, warm: bool)
             "iterations": r.metrics["solver_info"]["iterations"]}
 
 
-def bench_sweep(backend: str, device: str, n: int) -> dict:
-    """Runs per second of ``n`` default 64x64 runs, seeds 0..n-1 (after one warm-up)."""
-    _one(backend, device, 0)
+def bench_sweep(backend: str, device: str, n: int, **kw) -> dict:
+    """Runs per second of ``n`` default 64x64 runs (with ``kw``), seeds 0..n-1 (after one
+    warm-up)."""
+    _one(backend, device, 0, **kw)
     t0 = time.perf_counter()
-    rmse = [_one(backend, device, s)[0].depth_rmse for s in range(n)]
+    rmse = [_one(backend, device, s, **kw)[0].depth_rmse for s in range(n)]
     dt = time.perf_counter() - t0
     return {"runs_per_s": n / dt, "rmse_mean": statistics.fmean(rmse),
             "rmse_sd": statistics.pstdev(rmse), "n": n}
@@ -130,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="depth estimator of every run (default argmax, the one with a device "
                          "kernel; mrf runs on the host)")
     args = ap.parse_args(argv)
-    DEPTH["depth"] = args.depth
+    depth = {"depth": args.depth}  # argmax has a device kernel; mrf runs on the host
 
     from spslidar.backends import is_available
     from spslidar.patterns import PATTERNS
@@ -147,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"unknown workload {wl!r}; choose from {', '.join(WORKLOADS)}, sweep",
                   file=sys.stderr)
             return 2
-        kw = WORKLOADS[wl]
+        kw = {**WORKLOADS[wl], **depth}
         if kw.get("patterns", "gaussian") not in PATTERNS.names():
             print(f"skip {wl}: no {kw['patterns']!r} pattern kind registered", flush=True)
             continue
@@ -173,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             n = args.numpy_sweep_runs if backend == "numpy" else args.sweep_runs
             try:
-                sweeps[f"{backend}:{device}"] = bench_sweep(backend, device, n)
+                sweeps[f"{backend}:{device}"] = bench_sweep(backend, device, n, **depth)
             except Exception as exc:  # noqa: BLE001 - reported, the others go on
                 print(f"sweep {backend}:{device} failed: {exc!r}", flush=True)
                 continue

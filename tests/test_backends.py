@@ -343,7 +343,7 @@ def test_hadamard_patterns_simulate_on_the_device(monkeypatch):
     exposures a pattern) on the host. A Hadamard pattern set has ``exposures`` whatever its
     realisation, and the device kernel was skipped for every Hadamard run while that method's
     presence was the test (found 2026-11-27: 512x512 on an H100, simulate 3.7 s on the host
-    instead of 0.03 s)."""
+    instead of 0.14 s on the device)."""
     import spslidar.backends.device as device
 
     calls = []
