@@ -24,7 +24,8 @@ __all__ = ["NOISE_ONLY_MARGIN", "NOISE_ONLY_MIN_SLICES", "NOISE_VERDICT_PIXELS",
 #: this many times what non-negative white noise gives at as many effective slices
 #: (:func:`noise_only_ratio` of :func:`effective_slices`). Through the pipeline, noise alone (a
 #: black scene, a range gate that misses the scene, with and without a calibrated IRF, 12-20 %
-#: of the default signal; 16x16 to 64x64, 22-208 slices) gives 1.11-1.34 times it; the
+#: of the default signal; 16x16 to 64x64, 22-208 slices) gives 1.11-1.34 times it on FISTA's
+#: 0.3 weight, 1.07-1.35 on its default 0.45 (the uncalibrated cases measured again); the
 #: built-in and procedural scenes at m_n 1-10 (32x32) 3.9-22 times it (p90 5.1-36), the
 #: camera at m_s = 1, m_n = 10 (RMSE 0.087 m) 1.84 times; it fires on the motorcycle at
 #: m_s <= 1 (RMSE 0.64-0.80 m) and the camera at 0.6 (0.18 m), not at 1.0 (0.087 m).
