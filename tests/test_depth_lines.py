@@ -272,6 +272,30 @@ def test_one_wrong_argmax_does_not_refuse_a_line():
     assert not _keep(a, s, robust=None).any()
 
 
+def test_a_leg_at_one_depth_with_a_stray_argmax_keeps_its_straight_pixels():
+    # the room at m_n = 5, 50 %, seed 40: a table leg argmax finds at slice 96 on five of six
+    # rows and at 91 on the sixth; no line through them fits within 2 slices, the Theil-Sen
+    # inliers are 5 of 6 (under 0.9), but the five lie on one column at one slice
+    a, s = _blank()
+    rows = np.arange(6, 12)
+    a[rows, 10] = 96
+    a[9, 10] = 91
+    s[rows, 10] = np.array([1.5, 1.9, 1.1, 1.2, 1.3, 1.4]) * NU
+    keep = _keep(a, s)
+    assert keep[rows[rows != 9], 10].all() and not keep[9, 10] and keep.sum() == 5
+
+
+def test_pixels_at_one_depth_off_one_column_are_not_kept_as_straight():
+    # the same group with its pixels at slice 96 on two columns: no straight structure
+    a, s = _blank()
+    rows = np.arange(6, 12)
+    cols = np.array([10, 10, 10, 11, 11, 11])
+    a[rows, cols] = 96
+    a[9, 11] = 91
+    s[rows, cols] = 1.4 * NU
+    assert not _keep(a, s, passes=((2, 1, 3, 5.0), (16, 1, 3, 5.0))).any()
+
+
 def test_a_pole_s_weak_pixel_between_two_pieces_is_mended():
     # the room's lamp pole at m_n = 5, 50 %, seed 2: the MRF holds the pole above and below
     # one row whose evidence at the pole's slice is too weak for the walk (here 0.3 noise
@@ -404,24 +428,48 @@ def test_a_leg_s_walk_bridges_a_short_gap_to_its_table_top():
     assert (new[:6, 10] == WALL).all() and (new[24:, 10] == WALL).all()
 
 
-@pytest.mark.parametrize("case", ["too long", "other depth", "beside as high"])
+def test_a_leg_s_walk_bridges_a_long_gap_that_stands_above_its_sides():
+    # the room at m_n = 5, 50 %, seed 37: the leg's walk stops 7 rows under its table top,
+    # where the TV left it at 0.6-1.1 noise maxima and 0-0.7 beside it (0.5 above its sides
+    # on average); a gap of 5-12 pixels is taken where it stands 0.3 above its sides
+    from spslidar.depth.lines import track_lines
+
+    label = np.full(SHAPE, WALL)
+    label[3:5, 4:20] = 120  # the table top
+    label[12:24, 10] = 120  # the leg, seven rows short of it
+    rows = np.arange(5, 12)
+    z = _evidence_cube(label, rows, 10, 120, [1.1, 0.9, 0.7, 0.7, 0.6, 0.8, 0.7])
+    for col in (9, 11):
+        z[rows * SHAPE[1] + col, 120] = 0.3 * NU
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert added == 7 and (new[3:24, 10] == 120).all()
+    assert (new[:3, 10] == WALL).all() and (new[24:, 10] == WALL).all()
+
+
+@pytest.mark.parametrize("case", ["too long", "long and faint", "other depth",
+                                  "beside as high"])
 def test_what_the_walk_does_not_bridge(case):
     from spslidar.depth.lines import track_lines
 
     label = np.full(SHAPE, WALL)
-    top = 120
+    top, leg = 120, 12
     rows = [8, 9, 10, 11]
-    if case == "too long":  # five rows short of the top
-        rows = [7, 8, 9, 10, 11]
+    level, beside = 0.4, 0.0
+    if case == "too long":  # thirteen rows short of the top, 0.4 above the pixels beside
+        rows, leg = list(range(5, 18)), 18
+    elif case == "long and faint":  # five rows short, 0.2 above the pixels beside them
+        rows, beside = [7, 8, 9, 10, 11], 0.2
     elif case == "other depth":  # the surface the gap ends at is not at the leg's depth
         top = 100
+    elif case == "beside as high":  # the top's bleed below it, as high beside the leg
+        level, beside = 1.0, 1.2
     label[rows[0] - 2:rows[0], 4:20] = top
-    label[12:24, 10] = 120
-    z = _evidence_cube(label, rows, 10, 120, [1.0] * len(rows) if case == "beside as high"
-                       else [0.4] * len(rows))
-    if case == "beside as high":  # the top's bleed below it, as high beside the leg
+    label[leg:leg + 12, 10] = 120
+    z = _evidence_cube(label, rows, 10, 120, [level] * len(rows))
+    if beside:
         for col in (9, 11):
-            z[np.array(rows) * SHAPE[1] + col, 120] = 1.2 * NU
+            z[np.array(rows) * SHAPE[1] + col, 120] = beside * NU
     new, added = track_lines(z, label.ravel(), NU, SHAPE)
     assert added == 0 and (new == label.ravel()).all()
 
