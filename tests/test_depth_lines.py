@@ -601,3 +601,54 @@ def test_a_short_piece_of_a_slanted_wire_keeps_its_slope():
     new = new.reshape(SHAPE)
     assert added >= 20
     assert (np.abs(new[12, 4:28] - slices[2:26]) <= 1).all()
+
+
+def _hanging_leg(own=1.2, col=10, side=0.2):
+    """A table top at slice 120 (rows 3-4, columns 4-10) over a wall at ``WALL``; under the
+    top's column ``col`` the leg's evidence at 120 is 1 noise maximum on rows 5-16, ``side``
+    beside it, and every wall pixel's evidence at its own label ``own``."""
+    label = np.full(SHAPE, WALL)
+    label[3:5, 4:11] = 120
+    z = np.zeros((SHAPE[0] * SHAPE[1], WALL + 10))
+    z[np.arange(z.shape[0]), label.ravel()] = own * NU
+    z[(label == 120).ravel(), 120] = 8.0 * NU
+    rows = np.arange(5, 17)
+    z[rows * SHAPE[1] + col, 120] = 1.0 * NU
+    for c in (col - 1, col + 1):
+        z[rows * SHAPE[1] + c, 120] = side * NU
+    return label, z
+
+
+def test_a_leg_hanging_from_its_table_top_s_corner_is_taken():
+    # the room at m_n = 5, 50 %, seeds 35, 41, 58, 59: a leg under the top's last column that
+    # the labelling holds on none of its rows (its pieces too short to walk), its evidence at
+    # the top's slice about 1 noise maximum on a dozen rows, 0-0.6 beside it
+    from spslidar.depth.hang import hang_lines
+
+    label, z = _hanging_leg()
+    new, added = hang_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert added == 12 and (new[3:17, 10] == 120).all()
+    assert (new[17:, 10] == WALL).all() and (new[5:, 9] == WALL).all()
+
+
+@pytest.mark.parametrize("case", ["strong own label", "under the top's middle",
+                                  "as high beside", "along the border"])
+def test_what_does_not_hang(case):
+    from spslidar.depth.hang import hang_lines
+
+    if case == "strong own label":  # a strong surface's sidelobe at the top's slice
+        label, z = _hanging_leg(own=4.0)
+    elif case == "under the top's middle":  # the top's bleed under an edge, not an end
+        label, z = _hanging_leg(col=7)
+    elif case == "as high beside":
+        label, z = _hanging_leg(side=0.9)
+    else:  # the same top and leg against the image's left edge
+        label, z = _hanging_leg(col=0)
+        label[3:5, 4:11] = WALL
+        label[3:5, 0] = 120
+        z[:, 120] = 0.0
+        z[(label == 120).ravel(), 120] = 8.0 * NU
+        z[np.arange(5, 17) * SHAPE[1], 120] = 1.0 * NU
+    new, added = hang_lines(z, label.ravel(), NU, SHAPE)
+    assert added == 0 and (new == label.ravel()).all()

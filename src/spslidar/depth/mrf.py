@@ -243,6 +243,7 @@ class MRFDepth(DepthEstimator):
         label = np.argmin(belief, axis=1)
         thin = 0
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
+            from .hang import hang_lines
             from .lines import extend_lines, thin_structures, track_lines
 
             a = np.argmax(x, axis=1)
@@ -252,6 +253,8 @@ class MRFDepth(DepthEstimator):
             label = np.where(keep, a, label)
             more = extend_lines(a, label, za, z[np.arange(q), label], nu, shape)
             label, tracked = track_lines(z, np.where(more, a, label), nu, shape)
+            label, hung = hang_lines(z, label, nu, shape)
+            tracked += hung
             thin = int(keep.sum() + more.sum()) + tracked
         return label, belief, {"sweeps": sweeps, "truncation": cap,
                                "thin_structure_pixels": thin}
