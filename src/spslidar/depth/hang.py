@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .lines import BRIDGE_BEHIND, GAP, LO, STRETCH_REACH, _stretch
+from .lines import BRIDGE_BEHIND, GAP, LO, STRETCH_REACH, _across, _stretch
 
 __all__ = ["HANG_OWN", "hang_lines"]
 
@@ -84,8 +84,8 @@ def hang_lines(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, in
     out = np.array(label, dtype=np.int64, copy=True)
     if nu <= 0 or k < 3:
         return out, 0
-    zn = z / nu
     lab = out.reshape(shape)
+    reach = np.arange(1, STRETCH_REACH + 1)
     added = 0
     for dy, dx in ((1, 0), (-1, 0), (0, 1), (0, -1)):
         ys, xs = np.nonzero(lab >= 0)
@@ -102,33 +102,30 @@ def hang_lines(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, in
             in_img = (by >= 0) & (by < n1) & (bx >= 0) & (bx < n2)
             by, bx = np.clip(by, 0, n1 - 1), np.clip(bx, 0, n2 - 1)
             ends |= in_img & (np.abs(lab[by, bx] - s) > GAP)
+        major = 0 if dy else 1  # the run's axis, for the pixels beside it (_across)
         for y0, x0, s0 in zip(ys[ok & ends], xs[ok & ends], s[ok & ends], strict=True):
-            run = []
-            for j in range(1, STRETCH_REACH + 1):
-                y, x = y0 + j * dy, x0 + j * dx
-                if not (0 <= y < n1 and 0 <= x < n2):
-                    break
-                run.append((y, x))
-            if not run:
+            ry, rx = y0 + reach * dy, x0 + reach * dx
+            inside = (ry >= 0) & (ry < n1) & (rx >= 0) & (rx < n2)  # a prefix of the run
+            ry, rx = ry[inside], rx[inside]
+            if not ry.size:
                 continue
-            ry, rx = np.array(run).T
             flat = ry * n2 + rx
             near = s0 + np.arange(-1, 2)
-            e = zn[flat[:, None], near].max(axis=1)
+            e = z[flat[:, None], near].max(axis=1) / nu
+            along, across = (ry, rx) if major == 0 else (rx, ry)
             side, count = np.zeros_like(e), np.zeros_like(e)
             for off in (-1, 1):  # the pixels beside the run that lie in the image
-                sy, sx = ry + off * dx, rx + off * dy
-                inside = (sy >= 0) & (sy < n1) & (sx >= 0) & (sx < n2)
-                sy, sx = np.clip(sy, 0, n1 - 1), np.clip(sx, 0, n2 - 1)
-                side += inside * zn[(sy * n2 + sx)[:, None], near].max(axis=1)
-                count += inside
+                idx, in_img = _across(np.ones(ry.size, dtype=bool), along, across, major,
+                                      shape, off)
+                side += in_img * (z[idx[:, None], near].max(axis=1) / nu)
+                count += in_img
             side /= count
             behind = lab[ry, rx] > s0 + BRIDGE_BEHIND
             got = _stretch(0, 1, behind, e, side, least)
-            own = zn[flat[got], lab[ry[got], rx[got]]]  # the run's evidence at its own labels
+            own = z[flat[got], lab[ry[got], rx[got]]] / nu  # the run's own labels' evidence
             if got and np.mean(e[got]) < HANG_OWN * np.mean(own):
                 continue
             for i in got:
-                lab[ry[i], rx[i]] = s0 - 1 + int(np.argmax(zn[flat[i], near]))
+                lab[ry[i], rx[i]] = s0 - 1 + int(np.argmax(z[flat[i], near]))
             added += len(got)
     return out, added
