@@ -241,10 +241,11 @@ class MRFDepth(DepthEstimator):
         belief, sweeps = min_sum_bp(cost, self.smoothness, cap, self.iterations)
         belief = belief.reshape(k, q).T
         label = np.argmin(belief, axis=1)
-        thin = 0
+        thin = own = 0
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
             from .hang import hang_lines
             from .lines import extend_lines, thin_structures, track_lines
+            from .own_surface import keep_own_surface
 
             a = np.argmax(x, axis=1)
             za = z[np.arange(q), a]
@@ -256,8 +257,10 @@ class MRFDepth(DepthEstimator):
             label, hung = hang_lines(z, label, nu, shape)
             tracked += hung
             thin = int(keep.sum() + more.sum()) + tracked
+            # a line does not hide a pixel that holds its own surface (own_surface.py)
+            label, own = keep_own_surface(np.argmin(belief, axis=1), label, z, nu, shape)
         return label, belief, {"sweeps": sweeps, "truncation": cap,
-                               "thin_structure_pixels": thin}
+                               "thin_structure_pixels": thin, "own_surface_pixels": own}
 
     def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:
         x = np.asarray(slices, dtype=np.float32)
