@@ -652,3 +652,25 @@ def test_what_does_not_hang(case):
         z[np.arange(5, 17) * SHAPE[1], 120] = 1.0 * NU
     new, added = hang_lines(z, label.ravel(), NU, SHAPE)
     assert added == 0 and (new == label.ravel()).all()
+
+
+def test_a_hung_leg_longer_than_a_stretch_is_walked_on():
+    # the room at m_n = 5, 50 %, seed 110: the lamp pole hung from the floor's end for the
+    # 16 rows a stretch reaches, and the 17 rows above (1.0-2.4 noise maxima at its slice, 0-1
+    # beside it) were taken only once the MRF walked the hung line as a structure
+    from spslidar.depth.hang import hang_lines
+    from spslidar.depth.lines import STRETCH_REACH, track_lines
+
+    label, z = _hanging_leg()
+    rows = np.arange(17, 29)
+    z[rows * SHAPE[1] + 10, 120] = 1.0 * NU  # the leg goes on to row 28
+    z[rows * SHAPE[1] + 9, 120] = z[rows * SHAPE[1] + 11, 120] = 0.2 * NU
+    hung, added = hang_lines(z, label.ravel(), NU, SHAPE)
+    assert added == STRETCH_REACH and (hung.reshape(SHAPE)[29:, 10] == WALL).all()
+    assert (hung.reshape(SHAPE)[5 + STRETCH_REACH:, 10] == WALL).all()  # the stretch stops
+    walked, more = track_lines(z, hung, NU, SHAPE)
+    walked = walked.reshape(SHAPE)
+    # rows 21-27 (the walk's window, which reads one pixel past it, stops at the last row)
+    assert more == 24 - STRETCH_REACH - 1
+    assert (walked[3:28, 10] == 120).all() and (walked[29:, 10] == WALL).all()
+    assert (walked[5:, 9] == WALL).all() and (walked[5:, 11] == WALL).all()

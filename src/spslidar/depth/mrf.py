@@ -255,6 +255,9 @@ class MRFDepth(DepthEstimator):
             more = extend_lines(a, label, za, z[np.arange(q), label], nu, shape)
             label, tracked = track_lines(z, np.where(more, a, label), nu, shape)
             label, hung = hang_lines(z, label, nu, shape)
+            if hung:  # a hung line is a structure like any other: walk on from its end
+                label, again = track_lines(z, label, nu, shape)
+                hung += again
             tracked += hung
             thin = int(keep.sum() + more.sum()) + tracked
             # a line does not hide a pixel that holds its own surface (own_surface.py)
