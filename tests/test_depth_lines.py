@@ -668,7 +668,10 @@ def test_a_hung_leg_longer_than_a_stretch_is_walked_on():
     hung, added = hang_lines(z, label.ravel(), NU, SHAPE)
     assert added == STRETCH_REACH and (hung.reshape(SHAPE)[29:, 10] == WALL).all()
     assert (hung.reshape(SHAPE)[5 + STRETCH_REACH:, 10] == WALL).all()  # the stretch stops
-    walked, more = track_lines(z, hung, NU, SHAPE)
+    taken = hung != label.ravel()
+    walked, more = track_lines(z, hung, NU, SHAPE, within=taken)
+    none, zero = track_lines(z, hung, NU, SHAPE, within=np.zeros_like(taken))
+    assert zero == 0 and (none == hung).all()  # no structure holds a pixel of `within`
     walked = walked.reshape(SHAPE)
     # rows 21-27 (the walk's window, which reads one pixel past it, stops at the last row)
     assert more == 24 - STRETCH_REACH - 1

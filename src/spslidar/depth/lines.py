@@ -424,8 +424,8 @@ def track_lines(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, i
                 gap: int = GAP, window: int = WINDOW, tau: float = TAU, lo: float = LO,
                 relative: float = RELATIVE, back: int = BACK, contrast: float = CONTRAST,
                 min_pixels: int = TRACK_MIN,
-                elongation: float = ELONGATION, residual: float = RESIDUAL
-                ) -> tuple[np.ndarray, int]:
+                elongation: float = ELONGATION, residual: float = RESIDUAL,
+                within: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """Continue each one-pixel structure of a labelling beyond its ends, pixel by pixel along
     its axis, where the evidence at the structure's own slice holds (module docstring).
 
@@ -454,6 +454,9 @@ def track_lines(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, i
         and its walk bridges up to ``BRIDGE_REACH`` pixels to a surface at its depth. Where
         a walk stops, a stretch whose summed evidence holds (:func:`_stretch`) is taken and
         the walk goes on beyond it.
+    within : ndarray of bool, shape (Q,), optional
+        Walk only the structures that hold at least one of these pixels (the MRF: the lines
+        :func:`~spslidar.depth.hang.hang_lines` took).
 
     Returns
     -------
@@ -477,7 +480,7 @@ def track_lines(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, i
         pix, groups, n = _groups(anchor & ~done, label, shape, step, reach)
         for g in range(n):
             members = pix[groups == g]
-            if members.size < min_pixels:
+            if members.size < min_pixels or (within is not None and not within[members].any()):
                 continue
             yx = np.stack(np.divmod(members, n2), axis=1).astype(np.float64)
             if reach > 1 and np.ptp(yx[:, 0]) > 0 and np.ptp(yx[:, 1]) > 0:

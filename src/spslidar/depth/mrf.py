@@ -170,8 +170,11 @@ class MRFDepth(DepthEstimator):
         Keep the argmax of pixels that line up in front of the MRF's surface (a pole, a wire,
         a leg the smoothness would give the wall behind), then of those that continue a
         one-pixel structure the labelling holds in part, then follow each such structure
-        beyond its ends where the evidence at its slice holds (:mod:`spslidar.depth.lines`);
-        ``info['thin_structure_pixels']`` counts the pixels relabelled. Default True.
+        beyond its ends where the evidence at its slice holds (:mod:`spslidar.depth.lines`),
+        take lines hanging from a surface's end (:mod:`spslidar.depth.hang`) and walk them on
+        in turn; ``info['thin_structure_pixels']`` counts the pixels relabelled. Last, a pixel
+        that holds its own surface as strongly as beside the line gets its label back
+        (:mod:`spslidar.depth.own_surface`; ``info['own_surface_pixels']``). Default True.
     halo : bool
         Discount, in the MRF's data cost only, a pixel's evidence in a slice where it reads as
         the halo the per-slice TV leaves around a brighter neighbour's region
@@ -243,7 +246,7 @@ class MRFDepth(DepthEstimator):
         label = np.argmin(belief, axis=1)
         thin = own = 0
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
-            from .hang import hang_lines
+            from .hang import HANG_OWN, hang_lines
             from .lines import extend_lines, thin_structures, track_lines
             from .own_surface import keep_own_surface
 
@@ -254,10 +257,15 @@ class MRFDepth(DepthEstimator):
             label = np.where(keep, a, label)
             more = extend_lines(a, label, za, z[np.arange(q), label], nu, shape)
             label, tracked = track_lines(z, np.where(more, a, label), nu, shape)
+            before_hang = label
             label, hung = hang_lines(z, label, nu, shape)
-            if hung:  # a hung line is a structure like any other: walk on from its end
-                label, again = track_lines(z, label, nu, shape)
-                hung += again
+            if hung:  # a hung line is a structure like any other: walk on from its end,
+                # with the hanging rule's test against a code's sidelobes (hang.py)
+                walked, _ = track_lines(z, label, nu, shape, within=label != before_hang)
+                rows = np.arange(q)
+                ok = (walked != label) & (z[rows, walked] >= HANG_OWN * z[rows, label])
+                label = np.where(ok, walked, label)
+                hung += int(ok.sum())
             tracked += hung
             thin = int(keep.sum() + more.sum()) + tracked
             # a line does not hide a pixel that holds its own surface (own_surface.py)
