@@ -685,4 +685,3 @@ def _stretch(i: int, direction: int, behind: np.ndarray, e: np.ndarray, side: np
     if np.mean(e[px] - side[px]) < STRETCH_CONTRAST or np.mean(e[px]) < least:
         return []
     return px.tolist()
-

@@ -243,33 +243,33 @@ class MRFDepth(DepthEstimator):
             cost = np.ascontiguousarray(-z.T).reshape(k, *shape)
         belief, sweeps = min_sum_bp(cost, self.smoothness, cap, self.iterations)
         belief = belief.reshape(k, q).T
-        label = np.argmin(belief, axis=1)
+        mrf_label = label = np.argmin(belief, axis=1)
         thin = own = 0
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
             from .hang import HANG_OWN, hang_lines
             from .lines import extend_lines, thin_structures, track_lines
             from .own_surface import keep_own_surface
 
+            rows = np.arange(q)
             a = np.argmax(x, axis=1)
-            za = z[np.arange(q), a]
+            za = z[rows, a]
             nu = float(np.median(noise_maxima(z)))
             keep = thin_structures(a, label, za, nu, shape)
             label = np.where(keep, a, label)
-            more = extend_lines(a, label, za, z[np.arange(q), label], nu, shape)
+            more = extend_lines(a, label, za, z[rows, label], nu, shape)
             label, tracked = track_lines(z, np.where(more, a, label), nu, shape)
             before_hang = label
             label, hung = hang_lines(z, label, nu, shape)
             if hung:  # a hung line is a structure like any other: walk on from its end,
                 # with the hanging rule's test against a code's sidelobes (hang.py)
                 walked, _ = track_lines(z, label, nu, shape, within=label != before_hang)
-                rows = np.arange(q)
                 ok = (walked != label) & (z[rows, walked] >= HANG_OWN * z[rows, label])
                 label = np.where(ok, walked, label)
                 hung += int(ok.sum())
             tracked += hung
             thin = int(keep.sum() + more.sum()) + tracked
             # a line does not hide a pixel that holds its own surface (own_surface.py)
-            label, own = keep_own_surface(np.argmin(belief, axis=1), label, z, nu, shape)
+            label, own = keep_own_surface(mrf_label, label, z, nu, shape)
         return label, belief, {"sweeps": sweeps, "truncation": cap,
                                "thin_structure_pixels": thin, "own_surface_pixels": own}
 
