@@ -677,3 +677,30 @@ def test_a_hung_leg_longer_than_a_stretch_is_walked_on():
     assert more == 24 - STRETCH_REACH - 1
     assert (walked[3:28, 10] == 120).all() and (walked[29:, 10] == WALL).all()
     assert (walked[5:, 9] == WALL).all() and (walked[5:, 11] == WALL).all()
+
+
+@pytest.mark.parametrize("wide", [False, True])
+def test_a_hanging_leg_goes_on_through_a_piece_the_labelling_holds(wide):
+    # the room at m_n = 5, 50 %, seed 140: the leg's row 46 held its slice, and the stretch
+    # from the top ended there, its sum 2.95 short of 3 noise maxima; a pixel of the line
+    # (one pixel wide, at its slice) is passed through, a surface at its depth is not
+    from spslidar.depth.hang import hang_lines
+    from spslidar.depth.lines import STRETCH_LEVEL, STRETCH_TOTAL
+
+    label, z = _hanging_leg(own=1.0)
+    rows = np.arange(5, 17)
+    z[rows * SHAPE[1] + 10, 120] = 0.8 * NU
+    assert (14 - 5) * (0.8 - STRETCH_LEVEL) < STRETCH_TOTAL  # rows 5-13 alone fall short
+    label[14, 10] = 120  # the piece
+    z[14 * SHAPE[1] + 10, 120] = 1.5 * NU
+    if wide:  # a patch of a surface at the top's depth, not a line's piece
+        label[14, 11] = 120
+        z[14 * SHAPE[1] + 11, 120] = 1.5 * NU
+    new, added = hang_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    if wide:
+        assert added == 0 and (new == label).all()
+    else:
+        assert added == 11  # the piece is not counted
+        assert (new[3:17, 10] == 120).all() and (new[17:, 10] == WALL).all()
+        assert (new[5:, 9] == WALL).all()
