@@ -179,6 +179,10 @@ class MRFDepth(DepthEstimator):
         Discount, in the MRF's data cost only, a pixel's evidence in a slice where it reads as
         the halo the per-slice TV leaves around a brighter neighbour's region
         (:func:`spslidar.depth.halo.halo_discount`). Default True.
+    corners : bool
+        Last, give a region's corner that the per-slice TV rounded off back to the region
+        where the evidence, read relative to each surface's own level, holds it
+        (:mod:`spslidar.depth.corner`; ``info['corner_pixels']``). Default True.
     low_confidence : float
         Confidence below which a pixel is flagged.
 
@@ -214,7 +218,8 @@ class MRFDepth(DepthEstimator):
     def __init__(self, low_confidence: float | None = None, *,
                  smoothness: float = SMOOTHNESS, truncation: float | None = None,
                  iterations: int = ITERATIONS,
-                 subbin: bool | None = None, lines: bool = True, halo: bool = True):
+                 subbin: bool | None = None, lines: bool = True, halo: bool = True,
+                 corners: bool = True):
         super().__init__(low_confidence)
         if smoothness < 0 or (truncation is not None and truncation < 0):
             raise ValueError("smoothness and truncation must be >= 0")
@@ -226,6 +231,7 @@ class MRFDepth(DepthEstimator):
         self.subbin = subbin
         self.lines = bool(lines)
         self.halo = bool(halo)
+        self.corners = bool(corners)
 
     def labelling(self, x: np.ndarray, z: np.ndarray, shape: tuple[int, int]
                   ) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -270,8 +276,16 @@ class MRFDepth(DepthEstimator):
             thin = int(keep.sum() + more.sum()) + tracked
             # a line does not hide a pixel that holds its own surface (own_surface.py)
             label, own = keep_own_surface(mrf_label, label, z, nu, shape)
+        corner = 0
+        if self.corners:  # a region's corner the per-slice TV rounded off (corner.py)
+            from .corner import fill_corners
+
+            if not self.lines:
+                nu = float(np.median(noise_maxima(z)))
+            label, corner = fill_corners(z, label, nu, shape)
         return label, belief, {"sweeps": sweeps, "truncation": cap,
-                               "thin_structure_pixels": thin, "own_surface_pixels": own}
+                               "thin_structure_pixels": thin, "own_surface_pixels": own,
+                               "corner_pixels": corner}
 
     def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:
         x = np.asarray(slices, dtype=np.float32)
