@@ -31,10 +31,11 @@ measurements), procedural seeds 0-19 at m_n 5 and 10, 25 and 50 % (with 110, 116
 cases, among margins 1, 1.5 and 2 and least shares 0 to 0.4: at 1.5, against the labelling
 without it, the room from 79 to 86 of 96 at 0.03 m or below (44 better, none worse; mean
 0.0182 -> 0.0140 m), procedural 9 better and 4 worse by 2-4 %, the camera and the motorcycle
-unchanged within 0.4 %, Fig. 3 0.1301 / 0.1142 -> 0.1293 / 0.1138 m. A margin of 1 took the room a little further (49 better) but lost
-procedural seed 4 at m_n = 5, 50 % by 16 % (a pixel between two surfaces that neither
-holds, given the farther) and the motorcycle 2 %; the least share keeps such pixels,
-whose evidence at ``B`` is a fifth of ``B``'s level, at their label. Summing the halo of two
+unchanged within 0.4 %, Fig. 3 0.1301 / 0.1142 -> 0.1293 / 0.1138 m. A margin of 1 took
+the room a little further (49 better) but lost procedural seed 4 at m_n = 5, 50 % by 16 %
+(a pixel between two surfaces that neither holds, given the farther) and the motorcycle
+2 %; the least share keeps such pixels, whose evidence at ``B`` is a fifth of ``B``'s level,
+at their label. Summing the halo of two
 bright sides in :func:`~.halo.halo_discount` instead (the other reading of the same corner)
 lost as much as it gained (room 14 better, 12 worse): in the shelf's own slice its corner is
 the dimmer pixel between two brighter ones, and was discounted as their halo.
