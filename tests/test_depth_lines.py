@@ -704,3 +704,35 @@ def test_a_hanging_leg_goes_on_through_a_piece_the_labelling_holds(wide):
         assert added == 11  # the piece is not counted
         assert (new[3:17, 10] == 120).all() and (new[17:, 10] == WALL).all()
         assert (new[5:, 9] == WALL).all()
+
+
+@pytest.mark.parametrize("piece_rows", [2, 1])
+def test_a_walk_goes_on_past_a_bridge_to_a_piece_of_its_own_line(piece_rows):
+    # the room at m_n = 5, 50 %, seed 153: the lamp pole's walk bridged four weak rows to a
+    # two-row piece of the pole that the MRF held, took it for a table top and stopped, and
+    # the 14 rows above (1.6-2.5 noise maxima at the pole's slice, 0.2-0.6 beside) kept the
+    # wall; a piece of two one-pixel-wide pixels is the line's own, and the walk goes on (one
+    # pixel could be a table top's corner, and the walk stops there as before)
+    from spslidar.depth.lines import track_lines
+
+    pole, col = 100, 10
+    label = np.full(SHAPE, WALL)
+    z = np.zeros((SHAPE[0] * SHAPE[1], WALL + 10))
+    z[np.arange(z.shape[0]), label.ravel()] = 2.0 * NU
+    at = np.arange(SHAPE[0]) * SHAPE[1] + col
+    label[20:26, col] = pole  # the piece the walk starts from
+    z[at[20:26], pole] = 3.0 * NU
+    z[at[16:20], pole] = 0.3 * NU  # weak rows: bridged, not walked
+    piece = range(16 - piece_rows, 16)
+    for r in piece:  # the MRF's piece of the pole above them
+        label[r, col] = pole
+        z[at[r], pole] = 3.0 * NU
+    z[at[4:16 - piece_rows], pole] = 1.5 * NU  # the pole's rows above, walkable
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    new = new.reshape(SHAPE)
+    assert (new[16:20, col] == pole).all()  # the bridge, as before
+    if piece_rows == 2:
+        assert added == 4 + 10 and (new[4:14, col] == pole).all()
+    else:
+        assert added == 4 and (new[4:15, col] == WALL).all()
+    assert (new[:4, col] == WALL).all() and (new[:, col - 1] == WALL).all()
