@@ -736,3 +736,34 @@ def test_a_walk_goes_on_past_a_bridge_to_a_piece_of_its_own_line(piece_rows):
     else:
         assert added == 4 and (new[4:15, col] == WALL).all()
     assert (new[:4, col] == WALL).all() and (new[:, col - 1] == WALL).all()
+
+
+@pytest.mark.parametrize("case", ["fill", "sidelobe", "too weak", "strong enough",
+                                  "a dimmer surface"])
+def test_what_the_walk_on_from_a_hung_line_keeps(case):
+    # walk_on: a pixel whose own label is the per-slice TV's fill behind a line (the room at
+    # m_n = 5, 50 %, seed 110: the wall's slice read 1.9-2.8 noise maxima on the lamp pole's
+    # upper rows against 10 beside them) is kept without the sidelobe test; one whose own
+    # label holds as much as its neighbours do there (a random code's sidelobe over a real
+    # return) must hold HANG_OWN of it
+    from spslidar.depth.hang import HANG_FILL, HANG_OWN, walk_on
+    from spslidar.depth.lines import LO
+
+    pole, col, rows = 100, 10, np.arange(5, 15)
+    label = np.full(SHAPE, WALL)
+    z = np.zeros((SHAPE[0] * SHAPE[1], WALL + 10))
+    z[:, WALL] = 10.0 * NU
+    at = rows * SHAPE[1] + col
+    own, line = {"fill": (2.5, 1.5), "sidelobe": (10.0, 7.0), "too weak": (2.5, 0.9 * LO),
+                 "strong enough": (10.0, 8.5), "a dimmer surface": (6.0, 4.0)}[case]
+    assert (own < HANG_FILL * 10.0) == (case in ("fill", "too weak"))
+    assert (line >= HANG_OWN * own) == (case == "strong enough")
+    z[at, WALL] = own * NU
+    z[at, pole] = line * NU
+    walked = label.copy()
+    walked[rows, col] = pole
+    z0 = z.copy()
+    ok = walk_on(z, label.ravel(), walked.ravel(), NU, SHAPE).reshape(SHAPE)
+    assert ok[rows, col].all() == (case in ("fill", "strong enough"))
+    assert ok.sum() == (rows.size if case in ("fill", "strong enough") else 0)
+    np.testing.assert_array_equal(z, z0)

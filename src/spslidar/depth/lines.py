@@ -151,9 +151,9 @@ slat's walk short (procedural seed 103). Seeds 37 / 40: 0.069 / 0.060 -> 0.004 /
 motorcycle's unchanged. A bridge ends the walk, unless what it reached is two pixels of the
 line itself, one pixel wide, which a table top is not (room seed 153 at m_n = 5, 50 %: the
 lamp pole's walk bridged four weak rows to a two-row piece of the pole and stopped, leaving
-its 14 rows above to the wall, 0.050 -> 0.017 m; on the room's seeds 32-159 one other pixel,
-seed 127 0.0047 -> 0.0046 m; procedural seeds 0-19 and 100-149, the camera, the motorcycle and Fig. 3
-unchanged; held out, room seeds 160-175 unchanged).
+its 14 rows above to the wall, 0.050 -> 0.017 m; on the room's seeds 32-159 one other
+pixel, seed 127 0.0047 -> 0.0046 m; procedural seeds 0-19 and 100-149, the camera, the
+motorcycle and Fig. 3 unchanged; held out, room seeds 160-175 unchanged).
 The connected groups are
 SciPy's (:func:`scipy.sparse.csgraph.connected_components`); the line test is a few lines
 of NumPy per group, written here because no library tests a pixel group's shape and depth

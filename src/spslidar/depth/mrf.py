@@ -252,7 +252,7 @@ class MRFDepth(DepthEstimator):
         mrf_label = label = np.argmin(belief, axis=1)
         thin = own = 0
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
-            from .hang import HANG_OWN, hang_lines
+            from .hang import hang_lines, walk_on
             from .lines import extend_lines, thin_structures, track_lines
             from .own_surface import keep_own_surface
 
@@ -269,7 +269,7 @@ class MRFDepth(DepthEstimator):
             if hung:  # a hung line is a structure like any other: walk on from its end,
                 # with the hanging rule's test against a code's sidelobes (hang.py)
                 walked, _ = track_lines(z, label, nu, shape, within=label != before_hang)
-                ok = (walked != label) & (z[rows, walked] >= HANG_OWN * z[rows, label])
+                ok = walk_on(z, label, walked, nu, shape)
                 label = np.where(ok, walked, label)
                 hung += int(ok.sum())
             tracked += hung
