@@ -592,8 +592,8 @@ def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int,
                 j, jj = i + direction, i + 2 * direction
                 if not (behind[i] and 0 <= jj < s.size and on[j] and on[jj]):
                     far = cur > ks + BRIDGE_BEHIND
-                    # a leg that stops short of its table top, or, by a weak stretch whose
-                    # summed evidence holds, or a longer way to the table top
+                    # a bridge to the table top a leg stops short of; else a weak stretch
+                    # whose summed evidence holds; else a longer bridge to the table top
                     got = _bridge(i, direction, inside, far, at_depth, e, side) if straight \
                         else []
                     bridged = bool(got)

@@ -267,7 +267,7 @@ class MRFDepth(DepthEstimator):
             before_hang = label
             label, hung = hang_lines(z, label, nu, shape)
             if hung:  # a hung line is a structure like any other: walk on from its end,
-                # with the hanging rule's test against a code's sidelobes (hang.py)
+                # with the hanging rule's test against a code's sidelobes (hang.walk_on)
                 walked, _ = track_lines(z, label, nu, shape, within=label != before_hang)
                 ok = walk_on(z, label, walked, nu, shape)
                 label = np.where(ok, walked, label)
