@@ -8,6 +8,7 @@ and pass its path as the ``scene`` (``--scene`` on the command line);
 :func:`spslidar.scenes.load_scene` reads it.
 """
 
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -68,3 +69,7 @@ plt.show()
 # %%
 # ``depth_min`` / ``depth_max`` rescale a metric scene into another window, e.g. to move the
 # same geometry to 30-31 m: ``spslidar.run(scene=path, depth_min=30, depth_max=31)``.
+
+# %%
+# The files of this example were written to a temporary folder; remove it.
+shutil.rmtree(tmp, ignore_errors=True)

@@ -12,6 +12,7 @@ Here: depth RMSE against the noise level ``m_n`` for two code lengths, two trial
 the reconstruction) stays short.
 """
 
+import shutil
 import tempfile
 
 import matplotlib.pyplot as plt
@@ -48,3 +49,7 @@ plt.show()
 # (``out_dir/runs/<key>.json``) instead of recomputing it.
 again = run_sweep(run_point, points, out, seed=1, jobs=1, progress=False)
 print("identical:", [r["depth_rmse_m"] for r in again] == [r["depth_rmse_m"] for r in rows])
+
+# %%
+# The sweep was written to a temporary folder; remove it.
+shutil.rmtree(out, ignore_errors=True)
