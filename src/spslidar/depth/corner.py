@@ -105,9 +105,13 @@ def fill_corners(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, 
     if nu <= 0 or k < 3 or n1 < 3 or n2 < 3:
         return out, 0
     z3 = np.asarray(z).reshape(n1, n2, k)
-    near = z3.copy()  # evidence at a slice or either of its neighbours
-    np.maximum(near[..., 1:], z3[..., :-1], out=near[..., 1:])
-    np.maximum(near[..., :-1], z3[..., 1:], out=near[..., :-1])
+    span = np.arange(-1, 2)
+
+    def near(y: np.ndarray, x: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Evidence at slice ``b`` (1 <= b < k - 1) or either of its neighbours, read only
+        where a notch is tested (a (N1, N2, K) copy would add a block to the MRF's peak)."""
+        return z3[y[:, None], x[:, None], b[:, None] + span].max(axis=1)
+
     yy, xx = np.mgrid[1:n1 - 1, 1:n2 - 1]  # a notch has all four neighbours in the image
     filled = 0
     for _ in range(passes):
@@ -124,14 +128,14 @@ def fill_corners(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, 
             y, x, a, b, ov, oh = (v[notch] for v in (yy, xx, a, b, ov, oh))
             if not y.size:
                 continue
-            at_b = near[y, x, b]
-            b_level = 0.5 * (near[y + dy, x, b] + near[y, x + dx, b])
+            at_b = near(y, x, b)
+            b_level = 0.5 * (near(y + dy, x, b) + near(y, x + dx, b))
             own = z3[y, x, a]
             own_level = 0.5 * (z3[y - dy, x, ov] + z3[y, x - dx, oh])
             take = ((b_level >= level * nu) & (own_level > 0) & (at_b >= least * b_level)
                     & (at_b * own_level > margin * own * b_level))
             y, x, b = y[take], x[take], b[take]
-            window = z3[y[:, None], x[:, None], b[:, None] + np.arange(-1, 2)]
+            window = z3[y[:, None], x[:, None], b[:, None] + span]
             new[y, x] = b - 1 + np.argmax(window, axis=1)
             done[y, x] = True
         n = int(np.count_nonzero(new != lab))

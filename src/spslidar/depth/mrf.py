@@ -250,7 +250,9 @@ class MRFDepth(DepthEstimator):
         belief, sweeps = min_sum_bp(cost, self.smoothness, cap, self.iterations)
         belief = belief.reshape(k, q).T
         mrf_label = label = np.argmin(belief, axis=1)
-        thin = own = 0
+        thin = own = corner = 0
+        if self.lines or self.corners:  # the block's typical noise maximum
+            nu = float(np.median(noise_maxima(z)))
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
             from .hang import hang_lines, walk_on
             from .lines import extend_lines, thin_structures, track_lines
@@ -259,7 +261,6 @@ class MRFDepth(DepthEstimator):
             rows = np.arange(q)
             a = np.argmax(x, axis=1)
             za = z[rows, a]
-            nu = float(np.median(noise_maxima(z)))
             keep = thin_structures(a, label, za, nu, shape)
             label = np.where(keep, a, label)
             more = extend_lines(a, label, za, z[rows, label], nu, shape)
@@ -276,12 +277,9 @@ class MRFDepth(DepthEstimator):
             thin = int(keep.sum() + more.sum()) + tracked
             # a line does not hide a pixel that holds its own surface (own_surface.py)
             label, own = keep_own_surface(mrf_label, label, z, nu, shape)
-        corner = 0
         if self.corners:  # a region's corner the per-slice TV rounded off (corner.py)
             from .corner import fill_corners
 
-            if not self.lines:
-                nu = float(np.median(noise_maxima(z)))
             label, corner = fill_corners(z, label, nu, shape)
         return label, belief, {"sweeps": sweeps, "truncation": cap,
                                "thin_structure_pixels": thin, "own_surface_pixels": own,
