@@ -175,6 +175,11 @@ class MRFDepth(DepthEstimator):
         in turn; ``info['thin_structure_pixels']`` counts the pixels relabelled. Last, a pixel
         that holds its own surface as strongly as beside the line gets its label back
         (:mod:`spslidar.depth.own_surface`; ``info['own_surface_pixels']``). Default True.
+    gaps : bool
+        With ``lines``, also keep the argmax of pixels that line up *behind* the MRF's
+        surface in a one-pixel gap between two sides of it that the pixel's evidence shows
+        missing there (a fence's gap onto the wall behind; :mod:`spslidar.depth.gaps`;
+        ``info['gap_pixels']``, counted in ``thin_structure_pixels`` too). Default True.
     halo : bool
         Discount, in the MRF's data cost only, a pixel's evidence in a slice where it reads as
         the halo the per-slice TV leaves around a brighter neighbour's region
@@ -219,7 +224,7 @@ class MRFDepth(DepthEstimator):
                  smoothness: float = SMOOTHNESS, truncation: float | None = None,
                  iterations: int = ITERATIONS,
                  subbin: bool | None = None, lines: bool = True, halo: bool = True,
-                 corners: bool = True):
+                 corners: bool = True, gaps: bool = True):
         super().__init__(low_confidence)
         if smoothness < 0 or (truncation is not None and truncation < 0):
             raise ValueError("smoothness and truncation must be >= 0")
@@ -232,6 +237,7 @@ class MRFDepth(DepthEstimator):
         self.lines = bool(lines)
         self.halo = bool(halo)
         self.corners = bool(corners)
+        self.gaps = bool(gaps)
 
     def labelling(self, x: np.ndarray, z: np.ndarray, shape: tuple[int, int]
                   ) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -250,7 +256,7 @@ class MRFDepth(DepthEstimator):
         belief, sweeps = min_sum_bp(cost, self.smoothness, cap, self.iterations)
         belief = belief.reshape(k, q).T
         mrf_label = label = np.argmin(belief, axis=1)
-        thin = own = corner = 0
+        thin = own = corner = gaps = 0
         if self.lines or self.corners:  # the block's typical noise maximum
             nu = float(np.median(noise_maxima(z)))
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
@@ -263,6 +269,12 @@ class MRFDepth(DepthEstimator):
             za = z[rows, a]
             keep = thin_structures(a, label, za, nu, shape)
             label = np.where(keep, a, label)
+            if self.gaps:  # and lines of them behind it, between two sides (gaps.py)
+                from .gaps import gap_lines
+
+                gapped = gap_lines(a, label, z, nu, shape)
+                label = np.where(gapped, a, label)
+                gaps = int(gapped.sum())
             more = extend_lines(a, label, za, z[rows, label], nu, shape)
             label, tracked = track_lines(z, np.where(more, a, label), nu, shape)
             before_hang = label
@@ -274,7 +286,7 @@ class MRFDepth(DepthEstimator):
                 label = np.where(ok, walked, label)
                 hung += int(ok.sum())
             tracked += hung
-            thin = int(keep.sum() + more.sum()) + tracked
+            thin = int(keep.sum() + more.sum()) + tracked + gaps
             # a line does not hide a pixel that holds its own surface (own_surface.py)
             label, own = keep_own_surface(mrf_label, label, z, nu, shape)
         if self.corners:  # a region's corner the per-slice TV rounded off (corner.py)
@@ -283,7 +295,7 @@ class MRFDepth(DepthEstimator):
             label, corner = fill_corners(z, label, nu, shape)
         return label, belief, {"sweeps": sweeps, "truncation": cap,
                                "thin_structure_pixels": thin, "own_surface_pixels": own,
-                               "corner_pixels": corner}
+                               "corner_pixels": corner, "gap_pixels": gaps}
 
     def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:
         x = np.asarray(slices, dtype=np.float32)
