@@ -47,7 +47,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .lines import BRIDGE_BEHIND, GAP, LO, STRETCH_REACH, _across, _stretch
+from .lines import GAP, LO
+from .walk import BRIDGE_BEHIND, STRETCH_REACH, _across, _stretch
 
 __all__ = ["HANG_FILL", "HANG_OWN", "hang_lines", "walk_on"]
 

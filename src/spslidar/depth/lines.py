@@ -88,7 +88,7 @@ fell below ``tau``). On procedural seeds 0-19 and the built-ins with the room's 
 0.95), none worse.
 
 Where a walk stops, it may go on through a *stretch* of weak pixels
-(:func:`_stretch`): the pixels from the stop along the line, behind it, up to
+(:func:`spslidar.depth.walk._stretch`): the pixels from the stop along the line, behind it, up to
 ``STRETCH_REACH`` (16) of them and never through the line's own pixels or a surface at its
 depth, as far as the summed evidence at the line's slice less ``STRETCH_LEVEL`` (0.5 noise
 maxima) a pixel is largest (a one-sided CUSUM: the most likely end of a line whose pixels hold
@@ -164,16 +164,20 @@ from __future__ import annotations
 
 import numpy as np
 
+from .walk import (  # noqa: F401 (the walk's constants, read here by their old names too)
+    BRIDGE_BEHIND,
+    BRIDGE_LONG,
+    BRIDGE_REACH,
+    STRETCH_CONTRAST,
+    STRETCH_LEVEL,
+    STRETCH_REACH,
+    STRETCH_TOTAL,
+    _walk,
+)
+
 __all__ = ["extend_lines", "one_pixel_wide", "thin_structures", "track_lines"]
 
 
-#: :func:`track_lines`: the most pixels a straight line's walk bridges to a surface at its own
-#: depth (a leg to its table top), and how many slices behind the line they must be labelled
-BRIDGE_REACH, BRIDGE_BEHIND = 4, 10
-#: :func:`track_lines`: where neither that bridge nor a stretch holds, a bridge of up to this
-#: many pixels that stands ``STRETCH_CONTRAST`` above its sides on average, not merely above
-#: them (a leg under its table top whose top 7-12 rows the TV left at 0.6-2 noise maxima)
-BRIDGE_LONG = 12
 #: defaults of :func:`thin_structures` (see the module docstring for how they were chosen)
 GAP, FLOOR, ELONGATION, RESIDUAL = 3, 0.8, 3.5, 2.0
 #: :func:`extend_lines`: a candidate's largest distance from its group's axis, in pixels (a
@@ -202,10 +206,6 @@ CONTRAST = 0.1
 #: pixel, found by argmax on one pixel in two or three (held-out seed 101, m_n = 10, 50 %:
 #: 18 % worse than argmax without it, 6 % better with it)
 PASSES = ((2, 1, 3, 5.0), (16, 1, 3, 5.0), (16, 2, 4, 12.0), (16, 3, 6, 12.0))
-#: :func:`track_lines`: where a walk stops, a stretch of at most ``STRETCH_REACH`` pixels is
-#: taken where its summed evidence less ``STRETCH_LEVEL`` a pixel reaches ``STRETCH_TOTAL``
-#: and it stands ``STRETCH_CONTRAST`` above its sides on average (in ``nu``; :func:`_stretch`)
-STRETCH_REACH, STRETCH_LEVEL, STRETCH_TOTAL, STRETCH_CONTRAST = 16, 0.5, 3.0, 0.3
 #: :func:`track_lines`: the fewest one-pixel-wide labelled pixels that make a structure to
 #: follow (3: the room's table legs, labelled on 3 rows, at m_n = 1, 25 %: 0.065 -> 0.046 m)
 TRACK_MIN = 3
@@ -457,8 +457,8 @@ def track_lines(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, i
         taken where the line is straight and at one depth through it). A straight line's
         pieces are also joined up to two pixels apart, the single pixels between them taken,
         and its walk bridges up to ``BRIDGE_REACH`` pixels to a surface at its depth. Where
-        a walk stops, a stretch whose summed evidence holds (:func:`_stretch`) is taken and
-        the walk goes on beyond it.
+        a walk stops, a stretch whose summed evidence holds (:mod:`spslidar.depth.walk`) is
+        taken and the walk goes on beyond it.
     within : ndarray of bool, shape (Q,), optional
         Walk only the structures that hold at least one of these pixels (the MRF: the lines
         :func:`~spslidar.depth.hang.hang_lines` took).
@@ -519,181 +519,3 @@ def track_lines(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, i
                 label[:] = best
             added += best_n
     return label, added
-
-
-def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int, int],
-          centre: np.ndarray, v: np.ndarray, coef: np.ndarray, t: np.ndarray, gap: int,
-          window: int, tau: float, lo: float, back: int, contrast: float,
-          interior: bool = False) -> int:
-    """:func:`track_lines` for one structure (``zn`` the evidence in ``nu``): the pixels of
-    its line across the image (one per step of the major coordinate), walked outward from
-    both ends, through pixels behind the line that the evidence supports and one-pixel-wide
-    pixels (``thin``) on it, never through a surface at the line's depth (a table leg's walk
-    would cross the table top and take the top's bleed into the wall above); relabels
-    ``label`` in place and returns how many pixels it took."""
-    n1, n2 = shape
-    k = zn.shape[1]
-    major = 0 if abs(v[0]) >= abs(v[1]) else 1
-    s = np.arange(n1 if major == 0 else n2)
-    tt = (s - centre[major]) / v[major]
-    other = np.rint(centre[1 - major] + tt * v[1 - major]).astype(np.int64)
-    ks = np.rint(np.polyval(coef, tt)).astype(np.int64)
-    inside = (other >= 0) & (other < (n2 if major == 0 else n1)) & (ks >= 1) & (ks < k - 1)
-    ys, xs = (s, other) if major == 0 else (other, s)
-    flat = np.where(inside, ys * n2 + xs, 0)
-    near = np.clip(ks, 1, k - 2)[:, None] + np.arange(-1, 2)  # the line's slice +-1
-    around = zn[flat[:, None], near]
-    e = np.where(inside, around.max(axis=1), 0.0)
-    # the same beside the line (the two pixels across its minor coordinate): a line stands
-    # above its sides at its slice, a blob of the reconstruction's bleed does not
-    side = np.zeros_like(e)
-    for off in (-1, 1):
-        side += 0.5 * zn[_across(inside, s, other, major, shape, off)[0][:, None], near].max(1)
-    cur = label[flat]
-    at_depth = inside & (np.abs(cur - ks) <= gap)
-    # on the line: one pixel wide, or with at most one more pixel at its depth within two
-    # across it (a pole and its bleed; a table top, crossed by a leg's walk, has four)
-    on = at_depth & (thin[flat] | (_across_at_depth(label, ks, s, other, inside, major, shape,
-                                                     gap) <= 1))
-    behind = inside & (cur > ks + gap)
-    front = inside & (cur < ks - gap)  # a nearer surface hides the line there
-    ends = np.rint(centre[major] + t * v[major]).astype(np.int64)
-    taken: list[int] = []
-
-    def holds(i: int, direction: int) -> bool:  # the evidence tests at pixel i
-        ahead = np.arange(i - direction * back, i + direction * (window - back), direction)
-        full = ((ahead >= 0) & (ahead < s.size)).all() and inside[ahead].all()
-        if full:  # the window leaves out what a nearer surface hides (a leg under its top)
-            ahead = ahead[~front[ahead]]
-        return bool(behind[i] and e[i] >= lo and full and e[ahead].mean() >= tau
-                    and e[i] - side[i] >= contrast)
-
-    def mends(b: int, i: int, j: int) -> bool:  # i, between two of the line's own pixels
-        return bool((on[b] or b in taken) and on[j] and abs(int(ks[b]) - int(ks[j])) <= 1
-                    and other[b] == other[i] == other[j])
-
-    # along a row or a column at one depth (nothing inside: a line at the gate's first or
-    # last slice, which the walk cannot test)
-    straight = bool(inside.any()) and np.ptp(other) == 0 and np.ptp(ks[inside]) <= 1
-    if interior:  # the gaps between a row's or a column's pieces
-        for i in range(ends.min() + 1, ends.max()):
-            if not on[i] and behind[i] and (holds(i, 1) or mends(i - 1, i, i + 1)):
-                taken.append(i)
-    for start, direction in ((ends.max() + 1, 1), (ends.min() - 1, -1)):
-        i = start
-        while 0 <= i < s.size and inside[i]:
-            if holds(i, direction):
-                taken.append(i)
-            elif not on[i]:
-                # one pixel behind the line that fails the tests is stepped over where the
-                # line's own pixels hold the next two, and taken where the line runs through
-                # it straight and at one depth (a pole's or a leg's weak pixel between two of
-                # its pieces)
-                j, jj = i + direction, i + 2 * direction
-                if not (behind[i] and 0 <= jj < s.size and on[j] and on[jj]):
-                    far = cur > ks + BRIDGE_BEHIND
-                    # a bridge to the table top a leg stops short of; else a weak stretch
-                    # whose summed evidence holds; else a longer bridge to the table top
-                    got = _bridge(i, direction, inside, far, at_depth, e, side) if straight \
-                        else []
-                    bridged = bool(got)
-                    if not got:
-                        got = _stretch(i, direction, behind, e, side, lo)
-                    if not got and straight:
-                        got = _bridge(i, direction, inside, far, at_depth, e, side,
-                                      BRIDGE_LONG, STRETCH_CONTRAST)
-                        bridged = True
-                    taken.extend(got)
-                    nxt = got[-1] + direction if got else -1
-                    # a bridge ends at a surface at the line's depth: the walk goes on only
-                    # where that is a piece of the line itself (two pixels one pixel wide),
-                    # not a table top
-                    two = np.array([nxt, nxt + direction])
-                    piece = bool(((two >= 0) & (two < s.size)).all() and on[two].all())
-                    if not got or (bridged and not piece):
-                        break
-                    i = nxt
-                    continue
-                if mends(i - direction, i, j):
-                    taken.append(i)
-            i += direction
-    for i in taken:  # the best of the line's slice and its two neighbours
-        label[flat[i]] = ks[i] - 1 + int(np.argmax(around[i]))
-    return len(taken)
-
-
-def _across(line_px: np.ndarray, s: np.ndarray, other: np.ndarray, major: int,
-            shape: tuple[int, int], off: int) -> tuple[np.ndarray, np.ndarray]:
-    """Flat indices of the pixels ``off`` across a line's pixels (clipped to the image; 0 off
-    the line), and which of them lie inside the image."""
-    n1, n2 = shape
-    o2 = other + off
-    ok = line_px & (o2 >= 0) & (o2 < (n2 if major == 0 else n1))
-    o2 = np.clip(o2, 0, (n2 if major == 0 else n1) - 1)
-    return np.where(line_px, (s * n2 + o2) if major == 0 else (o2 * n2 + s), 0), ok
-
-
-def _across_at_depth(label: np.ndarray, ks: np.ndarray, s: np.ndarray, other: np.ndarray,
-                     inside: np.ndarray, major: int, shape: tuple[int, int],
-                     gap: int) -> np.ndarray:
-    """For each pixel of a line, how many of the four pixels one and two across it are
-    labelled within ``gap`` slices of the line's slice there."""
-    count = np.zeros(s.size, dtype=np.int64)
-    for off in (-2, -1, 1, 2):
-        flat, ok = _across(inside, s, other, major, shape, off)
-        count += ok & (np.abs(label[flat] - ks) <= gap)
-    return count
-
-
-def _bridge(i: int, direction: int, inside: np.ndarray, behind: np.ndarray,
-            at_depth: np.ndarray, e: np.ndarray, side: np.ndarray, reach: int = BRIDGE_REACH,
-            margin: float = 0.0) -> list[int]:
-    """The pixels from ``i`` up to a surface at the line's depth at most ``reach`` pixels on,
-    where all are behind the line and their evidence at its slice stands, on average, more
-    than ``margin`` above their sides' (a leg that meets its table top); else none."""
-    gap_px = []
-    for n in range(reach + 1):
-        j = i + n * direction
-        if not (0 <= j < inside.size and inside[j]):
-            return []
-        if at_depth[j]:
-            break
-        if not behind[j]:
-            return []
-        gap_px.append(j)
-    else:
-        return []
-    if not gap_px or np.mean(e[gap_px]) - np.mean(side[gap_px]) <= margin:
-        return []
-    return gap_px
-
-
-def _stretch(i: int, direction: int, behind: np.ndarray, e: np.ndarray, side: np.ndarray,
-             least: float) -> list[int]:
-    """Where a walk stops at pixel ``i``, the stretch of pixels from ``i`` on whose summed
-    evidence at the line's slice holds (a pole's weak middle rows, and its stronger rows
-    beyond them); else none.
-
-    Over at most ``STRETCH_REACH`` pixels behind the line (``behind``: so never through its
-    own pixels, a surface at its depth or one in front), the stretch ends where
-    ``sum (e - STRETCH_LEVEL)`` from ``i`` is largest: the most likely end of a line whose
-    pixels hold more than ``STRETCH_LEVEL`` and whose continuation beyond holds less (a
-    one-sided CUSUM). It is taken where that sum reaches ``STRETCH_TOTAL``, its mean evidence
-    reaches the walk's least (``least``: a strong pole's bleed beyond its end is refused, as
-    by the walk), and it stands on average ``STRETCH_CONTRAST`` above its pixels beside the
-    line.
-    """
-    total, best, best_n = 0.0, -np.inf, -1
-    for n in range(STRETCH_REACH):
-        j = i + n * direction
-        if not (0 <= j < behind.size and behind[j]):
-            break
-        total += e[j] - STRETCH_LEVEL
-        if total > best:
-            best, best_n = total, n
-    if best_n < 0 or best < STRETCH_TOTAL:
-        return []
-    px = np.arange(best_n + 1) * direction + i
-    if np.mean(e[px] - side[px]) < STRETCH_CONTRAST or np.mean(e[px]) < least:
-        return []
-    return px.tolist()
