@@ -23,6 +23,12 @@ BRIDGE_LONG = 12
 #: taken where its summed evidence less ``STRETCH_LEVEL`` a pixel reaches ``STRETCH_TOTAL``
 #: and it stands ``STRETCH_CONTRAST`` above its sides on average (in ``nu``; :func:`_stretch`)
 STRETCH_REACH, STRETCH_LEVEL, STRETCH_TOTAL, STRETCH_CONTRAST = 16, 0.5, 3.0, 0.3
+#: :func:`_walk`: a straight line's walk also bridges up to ``BRIDGE_REACH`` pixels to a
+#: surface *nearer* than the line (a pole that ends behind a table top) where each bridged
+#: pixel holds, at its own label, less than this share of what its two pixels beside the
+#: line hold there: the surface it is labelled with is hidden there (as in
+#: :data:`spslidar.depth.gaps.HOLE`)
+OCCLUDED = 0.5
 
 
 def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int, int],
@@ -61,6 +67,13 @@ def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int,
                                                      gap) <= 1))
     behind = inside & (cur > ks + gap)
     front = inside & (cur < ks - gap)  # a nearer surface hides the line there
+    # each pixel's evidence at its own label against its two pixels beside the line there:
+    # under OCCLUDED, the surface it is labelled with is hidden there (by the line)
+    lab = np.clip(cur, 1, k - 2)[:, None] + np.arange(-1, 2)
+    beside = np.zeros_like(e)
+    for off in (-1, 1):
+        beside += 0.5 * zn[_across(inside, s, other, major, shape, off)[0][:, None], lab].max(1)
+    hidden = inside & (zn[flat[:, None], lab].max(1) < OCCLUDED * beside)
     ends = np.rint(centre[major] + t * v[major]).astype(np.int64)
     taken: list[int] = []
 
@@ -100,6 +113,9 @@ def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int,
                     # whose summed evidence holds; else a longer bridge to the table top
                     got = _bridge(i, direction, inside, far, at_depth, e, side) if straight \
                         else []
+                    if not got and straight:  # or to a nearer surface the line ends behind,
+                        # through pixels whose own surface is hidden there
+                        got = _bridge(i, direction, inside, far & hidden, front, e, side)
                     bridged = bool(got)
                     if not got:
                         got = _stretch(i, direction, behind, e, side, lo)
