@@ -71,3 +71,23 @@ def test_the_hidden_share_is_the_threshold():
         label, z = _case(at_wall=share)
         new, _ = track_lines(z, label.ravel(), NU, SHAPE)
         assert ((new.reshape(SHAPE)[8:12, 10] == POLE).all()) == taken
+
+
+def test_a_pixel_whose_own_label_is_weaker_than_the_line_is_bridged_too():
+    # room seed 107 at m_n = 5, 50 %: under the table top the pole's rows are labelled the
+    # wall, but so weakly (0.6-0.75 noise maxima) that the wall is no more there than beside
+    # them, which are another surface; at the pole's slice they hold 0.8-1.2: the data
+    # prefer the line there, and the walk bridges them to the top
+    label, z = _case(at_wall=0.0)
+    for r in (8, 9, 10, 11):
+        for c in (9, 10, 11):
+            z[r * SHAPE[1] + c, WALL] = 0.7 * NU  # the wall's slice, weak here and beside
+        z[r * SHAPE[1] + 10, POLE] = 1.0 * NU
+        label[r, 9] = label[r, 11] = WALL - 30  # beside: another surface, labelled
+    new, added = track_lines(z, label.ravel(), NU, SHAPE)
+    assert added == 4 and (new.reshape(SHAPE)[8:24, 10] == POLE).all()
+    # where the wall's slice holds more than the pole's, the pixels keep it
+    for r in (8, 9, 10, 11):
+        z[r * SHAPE[1] + 10, WALL] = 1.2 * NU
+    new, _ = track_lines(z, label.ravel(), NU, SHAPE)
+    assert (new.reshape(SHAPE)[8:12, 10] == WALL).all()
