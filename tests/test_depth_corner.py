@@ -182,3 +182,23 @@ def test_a_slope_s_scattered_labels_make_no_notch():
         z3[y, x, 55] = 7.0
     out, filled = fill_corners(z3.reshape(-1, K), lab.ravel(), NU, SHAPE)
     assert filled >= 1 and abs(out.reshape(SHAPE)[6, 6] - 30) <= 1
+
+
+def test_a_corner_rounded_two_deep_is_read_past_its_weak_neighbours():
+    # room seeds 44 and 88 at m_n = 5, 50 %: the shelf's top-left 2 x 2 pixels given the
+    # wall, each holding a fifth of the wall's level; the notch (5, 5)'s two wall neighbours
+    # are as weak as it, so the wall's level is read one pixel further on
+    z, label = _case()
+    lab, z3 = label.reshape(SHAPE), z.reshape(SHAPE + (K,))
+    cut = [(4, 4), (4, 5), (5, 4), (5, 5)]
+    for y, x in cut:
+        lab[y, x] = WALL
+        z3[y, x, SHELF], z3[y, x, WALL] = 0.6 * 7.0, 0.2 * 40.0
+    out, filled = fill_corners(z, label, NU, SHAPE)
+    assert filled == 4
+    assert all(out.reshape(SHAPE)[y, x] == SHELF for y, x in cut)
+    # where the pixel further on is no brighter than twice the neighbour (a surface's dim
+    # edge, not a cut: procedural seed 108), the neighbour's own level stands
+    for y, x in ((3, 5), (5, 3), (3, 4), (4, 3)):
+        z3[y, x, WALL] = 0.3 * 40.0
+    assert fill_corners(z, label, NU, SHAPE)[1] == 0
