@@ -8,11 +8,9 @@ import numpy as np
 import pytest
 
 from spslidar.depth.corner import (
-    AGREE,
     CORNER_LEAST,
     CORNER_LEVEL,
     CORNER_MARGIN,
-    EDGE,
     GAP,
     fill_corners,
 )
@@ -136,52 +134,6 @@ def test_the_mrf_runs_it_last_and_counts_it():
     np.testing.assert_allclose(off.depth[corner] - on.depth[corner], behind, rtol=0.05)
     rest = np.setdiff1d(np.arange(z.shape[0]), corner)
     np.testing.assert_array_equal(on.depth[rest], off.depth[rest])
-
-
-def test_a_dark_region_s_scattered_labels_still_make_a_notch():
-    # room seed 201 at m_n = 5, 50 %: the dark shelf's labels scatter over 116-123, so the
-    # two shelf pixels beside its corner were three slices apart; across a depth edge (the
-    # wall 80 slices behind) the notch is a notch
-    z, label = _case()
-    lab = label.reshape(SHAPE)
-    z3 = z.reshape(SHAPE + (K,))
-    lab[4, 6:12] = SHELF + AGREE  # the shelf's top row, right of the notch, AGREE slices on
-    z3[4, 6:12, SHELF + AGREE] = z3[4, 6:12, SHELF]
-    z3[4, 6:12, SHELF] = 0.0
-    out, filled = fill_corners(z, label, NU, SHAPE)
-    assert filled == 3
-    assert (np.abs(out.reshape(SHAPE)[[4, 4, 5], [4, 5, 4]] - SHELF) <= AGREE).all()
-    # one slice more and the region is no region
-    lab[4, 6:12] = SHELF + AGREE + 1
-    z3[4, 6:12, SHELF + AGREE + 1] = z3[4, 6:12, SHELF + AGREE]
-    assert fill_corners(z, label, NU, SHAPE)[1] < 3
-
-
-def test_a_slope_s_scattered_labels_make_no_notch():
-    # the receding floor steps a few slices a row: where the region's three pixels around a
-    # notch agree within AGREE but not within one, the notch must lie EDGE slices from them
-    # (a depth edge), not GAP (the next rows of a slope)
-    assert GAP < 8 < EDGE
-    lab = 20 + 2 * np.arange(SHAPE[0])[:, None] + np.zeros(SHAPE, int)  # two slices a row
-    lab[6, 6] = 38  # 8 slices from the pixel above, 6 from the one on its left
-    lab[7, 6] = lab[6, 7] = 40  # its other two neighbours
-    z3 = np.zeros(SHAPE + (K,))
-    for y in range(SHAPE[0]):
-        for x in range(SHAPE[1]):
-            z3[y, x, lab[y, x]] = 7.0
-    z3[6, 6, 29:32] = 6.0  # the pixel holds the row above's slice almost as well as it
-    z3[6, 6, 38] = 1.0
-    label, z = lab.ravel(), z3.reshape(-1, K)
-    out, filled = fill_corners(z, label, NU, SHAPE)
-    assert filled == 0 and (out == label).all()
-    # across a depth edge (the pixel EDGE + 2 slices from the region) it would be filled
-    lab[6, 6], lab[7, 6], lab[6, 7] = 30 + EDGE + 2, 55, 55
-    z3[6, 6, 38], z3[6, 6, 30 + EDGE + 2] = 0.0, 1.0
-    for y, x in ((7, 6), (6, 7)):
-        z3[y, x, :] = 0.0
-        z3[y, x, 55] = 7.0
-    out, filled = fill_corners(z3.reshape(-1, K), lab.ravel(), NU, SHAPE)
-    assert filled >= 1 and abs(out.reshape(SHAPE)[6, 6] - 30) <= 1
 
 
 def test_a_corner_rounded_two_deep_is_read_past_its_weak_neighbours():

@@ -51,18 +51,6 @@ paper's reproduction loses a little, every verdict the same: Fig. 2's camera at 
 0.0768 -> 0.0786 m, Fig. 6's stand-in at m_n = 8 0.0454 -> 0.0466 m (with the line stage's
 fixes of the same day).
 
-A dark region's labels scatter by a few slices (the room's shelf at m_n = 5, 50 %, seed 201:
-116-123, at about one noise maximum against the wall's nine), so its three pixels around a
-notch may not agree within one slice; they are taken to agree within :data:`AGREE` (3) where
-the notch and its two other neighbours lie more than :data:`EDGE` (10) slices from them, a
-depth edge (within one slice, ``GAP`` as before). Without the edge test the receding floor,
-four slices a row, made notches of its own rows (123 of the room's 208 measurements of
-seeds 0-207 worse by up to 8 %). With it (2026-11-27): seed 201 0.0333 -> 0.0197 m (its
-shelf's two top corners), the other 207 unchanged; procedural seeds 0-19 (m_n 5 and 10, 25
-and 50 %) 12 of 80 better (to 0.95), 5 worse by up to 1.3 %; held out, procedural 100-149 and
-100-119 (m_n 1 and 2) 36 of 280 better (to 0.80), 14 worse by up to 2.2 %, mean 0.1324 ->
-0.1322 m; the camera, the motorcycle, the fence and the street unchanged.
-
 A corner rounded two pixels deep leaves the notch's other two neighbours as weak as the notch
 (room seeds 44 and 88: 1.7 noise units at the wall's slice beside the notch, 9.5 on the wall
 one pixel further), so its own surface's level is read one pixel further on where that pixel
@@ -94,13 +82,6 @@ CORNER_LEVEL = 0.5
 CORNER_PASSES = 3
 #: a pixel more than this many slices from ``B`` is not at its depth
 GAP = 3
-#: the region's three pixels around a notch agree within this many slices (a dark region's
-#: labels scatter by a few slices: the room's shelf at m_n = 5, 50 %, seed 201, 116-123)
-AGREE = 3
-#: ... and where they agree within ``AGREE`` but not within one, the notch and its two other
-#: neighbours lie more than this many slices from them (a depth edge, not the receding floor
-#: of the same seed, 4 slices a row)
-EDGE = 10
 
 
 def fill_corners(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, int], *,
@@ -157,21 +138,14 @@ def fill_corners(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, 
             a = lab[yy, xx]
             b = lab[yy + dy, xx]  # the region: p + dy, p + dx and the diagonal between
             ov, oh = lab[yy - dy, xx], lab[yy, xx - dx]
-            b2 = lab[yy, xx + dx]
-            spread = np.maximum(np.abs(b2 - b), np.abs(lab[yy + dy, xx + dx] - b))
-            # a region whose labels scatter (a dark one) only across a depth edge, never on
-            # a slope (a receding floor steps a few slices a row)
-            apart = np.where(spread <= 1, GAP, EDGE)
-            notch = ((spread <= AGREE) & (np.abs(a - b) > apart) & (np.abs(ov - b) > apart)
-                     & (np.abs(oh - b) > apart)
-                     & (np.minimum(b, b2) >= 1) & (np.maximum(b, b2) < k - 1)
-                     & ~done[yy, xx])
-            y, x, a, b, b2, ov, oh = (v[notch] for v in (yy, xx, a, b, b2, ov, oh))
+            notch = ((np.abs(lab[yy, xx + dx] - b) <= 1) & (np.abs(lab[yy + dy, xx + dx] - b) <= 1)
+                     & (np.abs(a - b) > GAP) & (np.abs(ov - b) > GAP) & (np.abs(oh - b) > GAP)
+                     & (b >= 1) & (b < k - 1) & ~done[yy, xx])
+            y, x, a, b, ov, oh = (v[notch] for v in (yy, xx, a, b, ov, oh))
             if not y.size:
                 continue
-            # each B neighbour read at its own slice, the pixel at the better of the two
-            at_b = np.maximum(near(y, x, b), near(y, x, b2))
-            b_level = 0.5 * (near(y + dy, x, b) + near(y, x + dx, b2))
+            at_b = near(y, x, b)
+            b_level = 0.5 * (near(y + dy, x, b) + near(y, x + dx, b))
             own = z3[y, x, a]
             own_level = 0.5 * (_level(z3, lab, y - dy, x, -dy, 0, ov)
                                + _level(z3, lab, y, x - dx, 0, -dx, oh))
