@@ -56,14 +56,19 @@ A corner rounded two pixels deep leaves the notch's other two neighbours as weak
 one pixel further), so its own surface's level is read one pixel further on where that pixel
 holds more than twice the neighbour (:func:`_level`), and a pixel given back is not tested
 again in a later pass (two deep, the pixels filled around it made it a notch of the surface
-it left). Room seeds 0-223: 4 better (88 0.038 -> 0.006 m, 44 0.044 -> 0.029 m, 115 and
-147), none worse; procedural seeds 0-19 17 of 80 better (to 0.95), 2 worse by 0.5 % at most,
-seed 0 at m_n = 10, 25 % now within 5 % of argmax; held out, procedural 100-149 and 100-119
-32 of 280 better (to 0.89), 34 worse, geometric mean 0.999, the worst seed 108 at m_n = 1,
-50 %, 0.050 -> 0.058 m (1.02 of argmax): a front surface whose edge columns are dim (2-4
-noise units against 20 inside) reads as a cut two deep, and its corner pixel goes to the
-surface behind. The street at m_n = 1, 25 % 0.2 % worse; the camera, the motorcycle and the
-fence unchanged.
+it left). Measured on 2026-11-27 against the step without these two (with the line stage's
+rules of that day): room seeds 0-223 at m_n = 5, 50 %, 4 better (88 0.038 -> 0.006 m, 44
+0.044 -> 0.029 m, 115 and 147), none worse; procedural seeds 0-19 (m_n 5 and 10, 25 and
+50 %) 13 of 80 better (to 0.95), 4 worse by 0.7 % at most, seed 0 at m_n = 10, 25 % back
+within 5 % of argmax; held out, procedural 100-149 and 100-119 (m_n 1 and 2) 29 of 280
+better (to 0.89), 32 worse, geometric mean 0.999, the worst seed 108 at m_n = 1, 50 %,
+0.050 -> 0.058 m (1.02 of argmax): a front surface whose edge columns are dim (2-4 noise
+units against 20 inside) reads as a cut two deep, and its corner pixel goes to the surface
+behind. The street at m_n = 1, 25 % 0.2 % worse; the camera, the motorcycle, the fence and
+Fig. 6 unchanged. Letting a dark region's pixels around a notch agree within 3 slices, not
+1, across a depth edge gave room seed 201 its shelf's corners (0.033 -> 0.020 m) but cost
+the paper's Fig. 6 stand-in at m_n = 5 0.0254 -> 0.0266 m, even limited to regions under
+1.2 noise maxima: it is not used.
 """
 
 from __future__ import annotations
