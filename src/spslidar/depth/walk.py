@@ -55,11 +55,17 @@ def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int,
     near = np.clip(ks, 1, k - 2)[:, None] + np.arange(-1, 2)  # the line's slice +-1
     around = zn[flat[:, None], near]
     e = np.where(inside, around.max(axis=1), 0.0)
-    # the same beside the line (the two pixels across its minor coordinate): a line stands
-    # above its sides at its slice, a blob of the reconstruction's bleed does not
-    side = np.zeros_like(e)
-    for off in (-1, 1):
-        side += 0.5 * zn[_across(inside, s, other, major, shape, off)[0][:, None], near].max(1)
+    # the two pixels across the line (its minor coordinate), found once for both readings
+    across = [_across(inside, s, other, major, shape, off)[0] for off in (-1, 1)]
+
+    def beside(slices: np.ndarray) -> np.ndarray:
+        """The mean of the two pixels across the line, each at the most over ``slices``."""
+        return 0.5 * zn[across[0][:, None], slices].max(1) \
+            + 0.5 * zn[across[1][:, None], slices].max(1)
+
+    # the same beside the line: a line stands above its sides at its slice, a blob of the
+    # reconstruction's bleed does not
+    side = beside(near)
     cur = label[flat]
     at_depth = inside & (np.abs(cur - ks) <= gap)
     # on the line: one pixel wide, or with at most one more pixel at its depth within two
@@ -72,11 +78,8 @@ def _walk(zn: np.ndarray, label: np.ndarray, thin: np.ndarray, shape: tuple[int,
     # under OCCLUDED, the surface it is labelled with is hidden there (by the line); or
     # under its evidence at the line's slice, which the data then prefer
     lab = np.clip(cur, 1, k - 2)[:, None] + np.arange(-1, 2)
-    beside = np.zeros_like(e)
-    for off in (-1, 1):
-        beside += 0.5 * zn[_across(inside, s, other, major, shape, off)[0][:, None], lab].max(1)
     own = zn[flat[:, None], lab].max(1)
-    hidden = inside & ((own < OCCLUDED * beside) | (own < e))
+    hidden = inside & ((own < OCCLUDED * beside(lab)) | (own < e))
     ends = np.rint(centre[major] + t * v[major]).astype(np.int64)
     taken: list[int] = []
 
