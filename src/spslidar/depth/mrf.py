@@ -185,9 +185,14 @@ class MRFDepth(DepthEstimator):
         the halo the per-slice TV leaves around a brighter neighbour's region
         (:func:`spslidar.depth.halo.halo_discount`). Default True.
     corners : bool
-        Last, give a region's corner that the per-slice TV rounded off back to the region
-        where the evidence, read relative to each surface's own level, holds it
+        Give a region's corner that the per-slice TV rounded off back to the region where
+        the evidence, read relative to each surface's own level, holds it
         (:mod:`spslidar.depth.corner`; ``info['corner_pixels']``). Default True.
+    edges : bool
+        Last, give a front region's rim that the per-slice TV wore away (and the surface
+        behind filled) back to it where the evidence, relative to each surface's level
+        nearby, holds it (:mod:`spslidar.depth.edges`; ``info['edge_pixels']``). Default
+        True.
     low_confidence : float
         Confidence below which a pixel is flagged.
 
@@ -224,7 +229,7 @@ class MRFDepth(DepthEstimator):
                  smoothness: float = SMOOTHNESS, truncation: float | None = None,
                  iterations: int = ITERATIONS,
                  subbin: bool | None = None, lines: bool = True, halo: bool = True,
-                 corners: bool = True, gaps: bool = True):
+                 corners: bool = True, gaps: bool = True, edges: bool = True):
         super().__init__(low_confidence)
         if smoothness < 0 or (truncation is not None and truncation < 0):
             raise ValueError("smoothness and truncation must be >= 0")
@@ -238,6 +243,7 @@ class MRFDepth(DepthEstimator):
         self.halo = bool(halo)
         self.corners = bool(corners)
         self.gaps = bool(gaps)
+        self.edges = bool(edges)
 
     def labelling(self, x: np.ndarray, z: np.ndarray, shape: tuple[int, int]
                   ) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -293,9 +299,17 @@ class MRFDepth(DepthEstimator):
             from .corner import fill_corners
 
             label, corner = fill_corners(z, label, nu, shape)
+        edge = 0
+        if self.edges:  # a front region's rim the per-slice TV wore away (edges.py)
+            from .edges import fill_edges
+
+            if not (self.lines or self.corners):
+                nu = float(np.median(noise_maxima(z)))
+            label, edge = fill_edges(z, label, nu, shape)
         return label, belief, {"sweeps": sweeps, "truncation": cap,
                                "thin_structure_pixels": thin, "own_surface_pixels": own,
-                               "corner_pixels": corner, "gap_pixels": gaps}
+                               "corner_pixels": corner, "gap_pixels": gaps,
+                               "edge_pixels": edge}
 
     def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:
         x = np.asarray(slices, dtype=np.float32)
