@@ -143,10 +143,10 @@ def fill_edges(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, in
         The block's typical noise maximum.
     shape : (int, int)
         The image grid, ``Q = N1 N2``.
-    margin, least, level : float
-        :data:`EDGE_MARGIN`, :data:`EDGE_LEAST`, :data:`EDGE_LEVEL`.
-    reach : int
-        :data:`REACH`.
+    margin, least, level, own_max : float
+        :data:`EDGE_MARGIN`, :data:`EDGE_LEAST`, :data:`EDGE_LEVEL`, :data:`EDGE_OWN`.
+    reach, least_pixels, along : int
+        :data:`REACH`, :data:`LEVEL_PIXELS`, :data:`ALONG` (0: no edge test).
     passes : int
         At most this many passes (each over the labels the last one left).
 
