@@ -170,12 +170,13 @@ def fill_edges(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, in
     for _ in range(passes):
         lab = out
         own = z3[yy, xx, lab]
+        weak = own < own_max * nu  # a return well above the noise is the pixel's own
         ys, xs, bs = [], [], []
         for dy, dx in ((1, 0), (-1, 0), (0, 1), (0, -1)):
             qy, qx = yy + dy, xx + dx
             ok = (qy >= 0) & (qy < n1) & (qx >= 0) & (qx < n2)
             b = lab[np.clip(qy, 0, n1 - 1), np.clip(qx, 0, n2 - 1)]
-            ok &= (b < lab - GAP) & (b >= 1) & (b < k - 1) & ~done
+            ok &= (b < lab - GAP) & (b >= 1) & (b < k - 1) & weak & ~done
             if along:  # the region's edge goes on along the pixel's row (column)
                 on_edge = np.zeros_like(ok)
                 for j in range(1, along + 1):
@@ -192,14 +193,12 @@ def fill_edges(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, in
         if not y.size:
             break
         a = lab[y, x]
-        weak = own[y, x] < own_max * nu
-        y, x, b, a = y[weak], x[weak], b[weak], a[weak]
         level_b = local_level(own, lab, y, x, b, reach, least_pixels, skip=done)
         level_a = local_level(own, lab, y, x, a, reach, least_pixels, skip=done)
         at_b = z3[y[:, None], x[:, None], b[:, None] + span].max(axis=1)
         ok = (level_b >= level * nu) & (level_a > 0)  # False where a level is NaN
         rel_b = np.where(ok, at_b / np.where(ok, level_b, 1.0), 0.0)
-        rel_a = np.where(ok, z3[y, x, a] / np.where(ok, level_a, 1.0), 0.0)
+        rel_a = np.where(ok, own[y, x] / np.where(ok, level_a, 1.0), 0.0)
         take = ok & (rel_b >= least) & (rel_b > margin * np.maximum(rel_a, 0.0))
         if not take.any():
             break

@@ -263,7 +263,7 @@ class MRFDepth(DepthEstimator):
         belief = belief.reshape(k, q).T
         mrf_label = label = np.argmin(belief, axis=1)
         thin = own = corner = gaps = 0
-        if self.lines or self.corners:  # the block's typical noise maximum
+        if self.lines or self.corners or self.edges:  # the block's typical noise maximum
             nu = float(np.median(noise_maxima(z)))
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
             from .hang import hang_lines, walk_on
@@ -303,8 +303,6 @@ class MRFDepth(DepthEstimator):
         if self.edges:  # a front region's rim the per-slice TV wore away (edges.py)
             from .edges import fill_edges
 
-            if not (self.lines or self.corners):
-                nu = float(np.median(noise_maxima(z)))
             label, edge = fill_edges(z, label, nu, shape)
         return label, belief, {"sweeps": sweeps, "truncation": cap,
                                "thin_structure_pixels": thin, "own_surface_pixels": own,
