@@ -15,6 +15,7 @@ from spslidar.depth.edges import (
     EDGE_OWN,
     GAP,
     LEVEL_PIXELS,
+    OWN_GAP,
     REACH,
     fill_edges,
     local_level,
@@ -73,6 +74,43 @@ def test_a_worn_block_is_given_back_over_passes():
     out, filled = fill_edges(z, label, NU, SHAPE)
     assert filled == len(block)
     np.testing.assert_array_equal(out.reshape(SHAPE), _expected(label))
+
+
+@pytest.mark.parametrize("off", [GAP + 1, OWN_GAP, OWN_GAP + 5])
+def test_a_rim_pixel_labelled_off_the_surface_behind(off):
+    """Room seed 248: the shelf's worn corner pixels are labelled a few slices off the wall
+    (199 and 204 beside the wall's 203), so no surface within GAP of their label gives them
+    a level of their own. Within OWN_GAP the wall's does, and the rim goes back to the
+    shelf; further off no surface gives one and the pixel is not tested (as with
+    ``own_gap`` at most GAP, the rule before): a label that differs from every neighbour's
+    is the motorcycle's small parts, whose own returns 1.2-2 noise maxima hold them."""
+    z, label = _case()
+    lab = label.reshape(SHAPE)
+    lab[6, 7:10] = WALL - off  # in front of the wall, still behind the shelf
+    out, filled = fill_edges(z, label, NU, SHAPE)
+    if off <= OWN_GAP:
+        assert filled == 3
+        np.testing.assert_array_equal(out.reshape(SHAPE), _expected(label))
+    else:
+        assert filled == 0
+        np.testing.assert_array_equal(out, label)
+    same, none = fill_edges(z, label, NU, SHAPE, own_gap=GAP)
+    assert none == 0
+    np.testing.assert_array_equal(same, label)
+
+
+def test_a_pixel_holding_its_own_surface_read_within_own_gap_is_kept():
+    """Within OWN_GAP the pixel's level is its surface's: a pixel that holds the wall as the
+    wall does (0.8 of its level, against 0.4 of the shelf's) keeps it, though its label is
+    GAP + 1 slices off the wall's."""
+    wall = 2.2  # a dim wall: the pixel's own evidence stays under EDGE_OWN noise maxima
+    z, label = _case(at_wall=0.8, wall=wall)
+    label.reshape(SHAPE)[6, 7:10] = WALL + GAP + 1
+    z.reshape(SHAPE + (K,))[6, 7:10, WALL + GAP + 1] = 0.8 * wall
+    assert 0.8 * wall < EDGE_OWN * NU
+    out, filled = fill_edges(z, label, NU, SHAPE)
+    assert filled == 0
+    np.testing.assert_array_equal(out, label)
 
 
 @pytest.mark.parametrize("case", ["halo", "margin", "weak region", "behind", "no level",
