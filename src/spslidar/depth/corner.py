@@ -75,7 +75,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CORNER_LEAST", "CORNER_LEVEL", "CORNER_MARGIN", "CORNER_PASSES", "fill_corners"]
+__all__ = ["CORNER_LEAST", "CORNER_LEVEL", "CORNER_MARGIN", "CORNER_PASSES", "fill_corners",
+           "near_slice"]
 
 #: how many times better, relative to each surface's level, the evidence at ``B`` must be
 CORNER_MARGIN = 1.5
@@ -87,6 +88,33 @@ CORNER_LEVEL = 0.5
 CORNER_PASSES = 3
 #: a pixel more than this many slices from ``B`` is not at its depth
 GAP = 3
+_SPAN = np.arange(-1, 2)
+
+
+def near_slice(z3: np.ndarray, y: np.ndarray, x: np.ndarray, b: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Each pixel's evidence at slice ``b`` (``1 <= b < K - 1``) or either of its neighbours,
+    and which of those three slices holds it: the corner and rim steps' reading of a surface
+    ``b`` at a pixel, and the slice a pixel given back to ``b`` takes. Read only at the
+    pixels given (a ``(N1, N2, K)`` copy would add a block to the MRF's peak).
+
+    Parameters
+    ----------
+    z3 : ndarray, shape (N1, N2, K)
+        Evidence per pixel and slice.
+    y, x, b : ndarray of int, shape (C,)
+        The pixels and the slice read at each.
+
+    Returns
+    -------
+    at_b : ndarray, shape (C,)
+        The largest evidence of the three slices.
+    slice_b : ndarray of int, shape (C,)
+        The slice that holds it.
+    """
+    window = z3[y[:, None], x[:, None], b[:, None] + _SPAN]
+    best = np.argmax(window, axis=1)
+    return np.take_along_axis(window, best[:, None], axis=1)[:, 0], b - 1 + best
 
 
 def fill_corners(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, int], *,
@@ -124,12 +152,6 @@ def fill_corners(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, 
     if nu <= 0 or k < 3 or n1 < 3 or n2 < 3:
         return out, 0
     z3 = np.asarray(z).reshape(n1, n2, k)
-    span = np.arange(-1, 2)
-
-    def near(y: np.ndarray, x: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """Evidence at slice ``b`` (1 <= b < k - 1) or either of its neighbours, read only
-        where a notch is tested (a (N1, N2, K) copy would add a block to the MRF's peak)."""
-        return z3[y[:, None], x[:, None], b[:, None] + span].max(axis=1)
 
     yy, xx = np.mgrid[1:n1 - 1, 1:n2 - 1]  # a notch has all four neighbours in the image
     filled = 0
@@ -149,16 +171,15 @@ def fill_corners(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, 
             y, x, a, b, ov, oh = (v[notch] for v in (yy, xx, a, b, ov, oh))
             if not y.size:
                 continue
-            at_b = near(y, x, b)
-            b_level = 0.5 * (near(y + dy, x, b) + near(y, x + dx, b))
+            at_b, slice_b = near_slice(z3, y, x, b)
+            b_level = 0.5 * (near_slice(z3, y + dy, x, b)[0] + near_slice(z3, y, x + dx, b)[0])
             own = z3[y, x, a]
             own_level = 0.5 * (_level(z3, lab, y - dy, x, -dy, 0, ov)
                                + _level(z3, lab, y, x - dx, 0, -dx, oh))
             take = ((b_level >= level * nu) & (own_level > 0) & (at_b >= least * b_level)
                     & (at_b * own_level > margin * own * b_level))
-            y, x, b = y[take], x[take], b[take]
-            window = z3[y[:, None], x[:, None], b[:, None] + span]
-            new[y, x] = b - 1 + np.argmax(window, axis=1)
+            y, x = y[take], x[take]
+            new[y, x] = slice_b[take]
             done[y, x] = True
         n = int(np.count_nonzero(new != lab))
         out = new.ravel()

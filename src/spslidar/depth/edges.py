@@ -73,6 +73,8 @@ import warnings
 
 import numpy as np
 
+from .corner import GAP, near_slice
+
 __all__ = ["ALONG", "EDGE_LEAST", "EDGE_LEVEL", "EDGE_MARGIN", "EDGE_OWN", "EDGE_PASSES", "GAP",
            "LEVEL_PIXELS", "OWN_GAP", "REACH", "fill_edges", "local_level"]
 
@@ -95,8 +97,6 @@ REACH = 3
 LEVEL_PIXELS = 3
 #: passes: a rim worn ``n`` pixels deep needs about ``n`` of them
 EDGE_PASSES = 3
-#: a pixel more than this many slices from a surface is not on it
-GAP = 3
 #: where no surface within ``GAP`` of a pixel's label gives it a level (a steep slanted
 #: surface, whose label changes by several slices a pixel, or a label the rim's spread left
 #: a few slices off the surface behind: room seed 248, the shelf's corner pixels labelled
@@ -191,7 +191,6 @@ def fill_edges(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, in
         return out.ravel(), 0
     z3 = np.asarray(z).reshape(n1, n2, k)
     yy, xx = np.mgrid[0:n1, 0:n2]
-    span = np.arange(-1, 2)
     done = np.zeros(shape, dtype=bool)
     filled = 0
     for _ in range(passes):
@@ -222,7 +221,7 @@ def fill_edges(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, in
         a = lab[y, x]
         level_b = local_level(own, lab, y, x, b, reach, least_pixels, skip=done)
         level_a = local_level(own, lab, y, x, a, reach, least_pixels, skip=done)
-        at_b = z3[y[:, None], x[:, None], b[:, None] + span].max(axis=1)
+        at_b, slice_b = near_slice(z3, y, x, b)
         if own_gap > GAP:  # no surface of its own within GAP: read it within own_gap
             redo = np.isnan(level_a)
             if redo.any():
@@ -234,17 +233,16 @@ def fill_edges(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, in
         take = ok & (rel_b >= least) & (rel_b > margin * np.maximum(rel_a, 0.0))
         if not take.any():
             break
-        y, x, b, rel_b = y[take], x[take], b[take], rel_b[take]
+        y, x, slice_b, rel_b = y[take], x[take], slice_b[take], rel_b[take]
         # a pixel beside two nearer surfaces goes to the one it holds more of
         order = np.lexsort((-rel_b, y * n2 + x))
         first = np.ones(order.size, dtype=bool)
         key = (y * n2 + x)[order]
         first[1:] = key[1:] != key[:-1]
         pick = order[first]
-        y, x, b = y[pick], x[pick], b[pick]
-        window = z3[y[:, None], x[:, None], b[:, None] + span]
+        y, x = y[pick], x[pick]
         new = lab.copy()
-        new[y, x] = b - 1 + np.argmax(window, axis=1)
+        new[y, x] = slice_b[pick]
         done[y, x] = True
         n = int(np.count_nonzero(new != lab))
         out = new
