@@ -125,6 +125,25 @@ def test_too_narrow_a_gate_is_not_judged(tmp_path):
     assert r.metrics["peak_to_noise_p90"] is None and not _warned(r)
 
 
+@pytest.mark.parametrize("k", [1, 2, 3, 4, 5])
+def test_a_gate_of_a_few_slices_runs_without_a_verdict(tmp_path, k, capsys):
+    """Gates of 2-3 slices ended in a traceback: the noise's autocorrelation was read at lags
+    up to 4 whatever the number of slices (found by a user's ``--range-gate 20.4 20.41``).
+    The statistics take the lags there are; the CLI runs, with no verdict."""
+    rng = np.random.default_rng(k)
+    from spslidar.depth.profile import _noise_stats, noise_verdict
+
+    ratio, tau = _noise_stats(rng.random((64, k)))
+    assert ratio.shape == (64,) and np.isfinite(tau)
+    assert noise_verdict(rng.random((64, k))) is None
+    bw = 3e8 / 2 / 10e9  # a bin at the default 10 Gb/s, in metres
+    gate = ["20.4", f"{20.4 + (k - 0.5) * bw:.6f}"]
+    assert main(["run", "--size", "8", "--code-length", "1023", "--no-figure",
+                 "--out", str(tmp_path / "o"), "--range-gate", *gate]) == 0
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert m["n_slices"] <= k + 3 and m["peak_to_noise_p90"] is None
+
+
 def test_a_range_gate_that_misses_the_scene_is_said_to_be_noise():
     """The camera (5-5.9 m by default) through a gate at 30-31 m; through its own gate it
     stands far above the noise (11.6 at 32x32, 7-13 at 64x64 with m_n = 10)."""

@@ -196,7 +196,7 @@ def _noise_stats(slices: np.ndarray, exclude: int = 2, corr_exclude: int = 3,
         far = np.abs(np.arange(k)[None, :] - np.argmax(z, axis=1)[:, None]) > corr_exclude
         n = np.maximum(far.sum(axis=1, keepdims=True), 1)
         z = np.where(far, z - (z * far).sum(axis=1, keepdims=True) / n, 0.0)
-        for lag in range(max_lag + 1):
+        for lag in range(min(max_lag, k - 1) + 1):  # a lag needs two slices that far apart
             both = far[:, lag:] & far[:, :k - lag]
             num[lag] += float(np.sum(z[:, lag:] * z[:, :k - lag] * both)) / max(both.sum(), 1)
     tau = float(1.0 + 2.0 * np.sum(num[1:] / num[0])) if num[0] > 0 else 1.0
@@ -306,7 +306,7 @@ def noise_verdict(slices: np.ndarray, cap: float = 1000.0,
         are not finite (a diverged solve).
     """
     sl = np.asarray(slices)
-    if not np.isfinite(sl).all():
+    if sl.ndim != 2 or sl.shape[1] < NOISE_ONLY_MIN_SLICES or not np.isfinite(sl).all():
         return None
     if sl.shape[0] > max_pixels:
         keep = np.random.default_rng(0).choice(sl.shape[0], max_pixels, replace=False)
