@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .constants import MAX_DEPTH_M
 from .errors import ConfigError
 
 LIDARS = ("psst", "conventional")
@@ -297,8 +298,8 @@ class Config:
             raise ConfigError("--scene must be a built-in scene name or a file path")
         self.scene = str(self.scene)
         number("size", 4, 2048, integer=True)
-        number("depth_min", 0, optional=True)
-        number("depth_max", 0, lo_open=True, optional=True)
+        number("depth_min", 0, MAX_DEPTH_M, optional=True)
+        number("depth_max", 0, MAX_DEPTH_M, lo_open=True, optional=True)
         if self.depth_min is not None and self.depth_max is not None \
                 and self.depth_min >= self.depth_max:
             raise ConfigError(f"--depth-min ({self.depth_min}) must be below --depth-max "
@@ -369,6 +370,10 @@ class Config:
             if len(g) != 2 or not all(math.isfinite(v) for v in g) or g[0] < 0 or g[1] <= g[0]:
                 raise ConfigError(f"--range-gate must be MIN MAX with 0 <= MIN < MAX metres, "
                                   f"got {list(g)}")
+            if g[1] > MAX_DEPTH_M:
+                raise ConfigError(f"--range-gate {g[0]:g} {g[1]:g} reaches beyond any lidar "
+                                  f"range (at most {MAX_DEPTH_M:.0e} m): are the values in "
+                                  f"metres?")
             self.range_gate = g
         for reg in registries().values():
             reg.get(getattr(self, reg.option)).check(self)

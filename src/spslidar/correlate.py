@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .constants import SPEED_OF_LIGHT
+from .constants import MAX_GATE_BINS, SPEED_OF_LIGHT
 from .errors import ConfigError
 
 REPLICAS = ("bipolar", "unipolar")
@@ -48,7 +48,12 @@ def gate_lags(gate: tuple[float, float], bin_width: float) -> np.ndarray:
     if not (np.isfinite(d0) and np.isfinite(d1)) or d0 < 0 or d1 <= d0:
         raise ConfigError(f"range gate must satisfy 0 <= min < max, got {d0} {d1}")
     to_bins = 2.0 / (SPEED_OF_LIGHT * bin_width)
-    return np.arange(int(np.floor(d0 * to_bins)), int(np.ceil(d1 * to_bins)) + 1)
+    lo, hi = int(np.floor(d0 * to_bins)), int(np.ceil(d1 * to_bins))
+    if hi - lo + 1 > MAX_GATE_BINS:  # counted before any array exists
+        raise ConfigError(f"range gate {d0:g}-{d1:g} m spans {hi - lo + 1:.3g} delay bins of "
+                          f"{bin_width:.3g} s, more than {MAX_GATE_BINS} (range slices of "
+                          f"several GB): narrow --range-gate")
+    return np.arange(lo, hi + 1)
 
 
 def replica_matrix(replica: np.ndarray, lags: np.ndarray) -> np.ndarray:

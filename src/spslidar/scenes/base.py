@@ -9,14 +9,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..constants import MAX_DEPTH_M
 from ..errors import SceneError
 
 SCENE_FILE_SUFFIXES: tuple[str, ...] = (".npy", ".npz", ".png", ".tif", ".tiff", ".jpg", ".jpeg")
 
 _IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg")
-#: the farthest depth a scene file may hold, in metres (single-photon lidar has ranged ~200 km;
-#: a larger value is a unit mistake, and would overflow the range gate's arithmetic)
-MAX_SCENE_DEPTH_M = 1e6
+#: the farthest depth a scene file may hold, in metres (:data:`spslidar.constants.MAX_DEPTH_M`)
+MAX_SCENE_DEPTH_M = MAX_DEPTH_M
 _MIN_SIZE = 4
 _MAX_SIZE = 2048
 #: default depth window (m) of scenes given by a grey level: the paper's 'airplane', 20 to
