@@ -46,3 +46,74 @@ def test_gate_lags_counts_before_it_allocates():
     with pytest.raises(ConfigError, match="delay bins"):
         gate_lags((0.0, bins), bw)
     assert gate_lags((1.0, 2.0), 1e-10).size == 69  # bins 66 (floor of 66.7) to 134 (ceil)
+
+
+@pytest.mark.parametrize("ptu,where", [("same", "the --out folder"), ("same/x.ptu", "inside")])
+def test_save_ptu_into_the_result_folder_is_refused_before_the_work(tmp_path, capsys,
+                                                                   monkeypatch, ptu, where):
+    """``--out same --save-ptu same`` ran the whole simulation, wrote the PTU and its arrays,
+    then refused the result folder (exit 2, four files left behind)."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", *FAST, "--out", "same", "--save-ptu", ptu]) == 2
+    line = _one_line(capsys)
+    assert "--save-ptu" in line and where in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("cmd", [
+    ["sweep", "SW", "--jobs", "0"],
+    ["sweep", "SW", "--jobs", "-7"],
+    ["sweep", "SW", "--scheduler", "bogus"],
+    ["reproduce", "fig2", "--quick", "--scheduler", "bogus"],
+])
+@pytest.mark.parametrize("existed", [False, True])
+def test_a_refused_sweep_or_reproduce_leaves_no_folder(tmp_path, capsys, cmd, existed):
+    """A refused ``--jobs`` or scheduler left the claimed folder with its marker (and, for
+    ``reproduce``, an empty cache) behind; a folder the user made empty stays, empty."""
+    sw = tmp_path / "sw.toml"
+    sw.write_text("seed=1\ntrials=1\n[base]\nsize=8\ncode_length=127\n[grid]\nnoise=[1,10]\n")
+    out = tmp_path / "o"
+    if existed:
+        out.mkdir()
+    cmd = [str(sw) if c == "SW" else c for c in cmd]
+    assert main([*cmd, "--out", str(out)]) == 2
+    line = _one_line(capsys)
+    assert "--jobs must be" in line or "scheduler address 'bogus'" in line
+    assert out.exists() == existed
+    if existed:
+        assert list(out.iterdir()) == []
+
+
+def test_release_folder_keeps_anything_written(tmp_path):
+    from spslidar.outdir import MARKER, claim_folder, release_folder
+
+    out = claim_folder(tmp_path / "o", "sweep")
+    (out / "runs" / "a").mkdir(parents=True)
+    (out / "runs" / "a" / "r.json").write_text("{}")  # a finished run: kept
+    assert not release_folder(out, False)
+    assert (out / MARKER).exists() and (out / "runs" / "a" / "r.json").exists()
+    (out / "runs" / "a" / "r.json").unlink()
+    assert release_folder(out, False) and not out.exists()
+
+
+def test_a_folder_nothing_can_be_moved_into_is_refused_before_the_work(tmp_path, capsys,
+                                                                      monkeypatch):
+    """An empty, read-only ``--out`` failed only after the run, naming a temporary path. The
+    check writes a temporary file in it (root may write anywhere, so the refusal is
+    simulated for it)."""
+    import tempfile
+
+    out = tmp_path / "ro"
+    out.mkdir()
+    real = tempfile.TemporaryFile
+
+    def refuse(*a, dir=None, **k):
+        if dir is not None and str(dir) == str(out):
+            raise PermissionError(13, "Permission denied")
+        return real(*a, dir=dir, **k)
+
+    monkeypatch.setattr(tempfile, "TemporaryFile", refuse)
+    for cmd in (["run", *FAST], ["reproduce", "fig2", "--quick"]):
+        assert main([*cmd, "--out", str(out)]) == 2
+        assert f"cannot write in {out} (Permission denied)" in _one_line(capsys)
+        assert list(out.iterdir()) == []

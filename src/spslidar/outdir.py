@@ -155,6 +155,9 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
             if not overwrite:
                 raise SpslidarError(f"{option} {out}: holds a previous spslidar result; pass "
                                     f"{replace} to replace it, or choose a new folder")
+        # the files are moved into it: a read-only folder failed only after the work, naming
+        # a temporary path
+        _check_writable(path, f"{option} {out}", make_parents=False)
     parent = path.parent
     if parent.exists() and not parent.is_dir():
         raise SpslidarError(f"{option} {out}: {parent} is not a folder")
@@ -247,6 +250,8 @@ def claim_folder(out: str | os.PathLike, kind: str, option: str = "--out") -> Pa
         empty = not path.exists() or next(path.iterdir(), None) is None
     except OSError as exc:
         raise ConfigError(f"{option} {out}: cannot read the folder ({exc.strerror})") from None
+    if path.is_dir():  # what it writes goes into it
+        _check_writable(path, f"{option} {out}", make_parents=False)
     if empty:
         _check_writable(path.parent, f"{option} {out}", make_parents=True)
         path.mkdir(parents=True, exist_ok=True)
@@ -264,11 +269,19 @@ def claim_folder(out: str | os.PathLike, kind: str, option: str = "--out") -> Pa
 
 
 def release_folder(folder: Path, existed: bool) -> bool:
-    """Take back a folder :func:`claim_folder` claimed if nothing but its marker is in it
-    (the work was refused before it wrote anything): the marker goes, and the folder too
-    where it did not exist before. Returns whether it was taken back."""
-    if {p.name for p in folder.iterdir()} - {MARKER}:
-        return False
+    """Take back a folder :func:`claim_folder` claimed if nothing but its marker and empty
+    folders (a cache made ready) are in it (the work was refused before it wrote anything):
+    they go, and the folder too where it did not exist before. Returns whether it was taken
+    back."""
+    subdirs = []
+    for root, dirs, files in os.walk(folder):
+        if Path(root) == folder:
+            files = [f for f in files if f != MARKER]
+        if files or any((Path(root) / d).is_symlink() for d in dirs):
+            return False
+        subdirs.extend(Path(root) / d for d in dirs)
+    for d in sorted(subdirs, key=lambda p: len(p.parts), reverse=True):
+        d.rmdir()
     (folder / MARKER).unlink(missing_ok=True)
     if not existed:
         folder.rmdir()

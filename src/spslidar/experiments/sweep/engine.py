@@ -20,7 +20,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from spslidar.errors import ConfigError
+from spslidar.errors import ConfigError, SpslidarError
 from spslidar.experiments.sweep.grid import (
     ERROR_KEY,
     KEY_LENGTH,
@@ -157,6 +157,11 @@ def _probe_scheduler(address: str) -> None:
     import socket
     from urllib.parse import urlsplit
 
+    if "://" not in address:  # dask reads HOST:PORT as tcp://HOST:PORT
+        if ":" not in address:
+            raise ConfigError(f"scheduler address {address!r} is not PROTOCOL://HOST:PORT "
+                              f"or HOST:PORT (e.g. tcp://127.0.0.1:8786)")
+        address = f"tcp://{address}"
     if not address.startswith("tcp://"):
         return
     try:
@@ -504,7 +509,6 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any) -> flo
     ConfigError naming the file), not a sweep of failed runs. Returns the estimated total
     time of the runs (seconds, from each configuration's budget)."""
     from spslidar.config import Config
-    from spslidar.errors import SpslidarError
     from spslidar.pipeline import PROCESSING_KEYS, preflight
 
     seconds: dict[str, float] = {}
@@ -573,21 +577,27 @@ def sweep_main(
 
         check_time(total / max(1, min(len(points), abs(jobs) if jobs != -1 else 2)), max_time,
                    f"this sweep of {len(points)} runs")
-    from spslidar.outdir import claim_folder
+    from spslidar.outdir import claim_folder, release_folder
 
+    jobs = _check_jobs(jobs)  # before the folder is made
     if isinstance(scheduler, str):
         _probe_scheduler(scheduler)  # before the folder is made
-    claim_folder(out_dir, "sweep")  # new, empty or an earlier sweep's: never a user's files
-    rows = run_sweep(
-        run_point if func is None else func,
-        points,
-        out_dir,
-        seed=spec.seed,
-        jobs=jobs,
-        scheduler=scheduler,
-        progress=progress,
-        seed_ignore=ignore,
-    )
+    existed = Path(out_dir).exists()
+    folder = claim_folder(out_dir, "sweep")  # new, empty or an earlier sweep's: never a user's
+    try:
+        rows = run_sweep(
+            run_point if func is None else func,
+            points,
+            out_dir,
+            seed=spec.seed,
+            jobs=jobs,
+            scheduler=scheduler,
+            progress=progress,
+            seed_ignore=ignore,
+        )
+    except SpslidarError:  # refused before any point ran: leave no folder behind
+        release_folder(folder, existed)
+        raise
     csv_path = write_csv(rows, Path(out_dir) / "results.csv")
     failed = [row for row in rows if ERROR_KEY in row]
     print(
