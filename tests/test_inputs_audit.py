@@ -5,6 +5,7 @@ exit 2 with nothing written, or a one-line warning; never a traceback."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from spslidar.cli import main
@@ -117,3 +118,49 @@ def test_a_folder_nothing_can_be_moved_into_is_refused_before_the_work(tmp_path,
         assert main([*cmd, "--out", str(out)]) == 2
         assert f"cannot write in {out} (Permission denied)" in _one_line(capsys)
         assert list(out.iterdir()) == []
+
+
+@pytest.fixture(scope="module")
+def measured(tmp_path_factory):
+    """A small PTU acquisition written by ``run --save-ptu`` (8x8, 127-bit code)."""
+    d = tmp_path_factory.mktemp("measured")
+    assert main(["run", *FAST, "--signal", "1", "--noise", "0.02", "--compression", "0.5",
+                 "--save-ptu", str(d / "scan.ptu"), "--out", str(d / "run")]) == 0
+    return d
+
+
+def _reconstruct(d, out, *extra) -> int:
+    return main(["reconstruct", "--ptu", str(d / "scan.ptu"), "--patterns",
+                 str(d / "scan_patterns.npy"), "--code", str(d / "scan_code.npy"),
+                 "--bit-rate", "10e9", "--range-gate", "1", "3", "--out", str(out),
+                 "--no-figure", *extra])
+
+
+@pytest.mark.parametrize("make,match", [
+    (lambda t: t.astype(complex), "of real numbers, got dtype complex128"),
+    (lambda t: t > 2, "holds booleans"),
+    (lambda t: np.where(np.eye(8, dtype=bool), np.inf, t), "8 infinite or negative"),
+    (lambda t: t * 1e6, "beyond any lidar range"),
+])
+def test_reconstruct_refuses_a_truth_that_is_no_depth_map(measured, tmp_path, capsys, make,
+                                                         match):
+    """A complex truth was cast to its real part with a library warning, a boolean mask
+    scored as depths of 0 and 1 m (RMSE 24.6 m), infinite depths were dropped and a truth in
+    micrometres scored an RMSE of 2.5e7 m; negative depths were already refused."""
+    truth = np.load(measured / "run" / "truth.npy")
+    np.save(tmp_path / "t.npy", make(truth))
+    out = tmp_path / "o"
+    assert _reconstruct(measured, out, "--truth", str(tmp_path / "t.npy")) == 2
+    assert match in _one_line(capsys)
+    assert not out.exists()
+    np.save(tmp_path / "t.npy", np.where(np.eye(8, dtype=bool), np.nan, truth))
+    assert _reconstruct(measured, out, "--truth", str(tmp_path / "t.npy")) == 0  # NaN: unknown
+
+
+@pytest.mark.parametrize("irf", [np.array([1 + 1j, 0.5]), np.array([True, False])])
+def test_run_refuses_an_irf_file_of_no_real_numbers(tmp_path, capsys, irf):
+    np.save(tmp_path / "irf.npy", irf)
+    out = tmp_path / "o"
+    assert main(["run", *FAST, "--out", str(out), "--irf", str(tmp_path / "irf.npy")]) == 2
+    assert "real, non-negative numbers" in _one_line(capsys)
+    assert not out.exists()

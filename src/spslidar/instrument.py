@@ -107,6 +107,9 @@ def irf_kernel(irf: IRF | None, bin_width: float, period: int):
             why = ("not a .npy file" if "pickled" in str(exc) or "magic" in str(exc).lower()
                    else str(exc).splitlines()[0])
             raise ConfigError(f"cannot read --irf {irf.path} as a .npy array: {why}") from None
+        if h.dtype.kind not in "iuf":  # complex was cast with a library warning
+            raise ConfigError(f"--irf {irf.path}: a 1-D array of real, non-negative numbers "
+                              f"is expected, got dtype {h.dtype}")
         h = np.asarray(h, dtype=np.float64)
         if h.ndim != 1 or h.size < 1 or not np.all(np.isfinite(h)) or h.min() < 0 or h.sum() <= 0:
             raise ConfigError(f"--irf {irf.path}: a 1-D array of non-negative numbers, one per "

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..config import Config
+from ..constants import MAX_DEPTH_M
 from ..correlate import (
     correlation_gain,
     gate_lags,
@@ -131,6 +132,33 @@ def _real_numbers(arr: np.ndarray, what: str) -> None:
     if not (np.issubdtype(arr.dtype, np.number) or arr.dtype == np.bool_) or \
             np.issubdtype(arr.dtype, np.complexfloating):
         raise ConfigError(f"{what} must hold real numbers, got dtype {arr.dtype}")
+
+
+def _check_truth(truth: Any, n: int) -> np.ndarray:
+    """``truth`` as an ``(n, n)`` float64 depth map in metres, NaN where unknown; one line for
+    anything else: a complex, boolean or non-numeric array (a complex one was cast to its
+    real part with a library warning, a boolean mask scored as depths of 0 and 1 m), an
+    infinite or negative depth, or one beyond :data:`~spslidar.constants.MAX_DEPTH_M`."""
+    arr = _as_array(truth, "--truth")
+    if arr.dtype == np.bool_:
+        raise ConfigError("--truth holds booleans (a mask?): a depth map in metres is expected, "
+                          "NaN where the depth is unknown")
+    if arr.dtype.kind not in "iuf":
+        raise ConfigError(f"--truth must be an ({n}, {n}) depth map in metres of real numbers, "
+                          f"got dtype {arr.dtype}")
+    arr = arr.astype(np.float64)
+    if arr.shape != (n, n):
+        raise ConfigError(f"--truth must be an ({n}, {n}) depth map, got {arr.shape}")
+    known = ~np.isnan(arr)
+    bad = int(np.count_nonzero(known & (np.isinf(arr) | (arr < 0))))
+    if bad:
+        raise ConfigError(f"--truth has {bad} infinite or negative depths (depths are finite "
+                          f"metres >= 0; NaN marks a pixel without a truth)")
+    if known.any() and float(arr[known].max()) > MAX_DEPTH_M:
+        raise ConfigError(f"--truth holds depths up to {float(arr[known].max()):.3g} m, beyond "
+                          f"any lidar range (at most {MAX_DEPTH_M:.0e} m): are the values in "
+                          f"metres?")
+    return arr
 
 
 def load_code(code: str | os.PathLike, code_length: int | None = None) -> np.ndarray:
@@ -342,12 +370,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                             "code_length": period, "range_gate": list(range_gate),
                             "compression": m / q if m <= q else 1.0, **processing})
     if truth is not None:
-        try:
-            truth = np.asarray(truth, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ConfigError(f"truth must be an ({n}, {n}) depth map in metres") from None
-        if truth.shape != (n, n):
-            raise ConfigError(f"--truth must be an ({n}, {n}) depth map, got {truth.shape}")
+        truth = _check_truth(truth, n)
     _check_solve_time(cfg, m, q, int(gate_lags(cfg.range_gate, bin_width).size), period)
     data = read_ptu_histograms(ptu, period, bin_width=bin_width, marker=marker,
                                channel=channel, n_patterns=m, allow_binning=allow_binning)
