@@ -164,3 +164,19 @@ def test_run_refuses_an_irf_file_of_no_real_numbers(tmp_path, capsys, irf):
     assert main(["run", *FAST, "--out", str(out), "--irf", str(tmp_path / "irf.npy")]) == 2
     assert "real, non-negative numbers" in _one_line(capsys)
     assert not out.exists()
+
+
+@pytest.mark.parametrize("extra", [["--solver", "gpsr"], ["--regulariser", "wavelet"]])
+def test_the_config_says_nonneg_is_off_where_the_regulariser_cannot_take_it(tmp_path, extra):
+    """With the wavelet regulariser ``--nonneg`` has no effect (the depth maps are the same
+    to the bit), yet ``metrics.json``'s resolved config said ``nonneg: true``."""
+    import json
+
+    for flag, name in (("--nonneg", "a"), ("--no-nonneg", "b")):
+        assert main(["run", *FAST, *extra, flag, "--out", str(tmp_path / name)]) == 0
+    a, b = (json.loads((tmp_path / n / "metrics.json").read_text()) for n in "ab")
+    assert a["config"]["nonneg"] is False and b["config"]["nonneg"] is False
+    assert np.array_equal(np.load(tmp_path / "a" / "depth.npy"),
+                          np.load(tmp_path / "b" / "depth.npy"), equal_nan=True)
+    assert main(["run", *FAST, "--regulariser", "l1", "--out", str(tmp_path / "c")]) == 0
+    assert json.loads((tmp_path / "c" / "metrics.json").read_text())["config"]["nonneg"]

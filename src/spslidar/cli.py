@@ -146,7 +146,9 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--tol", type=float, default=S, help="relative-change stopping tolerance")
     g.add_argument("--nonneg", action=argparse.BooleanOptionalAction, default=S,
                    help="constrain the reconstructed return strengths to be non-negative "
-                        "(default on; physical, since photon returns cannot be negative)")
+                        "(default on; physical, since photon returns cannot be negative; "
+                        "not with --regulariser wavelet, gpsr's default, whose prox has no "
+                        "closed form under the bound: metrics.json's config says which)")
     g.add_argument("--depth", choices=depths, default=S,
                    help=f"depth estimator: {depths_help}")
     g.add_argument("--subbin", action="store_true", default=S,

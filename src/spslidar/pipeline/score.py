@@ -133,4 +133,6 @@ def resolved_config(cfg: Config, acq: Acquisition, gate, auto_gate: bool, iterat
     d["auto_gate"] = bool(auto_gate)
     if not cfg.qcr and d["regulariser"] in TV_REGULARISERS:
         d["nonneg"] = False  # the mean-eliminated plain problem has no sign constraint
+    if d["regulariser"] == "wavelet":  # no closed-form prox under the bound (make_wavelet_l1)
+        d["nonneg"] = False
     return d
