@@ -180,3 +180,19 @@ def test_the_config_says_nonneg_is_off_where_the_regulariser_cannot_take_it(tmp_
                           np.load(tmp_path / "b" / "depth.npy"), equal_nan=True)
     assert main(["run", *FAST, "--regulariser", "l1", "--out", str(tmp_path / "c")]) == 0
     assert json.loads((tmp_path / "c" / "metrics.json").read_text())["config"]["nonneg"]
+
+
+def test_a_corrupt_tag_is_one_line_naming_it(measured, tmp_path, capsys):
+    """ptufile logs a tag type it cannot read (and stops reading the header there) instead of
+    raising: its line reached stderr before spslidar's, which named a missing record-type tag
+    as the cause."""
+    d = bytearray((measured / "scan.ptu").read_bytes())
+    d[52:56] = (0x12345678).to_bytes(4, "little")  # the first tag's type code
+    (tmp_path / "bad.ptu").write_bytes(bytes(d))
+    out = tmp_path / "o"
+    assert main(["reconstruct", "--ptu", str(tmp_path / "bad.ptu"), "--patterns",
+                 str(measured / "scan_patterns.npy"), "--code", str(measured / "scan_code.npy"),
+                 "--bit-rate", "10e9", "--range-gate", "1", "3", "--out", str(out)]) == 2
+    line = _one_line(capsys)
+    assert "corrupt PTU tag header" in line and "invalid tag type at tag 'File_GUID'" in line
+    assert not out.exists()

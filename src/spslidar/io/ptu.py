@@ -39,8 +39,11 @@ its output. The documented format takes ~150 lines of NumPy + ``struct``, with n
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import os
 import struct
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -171,6 +174,34 @@ def _import_ptufile():
     return ptufile
 
 
+@contextlib.contextmanager
+def _ptufile_log():
+    """The records ptufile logs while a file is opened, kept from stderr: it logs a tag it
+    cannot read (and stops reading the header there) instead of raising, which printed a
+    second line before spslidar's own, which then named the wrong cause."""
+    records: list[logging.LogRecord] = []
+
+    class _Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            records.append(record)
+
+    log = logging.getLogger("ptufile")
+    handler, propagate = _Keep(logging.WARNING), log.propagate
+    log.addHandler(handler)
+    log.propagate = False
+    try:
+        yield records
+    finally:
+        log.removeHandler(handler)
+        log.propagate = propagate
+
+
+def _tag_of(message: str) -> str:
+    """`` at tag 'NAME'`` from a ptufile message (``... tagid='NAME', ...``), or nothing."""
+    i = message.find("tagid=")
+    return f" at tag {message[i + 6:].split(',')[0]}" if i >= 0 else ""
+
+
 def _open_ptu(path: PathLike):
     """Open ``path`` with ``ptufile.PtuFile``, mapping failures to one-line ConfigErrors."""
     ptufile = _import_ptufile()
@@ -180,7 +211,8 @@ def _open_ptu(path: PathLike):
         raise ConfigError(f"{os.fspath(path)!r} is not a PTU file (a folder or a device, not a "
                           f"regular file)")
     try:
-        return ptufile.PtuFile(path)
+        with _ptufile_log() as logged:
+            f = ptufile.PtuFile(path)
     except ptufile.PqFileError as exc:
         msg = (str(exc).splitlines() or [type(exc).__name__])[0][:120]
         what = ("has a truncated or corrupt PTU tag header" if "corrupted" in msg
@@ -192,6 +224,15 @@ def _open_ptu(path: PathLike):
         raise ConfigError(f"{os.fspath(path)!r} has a truncated or corrupt PTU tag header "
                           f"(the file ends after {os.path.getsize(path)} bytes, or a tag is "
                           f"malformed)") from exc
+    bad = [r for r in logged if r.levelno >= logging.ERROR]
+    if bad:  # ptufile logs a tag it cannot read and stops reading the header there
+        f.close()
+        raise ConfigError(f"{os.fspath(path)!r} has a truncated or corrupt PTU tag header "
+                          f"(ptufile: {bad[0].getMessage().split(' @ ')[0]}"
+                          f"{_tag_of(bad[0].getMessage())})")
+    for r in logged:  # duplicate tags and the like: one line each, as any warning
+        warnings.warn(f"{os.fspath(path)!r}: ptufile: {r.getMessage()[:160]}", stacklevel=2)
+    return f
 
 
 def _header_summary(f, path: PathLike) -> dict[str, Any]:
