@@ -235,6 +235,13 @@ def test_calibrate_refuses_an_acquisition_without_photons(acquisitions, tmp_path
     (lambda c: c.update(irf_values=[-1.0] * len(c["irf_offsets"])), "damaged"),
     (lambda c: c.update(code_length=127), "127 bits"),
     (lambda c: c.update(kind="other"), "not a file written"),
+    # edited by hand (found 2026-11-28: each was taken, the first moving every depth 8 cm)
+    (lambda c: c.update(lag_fraction=5.0), "outside [-0.5, 0.5]"),
+    (lambda c: c.update(irf_offsets=[str(o) for o in c["irf_offsets"]]), "wrong kind"),
+    (lambda c: c.update(irf_offsets=[0] * len(c["irf_offsets"])), "distinct, increasing"),
+    (lambda c: c.update(lag_shift=c["lag_shift"] + 3), "disagree with delay_s"),
+    (lambda c: c.update(delay_s=c["delay_s"] + 2e-10), "disagree with delay_s"),
+    (lambda c: c.update(lag_shift=True), "wrong kind"),
 ])
 def test_reconstruct_refuses_a_damaged_calibration(acquisitions, tmp_path, capsys, damage,
                                                    match):

@@ -294,6 +294,7 @@ def check_calibration(cal: dict, what: str, bit_rate: float, code: np.ndarray) -
             or not np.all(np.isfinite(values)) or values.min() < 0 or values.sum() <= 0
             or not all(np.isfinite(numbers)) or whole[0] < 2):
         raise ConfigError(f"{what}: its IRF or numbers are damaged; calibrate again")
+    _check_consistent(cal, offsets, values, numbers, whole, what)
     if abs(numbers[0] - float(bit_rate)) > 1e-9 * float(bit_rate):
         raise ConfigError(f"{what} was measured at {numbers[0]:g} bits/s, "
                           f"not {float(bit_rate):g}")
@@ -301,6 +302,42 @@ def check_calibration(cal: dict, what: str, bit_rate: float, code: np.ndarray) -
         raise ConfigError(f"{what} was measured with a code of "
                           f"{cal['code_length']} bits, not {np.asarray(code).size}")
     return cal
+
+
+def _check_consistent(cal: dict, offsets: np.ndarray, values: np.ndarray, numbers: list,
+                      whole: list, what: str) -> None:
+    """What :func:`measure_calibration` writes holds together; a file edited by hand that
+    breaks it is refused (a ``lag_fraction`` of 5 moved every depth by 8 cm, offsets as
+    strings or all zeros, a ``lag_shift`` that contradicts ``delay_s``, were all taken)."""
+    def exact_ints(key: str) -> bool:
+        v = cal[key]
+        items = v if isinstance(v, list) else [v]
+        return all(isinstance(i, int) and not isinstance(i, bool) for i in items)
+
+    def reals(key: str) -> bool:
+        v = cal[key]
+        items = v if isinstance(v, list) else [v]
+        return all(isinstance(i, (int, float)) and not isinstance(i, bool) for i in items)
+
+    if not (exact_ints("irf_offsets") and exact_ints("lag_shift") and exact_ints("code_length")
+            and reals("irf_values") and all(reals(k) for k in ("bit_rate_hz", "delay_s",
+                                                                  "irf_fwhm_bins"))
+            and ("lag_fraction" not in cal or reals("lag_fraction"))):
+        raise ConfigError(f"{what}: a field holds text or a value of the wrong kind (offsets "
+                          f"and lag_shift are whole numbers); calibrate again")
+    if np.any(np.diff(offsets) <= 0) or 0 not in offsets:
+        raise ConfigError(f"{what}: irf_offsets must be distinct, increasing bin offsets "
+                          f"around 0; calibrate again")
+    if abs(numbers[3]) > 0.5 + 1e-9:
+        raise ConfigError(f"{what}: lag_fraction {numbers[3]:g} is outside [-0.5, 0.5] bins "
+                          f"(the rest of the delay is lag_shift); calibrate again")
+    period = whole[0]
+    delay_bins = numbers[1] * numbers[0]  # delay_s x bit rate
+    miss = (delay_bins - (whole[1] - numbers[3]) + period / 2) % period - period / 2
+    if abs(miss) > 1.5:  # the sub-bin peak lies within 1 + 1/UPSAMPLE bins of the lag's
+        raise ConfigError(f"{what}: lag_shift {whole[1]} and lag_fraction {numbers[3]:g} "
+                          f"disagree with delay_s ({delay_bins:.4g} bins) by {miss:.3g} "
+                          f"bins; calibrate again")
 
 
 class CalibratedFilter(NamedTuple):
