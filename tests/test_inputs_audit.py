@@ -196,3 +196,68 @@ def test_a_corrupt_tag_is_one_line_naming_it(measured, tmp_path, capsys):
     line = _one_line(capsys)
     assert "corrupt PTU tag header" in line and "invalid tag type at tag 'File_GUID'" in line
     assert not out.exists()
+
+
+@pytest.mark.parametrize("args,said", [
+    (["--patterns", "bernoulli", "--hadamard-realisation", "differential"],
+     "--hadamard-realisation differential is ignored"),
+    (["--patterns", "hadamard", "--pattern-sigma", "0.5"], "--pattern-sigma 0.5 is ignored"),
+    (["--fairness", "power"], "--fairness power is ignored"),
+    (["--lidar", "conventional", "--code-length", "2047", "--code", "gold", "--code-index", "7",
+      "--ones-ratio", "0.3"],
+     "--code gold, --code-index 7, --ones-ratio 0.3 are ignored"),
+    (["--lam", "0.1", "--lam-scale", "5"], "--lam-scale 5 is ignored"),
+])
+def test_options_the_configuration_ignores_are_said_in_one_line(tmp_path, capsys, args, said):
+    """Each ran with the option silently without effect (the depth map the same to the
+    bit) while metrics.json recorded it as used."""
+    import json
+
+    assert main(["run", *FAST, "--out", str(tmp_path / "o"), *args]) == 0  # (the last wins)
+    err = [e for e in capsys.readouterr().err.splitlines() if "ignored" in e]
+    assert len(err) == 1 and said in err[0], err
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert any(said in w for w in m["warnings"])
+
+
+def test_a_fixed_ratio_code_names_its_family():
+    from spslidar.config import Config
+    from spslidar.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="a Gold code has"):
+        Config.from_dict({"code": "gold", "code_length": 127, "ones_ratio": 0.3})
+    with pytest.raises(ConfigError, match="an m-sequence has"):
+        Config.from_dict({"code_length": 127, "ones_ratio": 0.3})
+
+
+def test_an_empty_save_ptu_is_refused(tmp_path, capsys):
+    """``--save-ptu ""`` ran and wrote no PTU, saying nothing (``--out ""`` was refused)."""
+    out = tmp_path / "o"
+    assert main(["run", *FAST, "--out", str(out), "--save-ptu", ""]) == 2
+    assert "--save-ptu must name a file" in _one_line(capsys)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("where,match", [
+    ("afile/c.json", "afile is a file, not a folder"),
+    ("", "--out must name the calibration file"),
+    ("adir", "adir is a folder"),
+])
+def test_calibrate_says_what_is_wrong_with_out(tmp_path, capsys, monkeypatch, where, match):
+    """It said "the folder afile does not exist" of a file, and "--out  exists; use
+    --overwrite" of an empty name."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("mine")
+    (tmp_path / "adir").mkdir()
+    assert main(["calibrate", "--ptu", "x.ptu", "--patterns", "p.npy", "--code", "c.npy",
+                 "--bit-rate", "10e9", "--distance", "25", "--out", where]) == 2
+    assert match in _one_line(capsys)
+    assert (tmp_path / "afile").read_text() == "mine"
+
+
+def test_reproduce_says_trials_are_ignored_where_none_are_run(tmp_path, capsys):
+    """``reproduce snr --trials 3`` wrote the same snr.csv as without it, saying nothing."""
+    assert main(["reproduce", "snr", "--quick", "--trials", "3", "--out",
+                 str(tmp_path / "r"), "--no-progress"]) == 0
+    err = capsys.readouterr().err
+    assert "--trials 3 is ignored by snr" in err

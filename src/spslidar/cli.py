@@ -83,7 +83,9 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                         "paper's); signal and noise photons grow with it")
     g.add_argument("--patterns", choices=patterns, default=S,
                    help=f"DMD patterns: {patterns_help}")
-    g.add_argument("--pattern-sigma", type=float, default=S, metavar="S")
+    g.add_argument("--pattern-sigma", type=float, default=S, metavar="S",
+                   help="spread of the grey levels of --patterns gaussian, "
+                        "clip(0.5 + S N(0, 1), 0, 1) (default 0.25)")
     from .patterns import HADAMARD_ORDERS, HADAMARD_REALISATIONS
 
     g.add_argument("--hadamard-order", choices=HADAMARD_ORDERS, default=S,
@@ -509,6 +511,10 @@ def _cmd_run(args) -> int:
             if k not in ("command", "config", "out", "no_figure", "overwrite", "func",
                          "save_ptu", "fov")}
     save_ptu = getattr(args, "save_ptu", None)
+    if save_ptu is not None and not str(save_ptu).strip():  # "" wrote nothing, saying nothing
+        from .errors import ConfigError
+
+        raise ConfigError("--save-ptu must name a file (FILE.ptu)")
     if save_ptu:
         from .outdir import check_files
         from .pipeline.real import ptu_companions

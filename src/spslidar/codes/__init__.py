@@ -34,9 +34,11 @@ def _validate_fixed_ratio(cfg) -> None:
     """Registry hook of the m-sequence and Gold families: their share of '1' bits is fixed
     near 1/2, so a ``ones_ratio`` other than the default is a mistake, not a setting."""
     _validate_length(cfg)
-    if cfg.ones_ratio != 0.5:
+    if cfg.ones_ratio != 0.5 and getattr(cfg, "lidar", "psst") != "conventional":  # (warned)
+        family = {"mseq": "an m-sequence", "gold": "a Gold code"}.get(cfg.code,
+                                                                      f"a {cfg.code} code")
         raise ConfigError(f"--ones-ratio {cfg.ones_ratio:g} applies to --code random only: "
-                          f"an {cfg.code} code has (length + 1) / 2 ones")
+                          f"{family} has (length + 1) / 2 ones")
 
 
 _MAKE = "spslidar.codes.sequences:make_code"

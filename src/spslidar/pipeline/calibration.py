@@ -234,7 +234,11 @@ def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Pa
     wrote, and that only with ``overwrite``: checked before the work and again at the end."""
     from ..errors import SpslidarError
 
+    if out is None or not str(out).strip():
+        raise SpslidarError("--out must name the calibration file (CAL.json)")
     path = Path(out)
+    if path.is_dir():
+        raise SpslidarError(f"--out {out} is a folder; name the calibration file (CAL.json)")
     if path.exists():
         if not overwrite:
             raise SpslidarError(f"--out {out} exists; use --overwrite to replace it")
@@ -245,6 +249,8 @@ def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Pa
         if not ours:
             raise SpslidarError(f"--out {out} exists and is not a spslidar calibration; "
                                 f"refusing to replace it")
+    if path.parent.exists() and not path.parent.is_dir():
+        raise SpslidarError(f"--out {out}: {path.parent} is a file, not a folder")
     if not path.parent.is_dir():
         raise SpslidarError(f"--out {out}: the folder {path.parent} does not exist")
     return path

@@ -121,6 +121,9 @@ class Context:
     seed: int = 0
     failed: int = 0
     max_time: float | None = None
+    #: whether the running experiment asked for :meth:`n_trials` (``--trials`` is said to be
+    #: ignored by one that did not: eq. (10)'s Monte-Carlo counts code periods)
+    trials_read: bool = False
 
     @property
     def size(self) -> int:
@@ -139,6 +142,7 @@ class Context:
 
     def n_trials(self, full: int = 1) -> int:
         """Trials for an experiment whose full-mode default is ``full``."""
+        self.trials_read = True
         if self.trials is not None:
             return self.trials
         return 1 if self.quick else full

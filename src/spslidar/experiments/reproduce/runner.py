@@ -109,6 +109,7 @@ def reproduce_main(
     for name in names:
         t0 = time.perf_counter()
         before, failed_before = n_cached(ctx), ctx.failed
+        ctx.trials_read = False
         try:
             text, claims = EXPERIMENT_REGISTRY.load(name)(ctx)
         except SpslidarError:  # bad input (a time budget too small...): one line, exit 2
@@ -119,6 +120,9 @@ def reproduce_main(
             print(f"reproduce {name}: failed: {type(exc).__name__}: {exc}", file=sys.stderr)
             status = 1
             continue
+        if trials is not None and not ctx.trials_read:
+            print(f"spslidar: warning: --trials {trials} is ignored by {name}: it runs no "
+                  f"repeated trials", file=sys.stderr)
         write_section(out, name, text, claims)
         build_report(out, EXPERIMENT_REGISTRY.names())
         failed = ctx.failed - failed_before
