@@ -483,24 +483,6 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
     return p
 
 
-def _no_collision(files: list[str], out: str) -> None:
-    """Refuse, before any work, ``--save-ptu`` files that are the ``--out`` folder or lie in
-    it: the PTU was written first and the result then refused, leaving both behind."""
-    import os
-
-    from .errors import ConfigError
-
-    if out is None or str(out).strip() == "":
-        return  # check_output says so
-    folder = Path(os.path.abspath(out))
-    for f in files:
-        path = Path(os.path.abspath(f))
-        if path == folder or folder in path.parents:
-            raise ConfigError(f"--save-ptu {files[0]}: {f} would be "
-                              f"{'the --out folder' if path == folder else 'inside --out'} "
-                              f"{out}; save the acquisition beside the result folder")
-
-
 def _cmd_run(args) -> int:
 
     from .config import Config, read_toml
@@ -520,8 +502,7 @@ def _cmd_run(args) -> int:
         from .pipeline.real import ptu_companions
 
         ptu_files = [save_ptu, *ptu_companions(save_ptu)]
-        _no_collision(ptu_files, args.out)
-        check_files(ptu_files, args.overwrite)  # refuse before any work
+        check_files(ptu_files, args.overwrite, outside=args.out)  # refuse before any work
     check_output(args.out, args.overwrite)  # refuse before any work
     base = read_toml(args.config) if args.config else {}
     cfg = Config.from_dict({**base, **opts})

@@ -301,11 +301,22 @@ def _files_marker(first: Path) -> Path:
     return first.with_name(f".{first.name}.spslidar.json")
 
 
-def check_files(paths, overwrite: bool = False, option: str = "--save-ptu") -> None:
+def check_files(paths, overwrite: bool = False, option: str = "--save-ptu",
+                outside: str | os.PathLike | None = None) -> None:
     """Refuse (one line, before any work) to write files that exist, unless ``overwrite``
     and their marker (written by :func:`write_files` beside the first) proves that spslidar
-    wrote them, unchanged since (the SHA-256 of each)."""
+    wrote them, unchanged since (the SHA-256 of each); and files that are the result folder
+    ``outside`` (``--out``) or lie in it (``run --out same --save-ptu same`` wrote the PTU,
+    then refused the result folder, leaving both)."""
     paths = [Path(p) for p in paths]
+    if outside is not None and str(outside).strip():
+        folder = Path(os.path.abspath(os.fspath(outside)))
+        for p in paths:
+            full = Path(os.path.abspath(p))
+            if full == folder or folder in full.parents:
+                where = "the --out folder" if full == folder else "inside --out"
+                raise SpslidarError(f"{option} {paths[0]}: {p} would be {where} {outside}; "
+                                    f"save it beside the result folder")
     for folder in dict.fromkeys(Path(os.path.abspath(p)).parent for p in paths):
         _check_writable(folder, f"{option} {paths[0]}", make_parents=False)
     present = [p for p in paths if p.exists() or p.is_symlink()]
