@@ -13,25 +13,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _cli_inputs import FAST, small_acquisition
+from _cli_inputs import one_line as _one_line
 
 from spslidar.cli import main
-
-FAST = ["--size", "8", "--code-length", "127", "--no-figure"]
-
-
-def _one_line(capsys) -> str:
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1, err
-    return err[0]
 
 
 @pytest.fixture(scope="module")
 def measured(tmp_path_factory):
     """A small PTU acquisition written by ``run --save-ptu`` (8x8, 127-bit code)."""
-    d = tmp_path_factory.mktemp("measured")
-    assert main(["run", *FAST, "--signal", "1", "--noise", "0.02", "--compression", "0.5",
-                 "--save-ptu", str(d / "scan.ptu"), "--out", str(d / "run")]) == 0
-    return d
+    return small_acquisition(tmp_path_factory.mktemp("measured"))
 
 
 def _reconstruct(d: Path, out: Path, *extra: str, patterns=None, code=None) -> int:
