@@ -57,10 +57,17 @@ def incident_per_dead_time(ctx: Context, lidar: str, signal: float, noise: float
     count, hence its photons per pulse at equal power, depends on it)."""
     from spslidar.pipeline import measure
 
-    cfg = {**base_params(ctx, size=_size(ctx), lidar=lidar, fairness="power", signal=signal,
-                         noise=noise, periods=periods), "noiseless": True, "depth": "argmax"}
+    cfg = {**base_params(ctx, size=_size(ctx), lidar=lidar, fairness=_fairness(lidar),
+                         signal=signal, noise=noise, periods=periods),
+           "noiseless": True, "depth": "argmax"}
     meas = measure(cfg)
     return float(meas.sim["pileup"]["counts_per_dead_time"])
+
+
+def _fairness(lidar: str) -> str:
+    """Equal average power: the conventional lidar's pulses carry the PSST's photons of the
+    dwell (a PSST lidar is the reference, and is told nothing it would ignore)."""
+    return "power" if lidar == "conventional" else "energy"
 
 
 def pileup_points(ctx: Context) -> tuple[list[dict[str, Any]], list[float], dict[str, float]]:
@@ -80,7 +87,8 @@ def pileup_points(ctx: Context) -> tuple[list[dict[str, Any]], list[float], dict
                 ms = flux / per_unit
                 for det, corr, _ in MODELS:
                     points.append({
-                        **base_params(ctx, size=_size(ctx), lidar=lidar, fairness="power",
+                        **base_params(ctx, size=_size(ctx), lidar=lidar,
+                                      fairness=_fairness(lidar),
                                       signal=ms, noise=ms * NOISE_RATIO, periods=periods,
                                       detector=det, pileup_correction=corr,
                                       dead_time=DEAD_TIME),
