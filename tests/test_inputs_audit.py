@@ -5,6 +5,8 @@ exit 2 with nothing written, or a one-line warning; never a traceback."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from _cli_inputs import FAST, small_acquisition
@@ -252,3 +254,64 @@ def test_reproduce_says_trials_are_ignored_where_none_are_run(tmp_path, capsys):
                  str(tmp_path / "r"), "--no-progress"]) == 0
     err = capsys.readouterr().err
     assert "--trials 3 is ignored by snr" in err
+
+
+def _profiles(seed: int = 0) -> tuple[np.ndarray, object]:
+    from spslidar.depth import DepthContext
+
+    rng = np.random.default_rng(seed)
+    s = rng.random((64, 40)) * 0.1
+    s[np.arange(64), rng.integers(0, 40, 64)] += 1.0
+    return s, DepthContext(np.arange(1000, 1040), 1e-10, 0.5, (8, 8))
+
+
+@pytest.mark.parametrize("name", ["argmax", "censor", "evidence", "guarded", "mrf"])
+def test_a_pixel_that_is_not_finite_has_no_return_and_leaves_the_others(name):
+    """One NaN moved 62 of 64 MRF depths to the first lag and made every confidence NaN;
+    all-NaN slices gave 64 finite depths."""
+    from spslidar.depth import ESTIMATORS
+
+    s, ctx = _profiles()
+    bad = s.copy()
+    bad[3, 5] = np.nan
+    bad[7, 0] = np.inf
+    a = ESTIMATORS.load(name)().estimate(s, ctx)
+    b = ESTIMATORS.load(name)().estimate(bad, ctx)
+    rest = ~np.isin(np.arange(64), [3, 7])
+    assert np.array_equal(a.depth[rest], b.depth[rest], equal_nan=True)
+    assert np.isnan(b.depth[[3, 7]]).all() and (b.confidence[[3, 7]] == 0).all()
+    assert np.all((b.confidence >= 0) & (b.confidence <= 1))
+    allnan = ESTIMATORS.load(name)().estimate(np.full((64, 40), np.nan), ctx)
+    assert np.isnan(allnan.depth).all() and not allnan.confidence.any()
+
+
+@pytest.mark.parametrize("slices,match", [
+    (np.zeros(64), "non-empty (Q, K) array"),
+    (np.zeros((64, 0)), "non-empty (Q, K) array"),
+    (np.zeros((0, 40)), "non-empty (Q, K) array"),
+    (np.zeros((64, 30)), "ctx.lags has 40 delays but the slices 30"),
+    (np.zeros((64, 40), complex), "real numbers"),
+    (np.zeros((49, 40)), "does not hold the 49 pixels"),
+])
+@pytest.mark.parametrize("name", ["argmax", "censor", "evidence", "guarded", "mrf"])
+def test_an_estimator_refuses_slices_that_do_not_fit_its_context(name, slices, match):
+    """These ended in IndexError, AxisError or numpy's pad errors, or gave depths from lags
+    that were not the slices' (every estimator but argmax took 30 lags for 40 slices)."""
+    from spslidar.depth import ESTIMATORS
+
+    _, ctx = _profiles()
+    if name in ("argmax", "censor") and slices.shape == (49, 40):
+        return  # per-pixel estimators need no image shape
+    with pytest.raises(ConfigError, match=re.escape(match)):
+        ESTIMATORS.load(name)().estimate(slices, ctx)
+
+
+def test_a_weight_the_solve_cannot_hold_is_refused():
+    """``lam_scale=1e40`` in float32 solved to NaN slices, scored as a depth map of one
+    value with every confidence NaN and no warning."""
+    import spslidar
+
+    m = spslidar.measure(size=8, code_length=127, compression=0.5)
+    with pytest.raises(ConfigError, match="beyond what float32 can hold"):
+        spslidar.reconstruct(m, lam_scale=1e40)
+    assert np.isfinite(spslidar.reconstruct(m, lam_scale=1e30).depth_rmse)

@@ -12,6 +12,7 @@ import functools
 
 import numpy as np
 
+from ..errors import ConfigError
 from ..forward import delay_to_depth
 from .base import DepthContext
 
@@ -159,7 +160,7 @@ def grid_shape(ctx: DepthContext, q: int) -> tuple[int, int]:
     """The image shape ``ctx.shape``, checked against the ``q`` pixels of the slices."""
     n1, n2 = (int(v) for v in ctx.shape)
     if n1 * n2 != q:
-        raise ValueError(f"ctx.shape {ctx.shape} does not hold the {q} pixels of the slices: "
+        raise ConfigError(f"ctx.shape {ctx.shape} does not hold the {q} pixels of the slices: "
                          f"a spatial depth estimator needs the image shape")
     return n1, n2
 

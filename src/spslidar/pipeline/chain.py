@@ -223,6 +223,10 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         lam_max = float(np.abs(np.asarray(A.rmatvec(y))).max(initial=0.0))
     lam, lam_scale, floored = default_weight(cfg, sigma_eff, lam_max)
     warns.extend(weight_warnings(cfg, lam, lam_max))
+    if not lam * 1e6 < float(np.finfo(cfg.dtype).max):  # its steps would overflow: NaN slices
+        raise ConfigError(f"the weight {lam:.3g} is beyond what {cfg.dtype} can hold through "
+                          f"the solve: lower --lam or --lam-scale (the default is about 0.01 "
+                          f"max |A^T y|, {lam_max:.3g} here)")
     if be is not None:
         be.sync()
     timing["qcr"] = time.perf_counter() - t0
@@ -249,6 +253,11 @@ def reconstruct(meas: Measurement, **processing) -> Result:
             x = eliminated.recover(x, y_plain)
         stop_cap = stop.max_iter
     timing["solve"] = time.perf_counter() - t0
+    if not (bool(xp.all(xp.isfinite(x))) if device else bool(np.isfinite(x).all())):
+        # (a weight that overflows float32, 1e39, gave NaN slices scored as a depth map)
+        raise ConfigError(f"the {cfg.solver} solve diverged (its estimate is not finite) at "
+                          f"the weight {lam:.3g} in {cfg.dtype}: lower --lam or --lam-scale, "
+                          f"or use --dtype float64")
     if not cfg.qcr and eliminated is None and info.stop_reason == "max_iter":
         warns.append(
             f"without QCR the problem is ill-conditioned (the patterns' mean dominates its "
