@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import threading
 from collections import OrderedDict
 
@@ -23,10 +24,16 @@ _shared_lock = threading.Lock()
 
 
 def simulation_key(cfg: Config) -> str:
-    """What identifies a simulated measurement: the config without its processing keys."""
+    """What identifies a simulated measurement: the config without its processing keys, and
+    where the scene is a file, the file's size and modification time (a scene file edited
+    between two runs in one process gave the earlier file's measurement)."""
     d = cfg.to_dict()
     for k in PROCESSING_KEYS:
         d.pop(k, None)
+    scene = str(cfg.scene)
+    if os.path.isfile(scene):
+        st = os.stat(scene)
+        d["scene_file"] = [st.st_size, st.st_mtime_ns]
     return json.dumps(d, sort_keys=True, default=repr)
 
 

@@ -24,6 +24,7 @@ from spslidar.errors import ConfigError, SpslidarError
 from spslidar.experiments.sweep.grid import (
     ERROR_KEY,
     KEY_LENGTH,
+    SCENE_HASH_KEY,
     SEED_KEY,
     TRIAL_KEY,
     canonical,
@@ -295,13 +296,18 @@ def _process_headroom() -> tuple[int, int] | None:
     return int(soft), used
 
 
+def _cores() -> int:
+    """The cores this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
+        os.cpu_count() or 1)
+
+
 def clamp_jobs(jobs: int, n_tasks: int) -> int:
     """The worker processes worth starting: at most one per task, per core and per what the
     process limit (``ulimit -u``) leaves room for (``-1``: the cores); a clamp is said on
     stderr (``--jobs 1000`` for 3 runs started a 1000-process pool, and where the process
     limit was low it ended in a traceback). 1 means run in this process, without a pool."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
-        os.cpu_count() or 1)
+    cores = _cores()
     want = cores if jobs == -1 else jobs
     use = max(1, min(want, cores, max(1, n_tasks)))
     why = f"{n_tasks} runs to do, {cores} cores"
@@ -500,8 +506,30 @@ def run_point(params: dict[str, Any]) -> dict[str, Any]:
     """
     from spslidar.pipeline import run_metrics
 
-    config = {key: value for key, value in params.items() if key != TRIAL_KEY}
+    config = {key: value for key, value in params.items()
+              if key not in (TRIAL_KEY, SCENE_HASH_KEY)}
     return run_metrics(config)
+
+
+def with_scene_hashes(points: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """Each point whose scene is a file, with the file's SHA-256 as ``scene_sha256``: the
+    cache key (and ``results.csv``) then follow the file's content (an edited scene file
+    was given the earlier file's cached results). Each file is read once."""
+    from spslidar.outdir import sha256_file
+    from spslidar.scenes import SCENE_FILE_SUFFIXES
+
+    sums: dict[str, str] = {}
+    out = []
+    for point in points:
+        point = dict(point)
+        scene = point.get("scene")
+        if (isinstance(scene, str) and Path(scene).suffix.lower() in SCENE_FILE_SUFFIXES
+                and os.path.isfile(scene)):
+            if scene not in sums:
+                sums[scene] = sha256_file(scene)
+            point[SCENE_HASH_KEY] = sums[scene]
+        out.append(point)
+    return out
 
 
 def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any) -> float:
@@ -514,7 +542,8 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any) -> flo
     seconds: dict[str, float] = {}
     total = 0.0
     for params in points:
-        config = {key: value for key, value in params.items() if key != TRIAL_KEY}
+        config = {key: value for key, value in params.items()
+                  if key not in (TRIAL_KEY, SCENE_HASH_KEY)}
         try:
             cfg = Config.from_dict(config)
             # the scene loads and the memory fits: once per simulated configuration
@@ -572,10 +601,15 @@ def sweep_main(
         from spslidar.pipeline import PROCESSING_KEYS
 
         total = _validate_run_points(points, config_path)
-        ignore = PROCESSING_KEYS
+        points = with_scene_hashes(points)
+        ignore = frozenset(PROCESSING_KEYS) | {SCENE_HASH_KEY}  # an edited scene: same noise
         from spslidar.pipeline.budget import check_time
 
-        check_time(total / max(1, min(len(points), abs(jobs) if jobs != -1 else 2)), max_time,
+        jobs = _check_jobs(jobs)
+        # local workers are at most the cores (--jobs 1000 divided a 9 h sweep into 31 s)
+        workers = jobs if scheduler is not None else min(
+            _cores(), _cores() if jobs == -1 else jobs)
+        check_time(total / max(1, min(len(points), workers)), max_time,
                    f"this sweep of {len(points)} runs")
     from spslidar.outdir import claim_folder, release_folder
 

@@ -34,6 +34,7 @@ __all__ = [
     "ERROR_KEY",
     "KEY_LENGTH",
     "SEED_BOUND",
+    "SCENE_HASH_KEY",
     "SEED_KEY",
     "TRIAL_KEY",
     "SweepSpec",
@@ -49,6 +50,9 @@ __all__ = [
 TRIAL_KEY = "trial"
 #: Parameter holding a point's random seed (set by :func:`run_sweep` unless the point has one).
 SEED_KEY = "seed"
+#: Parameter added to the points of a sweep of runs whose scene is a file: its SHA-256, so that
+#: the cache key (and ``results.csv``) follow the file's content, not only its name.
+SCENE_HASH_KEY = "scene_sha256"
 #: Column holding the one-line error of a failed point.
 ERROR_KEY = "error"
 #: Seeds from :func:`derive_seed` lie in ``[0, SEED_BOUND)`` (valid for every numpy RNG API).
@@ -197,6 +201,9 @@ def _check_grid(grid: Mapping[str, Any], where: str = "grid") -> None:
             raise ConfigError(f"{where}: key {name!r} is not a string")
         if name == TRIAL_KEY:
             raise ConfigError(f"{where}.{TRIAL_KEY} is reserved; set the number of trials instead")
+        if name == SCENE_HASH_KEY:
+            raise ConfigError(f"{where}.{SCENE_HASH_KEY} is reserved: the sweep reads it from "
+                              f"the scene file")
         if not isinstance(values, (list, tuple)) or len(values) == 0:
             raise ConfigError(f"{where}.{name} must be a non-empty list of values, got {values!r}")
 
@@ -234,6 +241,9 @@ def expand_grid(
         raise ConfigError(f"base must be a table, got {type(base).__name__}")
     if TRIAL_KEY in base:
         raise ConfigError(f"base.{TRIAL_KEY} is reserved; set the number of trials instead")
+    if SCENE_HASH_KEY in base:
+        raise ConfigError(f"base.{SCENE_HASH_KEY} is reserved: the sweep reads it from the "
+                          f"scene file")
     _check_grid(grid)
     trials = check_int(trials, "trials")
     if trials < 1:
@@ -364,10 +374,18 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
                           f"hours of work); split it into several sweeps")
     if TRIAL_KEY in base:
         raise ConfigError(f"{path}: base.{TRIAL_KEY} is reserved; set trials instead")
+    if SCENE_HASH_KEY in base:
+        raise ConfigError(f"{path}: base.{SCENE_HASH_KEY} is reserved: the sweep reads it "
+                          f"from the scene file")
     if SEED_KEY in base and trials > 1 and SEED_KEY not in grid:
         raise ConfigError(
             f"{path}: base.seed gives every trial the same noise; set the top-level seed instead"
         )
+    if SEED_KEY in grid and trials > 1:  # (the trials of each seed were the same to the bit)
+        raise ConfigError(
+            f"{path}: grid.seed with trials = {trials} gives every trial of a seed the same "
+            f"noise; list the seeds as the grid's trials (trials = 1) or set the top-level "
+            f"seed instead")
     both = sorted(set(base) & set(grid))
     if both:  # the grid wins: said, since a [base] value that never runs looks like an error
         import warnings
