@@ -372,3 +372,20 @@ def test_a_sweeps_time_is_shared_by_the_cores_not_by_jobs(tmp_path, capsys, monk
                      "--max-time", "0.001"]) == 2
         said.append(float(_re.search(r"take ~([0-9.]+) s", _one_line(capsys)).group(1)))
     assert said[0] == said[1]
+
+
+def test_a_measurement_keeps_its_own_config_and_truth():
+    """``measure(cfg)`` kept the caller's Config: editing it afterwards changed what a later
+    ``reconstruct`` reported (scene 'motorcycle' for camera data) or broke it (a raw
+    ValueError from the TV at another size); ``r.truth[:] = 0`` changed what a later
+    reconstruction was scored against."""
+    import spslidar
+
+    cfg = spslidar.Config(size=8, code_length=127, compression=0.5, noise=10, depth="argmax")
+    m = spslidar.measure(cfg)
+    cfg.noise, cfg.scene, cfg.size = 0.0, "motorcycle", 16
+    r = spslidar.reconstruct(m)
+    assert r.metrics["config"]["noise"] == 10 and r.metrics["config"]["scene"] == "camera"
+    with pytest.raises(ValueError, match="read-only"):
+        r.truth[:] = 0
+    assert spslidar.reconstruct(m).depth_rmse == r.depth_rmse

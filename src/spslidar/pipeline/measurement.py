@@ -73,7 +73,7 @@ def _resolve(config, overrides) -> Config:
     if config is None:
         cfg = Config.from_dict(overrides)
     elif isinstance(config, Config):
-        cfg = config.replace(**overrides) if overrides else config
+        cfg = config.replace(**overrides)  # a copy: the caller's later edits stay theirs
     elif isinstance(config, Mapping):
         cfg = Config.from_dict({**dict(config), **overrides})
     else:

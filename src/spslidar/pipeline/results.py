@@ -43,10 +43,13 @@ class Result:
 
     @property
     def truth(self) -> np.ndarray:
-        """The ground-truth depth (all NaN for a measured acquisition without one)."""
+        """The ground-truth depth (all NaN for a measured acquisition without one); read-only:
+        it is the measurement's scene, which later reconstructions score against."""
         if not self.has_truth:
             return np.full(np.shape(self.scene.depth), np.nan)
-        return self.scene.depth
+        view = self.scene.depth.view()
+        view.flags.writeable = False
+        return view
 
     @property
     def depth_rmse(self) -> float:
