@@ -389,3 +389,39 @@ def test_a_measurement_keeps_its_own_config_and_truth():
     with pytest.raises(ValueError, match="read-only"):
         r.truth[:] = 0
     assert spslidar.reconstruct(m).depth_rmse == r.depth_rmse
+
+
+@pytest.mark.parametrize("kw,match", [
+    ({"size": float("nan")}, "--size must be finite, got nan"),
+    ({"seed": float("inf")}, "--seed must be finite"),
+    ({"iterations": float("inf")}, "--iterations must be finite"),
+    ({"code_length": 10**400}, "--code-length must be finite, got an integer of 401 digits"),
+    ({"signal": 10**400}, "--signal must be finite"),
+    ({"signal": 1e38}, "expected photons per TDC bin per pixel"),
+    ({"noise": 1e38}, "expected photons per TDC bin per pixel"),
+    ({"background_rate": 1e300}, "expected photons per TDC bin per pixel"),
+    ({"dark_count_rate": 1e300}, "expected photons per TDC bin per pixel"),
+])
+def test_numbers_no_run_can_hold_are_one_line(kw, match):
+    """NaN, infinite or huge integers gave ValueError / OverflowError from int() and
+    float(); a signal of 1e38 overflowed to an infinite Poisson mean deep in the detector."""
+    from spslidar.config import Config
+
+    with pytest.raises(ConfigError) as info:
+        Config.from_dict(kw)
+    assert match in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_seed_beyond_a_float_is_an_integer():
+    from spslidar.config import Config
+
+    assert Config.from_dict({"seed": 10**30}).seed == 10**30  # (it was "must be an integer")
+
+
+def test_a_toml_with_nan_is_one_line(tmp_path, capsys):
+    toml = _sweep_toml(tmp_path, "[base]\ncode_length=127\n[grid]\nsize=[nan, 8]\n")
+    assert main(["sweep", toml, "--out", str(tmp_path / "o")]) == 2
+    assert "must be finite" in _one_line(capsys)
+    (tmp_path / "r.toml").write_text("size = nan\n")
+    assert main(["run", "--config", str(tmp_path / "r.toml"), "--out", str(tmp_path / "p")]) == 2
+    assert "--size must be finite" in _one_line(capsys)

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .constants import MAX_DEPTH_M
+from .constants import MAX_COUNT_MEAN, MAX_DEPTH_M
 from .errors import ConfigError
 
 LIDARS = ("psst", "conventional")
@@ -264,8 +264,15 @@ class Config:
             opt = name.replace("_", "-")
             if isinstance(v, bool) or not isinstance(v, (int, float)):
                 raise ConfigError(f"--{opt} must be a number, got {v!r}")
+            try:  # a NaN, an infinity or an integer beyond any float is none of these
+                finite = math.isfinite(float(v))
+            except OverflowError:
+                finite = False
+            if not finite:
+                shown = v if isinstance(v, float) else f"an integer of {len(str(abs(v)))} digits"
+                raise ConfigError(f"--{opt} must be finite, got {shown}")
             if integer:
-                if float(v) != int(v):
+                if isinstance(v, float) and not v.is_integer():
                     raise ConfigError(f"--{opt} must be an integer, got {v}")
                 v = int(v)
                 setattr(self, name, v)
@@ -329,6 +336,20 @@ class Config:
         number("noise", 0)
         number("background_rate", 0)
         number("dark_count_rate", 0)
+        # one pixel's expected counts per bin beyond what a float32 count holds exactly: no
+        # image of N x N >= 16 such pixels can run (signal=1e38 overflowed to an infinite mean
+        # deep in the detector); the detector checks the whole image's means again
+        per_bin = {"signal": self.signal, "noise": self.noise,
+                   "background_rate": self.background_rate / self.bit_rate
+                   if math.isfinite(self.bit_rate) and self.bit_rate > 0 else 0.0,
+                   "dark_count_rate": self.dark_count_rate / self.bit_rate
+                   if math.isfinite(self.bit_rate) and self.bit_rate > 0 else 0.0}
+        for name, v in per_bin.items():
+            if v > MAX_COUNT_MEAN:
+                raise ConfigError(f"--{name.replace('_', '-')} {getattr(self, name):g} gives "
+                                  f"about {v:.3g} expected photons per TDC bin per pixel, more "
+                                  f"than the {MAX_COUNT_MEAN:.3g} a count holds exactly (a "
+                                  f"real detector saturates at about one count per dead time)")
         self._validate_stage_options()
         number("lam", 0, optional=True)
         number("lam_scale", 0, lo_open=True, optional=True)

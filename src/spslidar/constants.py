@@ -9,3 +9,5 @@ MAX_DEPTH_M = 1e6
 #: at least 1 GB even at 4x4 pixels; beyond it the arrays would not exist before the memory
 #: check could refuse the run)
 MAX_GATE_BINS = 2 ** 24
+#: largest mean counts per TDC bin: counts are float32, exact integers up to 2^24
+MAX_COUNT_MEAN = 2 ** 24 * 0.9

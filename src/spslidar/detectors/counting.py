@@ -42,13 +42,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..constants import MAX_COUNT_MEAN
 from ..errors import ConfigError
 
 AMBIENT_MODELS = ("paper", "modulated")
 #: row blocks for the Poisson draws (fixed, so results do not depend on the thread count)
 N_BLOCKS = 8
 #: largest mean counts per bin: counts are returned as float32, exact integers up to 2^24
-MAX_MEAN = 2**24 * 0.9
+MAX_MEAN = MAX_COUNT_MEAN
 
 
 @dataclass
@@ -137,6 +138,8 @@ def check_means(lam: np.ndarray) -> None:
         return
     lo, hi = lam.min(), lam.max()
     # NaN fails every comparison, so two reductions check finiteness and sign at once
+    if hi == np.inf and lo >= 0:  # finite inputs whose product overflowed: too many counts
+        raise ConfigError(too_many_counts(float(hi)))
     if not (lo >= 0 and hi < np.inf):
         raise ValueError("Poisson means must be finite and non-negative")
     if hi > MAX_MEAN:
