@@ -425,3 +425,14 @@ def test_a_toml_with_nan_is_one_line(tmp_path, capsys):
     (tmp_path / "r.toml").write_text("size = nan\n")
     assert main(["run", "--config", str(tmp_path / "r.toml"), "--out", str(tmp_path / "p")]) == 2
     assert "--size must be finite" in _one_line(capsys)
+
+
+@pytest.mark.parametrize("fov", ["abc", np.array([10]), True, 200])
+def test_result_save_checks_the_field_of_view_before_any_file(tmp_path, fov):
+    """``save(fov_deg='abc')`` raised a raw ValueError from float(), an array a TypeError."""
+    import spslidar
+
+    r = spslidar.run(size=8, code_length=127, compression=0.5)
+    with pytest.raises(ConfigError, match="field of view"):
+        r.save(tmp_path / "o", fov_deg=fov, figure=False)
+    assert not (tmp_path / "o").exists()

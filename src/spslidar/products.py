@@ -27,8 +27,11 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+
+from .errors import ConfigError
 
 __all__ = ["DEFAULT_FOV_DEG", "point_cloud", "read_ply", "reflectivity_image", "write_ply"]
 
@@ -84,6 +87,16 @@ def reflectivity_image(slices: np.ndarray, depth: np.ndarray, lags: np.ndarray,
     return out.reshape(shape)
 
 
+def check_fov(fov_deg: Any) -> float:
+    """A field of view in degrees, in (0, 180), as a float; one line otherwise."""
+    if isinstance(fov_deg, (str, bytes, bool)) or not isinstance(fov_deg,
+                                                                 (int, float, np.number)):
+        raise ConfigError(f"the field of view must be a number of degrees, got {fov_deg!r}")
+    if not 0.0 < float(fov_deg) < 180.0:
+        raise ConfigError(f"the field of view must lie in (0, 180) degrees, got {fov_deg}")
+    return float(fov_deg)
+
+
 def point_cloud(depth: np.ndarray, fov_deg: float = DEFAULT_FOV_DEG,
                 intensity: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """3-D points of a depth (range) image seen through a pinhole of field of view ``fov_deg``.
@@ -107,12 +120,7 @@ def point_cloud(depth: np.ndarray, fov_deg: float = DEFAULT_FOV_DEG,
     d = np.asarray(depth, dtype=np.float64)
     if d.ndim != 2:
         raise ValueError(f"depth must be a 2-D image, got shape {d.shape}")
-    from .errors import ConfigError
-
-    if isinstance(fov_deg, (str, bytes)) or not isinstance(fov_deg, (int, float, np.number)):
-        raise ConfigError(f"the field of view must be a number of degrees, got {fov_deg!r}")
-    if not 0.0 < float(fov_deg) < 180.0:
-        raise ConfigError(f"the field of view must lie in (0, 180) degrees, got {fov_deg}")
+    check_fov(fov_deg)
     rows, cols = d.shape
     scale = 2.0 * np.tan(np.radians(float(fov_deg)) / 2.0) / max(rows, cols)
     v, u = np.meshgrid((np.arange(rows) + 0.5 - rows / 2.0) * scale,

@@ -124,9 +124,13 @@ class Result:
         files are never touched.
         """
 
+        from ..products import DEFAULT_FOV_DEG, check_fov
+
+        fov = DEFAULT_FOV_DEG if fov_deg is None else check_fov(fov_deg)  # before any file
+
         def fill(tmp: Path) -> None:
             t0 = time.perf_counter()
-            from ..products import DEFAULT_FOV_DEG, write_ply
+            from ..products import write_ply
 
             np.save(tmp / "depth.npy", self.depth)
             if self.has_truth:
@@ -138,7 +142,6 @@ class Result:
                 np.save(tmp / "confidence.npy", self.confidence)
             if self.depth2 is not None:  # the estimator looked for a second surface
                 np.save(tmp / "depth2.npy", self.depth2)
-            fov = DEFAULT_FOV_DEG if fov_deg is None else float(fov_deg)
             points, intensity, fields = self.cloud(fov)
             write_ply(tmp / "points.ply", points, intensity, **fields)
             second = int(np.sum(fields["return_number"] == 2))
