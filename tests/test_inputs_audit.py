@@ -436,3 +436,28 @@ def test_result_save_checks_the_field_of_view_before_any_file(tmp_path, fov):
     with pytest.raises(ConfigError, match="field of view"):
         r.save(tmp_path / "o", fov_deg=fov, figure=False)
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("args,match", [
+    (["--code", "random", "--code-length", "1000000000"], "more than the 16777216 bits"),
+    (["--trials", "2", "--interval", "bootstrap"], "at least 10 trials"),
+    (["--trials", "1000000", "--interval", "bootstrap", "--max-time", "5"], "--max-time 5 s"),
+])
+def test_snr_refuses_what_it_cannot_simulate_or_resample(capsys, args, match):
+    """A 10^9-bit random code asked for 7.45 GiB (a traceback); a bootstrap of 2 trials said
+    '+- 0'; the bootstrap's resampling was not in the time estimate (16 s past --max-time 5)."""
+    assert main(["snr", "--size", "8", "--code-length", "127", *args]) == 2
+    assert match in _one_line(capsys)
+
+
+def test_a_bootstrap_without_variance_in_its_resamples_has_no_interval():
+    from spslidar.snr.simulate import _bootstrap
+
+    se, lo, hi = _bootstrap(np.full(10, 5.0), 0.0, 1000, np.random.default_rng(0))
+    assert np.isnan(se) and np.isnan(lo) and np.isnan(hi)  # no resample has a variance
+    c = np.array([5.0] * 9 + [9.0])  # 35 % of the resamples miss the 9: the rest give one
+    se, lo, hi = _bootstrap(c, 0.0, 1000, np.random.default_rng(0))
+    assert se > 0 and lo < hi
+    se, lo, hi = _bootstrap(np.random.default_rng(1).poisson(50, 40).astype(float), 0.0, 1000,
+                            np.random.default_rng(0))
+    assert se > 0 and lo < hi
