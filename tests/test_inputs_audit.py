@@ -461,3 +461,42 @@ def test_a_bootstrap_without_variance_in_its_resamples_has_no_interval():
     se, lo, hi = _bootstrap(np.random.default_rng(1).poisson(50, 40).astype(float), 0.0, 1000,
                             np.random.default_rng(0))
     assert se > 0 and lo < hi
+
+
+@pytest.mark.parametrize("kw,match", [
+    ({"resolution_s": None}, "resolution_s must be a number"),
+    ({"resolution_s": "1e-10"}, "resolution_s must be a number"),
+    ({"resolution_s": float("inf")}, "resolution_s must be in"),
+    ({"sync_rate_hz": float("inf")}, "sync_rate_hz must be in"),
+    ({"sync_rate_hz": np.array([1e6, 2e6])}, "sync_rate_hz must be a number"),
+    ({"sync_rate_hz": 1e-300}, "at least 1 Hz"),
+    ({"extra_tags": {"X": [1]}}, "cannot encode PTU tag X"),
+    ({"extra_tags": {"X": 2**70}}, "does not fit a 64-bit integer"),
+    ({"extra_tags": {"Ä": 1}}, "1-31 ASCII characters"),
+    ({"extra_tags": {5: 1}}, "1-31 ASCII characters"),
+    ({"extra_tags": {"A" * 40: 1}}, "1-31 ASCII characters"),
+    ({"nsync": [0, 2**52], "dtime": [1, 2]}, "overflow records"),
+])
+def test_write_ptu_t3_checks_its_arguments(tmp_path, kw, match):
+    """Each raised TypeError, OverflowError, struct.error, UnicodeEncodeError, AttributeError
+    or MemoryError (16 GiB of overflow records), or was written (an infinite resolution, a
+    40-character tag name cut to 32)."""
+    from spslidar.io.ptu_write import write_ptu_t3
+
+    args = {"nsync": [0, 1, 2], "dtime": [1, 2, 3], "resolution_s": 1e-10,
+            "sync_rate_hz": 1e6, **kw}
+    with pytest.raises(ConfigError, match=re.escape(match)):
+        write_ptu_t3(tmp_path / "x.ptu", **args)
+    assert not list(tmp_path.iterdir())
+
+
+def test_write_ptu_t3_takes_an_aware_time_and_refuses_a_folder(tmp_path):
+    from datetime import datetime, timezone
+
+    from spslidar.io.ptu_write import write_ptu_t3
+
+    args = {"nsync": [0, 1, 2], "dtime": [1, 2, 3], "resolution_s": 1e-10, "sync_rate_hz": 1e6}
+    assert write_ptu_t3(tmp_path / "x.ptu", created=datetime.now(timezone.utc), **args) == 3
+    for where, match in ((tmp_path, "it is a folder"), (tmp_path / "no" / "x.ptu", "not exist")):
+        with pytest.raises(ConfigError, match=match):
+            write_ptu_t3(where, **args)

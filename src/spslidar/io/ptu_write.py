@@ -3,10 +3,12 @@ for an own encoder are in :mod:`spslidar.io.ptu`)."""
 
 from __future__ import annotations
 
+import os
 import struct
 import uuid
 from collections.abc import Sequence
 from datetime import datetime
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -47,10 +49,14 @@ def _encode_tag(ident: str, value: Any) -> bytes:
     """One PTU tag: 32-byte ident, int32 index, uint32 type, 8-byte value (+ string data)."""
     if value is None:
         return _tag(ident, _TY_EMPTY8, bytes(8))
-    if isinstance(value, datetime):  # TDateTime: days since 1899-12-30
+    if isinstance(value, datetime):  # TDateTime: days since 1899-12-30, local time
+        if value.tzinfo is not None:
+            value = value.astimezone().replace(tzinfo=None)
         days = (value - datetime(1899, 12, 30)).total_seconds() / 86400.0
         return _tag(ident, _TY_TDATETIME, struct.pack("<d", days))
     if isinstance(value, bool | int | np.integer):
+        if not -2**63 <= int(value) < 2**63:
+            raise ConfigError(f"PTU tag {ident}={value} does not fit a 64-bit integer")
         return _tag(ident, _TY_INT8, struct.pack("<q", int(value)))
     if isinstance(value, float | np.floating):
         return _tag(ident, _TY_FLOAT8, struct.pack("<d", float(value)))
@@ -58,7 +64,31 @@ def _encode_tag(ident: str, value: Any) -> bytes:
         data = value.encode("windows-1252", errors="replace") + b"\x00"
         data += bytes(-len(data) % 8)  # keep tags 8-byte aligned
         return _tag(ident, _TY_ANSISTRING, struct.pack("<q", len(data))) + data
-    raise TypeError(f"cannot encode PTU tag {ident}={value!r}")
+    raise ConfigError(f"cannot encode PTU tag {ident}={value!r}: a tag holds an int, float, "
+                      f"str, bool, datetime or None")
+
+
+def _check_tag_name(key: Any) -> None:
+    """A tag name the 32-byte ident field holds: ASCII, 1-31 characters (a longer one was cut
+    silently, a non-ASCII one or a number raised from the encoder)."""
+    if not isinstance(key, str) or not key or not key.isascii() or len(key) > 31:
+        raise ConfigError(f"extra_tags: a tag name must be 1-31 ASCII characters, got {key!r}")
+
+
+#: most overflow records :func:`write_ptu_t3` writes (1 GiB): an ``nsync`` that jumps by 2^52
+#: asked for 16 GiB of them
+MAX_OVERFLOW_RECORDS = 2**28
+
+
+def _positive(value: Any, name: str, hi: float) -> float:
+    """A real number in (0, ``hi``], one line otherwise."""
+    if isinstance(value, (str, bytes, bool)) or not isinstance(value, (int, float, np.number)) \
+            or np.iscomplexobj(value):
+        raise ConfigError(f"{name} must be a number, got {value!r}")
+    v = float(value)
+    if not 0.0 < v <= hi:
+        raise ConfigError(f"{name} must be in (0, {hi:g}], got {value!r}")
+    return v
 
 
 def _record_type(name: str) -> tuple[str, int, str, str]:
@@ -144,8 +174,10 @@ def write_ptu_t3(
     dt = _as_int_array(dtime, n, "dtime")
     ch = _as_int_array(channel, n, "channel")
     mk = np.zeros(n, np.int64) if marker is None else _as_int_array(marker, n, "marker")
-    if not (resolution_s > 0 and sync_rate_hz > 0):
-        raise ConfigError("resolution_s and sync_rate_hz must be > 0")
+    resolution_s = _positive(resolution_s, "resolution_s", 1.0)  # seconds per dtime unit
+    sync_rate_hz = _positive(sync_rate_hz, "sync_rate_hz", 1e12)
+    if sync_rate_hz < 1.0:  # the header's acquisition time (ms) would overflow its integer
+        raise ConfigError(f"sync_rate_hz must be at least 1 Hz, got {sync_rate_hz!r}")
     if n and (t[0] < 0 or np.any(np.diff(t) < 0)):
         raise ConfigError("nsync must be non-negative and non-decreasing (time-ordered events)")
     photon = mk == 0
@@ -161,6 +193,9 @@ def write_ptu_t3(
     gap = np.diff(wraps, prepend=0)
     per = 1023 if family == "hydraharp2" else 1
     n_ofl = -(-gap // per)  # overflow records before each event
+    if int(n_ofl.sum()) > MAX_OVERFLOW_RECORDS:  # counted before they are made
+        raise ConfigError(f"nsync spans {int(t[-1]):.3g} syncs: {int(n_ofl.sum()):.3g} overflow "
+                          f"records, more than {MAX_OVERFLOW_RECORDS}; is nsync in syncs?")
     total = n + int(n_ofl.sum())
     records = np.empty(total, np.uint32)
     ev_pos = np.arange(n) + np.cumsum(n_ofl)
@@ -190,7 +225,11 @@ def write_ptu_t3(
         "TTResult_SyncRate": round(float(sync_rate_hz)), "TTResult_NumberOfRecords": total,
         "TTResultFormat_TTTRRecType": code, "TTResultFormat_BitsPerRecord": 32,
     }
+    if extra_tags is not None and not isinstance(extra_tags, dict):
+        raise ConfigError(f"extra_tags must be a dict of tag names and values, got "
+                          f"{type(extra_tags).__name__}")
     for key, value in (extra_tags or {}).items():
+        _check_tag_name(key)
         if key.startswith(("TTResultFormat_", "Measurement_", "MeasDesc_", "TTResult_Number",
                            "Header_End")):
             raise ConfigError(f"extra_tags cannot set the format tag {key!r}")
@@ -200,6 +239,12 @@ def write_ptu_t3(
     header.append(_encode_tag("Header_End", None))
     from ..outdir import atomic_file
 
+    where = Path(os.fspath(path))
+    if where.is_dir():
+        raise ConfigError(f"cannot write the PTU file {os.fspath(path)!r}: it is a folder")
+    if not where.parent.is_dir():
+        raise ConfigError(f"cannot write the PTU file {os.fspath(path)!r}: the folder "
+                          f"{where.parent} does not exist")
     with atomic_file(path) as fh:  # a failed write (a full disk) leaves no partial file
         _dump(fh, b"".join(header), records)
     return total
