@@ -144,11 +144,25 @@ def test_auto_gate_is_an_option_of_run(tmp_path):
         assert json.loads((out / "metrics.json").read_text())["config"]["auto_gate"] is value
 
 
-def test_library_warnings_are_one_line_and_metrics_stay_strict_json(tmp_path, capsys):
-    """--lam 1e300 overflows the TV prox: NumPy's RuntimeWarning came with its source line and
-    metrics.json held a bare NaN (not JSON)."""
+def test_library_warnings_are_one_line_and_metrics_stay_strict_json(tmp_path, capsys,
+                                                                    monkeypatch):
+    """--lam 1e300 overflowed the TV prox: NumPy's RuntimeWarning came with its source line
+    and metrics.json held a bare NaN (not JSON). Such a weight is now refused before the
+    solve (float32 cannot hold its steps); a library warning raised during a run (here an
+    overflow injected into the last stage) is still one line."""
     out = tmp_path / "r"
-    assert main(["run", *FAST, "--lam", "1e300", "--out", str(out)]) == 0
+    assert main(["run", *FAST, "--lam", "1e300", "--out", str(out)]) == 2
+    assert "beyond what float32 can hold" in _one_line(capsys) and not out.exists()
+    from spslidar.pipeline import chain
+
+    real = chain.finish_result
+
+    def overflowing(*a, **k):
+        np.float32(3e38) * np.float32(10)  # NumPy's RuntimeWarning, with its source line
+        return real(*a, **k)
+
+    monkeypatch.setattr(chain, "finish_result", overflowing)
+    assert main(["run", *FAST, "--out", str(out)]) == 0
     err = capsys.readouterr().err.splitlines()
     lib = [e for e in err if "RuntimeWarning" in e]
     assert lib and all(e.startswith("spslidar run: warning: ") for e in lib)
