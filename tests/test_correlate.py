@@ -93,3 +93,32 @@ def test_noise_sigma_from_totals():
     f = make_replica(code, "unipolar")
     np.testing.assert_allclose(noise_sigma_from_totals(np.array([64.0 * 4]), f, 2.0),
                                np.sqrt(64.0 * 4 * 64 / 127) / 2.0)
+
+
+def test_the_zero_mean_replica_cancels_a_constant_for_any_code():
+    """``s - mean(s)`` sums to zero, so a constant background correlates to 0 at every lag,
+    whatever the ones ratio; ``2s - 1`` does only for a balanced code."""
+    from spslidar.correlate import auto_replica, make_replica
+
+    rng = np.random.default_rng(3)
+    for ratio in (0.1, 0.3, 0.5):
+        code = (rng.random(4096) < ratio).astype(np.uint8)
+        assert abs(make_replica(code, "zero-mean").sum()) < 1e-9
+        expected_bipolar = 2 * int(code.sum()) - code.size
+        assert make_replica(code, "bipolar").sum() == pytest.approx(expected_bipolar)
+    mseq = make_code("mseq", 1023)
+    assert auto_replica(mseq) == "bipolar"  # 512 ones of 1023: exact flat sidelobes
+    assert auto_replica((rng.random(4096) < 0.1).astype(np.uint8)) == "zero-mean"
+
+
+def test_an_unbalanced_code_is_recovered_noiselessly_with_the_default_replica():
+    """A Bernoulli code of ones ratio 0.1 through ``2s - 1`` put a negative pedestal under
+    every slice: noiseless RMSE 0.21 m with 37 % of the pixels without a return."""
+    import spslidar
+
+    common = dict(size=16, code="random", code_length=4096, ones_ratio=0.1, noiseless=True,
+                  noise=0.0)
+    auto = spslidar.run(**common)
+    assert auto.metrics["config"]["replica"] == "zero-mean"
+    assert auto.depth_rmse < 0.02 and auto.metrics["missing_fraction"] == 0
+    assert spslidar.run(**common, replica="bipolar").depth_rmse > 0.1

@@ -120,8 +120,10 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--noiseless", action="store_true", default=S,
                    help="use expected counts (no Poisson noise)")
     g = p.add_argument_group("processing")
-    g.add_argument("--replica", choices=("auto", "bipolar", "unipolar"), default=S,
-                   help="matched-filter replica (auto: bipolar for psst, unipolar for "
+    g.add_argument("--replica", choices=("auto", "bipolar", "zero-mean", "unipolar"),
+                   default=S,
+                   help="matched-filter replica (auto: for psst bipolar 2s-1 where the code "
+                        "is balanced, zero-mean s-mean(s) otherwise; unipolar for "
                         "conventional)")
     g.add_argument("--range-gate", type=float, nargs=2, default=S, metavar=("MIN", "MAX"),
                    help="delays to reconstruct, in metres (default: the scene's depth window "

@@ -20,7 +20,7 @@ from .constants import MAX_COUNT_MEAN, MAX_DEPTH_M
 from .errors import ConfigError
 
 LIDARS = ("psst", "conventional")
-REPLICAS = ("auto", "bipolar", "unipolar")
+REPLICAS = ("auto", "bipolar", "zero-mean", "unipolar")
 FAIRNESS = ("energy", "power")
 
 
@@ -114,8 +114,9 @@ class Config:
     #: use the expected counts (no Poisson noise)
     noiseless: bool = False
     # processing
-    #: matched-filter replica of the code: ``bipolar`` (2s - 1), ``unipolar`` (s) or ``auto``
-    #: (bipolar for ``psst``, unipolar for ``conventional``)
+    #: matched-filter replica of the code: ``bipolar`` (2s - 1), ``zero-mean`` (s - mean s),
+    #: ``unipolar`` (s) or ``auto`` (for ``psst`` bipolar where the code is balanced, zero-mean
+    #: otherwise: :func:`spslidar.correlate.auto_replica`; unipolar for ``conventional``)
     replica: str = "auto"
     #: [m] the delays reconstructed, (MIN, MAX) in metres (default: the scene's depth window padded
     #: by 3 bins)

@@ -24,17 +24,36 @@ import numpy as np
 from .constants import MAX_GATE_BINS, SPEED_OF_LIGHT
 from .errors import ConfigError
 
-REPLICAS = ("bipolar", "unipolar")
+REPLICAS = ("bipolar", "zero-mean", "unipolar")
 
 
 def make_replica(code: np.ndarray, kind: str = "bipolar") -> np.ndarray:
-    """The receiver's code replica ``f`` (float64)."""
+    """The receiver's code replica ``f`` (float64): ``bipolar`` ``2s - 1``, ``zero-mean``
+    ``s - mean(s)`` or ``unipolar`` ``s``."""
     s = np.asarray(code, dtype=np.float64)
     if kind == "bipolar":
         return 2.0 * s - 1.0
+    if kind == "zero-mean":
+        return s - s.mean()
     if kind == "unipolar":
         return s.copy()
-    raise ConfigError(f"unknown replica {kind!r}; choose bipolar or unipolar")
+    raise ConfigError(f"unknown replica {kind!r}; choose bipolar, zero-mean or unipolar")
+
+
+def auto_replica(code: np.ndarray) -> str:
+    """The PSST lidar's default replica for this code: ``bipolar`` for a balanced code (as
+    many ones as zeros, to one bit: m-sequences), ``zero-mean`` otherwise.
+
+    ``2s - 1`` sums to zero only over a balanced code: for a Bernoulli code of ones ratio
+    R_a its correlation with the code delayed off the peak is ``R_a (2 R_a - 1) T``, a
+    negative pedestal under every slice (noiseless, R_a = 0.1: RMSE 0.21 m and 37 % of the
+    pixels without a return, against 0.014 m for ``s``). ``s - mean(s)`` sums to zero for
+    any code, so a constant background cancels and a random code's off-peak correlation is
+    zero on average; for an m-sequence ``2s - 1`` is exact (off-peak sum 0) where ``s -
+    mean(s)`` leaves ``-(T + 1) / 4T``.
+    """
+    s = np.asarray(code)
+    return "bipolar" if abs(2 * int(np.count_nonzero(s)) - s.size) <= 1 else "zero-mean"
 
 
 def correlation_gain(code: np.ndarray, replica: np.ndarray) -> float:

@@ -10,6 +10,7 @@ import numpy as np
 from ..codes import CODES
 from ..config import Config
 from ..constants import SPEED_OF_LIGHT
+from ..correlate import auto_replica
 from ..errors import ConfigError
 
 #: range-gate padding, in bins, around the scene's depth window
@@ -67,7 +68,7 @@ def make_acquisition(cfg: Config, gate: tuple[float, float], rng_code) -> Acquis
     psst_code = family.load()(cfg.code, cfg.code_length, cfg.ones_ratio, rng=rng_code,
                               index=index).astype(np.uint8)
     if cfg.lidar == "psst":
-        replica = "bipolar" if cfg.replica == "auto" else cfg.replica
+        replica = auto_replica(psst_code) if cfg.replica == "auto" else cfg.replica
         name = CODES.get(cfg.code).display
         desc = f"{name} of {cfg.code_length} bits"
         if cfg.code == "random":

@@ -20,6 +20,7 @@ import numpy as np
 from ..config import Config
 from ..constants import MAX_DEPTH_M
 from ..correlate import (
+    auto_replica,
     correlation_gain,
     gate_lags,
     make_replica,
@@ -388,7 +389,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
          f"markers missed?); their histograms are scaled up to the mean dwell"]
         if short.size else [])
     hist = data.histograms.astype(np.float64) * (n_mean / n_k)[:, None]
-    replica = make_replica(code, "bipolar" if cfg.replica == "auto" else cfg.replica)
+    replica_kind = auto_replica(code) if cfg.replica == "auto" else cfg.replica
+    replica = make_replica(code, replica_kind)
     lags = gate_lags(cfg.range_gate, bin_width)
     cal, shift, signal_code, frac, scale, spread = None, 0, code, 0.0, 1.0, 1.0
     response = None
@@ -419,7 +421,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                                                                   / (period * bin_width))},
            "estimate": {}, "delay_response": response}
     acq = Acquisition("psst", code, bin_width, max(1, int(round(n_mean))), 1.0,
-                      "bipolar" if cfg.replica == "auto" else cfg.replica,
+                      replica_kind,
                       f"measured code of {period} bits", 0)
     if truth is None:  # a real acquisition: no truth-based metric, nothing to validate
         scene = Scene(str(ptu), np.zeros((n, n)), np.ones((n, n)), np.zeros((n, n), bool),
