@@ -109,3 +109,40 @@ def test_legend_names_the_second_surface_panels_grey():
     r = spslidar.run(scene="fence", size=16, code_length=1023, noise=1, compression=0.5)
     texts = [t for _, t in _legend_items(r, np.zeros(r.depth.shape, bool))]
     assert texts and not any("one surface" in t for t in texts)  # mrf: no second-surface panel
+
+
+def test_no_return_is_not_the_error_panels_zero():
+    """No-return pixels were white, which is also the error panel's zero: a pixel without a
+    return looked like a perfect one (found 2026-11-28)."""
+    from spslidar.figures import _RDBU_R, _colormap
+
+    zero = tuple(_colormap(np.array([0.0]), -1.0, 1.0, _RDBU_R, NO_RETURN)[0])
+    assert min(abs(a - b) for a, b in zip(zero, NO_RETURN, strict=True)) > 100
+
+
+def test_a_flat_scene_has_a_colour_range_of_a_bin_each_side(tmp_path):
+    """A wall at 25 m: the colour bars read '25 .. 25', the truth all purple and the estimate
+    (25.006 m) all yellow, two maps that agree within half a bin drawn as opposites."""
+    from spslidar.figures import _limits, _tick
+
+    np.save(tmp_path / "wall.npy", np.full((8, 8), 25.0))
+    r = pipeline.run(scene=str(tmp_path / "wall.npy"), size=8, code_length=1023)
+    lo, hi, _, _ = _limits(r)
+    bin_m = r.metrics["bin_depth_m"]
+    assert lo == pytest.approx(25.0 - bin_m) and hi == pytest.approx(25.0 + bin_m)
+    assert _tick(lo, lo, hi) != _tick(hi, lo, hi)  # '24.985' and '25.015'
+    assert _tick(2.13, 2.13, 4.7) == "2.13"  # a wide range keeps three digits
+
+
+def test_the_legend_gives_the_no_return_share_the_title_gives(result):
+    from spslidar.figures import _legend_items, _outside
+
+    text = [t for c, t in _legend_items(result, _outside(result, 0, 100)) if c == NO_RETURN][0]
+    assert f"{100 * result.metrics['missing_fraction']:.1f}%" in text
+
+
+def test_run_truth_is_nan_where_the_scene_has_none(result, tmp_path):
+    """run's truth.npy held the filled-in stereo holes, so reconstruct --truth scored them."""
+    out = result.save(tmp_path / "o", figure=False)
+    truth, valid = np.load(out / "truth.npy"), np.load(out / "valid.npy")
+    assert (~valid).any() and np.isnan(truth[~valid]).all() and np.isfinite(truth[valid]).all()

@@ -357,12 +357,16 @@ def _cmd_reconstruct(args) -> int:
                       fov_deg=args.fov)
     m = result.metrics
     rmse = m.get("depth_rmse_m")
+    import numpy as np
+
     from .metrics import percent as _percent
 
+    # returns among all pixels (coverage is the share with a truth and a return)
     print(f"{m['n_patterns']} patterns, {int(sum(m['ptu']['counts_per_pattern']))} photons; "
-          f"returns in {_percent(m['coverage'])} of pixels, mean reflectivity "
-          f"{m.get('mean_reflectivity') or 0.0:.3g} photons per pulse; "
-          + (f"depth RMSE {rmse:.4f} m" if rmse is not None else "no ground truth (--truth)"))
+          f"returns in {_percent(float(np.isfinite(result.depth).mean()))} of pixels, mean "
+          f"reflectivity {m.get('mean_reflectivity') or 0.0:.3g} photons per pulse; "
+          + (f"depth RMSE {rmse:.4f} m over the {_percent(m['coverage'])} of pixels with a "
+             f"truth and a return" if rmse is not None else "no ground truth (--truth)"))
     print(f"wrote {out}/: {' '.join(_written(out))}")
     return 0
 

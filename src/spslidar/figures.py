@@ -68,14 +68,22 @@ def _panel(draw_img, x0: int, y0: int, rgb: np.ndarray, title: str, lo: float, h
     d.text((x0, y0 + 4), title, fill=(0, 0, 0))
     bar = _colormap(np.linspace(hi, lo, _PANEL)[:, None] * np.ones((1, 12)), lo, hi, table, 0)
     draw_img.paste(Image.fromarray(bar), (x0 + _PANEL + 6, y0 + 22))
-    d.text((x0 + _PANEL + 22, y0 + 22), f"{hi:.3g}", fill=(0, 0, 0))
+    d.text((x0 + _PANEL + 22, y0 + 22), _tick(hi, lo, hi), fill=(0, 0, 0))
     d.text((x0 + _PANEL + 22, y0 + 22 + _PANEL // 2 - 6), unit, fill=(0, 0, 0))
-    d.text((x0 + _PANEL + 22, y0 + 10 + _PANEL), f"{lo:.3g}", fill=(0, 0, 0))
+    d.text((x0 + _PANEL + 22, y0 + 10 + _PANEL), _tick(lo, lo, hi), fill=(0, 0, 0))
+
+
+def _tick(v: float, lo: float, hi: float) -> str:
+    """A colour bar's end label: three significant digits, or as many decimals as tell the
+    two ends apart (a flat wall at 25 m read '25 .. 25')."""
+    if f"{lo:.3g}" != f"{hi:.3g}" or not hi > lo:
+        return f"{v:.3g}"
+    return f"{v:.{max(0, int(np.ceil(-np.log10(hi - lo))) + 1)}f}"
 
 
 #: colours (RGB) of the pixels a depth map cannot show, one per reason, named in the legend
 NO_TRUTH = (150, 150, 150)  # grey: the scene has no ground truth there (e.g. a stereo hole)
-NO_RETURN = (255, 255, 255)  # white: the estimator found no return
+NO_RETURN = (0, 0, 0)  # black: the estimator found no return (white is the error's zero)
 LOW_CONFIDENCE = (230, 0, 200)  # magenta dot: a depth the estimator itself does not trust
 OUT_OF_RANGE = (255, 120, 0)  # orange cross: a depth outside the colour bar's range
 #: colour of the second surface panel's one-surface pixels
@@ -108,7 +116,11 @@ def _legend_items(result, outside: np.ndarray) -> list[tuple[tuple[int, int, int
     items = []
     if getattr(result, "has_truth", True):
         items.append((NO_TRUTH, f"no ground truth ({100 * no_truth.mean():.0f}%)"))
-    items += [(NO_RETURN, f"no return ({100 * no_return.mean():.1f}%)"),
+    m = result.metrics  # the share the estimate's title and metrics.json give
+    share = m.get("missing_fraction")
+    share = 100 * (no_return.mean() if share is None or not np.isfinite(share) else share)
+    of = " of the pixels with a ground truth" if getattr(result, "has_truth", True) else ""
+    items += [(NO_RETURN, f"no return ({share:.1f}%{of})"),
               (LOW_CONFIDENCE, f"low-confidence depth ({100 * low.mean():.0f}%, dot)")]
     depth2 = getattr(result, "depth2", None)
     if depth2 is not None and np.isfinite(depth2).any():  # the second-surface panel's grey
@@ -133,8 +145,10 @@ def _limits(result):
         lo, hi = (float(v) for v in np.nanpercentile(result.depth, [1, 99]))
     else:
         lo, hi = 0.0, 1.0
-    if hi <= lo:
-        hi = lo + 1e-3
+    bin_m = float(result.metrics.get("bin_depth_m", 0.0)) or 1e-3
+    if hi - lo < 2 * bin_m:  # a flat scene: +- a bin, so that half a bin's error is not the
+        mid = 0.5 * (lo + hi)  # whole colour range (a truth all purple, an estimate yellow)
+        lo, hi = mid - bin_m, mid + bin_m
     err_masked = np.where(valid, result.depth - truth, np.nan)
     lim = float(np.nanpercentile(np.abs(err_masked), 99)) if np.isfinite(err_masked).any() else 0
     return lo, hi, err_masked, max(lim, result.metrics["bin_depth_m"])
@@ -195,8 +209,8 @@ def _panels(result):
                  f"{100 * low.mean():.0f}% low-confidence")
     panels = []
     if getattr(result, "has_truth", True):
-        panels.append(("truth", f"ground truth: {result.scene.name}", result.truth, lo, hi,
-                       _VIRIDIS, "m"))
+        name = "--truth" if "ptu" in m else result.scene.name  # (a PTU scene is the file)
+        panels.append(("truth", f"ground truth: {name}", result.truth, lo, hi, _VIRIDIS, "m"))
     panels.append(("estimate", est_title, result.depth, lo, hi, _VIRIDIS, "m"))
     if getattr(result, "has_truth", True):
         panels.append(("error", "error: estimate - truth", err_masked, -lim, lim, _RDBU_R, "m"))

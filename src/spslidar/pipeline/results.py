@@ -133,9 +133,10 @@ class Result:
             from ..products import write_ply
 
             np.save(tmp / "depth.npy", self.depth)
-            if self.has_truth:
-                np.save(tmp / "truth.npy", self.truth)
-                np.save(tmp / "valid.npy", np.asarray(self.scene.valid, dtype=bool))
+            if self.has_truth:  # NaN where the scene has no truth (what --truth reads so)
+                valid = np.asarray(self.scene.valid, dtype=bool)
+                np.save(tmp / "truth.npy", np.where(valid, self.truth, np.nan))
+                np.save(tmp / "valid.npy", valid)
             if self.reflectivity is not None:
                 np.save(tmp / "reflectivity.npy", self.reflectivity)
             if self.confidence is not None:
