@@ -15,7 +15,7 @@ from _cli_inputs import one_line as _one_line
 from spslidar.cli import main
 from spslidar.constants import MAX_GATE_BINS
 from spslidar.correlate import gate_lags
-from spslidar.errors import ConfigError
+from spslidar.errors import ConfigError, SpslidarError
 
 
 @pytest.mark.parametrize("args,match", [
@@ -500,3 +500,19 @@ def test_write_ptu_t3_takes_an_aware_time_and_refuses_a_folder(tmp_path):
     for where, match in ((tmp_path, "it is a folder"), (tmp_path / "no" / "x.ptu", "not exist")):
         with pytest.raises(ConfigError, match=match):
             write_ptu_t3(where, **args)
+
+
+def test_reproduces_time_limit_bounds_the_whole_command(tmp_path):
+    """``reproduce all --quick --max-time 10`` checked each batch against 10 s and ran 30 s:
+    the batches' estimates now add up against the limit."""
+    from spslidar.experiments.reproduce.context import Context, _check_batch_time
+
+    points = [{"size": 16, "code_length": 1023, "seed": s} for s in range(4)]
+    ctx = Context(tmp_path, quick=True)
+    _check_batch_time(ctx, points)
+    one = ctx.estimated_s
+    assert one > 0
+    ctx = Context(tmp_path, quick=True, max_time=1.5 * one)
+    _check_batch_time(ctx, points)  # the first batch fits
+    with pytest.raises(SpslidarError, match="its earlier batches and this one"):
+        _check_batch_time(ctx, points)  # the second would pass the limit in all

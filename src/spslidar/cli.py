@@ -157,10 +157,13 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help=f"depth estimator: {depths_help}")
     g.add_argument("--subbin", action="store_true", default=S,
                    help="refine the ML peak by a three-bin centroid")
-    g.add_argument("--dtype", choices=("float32", "float64"), default=S)
+    g.add_argument("--dtype", choices=("float32", "float64"), default=S,
+                   help="precision of the simulation and the solve (default float32)")
     g.add_argument("--backend", choices=("numpy", "torch", "cupy"), default=S,
-                   help="array library of the numeric core (default numpy; torch and cupy: "
-                        "pip install spslidar[gpu]); fista + TV, argmax, linear detector only")
+                   help="array library of the numeric core (default numpy; torch: pip install "
+                        "spslidar[gpu], cupy: spslidar[cupy]); patterns, counts, matched "
+                        "filter, QCR, FISTA + TV and argmax run there, every other stage on "
+                        "the host")
     g.add_argument("--device", choices=("cpu", "cuda"), default=S,
                    help="where the backend runs (default cpu; cuda needs torch or cupy)")
     g.add_argument("--seed", type=int, default=S, help="random seed (default 0)")
@@ -234,7 +237,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"one of: {', '.join(EXPERIMENTS)}")
     r.add_argument("--out", required=True, metavar="DIR", help="report folder")
     r.add_argument("--quick", action="store_true",
-                   help="reduced smoke-test version (32x32, fewer settings, one trial)")
+                   help="reduced smoke-test version (32x32, fewer settings, one trial "
+                        "unless --trials says)")
     _add_sweep_options(r, trials=True)
 
     w = sub.add_parser("sweep", help="run a user-defined parameter grid (TOML) of runs",
@@ -426,7 +430,9 @@ def _add_sweep_options(p: argparse.ArgumentParser, trials: bool) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--max-time", type=_duration, default=3600.0, metavar="TIME",
                    help="refuse work whose estimated total time exceeds this: seconds, or with "
-                        "a unit (90s, 10min, 2h; default 1h)")
+                        "a unit (90s, 10min, 2h; default 1h); sweep estimates all its runs "
+                        "first, reproduce each batch added to the ones before it (the "
+                        "experiments finished keep their sections)")
 
 
 def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:

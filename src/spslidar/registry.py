@@ -239,10 +239,12 @@ class Registry:
         except (KeyError, TypeError):
             opt = self.option.replace("_", "-")
             if not isinstance(name, str):  # e.g. a TOML table [detector] with its options
+                example = (': dead_time = 1e-8 beside detector = "gmapd"'
+                           if opt == "detector" else "")
                 raise ConfigError(f"{opt} must be a name, one of {', '.join(self.names())}, "
                                   f"got {type(name).__name__} {name!r} (a stage's options are "
-                                  f"keys of their own, e.g. dead_time = 1e-8 beside "
-                                  f"{opt} = \"gmapd\")") from None
+                                  f"keys of their own beside its name, not a table"
+                                  f"{example})") from None
             raise ConfigError(f"unknown {opt} {name!r}; choose one of "
                               f"{', '.join(self.names())}") from None
 

@@ -88,7 +88,7 @@ def _figure(rows: Sequence[dict[str, Any]], sizes: Sequence[int], path: Path) ->
         axes[0, j].set_title(f"{n}x{n}")
         axes[0, j].set_ylabel("depth RMSE [m]")
         axes[0, j].set_yscale("log")
-        axes[1, j].set_ylabel("run time (simulation + solve) [s]")
+        axes[1, j].set_ylabel("run time (whole run) [s]")
         axes[1, j].set_yscale("log")
         for ax in axes[:, j]:
             ax.set_xlabel("compression M/Q [%]")

@@ -121,6 +121,8 @@ class Context:
     seed: int = 0
     failed: int = 0
     max_time: float | None = None
+    #: the estimated seconds of the batches run so far (``max_time`` bounds their sum)
+    estimated_s: float = 0.0
     #: whether the running experiment asked for :meth:`n_trials` (``--trials`` is said to be
     #: ignored by one that did not: eq. (10)'s Monte-Carlo counts code periods)
     trials_read: bool = False
@@ -157,9 +159,10 @@ class Context:
     def mode(self) -> str:
         """One line saying which mode ran."""
         if self.quick:
+            trials = "one trial" if self.trials is None else f"{self.trials} trial(s)"
             return (
-                "**Quick mode** (32x32 pixels, fewer and shorter settings, one trial): a smoke "
-                "test whose numbers are not comparable with the paper's 64x64 ones."
+                f"**Quick mode** (32x32 pixels, fewer and shorter settings, {trials}): a smoke "
+                f"test whose numbers are not comparable with the paper's 64x64 ones."
             )
         return "Full mode (64x64 pixels, the paper's settings)."
 
@@ -318,8 +321,9 @@ def snr_point(params: dict[str, Any]) -> dict[str, Any]:
 
 def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
     """Refuse a batch of runs whose estimated time (each distinct configuration's budget,
-    :func:`spslidar.pipeline.preflight`, times its runs, over the workers) exceeds
-    ``ctx.max_time``; one over 30 s says its estimate first."""
+    :func:`spslidar.pipeline.preflight`, times its runs, over the workers), added to the
+    batches' before it in this command, exceeds ``ctx.max_time``; one over 30 s says its
+    estimate first. The experiments finished before a refusal keep their report sections."""
     from spslidar.experiments.sweep.grid import TRIAL_KEY
     from spslidar.pipeline import PROCESSING_KEYS, preflight
     from spslidar.pipeline.budget import check_time
@@ -333,7 +337,10 @@ def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
             seconds[key] = preflight(cfg).seconds
         total += seconds[key]
     workers = max(1, min(len(points), ctx.jobs if ctx.jobs > 0 else 2))
-    check_time(total / workers, ctx.max_time, f"this batch of {len(points)} runs")
+    # the whole command's estimate, not each batch's (--max-time 10 ran 30 s of batches)
+    check_time(ctx.estimated_s + total / workers, ctx.max_time,
+               f"this reproduction (its earlier batches and this one of {len(points)} runs)")
+    ctx.estimated_s += total / workers
 
 
 def run_points(
