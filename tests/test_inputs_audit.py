@@ -516,3 +516,18 @@ def test_reproduces_time_limit_bounds_the_whole_command(tmp_path):
     _check_batch_time(ctx, points)  # the first batch fits
     with pytest.raises(SpslidarError, match="its earlier batches and this one"):
         _check_batch_time(ctx, points)  # the second would pass the limit in all
+
+
+@pytest.mark.parametrize("kw,match", [
+    ({"range_gate": [19.9, "20.9"]}, "--range-gate must be two numbers"),
+    ({"noise_split": [0.5, "0.5", 0]}, "noise-split must be three numbers"),
+    ({"auto_gate": "true"}, "without quotes"),
+    ({"qcr": "false"}, "without quotes"),
+])
+def test_text_is_not_a_number_or_a_flag(kw, match):
+    """A gate of [19.9, "20.9"] was read as numbers while size = "16" was refused, and
+    auto_gate = "true" did not say TOML's booleans are bare words."""
+    from spslidar.config import Config
+
+    with pytest.raises(ConfigError, match=match):
+        Config.from_dict(kw)

@@ -24,6 +24,18 @@ REPLICAS = ("auto", "bipolar", "zero-mean", "unipolar")
 FAIRNESS = ("energy", "power")
 
 
+#: said where a flag is given as text: TOML's booleans are bare words
+_UNQUOTED = " (in TOML: true or false without quotes)"
+
+
+def _real(v: Any) -> float:
+    """A real number as float; text and booleans are not (``range_gate = [19.9, "20.9"]``
+    was read as numbers while ``size = "16"`` was refused)."""
+    if isinstance(v, (str, bytes, bool)):
+        raise TypeError(f"not a number: {v!r}")
+    return float(v)
+
+
 @dataclass
 class Config:
     """Everything that defines one simulated acquisition and reconstruction.
@@ -370,12 +382,14 @@ class Config:
             self.irf = str(self.irf) if str(self.irf).strip() else None
             parse_irf(self.irf)  # one line for a malformed spec
         if self.auto_gate is not None and not isinstance(self.auto_gate, bool):
-            raise ConfigError(f"auto-gate must be true or false, got {self.auto_gate!r}")
+            raise ConfigError(f"auto-gate must be true or false, got {self.auto_gate!r}"
+                              f"{_UNQUOTED if isinstance(self.auto_gate, str) else ''}")
         for flag in ("qcr", "subbin", "noiseless", "nonneg"):
             if not isinstance(getattr(self, flag), bool):
-                raise ConfigError(f"{flag} must be true or false, got {getattr(self, flag)!r}")
+                raise ConfigError(f"{flag} must be true or false, got {getattr(self, flag)!r}"
+                                  f"{_UNQUOTED if isinstance(getattr(self, flag), str) else ''}")
         try:
-            split = tuple(float(v) for v in self.noise_split)
+            split = tuple(_real(v) for v in self.noise_split)
         except (TypeError, ValueError):
             raise ConfigError(f"noise-split must be three numbers, got {self.noise_split!r}") \
                 from None
@@ -385,7 +399,7 @@ class Config:
         self.noise_split = split
         if self.range_gate is not None:
             try:
-                g = tuple(float(v) for v in self.range_gate)
+                g = tuple(_real(v) for v in self.range_gate)
             except (TypeError, ValueError):
                 raise ConfigError(f"--range-gate must be two numbers MIN MAX, got "
                                   f"{self.range_gate!r}") from None
