@@ -531,3 +531,74 @@ def test_text_is_not_a_number_or_a_flag(kw, match):
 
     with pytest.raises(ConfigError, match=match):
         Config.from_dict(kw)
+
+
+WALL_RUN = ["--size", "8", "--code-length", "1023", "--signal", "1", "--noise", "0.02",
+            "--compression", "0.5", "--range-gate", "24", "30", "--no-figure"]
+
+
+@pytest.fixture(scope="module")
+def wall(tmp_path_factory):
+    d = tmp_path_factory.mktemp("wall")
+    np.save(d / "w.npy", np.full((8, 8), 25.0))
+    np.save(d / "big.npy", np.ones(2) * 1e308)
+    np.save(d / "flat.npy", np.ones(1023))
+    return d
+
+
+@pytest.mark.parametrize("args,match", [
+    (["--irf", "gaussian:150e-12,weight:0.3"], "a weight without a tail does nothing"),
+    (["--irf", "gaussian:150e-12,tail:400e-12,weight:0"], "a tail of weight 0 does nothing"),
+    (["--irf", "gaussian:2e-10,tail:4e-10,weight:0.3,weight:0.9"], "weight is given twice"),
+    (["--irf", "gaussian:1e-6"], "wider than half the code period"),
+    (["--irf", "FLAT"], "more than half the code period"),
+    (["--detector", "gmapd", "--jitter-tail", "4e-10"], "--jitter-tail does nothing without"),
+    (["--detector", "gmapd", "--jitter-tail-weight", "0.5"], "does nothing without --jitter-tail"),
+    (["--detector", "gmapd", "--afterpulse-delay", "1e-9"], "--afterpulse-prob"),
+    (["--detector", "gmapd", "--jitter", "1e-6"], "wider than half the code period"),
+])
+def test_instrument_options_that_do_nothing_or_resolve_nothing_are_refused(wall, capsys, args,
+                                                                          match):
+    """Each ran with the option doing nothing (the same depth map to the bit), the last of
+    two weights silently winning, or a response wider than the code giving a map of noise
+    (RMSE 1.4-1.9 m), saying nothing."""
+    args = [str(wall / "flat.npy") if a == "FLAT" else a for a in args]
+    out = wall / "o"
+    assert main(["run", "--scene", str(wall / "w.npy"), *WALL_RUN, *args, "--out",
+                 str(out)]) == 2
+    assert match in _one_line(capsys)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("args", [["--irf", "BIG"], ["--irf", "gaussian:1e-300"]])
+def test_extreme_but_valid_responses_run_quietly(wall, capsys, args):
+    """An IRF file summing past 1e308 was normalised to zeros (RMSE 0.22 m) with a library
+    overflow warning; a width of 1e-300 s leaked NumPy's overflow warning."""
+    args = [str(wall / "big.npy") if a == "BIG" else a for a in args]
+    out = wall / f"q{len(list(wall.iterdir()))}"
+    assert main(["run", "--scene", str(wall / "w.npy"), *WALL_RUN, *args, "--out",
+                 str(out)]) == 0
+    assert "RuntimeWarning" not in capsys.readouterr().err
+    import json
+
+    assert json.loads((out / "metrics.json").read_text())["depth_rmse_m"] < 0.02
+
+
+def test_a_delay_of_whole_code_periods_is_said_as_it_reads(wall, capsys):
+    """A delay of one code period read the true depths while the warning said 15.3 m too far
+    and every pixel outside the gate; 120 ns read 2.65 m too far, not 18 m."""
+    for delay, said in (("102.3e-9", "(0 m too far, modulo the code's 15.3 m"),
+                        ("120e-9", "(2.65 m too far, modulo")):
+        out = wall / f"d{delay}"
+        assert main(["run", "--scene", str(wall / "w.npy"), *WALL_RUN, "--system-delay",
+                     delay, "--out", str(out)]) == 0
+        err = capsys.readouterr().err
+        assert said in err and "outside the range gate" not in err
+
+
+def test_save_ptu_says_a_gmapd_is_not_in_the_file(wall, capsys):
+    out = wall / "g"
+    assert main(["run", "--scene", str(wall / "w.npy"), *WALL_RUN, "--detector", "gmapd",
+                 "--periods", "2", "--signal", "1e-3", "--noise", "1e-4", "--pileup-correction",
+                 "off", "--save-ptu", str(wall / "g.ptu"), "--out", str(out)]) == 0
+    assert "--detector gmapd's dead time, jitter and afterpulses" in capsys.readouterr().err

@@ -525,6 +525,11 @@ def _cmd_run(args) -> int:
 
         meas = measure(cfg)
         result = reconstruct(meas)
+        if cfg.detector != "linear":  # (its dead time and jitter were silently left out)
+            result.warnings.append(
+                f"--save-ptu draws the file's photons by linear Poisson counting from the "
+                f"expected counts: --detector {cfg.detector}'s dead time, jitter and "
+                f"afterpulses are in run's own depth map, not in {save_ptu}")
         info: dict = {}
 
         def write(tmps) -> None:  # under temporary names, moved into place all together

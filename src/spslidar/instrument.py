@@ -77,12 +77,20 @@ def parse_irf(spec: str | os.PathLike | None) -> IRF | None:
         if not sep or key not in ("gaussian", "tail", "weight") or (i == 0) != (key == "gaussian"):
             raise ConfigError(f"--irf {text!r}: write gaussian:FWHM[,tail:TAU[,weight:W]] "
                               f"(seconds) or a .npy file of the response per TDC bin")
+        if key in fields:  # (the last one silently won)
+            raise ConfigError(f"--irf {text!r}: {key} is given twice")
         try:
             fields[key] = float(value)
         except ValueError:
             raise ConfigError(f"--irf {text!r}: {key} must be a number, got {value!r}") from None
     fwhm, tail = fields["gaussian"], fields.get("tail", 0.0)
     weight = fields.get("weight", DEFAULT_TAIL_WEIGHT if tail > 0 else 0.0)
+    if "weight" in fields and not tail > 0:  # (it did nothing, saying nothing)
+        raise ConfigError(f"--irf {text!r}: a weight without a tail does nothing; give "
+                          f"tail:TAU too, or leave weight out")
+    if tail > 0 and weight == 0:
+        raise ConfigError(f"--irf {text!r}: a tail of weight 0 does nothing; leave the tail "
+                          f"out, or give it a weight in (0, 1]")
     for name, v in (("FWHM", fwhm), ("tail", tail)):
         if not 0.0 <= v <= MAX_IRF_S:
             raise ConfigError(f"--irf {name} must be in [0, {MAX_IRF_S:g}] s, got {v:g}: a "
@@ -90,6 +98,18 @@ def parse_irf(spec: str | os.PathLike | None) -> IRF | None:
     if not 0.0 <= weight <= 1.0:
         raise ConfigError(f"--irf weight must be in [0, 1], got {weight:g}")
     return IRF(fwhm, tail, weight)
+
+
+def _widths(irf: IRF, bin_width: float, period: int) -> tuple[float, float]:
+    """The Gaussian's sigma and the tail's mean of a parsed ``--irf``, in bins: refused where
+    wider than half the code period (``gaussian:1e-6`` gave a map of noise, saying nothing),
+    0 far below a bin (``gaussian:1e-300`` overflowed inside the kernel's arithmetic)."""
+    if max(irf.fwhm, irf.tail) / bin_width > period / 2:
+        raise ConfigError(f"--irf {irf.describe()}: a response of {max(irf.fwhm, irf.tail):g} s "
+                          f"is wider than half the code period ({period} bins of "
+                          f"{bin_width:g} s): no range can be resolved through it")
+    sigma, tail = irf.fwhm / _FWHM_PER_SIGMA / bin_width, irf.tail / bin_width
+    return (0.0 if sigma < 1e-6 else sigma), (0.0 if tail < 1e-6 else tail)
 
 
 def irf_kernel(irf: IRF | None, bin_width: float, period: int):
@@ -111,19 +131,25 @@ def irf_kernel(irf: IRF | None, bin_width: float, period: int):
             raise ConfigError(f"--irf {irf.path}: a 1-D array of real, non-negative numbers "
                               f"is expected, got dtype {h.dtype}")
         h = np.asarray(h, dtype=np.float64)
+        if h.size and np.all(np.isfinite(h)) and h.max() > 0:
+            h = h / h.max()  # (a sum of 2e308 overflowed, and h / sum was all zeros)
         if h.ndim != 1 or h.size < 1 or not np.all(np.isfinite(h)) or h.min() < 0 or h.sum() <= 0:
             raise ConfigError(f"--irf {irf.path}: a 1-D array of non-negative numbers, one per "
                               f"TDC bin, with a positive sum is expected")
         if h.size > period:
             raise ConfigError(f"--irf {irf.path}: {h.size} bins, longer than the code period "
                               f"({period} bins)")
+        if np.count_nonzero(h >= 0.5 * h.max()) > period / 2:  # (a map of noise, silently)
+            raise ConfigError(f"--irf {irf.path}: the response is above half its peak over "
+                              f"more than half the code period ({period} bins): no range can "
+                              f"be resolved through it")
         offsets = np.arange(h.size) - int(np.argmax(h))
         keep = h > 0
         return offsets[keep], h[keep] / h.sum()
     from .detectors.pileup import jitter_kernel
 
-    sigma = irf.fwhm / _FWHM_PER_SIGMA / bin_width
-    kern = jitter_kernel(period, sigma, irf.tail / bin_width, irf.weight)
+    sigma, tail = _widths(irf, bin_width, period)
+    kern = jitter_kernel(period, sigma, tail, irf.weight)
     idx = np.flatnonzero(kern > 1e-7 * kern.max())
     offsets = np.where(idx > period // 2, idx - period, idx)
     values = kern[idx]
@@ -180,8 +206,7 @@ def exact_weights(reflectivity, delay, pulse_width: float, irf: IRF, bin_width: 
 
     from .detectors.pileup import jitter_antiderivative
 
-    sigma = irf.fwhm / _FWHM_PER_SIGMA / bin_width
-    tail = irf.tail / bin_width
+    sigma, tail = _widths(irf, bin_width, period)
     delay = np.asarray(delay, dtype=np.float64).ravel()
     base = np.floor(delay)
     frac = delay - base

@@ -42,6 +42,19 @@ def _check_gmapd(cfg) -> None:
                           f"(1 / --bit-rate = {1 / cfg.bit_rate:g} s) for --detector gmapd")
     if cfg.afterpulse_prob > 0 and not cfg.afterpulse_delay > 0:
         raise ConfigError("--afterpulse-delay must be positive when --afterpulse-prob > 0")
+    # an option that does nothing without its partner is said, not ignored
+    for opt, partner, lone in (("jitter_tail", "jitter_tail_weight", "the share of photons in "
+                                "the tail"), ("jitter_tail_weight", "jitter_tail", "the tail's "
+                                "mean"), ("afterpulse_delay", "afterpulse_prob", "the "
+                                "probability of an afterpulse")):
+        if getattr(cfg, opt, 0) > 0 and not getattr(cfg, partner, 0) > 0:
+            raise ConfigError(f"--{opt.replace('_', '-')} does nothing without "
+                              f"--{partner.replace('_', '-')} ({lone}) above 0")
+    widest = max(getattr(cfg, "jitter", 0.0), getattr(cfg, "jitter_tail", 0.0))
+    if cfg.lidar == "psst" and widest * cfg.bit_rate > cfg.code_length / 2:
+        raise ConfigError(f"--jitter or --jitter-tail of {widest:g} s is wider than half the "
+                          f"code period ({cfg.code_length} bins): no range can be resolved "
+                          f"through it")
 
 
 DETECTORS.add("gmapd", "spslidar.detectors.gmapd:GMAPD", "GMAPD",

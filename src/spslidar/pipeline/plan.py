@@ -63,11 +63,12 @@ def timeline(cfg: Config, scene, warns: list[str]):
     if np.any(outside & scene.valid):
         warns.append(f"{int((outside & scene.valid).sum())} pixels lie outside the range gate "
                      f"{gate[0]:g}-{gate[1]:g} m: their returns alias into the gate or are lost")
-    warns.extend(delay_warnings(cfg, scene, gate))
+    warns.extend(delay_warnings(cfg, scene, gate, acq.unambiguous_range))
     return seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse
 
 
-def delay_warnings(cfg: Config, scene, gate: tuple[float, float]) -> list[str]:
+def delay_warnings(cfg: Config, scene, gate: tuple[float, float],
+                   unambiguous: float | None = None) -> list[str]:
     """What a simulated ``system_delay`` does to ``run``'s own depths: ``run`` reconstructs
     as an uncalibrated instrument would, so every return reads ``c delay / 2`` too far, and
     with the default gate (set from the scene's true depths) the returns fall beyond it and
@@ -78,13 +79,23 @@ def delay_warnings(cfg: Config, scene, gate: tuple[float, float]) -> list[str]:
         return []
     shift = SPEED_OF_LIGHT * float(cfg.system_delay) / 2.0
     seen = scene.depth + shift
-    beyond = int(np.sum(((seen < gate[0]) | (seen > gate[1])) & scene.valid))
+    ru = unambiguous if unambiguous and shift >= unambiguous * (1 - 1e-9) else None
+    if ru:  # the returns wrap with the code (a delay of one period read the true depths)
+        inside = gate[0] + np.mod(seen - gate[0], ru) <= gate[1]
+    else:
+        inside = (seen >= gate[0]) & (seen <= gate[1])
+    beyond = int(np.sum(~inside & scene.valid))
     where = (f"; {beyond} pixels' delayed returns fall outside the range gate "
              f"{gate[0]:g}-{gate[1]:g} m" if beyond else "")
+    wrapped = shift % ru if ru else shift
+    if ru and min(wrapped, ru - wrapped) < 1e-6 * ru:  # a whole number of periods: 0 m
+        wrapped = 0.0
+    far = (f"{wrapped:.3g} m too far, modulo the code's {ru:.3g} m unambiguous range that "
+           f"the {shift:.3g} m reaches" if ru else f"{shift:.3g} m too far")
     return [f"--system-delay {cfg.system_delay:g} s delays every return by {shift:.3g} m and "
-            f"run reads its depths as an uncalibrated instrument does ({shift:.3g} m too "
-            f"far{where}): calibrate on a flat target and reconstruct --calibration, as in the "
-            f"README's 'From your hardware to a depth map'"]
+            f"run reads its depths as an uncalibrated instrument does ({far}{where}): "
+            f"calibrate on a flat target and reconstruct --calibration, as in the README's "
+            f"'From your hardware to a depth map'"]
 
 
 def ignored_options(cfg: Config) -> list[str]:
