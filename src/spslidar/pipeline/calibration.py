@@ -315,15 +315,17 @@ def _check_consistent(cal: dict, offsets: np.ndarray, values: np.ndarray, number
     """What :func:`measure_calibration` writes holds together; a file edited by hand that
     breaks it is refused (a ``lag_fraction`` of 5 moved every depth by 8 cm, offsets as
     strings or all zeros, a ``lag_shift`` that contradicts ``delay_s``, were all taken)."""
-    def exact_ints(key: str) -> bool:
+    def items(key: str) -> list:
         v = cal[key]
-        items = v if isinstance(v, list) else [v]
-        return all(isinstance(i, int) and not isinstance(i, bool) for i in items)
+        return list(v) if isinstance(v, (list, tuple, np.ndarray)) else [v]
+
+    def exact_ints(key: str) -> bool:  # (NumPy's integers too: a dict built in Python)
+        return all(isinstance(i, (int, np.integer)) and not isinstance(i, (bool, np.bool_))
+                   for i in items(key))
 
     def reals(key: str) -> bool:
-        v = cal[key]
-        items = v if isinstance(v, list) else [v]
-        return all(isinstance(i, (int, float)) and not isinstance(i, bool) for i in items)
+        return all(isinstance(i, (int, float, np.integer, np.floating))
+                   and not isinstance(i, (bool, np.bool_)) for i in items(key))
 
     if not (exact_ints("irf_offsets") and exact_ints("lag_shift") and exact_ints("code_length")
             and reals("irf_values") and all(reals(k) for k in ("bit_rate_hz", "delay_s",
