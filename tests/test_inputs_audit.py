@@ -602,3 +602,31 @@ def test_save_ptu_says_a_gmapd_is_not_in_the_file(wall, capsys):
                  "--periods", "2", "--signal", "1e-3", "--noise", "1e-4", "--pileup-correction",
                  "off", "--save-ptu", str(wall / "g.ptu"), "--out", str(out)]) == 0
     assert "--detector gmapd's dead time, jitter and afterpulses" in capsys.readouterr().err
+
+
+def test_calibrating_on_a_target_that_is_not_flat_is_said():
+    """The steps scene (24.5-25.5 m) calibrated to a delay 0.5 m off, read from its farthest
+    plane, without a word. A flat target's response (a peak and a tail that only falls) says
+    nothing; two surfaces 1 m apart warn once."""
+    import warnings
+
+    from spslidar.codes import make_code
+    from spslidar.pipeline.calibration import measure_response
+
+    code = make_code("mseq", 1023).astype(float)
+    tail = np.exp(-np.arange(40) / 4.0)
+    tail /= tail.sum()
+
+    def hist(delays_weights):
+        h = np.zeros(1023)
+        for d, w in delays_weights:
+            for o, t in enumerate(tail):
+                h += w * t * np.roll(code, d + o)
+        return 1000 * h + 50.0
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        one = measure_response(hist([(300, 1.0)]), code, 1e-10, 25.0, 0.5)
+    with pytest.warns(UserWarning, match=r"second return \+1 m from the strongest \(50 %"):
+        two = measure_response(hist([(300, 1.0), (367, 0.5)]), code, 1e-10, 25.0, 0.5)
+    assert one["lag_shift"] == two["lag_shift"]  # read from the strongest either way

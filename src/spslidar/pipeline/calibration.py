@@ -153,6 +153,7 @@ def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, dista
         raise ConfigError(f"no clear return in the calibration acquisition (peak "
                           f"{peak_to_noise:.2g} noise standard deviations): check --distance, "
                           f"--bit-rate and the code, or acquire longer")
+    _second_return(g, p0, noise, bin_width)
     c0 = (1.0 - pulse_width) / 2.0
     delay = (_peak(g, p0) + c0 - tau_d) % period
     if delay > period - 2:  # photons arrive late: a delay a hair below 0 is noise, not L
@@ -169,6 +170,31 @@ def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, dista
             "lag_shift": lag_shift, "lag_fraction": float(lag_shift - exact),
             "irf_offsets": offsets.tolist(), "irf_values": values.tolist(),
             "irf_fwhm_bins": fwhm_bins(values), "peak_to_noise": peak_to_noise}
+
+
+#: a local maximum of the calibration response beyond +-2 bins of its peak above this share of
+#: the peak (and 5 noise deviations) is a second surface, not the instrument's response
+SECOND_RETURN_SHARE = 0.1
+
+
+def _second_return(g: np.ndarray, p0: int, noise: float, bin_width: float) -> None:
+    """Warn (one line) where the response ``g`` holds a second return: a local maximum more
+    than 2 bins from the peak ``p0`` above :data:`SECOND_RETURN_SHARE` of it and 5 noise
+    deviations. A flat target gives one peak and a tail that only falls; the steps scene
+    (24.5-25.5 m) gave a delay 0.5 m off, read from its farthest plane, without a word."""
+    import warnings
+
+    n = g.size
+    offset = (np.arange(n) - p0 + n // 2) % n - n // 2
+    local = (g >= np.roll(g, 1)) & (g >= np.roll(g, -1))
+    second = local & (np.abs(offset) > 2) & (g > max(SECOND_RETURN_SHARE * g[p0], 5 * noise))
+    if second.any():
+        i = int(np.flatnonzero(second)[np.argmax(g[second])])
+        metres = offset[i] * bin_width * SPEED_OF_LIGHT / 2
+        warnings.warn(f"the calibration target holds a second return {metres:+.3g} m from the "
+                      f"strongest ({100 * g[i] / g[p0]:.0f} % of it): a calibration wants one "
+                      f"flat surface at --distance; the delay and response were read from the "
+                      f"strongest return", stacklevel=3)
 
 
 def fwhm_bins(values: np.ndarray) -> float:
