@@ -630,3 +630,14 @@ def test_calibrating_on_a_target_that_is_not_flat_is_said():
     with pytest.warns(UserWarning, match=r"second return \+1 m from the strongest \(50 %"):
         two = measure_response(hist([(300, 1.0), (367, 0.5)]), code, 1e-10, 25.0, 0.5)
     assert one["lag_shift"] == two["lag_shift"]  # read from the strongest either way
+
+
+def test_a_chunk_larger_than_the_file_reads_the_file(measured):
+    """``chunk_records=10**12`` was refused as '64000 GB of histograms'; the result does not
+    depend on the chunk, so a chunk past the file's end is the file."""
+    from spslidar.io.ptu import read_ptu_histograms
+
+    a = read_ptu_histograms(measured / "scan.ptu", 127, bin_width=1e-10, marker=1)
+    b = read_ptu_histograms(measured / "scan.ptu", 127, bin_width=1e-10, marker=1,
+                            chunk_records=10**12)
+    assert np.array_equal(a.histograms, b.histograms)

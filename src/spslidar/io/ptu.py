@@ -558,6 +558,8 @@ def read_ptu_histograms(
                 f"{n_bins} * {width:.6g} s = {n_bins * width:.6g} s "
                 f"({(period - n_bins * width) / width:+.3g} bins, tolerance {period_tol_bins:g})")
 
+        # a chunk past the file's end is the file (10**12 was charged as 64000 GB of buffers)
+        chunk_records = min(chunk_records, max(1, n_records))
         if limit is None:  # a cheap first pass: how many blocks, so memory is known up front
             _check_histogram_memory(1, n_bins, chunk_records, spath)
             rows = _count_markers(f, n_records, chunk_records, mask, spath)
