@@ -101,15 +101,13 @@ def parse_irf(spec: str | os.PathLike | None) -> IRF | None:
 
 
 def _widths(irf: IRF, bin_width: float, period: int) -> tuple[float, float]:
-    """The Gaussian's sigma and the tail's mean of a parsed ``--irf``, in bins: refused where
-    wider than half the code period (``gaussian:1e-6`` gave a map of noise, saying nothing),
-    0 far below a bin (``gaussian:1e-300`` overflowed inside the kernel's arithmetic)."""
+    """The Gaussian's sigma and the tail's mean of a parsed ``--irf``, in bins; refused where
+    wider than half the code period (``gaussian:1e-6`` gave a map of noise, saying nothing)."""
     if max(irf.fwhm, irf.tail) / bin_width > period / 2:
         raise ConfigError(f"--irf {irf.describe()}: a response of {max(irf.fwhm, irf.tail):g} s "
                           f"is wider than half the code period ({period} bins of "
                           f"{bin_width:g} s): no range can be resolved through it")
-    sigma, tail = irf.fwhm / _FWHM_PER_SIGMA / bin_width, irf.tail / bin_width
-    return (0.0 if sigma < 1e-6 else sigma), (0.0 if tail < 1e-6 else tail)
+    return irf.fwhm / _FWHM_PER_SIGMA / bin_width, irf.tail / bin_width
 
 
 def irf_kernel(irf: IRF | None, bin_width: float, period: int):

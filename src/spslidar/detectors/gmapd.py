@@ -160,10 +160,8 @@ class GMAPD(DetectorModel):
         if sub > 1:
             lam = np.repeat(lam / sub, sub, axis=1)
         width = self.bin_width / sub
-        # far below a bin a width is none (1e-300 s overflowed in the kernel's arithmetic)
-        sigma, tail = (w / width if w / width >= 1e-6 else 0.0
-                       for w in (self.jitter, self.jitter_tail))
-        kern = jitter_kernel(lam.shape[1], sigma, tail, self.jitter_tail_weight)
+        kern = jitter_kernel(lam.shape[1], self.jitter / width, self.jitter_tail / width,
+                             self.jitter_tail_weight)
         mu = convolve_periodic(lam, kern) * (self.efficiency / n_periods)
         if self.dark_count_rate:
             mu = mu + self.dark_count_rate * width

@@ -165,11 +165,22 @@ def _g_exgauss(y: np.ndarray, sigma: float, tau: float) -> np.ndarray:
     return _g_gauss(y, sigma) - tau * cdf
 
 
+#: a jitter width (bins) below this is none: the closed forms divide by it, and 1e-300 s
+#: overflowed (NumPy's warnings on stderr) while its kernel is a delta to far below 1e-6
+NARROWEST_BINS = 1e-6
+
+
+def _resolved(width: float) -> float:
+    """``width`` (bins), or 0 below :data:`NARROWEST_BINS`."""
+    return 0.0 if width < NARROWEST_BINS else float(width)
+
+
 def jitter_antiderivative(y: np.ndarray, sigma: float, tail: float = 0.0,
                           tail_weight: float = 0.0) -> np.ndarray:
     """``G(y) = E[(y - J)^+]`` of the jitter of :func:`jitter_kernel` (Gaussian, with
     probability ``tail_weight`` plus an exponential tail of mean ``tail``; bins): the
     antiderivative of its CDF, from which the share of any time interval follows exactly."""
+    sigma, tail = _resolved(sigma), _resolved(tail)
     tw = float(tail_weight) if tail > 0 else 0.0
     out = (1.0 - tw) * _g_gauss(y, sigma)
     return out + tw * _g_exgauss(y, sigma, tail) if tw else out
@@ -201,6 +212,7 @@ def jitter_kernel(period: int, sigma: float, tail: float = 0.0,
     form for both components (``G_exG = G_gauss - tail * F_exG``), so the kernel is exact
     however narrow the jitter is compared with a bin.
     """
+    sigma, tail = _resolved(sigma), _resolved(tail)
     tw = float(tail_weight) if tail > 0 else 0.0
     kern = np.zeros(period)
     if sigma == 0 and tw == 0:
