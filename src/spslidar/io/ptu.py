@@ -297,16 +297,21 @@ def _overflows(raw: np.ndarray, family: str) -> tuple[int, int]:
     return n, int(np.where(count == 0, 1, count).sum())
 
 
-def _finite_number(value, name: str, positive: bool = False) -> float:
-    """``value`` as a finite float >= 0 (> 0 with ``positive``), or one line."""
+def _finite_number(value, name: str, positive: bool = False,
+                   hi: float | None = None) -> float:
+    """``value`` as a finite float >= 0 (> 0 with ``positive``; at most ``hi`` where given),
+    or one line."""
     import math
 
-    if isinstance(value, (bool, str, bytes)):
+    if isinstance(value, (bool, str, bytes)) or np.iscomplexobj(value):
         raise ConfigError(f"{name} must be a number, got {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise ConfigError(f"{name} must be a number, got {value!r}") from None
+    if hi is not None and not (v <= hi and (v > 0 if positive else v >= 0)):
+        raise ConfigError(f"{name} must be in {'(' if positive else '['}0, {hi:g}], got "
+                          f"{value!r}")
     if not math.isfinite(v) or v < 0 or (positive and v == 0):
         raise ConfigError(f"{name} must be a finite number {'>' if positive else '>='} 0, "
                           f"got {value!r}")

@@ -26,6 +26,7 @@ from .ptu import (
     _TY_TDATETIME,
     T3_RECORD_TYPES,
     PathLike,
+    _finite_number,
     _marker_input,
     _positive_int,
 )
@@ -79,16 +80,6 @@ def _check_tag_name(key: Any) -> None:
 #: asked for 16 GiB of them
 MAX_OVERFLOW_RECORDS = 2**28
 
-
-def _positive(value: Any, name: str, hi: float) -> float:
-    """A real number in (0, ``hi``], one line otherwise."""
-    if isinstance(value, (str, bytes, bool)) or not isinstance(value, (int, float, np.number)) \
-            or np.iscomplexobj(value):
-        raise ConfigError(f"{name} must be a number, got {value!r}")
-    v = float(value)
-    if not 0.0 < v <= hi:
-        raise ConfigError(f"{name} must be in (0, {hi:g}], got {value!r}")
-    return v
 
 
 def _record_type(name: str) -> tuple[str, int, str, str]:
@@ -174,8 +165,8 @@ def write_ptu_t3(
     dt = _as_int_array(dtime, n, "dtime")
     ch = _as_int_array(channel, n, "channel")
     mk = np.zeros(n, np.int64) if marker is None else _as_int_array(marker, n, "marker")
-    resolution_s = _positive(resolution_s, "resolution_s", 1.0)  # seconds per dtime unit
-    sync_rate_hz = _positive(sync_rate_hz, "sync_rate_hz", 1e12)
+    resolution_s = _finite_number(resolution_s, "resolution_s", True, 1.0)  # s per dtime unit
+    sync_rate_hz = _finite_number(sync_rate_hz, "sync_rate_hz", True, 1e12)
     if sync_rate_hz < 1.0:  # the header's acquisition time (ms) would overflow its integer
         raise ConfigError(f"sync_rate_hz must be at least 1 Hz, got {sync_rate_hz!r}")
     if n and (t[0] < 0 or np.any(np.diff(t) < 0)):
