@@ -596,6 +596,7 @@ def sweep_main(
     """
     spec = load_sweep_config(config_path)
     points = spec.points()
+    jobs = _check_jobs(jobs)  # before the estimate and the folder
     ignore: frozenset[str] = frozenset()
     if func is None:
         from spslidar.pipeline import PROCESSING_KEYS
@@ -605,15 +606,13 @@ def sweep_main(
         ignore = frozenset(PROCESSING_KEYS) | {SCENE_HASH_KEY}  # an edited scene: same noise
         from spslidar.pipeline.budget import check_time
 
-        jobs = _check_jobs(jobs)
         # local workers are at most the cores (--jobs 1000 divided a 9 h sweep into 31 s)
-        workers = jobs if scheduler is not None else min(
-            _cores(), _cores() if jobs == -1 else jobs)
+        workers = jobs if scheduler is not None else (
+            _cores() if jobs == -1 else min(jobs, _cores()))
         check_time(total / max(1, min(len(points), workers)), max_time,
                    f"this sweep of {len(points)} runs")
     from spslidar.outdir import claim_folder, release_folder
 
-    jobs = _check_jobs(jobs)  # before the folder is made
     if isinstance(scheduler, str):
         _probe_scheduler(scheduler)  # before the folder is made
     existed = Path(out_dir).exists()

@@ -193,17 +193,25 @@ def point_key(params: Mapping[str, Any]) -> str:
 # --------------------------------------------------------------------------------------------
 
 
+#: the keys the sweep sets itself, with what to do instead
+_RESERVED = {TRIAL_KEY: "set the number of trials instead",
+             SCENE_HASH_KEY: "the sweep reads it from the scene file"}
+
+
+def _check_reserved(names, where: str) -> None:
+    """One line for a key of ``names`` that the sweep sets itself (:data:`_RESERVED`)."""
+    for name in names:
+        if name in _RESERVED:
+            raise ConfigError(f"{where}.{name} is reserved; {_RESERVED[name]}")
+
+
 def _check_grid(grid: Mapping[str, Any], where: str = "grid") -> None:
     if not isinstance(grid, Mapping):
         raise ConfigError(f"{where} must be a table of lists, got {type(grid).__name__}")
     for name, values in grid.items():
         if not isinstance(name, str):
             raise ConfigError(f"{where}: key {name!r} is not a string")
-        if name == TRIAL_KEY:
-            raise ConfigError(f"{where}.{TRIAL_KEY} is reserved; set the number of trials instead")
-        if name == SCENE_HASH_KEY:
-            raise ConfigError(f"{where}.{SCENE_HASH_KEY} is reserved: the sweep reads it from "
-                              f"the scene file")
+        _check_reserved([name], where)
         if not isinstance(values, (list, tuple)) or len(values) == 0:
             raise ConfigError(f"{where}.{name} must be a non-empty list of values, got {values!r}")
 
@@ -239,11 +247,7 @@ def expand_grid(
     """
     if not isinstance(base, Mapping):
         raise ConfigError(f"base must be a table, got {type(base).__name__}")
-    if TRIAL_KEY in base:
-        raise ConfigError(f"base.{TRIAL_KEY} is reserved; set the number of trials instead")
-    if SCENE_HASH_KEY in base:
-        raise ConfigError(f"base.{SCENE_HASH_KEY} is reserved: the sweep reads it from the "
-                          f"scene file")
+    _check_reserved(base, "base")
     _check_grid(grid)
     trials = check_int(trials, "trials")
     if trials < 1:
@@ -372,11 +376,7 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
         raise ConfigError(f"{path}: the grid has {n_runs:.3g} runs (with its trials), more than "
                           f"the {MAX_RUNS} one sweep takes (a run takes a second or more: "
                           f"hours of work); split it into several sweeps")
-    if TRIAL_KEY in base:
-        raise ConfigError(f"{path}: base.{TRIAL_KEY} is reserved; set trials instead")
-    if SCENE_HASH_KEY in base:
-        raise ConfigError(f"{path}: base.{SCENE_HASH_KEY} is reserved: the sweep reads it "
-                          f"from the scene file")
+    _check_reserved(base, f"{path}: base")
     if SEED_KEY in base and trials > 1 and SEED_KEY not in grid:
         raise ConfigError(
             f"{path}: base.seed gives every trial the same noise; set the top-level seed instead"
