@@ -105,32 +105,38 @@ def ignored_options(cfg: Config) -> list[str]:
     ``hadamard_realisation`` of patterns that are not Hadamard rows, ``pattern_sigma`` of
     patterns that are not grey Gaussian ones, ``qcr_form`` without QCR, ``fairness`` of a
     PSST lidar, the code of a conventional one, ``lam_scale`` beside ``lam``."""
+    import dataclasses
+
+    fields = {f.name: f.default for f in dataclasses.fields(Config)}
+
+    def changed(name: str) -> bool:  # set away from the Config's own default
+        return getattr(cfg, name) != fields[name]
+
     out = []
-    if cfg.rep_rate is not None and cfg.lidar != "conventional":
+    if changed("rep_rate") and cfg.lidar != "conventional":
         out.append(f"--rep-rate {cfg.rep_rate:g} is ignored: it sets the pulse period of "
                    f"--lidar conventional; a {cfg.lidar} lidar repeats its code")
-    if cfg.hadamard_order != "cake-cutting" and cfg.patterns != "hadamard":
+    if changed("hadamard_order") and cfg.patterns != "hadamard":
         out.append(f"--hadamard-order {cfg.hadamard_order} is ignored: it orders the rows of "
                    f"--patterns hadamard, not {cfg.patterns}")
-    if cfg.qcr_form != "centred" and not cfg.qcr:
+    if changed("qcr_form") and not cfg.qcr:
         out.append(f"--qcr-form {cfg.qcr_form} is ignored with --no-qcr")
-    if cfg.hadamard_realisation != "shifted" and cfg.patterns != "hadamard":
+    if changed("hadamard_realisation") and cfg.patterns != "hadamard":
         out.append(f"--hadamard-realisation {cfg.hadamard_realisation} is ignored: it shows "
                    f"the rows of --patterns hadamard, not {cfg.patterns}")
-    if cfg.pattern_sigma != 0.25 and cfg.patterns != "gaussian":
+    if changed("pattern_sigma") and cfg.patterns != "gaussian":
         out.append(f"--pattern-sigma {cfg.pattern_sigma:g} is ignored: it spreads the grey "
                    f"levels of --patterns gaussian, not {cfg.patterns}")
-    if cfg.fairness != "energy" and cfg.lidar != "conventional":
+    if changed("fairness") and cfg.lidar != "conventional":
         out.append(f"--fairness {cfg.fairness} is ignored: it sets the pulses of --lidar "
                    f"conventional against the PSST's; a {cfg.lidar} lidar is the reference")
     if cfg.lidar == "conventional":
-        unused = [f"--{k.replace('_', '-')} {v}" for k, v, d in (
-            ("code", cfg.code, "mseq"), ("code_index", cfg.code_index, None),
-            ("ones_ratio", cfg.ones_ratio, 0.5)) if v != d]
+        unused = [f"--{k.replace('_', '-')} {getattr(cfg, k)}"
+                  for k in ("code", "code_index", "ones_ratio") if changed(k)]
         if unused:
             out.append(f"{', '.join(unused)} {'is' if len(unused) == 1 else 'are'} ignored: "
-                       f"--lidar conventional fires single "
-                       f"pulses, not a code (--code-length still sets each pattern's time)")
+                       f"--lidar conventional fires single pulses, not a code (--code-length "
+                       f"still sets each pattern's time)")
     if cfg.lam is not None and cfg.lam_scale is not None:
         out.append(f"--lam-scale {cfg.lam_scale:g} is ignored: --lam {cfg.lam:g} sets the "
                    f"weight itself")
