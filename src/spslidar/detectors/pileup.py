@@ -91,6 +91,18 @@ SUB_BIN_FLUX = 0.15
 MAX_OVERSAMPLE = 16
 #: largest IRF kernel support (bins)
 _MAX_KERNEL = 10_000_000
+#: a row of the fixed-point iteration whose residual grows past this many times its best
+#: has diverged (Anderson mixing of nearly collinear residuals) and restarts
+_DIVERGED = 1e3
+#: a relative change of the period's detections below this at the sweep cap is round-off
+#: (the chunked closed form's floor is about 1e-10 at 16383 bins), far below any count's noise:
+#: no warning
+_NEGLIGIBLE = 1e-7
+#: sweeps without halving the worst row's best change, once it is below _FLOOR, that end the
+#: iteration at the round-off floor (the inverse, near saturation, amplifies what is left by
+#: up to ~1e3, so the floor is well below _NEGLIGIBLE)
+_STALLED = 10
+_FLOOR = 1e-9
 
 
 # --------------------------------------------------------------------------- special functions
@@ -454,18 +466,46 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
     state = np.concatenate((tail * scale[:, None], (1.0 - window * scale)[:, None],
                             np.zeros((n_rows, 1))), axis=1)
     # Anderson acceleration (type II, Walker & Ni 2011) of the affine period map: affine
-    # combinations of iterates keep alpha + W = 1
+    # combinations of iterates keep alpha + W = 1. Safeguarded per row: a row that has
+    # converged takes plain sweeps (at round-off its residual differences make the mixing's
+    # Gram matrix singular, and one such row blew a 64-row batch up to 1e233), and a row whose
+    # residual grows past DIVERGED times its best restarts from its best sweep.
     xs: list[np.ndarray] = []
     rs: list[np.ndarray] = []
+    best = np.full(n_rows, np.inf)
+    best_state = state.copy()
+    best_out = state.copy()
     change = np.inf
     sweeps = 0
+    mark, stalled = np.inf, 0
     for sweeps in range(1, max_sweeps + 1):  # noqa: B007 - reported below
         out = sweep(state)
         res = out - state
         scale_h = np.maximum(hist[:, d + 1 :].max(axis=1), 1e-300)
-        change = float(np.max(np.abs(res).max(axis=1) / scale_h))
+        row_change = np.abs(res).max(axis=1) / scale_h
+        row_change[~np.isfinite(row_change)] = np.inf
+        change = float(np.max(row_change))
         if change <= tol:
             break
+        improved = row_change < best
+        best[improved] = row_change[improved]
+        best_state[improved] = state[improved]
+        best_out[improved] = out[improved]
+        # at the round-off floor (reached in ~10 sweeps at 1-10 photons per dead time, then
+        # 235 more sweeps at 1.6e-10 went by without a gain): stop with the best sweep
+        if best.max() < 0.5 * mark:
+            mark, stalled = float(best.max()), 0
+        else:
+            stalled += 1
+        if stalled >= _STALLED and mark <= _FLOOR:
+            break
+        diverged = row_change > _DIVERGED * best
+        if diverged.any():
+            xs.clear()
+            rs.clear()
+            out[diverged] = best_out[diverged]
+            state = out
+            continue
         xs.append(out)
         rs.append(res)
         if len(xs) > anderson + 1:
@@ -478,10 +518,19 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
             rhs = np.einsum("bni,bn->bi", d_r, res)
             reg = 1e-10 * np.trace(gram, axis1=1, axis2=2)[:, None, None] + 1e-300
             coeffs = np.linalg.solve(gram + reg * np.eye(gram.shape[1]), rhs[..., None])
+            # no mixing for a converged row, nor where the mix is wild (nearly collinear
+            # residuals: coefficients of 1e3 and more amplify round-off)
+            wild = ~np.isfinite(coeffs).all(axis=(1, 2))
+            wild |= np.abs(np.nan_to_num(coeffs)).sum(axis=(1, 2)) > _DIVERGED
+            coeffs[wild | (row_change <= tol)] = 0.0
             state = out - (d_x @ coeffs)[..., 0]
         else:
             state = out
-    else:
+    if change > tol:
+        # the cap or the floor: the period's h is that of each row's best sweep, not the last
+        sweep(best_state)
+        change = float(np.max(best))
+    if change > tol and change > _NEGLIGIBLE:
         per_dead = float(mu2.mean()) * float(dead_bins)
         why = (f" at {per_dead:.3g} photons per dead time: the detector fires at nearly every "
                f"re-arm, so its histograms carry little timing information and the model's "
