@@ -183,3 +183,27 @@ def test_reproduce_all_quick(tmp_path, capsys):
     assert "0.201" in text and "0.176" in text and "0.033" in text  # the paper's numbers
     assert "aliased by 1 x 15.0 m" in text  # the conventional lidar wraps, the PSST does not
     assert (out / "table1" / "table1.md").is_file()
+
+
+def test_a_warning_repeated_with_other_numbers_is_one_line_and_a_count(monkeypatch, capsys,
+                                                                        tmp_path):
+    """The GMAPD's fixed point warns once per block of patterns, each time with another
+    relative change: one line per 64 patterns, all but the numbers the same. The command line prints
+    it once, then how many more came; a different warning from the same place still shows."""
+    import warnings
+
+    from spslidar import cli
+
+    def noisy(args):
+        for change in (1.5e-3, 2.7e-4, 9.1e-5):
+            warnings.warn(f"fixed point not converged (relative change {change:.2e})",
+                          RuntimeWarning, stacklevel=1)
+        warnings.warn("something else", RuntimeWarning, stacklevel=1)
+        return 0
+
+    monkeypatch.setitem(cli.COMMANDS, "run", noisy)
+    assert cli.main(["run", "--out", str(tmp_path / "r")]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 3, err
+    assert "relative change 1.50e-03" in err[0] and "something else" in err[1]
+    assert "came 2 more times" in err[2]

@@ -7,7 +7,7 @@ imported inside each sub-command. Bad input prints one line on stderr and exits 
 from __future__ import annotations
 
 import argparse
-import functools
+import re
 import sys
 import warnings
 from pathlib import Path
@@ -631,12 +631,33 @@ COMMANDS = {"run": _cmd_run, "reconstruct": _cmd_reconstruct, "calibrate": _cmd_
             "reproduce": _cmd_reproduce, "sweep": _cmd_sweep}
 
 
-def _one_line_warning(command, message, category, filename, lineno, file=None, line=None):
+class _OneLineWarnings:
     """``warnings.showwarning`` of the command line: ``spslidar CMD: warning: ...`` on stderr,
-    one line, without the warning's source line."""
-    text = " ".join(str(message).split())
-    print(f"spslidar {command}: warning: {text} ({category.__name__} in "
-          f"{Path(filename).name}:{lineno})", file=sys.stderr if file is None else file)
+    one line, without the warning's source line. A warning that comes again from the same
+    place with only its numbers changed (the GMAPD's fixed point, once per block of patterns)
+    is counted, not repeated: :meth:`close` says how many more came."""
+
+    def __init__(self, command: str):
+        self.command = command
+        self.repeats: dict[tuple, int] = {}
+
+    def __call__(self, message, category, filename, lineno, file=None, line=None):
+        text = " ".join(str(message).split())
+        key = (category, filename, lineno, re.sub(r"[-+]?\d[\d.,]*(e[-+]?\d+)?", "#", text))
+        if key in self.repeats:
+            self.repeats[key] += 1
+            return
+        self.repeats[key] = 0
+        print(f"spslidar {self.command}: warning: {text} ({category.__name__} in "
+              f"{Path(filename).name}:{lineno})", file=sys.stderr if file is None else file)
+
+    def close(self) -> None:
+        for (category, filename, lineno, _), n in self.repeats.items():
+            if n:
+                print(f"spslidar {self.command}: warning: the {category.__name__} of "
+                      f"{Path(filename).name}:{lineno} above came {n} more time"
+                      f"{'s' if n > 1 else ''} (its numbers changed)", file=sys.stderr)
+        self.repeats.clear()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -673,9 +694,13 @@ def main(argv: list[str] | None = None) -> int:
     else:  # SIGTERM in a session: the clean-up of Ctrl-C, no watchdog
         stopper.install((signal.SIGTERM,))
     try:
+        shown = _OneLineWarnings(args.command)
         with warnings.catch_warnings():  # a library's warning: one line, not its source line
-            warnings.showwarning = functools.partial(_one_line_warning, args.command)
-            status = COMMANDS[args.command](args)
+            warnings.showwarning = shown
+            try:
+                status = COMMANDS[args.command](args)
+            finally:
+                shown.close()
         if own:
             stop_pool()
         return status
