@@ -284,6 +284,17 @@ def test_flat_wall_at_three_photons_per_dead_time_keeps_every_pixel(tmp_path):
     per_unit = measure({**base, "signal": 1.0, "noise": 0.1, "noiseless": True,
                         "depth": "argmax"}).sim["pileup"]["counts_per_dead_time"]
     ms = 3.0 / per_unit
-    res = reconstruct(measure({**base, "signal": ms, "noise": ms / 10, "detector": "gmapd"}))
+    meas = measure({**base, "signal": ms, "noise": ms / 10, "detector": "gmapd"})
+    res = reconstruct(meas)
     assert res.metrics["missing_fraction"] == 0.0
     assert res.metrics["depth_rmse_m"] < 0.015  # one 1.5 cm bin
+    # the incident flux read back from the detections, n = r / (1 - r)
+    assert meas.sim["pileup"]["incident_per_dead_time"] == pytest.approx(3.0, rel=0.02)
+    assert not any("pileup-correction" in w for w in meas.warnings)
+    # at 30 photons per dead time the correction costs more than it mends: said, with the
+    # way out; not said when the correction is off
+    loud = {**base, "signal": 10 * ms, "noise": ms, "detector": "gmapd"}
+    said = [w for w in measure(loud).warnings if "pileup-correction" in w]
+    assert len(said) == 1 and "--pileup-correction off" in said[0] and "29." in said[0]
+    quiet = measure({**loud, "pileup_correction": False}).warnings
+    assert not any("pileup-correction" in w for w in quiet)

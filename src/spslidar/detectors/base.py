@@ -78,3 +78,8 @@ class DetectorModel:
         """What a user should hear about this model's settings (legal but suspicious ones),
         said as warnings by the run."""
         return []
+
+    def notes_after(self, report: dict[str, Any]) -> list[str]:
+        """What a user should hear once the counts are known (``report`` is :meth:`report`'s
+        dict), said as warnings by the run."""
+        return []

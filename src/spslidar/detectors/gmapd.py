@@ -45,6 +45,11 @@ __all__ = ["GMAPD"]
 
 #: largest rows x bins x sub-bins solved at once (memory: ~15 float64 arrays of this size)
 MAX_BLOCK = 2**21
+#: incident photons per dead time above which the pile-up correction costs more than it
+#: mends: on the six built-in scenes (32x32, 10^5 periods, m_n = m_s / 10, seeds 0-2) the
+#: corrected MRF depth's RMSE was 0.6-1.5 times the uncorrected at 10 (3 scenes worse, the
+#: steps better) and 1.5-3.8 times at 30 (every scene worse, 2-5 % of pixels lost)
+CORRECTION_NOISY = 10.0
 
 
 def _check(ok: bool, message: str) -> None:
@@ -273,6 +278,23 @@ class GMAPD(DetectorModel):
     def report(self, counts_per_period: float, period_s: float) -> dict[str, Any]:
         """Detected rate, detections per dead time and the fraction of time dead."""
         rate = counts_per_period / period_s
-        return {"model": self.name, "count_rate_hz": float(rate),
-                "counts_per_dead_time": float(rate * self.dead_time),
-                "dead_fraction": float(min(rate * self.dead_time, 1.0))}
+        per_dead = float(rate * self.dead_time)
+        out = {"model": self.name, "count_rate_hz": float(rate),
+               "counts_per_dead_time": per_dead, "dead_fraction": float(min(per_dead, 1.0))}
+        if self.dead_time > 0 and per_dead < 1.0:
+            # the non-paralysable count rate n / (1 + n) per dead time, inverted (dark
+            # counts and afterpulses included)
+            out["incident_per_dead_time"] = per_dead / (1.0 - per_dead)
+        return out
+
+    def notes_after(self, report: dict[str, Any]) -> list[str]:
+        """What to say once the counts are known: the pile-up correction at a flux where it
+        costs more than it mends."""
+        n = report.get("incident_per_dead_time", np.inf if self.dead_time else 0.0)
+        if not (self.correction and n > CORRECTION_NOISY):
+            return []
+        return [f"--pileup-correction on at {n:.3g} incident photons per dead time: above "
+                f"about {CORRECTION_NOISY:g} the correction amplifies the counting noise more "
+                f"than it removes the distortion (measured at 30 on the six built-in scenes: "
+                f"depth RMSE 1.5-3.8 times that without it); use --pileup-correction off, or "
+                f"less light and more --periods"]

@@ -145,6 +145,7 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     pile = detector.report(float(np.mean(sim["counts"])) / acq.n_periods,
                            acq.period * bin_width)
     sim["pileup"] = pile
+    warns.extend(detector.notes_after(pile))
     sim["estimate"] = ({} if budget is None else
                        {"memory_gb": budget.bytes / 1e9, "time_s": budget.seconds})
     timing["simulate"] = time.perf_counter() - t0
