@@ -176,17 +176,25 @@ class GMAPD(DetectorModel):
         """``q_t``: mean detections per bin per period (steady state), float64 (B, L)."""
         lam = np.atleast_2d(np.asarray(lam, dtype=np.float64))
         mu = self.flux(lam, n_periods)
-        sub = self.oversample or auto_oversample(float(mu.max(initial=0.0)))
-        args = (self.afterpulse_prob, self._ap_rate() / sub)
-        if sub == 1:
-            return renewal_detection(mu, self.dead_bins, *args, tol=self.tol)
         n_rows, period = lam.shape
+        # each row sub-binned as its own flux needs: a batch sub-binned for its brightest row
+        # was slower (64 rows at 0.01-100 photons per dead time) and its dim rows differed
+        # from themselves alone
+        subs = (np.full(n_rows, int(self.oversample)) if self.oversample else
+                np.array([auto_oversample(float(m)) for m in mu.max(axis=1, initial=0.0)]))
         q = np.empty((n_rows, period))
-        step = max(1, MAX_BLOCK // (period * sub))
-        for r in range(0, n_rows, step):
-            fine = renewal_detection(self.flux(lam[r : r + step], n_periods, sub),
-                                     self.dead_bins * sub, *args, tol=self.tol)
-            q[r : r + step] = fine.reshape(-1, period, sub).sum(axis=2)
+        for sub in np.unique(subs):
+            rows = np.flatnonzero(subs == sub)
+            args = (self.afterpulse_prob, self._ap_rate() / sub)
+            if sub == 1:
+                q[rows] = renewal_detection(mu[rows], self.dead_bins, *args, tol=self.tol)
+                continue
+            step = max(1, MAX_BLOCK // (period * sub))
+            for i in range(0, rows.size, step):
+                part = rows[i : i + step]
+                fine = renewal_detection(self.flux(lam[part], n_periods, sub),
+                                         self.dead_bins * sub, *args, tol=self.tol)
+                q[part] = fine.reshape(-1, period, sub).sum(axis=2)
         return q
 
     # -------------------------------------------------------------------------- contract

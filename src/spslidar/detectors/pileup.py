@@ -687,9 +687,12 @@ def coates_correction(hist: np.ndarray, n_periods: int, dead_time_bins: float,
     args = (float(n_periods), dead_time_bins, float(afterpulse_prob),
             float(afterpulse_delay_bins), max_iter, tol)
     mu = _coates_bins(h, *args)
-    sub = auto_oversample(float(mu.max(initial=0.0))) if oversample is None else int(oversample)
-    if sub > 1:
-        mu = _defect_correction(h, mu, sub, profile, args)
+    # each row sub-binned as its own flux needs (as the forward model does)
+    subs = (np.array([auto_oversample(float(m)) for m in mu.max(axis=1, initial=0.0)])
+            if oversample is None else np.full(mu.shape[0], int(oversample)))
+    for sub in np.unique(subs[subs > 1]):
+        rows = np.flatnonzero(subs == sub)
+        mu[rows] = _defect_correction(h[rows], mu[rows], int(sub), profile, args)
     out = mu * n_periods
     return out[0] if one_d else out
 
