@@ -34,6 +34,7 @@ from .results import Result
 from .score import finish_result, resolved_config
 from .simulate import BLOCK, simulate_correlations
 from .weights import (
+    FLOORED_ITERATIONS,
     LAM_FLOOR,
     TV_INNER,
     build_regulariser,
@@ -236,6 +237,8 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     from ..solvers import SolveInfo, StopRule, get_solver
 
     iterations = cfg.iterations or solver_default(cfg.solver, "iterations")
+    if floored and not cfg.iterations:
+        iterations *= FLOORED_ITERATIONS
     if device:
         x, finfo = dev.solve(be, A, y, (cfg.size, cfg.size), cfg.nonneg, lam, iterations,
                              cfg.tol, TV_INNER, isotropic=reg_kind == "tv")
