@@ -118,11 +118,28 @@ def test_a_black_scene_is_said_to_be_noise(tmp_path, gate):
 
 def test_too_narrow_a_gate_is_not_judged(tmp_path):
     """Under 16 slices too few are left beside a peak to tell a return from noise: no
-    verdict (None), no warning."""
+    verdict (None), and a warning that says the check did not run (it ran silently)."""
     r = spslidar.run(scene=_black(tmp_path), size=16, code_length=1023, seed=1,
                      range_gate=(11.95, 12.05))
     assert r.metrics["n_slices"] < NOISE_ONLY_MIN_SLICES
     assert r.metrics["peak_to_noise_p90"] is None and not _warned(r)
+    said = [w for w in r.warnings if "too few beside a return" in w]
+    assert len(said) == 1 and "11.95-12.05 m holds" in said[0]
+
+
+def test_a_flat_wall_of_noise_is_judged_through_its_default_gate(tmp_path):
+    """A flat wall's window padded by three bins held 8 slices, so an image of pure noise
+    (m_s = 1e-6) was reported as a wall (RMSE 0.034 m, mean reflectivity 8e5) with no word
+    (found by a sweep of unusual regimes). The default gate now holds at least 16 slices;
+    the wall itself stays where it was (0.0046 m at 8 and at 20 slices)."""
+    wall = tmp_path / "wall.npy"
+    np.save(wall, np.full((32, 32), 12.0))
+    noise = spslidar.run(scene=str(wall), size=32, code_length=1023, seed=0, signal=1e-6)
+    assert noise.metrics["n_slices"] >= NOISE_ONLY_MIN_SLICES
+    assert len(_warned(noise)) == 1
+    lit = spslidar.run(scene=str(wall), size=32, code_length=1023, seed=0)
+    assert not _warned(lit) and lit.depth_rmse < 0.0075  # half a bin
+    assert not any("too few beside a return" in w for w in lit.warnings)
 
 
 @pytest.mark.parametrize("k", [1, 2, 3, 4, 5])

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..config import Config
 from ..constants import SPEED_OF_LIGHT
-from ..depth.profile import noise_verdict
+from ..depth.profile import NOISE_ONLY_MIN_SLICES, noise_verdict
 from ..metrics import depth_errors, edge_agreement, sobel_edges
 from ..products import reflectivity_image
 from ..solvers.entries import TV_REGULARISERS
@@ -59,6 +59,12 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
             f"gives {null:.2f} here, {np.shape(slices)[1]} slices): check that the range gate "
             f"{meas.gate[0]:g}-{meas.gate[1]:g} m holds the scene, the signal level, or "
             f"acquire longer")
+    elif verdict is None and np.shape(slices)[1] < NOISE_ONLY_MIN_SLICES:
+        warns.append(
+            f"the range gate {meas.gate[0]:g}-{meas.gate[1]:g} m holds {np.shape(slices)[1]} "
+            f"slices, too few beside a return to tell it from noise ({NOISE_ONLY_MIN_SLICES} or "
+            f"more): nothing here checks that the depth map is not noise (a wider --range-gate "
+            f"lets it)")
     timing["metrics"] = time.perf_counter() - t0
     timing["total"] = sum(timing.values())
 
