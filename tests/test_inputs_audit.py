@@ -655,3 +655,20 @@ def test_natural_hadamard_order_below_full_sampling_is_said_to_alias(tmp_path, c
     assert main(["run", *FAST, "--out", str(tmp_path / "b"), "--patterns", "hadamard",
                  "--hadamard-order", "natural", "--compression", "1"]) == 0
     assert "natural" not in capsys.readouterr().err
+
+
+def test_a_random_code_drawn_all_ones_keeps_a_zero(tmp_path, capsys):
+    """A 7-bit random code drawn all ones (``--ones-ratio 0.99``) ended in two NumPy warnings
+    and 'the weight nan is beyond what float32 can hold' (a sweep of unusual regimes): its
+    zero-mean replica is zero. As a draw without a '1' gets one, a draw without a '0' gets
+    one, and the run goes through."""
+    from spslidar.codes.sequences import make_code
+
+    for seed in range(20):
+        code = make_code("random", 7, 0.99, np.random.default_rng(seed))
+        assert 0 < code.sum() < 7
+        code = make_code("random", 7, 0.01, np.random.default_rng(seed))
+        assert 0 < code.sum() < 7
+    assert main(["run", "--size", "8", "--code", "random", "--code-length", "7",
+                 "--ones-ratio", "0.99", "--no-figure", "--out", str(tmp_path / "o")]) == 0
+    assert "RuntimeWarning" not in capsys.readouterr().err

@@ -387,7 +387,9 @@ def make_code(
     eq. (10) grows as ``T R_a``. Random codes are drawn iid Bernoulli(``R_a``), as the paper's
     MATLAB threshold on uniform random numbers; if the draw has no '1' bit (possible only for
     tiny ``T R_a``), one bit chosen at random is set so the laser fires at least once per
-    period. m-sequences are those of :func:`scipy.signal.max_len_seq` with its default taps from
+    period; if it has no '0' bit, one is cleared, so the code has a timing at all (an all-ones
+    7-bit draw at ``R_a = 0.99`` made the zero-mean replica zero and the weight NaN).
+    m-sequences are those of :func:`scipy.signal.max_len_seq` with its default taps from
     the all-ones register state (generated bitwise identically by :func:`lfsr_sequence`).
     """
     kind = canonical_kind(kind)
@@ -410,6 +412,8 @@ def make_code(
         code = (gen.random(length) < ratio).astype(np.uint8)
         if not code.any():
             code[gen.integers(length)] = 1
+        elif code.all():  # the same for a draw without a '0' (a code with no timing)
+            code[gen.integers(length)] = 0
         return code
 
     if kind == "mseq":
