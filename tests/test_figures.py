@@ -146,3 +146,28 @@ def test_run_truth_is_nan_where_the_scene_has_none(result, tmp_path):
     out = result.save(tmp_path / "o", figure=False)
     truth, valid = np.load(out / "truth.npy"), np.load(out / "valid.npy")
     assert (~valid).any() and np.isnan(truth[~valid]).all() and np.isfinite(truth[valid]).all()
+
+
+def test_errors_beyond_the_error_bar_are_crossed_and_counted(tmp_path):
+    """The error panel's bar is the 99th percentile of |error| (at least a bin), so the few
+    pixels that carry an RMSE were drawn at its end colour like any error a bin wide: a run
+    at 0.039 m, all of it two pixels at +0.6 and -0.15 m, showed a bar of +-0.015 m and
+    nothing else (a sweep of unusual regimes). They are crossed, counted in the panel's title
+    and named in the legend; an error within the bar is not crossed."""
+    from PIL import Image
+
+    from spslidar.figures import OUT_OF_RANGE, _legend_items, _limits, _panels
+
+    r = pipeline.run(scene="steps", size=16, code_length=1023, signal=50, seed=0)
+    n = r.depth.shape[0]
+    r.depth[2, 2] = r.truth[2, 2] + 0.6
+    r.depth[9, 9] = r.truth[9, 9] + 0.004  # within the bar
+    lim = _limits(r)[3]
+    assert lim < 0.1
+    title = [p[1] for p in _panels(r) if p[0] == "error"][0]
+    assert "1 px beyond the bar" in title and "0.6" in title
+    img = Image.open(depth_figure(r, tmp_path / "e.png")).convert("RGB")
+    assert _pixel(img, 2, 2, 2, n) == OUT_OF_RANGE
+    assert _pixel(img, 2, 9, 9, n) != OUT_OF_RANGE
+    assert any("error beyond its colour bar (1 pixel," in t
+               for _, t in _legend_items(r, np.zeros((n, n), bool)))

@@ -111,6 +111,10 @@ def _outside(result, lo: float, hi: float) -> np.ndarray:
         return np.isfinite(d) & ((d < lo - tol) | (d > hi + tol))
 
 
+def _pixels(n: int) -> str:
+    return f"{n} pixel{'' if n == 1 else 's'}"
+
+
 def _legend_items(result, outside: np.ndarray) -> list[tuple[tuple[int, int, int], str]]:
     no_truth, no_return, low = _classes(result)
     items = []
@@ -127,8 +131,14 @@ def _legend_items(result, outside: np.ndarray) -> list[tuple[tuple[int, int, int
         items.append((ONE_SURFACE, f"one surface (second-surface panel, "
                                    f"{100 * np.mean(~np.isfinite(depth2)):.0f}%)"))
     if outside.any():
-        items.append((OUT_OF_RANGE, f"depth outside the colour range ({int(outside.sum())} "
-                                    f"pixels, cross)"))
+        items.append((OUT_OF_RANGE, f"depth outside the colour range "
+                                    f"({_pixels(int(outside.sum()))}, cross)"))
+    if getattr(result, "has_truth", True):
+        _, _, err_masked, lim = _limits(result)
+        beyond = _beyond(err_masked, lim)
+        if beyond.any():
+            items.append((OUT_OF_RANGE, f"error beyond its colour bar "
+                                        f"({_pixels(int(beyond.sum()))}, cross)"))
     return items
 
 
@@ -198,6 +208,14 @@ def _reflectivity_range(result) -> tuple[float, float]:
     return 0.0, hi if hi > 0 else 1.0
 
 
+def _beyond(err_masked: np.ndarray, lim: float) -> np.ndarray:
+    """Errors the error panel's symmetric bar (the 99th percentile of ``|error|``) cannot
+    show: drawn at its end colour, marked by a cross. A run whose RMSE of 0.039 m came from two
+    pixels at +0.6 and -0.15 m showed a bar of +-0.015 m and nothing else."""
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(err_masked) & (np.abs(err_masked) > lim * (1 + 1e-9))
+
+
 def _panels(result):
     """The panels of ``depth.png``, left to right: ``(kind, title, values, lo, hi, table,
     unit)``. With a ground truth: truth, estimate, error, reflectivity (and a second surface
@@ -213,7 +231,12 @@ def _panels(result):
         panels.append(("truth", f"ground truth: {name}", result.truth, lo, hi, _VIRIDIS, "m"))
     panels.append(("estimate", est_title, result.depth, lo, hi, _VIRIDIS, "m"))
     if getattr(result, "has_truth", True):
-        panels.append(("error", "error: estimate - truth", err_masked, -lim, lim, _RDBU_R, "m"))
+        beyond = _beyond(err_masked, lim)
+        title = "error: estimate - truth"
+        if beyond.any():  # the 99th percentile hides the few pixels that carry the RMSE
+            title = (f"error: {int(beyond.sum())} px beyond the bar (x), to "
+                     f"{float(np.nanmax(np.abs(err_masked))):.3g} m")
+        panels.append(("error", title, err_masked, -lim, lim, _RDBU_R, "m"))
     if result.reflectivity is not None:
         rlo, rhi = _reflectivity_range(result)
         unit = "ph/pulse" if "ptu" in m else "alpha"
@@ -269,14 +292,18 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
         if kind in ("truth", "error"):
             rgb[no_truth] = NO_TRUTH
         _panel(fig, x0, y0, rgb, title, vlo, vhi, table, unit)
-        if kind != "estimate":
+        if kind not in ("estimate", "error"):
             continue
+        # the estimate: a dot per low-confidence pixel and a cross per depth outside the bar;
+        # the error: a cross per error beyond its bar
+        dotted = low if kind == "estimate" else np.zeros_like(low)
+        crossed = outside if kind == "estimate" else _beyond(values, vhi)
         r = max(1.0, cell / 5)
-        for yy, xx in zip(*np.nonzero(low), strict=True):  # a dot per low-confidence pixel
+        for yy, xx in zip(*np.nonzero(dotted), strict=True):
             cx, cy = x0 + (xx + 0.5) * cell, y0 + 22 + (yy + 0.5) * cell
             draw.ellipse((cx - r, cy - r, cx + r, cy + r), fill=LOW_CONFIDENCE)
         h = max(1.5, cell / 3)
-        for yy, xx in zip(*np.nonzero(outside), strict=True):  # a cross per clipped depth
+        for yy, xx in zip(*np.nonzero(crossed), strict=True):  # a cross per clipped value
             cx, cy = x0 + (xx + 0.5) * cell, y0 + 22 + (yy + 0.5) * cell
             draw.line((cx - h, cy - h, cx + h, cy + h), fill=OUT_OF_RANGE, width=2)
             draw.line((cx - h, cy + h, cx + h, cy - h), fill=OUT_OF_RANGE, width=2)
@@ -320,9 +347,11 @@ def _depth_figure_mpl(result, path: str | Path) -> Path:
             paint(ax, no_truth, NO_TRUTH)
         if kind in ("estimate", "error"):
             paint(ax, ~no_truth & no_return if kind == "error" else no_return, NO_RETURN)
-        if kind == "estimate":
-            for mask, colour, marker in ((low, LOW_CONFIDENCE, "o"),
-                                         (outside, OUT_OF_RANGE, "x")):
+        marks = (((low, LOW_CONFIDENCE, "o"), (outside, OUT_OF_RANGE, "x")) if kind == "estimate"
+                 else ((_beyond(np.asarray(values, dtype=np.float64), vhi), OUT_OF_RANGE, "x"),)
+                 if kind == "error" else ())
+        if marks:
+            for mask, colour, marker in marks:
                 if mask.any():
                     yy, xx = np.nonzero(mask)
                     ax.scatter(xx, yy, s=max(1.0, 400.0 / mask.shape[0]), marker=marker,
