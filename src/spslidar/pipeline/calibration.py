@@ -166,10 +166,40 @@ def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, dista
     if values.sum() <= 0:  # pragma: no cover - guarded by the peak test above
         raise ConfigError("the measured response is empty")
     values /= values.sum()
+    if np.count_nonzero(values >= UNRESOLVED_SHARE * values.max()) <= UNRESOLVED_BINS:
+        values = _unresolved(values, offsets, bin_width)
     return {"delay_bins": float(delay), "delay_s": float(delay * bin_width),
             "lag_shift": lag_shift, "lag_fraction": float(lag_shift - exact),
             "irf_offsets": offsets.tolist(), "irf_values": values.tolist(),
             "irf_fwhm_bins": fwhm_bins(values), "peak_to_noise": peak_to_noise}
+
+
+#: a measured response with at most UNRESOLVED_BINS bins above UNRESOLVED_SHARE of its peak
+#: is narrower than a bin (unresolved; noise passes the 3-sigma floor at ~0.4 % of the peak,
+#: the benchmark's 1.5-bin jitter puts 3 bins above 20 % and its tail bins at 3-15 %)
+UNRESOLVED_BINS = 2
+UNRESOLVED_SHARE = 0.05
+
+
+def _unresolved(values: np.ndarray, offsets: np.ndarray, bin_width: float) -> np.ndarray:
+    """A response narrower than a bin, binned at one position of the target within a bin: its
+    two bins' shares say where the wall fell, not what the instrument does, so it is taken as a
+    delta (no IRF filter), with a warning. Found by an audit of calibrations: an instrument
+    without jitter, calibrated on walls at 25.000 / 25.011 m, measured (0.36, 0.64) and (0.89,
+    0.11) and made the calibrated depth map worse than the uncalibrated one (RMSE 0.067 / 0.054
+    against 0.031 m; as a delta 0.032 / 0.032 m)."""
+    import warnings
+
+    main = values[values >= UNRESOLVED_SHARE * values.max()]
+    shares = ", ".join(f"{v:.2f}" for v in main)
+    warnings.warn(f"the measured response lies on {main.size} bin(s) ({shares}): "
+                  f"the instrument's response is narrower than a {bin_width * 1e12:.4g} ps "
+                  f"bin, so its shape is where the target fell within a bin; it is taken as "
+                  f"one bin (no IRF filter), and the sub-bin delay is good to about a quarter "
+                  f"of a bin", RuntimeWarning, stacklevel=3)
+    out = np.zeros_like(values)
+    out[offsets == 0] = 1.0
+    return out
 
 
 #: a local maximum of the calibration response beyond +-2 bins of its peak above this share of
