@@ -430,3 +430,17 @@ def test_a_weak_calibration_is_said_to_be_read_through_the_noise(acquisitions, t
     cal = json.loads((tmp_path / "c.json").read_text())
     assert 5 < cal["peak_to_noise"] < 20
     assert json.loads((d / "cal.json").read_text())["peak_to_noise"] > 20
+
+
+def test_calibrate_refuses_fewer_patterns_than_the_files_blocks(acquisitions, tmp_path, capsys):
+    """Half the patterns: ``reconstruct`` refused the file, ``calibrate`` measured the first
+    half's blocks and said nothing (its record still gave every photon of the file)."""
+    d = acquisitions
+    half = np.load(d / "wall_patterns.npy")
+    np.save(tmp_path / "half.npy", half[: half.shape[0] // 2])
+    assert main(["calibrate", "--ptu", str(d / "wall.ptu"), "--patterns",
+                 str(tmp_path / "half.npy"), "--code", str(d / "wall_code.npy"),
+                 "--bit-rate", "10e9", "--distance", "25", "--out", str(tmp_path / "c.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "marker-delimited blocks but --patterns has" in err[0]
+    assert not (tmp_path / "c.json").exists()

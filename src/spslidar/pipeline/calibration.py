@@ -274,7 +274,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     ``allow_binning`` as :func:`~spslidar.pipeline.real.reconstruct_ptu`."""
     from ..io import read_ptu_histograms
     from ..version import __version__
-    from .real import check_code, check_patterns, check_ptu_path, check_real_inputs
+    from .real import check_blocks, check_code, check_patterns, check_ptu_path, check_real_inputs
 
     check_ptu_path(ptu)
     patterns = check_patterns(patterns, False, "patterns")
@@ -285,6 +285,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     data = read_ptu_histograms(ptu, int(code.size), bin_width=bin_width, marker=marker,
                                channel=channel, n_patterns=int(patterns.shape[0]),
                                allow_binning=allow_binning)
+    check_blocks(data, int(patterns.shape[0]), ptu)
     total = data.histograms.astype(np.float64).sum(axis=0)
     cal = measure_response(total, code, bin_width, distance, pulse_width)
     path = Path(ptu)

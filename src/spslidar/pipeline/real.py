@@ -218,6 +218,16 @@ def check_gate(range_gate: Any) -> tuple[float, float]:
     return lo, hi
 
 
+def check_blocks(data, m: int, ptu) -> None:
+    """The file's marker-delimited blocks against the ``m`` pattern rows: more blocks than
+    rows (one trailing end-of-acquisition marker aside) is a mismatch, refused in one line
+    (``calibrate`` used the first rows' blocks of such a file and said nothing)."""
+    if data.n_markers > m + 1:  # one trailing end-of-acquisition marker is common
+        raise ConfigError(f"{os.fspath(ptu)!r} has {data.n_markers} marker-delimited blocks "
+                          f"but --patterns has {m} rows: the patterns shown do not match the "
+                          f"file (or --marker names the wrong input)")
+
+
 def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: int,
                       period: int) -> None:
     """Refuse, in one line and before the file is read, what no real acquisition can be: a
@@ -375,10 +385,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     _check_solve_time(cfg, m, q, int(gate_lags(cfg.range_gate, bin_width).size), period)
     data = read_ptu_histograms(ptu, period, bin_width=bin_width, marker=marker,
                                channel=channel, n_patterns=m, allow_binning=allow_binning)
-    if data.n_markers > m + 1:  # one trailing end-of-acquisition marker is common
-        raise ConfigError(f"{os.fspath(ptu)!r} has {data.n_markers} marker-delimited blocks "
-                          f"but --patterns has {m} rows: the patterns shown do not match the "
-                          f"file (or --marker names the wrong input)")
+    check_blocks(data, m, ptu)
     ends = np.append(data.pattern_start_sync[1:], data.last_sync + 1)
     n_k = np.maximum(ends - data.pattern_start_sync, 1).astype(np.float64)
     n_mean = float(n_k.mean())
