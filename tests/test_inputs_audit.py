@@ -672,3 +672,30 @@ def test_a_random_code_drawn_all_ones_keeps_a_zero(tmp_path, capsys):
     assert main(["run", "--size", "8", "--code", "random", "--code-length", "7",
                  "--ones-ratio", "0.99", "--no-figure", "--out", str(tmp_path / "o")]) == 0
     assert "RuntimeWarning" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("kernel,second", [
+    ([1, 1, 1, 1, 1], False),  # a box response: a plateau, one return
+    # a peak and a tail of 20 bins holding 90 % of it
+    ([1.0] + list(9.0 * np.exp(-np.arange(1, 60) / 20.0) / 20.0), False),
+    ([0.3, 1, 0.4, 0.1, 0.05, 0.05, 0.3, 0.2, 0.05], True),  # a bump after a valley
+])
+def test_a_second_return_needs_a_valley_before_it(kernel, second):
+    """A flat wall through a box IRF was said to hold 'a second return +0.06 m (100 % of
+    it)', through a 90 % tail of 20 bins '+0.285 m (19 %)' (an audit of calibrations): a
+    plateau, a shoulder or a tail's noise is the same return. A maximum after the response
+    fell below half of it still warns (an afterpulse bump looks like a second surface)."""
+    import warnings
+
+    from spslidar.codes import make_code
+    from spslidar.pipeline.calibration import measure_response
+
+    code = make_code("mseq", 1023).astype(float)
+    k = np.asarray(kernel, float) / np.sum(kernel)
+    h = sum(w * np.roll(code, 300 + o) for o, w in enumerate(k))
+    counts = np.random.default_rng(0).poisson(20000 * h + 50.0).astype(float)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        measure_response(counts, code, 1e-10, 25.0, 0.5)
+    said = [w for w in caught if "second return" in str(w.message)]
+    assert len(said) == (1 if second else 0), [str(w.message) for w in caught]

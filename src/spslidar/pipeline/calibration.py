@@ -217,6 +217,8 @@ def _unresolved(values: np.ndarray, offsets: np.ndarray, bin_width: float) -> np
 #: a local maximum of the calibration response beyond +-2 bins of its peak above this share of
 #: the peak (and 5 noise deviations) is a second surface, not the instrument's response
 SECOND_RETURN_SHARE = 0.1
+#: ... and the response between them falls below this share of that maximum
+VALLEY = 0.5
 
 
 def _second_return(g: np.ndarray, p0: int, noise: float, bin_width: float) -> None:
@@ -230,6 +232,12 @@ def _second_return(g: np.ndarray, p0: int, noise: float, bin_width: float) -> No
     offset = (np.arange(n) - p0 + n // 2) % n - n // 2
     local = (g >= np.roll(g, 1)) & (g >= np.roll(g, -1))
     second = local & (np.abs(offset) > 2) & (g > max(SECOND_RETURN_SHARE * g[p0], 5 * noise))
+    # and apart from the peak: the response falls below VALLEY of it on the way (a plateau, a
+    # shoulder or a long tail's noise is the same return: an audit's flat wall through a box
+    # IRF read "a second return ... 100 % of it", through a 90 % tail of 20 bins "19 %")
+    for i in np.flatnonzero(second):
+        path = (p0 + np.arange(0, offset[i], np.sign(offset[i]))) % n
+        second[i] = g[path].min() < VALLEY * g[i]
     if second.any():
         i = int(np.flatnonzero(second)[np.argmax(g[second])])
         metres = offset[i] * bin_width * SPEED_OF_LIGHT / 2
