@@ -411,8 +411,10 @@ def _cmd_calibrate(args) -> int:
                         marker=args.marker, channel=args.channel,
                         allow_binning=args.allow_binning)
     path = write_calibration(cal, args.out, args.overwrite)
+    period_ns = cal["code_length"] / args.bit_rate * 1e9
     print(f"system delay {cal['delay_s'] * 1e9:.4f} ns ({cal['delay_bins']:.3f} bins, "
-          f"{cal['delay_s'] * 149896229.0:.4f} m); IRF FWHM {cal['irf_fwhm_bins']:.2f} bins; "
+          f"{cal['delay_s'] * 149896229.0:.4f} m; known modulo the code's period, "
+          f"{period_ns:.4g} ns); IRF FWHM {cal['irf_fwhm_bins']:.2f} bins; "
           f"{cal['measured_from']['photons']} photons, peak {cal['peak_to_noise']:.3g} noise "
           f"standard deviations")
     print(f"wrote {path}")
