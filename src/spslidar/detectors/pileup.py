@@ -465,6 +465,7 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
     scale = np.where(window > 0.999, 0.999 / np.maximum(window, 1e-300), 1.0)
     state = np.concatenate((tail * scale[:, None], (1.0 - window * scale)[:, None],
                             np.zeros((n_rows, 1))), axis=1)
+
     def on_invariant(x: np.ndarray, fallback: np.ndarray) -> np.ndarray:
         """``x`` scaled per row onto ``alpha + W = 1`` (a row that cannot be: ``fallback``'s).
         The period map is linear and homogeneous in the state, so the iteration fixes only
