@@ -212,3 +212,28 @@ def test_sigterm_inside_a_python_session_is_the_ctrl_c_clean_up_without_a_watchd
     assert time.monotonic() - t0 < 4
     assert capsys.readouterr().err.strip() == "spslidar run: terminated; nothing was written"
     assert (signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)) == before
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_kill_pool_kills_a_worker_the_pool_no_longer_lists():
+    """While the pool shuts down, loky's list of its workers can be empty with the workers
+    still running; a clean-clone CI run saw a late Ctrl-C's sweep exit 130 and its pipes held
+    open 60 s more. kill_pool also kills this process's children that are loky workers by
+    their command line; another child is left alone."""
+    from spslidar.interrupts import _worker_children, kill_pool
+
+    worker = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)",
+                               "joblib.externals.loky.backend.popen_loky_posix"])
+    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        deadline = time.monotonic() + 10
+        while worker.pid not in _worker_children() and time.monotonic() < deadline:
+            time.sleep(0.05)  # until its command line is there to read
+        assert worker.pid in _worker_children() and other.pid not in _worker_children()
+        kill_pool()
+        assert worker.wait(timeout=10) == -signal.SIGKILL
+        assert other.poll() is None
+    finally:
+        for p in (worker, other):
+            p.kill()
+            p.wait()
