@@ -386,6 +386,19 @@ def test_fwhm_bins_interpolates_the_half_maximum():
     assert fwhm_bins(np.array([1.0, 0.8, 0.2])) == pytest.approx(0.5 + 1 + 0.3 / 0.6)
 
 
+def _calibrate_wall(d, tmp_path, signal: str, capsys) -> tuple[list[str], dict]:
+    """The fixture's wall through an ideal instrument at ``signal``, calibrated: the warning
+    lines ``calibrate`` printed and the calibration."""
+    assert main(["run", "--scene", str(d / "wall.npy"), *COMMON, "--signal", signal,
+                 "--save-ptu", str(tmp_path / "w.ptu"), "--out", str(tmp_path / "wr")]) == 0
+    capsys.readouterr()
+    assert main(["calibrate", "--ptu", str(tmp_path / "w.ptu"), "--patterns",
+                 str(tmp_path / "w_patterns.npy"), "--code", str(tmp_path / "w_code.npy"),
+                 "--bit-rate", "10e9", "--distance", "25", "--out", str(tmp_path / "c.json")]) == 0
+    warned = [e for e in capsys.readouterr().err.splitlines() if "warning" in e]
+    return warned, json.loads((tmp_path / "c.json").read_text())
+
+
 def test_a_response_narrower_than_a_bin_is_taken_as_one_bin(acquisitions, tmp_path, capsys):
     """An instrument without jitter puts a wall's return on one or two bins, whose shares say
     where the wall fell within a bin, not what the instrument does: measured as an IRF of
@@ -393,15 +406,8 @@ def test_a_response_narrower_than_a_bin_is_taken_as_one_bin(acquisitions, tmp_pa
     against 0.031 m; found by an audit of calibrations). It is taken as one bin, with a
     warning, and the calibrated map is the uncalibrated one's within the sub-bin delay."""
     d = acquisitions
-    assert main(["run", "--scene", str(d / "wall.npy"), *COMMON, "--signal", "1",
-                 "--save-ptu", str(tmp_path / "w.ptu"), "--out", str(tmp_path / "wr")]) == 0
-    capsys.readouterr()
-    assert main(["calibrate", "--ptu", str(tmp_path / "w.ptu"), "--patterns",
-                 str(tmp_path / "w_patterns.npy"), "--code", str(tmp_path / "w_code.npy"),
-                 "--bit-rate", "10e9", "--distance", "25", "--out", str(tmp_path / "c.json")]) == 0
-    said = [e for e in capsys.readouterr().err.splitlines() if "warning" in e]
-    assert len(said) == 1 and "narrower than a 100 ps bin" in said[0]
-    cal = json.loads((tmp_path / "c.json").read_text())
+    warned, cal = _calibrate_wall(d, tmp_path, "1", capsys)
+    assert len(warned) == 1 and "narrower than a 100 ps bin" in warned[0]
     assert [v for v in cal["irf_values"] if v] == [1.0]
     assert cal["irf_offsets"][int(np.argmax(cal["irf_values"]))] == 0
     calibrated, _ = _reconstruct(d, "ideal", "--calibration", str(tmp_path / "c.json"),
@@ -419,15 +425,8 @@ def test_a_weak_calibration_is_said_to_be_read_through_the_noise(acquisitions, t
     IRF as one bin, or with a noise spike holding 44 %. The wall at 1 % of the signal (18
     deviations) says so; the fixture's wall (hundreds) does not."""
     d = acquisitions
-    assert main(["run", "--scene", str(d / "wall.npy"), *COMMON, "--signal", "0.01",
-                 "--save-ptu", str(tmp_path / "w.ptu"), "--out", str(tmp_path / "wr")]) == 0
-    capsys.readouterr()
-    assert main(["calibrate", "--ptu", str(tmp_path / "w.ptu"), "--patterns",
-                 str(tmp_path / "w_patterns.npy"), "--code", str(tmp_path / "w_code.npy"),
-                 "--bit-rate", "10e9", "--distance", "25", "--out", str(tmp_path / "c.json")]) == 0
-    said = [e for e in capsys.readouterr().err.splitlines() if "read through the noise" in e]
-    assert len(said) == 1
-    cal = json.loads((tmp_path / "c.json").read_text())
+    warned, cal = _calibrate_wall(d, tmp_path, "0.01", capsys)
+    assert len([w for w in warned if "read through the noise" in w]) == 1
     assert 5 < cal["peak_to_noise"] < 20
     assert json.loads((d / "cal.json").read_text())["peak_to_noise"] > 20
 
