@@ -156,7 +156,7 @@ def test_errors_beyond_the_error_bar_are_crossed_and_counted(tmp_path):
     and named in the legend; an error within the bar is not crossed."""
     from PIL import Image
 
-    from spslidar.figures import OUT_OF_RANGE, _legend_items, _limits, _panels
+    from spslidar.figures import OUT_OF_RANGE, _beyond, _legend_items, _limits, _panels
 
     r = pipeline.run(scene="steps", size=16, code_length=1023, signal=50, seed=0)
     n = r.depth.shape[0]
@@ -170,4 +170,4 @@ def test_errors_beyond_the_error_bar_are_crossed_and_counted(tmp_path):
     assert _pixel(img, 2, 2, 2, n) == OUT_OF_RANGE
     assert _pixel(img, 2, 9, 9, n) != OUT_OF_RANGE
     assert any("error beyond its colour bar (1 pixel," in t
-               for _, t in _legend_items(r, np.zeros((n, n), bool)))
+               for _, t in _legend_items(r, np.zeros((n, n), bool), _beyond(*_limits(r)[2:])))

@@ -115,7 +115,8 @@ def _pixels(n: int) -> str:
     return f"{n} pixel{'' if n == 1 else 's'}"
 
 
-def _legend_items(result, outside: np.ndarray) -> list[tuple[tuple[int, int, int], str]]:
+def _legend_items(result, outside: np.ndarray,
+                  beyond: np.ndarray | None = None) -> list[tuple[tuple[int, int, int], str]]:
     no_truth, no_return, low = _classes(result)
     items = []
     if getattr(result, "has_truth", True):
@@ -133,12 +134,9 @@ def _legend_items(result, outside: np.ndarray) -> list[tuple[tuple[int, int, int
     if outside.any():
         items.append((OUT_OF_RANGE, f"depth outside the colour range "
                                     f"({_pixels(int(outside.sum()))}, cross)"))
-    if getattr(result, "has_truth", True):
-        _, _, err_masked, lim = _limits(result)
-        beyond = _beyond(err_masked, lim)
-        if beyond.any():
-            items.append((OUT_OF_RANGE, f"error beyond its colour bar "
-                                        f"({_pixels(int(beyond.sum()))}, cross)"))
+    if beyond is not None and beyond.any():  # (the error panel's: _beyond)
+        items.append((OUT_OF_RANGE, f"error beyond its colour bar "
+                                    f"({_pixels(int(beyond.sum()))}, cross)"))
     return items
 
 
@@ -216,6 +214,15 @@ def _beyond(err_masked: np.ndarray, lim: float) -> np.ndarray:
         return np.isfinite(err_masked) & (np.abs(err_masked) > lim * (1 + 1e-9))
 
 
+def _marks(kind: str, low: np.ndarray, outside: np.ndarray,
+           beyond: np.ndarray) -> tuple[tuple[np.ndarray, tuple[int, int, int], str], ...]:
+    """What both engines draw over a panel, ``(mask, colour, marker)`` with marker ``'o'`` (a
+    dot) or ``'x'`` (a cross): on the estimate the low-confidence depths and the depths
+    outside the colour bar, on the error the errors beyond its bar (:func:`_beyond`)."""
+    return {"estimate": ((low, LOW_CONFIDENCE, "o"), (outside, OUT_OF_RANGE, "x")),
+            "error": ((beyond, OUT_OF_RANGE, "x"),)}.get(kind, ())
+
+
 def _panels(result):
     """The panels of ``depth.png``, left to right: ``(kind, title, values, lo, hi, table,
     unit)``. With a ground truth: truth, estimate, error, reflectivity (and a second surface
@@ -275,9 +282,9 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
         return _depth_figure_mpl(result, path)
     from PIL import Image, ImageDraw
 
-    lo, hi, _, _ = _limits(result)
+    lo, hi, err_masked, lim = _limits(result)
     no_truth, no_return, low = _classes(result)
-    outside = _outside(result, lo, hi)
+    outside, beyond = _outside(result, lo, hi), _beyond(err_masked, lim)
     panels = _panels(result)
     width, height = len(panels) * (_PANEL + 70) + 20, _PANEL + 100
     fig = Image.new("RGB", (width, height), (255, 255, 255))
@@ -292,23 +299,17 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
         if kind in ("truth", "error"):
             rgb[no_truth] = NO_TRUTH
         _panel(fig, x0, y0, rgb, title, vlo, vhi, table, unit)
-        if kind not in ("estimate", "error"):
-            continue
-        # the estimate: a dot per low-confidence pixel and a cross per depth outside the bar;
-        # the error: a cross per error beyond its bar
-        dotted = low if kind == "estimate" else np.zeros_like(low)
-        crossed = outside if kind == "estimate" else _beyond(values, vhi)
-        r = max(1.0, cell / 5)
-        for yy, xx in zip(*np.nonzero(dotted), strict=True):
-            cx, cy = x0 + (xx + 0.5) * cell, y0 + 22 + (yy + 0.5) * cell
-            draw.ellipse((cx - r, cy - r, cx + r, cy + r), fill=LOW_CONFIDENCE)
-        h = max(1.5, cell / 3)
-        for yy, xx in zip(*np.nonzero(crossed), strict=True):  # a cross per clipped value
-            cx, cy = x0 + (xx + 0.5) * cell, y0 + 22 + (yy + 0.5) * cell
-            draw.line((cx - h, cy - h, cx + h, cy + h), fill=OUT_OF_RANGE, width=2)
-            draw.line((cx - h, cy + h, cx + h, cy - h), fill=OUT_OF_RANGE, width=2)
+        r, h = max(1.0, cell / 5), max(1.5, cell / 3)
+        for mask, colour, marker in _marks(kind, low, outside, beyond):
+            for yy, xx in zip(*np.nonzero(mask), strict=True):
+                cx, cy = x0 + (xx + 0.5) * cell, y0 + 22 + (yy + 0.5) * cell
+                if marker == "o":
+                    draw.ellipse((cx - r, cy - r, cx + r, cy + r), fill=colour)
+                else:
+                    draw.line((cx - h, cy - h, cx + h, cy + h), fill=colour, width=2)
+                    draw.line((cx - h, cy + h, cx + h, cy - h), fill=colour, width=2)
     x, y = 10, y0 + _PANEL + 50
-    for colour, text in _legend_items(result, outside):
+    for colour, text in _legend_items(result, outside, beyond):
         draw.rectangle((x, y, x + 14, y + 12), fill=colour, outline=(80, 80, 80))
         draw.text((x + 20, y + 1), text, fill=(0, 0, 0))
         x += 28 + 7 * len(text)
@@ -323,9 +324,9 @@ def _depth_figure_mpl(result, path: str | Path) -> Path:
     from matplotlib.patches import Patch
 
     plt = _plt()
-    lo, hi, _, _ = _limits(result)
+    lo, hi, err_masked, lim = _limits(result)
     no_truth, no_return, low = _classes(result)
-    outside = _outside(result, lo, hi)
+    outside, beyond = _outside(result, lo, hi), _beyond(err_masked, lim)
     panels = _panels(result)
 
     def paint(ax, mask, colour):
@@ -347,22 +348,18 @@ def _depth_figure_mpl(result, path: str | Path) -> Path:
             paint(ax, no_truth, NO_TRUTH)
         if kind in ("estimate", "error"):
             paint(ax, ~no_truth & no_return if kind == "error" else no_return, NO_RETURN)
-        marks = (((low, LOW_CONFIDENCE, "o"), (outside, OUT_OF_RANGE, "x")) if kind == "estimate"
-                 else ((_beyond(np.asarray(values, dtype=np.float64), vhi), OUT_OF_RANGE, "x"),)
-                 if kind == "error" else ())
-        if marks:
-            for mask, colour, marker in marks:
-                if mask.any():
-                    yy, xx = np.nonzero(mask)
-                    ax.scatter(xx, yy, s=max(1.0, 400.0 / mask.shape[0]), marker=marker,
-                               color=np.asarray(colour) / 255, linewidths=1)
+        for mask, colour, marker in _marks(kind, low, outside, beyond):
+            if mask.any():
+                yy, xx = np.nonzero(mask)
+                ax.scatter(xx, yy, s=max(1.0, 400.0 / mask.shape[0]), marker=marker,
+                           color=np.asarray(colour) / 255, linewidths=1)
         ax.set_title(title)
         label = {"m": "depth [m]", "": "confidence"}.get(unit, unit)
         _colorbar(fig, ax, im, "depth error [m]" if kind == "error" else label)
         ax.set_xticks([])
         ax.set_yticks([])
     fig.legend(handles=[Patch(facecolor=np.asarray(c) / 255, edgecolor="0.3", label=t)
-                        for c, t in _legend_items(result, outside)],
+                        for c, t in _legend_items(result, outside, beyond)],
                loc="outside lower center", ncol=4, frameon=False)
     fig.suptitle(_title(result))
     path = Path(path)

@@ -81,7 +81,6 @@ def _check_tag_name(key: Any) -> None:
 MAX_OVERFLOW_RECORDS = 2**28
 
 
-
 def _record_type(name: str) -> tuple[str, int, str, str]:
     for key, (code, family, hw) in T3_RECORD_TYPES.items():
         if key.lower() == str(name).lower() or (key == "GenericT3" and name == "generic"):

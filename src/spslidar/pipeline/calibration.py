@@ -38,6 +38,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import warnings
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -154,8 +155,6 @@ def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, dista
                           f"{peak_to_noise:.2g} noise standard deviations): check --distance, "
                           f"--bit-rate and the code, or acquire longer")
     if peak_to_noise < WEAK_RESPONSE:
-        import warnings
-
         warnings.warn(f"the calibration's response stands {peak_to_noise:.3g} noise standard "
                       f"deviations high: its shape is read through the noise (at 5.1-5.6 an "
                       f"audit measured a 1.7-bin IRF with a tail as one bin, or with a noise "
@@ -200,8 +199,6 @@ def _unresolved(values: np.ndarray, offsets: np.ndarray, bin_width: float) -> np
     without jitter, calibrated on walls at 25.000 / 25.011 m, measured (0.36, 0.64) and (0.89,
     0.11) and made the calibrated depth map worse than the uncalibrated one (RMSE 0.067 / 0.054
     against 0.031 m; as a delta 0.032 / 0.032 m)."""
-    import warnings
-
     main = values[values >= UNRESOLVED_SHARE * values.max()]
     shares = ", ".join(f"{v:.2f}" for v in main)
     warnings.warn(f"the measured response lies on {main.size} bin(s) ({shares}): "
@@ -226,8 +223,6 @@ def _second_return(g: np.ndarray, p0: int, noise: float, bin_width: float) -> No
     than 2 bins from the peak ``p0`` above :data:`SECOND_RETURN_SHARE` of it and 5 noise
     deviations. A flat target gives one peak and a tail that only falls; the steps scene
     (24.5-25.5 m) gave a delay 0.5 m off, read from its farthest plane, without a word."""
-    import warnings
-
     n = g.size
     offset = (np.arange(n) - p0 + n // 2) % n - n // 2
     local = (g >= np.roll(g, 1)) & (g >= np.roll(g, -1))

@@ -223,8 +223,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
             A, y = eliminated, eliminated.data(y)
         # the floor of the default weight, and the scale a given --lam is checked against
         lam_max = float(np.abs(np.asarray(A.rmatvec(y))).max(initial=0.0))
-    # noiseless data: no noise reaches the prox, so only the floor sets the weight
-    lam, lam_scale, floored = default_weight(cfg, 0.0 if cfg.noiseless else sigma_eff, lam_max)
+    lam, lam_scale, floored = default_weight(cfg, sigma_eff, lam_max)
     warns.extend(weight_warnings(cfg, lam, lam_max))
     if not lam * 1e6 < float(np.finfo(cfg.dtype).max):  # its steps would overflow: NaN slices
         raise ConfigError(f"the weight {lam:.3g} is beyond what {cfg.dtype} can hold through "

@@ -90,7 +90,10 @@ def default_weight(cfg: Config, sigma_eff: float, lam_max: float) -> tuple[float
     floor is a fixed share of ``lam_max = ||A^H y||_inf`` (the weight at which an l1 estimate
     is zero), a scale read from the data; at the paper's settings the noise term is 4 to 6
     times larger (camera m_n = 10: ``lam = 0.012 lam_max``, m_n = 1: ``0.005 lam_max``), so
-    the floor binds only at high signal-to-noise ratios (e.g. a dwell of many code periods).
+    the floor binds only at high signal-to-noise ratios (e.g. a dwell of many code periods),
+    and for ``noiseless`` data, where no noise reaches the prox: their weight took the noisy
+    run's Poisson level, so the noise-free case was no better than the noisy one (the room,
+    32x32: 0.16 m; at the floor 0.0038 m).
 
     Returns
     -------
@@ -104,7 +107,8 @@ def default_weight(cfg: Config, sigma_eff: float, lam_max: float) -> tuple[float
                  else solver_default(cfg.solver, "lam_scale"))
     if cfg.lam is not None:
         return float(cfg.lam), lam_scale, False
-    noise_term, floor = lam_scale * sigma_eff, LAM_FLOOR * lam_max
+    noise_term = 0.0 if cfg.noiseless else lam_scale * sigma_eff
+    floor = LAM_FLOOR * lam_max
     return max(noise_term, floor), lam_scale, bool(floor > noise_term)
 
 
