@@ -17,7 +17,8 @@ from spslidar.config import Config
 from spslidar.detectors import DETECTORS, build_detector
 from spslidar.detectors.events import simulate_events
 from spslidar.detectors.gmapd import GMAPD
-from spslidar.detectors.pileup import jitter_kernel, renewal_detection
+from spslidar.detectors.jitter import jitter_kernel
+from spslidar.detectors.pileup import renewal_detection
 from spslidar.errors import ConfigError
 
 BIN = 100e-12  # 10 GHz bit rate

@@ -19,7 +19,7 @@ An IRF is given as
 
 A parametric IRF is applied to each return in continuous time (:func:`exact_weights`: the
 share of each TDC bin from the antiderivative of the jitter's CDF,
-:func:`spslidar.detectors.pileup.jitter_antiderivative`), so the sub-bin delay of a return
+:func:`spslidar.detectors.jitter.jitter_antiderivative`), so the sub-bin delay of a return
 survives the jitter, as in a real instrument; a sampled one is a per-bin kernel
 (:func:`irf_kernel`). The ``gmapd`` detector's own ``--jitter`` is a further convolution in
 the detector.
@@ -144,7 +144,7 @@ def irf_kernel(irf: IRF | None, bin_width: float, period: int):
         offsets = np.arange(h.size) - int(np.argmax(h))
         keep = h > 0
         return offsets[keep], h[keep] / h.sum()
-    from .detectors.pileup import jitter_kernel
+    from .detectors.jitter import jitter_kernel
 
     sigma, tail = _widths(irf, bin_width, period)
     kern = jitter_kernel(period, sigma, tail, irf.weight)
@@ -192,7 +192,7 @@ def exact_weights(reflectivity, delay, pulse_width: float, irf: IRF, bin_width: 
     A photon of a return at ``delay`` (bins) leaves at ``delay + U pulse_width`` (``U``
     uniform: the RZ pulse), is recorded ``J`` later (the IRF's jitter) and lands in bin
     ``floor(delay + U pulse_width + J)``; with ``G`` the antiderivative of the jitter's CDF
-    (:func:`spslidar.detectors.pileup.jitter_antiderivative`) the share of bin ``b + o``
+    (:func:`spslidar.detectors.jitter.jitter_antiderivative`) the share of bin ``b + o``
     (``b = floor(delay)``, ``r = delay - b``) is
     ``(G(o + 1 - r) - G(o + 1 - r - p) - G(o - r) + G(o - r - p)) / p``. So the sub-bin delay
     survives the jitter as in a real instrument (the per-bin kernel of
@@ -202,7 +202,7 @@ def exact_weights(reflectivity, delay, pulse_width: float, irf: IRF, bin_width: 
     """
     import numpy as np
 
-    from .detectors.pileup import jitter_antiderivative
+    from .detectors.jitter import jitter_antiderivative
 
     sigma, tail = _widths(irf, bin_width, period)
     delay = np.asarray(delay, dtype=np.float64).ravel()

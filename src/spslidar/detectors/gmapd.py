@@ -33,13 +33,8 @@ import numpy as np
 
 from ..errors import ConfigError
 from .base import DetectorModel
-from .pileup import (
-    auto_oversample,
-    coates_correction,
-    convolve_periodic,
-    jitter_kernel,
-    renewal_detection,
-)
+from .jitter import convolve_periodic, jitter_kernel
+from .pileup import auto_oversample, coates_correction, renewal_detection
 
 __all__ = ["GMAPD"]
 
@@ -151,7 +146,7 @@ class GMAPD(DetectorModel):
     def flux(self, lam: np.ndarray, n_periods: int = 1, sub: int = 1) -> np.ndarray:
         """Avalanche-causing events per (sub-)bin per period before dead time, float64:
         ``efficiency * (IRF (*) lam) / n_periods + dark_count_rate * bin_width``, circular
-        convolution with :func:`~spslidar.detectors.pileup.jitter_kernel`.
+        convolution with :func:`~spslidar.detectors.jitter.jitter_kernel`.
 
         Parameters
         ----------
