@@ -75,16 +75,16 @@ def gate_lags(gate: tuple[float, float], bin_width: float) -> np.ndarray:
     return np.arange(lo, hi + 1)
 
 
-def replica_matrix(replica: np.ndarray, lags: np.ndarray) -> np.ndarray:
+def replica_matrix(replica: np.ndarray, lags: np.ndarray, dtype=np.float32) -> np.ndarray:
     """The ``(L, K)`` matrix of replicas delayed by each lag: ``F[t, k] = f((t - lag_k) mod L)``.
 
     ``hist @ F`` is the matched filter at those lags; build it once and pass it to
     :func:`matched_filter` when filtering many blocks of patterns.
     """
-    f = np.asarray(replica, dtype=np.float32)
+    f = np.asarray(replica, dtype=dtype)
     lags = np.mod(np.asarray(lags, dtype=np.int64).ravel(), f.size)
     if not lags.size:
-        return np.empty((f.size, 0), dtype=np.float32)
+        return np.empty((f.size, 0), dtype=dtype)
     # one np.roll per lag (row k of the stack is f delayed by lags[k]), then a single transpose
     # copy: far cheaper than gathering through an (L, K) table of modular indices
     rows = np.stack([np.roll(f, int(lag)) for lag in lags])
@@ -120,14 +120,23 @@ def matched_filter(
     Notes
     -----
     Eq. (5)-(6). For few lags (a range gate) the correlation is a product with the ``(L, K)``
-    matrix of shifted replicas (one BLAS call); for many lags it goes through the FFT.
+    matrix of shifted replicas (one BLAS call, in float32 unless ``out_dtype`` is float64:
+    float32 sums of counts of 1e7 per bin were 8 counts off); for many lags it goes through
+    the FFT in float64.
     """
     hist = np.asarray(hist)
+    if hist.ndim != 2:
+        raise ValueError(f"hist must be (M, L) histograms, one row per pattern, got shape "
+                         f"{hist.shape}")
     period = hist.shape[1]
+    if np.ndim(replica) != 1 or np.size(replica) != period:
+        raise ValueError(f"replica of shape {np.shape(replica)} for histograms of {period} bins")
     lags = np.mod(np.asarray(lags, dtype=np.int64), period)
     if bank is not None or lags.size <= 256:
-        fm = bank if bank is not None else replica_matrix(replica, lags)
-        out = hist.astype(np.float32, copy=False) @ fm
+        wide = np.dtype(out_dtype) == np.float64
+        calc = np.float64 if wide else np.float32
+        fm = bank if bank is not None else replica_matrix(replica, lags, calc)
+        out = hist.astype(np.result_type(calc, fm.dtype), copy=False) @ fm
         out = out.astype(out_dtype, copy=False)
     else:
         import scipy.fft as sfft

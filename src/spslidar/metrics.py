@@ -5,6 +5,19 @@ from __future__ import annotations
 import numpy as np
 
 
+def _mask(valid, size: int) -> np.ndarray:
+    """``valid`` as a flat boolean mask of ``size`` pixels: booleans, or integers / floats that
+    are all 0 or 1 (a 0/1 integer array indexed as such would pick pixels by number)."""
+    v = np.asarray(valid).ravel()
+    if v.size != size:
+        raise ValueError(f"valid has {v.size} entries for {size} pixels")
+    if v.dtype != bool:
+        if v.dtype.kind not in "iuf" or not np.isin(v, (0, 1)).all():
+            raise ValueError("valid must be a boolean mask (or 0/1 values)")
+        v = v.astype(bool)
+    return v
+
+
 def depth_errors(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None) -> dict:
     """Depth error statistics over pixels with known truth.
 
@@ -13,7 +26,8 @@ def depth_errors(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | No
     estimate, truth : ndarray
         Depth maps in metres (NaN in ``estimate`` = no return detected).
     valid : ndarray of bool, optional
-        Pixels whose truth is known (default: all finite truth pixels).
+        Pixels whose truth is known (default: all finite truth pixels); 0/1 values are read as
+        booleans, anything else or a size other than the maps' is a ``ValueError``.
 
     Returns
     -------
@@ -32,7 +46,7 @@ def depth_errors(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | No
     tru = np.asarray(truth, dtype=np.float64).ravel()
     if est.shape != tru.shape:
         raise ValueError(f"estimate {np.shape(estimate)} and truth {np.shape(truth)} differ")
-    ok = np.isfinite(tru) if valid is None else (np.asarray(valid).ravel() & np.isfinite(tru))
+    ok = np.isfinite(tru) if valid is None else (_mask(valid, tru.size) & np.isfinite(tru))
     have = ok & np.isfinite(est)
     n_valid = int(ok.sum())
     err = est[have] - tru[have]

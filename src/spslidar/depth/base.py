@@ -44,6 +44,22 @@ class DepthContext:
     shape: tuple[int, int] = (0, 0)
     subbin: bool = False
 
+    def __post_init__(self) -> None:
+        """Refuse what no estimator can read: a bin width of 0 or NaN gave every depth 0 or
+        NaN, decreasing lags an argmax read against the wrong delays."""
+        if not (np.isfinite(self.bin_width) and self.bin_width > 0):
+            raise ConfigError(f"bin_width must be a positive number of seconds, got "
+                              f"{self.bin_width!r}")
+        if not (np.isfinite(self.pulse_width) and self.pulse_width > 0):
+            raise ConfigError(f"pulse_width must be a positive number of bins, got "
+                              f"{self.pulse_width!r}")
+        lags = np.asarray(self.lags)
+        if lags.ndim != 1 or (lags.size and lags.dtype.kind not in "iu"
+                              and not np.array_equal(lags, np.round(lags))):
+            raise ConfigError("lags must be a 1-D array of integer delays (TDC bins)")
+        if lags.size > 1 and not (np.diff(lags) > 0).all():
+            raise ConfigError("lags must be increasing")
+
 
 @dataclass
 class DepthEstimate:
@@ -109,9 +125,19 @@ class DepthEstimator:
         return np.isfinite(depth) & (confidence < self.low_confidence)
 
 
-def checked_slices(slices: Any, ctx: DepthContext) -> tuple[np.ndarray, np.ndarray]:
+#: a cube whose largest magnitude is outside [2^-RANGE_EXP, 2^RANGE_EXP] is scaled by a power
+#: of two into it: the estimators work in float32 (max 3.4e38), and a 1e39 peak, finite in
+#: float64, became inf there after the check (every MRF depth the first lag, confidence NaN);
+#: squares of 1e20 overflow too. Every built-in estimator is invariant to the scale (equal
+#: depths and confidences at 2^-60 .. 2^60, measured), and a power of two scales exactly.
+RANGE_EXP = 60
+
+
+def checked_slices(slices: Any, ctx: DepthContext) -> tuple[np.ndarray, np.ndarray, float]:
     """The ``(Q, K)`` slices as a real array that matches ``ctx``, with every value of a
-    pixel whose profile is not finite set to 0; and the mask of those pixels.
+    pixel whose profile is not finite set to 0; the mask of those pixels; and the power of two
+    the slices were multiplied by (1.0 unless their magnitude is outside
+    ``2^±RANGE_EXP``: see :data:`RANGE_EXP`).
 
     A NaN in one pixel moved 62 of 64 MRF depths to the first lag and made every confidence
     NaN (a solve whose weight overflows float32 gives such slices): such a pixel has no
@@ -137,14 +163,22 @@ def checked_slices(slices: Any, ctx: DepthContext) -> tuple[np.ndarray, np.ndarr
            else np.zeros(x.shape[0], bool))
     if bad.any():
         x = np.where(bad[:, None], 0, x)
-    return x, bad
+    scale = 1.0
+    if x.dtype.kind == "f":
+        top = float(np.max(np.abs(x)))
+        if top > 0 and not 2.0**-RANGE_EXP <= top <= 2.0**RANGE_EXP:
+            scale = 2.0 ** -np.frexp(top)[1]
+            x = np.asarray(x, dtype=np.float64) * scale
+    return x, bad, scale
 
 
 def _checked(estimate):
     @functools.wraps(estimate)
     def wrapper(self, slices, ctx):
-        x, bad = checked_slices(slices, ctx)
+        x, bad, scale = checked_slices(slices, ctx)
         out = estimate(self, x, ctx)
+        if scale != 1.0:  # the peaks in the slices' own units
+            out.peak = np.asarray(out.peak, dtype=np.float64) / scale
         if bad.any():  # no return there, as for a profile without a positive value
             out.depth[bad] = np.nan
             out.confidence[bad] = 0.0

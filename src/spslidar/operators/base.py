@@ -44,8 +44,9 @@ class LinearOperator:
     def matvec(self, x: np.ndarray) -> np.ndarray:
         """Apply the operator to ``x`` of shape ``(n,)`` or ``(n, K)``."""
         x = np.asarray(x)
-        if x.shape[0] != self.shape[1]:
-            raise ValueError(f"operator of shape {self.shape} applied to array of shape {x.shape}")
+        if x.ndim not in (1, 2) or x.shape[0] != self.shape[1]:
+            raise ValueError(f"operator of shape {self.shape} applied to array of shape "
+                             f"{x.shape} (it takes ({self.shape[1]},) or ({self.shape[1]}, K))")
         if x.ndim == 1:
             return self._matvec(x[:, None])[:, 0]
         return self._matvec(x)
@@ -53,8 +54,9 @@ class LinearOperator:
     def rmatvec(self, y: np.ndarray) -> np.ndarray:
         """Apply the adjoint to ``y`` of shape ``(m,)`` or ``(m, K)``."""
         y = np.asarray(y)
-        if y.shape[0] != self.shape[0]:
-            raise ValueError(f"adjoint of shape {self.shape[::-1]} applied to array {y.shape}")
+        if y.ndim not in (1, 2) or y.shape[0] != self.shape[0]:
+            raise ValueError(f"adjoint of shape {self.shape[::-1]} applied to array {y.shape} "
+                             f"(it takes ({self.shape[0]},) or ({self.shape[0]}, K))")
         if y.ndim == 1:
             return self._rmatvec(y[:, None])[:, 0]
         return self._rmatvec(y)

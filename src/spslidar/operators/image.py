@@ -46,6 +46,8 @@ class Gradient2D(LinearOperator):
 
     def __init__(self, shape: tuple[int, int], dtype=np.float64):
         self.image_shape = (int(shape[0]), int(shape[1]))
+        if min(self.image_shape) < 1:
+            raise ValueError(f"Gradient2D needs an image of at least 1x1, got {self.image_shape}")
         q = self.image_shape[0] * self.image_shape[1]
         super().__init__((2 * q, q), dtype)
 
@@ -166,7 +168,7 @@ def _haar_forward(x: np.ndarray, level: int, out: np.ndarray | None = None) -> n
     if out is None:
         out = np.empty(x.shape, dtype=dt)
     half = dt.type(0.5)
-    a = x
+    a = x if x.dtype == dt else x.astype(dt)  # integers: their sums computed in float
     for _ in range(level):
         h, w = a.shape[0] // 2, a.shape[1] // 2
         s0 = a[0::2, 0::2] + a[0::2, 1::2]  # even rows: column-pair sums and differences

@@ -59,5 +59,25 @@ def _check_side(cfg: Any) -> None:
 def build_patterns(kind: str, n_patterns: int, n_side: int, rng: Any,
                    dtype: Any = "float32", **options) -> PatternOperator:
     """The pattern set of a registered kind: ``M`` patterns over ``N x N`` mirrors, drawn
-    from the ``numpy.random.Generator`` ``rng``."""
-    return PATTERNS.load(kind)(kind, n_patterns, n_side, rng, dtype=dtype, **options)
+    from the ``numpy.random.Generator`` ``rng``.
+
+    ``dtype`` may be any NumPy dtype spelling (``"float32"``, ``np.float32``,
+    ``np.dtype("float32")``): the same seed gives the same patterns for each (the string, this
+    function's default, drew other patterns than the pipeline's ``np.float32``).
+    ``n_patterns`` and ``n_side`` must be integers (a ``ConfigError`` otherwise).
+    """
+    import operator
+
+    import numpy as np
+
+    from ..errors import ConfigError
+
+    for name, value in (("n_patterns", n_patterns), ("n_side", n_side)):
+        try:
+            operator.index(value)
+        except TypeError:
+            raise ConfigError(f"{name} must be an integer, got {value!r}") from None
+        if isinstance(value, bool):
+            raise ConfigError(f"{name} must be an integer, got {value!r}")
+    return PATTERNS.load(kind)(kind, int(n_patterns), int(n_side), rng, dtype=np.dtype(dtype),
+                               **options)

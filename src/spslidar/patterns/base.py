@@ -50,12 +50,21 @@ class PatternOperator(LinearOperator):
         The default computes the whole product once and keeps it for the next blocks of the
         same ``x`` (the simulation asks for consecutive row blocks of one product).
         """
+        return self._full_product(x, lambda v: np.asarray(
+            self.matvec(np.asarray(v, dtype=self.dtype)), dtype=np.float64))[rows]
+
+    def _full_product(self, x: np.ndarray, product) -> np.ndarray:
+        """``product(x)``, kept with a copy of ``x`` for the next row blocks of the same values.
+
+        Compared by value, not by identity: an ``x`` changed in place between two calls (a
+        notebook reusing its buffer) got the old product back. The comparison costs one pass
+        over ``x``, the product ``M`` of them (or a transform)."""
         cache = getattr(self, "_rows_cache", None)
-        if cache is None or cache[0] is not x:
-            full = np.asarray(self.matvec(np.asarray(x, dtype=self.dtype)), dtype=np.float64)
-            cache = (x, full)
+        if (cache is None or cache[0].shape != np.shape(x)
+                or not np.array_equal(cache[0], x)):
+            cache = (np.array(x, copy=True), product(x))
             self._rows_cache = cache
-        return cache[1][rows]
+        return cache[1]
 
     def centred(self, norm: float = 1.0, dtype=np.float32) -> LinearOperator:
         """``(Phi - 1 mu^T) / norm`` in ``dtype``: the operator of the centred QCR data term."""

@@ -67,6 +67,7 @@ def make_patterns(
     non-negative patterns carry a large common (DC) component, which QCR removes (eq. 11).
     """
     rng = np.random.default_rng(rng)
+    dtype = np.dtype(dtype)  # a string "float32" drew float64 normals: other patterns
     if n_patterns < 1 or n_pixels < 1:
         raise ConfigError("need at least one pattern and one pixel")
     if kind == "gaussian":

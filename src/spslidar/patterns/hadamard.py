@@ -242,11 +242,9 @@ class HadamardPatterns(PatternOperator):
     def apply_rows(self, rows: slice, x: np.ndarray) -> np.ndarray:
         """``Phi[rows] @ x`` in float64; one transform of ``x`` serves all its row blocks."""
         with _ROWS_LOCK:  # the simulation's threads ask for their blocks at the same time
-            cache = getattr(self, "_rows_cache", None)
-            if cache is None or cache[0] is not x:
-                cache = (x, self._apply(np.asarray(x, dtype=np.float64)))
-                self._rows_cache = cache
-        return cache[1][rows]
+            full = self._full_product(
+                x, lambda v: self._apply(np.asarray(v, dtype=np.float64)))
+        return full[rows]
 
     def centred(self, norm: float = 1.0, dtype=np.float32) -> LinearOperator:
         """``(Phi - 1 mu^T) / norm`` (eq. 11), fused into one transform per product in the

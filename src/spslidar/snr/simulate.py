@@ -108,7 +108,7 @@ def _counts_histogram(
     lam = expected_counts(amp, shifts, code, m_s, noise_bin)  # (1, T): eq. (4) in expectation
     replica = make_replica(code, "unipolar")
     lags = np.array([delay])
-    bank = replica_matrix(replica, lags).astype(np.float64)  # float64: exact sums of counts
+    bank = replica_matrix(replica, lags, np.float64)  # float64: exact sums of counts
     chunk = max(1, _HIST_CHUNK_BINS // period)
     out = np.empty(trials)
     for start in range(0, trials, chunk):

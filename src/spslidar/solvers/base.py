@@ -288,15 +288,19 @@ class Solver:
         lam : float
             Non-negative weight.
         x0 : ndarray, shape (n,) or (n, K), optional
-            Starting point (default zeros).
+            Starting point (default zeros); one column starts every column of ``y`` there.
         """
-        if lam < 0:
-            raise ValueError("lam must be non-negative")
+        if not 0 <= lam < np.inf:  # NaN returned NaN, inf a ZeroDivisionError in TVAL3
+            raise ValueError(f"lam must be finite and non-negative, got {lam}")
         yb, self._was_1d = as_block(y)
         if yb.shape[0] != A.shape[0]:
             raise ValueError(f"data has {yb.shape[0]} rows, operator expects {A.shape[0]}")
         if x0 is not None:
             x0, _ = as_block(x0)
+            if x0.shape[0] != A.shape[1] or x0.shape[1] not in (1, yb.shape[1]):
+                raise ValueError(f"x0 of shape {np.shape(x0)} for {A.shape[1]} unknowns and "
+                                 f"{yb.shape[1]} column(s): give ({A.shape[1]},) or "
+                                 f"({A.shape[1]}, {yb.shape[1]})")
         reset = getattr(reg, "reset", None)
         if callable(reset):
             reset()

@@ -15,6 +15,7 @@ the reported value (iterates produced by the proxes are always feasible).
 from __future__ import annotations
 
 import threading
+import warnings
 from typing import Any
 
 import numpy as np
@@ -446,7 +447,11 @@ class TV(Regulariser):
     def _prox(self, v, t):
         dt = v.dtype
         v3 = self._cube(v)
-        if t == 0.0:
+        # the prox moves each value by at most 4 t (|p| <= 1, four differences per pixel): a
+        # t below round-off of the largest |v| is the identity, and computed as such (the dual's
+        # v / t overflowed float32 for t below ~1e-38 and gave NaN everywhere)
+        if (t == 0.0 or t * float(np.finfo(dt).max) < 1.0
+                or 8.0 * t <= np.finfo(dt).eps * float(np.max(np.abs(v3), initial=0.0))):
             self.last_inner_iterations = 0
             z = np.maximum(v3, 0) if self.nonneg else v3.copy()
             return z.reshape(v.shape)
@@ -621,4 +626,9 @@ def make_wavelet_l1(shape: tuple[int, int], nonneg: bool = False, max_inner: int
     ignored (it applies to the TV and pixel-l1 regularisers only)."""
     from ..operators import Wavelet2D
 
-    return L1(Wavelet2D(shape, "haar"))
+    w = Wavelet2D(shape, "haar")
+    if w.level == 0:  # it was silently the pixel l1
+        warnings.warn(f"the wavelet regulariser needs an even image side: at {shape[0]}x"
+                      f"{shape[1]} it has no level and is the pixel l1 (--regulariser l1)",
+                      stacklevel=2)
+    return L1(w)
