@@ -242,6 +242,9 @@ def test_calibrate_refuses_an_acquisition_without_photons(acquisitions, tmp_path
     (lambda c: c.update(lag_shift=c["lag_shift"] + 3), "disagree with delay_s"),
     (lambda c: c.update(delay_s=c["delay_s"] + 2e-10), "disagree with delay_s"),
     (lambda c: c.update(lag_shift=True), "wrong kind"),
+    # (an audit of 2026-11-28: the first scaled every reflectivity by 1e-6 without a word)
+    (lambda c: c.update(irf_values=[v * 1e6 for v in c["irf_values"]]), "must sum to 1"),
+    (lambda c: c.update(irf_fwhm_bins=-3.0), "be positive"),
 ])
 def test_reconstruct_refuses_a_damaged_calibration(acquisitions, tmp_path, capsys, damage,
                                                    match):

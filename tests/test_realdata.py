@@ -201,6 +201,9 @@ def test_channel_selection_and_a_channel_without_photons():
     with pytest.raises(ConfigError, match="no photons on channel 7") as info:
         read_ptu_histograms(path, 1563, marker=3, channel=7, check_sync_period=False)
     assert "photons on 0, 1" in str(info.value)
+    # each listed channel must hold photons, not one of them (found 2026-11-28)
+    with pytest.raises(ConfigError, match="no photons on channel 2 "):
+        read_ptu_histograms(path, 1563, marker=3, channel=[0, 2], check_sync_period=False)
     with pytest.raises(ConfigError, match="PicoHarpT3 records number detector channels 0..3"):
         read_ptu_histograms(REAL / "hazelnut_z1.ptu", 132, channel=4,
                             check_sync_period=False)
@@ -233,3 +236,41 @@ def test_reconstruct_refuses_them_in_one_line(tmp_path, capsys, name, match):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and match in err[0], err
     assert not out.exists()
+
+
+def _hazelnut_inputs(tmp_path, rows: int) -> list[str]:
+    rng = np.random.default_rng(0)
+    np.save(tmp_path / "p.npy", rng.integers(0, 2, (rows, 8, 8)).astype(np.float32))
+    np.save(tmp_path / "c.npy", rng.integers(0, 2, 132))
+    return ["reconstruct", "--ptu", str(REAL / "hazelnut_z1.ptu"), "--patterns",
+            str(tmp_path / "p.npy"), "--code", str(tmp_path / "c.npy"), "--bit-rate",
+            "10.3125e9", "--range-gate", "0.5", "1.5", "--no-figure", "--out",
+            str(tmp_path / "o")]
+
+
+def test_one_row_short_keeps_the_last_patterns_own_dwell(tmp_path, capsys):
+    """1 280 line markers, 1 279 pattern rows: the last row's dwell was recomputed to the
+    file's end, through the 1 280th line (twice its own, its histogram halved), and that
+    line's 22 photons were in no account (an audit of 2026-11-28)."""
+    import json
+
+    assert main(_hazelnut_inputs(tmp_path, 1279)) == 0
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    ref = read_ptu_histograms(REAL / "hazelnut_z1.ptu", 132, n_patterns=1279)
+    np.testing.assert_array_equal(m["ptu"]["periods_per_pattern"], ref.periods_per_pattern)
+    assert m["ptu"]["n_dropped_after_last_pattern"] == ref.n_dropped_after_last_pattern == 22
+    assert any("is a row missing from --patterns" in w for w in m["warnings"])
+
+
+def test_an_end_marker_block_is_left_out_of_the_solve(tmp_path, capsys):
+    """Line-stop markers (2): the 1 280th block holds no photons and lasts one period. It was
+    solved as a pattern that saw no light, under a warning that it was 'scaled up'."""
+    import json
+
+    assert main([*_hazelnut_inputs(tmp_path, 1280), "--marker", "2"]) == 0
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert m["ptu"]["n_patterns_solved"] == m["n_patterns"] == 1279
+    assert len(m["ptu"]["periods_per_pattern"]) == len(m["ptu"]["counts_per_pattern"]) == 1279
+    assert min(m["ptu"]["periods_per_pattern"]) > 1
+    assert any("left out of the solve" in w for w in m["warnings"])
+    assert not any("scaled up" in w for w in m["warnings"])

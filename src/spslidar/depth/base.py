@@ -26,8 +26,9 @@ class DepthContext:
 
     Attributes
     ----------
-    lags : ndarray of int, shape (K,)
-        Absolute delay (TDC bins) of each slice, increasing.
+    lags : ndarray, shape (K,)
+        Absolute delay (TDC bins) of each slice, increasing (a calibrated acquisition's hold a
+        part of a bin).
     bin_width : float
         TDC bin width in seconds.
     pulse_width : float
@@ -54,9 +55,9 @@ class DepthContext:
             raise ConfigError(f"pulse_width must be a positive number of bins, got "
                               f"{self.pulse_width!r}")
         lags = np.asarray(self.lags)
-        if lags.ndim != 1 or (lags.size and lags.dtype.kind not in "iu"
-                              and not np.array_equal(lags, np.round(lags))):
-            raise ConfigError("lags must be a 1-D array of integer delays (TDC bins)")
+        if lags.ndim != 1 or lags.dtype.kind not in "iuf" or not np.isfinite(lags).all():
+            # (a calibrated instrument's lags hold the delay's part of a bin: not integers)
+            raise ConfigError("lags must be a 1-D array of finite delays (TDC bins)")
         if lags.size > 1 and not (np.diff(lags) > 0).all():
             raise ConfigError("lags must be increasing")
 

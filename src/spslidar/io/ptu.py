@@ -344,9 +344,12 @@ def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
     code = header["record_type_code"]
     if code is None:
         raise ConfigError(f"{path!r}: header has no TTResultFormat_TTTRRecType tag")
-    if code in T2_RECORD_TYPES or header["measurement_mode"] == "T2":
+    if code in T2_RECORD_TYPES:
         raise ConfigError(f"{path!r} holds T2 records ({header['record_type']}): absolute time "
                           "tags without a sync reference; record the lidar in T3 mode")
+    if header["measurement_mode"] == "T2":  # ("holds T2 records (PicoHarpT3)" contradicted)
+        raise ConfigError(f"{path!r}: its header says T2 mode (Measurement_Mode 2) but "
+                          f"{header['record_type']} records: the header contradicts itself")
     if code not in _T3_BY_CODE:
         raise ConfigError(f"{path!r}: unsupported TTTR record type 0x{code:08x}")
     bits = f.tags.get("TTResultFormat_BitsPerRecord", 32)
@@ -556,7 +559,8 @@ def read_ptu_histograms(
         width = res * binning
         if check_sync_period and not period > 0:
             raise ConfigError(f"{spath!r}: header has no sync period (MeasDesc_GlobalResolution)"
-                              "; pass check_sync_period=False to skip the check")
+                              ", so the code's period cannot be checked against the file (in "
+                              "Python, check_sync_period=False reads it unchecked)")
         if check_sync_period and abs(period - n_bins * width) > period_tol_bins * width:
             raise ConfigError(
                 f"{spath!r}: sync period {period:.6g} s != code period n_bins * bin_width = "
@@ -624,10 +628,12 @@ def read_ptu_histograms(
     if n_markers < rows:
         raise ConfigError(f"{spath!r} has {n_markers} marker-delimited blocks on marker input "
                           f"{marker}, fewer than n_patterns={rows}")
-    if channels is not None and not seen_channels[channels].any():
+    if channels is not None and not seen_channels[channels].all():
+        # (every listed channel: [0, 2] on a file without photons on 2 was taken)
         have = ", ".join(map(str, np.flatnonzero(seen_channels))) or "no channel"
+        empty = [c for c in np.atleast_1d(channels) if not seen_channels[c]]
         raise ConfigError(
-            f"{spath!r} has no photons on channel {', '.join(map(str, channels))} "
+            f"{spath!r} has no photons on channel {', '.join(map(str, empty))} "
             f"(channels are numbered from 0; photons on {have})")
     counts = hist.sum(axis=1, dtype=np.int64)
     end = starts[rows] if n_markers > rows else last_sync + 1

@@ -277,7 +277,14 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     ``allow_binning`` as :func:`~spslidar.pipeline.real.reconstruct_ptu`."""
     from ..io import read_ptu_histograms
     from ..version import __version__
-    from .real import check_blocks, check_code, check_patterns, check_ptu_path, check_real_inputs
+    from .real import (
+        block_notes,
+        check_blocks,
+        check_code,
+        check_patterns,
+        check_ptu_path,
+        check_real_inputs,
+    )
 
     check_ptu_path(ptu)
     patterns = check_patterns(patterns, False, "patterns")
@@ -289,6 +296,8 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                                channel=channel, n_patterns=int(patterns.shape[0]),
                                allow_binning=allow_binning)
     check_blocks(data, int(patterns.shape[0]), ptu)
+    for note in block_notes(data, int(patterns.shape[0])):
+        warnings.warn(note, stacklevel=2)
     total = data.histograms.astype(np.float64).sum(axis=0)
     cal = measure_response(total, code, bin_width, distance, pulse_width)
     path = Path(ptu)
@@ -297,7 +306,9 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
             "code_sha256": hashlib.sha256(np.asarray(code, np.uint8).tobytes()).hexdigest(),
             "pulse_width": float(pulse_width), "distance_m": float(distance),
             "measured_from": {"ptu": path.name, "bytes": path.stat().st_size,
-                              "sha256": sha256_file(path), "photons": int(data.n_photons),
+                              "sha256": sha256_file(path),
+                              "photons": int(data.counts_per_pattern.sum()),
+                              "photons_in_file": int(data.n_photons),
                               "patterns": int(patterns.shape[0])}}
 
 
@@ -408,6 +419,10 @@ def _check_consistent(cal: dict, offsets: np.ndarray, values: np.ndarray, number
     if np.any(np.diff(offsets) <= 0) or 0 not in offsets:
         raise ConfigError(f"{what}: irf_offsets must be distinct, increasing bin offsets "
                           f"around 0; calibrate again")
+    if abs(values.sum() - 1.0) > 1e-6 or not numbers[2] > 0:
+        # (irf_values x 1e6 passed, and scaled every reflectivity by 1e-6, without a word)
+        raise ConfigError(f"{what}: irf_values must sum to 1 (they sum to {values.sum():.6g}) "
+                          f"and irf_fwhm_bins be positive ({numbers[2]:g}); calibrate again")
     if abs(numbers[3]) > 0.5 + 1e-9:
         raise ConfigError(f"{what}: lag_fraction {numbers[3]:g} is outside [-0.5, 0.5] bins "
                           f"(the rest of the delay is lag_shift); calibrate again")

@@ -54,11 +54,8 @@ def timeline(cfg: Config, scene, warns: list[str]):
     lags = gate_lags(gate, bin_width)
     ulags, inverse = unique_lags(lags, acq.period)
     if lags.size > acq.period:
-        warns.append(
-            f"range gate {gate[0]:g}-{gate[1]:g} m is longer than the "
-            f"{acq.unambiguous_range:.3g} m unambiguous range of the {acq.description}: returns "
-            f"at d and d + {acq.unambiguous_range:.3g} m are indistinguishable and the estimate "
-            f"takes the nearest alias inside the gate")
+        warns.append(gate_alias_warning(gate, lags.size, acq.period, acq.unambiguous_range,
+                                        acq.description))
     outside = (scene.depth < gate[0]) | (scene.depth > gate[1])
     if np.any(outside & scene.valid):
         warns.append(f"{int((outside & scene.valid).sum())} pixels lie outside the range gate "
@@ -208,3 +205,15 @@ def detector_options(cfg: Config) -> dict[str, Any]:
     out = {name: context[name] for name in entry.defaults.get("context", ())}
     out.update({opt.param or opt.name: getattr(cfg, opt.name) for opt in entry.options})
     return out
+
+
+def gate_alias_warning(gate, n_lags: int, period: int, unambiguous: float,
+                       description: str) -> str:
+    """The warning for a gate of more delay bins than the code's period (``run`` and
+    ``reconstruct``). Its ends are rounded out to whole bins, so a gate a hair shorter than the
+    unambiguous range can span one bin more than the period: said with the bins, not only
+    the metres (0-1.9186 m "longer than the 1.92 m unambiguous range" read as nonsense)."""
+    return (f"range gate {gate[0]:g}-{gate[1]:g} m spans {n_lags} delay bins (its ends rounded "
+            f"out to whole bins), more than the {period} of one period of the {description} "
+            f"({unambiguous:.4g} m unambiguous range): returns at d and d + {unambiguous:.4g} m "
+            f"are indistinguishable and the estimate takes the nearest alias inside the gate")

@@ -228,6 +228,23 @@ def check_blocks(data, m: int, ptu) -> None:
                           f"file (or --marker names the wrong input)")
 
 
+def block_notes(data, m: int) -> list[str]:
+    """What the file's blocks say beyond :func:`check_blocks`: a block after the last
+    pattern's end that lasts as long as a pattern (a row missing from ``--patterns``; its
+    photons are left out), said with its dwell and photons."""
+    if data.n_markers <= m or not m:
+        return []
+    end = int(data.pattern_start_sync[-1] + data.periods_per_pattern[-1])
+    trailing = int(data.last_sync) + 1 - end
+    typical = float(np.median(data.periods_per_pattern))
+    if trailing < 0.5 * typical:
+        return []
+    return [f"the file holds {data.n_markers} marker-delimited blocks for {m} pattern rows, and "
+            f"its last block ({trailing} code periods, {data.n_dropped_after_last_pattern} "
+            f"photons) lasts as long as a pattern ({typical:.0f}): it is left out; is a row "
+            f"missing from --patterns?"]
+
+
 def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: int,
                       period: int) -> None:
     """Refuse, in one line and before the file is read, what no real acquisition can be: a
@@ -386,16 +403,27 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     data = read_ptu_histograms(ptu, period, bin_width=bin_width, marker=marker,
                                channel=channel, n_patterns=m, allow_binning=allow_binning)
     check_blocks(data, m, ptu)
-    ends = np.append(data.pattern_start_sync[1:], data.last_sync + 1)
-    n_k = np.maximum(ends - data.pattern_start_sync, 1).astype(np.float64)
+    dwell_warning = block_notes(data, m)
+    # the reader's dwell: to the next block's marker, also where that block is not a pattern
+    # (the file's ends, recomputed here, gave the last of m rows in an (m + 1)-block file the
+    # extra block's periods too: twice its dwell, its histogram halved)
+    n_k = np.maximum(data.periods_per_pattern, 1).astype(np.float64)
+    hist = data.histograms.astype(np.float64)
+    if m > 1 and data.counts_per_pattern[-1] == 0 and n_k[-1] <= 1:
+        # an end-of-acquisition marker read as a pattern: a row of zeros is no measurement
+        dwell_warning.append(
+            f"the last of the {m} marker blocks holds no photons and lasts {int(n_k[-1])} code "
+            f"period(s) (an end-of-acquisition marker?): its pattern row is left out of the "
+            f"solve (leave it out of --patterns to say so)")
+        m, n_k, hist, patterns = m - 1, n_k[:-1], hist[:-1], patterns[:-1]
     n_mean = float(n_k.mean())
     short = np.flatnonzero(n_k < 0.5 * np.median(n_k))
-    dwell_warning = (
-        [f"{short.size} pattern(s) (first: {int(short[0])}) have less than half the median "
-         f"dwell of {np.median(n_k):.0f} code periods (the last block of a cut acquisition, or "
-         f"markers missed?); their histograms are scaled up to the mean dwell"]
-        if short.size else [])
-    hist = data.histograms.astype(np.float64) * (n_mean / n_k)[:, None]
+    if short.size:
+        dwell_warning.append(
+            f"{short.size} pattern(s) (first: {int(short[0])}) have less than half the median "
+            f"dwell of {np.median(n_k):.0f} code periods (the last block of a cut acquisition, "
+            f"or markers missed?); their histograms are scaled up to the mean dwell")
+    hist *= (n_mean / n_k)[:, None]
     replica_kind = auto_replica(code) if cfg.replica == "auto" else cfg.replica
     replica = make_replica(code, replica_kind)
     lags = gate_lags(cfg.range_gate, bin_width)
@@ -441,21 +469,21 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                        {"simulate": 0.0})
     meas.warnings.extend(dwell_warning)
     if lags.size > period:  # as run's plan: the gate is longer than the code's period
-        lo, hi = cfg.range_gate
-        meas.warnings.append(
-            f"range gate {lo:g}-{hi:g} m is longer than the {acq.unambiguous_range:.3g} m "
-            f"unambiguous range of the {period}-bit code at {bit_rate:g} bits/s: returns at d "
-            f"and d + {acq.unambiguous_range:.3g} m are indistinguishable and the estimate "
-            f"takes the nearest alias inside the gate")
+        from .plan import gate_alias_warning
+
+        meas.warnings.append(gate_alias_warning(
+            cfg.range_gate, lags.size, period, acq.unambiguous_range,
+            f"{period}-bit code at {bit_rate:g} bits/s"))
     result = reconstruct(meas)
     result.metrics["ptu"] = {
-        "file": os.fspath(ptu), "counts_per_pattern": data.counts_per_pattern.tolist(),
+        "file": os.fspath(ptu), "counts_per_pattern": data.counts_per_pattern[:m].tolist(),
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":
         float(background.mean() / n_mean), "background_per_pattern": background.tolist(),
         "n_records": data.n_records, "n_photons": data.n_photons, "n_markers": data.n_markers,
         "n_dropped_before_first_marker": data.n_dropped_before_first_marker,
-
-        "n_out_of_range": data.n_out_of_range, "record_type": data.header.get("record_type")}
+        "n_dropped_after_last_pattern": data.n_dropped_after_last_pattern,
+        "n_patterns_solved": int(m), "n_out_of_range": data.n_out_of_range,
+        "record_type": data.header.get("record_type")}
     result.metrics["calibration"] = None if cal is None else {
         "file": cal.get("file"), "sha256": cal.get("file_sha256"), "delay_s": cal["delay_s"],
         "lag_shift": cal["lag_shift"], "lag_fraction": frac, "spread": spread,
