@@ -274,3 +274,16 @@ def test_an_end_marker_block_is_left_out_of_the_solve(tmp_path, capsys):
     assert min(m["ptu"]["periods_per_pattern"]) > 1
     assert any("left out of the solve" in w for w in m["warnings"])
     assert not any("scaled up" in w for w in m["warnings"])
+
+
+def test_a_measured_configuration_holds_only_what_applied(tmp_path, capsys):
+    """metrics.json's config of a real file gave the simulation's defaults (scene 'camera',
+    signal 5, noise 10, gaussian patterns) as if they had been measured."""
+    import json
+
+    assert main(_hazelnut_inputs(tmp_path, 1280)) == 0
+    cfg = json.loads((tmp_path / "o" / "metrics.json").read_text())["config"]
+    assert cfg["size"] == 8 and cfg["code_length"] == 132 and cfg["range_gate"] == [0.5, 1.5]
+    assert cfg["bit_rate"] == 10.3125e9 and cfg["depth"] == "mrf" and cfg["solver"] == "fista"
+    for key in ("scene", "signal", "noise", "patterns", "code", "detector", "lidar"):
+        assert key not in cfg, key

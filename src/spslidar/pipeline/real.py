@@ -228,6 +228,12 @@ def check_blocks(data, m: int, ptu) -> None:
                           f"file (or --marker names the wrong input)")
 
 
+#: the configuration keys a measured acquisition sets (with the processing keys, what
+#: ``reconstruct`` writes in ``metrics['config']``)
+_MEASURED_KEYS = frozenset({"size", "bit_rate", "code_length", "range_gate", "compression",
+                            "replica", "dtype", "seed", "backend", "device"})
+
+
 def block_notes(data, m: int) -> list[str]:
     """What the file's blocks say beyond :func:`check_blocks`: a block after the last
     pattern's end that lasts as long as a pattern (a row missing from ``--patterns``; its
@@ -475,6 +481,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
             cfg.range_gate, lags.size, period, acq.unambiguous_range,
             f"{period}-bit code at {bit_rate:g} bits/s"))
     result = reconstruct(meas)
+    # only what applied: the simulation's keys (scene "camera", signal 5, noise 10, gaussian
+    # patterns...) were written as if they had been measured
+    result.metrics["config"] = {k: v for k, v in result.metrics["config"].items()
+                                if k in PROCESSING_KEYS or k in _MEASURED_KEYS}
     result.metrics["ptu"] = {
         "file": os.fspath(ptu), "counts_per_pattern": data.counts_per_pattern[:m].tolist(),
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":
