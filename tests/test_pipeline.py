@@ -8,6 +8,7 @@ import pytest
 from spslidar import pipeline
 from spslidar.config import Config
 from spslidar.constants import SPEED_OF_LIGHT
+from spslidar.errors import ConfigError
 
 BIN = SPEED_OF_LIGHT * 1e-10 / 2  # 1.5 cm
 
@@ -53,6 +54,19 @@ def test_conventional_10mhz_aliases_a_20m_scene_psst_does_not():
     psst = pipeline.run(**kw, lidar="psst", code_length=16383)
     assert abs(np.nanmedian(psst.depth - psst.truth)) < 0.05
     assert not any("unambiguous range" in w for w in psst.warnings)
+
+
+def test_a_code_the_conventional_lidar_ignores_cannot_refuse_it():
+    """--lidar conventional --code gold --code-length 4095 was refused (no Gold code of 4095
+    bits) although the run fires single pulses and warns that the code is ignored; with
+    --fairness power its ones count sets the pulses, and the refusal stands."""
+    kw = dict(size=8, code_length=4095, lidar="conventional", code="gold", noise=1.0)
+    conv = pipeline.run(**kw)
+    assert any("ignored" in w and "--code gold" in w for w in conv.warnings)
+    same = pipeline.run(**{**kw, "code": "mseq"})
+    np.testing.assert_array_equal(conv.depth, same.depth)  # the code made no difference
+    with pytest.raises(ConfigError, match="not valid for a Gold code"):
+        pipeline.run(**kw, fairness="power")
 
 
 def test_seeded_runs_are_reproducible():

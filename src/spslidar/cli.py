@@ -51,7 +51,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("instrument")
     g.add_argument("--lidar", choices=("psst", "conventional"), default=S,
                    help="psst: pseudo-random coded laser (default); conventional: periodic "
-                        "single pulses in the same acquisition time")
+                        "single pulses in the same acquisition time (whole pulse periods: up "
+                        "to one period less)")
     g.add_argument("--code", choices=codes, default=S, help=codes_help)
     g.add_argument("--code-length", type=int, default=S, metavar="L",
                    help="bits per code period; 2^n - 1 for mseq/gold (default 16383); sets the "

@@ -27,7 +27,11 @@ def _validate_length(cfg) -> None:
     the nearest valid lengths otherwise)."""
     from .sequences import _as_int, _check_length
 
-    _check_length(cfg.code, _as_int(cfg.code_length, "code length"))
+    length = _as_int(cfg.code_length, "code length")
+    if (getattr(cfg, "lidar", "psst") == "conventional"
+            and getattr(cfg, "fairness", "energy") != "power"):
+        return  # the code is not made, its length only sets the dwell (Gold at 4095 refused)
+    _check_length(cfg.code, length)
 
 
 def _validate_fixed_ratio(cfg) -> None:

@@ -261,7 +261,7 @@ def _shifted_left(x0: np.ndarray, nxt: np.ndarray) -> np.ndarray:
 def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float = 0.0,
                       afterpulse_rate: float = 0.0, tol: float = 1e-10,
                       max_sweeps: int | None = None, anderson: int = 8,
-                      return_info: bool = False):
+                      return_info: bool = False, warn: bool = True):
     """Stationary detection probability per bin of a free-running non-paralysable detector.
 
     Parameters
@@ -283,6 +283,9 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
         Depth of the Anderson acceleration of the sweeps (0: plain sweeps).
     return_info : bool
         Also return ``{'sweeps': int, 'change': float}``.
+    warn : bool
+        Warn where the fixed point has not converged (a caller that says it better itself,
+        from ``return_info``, turns this off).
 
     Returns
     -------
@@ -443,7 +446,7 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
         # the cap or the floor: the period's h is that of each row's best sweep, not the last
         sweep(on_invariant(best_state, best_state))
         change = float(np.max(best))
-    if change > tol and change > _NEGLIGIBLE:
+    if warn and change > tol and change > _NEGLIGIBLE:
         per_dead = float(mu2.mean()) * float(dead_bins)
         why = (f" at {per_dead:.3g} photons per dead time: the detector fires at nearly every "
                f"re-arm, so its histograms carry little timing information and the model's "
@@ -630,8 +633,10 @@ def _defect_correction(h, mu, sub, profile, args, max_iter: int = 100, tol: floa
     scale = max(float(h.max(initial=0.0)), 1e-300)
     best = []
     for _ in range(max_iter):
-        fwd = renewal_detection(sub_bin_profile(mu, sub, profile), dead * sub, prob, rate / sub,
-                                tol=1e-8)
+        # (its own warning said "not converged at 156 photons per dead time" for the flux this
+        # refinement tries, where the detections said 25: said once below, as the correction's)
+        fwd, info = renewal_detection(sub_bin_profile(mu, sub, profile), dead * sub, prob,
+                                      rate / sub, tol=1e-8, return_info=True, warn=False)
         fwd = fwd.reshape(-1, period, sub).sum(axis=2)
         worst = float(np.max(np.abs(fwd - h)))
         # converged, or stuck (capped or saturated bins the model cannot reach: no gain of
@@ -643,6 +648,14 @@ def _defect_correction(h, mu, sub, profile, args, max_iter: int = 100, tol: floa
         weight = np.where(step * prev < 0, 0.5 * weight, np.minimum(1.5 * weight, 1.0))
         prev = step
         mu = np.maximum(mu + weight * step, 0.0)
+    if info["change"] > max(1e-8, _NEGLIGIBLE):
+        warnings.warn(
+            f"the pile-up correction's dead-time model, run at the corrected flux of the "
+            f"brightest histograms ({float(mu.mean()) * dead:.3g} photons per dead time, above "
+            f"what their detections give for a steady flux), did not converge (relative "
+            f"change {info['change']:.2e}): so near saturation the corrected counts are "
+            f"uncertain; --pileup-correction off, or less light and more --periods",
+            RuntimeWarning, stacklevel=3)
     return mu
 
 

@@ -73,8 +73,13 @@ def make_acquisition(cfg: Config, gate: tuple[float, float], rng_code) -> Acquis
     # true Gold code is member 2, the default.
     family = CODES.get(cfg.code)
     index = cfg.code_index if cfg.code_index is not None else family.defaults["index"]
-    psst_code = family.load()(cfg.code, cfg.code_length, cfg.ones_ratio, rng=rng_code,
-                              index=index).astype(np.uint8)
+    if cfg.lidar == "conventional" and cfg.fairness != "power":
+        # the code is not used (its ones count sets only the 'power' pulses): a code family
+        # that refuses the length (Gold at 4095 bits) refused a run that ignores it
+        psst_code = None
+    else:
+        psst_code = family.load()(cfg.code, cfg.code_length, cfg.ones_ratio, rng=rng_code,
+                                  index=index).astype(np.uint8)
     if cfg.lidar == "psst":
         replica = auto_replica(psst_code) if cfg.replica == "auto" else cfg.replica
         name = CODES.get(cfg.code).display
