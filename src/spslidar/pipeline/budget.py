@@ -37,6 +37,10 @@ FLOP_RATE = 2e10
 #: measured on the 2-core machine (256x256 Hadamard at 100 %: 50 s for 65536 patterns of
 #: 16383 bins), rounded up
 SECONDS_PER_BIN = 5e-8
+#: seconds every run takes whatever its size (the scene's resize, the depth estimator, the
+#: metrics): 0.06-0.07 s measured at 8x8 and 16x16 on 255 bits, where the rest was estimated
+#: at 0.001-0.011 s, so a sweep of 40 such runs was estimated at 0.43 s and took 13 s
+RUN_OVERHEAD_S = 0.05
 
 
 @dataclass
@@ -104,7 +108,7 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
     iterations = cfg.iterations or 100
     dense = pattern_bytes_per_entry is not None
     per_product = (m * q if dense else 2 * q * max(1, q.bit_length())) * k_solve
-    seconds = (m * period * SECONDS_PER_BIN + m * q * shifts / FLOP_RATE
+    seconds = (RUN_OVERHEAD_S + m * period * SECONDS_PER_BIN + m * q * shifts / FLOP_RATE
                + iterations * 2 * per_product / FLOP_RATE)
     return Budget(sum(parts.values()), seconds, parts)
 

@@ -95,13 +95,15 @@ def delay_warnings(cfg: Config, scene, gate: tuple[float, float],
             f"'From your hardware to a depth map'"]
 
 
-def ignored_options(cfg: Config) -> list[str]:
-    """A warning for each option set away from its default where the rest of the
-    configuration gives it no effect (a sweep may cross such options, so they are said, not
-    refused): ``rep_rate`` of a PSST lidar (its period is the code's), ``hadamard_order`` and
+def ignored_keys(cfg: Config) -> dict[str, str]:
+    """The options set away from their defaults where the rest of the configuration gives
+    them no effect, each with its warning (a sweep may cross such options, so they are said,
+    not refused, and a sweep's points that differ only in them share their seed):
+    ``rep_rate`` of a PSST lidar (its period is the code's), ``hadamard_order`` and
     ``hadamard_realisation`` of patterns that are not Hadamard rows, ``pattern_sigma`` of
     patterns that are not grey Gaussian ones, ``qcr_form`` without QCR, ``fairness`` of a
-    PSST lidar, the code of a conventional one, ``lam_scale`` beside ``lam``."""
+    PSST lidar, the code of a conventional one (unless its ``power`` fairness counts the
+    code's ones), ``lam_scale`` beside ``lam``."""
     import dataclasses
 
     fields = {f.name: f.default for f in dataclasses.fields(Config)}
@@ -109,34 +111,45 @@ def ignored_options(cfg: Config) -> list[str]:
     def changed(name: str) -> bool:  # set away from the Config's own default
         return getattr(cfg, name) != fields[name]
 
-    out = []
+    out: dict[str, str] = {}
     if changed("rep_rate") and cfg.lidar != "conventional":
-        out.append(f"--rep-rate {cfg.rep_rate:g} is ignored: it sets the pulse period of "
-                   f"--lidar conventional; a {cfg.lidar} lidar repeats its code")
+        out["rep_rate"] = (f"--rep-rate {cfg.rep_rate:g} is ignored: it sets the pulse period of "
+                           f"--lidar conventional; a {cfg.lidar} lidar repeats its code")
     if changed("hadamard_order") and cfg.patterns != "hadamard":
-        out.append(f"--hadamard-order {cfg.hadamard_order} is ignored: it orders the rows of "
-                   f"--patterns hadamard, not {cfg.patterns}")
+        out["hadamard_order"] = (f"--hadamard-order {cfg.hadamard_order} is ignored: it orders "
+                                 f"the rows of --patterns hadamard, not {cfg.patterns}")
     if changed("qcr_form") and not cfg.qcr:
-        out.append(f"--qcr-form {cfg.qcr_form} is ignored with --no-qcr")
+        out["qcr_form"] = f"--qcr-form {cfg.qcr_form} is ignored with --no-qcr"
     if changed("hadamard_realisation") and cfg.patterns != "hadamard":
-        out.append(f"--hadamard-realisation {cfg.hadamard_realisation} is ignored: it shows "
-                   f"the rows of --patterns hadamard, not {cfg.patterns}")
+        out["hadamard_realisation"] = (
+            f"--hadamard-realisation {cfg.hadamard_realisation} is ignored: it shows the rows "
+            f"of --patterns hadamard, not {cfg.patterns}")
     if changed("pattern_sigma") and cfg.patterns != "gaussian":
-        out.append(f"--pattern-sigma {cfg.pattern_sigma:g} is ignored: it spreads the grey "
-                   f"levels of --patterns gaussian, not {cfg.patterns}")
+        out["pattern_sigma"] = (f"--pattern-sigma {cfg.pattern_sigma:g} is ignored: it spreads "
+                                f"the grey levels of --patterns gaussian, not {cfg.patterns}")
     if changed("fairness") and cfg.lidar != "conventional":
-        out.append(f"--fairness {cfg.fairness} is ignored: it sets the pulses of --lidar "
-                   f"conventional against the PSST's; a {cfg.lidar} lidar is the reference")
-    if cfg.lidar == "conventional":
-        unused = [f"--{k.replace('_', '-')} {getattr(cfg, k)}"
-                  for k in ("code", "code_index", "ones_ratio") if changed(k)]
-        if unused:
-            out.append(f"{', '.join(unused)} {'is' if len(unused) == 1 else 'are'} ignored: "
-                       f"--lidar conventional fires single pulses, not a code (--code-length "
-                       f"still sets each pattern's time)")
+        out["fairness"] = (f"--fairness {cfg.fairness} is ignored: it sets the pulses of "
+                           f"--lidar conventional against the PSST's; a {cfg.lidar} lidar is "
+                           f"the reference")
+    if cfg.lidar == "conventional" and cfg.fairness != "power":
+        keys = [k for k in ("code", "code_index", "ones_ratio") if changed(k)]
+        if keys:
+            unused = [f"--{k.replace('_', '-')} {getattr(cfg, k)}" for k in keys]
+            text = (f"{', '.join(unused)} {'is' if len(unused) == 1 else 'are'} ignored: "
+                    f"--lidar conventional fires single pulses, not a code (--code-length "
+                    f"still sets each pattern's time)")
+            out.update(dict.fromkeys(keys, text))
     if cfg.lam is not None and cfg.lam_scale is not None:
-        out.append(f"--lam-scale {cfg.lam_scale:g} is ignored: --lam {cfg.lam:g} sets the "
-                   f"weight itself")
+        out["lam_scale"] = (f"--lam-scale {cfg.lam_scale:g} is ignored: --lam {cfg.lam:g} sets "
+                            f"the weight itself")
+    return out
+
+
+def ignored_options(cfg: Config) -> list[str]:
+    """A warning for each option set away from its default where the rest of the
+    configuration gives it no effect (:func:`ignored_keys`), and for natural-order Hadamard
+    rows below full sampling (legal, but they alias)."""
+    out = list(dict.fromkeys(ignored_keys(cfg).values()))
     if cfg.patterns == "hadamard" and cfg.hadamard_order == "natural" and cfg.compression < 1:
         # legal, kept as the reference ordering, but a trap (found by a sweep of unusual
         # regimes: the steps at 32x32, 25 %, 0.25 m against cake-cutting's 0.0015 m, no word)

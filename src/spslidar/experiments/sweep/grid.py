@@ -42,6 +42,7 @@ __all__ = [
     "canonical_json",
     "derive_seed",
     "expand_grid",
+    "same_value",
     "load_sweep_config",
     "point_key",
 ]
@@ -214,6 +215,26 @@ def _check_grid(grid: Mapping[str, Any], where: str = "grid") -> None:
         _check_reserved([name], where)
         if not isinstance(values, (list, tuple)) or len(values) == 0:
             raise ConfigError(f"{where}.{name} must be a non-empty list of values, got {values!r}")
+        seen: dict[str, Any] = {}
+        for value in values:  # (noise = [1, 1, 1.0] ran three points, two with one seed)
+            key = canonical_json(same_value(value), f"{where}.{name}")
+            if key in seen:
+                raise ConfigError(f"{where}.{name} lists the same value twice ({seen[key]!r} and "
+                                  f"{value!r}): each point would run twice and count twice")
+            seen[key] = value
+
+
+def same_value(value: Any) -> Any:
+    """``value`` with every float that is a whole number written as an int, so that ``1`` and
+    ``1.0`` are one grid value and one seed (:func:`sweep_point_seed`); lists and tables
+    element by element; anything else as it is."""
+    if isinstance(value, (float, np.floating)) and np.isfinite(value) and float(value).is_integer():
+        return int(value)
+    if isinstance(value, (list, tuple)):
+        return [same_value(v) for v in value]
+    if isinstance(value, Mapping):
+        return {k: same_value(v) for k, v in value.items()}
+    return value
 
 
 def expand_grid(
