@@ -375,3 +375,17 @@ def test_snr_takes_the_registered_code_families(capsys):
         assert "mseq2" in _parser().parse_args(["snr", "--code", "mseq2"]).code
     finally:
         CODES._entries.pop("mseq2")
+
+
+def test_the_delta_interval_at_few_trials_uses_students_quantile():
+    """Two periods gave '95% interval 0 .. 9.7e6' around a theory of 1.7e7: 1.96 standard
+    errors estimated from two trials. The quantile is Student's at K - 1 degrees of freedom
+    (12.7 at 2 trials, 1.97 at 200)."""
+    from scipy import stats
+
+    for k in (2, 5, 200):
+        r = snr_simulated("mseq", 1023, 0.5, 5.0, 10.0, 16, 0.5, 1.0, k, 0)
+        t = (r["ci_high"] - r["simulated"]) / r["stderr"]
+        assert t == pytest.approx(stats.t.ppf(0.975, k - 1), rel=1e-9)
+    r = snr_simulated("mseq", 16383, 0.5, 5.0, 10.0, 64, 0.5, 1.0, 2, 0)
+    assert r["ci_low"] <= r["theory"] <= r["ci_high"]
