@@ -46,7 +46,7 @@ def test_all_zero_depth_scene_is_refused(tmp_path, capsys):
 @pytest.mark.parametrize("toml,match", [
     ("seed = 1\n[base]\nsize = 8\n[grid]\n", "[grid] is empty and trials = 1"),
     ("seed = -1\n[base]\nsize = 8\n[grid]\nnoise = [1]\n", "non-negative"),
-    ("[grid]\nnoise = [" + ", ".join(["1"] * 200) + "]\nseed = [" +
+    ("[grid]\nnoise = [" + ", ".join(str(i + 1) for i in range(200)) + "]\nseed = [" +
      ", ".join(str(i) for i in range(100)) + "]\n", "split it"),
 ])
 def test_sweep_definitions_refused(toml, match, tmp_path, capsys):
