@@ -9,6 +9,7 @@ import pytest
 
 from spslidar.errors import SceneError
 from spslidar.scenes import BUILTIN_SCENES, Scene, load_scene
+from spslidar.scenes.builtin import motorcycle_source
 
 WINDOWS = {
     "camera": (20.0, 20.8),
@@ -362,3 +363,62 @@ def test_motorcycle_source_is_what_the_built_in_scene_is_resized_from():
     lo, hi = float(depth[valid].min()), float(depth[valid].max())
     s = scenes.load_scene("motorcycle", size=32)
     assert lo - 1e-9 <= s.depth[s.valid].min() and s.depth[s.valid].max() <= hi + 1e-9
+
+
+# ------------------------------------------------------------- a user's file at another size
+def _file(tmp_path, name, arr):
+    np.save(tmp_path / name, arr)
+    return str(tmp_path / name)
+
+
+def test_a_resized_file_holds_only_depths_the_file_holds(tmp_path):
+    """A bilinear resize turned a one-pixel pole at 8 m before a 10 m wall into a surface at
+    9.7-9.9 m, and a 2 m step up-sampled into four flying pixels; each was scored as the
+    truth (an audit of 2026-11-28)."""
+    pole = np.full((64, 64), 10.0)
+    pole[:, 32] = 8.0
+    step = np.full((8, 8), 10.0)
+    step[:, 4:] = 8.0
+    ramp = np.add.outer(np.linspace(5.0, 9.0, 48), np.linspace(0.0, 1.0, 48))
+    for arr, size in ((pole, 16), (pole, 32), (pole, 24), (step, 32), (step, 12), (ramp, 20)):
+        s = load_scene(_file(tmp_path, "f.npy", arr), size)
+        assert np.isin(s.depth, arr).all(), (arr.shape, size)
+        assert any("is resized to" in n for n in s.notes)
+    # the pole is dropped where it is a quarter of a footprint, kept where it is half
+    assert set(np.unique(load_scene(_file(tmp_path, "p.npy", pole), 16).depth)) == {10.0}
+    half = load_scene(_file(tmp_path, "p.npy", pole), 32).depth
+    assert (half[:, 16] == 8.0).all() and (np.delete(half, 16, axis=1) == 10.0).all()
+    # up-sampling is each file pixel repeated: the step stays a step
+    up = load_scene(_file(tmp_path, "s.npy", step), 32).depth
+    np.testing.assert_array_equal(up, np.repeat(np.repeat(step, 4, 0), 4, 1))
+
+
+def test_a_file_at_the_size_is_simulated_as_it_is(tmp_path):
+    arr = np.random.default_rng(0).uniform(5.0, 9.0, (16, 16))
+    s = load_scene(_file(tmp_path, "f.npy", arr), 16)
+    np.testing.assert_array_equal(s.depth, arr)
+    assert s.notes == []
+
+
+def test_depths_given_where_the_mask_says_do_not_score_are_simulated(tmp_path):
+    """A ramp valid at one pixel was simulated as a flat wall at that pixel's depth: the
+    depths at invalid pixels were replaced by the nearest valid one's."""
+    ramp = np.add.outer(np.linspace(10.0, 11.0, 16), np.zeros(16))
+    valid = np.zeros((16, 16), bool)
+    valid[3, 3] = True
+    holes = ramp.copy()
+    holes[8:, :] = np.nan  # no depth given there: filled from the nearest valid pixel
+    np.savez(tmp_path / "z.npz", depth=ramp, valid=valid)
+    np.savez(tmp_path / "h.npz", depth=holes, valid=valid)
+    np.testing.assert_array_equal(load_scene(str(tmp_path / "z.npz"), 16).depth, ramp)
+    filled = load_scene(str(tmp_path / "h.npz"), 16).depth
+    np.testing.assert_array_equal(filled[:8], ramp[:8])
+    assert np.isfinite(filled).all()
+
+
+def test_the_built_in_motorcycle_keeps_its_bilinear_resize():
+    """The benchmarks' motorcycle is resized as it was measured (its anti-aliased edge pixels
+    are part of issue 21's numbers)."""
+    s = load_scene("motorcycle", 24)
+    src, _, _ = motorcycle_source()
+    assert not np.isin(s.depth[s.valid], src).all()

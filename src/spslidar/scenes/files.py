@@ -109,7 +109,9 @@ def _load_npz(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
     else:
         valid = np.ones(depth.shape, dtype=bool)
     _check_depth_values(label, depth, valid)
-    depth = np.where(valid, depth, 0.0)
+    # (a depth given where the mask says "do not score" is kept: it was replaced by the
+    # nearest valid pixel's, and a ramp valid at one pixel was simulated as a flat wall)
+    depth = np.where(valid | (np.isfinite(depth) & (depth > 0)), depth, 0.0)
     if "reflectivity" in arrays:
         refl = _as_2d(label, arrays["reflectivity"], "reflectivity").astype(np.float64)
         if refl.shape != depth.shape:
@@ -171,7 +173,7 @@ def _load_file(path: Path, size: int, depth_min: float | None, depth_max: float 
     suffix = path.suffix.lower()
     if suffix in _IMAGE_SUFFIXES:
         lo, hi = _window(depth_min, depth_max, _IMAGE_WINDOW)
-        return _grey_to_scene(label, _load_image(path, label), size, lo, hi)
+        return _grey_to_scene(label, _load_image(path, label), size, lo, hi, surfaces=True)
     if suffix == ".npy":
         depth, refl, valid = _load_npy(path, label)
     elif suffix == ".npz":
@@ -185,4 +187,4 @@ def _load_file(path: Path, size: int, depth_min: float | None, depth_max: float 
         # a lidar measures distance: a scene entirely at 0 m is a wrong file or wrong units
         raise SceneError(f"scene file {label}: every depth is 0 m; give distances from the "
                          f"lidar in metres (or a window with --depth-min/--depth-max)")
-    return _finish(label, depth, refl, valid, size, depth_min, depth_max)
+    return _finish(label, depth, refl, valid, size, depth_min, depth_max, surfaces=True)
