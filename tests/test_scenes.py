@@ -263,7 +263,7 @@ def test_bad_reflectivity(tmp_path: Path):
     refl = np.full((8, 8), 0.5)
     refl[1, 1] = 1.5
     np.savez(tmp_path / "r.npz", depth=depth, reflectivity=refl)
-    with pytest.raises(SceneError, match=r"1 reflectivity values lie outside \[0, 1\]"):
+    with pytest.raises(SceneError, match=r"1 reflectivity values are NaN or lie outside \[0, 1\]"):
         load_scene(tmp_path / "r.npz")
     np.savez(tmp_path / "s.npz", depth=depth, reflectivity=np.ones((4, 8)))
     with pytest.raises(SceneError, match=r"reflectivity has shape \(4, 8\), depth has \(8, 8\)"):
@@ -422,3 +422,47 @@ def test_the_built_in_motorcycle_keeps_its_bilinear_resize():
     s = load_scene("motorcycle", 24)
     src, _, _ = motorcycle_source()
     assert not np.isin(s.depth[s.valid], src).all()
+
+
+def test_what_a_users_file_holds_beside_the_scene_is_said(tmp_path):
+    """A misspelt 'reflectance' ran at reflectivity 1 without a word; a float TIFF of
+    metres was mapped into 20-20.8 m without one (an audit of 2026-11-28)."""
+    import skimage.io
+
+    d = np.full((16, 16), 10.0)
+    np.savez(tmp_path / "t.npz", depth=d, reflectance=np.full((16, 16), 0.5))
+    s = load_scene(str(tmp_path / "t.npz"), 16)
+    assert np.all(s.reflectivity == 1.0)
+    assert any("reflectance ignored" in n for n in s.notes)
+    skimage.io.imsave(tmp_path / "m.tif", np.linspace(3, 4, 256).reshape(16, 16).astype("f4"))
+    s = load_scene(str(tmp_path / "m.tif"), 16)
+    assert any("read as grey levels mapped onto 20-20.8 m" in n for n in s.notes)
+
+
+def test_masks_and_holes_a_user_writes(tmp_path):
+    d = np.full((16, 16), 10.0)
+    v = np.ones((16, 16))
+    v[0, 0] = np.nan  # was cast to True, and the depth under it blamed
+    np.savez(tmp_path / "v.npz", depth=d, valid=v)
+    with pytest.raises(SceneError, match="valid mask must hold booleans or 0/1"):
+        load_scene(str(tmp_path / "v.npz"), 16)
+    holes = d.copy()
+    holes[0, 0] = np.nan
+    np.save(tmp_path / "h.npy", holes)
+    with pytest.raises(SceneError, match="belong in an .npz with a 'valid' mask"):
+        load_scene(str(tmp_path / "h.npy"), 16)
+    # reflectivity NaN where the depth is unknown too: accepted (no return there)
+    valid = np.ones((16, 16), bool)
+    valid[0, 0] = False
+    refl = np.full((16, 16), 0.5)
+    refl[0, 0] = np.nan
+    np.savez(tmp_path / "r.npz", depth=holes, reflectivity=refl, valid=valid)
+    s = load_scene(str(tmp_path / "r.npz"), 16)
+    assert s.reflectivity[0, 0] == 0.0 and s.reflectivity[0, 1] == 0.5
+    refl[0, 1] = np.nan  # at a valid pixel: refused
+    np.savez(tmp_path / "r.npz", depth=holes, reflectivity=refl, valid=valid)
+    with pytest.raises(SceneError, match="NaN or lie outside"):
+        load_scene(str(tmp_path / "r.npz"), 16)
+    np.save(tmp_path / "f.npy", d)
+    with pytest.raises(SceneError, match=r"depth_min 10 m \(the scene's own: not given\)"):
+        load_scene(str(tmp_path / "f.npy"), 16, depth_max=5.0)

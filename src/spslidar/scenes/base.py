@@ -155,8 +155,10 @@ def _window(
     lo = default[0] if depth_min is None else depth_min
     hi = default[1] if depth_max is None else depth_max
     if lo >= hi:
+        own = " (the scene's own: not given)"
         raise SceneError(
-            f"depth window is empty: depth_min {lo:g} m must be less than depth_max {hi:g} m"
+            f"depth window is empty: depth_min {lo:g} m{own if depth_min is None else ''} must "
+            f"be less than depth_max {hi:g} m{own if depth_max is None else ''}"
         )
     return lo, hi
 

@@ -30,9 +30,11 @@ def _check_depth_values(label: str, depth: np.ndarray, where: np.ndarray | None 
         bad &= where
     count = int(np.count_nonzero(bad))
     if count:
+        hint = ("; holes without a depth belong in an .npz with a 'valid' mask (False there)"
+                if where is None and np.isnan(depth).any() else "")
         raise SceneError(
             f"scene file {label}: {_pixels(count)} NaN, infinite or negative depth "
-            "(depth must be finite metres >= 0)"
+            f"(depth must be finite metres >= 0){hint}"
         )
     far = depth if where is None else depth[where]
     if far.size and float(far.max()) > MAX_SCENE_DEPTH_M:
@@ -69,7 +71,7 @@ def _check_magic(path: Path, label: str, magic: bytes, kind: str) -> None:
         raise SceneError(f"cannot read scene file {label}: it is not a {kind} file")
 
 
-def _load_npy(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _load_npy(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
     _check_magic(path, label, b"\x93NUMPY", "NumPy .npy")
     try:
         depth = np.load(path, allow_pickle=False)
@@ -77,10 +79,10 @@ def _load_npy(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
         raise SceneError(f"cannot read scene file {label} as .npy: {_reason(exc)}") from None
     depth = _as_2d(label, depth, "depth").astype(np.float64)
     _check_depth_values(label, depth)
-    return depth, np.ones_like(depth), np.ones(depth.shape, dtype=bool)
+    return depth, np.ones_like(depth), np.ones(depth.shape, dtype=bool), []
 
 
-def _load_npz(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _load_npz(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
     _check_magic(path, label, b"PK", "NumPy .npz (zip)")
     try:
         with np.load(path, allow_pickle=False) as npz:
@@ -92,6 +94,7 @@ def _load_npz(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
                     "and 'valid'"
                 )
             arrays = {k: npz[k] for k in ("depth", "reflectivity", "valid") if k in keys}
+            unknown = sorted(keys - set(arrays))
     except SceneError:
         raise
     except Exception as exc:
@@ -103,6 +106,10 @@ def _load_npz(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
             raise SceneError(
                 f"scene file {label}: valid mask has shape {valid.shape}, depth has {depth.shape}"
             )
+        if valid.dtype != bool and not np.isin(valid, (0, 1)).all():
+            # (a NaN was cast to True, and the depth under it then blamed)
+            raise SceneError(f"scene file {label}: the valid mask must hold booleans or 0/1 "
+                             f"values")
         valid = valid.astype(bool)
         if not valid.any():
             raise SceneError(f"scene file {label}: the valid mask marks no pixel as valid")
@@ -118,18 +125,22 @@ def _load_npz(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
             raise SceneError(
                 f"scene file {label}: reflectivity has shape {refl.shape}, depth has {depth.shape}"
             )
-        bad = int(np.count_nonzero(~np.isfinite(refl) | (refl < 0) | (refl > 1)))
+        out = ~np.isfinite(refl) | (np.nan_to_num(refl) < 0) | (np.nan_to_num(refl) > 1)
+        bad = int(np.count_nonzero(out & (valid | np.isfinite(refl))))
         if bad:
             raise SceneError(
-                f"scene file {label}: {bad} reflectivity values lie outside [0, 1] "
-                "(reflectivity must be in [0, 1])"
+                f"scene file {label}: {bad} reflectivity values are NaN or lie outside [0, 1] "
+                "(reflectivity must be in [0, 1]; NaN only where 'valid' is False)"
             )
+        refl = np.where(np.isfinite(refl), refl, 0.0)  # no reflectivity given: no return
     else:
         refl = np.ones_like(depth)
-    return depth, refl, valid
+    notes = ([f"scene file {label}: key(s) {', '.join(unknown)} ignored (a scene .npz holds "
+              f"'depth', and optionally 'reflectivity' and 'valid')"] if unknown else [])
+    return depth, refl, valid, notes
 
 
-def _load_image(path: Path, label: str) -> np.ndarray:
+def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype]:
     from skimage import io
     from skimage.color import rgb2gray
 
@@ -157,11 +168,12 @@ def _load_image(path: Path, label: str) -> np.ndarray:
         raise SceneError(
             f"scene image {label} must be a 2-D grey or RGB image, got shape {img.shape}"
         )
+    kind = img.dtype
     img = img.astype(np.float64)
     if not np.isfinite(img).all():
         count = int(np.count_nonzero(~np.isfinite(img)))
         raise SceneError(f"scene image {label}: {_pixels(count)} NaN or infinite values")
-    return img
+    return img, kind
 
 
 def _load_file(path: Path, size: int, depth_min: float | None, depth_max: float | None) -> Scene:
@@ -173,11 +185,18 @@ def _load_file(path: Path, size: int, depth_min: float | None, depth_max: float 
     suffix = path.suffix.lower()
     if suffix in _IMAGE_SUFFIXES:
         lo, hi = _window(depth_min, depth_max, _IMAGE_WINDOW)
-        return _grey_to_scene(label, _load_image(path, label), size, lo, hi, surfaces=True)
+        img, kind = _load_image(path, label)
+        scene = _grey_to_scene(label, img, size, lo, hi, surfaces=True)
+        if kind.kind == "f" or kind.itemsize > 1:  # a float TIFF or 16-bit PNG: metres?
+            scene.notes.append(
+                f"scene image {label} ({kind}, {img.min():.4g} .. {img.max():.4g}) is read as grey "
+                f"levels mapped onto {lo:g}-{hi:g} m (--depth-min/--depth-max), not as "
+                f"distances: a depth map in metres belongs in an .npy or .npz")
+        return scene
     if suffix == ".npy":
-        depth, refl, valid = _load_npy(path, label)
+        depth, refl, valid, notes = _load_npy(path, label)
     elif suffix == ".npz":
-        depth, refl, valid = _load_npz(path, label)
+        depth, refl, valid, notes = _load_npz(path, label)
     else:
         raise SceneError(
             f"scene file {label} has an unsupported format: use {', '.join(SCENE_FILE_SUFFIXES)}"
@@ -187,4 +206,6 @@ def _load_file(path: Path, size: int, depth_min: float | None, depth_max: float 
         # a lidar measures distance: a scene entirely at 0 m is a wrong file or wrong units
         raise SceneError(f"scene file {label}: every depth is 0 m; give distances from the "
                          f"lidar in metres (or a window with --depth-min/--depth-max)")
-    return _finish(label, depth, refl, valid, size, depth_min, depth_max, surfaces=True)
+    scene = _finish(label, depth, refl, valid, size, depth_min, depth_max, surfaces=True)
+    scene.notes[:0] = notes
+    return scene
