@@ -78,3 +78,6 @@ def test_sobel_edges_match_skimage_and_handle_nan():
     dn[3, 3] = np.nan
     assert np.all(np.isfinite(sobel_edges(dn)))
     assert edge_agreement(sobel_edges(d), sobel_edges(d)) == pytest.approx(1.0)
+    # a flat map has no edge: the correlation is undefined (NaN, null in metrics.json), not 0
+    flat = np.full_like(d, 5.0)
+    assert np.isnan(edge_agreement(sobel_edges(flat), sobel_edges(d)))
