@@ -265,3 +265,22 @@ except OSError:
     assert subprocess.run([sys.executable, "-c", code, str(path)], timeout=60).returncode == 3
     assert path.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["x.ptu"]
+
+
+def test_overwrite_keeps_a_file_someone_edited_in_a_previous_result(tmp_path, capsys):
+    """--overwrite replaced a depth.npy and an edited metrics.json a user had copied over a
+    previous result's (an audit of 2026-11-28): the marker now keeps each file's SHA-256."""
+    from spslidar.cli import main
+
+    out = tmp_path / "r"
+    args = ["run", "--size", "8", "--code-length", "63", "--no-figure", "--out", str(out)]
+    assert main(args) == 0
+    capsys.readouterr()
+    np.save(out / "depth.npy", np.zeros((3, 3)))
+    mine = (out / "depth.npy").read_bytes()
+    assert main([*args, "--overwrite"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "depth.npy changed since spslidar wrote it" in err[0], err
+    assert (out / "depth.npy").read_bytes() == mine
+    (out / "depth.npy").unlink()  # moved away: the result is replaced
+    assert main([*args, "--overwrite"]) == 0

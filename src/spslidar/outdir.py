@@ -83,15 +83,31 @@ def read_marker(folder: str | os.PathLike) -> dict | None:
     return meta
 
 
-def _marker_text(kind: str, files, run_id: str | None = None) -> str:
+def _marker_text(kind: str, files, run_id: str | None = None,
+                 sums: dict[str, str] | None = None) -> str:
     from .version import __version__
 
-    return json.dumps({"kind": kind, "id": run_id or uuid.uuid4().hex, "version": __version__,
-                       "files": sorted(files)}, indent=1) + "\n"
+    meta = {"kind": kind, "id": run_id or uuid.uuid4().hex, "version": __version__,
+            "files": sorted(files)}
+    if sums is not None:
+        meta["sha256"] = dict(sorted(sums.items()))
+    return json.dumps(meta, indent=1) + "\n"
 
 
-def _write_marker(folder: Path, kind: str, files, run_id: str | None = None) -> None:
-    atomic_write_text(folder / MARKER, _marker_text(kind, files, run_id))
+def _write_marker(folder: Path, kind: str, files, run_id: str | None = None,
+                  hashed: bool = False) -> None:
+    sums = {name: sha256_file(folder / name) for name in files} if hashed else None
+    atomic_write_text(folder / MARKER, _marker_text(kind, files, run_id, sums))
+
+
+def _changed_files(folder: Path) -> list[str]:
+    """The files of a previous result that differ from what spslidar wrote (the SHA-256 its
+    marker records; a marker written before the hashes were kept has none to compare)."""
+    sums = (read_marker(folder) or {}).get("sha256")
+    if not isinstance(sums, dict):
+        return []
+    return [name for name, digest in sorted(sums.items())
+            if (folder / name).is_file() and sha256_file(folder / name) != digest]
 
 
 def is_result(folder: Path) -> bool:
@@ -155,6 +171,12 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
             if not overwrite:
                 raise SpslidarError(f"{option} {out}: holds a previous spslidar result; pass "
                                     f"{replace} to replace it, or choose a new folder")
+            changed = _changed_files(path)
+            if changed:  # (a user's depth.npy copied over the result's was replaced)
+                raise SpslidarError(
+                    f"{option} {out}: {', '.join(changed)} changed since spslidar wrote "
+                    f"{'it' if len(changed) == 1 else 'them'}; refusing to replace a file "
+                    f"someone edited (move it away, or choose a new folder)")
         # the files are moved into it: a read-only folder failed only after the work, naming
         # a temporary path
         _check_writable(path, f"{option} {out}", make_parents=False)
@@ -209,7 +231,7 @@ def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
         if unknown:  # pragma: no cover - a programming error, not user input
             raise RuntimeError(f"Result.save wrote {sorted(unknown)}, not named in "
                                f"spslidar.outdir.RESULT_FILES: add them there")
-        _write_marker(tmp, "result", written)
+        _write_marker(tmp, "result", written, hashed=True)
         path = check_output(out, overwrite, option, replace)  # nothing appeared meanwhile
         if not path.exists():
             os.replace(tmp, path)
