@@ -369,3 +369,55 @@ def test_sweep_passes_the_backend_through(tmp_path, capsys):
     text = (tmp_path / "res" / "results.csv").read_text()
     assert "array-api-strict" in text and "Error" not in text
     assert "2 ok" in capsys.readouterr().err
+
+
+# ------------------------------------------- a backend on the CPU keeps NumPy's limits (audit)
+STRICT = "array-api-strict"
+
+
+def test_a_cpu_backend_keeps_the_limits_and_the_warnings():
+    """On a backend other than NumPy the plan was skipped: --max-memory and --max-time were
+    ignored (a 256x256 run ended in a MemoryError's traceback), options the configuration
+    ignores were not said, and metrics.json's estimate was empty."""
+    from spslidar.errors import SpslidarError
+
+    with pytest.raises(SpslidarError, match="--max-memory"):
+        run(size=16, code_length=1023, max_memory=0.001, backend=STRICT)
+    with pytest.raises(SpslidarError, match="--max-time"):
+        run(size=16, code_length=1023, max_time=0.001, backend=STRICT)
+    with pytest.raises(SpslidarError, match="patterns"):  # differential rows become a matrix
+        run(size=256, code_length=255, patterns="hadamard", compression=1.0,
+            hadamard_realisation="differential", backend=STRICT, max_memory=8)
+    r = run(size=8, code_length=255, backend=STRICT, rep_rate=1e6, depth="argmax")
+    assert any("--rep-rate 1e+06 is ignored" in w for w in r.warnings)
+    assert r.metrics["estimate"]["memory_gb"] > 0
+
+
+def test_save_ptu_from_a_cpu_backend_round_trips(tmp_path, capsys):
+    """'DevicePatterns' object has no attribute 'apply_rows': --save-ptu crashed on every
+    backend but NumPy; the CLI refused --backend array-api-strict that TOML files took."""
+    ptu = tmp_path / "s.ptu"
+    assert main(["run", "--backend", STRICT, "--size", "8", "--code-length", "255",
+                 "--signal", "0.5", "--noise", "0.01", "--save-ptu", str(ptu), "--no-figure",
+                 "--out", str(tmp_path / "r")]) == 0
+    pats = np.load(tmp_path / "s_patterns.npy")
+    numpy_meas = measure(size=8, code_length=255, signal=0.5, noise=0.01)
+    np.testing.assert_array_equal(pats.reshape(pats.shape[0], -1),
+                                  numpy_meas.patterns.todense())  # the same draws as NumPy's
+    assert main(["reconstruct", "--ptu", str(ptu), "--patterns", str(tmp_path / "s_patterns.npy"),
+                 "--code", str(tmp_path / "s_code.npy"), "--bit-rate", "10e9", "--range-gate",
+                 "19.9", "20.9", "--no-figure", "--out", str(tmp_path / "rec")]) == 0
+
+
+def test_a_sweep_over_backends_compares_them_on_one_seed(tmp_path):
+    from spslidar.experiments.sweep import sweep_main
+
+    config = tmp_path / "s.toml"
+    config.write_text(f"seed = 1\n[base]\nsize = 8\ncode_length = 63\ndepth = 'argmax'\n"
+                      f"[grid]\nbackend = ['numpy', '{STRICT}']\n")
+    assert sweep_main(config, tmp_path / "o", progress=False) == 0
+    import csv
+
+    rows = list(csv.DictReader(open(tmp_path / "o" / "results.csv", newline="")))
+    assert rows[0]["seed"] == rows[1]["seed"]
+    assert rows[0]["depth_rmse_m"] == rows[1]["depth_rmse_m"]  # 8x8: the same map

@@ -215,3 +215,13 @@ def test_pattern_contract_defaults_match_the_dense_forms():
     y = np.random.default_rng(1).standard_normal((30, 2))
     np.testing.assert_allclose(imp.centred(2.0, np.float64).H @ y,
                                (phi - phi.mean(axis=0)).T @ y / 2.0, rtol=1e-10, atol=1e-12)
+
+
+def test_todense_in_blocks_equals_the_identity_product():
+    """todense applied the operator to the whole n x n identity (16 GB at 256x256); it now
+    goes a block of columns at a time, with the same matrix."""
+    from spslidar.operators import Wavelet2D
+    from spslidar.operators.base import LinearOperator
+
+    w = Wavelet2D((64, 64))  # 4 096 columns: four blocks of 1 024
+    np.testing.assert_array_equal(LinearOperator.todense(w), w.matvec(np.eye(4096)))

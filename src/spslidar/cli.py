@@ -160,11 +160,13 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="refine the ML peak by a three-bin centroid")
     g.add_argument("--dtype", choices=("float32", "float64"), default=S,
                    help="precision of the simulation and the solve (default float32)")
-    g.add_argument("--backend", choices=("numpy", "torch", "cupy"), default=S,
+    g.add_argument("--backend", choices=("numpy", "torch", "cupy", "array-api-strict"),
+                   default=S,
                    help="array library of the numeric core (default numpy; torch: pip install "
-                        "spslidar[gpu], cupy: spslidar[cupy]); patterns, counts, matched "
-                        "filter, QCR, FISTA + TV and argmax run there, every other stage on "
-                        "the host")
+                        "spslidar[gpu], cupy: spslidar[cupy]; array-api-strict: the standard's "
+                        "reference, on the CPU, to check a backend's results against NumPy's); "
+                        "patterns, counts, matched filter, QCR, FISTA + TV and argmax run "
+                        "there, every other stage on the host")
     g.add_argument("--device", choices=("cpu", "cuda"), default=S,
                    help="where the backend runs (default cpu; cuda needs torch or cupy)")
     g.add_argument("--seed", type=int, default=S, help="random seed (default 0)")

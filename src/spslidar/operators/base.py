@@ -91,8 +91,21 @@ class LinearOperator:
         return NotImplemented
 
     def todense(self) -> np.ndarray:
-        """The operator as an explicit ``(m, n)`` matrix (for tests and small problems)."""
-        return self.matvec(np.eye(self.shape[1], dtype=self.dtype))
+        """The operator as an explicit ``(m, n)`` matrix, applied to the identity's columns a
+        block at a time (the whole ``n x n`` identity was 16 GB for a 256x256 image's
+        operator, beside a result of ``m x n``)."""
+        m, n = self.shape
+        step = max(1, min(n, (1 << 22) // max(1, n)))  # identity blocks of ~32 MB
+        out = None
+        for j in range(0, n, step):
+            k = min(step, n - j)
+            eye = np.zeros((n, k), dtype=self.dtype)
+            eye[np.arange(j, j + k), np.arange(k)] = 1
+            part = np.asarray(self.matvec(eye))
+            if out is None:
+                out = np.empty((m, n), dtype=part.dtype)
+            out[:, j:j + k] = part
+        return out
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.shape[0]}x{self.shape[1]} {self.dtype}>"

@@ -23,7 +23,7 @@ from ..depth import ESTIMATORS, DepthContext
 from ..detectors import build_detector
 from ..detectors.counting import NoiseModel
 from ..errors import ConfigError
-from ..patterns import build_patterns, n_patterns_for
+from ..patterns import build_patterns
 from ..qcr import MeanEliminated, plain_problem, qcr_problem
 from ..scenes import load_scene
 from ..solvers.entries import TV_REGULARISERS
@@ -96,12 +96,15 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     timing["scene"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
+    # the same plan on every backend: its warnings (options the configuration ignores), and
+    # its memory and time limits where the arrays live in this machine's memory (a backend on
+    # the CPU ran past --max-memory and --max-time, then into a MemoryError's traceback)
+    plan = _plan(cfg, scene, warns, check=be is None or cfg.device == "cpu")
+    seq_pat, seq_counts, seq_probe = plan.seq_pat, plan.seq_counts, plan.seq_probe
+    acq, gate, lags, ulags, inverse = (plan.acq, plan.gate, plan.lags, plan.ulags,
+                                       plan.inverse)
+    m, dtype, budget = plan.m, plan.dtype, plan.budget
     if be is None:
-        plan = _plan(cfg, scene, warns)
-        seq_pat, seq_counts, seq_probe = plan.seq_pat, plan.seq_counts, plan.seq_probe
-        acq, gate, lags, ulags, inverse = (plan.acq, plan.gate, plan.lags, plan.ulags,
-                                           plan.inverse)
-        m, dtype, budget = plan.m, plan.dtype, plan.budget
         patterns = build_patterns(cfg.patterns, m, cfg.size, np.random.default_rng(seq_pat),
                                   dtype=dtype, sigma=cfg.pattern_sigma,
                                   order=cfg.hadamard_order,
@@ -110,9 +113,6 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
         from ..backends.patterns import device_patterns
         from ..backends.rng import Stream
 
-        seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse = timeline(cfg, scene,
-                                                                                    warns)
-        m, budget = n_patterns_for(cfg.compression, cfg.size * cfg.size), None
         patterns = device_patterns(be, Stream(be, seq_pat), cfg, m)
         be.sync()
     bin_width = 1.0 / cfg.bit_rate
@@ -147,8 +147,7 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
                            acq.period * bin_width)
     sim["pileup"] = pile
     warns.extend(detector.notes_after(pile))
-    sim["estimate"] = ({} if budget is None else
-                       {"memory_gb": budget.bytes / 1e9, "time_s": budget.seconds})
+    sim["estimate"] = {"memory_gb": budget.bytes / 1e9, "time_s": budget.seconds}
     timing["simulate"] = time.perf_counter() - t0
     return Measurement(cfg, scene, acq, gate, lags, ulags, inverse, patterns, sim, seq_probe,
                        warns, timing)

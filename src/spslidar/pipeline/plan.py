@@ -161,9 +161,22 @@ def ignored_options(cfg: Config) -> list[str]:
     return out
 
 
-def _plan(cfg: Config, scene, warns: list[str], announce: bool = True) -> _Plan:
+def _dense_patterns(cfg: Config) -> bool:
+    """Whether the run holds its ``M x Q`` patterns as a matrix: a dense kind, or differential
+    Hadamard rows on another backend than NumPy (which builds them as a matrix: 3.4 GB at
+    128x128, a MemoryError at 256x256, which no estimate had counted)."""
+    if PATTERNS.get(cfg.patterns).defaults.get("dense"):
+        return True
+    return (cfg.backend != "numpy" and cfg.patterns == "hadamard"
+            and cfg.hadamard_realisation == "differential")
+
+
+def _plan(cfg: Config, scene, warns: list[str], announce: bool = True,
+          check: bool = True) -> _Plan:
     """The cheap part of :func:`measure`: code, range gate and the memory check (refused in
-    one line before any large array exists)."""
+    one line before any large array exists). ``check=False`` (an accelerator: its patterns and
+    arrays live in its own memory, and it runs far above the host's estimated FLOP rate)
+    estimates without refusing."""
     seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse = timeline(cfg, scene,
                                                                                 warns)
     warns.extend(ignored_options(cfg))
@@ -175,10 +188,10 @@ def _plan(cfg: Config, scene, warns: list[str], announce: bool = True) -> _Plan:
     budget = estimate_budget(
         cfg, n_patterns=m, period=acq.period, n_lags=lags.size, n_ulags=ulags.size,
         window_bins=int((scene.depth_max - scene.depth_min) / bin_depth) + 2 * GATE_PAD_BINS,
-        pattern_bytes_per_entry=(np.dtype(dtype).itemsize
-                                 if PATTERNS.get(cfg.patterns).defaults.get("dense") else None),
+        pattern_bytes_per_entry=(np.dtype(dtype).itemsize if _dense_patterns(cfg) else None),
         threads=simulation_threads())
-    check_budget(budget, cfg.max_memory, cfg.patterns, cfg.max_time, announce=announce)
+    if check:
+        check_budget(budget, cfg.max_memory, cfg.patterns, cfg.max_time, announce=announce)
     return _Plan(seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse, m, dtype,
                  budget)
 

@@ -519,10 +519,12 @@ def write_measurement_ptu(meas: Measurement, path: str | os.PathLike, *,
         More than ``max_photons`` expected photons (not a low-flux acquisition), or a code
         period longer than the T3 dtime field (32768 bins).
     """
+    from ..backends.patterns import host_patterns
     from ..forward import expected_counts
     from ..io import write_acquisition_ptu
 
-    acq, patterns, scene, cfg = meas.acq, meas.patterns, meas.scene, meas.config
+    # (a device's pattern set has no apply_rows: --save-ptu ended in an AttributeError)
+    acq, patterns, scene, cfg = meas.acq, host_patterns(meas.patterns), meas.scene, meas.config
     if acq.period > 32768:
         raise ConfigError(f"--save-ptu: a code period of {acq.period} bins exceeds the T3 dtime "
                           "field (32768 bins)")
@@ -572,15 +574,18 @@ def write_measurement_arrays(meas, ptu_path, paths=None) -> tuple[str, str]:
     (str, str)
         The two paths.
     """
+    from ..backends.patterns import host_patterns
+
     n = meas.config.size
     q = n * n
-    pats = np.empty((meas.patterns.shape[0], q), dtype=np.float32)
+    patterns = host_patterns(meas.patterns)
+    pats = np.empty((patterns.shape[0], q), dtype=np.float32)
     step = 4096  # columns of the identity at a time: memory bounded for implicit patterns
     for start in range(0, q, step):
         eye = np.zeros((q, min(step, q - start)))
         eye[np.arange(start, start + eye.shape[1]), np.arange(eye.shape[1])] = 1.0
-        pats[:, start:start + eye.shape[1]] = meas.patterns.apply_rows(
-            slice(0, meas.patterns.shape[0]), eye)
+        pats[:, start:start + eye.shape[1]] = patterns.apply_rows(
+            slice(0, patterns.shape[0]), eye)
     p_path, c_path = ptu_companions(ptu_path) if paths is None else (str(p) for p in paths)
     from ..outdir import atomic_file
 

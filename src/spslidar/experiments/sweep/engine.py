@@ -636,9 +636,10 @@ def sweep_main(
         ignored: list[dict[str, str]] = []
         total = _validate_run_points(points, config_path, ignored)
         points = with_scene_hashes(points)
-        # an edited scene: the same noise (not dtype: float32 and float64 Gaussian patterns
-        # are different draws of one seed, so a shared seed would not share the photons)
-        ignore = frozenset(PROCESSING_KEYS) | {SCENE_HASH_KEY}
+        # an edited scene, another array library or device: the same seed (a grid over
+        # backend compared NumPy and array-api-strict on different noise; not dtype: float32
+        # and float64 Gaussian patterns are different draws of one seed)
+        ignore = frozenset(PROCESSING_KEYS) | {SCENE_HASH_KEY, "backend", "device"}
         points = _seeded(points, ignored, ignore, spec.seed)
         from spslidar.pipeline.budget import check_time
 
