@@ -218,8 +218,9 @@ def test_gmapd_run_priced_from_its_first_block(tmp_path, capsys):
     base = ["run", "--detector", "gmapd", "--size", "16", "--compression", "0.5",
             "--code-length", "1023", "--signal", "2e-4", "--noise", "2e-5", "--no-figure"]
     out = tmp_path / "r"
-    # above the configuration's estimate (0.03 s), far below the first block's (~1 s)
-    assert main([*base, "--max-time", "0.05", "--out", str(out)]) == 2
+    # above the configuration's estimate (0.08 s with its fixed cost), far below the first
+    # block's (~1 s)
+    assert main([*base, "--max-time", "0.2", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "first block" in err[0] and "--max-time" in err[0]
     assert not out.exists()
