@@ -341,3 +341,52 @@ def test_full_mode_layouts_with_fake_runs(tmp_path, monkeypatch):
     assert "0.201" in text and "0.176" in text and "0.033" in text
     for name in ("fig2", "fig4", "fig6"):
         assert (tmp_path / name / f"{name}.png").stat().st_size > 10_000
+
+
+def test_a_file_of_the_users_where_reproduce_writes_is_kept(quick_dir, tmp_path):
+    """A user's fig2/fig2.png and section.md in a report folder were replaced without a word
+    (an audit of 2026-11-28); other files of theirs stayed. The marker now lists what
+    reproduce wrote, and a standard output name it did not write stops the run first."""
+    import shutil
+
+    from spslidar.errors import SpslidarError
+
+    out = tmp_path / "r"
+    shutil.copytree(quick_dir, out)
+    (out / "fig2" / "fig2.png").unlink()
+    (out / "fig2" / "fig2.png").write_text("mine")
+    (out / "fig2" / "notes.txt").write_text("mine too")
+    with pytest.raises(SpslidarError, match=r"fig2/fig2.png was not written by spslidar"):
+        reproduce_main("fig2", out, quick=True, progress=False)
+    (out / "report.md").write_text("my edit")  # changed since: refused as well
+    with pytest.raises(SpslidarError, match=r"report.md were not written|report.md was not"):
+        reproduce_main("fig2", out, quick=True, progress=False)
+    assert (out / "fig2" / "fig2.png").read_text() == "mine"
+    (out / "fig2" / "fig2.png").unlink()  # moved away: the experiment runs again
+    (out / "report.md").unlink()
+    assert reproduce_main("fig2", out, quick=True, progress=False) == 0
+    assert (out / "fig2" / "notes.txt").read_text() == "mine too"
+
+
+def test_verdicts_that_trials_cannot_resolve_are_inconclusive():
+    """Fig. 3's two verdicts, each from one trial, both reversed at five trials, and Fig. 8's
+    'TVAL3 best' rested on a 1.5 % lead in one trial (an audit of 2026-11-28)."""
+    from spslidar.experiments.reproduce.stats import Stat, best_verdict, compare, within_scatter
+
+    one_a, one_b = Stat(0.0094, 0.0, 1), Stat(0.0102, 0.0, 1)
+    assert within_scatter(one_a, one_b)  # one trial: no scatter to judge by
+    assert compare(0.0102, 0.0094, 0.0, 0.0, stats=(one_b, one_a))[0] == "inconclusive"
+    assert compare(0.0102, 0.0094, 0.0, 0.0)[0] == "not consistent"  # as before, without stats
+    close_a, close_b = Stat(0.0077, 0.0017, 5), Stat(0.0081, 0.0012, 5)
+    assert compare(0.0077, 0.0081, 0.0, 0.0, stats=(close_a, close_b))[0] == "inconclusive"
+    far_a, far_b = Stat(0.0077, 0.0017, 5), Stat(0.0119, 0.0015, 5)  # 2 SE = 0.0020
+    assert compare(0.0077, 0.0119, 0.0, 0.0, stats=(far_a, far_b))[0] == "consistent"
+    solvers = {"tval3": Stat(0.0794, 0.0, 1), "twist": Stat(0.0806, 0.0, 1),
+               "fista": Stat(0.0875, 0.0, 1)}
+    assert best_verdict(solvers, "tval3") == "inconclusive"
+    spread = {"tval3": Stat(0.050, 0.002, 5), "twist": Stat(0.080, 0.002, 5),
+              "fista": Stat(0.081, 0.002, 5)}
+    assert best_verdict(spread, "tval3") == "consistent"
+    assert best_verdict(spread, "fista") == "not consistent"
+    assert best_verdict({"a": Stat(0.05, 0.01, 5), "b": Stat(0.051, 0.01, 5)}, "b") == \
+        "inconclusive"

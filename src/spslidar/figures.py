@@ -126,7 +126,7 @@ def _legend_items(result, outside: np.ndarray,
     share = 100 * (no_return.mean() if share is None or not np.isfinite(share) else share)
     of = " of the pixels with a ground truth" if getattr(result, "has_truth", True) else ""
     items += [(NO_RETURN, f"no return ({share:.1f}%{of})"),
-              (LOW_CONFIDENCE, f"low-confidence depth ({100 * low.mean():.0f}%, dot)")]
+              (LOW_CONFIDENCE, f"low-confidence depth ({_percent(low.mean())}, dot)")]
     depth2 = getattr(result, "depth2", None)
     if depth2 is not None and np.isfinite(depth2).any():  # the second-surface panel's grey
         items.append((ONE_SURFACE, f"one surface (second-surface panel, "
@@ -231,7 +231,7 @@ def _panels(result):
     no_truth, no_return, low = _classes(result)
     m = result.metrics
     est_title = (f"estimate: {100 * m['missing_fraction']:.1f}% no return, "
-                 f"{100 * low.mean():.0f}% low-confidence")
+                 f"{_percent(low.mean())} low-confidence")
     panels = []
     if getattr(result, "has_truth", True):
         name = "--truth" if "ptu" in m else result.scene.name  # (a PTU scene is the file)

@@ -187,6 +187,11 @@ FIG3_CODES = (
 )
 
 
+#: trials per code of Fig. 3 in full mode: its verdicts rest on differences of 8-21 %, and
+#: one trial's spread is about 15 % (five trials: a few seconds more in all)
+FIG3_TRIALS = 5
+
+
 def exp_fig3(ctx: Context) -> tuple[str, list[Claim]]:
     """Fig. 3: Bernoulli codes (R_a = 0.1, 0.3), Gold code and m-sequence at m_n = 1."""
     name = "fig3"
@@ -197,8 +202,9 @@ def exp_fig3(ctx: Context) -> tuple[str, list[Claim]]:
         "mseq": "(d) m-sequence, 2047 bits",
     }
     points = []
+    trials = ctx.n_trials(full=FIG3_TRIALS)
     for _, kw in FIG3_CODES:
-        points += expand_grid(base_params(ctx, noise=1.0, **kw), {}, ctx.n_trials())
+        points += expand_grid(base_params(ctx, noise=1.0, **kw), {}, trials)
     rows, csv = run_and_write(ctx, name, points)
     scene = scene_of(ctx, "camera")
     lo, hi = truth_range(scene)
@@ -238,35 +244,24 @@ def exp_fig3(ctx: Context) -> tuple[str, list[Claim]]:
             ("m-sequence", 2047, "~0.5", st["mseq"].fmt(), pct(miss["mseq"]), "better than Gold"),
         ],
     )
+    # (each verdict "inconclusive" where the trials' scatter cannot resolve the difference:
+    # both single-trial verdicts of the committed report reversed at five trials)
     ra_v, ra_why = compare(
-        st["random 0.3"].mean, st["random 0.1"].mean, miss["random 0.3"], miss["random 0.1"]
-    )
-    ms_v, ms_why = compare(st["mseq"].mean, st["gold"].mean, miss["mseq"], miss["gold"])
-    def scatter(a: str, b: str, whose: str) -> str:
-        """Whether the difference of ``a`` and ``b`` stands out of the trials' scatter."""
-        gap = safe_ratio(abs(st[a].mean - st[b].mean), st[b].mean)
-        n_min = min(st[a].n, st[b].n)
-        if n_min > 1:
-            spread = st[a].std + st[b].std
-            within = abs(st[a].mean - st[b].mean) < spread
-            return (f" The difference ({num(100 * gap, 0)} % of {whose} RMSE) is "
-                    f"{'within' if within else 'larger than'} the trial-to-trial scatter "
-                    f"(sum of the two standard deviations {num(spread)} m, {n_min} trials).")
-        return (f" With one trial per code, the difference ({num(100 * gap, 0)} % of {whose} "
-                f"RMSE) cannot be told from noise (use --trials).")
-
+        st["random 0.3"].mean, st["random 0.1"].mean, miss["random 0.3"], miss["random 0.1"],
+        stats=(st["random 0.3"], st["random 0.1"]))
+    ms_v, ms_why = compare(st["mseq"].mean, st["gold"].mean, miss["mseq"], miss["gold"],
+                           stats=(st["mseq"], st["gold"]))
     why_ms = ms_why
-    if ms_v == "not consistent":
+    if ms_v != "consistent":
         why_ms += (
             " Through their replicas both codes have near-ideal periodic autocorrelation "
             "(m-sequence sidelobes -1, Gold three-valued and small) and nearly the same share "
-            "of ones, so eq. (10) predicts nearly the same SNR."
-        ) + scatter("gold", "mseq", "the m-sequence's")
+            "of ones, so eq. (10) predicts nearly the same SNR.")
     why_ra = ra_why
-    if ra_v == "not consistent":
+    if ra_v != "consistent":
         why_ra += (" Eq. (10) predicts what the paper reports (SNR proportional to R_a T); at "
                    "m_n = 1 both codes read the depth to within a bin, where the prediction "
-                   "shows little.") + scatter("random 0.3", "random 0.1", "R_a = 0.1's")
+                   "shows little.")
     findings = [
         f"The paper reports R_a = 0.3 better than 0.1: here RMSE {st['random 0.3'].fmt()} m vs "
         f"{st['random 0.1'].fmt()} m (missing {pct(miss['random 0.3'])} vs "
@@ -297,7 +292,7 @@ def exp_fig3(ctx: Context) -> tuple[str, list[Claim]]:
         f"paper's 'length 2048': Gold codes and m-sequences exist only for 2^n - 1 bits); "
         f"PSST with the default replica (2s - 1 for a code with as many ones as zeros, the "
         f"m-sequence; s - mean(s) for the others, the Bernoulli codes and this Gold code); "
-        f"{ctx.n_trials()} trial(s) per code."
+        f"{trials} trial(s) per code (the maps: trial 0)."
     )
     text = section(
         ctx,

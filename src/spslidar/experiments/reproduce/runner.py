@@ -110,6 +110,7 @@ def reproduce_main(
         t0 = time.perf_counter()
         before, failed_before = n_cached(ctx), ctx.failed
         ctx.trials_read = False
+        _refuse_foreign(out, name)  # before the work: a user's fig3/fig3.png was replaced
         try:
             text, claims = EXPERIMENT_REGISTRY.load(name)(ctx)
         except SpslidarError:  # bad input (a time budget too small...): one line, exit 2
@@ -125,6 +126,7 @@ def reproduce_main(
                   f"repeated trials", file=sys.stderr)
         write_section(out, name, text, claims)
         build_report(out, EXPERIMENT_REGISTRY.names())
+        _record_written(out, name)
         failed = ctx.failed - failed_before
         if failed:
             status = 1
@@ -140,3 +142,55 @@ def reproduce_main(
         flush=True,
     )
     return status
+
+
+#: what an experiment ``NAME`` writes into ``DIR/NAME/`` (and every experiment into ``DIR``)
+_STANDARD = ("{name}.png", "{name}.csv", "{name}.md", "{name}_summary.csv", "section.md",
+             "claims.json")
+_REPORT = ("report.md", "report.html")
+
+
+def _written(out: Path) -> dict[str, str] | None:
+    """The files this report folder's marker says ``reproduce`` wrote, with their SHA-256
+    (None: a folder from a version that did not keep them, whose files cannot be told
+    apart)."""
+    from spslidar.outdir import read_marker
+
+    listed = (read_marker(out) or {}).get("written")
+    return dict(listed) if isinstance(listed, dict) else None
+
+
+def _refuse_foreign(out: Path, name: str) -> None:
+    """Refuse (one line) to run ``name`` where a file it writes exists as ``reproduce`` did
+    not write it (not listed, or changed since): a user's ``fig2/fig2.png`` or an edited
+    ``report.md`` in a report folder was replaced without a word. Other files of the user's
+    (``fig2/notes.txt``) are left as they are."""
+    from spslidar.outdir import sha256_file
+
+    written = _written(out)
+    if written is None:
+        return
+    names = [f"{name}/{f.format(name=name)}" for f in _STANDARD] + list(_REPORT)
+    foreign = [n for n in names
+               if (out / n).is_file() and written.get(n) != sha256_file(out / n)]
+    if foreign:
+        one = len(foreign) == 1
+        raise SpslidarError(f"--out {out}: {', '.join(foreign)} {'was' if one else 'were'} not "
+                            f"written by spslidar reproduce (or changed since); refusing to "
+                            f"replace {'it' if one else 'them'} (move {'it' if one else 'them'} "
+                            f"away, or choose another folder)")
+
+
+def _record_written(out: Path, name: str) -> None:
+    """Add what ``name`` wrote (its standard files and the report) to the marker's list."""
+    import json
+
+    from spslidar.outdir import MARKER, atomic_write_text, read_marker, sha256_file
+
+    meta = read_marker(out) or {"kind": "reproduce", "files": []}
+    written = meta.get("written") if isinstance(meta.get("written"), dict) else {}
+    for n in [f"{name}/{f.format(name=name)}" for f in _STANDARD] + list(_REPORT):
+        if (out / n).is_file():
+            written[n] = sha256_file(out / n)
+    meta["written"] = dict(sorted(written.items()))
+    atomic_write_text(out / MARKER, json.dumps(meta, indent=1) + "\n")

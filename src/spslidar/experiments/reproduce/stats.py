@@ -132,15 +132,42 @@ def factor_verdict(ours: float, paper: float) -> str:
     return "partly consistent"
 
 
-def compare(rmse_a: float, rmse_b: float, miss_a: float, miss_b: float) -> tuple[str, str]:
+def within_scatter(a: Stat, b: Stat) -> bool:
+    """Whether the means of ``a`` and ``b`` cannot be told apart by their trials: the
+    difference within two standard errors of the difference, or either from one trial (no
+    scatter to judge by). Fig. 3's two verdicts, each from one trial, both reversed at five
+    (found 2026-11-28: gaps of 8-21 % against a trial-to-trial spread of 15 %)."""
+    if min(a.n, b.n) < 2:
+        return True
+    se = math.sqrt(a.std ** 2 / a.n + b.std ** 2 / b.n)
+    return abs(a.mean - b.mean) <= 2.0 * se
+
+
+def scatter_clause(a: Stat, b: Stat) -> str:
+    """Why a comparison of ``a`` and ``b`` is inconclusive (see :func:`within_scatter`)."""
+    gap = safe_ratio(abs(a.mean - b.mean), b.mean)
+    if min(a.n, b.n) < 2:
+        return (f" The difference ({num(100 * gap, 0)} %) comes from one trial each, which "
+                f"cannot tell it from noise (--trials 5 can).")
+    se = math.sqrt(a.std ** 2 / a.n + b.std ** 2 / b.n)
+    return (f" The difference ({num(100 * gap, 0)} %) is within two standard errors of the "
+            f"difference ({num(2 * se)} m over {min(a.n, b.n)} trials).")
+
+
+def compare(rmse_a: float, rmse_b: float, miss_a: float, miss_b: float,
+            stats: tuple[Stat, Stat] | None = None) -> tuple[str, str]:
     """Verdict on "a is better than b" from RMSE and missing pixels, and a clause on why.
 
     The RMSE counts only pixels with a detected return, so a setting that loses many pixels
     can show a lower RMSE: when RMSE and missing share disagree by more than 5 points of
-    missing pixels, the verdict is "partly consistent".
+    missing pixels, the verdict is "partly consistent". With ``stats`` (the two RMSEs over
+    trials), a difference their scatter cannot resolve is "inconclusive"
+    (:func:`within_scatter`).
     """
     if not (math.isfinite(rmse_a) and math.isfinite(rmse_b)):
         return "n/a", ""
+    if stats is not None and within_scatter(*stats):
+        return "inconclusive", scatter_clause(*stats)
     rmse_better = rmse_a < rmse_b
     miss_better = miss_a < miss_b - 0.05
     miss_worse = miss_a > miss_b + 0.05
@@ -158,6 +185,21 @@ def compare(rmse_a: float, rmse_b: float, miss_a: float, miss_b: float) -> tuple
             f"{pct(1 - miss_b)})."
         )
     return "not consistent", ""
+
+
+def best_verdict(stats: dict[str, Stat], claimed: str) -> str:
+    """Verdict on "``claimed`` has the lowest mean": consistent or not, unless ``claimed``
+    and its nearest rival (the runner-up where it leads, the best where it does not) cannot
+    be told apart by their trials (:func:`within_scatter`): "inconclusive" (TVAL3's lead of
+    1.5 % in one trial reversed on another machine)."""
+    order = sorted((k for k in stats if math.isfinite(stats[k].mean)),
+                   key=lambda k: stats[k].mean)
+    if len(order) < 2 or claimed not in order:
+        return "n/a"
+    rival = order[1] if order[0] == claimed else order[0]  # the runner-up, or the best
+    if within_scatter(stats[claimed], stats[rival]):
+        return "inconclusive"
+    return consistent(order[0] == claimed)
 
 
 def consistent(ok: bool) -> str:
