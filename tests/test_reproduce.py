@@ -390,3 +390,13 @@ def test_verdicts_that_trials_cannot_resolve_are_inconclusive():
     assert best_verdict(spread, "fista") == "not consistent"
     assert best_verdict({"a": Stat(0.05, 0.01, 5), "b": Stat(0.051, 0.01, 5)}, "b") == \
         "inconclusive"
+
+
+def test_a_resumed_reproduction_prices_only_what_it_has_not_cached(quick_dir, capsys):
+    """After an interruption, --max-time was refused for the runs already cached; and the
+    refusal advised --size and --compression, which reproduce does not take."""
+    from spslidar.errors import SpslidarError
+
+    assert reproduce_main("fig3", quick_dir, quick=True, progress=False, max_time=1e-3) == 0
+    with pytest.raises(SpslidarError, match="--quick or fewer --trials"):
+        reproduce_main("fig3", quick_dir, quick=True, trials=2, progress=False, max_time=1e-3)

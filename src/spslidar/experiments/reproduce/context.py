@@ -326,13 +326,26 @@ def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
     :func:`spslidar.pipeline.preflight`, times its runs, over the workers), added to the
     batches' before it in this command, exceeds ``ctx.max_time``; one over 30 s says its
     estimate first. The experiments finished before a refusal keep their report sections."""
-    from spslidar.experiments.sweep.grid import TRIAL_KEY
+    from spslidar.experiments.sweep.grid import (
+        KEY_LENGTH,
+        SEED_KEY,
+        TRIAL_KEY,
+        canonical_json,
+        derive_seed,
+        sha256_hex,
+    )
     from spslidar.pipeline import PROCESSING_KEYS, preflight
     from spslidar.pipeline.budget import check_time
 
     seconds: dict[str, float] = {}
     total = 0.0
     for params in points:
+        full = dict(params)  # its cache file, as run_sweep names it: a cached run costs nothing
+        full.setdefault(SEED_KEY, derive_seed(ctx.seed, {k: v for k, v in params.items()
+                                                         if k not in PROCESSING_KEYS}))
+        key = sha256_hex(canonical_json(full))[:KEY_LENGTH]
+        if (ctx.cache / "runs" / f"{key}.json").is_file():
+            continue  # (a resumed fig2 was refused for the run it had cached)
         cfg = {k: v for k, v in params.items() if k != TRIAL_KEY and k not in PROCESSING_KEYS}
         key = repr(sorted(cfg.items()))
         if key not in seconds:
@@ -341,7 +354,8 @@ def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
     workers = max(1, min(len(points), ctx.jobs if ctx.jobs > 0 else 2))
     # the whole command's estimate, not each batch's (--max-time 10 ran 30 s of batches)
     check_time(ctx.estimated_s + total / workers, ctx.max_time,
-               f"this reproduction (its earlier batches and this one of {len(points)} runs)")
+               f"this reproduction (its earlier batches and this one of {len(points)} runs)",
+               reduce="the work with --quick or fewer --trials")
     ctx.estimated_s += total / workers
 
 
