@@ -173,7 +173,8 @@ def exp_fig6(ctx: Context) -> tuple[str, list[Claim]]:
         ),
     ]
     what = (
-        f"{common_text(ctx, 'motorcycle')} ({scene.depth_min:.2f}-{scene.depth_max:.2f} m), "
+        f"{common_text(ctx, 'motorcycle')}; the scene at {scene.depth_min:.2f}-"
+        f"{scene.depth_max:.2f} m, "
         f"25 % patterns, FISTA; PSST m-sequence of 16383 bits at m_n = "
         f"{', '.join(f'{m:g}' for m in noises)}, without and with QCR; the conventional lidar "
         f"at m_n = 10 (acquisition time of 16383 bits, same pulse energy) without QCR (the "
