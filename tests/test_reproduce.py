@@ -400,3 +400,20 @@ def test_a_resumed_reproduction_prices_only_what_it_has_not_cached(quick_dir, ca
     assert reproduce_main("fig3", quick_dir, quick=True, progress=False, max_time=1e-3) == 0
     with pytest.raises(SpslidarError, match="--quick or fewer --trials"):
         reproduce_main("fig3", quick_dir, quick=True, trials=2, progress=False, max_time=1e-3)
+
+
+def test_a_report_folder_of_an_earlier_version_is_taken_as_reproduces(quick_dir, tmp_path):
+    """A marker without the list (the committed docs/reproduction) must not refuse its own
+    outputs: the first experiment run there adopts every standard output as reproduce's."""
+    import json
+    import shutil
+
+    from spslidar.outdir import MARKER
+
+    out = tmp_path / "old"
+    shutil.copytree(quick_dir, out)
+    meta = json.loads((out / MARKER).read_text())
+    meta.pop("written")
+    (out / MARKER).write_text(json.dumps(meta))
+    assert reproduce_main("fig2", out, quick=True, progress=False) == 0
+    assert reproduce_main("fig3", out, quick=True, progress=False) == 0

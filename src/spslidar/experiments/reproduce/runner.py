@@ -188,9 +188,13 @@ def _record_written(out: Path, name: str) -> None:
     from spslidar.outdir import MARKER, atomic_write_text, read_marker, sha256_file
 
     meta = read_marker(out) or {"kind": "reproduce", "files": []}
-    written = meta.get("written") if isinstance(meta.get("written"), dict) else {}
-    for n in [f"{name}/{f.format(name=name)}" for f in _STANDARD] + list(_REPORT):
-        if (out / n).is_file():
-            written[n] = sha256_file(out / n)
+    if isinstance(meta.get("written"), dict):
+        written, names = meta["written"], [name]
+    else:  # a folder of an earlier version, its marker reproduce's: its outputs are ours
+        written, names = {}, [name, *EXPERIMENT_REGISTRY.names()]
+    for exp in dict.fromkeys(names):
+        for n in [f"{exp}/{f.format(name=exp)}" for f in _STANDARD] + list(_REPORT):
+            if (out / n).is_file():
+                written[n] = sha256_file(out / n)
     meta["written"] = dict(sorted(written.items()))
     atomic_write_text(out / MARKER, json.dumps(meta, indent=1) + "\n")
