@@ -145,9 +145,9 @@ class Context:
     def n_trials(self, full: int = 1) -> int:
         """Trials for an experiment whose full-mode default is ``full``."""
         self.trials_read = True
-        if self.trials is not None:
-            return self.trials
-        return 1 if self.quick else full
+        n = self.trials if self.trials is not None else (1 if self.quick else full)
+        self.last_trials = n  # the map panels say which trial they show
+        return n
 
     def folder(self, name: str) -> Path:
         """``DIR/<name>``, created."""

@@ -92,7 +92,11 @@ def run_title(row: dict[str, Any] | None, label: str) -> str:
 def map_panel(
     ctx: Context, fig, ax, row: dict[str, Any] | None, label: str, lo: float, hi: float
 ) -> None:
-    """The depth map of one run as a panel titled with ``label`` and the run's numbers."""
+    """The depth map of one run as a panel titled with ``label`` and the run's numbers (of
+    trial 0, said where the experiment ran more: Fig. 3's panels read 0.0094 against the
+    table's 0.0119 +- 0.0015 m over five trials, without a word)."""
+    if row is not None and getattr(ctx, "last_trials", 1) > 1:
+        label = f"{label} (trial {row.get('trial', 0)})"
     panel(fig, ax, load_map(ctx, row), run_title(row, label), lo, hi)
 
 

@@ -109,7 +109,7 @@ def reproduce_main(
     for name in names:
         t0 = time.perf_counter()
         before, failed_before = n_cached(ctx), ctx.failed
-        ctx.trials_read = False
+        ctx.trials_read, ctx.last_trials = False, 1
         _refuse_foreign(out, name)  # before the work: a user's fig3/fig3.png was replaced
         try:
             text, claims = EXPERIMENT_REGISTRY.load(name)(ctx)
