@@ -2,12 +2,15 @@
 refused in one line with exit 2 and nothing written, or run with a warning that says what was
 done."""
 
+import json
+import re
+
 import numpy as np
 import pytest
 
 from spslidar.cli import main
 from spslidar.config import Config
-from spslidar.errors import SceneError
+from spslidar.errors import ConfigError, SceneError
 from spslidar.scenes import load_scene
 
 FAST = ["--size", "16", "--code-length", "1023"]
@@ -166,3 +169,56 @@ def test_snr_histogram_too_large_is_one_line(capsys, monkeypatch):
     assert main(["snr", "--size", "8192", "--method", "histogram"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "GB" in err and "--method sum" in err
+
+
+def test_toml_files_a_user_writes(tmp_path, monkeypatch, capsys):
+    """An audit of 2026-11-28: a relative irf = "irf.npy" was read from the current folder
+    (the same TOML gave another response elsewhere); a TOML's code-length could not be
+    overridden by --code-length ('given twice'); noise = 1 beside [run] noise = 7 took 7; out
+    and a BOM and a folder gave messages that did not say what was wrong; --no-noiseless did
+    not exist to undo a TOML's noiseless = true."""
+    sub = tmp_path / "project"
+    sub.mkdir()
+    irf = np.zeros(9)
+    irf[4] = 1.0
+    np.save(sub / "irf.npy", irf)
+    (sub / "cfg.toml").write_text('irf = "irf.npy"\nsize = 8\ncode-length = 255\n'
+                                  'noiseless = true\n')
+    monkeypatch.chdir(tmp_path)
+    assert Config.from_toml(sub / "cfg.toml").irf == str(sub / "irf.npy")
+    (sub / "spec.toml").write_text('irf = "gaussian:2e-10"\n')  # a spec, not a file
+    assert Config.from_toml(sub / "spec.toml").irf == "gaussian:2e-10"
+    out = tmp_path / "o"
+    assert main(["run", "--config", str(sub / "cfg.toml"), "--code-length", "127",
+                 "--no-noiseless", "--no-figure", "--out", str(out)]) == 0
+    cfg = json.loads((out / "metrics.json").read_text())["config"]
+    assert cfg["code_length"] == 127 and cfg["noiseless"] is False
+    for text, match in (('noise = 1\n[run]\nnoise = 7\n', "given both at the top and in [run]"),
+                        ('out = "x"\nsize = 8\n', "out is a command-line option"),
+                        ('\ufeffsize = 8\n', "byte-order mark")):
+        (sub / "bad.toml").write_text(text, encoding="utf-8")
+        with pytest.raises(ConfigError, match=re.escape(match)):
+            Config.from_toml(sub / "bad.toml")
+    with pytest.raises(ConfigError, match="is a directory"):
+        Config.from_toml(sub)
+
+
+def test_a_sweep_follows_its_irf_files_content(tmp_path, monkeypatch):
+    """An edited IRF file was given the earlier file's cached results (scene files were
+    hashed, IRF files not); and a relative one is read from the TOML's folder."""
+    from spslidar.experiments.sweep import sweep_main
+
+    sub = tmp_path / "project"
+    sub.mkdir()
+    narrow = np.zeros(9)
+    narrow[4] = 1.0
+    np.save(sub / "irf.npy", narrow)
+    (sub / "s.toml").write_text('seed = 1\n[base]\nsize = 8\ncode_length = 255\n'
+                                'irf = "irf.npy"\ndepth = "argmax"\n[grid]\nnoise = [1, 2]\n')
+    monkeypatch.chdir(tmp_path)
+    assert sweep_main(sub / "s.toml", tmp_path / "o", progress=False) == 0
+    first = (tmp_path / "o" / "results.csv").read_text()
+    np.save(sub / "irf.npy", np.full(41, 1.0 / 41))  # a 40-bin response
+    assert sweep_main(sub / "s.toml", tmp_path / "o", progress=False) == 0
+    second = (tmp_path / "o" / "results.csv").read_text()
+    assert "irf_sha256" in first and first != second

@@ -263,8 +263,10 @@ METRICS: dict[str, str] = {
     "depth_max_abs_error_m": "Largest absolute depth error, metres.",
     "depth_rmse_bins": "The RMSE in TDC bins (``bin_depth_m``).",
     "n_valid": "Pixels with a known truth (``valid.npy``).",
-    "missing_fraction": "Share of the valid pixels without a detected return.",
-    "coverage": "Share of the pixels with a depth estimate (not NaN).",
+    "missing_fraction": "Share of the valid pixels without a detected return (without a "
+                        "ground truth: of all pixels).",
+    "coverage": "Share of all pixels the RMSE is computed over: a known truth and a detected "
+                "return (without a ground truth: a detected return).",
     "has_truth": "Whether the scene has a ground truth (false for a measured acquisition).",
     "edge_correlation": "Correlation of the Sobel edges of the estimate and of the truth "
                         "(the paper's Fig. 5 and 7).",

@@ -6,7 +6,8 @@ First run: simulate, reconstruct, compare with the truth
 single-pixel lidar and reconstructs its depth map: the laser is gated by an m-sequence, the
 returns are spatially coded by DMD patterns, counted by one photon-counting detector, matched
 filtered against the code, solved for all range slices at once (QCR + FISTA with TV) and
-turned into depth by the ML estimator (eq. 2-3 of the paper).
+turned into depth by the default estimator, ``mrf`` (the paper's ML argmax of eq. 2-3 with a
+spatial prior over the range slices; ``depth="argmax"`` is the paper's own).
 
 The default experiment is the paper's (64x64 pixels, a 16383-bit code); here the scene is
 32x32 and the code 1023 bits long so that the example runs in a couple of seconds.

@@ -56,8 +56,8 @@ axes[2].set_axis_off()
 # ----------
 # Both solve the same measurement with FISTA and TV. Without QCR the mean direction of the
 # patterns is eliminated exactly instead (:class:`spslidar.qcr.MeanEliminated`, with the TV
-# regulariser), and on this small, short-code problem the plain solve does as well as QCR or
-# better (compare the two RMSE printed above); the reproduction report compares them over
+# regulariser); on this small, short-code problem QCR does better (the two RMSE printed
+# above: about 0.066 against 0.116 m at seed 0); the reproduction report compares them over
 # code lengths at 64x64 (Fig. 4).
 fig, axes = plt.subplots(1, 3, figsize=(10, 3.2), layout="constrained")
 lo, hi = np.nanmin(with_qcr.truth), np.nanmax(with_qcr.truth)

@@ -13,6 +13,8 @@ import warnings
 from pathlib import Path
 
 EXIT_BAD_INPUT = 2
+#: what this command wrote so far (the interrupted line says it)
+_WRITTEN: list[str] = []
 
 
 class _Parser(argparse.ArgumentParser):
@@ -118,8 +120,9 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--detector", choices=detectors, default=S,
                    help=f"detector model: {detectors_help}")
     _add_stage_options(g, "detector")
-    g.add_argument("--noiseless", action="store_true", default=S,
-                   help="use expected counts (no Poisson noise)")
+    g.add_argument("--noiseless", action=argparse.BooleanOptionalAction, default=S,
+                   help="use expected counts (no Poisson noise); --no-noiseless undoes a "
+                        "config file's")
     g = p.add_argument_group("processing")
     g.add_argument("--replica", choices=("auto", "bipolar", "zero-mean", "unipolar"),
                    default=S,
@@ -156,8 +159,9 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                         "closed form under the bound: metrics.json's config says which)")
     g.add_argument("--depth", choices=depths, default=S,
                    help=f"depth estimator: {depths_help}")
-    g.add_argument("--subbin", action="store_true", default=S,
-                   help="refine the ML peak by a three-bin centroid")
+    g.add_argument("--subbin", action=argparse.BooleanOptionalAction, default=S,
+                   help="refine the ML peak by a three-bin centroid (--no-subbin undoes a "
+                        "config file's)")
     g.add_argument("--dtype", choices=("float32", "float64"), default=S,
                    help="precision of the simulation and the solve (default float32)")
     g.add_argument("--backend", choices=("numpy", "torch", "cupy", "array-api-strict"),
@@ -208,8 +212,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     p = sub.add_parser("run", help="simulate one acquisition, reconstruct it and score it",
                        description="Simulate one acquisition of a scene, reconstruct the depth "
-                                   "map and score it; writes metrics.json, depth.npy, truth.npy "
-                                   "and depth.png into --out (only when complete).")
+                                   "map and score it; writes metrics.json, depth.npy, "
+                                   "reflectivity.npy, confidence.npy, points.ply, truth.npy, "
+                                   "valid.npy and depth.png into --out (only when complete).")
     p.add_argument("--config", metavar="FILE.toml",
                    help="TOML file with the same keys (command-line options override it)")
     p.add_argument("--out", required=True, metavar="DIR",
@@ -362,6 +367,7 @@ def _cmd_reconstruct(args) -> int:
         print(f"spslidar: warning: {w}", file=sys.stderr)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
                       fov_deg=args.fov)
+    _WRITTEN.append(f"{out}/")
     m = result.metrics
     rmse = m.get("depth_rmse_m")
     import numpy as np
@@ -414,6 +420,7 @@ def _cmd_calibrate(args) -> int:
                         marker=args.marker, channel=args.channel,
                         allow_binning=args.allow_binning)
     path = write_calibration(cal, args.out, args.overwrite)
+    _WRITTEN.append(str(path))
     period_ns = cal["code_length"] / args.bit_rate * 1e9
     print(f"system delay {cal['delay_s'] * 1e9:.4f} ns ({cal['delay_bins']:.3f} bins, "
           f"{cal['delay_s'] * 149896229.0:.4f} m; known modulo the code's period, "
@@ -427,7 +434,8 @@ def _cmd_calibrate(args) -> int:
 def _add_sweep_options(p: argparse.ArgumentParser, trials: bool) -> None:
     if trials:
         p.add_argument("--trials", type=int, metavar="K",
-                       help="Monte-Carlo trials per setting (default: 3 for fig4, else 1)")
+                       help="Monte-Carlo trials per setting (default: 5 for fig3, 3 for fig4, "
+                            "else 1)")
     p.add_argument("--jobs", type=int, default=1, metavar="J",
                    help="local worker processes (-1: all cores; default 1)")
     p.add_argument("--scheduler", metavar="ADDR",
@@ -522,7 +530,7 @@ def _cmd_run(args) -> int:
         check_files(ptu_files, args.overwrite, outside=args.out)  # refuse before any work
     check_output(args.out, args.overwrite)  # refuse before any work
     base = read_toml(args.config) if args.config else {}
-    cfg = Config.from_dict({**base, **opts})
+    cfg = Config.from_dict(base, **opts)  # (a TOML's code-length, overridden by --code-length)
     if save_ptu:
         from .outdir import write_files
         from .pipeline import measure, reconstruct
@@ -542,6 +550,7 @@ def _cmd_run(args) -> int:
             write_measurement_arrays(meas, tmps[0], paths=tmps[1:])
 
         write_files(ptu_files, write, args.overwrite)
+        _WRITTEN.extend(ptu_files)
         print(f"wrote {save_ptu}: {info['photons']} photons, {info['records']} T3 records; "
               f"the patterns shown and the code in {ptu_files[1]} and {ptu_files[2]}")
     else:
@@ -550,6 +559,7 @@ def _cmd_run(args) -> int:
         print(f"spslidar: warning: {w}", file=sys.stderr)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
                       fov_deg=args.fov)
+    _WRITTEN.append(f"{out}/")
     print(result.summary())
     print(f"wrote {out}/: {' '.join(_written(out))}")
     return 0
@@ -669,6 +679,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 success, 2 bad input)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    _WRITTEN.clear()
     if args.command is None:
         parser.print_help()
         return EXIT_BAD_INPUT
@@ -687,8 +698,12 @@ def main(argv: list[str] | None = None) -> int:
     )
 
     def line(terminated: bool) -> str:
-        done = ("nothing was written" if args.command not in ("sweep", "reproduce") else
-                "the runs that finished are cached: run it again to resume")
+        if args.command in ("sweep", "reproduce"):
+            done = "the runs that finished are cached: run it again to resume"
+        elif _WRITTEN:  # (--save-ptu's files were written, and the line said nothing was)
+            done = f"{', '.join(_WRITTEN)} had been written, the rest was not"
+        else:
+            done = "nothing was written"
         return f"spslidar {args.command}: {'terminated' if terminated else 'interrupted'}; {done}"
 
     own = argv is None  # a process of its own, not a call inside a Python session

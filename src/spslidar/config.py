@@ -493,24 +493,52 @@ def read_toml(path: str | Path) -> dict[str, Any]:
     else:  # pragma: no cover
         import tomli as tomllib
     p = Path(path)
+    if p.is_dir():
+        raise ConfigError(f"config file {p} is a directory, not a TOML file")
     if not p.is_file():
         raise ConfigError(f"config file not found: {p}")
     try:
         with open(p, "rb") as fh:
-            data = tomllib.load(fh)
+            raw = fh.read()
+        if raw.startswith(b"\xef\xbb\xbf"):  # invisible, and TOML refuses it at 1:1
+            raise ConfigError(f"config file {p} starts with a UTF-8 byte-order mark, which TOML "
+                              f"does not allow: save it as UTF-8 without BOM")
+        data = tomllib.loads(raw.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ConfigError(f"cannot parse config file {p}: {exc}") from None
     if "run" in data and isinstance(data["run"], dict):
         rest = {k: v for k, v in data.items() if k != "run"}
+        both = sorted({k.replace("-", "_") for k in rest}
+                      & {k.replace("-", "_") for k in data["run"]})
+        if both:  # (noise = 1 beside [run] noise = 7 took 7 without a word)
+            raise ConfigError(f"config file {p}: {', '.join(both)} given both at the top and "
+                              f"in [run]")
         data = {**rest, **data["run"]}
+    unknown = sorted(k for k in data if k.replace("-", "_") in CLI_ONLY_KEYS)
+    if unknown:
+        what = "is a command-line option" if len(unknown) == 1 else "are command-line options"
+        raise ConfigError(f"config file {p}: {', '.join(unknown)} {what} (of the output, not "
+                          f"of the run): give it on the command line")
     return resolve_scene_path(data, p.parent)
 
 
+#: keys of ``spslidar run`` that belong to the command, not to the run's configuration
+CLI_ONLY_KEYS = frozenset({"out", "overwrite", "save_ptu", "fov", "no_figure", "config"})
+
+#: config keys that may name a file: a relative one in a TOML file is read from its folder
+FILE_KEYS = ("scene", "irf")
+
+
 def resolve_scene_path(data: dict[str, Any], base: Path) -> dict[str, Any]:
-    """A relative scene *file* named in a config file is relative to that file's folder (a
-    built-in scene name is left alone), as a user writing ``scene = "data/bike.npz"`` next to
-    the TOML expects wherever the command is run from."""
-    scene = data.get("scene")
-    if isinstance(scene, str) and Path(scene).suffix and not Path(scene).is_absolute():
-        data = {**data, "scene": str(base / scene)}
-    return data
+    """A relative scene or IRF *file* named in a config file is relative to that file's folder
+    (a built-in scene name or an IRF spec like ``gaussian:2`` is left alone), as a user writing
+    ``scene = "data/bike.npz"`` next to the TOML expects wherever the command is run from (a
+    relative ``irf = "irf.npy"`` was read from the current folder: the same TOML gave another
+    response in another folder)."""
+    out = dict(data)
+    for key, value in data.items():
+        name = key.replace("-", "_")
+        if (name in FILE_KEYS and isinstance(value, str) and Path(value).suffix
+                and ":" not in value and not Path(value).is_absolute()):
+            out[key] = str(base / value)
+    return out

@@ -43,8 +43,9 @@ BACKENDS = ("numpy", "torch", "cupy", "array-api-strict")
 DEVICES = ("cpu", "cuda")
 #: the package that provides each backend, and the install hint for it
 _PROVIDER = {
-    "torch": ("torch", "PyTorch", "pip install spslidar[gpu]"),
-    "cupy": ("cupy", "CuPy", "pip install spslidar[cupy] (or the cupy wheel for your CUDA)"),
+    "torch": ("torch", "PyTorch", "pip install -e \".[gpu]\" in a checkout (spslidar[gpu])"),
+    "cupy": ("cupy", "CuPy",
+             "pip install -e \".[cupy]\" in a checkout (or the cupy wheel for your CUDA)"),
     "array-api-strict": ("array_api_strict", "array-api-strict", "pip install array-api-strict"),
 }
 #: the stage choices with a device kernel (:mod:`spslidar.backends.device`); every other choice

@@ -336,6 +336,10 @@ def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Pa
         raise SpslidarError(f"--out {out}: {path.parent} is a file, not a folder")
     if not path.parent.is_dir():
         raise SpslidarError(f"--out {out}: the folder {path.parent} does not exist")
+    from ..outdir import _check_writable
+
+    # (a read-only folder failed after the work, naming a temporary file)
+    _check_writable(path.parent, f"--out {out}", make_parents=False)
     return path
 
 

@@ -75,7 +75,7 @@ def _resolve(config, overrides) -> Config:
     elif isinstance(config, Config):
         cfg = config.replace(**overrides)  # a copy: the caller's later edits stay theirs
     elif isinstance(config, Mapping):
-        cfg = Config.from_dict({**dict(config), **overrides})
+        cfg = Config.from_dict(dict(config), **overrides)  # (code-length, then code_length=)
     else:
         from ..errors import ConfigError
 

@@ -23,6 +23,7 @@ from typing import Any
 from spslidar.errors import ConfigError, SpslidarError
 from spslidar.experiments.sweep.grid import (
     ERROR_KEY,
+    IRF_HASH_KEY,
     KEY_LENGTH,
     SCENE_HASH_KEY,
     SEED_KEY,
@@ -508,14 +509,15 @@ def run_point(params: dict[str, Any]) -> dict[str, Any]:
     from spslidar.pipeline import run_metrics
 
     config = {key: value for key, value in params.items()
-              if key not in (TRIAL_KEY, SCENE_HASH_KEY)}
+              if key not in (TRIAL_KEY, SCENE_HASH_KEY, IRF_HASH_KEY)}
     return run_metrics(config)
 
 
 def with_scene_hashes(points: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """Each point whose scene is a file, with the file's SHA-256 as ``scene_sha256``: the
-    cache key (and ``results.csv``) then follow the file's content (an edited scene file
-    was given the earlier file's cached results). Each file is read once."""
+    """Each point whose scene (or IRF) is a file, with the file's SHA-256 as ``scene_sha256``
+    (``irf_sha256``): the cache key (and ``results.csv``) then follow the file's content (an
+    edited scene or IRF file was given the earlier file's cached results). Each file is read
+    once."""
     from spslidar.outdir import sha256_file
     from spslidar.scenes import SCENE_FILE_SUFFIXES
 
@@ -523,12 +525,14 @@ def with_scene_hashes(points: Sequence[Mapping[str, Any]]) -> list[dict[str, Any
     out = []
     for point in points:
         point = dict(point)
-        scene = point.get("scene")
-        if (isinstance(scene, str) and Path(scene).suffix.lower() in SCENE_FILE_SUFFIXES
-                and os.path.isfile(scene)):
-            if scene not in sums:
-                sums[scene] = sha256_file(scene)
-            point[SCENE_HASH_KEY] = sums[scene]
+        for key, hashed, suffixes in (("scene", SCENE_HASH_KEY, SCENE_FILE_SUFFIXES),
+                                      ("irf", IRF_HASH_KEY, (".npy",))):
+            path = point.get(key)
+            if (isinstance(path, str) and Path(path).suffix.lower() in suffixes
+                    and os.path.isfile(path)):
+                if path not in sums:
+                    sums[path] = sha256_file(path)
+                point[hashed] = sums[path]
         out.append(point)
     return out
 
@@ -573,7 +577,7 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
     total = 0.0
     for params in points:
         config = {key: value for key, value in params.items()
-                  if key not in (TRIAL_KEY, SCENE_HASH_KEY)}
+                  if key not in (TRIAL_KEY, SCENE_HASH_KEY, IRF_HASH_KEY)}
         try:
             cfg = Config.from_dict(config)
             if ignored is not None:
@@ -639,7 +643,7 @@ def sweep_main(
         # an edited scene, another array library or device: the same seed (a grid over
         # backend compared NumPy and array-api-strict on different noise; not dtype: float32
         # and float64 Gaussian patterns are different draws of one seed)
-        ignore = frozenset(PROCESSING_KEYS) | {SCENE_HASH_KEY, "backend", "device"}
+        ignore = frozenset(PROCESSING_KEYS) | {SCENE_HASH_KEY, IRF_HASH_KEY, "backend", "device"}
         points = _seeded(points, ignored, ignore, spec.seed)
         from spslidar.pipeline.budget import check_time
 

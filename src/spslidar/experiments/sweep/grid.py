@@ -34,6 +34,7 @@ __all__ = [
     "ERROR_KEY",
     "KEY_LENGTH",
     "SEED_BOUND",
+    "IRF_HASH_KEY",
     "SCENE_HASH_KEY",
     "SEED_KEY",
     "TRIAL_KEY",
@@ -54,6 +55,8 @@ SEED_KEY = "seed"
 #: Parameter added to the points of a sweep of runs whose scene is a file: its SHA-256, so that
 #: the cache key (and ``results.csv``) follow the file's content, not only its name.
 SCENE_HASH_KEY = "scene_sha256"
+#: the SHA-256 of a point's IRF file, as the scene's (an edited IRF file got cached results)
+IRF_HASH_KEY = "irf_sha256"
 #: Column holding the one-line error of a failed point.
 ERROR_KEY = "error"
 #: Seeds from :func:`derive_seed` lie in ``[0, SEED_BOUND)`` (valid for every numpy RNG API).
@@ -196,7 +199,8 @@ def point_key(params: Mapping[str, Any]) -> str:
 
 #: the keys the sweep sets itself, with what to do instead
 _RESERVED = {TRIAL_KEY: "set the number of trials instead",
-             SCENE_HASH_KEY: "the sweep reads it from the scene file"}
+             SCENE_HASH_KEY: "the sweep reads it from the scene file",
+             IRF_HASH_KEY: "the sweep reads it from the IRF file"}
 
 
 def _check_reserved(names, where: str) -> None:
@@ -418,12 +422,13 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
         raise ConfigError(f"{path}: [grid] is empty and trials = 1, so there is nothing to "
                           f"sweep: give a list of values for at least one key, or trials > 1 "
                           f"(or use 'spslidar run --config')")
-    # scene files named relative to the TOML are read from its folder, as in `run --config`
+    # scene and IRF files named relative to the TOML are read from its folder, as in
+    # `run --config`
     from spslidar.config import resolve_scene_path
 
     base = resolve_scene_path(base, path.parent)
-    grid = {name: ([resolve_scene_path({"scene": v}, path.parent)["scene"] for v in values]
-                   if name == "scene" else list(values)) for name, values in grid.items()}
+    grid = {name: [resolve_scene_path({name: v}, path.parent)[name] for v in values]
+            for name, values in grid.items()}
     return SweepSpec(
         seed=seed,
         trials=trials,
