@@ -380,3 +380,17 @@ def test_the_corrections_unconverged_model_is_said_once_as_the_corrections(monke
         pileup.coates_correction(counts, 1000, 250, oversample=4)
     texts = [str(w.message) for w in caught]
     assert len(texts) == 1 and "the pile-up correction's dead-time model" in texts[0], texts
+
+
+def test_a_saturated_detector_is_said_so_not_inf():
+    """At 1e-2 photons per pulse and 20 periods the counts passed one detection per dead time
+    (each bin drawn on its own) and the warning read 'at inf incident photons per dead
+    time' (an audit of 2026-11-28)."""
+    from spslidar.pipeline import measure
+
+    meas = measure(detector="gmapd", signal=1e-2, noise=1e-6, periods=20, size=8,
+                   code_length=1023, compression=0.25)
+    assert meas.sim["pileup"]["counts_per_dead_time"] >= 1.0
+    assert "incident_per_dead_time" not in meas.sim["pileup"]
+    said = [w for w in meas.warnings if "saturated" in w]
+    assert said and not any("inf incident" in w for w in meas.warnings)

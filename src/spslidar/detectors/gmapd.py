@@ -293,7 +293,15 @@ class GMAPD(DetectorModel):
     def notes_after(self, report: dict[str, Any]) -> list[str]:
         """What to say once the counts are known: the pile-up correction at a flux where it
         costs more than it mends."""
-        n = report.get("incident_per_dead_time", np.inf if self.dead_time else 0.0)
+        if self.dead_time and "incident_per_dead_time" not in report:
+            # (said "at inf incident photons per dead time")
+            return [f"the detector is saturated: {report['counts_per_dead_time']:.3g} detections "
+                    f"per dead time, where a non-paralysable detector makes at most 1 (the "
+                    f"simulation draws each bin's detections independently, so its counts can "
+                    f"pass that): no incident flux can be read from them and the pile-up "
+                    f"correction has nothing to invert; lower --signal and --noise (and raise "
+                    f"--periods)"]
+        n = report.get("incident_per_dead_time", 0.0)
         if not (self.correction and n > CORRECTION_NOISY):
             return []
         return [f"--pileup-correction on at {n:.3g} incident photons per dead time: above "
