@@ -138,7 +138,7 @@ def checked_slices(slices: Any, ctx: DepthContext) -> tuple[np.ndarray, np.ndarr
     """The ``(Q, K)`` slices as a real array that matches ``ctx``, with every value of a
     pixel whose profile is not finite set to 0; the mask of those pixels; and the power of two
     the slices were multiplied by (1.0 unless their magnitude is outside
-    ``2^±RANGE_EXP``: see :data:`RANGE_EXP`).
+    ``2^±RANGE_EXP``: see ``RANGE_EXP`` in this module).
 
     A NaN in one pixel moved 62 of 64 MRF depths to the first lag and made every confidence
     NaN (a solve whose weight overflows float32 gives such slices): such a pixel has no

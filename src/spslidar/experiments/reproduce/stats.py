@@ -17,6 +17,7 @@ from spslidar.experiments.sweep import ERROR_KEY, TRIAL_KEY
 __all__ = [
     "TVAL3_NOTE",
     "Stat",
+    "best_verdict",
     "compare",
     "consistent",
     "count_verdict",
@@ -31,7 +32,9 @@ __all__ = [
     "pct",
     "safe_ratio",
     "same_value",
+    "scatter_clause",
     "stat",
+    "within_scatter",
 ]
 
 

@@ -230,7 +230,7 @@ def _check_grid(grid: Mapping[str, Any], where: str = "grid") -> None:
 
 def same_value(value: Any) -> Any:
     """``value`` with every float that is a whole number written as an int, so that ``1`` and
-    ``1.0`` are one grid value and one seed (:func:`sweep_point_seed`); lists and tables
+    ``1.0`` are one grid value and one seed (the pipeline's sweep seeds points so); lists and tables
     element by element; anything else as it is."""
     if isinstance(value, (float, np.floating)) and np.isfinite(value) and float(value).is_integer():
         return int(value)
