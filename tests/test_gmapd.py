@@ -215,12 +215,13 @@ def test_gmapd_run_priced_from_its_first_block(tmp_path, capsys):
     from spslidar.pipeline.plan import detector_options
     from spslidar.pipeline.simulate import simulate_correlations
 
-    base = ["run", "--detector", "gmapd", "--size", "16", "--compression", "0.5",
+    base = ["run", "--detector", "gmapd", "--size", "32", "--compression", "0.5",
             "--code-length", "1023", "--signal", "2e-4", "--noise", "2e-5", "--no-figure"]
     out = tmp_path / "r"
-    # above the configuration's estimate (0.08 s with its fixed cost), far below the first
-    # block's (~1 s)
-    assert main([*base, "--max-time", "0.2", "--out", str(out)]) == 2
+    # above the configuration's estimate (0.40 s), well below the first block's price (eight
+    # blocks of 64 patterns: 2.8 s measured on 2 cores; at 16x16 and two blocks the margin
+    # was too thin, and a fast machine ran the whole run inside the limit)
+    assert main([*base, "--max-time", "1", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "first block" in err[0] and "--max-time" in err[0]
     assert not out.exists()
