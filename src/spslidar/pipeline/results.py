@@ -71,7 +71,7 @@ class Result:
                      f"{_percent(m['coverage'])} of pixels, "
                      f"{100 * m['missing_fraction']:.1f}% without return, ")
         out = (score +
-               f"{100 * m.get('low_confidence_fraction', 0.0):.0f}% low-confidence; "
+               f"{_percent(m.get('low_confidence_fraction', 0.0))} low-confidence; "
                f"{t['total']:.2f} s (simulate {t['simulate']:.2f}, solve {t['solve']:.2f})")
         return f"{what}\n{out}"
 
