@@ -136,9 +136,10 @@ def test_a_flat_scene_has_a_colour_range_of_a_bin_each_side(tmp_path):
 
 def test_the_legend_gives_the_no_return_share_the_title_gives(result):
     from spslidar.figures import _legend_items, _outside
+    from spslidar.metrics import percent
 
     text = [t for c, t in _legend_items(result, _outside(result, 0, 100)) if c == NO_RETURN][0]
-    assert f"{100 * result.metrics['missing_fraction']:.1f}%" in text
+    assert f"({percent(result.metrics['missing_fraction'])} of" in text  # as the title's
 
 
 def test_run_truth_is_nan_where_the_scene_has_none(result, tmp_path):

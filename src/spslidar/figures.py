@@ -120,12 +120,13 @@ def _legend_items(result, outside: np.ndarray,
     no_truth, no_return, low = _classes(result)
     items = []
     if getattr(result, "has_truth", True):
-        items.append((NO_TRUTH, f"no ground truth ({100 * no_truth.mean():.0f}%)"))
+        items.append((NO_TRUTH, f"no ground truth ({_percent(no_truth.mean())})"))
     m = result.metrics  # the share the estimate's title and metrics.json give
     share = m.get("missing_fraction")
-    share = 100 * (no_return.mean() if share is None or not np.isfinite(share) else share)
+    share = no_return.mean() if share is None or not np.isfinite(share) else share
     of = " of the pixels with a ground truth" if getattr(result, "has_truth", True) else ""
-    items += [(NO_RETURN, f"no return ({share:.1f}%{of})"),
+    # (one pixel of 4 096 read "0.0%" beside its black square)
+    items += [(NO_RETURN, f"no return ({_percent(share)}{of})"),
               (LOW_CONFIDENCE, f"low-confidence depth ({_percent(low.mean())}, dot)")]
     depth2 = getattr(result, "depth2", None)
     if depth2 is not None and np.isfinite(depth2).any():  # the second-surface panel's grey
@@ -230,7 +231,7 @@ def _panels(result):
     lo, hi, err_masked, lim = _limits(result)
     no_truth, no_return, low = _classes(result)
     m = result.metrics
-    est_title = (f"estimate: {100 * m['missing_fraction']:.1f}% no return, "
+    est_title = (f"estimate: {_percent(m['missing_fraction'])} no return, "
                  f"{_percent(low.mean())} low-confidence")
     panels = []
     if getattr(result, "has_truth", True):

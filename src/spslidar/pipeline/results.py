@@ -69,7 +69,7 @@ class Result:
             score = (f"depth RMSE {m['depth_rmse_m']:.4f} m "
                      f"({m['depth_rmse_m'] / m['bin_depth_m']:.2f} bins) over "
                      f"{_percent(m['coverage'])} of pixels, "
-                     f"{100 * m['missing_fraction']:.1f}% without return, ")
+                     f"{_percent(m['missing_fraction'])} without return, ")
         out = (score +
                f"{_percent(m.get('low_confidence_fraction', 0.0))} low-confidence; "
                f"{t['total']:.2f} s (simulate {t['simulate']:.2f}, solve {t['solve']:.2f})")
