@@ -430,3 +430,16 @@ def test_evidence_within_five_percent_of_argmax_on_procedural_scenes(seed):
     assert rmse["evidence"] <= 1.05 * rmse["argmax"]
     if seed != 3:  # and better where noise, not thin objects, is what argmax gets wrong
         assert rmse["evidence"] < 0.95 * rmse["argmax"]
+
+
+@pytest.mark.parametrize("name", ["guarded", "evidence"])
+def test_a_featureless_profile_holds_no_second_surface(name):
+    """Every slice equal: guarded and evidence gave a second surface on every pixel (an
+    audit of 2026-11-28); there is no return beside the first, let alone a second."""
+    from spslidar.depth import ESTIMATORS
+    from spslidar.depth.base import DepthContext
+
+    x = np.ones((64, 20))
+    ctx = DepthContext(lags=np.arange(100, 120), bin_width=1e-10, shape=(8, 8))
+    out = ESTIMATORS.load(name)().estimate(x, ctx)
+    assert out.depth2 is not None and not np.isfinite(out.depth2).any()

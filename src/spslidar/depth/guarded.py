@@ -81,7 +81,9 @@ def second_surface(z: np.ndarray, label: np.ndarray, tau: float | None = None, g
     first = z[rows, label]
     if tau is None:
         tau = float(np.quantile(third_maxima(z, label, b, gap), quantile)) if q else np.inf
-    ok = np.isfinite(zb) & peak & (zb >= tau) & (zb >= ratio * first)
+    # strictly above the threshold: a featureless profile (every slice equal, its third
+    # maximum the same value) gave a second surface on every pixel
+    ok = np.isfinite(zb) & peak & (zb > tau) & (zb >= ratio * first)
     return np.where(ok, b, -1)
 
 
