@@ -383,12 +383,13 @@ def test_verdicts_that_trials_cannot_resolve_are_inconclusive():
     assert compare(0.0077, 0.0119, 0.0, 0.0, stats=(far_a, far_b))[0] == "consistent"
     solvers = {"tval3": Stat(0.0794, 0.0, 1), "twist": Stat(0.0806, 0.0, 1),
                "fista": Stat(0.0875, 0.0, 1)}
-    assert best_verdict(solvers, "tval3") == "inconclusive"
+    verdict, why = best_verdict(solvers, "tval3")
+    assert verdict == "inconclusive" and "one trial each" in why
     spread = {"tval3": Stat(0.050, 0.002, 5), "twist": Stat(0.080, 0.002, 5),
               "fista": Stat(0.081, 0.002, 5)}
-    assert best_verdict(spread, "tval3") == "consistent"
-    assert best_verdict(spread, "fista") == "not consistent"
-    assert best_verdict({"a": Stat(0.05, 0.01, 5), "b": Stat(0.051, 0.01, 5)}, "b") == \
+    assert best_verdict(spread, "tval3") == ("consistent", "")
+    assert best_verdict(spread, "fista") == ("not consistent", "")
+    assert best_verdict({"a": Stat(0.05, 0.01, 5), "b": Stat(0.051, 0.01, 5)}, "b")[0] == \
         "inconclusive"
 
 

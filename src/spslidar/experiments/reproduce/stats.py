@@ -190,19 +190,20 @@ def compare(rmse_a: float, rmse_b: float, miss_a: float, miss_b: float,
     return "not consistent", ""
 
 
-def best_verdict(stats: dict[str, Stat], claimed: str) -> str:
-    """Verdict on "``claimed`` has the lowest mean": consistent or not, unless ``claimed``
-    and its nearest rival (the runner-up where it leads, the best where it does not) cannot
-    be told apart by their trials (:func:`within_scatter`): "inconclusive" (TVAL3's lead of
-    1.5 % in one trial reversed on another machine)."""
+def best_verdict(stats: dict[str, Stat], claimed: str) -> tuple[str, str]:
+    """Verdict on "``claimed`` has the lowest mean", and a clause on why (as
+    :func:`compare`): consistent or not, unless ``claimed`` and its nearest rival (the
+    runner-up where it leads, the best where it does not) cannot be told apart by their
+    trials (:func:`within_scatter`): "inconclusive", with :func:`scatter_clause` of that pair
+    (TVAL3's lead of 1.5 % in one trial reversed on another machine)."""
     order = sorted((k for k in stats if math.isfinite(stats[k].mean)),
                    key=lambda k: stats[k].mean)
     if len(order) < 2 or claimed not in order:
-        return "n/a"
+        return "n/a", ""
     rival = order[1] if order[0] == claimed else order[0]  # the runner-up, or the best
     if within_scatter(stats[claimed], stats[rival]):
-        return "inconclusive"
-    return consistent(order[0] == claimed)
+        return "inconclusive", scatter_clause(stats[claimed], stats[rival])
+    return consistent(order[0] == claimed), ""
 
 
 def consistent(ok: bool) -> str:
