@@ -326,24 +326,15 @@ def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
     :func:`spslidar.pipeline.preflight`, times its runs, over the workers), added to the
     batches' before it in this command, exceeds ``ctx.max_time``; one over 30 s says its
     estimate first. The experiments finished before a refusal keep their report sections."""
-    from spslidar.experiments.sweep.grid import (
-        KEY_LENGTH,
-        SEED_KEY,
-        TRIAL_KEY,
-        canonical_json,
-        derive_seed,
-        sha256_hex,
-    )
+    from spslidar.experiments.sweep.grid import TRIAL_KEY, point_key, with_seed
     from spslidar.pipeline import PROCESSING_KEYS, preflight
     from spslidar.pipeline.budget import check_time
 
     seconds: dict[str, float] = {}
     total = 0.0
     for params in points:
-        full = dict(params)  # its cache file, as run_sweep names it: a cached run costs nothing
-        full.setdefault(SEED_KEY, derive_seed(ctx.seed, {k: v for k, v in params.items()
-                                                         if k not in PROCESSING_KEYS}))
-        key = sha256_hex(canonical_json(full))[:KEY_LENGTH]
+        # its cache file, as run_sweep names it: a cached run costs nothing
+        key = point_key(with_seed(params, ctx.seed, PROCESSING_KEYS))
         if (ctx.cache / "runs" / f"{key}.json").is_file():
             continue  # (a resumed fig2 was refused for the run it had cached)
         cfg = {k: v for k, v in params.items() if k != TRIAL_KEY and k not in PROCESSING_KEYS}

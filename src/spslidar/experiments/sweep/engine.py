@@ -36,6 +36,7 @@ from spslidar.experiments.sweep.grid import (
     one_line,
     same_value,
     sha256_hex,
+    with_seed,
 )
 from spslidar.experiments.sweep.store import load_cached, store_run, write_csv
 
@@ -400,11 +401,8 @@ def run_sweep(
     for i, point in enumerate(points):
         if not isinstance(point, Mapping):
             raise ConfigError(f"point {i} must be a dict, got {type(point).__name__}")
-        params = dict(point)
-        canonical(params, f"point {i}")  # validate first, for a clear message
-        if SEED_KEY not in params:
-            seeded = {k: v for k, v in params.items() if k not in ignore}
-            params[SEED_KEY] = derive_seed(seed, seeded)
+        canonical(dict(point), f"point {i}")  # validate first, for a clear message
+        params = with_seed(point, seed, ignore)
         text = canonical_json(params, f"point {i}")
         key = sha256_hex(text)[:KEY_LENGTH]
         full_params.append(params)

@@ -16,7 +16,7 @@ import itertools
 import json
 import os
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,6 +44,7 @@ __all__ = [
     "derive_seed",
     "expand_grid",
     "same_value",
+    "with_seed",
     "load_sweep_config",
     "point_key",
 ]
@@ -174,6 +175,19 @@ def derive_seed(seed: int, params: Mapping[str, Any]) -> int:
         raise ConfigError(f"params must be a dict, got {type(params).__name__}")
     digest = sha256_hex(canonical_json({"seed": seed, "params": canonical(params, "params")}))
     return int(digest[:16], 16) % SEED_BOUND
+
+
+def with_seed(params: Mapping[str, Any], seed: int,
+              ignore: Iterable[str] = ()) -> dict[str, Any]:
+    """``params`` with its ``seed`` key: :func:`derive_seed` of the sweep seed and the params
+    without ``ignore``, unless the point sets its own. What :func:`point_key` hashes, for
+    :func:`~spslidar.experiments.sweep.run_sweep` and for whoever needs a point's cache file
+    before running it."""
+    out = dict(params)
+    if SEED_KEY not in out:
+        skip = frozenset(ignore)
+        out[SEED_KEY] = derive_seed(seed, {k: v for k, v in params.items() if k not in skip})
+    return out
 
 
 def point_key(params: Mapping[str, Any]) -> str:
