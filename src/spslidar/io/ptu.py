@@ -149,6 +149,13 @@ class PtuAcquisition:
         """Number of patterns ``M`` (rows of ``histograms``)."""
         return int(self.histograms.shape[0])
 
+    @property
+    def ends_in_empty_block(self) -> bool:
+        """Whether the last row's block holds no photons and lasts at most one code period:
+        what an end-of-acquisition marker read as a block looks like."""
+        return bool(self.counts_per_pattern.size and self.counts_per_pattern[-1] == 0
+                    and self.periods_per_pattern[-1] <= 1)
+
 
 def _positive_int(value: Any, name: str) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
@@ -638,15 +645,16 @@ def read_ptu_histograms(
     counts = hist.sum(axis=1, dtype=np.int64)
     end = starts[rows] if n_markers > rows else last_sync + 1
     dwell = np.diff(np.append(starts[:rows], end))
-    notes = []
-    if n_markers == rows and counts[-1] == 0 and dwell[-1] <= 1:
-        notes.append(f"the last of the {rows} marker blocks holds no photons and lasts "
-                     f"{int(dwell[-1])} code period(s) (an end-of-acquisition marker?): it is "
-                     f"kept as a pattern of zeros; n_patterns={rows - 1} leaves it out")
-    return PtuAcquisition(
+    acq = PtuAcquisition(
         histograms=_to_float32(hist), counts_per_pattern=counts,
         pattern_start_sync=starts[:rows], last_sync=last_sync,
         sync_period_s=period, resolution_s=res, bin_width_s=width, binning=binning,
         n_records=n_records, n_photons=n_photons, n_markers=n_markers, n_overflows=n_ofl,
         n_dropped_before_first_marker=n_before, n_dropped_after_last_pattern=n_after,
-        n_out_of_range=n_out, header=header, periods_per_pattern=dwell, warnings=notes)
+        n_out_of_range=n_out, header=header, periods_per_pattern=dwell)
+    if n_markers == rows and acq.ends_in_empty_block:
+        acq.warnings.append(f"the last of the {rows} marker blocks holds no photons and lasts "
+                            f"{int(dwell[-1])} code period(s) (an end-of-acquisition marker?): "
+                            f"it is kept as a pattern of zeros; n_patterns={rows - 1} leaves "
+                            f"it out")
+    return acq

@@ -415,7 +415,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     # extra block's periods too: twice its dwell, its histogram halved)
     n_k = np.maximum(data.periods_per_pattern, 1).astype(np.float64)
     hist = data.histograms.astype(np.float64)
-    if m > 1 and data.counts_per_pattern[-1] == 0 and n_k[-1] <= 1:
+    if m > 1 and data.ends_in_empty_block:
         # an end-of-acquisition marker read as a pattern: a row of zeros is no measurement
         dwell_warning.append(
             f"the last of the {m} marker blocks holds no photons and lasts {int(n_k[-1])} code "
