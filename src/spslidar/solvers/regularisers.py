@@ -450,8 +450,10 @@ class TV(Regulariser):
         # the prox moves each value by at most 4 t (|p| <= 1, four differences per pixel): a
         # t below round-off of the largest |v| is the identity, and computed as such (the dual's
         # v / t overflowed float32 for t below ~1e-38 and gave NaN everywhere)
+        # (|v|'s largest from two reductions, no |v| array: this runs every iteration)
         if (t == 0.0 or t * float(np.finfo(dt).max) < 1.0
-                or 8.0 * t <= np.finfo(dt).eps * float(np.max(np.abs(v3), initial=0.0))):
+                or 8.0 * t <= np.finfo(dt).eps * max(float(v3.max(initial=0.0)),
+                                                      -float(v3.min(initial=0.0)))):
             self.last_inner_iterations = 0
             z = np.maximum(v3, 0) if self.nonneg else v3.copy()
             return z.reshape(v.shape)
