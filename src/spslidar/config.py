@@ -519,7 +519,7 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         what = "is a command-line option" if len(unknown) == 1 else "are command-line options"
         raise ConfigError(f"config file {p}: {', '.join(unknown)} {what} (of the output, not "
                           f"of the run): give it on the command line")
-    return resolve_scene_path(data, p.parent)
+    return resolve_file_paths(data, p.parent)
 
 
 #: keys of ``spslidar run`` that belong to the command, not to the run's configuration
@@ -529,7 +529,7 @@ CLI_ONLY_KEYS = frozenset({"out", "overwrite", "save_ptu", "fov", "no_figure", "
 FILE_KEYS = ("scene", "irf")
 
 
-def resolve_scene_path(data: dict[str, Any], base: Path) -> dict[str, Any]:
+def resolve_file_paths(data: dict[str, Any], base: Path) -> dict[str, Any]:
     """A relative scene or IRF *file* named in a config file is relative to that file's folder
     (a built-in scene name or an IRF spec like ``gaussian:2`` is left alone), as a user writing
     ``scene = "data/bike.npz"`` next to the TOML expects wherever the command is run from (a

@@ -438,10 +438,10 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
                           f"(or use 'spslidar run --config')")
     # scene and IRF files named relative to the TOML are read from its folder, as in
     # `run --config`
-    from spslidar.config import resolve_scene_path
+    from spslidar.config import resolve_file_paths
 
-    base = resolve_scene_path(base, path.parent)
-    grid = {name: [resolve_scene_path({name: v}, path.parent)[name] for v in values]
+    base = resolve_file_paths(base, path.parent)
+    grid = {name: [resolve_file_paths({name: v}, path.parent)[name] for v in values]
             for name, values in grid.items()}
     return SweepSpec(
         seed=seed,
