@@ -171,20 +171,27 @@ def test_snr_histogram_too_large_is_one_line(capsys, monkeypatch):
     assert len(err.splitlines()) == 1 and "GB" in err and "--method sum" in err
 
 
+def _project_with_an_irf(tmp_path, monkeypatch, name: str, toml: str):
+    """A project folder holding a one-bin ``irf.npy`` and the TOML ``name``, run from its
+    parent (so that a path read from the current folder misses the IRF)."""
+    sub = tmp_path / "project"
+    sub.mkdir()
+    irf = np.zeros(9)
+    irf[4] = 1.0
+    np.save(sub / "irf.npy", irf)
+    (sub / name).write_text(toml)
+    monkeypatch.chdir(tmp_path)
+    return sub
+
+
 def test_toml_files_a_user_writes(tmp_path, monkeypatch, capsys):
     """An audit of 2026-11-28: a relative irf = "irf.npy" was read from the current folder
     (the same TOML gave another response elsewhere); a TOML's code-length could not be
     overridden by --code-length ('given twice'); noise = 1 beside [run] noise = 7 took 7; out
     and a BOM and a folder gave messages that did not say what was wrong; --no-noiseless did
     not exist to undo a TOML's noiseless = true."""
-    sub = tmp_path / "project"
-    sub.mkdir()
-    irf = np.zeros(9)
-    irf[4] = 1.0
-    np.save(sub / "irf.npy", irf)
-    (sub / "cfg.toml").write_text('irf = "irf.npy"\nsize = 8\ncode-length = 255\n'
-                                  'noiseless = true\n')
-    monkeypatch.chdir(tmp_path)
+    sub = _project_with_an_irf(tmp_path, monkeypatch, "cfg.toml",
+                               'irf = "irf.npy"\nsize = 8\ncode-length = 255\nnoiseless = true\n')
     assert Config.from_toml(sub / "cfg.toml").irf == str(sub / "irf.npy")
     (sub / "spec.toml").write_text('irf = "gaussian:2e-10"\n')  # a spec, not a file
     assert Config.from_toml(sub / "spec.toml").irf == "gaussian:2e-10"
@@ -208,14 +215,9 @@ def test_a_sweep_follows_its_irf_files_content(tmp_path, monkeypatch):
     hashed, IRF files not); and a relative one is read from the TOML's folder."""
     from spslidar.experiments.sweep import sweep_main
 
-    sub = tmp_path / "project"
-    sub.mkdir()
-    narrow = np.zeros(9)
-    narrow[4] = 1.0
-    np.save(sub / "irf.npy", narrow)
-    (sub / "s.toml").write_text('seed = 1\n[base]\nsize = 8\ncode_length = 255\n'
-                                'irf = "irf.npy"\ndepth = "argmax"\n[grid]\nnoise = [1, 2]\n')
-    monkeypatch.chdir(tmp_path)
+    sub = _project_with_an_irf(tmp_path, monkeypatch, "s.toml",
+                               'seed = 1\n[base]\nsize = 8\ncode_length = 255\n'
+                               'irf = "irf.npy"\ndepth = "argmax"\n[grid]\nnoise = [1, 2]\n')
     assert sweep_main(sub / "s.toml", tmp_path / "o", progress=False) == 0
     first = (tmp_path / "o" / "results.csv").read_text()
     np.save(sub / "irf.npy", np.full(41, 1.0 / 41))  # a 40-bin response
