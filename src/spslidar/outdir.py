@@ -38,7 +38,8 @@ from typing import BinaryIO
 from .errors import ConfigError, SpslidarError
 
 __all__ = ["MARKER", "RESULT_FILES", "atomic_file", "atomic_write_bytes", "atomic_write_text",
-           "check_files", "check_output", "claim_folder", "is_result", "read_marker",
+           "changed_files", "check_files", "check_output", "claim_folder", "is_result",
+           "read_marker",
            "release_folder",
            "sha256_file", "umask_mode", "write_files", "write_result_dir"]
 
@@ -100,14 +101,21 @@ def _write_marker(folder: Path, kind: str, files, run_id: str | None = None,
     atomic_write_text(folder / MARKER, _marker_text(kind, files, run_id, sums))
 
 
+def changed_files(folder: Path, names, sums: dict[str, str]) -> list[str]:
+    """Of the files ``names`` (relative to ``folder``), those that exist and are not what
+    spslidar wrote: not in ``sums`` (their SHA-256 as a marker recorded it) or changed since.
+    ``run``'s result folders and ``reproduce``'s report folders both ask it."""
+    return [name for name in names
+            if (folder / name).is_file() and sums.get(name) != sha256_file(folder / name)]
+
+
 def _changed_files(folder: Path) -> list[str]:
     """The files of a previous result that differ from what spslidar wrote (the SHA-256 its
     marker records; a marker written before the hashes were kept has none to compare)."""
     sums = (read_marker(folder) or {}).get("sha256")
     if not isinstance(sums, dict):
         return []
-    return [name for name, digest in sorted(sums.items())
-            if (folder / name).is_file() and sha256_file(folder / name) != digest]
+    return changed_files(folder, sorted(sums), sums)
 
 
 def is_result(folder: Path) -> bool:

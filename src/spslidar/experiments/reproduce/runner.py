@@ -150,6 +150,11 @@ _STANDARD = ("{name}.png", "{name}.csv", "{name}.md", "{name}_summary.csv", "sec
 _REPORT = ("report.md", "report.html")
 
 
+def _outputs(name: str) -> list[str]:
+    """The files experiment ``name`` writes under its standard names, and the report's."""
+    return [f"{name}/{f.format(name=name)}" for f in _STANDARD] + list(_REPORT)
+
+
 def _written(out: Path) -> dict[str, str] | None:
     """The files this report folder's marker says ``reproduce`` wrote, with their SHA-256
     (None: a folder from a version that did not keep them, whose files cannot be told
@@ -165,14 +170,12 @@ def _refuse_foreign(out: Path, name: str) -> None:
     not write it (not listed, or changed since): a user's ``fig2/fig2.png`` or an edited
     ``report.md`` in a report folder was replaced without a word. Other files of the user's
     (``fig2/notes.txt``) are left as they are."""
-    from spslidar.outdir import sha256_file
+    from spslidar.outdir import changed_files
 
     written = _written(out)
     if written is None:
         return
-    names = [f"{name}/{f.format(name=name)}" for f in _STANDARD] + list(_REPORT)
-    foreign = [n for n in names
-               if (out / n).is_file() and written.get(n) != sha256_file(out / n)]
+    foreign = changed_files(out, _outputs(name), written)
     if foreign:
         one = len(foreign) == 1
         raise SpslidarError(f"--out {out}: {', '.join(foreign)} {'was' if one else 'were'} not "
@@ -193,7 +196,7 @@ def _record_written(out: Path, name: str) -> None:
     else:  # a folder of an earlier version, its marker reproduce's: its outputs are ours
         written, names = {}, [name, *EXPERIMENT_REGISTRY.names()]
     for exp in dict.fromkeys(names):
-        for n in [f"{exp}/{f.format(name=exp)}" for f in _STANDARD] + list(_REPORT):
+        for n in _outputs(exp):
             if (out / n).is_file():
                 written[n] = sha256_file(out / n)
     meta["written"] = dict(sorted(written.items()))
