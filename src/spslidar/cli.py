@@ -404,7 +404,16 @@ def _add_calibrate_parser(sub) -> None:
                     "'spslidar reconstruct --calibration'.")
     _add_acquisition_args(p, "FLAT.ptu", "T3 PTU file of the target")
     p.add_argument("--distance", type=float, required=True, metavar="M",
-                   help="the flat target's distance from the lidar, metres")
+                   help="the flat target's distance from the lidar (on the optical axis), "
+                        "metres")
+    p.add_argument("--target", choices=("auto", "plane", "range"), default="auto",
+                   help="what the target's pixels see: 'plane', a flat wall facing the lidar, "
+                        "farther towards the corners (its spread removed); 'range', one range "
+                        "on every pixel (a small target, a sphere); 'auto' (default): the "
+                        "plane where the data ask for one")
+    p.add_argument("--fov", type=_fov, default=None, metavar="DEG",
+                   help="the flat wall's field of view across the image, degrees (default: "
+                        "fitted from the data)")
     p.add_argument("--out", required=True, metavar="CAL.json", help="calibration file to write")
     p.add_argument("--overwrite", action="store_true",
                    help="replace a calibration file spslidar wrote")
@@ -418,7 +427,8 @@ def _cmd_calibrate(args) -> int:
     cal = calibrate_ptu(args.ptu, load_patterns(args.patterns, distinct=False),
                         load_code(args.code, args.code_length), args.bit_rate, args.distance,
                         marker=args.marker, channel=args.channel,
-                        allow_binning=args.allow_binning)
+                        allow_binning=args.allow_binning, target=args.target,
+                        fov_deg=args.fov)
     path = write_calibration(cal, args.out, args.overwrite)
     _WRITTEN.append(str(path))
     period_ns = cal["code_length"] / args.bit_rate * 1e9
@@ -427,6 +437,7 @@ def _cmd_calibrate(args) -> int:
           f"{period_ns:.4g} ns); IRF FWHM {cal['irf_fwhm_bins']:.2f} bins; "
           f"{cal['measured_from']['photons']} photons, peak {cal['peak_to_noise']:.3g} noise "
           f"standard deviations")
+    print(f"target: {cal['target']['reason']}")
     print(f"wrote {path}")
     return 0
 

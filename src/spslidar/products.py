@@ -33,7 +33,8 @@ import numpy as np
 
 from .errors import ConfigError
 
-__all__ = ["DEFAULT_FOV_DEG", "point_cloud", "read_ply", "reflectivity_image", "write_ply"]
+__all__ = ["DEFAULT_FOV_DEG", "pixel_rays", "point_cloud", "read_ply", "reflectivity_image",
+           "write_ply"]
 
 #: full field of view across the image (degrees) when none is given
 DEFAULT_FOV_DEG = 10.0
@@ -97,6 +98,23 @@ def check_fov(fov_deg: Any) -> float:
     return float(fov_deg)
 
 
+def pixel_rays(shape: tuple[int, int], fov_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """The pinhole's ray of each pixel: pixel ``(r, c)`` looks along ``(u, v, 1)``, ``u`` to
+    the right and ``v`` down (module docstring), the full field of view ``fov_deg`` across
+    the larger side.
+
+    Returns
+    -------
+    u, v : ndarray, shape ``shape``
+    """
+    check_fov(fov_deg)
+    rows, cols = (int(n) for n in shape)
+    scale = 2.0 * np.tan(np.radians(float(fov_deg)) / 2.0) / max(rows, cols)
+    v, u = np.meshgrid((np.arange(rows) + 0.5 - rows / 2.0) * scale,
+                       (np.arange(cols) + 0.5 - cols / 2.0) * scale, indexing="ij")
+    return u, v
+
+
 def point_cloud(depth: np.ndarray, fov_deg: float = DEFAULT_FOV_DEG,
                 intensity: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """3-D points of a depth (range) image seen through a pinhole of field of view ``fov_deg``.
@@ -120,11 +138,7 @@ def point_cloud(depth: np.ndarray, fov_deg: float = DEFAULT_FOV_DEG,
     d = np.asarray(depth, dtype=np.float64)
     if d.ndim != 2:
         raise ValueError(f"depth must be a 2-D image, got shape {d.shape}")
-    check_fov(fov_deg)
-    rows, cols = d.shape
-    scale = 2.0 * np.tan(np.radians(float(fov_deg)) / 2.0) / max(rows, cols)
-    v, u = np.meshgrid((np.arange(rows) + 0.5 - rows / 2.0) * scale,
-                       (np.arange(cols) + 0.5 - cols / 2.0) * scale, indexing="ij")
+    u, v = pixel_rays(d.shape, fov_deg)
     norm = np.sqrt(u * u + v * v + 1.0)
     have = np.isfinite(d)
     r = d[have] / norm[have]

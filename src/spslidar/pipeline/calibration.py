@@ -94,8 +94,21 @@ def _vertex(y0, y1, y2):
     return np.where(concave, 0.5 * (y0 - y2) / np.where(concave, den, -1.0), 0.0)
 
 
+def code_response(hist: np.ndarray, code: np.ndarray) -> np.ndarray:
+    """The histogram(s) with the code deconvolved along the last axis: Wiener, in the Fourier
+    domain of one code period (exact for an m-sequence, whose spectrum is flat; regularised
+    at ``1e-3`` of the median power for a random code's weak frequencies)."""
+    c = np.asarray(code, dtype=np.float64)
+    spec_c = np.fft.rfft(c)
+    power = np.abs(spec_c) ** 2
+    eps = 1e-3 * float(np.median(power))
+    return np.fft.irfft(np.fft.rfft(np.asarray(hist, dtype=np.float64), axis=-1)
+                        * np.conj(spec_c) / (power + eps), c.size, axis=-1)
+
+
 def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, distance: float,
-                     pulse_width: float = 0.5) -> dict[str, Any]:
+                     pulse_width: float = 0.5, response: np.ndarray | None = None
+                     ) -> dict[str, Any]:
     """System delay and IRF from the summed histogram of a flat target at ``distance``.
 
     Parameters
@@ -111,6 +124,10 @@ def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, dista
         delay is measured modulo the code period, as every return is).
     pulse_width : float
         Laser pulse width, bins.
+    response : ndarray, shape (L,), optional
+        The code-free response itself (:func:`code_response` of ``hist``), where it was
+        found otherwise: a flat wall's, with its range spread removed
+        (:func:`spslidar.pipeline.target.range_free_response`).
 
     Returns
     -------
@@ -140,10 +157,7 @@ def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, dista
         raise ConfigError(f"--distance must be a distance in metres, got {distance!r}")
     # a return is known modulo the code period: so are the target's delay and the system delay
     tau_d = (2.0 * float(distance) / (SPEED_OF_LIGHT * bin_width)) % period
-    spec_c = np.fft.rfft(c)
-    power = np.abs(spec_c) ** 2
-    eps = 1e-3 * float(np.median(power))  # Wiener: weak frequencies of a random code
-    g = np.fft.irfft(np.fft.rfft(h) * np.conj(spec_c) / (power + eps), period)
+    g = code_response(h, c) if response is None else np.asarray(response, np.float64).copy()
     g -= np.median(g)  # the background is a constant
     p0 = int(np.argmax(g))
     side = np.r_[np.arange(p0 - 3 * IRF_BEFORE, p0 - IRF_BEFORE),
@@ -271,10 +285,17 @@ def fwhm_bins(values: np.ndarray) -> float:
 def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray,
                   bit_rate: float, distance: float, *, marker: int = 1,
                   channel: int | None = None, pulse_width: float = 0.5,
-                  allow_binning: bool = False) -> dict[str, Any]:
+                  allow_binning: bool = False, target: str = "auto",
+                  fov_deg: float | None = None) -> dict[str, Any]:
     """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target,
     with what it was measured from (file, hash, photons, patterns, bit rate, code);
-    ``allow_binning`` as :func:`~spslidar.pipeline.real.reconstruct_ptu`."""
+    ``allow_binning`` as :func:`~spslidar.pipeline.real.reconstruct_ptu`.
+
+    ``target`` says what the target's pixels see (:mod:`spslidar.pipeline.target`):
+    ``range``, one range (the patterns' sum is read as it is); ``plane``, a flat wall at
+    ``distance`` on the optical axis, whose range spread over the field of view ``fov_deg``
+    (fitted where not given) and tilt is removed; ``auto`` (the default), the plane where the
+    blocks' delays ask for one, else one range. The JSON's ``target`` says which and why."""
     from ..io import read_ptu_histograms
     from ..version import __version__
     from .real import (
@@ -298,10 +319,14 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     check_blocks(data, int(patterns.shape[0]), ptu)
     for note in block_notes(data, int(patterns.shape[0])):
         warnings.warn(note, stacklevel=2)
-    total = data.histograms.astype(np.float64).sum(axis=0)
-    cal = measure_response(total, code, bin_width, distance, pulse_width)
+    hists = data.histograms
+    total = hists.astype(np.float64).sum(axis=0)
+    geometry, response = _target_geometry(hists, patterns, code, bin_width, distance, target,
+                                          fov_deg)
+    cal = measure_response(total, code, bin_width, distance, pulse_width, response=response)
     path = Path(ptu)
-    return {"kind": CAL_KIND, "version": __version__, **cal, "bin_width_s": bin_width,
+    return {"kind": CAL_KIND, "version": __version__, **cal, "target": geometry,
+            "bin_width_s": bin_width,
             "bit_rate_hz": float(bit_rate), "code_length": int(code.size),
             "code_sha256": hashlib.sha256(np.asarray(code, np.uint8).tobytes()).hexdigest(),
             "pulse_width": float(pulse_width), "distance_m": float(distance),
@@ -310,6 +335,34 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                               "photons": int(data.counts_per_pattern.sum()),
                               "photons_in_file": int(data.n_photons),
                               "patterns": int(patterns.shape[0])}}
+
+
+def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
+                     bin_width: float, distance: float, target: str, fov_deg: float | None
+                     ) -> tuple[dict[str, Any], np.ndarray | None]:
+    """What the calibration target's pixels see (:mod:`~spslidar.pipeline.target`): its
+    geometry for the JSON, and the response of one range where it is a plane (else None:
+    the patterns' sum is read)."""
+    from ..products import check_fov
+    from .target import TARGETS, measure_geometry, range_free_response
+
+    if target not in TARGETS:
+        raise ConfigError(f"--target must be one of {', '.join(TARGETS)}, got {target!r}")
+    if fov_deg is not None:
+        fov_deg = check_fov(fov_deg)
+    if not (np.isfinite(distance) and 0.0 <= float(distance) <= 1e6):
+        raise ConfigError(f"--distance must be a distance in metres, got {distance!r}")
+    if target == "range":
+        if fov_deg is not None:
+            raise ConfigError("--fov gives a flat wall's field of view: it does not go with "
+                              "--target range")
+        return {"model": "range", "reason": "--target range"}, None
+    n = int(round(np.sqrt(patterns.shape[1])))
+    geo = measure_geometry(hists, patterns, code, bin_width, distance, (n, n), fov_deg, target)
+    offsets = geo.pop("offsets")
+    if geo["model"] != "plane":
+        return geo, None
+    return geo, range_free_response(hists, patterns, code, offsets)
 
 
 def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Path:

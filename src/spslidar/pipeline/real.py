@@ -498,6 +498,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         "file": cal.get("file"), "sha256": cal.get("file_sha256"), "delay_s": cal["delay_s"],
         "lag_shift": cal["lag_shift"], "lag_fraction": frac, "spread": spread,
         "irf_fwhm_bins": cal["irf_fwhm_bins"], "distance_m": cal.get("distance_m"),
+        "target": cal.get("target"),
         "measured_from": cal.get("measured_from")}
     return result
 

@@ -1,0 +1,170 @@
+"""The calibration target's own geometry (:mod:`spslidar.pipeline.target`): a flat wall facing
+the lidar is farther at the corners than on the axis, and ``calibrate`` removes that spread
+instead of reading it as the instrument's response (found by an audit, 2026-11-28: a 10 degree
+wall at 25 m gave 14.236 ns for 13.74 and an IRF 8.29 bins wide)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spslidar.cli import main
+from spslidar.codes.sequences import lfsr_sequence
+from spslidar.errors import ConfigError
+from spslidar.pipeline.calibration import code_response, measure_response
+from spslidar.pipeline.target import (
+    measure_geometry,
+    plane_offsets,
+    plane_ranges,
+    range_free_response,
+)
+from spslidar.products import point_cloud
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def test_a_facing_plane_lies_at_its_distance_through_the_pinhole():
+    """Independent of the module: the points of ``points.ply``'s pinhole from the plane's
+    ranges all have z = D (a facing wall) or z = D + a x + b y (a tilted one)."""
+    rng = plane_ranges((9, 9), 25.0, 30.0)
+    pts, _ = point_cloud(rng, fov_deg=30.0)
+    np.testing.assert_allclose(pts[:, 2], 25.0, rtol=1e-12)  # float64 throughout
+    assert rng[4, 4] == 25.0  # the centre pixel of an odd image looks along the axis
+    corner = 4 * 2 * np.tan(np.radians(15.0)) / 9  # u = v of the corner pixel's ray
+    assert rng[0, 0] == pytest.approx(25.0 * np.sqrt(1 + 2 * corner**2), rel=1e-12)
+    tilted = plane_ranges((8, 8), 10.0, 20.0, slopes=(0.1, -0.2))
+    p, _ = point_cloud(tilted, fov_deg=20.0)
+    np.testing.assert_allclose(p[:, 2], 10.0 + 0.1 * p[:, 0] - 0.2 * p[:, 1], rtol=1e-12)
+
+
+def test_a_plane_behind_a_pixel_is_refused():
+    with pytest.raises(ConfigError, match="in front of the lidar"):
+        plane_ranges((8, 8), 10.0, 120.0, slopes=(0.9, 0.0))
+
+
+def _histograms(phi, code, irf, offsets, delay, rng=None, photons=None):
+    """Each pattern's histogram: its pixels' returns, each the IRF at ``delay + s_p`` (whole
+    bins, so the kernel's two-bin split is exact), circularly convolved with the code."""
+    period = code.size
+    resp = np.zeros((phi.shape[1], period))
+    for p, s in enumerate(offsets):
+        resp[p, (delay + int(s) + np.arange(irf.size)) % period] = irf
+    amp = phi @ resp
+    hist = np.fft.irfft(np.fft.rfft(amp, axis=1) * np.fft.rfft(code)[None, :], period, axis=1)
+    if rng is not None:
+        lam = np.clip(hist, 0.0, None)  # (round-off of the FFT below 0)
+        hist = rng.poisson(photons * lam / lam.sum(axis=1, keepdims=True)).astype(float)
+    return hist
+
+
+def test_range_free_response_recovers_the_irf_exactly_without_noise():
+    """Noiseless, offsets on whole bins: the Wiener estimate without regularisation is the
+    IRF at the axis's delay to round-off, where the patterns' sum is smeared over the
+    spread (its peak holds 0.19 of the IRF's 0.6)."""
+    rng = np.random.default_rng(0)
+    code = lfsr_sequence(7).astype(float)  # 127 bits
+    phi = (rng.random((96, 64)) < 0.5).astype(float)
+    offsets = rng.integers(0, 6, 64).astype(float)
+    irf = np.array([0.1, 0.6, 0.2, 0.1])
+    hist = _histograms(phi, code, irf, offsets, delay=40)
+    g = range_free_response(hist, phi, code, offsets, reg=0.0)
+    g = g / g.sum()  # (the shape: its scale is the patterns' mean light)
+    want = np.zeros(code.size)
+    want[40:44] = irf
+    np.testing.assert_allclose(g, want, atol=1e-9)
+    summed = code_response(hist.sum(axis=0), code)
+    summed = summed - np.median(summed)
+    assert summed.max() / summed.sum() < 0.25  # the spread smears the sum's peak
+
+
+def test_geometry_finds_a_walls_spread_and_one_range():
+    """Poisson photons through the same model: the scan finds the spread within its half-bin
+    step and keeps the plane; a target at one range stays one range."""
+    rng = np.random.default_rng(1)
+    code = lfsr_sequence(9).astype(float)  # 511 bits
+    phi = (rng.random((128, 256)) < 0.5).astype(float)
+    bin_width = 1e-10
+    off = plane_offsets((16, 16), 25.0, 16.0, bin_width)
+    whole = np.round(off)  # the data on whole bins, the scan's candidates fractional
+    irf = np.array([0.05, 0.5, 0.3, 0.1, 0.05])
+    hist = _histograms(phi, code, irf, whole, delay=100, rng=rng, photons=4e5)
+    geo = measure_geometry(hist, phi, code, bin_width, 25.0, (16, 16))
+    assert geo["model"] == "plane"
+    assert abs(geo["spread_bins"] - (whole.max() - whole.min())) <= 1.0
+    assert geo["fov_deg"] == pytest.approx(16.0, abs=1.0)
+    flat = _histograms(phi, code, irf, np.zeros(256), delay=100, rng=rng, photons=4e5)
+    one = measure_geometry(flat, phi, code, bin_width, 25.0, (16, 16))
+    assert one["model"] == "range" and one["spread_bins"] == 0.0 and one["offsets"] is None
+    given = measure_geometry(hist, phi, code, bin_width, 25.0, (16, 16), fov_deg=16.0)
+    assert given["model"] == "plane" and given["z"] is None
+    np.testing.assert_allclose(given["offsets"], off)
+
+
+@pytest.fixture(scope="module")
+def plane_wall(tmp_path_factory):
+    """The independent instrument of ``test_independent_ptu`` (its own PicoHarp writer, delay
+    and jittered, tailed IRF) on a flat wall 25 m ahead through a 10 degree field of view:
+    its corners 0.168 m (11.9 bins) farther than its centre."""
+    pytest.importorskip("ptufile")
+    import test_independent_ptu as indep
+
+    path = tmp_path_factory.mktemp("plane_wall")
+    u = (np.arange(indep.N) + 0.5 - indep.N / 2) * 2 * np.tan(np.radians(5.0)) / indep.N
+    ranges = 25.0 * np.sqrt(1 + u[:, None] ** 2 + u[None, :] ** 2)  # written here, not by
+    indep._acquire_instrument(path, "wall", ranges, np.full_like(ranges, 0.8), 1)  # spslidar
+    files = ["--ptu", str(path / "wall.ptu"), "--patterns", str(path / "wall_patterns.npy"),
+             "--code", str(path / "wall_code.npy"), "--bit-rate", "10e9", "--distance", "25"]
+    return path, files, indep.SYSTEM_DELAY_BINS / indep.BIT_RATE
+
+
+def test_calibrate_removes_a_flat_walls_spread(plane_wall, capsys):
+    """Measured: the delay within 0.02 ns of the written 13.74 ns (0.14 ns is a quarter bin
+    of pulse convention plus the tail, as for a wall at one range), the IRF 2.0-2.6 bins
+    wide as the one-range wall's 1.9, the field of view fitted to 10.0 degrees; read as one
+    range the same file gives 14.24 ns and 8.3 bins."""
+    path, files, delay = plane_wall
+    assert main(["calibrate", *files, "--out", str(path / "auto.json")]) == 0
+    assert "a wall facing the lidar, fitted" in capsys.readouterr().out
+    cal = json.loads((path / "auto.json").read_text())
+    assert cal["target"]["model"] == "plane"
+    assert cal["target"]["fov_deg"] == pytest.approx(10.0, abs=0.5)
+    assert cal["delay_s"] == pytest.approx(delay, abs=0.3e-10)
+    assert cal["irf_fwhm_bins"] < 3.0
+    assert main(["calibrate", *files, "--target", "range", "--out", str(path / "r.json")]) == 0
+    one = json.loads((path / "r.json").read_text())
+    assert one["delay_s"] - delay > 3e-10 and one["irf_fwhm_bins"] > 6.0  # what it mends
+    assert main(["calibrate", *files, "--fov", "10", "--out", str(path / "fov.json")]) == 0
+    given = json.loads((path / "fov.json").read_text())
+    assert given["target"]["model"] == "plane" and given["target"]["z"] is None
+    assert given["delay_s"] == pytest.approx(delay, abs=0.3e-10)
+
+
+@pytest.mark.parametrize("args, match", [
+    (["--target", "range", "--fov", "10"], "does not go with --target range"),
+    (["--fov", "0"], "must lie in"),
+    (["--target", "sphere"], "invalid choice"),
+])
+def test_calibrate_refuses_a_target_it_cannot_read(plane_wall, args, match, capsys):
+    path, files, _ = plane_wall
+    try:
+        rc = main(["calibrate", *files, *args, "--out", str(path / "x.json")])
+    except SystemExit as exc:  # (argparse's own refusals exit from the parser)
+        rc = exc.code
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert match in err and "Traceback" not in err
+    assert not (path / "x.json").exists()
+
+
+def test_measure_response_reads_a_given_response_as_its_own():
+    """``response=`` is the code-free response the histogram would give: the same numbers."""
+    code = lfsr_sequence(8).astype(float)
+    irf = np.array([0.2, 0.7, 0.1])
+    hist = _histograms(np.ones((1, 1)), code, irf, [0.0], delay=30)[0] + 5.0
+    a = measure_response(hist, code, 1e-10, 0.0)
+    b = measure_response(hist, code, 1e-10, 0.0, response=code_response(hist, code))
+    assert a == b
