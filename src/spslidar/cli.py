@@ -534,7 +534,7 @@ def _cmd_run(args) -> int:
 
         raise ConfigError("--save-ptu must name a file (FILE.ptu)")
     if save_ptu:
-        from .outdir import check_files
+        from .outfiles import check_files
         from .pipeline.real import ptu_companions
 
         ptu_files = [save_ptu, *ptu_companions(save_ptu)]
@@ -543,7 +543,7 @@ def _cmd_run(args) -> int:
     base = read_toml(args.config) if args.config else {}
     cfg = Config.from_dict(base, **opts)  # (a TOML's code-length, overridden by --code-length)
     if save_ptu:
-        from .outdir import write_files
+        from .outfiles import write_files
         from .pipeline import measure, reconstruct
         from .pipeline.real import write_measurement_arrays, write_measurement_ptu
 

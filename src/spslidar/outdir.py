@@ -1,12 +1,18 @@
 """Output folders that never lose a user's files.
 
-``spslidar run --out DIR`` writes its result into a temporary folder next to ``DIR`` and moves
-it into place only once complete. ``DIR`` may be
+``spslidar run --out DIR`` writes its result into a temporary folder on the filesystem of
+``DIR`` and moves it into place only once complete. ``DIR`` may be
 
-* a path that does not exist yet (the finished folder is renamed to it, atomically);
-* an existing empty folder (the finished files are moved into it);
+* a path that does not exist yet (the temporary folder is made beside it and renamed to it,
+  atomically);
+* an existing empty folder, a mount point or a link to a folder on another filesystem
+  included (the temporary folder is made inside it, so that only the folder itself need be
+  writable, and the finished files are moved into it);
 * a previous spslidar result, and only with ``overwrite=True`` (the new files replace the old
-  ones; the folder itself, its permissions and anything a shell has open there stay).
+  ones; the folder itself, its permissions and anything a shell has open there stay). The
+  marker lists the old and the new files' SHA-256 while they are moved, and an interrupted
+  move is undone, so the folder holds the old result or the new one, never a mix refused as
+  edited.
 
 Anything else (a file, or a folder holding anything but a spslidar result's files) is refused
 with a one-line :class:`~spslidar.errors.SpslidarError` before any work is done. Nothing is
@@ -16,7 +22,11 @@ version and the names of the files it wrote), not by their names; a folder that 
 a ``metrics.json`` is not a result. The same rule holds for every command that writes:
 ``sweep`` and ``reproduce`` write into a folder that is new, empty or marked as theirs
 (:func:`claim_folder`), ``run --save-ptu`` replaces a PTU file and its two arrays only when
-their own marker proves they are what it wrote (:func:`check_files`, :func:`write_files`).
+their own marker proves they are what it wrote (:mod:`spslidar.outfiles`).
+A command writing files into a folder it fills over time first notes each file's SHA-256 in
+the folder's marker (:func:`journal`), then moves it into place, so that whatever the moment
+of an interrupt the marker knows every file it wrote (:func:`owned_sums`,
+:func:`record_outputs`).
 
 Folders and files are created with the user's umask (``tempfile.mkdtemp`` alone would leave
 the folder ``0700``).
@@ -25,6 +35,7 @@ the folder ``0700``).
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import json
 import os
@@ -37,14 +48,17 @@ from typing import BinaryIO
 
 from .errors import ConfigError, SpslidarError
 
-__all__ = ["MARKER", "RESULT_FILES", "atomic_file", "atomic_write_bytes", "atomic_write_text",
-           "changed_files", "check_files", "check_output", "claim_folder", "is_result",
-           "read_marker",
-           "release_folder",
-           "sha256_file", "umask_mode", "write_files", "write_result_dir"]
+__all__ = ["MARKER", "RESULT_FILES", "atomic_file", "atomic_path", "atomic_write_bytes",
+           "atomic_write_text", "changed_files", "check_output", "claim_folder",
+           "foreign_outputs", "is_result", "journal", "owned_sums", "read_marker",
+           "record_outputs", "release_folder", "sha256_file", "umask_mode", "write_result_dir"]
 
 #: the marker file spslidar writes into every output folder it owns
 MARKER = ".spslidar-output.json"
+
+#: the prefix of the temporary folder a result is written into inside ``--out`` (ignored when
+#: a folder is checked: it is this module's own, and removed when the write ends)
+TMP_PREFIX = ".spslidar-tmp-"
 
 #: Every file a ``spslidar run`` / ``reconstruct`` result folder may hold. A new output of
 #: :meth:`~spslidar.pipeline.results.Result.save` needs its name here (one line): a name not
@@ -95,27 +109,45 @@ def _marker_text(kind: str, files, run_id: str | None = None,
     return json.dumps(meta, indent=1) + "\n"
 
 
-def _write_marker(folder: Path, kind: str, files, run_id: str | None = None,
-                  hashed: bool = False) -> None:
-    sums = {name: sha256_file(folder / name) for name in files} if hashed else None
-    atomic_write_text(folder / MARKER, _marker_text(kind, files, run_id, sums))
+def _hashes(value) -> set[str]:
+    """A marker's record of one file: a SHA-256, or a list of those that count as its."""
+    if isinstance(value, str):
+        return {value}
+    if isinstance(value, (list, tuple, set, frozenset)):
+        return {v for v in value if isinstance(v, str)}
+    return set()
 
 
-def changed_files(folder: Path, names, sums: dict[str, str]) -> list[str]:
+def changed_files(folder: Path, names, sums: dict) -> list[str]:
     """Of the files ``names`` (relative to ``folder``), those that exist and are not what
-    spslidar wrote: not in ``sums`` (their SHA-256 as a marker recorded it) or changed since.
-    ``run``'s result folders and ``reproduce``'s report folders both ask it."""
+    spslidar wrote: not in ``sums`` (their SHA-256 as a marker recorded it, or a list of the
+    SHA-256 that count as spslidar's) or changed since. ``run``'s result folders and
+    ``reproduce``'s report folders both ask it."""
     return [name for name in names
-            if (folder / name).is_file() and sums.get(name) != sha256_file(folder / name)]
+            if (folder / name).is_file()
+            and sha256_file(folder / name) not in _hashes(sums.get(name))]
 
 
 def _changed_files(folder: Path) -> list[str]:
     """The files of a previous result that differ from what spslidar wrote (the SHA-256 its
-    marker records; a marker written before the hashes were kept has none to compare)."""
-    sums = (read_marker(folder) or {}).get("sha256")
+    marker records, or while a replacement was moving files in, the previous result's too; a
+    marker written before the hashes were kept has none to compare)."""
+    meta = read_marker(folder) or {}
+    sums = meta.get("sha256")
     if not isinstance(sums, dict):
         return []
-    return changed_files(folder, sorted(sums), sums)
+    both = {name: _hashes(value) for name, value in sums.items()}
+    previous = meta.get("previous_sha256")
+    if isinstance(previous, dict):  # a replacement cut short (power lost) during its moves
+        for name, value in previous.items():
+            both.setdefault(name, set()).update(_hashes(value))
+    return changed_files(folder, sorted(both), both)
+
+
+def _entries(folder: Path) -> set[str]:
+    """The names in ``folder``, less the temporary folders of this module."""
+    return {p.name for p in Path(folder).iterdir()
+            if not (p.name.startswith(TMP_PREFIX) and p.is_dir() and not p.is_symlink())}
 
 
 def is_result(folder: Path) -> bool:
@@ -125,7 +157,7 @@ def is_result(folder: Path) -> bool:
     if meta is None or meta["kind"] != "result":
         return False
     try:
-        names = {p.name for p in Path(folder).iterdir()} - {MARKER}
+        names = _entries(folder) - {MARKER}
     except OSError:
         return False
     return names <= set(meta["files"])
@@ -163,7 +195,7 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
         if not path.is_dir():
             raise SpslidarError(f"{option} {out}: exists and is not a folder")
         try:
-            empty = next(path.iterdir(), None) is None
+            empty = not _entries(path)
         except OSError as exc:
             raise SpslidarError(f"{option} {out}: cannot read the folder "
                                 f"({exc.strerror})") from None
@@ -185,9 +217,11 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
                     f"{option} {out}: {', '.join(changed)} changed since spslidar wrote "
                     f"{'it' if len(changed) == 1 else 'them'}; refusing to replace a file "
                     f"someone edited (move it away, or choose a new folder)")
-        # the files are moved into it: a read-only folder failed only after the work, naming
-        # a temporary path
+        # the files are written and moved in it: a read-only folder failed only after the
+        # work, naming a temporary path; its parent is not written (a writable empty folder
+        # in a read-only one is accepted)
         _check_writable(path, f"{option} {out}", make_parents=False)
+        return path
     parent = path.parent
     if parent.exists() and not parent.is_dir():
         raise SpslidarError(f"{option} {out}: {parent} is not a folder")
@@ -207,8 +241,6 @@ def _check_writable(folder: Path, what: str, make_parents: bool) -> None:
         raise SpslidarError(f"{what}: the folder {base} does not exist")
     if not base.is_dir():
         raise SpslidarError(f"{what}: {base} is not a folder")
-    import tempfile
-
     try:  # (os.access says yes to root everywhere, /proc included: try it)
         with tempfile.TemporaryFile(dir=base):
             pass
@@ -217,20 +249,120 @@ def _check_writable(folder: Path, what: str, make_parents: bool) -> None:
                             f"({exc.strerror or type(exc).__name__})") from None
 
 
+def _target(path: Path) -> Path:
+    """Where ``path``'s files really go: links resolved (a link to a folder on another
+    filesystem is written through on that filesystem)."""
+    if path.exists():
+        return path.resolve()
+    return path.parent.resolve() / path.name
+
+
+def _move(src: Path, dst: Path) -> None:
+    """``os.replace(src, dst)``; across filesystems (``EXDEV``), a copy under a temporary name
+    beside ``dst`` moved onto it, then ``src`` removed: ``dst`` is never partial."""
+    try:
+        os.replace(src, dst)
+        return
+    except OSError as exc:
+        if exc.errno != errno.EXDEV:
+            raise
+    tmp = dst.with_name(f".{dst.name}.{uuid.uuid4().hex[:8]}.tmp")
+    try:
+        shutil.copy2(src, tmp)
+        os.replace(tmp, dst)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    with contextlib.suppress(OSError):
+        src.unlink()
+
+
+def _swap_in(target: Path, tmp: Path, written: set[str], previous: set[str],
+             new_sums: dict[str, str], kind: str) -> None:
+    """Move the files ``written`` from ``tmp`` into the existing folder ``target`` and the
+    previous result's files (``previous``, which no longer belong) out of it, all or
+    nothing.
+
+    The marker first lists both results (their files and SHA-256), so that a process killed
+    during the moves leaves a folder that a later ``--overwrite`` knows as spslidar's; the
+    previous files are moved aside into ``tmp`` (not deleted) and, on any exception
+    (KeyboardInterrupt included), put back with the previous marker: the folder then holds
+    the previous result as it was, and "nothing was written" is true.
+    """
+    marker = target / MARKER
+    try:
+        old_marker = marker.read_bytes()
+    except FileNotFoundError:
+        old_marker = None
+    old_sums = {name: sha256_file(target / name) for name in sorted(previous)
+                if (target / name).is_file() and not (target / name).is_symlink()}
+    meta = json.loads(_marker_text(kind, set(written) | set(old_sums), None, new_sums))
+    meta["previous_sha256"] = old_sums
+    aside = tmp / ".previous"
+    aside.mkdir()
+    done = False
+    try:
+        atomic_write_text(marker, json.dumps(meta, indent=1) + "\n")
+        for name in sorted(written):
+            if name in old_sums:
+                os.replace(target / name, aside / name)
+            _move(tmp / name, target / name)
+        for name in sorted(set(old_sums) - set(written)):  # only what the old marker lists
+            os.replace(target / name, aside / name)
+        final = json.loads(_marker_text(kind, written, None, new_sums))
+        atomic_write_text(marker, json.dumps(final, indent=1) + "\n")
+        done = True
+    except BaseException:
+        if not done:
+            _undo_swap(target, tmp, aside, written, new_sums, old_marker)
+        raise
+
+
+def _put_back(moves, new_sums: dict[str, str], marker: Path, old_marker: bytes | None) -> None:
+    """Undo moves ``(final, temporary, aside)`` from the state of the files (not from a log a
+    signal could cut between a move and its record): a new file moved in goes, the old one
+    put aside comes back, and so does the old marker."""
+    for final, tmp, aside in moves:
+        if not tmp.exists() and final.is_file() and not final.is_symlink() \
+                and sha256_file(final) == new_sums.get(final.name):
+            final.unlink()
+        if aside.exists():
+            os.replace(aside, final)
+    if old_marker is None:
+        marker.unlink(missing_ok=True)
+    else:
+        atomic_write_bytes(marker, old_marker)
+
+
+def _undo_swap(target: Path, tmp: Path, aside: Path, written: set[str],
+               new_sums: dict[str, str], old_marker: bytes | None) -> None:
+    """Put back a folder :func:`_swap_in` was changing (:func:`_put_back`)."""
+    names = sorted(set(written) | {p.name for p in aside.iterdir()})
+    _put_back([(target / n, tmp / n, aside / n) for n in names], new_sums, target / MARKER,
+              old_marker)
+
+
 def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
                      overwrite: bool = False, option: str = "--out",
                      replace: str = "--overwrite") -> Path:
     """Create the result folder ``out`` through ``fill(tmp)``, all or nothing.
 
     ``fill`` writes the files (names from :data:`RESULT_FILES`) into a fresh temporary folder
-    beside ``out``; the marker listing them is added; on any exception (KeyboardInterrupt
-    included) the temporary folder is removed and ``out`` is untouched. Replacing a previous
-    result removes only the files its marker lists.
+    on ``out``'s filesystem (inside ``out`` when it exists, links resolved; beside it when it
+    does not); the marker listing them is added; on any exception (KeyboardInterrupt
+    included) the temporary folder is removed and ``out`` is untouched, or put back as it
+    was when the files were being moved in. Replacing a previous result removes only the
+    files its marker lists.
     """
     path = check_output(out, overwrite, option, replace)
-    parent = path.parent
-    parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=parent))
+    existed = path.exists()
+    target = _target(path)
+    if existed:
+        tmp = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=target))
+    else:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=target.parent))
     try:
         os.chmod(tmp, umask_mode())
         fill(tmp)
@@ -239,23 +371,21 @@ def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
         if unknown:  # pragma: no cover - a programming error, not user input
             raise RuntimeError(f"Result.save wrote {sorted(unknown)}, not named in "
                                f"spslidar.outdir.RESULT_FILES: add them there")
-        _write_marker(tmp, "result", written, hashed=True)
-        path = check_output(out, overwrite, option, replace)  # nothing appeared meanwhile
-        if not path.exists():
-            os.replace(tmp, path)
+        sums = {name: sha256_file(tmp / name) for name in written}
+        if not existed and not path.exists() and not path.is_symlink():
+            atomic_write_text(tmp / MARKER, _marker_text("result", written, None, sums))
+            os.replace(tmp, target)
             return path
-        previous = set((read_marker(path) or {"files": []})["files"])
-        for name in sorted(written):
-            os.replace(tmp / name, path / name)
-        for name in previous - written:  # only what the previous result's marker lists
-            stale = path / name
-            if stale.is_file():
-                stale.unlink()
-        os.replace(tmp / MARKER, path / MARKER)
-        tmp.rmdir()
-    except BaseException:
+        if not existed:  # another command wrote it meanwhile (two runs on one new folder)
+            raise SpslidarError(
+                f"{out}: another command wrote into this folder while this run was working "
+                f"(it was new when the run started); this run's result was not saved "
+                f"(run it again into a new folder)")
+        path = check_output(out, overwrite, option, replace)  # nothing appeared meanwhile
+        previous = set((read_marker(target) or {"files": []})["files"])
+        _swap_in(target, tmp, written, previous, sums, "result")
+    finally:
         shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return path
 
 
@@ -283,9 +413,12 @@ def claim_folder(out: str | os.PathLike, kind: str, option: str = "--out") -> Pa
     if path.is_dir():  # what it writes goes into it
         _check_writable(path, f"{option} {out}", make_parents=False)
     if empty:
-        _check_writable(path.parent, f"{option} {out}", make_parents=True)
+        if not path.is_dir():
+            _check_writable(path.parent, f"{option} {out}", make_parents=True)
         path.mkdir(parents=True, exist_ok=True)
-        _write_marker(path, kind, [])
+        meta = json.loads(_marker_text(kind, []))
+        meta["written"] = {}  # what it writes is recorded (a user's file put there is not)
+        atomic_write_text(path / MARKER, json.dumps(meta, indent=1) + "\n")
         return path
     meta = read_marker(path)
     if meta is None or meta["kind"] != kind:
@@ -318,6 +451,99 @@ def release_folder(folder: Path, existed: bool) -> bool:
     return True
 
 
+#: folders whose outputs are being journaled: folder -> the names (relative, POSIX) of the
+#: files whose SHA-256 goes into the marker before they are moved into place
+_JOURNALS: dict[Path, frozenset[str]] = {}
+
+
+@contextlib.contextmanager
+def journal(folder: str | os.PathLike, names) -> Iterator[None]:
+    """While the block runs, every file ``folder/NAME`` (``NAME`` in ``names``) written
+    through :func:`atomic_file`, :func:`atomic_path` or the ``atomic_write_*`` functions has
+    its SHA-256 added to the ``pending`` record of ``folder``'s marker *before* it is moved
+    into place, so that an interrupt at any moment leaves no file the marker does not know
+    (:func:`owned_sums`); :func:`record_outputs` then takes it into ``written``.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        A folder :func:`claim_folder` claimed.
+    names : iterable of str
+        Paths relative to ``folder`` (``fig2/fig2.png``).
+    """
+    key = Path(os.path.abspath(os.fspath(folder)))
+    _JOURNALS[key] = frozenset(names)
+    try:
+        yield
+    finally:
+        _JOURNALS.pop(key, None)
+
+
+def _note_pending(path: Path, tmp: str | os.PathLike) -> None:
+    """Add the SHA-256 of ``tmp`` to the marker's pending record of ``path`` if a
+    :func:`journal` covers it."""
+    full = Path(os.path.abspath(os.fspath(path)))
+    for folder, names in list(_JOURNALS.items()):
+        try:
+            rel = full.relative_to(folder).as_posix()
+        except ValueError:
+            continue
+        if rel not in names:
+            continue
+        meta = read_marker(folder)
+        if meta is None:
+            return
+        pending = meta.get("pending") if isinstance(meta.get("pending"), dict) else {}
+        sums = sorted(_hashes(pending.get(rel)) | {sha256_file(tmp)})
+        meta["pending"] = {**pending, rel: sums}
+        atomic_write_text(folder / MARKER, json.dumps(meta, indent=1) + "\n")
+        return
+
+
+def owned_sums(folder: str | os.PathLike) -> dict[str, set[str]] | None:
+    """The SHA-256 that count as the folder's command's own, per file: what its marker
+    records as ``written`` and what a :func:`journal` noted before an interrupt. None: a
+    marker of an earlier version, which recorded none (its files cannot be told apart)."""
+    meta = read_marker(folder) or {}
+    written = meta.get("written")
+    if not isinstance(written, dict):
+        return None
+    sums = {name: _hashes(value) for name, value in written.items()}
+    pending = meta.get("pending")
+    for name, value in (pending.items() if isinstance(pending, dict) else ()):
+        sums.setdefault(name, set()).update(_hashes(value))
+    return sums
+
+
+def foreign_outputs(folder: str | os.PathLike, names) -> list[str]:
+    """Of the files ``names`` (relative to ``folder``), those that exist and that the
+    folder's command did not write as they are (a user's, or edited since); none in a
+    folder of an earlier version (:func:`owned_sums` None)."""
+    sums = owned_sums(folder)
+    return [] if sums is None else changed_files(Path(folder), names, sums)
+
+
+def record_outputs(folder: str | os.PathLike, names, legacy=()) -> None:
+    """Record in the marker, as ``written`` with their SHA-256, the files ``names`` that
+    exist (and ``legacy`` too, in a folder of an earlier version whose marker recorded none),
+    and drop their pending record."""
+    folder = Path(folder)
+    meta = read_marker(folder) or {"kind": "unknown", "files": []}
+    written = meta.get("written")
+    if not isinstance(written, dict):
+        written, names = {}, [*names, *legacy]
+    pending = meta.get("pending") if isinstance(meta.get("pending"), dict) else {}
+    for name in dict.fromkeys(names):
+        pending.pop(name, None)
+        if (folder / name).is_file():
+            written[name] = sha256_file(folder / name)
+    meta["written"] = dict(sorted(written.items()))
+    meta.pop("pending", None)
+    if pending:
+        meta["pending"] = pending
+    atomic_write_text(folder / MARKER, json.dumps(meta, indent=1) + "\n")
+
+
 def sha256_file(path: str | os.PathLike) -> str:
     """The SHA-256 of a file's content (hex), read in 1 MiB blocks."""
     h = hashlib.sha256()
@@ -325,78 +551,6 @@ def sha256_file(path: str | os.PathLike) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
-
-
-def _files_marker(first: Path) -> Path:
-    return first.with_name(f".{first.name}.spslidar.json")
-
-
-def check_files(paths, overwrite: bool = False, option: str = "--save-ptu",
-                outside: str | os.PathLike | None = None) -> None:
-    """Refuse (one line, before any work) to write files that exist, unless ``overwrite``
-    and their marker (written by :func:`write_files` beside the first) proves that spslidar
-    wrote them, unchanged since (the SHA-256 of each); and files that are the result folder
-    ``outside`` (``--out``) or lie in it (``run --out same --save-ptu same`` wrote the PTU,
-    then refused the result folder, leaving both)."""
-    paths = [Path(p) for p in paths]
-    if outside is not None and str(outside).strip():
-        folder = Path(os.path.abspath(os.fspath(outside)))
-        for p in paths:
-            full = Path(os.path.abspath(p))
-            if full == folder or folder in full.parents:
-                where = "the --out folder" if full == folder else "inside --out"
-                raise SpslidarError(f"{option} {paths[0]}: {p} would be {where} {outside}; "
-                                    f"save it beside the result folder")
-    for folder in dict.fromkeys(Path(os.path.abspath(p)).parent for p in paths):
-        _check_writable(folder, f"{option} {paths[0]}", make_parents=False)
-    present = [p for p in paths if p.exists() or p.is_symlink()]
-    if not present:
-        return
-    if not overwrite:
-        raise SpslidarError(f"{option}: {present[0]} exists; use --overwrite to replace it")
-    marker = _files_marker(paths[0])
-    try:
-        with open(marker) as fh:
-            sums = json.load(fh).get("sha256", {})
-    except (OSError, ValueError, AttributeError):
-        sums = {}
-    for p in present:
-        if not p.is_file() or sums.get(p.name) != sha256_file(p):
-            why = ("or it changed since" if marker.exists() else
-                   f"no marker {marker.name} beside it; spslidar before 0.2.0 wrote none")
-            raise SpslidarError(f"{option}: {p} exists and is not a file spslidar wrote ({why}); "
-                                f"refusing to replace it, even with --overwrite")
-
-
-def write_files(paths, write: Callable[[list[Path]], None], overwrite: bool = False,
-                option: str = "--save-ptu") -> None:
-    """Write a group of files all or nothing: ``write(tmp_paths)`` writes each under a
-    temporary name in its own folder; on success they are moved into place and a marker
-    (names and SHA-256) is written beside the first; on any failure (a full disk, Ctrl-C) the
-    temporary files are removed and nothing of the user's is touched."""
-    paths = [Path(os.path.abspath(os.fspath(p))) for p in paths]
-    check_files(paths, overwrite, option)
-    tmps = [p.with_name(f".{p.name}.tmp-{uuid.uuid4().hex[:8]}") for p in paths]
-    try:
-        write(tmps)
-        for t in tmps:
-            os.chmod(t, umask_mode(0o666))
-        sums = {p.name: sha256_file(t) for p, t in zip(paths, tmps, strict=True)}
-        check_files(paths, overwrite, option)  # nothing appeared meanwhile
-        marker = _files_marker(paths[0])
-        from .version import __version__
-
-        for p, t in zip(paths, tmps, strict=True):
-            os.replace(t, p)
-        atomic_write_text(marker, json.dumps({"kind": "files", "version": __version__,
-                                              "sha256": sums}, indent=1) + "\n")
-    except BaseException:
-        for t in tmps:
-            try:
-                t.unlink()
-            except OSError:
-                pass
-        raise
 
 
 @contextlib.contextmanager
@@ -429,12 +583,46 @@ def atomic_file(path: str | os.PathLike[str]) -> Iterator[BinaryIO]:
             fh.flush()
             os.fsync(fh.fileno())
         os.chmod(tmp, umask_mode(0o666))
+        _note_pending(path, tmp)  # (a journaled folder's marker knows it before it is there)
         os.replace(tmp, path)
     except BaseException:
         try:
             os.unlink(tmp)
         except OSError:
             pass
+        raise
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """A temporary path for a writer that wants a file name (``fig.savefig``), moved onto
+    ``path`` once the block has finished: all or nothing, as :func:`atomic_file`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file; its folder must exist.
+
+    Yields
+    ------
+    Path
+        A new name in the same folder, ending as ``path`` does (``.png``: a writer that
+        reads the format off the suffix writes the same format).
+    """
+    path = Path(path)
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
+                                suffix=f".tmp{path.suffix}")
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        yield tmp
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.chmod(tmp, umask_mode(0o666))
+        _note_pending(path, tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
         raise
 
 

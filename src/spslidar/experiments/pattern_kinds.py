@@ -96,7 +96,9 @@ def _figure(rows: Sequence[dict[str, Any]], sizes: Sequence[int], path: Path) ->
     axes[0, 0].legend(fontsize=8)
     for ax in axes.ravel():
         ax.set_xlim(0, None)
-    fig.savefig(path, dpi=110)
+    from spslidar.experiments.reproduce.plotting import save_png
+
+    save_png(fig, path, dpi=110)  # (all or nothing: an interrupt leaves no partial PNG)
     plt.close(fig)
     return path
 
@@ -176,7 +178,9 @@ def exp_pattern_kinds(ctx: Context) -> tuple[str, list[Claim]]:
         f"{_advice(ok, sizes)}\n\n"
         + (f"{failed} run(s) failed (see the CSV's error column).\n\n" if failed else "")
         + f"Data: `{NAME}/{csv.name}`.\n")
-    (folder / f"{NAME}.md").write_text(text)
+    from spslidar.experiments.reproduce.context import write_text
+
+    write_text(folder / f"{NAME}.md", text)
     return text, []
 
 

@@ -195,6 +195,9 @@ def plot_snr(rows: Sequence[dict[str, Any]], path: str | Path) -> Path:
         f"{rows[0]['trials']} periods per point, unipolar replica",
         fontsize="medium",
     )
+    from ..outdir import atomic_path
+
     path = Path(path)
-    fig.savefig(path, dpi=120)
+    with atomic_path(path) as tmp:  # (an interrupt leaves no partial PNG over a user's)
+        fig.savefig(tmp, dpi=120, format=path.suffix.lstrip(".") or "png")
     return path

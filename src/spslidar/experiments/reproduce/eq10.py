@@ -40,7 +40,10 @@ def exp_snr(ctx: Context) -> tuple[str, list[Claim]]:
     csv = write_rows(ctx, name, rows)
     png = ctx.folder(name) / f"{name}.png"
     if ok:
-        plot_snr(ok, png)
+        from spslidar.outdir import atomic_path
+
+        with atomic_path(png) as tmp:  # all or nothing (Ctrl-C left a truncated PNG)
+            plot_snr(ok, tmp)
 
     def series(code: str, ratio: float | None) -> list[dict[str, Any]]:
         out = [r for r in ok if r["code"] == code and (ratio is None or r["ones_ratio"] == ratio)]

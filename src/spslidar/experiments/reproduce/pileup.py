@@ -144,8 +144,12 @@ def _figure(rows: list[dict[str, Any]], path: Path, size: int, periods: int) -> 
     axes[1, 0].legend(fontsize=8)
     fig.suptitle(f"{size}x{size} camera, {periods:g} code periods per pattern, "
                  f"m_n = m_s / {1 / NOISE_RATIO:g}, equal average power", fontsize=10)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    from spslidar.experiments.reproduce.plotting import save_png
+
+    try:
+        save_png(fig, path, dpi=110)  # all or nothing (Ctrl-C left a truncated PNG)
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -73,10 +73,15 @@ def panel(
     cb.ax.tick_params(labelsize=7)
 
 
-def save_png(fig, path: Path) -> Path:
-    """Save ``fig`` at 100 dpi."""
-    fig.savefig(path, dpi=100)
-    return path
+def save_png(fig, path: Path, dpi: int = 100) -> Path:
+    """Save ``fig`` at ``dpi`` (100) as ``path``, all or nothing: written under a temporary
+    name in its folder and moved into place once complete (Ctrl-C while matplotlib writes
+    left a truncated PNG)."""
+    from spslidar.outdir import atomic_path
+
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, format=Path(path).suffix.lstrip(".") or "png")
+    return Path(path)
 
 
 def run_title(row: dict[str, Any] | None, label: str) -> str:

@@ -86,7 +86,7 @@ def reproduce_main(
     from spslidar.experiments.sweep.engine import _check_jobs
 
     jobs = _check_jobs(jobs)
-    from spslidar.outdir import claim_folder, release_folder
+    from spslidar.outdir import claim_folder, journal, release_folder
 
     if isinstance(scheduler, str):
         from spslidar.experiments.sweep.engine import _probe_scheduler
@@ -111,21 +111,25 @@ def reproduce_main(
         before, failed_before = n_cached(ctx), ctx.failed
         ctx.trials_read, ctx.last_trials = False, 1
         _refuse_foreign(out, name)  # before the work: a user's fig3/fig3.png was replaced
-        try:
-            text, claims = EXPERIMENT_REGISTRY.load(name)(ctx)
-        except SpslidarError:  # bad input (a time budget too small...): one line, exit 2
-            release_folder(out, existed)  # nothing written yet: leave no folder behind
-            raise
-        except Exception as exc:  # an experiment's bug must not lose the others' results
-            traceback.print_exc(file=sys.stderr)
-            print(f"reproduce {name}: failed: {type(exc).__name__}: {exc}", file=sys.stderr)
-            status = 1
-            continue
-        if trials is not None and not ctx.trials_read:
-            print(f"spslidar: warning: --trials {trials} is ignored by {name}: it runs no "
-                  f"repeated trials", file=sys.stderr)
-        write_section(out, name, text, claims)
-        build_report(out, EXPERIMENT_REGISTRY.names())
+        # every standard file is noted in the marker before it is moved into place, so an
+        # interrupt at any moment leaves none that the next run would take for a user's
+        with journal(out, _outputs(name)):
+            try:
+                text, claims = EXPERIMENT_REGISTRY.load(name)(ctx)
+            except SpslidarError:  # bad input (a time budget too small...): one line, exit 2
+                release_folder(out, existed)  # nothing written yet: leave no folder behind
+                raise
+            except Exception as exc:  # an experiment's bug must not lose the others' results
+                traceback.print_exc(file=sys.stderr)
+                print(f"reproduce {name}: failed: {type(exc).__name__}: {exc}",
+                      file=sys.stderr)
+                status = 1
+                continue
+            if trials is not None and not ctx.trials_read:
+                print(f"spslidar: warning: --trials {trials} is ignored by {name}: it runs no "
+                      f"repeated trials", file=sys.stderr)
+            write_section(out, name, text, claims)
+            build_report(out, EXPERIMENT_REGISTRY.names())
         _record_written(out, name)
         failed = ctx.failed - failed_before
         if failed:
@@ -155,27 +159,15 @@ def _outputs(name: str) -> list[str]:
     return [f"{name}/{f.format(name=name)}" for f in _STANDARD] + list(_REPORT)
 
 
-def _written(out: Path) -> dict[str, str] | None:
-    """The files this report folder's marker says ``reproduce`` wrote, with their SHA-256
-    (None: a folder from a version that did not keep them, whose files cannot be told
-    apart)."""
-    from spslidar.outdir import read_marker
-
-    listed = (read_marker(out) or {}).get("written")
-    return dict(listed) if isinstance(listed, dict) else None
-
-
 def _refuse_foreign(out: Path, name: str) -> None:
     """Refuse (one line) to run ``name`` where a file it writes exists as ``reproduce`` did
     not write it (not listed, or changed since): a user's ``fig2/fig2.png`` or an edited
     ``report.md`` in a report folder was replaced without a word. Other files of the user's
-    (``fig2/notes.txt``) are left as they are."""
-    from spslidar.outdir import changed_files
+    (``fig2/notes.txt``) are left as they are. A file an interrupted run wrote counts as
+    reproduce's: its SHA-256 was noted in the marker before it was moved into place."""
+    from spslidar.outdir import foreign_outputs
 
-    written = _written(out)
-    if written is None:
-        return
-    foreign = changed_files(out, _outputs(name), written)
+    foreign = foreign_outputs(out, _outputs(name))
     if foreign:
         one = len(foreign) == 1
         raise SpslidarError(f"--out {out}: {', '.join(foreign)} {'was' if one else 'were'} not "
@@ -185,19 +177,10 @@ def _refuse_foreign(out: Path, name: str) -> None:
 
 
 def _record_written(out: Path, name: str) -> None:
-    """Add what ``name`` wrote (its standard files and the report) to the marker's list."""
-    import json
+    """Add what ``name`` wrote (its standard files and the report) to the marker's list (in a
+    folder of an earlier version, its marker reproduce's, every experiment's outputs are
+    taken as ours)."""
+    from spslidar.outdir import record_outputs
 
-    from spslidar.outdir import MARKER, atomic_write_text, read_marker, sha256_file
-
-    meta = read_marker(out) or {"kind": "reproduce", "files": []}
-    if isinstance(meta.get("written"), dict):
-        written, names = meta["written"], [name]
-    else:  # a folder of an earlier version, its marker reproduce's: its outputs are ours
-        written, names = {}, [name, *EXPERIMENT_REGISTRY.names()]
-    for exp in dict.fromkeys(names):
-        for n in _outputs(exp):
-            if (out / n).is_file():
-                written[n] = sha256_file(out / n)
-    meta["written"] = dict(sorted(written.items()))
-    atomic_write_text(out / MARKER, json.dumps(meta, indent=1) + "\n")
+    legacy = [n for exp in EXPERIMENT_REGISTRY.names() for n in _outputs(exp)]
+    record_outputs(out, _outputs(name), legacy=legacy)

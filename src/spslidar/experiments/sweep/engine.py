@@ -40,6 +40,9 @@ from spslidar.experiments.sweep.grid import (
 )
 from spslidar.experiments.sweep.store import load_cached, store_run, write_csv
 
+#: the table a sweep writes into its folder (known by its SHA-256 in the folder's marker)
+RESULTS_CSV = "results.csv"
+
 __all__ = ["run_point", "run_sweep", "sweep_main"]
 
 # --------------------------------------------------------------------------------------------
@@ -650,12 +653,22 @@ def sweep_main(
             _cores() if jobs == -1 else min(jobs, _cores()))
         check_time(total / max(1, min(len(points), workers)), max_time,
                    f"this sweep of {len(points)} runs")
-    from spslidar.outdir import claim_folder, release_folder
+    from spslidar.outdir import (
+        claim_folder,
+        foreign_outputs,
+        journal,
+        record_outputs,
+        release_folder,
+    )
 
     if isinstance(scheduler, str):
         _probe_scheduler(scheduler)  # before the folder is made
     existed = Path(out_dir).exists()
     folder = claim_folder(out_dir, "sweep")  # new, empty or an earlier sweep's: never a user's
+    if foreign_outputs(folder, [RESULTS_CSV]):  # a user's edit was replaced without a word
+        raise SpslidarError(
+            f"--out {out_dir}: {RESULTS_CSV} was not written by spslidar sweep (or changed "
+            f"since); refusing to replace it (move it away, or choose another folder)")
     try:
         rows = run_sweep(
             run_point if func is None else func,
@@ -670,7 +683,12 @@ def sweep_main(
     except SpslidarError:  # refused before any point ran: leave no folder behind
         release_folder(folder, existed)
         raise
-    csv_path = write_csv(rows, Path(out_dir) / "results.csv")
+    except KeyboardInterrupt:  # before any run finished: no folder of nothing but a marker
+        release_folder(folder, existed)
+        raise
+    with journal(folder, [RESULTS_CSV]):  # its SHA-256 in the marker before it is in place
+        csv_path = write_csv(rows, Path(out_dir) / RESULTS_CSV)
+    record_outputs(folder, [RESULTS_CSV])
     failed = [row for row in rows if ERROR_KEY in row]
     print(
         f"sweep: {len(rows)} runs, {len(rows) - len(failed)} ok, {len(failed)} failed; "
