@@ -245,10 +245,16 @@ def test_calibrate_refuses_an_acquisition_without_photons(acquisitions, tmp_path
     # (an audit of 2026-11-28: the first scaled every reflectivity by 1e-6 without a word)
     (lambda c: c.update(irf_values=[v * 1e6 for v in c["irf_values"]]), "must sum to 1"),
     (lambda c: c.update(irf_fwhm_bins=-3.0), "be positive"),
+    # (an audit of 2026-11-28: offsets wrapping onto one bin were taken, RMSE x25)
+    (lambda c: c.update(irf_offsets=[0, 1023], irf_values=[0.5, 0.5]), "half the code's"),
 ])
 def test_reconstruct_refuses_a_damaged_calibration(acquisitions, tmp_path, capsys, damage,
                                                    match):
+    """Each field's check, on a file without the checksum (an earlier version's, or one
+    written by hand): a file calibrate wrote is refused for any edit
+    (:func:`test_reconstruct_refuses_an_edited_calibration`)."""
     cal = json.loads((acquisitions / "cal.json").read_text())
+    assert cal.pop("content_sha256")
     damage(cal)
     (tmp_path / "cal.json").write_text(json.dumps(cal))
     assert main(["reconstruct", "--ptu", str(acquisitions / "scene.ptu"), "--patterns",
@@ -446,3 +452,42 @@ def test_calibrate_refuses_fewer_patterns_than_the_files_blocks(acquisitions, tm
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "marker-delimited blocks but --patterns has" in err[0]
     assert not (tmp_path / "c.json").exists()
+
+
+@pytest.mark.parametrize("edit", [
+    lambda c: c.update(lag_shift=c["lag_shift"] + 1),  # within the consistency check's bin
+    lambda c: c.update(note="hand tuned"),
+    lambda c: c.update(distance_m="ten"),
+])
+def test_reconstruct_refuses_an_edited_calibration(acquisitions, tmp_path, capsys, edit):
+    """An audit (2026-11-28) moved every depth 15 mm by a lag_shift one bin off, which the
+    field checks cannot tell from a sub-bin peak: the file's checksum can."""
+    cal = json.loads((acquisitions / "cal.json").read_text())
+    edit(cal)
+    (tmp_path / "cal.json").write_text(json.dumps(cal))
+    assert main(["reconstruct", "--ptu", str(acquisitions / "scene.ptu"), "--patterns",
+                 str(acquisitions / "scene_patterns.npy"), "--code",
+                 str(acquisitions / "scene_code.npy"), "--bit-rate", "10e9", "--range-gate",
+                 "24", "26", "--out", str(tmp_path / "o"), "--no-figure", "--calibration",
+                 str(tmp_path / "cal.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "was edited after spslidar calibrate wrote it" in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
+def test_calibrate_overwrite_keeps_an_edited_calibration(acquisitions, tmp_path, capsys):
+    """``--overwrite`` replaces a calibration spslidar wrote, never one edited since (an
+    audit's hand-added note was lost)."""
+    files = ["--ptu", str(acquisitions / "wall.ptu"), "--patterns",
+             str(acquisitions / "wall_patterns.npy"), "--code",
+             str(acquisitions / "wall_code.npy"), "--bit-rate", "10e9", "--distance", "25"]
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", *files, "--out", str(out)]) == 0
+    assert main(["calibrate", *files, "--out", str(out), "--overwrite"]) == 0  # its own
+    cal = json.loads(out.read_text())
+    cal["note"] = "hand tuned"
+    out.write_text(json.dumps(cal))
+    capsys.readouterr()
+    assert main(["calibrate", *files, "--out", str(out), "--overwrite"]) == 2
+    assert "edited since" in capsys.readouterr().err
+    assert json.loads(out.read_text())["note"] == "hand tuned"

@@ -321,11 +321,19 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
         warnings.warn(note, stacklevel=2)
     hists = data.histograms
     total = hists.astype(np.float64).sum(axis=0)
-    geometry, response = _target_geometry(hists, patterns, code, bin_width, distance, target,
-                                          fov_deg)
-    cal = measure_response(total, code, bin_width, distance, pulse_width, response=response)
+    with warnings.catch_warnings(record=True) as said:  # kept in the file, and said again
+        warnings.simplefilter("always")
+        geometry, response = _target_geometry(hists, patterns, code, bin_width, distance,
+                                              target, fov_deg)
+        cal = measure_response(total, code, bin_width, distance, pulse_width,
+                               response=response)
+    for w in said:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     path = Path(ptu)
     return {"kind": CAL_KIND, "version": __version__, **cal, "target": geometry,
+            # (reconstruct says them again: an audit's calibration read through the noise
+            # made a map 25 times worse while reconstruct said nothing)
+            "warnings": [str(w.message) for w in said],
             "bin_width_s": bin_width,
             "bit_rate_hz": float(bit_rate), "code_length": int(code.size),
             "code_sha256": hashlib.sha256(np.asarray(code, np.uint8).tobytes()).hexdigest(),
@@ -379,12 +387,17 @@ def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Pa
         if not overwrite:
             raise SpslidarError(f"--out {out} exists; use --overwrite to replace it")
         try:
-            ours = json.loads(path.read_text()).get("kind") == CAL_KIND
+            old = json.loads(path.read_text())
+            ours = old.get("kind") == CAL_KIND
         except (OSError, ValueError, AttributeError):
             ours = False
         if not ours:
             raise SpslidarError(f"--out {out} exists and is not a spslidar calibration; "
                                 f"refusing to replace it")
+        if edited(old):
+            raise SpslidarError(f"--out {out} was edited since spslidar calibrate wrote it; "
+                                f"refusing to replace it (move it away, or choose another "
+                                f"name)")
     if path.parent.exists() and not path.parent.is_dir():
         raise SpslidarError(f"--out {out}: {path.parent} is a file, not a folder")
     if not path.parent.is_dir():
@@ -402,13 +415,32 @@ def write_calibration(cal: dict[str, Any], out: str | os.PathLike, overwrite: bo
     from ..outdir import atomic_write_text
 
     path = check_calibration_out(out, overwrite)
-    atomic_write_text(path, json.dumps(cal, indent=1) + "\n")
+    body = {k: v for k, v in cal.items() if k != "content_sha256"}
+    atomic_write_text(path, json.dumps({**body, "content_sha256": content_sha256(body)},
+                                       indent=1) + "\n")
     return path
+
+
+def content_sha256(cal: dict[str, Any]) -> str:
+    """The SHA-256 of a calibration's content (its JSON, keys sorted, without this key):
+    written with it, so that a file edited afterwards is known (an audit's ``lag_shift``
+    edited by one bin moved every depth by 15 mm without a word, and ``calibrate
+    --overwrite`` replaced a hand-annotated file)."""
+    body = {k: v for k, v in cal.items() if k != "content_sha256"}
+    return hashlib.sha256(json.dumps(body, sort_keys=True).encode("utf-8")).hexdigest()
+
+
+def edited(cal: dict[str, Any]) -> bool:
+    """Whether a calibration's content differs from the checksum it was written with (False
+    for a file of an earlier version, written without one)."""
+    return "content_sha256" in cal and cal["content_sha256"] != content_sha256(cal)
 
 
 def load_calibration(path: str | os.PathLike, bit_rate: float, code: np.ndarray):
     """Read ``CAL.json`` and check that it belongs to this instrument setting (bit rate and
-    code); one line otherwise."""
+    the code's length: the delay and IRF are the instrument's, so a calibration measured with
+    other code bits of the same length applies, and ``metrics.json`` says whether they were
+    the same); one line otherwise, and for a file edited since it was written."""
     p = Path(path)
     try:
         cal = json.loads(p.read_text())
@@ -418,6 +450,10 @@ def load_calibration(path: str | os.PathLike, bit_rate: float, code: np.ndarray)
         raise ConfigError(f"--calibration {p} is not a calibration file (not JSON)") from None
     if not isinstance(cal, dict) or cal.get("kind") != CAL_KIND:
         raise ConfigError(f"--calibration {p} is not a file written by 'spslidar calibrate'")
+    if edited(cal):
+        raise ConfigError(f"--calibration {p} was edited after spslidar calibrate wrote it "
+                          f"(its content no longer matches its checksum, content_sha256); "
+                          f"calibrate again")
     cal = check_calibration(cal, f"--calibration {p}", bit_rate, code)
     cal["file"] = str(p)
     cal["file_sha256"] = sha256_file(p)
@@ -473,9 +509,11 @@ def _check_consistent(cal: dict, offsets: np.ndarray, values: np.ndarray, number
             and ("lag_fraction" not in cal or reals("lag_fraction"))):
         raise ConfigError(f"{what}: a field holds text or a value of the wrong kind (offsets "
                           f"and lag_shift are whole numbers); calibrate again")
-    if np.any(np.diff(offsets) <= 0) or 0 not in offsets:
+    if (np.any(np.diff(offsets) <= 0) or 0 not in offsets
+            or np.abs(offsets).max() >= whole[0] / 2):
+        # (offsets [0, 1023] of a 1023-bit code wrapped onto one bin and were taken)
         raise ConfigError(f"{what}: irf_offsets must be distinct, increasing bin offsets "
-                          f"around 0; calibrate again")
+                          f"around 0, within half the code's period; calibrate again")
     if abs(values.sum() - 1.0) > 1e-6 or not numbers[2] > 0:
         # (irf_values x 1e6 passed, and scaled every reflectivity by 1e-6, without a word)
         raise ConfigError(f"{what}: irf_values must sum to 1 (they sum to {values.sum():.6g}) "
@@ -512,6 +550,10 @@ class CalibratedFilter(NamedTuple):
     #: a unit return's filtered response at lags ``-RESPONSE_HALF .. RESPONSE_HALF`` about its
     #: peak (peak 1): the shape each pixel's profile takes along the delay axis
     response: np.ndarray | None = None
+    #: lags either side of the peak over which that response stays above a tenth of it (the
+    #: return's half width, for the noise verdict of :func:`~spslidar.depth.profile.
+    #: noise_verdict`; 0 for an ideal instrument)
+    half_width: int = 0
 
 
 def calibrated_filter(code: np.ndarray, replica: np.ndarray, cal: dict[str, Any],
@@ -560,7 +602,25 @@ def calibrated_filter(code: np.ndarray, replica: np.ndarray, cal: dict[str, Any]
     around = np.arange(-RESPONSE_HALF, RESPONSE_HALF + 1) % period
     return CalibratedFilter(rep, sig, int(cal["lag_shift"]),
                             float(cal.get("lag_fraction", 0.0)), scale, spread,
-                            np.clip(resp[around], 0.0, None))
+                            np.clip(resp[around], 0.0, None), _half_width(resp))
+
+
+#: a unit return's filtered response counts as the return out to where it falls below this
+#: share of its peak (:attr:`CalibratedFilter.half_width`)
+HALF_WIDTH_SHARE = 0.1
+
+
+def _half_width(resp: np.ndarray) -> int:
+    """Lags from the peak (lag 0, value 1) to the farther side's last lag still above
+    :data:`HALF_WIDTH_SHARE`, walking out from the peak on each side."""
+    period = resp.size
+    widths = []
+    for step in (1, -1):
+        lag = 0
+        while abs(lag) < period // 2 and resp[(lag + step) % period] > HALF_WIDTH_SHARE:
+            lag += step
+        widths.append(abs(lag))
+    return int(max(widths))
 
 
 def delay_filter(slices: np.ndarray, lags: np.ndarray, response: np.ndarray) -> np.ndarray:

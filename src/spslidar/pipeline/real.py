@@ -11,6 +11,7 @@ ground truth, when given, only feeds the metrics.
 
 from __future__ import annotations
 
+import hashlib
 import os
 from pathlib import Path
 from typing import Any
@@ -434,17 +435,18 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     replica = make_replica(code, replica_kind)
     lags = gate_lags(cfg.range_gate, bin_width)
     cal, shift, signal_code, frac, scale, spread = None, 0, code, 0.0, 1.0, 1.0
-    response = None
+    response, half_width = None, 0
     if calibration is not None:
         from .calibration import calibrated_filter, check_calibration, load_calibration
 
         cal = (check_calibration(dict(calibration), "calibration", bit_rate, code)
                if isinstance(calibration, dict)
                else load_calibration(calibration, bit_rate, code))
-        replica, signal_code, shift, frac, scale, spread, response = calibrated_filter(
-            code, replica, cal)
+        replica, signal_code, shift, frac, scale, spread, response, half_width = (
+            calibrated_filter(code, replica, cal))
         if cfg.lam is None and cfg.lam_scale is None:
             cfg = cfg.replace(lam_scale=calibrated_lam_scale(cfg.solver, spread))
+        dwell_warning.extend(calibration_warnings(cal))
     gain = correlation_gain(signal_code, replica) * n_mean * scale
     # a calibrated instrument's returns arrive lag_shift bins late: filter there, while the
     # depths stay those of the gated lags (true metres)
@@ -460,7 +462,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
            "counts": totals, "signal_counts": signal, "noise_per_bin": background / n_mean,
            "pileup": {"model": "measured", "count_rate_hz": float(totals.mean() / n_mean
                                                                   / (period * bin_width))},
-           "estimate": {}, "delay_response": response}
+           "estimate": {}, "delay_response": response, "response_half_width": half_width}
     acq = Acquisition("psst", code, bin_width, max(1, int(round(n_mean))), 1.0,
                       replica_kind,
                       f"measured code of {period} bits", 0)
@@ -498,9 +500,27 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         "file": cal.get("file"), "sha256": cal.get("file_sha256"), "delay_s": cal["delay_s"],
         "lag_shift": cal["lag_shift"], "lag_fraction": frac, "spread": spread,
         "irf_fwhm_bins": cal["irf_fwhm_bins"], "distance_m": cal.get("distance_m"),
-        "target": cal.get("target"),
+        "target": cal.get("target"), "peak_to_noise": cal.get("peak_to_noise"),
+        "warnings": cal.get("warnings"),
+        "same_code": cal.get("code_sha256") == hashlib.sha256(
+            np.asarray(code, np.uint8).tobytes()).hexdigest(),
         "measured_from": cal.get("measured_from")}
     return result
+
+
+def calibration_warnings(cal: dict[str, Any]) -> list[str]:
+    """What ``reconstruct`` says of the calibration it applies: a response read through the
+    noise (under :data:`~.calibration.WEAK_RESPONSE` deviations; ``calibrate`` said so, but
+    only once, and an audit's map was 25 times worse through it without a word here)."""
+    from .calibration import WEAK_RESPONSE
+
+    ptn = cal.get("peak_to_noise")
+    if isinstance(ptn, (int, float)) and not isinstance(ptn, bool) and ptn < WEAK_RESPONSE:
+        where = cal.get("file") or "the calibration"
+        return [f"{where} was measured from a response {ptn:.3g} noise standard deviations "
+                f"high: its IRF is read through the noise, and the depths through it may be "
+                f"worse than uncalibrated ones; calibrate on a longer acquisition"]
+    return []
 
 
 def write_measurement_ptu(meas: Measurement, path: str | os.PathLike, *,

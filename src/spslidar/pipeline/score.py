@@ -49,7 +49,9 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
     reflectivity = reflectivity_image(slices, depth, meas.lags, acq.bin_width)
     # the estimators' no-return rule is relative to the brightest pixels: an image of noise
     # (nothing in the gate, too little signal) would come out as a full depth map, silently
-    verdict = noise_verdict(slices)  # None: no verdict (too few slices, a diverged solve)
+    # (a calibrated instrument's returns span its response: sim's response_half_width)
+    verdict = noise_verdict(slices, exclude=int(sim.get("response_half_width") or 2))
+    # None: no verdict (too few slices, a diverged solve)
     peak_ratio, peak_floor, null = verdict if verdict is not None else (None, None, None)
     if verdict is not None and peak_ratio < peak_floor:
         warns.append(
