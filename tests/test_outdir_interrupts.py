@@ -250,10 +250,12 @@ def test_sweep_interrupted_before_any_run_leaves_no_folder(tmp_path, monkeypatch
     config, out = _sweep_config(tmp_path), tmp_path / "s"
     assert main(["sweep", str(config), "--out", str(out), "--no-progress"]) == 130
     assert not out.exists()
+    assert "nothing was written" in capsys.readouterr().err  # (was: "runs ... cached")
     empty = tmp_path / "empty"
     empty.mkdir()
     assert main(["sweep", str(config), "--out", str(empty), "--no-progress"]) == 130
     assert list(empty.iterdir()) == []  # the user's empty folder stays, empty
+    assert "nothing was written" in capsys.readouterr().err
 
 
 # --------------------------------------------------------------------------------------------

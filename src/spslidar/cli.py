@@ -591,7 +591,15 @@ def main(argv: list[str] | None = None) -> int:
 
     def line(terminated: bool) -> str:
         if args.command in ("sweep", "reproduce"):
-            done = "the runs that finished are cached: run it again to resume"
+            # (a sweep stopped before its first run removes the folder it made, or leaves
+            # a user's empty folder empty: the line said runs were cached)
+            from .outdir import MARKER
+
+            out = Path(args.out)
+            kept = out.is_dir() and any(f.is_file() and f.name != MARKER
+                                        for f in out.rglob("*"))
+            done = ("the runs that finished are cached: run it again to resume" if kept
+                    else "nothing was written")
         elif _WRITTEN:  # (--save-ptu's files were written, and the line said nothing was)
             done = f"{', '.join(_WRITTEN)} had been written, the rest was not"
         else:
