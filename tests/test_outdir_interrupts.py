@@ -371,3 +371,18 @@ def test_race_on_a_new_folder_names_no_api_words(tmp_path):
     assert "another command" in message
     assert np.load(out / "depth.npy").tolist() == [0.0, 0.0]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["new"]
+
+
+def test_result_save_names_the_callers_words(tmp_path):
+    """``Result.save`` refuses in the words of its caller: ``out_dir`` from Python, ``--out``
+    from the command line (which passes them)."""
+    import spslidar
+
+    result = spslidar.run(size=8, code_length=255)
+    (tmp_path / "mine.txt").write_text("a user's file")
+    with pytest.raises(SpslidarError, match="out_dir"):
+        result.save(tmp_path)
+    with pytest.raises(SpslidarError, match="--out") as info:
+        result.save(tmp_path, option="--out", replace="--overwrite")
+    assert "out_dir" not in str(info.value)
+    assert (tmp_path / "mine.txt").read_text() == "a user's file"

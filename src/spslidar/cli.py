@@ -368,7 +368,7 @@ def _cmd_reconstruct(args) -> int:
     for w in result.warnings:
         print(f"spslidar: warning: {w}", file=sys.stderr)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
-                      fov_deg=args.fov)
+                      fov_deg=args.fov, option="--out", replace="--overwrite")
     _WRITTEN.append(f"{out}/")
     m = result.metrics
     rmse = m.get("depth_rmse_m")
@@ -511,7 +511,7 @@ def _cmd_run(args) -> int:
     for w in result.warnings:
         print(f"spslidar: warning: {w}", file=sys.stderr)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
-                      fov_deg=args.fov)
+                      fov_deg=args.fov, option="--out", replace="--overwrite")
     _WRITTEN.append(f"{out}/")
     print(result.summary())
     print(f"wrote {out}/: {' '.join(_written(out))}")

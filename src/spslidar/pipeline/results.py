@@ -112,7 +112,8 @@ class Result:
         return pts, intensity, {"confidence": conf, "return_number": number}
 
     def save(self, out_dir: str | os.PathLike, figure: bool = True,
-             overwrite: bool = False, fov_deg: float | None = None) -> Path:
+             overwrite: bool = False, fov_deg: float | None = None, *,
+             option: str = "out_dir", replace: str = "overwrite=True") -> Path:
         """Write ``metrics.json``, ``depth.npy``, ``reflectivity.npy``, ``confidence.npy``,
         ``points.ply``, ``depth.png``, ``depth2.npy`` where the estimator looks for a second
         surface and, where the scene has a ground truth, ``truth.npy`` and ``valid.npy`` into
@@ -121,7 +122,9 @@ class Result:
 
         ``out_dir`` must not exist, be empty, or (with ``overwrite=True``) hold a previous
         spslidar result; anything else is refused before a file is written, so a user's
-        files are never touched.
+        files are never touched. ``option`` and ``replace`` are what a refusal calls the
+        folder and the way to replace it (the command line passes ``--out`` and
+        ``--overwrite``).
         """
 
         from ..products import DEFAULT_FOV_DEG, check_fov
@@ -159,8 +162,8 @@ class Result:
             with open(tmp / "metrics.json", "w") as fh:
                 json.dump(_jsonable(self.metrics), fh, indent=2, allow_nan=False)
 
-        return write_result_dir(out_dir, fill, overwrite=overwrite, option="out_dir",
-                                replace="overwrite=True")
+        return write_result_dir(out_dir, fill, overwrite=overwrite, option=option,
+                                replace=replace)
 
 
 def _jsonable(obj):
