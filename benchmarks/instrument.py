@@ -23,7 +23,7 @@ panel pixel given the wall 0.2-0.4 m behind moves the mean, never the inliers), 
 absolute error, RMSE and coverage (share of pixels with a depth). Run::
 
     python benchmarks/instrument.py [--scenes pole no-pole] [--seeds 0 1 2 3 4 5]
-        [--lam-scale 0.5] [--out table.md] [--keep DIR]
+        [--wall range|plane] [--lam-scale 0.5] [--out table.md] [--keep DIR]
 
 Each reconstruction is a separate in-process ``spslidar`` call on files in a temporary
 folder (about 60 MB of PTU per acquisition; 1.2 GB peak, measured, most of it writing the
@@ -101,8 +101,21 @@ def _write_once(folder: Path, name: str, depth: np.ndarray, refl: np.ndarray, se
     (folder / f"{name}.done").write_text("")
 
 
+def wall(kind: str) -> np.ndarray:
+    """The calibration wall's ranges: ``range``, 25 m on every pixel (the issue's wall, as
+    the independent writer takes a depth map); ``plane``, a flat wall 25 m ahead through a
+    10 degree field of view (written here with the pinhole of ``points.ply``: 25.000-25.168
+    m), which ``calibrate`` must find and remove (``--target auto``)."""
+    if kind == "range":
+        return np.full((indep.N, indep.N), WALL_M)
+    if kind != "plane":
+        raise ValueError(f"unknown wall {kind!r}")
+    u = (np.arange(indep.N) + 0.5 - indep.N / 2) * 2 * np.tan(np.radians(5.0)) / indep.N
+    return WALL_M * np.sqrt(1 + u[:, None] ** 2 + u[None, :] ** 2)
+
+
 def run_case(variant: str, seed: int, extra: list[str],
-             keep: str | None = None) -> dict[str, dict[str, float]]:
+             keep: str | None = None, wall_kind: str = "range") -> dict[str, dict[str, float]]:
     """The three reconstructions of one scene variant and seed.
 
     With ``keep``, the acquisitions are written once into ``keep/<variant>-<seed>/`` (the
@@ -115,17 +128,18 @@ def run_case(variant: str, seed: int, extra: list[str],
     with tempfile.TemporaryDirectory(prefix="spslidar_instrument_") as tmp:
         d = Path(tmp)
         acq = d if keep is None else Path(keep) / f"{variant}-{seed}"
-        wall = d if keep is None else Path(keep)
+        name = "wall" if wall_kind == "range" else f"wall_{wall_kind}"
+        wall_dir = d if keep is None else Path(keep)
         acq.mkdir(parents=True, exist_ok=True)
         _write_once(acq, "ideal", depth, refl, seed, ideal=True)
         _write_once(acq, "scan", depth, refl, seed)
-        _write_once(wall, "wall", np.full_like(depth, WALL_M), np.full_like(refl, 0.8), 1)
+        _write_once(wall_dir, name, wall(wall_kind), np.full_like(refl, 0.8), 1)
         quiet = ["--no-figure"]
         assert main(["reconstruct", *_files(acq, "ideal"), "--range-gate", *map(str, GATE),
                      "--out", str(d / "r_ideal"), *quiet, *extra]) == 0
         out["ideal"] = _score(np.load(d / "r_ideal" / "depth.npy"), depth)
-        assert main(["calibrate", *_files(wall, "wall"), "--distance", str(WALL_M), "--out",
-                     str(d / "cal.json")]) == 0
+        assert main(["calibrate", *_files(wall_dir, name), "--distance", str(WALL_M),
+                     "--out", str(d / "cal.json")]) == 0
         assert main(["reconstruct", *_files(acq, "scan"), "--range-gate", *map(str, GATE),
                      "--calibration", str(d / "cal.json"), "--out", str(d / "r_cal"),
                      *quiet, *extra]) == 0
@@ -177,6 +191,9 @@ def main_(argv=None) -> int:
     ap.add_argument("--scenes", nargs="+", default=["pole", "no-pole"],
                     choices=["pole", "no-pole"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    ap.add_argument("--wall", choices=["range", "plane"], default="range",
+                    help="the calibration wall: 25 m on every pixel (default), or a flat wall "
+                         "through a 10 degree field of view")
     ap.add_argument("--lam-scale", type=float, default=None,
                     help="passed to every reconstruction (default: the pipeline's)")
     ap.add_argument("--out", default=None, help="also write the Markdown to this file")
@@ -189,7 +206,7 @@ def main_(argv=None) -> int:
     t0 = time.perf_counter()
     for variant in args.scenes:
         for seed in args.seeds:
-            res = run_case(variant, seed, extra, args.keep)
+            res = run_case(variant, seed, extra, args.keep, args.wall)
             rows.append((variant, seed, res))
             print(f"{variant} seed {seed}: " + ", ".join(
                 f"{k} {v['rmse']:.3f} m" for k, v in res.items())
