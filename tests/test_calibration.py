@@ -230,6 +230,15 @@ def test_calibrate_refuses_an_acquisition_without_photons(acquisitions, tmp_path
     assert not (tmp_path / "c.json").exists()
 
 
+def _reconstruct_through(acquisitions, tmp_path) -> int:
+    """``reconstruct`` of the scene through ``tmp_path/cal.json``; its exit status."""
+    return main(["reconstruct", "--ptu", str(acquisitions / "scene.ptu"), "--patterns",
+                 str(acquisitions / "scene_patterns.npy"), "--code",
+                 str(acquisitions / "scene_code.npy"), "--bit-rate", "10e9", "--range-gate",
+                 "24", "26", "--out", str(tmp_path / "o"), "--no-figure", "--calibration",
+                 str(tmp_path / "cal.json")])
+
+
 @pytest.mark.parametrize("damage,match", [
     (lambda c: c.pop("irf_values"), "incomplete"),
     (lambda c: c.update(irf_values=[-1.0] * len(c["irf_offsets"])), "damaged"),
@@ -257,11 +266,7 @@ def test_reconstruct_refuses_a_damaged_calibration(acquisitions, tmp_path, capsy
     assert cal.pop("content_sha256")
     damage(cal)
     (tmp_path / "cal.json").write_text(json.dumps(cal))
-    assert main(["reconstruct", "--ptu", str(acquisitions / "scene.ptu"), "--patterns",
-                 str(acquisitions / "scene_patterns.npy"), "--code",
-                 str(acquisitions / "scene_code.npy"), "--bit-rate", "10e9", "--range-gate",
-                 "24", "26", "--out", str(tmp_path / "o"), "--no-figure", "--calibration",
-                 str(tmp_path / "cal.json")]) == 2
+    assert _reconstruct_through(acquisitions, tmp_path) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and match in err[0], err
     assert not (tmp_path / "o").exists()
@@ -465,11 +470,7 @@ def test_reconstruct_refuses_an_edited_calibration(acquisitions, tmp_path, capsy
     cal = json.loads((acquisitions / "cal.json").read_text())
     edit(cal)
     (tmp_path / "cal.json").write_text(json.dumps(cal))
-    assert main(["reconstruct", "--ptu", str(acquisitions / "scene.ptu"), "--patterns",
-                 str(acquisitions / "scene_patterns.npy"), "--code",
-                 str(acquisitions / "scene_code.npy"), "--bit-rate", "10e9", "--range-gate",
-                 "24", "26", "--out", str(tmp_path / "o"), "--no-figure", "--calibration",
-                 str(tmp_path / "cal.json")]) == 2
+    assert _reconstruct_through(acquisitions, tmp_path) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "was edited after spslidar calibrate wrote it" in err[0], err
     assert not (tmp_path / "o").exists()
