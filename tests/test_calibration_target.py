@@ -168,3 +168,16 @@ def test_measure_response_reads_a_given_response_as_its_own():
     a = measure_response(hist, code, 1e-10, 0.0)
     b = measure_response(hist, code, 1e-10, 0.0, response=code_response(hist, code))
     assert a == b
+
+
+def test_one_pattern_shown_throughout_reads_as_one_range():
+    """Patterns that all light the same pixels give every pattern the same kernel: nothing
+    tells the wall's spread from the instrument's, so ``auto`` reads one range."""
+    rng = np.random.default_rng(2)
+    code = lfsr_sequence(9).astype(float)
+    phi = np.ones((32, 256))
+    whole = np.round(plane_offsets((16, 16), 25.0, 16.0, 1e-10))
+    hist = _histograms(phi, code, np.array([0.2, 0.6, 0.2]), whole, delay=100, rng=rng,
+                       photons=4e5)
+    geo = measure_geometry(hist, phi, code, 1e-10, 25.0, (16, 16))
+    assert geo["model"] == "range" and geo["offsets"] is None

@@ -25,12 +25,14 @@ convolved with a kernel ``k_m`` that the patterns and the geometry give. Two ste
    ``auto`` keeps the plane where its residual stands :data:`Z_PLANE` deviations (of the
    residual's chi-square noise) below one range's and it spreads the pixels over
    :data:`MIN_SPREAD_BINS` or more: measured 1.5-1.7 at 5 degrees, 5.9-8.3 at 10, 9.3-11.1 at
-   20, and 0-0.02 on nine walls at one range (the independent one, and ``run``'s at 16 x 16,
-   signal 1 and 0.1, seeds 0-3). Tried first and dropped: the responses of 4 x 4 blocks of
-   the field, each solved by least squares from the blocks' sums, whose delays a plane would
-   be fitted to: on a 32 x 32 calibration of 14.5 M photons they stood 2-4 noise deviations
-   high (each block's response estimated on its own, where this fit's one IRF is measured
-   through every pixel).
+   20 (32 x 32, 256 patterns), 20 at 10 degrees on ``run``'s 16 x 16 wall, 0.99 on its 64 x 64
+   one (1 024 patterns: each pattern's share of the pixels tells less as they grow), and
+   0-0.02 on eleven walls at one range (the independent one, ``run``'s at 16 x 16, signal 1
+   and 0.1, seeds 0-3, and at 64 x 64, seeds 0-1). Tried first and dropped: the responses of
+   4 x 4 blocks of the field, each solved by least squares from the blocks' sums, whose
+   delays a plane would be fitted to: on a 32 x 32 calibration of 14.5 M photons they stood
+   2-4 noise deviations high (each block's response estimated on its own, where this fit's
+   one IRF is measured through every pixel).
 2. **The response of one range** (:func:`range_free_response`): the IRF from all patterns at
    once, the Wiener estimate ``I(f) = sum_m conj(K_m(f)) G_m(f) / (sum_m |K_m(f)|^2 + eps)``.
    The patterns' sum alone cannot give it: its kernel is the whole field's spread, whose
@@ -64,7 +66,7 @@ TARGETS = ("auto", "plane", "range")
 #: a plane whose pixels spread over less than this many bins is one range (``auto``)
 MIN_SPREAD_BINS = 1.0
 #: ``auto`` keeps the plane where its residual stands this many deviations below one range's
-Z_PLANE = 1.0
+Z_PLANE = 0.3
 #: the candidate spreads' step, bins
 SPREAD_STEP = 0.5
 #: the largest spread scanned, bins (or a quarter of the code's period): 38 cm at 10 GHz, a
@@ -121,17 +123,32 @@ def _rows(m: int):
         yield slice(start, min(m, start + ROW_BLOCK))
 
 
-def _kernels(phi: np.ndarray, offsets: np.ndarray, period: int) -> np.ndarray:
-    """Each pattern's kernel ``k_m`` over one period: its pixels' light, each on the two bins
-    about its offset (linear in the offset's part of a bin)."""
+def _grouped(patterns: np.ndarray, offsets: np.ndarray, rows: slice | np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """The patterns' light summed over the pixels that share an offset (a facing wall's
+    pixels at one distance from the axis: an eighth of them or fewer), and those offsets: the
+    kernels need no more, at a fraction of the pixels' cost (a 256 x 256 image: 8 256 groups
+    for 65 536 pixels)."""
+    values, group = np.unique(np.asarray(offsets, dtype=np.float64), return_inverse=True)
+    order = np.argsort(group, kind="stable")
+    starts = np.searchsorted(group[order], np.arange(values.size))
+    light = np.add.reduceat(np.asarray(patterns[rows], dtype=np.float64)[:, order], starts,
+                            axis=1)
+    return light, values
+
+
+def _kernels(light: np.ndarray, offsets: np.ndarray, period: int) -> np.ndarray:
+    """Each pattern's kernel ``k_m`` over one period: the light on each group of pixels
+    (:func:`_grouped`), on the two bins about its offset (linear in the offset's part of a
+    bin)."""
     s = np.asarray(offsets, dtype=np.float64)
     base = np.floor(s).astype(np.int64)
     frac = s - base
-    kern = np.zeros((phi.shape[0], period))
+    kern = np.zeros((light.shape[0], period))
     for b in np.unique(base):
         sel = base == b
-        kern[:, b % period] += phi[:, sel] @ (1.0 - frac[sel])
-        kern[:, (b + 1) % period] += phi[:, sel] @ frac[sel]
+        kern[:, b % period] += light[:, sel] @ (1.0 - frac[sel])
+        kern[:, (b + 1) % period] += light[:, sel] @ frac[sel]
     return kern
 
 
@@ -175,6 +192,9 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     """
     tau_d = 2.0 * float(distance) / (SPEED_OF_LIGHT * bin_width)
     n = int(shape[0])
+    if tau_d <= 0:  # a target at the lidar: every pixel at one range
+        return {"model": "range", "fov_deg": None, "spread_bins": 0.0, "z": None,
+                "offsets": None, "reason": "one range: a target at distance 0"}
     if fov_deg is not None:
         offsets = plane_offsets(shape, distance, fov_deg, bin_width)
         spread = float(offsets.max() - offsets.min())
@@ -182,10 +202,16 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
                 "z": None, "offsets": offsets,
                 "reason": f"a wall facing the lidar through the {fov_deg:g} degree field of "
                           f"view given: its pixels over {spread:.3g} bins of round trip"}
-    phi = np.asarray(patterns, dtype=np.float64)
-    m = phi.shape[0]
+    m = patterns.shape[0]
     pick = np.unique(np.linspace(0, m - 1, min(m, SCAN_PATTERNS)).round().astype(int))
-    phi = phi[pick]
+    # the pixels at one distance from the axis share every candidate's offset
+    col = 2 * np.arange(shape[1]) + 1 - shape[1]
+    row = 2 * np.arange(shape[0]) + 1 - shape[0]
+    ring = (row[:, None] ** 2 + col[None, :] ** 2).ravel().astype(np.float64)
+    light, keys = _grouped(patterns, ring, pick)
+    member = np.searchsorted(keys, ring)  # a pixel's group
+    first = np.zeros(keys.size, dtype=np.int64)
+    first[member[::-1]] = np.arange(ring.size)[::-1]  # one pixel of each group
     from .calibration import IRF_AFTER, IRF_BEFORE
 
     period = int(np.asarray(code).size)
@@ -207,9 +233,9 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     spreads, residuals = [], []
     for spread in np.arange(0.0, limit + SPREAD_STEP / 2, SPREAD_STEP):
         fov = _fov_of_spread(spread, tau_d, n)
-        off = (plane_offsets(shape, distance, fov, bin_width) if fov > 0
-               else np.zeros(phi.shape[1]))
-        kf = np.fft.rfft(_kernels(phi, off, size), axis=1)
+        off = (plane_offsets(shape, distance, fov, bin_width)[first] if fov > 0
+               else np.zeros(keys.size))
+        kf = np.fft.rfft(_kernels(light, off, size), axis=1)
         num = np.sum(np.conj(kf) * gf, axis=0)
         den = np.sum(np.abs(kf) ** 2, axis=0)
         fit = np.divide(np.abs(num) ** 2, den, out=np.zeros_like(den), where=den > 0)
@@ -220,7 +246,7 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     n_f = gf.shape[1]
     # the residual's noise: a chi-square of about (M - 1) F complex terms of variance sigma^2,
     # which a change of model moves by about sigma^2 sqrt(2 F)
-    sigma2 = res[j] / max((phi.shape[0] - 1) * n_f, 1)
+    sigma2 = res[j] / max((light.shape[0] - 1) * n_f, 1)
     z = float((res[0] - res[j]) / (sigma2 * np.sqrt(2.0 * n_f))) if sigma2 > 0 else 0.0
     fov = _fov_of_spread(spreads[j], tau_d, n)
     out = {"model": "range", "fov_deg": round(fov, 4), "spread_bins": float(spreads[j]),
@@ -262,12 +288,12 @@ def range_free_response(hists: np.ndarray, patterns: np.ndarray, code: np.ndarra
         The code-free response (as :func:`~spslidar.pipeline.calibration.code_response`
         gives for one range), background removed.
     """
-    phi = np.asarray(patterns, dtype=np.float64)
     period = int(np.asarray(code).size)
     num = np.zeros(period // 2 + 1, dtype=np.complex128)
     den = np.zeros(period // 2 + 1)
-    for rows in _rows(phi.shape[0]):
-        kf = np.fft.rfft(_kernels(phi[rows], offsets, period), axis=1)
+    for rows in _rows(patterns.shape[0]):
+        light, values = _grouped(patterns, offsets, rows)
+        kf = np.fft.rfft(_kernels(light, values, period), axis=1)
         gf = np.fft.rfft(_code_removed(hists[rows], code), axis=1)
         num += np.sum(np.conj(kf) * gf, axis=0)
         den += np.sum(np.abs(kf) ** 2, axis=0)
