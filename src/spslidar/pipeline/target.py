@@ -25,7 +25,7 @@ convolved with a kernel ``k_m`` that the patterns and the geometry give. Two ste
    ``auto`` keeps the plane where its residual stands :data:`Z_PLANE` deviations (of the
    residual's chi-square noise) below one range's and it spreads the pixels over
    :data:`MIN_SPREAD_BINS` or more: measured 1.5-1.7 at 5 degrees, 5.9-8.3 at 10, 9.3-11.1 at
-   20 (32 x 32, 256 patterns), 20 at 10 degrees on ``run``'s 16 x 16 wall, 0.99 on its 64 x 64
+   20 (32 x 32, 256 patterns), 26 at 10 degrees on ``run``'s 16 x 16 wall, 0.99 on its 64 x 64
    one (1 024 patterns: each pattern's share of the pixels tells less as they grow), and
    0-0.02 on eleven walls at one range (the independent one, ``run``'s at 16 x 16, signal 1
    and 0.1, seeds 0-3, and at 64 x 64, seeds 0-1). Tried first and dropped: the responses of
