@@ -205,11 +205,13 @@ def _tail_end(g: np.ndarray, p0: int) -> int:
     2026-11-28); an IRF that has ended by 40 bins is read as before."""
     period = g.size
     before = g[np.arange(p0 - 3 * IRF_BEFORE, p0 - IRF_BEFORE) % period]
-    error = 3.0 * float(np.std(before)) / np.sqrt(2 * IRF_BEFORE)
+    # against the background before the peak, not against 0: the median taken off a weak
+    # response's skewed noise leaves its mean above 0, which read as a tail to the end
+    error = 3.0 * float(np.std(before)) * np.sqrt(2.0 / before.size)
     after = IRF_AFTER
     while 2 * after <= period // 4:
         past = g[(p0 + after + 1 + np.arange(2 * IRF_BEFORE)) % period]
-        if not float(past.mean()) > error:
+        if not float(past.mean() - before.mean()) > error:
             break
         after *= 2
     return after

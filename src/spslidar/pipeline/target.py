@@ -28,7 +28,10 @@ convolved with a kernel ``k_m`` that the patterns and the geometry give. Two ste
    20 (32 x 32, 256 patterns), 26 at 10 degrees on ``run``'s 16 x 16 wall, 0.99 on its 64 x 64
    one (1 024 patterns: each pattern's share of the pixels tells less as they grow), and
    0-0.02 on eleven walls at one range (the independent one, ``run``'s at 16 x 16, signal 1
-   and 0.1, seeds 0-3, and at 64 x 64, seeds 0-1). Tried first and dropped: the responses of
+   and 0.1, seeds 0-3, and at 64 x 64, seeds 0-1) but 0.55 on an 8 x 8 one through a 10-bin
+   IRF at 0.57 M photons (a 6-bin spread, which would have moved the delay by 1.3 bins): from
+   :data:`Z_HINT` to :data:`Z_PLANE` the target is read as one range and said to be perhaps
+   a flat wall (``--target plane --fov`` removes it). Tried first and dropped: the responses of
    4 x 4 blocks of the field, each solved by least squares from the blocks' sums, whose
    delays a plane would be fitted to: on a 32 x 32 calibration of 14.5 M photons they stood
    2-4 noise deviations high (each block's response estimated on its own, where this fit's
@@ -66,7 +69,9 @@ TARGETS = ("auto", "plane", "range")
 #: a plane whose pixels spread over less than this many bins is one range (``auto``)
 MIN_SPREAD_BINS = 1.0
 #: ``auto`` keeps the plane where its residual stands this many deviations below one range's
-Z_PLANE = 0.3
+Z_PLANE = 1.0
+#: ... and says (a warning) that the target may be a flat wall from this many
+Z_HINT = 0.3
 #: the candidate spreads' step, bins
 SPREAD_STEP = 0.5
 #: the largest spread scanned, bins (or a quarter of the code's period): 38 cm at 10 GHz, a
@@ -255,6 +260,13 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
         out["reason"] = (f"one range: a plane fits no better (best spread {spreads[j]:g} bins, "
                          f"{z:.2g} deviations)")
         out["spread_bins"] = 0.0
+        if z >= Z_HINT and spreads[j] >= MIN_SPREAD_BINS:
+            warnings.warn(f"the calibration target may be a flat wall whose pixels spread over "
+                          f"{spreads[j]:g} bins of round trip (a {fov:.3g} degree field of "
+                          f"view; {z:.2g} deviations, too few to remove it unasked): it was "
+                          f"read as one range; if it is a flat wall facing the lidar, calibrate "
+                          f"with --target plane --fov (your optics' field of view)",
+                          RuntimeWarning, stacklevel=3)
         return out
     out.update(model="plane", offsets=plane_offsets(shape, distance, fov, bin_width)
                if fov > 0 else np.zeros(n * n),
