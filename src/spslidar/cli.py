@@ -64,7 +64,9 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--ones-ratio", type=float, default=S, metavar="R",
                    help="share of '1' bits of a random code, in (0, 1) (default 0.5)")
     g.add_argument("--code-index", type=int, default=S, metavar="I",
-                   help="member of the Gold family / cyclic shift of the m-sequence")
+                   help="member of the Gold family (default 2, the first Gold code; 0 and 1 "
+                        "are the preferred pair's m-sequences) / cyclic shift of the "
+                        "m-sequence (default 0)")
     g.add_argument("--bit-rate", type=float, default=S, metavar="HZ",
                    help="return-to-zero bit rate = TDC bin rate (default 10e9: 1.5 cm bins)")
     g.add_argument("--pulse-width", type=float, default=S, metavar="BITS",

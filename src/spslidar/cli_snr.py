@@ -44,8 +44,11 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
                    help="code length T in bits; 2^n - 1 for mseq/gold (default 16383)")
     p.add_argument("--ones-ratio", type=float, default=0.5, metavar="R",
                    help="share of '1' bits of a random code, in (0, 1) (default 0.5)")
-    p.add_argument("--code-index", type=int, default=0, metavar="I",
-                   help="member of the Gold family / cyclic shift of the m-sequence (default 0)")
+    p.add_argument("--code-index", type=int, default=None, metavar="I",
+                   help="member of the Gold family / cyclic shift of the m-sequence (default "
+                        "as run's: member 2 of a Gold family, its first true Gold code, as "
+                        "members 0 and 1 are the preferred pair's two m-sequences; shift 0 of "
+                        "an m-sequence)")
     p.add_argument("--signal", type=float, default=5.0, metavar="MS",
                    help="m_s: mean signal photons per laser pulse per DMD pixel (mirror on, "
                         "reflectivity 1) (default 5)")

@@ -70,7 +70,8 @@ class Config:
     code_length: int = 16383
     #: share R_a of '1' bits of a ``random`` (Bernoulli) code, in (0, 1)
     ones_ratio: float = 0.5
-    #: member of the Gold family, or cyclic shift of the m-sequence (default: the first)
+    #: member of the Gold family, or cyclic shift of the m-sequence (default: Gold member 2, the
+    #: first true Gold code, as members 0 and 1 are the preferred pair's m-sequences; shift 0)
     code_index: int | None = None
     #: [Hz] return-to-zero bit rate, equal to the TDC bin rate (10 GHz: 100 ps, 1.5 cm bins)
     bit_rate: float = 10e9
@@ -131,7 +132,7 @@ class Config:
     #: otherwise: :func:`spslidar.correlate.auto_replica`; unipolar for ``conventional``)
     replica: str = "auto"
     #: [m] the delays reconstructed, (MIN, MAX) in metres (default: the scene's depth window padded
-    #: by 3 bins)
+    #: by 3 bins, placed from its true depths: said where it reaches beyond the unambiguous range)
     range_gate: tuple[float, float] | None = None
     #: drop the range slices without returns before solving (default: on for large gates)
     auto_gate: bool | None = None

@@ -39,10 +39,28 @@ def _validate_fixed_ratio(cfg) -> None:
     near 1/2, so a ``ones_ratio`` other than the default is a mistake, not a setting."""
     _validate_length(cfg)
     if cfg.ones_ratio != 0.5 and getattr(cfg, "lidar", "psst") != "conventional":  # (warned)
-        family = {"mseq": "an m-sequence", "gold": "a Gold code"}.get(cfg.code,
-                                                                      f"a {cfg.code} code")
         raise ConfigError(f"--ones-ratio {cfg.ones_ratio:g} applies to --code random only: "
-                          f"{family} has (length + 1) / 2 ones")
+                          f"{_fixed_ones_text(cfg)}")
+
+
+def _fixed_ones_text(cfg) -> str:
+    """What fixes the ones of an m-sequence or a Gold code, for the refusal of a
+    ``ones_ratio``: a Gold code's count depends on its member (992 of 2047 bits for the
+    default member 2, not the ``(length + 1) / 2`` an m-sequence has), so it is counted."""
+    if cfg.code == "mseq":
+        return "an m-sequence has (length + 1) / 2 ones"
+    if cfg.code != "gold":
+        return f"a {cfg.code} code has a fixed share of ones"
+    index = getattr(cfg, "code_index", None)
+    index = CODES.get("gold").defaults["index"] if index is None else index
+    try:
+        from .sequences import make_code
+
+        ones = int(make_code("gold", cfg.code_length, index=index).sum())
+    except (ConfigError, TypeError, ValueError):  # an invalid index is refused elsewhere
+        return "a Gold code has a share of ones fixed by its family member, near one half"
+    return (f"a Gold code has a share of ones fixed by its family member ({ones} ones of "
+            f"{cfg.code_length} bits for member {index})")
 
 
 _MAKE = "spslidar.codes.sequences:make_code"
@@ -53,7 +71,9 @@ CODES = Registry("code family", "code")
 CODES.add("mseq", _MAKE, "m-sequence", "maximal-length sequence, length 2^n - 1 (default)",
           validate=_validate_fixed_ratio, index=0)
 CODES.add("gold", _MAKE, "Gold code", "Gold sequence of a preferred pair, length 2^n - 1, "
-          "n not divisible by 4", validate=_validate_fixed_ratio, index=2)
+          "n not divisible by 4 (--code-index: member 2, the first Gold code, by default; "
+          "members 0 and 1 are the pair's two m-sequences)", validate=_validate_fixed_ratio,
+          index=2)
 CODES.add("random", _MAKE, "Bernoulli code", "iid bits with a chosen share of ones "
           "(--ones-ratio)", validate=_validate_length, index=0)
 

@@ -42,6 +42,22 @@ class Acquisition:
     def acquisition_time(self) -> float:
         return self.period * self.n_periods * self.bin_width
 
+    @property
+    def repetition_rate(self) -> float:
+        """[Hz] how often the code repeats: the conventional lidar's pulse rate, rounded to
+        whole TDC bins (``--rep-rate 4e9`` at 10 GHz runs at 5 GHz)."""
+        return 1.0 / (self.period * self.bin_width)
+
+
+def code_description(code: str, length: int, index: int) -> str:
+    """What the PSST code is, in words: ``'Gold code of 1023 bits'``; Gold family members 0
+    and 1 are the preferred pair's m-sequences, not Gold codes, and are named so."""
+    if code == "gold" and index in (0, 1):
+        which = ("first", "second")[index]
+        return (f"m-sequence of {length} bits (Gold family member {index}: the preferred "
+                f"pair's {which} m-sequence, not a Gold code)")
+    return f"{CODES.get(code).display} of {length} bits"
+
 
 def default_gate(scene, bin_width: float) -> tuple[float, float]:
     """The scene's depth window padded by a few bins (the operator's prior on the range),
@@ -82,8 +98,7 @@ def make_acquisition(cfg: Config, gate: tuple[float, float], rng_code) -> Acquis
                                   index=index).astype(np.uint8)
     if cfg.lidar == "psst":
         replica = auto_replica(psst_code) if cfg.replica == "auto" else cfg.replica
-        name = CODES.get(cfg.code).display
-        desc = f"{name} of {cfg.code_length} bits"
+        desc = code_description(cfg.code, cfg.code_length, index)
         if cfg.code == "random":
             desc += f" (ones ratio {cfg.ones_ratio:g})"
         return Acquisition("psst", psst_code, bin_width, cfg.periods, cfg.signal, replica, desc,

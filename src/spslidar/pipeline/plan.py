@@ -56,12 +56,47 @@ def timeline(cfg: Config, scene, warns: list[str]):
     if lags.size > acq.period:
         warns.append(gate_alias_warning(gate, lags.size, acq.period, acq.unambiguous_range,
                                         acq.description))
+    if cfg.range_gate is None and lags[-1] >= acq.period:
+        warns.append(default_gate_beyond_warning(scene, gate, acq))
+    warns.extend(rep_rate_warnings(cfg, acq))
     outside = (scene.depth < gate[0]) | (scene.depth > gate[1])
     if np.any(outside & scene.valid):
         warns.append(f"{int((outside & scene.valid).sum())} pixels lie outside the range gate "
                      f"{gate[0]:g}-{gate[1]:g} m: their returns alias into the gate or are lost")
     warns.extend(delay_warnings(cfg, scene, gate, acq.unambiguous_range))
     return seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse
+
+
+def default_gate_beyond_warning(scene, gate: tuple[float, float], acq: Acquisition) -> str:
+    """The warning for a default range gate (placed from the scene's own depths) that
+    reaches beyond the code's unambiguous range: the returns there wrap with the code, and
+    only the truth's prior put the gate where they read right (the camera at 20-20.8 m with a
+    1023-bit code, 15.33 m unambiguous, gave an RMSE of 0.0048 m and no word; a gate placed
+    within one unambiguous range instead reads it 15.33 m too near)."""
+    ru = acq.unambiguous_range
+    far = float(scene.depth_max)
+    cure = ("a slower --rep-rate (or none: the default covers the gate)"
+            if acq.lidar == "conventional" else "a longer --code-length")
+    return (f"the default range gate {gate[0]:g}-{gate[1]:g} m was placed from the scene's own "
+            f"depths, which a real acquisition does not know, and reaches beyond the "
+            f"{ru:.4g} m unambiguous range of the {acq.description}: a real acquisition would "
+            f"read these returns aliased to their depth modulo {ru:.4g} m (the farthest, "
+            f"{far:.4g} m, at {far % ru:.4g} m); give the --range-gate the instrument would "
+            f"know, or {cure}")
+
+
+def rep_rate_warnings(cfg: Config, acq: Acquisition) -> list[str]:
+    """The conventional lidar's pulse period is a whole number of TDC bins: a ``--rep-rate``
+    that rounding changes by more than 1 % is said, with the rate used (``--rep-rate 4e9`` at
+    10 GHz ran at 5 GHz without a word)."""
+    if acq.lidar != "conventional" or cfg.rep_rate is None:
+        return []
+    used = acq.repetition_rate
+    if abs(used - cfg.rep_rate) <= 0.01 * cfg.rep_rate:
+        return []
+    return [f"--rep-rate {cfg.rep_rate:g} Hz is not a whole number of --bit-rate "
+            f"{cfg.bit_rate:g} Hz bins: the pulse period is rounded to {acq.period} bins and "
+            f"the lidar runs at {used:.6g} Hz ({100 * (used / cfg.rep_rate - 1):+.3g} %)"]
 
 
 def delay_warnings(cfg: Config, scene, gate: tuple[float, float],
@@ -102,8 +137,9 @@ def ignored_keys(cfg: Config) -> dict[str, str]:
     ``rep_rate`` of a PSST lidar (its period is the code's), ``hadamard_order`` and
     ``hadamard_realisation`` of patterns that are not Hadamard rows, ``pattern_sigma`` of
     patterns that are not grey Gaussian ones, ``qcr_form`` without QCR, ``fairness`` of a
-    PSST lidar, the code of a conventional one (unless its ``power`` fairness counts the
-    code's ones), ``lam_scale`` beside ``lam``."""
+    PSST lidar, the code of a conventional one (under its ``power`` fairness, which counts
+    the code's ones, the ones ratio of an m-sequence or Gold code and the shift of an
+    m-sequence: :func:`_power_ignored`), ``lam_scale`` beside ``lam``."""
     import dataclasses
 
     fields = {f.name: f.default for f in dataclasses.fields(Config)}
@@ -139,9 +175,31 @@ def ignored_keys(cfg: Config) -> dict[str, str]:
                     f"--lidar conventional fires single pulses, not a code (--code-length "
                     f"still sets each pattern's time)")
             out.update(dict.fromkeys(keys, text))
+    elif cfg.lidar == "conventional":  # 'power' takes only the code's count of ones
+        out.update(_power_ignored(cfg, changed))
     if cfg.lam is not None and cfg.lam_scale is not None:
         out["lam_scale"] = (f"--lam-scale {cfg.lam_scale:g} is ignored: --lam {cfg.lam:g} sets "
                             f"the weight itself")
+    return out
+
+
+def _power_ignored(cfg: Config, changed) -> dict[str, str]:
+    """The code options a conventional lidar under ``--fairness power`` ignores: it takes
+    only the code's count of ones (its pulses share the PSST's photons), which a cyclic shift
+    of an m-sequence keeps and a ones ratio sets only for a random code (a PSST lidar refuses
+    that ratio; here a sweep may cross it, so it is said)."""
+    out: dict[str, str] = {}
+    if changed("ones_ratio") and cfg.code != "random":
+        from ..codes import CODES
+
+        fixed = "an m-sequence's" if cfg.code == "mseq" else f"a {CODES.get(cfg.code).display}'s"
+        out["ones_ratio"] = (f"--ones-ratio {cfg.ones_ratio:g} is ignored: {fixed} share of "
+                             f"ones is fixed, and --lidar conventional --fairness power takes "
+                             f"only the code's count of ones")
+    if changed("code_index") and cfg.code == "mseq":
+        out["code_index"] = (f"--code-index {cfg.code_index} is ignored: a cyclic shift keeps "
+                             f"the m-sequence's count of ones, all that --lidar conventional "
+                             f"--fairness power takes from the code")
     return out
 
 

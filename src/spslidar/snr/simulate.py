@@ -22,6 +22,7 @@ from spslidar.snr.theory import (
     check_trials,
     code_family,
     config_error,
+    default_code_index,
     eq10,
     make_code_checked,
     mirrors_on,
@@ -187,7 +188,7 @@ def snr_simulated(
     *,
     method: str = "sum",
     interval: str = "delta",
-    code_index: int = 0,
+    code_index: int | None = None,
     delay: int | None = None,
     n_boot: int = 2000,
     max_time: float | None = 3600.0,
@@ -234,8 +235,10 @@ def snr_simulated(
         ``estimate +- t se``, clipped at 0, with ``t`` Student's 97.5 % quantile at ``K - 1``
         degrees of freedom: 1.97 at 200 trials, 12.7 at 2, where 1.96 gave an interval of
         0 .. 9.7e6 around a theory of 1.7e7) or a percentile bootstrap of the trials.
-    code_index : int, optional
-        Member of the Gold family / cyclic shift of the m-sequence (default 0).
+    code_index : int or None, optional
+        Member of the Gold family / cyclic shift of the m-sequence (default None: ``run``'s
+        default, member 2 for Gold codes, the first true Gold code, as members 0 and 1 are
+        the preferred pair's m-sequences; shift 0 for m-sequences).
     delay : int, optional
         Round-trip delay ``k`` in bins (default ``T // 3``); the result does not depend on it.
     n_boot : int, optional
@@ -308,6 +311,7 @@ def snr_simulated(
                            f"bits a simulation takes (as run's --code-length); eq. (10) itself "
                            f"(spslidar.snr.snr_theory) has no such limit")
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    code_index = default_code_index(kind, code_index)
     bits = make_code_checked(kind, code_length, ones_ratio, gen, code_index)
     period = int(bits.size)
     from ..pipeline.budget import check_time  # refuses beyond max_time, says over 30 s

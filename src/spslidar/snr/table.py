@@ -36,7 +36,7 @@ def snr_table(
     *,
     method: str = "sum",
     interval: str = "delta",
-    code_index: int = 0,
+    code_index: int | None = None,
     skip_invalid: bool = False,
 ) -> list[dict[str, Any]]:
     """Theory and simulated SNR over a grid of code kinds, lengths and ones ratios.

@@ -190,18 +190,32 @@ def code_family(kind: str) -> str:
     return kind if kind in CODES else canonical_kind(kind)
 
 
-def make_code_checked(kind: str, length: Any, ones_ratio: Any, rng, index: Any):
+def default_code_index(kind: str, index: Any = None) -> int:
+    """The family member / cyclic shift a code uses: ``index`` where given, else the
+    family's default, as ``run`` takes it (Gold: member 2, the first true Gold code; members
+    0 and 1 are the preferred pair's m-sequences; m-sequence and random: 0)."""
+    from ..codes import CODES
+
+    if index is not None:
+        return as_integer(index, "code index")
+    return int(CODES.get(code_family(kind)).defaults["index"])
+
+
+def make_code_checked(kind: str, length: Any, ones_ratio: Any, rng, index: Any = None):
     """The code (uint8 0/1) of a registered family, built by its registry entry after the
     entry's own checks (the lengths it can have; a ones ratio only where the family has one),
-    so ``snr`` takes exactly the codes ``run`` takes; ConfigError on bad input."""
+    so ``snr`` takes exactly the codes ``run`` takes, with the same default member
+    (:func:`default_code_index`); ConfigError on bad input."""
     from types import SimpleNamespace
 
     from ..codes import CODES
 
     name = code_family(kind)
     length = as_integer(length, "code length")
+    index = default_code_index(name, index)
     entry = CODES.get(name)
-    entry.check(SimpleNamespace(code=name, code_length=length, ones_ratio=ones_ratio))
+    entry.check(SimpleNamespace(code=name, code_length=length, ones_ratio=ones_ratio,
+                                code_index=index))
     return entry.load()(name, length, ones_ratio, rng, index)
 
 
@@ -216,7 +230,7 @@ def snr_theory(
     reflectivity: float = 1.0,
     *,
     code: str | None = None,
-    code_index: int = 0,
+    code_index: int | None = None,
 ) -> float:
     """Output SNR of one pattern's matched filter over one code period, eq. (10).
 
@@ -242,9 +256,10 @@ def snr_theory(
         None (default): the formula with ``R_a = ones_ratio`` and any ``T >= 1``. A code kind:
         ``R_a`` is the share of ones of the code :func:`spslidar.codes.make_code` generates
         (``(T + 1) / (2 T)`` for an m-sequence), or ``ones_ratio`` for ``'random'``.
-    code_index : int, optional
-        Member of the Gold family / cyclic shift of the m-sequence (default 0; for Gold codes
-        members 0 and 1 are the two m-sequences of the preferred pair).
+    code_index : int or None, optional
+        Member of the Gold family / cyclic shift of the m-sequence (default None: ``run``'s
+        default, member 2 for Gold codes, the first true Gold code; members 0 and 1 are the
+        two m-sequences of the preferred pair; shift 0 for m-sequences).
 
     Returns
     -------

@@ -1,0 +1,168 @@
+"""An audit of codes, range gates and the conventional lidar's options: a default gate beyond
+the unambiguous range ran without a word, ``snr --code gold`` took another member than
+``run``, Gold members 0 and 1 were called Gold codes, the ones-ratio refusal misstated a Gold
+code's ones, options without effect under ``--fairness power`` and a rounded ``--rep-rate``
+were silent."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from spslidar.cli import main
+
+SMALL = ["--size", "8", "--no-figure"]
+
+
+def _metrics(out) -> dict:
+    return json.loads((out / "metrics.json").read_text())
+
+
+@pytest.mark.parametrize("args,ru", [
+    (["--scene", "camera", "--code-length", "1023", "--signal", "50", "--noise", "1"],
+     "15.33"),
+    (["--scene", "camera", "--lidar", "conventional", "--rep-rate", "10e6",
+      "--code-length", "16383"], "14.99"),
+    (["--scene", "steps", "--code-length", "63", "--noiseless", "--compression", "1"],
+     "0.9443"),
+])
+def test_a_default_gate_beyond_the_unambiguous_range_is_said(tmp_path, args, ru):
+    """The camera at 20-20.8 m with a 1023-bit code (15.33 m unambiguous) read its true depths
+    (RMSE 0.0048 m) through a gate placed from the scene's own depths, and said nothing."""
+    out = tmp_path / "o"
+    assert main(["run", *SMALL, *args, "--out", str(out)]) == 0
+    said = [w for w in _metrics(out)["warnings"] if w.startswith("the default range gate")]
+    assert len(said) == 1, _metrics(out)["warnings"]
+    assert f"{ru} m unambiguous range" in said[0]
+    assert "scene's own depths" in said[0] and f"modulo {ru} m" in said[0]
+
+
+@pytest.mark.parametrize("args", [
+    [],  # the default code: 245.6 m unambiguous
+    ["--code-length", "1023", "--range-gate", "19.9", "20.9"],  # the operator's own gate
+    ["--lidar", "conventional"],  # its default rate covers the gate
+])
+def test_a_default_gate_within_range_or_a_given_gate_is_not_said(tmp_path, args):
+    out = tmp_path / "o"
+    assert main(["run", *SMALL, *args, "--out", str(out)]) == 0
+    assert not any(w.startswith("the default range gate") for w in _metrics(out)["warnings"])
+
+
+def test_snr_takes_runs_default_gold_member(capsys):
+    """``snr --code gold`` took member 0 (an m-sequence, 512 ones of 1023) where ``run``
+    takes member 2 (a Gold code)."""
+    from spslidar.codes import CODES, make_code
+
+    assert main(["snr", "--code", "gold", "--code-length", "1023", "--size", "8",
+                 "--trials", "20", "--json"]) == 0
+    params = json.loads(capsys.readouterr().out)["params"]
+    member = CODES.get("gold").defaults["index"]
+    assert member == 2 and params["code_index"] == member
+    assert params["ones"] == int(make_code("gold", 1023, index=member).sum())
+    with pytest.raises(SystemExit):
+        main(["snr", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "member 2 of a Gold family" in text and "two m-sequences" in text
+
+
+def test_snr_library_default_member_is_runs():
+    from spslidar.snr import snr_simulated, snr_theory
+
+    kw = dict(signal=5.0, noise=10.0, size=8, on_fraction=0.5)
+    assert snr_simulated("gold", 127, 0.5, **kw, trials=4, rng=0)["code_index"] == 2
+    assert snr_theory(127, 0.5, **kw, code="gold") == snr_theory(127, 0.5, **kw, code="gold",
+                                                                 code_index=2)
+    assert snr_simulated("mseq", 127, 0.5, **kw, trials=4, rng=0)["code_index"] == 0
+
+
+@pytest.mark.parametrize("index,what", [
+    ("0", "m-sequence of 127 bits (Gold family member 0: the preferred pair's first"),
+    ("1", "m-sequence of 127 bits (Gold family member 1: the preferred pair's second"),
+    ("2", "Gold code of 127 bits"),
+])
+def test_gold_members_0_and_1_are_described_as_m_sequences(tmp_path, index, what):
+    out = tmp_path / "o"
+    assert main(["run", *SMALL, "--code", "gold", "--code-length", "127", "--code-index",
+                 index, "--range-gate", "19.9", "20.9", "--out", str(out)]) == 0
+    assert _metrics(out)["code_description"].startswith(what)
+
+
+def test_run_help_names_the_default_gold_member(capsys):
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "member 2, the first Gold code, by default" in text
+    assert "members 0 and 1 are the pair's two m-sequences" in text
+
+
+def test_the_ones_ratio_refusal_counts_a_gold_codes_ones(tmp_path, capsys):
+    """It said 'a Gold code has (length + 1) / 2 ones': member 2 at 2047 has 992."""
+    out = tmp_path / "o"
+    assert main(["run", *SMALL, "--code", "gold", "--code-length", "2047", "--ones-ratio",
+                 "0.3", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "992 ones of 2047 bits for member 2" in err[0], err
+    assert "(length + 1) / 2" not in err[0] and not out.exists()
+
+
+@pytest.mark.parametrize("args,said", [
+    (["--ones-ratio", "0.3"], "--ones-ratio 0.3 is ignored: an m-sequence's share"),
+    (["--code-index", "5"], "--code-index 5 is ignored: a cyclic shift keeps"),
+    (["--code", "gold", "--ones-ratio", "0.3"], "--ones-ratio 0.3 is ignored: a Gold code's"),
+])
+def test_code_options_without_effect_under_power_fairness_are_said(tmp_path, args, said):
+    """Under --fairness power the conventional lidar takes only the code's count of ones:
+    an m-sequence's ones ratio and shift changed nothing, silently."""
+    out = tmp_path / "o"
+    assert main(["run", *SMALL, "--lidar", "conventional", "--fairness", "power",
+                 "--code-length", "2047", *args, "--out", str(out)]) == 0
+    warns = _metrics(out)["warnings"]
+    assert sum(said in w for w in warns) == 1, warns
+
+
+def test_a_gold_member_under_power_fairness_has_an_effect_and_is_not_said(tmp_path):
+    runs = {}
+    for index in ("0", "2"):
+        out = tmp_path / index
+        assert main(["run", *SMALL, "--lidar", "conventional", "--fairness", "power",
+                     "--code", "gold", "--code-length", "2047", "--code-index", index,
+                     "--out", str(out)]) == 0
+        runs[index] = _metrics(out)
+    assert runs["0"]["signal_per_pulse"] != runs["2"]["signal_per_pulse"]  # 1024 / 992 ones
+    assert not any("--code-index" in w for w in runs["0"]["warnings"])
+
+
+@pytest.mark.parametrize("rate,said", [
+    ("4e9", "runs at 5e+09 Hz (+25 %)"),
+    ("3e9", "runs at 3.33333e+09 Hz (+11.1 %)"),
+    ("10e6", None),  # 1000 bins exactly
+    ("9.95e6", None),  # 1005 bins: 9.95025e6 Hz, within 1 %
+])
+def test_a_rep_rate_rounded_to_whole_bins_is_said(tmp_path, rate, said):
+    """``--rep-rate 4e9`` ran at 5 GHz (two 100 ps bins) without a word."""
+    out = tmp_path / "o"
+    assert main(["run", *SMALL, "--lidar", "conventional", "--rep-rate", rate,
+                 "--code-length", "2047", "--range-gate", "19.9", "20.9",
+                 "--out", str(out)]) == 0
+    metrics = _metrics(out)
+    warns = [w for w in metrics["warnings"] if w.startswith(f"--rep-rate {float(rate):g}")]
+    if said is None:
+        assert not warns
+    else:
+        assert len(warns) == 1 and said in warns[0], warns
+    # metrics.json's config gives the rate the lidar ran at (whole bins of 0.1 ns)
+    period = round(10e9 / float(rate))
+    assert metrics["config"]["rep_rate"] == pytest.approx(10e9 / period, rel=1e-12)
+
+
+def test_an_aliased_gate_is_not_also_called_noise(tmp_path):
+    """A noiseless run through a gate longer than the code's period repeats each peak every
+    period: it was said to be "mostly noise" beside the gate-alias warning."""
+    out = tmp_path / "o"
+    assert main(["run", "--scene", "steps", "--size", "8", "--code-length", "63",
+                 "--range-gate", "0", "2", "--noiseless", "--compression", "1",
+                 "--no-figure", "--out", str(out)]) == 0
+    warns = _metrics(out)["warnings"]
+    assert not any("mostly noise" in w for w in warns), warns
+    assert any(w.startswith("no noise verdict") for w in warns), warns  # (ratio 1.00)
