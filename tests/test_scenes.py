@@ -280,7 +280,7 @@ def test_bad_valid_mask(tmp_path: Path):
         load_scene(tmp_path / "w.npz")
 
 
-@pytest.mark.parametrize("size", [3, 0, -1, 2049, 32.0, True])
+@pytest.mark.parametrize("size", [3, 0, -1, 2049, 32.5, float("nan"), True])
 def test_bad_size(size):
     with pytest.raises(SceneError, match="size"):
         load_scene("steps", size)
@@ -466,3 +466,9 @@ def test_masks_and_holes_a_user_writes(tmp_path):
     np.save(tmp_path / "f.npy", d)
     with pytest.raises(SceneError, match=r"depth_min 10 m \(the scene's own: not given\)"):
         load_scene(str(tmp_path / "f.npy"), 16, depth_max=5.0)
+
+
+def test_a_whole_float_size_is_a_size_as_config_takes_it():
+    """``run(size=16.0)`` ran while ``load_scene(..., 16.0)`` was refused (an audit of
+    2026-11-28): both take a whole float."""
+    assert load_scene("camera", 16.0).depth.shape == (16, 16)

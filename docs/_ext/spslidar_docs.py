@@ -268,6 +268,11 @@ METRICS: dict[str, str] = {
     "coverage": "Share of all pixels the RMSE is computed over: a known truth and a detected "
                 "return (without a ground truth: a detected return).",
     "has_truth": "Whether the scene has a ground truth (false for a measured acquisition).",
+    "scene_name": "The scene used, by its canonical name (a built-in's lower-case name, "
+                  "``procedural:SEED`` with the seed as a plain integer, a file's name; a "
+                  "measured acquisition's PTU file); ``config.scene`` keeps the spelling given.",
+    "scene_note": "What the scene is, in words (``procedural:SEED``: its layout and depth "
+                  "range, e.g. ``a clutter at 2.51-5.56 m``); null for the other scenes.",
     "edge_correlation": "Correlation of the Sobel edges of the estimate and of the truth "
                         "(the paper's Fig. 5 and 7).",
     "bin_depth_m": "Depth of one TDC bin, c / (2 x bit rate), metres (1.5 cm at 10 GHz).",

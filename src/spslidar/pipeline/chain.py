@@ -28,7 +28,13 @@ from ..qcr import MeanEliminated, plain_problem, qcr_problem
 from ..scenes import load_scene
 from ..solvers.entries import TV_REGULARISERS
 from .gate import AUTO_GATE_MIN_SLICES, occupied_lags
-from .measurement import PROCESSING_KEYS, Measurement, _resolve, check_processing_keys
+from .measurement import (
+    PROCESSING_KEYS,
+    Measurement,
+    _resolve,
+    check_processing_keys,
+    unchanged_keys,
+)
 from .plan import _check_pattern_floor, _plan, detector_options, preflight, timeline
 from .results import Result
 from .score import finish_result, resolved_config
@@ -92,7 +98,7 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     if be is None:  # a device holds its own patterns: the host's memory floor is NumPy's
         _check_pattern_floor(cfg)
     scene = load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
-    warns.extend(scene.notes)
+    warns.extend(scene.notes)  # (its description is no warning: metrics' scene_note)
     timing["scene"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -128,8 +134,9 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
         from ..instrument import instrument_weights
 
         shifts, weights = instrument_weights(scene, acq, cfg)
+        # (a copy: the scene's arrays are read-only, and torch.from_numpy warns on one)
         sim = simulate(be, patterns, acq, ulags, noise, detector, shifts, weights,
-                       scene.reflectivity.ravel(), seq_counts, cfg.noiseless, BLOCK)
+                       np.array(scene.reflectivity.ravel()), seq_counts, cfg.noiseless, BLOCK)
         be.sync()
     else:  # the NumPy kernel (on the host patterns of a device pattern set)
         host = patterns if be is None else host_patterns(patterns)
@@ -162,8 +169,9 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     **processing
         Processing keys to change from the measurement's config (``solver``, ``lam``,
         ``lam_scale``, ``qcr``, ``qcr_form``, ``regulariser``, ``iterations``, ``tol``,
-        ``subbin``, ``nonneg``, ``auto_gate``); anything else would need a new simulation and
-        is an error.
+        ``subbin``, ``nonneg``, ``auto_gate``). Any other key is taken only at the value the
+        measurement used (``noise=5`` after ``measure(noise=5)``); another value would need a
+        new simulation and is an error.
 
     Notes
     -----
@@ -175,6 +183,9 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     if not isinstance(meas, Measurement):
         raise ConfigError(f"reconstruct() takes a Measurement (from spslidar.measure()), got "
                           f"{type(meas).__name__}")
+    # a measurement key given at the value the measurement used changes nothing: taken
+    same = unchanged_keys(meas.config, processing)
+    processing = {k: v for k, v in processing.items() if k not in same}
     check_processing_keys(processing, "reconstruct()",
                           "reconstruct() cannot change {keys}: simulate again with measure()")
     cfg = meas.config.replace(**processing) if processing else meas.config

@@ -43,6 +43,27 @@ def check_processing_keys(processing: dict[str, Any], caller: str, fixed: str) -
     raise ConfigError(fixed.format(keys=", ".join(sorted(bad))))
 
 
+def unchanged_keys(config: Config, keys: dict[str, Any]) -> dict[str, Any]:
+    """The keyword arguments of ``keys`` that are not :data:`PROCESSING_KEYS` and whose value
+    is the one ``config`` already holds (as :class:`Config` validates it: ``noise=5`` is the
+    measurement's ``5.0``), under their names as given: what ``reconstruct(meas, **keys)``
+    may take without simulating again. A value ``config`` refuses counts as changed."""
+    from ..errors import SpslidarError
+
+    same: dict[str, Any] = {}
+    held = config.to_dict()
+    for key, value in keys.items():
+        name = key.replace("-", "_")
+        if name in PROCESSING_KEYS or name not in held:
+            continue
+        try:
+            if config.replace(**{name: value}).to_dict() == held:
+                same[key] = value
+        except SpslidarError:  # refused: "cannot change" says the rest
+            continue
+    return same
+
+
 @dataclass
 class Measurement:
     """A simulated acquisition: the matched-filter outputs of every pattern over the gate,

@@ -34,8 +34,10 @@ class Result:
     confidence: np.ndarray | None = None
     low_confidence: np.ndarray | None = None
     #: per-pixel reflectivity (intensity) read off the reconstruction
-    #: (:func:`spslidar.products.reflectivity_image`): an estimate of alpha in [0, 1] for a
-    #: simulation, detected photons per pulse for a measured acquisition; NaN without a return
+    #: (:func:`spslidar.products.reflectivity_image`): for a simulation an estimate of alpha
+    #: (which lies in [0, 1]), itself >= 0 but not bounded by 1: noise and the reconstruction
+    #: take it above 1 (1.16 on procedural:4 at 16 x 16, noise 5); detected photons per pulse
+    #: for a measured acquisition; NaN without a return
     reflectivity: np.ndarray | None = None
     #: a second surface per pixel (metres; NaN where the pixel shows one surface), where the
     #: depth estimator looks for one (:attr:`spslidar.depth.DepthEstimate.depth2`)
@@ -58,7 +60,9 @@ class Result:
     def summary(self) -> str:
         """Two lines: what was run and what came out."""
         c, m = self.config, self.metrics
-        what = (f"{c.lidar} {m['code_description']}, scene {self.scene.name} {c.size}x{c.size}, "
+        note = m.get("scene_note")
+        scene = f"{self.scene.name} ({note})" if note else self.scene.name
+        what = (f"{c.lidar} {m['code_description']}, scene {scene} {c.size}x{c.size}, "
                 f"{m['n_patterns']} {c.patterns} patterns ({100 * c.compression:g}%), "
                 f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}")
         t = self.timing
@@ -129,6 +133,11 @@ class Result:
 
         from ..products import DEFAULT_FOV_DEG, check_fov
 
+        if isinstance(out_dir, bytes) or not isinstance(out_dir, (str, os.PathLike)):
+            from ..errors import ConfigError  # (an int raised os.fspath's TypeError)
+
+            raise ConfigError(f"{option} must be a folder path (a str or os.PathLike), got "
+                              f"{type(out_dir).__name__}")
         fov = DEFAULT_FOV_DEG if fov_deg is None else check_fov(fov_deg)  # before any file
 
         def fill(tmp: Path) -> None:

@@ -53,7 +53,15 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
     verdict = noise_verdict(slices, exclude=int(sim.get("response_half_width") or 2))
     # None: no verdict (too few slices, a diverged solve)
     peak_ratio, peak_floor, null = verdict if verdict is not None else (None, None, None)
-    if verdict is not None and peak_ratio < peak_floor:
+    aliased = meas.lags.size > acq.period  # each profile repeats its peak every period
+    if verdict is not None and peak_ratio < peak_floor and aliased:
+        # (a noiseless aliased run was also said to be "mostly noise": the gate-alias
+        # warning says what it is)
+        warns.append(
+            f"no noise verdict: the range gate spans more than one code period, so each "
+            f"pixel's peak repeats every {acq.unambiguous_range:.4g} m (see the range-gate "
+            f"warning)")
+    elif verdict is not None and peak_ratio < peak_floor:
         warns.append(
             f"the depth map is mostly noise: at most a tenth of the pixels hold a return above "
             f"it (the 90th percentile of each pixel's peak over its own profile's noise maximum "
@@ -75,6 +83,10 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         "depth_rmse_bins": (err["depth_rmse_m"] / bin_depth if err["depth_rmse_m"] is not None
                             else None),
         "has_truth": bool(getattr(scene, "has_truth", True)),
+        # the scene used, by its canonical name (config.scene keeps the spelling given:
+        # ' PROCEDURAL:007' ran procedural:7), and what it is in words (or null)
+        "scene_name": str(scene.name),
+        "scene_note": getattr(scene, "description", "") or None,
         "edge_correlation": edge_corr,
         "bin_depth_m": bin_depth,
         "unambiguous_range_m": acq.unambiguous_range,
@@ -136,6 +148,8 @@ def resolved_config(cfg: Config, acq: Acquisition, gate, auto_gate: bool, iterat
     d["lam_scale"] = float(lam_scale)
     d["code_index"] = acq.code_index
     d["replica"] = acq.replica
+    if acq.lidar == "conventional":  # the pulse period is whole bins (--rep-rate 4e9 -> 5e9)
+        d["rep_rate"] = acq.repetition_rate
     d["regulariser"] = regulariser_kind(cfg)
     d["range_gate"] = [float(gate[0]), float(gate[1])]
     d["auto_gate"] = bool(auto_gate)

@@ -9,10 +9,14 @@ Built-in scenes need no network: they use images shipped inside scikit-image or 
 * ``steps``: a back plane with raised rectangles and a disc at distinct depths.
 * ``ramp``: a smooth linear ramp with a sphere-like bump.
 * ``room``: a wide-depth indoor scene (2-5 m): a receding floor, a slanted side wall, a table
-  on one-pixel legs, a one-pixel lamp pole, a dark cabinet and a dark poster on the back wall.
+  on thin legs, a thin lamp pole, a dark cabinet and a dark poster on the back wall.
 * ``street``: a wide-depth outdoor scene (2-5 m): a receding road, a slanted facade with dark
-  windows, a parked car, three one-pixel poles (one dark), a slanted one-pixel wire and a dark
-  far backdrop.
+  windows, a parked car, three thin poles (one dark), a slanted thin wire and a dark far
+  backdrop.
+
+A thin structure (here, in ``fence`` and in ``procedural:SEED``) is ``max(1/64, 1/N)`` of the
+side of an ``N x N`` scene wide: from 64 x 64 up a fixed width in the scene, one pixel at
+64 x 64 and ``N / 64`` pixels above (2 at 128, 8 at 512); one pixel at every size below 64.
 
 User scenes are read from ``.npy``, ``.npz`` or grey images (``.png``, ``.tif``, ``.tiff``,
 ``.jpg``, ``.jpeg``); see :func:`load_scene`.

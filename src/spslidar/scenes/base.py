@@ -41,10 +41,15 @@ class Scene:
     valid : numpy.ndarray
         ``(N, N)`` bool, True where the ground-truth depth is known; metrics ignore the others.
     notes : list of str
-        What loading did that a user should hear about (e.g. a non-square file cropped).
+        What loading did that a user should hear about (e.g. a non-square file cropped):
+        warnings of the run.
     has_truth : bool
         False for a measured acquisition (``spslidar reconstruct`` without ``--truth``): the
         depth is a placeholder, no pixel is valid, and no truth-based metric is computed.
+    description : str
+        What the scene is, in words, where its name alone does not say (``procedural:7``:
+        ``"a clutter at 2.51-5.56 m"``); empty otherwise. Not a warning: ``metrics.json``
+        keeps it as ``scene_note`` and the run's summary line shows it.
 
     Raises
     ------
@@ -54,6 +59,10 @@ class Scene:
     Notes
     -----
     ``depth`` and ``reflectivity`` are the ``d(x, y)`` and ``alpha(x, y)`` of eqs. (1)-(8).
+    Once built, the scene's arrays are read-only views: a measurement and every result
+    reconstructed from it share the scene, and each result is scored against it, so writing
+    into ``result.scene.depth`` would change the next result's score. To change a scene, build
+    another (``dataclasses.replace(scene, depth=new_depth)``).
     """
 
     name: str
@@ -63,11 +72,13 @@ class Scene:
     #: what loading did that a user should hear about (e.g. a non-square file cropped)
     notes: list[str] = field(default_factory=list)
     has_truth: bool = True
+    #: what the scene is, in words (not a warning; ``metrics.json``'s ``scene_note``)
+    description: str = ""
 
     def __post_init__(self) -> None:
-        self.depth = np.asarray(self.depth, dtype=np.float64)
-        self.reflectivity = np.asarray(self.reflectivity, dtype=np.float64)
-        self.valid = np.asarray(self.valid, dtype=bool)
+        self.depth = _read_only(self.depth, np.float64)
+        self.reflectivity = _read_only(self.reflectivity, np.float64)
+        self.valid = _read_only(self.valid, bool)
         d = self.depth
         if d.ndim != 2 or d.shape[0] != d.shape[1]:
             raise SceneError(
@@ -107,6 +118,14 @@ class Scene:
 # helpers
 
 
+def _read_only(arr, dtype) -> np.ndarray:
+    """``arr`` as an array of ``dtype`` seen through a read-only view (the array given, or
+    the caller's own, stays writable for its owner; the scene's view cannot write into it)."""
+    view = np.asarray(arr, dtype=dtype).view()
+    view.flags.writeable = False
+    return view
+
+
 def _one_line(text: object, limit: int = 120) -> str:
     """Collapse whitespace and truncate, so a reader's error fits on one line."""
     line = " ".join(str(text).split())
@@ -124,6 +143,10 @@ def _pixels(count: int) -> str:
 
 
 def _check_size(size) -> int:
+    # a whole float is a size as Config takes one (run(size=16.0) ran, load_scene refused it)
+    if (isinstance(size, (float, np.floating)) and np.isfinite(size)
+            and float(size).is_integer()):
+        size = int(size)
     if isinstance(size, (bool, np.bool_)) or not isinstance(size, (int, np.integer)):
         raise SceneError(
             f"scene size must be an integer from {_MIN_SIZE} to {_MAX_SIZE}, got {size!r}"
@@ -137,6 +160,8 @@ def _check_size(size) -> int:
 def _check_bound(value, what: str) -> float | None:
     if value is None:
         return None
+    if isinstance(value, (bool, np.bool_)):  # (True was read as 1 m)
+        raise SceneError(f"{what} must be a number of metres, got {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):

@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from .. import scene_cache
@@ -27,8 +29,9 @@ _STEPS_WINDOW = (10.0, 10.6)
 _RAMP_WINDOW = (5.0, 5.5)
 _ROOM_WINDOW = (2.0, 5.0)
 _STREET_WINDOW = (2.0, 5.0)
-#: width of the thin structures (poles, legs, wire) of ``room`` and ``street``: one pixel at
-#: 64 x 64, never less than one pixel
+#: width of the thin structures (poles, legs, wire) of ``room`` and ``street``, as a share of
+#: the side from 64 x 64 up (one pixel at 64 x 64, 2 at 128, 8 at 512); one pixel below 64
+#: (:func:`_band`: ``max(1/64, 1/size)``)
 _THIN = 1.0 / 64
 
 # Calibration of skimage.data.stereo_motorcycle (Middlebury 2014, down-sampled by 4).
@@ -64,7 +67,9 @@ def _motorcycle(size: int, depth_min: float | None, depth_max: float | None) -> 
     if depth_min is not None or depth_max is not None:  # as _finish, after the resize
         valid = scene.valid
         native = (float(scene.depth[valid].min()), float(scene.depth[valid].max()))
-        scene.depth = _remap(scene.depth, valid, *_window(depth_min, depth_max, native))
+        # (a new scene: a built scene's arrays are read-only)
+        scene = replace(scene, depth=_remap(scene.depth, valid,
+                                            *_window(depth_min, depth_max, native)))
     return scene
 
 
@@ -106,10 +111,10 @@ def _motorcycle_computed(size: int) -> Scene:
     span = float(lum.max() - lum.min())
     r_lo, r_hi = _MOTO_REFLECTIVITY
     if span > 0:
-        scene.reflectivity = np.clip(r_lo + (lum - lum.min()) * ((r_hi - r_lo) / span), r_lo, r_hi)
+        refl = np.clip(r_lo + (lum - lum.min()) * ((r_hi - r_lo) / span), r_lo, r_hi)
     else:
-        scene.reflectivity = np.full_like(lum, r_hi)
-    return scene
+        refl = np.full_like(lum, r_hi)
+    return replace(scene, reflectivity=refl)
 
 
 def _grid(size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -167,12 +172,17 @@ def _ground(y: np.ndarray, horizon: float, near: float) -> np.ndarray:
 
 
 def _band(t: np.ndarray, t0: float, size: int) -> np.ndarray:
-    """A band ``[t0, t0 + w)`` of one pixel's width at 64 x 64 (at least one pixel)."""
+    """A band ``[t0, t0 + w)``, ``w = max(1/64, 1/size)``: from 64 x 64 up a fixed width in
+    the scene, one pixel at 64 x 64 and ``size / 64`` pixels above (2 at 128, 8 at 512); one
+    pixel at every size below 64. It holds the
+    pixels whose centres ``t`` fall in it: none where it starts past the last centre (at the
+    smallest sizes, a band that starts within half a pixel of the far edge)."""
     return (t >= t0) & (t < t0 + max(_THIN, 1.0 / size))
 
 
 def _standing(x, y, x0, top, d, floor, size) -> np.ndarray:
-    """A one-pixel pole at depth ``d`` from ``y = top`` down to where it meets ``floor``."""
+    """A thin pole (:func:`_band`: one pixel wide at 64 x 64) at depth ``d`` from ``y = top``
+    down to where it meets ``floor``."""
     return np.where(_band(x, x0, size) & (y >= top) & (floor >= d), d, np.inf)
 
 

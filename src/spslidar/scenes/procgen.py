@@ -8,19 +8,31 @@
 * ``street``: a far backdrop, a receding road, slanted facades with dark windows;
 * ``clutter``: a back wall and a floor crowded with objects;
 
-and then clutter on top: one-pixel poles standing on the floor, straight (often slanted)
-one-pixel wires, tables on one-pixel legs, fences of one-pixel slats, boxes (flat or slanted
-planes, some dark in front of bright ones), discs bulging towards the lidar. Nearer objects
-occlude farther ones (a z-buffer). Walls, floors and backdrops have reflectivity 0.15-1
-(some textured); each object one time in four is dark (0.05-0.2, log-uniform), else 0.2-1.
-Depths span 2-3.5 m from a near plane
-at 1.5-2.5 m, so a 64 x 64 scene has 150-250 range slices. Thin structures are one pixel wide
-at 64 x 64 (never less than one pixel). Every pixel sees one surface and has a valid truth.
+and then clutter on top: thin poles standing on the floor, straight (often slanted) thin
+wires, tables on thin legs, fences of thin slats, boxes (flat or slanted planes, some dark in
+front of bright ones), discs bulging towards the lidar. Nearer objects occlude farther ones
+(a z-buffer). Walls, floors and backdrops have reflectivity 0.15-1 (some textured); each
+object one time in four is dark (0.05-0.2, log-uniform), else 0.2-1.
+
+The floor (or road) is 1.5-2.5 m away at the image's bottom edge and the far wall (or
+backdrop) 2-3.5 m behind that; the pixels sample the floor at their centres, above the edge,
+so the depths a scene holds span less, the more so the smaller the scene: 1.97-3.47 m at
+64 x 64 (seeds 0-199), 1.56-3.01 m at 4 x 4 (seeds 0-49). At the default 10 GHz bit rate a
+64 x 64 scene's range gate holds 140-240 range slices (seeds 0-199).
+
+A thin structure is a band ``max(1/64, 1/N)`` of the side of an ``N x N`` scene wide: from
+64 x 64 up a fixed width in the scene, one pixel at 64 x 64 and ``N / 64`` pixels above (2 at
+128, 8 at 512); one pixel at every size below 64. A band holds the pixels whose centres fall
+in it, so one that starts past the last pixel centre, within half a pixel of the far edge,
+holds none: rarely at 64 x 64 (a table leg at the edge, 1 of 683 bands that start inside the
+image over seeds 0-99), more often the smaller the scene (3 % of them at 8 x 8, 6 % at
+4 x 4). Every pixel sees one surface and has a valid truth.
 
 ``fence`` is a wall at 4 m seen through a wire-mesh fence at 3 m: each mesh pixel returns
 both from the mesh (a share of its footprint) and from the wall behind it, a two-surface
 pixel; its ``depth`` is the mesh (the first surface, what the RMSE scores) and the wall is its
-:attr:`LayeredScene.behind_depth`. Two posts and a rail are solid (one surface).
+:attr:`LayeredScene.behind_depth`. Two posts and a rail are solid (one surface), thin bands
+of the same width as ``procedural``'s.
 """
 
 from __future__ import annotations
@@ -30,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SceneError
-from .base import Scene
+from .base import Scene, _read_only
 from .builtin import _band, _grid, _ground, _nearer
 
 __all__ = ["LayeredScene", "fence_scene", "procedural_scene"]
@@ -61,8 +73,8 @@ class LayeredScene(Scene):
         super().__post_init__()
         if self.behind_depth is None:
             return
-        self.behind_depth = np.asarray(self.behind_depth, dtype=np.float64)
-        self.behind_reflectivity = np.asarray(self.behind_reflectivity, dtype=np.float64)
+        self.behind_depth = _read_only(self.behind_depth, np.float64)
+        self.behind_reflectivity = _read_only(self.behind_reflectivity, np.float64)
         for arr in (self.behind_depth, self.behind_reflectivity):
             if arr.shape != self.depth.shape:
                 raise SceneError(f"scene {self.name!r}: second layer of shape {arr.shape}, "
@@ -83,14 +95,20 @@ class LayeredScene(Scene):
 
 
 def _seed(arg: str) -> int:
-    try:
-        seed = int(str(arg).strip())
-    except ValueError:
-        raise SceneError(f"scene 'procedural:{arg}': the seed must be a non-negative "
-                         f"integer, e.g. procedural:7") from None
-    if not 0 <= seed <= _MAX_SEED:
-        raise SceneError(f"scene 'procedural:{arg}': the seed must be from 0 to {_MAX_SEED}")
-    return seed
+    """The seed of ``procedural:ARG``: ``ARG`` is ASCII decimal digits only (``int`` also
+    read ``+5``, ``' 5'``, ``5_000`` as 5000 and other scripts' digits, an Arabic-Indic three
+    as 3: spellings a record did not tell apart). Leading zeros are read (``007`` is 7)."""
+    arg = str(arg)
+    spec = (repr(f"procedural:{arg}") if len(arg) <= 40 else
+            f"{f'procedural:{arg[:20]}...'!r} (a seed of {len(arg)} characters)")
+    if not (arg.isascii() and arg.isdigit()):
+        raise SceneError(f"scene {spec}: the seed must be written in the ASCII digits 0-9 "
+                         f"alone (no sign, space, underscore or other digits), e.g. "
+                         f"procedural:7")
+    digits = arg.lstrip("0") or "0"
+    if len(digits) > len(str(_MAX_SEED)) or int(digits) > _MAX_SEED:
+        raise SceneError(f"scene {spec}: the seed must be from 0 to {_MAX_SEED}")
+    return int(digits)
 
 
 def _refl(rng: np.random.Generator, lo: float | None = None, hi: float = REFL_RANGE[1]):
@@ -253,8 +271,10 @@ def _window_map(depth: np.ndarray, lo: float, hi: float, depth_min, depth_max) -
     new_lo = lo if depth_min is None else float(depth_min)
     new_hi = hi if depth_max is None else float(depth_max)
     if new_lo >= new_hi:
-        raise SceneError(f"depth window is empty: depth_min {new_lo:g} m must be less than "
-                         f"depth_max {new_hi:g} m")
+        own = " (the scene's own: not given)"  # as the built-ins' (base._window)
+        raise SceneError(f"depth window is empty: depth_min {new_lo:g} m"
+                         f"{own if depth_min is None else ''} must be less than depth_max "
+                         f"{new_hi:g} m{own if depth_max is None else ''}")
     return new_lo + (depth - lo) * ((new_hi - new_lo) / (hi - lo))
 
 
@@ -295,8 +315,9 @@ def procedural_scene(size: int, depth_min: float | None, depth_max: float | None
         # every layout has a receding floor: the depths always span a range
         depth = _window_map(depth, float(depth.min()), float(depth.max()), depth_min,
                             depth_max)
+    # what the scene is: a description (metrics.json's scene_note, the summary), no warning
     return Scene(f"procedural:{seed}", depth, refl, valid,
-                 [f"procedural:{seed} is a {layout} at {depth.min():.2f}-{depth.max():.2f} m"])
+                 description=f"a {layout} at {depth.min():.2f}-{depth.max():.2f} m")
 
 
 #: the fence scene: wall and fence depths (m), the mesh's share of a pixel's footprint
@@ -308,8 +329,9 @@ def fence_scene(size: int, depth_min: float | None, depth_max: float | None) -> 
 
     The mesh covers rows 0.2-0.85 and columns 0.1-0.9 of the image; each of its pixels sees
     the mesh (half the footprint, reflectivity 0.9: 0.45) and the wall behind (half: 0.3, or
-    0.075 on the dark band), two surfaces 1 m apart. Two one-pixel posts and a top rail are
-    solid (one surface). A depth window maps both layers.
+    0.075 on the dark band), two surfaces 1 m apart. Two posts and a top rail, thin bands
+    ``max(1/64, 1/size)`` of the side wide (one pixel at 64 x 64 and below), are solid (one
+    surface). A depth window maps both layers.
     """
     y, x = _grid(size)
     wall_r = np.where((y >= 0.45) & (y < 0.6), 0.15, 0.6)
