@@ -48,7 +48,8 @@ from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
 from ..outdir import sha256_file  # one file hasher for the project
 
-__all__ = ["calibrate_ptu", "calibrated_filter", "check_calibration", "delay_filter",
+__all__ = ["calibrate_ptu", "calibrated_filter", "check_calibration", "code_response",
+           "content_sha256", "delay_filter",
            "load_calibration",
            "measure_response", "refine_depth", "write_calibration"]
 

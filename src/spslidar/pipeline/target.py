@@ -61,7 +61,8 @@ import numpy as np
 from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
 
-__all__ = ["TARGETS", "measure_geometry", "plane_offsets", "plane_ranges",
+__all__ = ["MAX_SPREAD_BINS", "MIN_SPREAD_BINS", "PLANE_REG", "SCAN_PATTERNS", "TARGETS",
+           "Z_HINT", "Z_PLANE", "measure_geometry", "plane_offsets", "plane_ranges",
            "range_free_response"]
 
 #: what ``--target`` takes: ``auto`` keeps the plane where the data ask for one
@@ -81,7 +82,7 @@ MAX_SPREAD_BINS = 256.0
 WINDOW_MARGIN = 16
 #: patterns the scan fits (evenly spaced; bounds its memory: SCAN_PATTERNS x L / 2 complex)
 SCAN_PATTERNS = 512
-#: Wiener regularisation of :func:`range_free_response`, over the median of sum |K_m|^2
+#: Wiener regularisation of :func:`range_free_response`, over the median of ``sum_m |K_m|^2``
 PLANE_REG = 0.3
 #: patterns per pass of the per-pattern steps (bounds their memory: ROW_BLOCK x L floats)
 ROW_BLOCK = 256

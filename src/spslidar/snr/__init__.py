@@ -17,8 +17,9 @@ with ``T`` the code length, ``R_a`` the share of '1' bits, ``M_2`` the number of
 **unipolar** replica, the definition eq. (10) uses (the noise is counted over the ``R_a T``
 "on" bits of the replica; :mod:`spslidar.snr.simulate`); :func:`snr_table` sweeps code kinds,
 lengths and ones ratios and :func:`plot_snr` draws the sweep (:mod:`spslidar.snr.table`). The
-``spslidar snr`` sub-command is in :mod:`spslidar.cli` (:func:`~spslidar.cli.add_snr_parser`,
-:func:`~spslidar.cli.cmd_snr`); the package does not import the command line.
+``spslidar snr`` sub-command is in :mod:`spslidar.cli_snr`
+(:func:`~spslidar.cli_snr.add_snr_parser`, :func:`~spslidar.cli_snr.cmd_snr`); the package does
+not import the command line.
 
 Only the standard library is imported with this package, so the command-line tool can import it
 at start-up without loading NumPy; the numerical modules are imported on first use.

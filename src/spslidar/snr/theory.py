@@ -23,6 +23,7 @@ __all__ = [
     "check_size",
     "check_trials",
     "config_error",
+    "default_code_index",
     "eq10",
     "code_family",
     "make_code_checked",
@@ -205,7 +206,7 @@ def make_code_checked(kind: str, length: Any, ones_ratio: Any, rng, index: Any =
     """The code (uint8 0/1) of a registered family, built by its registry entry after the
     entry's own checks (the lengths it can have; a ones ratio only where the family has one),
     so ``snr`` takes exactly the codes ``run`` takes, with the same default member
-    (:func:`default_code_index`); ConfigError on bad input."""
+    (:func:`~spslidar.snr.theory.default_code_index`); ConfigError on bad input."""
     from types import SimpleNamespace
 
     from ..codes import CODES
