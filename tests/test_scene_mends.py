@@ -177,3 +177,23 @@ def test_save_refuses_a_non_path_in_one_line(meas, tmp_path):
         with pytest.raises(ConfigError, match=r"out_dir must be a folder path .* got "):
             r.save(bad)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_sweep_takes_one_scene_spelled_two_ways_as_one():
+    """``procedural:007`` and ``procedural:7`` are one scene: a grid listing both is refused
+    as a value listed twice, and a point's seed and cache key do not depend on the spelling
+    (they were two seeds and two cache files)."""
+    from spslidar.errors import ConfigError
+    from spslidar.experiments.sweep.engine import _seeded
+    from spslidar.experiments.sweep.grid import _check_grid, point_key
+    from spslidar.scenes import scene_spec
+
+    assert scene_spec(" PROCEDURAL:007 ") == "procedural:7"
+    assert scene_spec("Camera") == "camera" and scene_spec("runs/x.npy") == "runs/x.npy"
+    assert scene_spec("procedural:+5") == "procedural:+5"  # refused later, as written
+    with pytest.raises(ConfigError, match="the same value twice"):
+        _check_grid({"scene": ["procedural:7", "procedural:007"]})
+    a, b = _seeded([{"scene": "procedural:007", "size": 8}, {"scene": "procedural:7",
+                                                            "size": 8}],
+                   [{}, {}], frozenset(), 0)
+    assert a == b and point_key(a) == point_key(b)

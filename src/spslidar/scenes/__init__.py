@@ -43,13 +43,15 @@ __all__ = [
     "footprints",
     "load_scene",
     "motorcycle_source",
+    "scene_spec",
 ]
 
 # the scenes import numpy: re-exported on first access (the registry stays light, so
 # ``spslidar --help`` lists the scenes without importing numpy)
 __getattr__ = lazy_exports(__name__, {
     "MAX_SCENE_DEPTH_M": "base", "SCENE_FILE_SUFFIXES": "base", "Scene": "base",
-    "footprints": "base", "load_scene": "load", "motorcycle_source": "builtin"})
+    "footprints": "base", "load_scene": "load", "motorcycle_source": "builtin",
+    "scene_spec": "load"})
 
 #: the built-in scene kinds (the ``scene`` config key / ``--scene``), by name
 SCENES = Registry("scene", "scene")

@@ -104,3 +104,20 @@ def load_scene(
             f"got {type(scene).__name__}"
         )
     return _load_file(path, size, lo, hi)
+
+
+def scene_spec(scene):
+    """The canonical spelling of a built-in scene's name, read as :func:`load_scene` reads
+    it (``' Procedural:007 '`` -> ``'procedural:7'``, ``'CAMERA'`` -> ``'camera'``), without
+    building it; anything else (a file path, a spelling :func:`load_scene` refuses) as it
+    is. A sweep seeds and caches its points by it, so one scene spelled two ways is one
+    point (an audit of 2026-11-28 found them two seeds and two cache files)."""
+    if not isinstance(scene, str):
+        return scene
+    kind, sep, arg = scene.strip().lower().partition(":")
+    if kind not in SCENES or bool(sep) != bool(SCENES.get(kind).defaults.get("argument")):
+        return scene
+    if sep and arg.isascii() and arg.isdigit():
+        return f"{kind}:{int(arg)}"
+    return f"{kind}{sep}{arg}"
+

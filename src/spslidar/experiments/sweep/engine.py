@@ -546,9 +546,13 @@ def _seeded(points: Sequence[Mapping[str, Any]], ignored: list[dict[str, str]],
     ``rep_rate`` of a PSST lidar, or ``noise = 1`` beside ``noise = 1.0``, gave points that
     are one configuration different noise, an effect that was not there (RMSE 0.31 against
     0.25 m). Options that some points ignore are said once each, on stderr."""
+    from spslidar.scenes import scene_spec
+
     out, said = [], {}
     for point, skip in zip(points, ignored, strict=True):
         point = dict(point)
+        if "scene" in point:  # one scene spelled two ways is one point (procedural:007 / :7)
+            point["scene"] = scene_spec(point["scene"])
         if SEED_KEY not in point:
             point[SEED_KEY] = derive_seed(seed, {
                 k: same_value(v) for k, v in point.items() if k not in ignore and k not in skip})

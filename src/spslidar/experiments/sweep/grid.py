@@ -235,7 +235,12 @@ def _check_grid(grid: Mapping[str, Any], where: str = "grid") -> None:
             raise ConfigError(f"{where}.{name} must be a non-empty list of values, got {values!r}")
         seen: dict[str, Any] = {}
         for value in values:  # (noise = [1, 1, 1.0] ran three points, two with one seed)
-            key = canonical_json(same_value(value), f"{where}.{name}")
+            same = value
+            if name == "scene":  # (procedural:7 and procedural:007 are one scene)
+                from spslidar.scenes import scene_spec
+
+                same = scene_spec(value)
+            key = canonical_json(same_value(same), f"{where}.{name}")
             if key in seen:
                 raise ConfigError(f"{where}.{name} lists the same value twice ({seen[key]!r} and "
                                   f"{value!r}): each point would run twice and count twice")
