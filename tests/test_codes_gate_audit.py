@@ -156,13 +156,29 @@ def test_a_rep_rate_rounded_to_whole_bins_is_said(tmp_path, rate, said):
     assert metrics["config"]["rep_rate"] == pytest.approx(10e9 / period, rel=1e-12)
 
 
-def test_an_aliased_gate_is_not_also_called_noise(tmp_path):
-    """A noiseless run through a gate longer than the code's period repeats each peak every
-    period: it was said to be "mostly noise" beside the gate-alias warning."""
+@pytest.mark.parametrize("light", [["--noiseless"], ["--signal", "50", "--noise", "0.01"]])
+def test_an_aliased_gate_is_not_also_called_noise(tmp_path, light):
+    """A run through a gate longer than the code's period repeats each peak every period: it
+    was said to be "mostly noise" beside the gate-alias warning (ratio 1.00). Noiseless, no
+    noise verdict is made at all; with noise, the verdict says why it has none."""
     out = tmp_path / "o"
     assert main(["run", "--scene", "steps", "--size", "8", "--code-length", "63",
-                 "--range-gate", "0", "2", "--noiseless", "--compression", "1",
+                 "--range-gate", "0", "2", *light, "--compression", "1",
                  "--no-figure", "--out", str(out)]) == 0
     warns = _metrics(out)["warnings"]
     assert not any("mostly noise" in w for w in warns), warns
-    assert any(w.startswith("no noise verdict") for w in warns), warns  # (ratio 1.00)
+    assert any(w.startswith("no noise verdict") for w in warns) is (light[0] != "--noiseless")
+
+
+def test_a_noiseless_spread_return_is_not_called_noise(tmp_path):
+    """A noiseless run through a simulated IRF (its returns a few bins wide) was said to be
+    "mostly noise" at RMSE 0.0015 m (an audit of the detectors, 2026-11-28); a noiseless
+    gate without the scene is said to hold no return."""
+    out = tmp_path / "o"
+    assert main(["run", *SMALL, "--noiseless", "--irf", "gaussian:300e-12,tail:400e-12",
+                 "--out", str(out)]) == 0
+    assert not any("noise" in w for w in _metrics(out)["warnings"])
+    miss = tmp_path / "miss"
+    assert main(["run", *SMALL, "--noiseless", "--range-gate", "1", "3",
+                 "--out", str(miss)]) == 0
+    assert any("no pixel holds a return" in w for w in _metrics(miss)["warnings"])

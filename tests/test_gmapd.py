@@ -7,6 +7,7 @@ against closed forms and against the photon-by-photon reference
 
 from __future__ import annotations
 
+import json
 import warnings
 
 import numpy as np
@@ -395,3 +396,50 @@ def test_a_saturated_detector_is_said_so_not_inf():
     assert "incident_per_dead_time" not in meas.sim["pileup"]
     said = [w for w in meas.warnings if "saturated" in w]
     assert said and not any("inf incident" in w for w in meas.warnings)
+
+
+PULSED = ["--scene", "steps", "--size", "8", "--code-length", "255", "--lidar",
+          "conventional", "--periods", "20000", "--compression", "1", "--noise", "2e-5",
+          "--no-figure"]
+
+
+def test_a_pulsed_flux_is_read_back_per_pulse(tmp_path, capsys):
+    """The conventional lidar's pulse period (712 bins) is longer than the dead time (500):
+    the GMAPD fires at most once a pulse, and the steady-flux inverse n = r / (1 - r) read
+    3.5 photons per pulse as 2.1 and 19 as 2.4, never warning (an audit of 2026-11-28). Read
+    as a synchronous detector's, -ln(1 - detections per pulse), it gives the linear
+    counter's photons per pulse; at saturation it says so."""
+    from spslidar.cli import main
+
+    rates = {}
+    for det in ("linear", "gmapd"):
+        out = tmp_path / det
+        assert main(["run", *PULSED, "--signal", "0.1", "--detector", det,
+                     "--out", str(out)]) == 0
+        rates[det] = json.loads((out / "metrics.json").read_text())["detector"]
+    pulses = 1.0 / (712 * 1e-10)  # the pulse rate at 10 GHz
+    per_pulse = rates["linear"]["count_rate_hz"] / pulses  # what arrives (3.5)
+    assert rates["gmapd"]["incident_per_dead_time"] == pytest.approx(per_pulse, rel=0.1)
+    capsys.readouterr()
+    assert main(["run", *PULSED, "--signal", "1", "--detector", "gmapd",
+                 "--out", str(tmp_path / "sat")]) == 0
+    assert "detections per pulse" in capsys.readouterr().err
+
+
+def test_a_noiseless_run_applies_the_pile_up_correction(tmp_path):
+    """``--noiseless`` skipped ``detector.correct``: the corrected and uncorrected matched
+    filters were identical and 89 % of the peak off the linear counter's (depth RMSE 0.0217
+    against 0.0015 m, with metrics.json saying the correction was on). On expected
+    histograms the generalised Coates inverse is exact."""
+    from spslidar.cli import main
+
+    rmse = {}
+    for name, extra in [("linear", ["--detector", "linear"]),
+                        ("on", ["--detector", "gmapd"]),
+                        ("off", ["--detector", "gmapd", "--pileup-correction", "off"])]:
+        out = tmp_path / name
+        assert main(["run", *PULSED, "--signal", "0.1", "--noiseless", *extra,
+                     "--out", str(out)]) == 0
+        rmse[name] = json.loads((out / "metrics.json").read_text())["depth_rmse_m"]
+    assert rmse["on"] == pytest.approx(rmse["linear"], abs=1e-4)  # one bin is 0.015 m
+    assert rmse["off"] > 5 * rmse["on"]

@@ -70,8 +70,10 @@ class DetectorModel:
         ``counts``, where the caller has computed it (saves a second correction)."""
         return totals
 
-    def report(self, counts_per_period: float, period_s: float) -> dict[str, Any]:
-        """Numbers for ``metrics.json`` (e.g. detections per dead time)."""
+    def report(self, counts_per_period: float, period_s: float,
+               pulsed: bool = False) -> dict[str, Any]:
+        """Numbers for ``metrics.json`` (e.g. detections per dead time); ``pulsed``: the
+        period holds one short pulse (the conventional lidar), not a code's spread flux."""
         return {"model": self.name}
 
     def notes(self) -> list[str]:

@@ -278,13 +278,23 @@ class GMAPD(DetectorModel):
                     "pile-up to correct); its jitter and afterpulses still apply"]
         return []
 
-    def report(self, counts_per_period: float, period_s: float) -> dict[str, Any]:
+    def report(self, counts_per_period: float, period_s: float,
+               pulsed: bool = False) -> dict[str, Any]:
         """Detected rate, detections per dead time and the fraction of time dead."""
         rate = counts_per_period / period_s
         per_dead = float(rate * self.dead_time)
         out = {"model": self.name, "count_rate_hz": float(rate),
                "counts_per_dead_time": per_dead, "dead_fraction": float(min(per_dead, 1.0))}
-        if self.dead_time > 0 and per_dead < 1.0:
+        if self.dead_time > 0 and pulsed and period_s >= self.dead_time:
+            # one pulse per period at least a dead time long (the conventional lidar: 712
+            # bins against 500): the detector re-arms between pulses and fires at most once
+            # on each, so a pulse's photons are read as a synchronous detector's (Coates),
+            # -ln(1 - detections per period). The steady-flux inverse below read a pulsed
+            # 18.8 photons per dead time as 2.4 and never warned (an audit of 2026-11-28).
+            out["detections_per_pulse"] = float(counts_per_period)
+            if counts_per_period < 1.0:
+                out["incident_per_dead_time"] = float(-np.log1p(-counts_per_period))
+        elif self.dead_time > 0 and per_dead < 1.0:
             # the non-paralysable count rate n / (1 + n) per dead time, inverted (dark
             # counts and afterpulses included)
             out["incident_per_dead_time"] = per_dead / (1.0 - per_dead)
@@ -293,6 +303,12 @@ class GMAPD(DetectorModel):
     def notes_after(self, report: dict[str, Any]) -> list[str]:
         """What to say once the counts are known: the pile-up correction at a flux where it
         costs more than it mends."""
+        if self.dead_time and "incident_per_dead_time" not in report \
+                and "detections_per_pulse" in report:
+            return [f"the detector is saturated: {report['detections_per_pulse']:.3g} "
+                    f"detections per pulse, where a detector that goes dead on its first "
+                    f"photon makes at most 1 (background included): no photons per pulse "
+                    f"can be read from them; lower --signal and --noise (and raise --periods)"]
         if self.dead_time and "incident_per_dead_time" not in report:
             # (said "at inf incident photons per dead time")
             return [f"the detector is saturated: {report['counts_per_dead_time']:.3g} detections "

@@ -32,5 +32,6 @@ class LinearDetector(PhotonCountingDetector, DetectorModel):
     def expected(self, lam, n_periods=1):
         return self.detected_means(lam)
 
-    def report(self, counts_per_period: float, period_s: float) -> dict[str, Any]:
+    def report(self, counts_per_period: float, period_s: float,
+               pulsed: bool = False) -> dict[str, Any]:
         return {"model": self.name, **self.pileup_report(counts_per_period, period_s)}

@@ -151,7 +151,7 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
         if shown is not host:
             sim = host.combine(sim)
     pile = detector.report(float(np.mean(sim["counts"])) / acq.n_periods,
-                           acq.period * bin_width)
+                           acq.period * bin_width, pulsed=acq.lidar == "conventional")
     sim["pileup"] = pile
     warns.extend(detector.notes_after(pile))
     sim["estimate"] = {"memory_gb": budget.bytes / 1e9, "time_s": budget.seconds}
