@@ -151,11 +151,17 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help=f"auto: the solver's default; {REGULARISERS.help_text()}")
     g.add_argument("--lam", type=float, default=S, metavar="W",
                    help="regularisation weight (default: lam-scale x the noise level estimated "
-                        "from the measurements)")
-    g.add_argument("--lam-scale", type=float, default=S, metavar="K")
+                        "from the measurements, never below 0.003 max|A^T y|, where the "
+                        "iteration cap is multiplied by 5; a warning says when the floor "
+                        "overrides --lam-scale)")
+    g.add_argument("--lam-scale", type=float, default=S, metavar="K",
+                   help="the weight as a multiple of the estimated noise level (default: the "
+                        "solver's, fista 0.45, the others 0.3)")
     g.add_argument("--iterations", type=int, default=S, metavar="K",
-                   help="maximum solver iterations")
-    g.add_argument("--tol", type=float, default=S, help="relative-change stopping tolerance")
+                   help="maximum solver iterations (default: the solver's, fista 60, twist "
+                        "60, tval3 100, gpsr 120)")
+    g.add_argument("--tol", type=float, default=S,
+                   help="relative-change stopping tolerance (default 1e-4)")
     g.add_argument("--nonneg", action=argparse.BooleanOptionalAction, default=S,
                    help="constrain the reconstructed return strengths to be non-negative "
                         "(default on; physical, since photon returns cannot be negative; "
@@ -178,9 +184,10 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--device", choices=("cpu", "cuda"), default=S,
                    help="where the backend runs (default cpu; cuda needs torch or cupy)")
     g.add_argument("--seed", type=int, default=S, help="random seed (default 0)")
-    g.add_argument("--max-memory", type=float, default=S, metavar="GB",
-                   help="refuse a run whose estimated peak memory exceeds this (default: the "
-                        "memory available now); the estimate is checked before any work")
+    g.add_argument("--max-memory", type=_memory, default=S, metavar="GB",
+                   help="refuse a run whose estimated peak memory exceeds this: gigabytes, or "
+                        "with a unit (500MB, 2GB, 1.5GiB; default: the memory available now); "
+                        "the estimate is checked before any work")
     g.add_argument("--max-time", type=_duration, default=S, metavar="TIME",
                    help="refuse a run whose estimated time exceeds this: seconds, or with a "
                         "unit (90s, 10min, 2h; default 1h); a run estimated over 30 s says so "
@@ -273,6 +280,25 @@ def _duration(text: str) -> float:
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc).replace("--max-time must be", "must be")) \
             from None
+
+
+_MEMORY_UNITS = {"": 1.0, "k": 1e-6, "kb": 1e-6, "m": 1e-3, "mb": 1e-3, "g": 1.0, "gb": 1.0,
+                 "t": 1e3, "tb": 1e3, "kib": 2**10 / 1e9, "mib": 2**20 / 1e9,
+                 "gib": 2**30 / 1e9, "tib": 2**40 / 1e9}
+
+
+def _memory(text: str) -> float:
+    """``--max-memory`` in gigabytes: a number (GB), or one with a unit (``500MB``, ``2GB``,
+    ``1.5GiB``; ``2GB`` was an invalid float while ``--max-time`` took units)."""
+    match = re.fullmatch(r"\s*([0-9.eE+-]+)\s*([A-Za-z]*)\s*", str(text))
+    unit = match.group(2).lower() if match else None
+    if match is None or unit not in _MEMORY_UNITS:
+        raise argparse.ArgumentTypeError(f"not a memory size: {text!r} (write GB, or e.g. "
+                                         f"500MB, 2GB, 1.5GiB)")
+    try:
+        return float(match.group(1)) * _MEMORY_UNITS[unit]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a memory size: {text!r}") from None
 
 
 def _fov(text: str) -> float:

@@ -234,7 +234,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         # the floor of the default weight, and the scale a given --lam is checked against
         lam_max = float(np.abs(np.asarray(A.rmatvec(y))).max(initial=0.0))
     lam, lam_scale, floored = default_weight(cfg, sigma_eff, lam_max)
-    warns.extend(weight_warnings(cfg, lam, lam_max))
+    warns.extend(weight_warnings(cfg, lam, lam_max, floored))
     if not lam * 1e6 < float(np.finfo(cfg.dtype).max):  # its steps would overflow: NaN slices
         raise ConfigError(f"the weight {lam:.3g} is beyond what {cfg.dtype} can hold through "
                           f"the solve: lower --lam or --lam-scale (the default is about 0.01 "

@@ -112,12 +112,27 @@ def default_weight(cfg: Config, sigma_eff: float, lam_max: float) -> tuple[float
     return max(noise_term, floor), lam_scale, bool(floor > noise_term)
 
 
-def weight_warnings(cfg: Config, lam: float, lam_max: float) -> list[str]:
-    """A given ``--lam`` at or above ``lam_max = max |A^H y|`` makes the regulariser win
-    outright: the l1 solution is zero and every TV slice flat, so the depth map carries no
-    information (``--lam 1e12`` ran silently). The default weight is about 0.01 ``lam_max``."""
-    if cfg.lam is None or not lam_max > 0 or lam < lam_max:
-        return []
-    return [f"--lam {lam:g} is {lam / lam_max:.3g} times max|A^H y| = {lam_max:.3g}: the "
-            f"regulariser wins outright (every slice zero or flat), so the depth map carries no "
-            f"information; the default weight is about 0.01 max|A^H y|"]
+def weight_warnings(cfg: Config, lam: float, lam_max: float,
+                    floored: bool = False) -> list[str]:
+    """A weight at or above ``lam_max = max |A^H y|`` makes the regulariser win outright: the
+    l1 solution is zero and every TV slice flat, so the depth map carries no information
+    (``--lam 1e12`` ran silently; so did ``--lam-scale 1e6``). The default weight is about
+    0.01 ``lam_max``. A ``--lam-scale`` the floor overrides is said too (``floored``): three
+    scales 0.01-0.3 at 64x64 Hadamard gave one weight and one RMSE, and a sweep over it came
+    out flat, without a word (an audit of 2026-11-28)."""
+    out = []
+    if cfg.lam is None and floored and cfg.lam_scale is not None and not cfg.noiseless:
+        cap = ("" if cfg.iterations else
+               f" (with {FLOORED_ITERATIONS} times the solver's iteration cap)")
+        out.append(f"--lam-scale {cfg.lam_scale:g} gives a weight below the floor of "
+                   f"{LAM_FLOOR:g} max|A^H y| = {lam:.3g}, which was used instead{cap}: a "
+                   f"smaller --lam-scale changes nothing here; set the weight itself with "
+                   f"--lam")
+    if not lam_max > 0 or lam < lam_max:
+        return out
+    given = (f"--lam {lam:g}" if cfg.lam is not None else
+             f"the default weight {lam:.3g}" if cfg.lam_scale is None else
+             f"the weight {lam:.3g} of --lam-scale {cfg.lam_scale:g}")
+    return out + [f"{given} is {lam / lam_max:.3g} times max|A^H y| = {lam_max:.3g}: the "
+                  f"regulariser wins outright (every slice zero or flat), so the depth map "
+                  f"carries no information; the default weight is about 0.01 max|A^H y|"]
