@@ -450,7 +450,8 @@ def _add_calibrate_parser(sub) -> None:
 
 
 def _cmd_calibrate(args) -> int:
-    from .pipeline.calibration import calibrate_ptu, check_calibration_out, write_calibration
+    from .pipeline.calibration import calibrate_ptu
+    from .pipeline.calibration_file import check_calibration_out, write_calibration
     from .pipeline.real import load_code, load_patterns
 
     check_calibration_out(args.out, args.overwrite)  # refuse before any work

@@ -36,7 +36,6 @@ photons, not with the same.
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import warnings
 from pathlib import Path
@@ -47,11 +46,18 @@ import numpy as np
 from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
 from ..outdir import sha256_file  # one file hasher for the project
+from .calibration_file import (  # noqa: F401  (re-exported: the calibration's file)
+    CAL_KIND,
+    check_calibration,
+    check_calibration_out,
+    content_sha256,
+    edited,
+    load_calibration,
+    write_calibration,
+)
 
-__all__ = ["calibrate_ptu", "calibrated_filter", "check_calibration", "code_response",
-           "content_sha256", "delay_filter",
-           "load_calibration",
-           "measure_response", "refine_depth", "write_calibration"]
+__all__ = ["calibrate_ptu", "calibrated_filter", "code_response", "delay_filter",
+           "measure_response", "refine_depth"]
 
 #: bins of the IRF kept before and after its peak (a diffusion tail of a few bins fits)
 IRF_BEFORE, IRF_AFTER = 8, 40
@@ -65,8 +71,6 @@ WIENER_REG = float("inf")
 #: pixel's profile with (:func:`delay_filter`): +-4 lags hold 97 % of its energy for an IRF of
 #: 1.5 bins FWHM with a 4-bin tail
 RESPONSE_HALF = 4
-#: format tag of a calibration file
-CAL_KIND = "spslidar-calibration"
 
 
 #: upsampling of the response (band-limited) to find its peak below a bin
@@ -396,163 +400,6 @@ def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     return geo, range_free_response(hists, patterns, code, offsets)
 
 
-def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Path:
-    """Refuse (one line) to write ``CAL.json`` over anything but a calibration spslidar
-    wrote, and that only with ``overwrite``: checked before the work and again at the end."""
-    from ..errors import SpslidarError
-
-    if out is None or not str(out).strip():
-        raise SpslidarError("--out must name the calibration file (CAL.json)")
-    path = Path(out)
-    if path.is_dir():
-        raise SpslidarError(f"--out {out} is a folder; name the calibration file (CAL.json)")
-    if path.exists():
-        if not overwrite:
-            raise SpslidarError(f"--out {out} exists; use --overwrite to replace it")
-        try:
-            old = json.loads(path.read_text())
-            ours = old.get("kind") == CAL_KIND
-        except (OSError, ValueError, AttributeError):
-            ours = False
-        if not ours:
-            raise SpslidarError(f"--out {out} exists and is not a spslidar calibration; "
-                                f"refusing to replace it")
-        if edited(old):
-            raise SpslidarError(f"--out {out} was edited since spslidar calibrate wrote it; "
-                                f"refusing to replace it (move it away, or choose another "
-                                f"name)")
-    if path.parent.exists() and not path.parent.is_dir():
-        raise SpslidarError(f"--out {out}: {path.parent} is a file, not a folder")
-    if not path.parent.is_dir():
-        raise SpslidarError(f"--out {out}: the folder {path.parent} does not exist")
-    from ..outdir import _check_writable
-
-    # (a read-only folder failed after the work, naming a temporary file)
-    _check_writable(path.parent, f"--out {out}", make_parents=False)
-    return path
-
-
-def write_calibration(cal: dict[str, Any], out: str | os.PathLike, overwrite: bool = False):
-    """Write ``CAL.json``: a new file, or (with ``overwrite``) a calibration spslidar wrote;
-    never a user's other file (all or nothing, under a temporary name)."""
-    from ..outdir import atomic_write_text
-
-    path = check_calibration_out(out, overwrite)
-    body = {k: v for k, v in cal.items() if k != "content_sha256"}
-    atomic_write_text(path, json.dumps({**body, "content_sha256": content_sha256(body)},
-                                       indent=1) + "\n")
-    return path
-
-
-def content_sha256(cal: dict[str, Any]) -> str:
-    """The SHA-256 of a calibration's content (its JSON, keys sorted, without this key):
-    written with it, so that a file edited afterwards is known (an audit's ``lag_shift``
-    edited by one bin moved every depth by 15 mm without a word, and ``calibrate
-    --overwrite`` replaced a hand-annotated file)."""
-    body = {k: v for k, v in cal.items() if k != "content_sha256"}
-    return hashlib.sha256(json.dumps(body, sort_keys=True).encode("utf-8")).hexdigest()
-
-
-def edited(cal: dict[str, Any]) -> bool:
-    """Whether a calibration's content differs from the checksum it was written with (False
-    for a file of an earlier version, written without one)."""
-    return "content_sha256" in cal and cal["content_sha256"] != content_sha256(cal)
-
-
-def load_calibration(path: str | os.PathLike, bit_rate: float, code: np.ndarray):
-    """Read ``CAL.json`` and check that it belongs to this instrument setting (bit rate and
-    the code's length: the delay and IRF are the instrument's, so a calibration measured with
-    other code bits of the same length applies, and ``metrics.json`` says whether they were
-    the same); one line otherwise, and for a file edited since it was written."""
-    p = Path(path)
-    try:
-        cal = json.loads(p.read_text())
-    except OSError as exc:
-        raise ConfigError(f"cannot read --calibration {p}: {exc.strerror or exc}") from None
-    except ValueError:
-        raise ConfigError(f"--calibration {p} is not a calibration file (not JSON)") from None
-    if not isinstance(cal, dict) or cal.get("kind") != CAL_KIND:
-        raise ConfigError(f"--calibration {p} is not a file written by 'spslidar calibrate'")
-    if edited(cal):
-        raise ConfigError(f"--calibration {p} was edited after spslidar calibrate wrote it "
-                          f"(its content no longer matches its checksum, content_sha256); "
-                          f"calibrate again")
-    cal = check_calibration(cal, f"--calibration {p}", bit_rate, code)
-    cal["file"] = str(p)
-    cal["file_sha256"] = sha256_file(p)
-    return cal
-
-
-def check_calibration(cal: dict, what: str, bit_rate: float, code: np.ndarray) -> dict:
-    """A calibration's fields (IRF, delay, bit rate, code length), checked against this
-    instrument setting; one line (:class:`ConfigError`) naming what is missing or wrong."""
-    try:
-        offsets = np.asarray(cal["irf_offsets"], dtype=np.int64)
-        values = np.asarray(cal["irf_values"], dtype=np.float64)
-        numbers = [float(cal[k]) for k in ("bit_rate_hz", "delay_s", "irf_fwhm_bins")]
-        whole = [int(cal[k]) for k in ("code_length", "lag_shift")]
-        numbers.append(float(cal.get("lag_fraction", 0.0)))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ConfigError(f"{what} is incomplete or damaged ({type(exc).__name__}: "
-                          f"{exc}); calibrate again") from None
-    if (offsets.shape != values.shape or values.ndim != 1 or not values.size
-            or not np.all(np.isfinite(values)) or values.min() < 0 or values.sum() <= 0
-            or not all(np.isfinite(numbers)) or whole[0] < 2):
-        raise ConfigError(f"{what}: its IRF or numbers are damaged; calibrate again")
-    _check_consistent(cal, offsets, values, numbers, whole, what)
-    if abs(numbers[0] - float(bit_rate)) > 1e-9 * float(bit_rate):
-        raise ConfigError(f"{what} was measured at {numbers[0]:g} bits/s, "
-                          f"not {float(bit_rate):g}")
-    if int(cal["code_length"]) != int(np.asarray(code).size):
-        raise ConfigError(f"{what} was measured with a code of "
-                          f"{cal['code_length']} bits, not {np.asarray(code).size}")
-    return cal
-
-
-def _check_consistent(cal: dict, offsets: np.ndarray, values: np.ndarray, numbers: list,
-                      whole: list, what: str) -> None:
-    """What :func:`measure_calibration` writes holds together; a file edited by hand that
-    breaks it is refused (a ``lag_fraction`` of 5 moved every depth by 8 cm, offsets as
-    strings or all zeros, a ``lag_shift`` that contradicts ``delay_s``, were all taken)."""
-    def items(key: str) -> list:
-        v = cal[key]
-        return list(v) if isinstance(v, (list, tuple, np.ndarray)) else [v]
-
-    def exact_ints(key: str) -> bool:  # (NumPy's integers too: a dict built in Python)
-        return all(isinstance(i, (int, np.integer)) and not isinstance(i, (bool, np.bool_))
-                   for i in items(key))
-
-    def reals(key: str) -> bool:
-        return all(isinstance(i, (int, float, np.integer, np.floating))
-                   and not isinstance(i, (bool, np.bool_)) for i in items(key))
-
-    if not (exact_ints("irf_offsets") and exact_ints("lag_shift") and exact_ints("code_length")
-            and reals("irf_values") and all(reals(k) for k in ("bit_rate_hz", "delay_s",
-                                                                  "irf_fwhm_bins"))
-            and ("lag_fraction" not in cal or reals("lag_fraction"))):
-        raise ConfigError(f"{what}: a field holds text or a value of the wrong kind (offsets "
-                          f"and lag_shift are whole numbers); calibrate again")
-    if (np.any(np.diff(offsets) <= 0) or 0 not in offsets
-            or np.abs(offsets).max() >= whole[0] / 2):
-        # (offsets [0, 1023] of a 1023-bit code wrapped onto one bin and were taken)
-        raise ConfigError(f"{what}: irf_offsets must be distinct, increasing bin offsets "
-                          f"around 0, within half the code's period; calibrate again")
-    if abs(values.sum() - 1.0) > 1e-6 or not numbers[2] > 0:
-        # (irf_values x 1e6 passed, and scaled every reflectivity by 1e-6, without a word)
-        raise ConfigError(f"{what}: irf_values must sum to 1 (they sum to {values.sum():.6g}) "
-                          f"and irf_fwhm_bins be positive ({numbers[2]:g}); calibrate again")
-    if abs(numbers[3]) > 0.5 + 1e-9:
-        raise ConfigError(f"{what}: lag_fraction {numbers[3]:g} is outside [-0.5, 0.5] bins "
-                          f"(the rest of the delay is lag_shift); calibrate again")
-    period = whole[0]
-    delay_bins = numbers[1] * numbers[0]  # delay_s x bit rate
-    miss = (delay_bins - (whole[1] - numbers[3]) + period / 2) % period - period / 2
-    if abs(miss) > 1.5:  # the sub-bin peak lies within 1 + 1/UPSAMPLE bins of the lag's
-        raise ConfigError(f"{what}: lag_shift {whole[1]} and lag_fraction {numbers[3]:g} "
-                          f"disagree with delay_s ({delay_bins:.4g} bins) by {miss:.3g} "
-                          f"bins; calibrate again")
-
-
 class CalibratedFilter(NamedTuple):
     """What ``reconstruct`` filters a calibrated instrument's histograms with."""
 
@@ -587,7 +434,7 @@ def calibrated_filter(code: np.ndarray, replica: np.ndarray, cal: dict[str, Any]
     ----------
     code, replica : ndarray, shape (L,)
     cal : dict
-        A calibration (:func:`load_calibration`).
+        A calibration (:func:`~spslidar.pipeline.calibration_file.load_calibration`).
     regularisation : float, optional
         ``inf`` (the default, :data:`WIENER_REG`): the matched filter, the replica convolved
         with the IRF (the slices are then spread by the IRF's autocorrelation, the best

@@ -437,7 +437,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     cal, shift, signal_code, frac, scale, spread = None, 0, code, 0.0, 1.0, 1.0
     response, half_width = None, 0
     if calibration is not None:
-        from .calibration import calibrated_filter, check_calibration, load_calibration
+        from .calibration import calibrated_filter
+        from .calibration_file import check_calibration, load_calibration
 
         cal = (check_calibration(dict(calibration), "calibration", bit_rate, code)
                if isinstance(calibration, dict)
