@@ -43,3 +43,19 @@ def test_max_memory_takes_units(text, gb):
 def test_max_memory_refuses_what_is_not_a_size(text):
     with pytest.raises(argparse.ArgumentTypeError, match="not a memory size"):
         _memory(text)
+
+
+def test_a_floored_solve_is_priced_again_before_it_runs(monkeypatch):
+    """The time estimate counts 100 iterations before the weight is known; at the weight's
+    floor the cap is five times the solver's (FISTA: 300), and a 256x256 Hadamard run
+    priced at 8.1 s ran 24 s past --max-time 15 (an audit of 2026-11-28). Once the weight is
+    known, a floored solve is priced again and refused before it runs."""
+    from spslidar.errors import SpslidarError
+    from spslidar.pipeline import budget
+
+    m = spslidar.measure(size=16, patterns="hadamard", lam_scale=0.01, max_time=1000)
+    monkeypatch.setattr(budget, "FAST_SECONDS_PER_ENTRY", 1.0)  # each entry a second
+    with pytest.raises(SpslidarError, match=r"at the weight's floor \(300 iterations\)"):
+        spslidar.reconstruct(m)
+    monkeypatch.undo()
+    assert spslidar.reconstruct(m).metrics["solver_info"]["iterations"] <= 300

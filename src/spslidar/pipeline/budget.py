@@ -107,10 +107,29 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
     }
     iterations = cfg.iterations or 100
     dense = pattern_bytes_per_entry is not None
-    per_product = (m * q if dense else 2 * q * max(1, q.bit_length())) * k_solve
     seconds = (RUN_OVERHEAD_S + m * period * SECONDS_PER_BIN + m * q * shifts / FLOP_RATE
-               + iterations * 2 * per_product / FLOP_RATE)
+               + solve_seconds(m, q, k_solve, dense, iterations))
     return Budget(sum(parts.values()), seconds, parts)
+
+
+#: seconds per entry of the ``Q x K`` slices per iteration that the fast transform's solve
+#: spends beside its products (the TV prox's inner steps, the momentum): measured on the
+#: 2-core machine (2026-11-28), 128x128 and 256x256 Hadamard at 25 / 10 %, 16.5-17.5 ns,
+#: where the products' count alone priced the 256x256 solve at 4.1 s for 21 s taken and a
+#: --max-time 15 run ran 24 s (an audit); dense patterns' products dominate and are over-
+#: rather than under-estimated (64x64: 1.54 s priced, 0.61 s taken)
+FAST_SECONDS_PER_ENTRY = 1.6e-8
+
+
+def solve_seconds(m: int, q: int, k: int, dense: bool, iterations: int) -> float:
+    """The solve's share of :func:`estimate_budget`: ``iterations`` products with ``A`` and
+    its adjoint over ``k`` slices (``M Q`` per slice for dense patterns, ``2 Q log2 Q`` for
+    the fast Hadamard transform, which also pays :data:`FAST_SECONDS_PER_ENTRY` per slice
+    entry)."""
+    q = int(q)
+    per_product = (int(m) * q if dense else 2 * q * max(1, q.bit_length())) * int(k)
+    rest = 0.0 if dense else FAST_SECONDS_PER_ENTRY * q * int(k)
+    return iterations * (2 * per_product / FLOP_RATE + rest)
 
 
 #: a run estimated to take longer than this says so on stderr before it starts (seconds)
