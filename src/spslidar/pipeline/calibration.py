@@ -35,7 +35,6 @@ photons, not with the same.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import warnings
 from pathlib import Path
@@ -50,6 +49,7 @@ from .calibration_file import (  # noqa: F401  (re-exported: the calibration's f
     CAL_KIND,
     check_calibration,
     check_calibration_out,
+    code_sha256,
     content_sha256,
     edited,
     load_calibration,
@@ -363,7 +363,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
             "warnings": [str(w.message) for w in said],
             "bin_width_s": bin_width,
             "bit_rate_hz": float(bit_rate), "code_length": int(code.size),
-            "code_sha256": hashlib.sha256(np.asarray(code, np.uint8).tobytes()).hexdigest(),
+            "code_sha256": code_sha256(code),
             "pulse_width": float(pulse_width), "distance_m": float(distance),
             "measured_from": {"ptu": path.name, "bytes": path.stat().st_size,
                               "sha256": sha256_file(path),

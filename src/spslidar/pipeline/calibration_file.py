@@ -17,8 +17,8 @@ import numpy as np
 from ..errors import ConfigError
 from ..outdir import sha256_file
 
-__all__ = ["CAL_KIND", "check_calibration", "check_calibration_out", "content_sha256", "edited",
-           "load_calibration", "write_calibration"]
+__all__ = ["CAL_KIND", "check_calibration", "check_calibration_out", "code_sha256",
+           "content_sha256", "edited", "load_calibration", "write_calibration"]
 
 #: format tag of a calibration file
 CAL_KIND = "spslidar-calibration"
@@ -70,6 +70,12 @@ def write_calibration(cal: dict[str, Any], out: str | os.PathLike, overwrite: bo
     atomic_write_text(path, json.dumps({**body, "content_sha256": content_sha256(body)},
                                        indent=1) + "\n")
     return path
+
+
+def code_sha256(code: np.ndarray) -> str:
+    """The SHA-256 of a code's bits (one byte each): ``code_sha256`` in ``CAL.json``, and
+    what ``reconstruct`` compares it with (``same_code`` in ``metrics.json``)."""
+    return hashlib.sha256(np.asarray(code, np.uint8).tobytes()).hexdigest()
 
 
 def content_sha256(cal: dict[str, Any]) -> str:

@@ -250,13 +250,12 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     if floored and not cfg.iterations:
         iterations *= FLOORED_ITERATIONS
         if cfg.max_time is not None and not device:  # priced at 100 iterations before
-            from ..patterns.hadamard import HadamardPatterns  # the weight was known
-            from .budget import check_time, solve_seconds
+            from .budget import check_time, solve_seconds  # the weight was known
+            from .plan import _dense_patterns
 
             spent = sum(t for key, t in timing.items() if key != "total")
             check_time(spent + solve_seconds(patterns.shape[0], q, int(keep.sum()),
-                                             not isinstance(patterns, HadamardPatterns),
-                                             iterations),
+                                             _dense_patterns(cfg), iterations),
                        cfg.max_time, f"this run at the weight's floor ({iterations} "
                        f"iterations)", announce=False, basis="its first stages' time and the "
                        "floored weight's iteration cap", reduce="--size or --compression, "

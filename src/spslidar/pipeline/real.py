@@ -11,7 +11,6 @@ ground truth, when given, only feeds the metrics.
 
 from __future__ import annotations
 
-import hashlib
 import os
 from pathlib import Path
 from typing import Any
@@ -438,7 +437,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     response, half_width = None, 0
     if calibration is not None:
         from .calibration import calibrated_filter
-        from .calibration_file import check_calibration, load_calibration
+        from .calibration_file import check_calibration, code_sha256, load_calibration
 
         cal = (check_calibration(dict(calibration), "calibration", bit_rate, code)
                if isinstance(calibration, dict)
@@ -503,8 +502,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         "irf_fwhm_bins": cal["irf_fwhm_bins"], "distance_m": cal.get("distance_m"),
         "target": cal.get("target"), "peak_to_noise": cal.get("peak_to_noise"),
         "warnings": cal.get("warnings"),
-        "same_code": cal.get("code_sha256") == hashlib.sha256(
-            np.asarray(code, np.uint8).tobytes()).hexdigest(),
+        "same_code": cal.get("code_sha256") == code_sha256(code),
         "measured_from": cal.get("measured_from")}
     return result
 

@@ -130,17 +130,18 @@ def _rows(m: int):
 
 
 def _grouped(patterns: np.ndarray, offsets: np.ndarray, rows: slice | np.ndarray
-             ) -> tuple[np.ndarray, np.ndarray]:
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The patterns' light summed over the pixels that share an offset (a facing wall's
-    pixels at one distance from the axis: an eighth of them or fewer), and those offsets: the
-    kernels need no more, at a fraction of the pixels' cost (a 256 x 256 image: 8 256 groups
-    for 65 536 pixels)."""
-    values, group = np.unique(np.asarray(offsets, dtype=np.float64), return_inverse=True)
+    pixels at one distance from the axis: an eighth of them or fewer), those offsets, and one
+    pixel of each group: the kernels need no more, at a fraction of the pixels' cost (a
+    256 x 256 image: 8 256 groups for 65 536 pixels)."""
+    values, first, group = np.unique(np.asarray(offsets, dtype=np.float64),
+                                     return_index=True, return_inverse=True)
     order = np.argsort(group, kind="stable")
     starts = np.searchsorted(group[order], np.arange(values.size))
     light = np.add.reduceat(np.asarray(patterns[rows], dtype=np.float64)[:, order], starts,
                             axis=1)
-    return light, values
+    return light, values, first
 
 
 def _kernels(light: np.ndarray, offsets: np.ndarray, period: int) -> np.ndarray:
@@ -214,10 +215,7 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     col = 2 * np.arange(shape[1]) + 1 - shape[1]
     row = 2 * np.arange(shape[0]) + 1 - shape[0]
     ring = (row[:, None] ** 2 + col[None, :] ** 2).ravel().astype(np.float64)
-    light, keys = _grouped(patterns, ring, pick)
-    member = np.searchsorted(keys, ring)  # a pixel's group
-    first = np.zeros(keys.size, dtype=np.int64)
-    first[member[::-1]] = np.arange(ring.size)[::-1]  # one pixel of each group
+    light, keys, first = _grouped(patterns, ring, pick)
     from .calibration import IRF_AFTER, IRF_BEFORE
 
     period = int(np.asarray(code).size)
@@ -305,7 +303,7 @@ def range_free_response(hists: np.ndarray, patterns: np.ndarray, code: np.ndarra
     num = np.zeros(period // 2 + 1, dtype=np.complex128)
     den = np.zeros(period // 2 + 1)
     for rows in _rows(patterns.shape[0]):
-        light, values = _grouped(patterns, offsets, rows)
+        light, values, _ = _grouped(patterns, offsets, rows)
         kf = np.fft.rfft(_kernels(light, values, period), axis=1)
         gf = np.fft.rfft(_code_removed(hists[rows], code), axis=1)
         num += np.sum(np.conj(kf) * gf, axis=0)
