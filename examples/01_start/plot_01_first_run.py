@@ -10,7 +10,9 @@ turned into depth by the default estimator, ``mrf`` (the paper's ML argmax of eq
 spatial prior over the range slices; ``depth="argmax"`` is the paper's own).
 
 The default experiment is the paper's (64x64 pixels, a 16383-bit code); here the scene is
-32x32 and the code 1023 bits long so that the example runs in a couple of seconds.
+32x32 and the code 4095 bits long, so that the example runs in a couple of seconds (a
+1023-bit code would be no quicker at this size, and its 15.33 m unambiguous range would not
+reach the scene at 20 m: ``result.warnings`` would say that its range gate aliases).
 """
 
 import tempfile
@@ -21,7 +23,7 @@ import numpy as np
 
 import spslidar
 
-result = spslidar.run(scene="camera", size=32, code_length=1023, seed=0)
+result = spslidar.run(scene="camera", size=32, code_length=4095, seed=0)
 print(result.summary())
 
 # %%
@@ -54,8 +56,11 @@ for ax in axes:
 # The files the command line writes
 # ---------------------------------
 # :meth:`~spslidar.pipeline.results.Result.save` writes what ``spslidar run --out DIR``
-# writes: ``metrics.json``, ``depth.npy``, ``truth.npy``, ``valid.npy`` and ``depth.png``
-# (the library's own summary figure, shown below).
+# writes (:doc:`/outputs`): ``metrics.json``, ``depth.npy``, ``reflectivity.npy``,
+# ``confidence.npy``, ``points.ply`` (the point cloud), ``truth.npy``, ``valid.npy``,
+# ``depth.png`` (the library's own summary figure, shown below) and the marker
+# ``.spslidar-output.json`` by which spslidar knows a folder it wrote; ``depth2.npy`` too
+# where the depth estimator reports a second surface (``guarded``, ``evidence``).
 with tempfile.TemporaryDirectory() as tmp:
     out = result.save(Path(tmp) / "first_run")
     print(sorted(p.name for p in out.iterdir()))

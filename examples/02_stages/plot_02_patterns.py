@@ -20,14 +20,21 @@ kinds = ("gaussian", "bernoulli", "hadamard", "scrambled-hadamard")
 # %%
 # What the DMD shows
 # ------------------
-# The fourth pattern of each kind at 32x32 (Hadamard patterns are shown as ``(1 + h) / 2``).
-fig, axes = plt.subplots(1, 3, figsize=(9, 3), layout="constrained")
-for ax, kind in zip(axes, kinds[:3], strict=False):
+# The fourth pattern of each kind at 32x32, drawn as ``build_patterns`` returns it: what the
+# DMD shows, from 0 (black, mirror off) to 1 (white, on). The binary kinds are 0/1 (for the
+# Hadamard kinds the default ``hadamard_realisation = "shifted"`` has already mapped each +-1
+# row ``h`` to ``(1 + h) / 2``); the Gaussian kind is grey levels in [0, 1]. Each panel is
+# framed on a grey background so that white mirrors at its edge stay visible.
+fig, axes = plt.subplots(1, 4, figsize=(12, 3.2), layout="constrained", facecolor="0.8")
+for ax, kind in zip(axes, kinds, strict=True):
     patterns = build_patterns(kind, 8, 32, np.random.default_rng(0)).todense()
     pattern = np.asarray(patterns)[3].reshape(32, 32)
     ax.imshow(pattern, cmap="gray", vmin=0, vmax=1)
     ax.set_title(kind)
-    ax.set_axis_off()
+    ax.set_xticks([])
+    ax.set_yticks([])
+    for spine in ax.spines.values():
+        spine.set(color="tab:red", linewidth=1.5)
 
 # %%
 # Depth with each kind

@@ -5,7 +5,7 @@
 along ``(u_p, v_p, 1)`` (:func:`spslidar.products.pixel_rays`, the pinhole of ``points.ply``),
 sees it at the range ``r_p = D sqrt(1 + u_p^2 + v_p^2)``, and a wall tilted to
 ``z = D + a x + b y`` at ``D sqrt(1 + u^2 + v^2) / (1 - a u - b v)``. Through a 10 degree
-field of view at 25 m the corners are 0.168 m (11.9 bins at 10 GHz) farther than the centre;
+field of view at 25 m the corners are 0.179 m (11.9 bins at 10 GHz, 32x32) farther than the centre;
 summed over the patterns, the response is the IRF smeared over that spread: an audit measured
 a delay of 14.236 ns for a simulated 13.74 ns (8 cm) and an IRF 8.29 bins wide for 1.9, every
 calibrated depth then 4-5 cm short and its median error 6 cm (2026-11-28).
