@@ -156,8 +156,12 @@ def test_sweep_scene_paths_are_relative_to_the_toml(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     with pytest.warns(UserWarning, match="scene is in both"):
         spec = load_sweep_config(cfg)
-    assert spec.base["scene"] == str(tmp_path / "cfgs" / "flat.npy")
-    assert spec.grid["scene"] == [str(tmp_path / "cfgs" / "flat.npy"), "camera"]
+    # named as the TOML names them (a point's seed and cache file follow the TOML alone),
+    # read from the TOML's folder
+    assert spec.base["scene"] == "flat.npy"
+    assert spec.grid["scene"] == ["flat.npy", "camera"]
+    opened = [spec.resolve(point)["scene"] for point in spec.points()]
+    assert opened == [str(tmp_path / "cfgs" / "flat.npy"), "camera"]
 
 
 def test_snr_histogram_too_large_is_one_line(capsys, monkeypatch):

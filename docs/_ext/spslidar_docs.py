@@ -278,7 +278,9 @@ METRICS: dict[str, str] = {
     "bin_depth_m": "Depth of one TDC bin, c / (2 x bit rate), metres (1.5 cm at 10 GHz).",
     "unambiguous_range_m": "Range covered by one code period (PSST) or one pulse period "
                            "(conventional), metres.",
-    "range_gate_m": "The depths reconstructed, [min, max] metres.",
+    "range_gate_m": "The depths reconstructed, [min, max] metres, as asked for: the slices "
+                    "are whole TDC bins, the gate's ends rounded outward, so a depth (with "
+                    "``--subbin``) can lie up to about one bin (1.5 cm at 10 GHz) past it.",
     "n_slices": "Range slices (delays) in the gate.",
     "n_slices_solved": "Slices passed to the solver (fewer than ``n_slices`` with the "
                        "automatic gate).",
@@ -293,10 +295,15 @@ METRICS: dict[str, str] = {
     "replica": "Matched-filter replica used: bipolar or unipolar.",
     "mean_signal_counts_per_pattern": "Mean signal counts per pattern (all bins).",
     "mean_noise_counts_per_pattern": "Mean noise counts per pattern (all bins).",
-    "correlation_noise_sigma": "Standard deviation of the matched-filter output's noise.",
+    "correlation_noise_sigma": "Standard deviation of the matched-filter output's noise "
+                               "(with ``--noiseless``, what the same run with Poisson noise "
+                               "would have).",
     "depth_estimator": "The depth estimator used.",
     "low_confidence_fraction": "Share of the pixels whose depth has a low confidence "
-                               "(``confidence.npy``).",
+                               "(``confidence.npy`` below ``low_confidence_threshold``).",
+    "low_confidence_threshold": "The depth estimator's confidence below which a depth is "
+                                "flagged low-confidence (``mrf`` 0.5, ``censor`` 0.3, the "
+                                "others 0.25).",
     "peak_to_noise_p90": "90th percentile over the pixels of each profile's peak over its "
                          "own largest noise peak beside it "
                          "(:func:`~spslidar.depth.profile.peak_to_noise`); null under 16 "
@@ -314,7 +321,10 @@ METRICS: dict[str, str] = {
     "lam": "Regularisation weight used by the solver.",
     "lam_scale": "Its multiple of the noise level (``lam = lam_scale x noise_level``).",
     "lam_floored": "Whether ``lam`` was raised to its floor.",
-    "noise_level": "Noise level estimated from the measurements.",
+    "noise_level": "Noise level that reaches the solver's prox, estimated from the "
+                   "measurements (the weight is ``lam_scale`` times it, or the floor); with "
+                   "``--noiseless``, the level the same run with Poisson noise would have: no "
+                   "noise reaches the prox and the weight is the floor (``lam_floored``).",
     "solver_info": "What the solver reports: ``solver``, ``iterations``, ``final_objective``, "
                    "``stop_reason``, ``time_s`` and solver-specific keys.",
     "detector": "The detector model and its flux: ``model``, ``count_rate_hz``, "
@@ -323,8 +333,13 @@ METRICS: dict[str, str] = {
     "estimate": "The memory (GB) and time (s) estimated before the run.",
     "warnings": "The warnings printed on stderr.",
     "timing_s": "Wall-clock seconds by stage (scene, setup, simulate, qcr, solve, depth, "
-                "metrics, write, total).",
-    "config": "The full validated configuration (every key of :class:`~spslidar.Config`).",
+                "metrics, write); ``total`` is the run up to the metrics, the time the "
+                "summary line prints, and leaves out ``write`` (the output folder), which is "
+                "timed after it.",
+    "config": "The validated configuration, every key resolved to the value used (``auto`` "
+              "and unset keys replaced): ``run`` writes every key of "
+              ":class:`~spslidar.Config`, ``reconstruct`` the processing keys and those its "
+              "options measured (a simulation's scene, photons and patterns did not apply).",
     "seed": "The random seed.",
     "version": "spslidar version that wrote the file.",
     "point_cloud": ("``points.ply``: file name, field of view (degrees), number of points "

@@ -201,9 +201,13 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
                                 f"({exc.strerror})") from None
         if not empty:
             if not is_result(path):
+                marker = read_marker(path)
+                other = marker.get("kind") if isinstance(marker, dict) else None
                 why = ("it holds a metrics.json but no spslidar marker, so spslidar did not "
                        "write it (or wrote it before version 0.2.0)"
-                       if (path / "metrics.json").exists() and read_marker(path) is None else
+                       if (path / "metrics.json").exists() and marker is None else
+                       f"it is the folder of a 'spslidar {other}', not of a run"
+                       if isinstance(other, str) and other else
                        "it holds files spslidar did not write")
                 raise SpslidarError(
                     f"{option} {out}: the folder is not empty and is not a spslidar result "

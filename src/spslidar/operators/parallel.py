@@ -17,6 +17,7 @@ problems (:meth:`spslidar.solvers.Solver.solve`).
 from __future__ import annotations
 
 import contextvars
+import functools
 import os
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
@@ -26,8 +27,8 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "ParallelContext", "available_cpus", "current", "parallel", "row_bands", "run_parts",
-    "sum_parts",
+    "ParallelContext", "available_cpus", "current", "one_blas_thread", "parallel", "row_bands",
+    "run_parts", "sum_parts",
 ]
 
 #: at most this many threads (products split into as many row bands)
@@ -124,6 +125,28 @@ def _single_threaded_blas() -> Any:
     except ImportError:  # pragma: no cover - threadpoolctl is optional
         return None
     return threadpool_limits(limits=1, user_api="blas")
+
+
+def one_blas_thread(fn):
+    """Run ``fn`` with BLAS on one thread (a decorator), so that its results do not depend on
+    how many threads BLAS may use.
+
+    A float32 product on two BLAS threads rounds differently from one on one thread: a sweep
+    run in-process (BLAS on every core) and in ``--jobs 2`` workers (one thread each, as
+    joblib gives them) differed on 12 of 40 points at 16x16 (RMSE up to 0.4 %, a point's
+    noise level at 1e-11), and ``run`` could differ from the sweep row of its seed. What needs
+    threads takes them from :func:`parallel` (BLAS on one thread there too); the rest is small
+    beside the solve: on 2 cores the default run, a 64x64 TVAL3 run and a 128x128 Hadamard run
+    took 0.95 / 10.1 / 6.1 s against 1.10 / 9.3 / 7.4 s with BLAS on both (2026-11-28).
+    """
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        limits = _single_threaded_blas()
+        if limits is None:  # pragma: no cover - threadpoolctl is a dependency
+            return fn(*args, **kwargs)
+        with limits:
+            return fn(*args, **kwargs)
+    return wrapper
 
 
 @contextmanager

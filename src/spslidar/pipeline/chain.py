@@ -23,6 +23,7 @@ from ..depth import ESTIMATORS, DepthContext
 from ..detectors import build_detector
 from ..detectors.counting import NoiseModel
 from ..errors import ConfigError
+from ..operators.parallel import one_blas_thread
 from ..patterns import build_patterns
 from ..qcr import MeanEliminated, plain_problem, qcr_problem
 from ..scenes import load_scene
@@ -57,6 +58,7 @@ __all__ = ["LAM_FLOOR", "PROCESSING_KEYS", "TV_INNER", "Measurement", "build_reg
            "solver_default", "timeline"]
 
 
+@one_blas_thread
 def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     """Simulate one acquisition: scene, code, patterns, photon counts and matched filter.
 
@@ -160,6 +162,7 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
                        warns, timing)
 
 
+@one_blas_thread
 def reconstruct(meas: Measurement, **processing) -> Result:
     """Range gate, QCR, compressive reconstruction, ML depth and metrics of a measurement.
 
@@ -310,7 +313,8 @@ def reconstruct(meas: Measurement, **processing) -> Result:
                                  cfg.pulse_width, cfg.subbin)
         confidence = peak_confidence(peak)
         confidence[~np.isfinite(depth)] = 0.0
-        low = ArgmaxDepth()._flag(depth, confidence)
+        flagger = ArgmaxDepth()
+        low, threshold = flagger._flag(depth, confidence), flagger.low_confidence
     else:
         slices = _host(be, slices)
         seen = slices
@@ -318,7 +322,9 @@ def reconstruct(meas: Measurement, **processing) -> Result:
             from .calibration import delay_filter, refine_depth
 
             seen = delay_filter(slices, lags, sim["delay_response"])
-        est = ESTIMATORS.load(cfg.depth)().estimate(
+        estimator = ESTIMATORS.load(cfg.depth)()
+        threshold = estimator.low_confidence
+        est = estimator.estimate(
             seen, DepthContext(lags, bin_width, cfg.pulse_width, shape, cfg.subbin))
         depth, confidence, low = est.depth, est.confidence, est.low_confidence
         if seen is not slices:
@@ -335,7 +341,8 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         meas, cfg, depth=depth, slices=slices, corr=corr, keep=keep, auto=auto,
         confidence=confidence, low_confidence=low, depth_info=depth_info,
         lam=lam, lam_scale=lam_scale, sigma_eff=sigma_eff, info=info, iterations=iterations,
-        timing=timing, warns=warns, lam_floored=floored, depth2=depth2)
+        timing=timing, warns=warns, lam_floored=floored, depth2=depth2,
+        low_confidence_threshold=threshold)
 
 
 def _host(be, a):

@@ -66,9 +66,13 @@ class Result:
                 f"{m['n_patterns']} {c.patterns} patterns ({100 * c.compression:g}%), "
                 f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}")
         t = self.timing
-        if m.get("depth_rmse_m") is None:
+        rmse = m.get("depth_rmse_m")
+        if not m.get("has_truth", True):
             score = (f"no ground truth: returns in {_percent(m['coverage'])} of pixels, "
                      f"mean reflectivity {m.get('mean_reflectivity') or 0.0:.3g}, ")
+        elif rmse is None or not math.isfinite(rmse):  # (was "depth RMSE nan m (nan bins)")
+            score = (f"no depth to score: none of the {m['n_valid']} pixels with a truth "
+                     f"holds a return, ")
         else:
             score = (f"depth RMSE {m['depth_rmse_m']:.4f} m "
                      f"({m['depth_rmse_m'] / m['bin_depth_m']:.2f} bins) over "

@@ -13,7 +13,7 @@ import numpy as np
 from ..config import Config
 from ..constants import SPEED_OF_LIGHT
 from ..depth.profile import NOISE_ONLY_MIN_SLICES, noise_verdict
-from ..metrics import depth_errors, edge_agreement, sobel_edges
+from ..metrics import depth_errors, edge_agreement, sobel_edges, truth_edge_mask
 from ..products import reflectivity_image
 from ..solvers.entries import TV_REGULARISERS
 from ..version import __version__
@@ -28,7 +28,8 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
                   low_confidence: np.ndarray, depth_info: dict | None, lam: float,
                   lam_scale: float, sigma_eff: float, info: Any, iterations: int,
                   timing: dict[str, float], warns: list[str],
-                  lam_floored: bool = False, depth2: np.ndarray | None = None) -> Result:
+                  lam_floored: bool = False, depth2: np.ndarray | None = None,
+                  low_confidence_threshold: float | None = None) -> Result:
     """Score a reconstruction (eq. 19, Sobel edges) and assemble its :class:`Result` and
     ``metrics.json``: the last step of :func:`reconstruct` (on every backend) and of a
     measured acquisition's reconstruction, so all report the same keys."""
@@ -36,9 +37,23 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
     bin_depth = SPEED_OF_LIGHT * acq.bin_width / 2.0
     shape = (cfg.size, cfg.size)
     t0 = time.perf_counter()
+    noiseless = bool(getattr(cfg, "noiseless", False))
+    # (a simulation's slices read reflectivity: a gate without the scene holds round-off,
+    # 3e-6 on the camera through 1-3 m, where its returns read 0.5-1.1)
+    empty = noiseless and not float(np.max(slices, initial=0.0)) > 1e-4
+    if empty:  # no pixel holds a return: the estimators' relative no-return rule cannot say
+        # so (it kept every pixel: coverage 1.0 and an RMSE of 2.29 m beside this warning)
+        depth = np.full(np.shape(depth), np.nan)
+        confidence = np.zeros(np.shape(depth))
+        low_confidence = np.zeros(np.shape(depth), dtype=bool)
+        depth2 = None
+        warns.append(f"no pixel holds a return in the range gate {meas.gate[0]:g}-"
+                     f"{meas.gate[1]:g} m (a noiseless run): the depth map is empty; check "
+                     f"that the gate holds the scene")
     if getattr(scene, "has_truth", True):
         err = depth_errors(depth, scene.depth, scene.valid)
-        edge_corr = edge_agreement(sobel_edges(depth), sobel_edges(scene.depth))
+        edge_corr = edge_agreement(sobel_edges(depth), sobel_edges(scene.depth),
+                                   truth_edge_mask(scene.valid))
     else:  # a measured acquisition: only what needs no truth
         found = np.isfinite(depth)
         err = {key: None for key in ("depth_rmse_m", "depth_mae_m", "depth_bias_m",
@@ -52,16 +67,10 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
     # (a calibrated instrument's returns span its response: sim's response_half_width)
     # (a noiseless run has no noise to tell a return from: its jitter or IRF-spread returns
     # were said to be "mostly noise" at 0.0015 m; it is said only where the gate holds none)
-    noiseless = bool(getattr(cfg, "noiseless", False))
     verdict = (None if noiseless else
                noise_verdict(slices, exclude=int(sim.get("response_half_width") or 2)))
     # None: no verdict (noiseless, too few slices, a diverged solve)
     peak_ratio, peak_floor, null = verdict if verdict is not None else (None, None, None)
-    # (a simulation's slices read reflectivity: a gate without the scene holds round-off,
-    # 3e-6 on the camera through 1-3 m, where its returns read 0.5-1.1)
-    if noiseless and not float(np.max(slices, initial=0.0)) > 1e-4:
-        warns.append(f"no pixel holds a return in the range gate {meas.gate[0]:g}-"
-                     f"{meas.gate[1]:g} m (a noiseless run): check that it holds the scene")
     aliased = meas.lags.size > acq.period  # each profile repeats its peak every period
     if verdict is not None and peak_ratio < peak_floor and aliased:
         # (a noiseless aliased run was also said to be "mostly noise": the gate-alias
@@ -117,6 +126,9 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         "correlation_noise_sigma": float(np.sqrt(np.mean(sim["sigma"] ** 2))),
         "depth_estimator": cfg.depth,
         "low_confidence_fraction": float(np.mean(low_confidence)),
+        # the estimator's confidence below which a depth is flagged (mrf 0.5, censor 0.3,
+        # the others 0.25): a fraction means nothing without it
+        "low_confidence_threshold": low_confidence_threshold,
         # 90th percentile of each pixel's peak over its own profile's noise maximum
         # (spslidar.depth.profile.peak_to_noise), and the level below which the image is said
         # to be mostly noise (None under 16 slices)

@@ -82,10 +82,15 @@ def run_metrics(params: dict) -> dict:
     arrays)."""
     r = run_shared(params)
     m = r.metrics
-    keep = ("depth_rmse_m", "depth_mae_m", "depth_bias_m", "missing_fraction",
-            "edge_correlation", "n_patterns", "n_slices", "lam", "noise_level")
+    # the RMSE with the share of pixels it is over and what run would have said of the map
+    # (a pure-noise point or a gate without the scene looked like an ordinary result)
+    keep = ("depth_rmse_m", "depth_mae_m", "depth_bias_m", "missing_fraction", "coverage",
+            "edge_correlation", "low_confidence_fraction", "peak_to_noise_p90",
+            "peak_to_noise_floor", "n_patterns", "n_slices", "lam", "noise_level")
     out = {k: m[k] for k in keep}
     out["time_total_s"] = r.timing["total"]
     out["time_solve_s"] = r.timing["solve"]
     out["iterations"] = m["solver_info"]["iterations"]
+    out["n_warnings"] = len(r.warnings)
+    out["warnings"] = " | ".join(r.warnings)
     return out

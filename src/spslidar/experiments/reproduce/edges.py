@@ -27,7 +27,7 @@ from spslidar.experiments.sweep import expand_grid
 
 def edge_stats(depth: np.ndarray | None, truth: np.ndarray, valid: np.ndarray) -> dict:
     """Sobel map of ``depth``, its correlation with the truth's and its mean in flat areas."""
-    from spslidar.metrics import edge_agreement, sobel_edges
+    from spslidar.metrics import edge_agreement, sobel_edges, truth_edge_mask
 
     if depth is None:
         return {"edge_correlation": math.nan, "spurious_edge_m": math.nan, "edges": None}
@@ -35,7 +35,7 @@ def edge_stats(depth: np.ndarray | None, truth: np.ndarray, valid: np.ndarray) -
     t = sobel_edges(truth)
     flat = (t <= np.median(t[valid])) & valid
     return {
-        "edge_correlation": edge_agreement(e, t),
+        "edge_correlation": edge_agreement(e, t, truth_edge_mask(valid)),
         "spurious_edge_m": float(np.mean(e[flat])),
         "edges": e,
     }

@@ -11,6 +11,7 @@ table.
 from __future__ import annotations
 
 import copy
+import functools
 import json
 import math
 import os
@@ -34,11 +35,13 @@ from spslidar.experiments.sweep.grid import (
     derive_seed,
     load_sweep_config,
     one_line,
+    resolve_point_files,
     same_value,
     sha256_hex,
+    with_scene_hashes,
     with_seed,
 )
-from spslidar.experiments.sweep.store import load_cached, store_run, write_csv
+from spslidar.experiments.sweep.store import load_cached, say_outcome, store_run, write_csv
 
 #: the table a sweep writes into its folder (known by its SHA-256 in the folder's marker)
 RESULTS_CSV = "results.csv"
@@ -514,28 +517,11 @@ def run_point(params: dict[str, Any]) -> dict[str, Any]:
     return run_metrics(config)
 
 
-def with_scene_hashes(points: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """Each point whose scene (or IRF) is a file, with the file's SHA-256 as ``scene_sha256``
-    (``irf_sha256``): the cache key (and ``results.csv``) then follow the file's content (an
-    edited scene or IRF file was given the earlier file's cached results). Each file is read
-    once."""
-    from spslidar.outdir import sha256_file
-    from spslidar.scenes import SCENE_FILE_SUFFIXES
-
-    sums: dict[str, str] = {}
-    out = []
-    for point in points:
-        point = dict(point)
-        for key, hashed, suffixes in (("scene", SCENE_HASH_KEY, SCENE_FILE_SUFFIXES),
-                                      ("irf", IRF_HASH_KEY, (".npy",))):
-            path = point.get(key)
-            if (isinstance(path, str) and Path(path).suffix.lower() in suffixes
-                    and os.path.isfile(path)):
-                if path not in sums:
-                    sums[path] = sha256_file(path)
-                point[hashed] = sums[path]
-        out.append(point)
-    return out
+def _run_opened(folder: str | None, func: Callable[[dict[str, Any]], Any],
+                params: dict[str, Any]) -> Any:
+    """``func`` of a sweep point whose scene and IRF files are read from the TOML's folder
+    (``folder``); top-level so that joblib and Dask can pickle it."""
+    return func(resolve_point_files(params, folder))
 
 
 def _seeded(points: Sequence[Mapping[str, Any]], ignored: list[dict[str, str]],
@@ -636,15 +622,17 @@ def sweep_main(
         few errors, are printed on stderr.
     """
     spec = load_sweep_config(config_path)
-    points = spec.points()
+    points = spec.points()  # files named as the TOML names them: seeds and keys follow those
     jobs = _check_jobs(jobs)  # before the estimate and the folder
     ignore: frozenset[str] = frozenset()
     if func is None:
         from spslidar.pipeline import PROCESSING_KEYS
 
         ignored: list[dict[str, str]] = []
-        total = _validate_run_points(points, config_path, ignored)
-        points = with_scene_hashes(points)
+        opened = [spec.resolve(point) for point in points]
+        total = _validate_run_points(opened, config_path, ignored)
+        points = [{**point, **{k: v for k, v in hashed.items() if k not in point}}
+                  for point, hashed in zip(points, with_scene_hashes(opened), strict=True)]
         # an edited scene, another array library or device: the same seed (a grid over
         # backend compared NumPy and array-api-strict on different noise; not dtype: float32
         # and float64 Gaussian patterns are different draws of one seed)
@@ -675,7 +663,8 @@ def sweep_main(
             f"since); refusing to replace it (move it away, or choose another folder)")
     try:
         rows = run_sweep(
-            run_point if func is None else func,
+            functools.partial(_run_opened, None if spec.path is None else str(spec.path.parent),
+                              run_point if func is None else func),
             points,
             out_dir,
             seed=spec.seed,
@@ -693,15 +682,4 @@ def sweep_main(
     with journal(folder, [RESULTS_CSV]):  # its SHA-256 in the marker before it is in place
         csv_path = write_csv(rows, Path(out_dir) / RESULTS_CSV)
     record_outputs(folder, [RESULTS_CSV])
-    failed = [row for row in rows if ERROR_KEY in row]
-    print(
-        f"sweep: {len(rows)} runs, {len(rows) - len(failed)} ok, {len(failed)} failed; "
-        f"results in {csv_path}",
-        file=sys.stderr,
-    )
-    for row in failed[:3]:
-        where = ", ".join(f"{name}={row.get(name)!r}" for name in [*spec.grid, TRIAL_KEY])
-        print(f"sweep: failed ({where}): {row[ERROR_KEY]}", file=sys.stderr)
-    if len(failed) > 3:
-        print(f"sweep: ... and {len(failed) - 3} more failures (see results.csv)", file=sys.stderr)
-    return len(failed)
+    return say_outcome(rows, [*spec.grid, TRIAL_KEY], csv_path)

@@ -13,6 +13,7 @@ import csv
 import io
 import json
 import os
+import sys
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -143,3 +144,34 @@ def write_csv(rows: Iterable[Mapping[str, Any]], path: str | os.PathLike[str]) -
     atomic_write_text(path, buffer.getvalue())
     return path
 
+
+def say_outcome(rows: list[dict[str, Any]], names: list[str], csv_path: Path) -> int:
+    """Say on stderr how a sweep's runs went: the count of failures and the first few, each
+    warning its runs gave once (where first and how often) and how many runs warned. Returns
+    the number of failed runs."""
+    failed = [row for row in rows if ERROR_KEY in row]
+    print(
+        f"sweep: {len(rows)} runs, {len(rows) - len(failed)} ok, {len(failed)} failed; "
+        f"results in {csv_path}",
+        file=sys.stderr,
+    )
+    for row in failed[:3]:
+        where = ", ".join(f"{name}={row.get(name)!r}" for name in names)
+        print(f"sweep: failed ({where}): {row[ERROR_KEY]}", file=sys.stderr)
+    if len(failed) > 3:
+        print(f"sweep: ... and {len(failed) - 3} more failures (see results.csv)", file=sys.stderr)
+    # what run would have said of a point (a gate past the unambiguous range, a map of noise)
+    # was kept in the workers' results and never shown
+    warned = [row for row in rows if row.get("n_warnings")]
+    said: dict[str, tuple[dict[str, Any], int]] = {}
+    for row in warned:  # each warning once, where it was first given and how often
+        for text in str(row["warnings"]).split(" | "):
+            said[text] = (said.get(text, (row, 0))[0], said.get(text, (row, 0))[1] + 1)
+    for text, (row, count) in list(said.items())[:2]:
+        where = ", ".join(f"{name}={row.get(name)!r}" for name in names)
+        print(f"sweep: warning ({where}{f', and {count - 1} more runs' if count > 1 else ''})"
+              f": {text}", file=sys.stderr)
+    if warned:
+        print(f"sweep: {len(warned)} of {len(rows)} runs warned (the warnings column of "
+              f"results.csv)", file=sys.stderr)
+    return len(failed)
