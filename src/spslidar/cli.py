@@ -225,7 +225,8 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Simulate one acquisition of a scene, reconstruct the depth "
                                    "map and score it; writes metrics.json, depth.npy, "
                                    "reflectivity.npy, confidence.npy, points.ply, truth.npy, "
-                                   "valid.npy and depth.png into --out (only when complete).")
+                                   "valid.npy, depth.png and, from --depth guarded/evidence, "
+                                   "depth2.npy into --out (only when complete).")
     p.add_argument("--config", metavar="FILE.toml",
                    help="TOML file with the same keys (command-line options override it)")
     p.add_argument("--out", required=True, metavar="DIR",
@@ -349,7 +350,9 @@ def _add_reconstruct_parser(sub) -> None:
         description="Read photon time tags (sync = code period start, a marker per DMD "
                     "pattern change), histogram them per pattern over the code period and run "
                     "the matched filter, QCR, solver and depth stages of 'run'; writes "
-                    "depth.npy, metrics.json and depth.png into --out.")
+                    "metrics.json, depth.npy, reflectivity.npy, confidence.npy, points.ply, "
+                    "depth.png (and depth2.npy from --depth guarded/evidence; truth.npy and "
+                    "valid.npy with --truth) into --out (only when complete).")
     _add_acquisition_args(p, "FILE.ptu", "T3 PTU file")
     p.add_argument("--range-gate", type=float, nargs=2, required=True, metavar=("MIN", "MAX"),
                    help="depths to reconstruct, metres")
