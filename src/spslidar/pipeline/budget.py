@@ -31,8 +31,21 @@ SOLVER_BLOCKS = 16
 #: bytes per element of the ``(Q, n_lags)`` slice block after the solve (float32 slices, the
 #: estimator's float64 copy and temporaries)
 SLICE_BYTES = 20
-#: sustained multiply-adds per second assumed for the time estimate (2 cores, BLAS)
-FLOP_RATE = 2e10
+#: sustained multiply-adds per second assumed for the time estimate (2 cores, BLAS), float64:
+#: measured 4.3e10 in a 64x64 dense solve on the 2-core machine (2026-11-28, the TV prox
+#: included), taken at 0.6 of it for slower machines
+FLOP_RATE = 2.5e10
+#: the same in float32 (the default dtype): measured 5.1e10 (64x64 camera, where fixed costs
+#: weigh most) to 8.5e10 (128x128, every solver alike); 2e10 for both dtypes, with 100
+#: iterations for every solver, priced a 128x128 Gaussian run at 152 s for 27 s taken and
+#: refused sweeps --max-time would have held
+FLOP_RATE_FLOAT32 = 5e10
+
+
+def flop_rate(dtype: str) -> float:
+    """Multiply-adds per second assumed for ``dtype`` (:data:`FLOP_RATE_FLOAT32` or
+    :data:`FLOP_RATE`)."""
+    return FLOP_RATE_FLOAT32 if str(dtype) == "float32" else FLOP_RATE
 #: seconds per simulated TDC bin (Poisson draw, expected counts, matched filter): 4.7e-8
 #: measured on the 2-core machine (256x256 Hadamard at 100 %: 50 s for 65536 patterns of
 #: 16383 bins), rounded up
@@ -105,10 +118,15 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
         "solver": SOLVER_BLOCKS * float(q) * k_solve * item,
         "range slices": SLICE_BYTES * float(q) * n_lags,
     }
-    iterations = cfg.iterations or 100
+    from .weights import solver_default
+
+    # the solver's own cap (FISTA and TwIST 60, TVAL3 100, GPSR 120; a floored weight's
+    # five-fold cap is priced again once the weight is known)
+    iterations = cfg.iterations or int(solver_default(cfg.solver, "iterations"))
     dense = pattern_bytes_per_entry is not None
-    seconds = (RUN_OVERHEAD_S + m * period * SECONDS_PER_BIN + m * q * shifts / FLOP_RATE
-               + solve_seconds(m, q, k_solve, dense, iterations))
+    rate = flop_rate(cfg.dtype)
+    seconds = (RUN_OVERHEAD_S + m * period * SECONDS_PER_BIN + m * q * shifts / rate
+               + solve_seconds(m, q, k_solve, dense, iterations, rate))
     return Budget(sum(parts.values()), seconds, parts)
 
 
@@ -121,7 +139,8 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
 FAST_SECONDS_PER_ENTRY = 1.6e-8
 
 
-def solve_seconds(m: int, q: int, k: int, dense: bool, iterations: int) -> float:
+def solve_seconds(m: int, q: int, k: int, dense: bool, iterations: int,
+                  rate: float = FLOP_RATE) -> float:
     """The solve's share of :func:`estimate_budget`: ``iterations`` products with ``A`` and
     its adjoint over ``k`` slices (``M Q`` per slice for dense patterns, ``2 Q log2 Q`` for
     the fast Hadamard transform, which also pays :data:`FAST_SECONDS_PER_ENTRY` per slice
@@ -129,7 +148,7 @@ def solve_seconds(m: int, q: int, k: int, dense: bool, iterations: int) -> float
     q = int(q)
     per_product = (int(m) * q if dense else 2 * q * max(1, q.bit_length())) * int(k)
     rest = 0.0 if dense else FAST_SECONDS_PER_ENTRY * q * int(k)
-    return iterations * (2 * per_product / FLOP_RATE + rest)
+    return iterations * (2 * per_product / rate + rest)
 
 
 #: a run estimated to take longer than this says so on stderr before it starts (seconds)

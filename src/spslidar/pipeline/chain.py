@@ -252,13 +252,14 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     iterations = cfg.iterations or solver_default(cfg.solver, "iterations")
     if floored and not cfg.iterations:
         iterations *= FLOORED_ITERATIONS
-        if cfg.max_time is not None and not device:  # priced at 100 iterations before
-            from .budget import check_time, solve_seconds  # the weight was known
+        if cfg.max_time is not None and not device:  # priced at the solver's cap before
+            from .budget import check_time, flop_rate, solve_seconds  # the weight was known
             from .plan import _dense_patterns
 
             spent = sum(t for key, t in timing.items() if key != "total")
             check_time(spent + solve_seconds(patterns.shape[0], q, int(keep.sum()),
-                                             _dense_patterns(cfg), iterations),
+                                             _dense_patterns(cfg), iterations,
+                                             flop_rate(cfg.dtype)),
                        cfg.max_time, f"this run at the weight's floor ({iterations} "
                        f"iterations)", announce=False, basis="its first stages' time and the "
                        "floored weight's iteration cap", reduce="--size or --compression, "

@@ -286,18 +286,17 @@ def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: in
 def _check_solve_time(cfg: Config, n_patterns: int, n_pixels: int, n_lags: int,
                       period: int) -> None:
     """Refuse (one line, before the file is read) a reconstruction whose solve would outlast
-    ``max_time`` (``--max-time``): two dense ``(M, Q) x (Q, K)`` products an iteration at two
-    flops (a multiply and an add) per entry, which is twice what ``run``'s estimate
-    (:func:`~.budget.estimate_budget`) counts. Both are low for small problems: an 8 x 8
-    acquisition of 32 patterns and 127 lags solves 2000 iterations in 0.40 s, 3.9 times this
-    count at :data:`~.budget.FLOP_RATE` and 7.6 times ``run``'s, since fixed costs per
-    iteration dominate there."""
-    from .budget import FLOP_RATE, check_time
+    ``max_time`` (``--max-time``), priced as ``run``'s solve is
+    (:func:`~.budget.solve_seconds`: two dense ``(M, Q) x (Q, K)`` products an iteration at
+    the dtype's multiply-add rate). It is low for small problems, where fixed costs per
+    iteration dominate (an 8 x 8 acquisition of 32 patterns and 127 lags solves 2000
+    iterations in 0.40 s), and 1.2-1.6 times the time of 64x64 and 128x128 solves."""
+    from .budget import check_time, flop_rate, solve_seconds
     from .weights import solver_default
 
     iterations = cfg.iterations or int(solver_default(cfg.solver, "iterations"))
     k = min(n_lags, period)
-    seconds = iterations * 2.0 * 2.0 * n_patterns * n_pixels * k / FLOP_RATE
+    seconds = solve_seconds(n_patterns, n_pixels, k, True, iterations, flop_rate(cfg.dtype))
     check_time(seconds, cfg.max_time, "this reconstruction", reduce="--iterations or the "
                "range gate")
 
