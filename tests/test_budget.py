@@ -101,3 +101,24 @@ def test_a_dense_matrix_that_cannot_fit_is_refused_before_the_scene_loads(monkey
     assert main(["run", "--size", "2048", "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "patterns" in err and "GB" in err and not out.exists()
+
+
+def test_the_time_estimate_counts_each_solvers_cap_and_the_dtypes_rate():
+    """Every solver was priced at 100 iterations and every dtype at one rate: a 128x128
+    Gaussian run priced at 152 s took 27 s. The solve's share follows the solver's own cap
+    (FISTA 60, GPSR 120) and halves in float32 against float64."""
+    from spslidar.pipeline.plan import preflight
+    from spslidar.pipeline.weights import solver_default
+
+    base = dict(scene="camera", size=32, compression=0.5, code_length=1023, auto_gate=False)
+    overhead = preflight(**base, iterations=1).seconds  # one iteration: the rest of the run
+    solve = {s: preflight(**base, solver=s).seconds - overhead for s in ("fista", "gpsr")}
+    caps = {s: solver_default(s, "iterations") for s in solve}
+    per_iteration = (preflight(**base, iterations=2).seconds - overhead)
+    assert caps == {"fista": 60, "gpsr": 120}
+    for s in solve:  # (cap - 1) iterations more than the one-iteration run
+        assert solve[s] == pytest.approx((caps[s] - 1) * per_iteration, rel=1e-9)
+    assert budget_mod.flop_rate("float32") == pytest.approx(2 * budget_mod.flop_rate("float64"))
+    f32 = preflight(**base, iterations=1000).seconds
+    f64 = preflight(**base, iterations=1000, dtype="float64").seconds
+    assert f64 > 1.8 * f32  # the dense products dominate a long solve
