@@ -14,7 +14,9 @@ kernel caches, the scene cache), then ``--repeat`` timed runs; the table gives t
 of the median run, its depth RMSE and its speed-up over the NumPy CPU run of the same workload.
 NumPy is timed once without warm-up on the large workloads (``--numpy-repeat``). Random
 streams differ between NumPy and the device backends (see :mod:`spslidar.backends`), so the
-RMSEs agree statistically, not exactly.
+RMSEs agree statistically, not exactly. Every option is checked before the first run (a bad
+one is one line on stderr and exit status 2), and a backend that cannot run here (no CUDA
+device, torch or CuPy missing) is skipped with one line on stderr saying why.
 
 Run::
 
@@ -25,13 +27,14 @@ Run::
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
 import statistics
 import sys
 import time
+
+import _cli
 
 STAGES = ("scene", "setup", "simulate", "qcr", "solve", "depth", "to_host", "metrics")
 WORKLOADS = {
@@ -110,39 +113,100 @@ def markdown(results: dict, sweeps: dict) -> str:
     return "\n".join(lines)
 
 
+def _backend_list(text: str) -> list[tuple[str, str]]:
+    """``type=`` of ``--backends``: ``BACKEND:DEVICE,...``, each a known backend on a device
+    it can run on (whether it can run *here* is decided later, and said)."""
+    import argparse
+
+    from spslidar.backends import BACKENDS, DEVICES
+
+    out = []
+    for item in (b.strip() for b in text.split(",")):
+        if not item:
+            continue
+        name, sep, device = item.partition(":")
+        if not sep or name not in BACKENDS or device not in DEVICES:
+            raise argparse.ArgumentTypeError(
+                f"{item!r} is not BACKEND:DEVICE with BACKEND one of {', '.join(BACKENDS)} "
+                f"and DEVICE one of {', '.join(DEVICES)} (e.g. numpy:cpu,torch:cuda)")
+        if (name in ("numpy", "array-api-strict") and device != "cpu") or (
+                name == "cupy" and device != "cuda"):
+            raise argparse.ArgumentTypeError(
+                f"{item!r}: {name} runs on {'CUDA' if name == 'cupy' else 'the CPU'} only")
+        out.append((name, device))
+    if not out:
+        raise argparse.ArgumentTypeError("no backend given")
+    return out
+
+
+def _workload_list(text: str) -> list[str]:
+    """``type=`` of ``--workloads`` and ``--numpy-workloads``: names of :data:`WORKLOADS` or
+    ``sweep``, comma-separated."""
+    import argparse
+
+    out = [w.strip() for w in text.split(",") if w.strip()]
+    bad = [w for w in out if w not in (*WORKLOADS, "sweep")]
+    if bad or not out:
+        what = f"unknown workload {bad[0]!r}" if bad else "no workload given"
+        raise argparse.ArgumentTypeError(f"{what} (choose from {', '.join(WORKLOADS)}, sweep)")
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--backends", default="numpy:cpu,torch:cuda,cupy:cuda")
-    ap.add_argument("--workloads", default="64,256,512h,sweep")
-    ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--numpy-repeat", type=int, default=1,
-                    help="timed NumPy runs of the 256 and 512h workloads (no warm-up)")
-    ap.add_argument("--numpy-workloads", default="64,256,sweep",
-                    help="workloads NumPy runs (512h takes minutes on the CPU)")
-    ap.add_argument("--sweep-runs", type=int, default=40)
-    ap.add_argument("--numpy-sweep-runs", type=int, default=5)
-    ap.add_argument("--out", default=None, help="write the Markdown table (and a .json) here")
+    ap = _cli.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--backends", type=_backend_list, default="numpy:cpu,torch:cuda,cupy:cuda",
+                    metavar="B:D,...", help="backends and devices, BACKEND:DEVICE comma-"
+                    "separated (default: numpy:cpu,torch:cuda,cupy:cuda; those that cannot run "
+                    "here are skipped, with a line on stderr)")
+    ap.add_argument("--workloads", type=_workload_list, default="64,256,512h,sweep",
+                    metavar="W,...", help=f"workloads, of {', '.join(WORKLOADS)}, sweep "
+                    "(default: 64,256,512h,sweep)")
+    ap.add_argument("--repeat", type=_cli.positive_int, default=5,
+                    help="timed runs of each workload after a warm-up, the median kept "
+                         "(default 5)")
+    ap.add_argument("--numpy-repeat", type=_cli.positive_int, default=1,
+                    help="timed NumPy runs of the 256 and 512h workloads (no warm-up; "
+                         "default 1)")
+    ap.add_argument("--numpy-workloads", type=_workload_list, default="64,256,sweep",
+                    metavar="W,...",
+                    help="workloads NumPy runs (default: 64,256,sweep; 512h takes minutes on "
+                         "the CPU)")
+    ap.add_argument("--sweep-runs", type=_cli.positive_int, default=40,
+                    help="runs of the sweep on a device backend (default 40)")
+    ap.add_argument("--numpy-sweep-runs", type=_cli.positive_int, default=5,
+                    help="runs of the sweep on NumPy (default 5)")
+    ap.add_argument("--out", type=_cli.out_file, default=None, metavar="FILE",
+                    help="also write the Markdown table to FILE and the results to FILE's "
+                         ".json (default: print only)")
     ap.add_argument("--depth", default="argmax",
                     help="depth estimator of every run (default argmax, the one with a device "
                          "kernel; mrf runs on the host)")
     args = ap.parse_args(argv)
     depth = {"depth": args.depth}  # argmax has a device kernel; mrf runs on the host
 
-    from spslidar.backends import is_available
+    from spslidar.backends import check_backend
+    from spslidar.depth import ESTIMATORS
+    from spslidar.errors import ConfigError
     from spslidar.patterns import PATTERNS
 
-    backends = [tuple(b.split(":")) for b in args.backends.split(",") if b]
-    workloads = [w for w in args.workloads.split(",") if w]
-    np_work = set(args.numpy_workloads.split(","))
+    if args.depth not in ESTIMATORS.names():
+        ap.error(f"argument --depth: unknown depth estimator {args.depth!r}; choose one of "
+                 f"{', '.join(ESTIMATORS.names())}")
+    backends = []
+    for backend, device in dict.fromkeys(args.backends):
+        try:
+            check_backend(backend, device)
+        except ConfigError as exc:
+            print(f"{ap.prog}: skip {backend}:{device}: {exc}", file=sys.stderr, flush=True)
+            continue
+        backends.append((backend, device))
+    workloads = args.workloads
+    np_work = set(args.numpy_workloads)
     results: dict[str, dict] = {}
     sweeps: dict[str, dict] = {}
     for wl in workloads:
         if wl == "sweep":
             continue
-        if wl not in WORKLOADS:
-            print(f"unknown workload {wl!r}; choose from {', '.join(WORKLOADS)}, sweep",
-                  file=sys.stderr)
-            return 2
         kw = {**WORKLOADS[wl], **depth}
         if kw.get("patterns", "gaussian") not in PATTERNS.names():
             print(f"skip {wl}: no {kw['patterns']!r} pattern kind registered", flush=True)
@@ -150,8 +214,6 @@ def main(argv: list[str] | None = None) -> int:
         results[wl] = {}
         for backend, device in backends:
             name = f"{backend}:{device}"
-            if not is_available(backend, device):
-                continue
             if backend == "numpy" and wl not in np_work:
                 continue
             numpy_big = backend == "numpy" and wl != "64"
@@ -165,8 +227,6 @@ def main(argv: list[str] | None = None) -> int:
             print(wl, name, json.dumps(res, default=str)[:300], flush=True)
     if "sweep" in workloads:
         for backend, device in backends:
-            if not is_available(backend, device):
-                continue
             n = args.numpy_sweep_runs if backend == "numpy" else args.sweep_runs
             try:
                 sweeps[f"{backend}:{device}"] = bench_sweep(backend, device, n, **depth)
@@ -185,4 +245,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(_cli.run(main))

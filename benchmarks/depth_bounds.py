@@ -31,10 +31,10 @@ renders as one return). Run:
 
 from __future__ import annotations
 
-import argparse
 import sys
 import warnings
 
+import _cli
 import numpy as np
 
 import spslidar
@@ -156,12 +156,25 @@ COLUMNS = ["rmse", "rmse_surface", "isolated", "isolated_sq", "consensus",
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--size", type=int, default=64)
-    ap.add_argument("--scenes", nargs="+", default=["motorcycle"])
-    ap.add_argument("--noise", type=float, nargs="+", default=[5.0, 10.0])
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap = _cli.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=_cli.positive_int, default=64,
+                    help="image side N (default 64)")
+    ap.add_argument("--scenes", nargs="+", default=["motorcycle"],
+                    help="built-in scenes or files (default: motorcycle)")
+    ap.add_argument("--noise", type=_cli.nonneg_float, nargs="+", default=[5.0, 10.0],
+                    help="background levels m_n (default: 5 10)")
+    ap.add_argument("--seeds", type=_cli.nonneg_int, nargs="+", default=[0, 1, 2],
+                    help="measurement seeds (default: 0 1 2)")
     args = ap.parse_args(argv)
+    # refuse a scene or setting spslidar refuses before the first reconstruction
+    from spslidar.config import Config
+    from spslidar.scenes import load_scene
+
+    for scene in args.scenes:
+        load_scene(scene, args.size)
+    for noise in args.noise:
+        for seed in args.seeds:
+            Config(size=args.size, noise=noise, seed=seed)
     lines = ["| scene | m_n | seed | " + " | ".join(COLUMNS) + " |",
              "|" + "---|" * (3 + len(COLUMNS))]
     for scene in args.scenes:
@@ -178,4 +191,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(_cli.run(main))

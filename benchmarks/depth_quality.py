@@ -26,11 +26,11 @@ argmax's on the same measurement, and the mean share of pixels off by more than 
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
+import _cli
 import numpy as np
 
 from spslidar.depth import ESTIMATORS, DepthContext
@@ -149,52 +149,76 @@ def ratios(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def _seeds(text: str) -> list[int]:
-    out: list[int] = []
-    for part in text.split(","):
-        lo, _, hi = part.partition("-")
-        out.extend(range(int(lo), int(hi or lo) + 1))
-    return out
+def check_cases(cases: list[tuple[str, int]], noises: list[float], ratios_: list[float],
+                size: int, estimators: list[str]) -> None:
+    """Refuse, before the first reconstruction, an unknown estimator, a scene that cannot be
+    loaded at ``size`` and a setting spslidar's ``Config`` refuses (raises ``ValueError``;
+    ``--estimators foo`` was found only after a reconstruction, ``--scenes nosuch`` after the
+    cases before it)."""
+    from spslidar.config import Config
+    from spslidar.scenes import load_scene
+
+    bad = [name for name in estimators if name not in ESTIMATORS.names()]
+    if bad:
+        raise ValueError(f"--estimators: unknown estimator {bad[0]!r}; choose from "
+                         f"{', '.join(ESTIMATORS.names())}")
+    for scene in dict.fromkeys(s for s, _ in cases if not s.startswith("procedural:")):
+        load_scene(scene, size)
+    for noise in noises:
+        for ratio in ratios_:
+            for _, seed in cases:
+                Config(size=size, noise=noise, compression=ratio, seed=seed)
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--size", type=int, default=64)
-    ap.add_argument("--scenes", nargs="+", default=None, help="built-in scenes or files")
-    ap.add_argument("--procedural", default=None,
-                    help="procedural seeds, e.g. 100-149 or 0-19,40 (the measurement's seed too)")
-    ap.add_argument("--noise", type=float, nargs="+", default=[5.0, 10.0])
-    ap.add_argument("--compression", type=float, nargs="+", default=[0.25, 0.5])
-    ap.add_argument("--estimators", nargs="+", default=list(ESTIMATORS.names()))
-    ap.add_argument("--seed", default="0",
-                    help="measurement seed(s) of --scenes, e.g. 0 or 8-15 (as --procedural)")
-    ap.add_argument("--draw", type=int, default=0,
+    ap = _cli.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
+    ap.add_argument("--size", type=_cli.positive_int, default=64,
+                    help="image side N (default 64)")
+    ap.add_argument("--scenes", nargs="+", default=None,
+                    help="built-in scenes or files (default: camera, unless --procedural)")
+    ap.add_argument("--procedural", type=_cli.int_list, default=None,
+                    help="procedural seeds, e.g. 100-149 or 0-19,40 (the measurement's seed too; "
+                         "default: none)")
+    ap.add_argument("--noise", type=_cli.nonneg_float, nargs="+", default=[5.0, 10.0],
+                    help="background levels m_n (default: 5 10)")
+    ap.add_argument("--compression", type=_cli.fraction, nargs="+", default=[0.25, 0.5],
+                    help="pattern ratios M / Q in (0, 1] (default: 0.25 0.5)")
+    ap.add_argument("--estimators", nargs="+", default=list(ESTIMATORS.names()),
+                    help=f"depth estimators (default: all, {' '.join(ESTIMATORS.names())}); "
+                         "argmax is always added")
+    ap.add_argument("--seed", type=_cli.int_list, default="0",
+                    help="measurement seed(s) of --scenes, e.g. 0 or 8-15 (as --procedural; "
+                         "default 0)")
+    ap.add_argument("--draw", type=_cli.nonneg_int, default=0,
                     help="another noise draw of --procedural: measurement seed = scene seed + "
-                         "1000 * DRAW (new code, patterns and photons; 0: the scene's seed)")
-    ap.add_argument("--cache", type=Path, default=None, help="keep the slices here")
-    ap.add_argument("--lam-scale", type=float, default=None, metavar="K",
+                         "1000 * DRAW (new code, patterns and photons; 0, the default: the "
+                         "scene's seed)")
+    ap.add_argument("--cache", type=_cli.out_dir, default=None, metavar="DIR",
+                    help="keep the slices here (default: none)")
+    ap.add_argument("--lam-scale", type=_cli.positive_float, default=None, metavar="K",
                     help="the solve's weight factor (default the solver's); every estimator, "
                          "argmax included, reads the slices of that weight")
-    ap.add_argument("--out", default=None, help="also write the Markdown to this file")
+    ap.add_argument("--out", type=_cli.out_file, default=None, metavar="FILE",
+                    help="also write the Markdown to this file (default: print only)")
     ap.add_argument("--per-case", action="store_true", help="also print the per-case table")
-    ap.add_argument("--jobs", type=int, default=1,
+    ap.add_argument("--jobs", type=_cli.positive_int, default=1,
                     help="reconstruct the measurements missing from --cache in this many "
-                         "processes first (each about 150 MB at 64x64; 2 on a 2-core machine)")
+                         "processes first (each about 150 MB at 64x64; 2 on a 2-core machine; "
+                         "default 1)")
     args = ap.parse_args(argv)
-    if args.draw < 0:
-        ap.error(f"--draw must be 0 or more, got {args.draw}")
-    if args.lam_scale is not None and not args.lam_scale > 0:
-        ap.error(f"--lam-scale must be positive, got {args.lam_scale}")
-    seeds = _seeds(args.seed)
+    if args.cache is not None:
+        args.cache = Path(args.cache)
+    seeds = args.seed
     cases = [(s, seed) for s in (args.scenes or []) for seed in seeds]
     if not cases and not args.procedural:
         cases = [("camera", seed) for seed in seeds]
     # several seeds of one built-in scene: the tables name each case scene:s<seed>
     label = {c: f"{c[0]}:s{c[1]}" for c in cases} if len(seeds) > 1 else {}
     if args.procedural:
-        cases += [(f"procedural:{s}", s + 1000 * args.draw) for s in _seeds(args.procedural)]
+        cases += [(f"procedural:{s}", s + 1000 * args.draw) for s in args.procedural]
     if "argmax" not in args.estimators:
         args.estimators.insert(0, "argmax")
+    check_cases(cases, args.noise, args.compression, args.size, args.estimators)
     if args.jobs > 1:
         if args.cache is None:
             ap.error("--jobs needs --cache (the workers hand the slices over through it)")
@@ -229,4 +253,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(_cli.run(main))

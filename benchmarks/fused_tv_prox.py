@@ -36,12 +36,12 @@ stays NumPy + BLAS.
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import time
 from pathlib import Path
 
+import _cli
 import numpy as np
 
 from spslidar import pipeline
@@ -174,10 +174,12 @@ def _interleaved(fns: dict, repeat: int) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--inner", type=int, default=pipeline.TV_INNER,
-                    help="FGP iterations per prox call (default: the pipeline's)")
-    ap.add_argument("--repeat", type=int, default=20)
+    ap = _cli.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--inner", type=_cli.positive_int, default=pipeline.TV_INNER,
+                    help=f"FGP iterations per prox call (default: the pipeline's, "
+                         f"{pipeline.TV_INNER})")
+    ap.add_argument("--repeat", type=_cli.positive_int, default=20,
+                    help="rounds, the best time of each variant kept (default 20)")
     args = ap.parse_args(argv)
 
     meas = pipeline.measure(scene="motorcycle", noise=5.0, size=64)
@@ -217,4 +219,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(_cli.run(main))

@@ -34,12 +34,12 @@ there on later runs (measured, one seed: 11.0 s and 1.24 GB the first time, 3.7 
 
 from __future__ import annotations
 
-import argparse
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+import _cli
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
@@ -187,19 +187,22 @@ def summary(rows: list[tuple[str, int, dict]]) -> str:
 
 
 def main_(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = _cli.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", nargs="+", default=["pole", "no-pole"],
-                    choices=["pole", "no-pole"])
-    ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+                    choices=["pole", "no-pole"],
+                    help="scene variants, with or without the one-pixel pole (default: both)")
+    ap.add_argument("--seeds", nargs="+", type=_cli.nonneg_int, default=[0, 1, 2],
+                    help="seeds of the acquisitions (default: 0 1 2)")
     ap.add_argument("--wall", choices=["range", "plane"], default="range",
                     help="the calibration wall: 25 m on every pixel (default), or a flat wall "
                          "through a 10 degree field of view")
-    ap.add_argument("--lam-scale", type=float, default=None,
+    ap.add_argument("--lam-scale", type=_cli.positive_float, default=None,
                     help="passed to every reconstruction (default: the pipeline's)")
-    ap.add_argument("--out", default=None, help="also write the Markdown to this file")
-    ap.add_argument("--keep", default=None, metavar="DIR",
+    ap.add_argument("--out", type=_cli.out_file, default=None, metavar="FILE",
+                    help="also write the Markdown to this file (default: print only)")
+    ap.add_argument("--keep", type=_cli.out_dir, default=None, metavar="DIR",
                     help="write the acquisitions into DIR once and reuse them on later runs "
-                         "(about 105 MB a seed)")
+                         "(about 105 MB a seed; default: a temporary folder per case)")
     args = ap.parse_args(argv)
     extra = [] if args.lam_scale is None else ["--lam-scale", f"{args.lam_scale:g}"]
     rows = []
@@ -219,4 +222,4 @@ def main_(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main_())
+    raise SystemExit(_cli.run(main_))

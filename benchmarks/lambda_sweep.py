@@ -10,26 +10,43 @@ RMSE, so the default can be seen against the optimum. Run:
 
 from __future__ import annotations
 
-import argparse
 import time
 
+import _cli
 import numpy as np
 
 import spslidar
 from spslidar.pipeline import solver_default
+from spslidar.solvers import SOLVERS
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--size", type=int, default=64)
-    ap.add_argument("--solver", default="fista")
-    ap.add_argument("--scenes", nargs="+", default=["camera", "motorcycle"])
-    ap.add_argument("--noise", type=float, nargs="+", default=[10.0])
-    ap.add_argument("--scales", type=float, nargs="+",
-                    default=list(np.round(np.logspace(-1.5, 1.0, 11), 4)))
-    ap.add_argument("--no-qcr", action="store_true")
-    ap.add_argument("--plot", default=None, help="write a PNG of RMSE vs lam_scale")
+    scales = list(np.round(np.logspace(-1.5, 1.0, 11), 4))
+    ap = _cli.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=_cli.positive_int, default=64,
+                    help="image side N (default 64)")
+    ap.add_argument("--solver", default="fista", choices=SOLVERS.names(),
+                    help="the solver (default fista)")
+    ap.add_argument("--scenes", nargs="+", default=["camera", "motorcycle"],
+                    help="built-in scenes or files (default: camera motorcycle)")
+    ap.add_argument("--noise", type=_cli.nonneg_float, nargs="+", default=[10.0],
+                    help="background levels m_n (default: 10)")
+    ap.add_argument("--scales", type=_cli.positive_float, nargs="+", default=scales,
+                    metavar="K", help="lam_scale values, the solver's default added (default: "
+                    f"11 from {scales[0]:g} to {scales[-1]:g}, log-spaced)")
+    ap.add_argument("--no-qcr", action="store_true",
+                    help="solve without QCR (default: QCR on)")
+    ap.add_argument("--plot", type=_cli.out_file, default=None, metavar="PNG",
+                    help="write a PNG of RMSE vs lam_scale (default: none)")
     args = ap.parse_args(argv)
+    # refuse a scene or setting spslidar refuses before the first simulation
+    from spslidar.config import Config
+    from spslidar.scenes import load_scene
+
+    for scene in args.scenes:
+        load_scene(scene, args.size)
+    for noise in args.noise:
+        Config(size=args.size, noise=noise, qcr=not args.no_qcr, solver=args.solver)
     default = solver_default(args.solver, "lam_scale")
     scales = sorted(set(args.scales) | {default})
     rows = []
@@ -70,4 +87,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(_cli.run(main))

@@ -12,7 +12,11 @@ loader and SciPy's m-sequence, so that both see the same scene and code):
 * matched filter: the full circular cross-correlation with the bipolar replica by FFT, then
   the range gate sliced out;
 * QCR: centred patterns and data; the regularisation weight by the same rule as spslidar
-  (``0.3`` times the RMS of ``A^T e`` for noise ``e`` of the level estimated from the counts);
+  (:func:`spslidar.pipeline.weights.default_weight`): the solver's default ``lam_scale``, read
+  from the solver registry (0.45 for FISTA since 2026-11-27; this script hard-coded the
+  earlier 0.3 until an audit of 2026-11-28), times the RMS of ``A^T e`` for noise ``e`` of the
+  level estimated from the counts, at least ``LAM_FLOOR`` times ``max |A^T y|`` (with the
+  floor's longer iteration cap when it binds; it does not at the defaults);
 * FISTA with step ``1 / ||A||^2`` (power iteration) and a TV prox by Chambolle's projection
   (Beck & Teboulle's non-accelerated dual gradient projection, non-negative, fixed inner
   iterations, no warm start);
@@ -33,19 +37,20 @@ Run::
 
 from __future__ import annotations
 
-import argparse
 import os
 import subprocess
 import sys
 import tempfile
 import time
 
+import _cli
 import numpy as np
 
 import spslidar
 from spslidar.config import Config
 from spslidar.constants import SPEED_OF_LIGHT
 from spslidar.pipeline.chain import solver_default
+from spslidar.pipeline.weights import FLOORED_ITERATIONS, LAM_FLOOR
 
 STAGES = ("scene", "setup", "simulate", "qcr", "solve", "depth", "metrics")
 
@@ -111,7 +116,8 @@ def plain_pipeline(cfg: dict, seed: int) -> tuple[dict, float]:
     Parameters
     ----------
     cfg : dict
-        ``Config.to_dict()`` plus ``iterations``.
+        ``Config.to_dict()`` plus ``iterations`` (``lam_scale`` ``None``: the solver's
+        default).
     seed : int
         Seed of the plain version's own generator (patterns, counts, noise probe).
 
@@ -176,7 +182,13 @@ def plain_pipeline(cfg: dict, seed: int) -> tuple[dict, float]:
     y = (corr - corr.mean(axis=0)) / np.sqrt(m)
     sigma = np.sqrt(totals) / gain  # std of each pattern's matched-filter output
     e = rng.standard_normal((m, 4)) * sigma[:, None]
-    lam_reg = 0.3 * float(np.sqrt(np.mean((a.T @ ((e - e.mean(axis=0)) / np.sqrt(m))) ** 2)))
+    sigma_eff = float(np.sqrt(np.mean((a.T @ ((e - e.mean(axis=0)) / np.sqrt(m))) ** 2)))
+    lam_scale = cfg.get("lam_scale")
+    if lam_scale is None:
+        lam_scale = solver_default(cfg["solver"], "lam_scale")
+    floor = LAM_FLOOR * float(np.abs(a.T @ y).max())
+    lam_reg = max(lam_scale * sigma_eff, floor)
+    n_iter = cfg["iterations"] * (FLOORED_ITERATIONS if floor > lam_scale * sigma_eff else 1)
     t["qcr"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -189,7 +201,7 @@ def plain_pipeline(cfg: dict, seed: int) -> tuple[dict, float]:
     x = np.zeros((q, lags.size))
     z = x.copy()
     s = 1.0
-    for _ in range(cfg["iterations"]):
+    for _ in range(n_iter):
         grad = a.T @ (a @ z - y)
         v = (z - grad / lip).T.reshape(lags.size, n, n)
         x_new = tv_prox(v, lam_reg / lip).reshape(lags.size, q).T
@@ -267,12 +279,11 @@ def main(argv=None) -> dict:
     dict
         ``{"spslidar": {stage: median seconds}, "plain": {...}, "rmse": {...}}``.
     """
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeat", type=int, default=3, help="runs of each (default 3)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap = _cli.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=_cli.positive_int, default=3, help="runs of each (default 3)")
+    ap.add_argument("--seed", type=_cli.nonneg_int, default=0,
+                    help="seed of both pipelines and of the whole-process runs (default 0)")
     args = ap.parse_args(argv)
-    if args.repeat < 1:
-        ap.error("--repeat must be at least 1")
     cfg = default_config()
     spslidar_pipeline(cfg, args.seed)  # warm-up: imports, caches
     times: dict[str, list[dict]] = {"spslidar": [], "plain": []}
@@ -313,4 +324,4 @@ def main(argv=None) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(_cli.run(main))

@@ -15,11 +15,11 @@ It is the measurement behind TVAL3's defaults (``beta_scale = 1/4``, factors 1/4
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
+import _cli
 import numpy as np
 
 import spslidar
@@ -52,7 +52,7 @@ def first_within(h: np.ndarray, f_opt: float, rel: float) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = _cli.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="32 x 32 images, one noise level")
     args = ap.parse_args(argv)
     size = 32 if args.quick else 64
@@ -90,4 +90,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(_cli.run(main))

@@ -1,0 +1,39 @@
+"""The benchmark scripts as a user runs them: a bad value is one line on stderr and exit 2,
+before any work (an audit of 2026-11-28 found tracebacks, empty tables with exit 0, and a
+missing --out folder found only after 17 s of work)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCH = Path(__file__).resolve().parent.parent / "benchmarks"
+
+
+@pytest.mark.parametrize("script,args,said", [
+    ("depth_quality.py", ["--size", "-64"], "--size"),
+    ("depth_quality.py", ["--scenes", "nosuch"], "unknown scene 'nosuch'"),
+    ("depth_quality.py", ["--out", "/nonexistent-folder/x.md"], "does not exist"),
+    ("instrument.py", ["--seeds", "-1"], "--seeds"),
+    ("lambda_sweep.py", ["--solver", "foo"], "--solver"),
+    ("depth_bounds.py", ["--scenes", "foo"], "unknown scene 'foo'"),
+    ("solvers.py", ["--size", "-8"], "--size"),
+    ("fused_tv_prox.py", ["--inner", "-1"], "--inner"),
+    ("run_standard.py", ["--seed", "-1"], "--seed"),
+    ("backends.py", ["--backends", "numpy"], "BACKEND:DEVICE"),
+    ("backends.py", ["--repeat", "0"], "--repeat"),
+    ("scale.py", ["--sizes", "100", "--kinds", "hadamard"], "power of two"),
+    ("scale.py", ["--compressions", "2"], "--compressions"),
+])
+def test_a_bad_value_is_one_line_and_exit_2(script, args, said, tmp_path):
+    if not BENCH.is_dir():
+        pytest.skip("the benchmarks are not in this checkout")
+    done = subprocess.run([sys.executable, str(BENCH / script), *args], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=120)
+    err = done.stderr.strip().splitlines()
+    assert done.returncode == 2, done.stderr
+    assert len(err) == 1 and err[0].startswith(f"{script}: error: ") and said in err[0], err
+    assert list(tmp_path.iterdir()) == []  # nothing written
