@@ -122,3 +122,22 @@ def test_the_time_estimate_counts_each_solvers_cap_and_the_dtypes_rate():
     f32 = preflight(**base, iterations=1000).seconds
     f64 = preflight(**base, iterations=1000, dtype="float64").seconds
     assert f64 > 1.8 * f32  # the dense products dominate a long solve
+
+
+def test_the_memory_estimate_counts_the_depth_estimators_working_set():
+    """With 20 bytes per slice entry for every estimator, a 512x512 Hadamard run (10 %, the
+    default mrf) was estimated at 1.69 GB and peaked at 1.95 GB (maximum RSS, 2026-11-28):
+    the MRF's messages and data costs. Each estimator's registry entry gives its own."""
+    from spslidar.depth import ESTIMATORS
+    from spslidar.pipeline.plan import preflight
+
+    bytes_of = {name: ESTIMATORS.get(name).defaults["slice_bytes"] for name in
+                ("argmax", "censor", "mrf", "guarded", "evidence")}
+    assert bytes_of["argmax"] < bytes_of["censor"] < bytes_of["mrf"] == bytes_of["guarded"]
+    big = preflight(size=512, patterns="hadamard", compression=0.1)
+    assert big.bytes > 1.95e9
+    lean = preflight(size=512, patterns="hadamard", compression=0.1, depth="argmax")
+    entries = big.parts["range slices"] / bytes_of["mrf"]  # Q x n_lags
+    assert lean.parts["range slices"] == pytest.approx(bytes_of["argmax"] * entries, rel=1e-12)
+    assert big.bytes - lean.bytes == pytest.approx(
+        (bytes_of["mrf"] - bytes_of["argmax"]) * entries, rel=1e-9)

@@ -29,8 +29,10 @@ DENSE_PATTERN_COPIES = 4.0
 #: ``(Q, K)`` blocks a solver keeps (iterates, momentum, gradient, TV dual and temporaries)
 SOLVER_BLOCKS = 16
 #: bytes per element of the ``(Q, n_lags)`` slice block after the solve (float32 slices, the
-#: estimator's float64 copy and temporaries)
-SLICE_BYTES = 20
+#: estimator's float64 copy and temporaries) for an estimator whose registry entry gives no
+#: ``slice_bytes``; each built-in's gives its own (the MRF's 70: with 20 for every estimator,
+#: a 512x512 Hadamard run peaked at 1.95 GB against 1.69 GB estimated, 2026-11-28)
+SLICE_BYTES = 70
 #: sustained multiply-adds per second assumed for the time estimate (2 cores, BLAS), float64:
 #: measured 4.3e10 in a 64x64 dense solve on the 2-core machine (2026-11-28, the TV prox
 #: included), taken at 0.6 of it for slower machines
@@ -81,6 +83,14 @@ def _secs(s: float) -> str:
     return f"{s / 3600:.0f} h"
 
 
+def _slice_bytes(depth: str) -> float:
+    """Bytes per slice-block entry at the depth stage: the estimator's registry default
+    ``slice_bytes``, else :data:`SLICE_BYTES`."""
+    from ..depth import ESTIMATORS
+
+    return float(ESTIMATORS.get(depth).defaults.get("slice_bytes", SLICE_BYTES))
+
+
 def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: int,
                     window_bins: int, pattern_bytes_per_entry: float | None,
                     threads: int = 2) -> Budget:
@@ -116,7 +126,7 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
         "simulation": threads * 3.0 * 64 * period * 4 + shifts * period * 4.0
         + q * shifts * 8.0 + 2.0 * m * n_ulags * 4,
         "solver": SOLVER_BLOCKS * float(q) * k_solve * item,
-        "range slices": SLICE_BYTES * float(q) * n_lags,
+        "range slices": _slice_bytes(cfg.depth) * float(q) * n_lags,
     }
     from .weights import solver_default
 
