@@ -19,7 +19,7 @@ import argparse
 import math
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -115,6 +115,20 @@ def out_dir(text: str) -> str:
     if not os.access(q, os.W_OK | os.X_OK):
         raise argparse.ArgumentTypeError(f"cannot write into {str(q)!r} (permission denied)")
     return text
+
+
+def check_runs(scenes: Iterable[str], size: int, settings: Iterable[dict[str, Any]]) -> None:
+    """Refuse, before the first run, a scene that cannot be loaded at ``size`` and a setting
+    (``Config`` keys beside ``size``) that spslidar's ``Config`` refuses: raises ``ValueError``
+    (spslidar's ``SceneError`` / ``ConfigError``; a bad scene or value was found only after
+    the runs before it). spslidar is imported here, not when this module is."""
+    from spslidar.config import Config
+    from spslidar.scenes import load_scene
+
+    for scene in dict.fromkeys(scenes):
+        load_scene(scene, size)
+    for setting in settings:
+        Config(size=size, **setting)
 
 
 def run(main: Callable[..., Any], argv: list[str] | None = None) -> int:

@@ -166,15 +166,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=_cli.nonneg_int, nargs="+", default=[0, 1, 2],
                     help="measurement seeds (default: 0 1 2)")
     args = ap.parse_args(argv)
-    # refuse a scene or setting spslidar refuses before the first reconstruction
-    from spslidar.config import Config
-    from spslidar.scenes import load_scene
-
-    for scene in args.scenes:
-        load_scene(scene, args.size)
-    for noise in args.noise:
-        for seed in args.seeds:
-            Config(size=args.size, noise=noise, seed=seed)
+    _cli.check_runs(args.scenes, args.size,
+                    ({"noise": n, "seed": s} for n in args.noise for s in args.seeds))
     lines = ["| scene | m_n | seed | " + " | ".join(COLUMNS) + " |",
              "|" + "---|" * (3 + len(COLUMNS))]
     for scene in args.scenes:

@@ -155,19 +155,13 @@ def check_cases(cases: list[tuple[str, int]], noises: list[float], ratios_: list
     loaded at ``size`` and a setting spslidar's ``Config`` refuses (raises ``ValueError``;
     ``--estimators foo`` was found only after a reconstruction, ``--scenes nosuch`` after the
     cases before it)."""
-    from spslidar.config import Config
-    from spslidar.scenes import load_scene
-
     bad = [name for name in estimators if name not in ESTIMATORS.names()]
     if bad:
         raise ValueError(f"--estimators: unknown estimator {bad[0]!r}; choose from "
                          f"{', '.join(ESTIMATORS.names())}")
-    for scene in dict.fromkeys(s for s, _ in cases if not s.startswith("procedural:")):
-        load_scene(scene, size)
-    for noise in noises:
-        for ratio in ratios_:
-            for _, seed in cases:
-                Config(size=size, noise=noise, compression=ratio, seed=seed)
+    _cli.check_runs((s for s, _ in cases if not s.startswith("procedural:")), size,
+                    ({"noise": n, "compression": r, "seed": seed}
+                     for n in noises for r in ratios_ for _, seed in cases))
 
 
 def main(argv=None) -> int:

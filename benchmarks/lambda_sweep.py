@@ -39,14 +39,8 @@ def main(argv=None):
     ap.add_argument("--plot", type=_cli.out_file, default=None, metavar="PNG",
                     help="write a PNG of RMSE vs lam_scale (default: none)")
     args = ap.parse_args(argv)
-    # refuse a scene or setting spslidar refuses before the first simulation
-    from spslidar.config import Config
-    from spslidar.scenes import load_scene
-
-    for scene in args.scenes:
-        load_scene(scene, args.size)
-    for noise in args.noise:
-        Config(size=args.size, noise=noise, qcr=not args.no_qcr, solver=args.solver)
+    _cli.check_runs(args.scenes, args.size, ({"noise": n, "qcr": not args.no_qcr,
+                                              "solver": args.solver} for n in args.noise))
     default = solver_default(args.solver, "lam_scale")
     scales = sorted(set(args.scales) | {default})
     rows = []

@@ -538,8 +538,13 @@ def resolve_file_paths(data: dict[str, Any], base: Path) -> dict[str, Any]:
     response in another folder)."""
     out = dict(data)
     for key, value in data.items():
-        name = key.replace("-", "_")
-        if (name in FILE_KEYS and isinstance(value, str) and Path(value).suffix
-                and ":" not in value and not Path(value).is_absolute()):
+        if names_a_file(key, value) and not Path(value).is_absolute():
             out[key] = str(base / value)
     return out
+
+
+def names_a_file(key: str, value: Any) -> bool:
+    """Whether config key ``key`` (dashed or not) holds a *file* name: a scene or IRF given as
+    a path with a suffix, not a built-in scene name or an IRF spec like ``gaussian:2``."""
+    return (key.replace("-", "_") in FILE_KEYS and isinstance(value, str)
+            and bool(Path(value).suffix) and ":" not in value)

@@ -42,12 +42,6 @@ FLOP_RATE = 2.5e10
 #: iterations for every solver, priced a 128x128 Gaussian run at 152 s for 27 s taken and
 #: refused sweeps --max-time would have held
 FLOP_RATE_FLOAT32 = 5e10
-
-
-def flop_rate(dtype: str) -> float:
-    """Multiply-adds per second assumed for ``dtype`` (:data:`FLOP_RATE_FLOAT32` or
-    :data:`FLOP_RATE`)."""
-    return FLOP_RATE_FLOAT32 if str(dtype) == "float32" else FLOP_RATE
 #: seconds per simulated TDC bin (Poisson draw, expected counts, matched filter): 4.7e-8
 #: measured on the 2-core machine (256x256 Hadamard at 100 %: 50 s for 65536 patterns of
 #: 16383 bins), rounded up
@@ -56,6 +50,12 @@ SECONDS_PER_BIN = 5e-8
 #: metrics): 0.06-0.07 s measured at 8x8 and 16x16 on 255 bits, where the rest was estimated
 #: at 0.001-0.011 s, so a sweep of 40 such runs was estimated at 0.43 s and took 13 s
 RUN_OVERHEAD_S = 0.05
+
+
+def flop_rate(dtype: str) -> float:
+    """Multiply-adds per second assumed for ``dtype`` (:data:`FLOP_RATE_FLOAT32` or
+    :data:`FLOP_RATE`)."""
+    return FLOP_RATE_FLOAT32 if str(dtype) == "float32" else FLOP_RATE
 
 
 @dataclass

@@ -631,7 +631,8 @@ def sweep_main(
         ignored: list[dict[str, str]] = []
         opened = [spec.resolve(point) for point in points]
         total = _validate_run_points(opened, config_path, ignored)
-        points = [{**point, **{k: v for k, v in hashed.items() if k not in point}}
+        points = [{**point, **{k: hashed[k] for k in (SCENE_HASH_KEY, IRF_HASH_KEY)
+                               if k in hashed}}
                   for point, hashed in zip(points, with_scene_hashes(opened), strict=True)]
         # an edited scene, another array library or device: the same seed (a grid over
         # backend compared NumPy and array-api-strict on different noise; not dtype: float32

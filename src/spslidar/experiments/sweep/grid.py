@@ -250,12 +250,9 @@ def _check_grid(grid: Mapping[str, Any], where: str = "grid") -> None:
 def file_spelling(name: str, value: Any) -> Any:
     """One spelling of a scene or IRF *file* named in a sweep (``./a.npy``, ``d/../a.npy``
     and ``a.npy`` are ``a.npy``); any other value as it is."""
-    from spslidar.config import FILE_KEYS
+    from spslidar.config import names_a_file
 
-    if (name.replace("-", "_") in FILE_KEYS and isinstance(value, str) and Path(value).suffix
-            and ":" not in value):
-        return os.path.normpath(value)
-    return value
+    return os.path.normpath(value) if names_a_file(name, value) else value
 
 
 def resolve_point_files(point: Mapping[str, Any], folder: str | os.PathLike[str] | None

@@ -166,7 +166,8 @@ def say_outcome(rows: list[dict[str, Any]], names: list[str], csv_path: Path) ->
     said: dict[str, tuple[dict[str, Any], int]] = {}
     for row in warned:  # each warning once, where it was first given and how often
         for text in str(row["warnings"]).split(" | "):
-            said[text] = (said.get(text, (row, 0))[0], said.get(text, (row, 0))[1] + 1)
+            first, count = said.get(text, (row, 0))
+            said[text] = (first, count + 1)
     for text, (row, count) in list(said.items())[:2]:
         where = ", ".join(f"{name}={row.get(name)!r}" for name in names)
         print(f"sweep: warning ({where}{f', and {count - 1} more runs' if count > 1 else ''})"
