@@ -443,3 +443,29 @@ def test_a_noiseless_run_applies_the_pile_up_correction(tmp_path):
         rmse[name] = json.loads((out / "metrics.json").read_text())["depth_rmse_m"]
     assert rmse["on"] == pytest.approx(rmse["linear"], abs=1e-4)  # one bin is 0.015 m
     assert rmse["off"] > 5 * rmse["on"]
+
+
+def test_a_flux_that_saturates_the_detector_beyond_use_is_refused(tmp_path, capsys):
+    """``run --detector gmapd`` at the paper's photon levels (1.4e6 photons per 50 ns dead
+    time) ran the renewal model for over 5 minutes at 16x16 before warning that its fixed
+    point had not converged (found on a GPU run, 2026-11-28): it is refused in one line
+    before the simulation, nothing written, saying by how much to lower the light; a flux
+    a GMAPD works at runs."""
+    from spslidar.cli import main
+    from spslidar.detectors.gmapd import GMAPD
+
+    out = tmp_path / "sat"
+    assert main(["run", "--detector", "gmapd", "--size", "16", "--code-length", "1023",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "incident photons per 50 ns dead time" in err
+    assert "lower --signal and --noise by a factor of about" in err
+    assert not out.exists()
+    det = GMAPD(dead_time=50e-9, bin_width=100e-12)
+    # 0.5 photon per bin (250 per dead time) is heavy pile-up, not refused; 2 per bin is;
+    # a 2-bin dead time at 2 photons per bin (4 per dead time) is a synchronous regime
+    assert det.detection_probability(np.full((1, 1000), 0.5)).shape == (1, 1000)
+    with pytest.raises(ConfigError, match="per TDC bin"):
+        det.detection_probability(np.full((1, 1000), 2.0))
+    short = GMAPD(dead_time=200e-12, bin_width=100e-12)
+    assert np.all(short.detection_probability(np.full((1, 1000), 2.0)) > 0)

@@ -45,6 +45,17 @@ MAX_BLOCK = 2**21
 #: corrected MRF depth's RMSE was 0.6-1.5 times the uncorrected at 10 (3 scenes worse, the
 #: steps better) and 1.5-3.8 times at 30 (every scene worse, 2-5 % of pixels lost)
 CORRECTION_NOISY = 10.0
+#: mean incident photons per TDC bin and period (the brightest pattern's code period) above
+#: which a simulation is refused, when that is also over :data:`SATURATED_PER_DEAD_TIME` per
+#: dead time: the detector then fires in the first bin after nearly every re-arm, so its
+#: histograms hold almost no timing information, and the renewal model, sub-binned 16-fold
+#: and short of its fixed point after 200 sweeps, takes minutes to hours to say so (the paper's
+#: defaults, 1.4e6 photons per 50 ns dead time: over 5 min for 16x16, 64 patterns; 2.9 photons
+#: per bin: 37 s; 0.29: 3.7 s)
+SATURATED_FLUX_PER_BIN = 1.0
+#: the second condition of the refusal: a dead time of a few bins at a few photons per bin
+#: is a synchronous detector's regime, which the Coates correction inverts
+SATURATED_PER_DEAD_TIME = 100.0
 
 
 def _check(ok: bool, message: str) -> None:
@@ -172,6 +183,7 @@ class GMAPD(DetectorModel):
         lam = np.atleast_2d(np.asarray(lam, dtype=np.float64))
         mu = self.flux(lam, n_periods)
         n_rows, period = lam.shape
+        self._check_flux(mu)
         # each row sub-binned as its own flux needs: a batch sub-binned for its brightest row
         # was slower (64 rows at 0.01-100 photons per dead time) and its dim rows differed
         # from themselves alone
@@ -191,6 +203,24 @@ class GMAPD(DetectorModel):
                                          self.dead_bins * sub, *args, tol=self.tol)
                 q[part] = fine.reshape(-1, period, sub).sum(axis=2)
         return q
+
+    def _check_flux(self, mu: np.ndarray) -> None:
+        """Refuse a flux that saturates the detector beyond use (:data:`SATURATED_FLUX_PER_BIN`
+        and :data:`SATURATED_PER_DEAD_TIME`), in one line that says by how much to lower it."""
+        if self.dead_bins < 1 or mu.size == 0:
+            return
+        per_bin = float(mu.mean(axis=1).max())
+        per_dead = per_bin * self.dead_bins
+        if not (per_bin > SATURATED_FLUX_PER_BIN and per_dead > SATURATED_PER_DEAD_TIME):
+            return
+        raise ConfigError(
+            f"--detector gmapd at {per_dead:.3g} incident photons per "
+            f"{self.dead_time * 1e9:.3g} ns dead time ({per_bin:.3g} per TDC bin, the brightest "
+            f"pattern's mean): it would fire in the first bin after nearly every re-arm, so its "
+            f"histograms would hold almost no timing information (and the dead-time model "
+            f"would take minutes to hours to say so); a GMAPD works at about 1-10 photons per "
+            f"dead time: lower --signal and --noise by a factor of about "
+            f"{per_dead / 3:.2g} and raise --periods to keep the photons")
 
     # -------------------------------------------------------------------------- contract
 
