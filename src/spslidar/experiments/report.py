@@ -25,6 +25,7 @@ from spslidar.experiments.sweep import atomic_write_text
 __all__ = [
     "Claim",
     "build_report",
+    "is_quick_section",
     "markdown_to_html",
     "md_table",
     "read_claims",
@@ -158,7 +159,19 @@ def read_claims(out: str | os.PathLike[str], name: str) -> list[Claim]:
         return []
 
 
-def build_report(out: str | os.PathLike[str], order: Sequence[str]) -> tuple[Path, Path]:
+#: the mode line a quick-mode section starts with (after its heading)
+QUICK_MARK = "**Quick mode**"
+
+
+def is_quick_section(text: str) -> bool:
+    """Whether a section (its Markdown) ran in quick mode: its mode line, the first paragraph
+    after the heading, starts with :data:`QUICK_MARK`."""
+    paras = [p.strip() for p in text.split("\n\n") if p.strip()]
+    return len(paras) > 1 and paras[1].startswith(QUICK_MARK)
+
+
+def build_report(out: str | os.PathLike[str], order: Sequence[str],
+                 note: str = "") -> tuple[Path, Path]:
     """Regenerate ``DIR/report.md`` and ``DIR/report.html`` from the section files.
 
     Parameters
@@ -167,6 +180,9 @@ def build_report(out: str | os.PathLike[str], order: Sequence[str]) -> tuple[Pat
         The report folder ``DIR``.
     order : sequence of str
         Experiment names in report order; those without a section file are skipped.
+    note : str, optional
+        A paragraph placed after the header (e.g. which experiments an interrupted
+        ``reproduce all`` did not run).
 
     Returns
     -------
@@ -177,21 +193,27 @@ def build_report(out: str | os.PathLike[str], order: Sequence[str]) -> tuple[Pat
 
     out = Path(out)
     parts = [_HEADER.format(version=__version__)]
+    if note:
+        parts.append(note.rstrip() + "\n")
     claims: list[Claim] = []
+    quick: set[str] = set()
     sections = []
     for name in order:
         path = out / name / SECTION_FILE
         if path.is_file():
-            sections.append(path.read_text(encoding="utf-8").rstrip() + "\n")
+            text = path.read_text(encoding="utf-8")
+            sections.append(text.rstrip() + "\n")
             claims.extend(read_claims(out, name))
+            if is_quick_section(text):
+                quick.add(name)
     if claims:
         parts.append("## Summary: the paper's claims against this run\n")
-        parts.append(
-            md_table(
-                ("experiment", "claim", "paper", "here", "verdict"),
-                ((c.experiment, c.claim, c.paper, c.ours, c.verdict) for c in claims),
-            )
-        )
+        header: tuple[str, ...] = ("experiment", "claim", "paper", "here", "verdict")
+        rows = [(c.experiment, c.claim, c.paper, c.ours, c.verdict) for c in claims]
+        if quick:  # quick (32x32) and full (64x64) sections in one folder: say which is which
+            header += ("mode",)
+            rows = [(*r, "quick (smoke test)" if r[0] in quick else "full") for r in rows]
+        parts.append(md_table(header, rows))
     parts.extend(sections)
     text = "\n".join(parts)
     md_path = out / "report.md"

@@ -25,6 +25,8 @@ from spslidar.experiments.reproduce.stats import (
     pct,
     safe_ratio,
     stat,
+    time_note,
+    time_order,
 )
 from spslidar.experiments.sweep import expand_grid
 
@@ -104,7 +106,14 @@ def exp_fig2(ctx: Context) -> tuple[str, list[Claim]]:
     quality_ok = math.isfinite(r_lo) and math.isfinite(r_hi) and r_hi < r_lo
     t_ratio = safe_ratio(tm[-1], tm[0])
     paper_t_ratio = PAPER["fig2_time_s"][1] / PAPER["fig2_time_s"][0]
-    time_ok = math.isfinite(t_ratio) and t_ratio > 1.0
+    # one verdict for the section, the summary and claims.json (the section said "consistent
+    # in trend" where the others said "consistent"); single timings on a shared machine decide
+    # only beyond x2, repeated ones beyond their scatter (time_order: single runs of 0.8 and
+    # 0.6 s read "not consistent")
+    t_lo = stat(rows, "time_total_s", compression=comps[0])
+    t_hi = stat(rows, "time_total_s", compression=comps[-1])
+    t_order = time_order(t_hi, t_lo)
+    time_v = {1: "consistent", -1: "not consistent", None: "inconclusive"}[t_order]
     why_time = ""
     if math.isfinite(t_ratio) and t_ratio < paper_t_ratio / 2:
         ts = [stat(rows, "time_solve_s", compression=c).mean for c in comps]
@@ -120,12 +129,15 @@ def exp_fig2(ctx: Context) -> tuple[str, list[Claim]]:
                 f"regulariser over {ctx.size**2} pixels x range slices), not by the pattern "
                 f"products."
             )
-        elif t_ratio < 1.0:
+        elif t_ratio < 1.0 and t_order is not None:
             why_time = (
                 " Here the smaller settings even ran slower, which only timing noise explains "
                 "(runs timed on a shared machine; the first run of a session also pays for "
                 "imports)."
             )
+    if t_order is None:
+        why_time += (f" The two timings cannot be told apart"
+                     f"{time_note(min(t_lo.n, t_hi.n))}.")
     findings = [
         f"The paper reports better depth maps with more measurements: here the RMSE goes from "
         f"{num(r_lo)} m at {100 * comps[0]:g} % to {num(r_hi)} m at {100 * comps[-1]:g} %"
@@ -135,7 +147,7 @@ def exp_fig2(ctx: Context) -> tuple[str, list[Claim]]:
         f"The paper's detection plus reconstruction takes {PAPER['fig2_time_s'][0]:g}-"
         f"{PAPER['fig2_time_s'][1]:g} s (x{paper_t_ratio:.1f} from 5 % to 85 %, MATLAB); here "
         f"{num(tm[0], 1)}-{num(tm[-1], 1)} s (x{num(t_ratio, 1)}): "
-        f"{'consistent in trend' if time_ok else 'not consistent'}. Absolute times compare "
+        f"{time_v} for the direction. Absolute times compare "
         f"different software and machines.{why_time}",
     ]
     if 0.25 in comps:
@@ -157,7 +169,7 @@ def exp_fig2(ctx: Context) -> tuple[str, list[Claim]]:
             "time grows with compression",
             "8-78 s",
             f"{num(tm[0], 1)}-{num(tm[-1], 1)} s",
-            consistent(time_ok),
+            time_v,
         ),
     ]
     what = (

@@ -159,7 +159,14 @@ class Context:
     def mode(self) -> str:
         """One line saying which mode ran."""
         if self.quick:
-            trials = "one trial" if self.trials is None else f"{self.trials} trial(s)"
+            # what ran, not what was asked: an experiment that reads no trial count (eq. 10
+            # counts code periods) ignores --trials, and said it had run them
+            if not self.trials_read:
+                trials = ("no repeated trials" if self.trials is None else
+                          f"no repeated trials: --trials {self.trials} is ignored here")
+            else:
+                n = getattr(self, "last_trials", 1)
+                trials = "one trial" if n == 1 else f"{n} trials"
             return (
                 f"**Quick mode** (32x32 pixels, fewer and shorter settings, {trials}): a smoke "
                 f"test whose numbers are not comparable with the paper's 64x64 ones."

@@ -99,11 +99,14 @@ def pileup_points(ctx: Context) -> tuple[list[dict[str, Any]], list[float], dict
 
 def _mode(ctx: Context) -> str:
     if ctx.quick:
+        n = ctx.n_trials(TRIALS)  # what ran: one realisation unless --trials says more
+        reals = "one realisation" if n == 1 else f"{n} realisations"
         return (f"**Quick mode** ({_size(ctx)}x{_size(ctx)} pixels, {len(QUICK_FLUXES)} fluxes, "
-                f"one realisation): a smoke test.")
+                f"{reals}): a smoke test.")
     return (f"Full mode ({_size(ctx)}x{_size(ctx)} pixels: the GMAPD model's cost grows with "
-            f"the flux, and {len(FLUXES)} fluxes x 3 detectors x 2 lidars x {TRIALS} "
-            f"realisations run in about 2-4 minutes on 2 cores).")
+            f"the flux; {len(FLUXES)} fluxes x 3 detectors x 2 lidars x "
+            f"{ctx.n_trials(TRIALS)} realisation(s); at the default {TRIALS} they run in about "
+            f"2-4 minutes on 2 cores).")
 
 
 def _label(row: dict[str, Any]) -> str:

@@ -85,12 +85,14 @@ def save_png(fig, path: Path, dpi: int = 100) -> Path:
 
 
 def run_title(row: dict[str, Any] | None, label: str) -> str:
-    """``label`` and the run's RMSE, time and (above 0.5 %) share of missing pixels."""
+    """``label`` and the run's RMSE, time and share of missing pixels (any: Fig. 6's panel (e)
+    showed a white pixel, 0.3 % of them, under a title that did not say so)."""
     if row is None:
         return f"{label}\n(run failed)"
     extra = ""
-    if row["missing_fraction"] > 0.005:
-        extra = f", {pct(row['missing_fraction'])} missing"
+    miss = row["missing_fraction"]
+    if miss > 0:
+        extra = f", {pct(miss) if miss >= 0.0005 else '< 0.1 %'} missing (white)"
     return f"{label}\nRMSE {row['depth_rmse_m']:.4f} m, {row['time_total_s']:.1f} s{extra}"
 
 

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from spslidar.errors import ConfigError, SpslidarError
-from spslidar.experiments.report import build_report, write_section
+from spslidar.experiments.report import SECTION_FILE, build_report, write_section
 from spslidar.experiments.reproduce import ALL, EXPERIMENT_REGISTRY, in_all_names
 from spslidar.experiments.reproduce.context import Context, n_cached
 
@@ -86,7 +86,7 @@ def reproduce_main(
     from spslidar.experiments.sweep.engine import _check_jobs
 
     jobs = _check_jobs(jobs)
-    from spslidar.outdir import claim_folder, journal, release_folder
+    from spslidar.outdir import claim_folder
 
     if isinstance(scheduler, str):
         from spslidar.experiments.sweep.engine import _probe_scheduler
@@ -104,6 +104,53 @@ def reproduce_main(
     )
     ctx.max_time = max_time
     names = in_all_names() if experiment == ALL else (experiment,)
+    done: list[str] = []
+    try:
+        status = _run_all(ctx, out, existed, experiment, names, trials, done)
+    except KeyboardInterrupt:  # (Terminated too) say what is there, then let the CLI say it
+        _interrupted(out, existed, experiment, names, done)
+        raise
+    return status
+
+
+def _interrupted(out: Path, existed: bool, experiment: str, names, done: list[str]) -> None:
+    """After an interrupt: take the folder back when nothing but its marker is in it (the
+    CLI's line said "nothing was written" beside a new folder and its marker); after an
+    interrupted ``reproduce all``, say which of its experiments did not run, in the report
+    (rebuilt, when one exists) and on stderr (a report of fig2 and fig3 only did not say the
+    rest was missing)."""
+    from spslidar.outdir import journal, release_folder
+
+    if release_folder(out, existed):
+        return
+    if experiment != ALL:
+        return
+    not_run = [n for n in names if n not in done]
+    if not not_run:
+        return
+    earlier = [n for n in not_run if (out / n / SECTION_FILE).is_file()]
+    note = (f"**Incomplete:** `spslidar reproduce all` was interrupted during {not_run[0]}; "
+            f"{', '.join(not_run)} did not run"
+            + (f" (the sections of {', '.join(earlier)} below are from an earlier run)"
+               if earlier else "")
+            + ". Run the same command again to finish it: the runs that finished are "
+              "cached.")
+    print(f"spslidar reproduce: all: not run: {', '.join(not_run)}", file=sys.stderr,
+          flush=True)
+    if (out / "report.md").is_file():
+        with journal(out, _REPORT):
+            build_report(out, EXPERIMENT_REGISTRY.names(), note=note)
+        from spslidar.outdir import record_outputs
+
+        record_outputs(out, list(_REPORT))
+
+
+def _run_all(ctx: Context, out: Path, existed: bool, experiment: str, names,
+             trials: int | None, done: list[str]) -> int:
+    """Run the experiments ``names`` in turn, appending each finished one to ``done``;
+    return the exit status."""
+    from spslidar.outdir import journal, release_folder
+
     status = 0
     t_all = time.perf_counter()
     for name in names:
@@ -131,6 +178,7 @@ def reproduce_main(
             write_section(out, name, text, claims)
             build_report(out, EXPERIMENT_REGISTRY.names())
         _record_written(out, name)
+        done.append(name)
         failed = ctx.failed - failed_before
         if failed:
             status = 1

@@ -1,0 +1,233 @@
+"""The verdicts and labels of ``spslidar reproduce`` that an audit (2026-11-29) found wrong:
+fixed advice, verdicts from one trial or a 0.7 % gap, timing verdicts that flipped between
+identical runs, trial counts said where none ran, quick rows unmarked, interrupts that did not
+say what was there, and figure and table details. Runs are faked (no simulation), so the file
+takes seconds."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+from test_reproduce import _fake_sweep  # (tests/ is on sys.path under pytest)
+
+from spslidar.experiments import reproduce
+from spslidar.experiments.report import Claim, build_report, write_section
+from spslidar.experiments.reproduce import context as reproduce_context
+from spslidar.experiments.reproduce.stats import (
+    Stat,
+    best_verdict,
+    compare,
+    tally_verdict,
+    time_order,
+)
+
+
+@pytest.fixture
+def fake(monkeypatch):
+    """Runs faked: truth plus noise (0.02 m with QCR, 0.1 m without), 1 + M/Q seconds each."""
+    monkeypatch.setattr(reproduce_context, "run_sweep", _fake_sweep)
+
+
+def _claims(out: Path, name: str) -> dict[str, str]:
+    return {c["claim"]: c["verdict"]
+            for c in json.loads((out / name / "claims.json").read_text())}
+
+
+def _section(out: Path, name: str) -> str:
+    return (out / name / "section.md").read_text()
+
+
+# -- 1. pattern_kinds: the advice reads the table --------------------------------------------
+
+
+def _pk_row(size, label, patterns, c, rmse, t):
+    return {"size": size, "label": label, "patterns": patterns, "compression": c,
+            "depth_rmse_m": rmse, "time_total_s": t}
+
+
+def test_pattern_kinds_advice_is_read_from_the_measured_table():
+    from spslidar.experiments.pattern_kinds import _advice
+
+    rows = [
+        _pk_row(32, "Gaussian", "gaussian", 0.1, 0.0676, 0.22),
+        _pk_row(32, "scrambled Hadamard", "scrambled-hadamard", 0.1, 0.0431, 0.20),
+        _pk_row(64, "Hadamard, sequency", "hadamard", 0.1, 0.0559, 2.1),
+        _pk_row(64, "Hadamard, cake-cutting", "hadamard", 0.1, 0.0344, 1.8),
+        _pk_row(64, "scrambled Hadamard", "scrambled-hadamard", 0.1, 0.0160, 0.6),
+    ]
+    text = _advice(rows, (32, 64))
+    assert "at 10 % scrambled Hadamard (0.0160 m)" in text  # the table's lowest, at 64x64
+    assert "cake-cutting order is as good or better" not in text  # the fixed sentence
+    assert "fraction of their cost" not in text
+    assert "1.1x the time" in text  # the cost ratio as measured (0.22 / 0.20)
+    assert "Cake-cutting order is below sequency order at 1 of 1" in text
+
+
+# -- 2. verdicts from one trial, or within a margin ------------------------------------------
+
+
+def test_a_lead_within_the_margin_is_inconclusive_whatever_the_trials():
+    """Fig. 5's "much smoother" was "consistent" on 10.60 against 10.67 mm."""
+    tight = {"qcr": Stat(0.01060, 0.00001, 5), "no": Stat(0.01067, 0.00001, 5),
+             "conv": Stat(0.07, 0.001, 5)}
+    verdict, why = best_verdict(tight, "qcr")
+    assert verdict == "inconclusive" and "within the 5 %" in why
+    assert compare(0.01060, 0.01067, 0, 0, stats=(tight["qcr"], tight["no"]))[0] == \
+        "inconclusive"
+    corr = {"qcr": Stat(0.96, 0.001, 5), "no": Stat(0.70, 0.001, 5)}
+    assert best_verdict(corr, "qcr", higher=True) == ("consistent", "")
+    assert tally_verdict(0, 0, 3) == "inconclusive"
+    assert tally_verdict(2, 1, 3) == "partly consistent"
+
+
+def test_fig4_and_fig5_one_trial_each_is_inconclusive(tmp_path, fake):
+    """One trial per setting said "QCR better than no QCR ... 3/3 lengths | consistent"."""
+    for name in ("fig4", "fig5"):
+        assert reproduce.reproduce_main(name, tmp_path, quick=True, progress=False) == 0
+    assert _claims(tmp_path, "fig4")["QCR better than no QCR"] == "inconclusive"
+    assert "one trial each" in _section(tmp_path, "fig4")
+    assert _claims(tmp_path, "fig5")["QCR edges closest to truth and smoothest"] == \
+        "inconclusive"
+
+
+def test_fig5_with_trials_beyond_the_scatter_is_consistent(tmp_path, fake):
+    assert reproduce.reproduce_main("fig5", tmp_path, quick=True, trials=3,
+                                    progress=False) == 0
+    assert _claims(tmp_path, "fig5")["QCR edges closest to truth and smoothest"] == \
+        "consistent"
+    assert "3 trial(s) per map" in _section(tmp_path, "fig5")
+
+
+# -- 3. timing verdicts ----------------------------------------------------------------------
+
+
+def test_single_timings_decide_only_beyond_a_factor_two():
+    assert time_order(Stat(0.28, 0.0, 1), Stat(0.53, 0.0, 1)) is None  # x1.9: load noise
+    assert time_order(Stat(0.25, 0.0, 1), Stat(0.53, 0.0, 1)) == -1
+    assert time_order(Stat(0.8, 0.0, 1), Stat(0.6, 0.0, 1)) is None
+    assert time_order(Stat(1.0, 0.01, 3), Stat(1.3, 0.01, 3)) == -1  # repeated: the scatter
+    assert time_order(Stat(1.0, 0.3, 3), Stat(1.3, 0.3, 3)) is None
+
+
+def test_table1_and_fig2_timing_verdicts_from_single_runs_are_inconclusive(tmp_path, fake):
+    for name in ("fig2", "table1"):
+        assert reproduce.reproduce_main(name, tmp_path, quick=True, progress=False) == 0
+    assert _claims(tmp_path, "table1")["FISTA, GPSR faster than TwIST"] == "inconclusive"
+    assert _claims(tmp_path, "fig2")["time grows with compression"] == "inconclusive"
+    assert "beyond x2" in _section(tmp_path, "table1")
+
+
+# -- 4. --trials said as run -----------------------------------------------------------------
+
+
+def test_the_mode_line_says_the_trials_that_ran():
+    from spslidar.experiments.reproduce import pileup
+
+    ctx = reproduce_context.Context(Path("."), quick=True, trials=2)
+    assert "2 trial(s)" not in ctx.mode and "--trials 2 is ignored" in ctx.mode  # snr
+    ctx.n_trials()
+    assert "2 trials" in ctx.mode
+    ctx = reproduce_context.Context(Path("."), quick=True, trials=2)
+    assert "2 realisations" in pileup._mode(ctx) and "one realisation" not in pileup._mode(ctx)
+
+
+# -- 5. fig2's time verdict: one in the section, the summary and claims.json ------------------
+
+
+def test_fig2_time_verdict_is_the_same_everywhere(tmp_path, fake):
+    assert reproduce.reproduce_main("fig2", tmp_path, quick=False, progress=False) == 0
+    verdict = _claims(tmp_path, "fig2")["time grows with compression"]
+    assert f": {verdict} for the direction." in _section(tmp_path, "fig2")
+    assert "consistent in trend" not in _section(tmp_path, "fig2")
+    row = [line for line in (tmp_path / "report.md").read_text().splitlines()
+           if line.startswith("| fig2 | time grows with compression |")]
+    assert len(row) == 1 and row[0].endswith(f" | {verdict} |")
+
+
+# -- 6. quick rows marked in the summary -----------------------------------------------------
+
+
+def test_quick_rows_are_marked_in_the_summary(tmp_path):
+    write_section(tmp_path, "fig2", "## Fig. 2\n\nFull mode (64x64).\n\ntext\n",
+                  [Claim("fig2", "c2", "p", "o", "consistent")])
+    write_section(tmp_path, "fig3", "## Fig. 3\n\n**Quick mode** (32x32).\n\ntext\n",
+                  [Claim("fig3", "c3", "p", "o", "consistent")])
+    text = build_report(tmp_path, ["fig2", "fig3"])[0].read_text()
+    assert "| fig3 | c3 | p | o | consistent | quick (smoke test) |" in text
+    assert "| fig2 | c2 | p | o | consistent | full |" in text
+
+
+# -- 7, 8. interrupts ------------------------------------------------------------------------
+
+
+def _exp_ok(ctx):
+    folder = ctx.folder("toy_a")
+    (folder / "toy_a.csv").write_text("a\n1\n")
+    return "## Toy A\n\nFull mode.\n\nData.\n", []
+
+
+def _exp_interrupt(ctx):
+    raise KeyboardInterrupt
+
+
+@pytest.fixture
+def toy_registry(monkeypatch):
+    reg = reproduce.EXPERIMENT_REGISTRY
+    monkeypatch.setattr(reg, "_entries", {})  # only the toys (restored after the test)
+    reg.add("toy_a", f"{__name__}:_exp_ok", "Toy A", "writes a section")
+    reg.add("toy_b", f"{__name__}:_exp_interrupt", "Toy B", "interrupted")
+    reg.add("toy_c", f"{__name__}:_exp_ok", "Toy C", "never reached")
+    return reg
+
+
+def test_an_interrupt_before_anything_is_written_leaves_no_folder(tmp_path, toy_registry):
+    out = tmp_path / "new"
+    with pytest.raises(KeyboardInterrupt):
+        reproduce.reproduce_main("toy_b", out, quick=True, progress=False)
+    assert not out.exists()  # the CLI's "nothing was written" is then true
+
+
+def test_an_interrupted_all_says_what_did_not_run(tmp_path, toy_registry, capsys):
+    out = tmp_path / "r"
+    with pytest.raises(KeyboardInterrupt):
+        reproduce.reproduce_main("all", out, quick=True, progress=False)
+    text = (out / "report.md").read_text()
+    assert "## Toy A" in text
+    assert "interrupted during toy_b; toy_b, toy_c did not run" in text
+    assert "not run: toy_b, toy_c" in capsys.readouterr().err
+    assert reproduce.reproduce_main("toy_a", out, quick=True, progress=False) == 0  # not foreign
+
+
+# -- 9. figure and table details -------------------------------------------------------------
+
+
+def test_fig6_tables_titles_and_the_absent_comparison(tmp_path, fake):
+    assert reproduce.reproduce_main("fig6", tmp_path, quick=True, progress=False) == 0
+    section = _section(tmp_path, "fig6")
+    assert "(no QCR) |" not in section
+    assert "| no QCR, paper's argmax depth [m] |" in section
+    assert "not compared here" in section  # no camera run in this folder: said why
+
+
+def test_run_titles_say_any_missing_pixels():
+    from spslidar.experiments.reproduce.plotting import run_title
+
+    row = {"missing_fraction": 0.003, "depth_rmse_m": 0.01, "time_total_s": 1.0}
+    assert "0.3 % missing" in run_title(row, "(e)")
+
+
+def test_log_time_axis_has_readable_ticks():
+    from matplotlib.figure import Figure
+
+    from spslidar.experiments.pattern_kinds import readable_log_ticks
+
+    ax = Figure().subplots()
+    ax.plot([10, 25], [0.6, 2.1])
+    ax.set_yscale("log")
+    readable_log_ticks(ax)
+    lo, hi = ax.get_ylim()
+    shown = [t for t in ax.get_yticks() if lo <= t <= hi]
+    assert len(shown) >= 3 and not math.isclose(min(shown), max(shown))
