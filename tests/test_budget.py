@@ -141,3 +141,24 @@ def test_the_memory_estimate_counts_the_depth_estimators_working_set():
     assert lean.parts["range slices"] == pytest.approx(bytes_of["argmax"] * entries, rel=1e-12)
     assert big.bytes - lean.bytes == pytest.approx(
         (bytes_of["mrf"] - bytes_of["argmax"]) * entries, rel=1e-9)
+
+
+def test_a_floored_weights_longer_solve_is_priced_again_and_said(capsys, monkeypatch):
+    """Where the weight meets its floor the solver runs five times its cap; the run had been
+    announced at its configuration's price (a 512x512 Hadamard run announced at 47 s took
+    145 s; a 256x256 one ran 106 s unannounced): the floored solve is priced again, said on
+    stderr when long, and kept in metrics.json's estimate."""
+    from spslidar.pipeline.weights import FLOORED_ITERATIONS
+
+    monkeypatch.setattr(budget_mod, "ANNOUNCE_SECONDS", 0.0)
+    r = pipeline.run(size=16, code_length=1023, noiseless=True, depth="argmax", seed=0)
+    assert r.metrics["lam_floored"]
+    assert r.metrics["solver_info"]["iterations"] <= 60 * FLOORED_ITERATIONS
+    err = capsys.readouterr().err
+    assert f"so the solve runs up to {60 * FLOORED_ITERATIONS} iterations" in err
+    est = r.metrics["estimate"]
+    assert est["time_s_at_floor"] > 0 and "time_s" in est
+    r = pipeline.run(size=16, code_length=1023, noiseless=True, depth="argmax", seed=0,
+                     iterations=60)
+    assert "time_s_at_floor" not in r.metrics["estimate"]
+    assert "the weight met its floor" not in capsys.readouterr().err

@@ -330,7 +330,9 @@ METRICS: dict[str, str] = {
     "detector": "The detector model and its flux: ``model``, ``count_rate_hz``, "
                 "``counts_per_dead_time``, ``gmapd_saturated`` and a ``note`` when a real "
                 "GMAPD would saturate; the GMAPD adds its dead-time and pile-up figures.",
-    "estimate": "The memory (GB) and time (s) estimated before the run.",
+    "estimate": "The memory (GB) and time (s) estimated before the run; ``time_s_at_floor`` "
+                "where the weight met its floor and the run was priced again with the "
+                "floored iteration cap.",
     "warnings": "The warnings printed on stderr.",
     "timing_s": "Wall-clock seconds by stage (scene, setup, simulate, qcr, solve, depth, "
                 "metrics, write); ``total`` is the run up to the metrics, the time the "

@@ -29,7 +29,8 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
                   lam_scale: float, sigma_eff: float, info: Any, iterations: int,
                   timing: dict[str, float], warns: list[str],
                   lam_floored: bool = False, depth2: np.ndarray | None = None,
-                  low_confidence_threshold: float | None = None) -> Result:
+                  low_confidence_threshold: float | None = None,
+                  estimate: dict[str, float] | None = None) -> Result:
     """Score a reconstruction (eq. 19, Sobel edges) and assemble its :class:`Result` and
     ``metrics.json``: the last step of :func:`reconstruct` (on every backend) and of a
     measured acquisition's reconstruction, so all report the same keys."""
@@ -146,7 +147,9 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         "noise_level": sigma_eff,
         "solver_info": dict(info.as_dict()),
         "detector": sim["pileup"],
-        "estimate": sim.get("estimate", {}),
+        # the configuration's estimate; with ``time_s_at_floor`` where the weight met its
+        # floor and the solve ran the floored cap (priced again then)
+        "estimate": {**sim.get("estimate", {}), **(estimate or {})},
         "warnings": warns,
         "timing_s": dict(timing),
         "config": resolved_config(cfg, acq, meas.gate, auto, iterations, lam_scale),
