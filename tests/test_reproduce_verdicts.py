@@ -231,3 +231,16 @@ def test_log_time_axis_has_readable_ticks():
     lo, hi = ax.get_ylim()
     shown = [t for t in ax.get_yticks() if lo <= t <= hi]
     assert len(shown) >= 3 and not math.isclose(min(shown), max(shown))
+
+
+def test_pattern_kinds_is_priced_against_max_time(tmp_path, capsys):
+    """``reproduce pattern_kinds --max-time 5`` ran its 24 runs for 243 s (it called the
+    sweep directly, past the batch's price): refused in one line before any work."""
+    from spslidar.cli import main
+
+    out = tmp_path / "pk"
+    assert main(["reproduce", "pattern_kinds", "--max-time", "5", "--no-progress",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "more than --max-time 5 s" in err
+    assert not out.exists()

@@ -203,6 +203,12 @@ def exp_pattern_kinds(ctx: Context) -> tuple[str, list[Claim]]:
     ctx.maps.mkdir(parents=True, exist_ok=True)
     func = functools.partial(reproduce_point, maps_dir=str(ctx.maps))
     points = pattern_kind_points(ctx)
+    # priced as run_points prices the other experiments' runs (it ran 243 s under
+    # --max-time 5, an audit)
+    if ctx.max_time is not None:
+        from spslidar.experiments.reproduce.context import _check_batch_time
+
+        _check_batch_time(ctx, points)
     rows = run_sweep(func, points, ctx.cache, seed=ctx.seed, jobs=ctx.jobs,
                      scheduler=ctx.scheduler, progress=ctx.progress, seed_ignore=PROCESSING_KEYS)
     ctx.failed += sum(ERROR_KEY in r for r in rows)
