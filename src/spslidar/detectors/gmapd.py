@@ -268,19 +268,23 @@ class GMAPD(DetectorModel):
         out[...] = counts.reshape(out.shape)
         return out, counts.sum(axis=1).astype(np.int64)
 
-    def correct(self, counts: np.ndarray, n_periods: int = 1) -> np.ndarray:
+    def correct(self, counts: np.ndarray, n_periods: int = 1,
+                expected: bool = False) -> np.ndarray:
         """Pile-up corrected histograms: the generalised Coates estimate of
         ``n_periods * flux`` (:func:`~spslidar.detectors.pileup.coates_correction`), i.e. what
         a detector without dead time or afterpulses would have counted (dark counts
         included, jitter not undone). Where the model is sub-binned (high flux), the flux
         within a bin is taken as uniform, or as linear when the jitter is at least half a bin
-        wide (:func:`~spslidar.detectors.pileup.sub_bin_profile`)."""
+        wide (:func:`~spslidar.detectors.pileup.sub_bin_profile`). ``expected``: ``counts`` is
+        :meth:`expected`'s histogram (a noiseless run), inverted without the bounds that
+        apply to counts (at one period they zeroed every bin)."""
         if not self.correction:
             return counts
         smooth = max(self.jitter, self.jitter_tail * (self.jitter_tail_weight > 0))
         return coates_correction(counts, n_periods, self.dead_bins, self.afterpulse_prob,
                                  self.afterpulse_delay / self.bin_width, self.oversample,
-                                 "linear" if smooth >= 0.5 * self.bin_width else "uniform")
+                                 "linear" if smooth >= 0.5 * self.bin_width else "uniform",
+                                 expected=expected)
 
     def noise_totals(self, counts: np.ndarray, totals: np.ndarray, n_periods: int = 1,
                      corrected: np.ndarray | None = None) -> np.ndarray:

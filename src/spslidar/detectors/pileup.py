@@ -523,7 +523,8 @@ def _periodic_scan(c: np.ndarray, forcing: np.ndarray) -> np.ndarray:
 def coates_correction(hist: np.ndarray, n_periods: int, dead_time_bins: float,
                       afterpulse_prob: float = 0.0, afterpulse_delay_bins: float = 0.0,
                       oversample: int | None = 1, profile: str = "uniform",
-                      max_iter: int = 50, tol: float = 1e-12) -> np.ndarray:
+                      max_iter: int = 50, tol: float = 1e-12,
+                      expected: bool = False) -> np.ndarray:
     """Incident flux per bin from a free-running GMAPD histogram (generalised Coates estimator).
 
     Parameters
@@ -549,6 +550,11 @@ def coates_correction(hist: np.ndarray, n_periods: int, dead_time_bins: float,
         Within-bin flux profile assumed by the sub-binned model (:func:`sub_bin_profile`).
     max_iter, tol : int, float
         Iterations (afterpulsing or oversampling) and their relative tolerance.
+    expected : bool
+        ``hist`` is an expected histogram (``n_periods`` times the model's mean detections,
+        a noiseless run), not counts: no bin is read as saturated nor capped at what counts
+        can resolve (both are bounds on counts; at one period, ``n (alpha_t + g_t) < 1/2``
+        everywhere, the cap was 0 and erased every bin of an expected histogram).
 
     Returns
     -------
@@ -570,10 +576,12 @@ def coates_correction(hist: np.ndarray, n_periods: int, dead_time_bins: float,
     each bin (which depends on the trap state, a periodic recurrence in ``mu``) is subtracted
     and the photon map inverted again, until ``mu`` stops changing.
 
-    A bin that detected in every armed period (``h_t >= alpha_t + g_t``, only in noisy
-    counts) is set to the flux of half a count less, and no bin's flux exceeds
-    ``log(2 n (alpha_t + g_t))``, where Coates's map is half a count below its ceiling (the
-    most the counts can resolve).
+    Counts (``expected=False``): a bin that detected in every armed period
+    (``h_t >= alpha_t + g_t``, only in noisy counts) is set to the flux of half a count less
+    (but at least half its ceiling), and no bin's flux exceeds
+    ``max(log(2 n (alpha_t + g_t)), log 2)``, where Coates's map is half a count below its
+    ceiling (the most the counts can resolve), or half way to it where the ceiling is under a
+    count (a few periods: the cap was ``log(1) = 0`` there, which erased every bin).
     """
     h = np.asarray(hist, dtype=np.float64)
     one_d = h.ndim == 1
@@ -588,7 +596,7 @@ def coates_correction(hist: np.ndarray, n_periods: int, dead_time_bins: float,
     if dead_time_bins < 1:
         raise ValueError("the dead time must be 0 or at least one bin")
     args = (float(n_periods), dead_time_bins, float(afterpulse_prob),
-            float(afterpulse_delay_bins), max_iter, tol)
+            float(afterpulse_delay_bins), max_iter, tol, bool(expected))
     mu = _coates_bins(h, *args)
     # each row sub-binned as its own flux needs (as the forward model does)
     subs = (np.array([auto_oversample(float(m)) for m in mu.max(axis=1, initial=0.0)])
@@ -624,7 +632,7 @@ def _defect_correction(h, mu, sub, profile, args, max_iter: int = 100, tol: floa
     halved whenever that bin's step changes sign (``C`` is ill-conditioned in saturated bins,
     where a plain iteration oscillates). Stops when the forward model matches ``h`` to
     ``tol`` or when the worst residual has not improved by 1 % in five steps."""
-    _, dead, prob, delay, _, _ = args
+    _, dead, prob, delay, _, _, _ = args
     rate = 1.0 / delay if prob else 0.0
     period = h.shape[1]
     base = mu.copy()
@@ -661,9 +669,10 @@ def _defect_correction(h, mu, sub, profile, args, max_iter: int = 100, tol: floa
 
 def _coates_bins(h: np.ndarray, n_periods: float, dead_time_bins: float,
                  afterpulse_prob: float, afterpulse_delay_bins: float, max_iter: int,
-                 tol: float) -> np.ndarray:
+                 tol: float, expected: bool = False) -> np.ndarray:
     """The closed-form inverse of the bin-level model (R2), per period (see
-    :func:`coates_correction`); ``h`` is (B, L) detections per period."""
+    :func:`coates_correction`); ``h`` is (B, L) detections per period (``expected``: means,
+    neither read as saturated nor capped)."""
     d = int(np.floor(dead_time_bins))
     f = float(dead_time_bins - d)
     alpha = np.maximum(1.0 - _circular_window(h, d, f), 0.0)
@@ -671,12 +680,18 @@ def _coates_bins(h: np.ndarray, n_periods: float, dead_time_bins: float,
     if f:
         g = (1.0 - f) * g + f * np.roll(h, d + 1, axis=1)
     limit = alpha + g
-    sat = h >= limit
-    target = np.where(sat, np.maximum(limit - 0.5 / n_periods, 0.5 * limit), h)
-    # the flux at which Coates's map comes within half a count of its ceiling: counts cannot
-    # resolve more (the re-arm term saturates only as 1/mu, so near-saturated bins would
-    # otherwise read thousands of photons per bin from a fraction of a count)
-    cap = np.log(np.maximum(2.0 * n_periods * limit, 1.0))
+    if expected:
+        # an expected histogram is below its ceiling and resolves any flux: inverted exactly
+        target, cap = h, np.inf
+    else:
+        sat = h >= limit
+        target = np.where(sat, np.maximum(limit - 0.5 / n_periods, 0.5 * limit), h)
+        # the flux at which Coates's map comes within half a count of its ceiling: counts
+        # cannot resolve more (the re-arm term saturates only as 1/mu, so near-saturated bins
+        # would otherwise read thousands of photons per bin from a fraction of a count); not
+        # below log 2, half way to a ceiling under one count (n (alpha + g) < 1/2, e.g. one
+        # period at 0.19 armed: the cap was log 1 = 0, and every bin read 0 photons)
+        cap = np.log(np.maximum(2.0 * n_periods * limit, 2.0))
     mu = np.minimum(_invert_photon_map(target, alpha, g), cap)
     if afterpulse_prob:
         rate = 1.0 / float(afterpulse_delay_bins)

@@ -207,7 +207,9 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
             # unset here before, so a noiseless GMAPD run read uninitialised memory)
             totals[rows] = noise_tot[rows] = lam.sum(axis=1, dtype=np.float64)
             if not detector.linear:  # the correction is exact on expected histograms (it
-                lam = detector.correct(lam, acq.n_periods)  # was skipped: RMSE 0.022 m)
+                # was skipped: RMSE 0.022 m), said to be one (without the bounds on counts,
+                # which at one period erased every bin: an empty depth map)
+                lam = detector.correct(lam, acq.n_periods, expected=True)
         else:
             ceiling = acq.n_periods * (acq.signal_per_pulse * np.abs(amp).sum(axis=1)
                                        + np.abs(noise_bin[rows]))
@@ -273,7 +275,8 @@ def _simulate_reference(patterns, weights, shifts, noise_bin, acq, detector, rep
         if noiseless:
             hist = detector.expected(lam, acq.n_periods)
             totals[rows] = noise_tot[rows] = hist.sum(axis=1)
-            hist = detector.correct(hist, acq.n_periods)  # (a linear detector's: itself)
+            hist = (detector.correct(hist, acq.n_periods) if detector.linear  # (itself)
+                    else detector.correct(hist, acq.n_periods, expected=True))
         else:
             check_means(lam)
             hist, totals[rows] = detector.detect(lam, children[b], acq.n_periods,
