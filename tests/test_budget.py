@@ -162,3 +162,20 @@ def test_a_floored_weights_longer_solve_is_priced_again_and_said(capsys, monkeyp
                      iterations=60)
     assert "time_s_at_floor" not in r.metrics["estimate"]
     assert "the weight met its floor" not in capsys.readouterr().err
+
+
+def test_the_time_estimate_counts_the_depth_stage_and_the_noise_verdict():
+    """A 0-150 m gate at 64x64 took 17.3 s, 12 s of it the MRF and 3.5 s the noise verdict,
+    where the estimate, which counted neither, said 2.5 s (an audit): each estimator's
+    registry entry prices its time per pixel and gated slice, and a wide gate's estimate
+    grows by that share."""
+    from spslidar.depth import ESTIMATORS
+    from spslidar.pipeline import preflight
+
+    assert all("slice_seconds" in e.defaults for e in ESTIMATORS)
+    mrf, argmax = (budget_mod.depth_seconds(d, 4096, 10_000) for d in ("mrf", "argmax"))
+    assert mrf > 2 * argmax > 0  # (the noise verdict's share is the same for both)
+    narrow = preflight({"range_gate": [19.0, 22.0]}).seconds
+    wide = preflight({"range_gate": [0.0, 150.0]}).seconds
+    n_extra = round(147.0 / 0.015)  # the wide gate's extra slices (1.5 cm bins)
+    assert wide - narrow >= 0.9 * budget_mod.depth_seconds("mrf", 4096, n_extra)

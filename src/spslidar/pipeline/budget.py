@@ -33,6 +33,12 @@ SOLVER_BLOCKS = 16
 #: ``slice_bytes``; each built-in's gives its own (the MRF's 70: with 20 for every estimator,
 #: a 512x512 Hadamard run peaked at 1.95 GB against 1.69 GB estimated, 2026-11-28)
 SLICE_BYTES = 70
+#: seconds per element of that block at the depth stage for an estimator whose registry entry
+#: gives no ``slice_seconds`` (the MRF family's)
+SLICE_SECONDS = 4.5e-7
+#: seconds per element of the slices the noise verdict reads (``metrics`` stage: measured
+#: 0.073-0.135 us at 64x64 over 3 337 slices, 2026-11-28)
+VERDICT_SECONDS = 1.5e-7
 #: sustained multiply-adds per second assumed for the time estimate (2 cores, BLAS), float64:
 #: measured 4.3e10 in a 64x64 dense solve on the 2-core machine (2026-11-28, the TV prox
 #: included), taken at 0.6 of it for slower machines
@@ -91,6 +97,26 @@ def _slice_bytes(depth: str) -> float:
     return float(ESTIMATORS.get(depth).defaults.get("slice_bytes", SLICE_BYTES))
 
 
+def _slice_seconds(depth: str) -> float:
+    """Seconds per slice-block entry at the depth stage: the estimator's registry default
+    ``slice_seconds``, else :data:`SLICE_SECONDS`."""
+    from ..depth import ESTIMATORS
+
+    return float(ESTIMATORS.get(depth).defaults.get("slice_seconds", SLICE_SECONDS))
+
+
+def depth_seconds(depth: str, q: int, n_lags: int) -> float:
+    """The depth stage's and the noise verdict's share of the time estimate: the estimator's
+    :func:`_slice_seconds` per pixel and gated slice, and :data:`VERDICT_SECONDS` per slice of
+    the pixels the verdict reads (at most ``NOISE_VERDICT_PIXELS``). A 0-150 m gate at 64x64
+    took 17.3 s, 12 s of it the MRF and 3.5 s the verdict, where the estimate, which left
+    both out, said 2.5 s (an audit of 2026-11-28)."""
+    from ..depth.profile import NOISE_VERDICT_PIXELS
+
+    return (_slice_seconds(depth) * float(q) * n_lags
+            + VERDICT_SECONDS * float(min(q, NOISE_VERDICT_PIXELS)) * n_lags)
+
+
 def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: int,
                     window_bins: int, pattern_bytes_per_entry: float | None,
                     threads: int = 2) -> Budget:
@@ -136,7 +162,8 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
     dense = pattern_bytes_per_entry is not None
     rate = flop_rate(cfg.dtype)
     seconds = (RUN_OVERHEAD_S + m * period * SECONDS_PER_BIN + m * q * shifts / rate
-               + solve_seconds(m, q, k_solve, dense, iterations, rate))
+               + solve_seconds(m, q, k_solve, dense, iterations, rate)
+               + depth_seconds(cfg.depth, q, n_lags))
     return Budget(sum(parts.values()), seconds, parts)
 
 
