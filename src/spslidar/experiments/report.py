@@ -165,7 +165,7 @@ QUICK_MARK = "**Quick mode**"
 
 def is_quick_section(text: str) -> bool:
     """Whether a section (its Markdown) ran in quick mode: its mode line, the first paragraph
-    after the heading, starts with :data:`QUICK_MARK`."""
+    after the heading, starts with ``QUICK_MARK``."""
     paras = [p.strip() for p in text.split("\n\n") if p.strip()]
     return len(paras) > 1 and paras[1].startswith(QUICK_MARK)
 

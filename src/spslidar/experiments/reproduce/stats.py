@@ -277,7 +277,7 @@ def time_order(a: Stat, b: Stat) -> int | None:
     run's time moves by up to x1.9 between invocations, and the load moves all runs of a
     batch together, so a single pair of timings has no scatter to judge by. The rule: the
     means differ by at least :data:`TIME_FACTOR` (x2, above the x1.9 seen between identical
-    runs), or, with :data:`TIME_TRIALS` timings or more each (``--trials 3``), their
+    runs), or, with ``TIME_TRIALS`` timings or more each (``--trials 3``), their
     difference is beyond the trials' scatter (:func:`within_scatter`) and :data:`MARGIN`.
     """
     if not (math.isfinite(a.mean) and math.isfinite(b.mean)) or min(a.mean, b.mean) <= 0:
