@@ -81,7 +81,8 @@ class DetectorModel:
         said as warnings by the run."""
         return []
 
-    def notes_after(self, report: dict[str, Any]) -> list[str]:
+    def notes_after(self, report: dict[str, Any], noiseless: bool = False) -> list[str]:
         """What a user should hear once the counts are known (``report`` is :meth:`report`'s
-        dict), said as warnings by the run."""
+        dict; ``noiseless``: the histograms are expected values, without counting noise),
+        said as warnings by the run."""
         return []

@@ -334,9 +334,10 @@ class GMAPD(DetectorModel):
             out["incident_per_dead_time"] = per_dead / (1.0 - per_dead)
         return out
 
-    def notes_after(self, report: dict[str, Any]) -> list[str]:
+    def notes_after(self, report: dict[str, Any], noiseless: bool = False) -> list[str]:
         """What to say once the counts are known: the pile-up correction at a flux where it
-        costs more than it mends."""
+        costs more than it mends (not for ``noiseless`` histograms, which it inverts exactly:
+        there is no counting noise to amplify)."""
         if self.dead_time and "incident_per_dead_time" not in report \
                 and "detections_per_pulse" in report:
             return [f"the detector is saturated: {report['detections_per_pulse']:.3g} "
@@ -352,7 +353,7 @@ class GMAPD(DetectorModel):
                     f"correction has nothing to invert; lower --signal and --noise (and raise "
                     f"--periods)"]
         n = report.get("incident_per_dead_time", 0.0)
-        if not (self.correction and n > CORRECTION_NOISY):
+        if noiseless or not (self.correction and n > CORRECTION_NOISY):
             return []
         return [f"--pileup-correction on at {n:.3g} incident photons per dead time: above "
                 f"about {CORRECTION_NOISY:g} the correction amplifies the counting noise more "

@@ -155,7 +155,7 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     pile = detector.report(float(np.mean(sim["counts"])) / acq.n_periods,
                            acq.period * bin_width, pulsed=acq.lidar == "conventional")
     sim["pileup"] = pile
-    warns.extend(detector.notes_after(pile))
+    warns.extend(detector.notes_after(pile, noiseless=cfg.noiseless))
     sim["estimate"] = {"memory_gb": budget.bytes / 1e9, "time_s": budget.seconds}
     timing["simulate"] = time.perf_counter() - t0
     return Measurement(cfg, scene, acq, gate, lags, ulags, inverse, patterns, sim, seq_probe,
