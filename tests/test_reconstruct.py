@@ -190,3 +190,28 @@ def test_reconstruct_bad_inputs_are_one_line(tmp_path, capsys, change, match):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and match in err[0], err
     assert not out.exists()
+
+
+def test_a_measured_acquisition_is_priced_on_the_slices_its_gate_keeps(tmp_path, capsys):
+    """reconstruct priced its solve over every gated slice before reading the file (a 64x64
+    file through a 0-100 m gate: 67 s announced, 15.5 s taken, its depth stage unpriced):
+    with the automatic gate it is priced once the slices with returns are known, solve and
+    depth stage, and refused beyond --max-time in one line with nothing written."""
+    pytest.importorskip("ptufile")
+    run_dir = tmp_path / "sim"
+    assert main(["run", "--scene", "steps", "--depth-min", "4", "--depth-max", "5", "--size",
+                 "8", "--code-length", "1023", "--signal", "1", "--noise", "0.02",
+                 "--compression", "0.5", "--save-ptu", str(tmp_path / "s.ptu"),
+                 "--no-figure", "--out", str(run_dir)]) == 0
+    args = ["reconstruct", "--ptu", str(tmp_path / "s.ptu"), "--patterns",
+            str(tmp_path / "s_patterns.npy"), "--code", str(tmp_path / "s_code.npy"),
+            "--bit-rate", "10e9", "--range-gate", "0", "15", "--no-figure"]
+    capsys.readouterr()
+    out = tmp_path / "rec"
+    assert main([*args, "--max-time", "0.01", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "slices with returns of 1002 gated" in err[0], err
+    assert not out.exists()
+    assert main([*args, "--out", str(out)]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["n_slices_solved"] < m["n_slices"] == 1002
