@@ -57,9 +57,11 @@ class DetectorModel:
         """Mean detected counts per bin (the noiseless limit of :meth:`detect`)."""
         raise NotImplementedError  # pragma: no cover - abstract
 
-    def correct(self, counts: np.ndarray, n_periods: int = 1) -> np.ndarray:
+    def correct(self, counts: np.ndarray, n_periods: int = 1,
+                expected: bool = False) -> np.ndarray:
         """Histograms as the matched filter should see them (pile-up corrected); the identity
-        for a linear model."""
+        for a linear model. ``expected``: ``counts`` are expected values (a noiseless run),
+        not counts, so no bound that holds for counts applies."""
         return counts
 
     def noise_totals(self, counts: np.ndarray, totals: np.ndarray, n_periods: int = 1,

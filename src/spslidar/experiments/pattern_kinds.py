@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from spslidar.experiments.report import Claim, md_table
+from spslidar.experiments.report import QUICK_MARK, Claim, md_table
 from spslidar.experiments.reproduce import Context, base_params, reproduce_point
 from spslidar.experiments.sweep import ERROR_KEY, run_sweep, write_csv
 
@@ -183,7 +183,7 @@ def _advice(rows: Sequence[dict[str, Any]], sizes: Sequence[int]) -> str:
 def _mode(ctx: Context) -> str:
     n0, n1 = _sizes(ctx)
     if ctx.quick:
-        return (f"**Quick mode** ({n0}x{n0} and {n1}x{n1}, two compressions): a smoke test, "
+        return (f"{QUICK_MARK} ({n0}x{n0} and {n1}x{n1}, two compressions): a smoke test, "
                 f"not the sizes this comparison is about.")
     return f"Full mode ({n0}x{n0} and {n1}x{n1})."
 

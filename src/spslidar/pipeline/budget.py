@@ -89,31 +89,24 @@ def _secs(s: float) -> str:
     return f"{s / 3600:.0f} h"
 
 
-def _slice_bytes(depth: str) -> float:
-    """Bytes per slice-block entry at the depth stage: the estimator's registry default
-    ``slice_bytes``, else :data:`SLICE_BYTES`."""
+def _slice_cost(depth: str, key: str, default: float) -> float:
+    """The depth estimator's cost per slice-block entry, its registry default ``key``
+    (``slice_bytes`` or ``slice_seconds``), else ``default`` (:data:`SLICE_BYTES`,
+    :data:`SLICE_SECONDS`)."""
     from ..depth import ESTIMATORS
 
-    return float(ESTIMATORS.get(depth).defaults.get("slice_bytes", SLICE_BYTES))
-
-
-def _slice_seconds(depth: str) -> float:
-    """Seconds per slice-block entry at the depth stage: the estimator's registry default
-    ``slice_seconds``, else :data:`SLICE_SECONDS`."""
-    from ..depth import ESTIMATORS
-
-    return float(ESTIMATORS.get(depth).defaults.get("slice_seconds", SLICE_SECONDS))
+    return float(ESTIMATORS.get(depth).defaults.get(key, default))
 
 
 def depth_seconds(depth: str, q: int, n_lags: int) -> float:
     """The depth stage's and the noise verdict's share of the time estimate: the estimator's
-    :func:`_slice_seconds` per pixel and gated slice, and :data:`VERDICT_SECONDS` per slice of
+    ``slice_seconds`` per pixel and gated slice, and :data:`VERDICT_SECONDS` per slice of
     the pixels the verdict reads (at most ``NOISE_VERDICT_PIXELS``). A 0-150 m gate at 64x64
     took 17.3 s, 12 s of it the MRF and 3.5 s the verdict, where the estimate, which left
     both out, said 2.5 s (an audit of 2026-11-28)."""
     from ..depth.profile import NOISE_VERDICT_PIXELS
 
-    return (_slice_seconds(depth) * float(q) * n_lags
+    return (_slice_cost(depth, "slice_seconds", SLICE_SECONDS) * float(q) * n_lags
             + VERDICT_SECONDS * float(min(q, NOISE_VERDICT_PIXELS)) * n_lags)
 
 
@@ -152,17 +145,13 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
         "simulation": threads * 3.0 * 64 * period * 4 + shifts * period * 4.0
         + q * shifts * 8.0 + 2.0 * m * n_ulags * 4,
         "solver": SOLVER_BLOCKS * float(q) * k_solve * item,
-        "range slices": _slice_bytes(cfg.depth) * float(q) * n_lags,
+        "range slices": _slice_cost(cfg.depth, "slice_bytes", SLICE_BYTES) * float(q) * n_lags,
     }
-    from .weights import solver_default
-
-    # the solver's own cap (FISTA and TwIST 60, TVAL3 100, GPSR 120; a floored weight's
-    # five-fold cap is priced again once the weight is known)
-    iterations = cfg.iterations or int(solver_default(cfg.solver, "iterations"))
-    dense = pattern_bytes_per_entry is not None
-    rate = flop_rate(cfg.dtype)
-    seconds = (RUN_OVERHEAD_S + m * period * SECONDS_PER_BIN + m * q * shifts / rate
-               + solve_seconds(m, q, k_solve, dense, iterations, rate)
+    # the solve at the solver's own cap (a floored weight's five-fold cap is priced again
+    # once the weight is known)
+    seconds = (RUN_OVERHEAD_S + m * period * SECONDS_PER_BIN
+               + m * q * shifts / flop_rate(cfg.dtype)
+               + config_solve_seconds(cfg, m, q, k_solve, pattern_bytes_per_entry is not None)
                + depth_seconds(cfg.depth, q, n_lags))
     return Budget(sum(parts.values()), seconds, parts)
 
@@ -186,6 +175,18 @@ def solve_seconds(m: int, q: int, k: int, dense: bool, iterations: int,
     per_product = (int(m) * q if dense else 2 * q * max(1, q.bit_length())) * int(k)
     rest = 0.0 if dense else FAST_SECONDS_PER_ENTRY * q * int(k)
     return iterations * (2 * per_product / rate + rest)
+
+
+def config_solve_seconds(cfg, m: int, q: int, k: int, dense: bool,
+                         iterations: int | None = None) -> float:
+    """:func:`solve_seconds` of ``cfg``'s solve: ``iterations``, by default ``cfg``'s or its
+    solver's own cap (FISTA and TwIST 60, TVAL3 100, GPSR 120), at ``cfg``'s dtype's rate
+    (:func:`flop_rate`)."""
+    from .weights import solver_default
+
+    if iterations is None:
+        iterations = cfg.iterations or int(solver_default(cfg.solver, "iterations"))
+    return solve_seconds(m, q, k, dense, iterations, flop_rate(cfg.dtype))
 
 
 #: a run estimated to take longer than this says so on stderr before it starts (seconds)

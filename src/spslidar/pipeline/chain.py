@@ -259,11 +259,11 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         # floored solve again, against --max-time, and say a long one (a 512x512 Hadamard
         # run announced at 47 s took 145 s, a 256x256 motorcycle 106 s unannounced)
         if not device:
-            from .budget import ANNOUNCE_SECONDS, check_time, flop_rate, solve_seconds
+            from .budget import ANNOUNCE_SECONDS, check_time, config_solve_seconds
             from .plan import _dense_patterns
 
-            solve_s = solve_seconds(patterns.shape[0], q, int(keep.sum()),
-                                    _dense_patterns(cfg), iterations, flop_rate(cfg.dtype))
+            solve_s = config_solve_seconds(cfg, patterns.shape[0], q, int(keep.sum()),
+                                           _dense_patterns(cfg), iterations)
             spent = sum(t for key, t in timing.items() if key != "total")
             estimate = {"time_s_at_floor": spent + solve_s}
             check_time(spent + solve_s, cfg.max_time, f"this run at the weight's floor "
@@ -364,12 +364,9 @@ def _price_measured(cfg: Config, m: int, q: int, k: int, n_lags: int) -> None:
     the depth stage over the ``n_lags`` gated slices (:mod:`.budget`), refused beyond
     ``--max-time`` and said when long. Priced before the file was read over every gated slice,
     a 64x64 file through a 0-100 m gate was announced at 67 s and took 15.5 s (an audit)."""
-    from .budget import check_time, depth_seconds, flop_rate, solve_seconds
-    from .weights import solver_default
+    from .budget import check_time, config_solve_seconds, depth_seconds
 
-    iterations = cfg.iterations or int(solver_default(cfg.solver, "iterations"))
-    seconds = (solve_seconds(m, q, k, True, iterations, flop_rate(cfg.dtype))
-               + depth_seconds(cfg.depth, q, n_lags))
+    seconds = config_solve_seconds(cfg, m, q, k, True) + depth_seconds(cfg.depth, q, n_lags)
     check_time(seconds, cfg.max_time, "this reconstruction", basis=f"its {k} slices with "
                f"returns of {n_lags} gated", reduce="--iterations or the range gate")
 

@@ -293,15 +293,13 @@ def _check_solve_time(cfg: Config, n_patterns: int, n_pixels: int, n_lags: int,
     the dtype's multiply-add rate). It is low for small problems, where fixed costs per
     iteration dominate (an 8 x 8 acquisition of 32 patterns and 127 lags solves 2000
     iterations in 0.40 s), and 1.2-1.6 times the time of 64x64 and 128x128 solves."""
-    from .budget import check_time, flop_rate, solve_seconds
+    from .budget import check_time, config_solve_seconds
     from .gate import AUTO_GATE_MIN_SLICES
-    from .weights import solver_default
 
     k = min(n_lags, period)
     if cfg.auto_gate if cfg.auto_gate is not None else k > AUTO_GATE_MIN_SLICES:
         return  # the gate keeps the slices with returns: priced once they are known
-    iterations = cfg.iterations or int(solver_default(cfg.solver, "iterations"))
-    seconds = solve_seconds(n_patterns, n_pixels, k, True, iterations, flop_rate(cfg.dtype))
+    seconds = config_solve_seconds(cfg, n_patterns, n_pixels, k, True)
     check_time(seconds, cfg.max_time, "this reconstruction", announce=False,
                reduce="--iterations or the range gate")
 

@@ -275,8 +275,8 @@ def _simulate_reference(patterns, weights, shifts, noise_bin, acq, detector, rep
         if noiseless:
             hist = detector.expected(lam, acq.n_periods)
             totals[rows] = noise_tot[rows] = hist.sum(axis=1)
-            hist = (detector.correct(hist, acq.n_periods) if detector.linear  # (itself)
-                    else detector.correct(hist, acq.n_periods, expected=True))
+            # (a linear detector's: itself)
+            hist = detector.correct(hist, acq.n_periods, expected=True)
         else:
             check_means(lam)
             hist, totals[rows] = detector.detect(lam, children[b], acq.n_periods,

@@ -22,6 +22,7 @@ import numpy as np
 
 from spslidar.constants import SPEED_OF_LIGHT
 from spslidar.errors import ConfigError
+from spslidar.experiments.report import QUICK_MARK
 from spslidar.experiments.sweep import (
     ERROR_KEY,
     SEED_KEY,
@@ -168,7 +169,7 @@ class Context:
                 n = getattr(self, "last_trials", 1)
                 trials = "one trial" if n == 1 else f"{n} trials"
             return (
-                f"**Quick mode** (32x32 pixels, fewer and shorter settings, {trials}): a smoke "
+                f"{QUICK_MARK} (32x32 pixels, fewer and shorter settings, {trials}): a smoke "
                 f"test whose numbers are not comparable with the paper's 64x64 ones."
             )
         return ("Full mode (64x64 pixels; the paper's scenes, codes and photon levels, "

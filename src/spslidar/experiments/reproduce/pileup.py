@@ -22,7 +22,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from spslidar.experiments.report import Claim, md_table
+from spslidar.experiments.report import QUICK_MARK, Claim, md_table
 from spslidar.experiments.reproduce.context import Context, base_params, run_points, write_rows
 from spslidar.experiments.reproduce.prose import section
 from spslidar.experiments.reproduce.stats import ok_rows
@@ -101,7 +101,7 @@ def _mode(ctx: Context) -> str:
     if ctx.quick:
         n = ctx.n_trials(TRIALS)  # what ran: one realisation unless --trials says more
         reals = "one realisation" if n == 1 else f"{n} realisations"
-        return (f"**Quick mode** ({_size(ctx)}x{_size(ctx)} pixels, {len(QUICK_FLUXES)} fluxes, "
+        return (f"{QUICK_MARK} ({_size(ctx)}x{_size(ctx)} pixels, {len(QUICK_FLUXES)} fluxes, "
                 f"{reals}): a smoke test.")
     return (f"Full mode ({_size(ctx)}x{_size(ctx)} pixels: the GMAPD model's cost grows with "
             f"the flux; {len(FLUXES)} fluxes x 3 detectors x 2 lidars x "

@@ -23,7 +23,6 @@ __all__ = [
     "best_verdict",
     "compare",
     "consistent",
-    "count_verdict",
     "factor_verdict",
     "first_row",
     "floor_note",
@@ -301,13 +300,6 @@ def time_note(n: int) -> str:
 def consistent(ok: bool) -> str:
     """The verdict of a yes/no claim: ``"consistent"`` or ``"not consistent"``."""
     return "consistent" if ok else "not consistent"
-
-
-def count_verdict(hits: int, total: int) -> str:
-    """``"consistent"`` when every case holds, ``"partly consistent"`` when some do."""
-    if hits == total:
-        return "consistent"
-    return "partly consistent" if hits else "not consistent"
 
 
 TVAL3_NOTE = (
