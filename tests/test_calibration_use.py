@@ -74,6 +74,26 @@ def test_a_wide_irf_is_not_said_to_be_noise(tmp_path, capsys):
     assert miss["peak_to_noise_p90"] < miss["peak_to_noise_floor"]
 
 
+def test_a_gate_too_short_for_the_response_gives_no_verdict_and_says_so(tmp_path, capsys):
+    """Through a 28-slice gate a 10-bin response leaves 3 independent slices beside a
+    return: the white-noise reference read 6.30 there and a good map (5.15 at every gate,
+    its noise maxima the response's own wings) was said to be mostly noise; through 22
+    slices the verdict was dropped without a word (an audit, on a real file). Both now say
+    that no verdict was given, and why; a 42-slice gate judges as before."""
+    wide = ["--signal", "1", "--noise", "0.02", "--irf", "gaussian:1e-9"]
+    cal = _calibrate(tmp_path, _acquire(tmp_path, "wall", 10.0, wide))
+    scene = _acquire(tmp_path, "scene", 12.3, wide)
+    for i, gate in enumerate([("12.1", "12.5"), ("12.15", "12.45")]):
+        m = _reconstruct(tmp_path, scene, cal, gate=gate, out=f"short{i}")
+        assert m["peak_to_noise_p90"] is None
+        said = [w for w in m["warnings"] if "nothing here checks" in w]
+        assert len(said) == 1 and "beside a return 25 slices wide" in said[0]
+        assert not any("mostly noise" in w for w in m["warnings"])
+    m = _reconstruct(tmp_path, scene, cal, gate=("12.0", "12.6"), out="long")
+    assert m["peak_to_noise_p90"] > m["peak_to_noise_floor"]
+    assert not any("nothing here checks" in w for w in m["warnings"])
+
+
 @pytest.mark.parametrize("code", ["mseq", "random"])
 def test_metrics_say_whether_the_calibration_saw_the_same_code(tmp_path, code):
     """The delay and IRF are the instrument's, so a calibration measured with other code

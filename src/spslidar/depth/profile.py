@@ -16,10 +16,10 @@ from ..errors import ConfigError
 from ..forward import delay_to_depth
 from .base import DepthContext
 
-__all__ = ["NOISE_ONLY_MARGIN", "NOISE_ONLY_MIN_SLICES", "NOISE_VERDICT_PIXELS",
-           "effective_slices", "grid_shape", "index_to_depth", "no_return", "noise_maxima",
-           "noise_only_ratio", "noise_scale", "noise_verdict", "peak_to_noise", "pulse_filter",
-           "refine_subbin", "shift2d"]
+__all__ = ["NOISE_BESIDE_MIN", "NOISE_ONLY_MARGIN", "NOISE_ONLY_MIN_SLICES",
+           "NOISE_VERDICT_PIXELS", "effective_slices", "grid_shape", "index_to_depth",
+           "no_return", "noise_maxima", "noise_only_ratio", "noise_scale", "noise_verdict",
+           "peak_to_noise", "pulse_filter", "refine_subbin", "shift2d", "slices_beside_return"]
 
 #: An image is said to be noise where the 90th percentile of :func:`peak_to_noise` is below
 #: this many times what non-negative white noise gives at as many effective slices
@@ -33,6 +33,12 @@ __all__ = ["NOISE_ONLY_MARGIN", "NOISE_ONLY_MIN_SLICES", "NOISE_VERDICT_PIXELS",
 NOISE_ONLY_MARGIN = 1.4
 #: Fewer slices leave too few beside the peak to tell a return from noise.
 NOISE_ONLY_MIN_SLICES = 16
+#: Independent slices a verdict needs beside a return's own (its peak and ``exclude`` either
+#: side): a calibrated 10-bin response through a 28-slice gate left 3, its white-noise
+#: reference read 6.30 there and a good map (5.15, its noise maxima the response's own wings
+#: at every gate) was said to be mostly noise (an audit of 2026-11-28; 11 are left at the
+#: ideal pulse's 16 slices).
+NOISE_BESIDE_MIN = 8
 
 
 def noise_scale(slices: np.ndarray, exclude: int = 2) -> float:
@@ -311,8 +317,9 @@ def noise_verdict(slices: np.ndarray, cap: float = 1000.0,
         profile has nothing beside its peak), :data:`NOISE_ONLY_MARGIN` times ``null``, and
         ``null``, :func:`noise_only_ratio` at :func:`effective_slices`; ``p90 < floor``
         means that at most a tenth of the pixels hold a return. None where there is no
-        verdict: fewer than :data:`NOISE_ONLY_MIN_SLICES` (effective) slices, or slices that
-        are not finite (a diverged solve).
+        verdict: fewer than :data:`NOISE_ONLY_MIN_SLICES` (effective) slices, fewer than
+        :data:`NOISE_BESIDE_MIN` of them beside a return (:func:`slices_beside_return`), or
+        slices that are not finite (a diverged solve).
     """
     sl = np.asarray(slices)
     if sl.ndim != 2 or sl.shape[1] < NOISE_ONLY_MIN_SLICES or not np.isfinite(sl).all():
@@ -322,13 +329,28 @@ def noise_verdict(slices: np.ndarray, cap: float = 1000.0,
         sl = sl[np.sort(keep)]
     exclude = max(2, int(exclude))
     ratio, tau = _noise_stats(sl, exclude, corr_exclude=exclude + 1)
-    k_eff = _effective(sl.shape[1], tau)
-    # the return's width in the reference's independent slices (2 for an ideal pulse)
-    ref_exclude = max(2, int(round(exclude * k_eff / sl.shape[1])))
+    k_eff, ref_exclude = _beside(sl.shape[1], tau, exclude)
     null = noise_only_ratio(k_eff, exclude=ref_exclude)
-    if not np.isfinite(null) or k_eff <= 2 * ref_exclude + 1:
+    if not np.isfinite(null) or k_eff - (2 * ref_exclude + 1) < NOISE_BESIDE_MIN:
         return None
     return float(np.percentile(np.minimum(ratio, cap), 90)), NOISE_ONLY_MARGIN * null, null
+
+
+def _beside(k: int, tau: float, exclude: int) -> tuple[int, int]:
+    """Effective slices and the return's half width in them (2 for an ideal pulse)."""
+    k_eff = _effective(k, tau)
+    return k_eff, max(2, int(round(max(2, int(exclude)) * k_eff / k)))
+
+
+def slices_beside_return(slices: np.ndarray, exclude: int = 2) -> int:
+    """Independent slices (:func:`effective_slices`) left beside a return of half width
+    ``exclude`` slices: what :func:`noise_verdict` reads the noise from (it gives no verdict
+    under :data:`NOISE_BESIDE_MIN`)."""
+    sl = np.asarray(slices)[:NOISE_VERDICT_PIXELS]
+    exclude = max(2, int(exclude))
+    k_eff, ref_exclude = _beside(sl.shape[1], _noise_stats(sl, exclude, exclude + 1)[1],
+                                 exclude)
+    return max(0, k_eff - (2 * ref_exclude + 1))
 
 
 def no_return(peak: np.ndarray, fraction: float = 0.05) -> np.ndarray:

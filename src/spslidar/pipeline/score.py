@@ -12,7 +12,12 @@ import numpy as np
 
 from ..config import Config
 from ..constants import SPEED_OF_LIGHT
-from ..depth.profile import NOISE_ONLY_MIN_SLICES, noise_verdict
+from ..depth.profile import (
+    NOISE_BESIDE_MIN,
+    NOISE_ONLY_MIN_SLICES,
+    noise_verdict,
+    slices_beside_return,
+)
 from ..metrics import depth_errors, edge_agreement, sobel_edges, truth_edge_mask
 from ..products import reflectivity_image
 from ..solvers.entries import TV_REGULARISERS
@@ -88,12 +93,19 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
             f"gives {null:.2f} here, {np.shape(slices)[1]} slices): check that the range gate "
             f"{meas.gate[0]:g}-{meas.gate[1]:g} m holds the scene, the signal level, or "
             f"acquire longer")
-    elif verdict is None and not noiseless and np.shape(slices)[1] < NOISE_ONLY_MIN_SLICES:
+    elif verdict is None and not noiseless and np.isfinite(slices).all():
+        # (a gate of 16+ slices that leaves too few beside a calibrated response's width
+        # had its verdict dropped without a word)
+        n_sl = int(np.shape(slices)[1])
+        half = max(2, int(sim.get("response_half_width") or 2))
+        held = (f"{n_sl} slices, too few beside a return" if n_sl < NOISE_ONLY_MIN_SLICES else
+                f"{n_sl} slices, of which {slices_beside_return(slices, half)} independent ones "
+                f"lie beside a return {2 * half + 1} slices wide (the response's), too few")
+        need = (NOISE_ONLY_MIN_SLICES if n_sl < NOISE_ONLY_MIN_SLICES else NOISE_BESIDE_MIN)
         warns.append(
-            f"the range gate {meas.gate[0]:g}-{meas.gate[1]:g} m holds {np.shape(slices)[1]} "
-            f"slices, too few beside a return to tell it from noise ({NOISE_ONLY_MIN_SLICES} or "
-            f"more): nothing here checks that the depth map is not noise (a wider --range-gate "
-            f"lets it)")
+            f"the range gate {meas.gate[0]:g}-{meas.gate[1]:g} m holds {held} to tell it from "
+            f"noise ({need} or more): nothing here checks that the depth map is not noise (a "
+            f"wider --range-gate lets it)")
     timing["metrics"] = time.perf_counter() - t0
     timing["total"] = sum(timing.values())
 
