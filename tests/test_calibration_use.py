@@ -116,3 +116,40 @@ def test_a_long_tail_is_read_past_forty_bins(tmp_path):
     _reconstruct(tmp_path, _acquire(tmp_path, "scene", 12.3, tail), tmp_path / "cal.json")
     depth = np.load(tmp_path / "rec" / "depth.npy")
     assert abs(np.nanmean(depth - 12.3)) < 0.015  # measured -10.4 mm at 8x8
+
+
+def test_a_wide_response_is_read_from_its_rising_edge(tmp_path):
+    """A Gaussian IRF of 25 bins FWHM (2.5 ns at 10 GHz; a HydraHarp's 16 ps bins under a
+    400 ps response are as many) was read from 8 bins before its peak: FWHM said as 20.6
+    bins, the noise read inside its rising edge (5.35 deviations from 17 M photons) and the
+    wall read 1.47 cm short through it (an audit). Now the response is read from where it
+    rises, and the wall through it is within a few millimetres."""
+    wide = ["--signal", "1", "--noise", "0.02", "--irf", "gaussian:2.5e-9"]
+    files = _acquire(tmp_path, "wall", 10.0, wide)
+    cal = json.loads(_calibrate(tmp_path, files).read_text())
+    assert min(cal["irf_offsets"]) < -16
+    # a Gaussian of 25 bins integrated over whole bins reads sqrt(25^2 + 1) = 25.02; 4 %
+    # for the noise on its shoulders
+    assert abs(cal["irf_fwhm_bins"] - 25.02) < 1.0
+    assert cal["peak_to_noise"] > 15  # read inside its own rising edge: 5
+    m = _reconstruct(tmp_path, files, tmp_path / "cal.json", gate=("9", "11"))
+    depth = np.load(tmp_path / "rec" / "depth.npy")
+    assert abs(np.nanmean(depth - 10.0)) < 0.005  # a third of a bin; 1.47 cm before
+    assert m["coverage"] == 1.0
+
+
+def test_a_response_wider_than_a_quarter_period_is_said_to_be_cut():
+    """A response that still stands above the background where the IRF's window ends (a
+    quarter of the code period) is cut there, and says so (a real fluorescence file read
+    as a calibration gave "IRF FWHM 49.00 bins", the window's width, without a word)."""
+    from spslidar.codes.sequences import lfsr_sequence
+    from spslidar.pipeline.calibration import measure_response
+
+    code = lfsr_sequence(10).astype(float)
+    n = code.size
+    irf = np.exp(-0.5 * (((np.arange(n) + n // 2) % n - n // 2) / 120.0) ** 2)
+    hist = np.fft.irfft(np.fft.rfft(code) * np.fft.rfft(irf), n) * 50 + 5
+    hist = np.random.default_rng(0).poisson(hist).astype(float)
+    with pytest.warns(RuntimeWarning, match="still stands above the background"):
+        measure_response(hist, code, 1e-10, 0.0)
+

@@ -185,6 +185,33 @@ def test_reproduce_all_quick(tmp_path, capsys):
     assert (out / "table1" / "table1.md").is_file()
 
 
+def test_spslidars_own_warnings_do_not_name_a_source_line(monkeypatch, capsys, tmp_path):
+    """spslidar's own warnings say what they are; their source line read as a fault of the
+    code ("... (RuntimeWarning in calibration.py:378)" after a calibration's advice, an
+    audit). A library's warning keeps where it came from, and a repeat of one of ours is
+    counted by its first words."""
+    import warnings
+    from pathlib import Path
+
+    import spslidar
+    from spslidar import cli
+
+    own = str(Path(spslidar.__file__).parent / "pipeline" / "calibration.py")
+
+    def noisy(args):
+        for n in (1, 2):
+            warnings.warn_explicit(f"the target spreads over {n} bins", RuntimeWarning, own, 7)
+        warnings.warn_explicit("overflow encountered", RuntimeWarning, "/lib/numpy/x.py", 9)
+        return 0
+
+    monkeypatch.setitem(cli.COMMANDS, "run", noisy)
+    assert cli.main(["run", "--out", str(tmp_path / "r")]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == "spslidar run: warning: the target spreads over 1 bins"
+    assert err[1].endswith("overflow encountered (RuntimeWarning in x.py:9)")
+    assert '("the target spreads over 1 bins ...") came 1 more time' in err[2]
+
+
 def test_a_warning_repeated_with_other_numbers_is_one_line_and_a_count(monkeypatch, capsys,
                                                                         tmp_path):
     """The GMAPD's fixed point warns once per block of patterns, each time with another

@@ -579,6 +579,7 @@ class _OneLineWarnings:
     def __init__(self, command: str):
         self.command = command
         self.repeats: dict[tuple, int] = {}
+        self.first: dict[tuple, str] = {}
 
     def __call__(self, message, category, filename, lineno, file=None, line=None):
         text = " ".join(str(message).split())
@@ -587,16 +588,36 @@ class _OneLineWarnings:
             self.repeats[key] += 1
             return
         self.repeats[key] = 0
-        print(f"spslidar {self.command}: warning: {text} ({category.__name__} in "
-              f"{Path(filename).name}:{lineno})", file=sys.stderr if file is None else file)
+        self.first[key] = text
+        print(f"spslidar {self.command}: warning: {text}{self._origin(category, filename, lineno)}",
+              file=sys.stderr if file is None else file)
+
+    @staticmethod
+    def _origin(category, filename, lineno) -> str:
+        """Where a library's warning came from (`` (RuntimeWarning in fromnumeric.py:3860)``);
+        nothing for spslidar's own, which say what they are (an audit read "(RuntimeWarning
+        in calibration.py:378)" after a calibration's advice as a fault of the code)."""
+        try:
+            Path(filename).resolve().relative_to(_PACKAGE)
+            return ""
+        except (ValueError, OSError):
+            return f" ({category.__name__} in {Path(filename).name}:{lineno})"
 
     def close(self) -> None:
-        for (category, filename, lineno, _), n in self.repeats.items():
+        for key, n in self.repeats.items():
+            category, filename, lineno, _ = key
             if n:
-                print(f"spslidar {self.command}: warning: the {category.__name__} of "
-                      f"{Path(filename).name}:{lineno} above came {n} more time"
+                what = (f"the warning above (\"{' '.join(self.first[key].split()[:8])} ...\")"
+                        if not self._origin(category, filename, lineno) else
+                        f"the {category.__name__} of {Path(filename).name}:{lineno} above")
+                print(f"spslidar {self.command}: warning: {what} came {n} more time"
                       f"{'s' if n > 1 else ''} (its numbers changed)", file=sys.stderr)
         self.repeats.clear()
+        self.first.clear()
+
+
+#: the installed package's folder: warnings from files under it are spslidar's own
+_PACKAGE = Path(__file__).resolve().parent
 
 
 def main(argv: list[str] | None = None) -> int:
