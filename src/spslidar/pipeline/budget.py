@@ -13,6 +13,7 @@ order of magnitude, from the dominant products at a conservative BLAS rate.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from ..errors import SpslidarError
@@ -165,16 +166,23 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
 FAST_SECONDS_PER_ENTRY = 1.6e-8
 
 
+#: seconds every iteration of a solve takes whatever its size (Python, the stopping test,
+#: the small arrays): 83-173 us measured at 8x8 over 3 000 iterations, GPSR to TVAL3
+#: (2026-11-28); without it ``--iterations 1000000`` was priced at 2.9 s and took 162 s,
+#: past a ``--max-time`` (an audit)
+ITERATION_SECONDS = 1.8e-4
+
+
 def solve_seconds(m: int, q: int, k: int, dense: bool, iterations: int,
                   rate: float = FLOP_RATE) -> float:
     """The solve's share of :func:`estimate_budget`: ``iterations`` products with ``A`` and
     its adjoint over ``k`` slices (``M Q`` per slice for dense patterns, ``2 Q log2 Q`` for
     the fast Hadamard transform, which also pays :data:`FAST_SECONDS_PER_ENTRY` per slice
-    entry)."""
+    entry), and :data:`ITERATION_SECONDS` each."""
     q = int(q)
     per_product = (int(m) * q if dense else 2 * q * max(1, q.bit_length())) * int(k)
     rest = 0.0 if dense else FAST_SECONDS_PER_ENTRY * q * int(k)
-    return iterations * (2 * per_product / rate + rest)
+    return iterations * (2 * per_product / rate + rest + ITERATION_SECONDS)
 
 
 def config_solve_seconds(cfg, m: int, q: int, k: int, dense: bool,
@@ -193,6 +201,16 @@ def config_solve_seconds(cfg, m: int, q: int, k: int, dense: bool,
 ANNOUNCE_SECONDS = 30.0
 
 
+def _duration_arg(s: float) -> str:
+    """``s`` seconds rounded up as ``--max-time`` reads it (``90s``, ``12min``, ``3h``): the
+    refusal's example said ``2h`` for an 18 s run."""
+    if s < 120:
+        return f"{math.ceil(s)}s"
+    if s < 7200:
+        return f"{math.ceil(s / 60)}min"
+    return f"{math.ceil(s / 3600)}h"
+
+
 def check_time(seconds: float, max_time: float | None, what: str = "this run",
                announce: bool = True,
                reduce: str = "--size, --compression, --iterations or the range gate",
@@ -206,7 +224,7 @@ def check_time(seconds: float, max_time: float | None, what: str = "this run",
         raise SpslidarError(
             f"{what} would take ~{_secs(seconds)} (estimated from {basis}), more "
             f"than --max-time {_secs(max_time)}: reduce {reduce}, or raise --max-time (e.g. "
-            f"--max-time 2h)")
+            f"--max-time {_duration_arg(1.5 * seconds)})")
     if announce and seconds > ANNOUNCE_SECONDS:
         print(f"spslidar: {what} will take about {_secs(seconds)} (an estimate; --max-time "
               f"to change the limit)", file=sys.stderr, flush=True)

@@ -73,12 +73,15 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
     # (a calibrated instrument's returns span its response: sim's response_half_width)
     # (a noiseless run has no noise to tell a return from: its jitter or IRF-spread returns
     # were said to be "mostly noise" at 0.0015 m; it is said only where the gate holds none)
-    verdict = (None if noiseless else
-               noise_verdict(slices, exclude=int(sim.get("response_half_width") or 2)))
-    # None: no verdict (noiseless, too few slices, a diverged solve)
-    peak_ratio, peak_floor, null = verdict if verdict is not None else (None, None, None)
     aliased = meas.lags.size > acq.period  # each profile repeats its peak every period
-    if verdict is not None and peak_ratio < peak_floor and aliased:
+    # (an aliased profile's noise maximum beside its peak is the peak's own repeat, ratio
+    # 1.00: no verdict to make; its white-noise reference of 2048 x K slices ran out of
+    # memory at K = 66 714, a 0-1000 m gate, an audit)
+    verdict = (None if noiseless or aliased else
+               noise_verdict(slices, exclude=int(sim.get("response_half_width") or 2)))
+    # None: no verdict (noiseless, aliased, too few slices, a diverged solve)
+    peak_ratio, peak_floor, null = verdict if verdict is not None else (None, None, None)
+    if aliased and not noiseless:
         # (a noiseless aliased run was also said to be "mostly noise": the gate-alias
         # warning says what it is)
         warns.append(

@@ -39,11 +39,18 @@ SOLVERS.add("fista", "spslidar.solvers.fista:FISTA", "FISTA",
 SOLVERS.add("twist", "spslidar.solvers.twist:TwIST", "TwIST",
             "TwIST, two-step iterative shrinkage (the paper's)",
             iterations=60, lam_scale=0.3, regulariser="tv")
+def _tval3_valid(cfg: Any) -> None:
+    """TVAL3's hook: a TV regulariser and a positive weight (it solves ``TV(x) + 1/(2 lam)
+    ||Ax - y||^2``; ``--lam 0`` ended in a traceback, an audit)."""
+    _regulariser_in(("auto", *TV_REGULARISERS), "the tval3 solver minimises total variation: "
+                    "use --regulariser tv or tv-aniso")(cfg)
+    if getattr(cfg, "lam", None) == 0:
+        raise ConfigError("--lam 0 with --solver tval3: TVAL3 weighs the data by 1/(2 lam), so "
+                          "it needs --lam > 0 (or another solver, whose lam 0 is least squares)")
+
+
 SOLVERS.add("tval3", "spslidar.solvers.tval3:TVAL3", "TVAL3",
-            "TVAL3, augmented Lagrangian for TV (regulariser tv)",
-            validate=_regulariser_in(
-                ("auto", *TV_REGULARISERS),
-                "the tval3 solver minimises total variation: use --regulariser tv or tv-aniso"),
+            "TVAL3, augmented Lagrangian for TV (regulariser tv)", validate=_tval3_valid,
             iterations=100, lam_scale=0.3, regulariser="tv")
 SOLVERS.add("gpsr", "spslidar.solvers.gpsr:GPSR", "GPSR",
             "GPSR-BB, gradient projection for l1 (regulariser l1 or wavelet)",

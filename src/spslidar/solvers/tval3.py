@@ -256,8 +256,11 @@ class TVAL3(Solver):
             raise ValueError(
                 f"TVAL3 solves the TV problem only: reg must be a TV instance, got {reg!r}"
             )
-        if lam <= 0:
+        if lam <= 0 and np.any(np.asarray(y)):
+            # (a measurement without photons has max|A^H y| = 0 and so a default weight of 0:
+            # its solution is 0 at any weight, below; it ended in this error, an audit)
             raise ValueError("TVAL3 needs lam > 0 (it solves TV(x) + 1/(2 lam) ||Ax - y||^2)")
+        lam = lam if lam > 0 else 1.0  # y = 0: x = 0 at every weight
         o = {**self._defaults, **self.options}
         n = A.shape[1]
         ny, nx = reg.image_shape

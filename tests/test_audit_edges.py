@@ -1,0 +1,84 @@
+"""Extreme but plausible values, as a researcher exploring a design space gives them (an audit
+of 2026-11-28): each ended in a traceback, a wrong message or a run far beyond its estimate."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from spslidar.cli import main
+
+TINY = ["--size", "8", "--no-figure", "--scene", "steps", "--depth-min", "1", "--depth-max",
+        "1.6", "--range-gate", "0.8", "1.8", "--code-length", "255"]
+
+
+def test_tval3_refuses_a_zero_weight_in_one_line(tmp_path, capsys):
+    """TVAL3 weighs the data by 1/(2 lam): ``--lam 0`` ended in a traceback (exit 1)."""
+    assert main(["run", *TINY, "--solver", "tval3", "--lam", "0",
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--lam > 0" in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_tval3_without_photons_gives_an_empty_map(tmp_path, capsys):
+    """Without photons max|A^H y| = 0 and the default weight is 0: TVAL3 raised; its
+    solution is 0 at every weight, so the run ends as the other solvers' do (no depth)."""
+    assert main(["run", *TINY, "--solver", "tval3", "--signal", "1e-12", "--noise", "0",
+                 "--out", str(tmp_path / "o")]) == 0
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert m["coverage"] == 0.0
+    assert not np.isfinite(np.load(tmp_path / "o" / "depth.npy")).any()
+
+
+def test_a_huge_iteration_count_is_priced_and_refused(tmp_path, capsys):
+    """Each iteration costs some 0.1-0.2 ms whatever the size: ``--iterations 100000`` at
+    8x8 was priced from its products alone (under 3 s) and ran 16 s past ``--max-time 3``."""
+    assert main(["run", *TINY, "--noise", "0.5", "--depth", "argmax", "--iterations",
+                 "100000", "--max-time", "3", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "more than --max-time 3 s" in err[0]
+    # the example raises the limit above the estimate, in a form --max-time reads
+    assert "(e.g. --max-time 2h)" not in err[0] and "s)" in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_gate_of_many_periods_gives_no_verdict_without_the_memory(tmp_path):
+    """A 0-1000 m gate on the default code (66 714 slices, four periods) drew a white-noise
+    reference of 2 048 x 66 714 slices and ended in a MemoryError (1.02 GiB; the run's
+    estimate 0.3 GB). An aliased profile's noise beside its peak is its own repeat: no
+    verdict, said."""
+    assert main(["run", "--size", "8", "--no-figure", "--scene", "steps", "--depth-min", "1",
+                 "--depth-max", "1.6", "--noise", "0.5", "--depth", "argmax",
+                 "--range-gate", "0", "1000", "--out", str(tmp_path / "o")]) == 0
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert m["peak_to_noise_p90"] is None
+    assert any(w.startswith("no noise verdict: the range gate spans more than one code")
+               for w in m["warnings"])
+
+
+def test_the_noise_reference_is_bounded_at_long_gates():
+    """The white-noise reference is drawn a block at a time and with fewer profiles past
+    4 096 slices: at 66 714 slices its peak allocation is 142 MB (over 2 GB before); up to
+    2 048 slices it is the same draw as before (the same numbers)."""
+    import tracemalloc
+
+    from spslidar.depth import profile
+
+    tracemalloc.start()
+    try:
+        profile._reference_stats.cache_clear()
+        p90, tau = profile._reference_stats(66714)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+        profile._reference_stats.cache_clear()
+    assert peak < 300e6, peak
+    # more slices, a taller noise maximum beside the peak: below 1023 slices' 1.23
+    assert 1.0 < p90 < 1.2 and tau > 1.0
+    rng = np.random.default_rng(0)
+    one = np.maximum(rng.standard_normal((2048, 300)), 0.0)
+    assert profile._reference_stats(300)[0] == pytest.approx(
+        float(np.percentile(profile._noise_stats(one)[0], 90)), rel=1e-12)
