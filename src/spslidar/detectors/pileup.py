@@ -398,7 +398,11 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
         out = sweep(state)
         res = out - state
         scale_h = np.maximum(hist[:, d + 1 :].max(axis=1), 1e-300)
-        row_change = np.abs(res).max(axis=1) / scale_h
+        # h's change relative to its own scale, alpha's and gamma's (of order 1) as they are:
+        # alpha's round-off (1e-16) over a histogram of 1e-13 never fell below the tolerance
+        # (a GMAPD run at 1e-12 photons: 15 687 sweeps, 13.6 s, "not converged"; an audit)
+        row_change = np.maximum(np.abs(res[:, : d + 1]).max(axis=1) / scale_h,
+                                np.abs(res[:, d + 1 :]).max(axis=1))
         row_change[~np.isfinite(row_change)] = np.inf
         change = float(np.max(row_change))
         if change <= tol:
