@@ -108,3 +108,32 @@ def test_the_dead_time_model_settles_at_a_vanishing_flux(scale):
     assert info["sweeps"] < 50, info
     # h = mu (1 - the flux summed over a dead time: 5e-7 at 1e-9)
     np.testing.assert_allclose(h, mu, rtol=1e-6, atol=0)
+
+
+def test_a_stages_python_warning_is_kept_in_metrics(tmp_path, capsys):
+    """The wavelet prior at an odd image side warns through ``warnings.warn``: it was shown
+    on stderr, in another format, and missing from ``metrics.json`` (and so from a sweep's
+    row). It is now one of the run's warnings: in ``metrics.json``, said once."""
+    assert main(["run", *TINY, "--size", "5", "--solver", "gpsr",
+                 "--out", str(tmp_path / "o")]) == 0
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    said = [w for w in m["warnings"] if "wavelet regulariser needs an even image side" in w]
+    assert len(said) == 1
+    err = capsys.readouterr().err
+    assert err.count("wavelet regulariser needs an even image side") == 1
+    assert "(UserWarning in" not in err
+
+
+def test_a_failing_run_gives_its_python_warnings_back(monkeypatch):
+    """Where the run raises, what it warned is not swallowed with it."""
+    import warnings
+
+    from spslidar.pipeline.chain import keeping_warnings
+
+    @keeping_warnings
+    def broken():
+        warnings.warn("half way", RuntimeWarning, stacklevel=1)
+        raise ValueError("broke")
+
+    with pytest.warns(RuntimeWarning, match="half way"), pytest.raises(ValueError):
+        broken()

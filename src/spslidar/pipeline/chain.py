@@ -11,7 +11,10 @@ changing e.g. the noise level does not change the patterns.
 
 from __future__ import annotations
 
+import functools
+import re
 import time
+import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -58,6 +61,42 @@ __all__ = ["LAM_FLOOR", "PROCESSING_KEYS", "TV_INNER", "Measurement", "build_reg
            "solver_default", "timeline"]
 
 
+def keeping_warnings(fn):
+    """``fn`` (returning a :class:`Result` or a :class:`Measurement`) with the Python
+    warnings raised while it works (a stage's or a library's ``warnings.warn``: the wavelet
+    regulariser's odd image side, the dead-time model's fixed point) kept in its result's
+    warnings, and so in ``metrics.json``, beside the run's own; one line per warning, a
+    repeat with other numbers counted. They were shown on stderr and missing from
+    ``metrics.json`` and sweeps' rows (an audit of 2026-11-28). Where ``fn`` raises they
+    are given back as warnings."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        caught: list = []
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("default")
+                result = fn(*args, **kwargs)
+        except BaseException:
+            for w in caught:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+            raise
+        kept: dict[str, list] = {}
+        for w in caught:
+            text = " ".join(str(w.message).split())
+            key = re.sub(r"[-+]?\d[\d.,]*(e[-+]?\d+)?", "#", text)
+            kept.setdefault(key, [text, 0])[1] += 1
+        for text, n in kept.values():
+            if text not in result.warnings:
+                result.warnings.append(text if n == 1 else
+                                       f"{text} (and {n - 1} more time{'s' if n > 2 else ''} "
+                                       f"with other numbers)")
+        return result
+
+    return wrapper
+
+
+@keeping_warnings
 @one_blas_thread
 def measure(config: Config | dict | None = None, **overrides) -> Measurement:
     """Simulate one acquisition: scene, code, patterns, photon counts and matched filter.
@@ -162,6 +201,7 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
                        warns, timing)
 
 
+@keeping_warnings
 @one_blas_thread
 def reconstruct(meas: Measurement, **processing) -> Result:
     """Range gate, QCR, compressive reconstruction, ML depth and metrics of a measurement.

@@ -29,7 +29,7 @@ from ..correlate import (
 )
 from ..errors import ConfigError
 from .acquisition import Acquisition
-from .chain import Measurement, reconstruct
+from .chain import Measurement, keeping_warnings, reconstruct
 from .gate import unique_lags
 from .results import Result
 
@@ -335,6 +335,7 @@ def calibrated_lam_scale(solver: str, spread: float) -> float:
                float(solver_default(solver, "lam_scale")))
 
 
+@keeping_warnings
 def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray,
                     bit_rate: float, range_gate: tuple[float, float], *, marker: int = 1,
                     channel: int | None = None, truth: np.ndarray | None = None,
