@@ -37,7 +37,9 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
         description="Compare the output SNR of one pattern's matched filter over one code "
                     "period, eq. (10) of Shen et al., with a simulation of Poisson photon "
                     "counts and the unipolar replica. Prints theory and simulation (with a "
-                    "95% interval).")
+                    "95% interval). Where the periods cannot resolve the SNR (periods x SNR "
+                    "under 4, or no variance in their counts) the ratio reads 'unresolved' and "
+                    "a warning names the --trials that would.")
     p.add_argument("--code", choices=CODES.names(), default="mseq",
                    help=f"code family: {CODES.help_text()}")
     p.add_argument("--code-length", type=int, default=16383, metavar="L",
@@ -51,7 +53,7 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
                         "an m-sequence)")
     p.add_argument("--signal", type=float, default=5.0, metavar="MS",
                    help="m_s: mean signal photons per laser pulse per DMD pixel (mirror on, "
-                        "reflectivity 1) (default 5)")
+                        "reflectivity 1), > 0 (default 5)")
     p.add_argument("--noise", type=float, default=10.0, metavar="MN",
                    help="m_n: mean noise counts per TDC bin per pixel, N^2 m_n per bin "
                         "(default 10)")
@@ -60,7 +62,7 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
     p.add_argument("--on-fraction", type=float, default=0.5, metavar="F",
                    help="share of mirrors on in the binary pattern, in (0, 1] (default 0.5)")
     p.add_argument("--reflectivity", type=float, default=1.0, metavar="A",
-                   help="reflectivity of the pixels, in [0, 1] (default 1)")
+                   help="reflectivity of the pixels, in (0, 1] (default 1)")
     p.add_argument("--trials", type=int, default=200, metavar="K",
                    help="code periods simulated, >= 2 (default 200)")
     p.add_argument("--method", choices=SNR_METHODS, default="sum",
@@ -73,8 +75,8 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
                    help="refuse a simulation estimated to take longer: seconds, or with a unit "
                         "(90s, 10min, 2h; default 1h)")
     p.add_argument("--json", action="store_true",
-                   help='print {"theory", "simulated", "stderr", "ci95", "ratio", "params"} '
-                        'as JSON')
+                   help='print {"theory", "simulated", "stderr", "ci95", "ratio", "resolved", '
+                        '"params"} as JSON (null for a number that is not resolved)')
     return p
 
 
@@ -100,8 +102,15 @@ def cmd_snr(args: argparse.Namespace) -> int:
     -----
     Plain output is two lines: eq. (10) with its parameters, then the simulated SNR with its
     standard error and 95 % interval and the ratio simulated / theory. With ``--json`` one JSON
-    object ``{"theory", "simulated", "stderr", "ci95", "ratio", "params"}``; non-finite numbers
-    are written as ``null``.
+    object ``{"theory", "simulated", "stderr", "ci95", "ratio", "resolved", "params"}``.
+
+    Where the trials cannot resolve the SNR (:func:`~spslidar.snr.snr_simulated`'s
+    RuntimeWarning, printed as one line on stderr: ``trials x SNR`` below 4, or no variance in
+    the counts) the ratio reads ``unresolved`` (``null`` and ``"resolved": false`` in JSON),
+    and so does any simulated number that is not finite; the status stays 0, since eq. (10)
+    and the simulation's bound are still printed and the options are valid. A signal or a
+    reflectivity of 0 is refused (ConfigError, status 2): eq. (10) is then 0 and there is
+    nothing to compare.
     """
     import json
     import math
@@ -121,6 +130,7 @@ def cmd_snr(args: argparse.Namespace) -> int:
         "noise", "size", "on_fraction", "mirrors_on", "reflectivity", "trials", "method",
         "interval", "replica", "delay")}
     params["seed"] = seed
+    resolved = math.isfinite(r["ratio"])  # (NaN where snr_simulated warned it is not)
     if args.json:
         def finite(x: float) -> float | None:
             return x if math.isfinite(x) else None
@@ -128,12 +138,20 @@ def cmd_snr(args: argparse.Namespace) -> int:
         print(json.dumps({
             "theory": finite(r["theory"]), "simulated": finite(r["simulated"]),
             "stderr": finite(r["stderr"]), "ci95": [finite(r["ci_low"]), finite(r["ci_high"])],
-            "ratio": finite(r["ratio"]), "params": params}))
+            "ratio": finite(r["ratio"]), "resolved": resolved, "params": params}))
         return 0
+
+    def shown(x: float, spec: str) -> str:
+        return format(x, spec) if math.isfinite(x) else "unresolved"
+
     print(f"theory    SNR = {r['theory']:.6g}  (eq. 10: {r['code']} T={r['code_length']}, "
           f"R_a={r['ones_ratio_actual']:.5g}, M2={r['mirrors_on']} mirrors on, "
           f"a={r['reflectivity']:g}, m_s={r['signal']:g}, m_n={r['noise']:g}, N={r['size']})")
-    print(f"simulated SNR = {r['simulated']:.6g} +- {r['stderr']:.3g} (95% interval "
-          f"{r['ci_low']:.4g} .. {r['ci_high']:.4g}; {r['trials']} periods, {r['method']}, "
-          f"unipolar replica); simulated/theory = {r['ratio']:.4f}")
+    if math.isfinite(r["simulated"]):
+        sim = (f"{r['simulated']:.6g} +- {shown(r['stderr'], '.3g')} (95% interval "
+               f"{shown(r['ci_low'], '.4g')} .. {shown(r['ci_high'], '.4g')}; ")
+    else:
+        sim = "unresolved ("
+    print(f"simulated SNR = {sim}{r['trials']} periods, {r['method']}, unipolar replica); "
+          f"simulated/theory = {shown(r['ratio'], '.4f')}")
     return 0

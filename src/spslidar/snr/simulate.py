@@ -3,21 +3,25 @@
 :func:`snr_simulated` counts Poisson photons of one binary pattern over ``trials`` code periods
 (one summed draw per period, or full TDC histograms from the library's forward model and
 matched filter) and correlates them with the **unipolar** replica, the definition eq. (10)
-uses; the interval comes from the delta method or a bootstrap.
+uses; the interval comes from the delta method or a bootstrap. Where the trials cannot
+resolve the SNR (``trials x SNR < 4``, or no variance in their counts) the ratio simulated /
+theory is NaN and a RuntimeWarning says what to change.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from typing import TYPE_CHECKING, Any
 
 from spslidar.snr.theory import (
+    MAX_TRIALS,
     SNR_INTERVALS,
     SNR_METHODS,
     as_integer,
     as_nonneg,
+    as_number,
     check_choice,
-    check_reflectivity,
     check_size,
     check_trials,
     code_family,
@@ -50,6 +54,14 @@ SECONDS_PER_BOOT_DRAW = 1e-8
 #: fewest trials a bootstrap interval is drawn from: from 2 trials every resample with a
 #: variance gave the same SNR, and the interval came out as +- 0
 MIN_BOOT_TRIALS = 10
+#: least ``trials x SNR`` (eq. 10) a simulation resolves. The simulated mean count exceeds the
+#: noise mean by ``sqrt(trials x SNR)`` of its standard errors in expectation, so below 4 the
+#: signal is under two standard errors of the mean, the estimate's relative spread
+#: ``2 / sqrt(trials x SNR)`` passes 100 % and its floor (about ``1 / trials``, what noise alone
+#: gives) more than a quarter of the SNR: simulated / theory then measures the floor, not eq. (10)
+#: (``--signal 1e-12`` gave 2.3e16). With no noise it is the signal photons expected over all
+#: the trials.
+MIN_TRIALS_X_SNR = 4.0
 #: longest code a simulation takes (``run``'s ``--code-length`` limit, 2^24 bits: a random
 #: code of 10^9 bits asked for 7.45 GiB before anything was checked)
 MAX_SIM_CODE_LENGTH = 2**24
@@ -174,6 +186,63 @@ def _bootstrap(c: np.ndarray, noise_mean: float, n_boot: int, rng) -> tuple[floa
     return float(finite.std(ddof=1)), float(lo), float(hi)
 
 
+def _positive(value: Any, flag: str, hi: float) -> float:
+    """``value`` in ``(0, hi]`` (``(0, inf)`` for an infinite ``hi``), or ConfigError worded as
+    ``run`` words its ranges (``--signal must be in (0, inf), got 0.0``): at 0 there is no
+    signal, eq. (10) is 0 and the simulation has nothing to be compared with."""
+    x = as_number(value, flag)
+    if not 0.0 < x <= hi:
+        span = "(0, inf)" if math.isinf(hi) else f"(0, {hi:g}]"
+        why = (": with no signal photons eq. (10) is 0 and there is no SNR to simulate"
+               if x == 0.0 else "")
+        raise config_error(f"{flag} must be in {span}, got {x}{why}")
+    return x
+
+
+def _unresolved(c: np.ndarray, theory: float, noise: float, interval: tuple[float, ...]
+                ) -> str | None:
+    """Why the trials ``c`` cannot estimate the SNR that eq. (10) puts at ``theory``, as one
+    sentence saying what to change; None when they can.
+
+    Three reasons: ``trials x theory`` below :data:`MIN_TRIALS_X_SNR` (the signal is within
+    the estimate's noise floor), no sample variance (every trial counted the same; the
+    estimate is 0/0 or infinite) and no finite standard error or interval (``interval``:
+    ``simulated, stderr, ci_low, ci_high``).
+    """
+    k = int(c.size)
+    rho = k * theory
+    reasons = []
+    advice = ""
+    if not rho >= MIN_TRIALS_X_SNR:
+        what = " signal photons expected over all of them" if noise == 0 else ""
+        reasons.append(f"eq. (10) gives {theory:.3g}, below the {MIN_TRIALS_X_SNR / k:.3g} "
+                       f"that {k} periods resolve (trials x SNR = {rho:.3g}{what}, under "
+                       f"{MIN_TRIALS_X_SNR:g})")
+        lower = ", or lower --noise" if noise > 0 else ""
+        need = MIN_TRIALS_X_SNR / theory if theory > 0 else math.inf
+        if need <= MAX_TRIALS:
+            need_k = math.ceil(need)
+            if need_k * theory < MIN_TRIALS_X_SNR:  # (rounding)
+                need_k += 1
+            advice = f"use --trials {need_k} or more, or raise --signal or --code-length{lower}"
+        else:
+            advice = (f"no --trials up to {MAX_TRIALS:.0e} resolves it: raise --signal, "
+                      f"--reflectivity or --code-length{lower}")
+    if float(c.min()) == float(c.max()):
+        reasons.append(f"all {k} periods counted {float(c[0]):.6g} photons, so their variance "
+                       f"is 0 and the SNR estimate is {'0/0' if c[0] == 0 else 'infinite'}")
+        advice = advice or "use more --trials"
+    elif not all(math.isfinite(x) for x in interval):
+        # (a bootstrap whose resamples mostly have no variance; with a variance in the counts
+        # at most 1/e of them miss every differing count, so this is a safeguard)
+        reasons.append("the estimate has no finite standard error or interval")
+        advice = advice or "use more --trials or --interval delta"
+    if not reasons:
+        return None
+    return (f"the simulation cannot resolve this SNR, so simulated/theory is left out: "
+            f"{'; and '.join(reasons)}: {advice}")
+
+
 def snr_simulated(
     code: str,
     code_length: int,
@@ -208,7 +277,9 @@ def snr_simulated(
     ones_ratio : float
         Share of '1' bits of a random code, in (0, 1) (checked but unused for mseq/gold).
     signal : float
-        ``m_s``: mean signal photons per laser pulse per DMD pixel (mirror on, reflectivity 1).
+        ``m_s``: mean signal photons per laser pulse per DMD pixel (mirror on, reflectivity 1),
+        positive (at 0 eq. (10) is 0 and there is nothing to compare; as ``run``, which
+        refuses ``--signal 0``).
     noise : float
         ``m_n``: mean noise counts per TDC bin per pixel.
     size : int
@@ -216,7 +287,8 @@ def snr_simulated(
     on_fraction : float
         Share ``F`` of mirrors on, in (0, 1]; ``M_2 = round(F N^2)``.
     reflectivity : float, optional
-        Reflectivity ``a`` of every pixel, in [0, 1] (default 1).
+        Reflectivity ``a`` of every pixel, in (0, 1] (default 1; 0 is no signal, as
+        ``signal=0``).
     trials : int, optional
         Independent code periods simulated (>= 2; default 200). The relative standard error of
         the SNR estimate is about ``sqrt(2 / trials)``.
@@ -252,7 +324,8 @@ def snr_simulated(
     -------
     dict
         ``theory`` (eq. 10 with the generated code's number of ones), ``simulated``,
-        ``stderr``, ``ci_low``, ``ci_high`` (95 %), ``ratio`` (simulated / theory); the counts'
+        ``stderr``, ``ci_low``, ``ci_high`` (95 %), ``ratio`` (simulated / theory; NaN, with
+        a RuntimeWarning, where the trials cannot resolve the SNR: see Notes); the counts'
         ``mean_counts`` and ``var_counts`` over the trials and their theoretical
         ``signal_mean`` (eq. 8), ``noise_mean`` and ``variance`` (eq. 9); and every parameter:
         ``code``, ``code_length``, ``code_index``, ``ones_ratio`` (the requested share for
@@ -263,8 +336,17 @@ def snr_simulated(
     Raises
     ------
     ConfigError
-        On invalid parameters (see :func:`~spslidar.snr.snr_theory`), ``trials < 2``, an
-        unknown method or interval, or photon numbers too large to draw.
+        On invalid parameters (see :func:`~spslidar.snr.snr_theory`), a signal or a
+        reflectivity of 0, ``trials < 2``, an unknown method or interval, or photon numbers
+        too large to draw.
+
+    Warns
+    -----
+    RuntimeWarning
+        Where the trials cannot resolve the SNR (``ratio`` is then NaN), saying why and what
+        to change: ``trials x theory`` below :data:`MIN_TRIALS_X_SNR` (4), every trial with the
+        same count (no sample variance: the estimate is 0/0 or infinite), or no finite
+        standard error or interval.
 
     Notes
     -----
@@ -284,6 +366,15 @@ def snr_simulated(
     The delta-method variance uses the sample central moments ``m3``, ``m4``:
     ``Var(mean) = v / K``, ``Var(v) = (m4 - v^2 (K - 3) / (K - 1)) / K``,
     ``Cov(mean, v) = m3 / K``.
+    The estimate has a floor: ``E[(mean(C) - E[C_n])^2] = (E[C_s])^2 + var(C) / K``, so with
+    no signal at all it averages ``1 / K`` (``chi^2_1 / K``). The trials resolve the SNR only
+    where ``K x SNR`` (the squared number of standard errors of ``mean(C)`` the signal mean
+    spans; with no noise, the signal photons expected over all trials) reaches
+    :data:`MIN_TRIALS_X_SNR` = 4: below it the floor exceeds a quarter of the SNR and the
+    estimate's relative spread ``2 / sqrt(K SNR)`` exceeds 100 %, and simulated / theory
+    measured the floor (2.3e16 at ``signal=1e-12``). There ``ratio`` is NaN and a
+    RuntimeWarning names the ``trials`` that would resolve it; ``simulated`` and its interval
+    are kept (they bound the SNR from above).
     The delta interval is asymptotic: its coverage of eq. (10) was measured at 94.4 % for 200
     trials and 89 % for 20 (4000 repetitions each, m-sequence of 1023 bits), so use ``trials``
     of 100 or more, or ``interval='bootstrap'``, when the interval matters.
@@ -291,9 +382,9 @@ def snr_simulated(
     import numpy as np
 
     kind = code_family(code)
-    m_s = as_nonneg(signal, "signal m_s")
+    m_s = _positive(signal, "--signal", math.inf)
     m_n = as_nonneg(noise, "noise m_n")
-    a = check_reflectivity(reflectivity)
+    a = _positive(reflectivity, "--reflectivity", 1.0)
     m2 = mirrors_on(on_fraction, size)
     n = check_size(size)
     k = check_trials(trials)
@@ -337,7 +428,10 @@ def snr_simulated(
         lo, hi = max(simulated - z * se, 0.0), simulated + z * se
     else:
         se, lo, hi = _bootstrap(c, noise_mean, n_boot, gen)
-    ratio = simulated / theory if theory > 0 else math.nan
+    why = _unresolved(c, theory, m_n, (simulated, se, lo, hi))
+    if why is not None:
+        warnings.warn(why, RuntimeWarning, stacklevel=2)
+    ratio = simulated / theory if why is None else math.nan
     return {
         "code": kind,
         "code_length": period,
