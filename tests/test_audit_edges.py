@@ -137,3 +137,18 @@ def test_a_failing_run_gives_its_python_warnings_back(monkeypatch):
 
     with pytest.warns(RuntimeWarning, match="half way"), pytest.raises(ValueError):
         broken()
+
+
+def test_a_result_folder_with_a_users_file_names_the_file(tmp_path, capsys):
+    """A previous result with a user's file added was refused as "the folder of a 'spslidar
+    result', not of a run", a contradiction (an audit): the refusal names the user's file,
+    which stays."""
+    out = tmp_path / "e"
+    assert main(["run", *TINY, "--out", str(out)]) == 0
+    (out / "user.txt").write_text("mine")
+    capsys.readouterr()
+    assert main(["run", *TINY, "--out", str(out), "--overwrite"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "files spslidar did not write: user.txt" in err[0]
+    assert "not of a run" not in err[0]
+    assert (out / "user.txt").read_text() == "mine"

@@ -13,6 +13,7 @@ import warnings
 from pathlib import Path
 
 from .cli_snr import add_snr_parser, cmd_snr  # noqa: F401  (re-exported: spslidar.cli.cmd_snr)
+from .errors import warning_origin
 
 EXIT_BAD_INPUT = 2
 #: what this command wrote so far (the interrupted line says it)
@@ -594,14 +595,7 @@ class _OneLineWarnings:
 
     @staticmethod
     def _origin(category, filename, lineno) -> str:
-        """Where a library's warning came from (`` (RuntimeWarning in fromnumeric.py:3860)``);
-        nothing for spslidar's own, which say what they are (an audit read "(RuntimeWarning
-        in calibration.py:378)" after a calibration's advice as a fault of the code)."""
-        try:
-            Path(filename).resolve().relative_to(_PACKAGE)
-            return ""
-        except (ValueError, OSError):
-            return f" ({category.__name__} in {Path(filename).name}:{lineno})"
+        return warning_origin(category, filename, lineno)
 
     def close(self) -> None:
         for key, n in self.repeats.items():
@@ -615,9 +609,6 @@ class _OneLineWarnings:
         self.repeats.clear()
         self.first.clear()
 
-
-#: the installed package's folder: warnings from files under it are spslidar's own
-_PACKAGE = Path(__file__).resolve().parent
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,4 +1,4 @@
-"""Exceptions raised for bad input.
+"""Exceptions raised for bad input, and how a warning's origin is said.
 
 Every user-facing error is a :class:`SpslidarError`; the command-line tool prints its message as
 one line on stderr and exits with status 2.
@@ -17,3 +17,18 @@ class ConfigError(SpslidarError):
 
 class SceneError(SpslidarError):
     """A scene that cannot be read or is physically invalid (NaN or negative depth...)."""
+
+
+def warning_origin(category: type, filename: str, lineno: int) -> str:
+    """Where a library's warning came from, as the user sees it after the warning's text
+    (`` (RuntimeWarning in fromnumeric.py:3860)``); ``""`` for spslidar's own, which say
+    what they are (an audit read "(RuntimeWarning in calibration.py:378)" after a
+    calibration's advice as a fault of the code)."""
+    from pathlib import Path
+
+    try:
+        Path(filename).resolve().relative_to(Path(__file__).resolve().parent)
+        return ""
+    except (ValueError, OSError):
+        return f" ({category.__name__} in {Path(filename).name}:{lineno})"
+

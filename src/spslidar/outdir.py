@@ -203,9 +203,17 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
             if not is_result(path):
                 marker = read_marker(path)
                 other = marker.get("kind") if isinstance(marker, dict) else None
+                # (a result's folder with a user's file added was said to be "the folder of
+                # a 'spslidar result', not of a run", an audit: the user's files are named)
+                extra = (sorted(_entries(path) - {MARKER} - set(marker.get("files") or []))
+                         if isinstance(marker, dict) else [])
                 why = ("it holds a metrics.json but no spslidar marker, so spslidar did not "
                        "write it (or wrote it before version 0.2.0)"
                        if (path / "metrics.json").exists() and marker is None else
+                       "it holds a spslidar result and files spslidar did not write: "
+                       + ", ".join(extra[:3]) + (f" and {len(extra) - 3} more"
+                                                  if len(extra) > 3 else "")
+                       if other == "result" and extra else
                        f"it is the folder of a 'spslidar {other}', not of a run"
                        if isinstance(other, str) and other else
                        "it holds files spslidar did not write")

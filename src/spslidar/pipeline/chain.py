@@ -25,7 +25,7 @@ from ..config import Config
 from ..depth import ESTIMATORS, DepthContext
 from ..detectors import build_detector
 from ..detectors.counting import NoiseModel
-from ..errors import ConfigError
+from ..errors import ConfigError, warning_origin
 from ..operators.parallel import one_blas_thread
 from ..patterns import build_patterns
 from ..qcr import MeanEliminated, plain_problem, qcr_problem
@@ -82,8 +82,9 @@ def keeping_warnings(fn):
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
             raise
         kept: dict[str, list] = {}
-        for w in caught:
-            text = " ".join(str(w.message).split())
+        for w in caught:  # (a library's with where it came from, as the command line says it)
+            text = (" ".join(str(w.message).split())
+                    + warning_origin(w.category, w.filename, w.lineno))
             key = re.sub(r"[-+]?\d[\d.,]*(e[-+]?\d+)?", "#", text)
             kept.setdefault(key, [text, 0])[1] += 1
         for text, n in kept.values():
