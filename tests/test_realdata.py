@@ -193,6 +193,59 @@ def test_readme_counts_of_the_files():
     assert int(((rec >> 31 == 0) & ((rec >> 25) & 0x3F == 0)).sum()) == 305_565
 
 
+def _with_record_count(tmp_path, count: int) -> tuple[Path, bytes]:
+    """The beads file, copied to ``tmp_path`` with its header's TTResult_NumberOfRecords set
+    to ``count`` (an int64 tag: its value follows the tag's 40 bytes); and its bytes."""
+    data = bytearray((REAL / "tttrlib_MT200_HH400_beads.ptu").read_bytes())
+    at = data.find(b"TTResult_NumberOfRecords")
+    assert at > 0 and struct.unpack_from("<q", data, at + 40)[0] == 104_776
+    struct.pack_into("<q", data, at + 40, count)
+    path = tmp_path / f"beads_{count}.ptu"
+    path.write_bytes(bytes(data))
+    return path, bytes(data)
+
+
+def test_records_past_the_headers_count_are_said(tmp_path):
+    """The header set to 1 000 records of the file's 104 776: the first 1 000 were read and
+    the rest left out without a word (an audit's reconstruct read '491 photons'). They are
+    still left out, as ptufile and PicoQuant's readers do, with a warning naming both
+    counts; what is read equals the independent decoder's first 1 000 records."""
+    path, data = _with_record_count(tmp_path, 1000)
+    _tags, offset, _ = _header(data)
+    with pytest.warns(RuntimeWarning) as said:
+        got = read_ptu_histograms(path, 1563, marker=3, check_sync_period=False)
+    lines = [str(w.message) for w in said]
+    assert len(lines) == 1 and "the header says 1000 records (TTResult_NumberOfRecords) but " \
+        "the file holds 104776 whole records after the header: only the first 1000 are " \
+        "read" in lines[0], lines
+    hist, starts, *_ = _reference(data[:offset + 4 * 1000], 1563, 3)
+    assert got.n_records == 1000
+    np.testing.assert_array_equal(got.histograms, hist)
+    np.testing.assert_array_equal(got.pattern_start_sync, starts)
+    assert ptu_info(path)["n_records_in_file"] == 104_776
+
+
+def test_a_header_count_of_zero_reads_every_record(tmp_path):
+    """An unfinished acquisition's header count, 0: every record is read, as ptufile reads
+    it, and said."""
+    path, data = _with_record_count(tmp_path, 0)
+    with pytest.warns(RuntimeWarning, match="is 0, as an acquisition that did not finish"):
+        got = read_ptu_histograms(path, 1563, marker=3, check_sync_period=False)
+    hist, *_ = _reference(data, 1563, 3)
+    assert got.n_records == 104_776
+    np.testing.assert_array_equal(got.histograms, hist)
+
+
+def test_a_sync_period_mismatch_names_the_code_that_fits():
+    """The beads file's 25 ns sync period is 1562.50 16-ps bins: a 1562-bit code misses it
+    by half a bin and more; the refusal says which code length fits."""
+    with pytest.raises(ConfigError, match=r"\+0\.502 bins, tolerance 0\.5") as info:
+        read_ptu_histograms(REAL / "tttrlib_MT200_HH400_beads.ptu", 1562, marker=3,
+                            bin_width=16e-12)
+    assert "the file's sync period is 1562.50 bins at 62.5 GHz: a 1563-bit code fits it" \
+        in str(info.value)
+
+
 def test_channel_selection_and_a_channel_without_photons():
     path = REAL / "tttrlib_MT200_HH400_beads.ptu"
     hist, *_ = _reference(path.read_bytes(), 1563, 3, channel=1)
@@ -212,7 +265,9 @@ def test_channel_selection_and_a_channel_without_photons():
 @pytest.mark.parametrize("name,match", [
     ("feda_H2O_300s.ptu", "the file has no markers at all"),
     ("libpicoquant_hh_v30_t2.ptu", "holds T2 records"),
-    ("libpicoquant_hh_v20.ht3", "not a readable PicoQuant PTU"),
+    # named (it was "not a readable PicoQuant PTU file (... magic=b'HydraHar')")
+    ("libpicoquant_hh_v20.ht3", "is a legacy HydraHarp .ht3 file .* which spslidar does not "
+                                "read: convert it to PTU"),
     ("README.md", "not a readable PicoQuant PTU"),
 ])
 def test_refusals_are_one_line(name, match):
@@ -223,7 +278,7 @@ def test_refusals_are_one_line(name, match):
 
 @pytest.mark.parametrize("name,match", [
     ("libpicoquant_hh_v30_t2.ptu", "holds T2 records"),
-    ("libpicoquant_hh_v20.ht3", "not a readable PicoQuant PTU"),
+    ("libpicoquant_hh_v20.ht3", "a legacy HydraHarp .ht3 file"),
     ("hazelnut_z1.ptu", "dtime resolution"),  # 96.97 ps bins are not --bit-rate 10e9's
 ])
 def test_reconstruct_refuses_them_in_one_line(tmp_path, capsys, name, match):

@@ -209,6 +209,41 @@ def _tag_of(message: str) -> str:
     return f" at tag {message[i + 6:].split(',')[0]}" if i >= 0 else ""
 
 
+#: PicoQuant's files before PTU, by the identifier they begin with (16 bytes, NUL-padded):
+#: (device, their extensions, whether PTU has a record type for their T3 records)
+_LEGACY = {b"PicoHarp 300": ("PicoHarp 300", (".pt3", ".pt2", ".phd"), True),
+           b"HydraHarp": ("HydraHarp", (".ht3", ".ht2", ".hhd"), True),
+           b"TimeHarp 200": ("TimeHarp 200", (".t3r", ".thd"), False)}
+#: PicoQuant's other tagged files: ptufile opens them, they hold no time tags
+_OTHER_PQ = {b"PQHISTO\0": "a PicoQuant histogram file (.phu), not time-tagged records"}
+
+
+def _legacy_format(path: PathLike) -> str | None:
+    """What a file that is not PTU is, in words with what to do, where its first bytes are
+    one of PicoQuant's other formats (:data:`_LEGACY`, :data:`_OTHER_PQ`); else None."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(16)
+    except OSError:
+        return None
+    if head[:8] in _OTHER_PQ:
+        return (f"{_OTHER_PQ[head[:8]]}: spslidar reads T3 PTU files (.ptu); record the "
+                f"lidar in T3 (TTTR) mode")
+    ident = head.split(b"\0")[0].rstrip()
+    if ident not in _LEGACY:
+        return None
+    device, exts, in_ptu = _LEGACY[ident]
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    kind = ext if ext in exts else "/".join(exts)
+    what = (f"a legacy {device} {kind} file (PicoQuant's format before PTU), which spslidar "
+            f"does not read")
+    if in_ptu:
+        return (f"{what}: convert it to PTU (a T3 file's records are the same in PTU, under a "
+                f"PTU header) or record in PTU (.ptu)")
+    return (f"{what}: PTU has no {device} record type, so it cannot be converted; record in "
+            f"PTU (.ptu) with a PTU-capable instrument")
+
+
 def _open_ptu(path: PathLike):
     """Open ``path`` with ``ptufile.PtuFile``, mapping failures to one-line ConfigErrors."""
     ptufile = _import_ptufile()
@@ -221,6 +256,9 @@ def _open_ptu(path: PathLike):
         with _ptufile_log() as logged:
             f = ptufile.PtuFile(path)
     except ptufile.PqFileError as exc:
+        legacy = _legacy_format(path)
+        if legacy:
+            raise ConfigError(f"{os.fspath(path)!r} is {legacy}") from exc
         msg = (str(exc).splitlines() or [type(exc).__name__])[0][:120]
         what = ("has a truncated or corrupt PTU tag header" if "corrupted" in msg
                 else "is not a readable PicoQuant PTU file")
@@ -346,6 +384,25 @@ def _check_resolution(res: float, bin_width: float | None, rtol: float, allow_bi
                       f"{bin_width:.6g} s (rtol {rtol:g}){hint}")
 
 
+def _fitting_codes(bins: float, width: float, tol: float) -> str:
+    """What code lengths the file's sync period of ``bins`` bins (of ``width`` seconds) fits
+    within ``tol`` bins, in words: the half of the sync period mismatch's message that says
+    what to do."""
+    import math
+
+    head = f"the file's sync period is {bins:.2f} bins at {1e-9 / width:.6g} GHz"
+    lo, hi = max(1, math.ceil(bins - tol)), math.floor(bins + tol)
+    if hi - lo >= 3:  # (a tolerance of several bins)
+        return f"{head}: codes of {lo} to {hi} bits fit it (or check the bit rate)"
+    if hi >= lo:
+        fit = [f"{n}-" for n in range(lo, hi + 1)]
+        said = fit[0] if len(fit) == 1 else f"{', '.join(fit[:-1])} or {fit[-1]}"
+        return f"{head}: a {said}bit code fits it (or check the bit rate)"
+    near = max(1, round(bins))
+    return (f"{head}: no whole number of bits fits it within {tol:g} bins (the nearest, {near}, "
+            f"is {bins - near:+.3g} bins off); check the bit rate")
+
+
 def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
     """(layout family, number of records) of a T3 file; raise for T2, unknown or truncated."""
     code = header["record_type_code"]
@@ -364,16 +421,31 @@ def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
         raise ConfigError(f"{path!r}: {bits} bits per record, expected 32")
     n_records = header["n_records"]
     available = os.path.getsize(path) - f.record_offset
+    whole, stray = divmod(available, 4)
     if n_records < 0:  # a corrupt header: no reader can say which records are meant
         raise ConfigError(f"{path!r}: header announces {n_records} records (corrupt file)")
-    if n_records == 0:  # no record count in the header: use the whole file, as ptufile does
-        if available % 4:
-            raise ConfigError(f"{path!r}: record stream of {available} bytes is not a whole "
-                              "number of 32-bit records (truncated or corrupt file)")
-        n_records = available // 4
+    if n_records == 0:  # no record count in the header: the whole file, as ptufile reads it
+        n_records = whole
+        if whole:
+            left = (f"; the last {stray} byte{'s' if stray != 1 else ''}, part of a record, "
+                    f"are left out" if stray else "")
+            warnings.warn(f"{path!r}: the header's record count (TTResult_NumberOfRecords) is "
+                          f"0, as an acquisition that did not finish (or software that does not "
+                          f"fill it in) leaves it: all {whole} whole records in the file are "
+                          f"read, as ptufile does{left}; check that the acquisition is complete",
+                          RuntimeWarning, stacklevel=3)
     elif available < 4 * n_records:
         raise ConfigError(f"{path!r} is truncated: header announces {n_records} records "
                           f"({4 * n_records} bytes) but only {available} bytes follow the header")
+    elif available > 4 * n_records:
+        more = (f"{whole} whole records" if whole > n_records
+                else f"{n_records} records and {stray} stray byte{'s' if stray != 1 else ''}")
+        warnings.warn(f"{path!r}: the header says {n_records} records "
+                      f"(TTResult_NumberOfRecords) but the file holds {more} after the header: "
+                      f"only the first {n_records} are read, as ptufile and PicoQuant's readers "
+                      f"do; if the rest is part of the acquisition, the header's count is wrong "
+                      f"(correct TTResult_NumberOfRecords to {whole})",
+                      RuntimeWarning, stacklevel=3)
     return _T3_BY_CODE[code][1], n_records
 
 
@@ -505,6 +577,13 @@ def read_ptu_histograms(
     must equal ``n_bins * bin_width`` within ``period_tol_bins`` bins (half a bin: a larger
     mismatch would add or miss a bin at the end of every code period).
 
+    **Record count.** The header's ``TTResult_NumberOfRecords`` records are read, as
+    ``ptufile`` and PicoQuant's own readers read them; whole records after them are left out
+    with a warning that names both counts (``ptu_info`` gives ``n_records_in_file``). A count
+    of 0 (an acquisition that did not finish, or software that does not fill it in) reads
+    every whole record in the file, as ``ptufile`` does, also with a warning; a count beyond
+    the file's end is refused.
+
     **Channels** are numbered from 0: the channel field of HydraHarp, TimeHarp 260 and
     MultiHarp / generic T3 records as it is, and a PicoHarp's detector inputs 1-4 (its
     records' channel field) as 0-3. This is ``ptufile``'s numbering.
@@ -537,10 +616,16 @@ def read_ptu_histograms(
     -------
     PtuAcquisition
 
+    Warns
+    -----
+    RuntimeWarning
+        The header's record count is 0, or smaller than the records the file holds.
+
     Raises
     ------
     ConfigError
-        Not a PTU file; a T2 file; unsupported record type; truncated record stream;
+        Not a PTU file (PicoQuant's legacy ``.pt3``, ``.ht3``, ``.t3r`` files named as
+        such); a T2 file; unsupported record type; truncated record stream;
         resolution or sync period disagreeing with ``bin_width`` / ``n_bins``; no markers on
         input ``marker``; fewer blocks than ``n_patterns``; no photons on ``channel``;
         histograms too large for the memory available; bad arguments.
@@ -572,7 +657,8 @@ def read_ptu_histograms(
             raise ConfigError(
                 f"{spath!r}: sync period {period:.6g} s != code period n_bins * bin_width = "
                 f"{n_bins} * {width:.6g} s = {n_bins * width:.6g} s "
-                f"({(period - n_bins * width) / width:+.3g} bins, tolerance {period_tol_bins:g})")
+                f"({(period - n_bins * width) / width:+.3g} bins, tolerance {period_tol_bins:g})"
+                f"; {_fitting_codes(period / width, width, period_tol_bins)}")
 
         # a chunk past the file's end is the file (10**12 was charged as 64000 GB of buffers)
         chunk_records = min(chunk_records, max(1, n_records))

@@ -111,6 +111,42 @@ def code_response(hist: np.ndarray, code: np.ndarray) -> np.ndarray:
                         * np.conj(spec_c) / (power + eps), c.size, axis=-1)
 
 
+#: the farthest calibration target taken, metres (1000 km: no lidar's, yet a number)
+MAX_DISTANCE_M = 1e6
+
+
+def _real_scalar(value: Any, what: str, unit: str) -> float:
+    """``value`` as a float where it is one real number (not text, a bool, an array or a
+    complex number), or one line naming ``what`` and its ``unit``."""
+    if (isinstance(value, (bool, np.bool_, str, bytes)) or np.ndim(value) != 0
+            or np.iscomplexobj(value)):
+        raise ConfigError(f"{what} must be a number of {unit}, got {value!r}")
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{what} must be a number of {unit}, got {value!r}") from None
+
+
+def _check_distance(distance: Any) -> float:
+    """The calibration target's distance as a float of metres in ``[0, MAX_DISTANCE_M]``, or
+    one line (:class:`ConfigError`) that says the range taken."""
+    d = _real_scalar(distance, "--distance", "metres")
+    if not (np.isfinite(d) and 0.0 <= d <= MAX_DISTANCE_M):
+        raise ConfigError(f"--distance must be a distance in metres in [0, "
+                          f"{MAX_DISTANCE_M:g}], got {d:g}")
+    return d
+
+
+def _check_pulse_width(pulse_width: Any) -> float:
+    """The laser pulse's width as a float of bins in ``(0, 1]`` (``run``'s
+    ``--pulse-width``), or one line (:class:`ConfigError`)."""
+    w = _real_scalar(pulse_width, "pulse_width", "bins")
+    if not (np.isfinite(w) and 0.0 < w <= 1.0):
+        raise ConfigError(f"pulse_width must be the laser pulse's width in bins, in (0, 1] "
+                          f"(as run's --pulse-width), got {w:g}")
+    return w
+
+
 def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, distance: float,
                      pulse_width: float = 0.5, response: np.ndarray | None = None
                      ) -> dict[str, Any]:
@@ -158,10 +194,10 @@ def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, dista
         raise ConfigError(f"the histogram has {h.size} bins, the code {period}")
     if h.sum() <= 0:
         raise ConfigError("the calibration acquisition holds no photons")
-    if not (np.isfinite(distance) and 0.0 <= float(distance) <= 1e6):
-        raise ConfigError(f"--distance must be a distance in metres, got {distance!r}")
+    distance = _check_distance(distance)
+    pulse_width = _check_pulse_width(pulse_width)
     # a return is known modulo the code period: so are the target's delay and the system delay
-    tau_d = (2.0 * float(distance) / (SPEED_OF_LIGHT * bin_width)) % period
+    tau_d = (2.0 * distance / (SPEED_OF_LIGHT * bin_width)) % period
     g = code_response(h, c) if response is None else np.asarray(response, np.float64).copy()
     g -= np.median(g)  # the background is a constant
     p0 = int(np.argmax(g))
@@ -364,7 +400,13 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     ``range``, one range (the patterns' sum is read as it is); ``plane``, a flat wall at
     ``distance`` on the optical axis, whose range spread over the field of view ``fov_deg``
     (fitted where not given) and tilt is removed; ``auto`` (the default), the plane where the
-    blocks' delays ask for one, else one range. The JSON's ``target`` says which and why."""
+    blocks' delays ask for one, else one range. The JSON's ``target`` says which and why.
+
+    Every argument is checked before the file is read: a ``distance`` that is not a number
+    of metres in ``[0, 1e6]``, a ``pulse_width`` outside ``(0, 1]`` bins, an
+    ``allow_binning`` that is not a bool, an unknown ``target`` or a ``fov_deg`` outside
+    ``(0, 180)`` degrees (or with ``target='range'``) raise a one-line
+    :class:`~spslidar.errors.ConfigError`."""
     from ..io import read_ptu_histograms
     from ..version import __version__
     from .real import (
@@ -381,7 +423,19 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     code = check_code(code, None, "code")
     check_real_inputs(bit_rate, (0.0, 1.0), int(patterns.shape[1]), int(patterns.shape[0]),
                       int(code.size))
+    # every argument before the file is read, each in one line (a distance given as text
+    # and a NaN pulse width were tracebacks, found by an audit)
+    distance = _check_distance(distance)
+    pulse_width = _check_pulse_width(pulse_width)
+    if not isinstance(allow_binning, (bool, np.bool_)):
+        raise ConfigError(f"allow_binning must be True or False, got {allow_binning!r}")
+    fov = _check_target(target, fov_deg)
     bin_width = 1.0 / float(bit_rate)
+    if fov is not None:  # a wall wider than the code's period: refused before the read too
+        from .target import wall_offsets
+
+        side = int(round(np.sqrt(patterns.shape[1])))
+        wall_offsets((side, side), distance, fov, bin_width, int(code.size))
     data = read_ptu_histograms(ptu, int(code.size), bin_width=bin_width, marker=marker,
                                channel=channel, n_patterns=int(patterns.shape[0]),
                                allow_binning=allow_binning)
@@ -414,25 +468,34 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                               "patterns": int(patterns.shape[0])}}
 
 
+def _check_target(target: Any, fov_deg: Any) -> float | None:
+    """``target`` (one of :data:`~spslidar.pipeline.target.TARGETS`) and ``fov_deg`` (None or
+    degrees in (0, 180), not with ``range``) checked, in one line; the field of view as a
+    float."""
+    from ..products import check_fov
+    from .target import TARGETS
+
+    if not isinstance(target, str) or target not in TARGETS:
+        raise ConfigError(f"--target must be one of {', '.join(TARGETS)}, got {target!r}")
+    if fov_deg is not None:
+        fov_deg = check_fov(fov_deg)
+        if target == "range":
+            raise ConfigError("--fov gives a flat wall's field of view: it does not go with "
+                              "--target range")
+    return fov_deg
+
+
 def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
                      bin_width: float, distance: float, target: str, fov_deg: float | None
                      ) -> tuple[dict[str, Any], np.ndarray | None]:
     """What the calibration target's pixels see (:mod:`~spslidar.pipeline.target`): its
     geometry for the JSON, and the response of one range where it is a plane (else None:
     the patterns' sum is read)."""
-    from ..products import check_fov
-    from .target import TARGETS, measure_geometry, range_free_response
+    from .target import measure_geometry, range_free_response
 
-    if target not in TARGETS:
-        raise ConfigError(f"--target must be one of {', '.join(TARGETS)}, got {target!r}")
-    if fov_deg is not None:
-        fov_deg = check_fov(fov_deg)
-    if not (np.isfinite(distance) and 0.0 <= float(distance) <= 1e6):
-        raise ConfigError(f"--distance must be a distance in metres, got {distance!r}")
+    fov_deg = _check_target(target, fov_deg)
+    distance = _check_distance(distance)
     if target == "range":
-        if fov_deg is not None:
-            raise ConfigError("--fov gives a flat wall's field of view: it does not go with "
-                              "--target range")
         return {"model": "range", "reason": "--target range"}, None
     n = int(round(np.sqrt(patterns.shape[1])))
     geo = measure_geometry(hists, patterns, code, bin_width, distance, (n, n), fov_deg, target)

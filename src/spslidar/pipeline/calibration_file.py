@@ -6,6 +6,7 @@ calibration measures is :mod:`spslidar.pipeline.calibration`."""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -26,7 +27,10 @@ CAL_KIND = "spslidar-calibration"
 
 def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Path:
     """Refuse (one line) to write ``CAL.json`` over anything but a calibration spslidar
-    wrote, and that only with ``overwrite``: checked before the work and again at the end."""
+    wrote, and that only with ``overwrite``, or where it cannot be written (a file in its
+    folder's place, the nearest existing folder not writable): checked before the work and
+    again at the end. Missing folders are not made here (:func:`write_calibration` makes
+    them)."""
     from ..errors import SpslidarError
 
     if out is None or not str(out).strip():
@@ -51,24 +55,38 @@ def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Pa
                                 f"name)")
     if path.parent.exists() and not path.parent.is_dir():
         raise SpslidarError(f"--out {out}: {path.parent} is a file, not a folder")
-    if not path.parent.is_dir():
-        raise SpslidarError(f"--out {out}: the folder {path.parent} does not exist")
     from ..outdir import _check_writable
 
-    # (a read-only folder failed after the work, naming a temporary file)
-    _check_writable(path.parent, f"--out {out}", make_parents=False)
+    # (a read-only folder failed after the work, naming a temporary file); missing folders
+    # are made when the file is written, as reconstruct --out makes its own: here, the
+    # nearest one that exists must be a folder one can write in (nothing is made yet, so a
+    # refusal or a failed calibration leaves no empty folders behind)
+    _check_writable(path.parent, f"--out {out}", make_parents=True)
     return path
 
 
 def write_calibration(cal: dict[str, Any], out: str | os.PathLike, overwrite: bool = False):
     """Write ``CAL.json``: a new file, or (with ``overwrite``) a calibration spslidar wrote;
-    never a user's other file (all or nothing, under a temporary name)."""
+    never a user's other file (all or nothing, under a temporary name). Missing folders of
+    its path are made."""
+    from ..errors import SpslidarError
     from ..outdir import atomic_write_text
 
     path = check_calibration_out(out, overwrite)
+    made = [p for p in (path.parent, *path.parent.parents) if not p.exists()]
     body = {k: v for k, v in cal.items() if k != "content_sha256"}
-    atomic_write_text(path, json.dumps({**body, "content_sha256": content_sha256(body)},
-                                       indent=1) + "\n")
+    try:  # the missing folders only (exist_ok: an existing one is left as it is)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(path, json.dumps({**body, "content_sha256": content_sha256(body)},
+                                           indent=1) + "\n")
+    except BaseException as exc:  # (Ctrl-C too) the folders made for it go with it
+        for folder in made:  # deepest first; one something else was put in stays
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        if isinstance(exc, OSError):
+            raise SpslidarError(f"--out {out}: cannot write {path} "
+                                f"({exc.strerror or type(exc).__name__})") from None
+        raise
     return path
 
 

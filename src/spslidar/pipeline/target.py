@@ -63,7 +63,7 @@ from ..errors import ConfigError
 
 __all__ = ["MAX_SPREAD_BINS", "MIN_SPREAD_BINS", "PLANE_REG", "SCAN_PATTERNS", "TARGETS",
            "Z_HINT", "Z_PLANE", "measure_geometry", "plane_offsets", "plane_ranges",
-           "range_free_response"]
+           "range_free_response", "wall_offsets"]
 
 #: what ``--target`` takes: ``auto`` keeps the plane where the data ask for one
 TARGETS = ("auto", "plane", "range")
@@ -112,6 +112,25 @@ def plane_offsets(shape: tuple[int, int], distance: float, fov_deg: float, bin_w
     """Each pixel's round trip beyond the axis's, in bins (``s_p``), flattened row-major."""
     r = plane_ranges(shape, distance, fov_deg, slopes)
     return (2.0 * (r - float(distance)) / (SPEED_OF_LIGHT * bin_width)).ravel()
+
+
+def wall_offsets(shape: tuple[int, int], distance: float, fov_deg: float, bin_width: float,
+                 period: int) -> tuple[np.ndarray, float]:
+    """A facing wall's :func:`plane_offsets` through the field of view ``fov_deg`` and their
+    spread (bins), refused in one line (:class:`ConfigError`) where the spread is more than
+    the code's ``period`` bins: its pixels' returns would wrap around the period onto each
+    other (``--fov 179.9`` put a wall's corners 2e6 bins behind its centre in a 255-bin
+    period, and the calibration was written without a word: an audit's)."""
+    offsets = plane_offsets(shape, distance, fov_deg, bin_width)
+    spread = float(offsets.max() - offsets.min())
+    if spread > period:
+        raise ConfigError(
+            f"--fov {fov_deg:g} puts a flat wall at {float(distance):g} m over "
+            f"{spread:.4g} bins of round trip across its {shape[0]}x{shape[1]} pixels, "
+            f"more than the code's period of {period} bins (its returns would wrap onto "
+            f"each other); check --fov (your optics' full field of view across the image, "
+            f"degrees), or calibrate on a target at one range (--target range)")
+    return offsets, spread
 
 
 def _code_removed(hists: np.ndarray, code: np.ndarray) -> np.ndarray:
@@ -196,6 +215,12 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
         pixels' span of round trips), ``z`` (the plane's residual below one range's, in
         deviations; None where not scanned), ``reason`` (one line), and ``offsets``
         (per-pixel ``s_p``, bins, or None; not for the JSON).
+
+    Raises
+    ------
+    ConfigError
+        A ``fov_deg`` whose wall spreads the pixels over more than the code's period
+        (:func:`wall_offsets`).
     """
     tau_d = 2.0 * float(distance) / (SPEED_OF_LIGHT * bin_width)
     n = int(shape[0])
@@ -203,8 +228,7 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
         return {"model": "range", "fov_deg": None, "spread_bins": 0.0, "z": None,
                 "offsets": None, "reason": "one range: a target at distance 0"}
     if fov_deg is not None:
-        offsets = plane_offsets(shape, distance, fov_deg, bin_width)
-        spread = float(offsets.max() - offsets.min())
+        offsets, spread = wall_offsets(shape, distance, fov_deg, bin_width, np.asarray(code).size)
         return {"model": "plane", "fov_deg": float(fov_deg), "spread_bins": round(spread, 4),
                 "z": None, "offsets": offsets,
                 "reason": f"a wall facing the lidar through the {fov_deg:g} degree field of "
