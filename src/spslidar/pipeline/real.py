@@ -485,6 +485,16 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         meas.warnings.append(gate_alias_warning(
             cfg.range_gate, lags.size, period, acq.unambiguous_range,
             f"{period}-bit code at {bit_rate:g} bits/s"))
+    elif cfg.range_gate[0] >= acq.unambiguous_range:
+        # (a gate at 100-101 m read depths there from a 3.75 m code without a word, an audit:
+        # right only where the instrument knows the target is in the gate)
+        ru = acq.unambiguous_range
+        lo, hi = cfg.range_gate
+        meas.warnings.append(
+            f"the range gate {lo:g}-{hi:g} m lies beyond the {period}-bit code's {ru:.4g} m "
+            f"unambiguous range: a return is known only modulo {ru:.4g} m (this gate reads "
+            f"what lies at {lo % ru:.4g}-{lo % ru + hi - lo:.4g} m, {ru:.4g} m farther, ...), "
+            f"so its depths are right only if the target is known to be in the gate")
     result = reconstruct(meas)
     # only what applied: the simulation's keys (scene "camera", signal 5, noise 10, gaussian
     # patterns...) were written as if they had been measured
