@@ -177,3 +177,18 @@ def test_a_gate_beyond_the_unambiguous_range_is_said(tmp_path):
         1.3 + 3.822, abs=0.02)
     near = json.loads((tmp_path / "near" / "metrics.json").read_text())
     assert not any("unambiguous" in w for w in near["warnings"])
+
+
+def test_reconstruct_prices_its_depth_stage_before_the_file():
+    """Without the automatic gate ``reconstruct`` priced only its solve before reading the
+    file: a 128x128 acquisition priced at 16 s took 35 s, 23 s of it the MRF (an audit).
+    A solve of one iteration over 1 000 slices fits a second; its MRF over them does not."""
+    from spslidar.config import Config
+    from spslidar.errors import SpslidarError
+    from spslidar.pipeline.real import _check_solve_time
+
+    cfg = Config(iterations=1, max_time=1.0, auto_gate=False, depth="mrf")
+    with pytest.raises(SpslidarError, match="would take"):
+        _check_solve_time(cfg, 50, 128 * 128, 1000, 1563)
+    _check_solve_time(Config(iterations=1, max_time=1.0, auto_gate=False, depth="argmax"),
+                      50, 128 * 128, 100, 1563)  # 0.2 s of argmax and verdict: taken

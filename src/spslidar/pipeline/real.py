@@ -287,19 +287,20 @@ def _check_solve_time(cfg: Config, n_patterns: int, n_pixels: int, n_lags: int,
                       period: int) -> None:
     """Refuse (one line, before the file is read) a reconstruction that solves every gated
     slice (no automatic gate: with one, the chain prices the slices it keeps once they are
-    known, :func:`~.chain._price_measured`) whose solve would outlast ``max_time``
-    (``--max-time``), priced as ``run``'s solve is
-    (:func:`~.budget.solve_seconds`: two dense ``(M, Q) x (Q, K)`` products an iteration at
-    the dtype's multiply-add rate). It is low for small problems, where fixed costs per
-    iteration dominate (an 8 x 8 acquisition of 32 patterns and 127 lags solves 2000
-    iterations in 0.40 s), and 1.2-1.6 times the time of 64x64 and 128x128 solves."""
-    from .budget import check_time, config_solve_seconds
+    known, :func:`~.chain._price_measured`) whose solve and depth stage would outlast
+    ``max_time`` (``--max-time``), priced as ``run``'s are (:func:`~.budget.solve_seconds`:
+    two dense ``(M, Q) x (Q, K)`` products an iteration at the dtype's multiply-add rate and
+    a fixed cost each, 1.2-1.6 times the time of 64x64 and 128x128 solves;
+    :func:`~.budget.depth_seconds`, which this price left out: a 128x128 acquisition priced
+    at 16 s took 35 s, 23 s of it the MRF, an audit)."""
+    from .budget import check_time, config_solve_seconds, depth_seconds
     from .gate import AUTO_GATE_MIN_SLICES
 
     k = min(n_lags, period)
     if cfg.auto_gate if cfg.auto_gate is not None else k > AUTO_GATE_MIN_SLICES:
         return  # the gate keeps the slices with returns: priced once they are known
-    seconds = config_solve_seconds(cfg, n_patterns, n_pixels, k, True)
+    seconds = (config_solve_seconds(cfg, n_patterns, n_pixels, k, True)
+               + depth_seconds(cfg.depth, n_pixels, n_lags))
     check_time(seconds, cfg.max_time, "this reconstruction", announce=False,
                reduce="--iterations or the range gate")
 
