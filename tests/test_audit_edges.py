@@ -192,3 +192,25 @@ def test_reconstruct_prices_its_depth_stage_before_the_file():
         _check_solve_time(cfg, 50, 128 * 128, 1000, 1563)
     _check_solve_time(Config(iterations=1, max_time=1.0, auto_gate=False, depth="argmax"),
                       50, 128 * 128, 100, 1563)  # 0.2 s of argmax and verdict: taken
+
+
+def test_a_map_of_noise_is_not_summed_up_as_returns(tmp_path, capsys):
+    """The summary said "returns in 100% of pixels" right after the warning that the map is
+    mostly noise (an audit): where the verdict says noise it reads "a depth in ... mostly
+    noise"; where it does not, "returns in"."""
+    np.save(tmp_path / "wall.npy", np.full((16, 16), 1.3))
+    assert main(["run", "--scene", str(tmp_path / "wall.npy"), "--size", "16", "--no-figure",
+                 "--code-length", "255", "--range-gate", "0.8", "1.8", "--signal", "4", "--noise",
+                 "0.02", "--save-ptu",
+                 str(tmp_path / "a.ptu"), "--out", str(tmp_path / "r")]) == 0
+    files = ["reconstruct", "--ptu", str(tmp_path / "a.ptu"), "--patterns",
+             str(tmp_path / "a_patterns.npy"), "--code", str(tmp_path / "a_code.npy"),
+             "--bit-rate", "10e9", "--no-figure"]
+    capsys.readouterr()
+    assert main([*files, "--range-gate", "2.2", "3.2", "--out", str(tmp_path / "a")]) == 0
+    out = capsys.readouterr().out
+    assert "a depth in" in out and "mostly noise (see the warning)" in out
+    assert "returns in" not in out
+    assert main([*files, "--range-gate", "0.8", "1.8", "--out", str(tmp_path / "b")]) == 0
+    out = capsys.readouterr().out
+    assert "returns in 100% of pixels" in out and "mostly noise" not in out

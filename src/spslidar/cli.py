@@ -407,10 +407,11 @@ def _cmd_reconstruct(args) -> int:
     import numpy as np
 
     from .metrics import percent as _percent
+    from .metrics import returns_phrase
 
     # returns among all pixels (coverage is the share with a truth and a return)
     print(f"{m['n_patterns']} patterns, {int(sum(m['ptu']['counts_per_pattern']))} photons; "
-          f"returns in {_percent(float(np.isfinite(result.depth).mean()))} of pixels, mean "
+          f"{returns_phrase(m, float(np.isfinite(result.depth).mean()))}, mean "
           f"reflectivity {m.get('mean_reflectivity') or 0.0:.3g} photons per pulse; "
           + (f"depth RMSE {rmse:.4f} m over the {_percent(m['coverage'])} of pixels with a "
              f"truth and a return" if rmse is not None else "no ground truth (--truth)"))

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .metrics import mostly_noise
 from .metrics import percent as _percent
 
 #: matplotlib's ``viridis`` and ``RdBu_r`` at 17 evenly spaced points (interpolated linearly)
@@ -189,8 +190,7 @@ def _title(result) -> str:
             what += f", instrument: {', '.join(inst)}"
     # the no-return rule is relative: "returns in 100 % of pixels" of an image of noise
     noise = ""
-    if (m.get("peak_to_noise_p90") is not None and m.get("peak_to_noise_floor") is not None
-            and m["peak_to_noise_p90"] < m["peak_to_noise_floor"]):
+    if mostly_noise(m):
         noise = "; MOSTLY NOISE: at most a tenth of the pixels hold a return (see the warnings)"
     if m.get("depth_rmse_m") is None:
         return (f"{what}: no ground truth; returns in {_percent(m['coverage'])} of "

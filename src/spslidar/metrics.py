@@ -130,6 +130,22 @@ def edge_agreement(est_edges: np.ndarray, true_edges: np.ndarray,
     return float(np.corrcoef(a, b)[0, 1])
 
 
+def mostly_noise(metrics: dict) -> bool:
+    """Whether a run's noise verdict (``peak_to_noise_p90`` under ``peak_to_noise_floor`` in
+    its metrics) says that at most a tenth of its pixels hold a return."""
+    p90, floor = metrics.get("peak_to_noise_p90"), metrics.get("peak_to_noise_floor")
+    return p90 is not None and floor is not None and p90 < floor
+
+
+def returns_phrase(metrics: dict, share: float) -> str:
+    """``returns in 97% of pixels``, or, where the map is mostly noise (:func:`mostly_noise`),
+    ``a depth in 97% of pixels, mostly noise`` (the summary said "returns in 100% of pixels"
+    right after the warning that the map is noise, an audit)."""
+    if mostly_noise(metrics):
+        return f"a depth in {percent(share)} of pixels, mostly noise (see the warning)"
+    return f"returns in {percent(share)} of pixels"
+
+
 def percent(share: float) -> str:
     """A share as a percentage that never rounds up to 100 % (or down to 0 %) while a pixel
     is missing (or present): 4095 of 4096 is '99.98%', not '100%'."""

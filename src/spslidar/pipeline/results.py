@@ -14,6 +14,7 @@ import numpy as np
 
 from ..config import Config
 from ..metrics import percent as _percent
+from ..metrics import returns_phrase
 from ..outdir import write_result_dir
 
 
@@ -68,7 +69,7 @@ class Result:
         t = self.timing
         rmse = m.get("depth_rmse_m")
         if not m.get("has_truth", True):
-            score = (f"no ground truth: returns in {_percent(m['coverage'])} of pixels, "
+            score = (f"no ground truth: {returns_phrase(m, m['coverage'])}, "
                      f"mean reflectivity {m.get('mean_reflectivity') or 0.0:.3g}, ")
         elif rmse is None or not math.isfinite(rmse):  # (was "depth RMSE nan m (nan bins)")
             score = (f"no depth to score: none of the {m['n_valid']} pixels with a truth "
