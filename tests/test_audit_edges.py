@@ -214,3 +214,20 @@ def test_a_map_of_noise_is_not_summed_up_as_returns(tmp_path, capsys):
     assert main([*files, "--range-gate", "0.8", "1.8", "--out", str(tmp_path / "b")]) == 0
     out = capsys.readouterr().out
     assert "returns in 100% of pixels" in out and "mostly noise" not in out
+
+
+def test_reconstruct_refuses_a_truth_without_depths_and_a_text_bit_rate(tmp_path):
+    """An all-NaN --truth was refused after the file was read as "scene '<the PTU>': no pixel
+    has a valid ground-truth depth"; a bit rate given as text was taken in Python where a
+    text distance is refused (audits). Both are one line before the file is read (the file
+    here does not exist, so reading it would be refused otherwise)."""
+    from spslidar.errors import ConfigError
+    from spslidar.pipeline.real import reconstruct_ptu
+
+    pat = (np.random.default_rng(0).random((8, 4, 4)) < 0.5).astype(np.float32)
+    code = (np.random.default_rng(1).random(63) < 0.5).astype(np.uint8)
+    with pytest.raises(ConfigError, match=r"--truth holds no depth \(every pixel is NaN\)"):
+        reconstruct_ptu(tmp_path / "none.ptu", pat.reshape(8, -1), code, 10e9, (1, 2),
+                        truth=np.full((4, 4), np.nan))
+    with pytest.raises(ConfigError, match="--bit-rate must be a number"):
+        reconstruct_ptu(tmp_path / "none.ptu", pat.reshape(8, -1), code, "10e9", (1, 2))

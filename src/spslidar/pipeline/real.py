@@ -151,6 +151,9 @@ def _check_truth(truth: Any, n: int) -> np.ndarray:
     if arr.shape != (n, n):
         raise ConfigError(f"--truth must be an ({n}, {n}) depth map, got {arr.shape}")
     known = ~np.isnan(arr)
+    if not known.any():  # (refused after the file was read, naming the PTU as a "scene")
+        raise ConfigError("--truth holds no depth (every pixel is NaN): give the depths in "
+                          "metres where they are known, or leave --truth out")
     bad = int(np.count_nonzero(known & (np.isinf(arr) | (arr < 0))))
     if bad:
         raise ConfigError(f"--truth has {bad} infinite or negative depths (depths are finite "
@@ -262,6 +265,8 @@ def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: in
 
     from ..machine import _gb, available_memory
 
+    if isinstance(bit_rate, (str, bytes, bool, np.bool_)):  # (float('10e9') was taken)
+        raise ConfigError(f"--bit-rate must be a number of bits per second, got {bit_rate!r}")
     try:
         rate = float(bit_rate)
     except (TypeError, ValueError):
