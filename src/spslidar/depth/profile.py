@@ -19,7 +19,7 @@ from .base import DepthContext
 __all__ = ["NOISE_BESIDE_MIN", "NOISE_ONLY_MARGIN", "NOISE_ONLY_MIN_SLICES",
            "NOISE_VERDICT_PIXELS", "effective_slices", "grid_shape", "index_to_depth",
            "no_return", "noise_maxima", "noise_only_ratio", "noise_scale", "noise_verdict",
-           "peak_to_noise", "pulse_filter", "refine_subbin", "shift2d", "slices_beside_return"]
+           "peak_to_noise", "pulse_filter", "refine_subbin", "shift2d", "verdict_room"]
 
 #: An image is said to be noise where the 90th percentile of :func:`peak_to_noise` is below
 #: this many times what non-negative white noise gives at as many effective slices
@@ -354,7 +354,7 @@ def noise_verdict(slices: np.ndarray, cap: float = 1000.0,
         ``null``, :func:`noise_only_ratio` at :func:`effective_slices`; ``p90 < floor``
         means that at most a tenth of the pixels hold a return. None where there is no
         verdict: fewer than :data:`NOISE_ONLY_MIN_SLICES` (effective) slices, fewer than
-        :data:`NOISE_BESIDE_MIN` of them beside a return (:func:`slices_beside_return`), or
+        :data:`NOISE_BESIDE_MIN` of them beside a return (:func:`verdict_room`), or
         slices that are not finite (a diverged solve).
     """
     sl = np.asarray(slices)
@@ -378,15 +378,16 @@ def _beside(k: int, tau: float, exclude: int) -> tuple[int, int]:
     return k_eff, max(2, int(round(max(2, int(exclude)) * k_eff / k)))
 
 
-def slices_beside_return(slices: np.ndarray, exclude: int = 2) -> int:
-    """Independent slices (:func:`effective_slices`) left beside a return of half width
-    ``exclude`` slices: what :func:`noise_verdict` reads the noise from (it gives no verdict
-    under :data:`NOISE_BESIDE_MIN`)."""
+def verdict_room(slices: np.ndarray, exclude: int = 2) -> tuple[int, int]:
+    """The independent slices (:func:`effective_slices`) of these profiles, and how many of
+    them lie beside a return of half width ``exclude`` slices: what :func:`noise_verdict`
+    reads the noise from (it gives no verdict under :data:`NOISE_ONLY_MIN_SLICES` and
+    :data:`NOISE_BESIDE_MIN` of them)."""
     sl = np.asarray(slices)[:NOISE_VERDICT_PIXELS]
     exclude = max(2, int(exclude))
     k_eff, ref_exclude = _beside(sl.shape[1], _noise_stats(sl, exclude, exclude + 1)[1],
                                  exclude)
-    return max(0, k_eff - (2 * ref_exclude + 1))
+    return k_eff, max(0, k_eff - (2 * ref_exclude + 1))
 
 
 def no_return(peak: np.ndarray, fraction: float = 0.05) -> np.ndarray:

@@ -5,6 +5,19 @@ from __future__ import annotations
 
 import numpy as np
 
+
+def gate_text(gate) -> str:
+    """A range gate in metres as the messages say it, ``19.955-20.845``: 6 significant
+    digits, more where they would print the two ends alike (a scene at 900 km read "the
+    range gate 900000-900000 m", an audit)."""
+    lo, hi = float(gate[0]), float(gate[1])
+    for digits in range(6, 18):
+        a, b = f"{lo:.{digits}g}", f"{hi:.{digits}g}"
+        if a != b or lo == hi:
+            return f"{a}-{b}"
+    return f"{lo!r}-{hi!r}"
+
+
 #: with auto_gate unset, gates with more distinct slices than this are pruned automatically
 AUTO_GATE_MIN_SLICES = 256
 #: detection threshold of the automatic range gate, in standard deviations of the

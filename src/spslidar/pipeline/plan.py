@@ -16,7 +16,7 @@ from ..patterns import PATTERNS, n_patterns_for
 from ..scenes import load_scene
 from .acquisition import GATE_PAD_BINS, Acquisition, default_gate, make_acquisition
 from .budget import check_budget, estimate_budget
-from .gate import unique_lags
+from .gate import gate_text, unique_lags
 from .measurement import _resolve
 from .simulate import simulation_threads
 
@@ -62,7 +62,7 @@ def timeline(cfg: Config, scene, warns: list[str]):
     outside = (scene.depth < gate[0]) | (scene.depth > gate[1])
     if np.any(outside & scene.valid):
         warns.append(f"{int((outside & scene.valid).sum())} pixels lie outside the range gate "
-                     f"{gate[0]:g}-{gate[1]:g} m: their returns alias into the gate or are lost")
+                     f"{gate_text(gate)} m: their returns alias into the gate or are lost")
     warns.extend(delay_warnings(cfg, scene, gate, acq.unambiguous_range))
     return seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse
 
@@ -77,7 +77,7 @@ def default_gate_beyond_warning(scene, gate: tuple[float, float], acq: Acquisiti
     far = float(scene.depth_max)
     cure = ("a slower --rep-rate (or none: the default covers the gate)"
             if acq.lidar == "conventional" else "a longer --code-length")
-    return (f"the default range gate {gate[0]:g}-{gate[1]:g} m was placed from the scene's own "
+    return (f"the default range gate {gate_text(gate)} m was placed from the scene's own "
             f"depths, which a real acquisition does not know, and reaches beyond the "
             f"{ru:.4g} m unambiguous range of the {acq.description}: a real acquisition would "
             f"read these returns aliased to their depth modulo {ru:.4g} m (the farthest, "
@@ -118,7 +118,7 @@ def delay_warnings(cfg: Config, scene, gate: tuple[float, float],
         inside = (seen >= gate[0]) & (seen <= gate[1])
     beyond = int(np.sum(~inside & scene.valid))
     where = (f"; {beyond} pixels' delayed returns fall outside the range gate "
-             f"{gate[0]:g}-{gate[1]:g} m" if beyond else "")
+             f"{gate_text(gate)} m" if beyond else "")
     wrapped = shift % ru if ru else shift
     if ru and min(wrapped, ru - wrapped) < 1e-6 * ru:  # a whole number of periods: 0 m
         wrapped = 0.0
@@ -297,7 +297,7 @@ def gate_alias_warning(gate, n_lags: int, period: int, unambiguous: float,
     ``reconstruct``). Its ends are rounded out to whole bins, so a gate a hair shorter than the
     unambiguous range can span one bin more than the period: said with the bins, not only
     the metres (0-1.9186 m "longer than the 1.92 m unambiguous range" read as nonsense)."""
-    return (f"range gate {gate[0]:g}-{gate[1]:g} m spans {n_lags} delay bins (its ends rounded "
+    return (f"range gate {gate_text(gate)} m spans {n_lags} delay bins (its ends rounded "
             f"out to whole bins), more than the {period} of one period of the {description} "
             f"({unambiguous:.4g} m unambiguous range): returns at d and d + {unambiguous:.4g} m "
             f"are indistinguishable and the estimate takes the nearest alias inside the gate")

@@ -30,7 +30,7 @@ from ..correlate import (
 from ..errors import ConfigError
 from .acquisition import Acquisition
 from .chain import Measurement, keeping_warnings, reconstruct
-from .gate import unique_lags
+from .gate import gate_text, unique_lags
 from .results import Result
 
 __all__ = ["FILTER_LAM_SCALE", "calibrated_lam_scale", "check_code", "check_gate", "check_patterns",
@@ -497,10 +497,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         ru = acq.unambiguous_range
         lo, hi = cfg.range_gate
         meas.warnings.append(
-            f"the range gate {lo:g}-{hi:g} m lies beyond the {period}-bit code's {ru:.4g} m "
-            f"unambiguous range: a return is known only modulo {ru:.4g} m (this gate reads "
-            f"what lies at {lo % ru:.4g}-{lo % ru + hi - lo:.4g} m, {ru:.4g} m farther, ...), "
-            f"so its depths are right only if the target is known to be in the gate")
+            f"the range gate {gate_text((lo, hi))} m lies beyond the {period}-bit code's "
+            f"{ru:.4g} m unambiguous range: a return is known only modulo {ru:.4g} m (this "
+            f"gate reads what lies at {lo % ru:.4g}-{lo % ru + hi - lo:.4g} m, {ru:.4g} m "
+            f"farther, ...), so its depths are right only if the target is known to be in the gate")
     result = reconstruct(meas)
     # only what applied: the simulation's keys (scene "camera", signal 5, noise 10, gaussian
     # patterns...) were written as if they had been measured

@@ -16,13 +16,14 @@ from ..depth.profile import (
     NOISE_BESIDE_MIN,
     NOISE_ONLY_MIN_SLICES,
     noise_verdict,
-    slices_beside_return,
+    verdict_room,
 )
 from ..metrics import depth_errors, edge_agreement, sobel_edges, truth_edge_mask
 from ..products import reflectivity_image
 from ..solvers.entries import TV_REGULARISERS
 from ..version import __version__
 from .acquisition import Acquisition
+from .gate import gate_text
 from .measurement import Measurement
 from .results import Result
 from .weights import regulariser_kind
@@ -53,8 +54,8 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         confidence = np.zeros(np.shape(depth))
         low_confidence = np.zeros(np.shape(depth), dtype=bool)
         depth2 = None
-        warns.append(f"no pixel holds a return in the range gate {meas.gate[0]:g}-"
-                     f"{meas.gate[1]:g} m (a noiseless run): the depth map is empty; check "
+        warns.append(f"no pixel holds a return in the range gate {gate_text(meas.gate)} m "
+                     f"(a noiseless run): the depth map is empty; check "
                      f"that the gate holds the scene")
     if getattr(scene, "has_truth", True):
         err = depth_errors(depth, scene.depth, scene.valid)
@@ -94,21 +95,29 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
             f"it (the 90th percentile of each pixel's peak over its own profile's noise maximum "
             f"is {peak_ratio:.2f}, under the {peak_floor:.2f} a return stands at; noise alone "
             f"gives {null:.2f} here, {np.shape(slices)[1]} slices): check that the range gate "
-            f"{meas.gate[0]:g}-{meas.gate[1]:g} m holds the scene, the signal level, or "
+            f"{gate_text(meas.gate)} m holds the scene, the signal level, or "
             f"acquire longer")
     elif verdict is None and not noiseless and np.isfinite(slices).all():
         # (a gate of 16+ slices that leaves too few beside a calibrated response's width
         # had its verdict dropped without a word)
         n_sl = int(np.shape(slices)[1])
         half = max(2, int(sim.get("response_half_width") or 2))
-        held = (f"{n_sl} slices, too few beside a return" if n_sl < NOISE_ONLY_MIN_SLICES else
-                f"{n_sl} slices, of which {slices_beside_return(slices, half)} independent ones "
-                f"lie beside a return {2 * half + 1} slices wide (the response's), too few")
-        need = (NOISE_ONLY_MIN_SLICES if n_sl < NOISE_ONLY_MIN_SLICES else NOISE_BESIDE_MIN)
+        if n_sl < NOISE_ONLY_MIN_SLICES:
+            held = f"{n_sl} slices, too few beside a return"
+            need = f"{NOISE_ONLY_MIN_SLICES} or more"
+        else:
+            k_eff, beside = verdict_room(slices, half)
+            wide = (f" {2 * half + 1} slices wide (the instrument's response)" if half > 2
+                    else "")
+            held = (f"{n_sl} slices, as independent as {k_eff} (the matched filter "
+                    f"correlates neighbouring delays) and {beside} of them beside a "
+                    f"return{wide}, too few")
+            need = (f"{NOISE_ONLY_MIN_SLICES} independent slices, {NOISE_BESIDE_MIN} of them "
+                    f"beside the return")
         warns.append(
-            f"the range gate {meas.gate[0]:g}-{meas.gate[1]:g} m holds {held} to tell it from "
-            f"noise ({need} or more): nothing here checks that the depth map is not noise (a "
-            f"wider --range-gate lets it)")
+            f"the range gate {gate_text(meas.gate)} m holds {held} to tell it from "
+            f"noise ({need}): nothing here checks that the depth map is not noise (a wider "
+            f"--range-gate lets it)")
     timing["metrics"] = time.perf_counter() - t0
     timing["total"] = sum(timing.values())
 
