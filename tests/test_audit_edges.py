@@ -231,3 +231,17 @@ def test_reconstruct_refuses_a_truth_without_depths_and_a_text_bit_rate(tmp_path
                         truth=np.full((4, 4), np.nan))
     with pytest.raises(ConfigError, match="--bit-rate must be a number"):
         reconstruct_ptu(tmp_path / "none.ptu", pat.reshape(8, -1), code, "10e9", (1, 2))
+
+
+def test_a_far_gate_is_said_with_the_digits_that_tell_its_ends_apart(tmp_path):
+    """A scene at 900 km: "the range gate 900000-900000 m" (an audit)."""
+    from spslidar.pipeline.gate import gate_text
+
+    assert gate_text((19.955, 20.845)) == "19.955-20.845"
+    assert gate_text((899999.9, 900000.1)) == "899999.9-900000.1"
+    assert gate_text((5.0, 5.0)) == "5-5"
+    np.save(tmp_path / "far.npy", np.full((8, 8), 9e5))
+    assert main(["run", "--scene", str(tmp_path / "far.npy"), "--size", "8", "--no-figure",
+                 "--code-length", "255", "--out", str(tmp_path / "o")]) == 0
+    warns = json.loads((tmp_path / "o" / "metrics.json").read_text())["warnings"]
+    assert any("the default range gate 899999.9-900000.1 m" in w for w in warns), warns
