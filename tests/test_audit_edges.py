@@ -245,3 +245,13 @@ def test_a_far_gate_is_said_with_the_digits_that_tell_its_ends_apart(tmp_path):
                  "--code-length", "255", "--out", str(tmp_path / "o")]) == 0
     warns = json.loads((tmp_path / "o" / "metrics.json").read_text())["warnings"]
     assert any("the default range gate 899999.9-900000.1 m" in w for w in warns), warns
+
+
+def test_a_diverged_solve_in_float64_is_not_told_to_use_float64(tmp_path, capsys):
+    """A noiseless float64 run at 1e-300 photons was told "or use --dtype float64" (an
+    audit): the cure it gets is the one that applies."""
+    assert main(["run", *TINY, "--signal", "1e-300", "--noise", "0", "--noiseless",
+                 "--dtype", "float64", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "diverged" in err[0] and "--dtype float64" not in err[0]
+    assert "raise --signal" in err[0]

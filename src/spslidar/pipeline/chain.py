@@ -337,9 +337,12 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     timing["solve"] = time.perf_counter() - t0
     if not (bool(xp.all(xp.isfinite(x))) if device else bool(np.isfinite(x).all())):
         # (a weight that overflows float32, 1e39, gave NaN slices scored as a depth map)
+        # (it said "or use --dtype float64" to a float64 run, an audit)
+        cure = ("raise --signal: measurements this small underflow" if not lam > 0 else
+                "lower --lam or --lam-scale"
+                + (", or use --dtype float64" if cfg.dtype == "float32" else ""))
         raise ConfigError(f"the {cfg.solver} solve diverged (its estimate is not finite) at "
-                          f"the weight {lam:.3g} in {cfg.dtype}: lower --lam or --lam-scale, "
-                          f"or use --dtype float64")
+                          f"the weight {lam:.3g} in {cfg.dtype}: {cure}")
     if not cfg.qcr and eliminated is None and info.stop_reason == "max_iter":
         warns.append(
             f"without QCR the problem is ill-conditioned (the patterns' mean dominates its "
