@@ -255,3 +255,12 @@ def test_a_diverged_solve_in_float64_is_not_told_to_use_float64(tmp_path, capsys
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "diverged" in err[0] and "--dtype float64" not in err[0]
     assert "raise --signal" in err[0]
+
+
+def test_a_memory_limit_no_run_fits_says_so(tmp_path, capsys):
+    """``--max-memory 1e-6`` read "largest part: patterns, 0 MB ... more than the 0 MB
+    --max-memory: reduce --size" (an audit): no run fits under the interpreter's own."""
+    assert main(["run", *TINY, "--max-memory", "1e-6", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no run fits in the 0.001 MB --max-memory" in err[0]
+    assert "reduce --size" not in err[0] and not (tmp_path / "o").exists()

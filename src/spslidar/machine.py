@@ -10,7 +10,10 @@ __all__ = ["DURATION_UNITS", "available_memory", "parse_duration"]
 
 
 def _gb(b: float) -> str:
-    return f"{b / 1e9:.1f} GB" if b >= 1e8 else f"{b / 1e6:.0f} MB"
+    # (under 1 MB two significant digits: "--max-memory 1e-6" read "more than the 0 MB")
+    if b >= 1e8:
+        return f"{b / 1e9:.1f} GB"
+    return f"{b / 1e6:.0f} MB" if b >= 1e6 else f"{b / 1e6:.2g} MB"
 
 
 def available_memory() -> float:

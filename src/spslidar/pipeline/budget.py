@@ -255,6 +255,10 @@ def check_budget(budget: Budget, max_memory_gb: float | None,
         implicit = [e.name for e in PATTERNS if not e.defaults.get("dense", False)]
         dense = patterns is None or PATTERNS.get(patterns).defaults.get("dense", False)
         alt = f", use --patterns {implicit[0]}" if implicit and dense else ""
+        if limit < BASE_BYTES:  # (no run fits: it was told to reduce --size, an audit)
+            raise SpslidarError(f"no run fits in the {_gb(limit)} {src}: the interpreter with "
+                                f"its libraries alone takes ~{_gb(BASE_BYTES)}; raise "
+                                f"--max-memory")
         raise SpslidarError(
             f"this run needs {budget.describe()}, more than the {_gb(limit)} {src}: reduce "
             f"--size, --compression or the --range-gate{alt}, or raise --max-memory")

@@ -274,8 +274,8 @@ def _check_pattern_floor(cfg: Config) -> None:
     q = cfg.size * cfg.size
     m = n_patterns_for(cfg.compression, q)
     floor = DENSE_PATTERN_COPIES * m * q * (4 if cfg.dtype == "float32" else 8)
-    check_budget(Budget(BASE_BYTES + floor, 0.0, {"patterns": floor}), cfg.max_memory,
-                 cfg.patterns)
+    parts = {"interpreter": BASE_BYTES, "patterns": floor}
+    check_budget(Budget(BASE_BYTES + floor, 0.0, parts), cfg.max_memory, cfg.patterns)
 
 
 def detector_options(cfg: Config) -> dict[str, Any]:
