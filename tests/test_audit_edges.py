@@ -264,3 +264,12 @@ def test_a_memory_limit_no_run_fits_says_so(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no run fits in the 0.001 MB --max-memory" in err[0]
     assert "reduce --size" not in err[0] and not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("value", ["-1e-9", "-2E+3", "-.5e1"])
+def test_a_negative_number_in_scientific_notation_is_a_value(tmp_path, capsys, value):
+    """``--system-delay -1e-9`` was "expected one argument" (argparse takes only -1 and -1.5
+    for numbers), so the value's own refusal was never reached (an audit)."""
+    assert main(["run", *TINY, "--system-delay", value, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--system-delay must be in [0, 0.001]" in err[0], err
