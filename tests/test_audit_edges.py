@@ -273,3 +273,13 @@ def test_a_negative_number_in_scientific_notation_is_a_value(tmp_path, capsys, v
     assert main(["run", *TINY, "--system-delay", value, "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--system-delay must be in [0, 0.001]" in err[0], err
+
+
+def test_a_random_codes_description_says_the_ones_it_holds(tmp_path):
+    """A Bernoulli code of 3 bits at ones ratio 0.01 holds 1 one: it was described as "ones
+    ratio 0.01" (an audit)."""
+    assert main(["run", *TINY, "--code", "random", "--code-length", "3", "--ones-ratio",
+                 "0.01", "--out", str(tmp_path / "o")]) == 0
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert m["code_description"].endswith("(ones ratio 0.01: 1 of its 3 bits)")
+    assert m["code_ones"] == 1

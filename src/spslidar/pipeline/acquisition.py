@@ -99,8 +99,10 @@ def make_acquisition(cfg: Config, gate: tuple[float, float], rng_code) -> Acquis
     if cfg.lidar == "psst":
         replica = auto_replica(psst_code) if cfg.replica == "auto" else cfg.replica
         desc = code_description(cfg.code, cfg.code_length, index)
-        if cfg.code == "random":
-            desc += f" (ones ratio {cfg.ones_ratio:g})"
+        if cfg.code == "random":  # the ratio asked for and the ones drawn (a Bernoulli
+            # code of 3 bits at 0.01 holds 1 one; it was said as "ones ratio 0.01", an audit)
+            desc += (f" (ones ratio {cfg.ones_ratio:g}: {int(psst_code.sum())} of its "
+                     f"{psst_code.size} bits)")
         return Acquisition("psst", psst_code, bin_width, cfg.periods, cfg.signal, replica, desc,
                            index)
     # conventional periodic-pulse lidar
