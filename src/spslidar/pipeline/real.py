@@ -254,6 +254,11 @@ def block_notes(data, m: int) -> list[str]:
             f"missing from --patterns?"]
 
 
+#: photons before the first marker beyond this share of a file's are said (they are always
+#: left out: no pattern is known for them)
+DROPPED_SHARE = 0.05
+
+
 def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: int,
                       period: int) -> None:
     """Refuse, in one line and before the file is read, what no real acquisition can be: a
@@ -419,6 +424,14 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                                channel=channel, n_patterns=m, allow_binning=allow_binning)
     check_blocks(data, m, ptu)
     dwell_warning = block_notes(data, m)
+    before = int(data.n_dropped_before_first_marker)
+    if data.n_photons and before > DROPPED_SHARE * data.n_photons:
+        # (a fifth of a file's photons were dropped, said only in metrics.json: an audit)
+        dwell_warning.append(
+            f"{before} of the file's {data.n_photons} photons on the channel "
+            f"({100 * before / data.n_photons:.3g} %) came before the first marker on input "
+            f"{marker}, while no pattern was known, and are left out: check --marker, or that "
+            f"the acquisition started with the first pattern")
     # the reader's dwell: to the next block's marker, also where that block is not a pattern
     # (the file's ends, recomputed here, gave the last of m rows in an (m + 1)-block file the
     # extra block's periods too: twice its dwell, its histogram halved)
