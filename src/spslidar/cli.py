@@ -68,6 +68,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                         "single pulses in the same acquisition time (whole pulse periods: up "
                         "to one period less)")
     g.add_argument("--code", choices=codes, default=S, help=codes_help)
+    _add_stage_options(g, "code")
     g.add_argument("--code-length", type=int, default=S, metavar="L",
                    help="bits per code period; 2^n - 1 for mseq/gold (default 16383); sets the "
                         "acquisition time per pattern (L / bit rate) for both lidars")
@@ -100,6 +101,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                         "paper's); signal and noise photons grow with it")
     g.add_argument("--patterns", choices=patterns, default=S,
                    help=f"DMD patterns: {patterns_help}")
+    _add_stage_options(g, "patterns")
     g.add_argument("--pattern-sigma", type=float, default=S, metavar="S",
                    help="spread of the grey levels of --patterns gaussian, "
                         "clip(0.5 + S N(0, 1), 0, 1) (default 0.25)")
@@ -155,6 +157,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="centred least squares (default) or the paper's literal ||Delta - Hp||")
     g.add_argument("--solver", choices=solvers, default=S,
                    help=f"reconstruction algorithm: {solvers_help}")
+    _add_stage_options(g, "solver")
     from .solvers import REGULARISERS
 
     g.add_argument("--regulariser", choices=("auto", *REGULARISERS.names()), default=S,
@@ -179,6 +182,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                         "closed form under the bound: metrics.json's config says which)")
     g.add_argument("--depth", choices=depths, default=S,
                    help=f"depth estimator: {depths_help}")
+    _add_stage_options(g, "depth")
     g.add_argument("--subbin", action=argparse.BooleanOptionalAction, default=S,
                    help="refine the ML peak by a three-bin centroid (--no-subbin undoes a "
                         "config file's)")
@@ -207,7 +211,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
 def _add_stage_options(g, option: str) -> None:
     """The flags of the options that the stages of one registry declare
     (:class:`~spslidar.registry.Option`): type, help, unit and default from the declaration,
-    the stages that take each named in its help."""
+    the stages that take each named in its help (every registry's: only the detectors' had
+    flags, so a plugin solver's or estimator's option had none, an audit)."""
     from .config import registries
 
     reg = registries()[option]
@@ -374,12 +379,14 @@ def _add_reconstruct_parser(sub) -> None:
                         "result: without it every metric that needs no truth is given")
     _add_fov_option(p)
     p.add_argument("--solver", choices=solvers, default=S)
+    _add_stage_options(p, "solver")
     from .solvers import REGULARISERS
 
     p.add_argument("--regulariser", choices=("auto", *REGULARISERS.names()), default=S,
                    help="auto: the solver's default (tv for fista, twist, tval3); tv-aniso: "
                         "the anisotropic TV")
     p.add_argument("--depth", choices=depths, default=S)
+    _add_stage_options(p, "depth")
     p.add_argument("--lam-scale", type=float, default=S, metavar="K")
     p.add_argument("--iterations", type=int, default=S, metavar="K")
     p.add_argument("--qcr", action=argparse.BooleanOptionalAction, default=S)
@@ -397,8 +404,12 @@ def _cmd_reconstruct(args) -> int:
     from .pipeline.real import _load_npy, load_code, load_patterns, reconstruct_ptu
 
     check_output(args.out, args.overwrite)  # refuse before any work
+    from .config import registries
+
+    # (and the options the solvers and estimators declare: a plugin's had no flag)
+    declared = (*registries()["solver"].options(), *registries()["depth"].options())
     processing = {k: getattr(args, k) for k in ("solver", "regulariser", "depth", "lam_scale",
-                                                 "iterations", "qcr", "max_time")
+                                                 "iterations", "qcr", "max_time", *declared)
                   if hasattr(args, k)}
     truth = _load_npy(args.truth, "truth") if args.truth else None
     result = reconstruct_ptu(args.ptu, load_patterns(args.patterns),

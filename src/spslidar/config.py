@@ -476,6 +476,17 @@ def stage_options() -> dict:
     return out
 
 
+def chosen_stage_options(cfg: Config, option: str) -> dict[str, Any]:
+    """The options that the stage ``cfg`` chose in registry ``option`` (``code``,
+    ``patterns``, ``detector``, ``solver``, ``depth``) declares, as the keywords it is built
+    with (each :class:`~spslidar.registry.Option`'s ``param``, default its name): the value
+    given, else its default. Every registry's options reach their stage so (only the
+    detectors' did: a pattern kind's, solver's or estimator's own option was validated,
+    written to ``metrics.json`` and never given to it, an audit of 2026-11-28)."""
+    entry = registries()[option].get(getattr(cfg, option))
+    return {opt.param or opt.name: cfg.extra.get(opt.name, opt.default) for opt in entry.options}
+
+
 def registries() -> dict:
     """The registries whose entries a config chooses among, by config key."""
     from .codes import CODES

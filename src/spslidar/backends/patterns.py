@@ -190,9 +190,10 @@ def device_patterns(be: Any, stream: Any, cfg: Any, m: int) -> Any:
     if not stream.host and cfg.patterns in ("gaussian", "bernoulli"):
         return DevicePatterns(stream.device_patterns(cfg.patterns, m, cfg.size,
                                                      cfg.pattern_sigma, dtype), be, cfg.patterns)
+    from ..config import chosen_stage_options
     from ..patterns import build_patterns
 
-    options = {"sigma": cfg.pattern_sigma}
+    options = {"sigma": cfg.pattern_sigma, **chosen_stage_options(cfg, "patterns")}
     for key in ("hadamard_order", "hadamard_realisation"):
         if hasattr(cfg, key):
             options[key.split("_", 1)[1]] = getattr(cfg, key)

@@ -198,7 +198,7 @@ def exp_pattern_kinds(ctx: Context) -> tuple[str, list[Claim]]:
     claims : list of Claim
         Empty (the paper compares no pattern kinds).
     """
-    from spslidar.pipeline import PROCESSING_KEYS
+    from spslidar.pipeline.measurement import processing_keys
 
     ctx.maps.mkdir(parents=True, exist_ok=True)
     func = functools.partial(reproduce_point, maps_dir=str(ctx.maps))
@@ -210,7 +210,7 @@ def exp_pattern_kinds(ctx: Context) -> tuple[str, list[Claim]]:
 
         _check_batch_time(ctx, points)
     rows = run_sweep(func, points, ctx.cache, seed=ctx.seed, jobs=ctx.jobs,
-                     scheduler=ctx.scheduler, progress=ctx.progress, seed_ignore=PROCESSING_KEYS)
+                     scheduler=ctx.scheduler, progress=ctx.progress, seed_ignore=processing_keys())
     ctx.failed += sum(ERROR_KEY in r for r in rows)
     full = [{**p, **r, "label": _label(p)} for p, r in zip(points, rows, strict=True)]
     ok = [r for r in full if ERROR_KEY not in r]

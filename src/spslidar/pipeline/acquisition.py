@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..codes import CODES
-from ..config import Config
+from ..config import Config, chosen_stage_options
 from ..constants import SPEED_OF_LIGHT
 from ..correlate import auto_replica
 from ..errors import ConfigError
@@ -73,6 +73,29 @@ def default_gate(scene, bin_width: float) -> tuple[float, float]:
     return (max(0.0, scene.depth_min - pad), scene.depth_max + pad)
 
 
+def _checked_code(bits, cfg: Config) -> np.ndarray:
+    """A code family's output as the pipeline takes it: ``cfg.code_length`` bits of 0 and 1,
+    at least one of each, as ``uint8``; anything else is a one-line ConfigError naming the
+    family (a family that returned ``length - 1`` bits, or bits of 0 and 3, ran, its
+    description saying otherwise; an audit of a plugin)."""
+    arr = np.asarray(bits)
+    what = f"the code family {cfg.code!r}"
+    if arr.shape != (cfg.code_length,):
+        raise ConfigError(f"{what} returned an array of shape {arr.shape} for "
+                          f"--code-length {cfg.code_length}: a family returns that many bits")
+    if arr.dtype.kind not in "biu" and not (arr.dtype.kind == "f" and np.isfinite(arr).all()
+                                            and np.array_equal(arr, np.round(arr))):
+        raise ConfigError(f"{what} returned {arr.dtype} values: a family returns bits")
+    if not np.isin(arr, (0, 1)).all():
+        raise ConfigError(f"{what} returned values other than 0 and 1 "
+                          f"({sorted(set(np.unique(arr).tolist()) - {0, 1})[:3]}): a family "
+                          f"returns the code's unipolar bits")
+    if not 0 < int(arr.sum()) < arr.size:
+        raise ConfigError(f"{what} returned {'no' if arr.sum() == 0 else 'only'} ones: a "
+                          f"code needs both bits (the laser never fires, or never stops)")
+    return arr.astype(np.uint8)
+
+
 def make_acquisition(cfg: Config, gate: tuple[float, float], rng_code) -> Acquisition:
     """The temporal code and photon scaling of the PSST or the conventional lidar.
 
@@ -95,7 +118,8 @@ def make_acquisition(cfg: Config, gate: tuple[float, float], rng_code) -> Acquis
         psst_code = None
     else:
         psst_code = family.load()(cfg.code, cfg.code_length, cfg.ones_ratio, rng=rng_code,
-                                  index=index).astype(np.uint8)
+                                  index=index, **chosen_stage_options(cfg, "code"))
+        psst_code = _checked_code(psst_code, cfg)
     if cfg.lidar == "psst":
         replica = auto_replica(psst_code) if cfg.replica == "auto" else cfg.replica
         desc = code_description(cfg.code, cfg.code_length, index)

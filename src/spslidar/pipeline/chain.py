@@ -21,7 +21,7 @@ import numpy as np
 
 from ..backends.device import reconstructs_on_device, simulates_on_device
 from ..backends.patterns import host_patterns
-from ..config import Config
+from ..config import Config, chosen_stage_options
 from ..depth import ESTIMATORS, DepthContext
 from ..detectors import build_detector
 from ..detectors.counting import NoiseModel
@@ -156,7 +156,8 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
         patterns = build_patterns(cfg.patterns, m, cfg.size, np.random.default_rng(seq_pat),
                                   dtype=dtype, sigma=cfg.pattern_sigma,
                                   order=cfg.hadamard_order,
-                                  realisation=cfg.hadamard_realisation)
+                                  realisation=cfg.hadamard_realisation,
+                                  **chosen_stage_options(cfg, "patterns"))
     else:
         from ..backends.patterns import device_patterns
         from ..backends.rng import Stream
@@ -330,7 +331,8 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         reg = build_regulariser(cfg.replace(nonneg=False) if eliminated is not None else cfg,
                                 (cfg.size, cfg.size))
         stop = StopRule(max_iter=iterations, rtol=cfg.tol)
-        x, info = get_solver(cfg.solver)(stop=stop).solve(A, y, reg, lam)
+        x, info = get_solver(cfg.solver)(stop=stop, **chosen_stage_options(cfg, "solver")
+                                         ).solve(A, y, reg, lam)
         if eliminated is not None:
             x = eliminated.recover(x, y_plain)
         stop_cap = stop.max_iter
@@ -379,7 +381,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
             from .calibration import delay_filter, refine_depth
 
             seen = delay_filter(slices, lags, sim["delay_response"])
-        estimator = ESTIMATORS.load(cfg.depth)()
+        estimator = ESTIMATORS.load(cfg.depth)(**chosen_stage_options(cfg, "depth"))
         threshold = estimator.low_confidence
         est = estimator.estimate(
             seen, DepthContext(lags, bin_width, cfg.pulse_width, shape, cfg.subbin))

@@ -21,11 +21,24 @@ PROCESSING_KEYS = frozenset({
 })
 
 
+def processing_keys() -> frozenset[str]:
+    """:data:`PROCESSING_KEYS` and the options the registered solvers and depth estimators
+    declare (a plugin's too): what changes the processing of a measurement, not the
+    measurement (a plugin estimator's option was "unknown" to ``reconstruct`` and split a
+    sweep's seeds, an audit)."""
+    from ..config import registries
+
+    regs = registries()
+    return PROCESSING_KEYS | frozenset(regs["solver"].options()) | frozenset(
+        regs["depth"].options())
+
+
 def check_processing_keys(processing: dict[str, Any], caller: str, fixed: str) -> None:
     """Refuse keyword arguments of ``caller`` that are not :data:`PROCESSING_KEYS`, in one
     line: an unknown key with its did-you-mean hint, a configuration key the caller cannot
     change with ``fixed``, the caller's own sentence for it (``{keys}`` stands for them)."""
-    bad = {k.replace("-", "_") for k in processing} - PROCESSING_KEYS
+    keys = processing_keys()
+    bad = {k.replace("-", "_") for k in processing} - keys
     if not bad:
         return
     from dataclasses import fields
@@ -36,10 +49,10 @@ def check_processing_keys(processing: dict[str, Any], caller: str, fixed: str) -
     if unknown:
         said = ", ".join(
             f"{k!r}" + (f" (did you mean {' or '.join(map(repr, close))}?)"
-                        if (close := close_names(k, PROCESSING_KEYS)) else "")
+                        if (close := close_names(k, keys)) else "")
             for k in unknown)
         raise ConfigError(f"{caller}: unknown key {said}; it takes "
-                          f"{', '.join(sorted(PROCESSING_KEYS))}")
+                          f"{', '.join(sorted(keys))}")
     raise ConfigError(fixed.format(keys=", ".join(sorted(bad))))
 
 
@@ -52,9 +65,10 @@ def unchanged_keys(config: Config, keys: dict[str, Any]) -> dict[str, Any]:
 
     same: dict[str, Any] = {}
     held = config.to_dict()
+    processing = processing_keys()
     for key, value in keys.items():
         name = key.replace("-", "_")
-        if name in PROCESSING_KEYS or name not in held:
+        if name in processing or name not in held:
             continue
         try:
             if config.replace(**{name: value}).to_dict() == held:

@@ -287,7 +287,9 @@ def detector_options(cfg: Config) -> dict[str, Any]:
     entry = DETECTORS.get(cfg.detector)
     context = {"bin_width": 1.0 / cfg.bit_rate}
     out = {name: context[name] for name in entry.defaults.get("context", ())}
-    out.update({opt.param or opt.name: getattr(cfg, opt.name) for opt in entry.options})
+    from ..config import chosen_stage_options
+
+    out.update(chosen_stage_options(cfg, "detector"))
     return out
 
 

@@ -399,7 +399,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     from ..io import read_ptu_histograms
     from ..patterns import as_patterns
     from ..scenes import Scene
-    from .measurement import PROCESSING_KEYS, check_processing_keys
+    from .measurement import check_processing_keys, processing_keys
 
     check_ptu_path(ptu)
     patterns = check_patterns(patterns, True, "patterns")
@@ -407,7 +407,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     range_gate = check_gate(range_gate)
     check_processing_keys(processing, "reconstruct_ptu()",
                           f"reconstruct_ptu() takes processing keys only "
-                          f"({', '.join(sorted(PROCESSING_KEYS))}), not {{keys}}: "
+                          f"({', '.join(sorted(processing_keys()))}), not {{keys}}: "
                           f"the acquisition sets the rest")
     m, q = patterns.shape
     n = int(round(np.sqrt(q)))
@@ -518,7 +518,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     # only what applied: the simulation's keys (scene "camera", signal 5, noise 10, gaussian
     # patterns...) were written as if they had been measured
     result.metrics["config"] = {k: v for k, v in result.metrics["config"].items()
-                                if k in PROCESSING_KEYS or k in _MEASURED_KEYS}
+                                if k in processing_keys() or k in _MEASURED_KEYS}
     result.metrics["ptu"] = {
         "file": os.fspath(ptu), "counts_per_pattern": data.counts_per_pattern[:m].tolist(),
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..config import Config
 from . import chain as _chain
-from .measurement import PROCESSING_KEYS, Measurement, _resolve
+from .measurement import Measurement, _resolve, processing_keys
 from .results import Result
 
 #: measurements kept per process by :func:`run_shared` (most recently used first out last)
@@ -28,7 +28,7 @@ def simulation_key(cfg: Config) -> str:
     where the scene is a file, the file's size and modification time (a scene file edited
     between two runs in one process gave the earlier file's measurement)."""
     d = cfg.to_dict()
-    for k in PROCESSING_KEYS:
+    for k in processing_keys():
         d.pop(k, None)
     scene = str(cfg.scene)
     if os.path.isfile(scene):
@@ -66,7 +66,7 @@ def run_shared(config: Config | dict | None = None, **overrides) -> Result:
                 _shared[key] = meas
                 while len(_shared) > SHARED_MEASUREMENTS:
                     _shared.popitem(last=False)
-    result = _chain.reconstruct(meas, **{k: getattr(cfg, k) for k in PROCESSING_KEYS})
+    result = _chain.reconstruct(meas, **{k: getattr(cfg, k) for k in processing_keys()})
     result.metrics["measurement_reused"] = reused
     return result
 

@@ -565,7 +565,8 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
     model, which a run prices from its first block of patterns as it runs, not before)."""
     from spslidar.config import Config
     from spslidar.detectors import DETECTORS
-    from spslidar.pipeline import PROCESSING_KEYS, preflight
+    from spslidar.pipeline import preflight
+    from spslidar.pipeline.measurement import processing_keys
     from spslidar.pipeline.plan import ignored_keys
 
     seconds: dict[str, float] = {}
@@ -579,7 +580,7 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
                 ignored.append(ignored_keys(cfg))
             # the scene loads and the memory fits: once per simulated configuration
             key = canonical_json({k: v for k, v in cfg.to_dict().items()
-                                  if k not in PROCESSING_KEYS and k != "seed"})
+                                  if k not in processing_keys() and k != "seed"})
             if key not in seconds:
                 seconds[key] = preflight(cfg).seconds
             total += seconds[key]
@@ -633,7 +634,7 @@ def sweep_main(
     jobs = _check_jobs(jobs)  # before the estimate and the folder
     ignore: frozenset[str] = frozenset()
     if func is None:
-        from spslidar.pipeline import PROCESSING_KEYS
+        from spslidar.pipeline.measurement import processing_keys
 
         ignored: list[dict[str, str]] = []
         opened = [spec.resolve(point) for point in points]
@@ -645,7 +646,7 @@ def sweep_main(
         # an edited scene, another array library or device: the same seed (a grid over
         # backend compared NumPy and array-api-strict on different noise; not dtype: float32
         # and float64 Gaussian patterns are different draws of one seed)
-        ignore = frozenset(PROCESSING_KEYS) | {SCENE_HASH_KEY, IRF_HASH_KEY, "backend", "device"}
+        ignore = processing_keys() | {SCENE_HASH_KEY, IRF_HASH_KEY, "backend", "device"}
         points = _seeded(points, ignored, ignore, spec.seed)
         from spslidar.pipeline.budget import check_time
 

@@ -1,0 +1,132 @@
+"""A researcher's own stages, registered from outside the package (an audit of 2026-11-28):
+an option a pattern kind, solver or depth estimator declares reaches the stage (only the
+detectors' did: the others were validated, written to ``metrics.json`` and never given to
+the stage), has its command-line flag, is a processing key where it belongs to the
+processing (``reconstruct(m, key=...)``, a sweep's paired seeds), and a code family's output
+is checked."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import spslidar
+from spslidar.cli import build_parser, main
+from spslidar.codes import CODES
+from spslidar.config import Config
+from spslidar.depth import ESTIMATORS
+from spslidar.depth.argmax import ArgmaxDepth
+from spslidar.errors import ConfigError
+from spslidar.patterns import PATTERNS
+from spslidar.registry import Option
+from spslidar.solvers import SOLVERS
+from spslidar.solvers.fista import FISTA
+
+SEEN: dict[str, object] = {}
+
+
+def _patterns(kind, m, n, rng, dtype, density=0.5, **_):
+    """Bernoulli patterns of a given share of mirrors on."""
+    from spslidar.patterns.dense import DensePatterns
+
+    SEEN["density"] = density
+    return DensePatterns((rng.random((m, n * n)) < density).astype(dtype))
+
+
+class _Fista(FISTA):
+    """FISTA, recording the option it was built with."""
+
+    def __init__(self, stop=None, threads=None, relax=1.0, **options):
+        SEEN["relax"] = relax
+        super().__init__(stop=stop, threads=threads, **options)
+
+
+class _Argmax(ArgmaxDepth):
+    """Argmax, recording the option it was built with."""
+
+    name = "argmax2"
+
+    def __init__(self, low_confidence=None, half_width=1, **options):
+        SEEN["half_width"] = half_width
+        super().__init__(low_confidence, **options)
+
+
+def _short_code(kind, length, ones_ratio, rng=None, index=0, **_):
+    return np.ones(length - 1, dtype=np.uint8)
+
+
+@pytest.fixture
+def plugins():
+    SEEN.clear()
+    PATTERNS.add("sparse", _patterns, "sparse", "Bernoulli of --density",
+                 options=(Option("density", 0.5, "share of mirrors on", lo=0, hi=1,
+                                 lo_open=True),), dense=True)
+    SOLVERS.add("fista2", _Fista, "FISTA 2", "FISTA with --relax", iterations=30,
+                lam_scale=0.45, regulariser="tv",
+                options=(Option("relax", 1.0, "a relaxation", lo=0, hi=2),))
+    ESTIMATORS.add("argmax2", _Argmax, "argmax 2", "argmax with --half-width",
+                   options=(Option("half_width", 1, "half width", kind=int, lo=0, hi=5),))
+    CODES.add("short", _short_code, "short", "a broken family: one bit short", index=0)
+    try:
+        yield
+    finally:
+        for reg, name in ((PATTERNS, "sparse"), (SOLVERS, "fista2"), (ESTIMATORS, "argmax2"),
+                          (CODES, "short")):
+            reg._entries.pop(name, None)
+
+
+SMALL = dict(size=8, code_length=127, scene="steps", depth_min=1.0, depth_max=1.6,
+             range_gate=(0.8, 1.8))
+
+
+def test_each_stages_own_option_reaches_it(plugins):
+    r = spslidar.run(**SMALL, patterns="sparse", density=0.3, solver="fista2", relax=0.5,
+                     depth="argmax2", half_width=3)
+    assert SEEN == {"density": 0.3, "relax": 0.5, "half_width": 3}
+    cfg = r.metrics["config"]
+    assert (cfg["density"], cfg["relax"], cfg["half_width"]) == (0.3, 0.5, 3)
+
+
+def test_each_stages_option_has_its_flag(plugins, tmp_path):
+    run_help = build_parser()._subparsers._group_actions[0].choices["run"].format_help()
+    for flag in ("--density", "--relax", "--half-width"):
+        assert flag in run_help
+    rec_help = build_parser()._subparsers._group_actions[0].choices["reconstruct"].format_help()
+    assert "--relax" in rec_help and "--half-width" in rec_help
+    assert main(["run", "--size", "8", "--code-length", "127", "--scene", "steps",
+                 "--depth-min", "1", "--depth-max", "1.6", "--range-gate", "0.8", "1.8",
+                 "--patterns", "sparse", "--density", "0.25", "--depth", "argmax2",
+                 "--half-width", "2", "--no-figure", "--out", str(tmp_path / "o")]) == 0
+    assert SEEN["density"] == 0.25 and SEEN["half_width"] == 2
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert m["config"]["density"] == 0.25
+
+
+def test_a_processing_option_is_a_processing_key(plugins):
+    from spslidar.pipeline import measure, reconstruct
+    from spslidar.pipeline.measurement import processing_keys
+
+    assert {"relax", "half_width"} <= processing_keys()
+    assert "density" not in processing_keys()  # the patterns are the measurement's
+    meas = measure(**SMALL)
+    reconstruct(meas, depth="argmax2", half_width=4)
+    assert SEEN["half_width"] == 4
+
+
+def test_a_code_family_that_returns_the_wrong_bits_is_refused(plugins):
+    with pytest.raises(ConfigError, match=r"the code family 'short' returned an array of "
+                                          r"shape \(126,\) for --code-length 127"):
+        spslidar.run(**SMALL, code="short")
+
+
+def test_the_builtin_families_pass_the_check():
+    for kind, length in (("mseq", 127), ("gold", 127), ("random", 100)):
+        r = spslidar.run(**{**SMALL, "code_length": length}, code=kind)
+        assert r.metrics["code_period_bins"] == length
+
+
+def test_an_option_given_to_another_stage_is_refused(plugins):
+    with pytest.raises(ConfigError, match="--relax is an option of --solver fista2"):
+        Config(**SMALL, relax=0.5)
