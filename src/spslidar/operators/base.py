@@ -203,11 +203,12 @@ class MatrixOperator(LinearOperator):
 
 
 def _product(M: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """``M @ x``, split over the threads of an active :func:`~spslidar.operators.parallel.
-    parallel` context when large enough (same result, one BLAS call per thread)."""
-    ctx = _parallel.current()
-    if ctx is not None and M.size * x.shape[1] >= _parallel.SPLIT_MIN_WORK:
-        return ctx.matmul(M, x)
+    """``M @ x``; when large enough, in fixed bands of rows shared out among the threads of an
+    active :func:`~spslidar.operators.parallel.parallel` context (one after the other
+    without one): the same numbers whatever the threads
+    (:func:`~spslidar.operators.parallel.banded_matmul`)."""
+    if x.ndim == 2 and M.size * x.shape[1] >= _parallel.SPLIT_MIN_WORK:
+        return _parallel.banded_matmul(M, x, _parallel.current())
     return M @ x
 
 

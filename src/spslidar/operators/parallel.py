@@ -8,8 +8,9 @@ competes with a spinning BLAS thread instead of using the idle core (measured on
 
 :func:`parallel` therefore holds BLAS to one thread (``threadpoolctl``) and provides a pool of
 our own threads instead: inside it, :class:`~spslidar.operators.MatrixOperator` splits large
-products into bands of output rows (one single-threaded BLAS call per thread, measured as fast
-as OpenBLAS' own threading for these shapes, and the same numbers), and the TV prox runs its
+products into :data:`MATMUL_BANDS` bands of output rows shared out among the threads (one
+single-threaded BLAS call per band, measured as fast as OpenBLAS' own threading for these
+shapes; a fixed number of bands, so the same numbers whatever the threads), and the TV prox runs its
 two row bands concurrently. Outside it nothing changes. The solvers enter it for large
 problems (:meth:`spslidar.solvers.Solver.solve`).
 """
@@ -27,12 +28,19 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "ParallelContext", "available_cpus", "current", "one_blas_thread", "parallel", "row_bands",
+    "ParallelContext", "available_cpus", "banded_matmul", "current", "one_blas_thread",
+    "parallel", "row_bands",
     "run_parts", "sum_parts",
 ]
 
-#: at most this many threads (products split into as many row bands)
+#: at most this many threads
 MAX_THREADS = 4
+#: large products are computed in this many bands of output rows whatever the threads (each
+#: band one single-threaded BLAS call): a float32 product rounds differently in other bands,
+#: so bands that followed the threads made a run's numbers depend on the CPUs it was given
+#: (``taskset -c 0``: a GPSR run 0.0329 -> 0.0309 m, every solver's iterates; an audit of
+#: 2026-11-28)
+MATMUL_BANDS = 4
 #: products with fewer multiply-adds than this run in one BLAS call
 SPLIT_MIN_WORK = 1 << 21
 #: element-wise work on arrays with at least this many entries is done in two row bands
@@ -60,7 +68,8 @@ class ParallelContext:
     pool: ThreadPoolExecutor
 
     def matmul(self, M: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """``M @ x`` computed as bands of rows of ``M``, one per thread.
+        """``M @ x`` computed as :func:`banded_matmul`'s bands of rows of ``M``, shared out
+        among the threads (thread ``j`` takes bands ``j, j + threads, ...``).
 
         Parameters
         ----------
@@ -71,17 +80,31 @@ class ParallelContext:
         -------
         ndarray, shape (m, k)
         """
-        m = M.shape[0]
-        out = np.empty((m, x.shape[1]), dtype=np.result_type(M.dtype, x.dtype))
-        edges = np.linspace(0, m, self.threads + 1).astype(int)
-        futures = [
-            self.pool.submit(np.matmul, M[a:b], x, out=out[a:b])
-            for a, b in zip(edges[1:-1], edges[2:], strict=True)
-        ]
-        np.matmul(M[: edges[1]], x, out=out[: edges[1]])
+        return banded_matmul(M, x, self)
+
+
+def banded_matmul(M: np.ndarray, x: np.ndarray,
+                  ctx: ParallelContext | None = None) -> np.ndarray:
+    """``M @ x`` as :data:`MATMUL_BANDS` bands of rows of ``M``, each one BLAS call: the same
+    numbers whatever the threads (``ctx``'s, which share the bands out; none: one after the
+    other)."""
+    m = M.shape[0]
+    out = np.empty((m, x.shape[1]), dtype=np.result_type(M.dtype, x.dtype))
+    edges = np.linspace(0, m, MATMUL_BANDS + 1).astype(int)
+    bands = [(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+
+    def work(j: int, step: int) -> None:
+        for a, b in bands[j::step]:
+            np.matmul(M[a:b], x, out=out[a:b])
+
+    step = 1 if ctx is None else max(1, min(ctx.threads, len(bands)))
+    futures = [ctx.pool.submit(work, j, step) for j in range(1, step)] if ctx else []
+    try:
+        work(0, step)
+    finally:
         for f in futures:
             f.result()
-        return out
+    return out
 
 
 def current() -> ParallelContext | None:
@@ -156,7 +179,8 @@ def parallel(threads: int | None = None):
     Parameters
     ----------
     threads : int, optional
-        Default: the CPUs available (at most :data:`MAX_THREADS`). With one thread, or without
+        Default: the CPUs available (at most :data:`MAX_THREADS`). With one thread, BLAS is
+        held to one thread and nothing else changes (the same numbers as on several); without
         ``threadpoolctl`` (which is needed to hold BLAS to one thread), nothing changes.
 
     Yields
@@ -172,12 +196,16 @@ def parallel(threads: int | None = None):
     ctx = current()
     n = available_cpus() if threads is None else int(threads)
     n = min(n, MAX_THREADS)
-    if ctx is not None or n < 2:
+    if ctx is not None:
         yield ctx
         return
     limits = _single_threaded_blas()
     if limits is None:  # pragma: no cover - threadpoolctl is optional
         yield None
+        return
+    if n < 2:  # BLAS on one thread too: a float32 product on several rounds otherwise
+        with limits:
+            yield None
         return
     with limits, ThreadPoolExecutor(n - 1, thread_name_prefix="spslidar") as pool:
         ctx = ParallelContext(n, pool)
