@@ -21,3 +21,17 @@ def __getattr__(name):
 
         return Config
     raise AttributeError(f"module 'spslidar' has no attribute {name!r}")
+
+
+def _plugins_of_the_environment() -> None:
+    """A worker process of ``sweep --jobs N`` (or any process) started with
+    ``SPSLIDAR_PLUGINS`` set imports those plugins with spslidar (:mod:`spslidar.plugins`)."""
+    import os
+
+    if os.environ.get("SPSLIDAR_PLUGINS"):
+        from .plugins import load_plugins
+
+        load_plugins()
+
+
+_plugins_of_the_environment()

@@ -235,6 +235,11 @@ def build_parser() -> argparse.ArgumentParser:
                     "photon-counting ToF lidar (Shen et al.).",
     )
     parser.add_argument("--version", action="version", version=f"spslidar {__version__}")
+    parser.add_argument("--plugin", action="append", metavar="MODULE", default=argparse.SUPPRESS,
+                        help="import MODULE (a module name or a .py file) before anything "
+                             "else: stages it registers are choices with their options' "
+                             "flags, in sweep and reproduce workers too (repeatable; also "
+                             "SPSLIDAR_PLUGINS, commas)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     p = sub.add_parser("run", help="simulate one acquisition, reconstruct it and score it",
                        description="Simulate one acquisition of a scene, reconstruct the depth "
@@ -632,8 +637,39 @@ class _OneLineWarnings:
 
 
 
+def _load_plugins(argv: list[str]) -> list[str]:
+    """Import the plugins of ``--plugin MODULE`` (before the command, repeatable) and of
+    ``SPSLIDAR_PLUGINS`` before the parser is built, so their stages are choices with flags;
+    return ``argv`` without the ``--plugin`` options (:mod:`spslidar.plugins`)."""
+    from .plugins import load_plugins
+
+    specs, rest, i = [], [], 0
+    while i < len(argv):
+        a = argv[i]
+        if a == "--plugin" and i + 1 < len(argv):
+            specs.append(argv[i + 1])
+            i += 2
+            continue
+        if a.startswith("--plugin="):
+            specs.append(a.split("=", 1)[1])
+        else:
+            rest.append(a)
+        i += 1
+    load_plugins()  # the environment's
+    load_plugins(specs, export=True)  # and --plugin's, for worker processes too
+    return rest
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 success, 2 bad input)."""
+    from .errors import SpslidarError as _Bad
+
+    own = argv is None  # a process of its own, not a call inside a Python session
+    try:
+        argv = _load_plugins(sys.argv[1:] if argv is None else list(argv))
+    except _Bad as exc:
+        print(f"spslidar: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     parser = build_parser()
     args = parser.parse_args(argv)
     _WRITTEN.clear()
@@ -671,7 +707,6 @@ def main(argv: list[str] | None = None) -> int:
             done = "nothing was written"
         return f"spslidar {args.command}: {'terminated' if terminated else 'interrupted'}; {done}"
 
-    own = argv is None  # a process of its own, not a call inside a Python session
     stopper = Stopper(line, STOP_GRACE_S if own else None)
     if own:
         quiet_resource_tracker()

@@ -111,7 +111,7 @@ def make_acquisition(cfg: Config, gate: tuple[float, float], rng_code) -> Acquis
     # Gold family members 0 and 1 are the preferred pair's m-sequences themselves; the first
     # true Gold code is member 2, the default.
     family = CODES.get(cfg.code)
-    index = cfg.code_index if cfg.code_index is not None else family.defaults["index"]
+    index = cfg.code_index if cfg.code_index is not None else family.defaults.get("index", 0)
     if cfg.lidar == "conventional" and cfg.fairness != "power":
         # the code is not used (its ones count sets only the 'power' pulses): a code family
         # that refuses the length (Gold at 4095 bits) refused a run that ignores it

@@ -199,7 +199,7 @@ def default_code_index(kind: str, index: Any = None) -> int:
 
     if index is not None:
         return as_integer(index, "code index")
-    return int(CODES.get(code_family(kind)).defaults["index"])
+    return int(CODES.get(code_family(kind)).defaults.get("index", 0))
 
 
 def make_code_checked(kind: str, length: Any, ones_ratio: Any, rng, index: Any = None):

@@ -60,13 +60,21 @@ def _error_message(exc: BaseException) -> str:
     return text if len(text) <= 500 else text[:497] + "..."
 
 
-def _call(func: Callable[[dict[str, Any]], Any], params: dict[str, Any]) -> tuple[str, Any, float]:
+def _call(func: Callable[[dict[str, Any]], Any], params: dict[str, Any],
+          plugins: tuple[str, ...] = ()) -> tuple[str, Any, float]:
     """Run one point, catching its exception: ``("ok", result, s)`` or ``("error", message, s)``.
+    ``plugins`` (the parent's :mod:`spslidar.plugins`) are imported first: a pool worker
+    started before they were loaded, or on another machine, has not (a sweep's every point
+    was "unknown config key" in the workers, an audit).
 
     Top-level so that joblib and Dask can pickle it.
     """
     start = time.perf_counter()
     try:
+        if plugins:
+            from spslidar.plugins import load_plugins
+
+            load_plugins(list(plugins))
         result = func(params)
     except Exception as exc:
         return "error", _error_message(exc), time.perf_counter() - start
@@ -95,8 +103,12 @@ def _run_local(
 
     from joblib import Parallel, delayed
 
+    from spslidar.plugins import plugin_specs
+
+    plugins = tuple(plugin_specs())
+
     def calls(chunk: list[tuple[int, dict[str, Any]]]) -> Iterator[Any]:
-        return (delayed(_call_indexed)(func, index, params) for index, params in chunk)
+        return (delayed(_call_indexed)(func, index, params, plugins) for index, params in chunk)
 
     try:
         parallel = Parallel(n_jobs=jobs, return_as="generator_unordered")
@@ -135,14 +147,15 @@ def _out_of_processes(exc: BaseException) -> bool:
 
 
 def _call_indexed(
-    func: Callable[[dict[str, Any]], Any], index: int, params: dict[str, Any]
+    func: Callable[[dict[str, Any]], Any], index: int, params: dict[str, Any],
+    plugins: tuple[str, ...] = (),
 ) -> tuple[int, tuple[str, Any, float]]:
     # in a pool worker: Ctrl-C reaches the whole process group, but only the parent acts on
     # it (it stops the pool); a worker's own KeyboardInterrupt traceback would be noise
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    return index, _call(func, params)
+    return index, _call(func, params, plugins)
 
 
 def _stop_workers() -> None:
@@ -225,10 +238,13 @@ def _run_dask(
     client, owned = _dask_client(scheduler)
     import distributed
 
+    from spslidar.plugins import plugin_specs
+
+    plugins = tuple(plugin_specs())
     futures = {}
     try:
         for index, params in tasks:
-            futures[client.submit(_call, func, params, pure=False)] = index
+            futures[client.submit(_call, func, params, plugins, pure=False)] = index
         for future in distributed.as_completed(list(futures)):
             index = futures[future]
             try:

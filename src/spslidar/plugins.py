@@ -1,0 +1,103 @@
+"""Stages of your own, from outside the package: ``--plugin MODULE`` or ``SPSLIDAR_PLUGINS``.
+
+A plugin is a Python module that registers stages when it is imported
+(``CODES.add(...)``, ``PATTERNS.add(...)``, ``DETECTORS.add(...)``, ``SOLVERS.add(...)``,
+``ESTIMATORS.add(...)``, ``SCENES.add(...)``, each with the object itself: see
+``docs/architecture.md``). ``spslidar --plugin mystages run --solver mine ...`` imports it
+before the command line is read, so its stages are among the choices and their options have
+flags; ``SPSLIDAR_PLUGINS`` (modules or ``.py`` files, separated by commas) does the same, and
+``--plugin`` sets it, so the worker processes of ``sweep --jobs N`` and ``reproduce --jobs N``
+import the plugins too (an audit of 2026-11-28 found no way to reach a plugin from the
+command line, and a sweep's workers without it: every point "unknown code").
+
+Written here: entry points (``importlib.metadata``) would need the plugin installed as a
+distribution; a researcher's module beside their data needs only a name or a path.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import os
+import sys
+from pathlib import Path
+
+from .errors import ConfigError
+
+__all__ = ["ENV", "load_plugins", "plugin_specs"]
+
+#: the environment variable of the plugins to import (modules or ``.py`` files, commas)
+ENV = "SPSLIDAR_PLUGINS"
+
+_LOADED: dict[str, object] = {}
+
+
+def plugin_specs(value: str | None = None) -> list[str]:
+    """The plugins named in ``value`` (default: :data:`ENV`), in order, without repeats."""
+    raw = os.environ.get(ENV, "") if value is None else value
+    out: list[str] = []
+    for part in raw.split(","):
+        part = part.strip()
+        if part and part not in out:
+            out.append(part)
+    return out
+
+
+def _import(spec: str):
+    """Import one plugin: a ``.py`` file by its path, else a module by its dotted name."""
+    if spec.endswith(".py"):
+        path = Path(spec).expanduser().resolve()
+        if not path.is_file():
+            raise ConfigError(f"plugin {spec}: no such file")
+        name = f"spslidar_plugin_{path.stem}"
+        module_spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(module_spec)
+        sys.modules[name] = module
+        try:
+            module_spec.loader.exec_module(module)
+        except BaseException:
+            sys.modules.pop(name, None)
+            raise
+        return module
+    return importlib.import_module(spec)
+
+
+def load_plugins(specs: list[str] | None = None, export: bool = False) -> list[str]:
+    """Import the plugins ``specs`` (default: those of :data:`ENV`), each once.
+
+    Parameters
+    ----------
+    specs : list of str, optional
+        Dotted module names (importable from ``sys.path``: the working folder included) or
+        paths to ``.py`` files.
+    export : bool
+        Also add them to :data:`ENV`, so that worker processes import them.
+
+    Returns
+    -------
+    list of str
+        The plugins now loaded.
+
+    Raises
+    ------
+    ConfigError
+        A plugin that cannot be found or fails to import, in one line with its error.
+    """
+    specs = plugin_specs() if specs is None else list(specs)
+    if "" not in sys.path and os.getcwd() not in sys.path:
+        sys.path.append(os.getcwd())  # (a module beside the data, as python -m finds it)
+    for spec in specs:
+        key = str(Path(spec).expanduser().resolve()) if spec.endswith(".py") else spec
+        if key in _LOADED:
+            continue
+        try:
+            _LOADED[key] = _import(key if spec.endswith(".py") else spec)
+        except ConfigError:
+            raise
+        except Exception as exc:  # a plugin's own error: said in one line, with its type
+            raise ConfigError(f"plugin {spec} failed to import: {type(exc).__name__}: "
+                              f"{str(exc).splitlines()[0] if str(exc) else ''}") from None
+    if export and specs:
+        keys = [str(Path(s).expanduser().resolve()) if s.endswith(".py") else s for s in specs]
+        os.environ[ENV] = ",".join(plugin_specs(",".join([*plugin_specs(), *keys])))
+    return list(_LOADED)
