@@ -219,3 +219,65 @@ def test_a_plugin_that_fails_is_one_line(tmp_path, capsys, monkeypatch):
                    f"licence server"]
     assert main(["--plugin", "no_such_module_here", "run", "--out", str(tmp_path / "o")]) == 2
     assert "No module named 'no_such_module_here'" in capsys.readouterr().err
+
+
+def test_a_plugins_outputs_are_checked(plugins):
+    """A plugin estimator's short depth array ended in a reshape traceback and a confidence
+    in [-2, 4] was written as it was; a scene kind's 15x15 map at size 16 ended in a matmul
+    traceback; a scene kind registered as "MyPlane" was unknown as "MyPlane" (an audit)."""
+    from spslidar.errors import SceneError
+    from spslidar.scenes import SCENES, Scene
+
+    class Short(ArgmaxDepth):
+        name = "short"
+
+        def estimate(self, slices, ctx):
+            out = super().estimate(slices, ctx)
+            out.depth = out.depth[:-3]
+            return out
+
+    class Wild(ArgmaxDepth):
+        name = "wild"
+
+        def estimate(self, slices, ctx):
+            out = super().estimate(slices, ctx)
+            out.confidence = out.confidence * 6 - 2
+            return out
+
+    def plane(size, lo, hi):
+        n = size - 1
+        return Scene("MyPlane", np.full((n, n), 1.2), np.ones((n, n)), np.ones((n, n), bool))
+
+    ESTIMATORS.add("short", Short, "short", "returns too few depths")
+    ESTIMATORS.add("wild", Wild, "wild", "returns confidences outside [0, 1]")
+    SCENES.add("MyPlane", plane, "my plane", "a scene one pixel short")
+    try:
+        with pytest.raises(ConfigError, match="the depth estimator Short returned depth of "
+                                              "61 entries for 64 pixels"):
+            spslidar.run(**SMALL, depth="short")
+        with pytest.raises(ConfigError, match=r"confidences outside \[0, 1\]"):
+            spslidar.run(**SMALL, depth="wild")
+        with pytest.raises(SceneError, match=r"scene kind 'MyPlane' made a depth map of shape "
+                                             r"\(7, 7\) for size 8"):
+            spslidar.run(**{**SMALL, "scene": "MyPlane"})
+    finally:
+        ESTIMATORS._entries.pop("short", None)
+        ESTIMATORS._entries.pop("wild", None)
+        SCENES._entries.pop("MyPlane", None)
+
+
+def test_an_option_named_as_a_config_key_is_refused(plugins):
+    """A plugin detector's option ``signal`` took the config key over: ``Config(signal=7)``
+    was refused as "an option of --detector noisy" (an audit)."""
+    from spslidar.detectors import DETECTORS
+    from spslidar.detectors.linear import LinearDetector
+
+    DETECTORS.add("noisy", LinearDetector, "noisy", "declares signal",
+                  options=(Option("signal", 1.0, "a clash", lo=0, hi=100),))
+    try:
+        with pytest.raises(ConfigError, match="--signal, an option of --detector noisy, has "
+                                              "the name of one of spslidar's own config keys"):
+            Config(size=16, signal=7)
+    finally:
+        DETECTORS._entries.pop("noisy", None)
+    assert Config(size=16, signal=7).signal == 7.0

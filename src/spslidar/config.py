@@ -468,12 +468,33 @@ Config.__init__ = _init
 
 def stage_options() -> dict:
     """Every option the stages declare (:class:`~spslidar.registry.Option`), by config key:
-    ``{name: (registry, option)}``."""
-    out = {}
+    ``{name: (registry, option)}``. An option named as one of :class:`Config`'s own keys, or
+    declared otherwise by another registry, is a one-line ConfigError naming it: a plugin
+    detector's ``signal`` took the key over (``Config(signal=7)`` was refused as "an option of
+    --detector noisy", and its detector got the 7 while the physics kept 5), an estimator's
+    option of a detector option's name was taken for the detector's (an audit of plugins)."""
+    own = _config_fields()
+    out: dict = {}
     for reg in registries().values():
         for name, opt in reg.options().items():
+            owners = f"--{reg.option} {', '.join(reg.owners(name))}"
+            if name in own:
+                raise ConfigError(f"{opt.flag}, an option of {owners}, has the name of one of "
+                                  f"spslidar's own config keys: the stage must name it "
+                                  f"otherwise")
+            if name in out and out[name][0] is not reg and out[name][1] != opt:
+                other, first = out[name]
+                raise ConfigError(f"{opt.flag} is declared by {owners} and, otherwise, by "
+                                  f"--{other.option} {', '.join(other.owners(name))}: one "
+                                  f"of them must name it otherwise")
             out.setdefault(name, (reg, opt))
     return out
+
+
+@functools.lru_cache(maxsize=1)
+def _config_fields() -> frozenset[str]:
+    """:class:`Config`'s own keys (its dataclass fields, ``extra`` aside)."""
+    return frozenset(f.name for f in dataclasses.fields(Config)) - {"extra"}
 
 
 def chosen_stage_options(cfg: Config, option: str) -> dict[str, Any]:

@@ -173,11 +173,33 @@ def checked_slices(slices: Any, ctx: DepthContext) -> tuple[np.ndarray, np.ndarr
     return x, bad, scale
 
 
+def _checked_estimate(out: Any, q: int, who: str) -> Any:
+    """An estimator's :class:`DepthEstimate` as the pipeline takes it: each per-pixel array of
+    ``q`` entries (depth, confidence, peak, low-confidence; a ``depth2`` too), the confidence
+    in [0, 1] where it is finite; a one-line ConfigError naming the estimator otherwise (a
+    plugin's short depth array ended in a reshape traceback, a confidence in [-2, 4] was
+    written to ``confidence.npy``; an audit)."""
+    for name in ("depth", "confidence", "peak", "low_confidence", "depth2"):
+        value = getattr(out, name, None)
+        if value is None and name == "depth2":
+            continue
+        arr = np.asarray(value)
+        if arr.size != q:
+            raise ConfigError(f"the depth estimator {who} returned {name} of {arr.size} "
+                              f"entries for {q} pixels")
+        setattr(out, name, arr.reshape(q))
+    c = np.asarray(out.confidence, dtype=np.float64)
+    if np.any((c < 0) | (c > 1)):
+        raise ConfigError(f"the depth estimator {who} returned confidences outside [0, 1] "
+                          f"({float(np.nanmin(c)):.3g} to {float(np.nanmax(c)):.3g})")
+    return out
+
+
 def _checked(estimate):
     @functools.wraps(estimate)
     def wrapper(self, slices, ctx):
         x, bad, scale = checked_slices(slices, ctx)
-        out = estimate(self, x, ctx)
+        out = _checked_estimate(estimate(self, x, ctx), x.shape[0], type(self).__name__)
         if scale != 1.0:  # the peaks in the slices' own units
             out.peak = np.asarray(out.peak, dtype=np.float64) / scale
         if bad.any():  # no return there, as for a profile without a positive value

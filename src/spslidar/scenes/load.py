@@ -83,9 +83,16 @@ def load_scene(
     if isinstance(scene, str):
         key = scene.strip().lower()
         kind, sep, arg = key.partition(":")
+        # (a kind registered as "MyPlane" was unknown as "MyPlane": names are read in any case)
+        kind = next((n for n in SCENES.names() if n.lower() == kind), kind)
         if kind in SCENES and (bool(sep) == bool(SCENES.get(kind).defaults.get("argument"))):
             make = SCENES.load(kind)
-            return make(size, lo, hi, arg) if sep else make(size, lo, hi)
+            made = make(size, lo, hi, arg) if sep else make(size, lo, hi)
+            shape = tuple(getattr(getattr(made, "depth", None), "shape", ()))
+            if shape != (size, size):  # (a plugin's 15x15 at size 16 ended in a traceback)
+                raise SceneError(f"scene kind {kind!r} made a depth map of shape {shape} for "
+                                 f"size {size}: a scene kind makes (size, size) arrays")
+            return made
         if kind in SCENES and not Path(scene).exists():
             spec = SCENES.get(kind).defaults.get("argument")
             raise SceneError(f"scene {scene!r}: write {kind}:{spec}" if spec else
