@@ -281,3 +281,41 @@ def test_an_option_named_as_a_config_key_is_refused(plugins):
     finally:
         DETECTORS._entries.pop("noisy", None)
     assert Config(size=16, signal=7).signal == 7.0
+
+
+def test_a_detector_models_histograms_are_checked():
+    """A plugin detector's NaN counts were refused as a weight "beyond what float32 can
+    hold ... lower --lam", its histograms one bin short ended in a matched-filter traceback
+    (an audit): one line naming the model."""
+    from dataclasses import dataclass
+
+    from spslidar.detectors import DETECTORS
+    from spslidar.detectors.linear import LinearDetector
+
+    @dataclass
+    class Broken(LinearDetector):
+        fault: str = "nan"
+        name = "broken"
+        linear = False
+
+        def detect(self, lam, rng, n_periods=1, out=None):
+            counts, totals = super().detect(lam, rng, n_periods, out=out)
+            if self.fault == "nan":
+                return counts * np.nan, totals
+            return counts[:, :-1], totals
+
+        def correct(self, counts, n_periods=1, expected=False):
+            return counts
+
+        def noise_totals(self, counts, totals, n_periods=1, corrected=None):
+            return totals
+
+    for fault, match in (("nan", "histograms that are not finite from its detect()"),
+                         ("short", r"histograms of shape \(16, 126\) from its detect\(\) for "
+                                   r"\(16, 127\)")):
+        DETECTORS.add("broken", lambda fault=fault, **kw: Broken(fault=fault), "broken", "faulty")
+        try:
+            with pytest.raises(ConfigError, match=match):
+                spslidar.run(**SMALL, detector="broken")
+        finally:
+            DETECTORS._entries.pop("broken", None)

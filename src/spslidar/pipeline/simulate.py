@@ -216,9 +216,12 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
             if not np.all(ceiling <= MAX_MEAN * 0.99):
                 check_means(lam)
             # the counts overwrite their own means (NumPy draws from a float64 copy)
+            shape = lam.shape
             lam, totals[rows] = detector.detect(lam, children[b], acq.n_periods, out=lam)
             if not detector.linear:
+                _check_counts(lam, shape, detector)
                 fixed = detector.correct(lam, acq.n_periods)
+                _check_counts(fixed, shape, detector, "correct")
                 noise_tot[rows] = detector.noise_totals(lam, totals[rows], acq.n_periods,
                                                         corrected=fixed)
                 lam = fixed
@@ -250,6 +253,21 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
         with blas_limit, ThreadPoolExecutor(workers) as pool:
             list(pool.map(block, todo))
     return corr, totals, noise_tot, amp_sum
+
+
+def _check_counts(counts, shape: tuple, detector, what: str = "detect") -> None:
+    """A detector model's histograms as the matched filter takes them: ``shape`` and finite,
+    or a one-line ConfigError naming the model (a plugin's NaN counts were refused as a
+    weight "beyond what float32 can hold"; histograms one bin short ended in a traceback in
+    the matched filter; an audit of plugins). Checked for the models that are not linear."""
+    arr = np.asarray(counts)
+    name = getattr(detector, "name", type(detector).__name__)
+    if arr.shape != shape:
+        raise ConfigError(f"the detector model {name!r} returned histograms of shape "
+                          f"{arr.shape} from its {what}() for {shape} (patterns x bins)")
+    if not np.isfinite(arr.sum(dtype=np.float64)):
+        raise ConfigError(f"the detector model {name!r} returned histograms that are not "
+                          f"finite from its {what}()")
 
 
 def _simulate_reference(patterns, weights, shifts, noise_bin, acq, detector, replica, lags, gain,
