@@ -319,3 +319,15 @@ def test_a_detector_models_histograms_are_checked():
                 spslidar.run(**SMALL, detector="broken")
         finally:
             DETECTORS._entries.pop("broken", None)
+
+
+def test_replacing_a_registered_stage_is_said():
+    """A plugin's "fista" replaced the built-in without a word (an audit): said, and done."""
+    entry = SOLVERS.get("fista")
+    try:
+        with pytest.warns(RuntimeWarning, match="the solver 'fista' .* is replaced by"):
+            SOLVERS.add("fista", _Fista, "FISTA 2", "replaced", iterations=60,
+                        lam_scale=0.45, regulariser="tv")
+        assert SOLVERS.get("fista").target is _Fista
+    finally:
+        SOLVERS._entries["fista"] = entry
