@@ -8,7 +8,7 @@ competes with a spinning BLAS thread instead of using the idle core (measured on
 
 :func:`parallel` therefore holds BLAS to one thread (``threadpoolctl``) and provides a pool of
 our own threads instead: inside it, :class:`~spslidar.operators.MatrixOperator` splits large
-products into :data:`MATMUL_BANDS` bands of output rows shared out among the threads (one
+products into ``MATMUL_BANDS`` bands of output rows shared out among the threads (one
 single-threaded BLAS call per band, measured as fast as OpenBLAS' own threading for these
 shapes; a fixed number of bands, so the same numbers whatever the threads), and the TV prox runs its
 two row bands concurrently. Outside it nothing changes. The solvers enter it for large
@@ -85,7 +85,7 @@ class ParallelContext:
 
 def banded_matmul(M: np.ndarray, x: np.ndarray,
                   ctx: ParallelContext | None = None) -> np.ndarray:
-    """``M @ x`` as :data:`MATMUL_BANDS` bands of rows of ``M``, each one BLAS call: the same
+    """``M @ x`` as ``MATMUL_BANDS`` bands of rows of ``M``, each one BLAS call: the same
     numbers whatever the threads (``ctx``'s, which share the bands out; none: one after the
     other)."""
     m = M.shape[0]

@@ -204,7 +204,7 @@ def _unresolved(c: np.ndarray, theory: float, noise: float, interval: tuple[floa
     """Why the trials ``c`` cannot estimate the SNR that eq. (10) puts at ``theory``, as one
     sentence saying what to change; None when they can.
 
-    Three reasons: ``trials x theory`` below :data:`MIN_TRIALS_X_SNR` (the signal is within
+    Three reasons: ``trials x theory`` below ``MIN_TRIALS_X_SNR`` (the signal is within
     the estimate's noise floor), no sample variance (every trial counted the same; the
     estimate is 0/0 or infinite) and no finite standard error or interval (``interval``:
     ``simulated, stderr, ci_low, ci_high``).
@@ -344,7 +344,7 @@ def snr_simulated(
     -----
     RuntimeWarning
         Where the trials cannot resolve the SNR (``ratio`` is then NaN), saying why and what
-        to change: ``trials x theory`` below :data:`MIN_TRIALS_X_SNR` (4), every trial with the
+        to change: ``trials x theory`` below ``MIN_TRIALS_X_SNR`` (4), every trial with the
         same count (no sample variance: the estimate is 0/0 or infinite), or no finite
         standard error or interval.
 
@@ -370,7 +370,7 @@ def snr_simulated(
     no signal at all it averages ``1 / K`` (``chi^2_1 / K``). The trials resolve the SNR only
     where ``K x SNR`` (the squared number of standard errors of ``mean(C)`` the signal mean
     spans; with no noise, the signal photons expected over all trials) reaches
-    :data:`MIN_TRIALS_X_SNR` = 4: below it the floor exceeds a quarter of the SNR and the
+    ``MIN_TRIALS_X_SNR`` = 4: below it the floor exceeds a quarter of the SNR and the
     estimate's relative spread ``2 / sqrt(K SNR)`` exceeds 100 %, and simulated / theory
     measured the floor (2.3e16 at ``signal=1e-12``). There ``ratio`` is NaN and a
     RuntimeWarning names the ``trials`` that would resolve it; ``simulated`` and its interval
