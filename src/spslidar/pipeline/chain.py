@@ -74,8 +74,9 @@ def keeping_warnings(fn):
     def wrapper(*args, **kwargs):
         caught: list = []
         try:
+            # (the caller's filters hold: what they ignore stays ignored; entering resets
+            # the once-per-place registries, so a second run's warnings are kept too)
             with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("default")
                 result = fn(*args, **kwargs)
         except BaseException:
             for w in caught:
