@@ -482,13 +482,19 @@ def stage_options() -> dict:
                 raise ConfigError(f"{opt.flag}, an option of {owners}, has the name of one of "
                                   f"spslidar's own config keys: the stage must name it "
                                   f"otherwise")
-            if name in out and out[name][0] is not reg and out[name][1] != opt:
-                other, first = out[name]
+            other, first = out.get(name, (reg, opt))
+            if other is not reg and _declared(first) != _declared(opt):
                 raise ConfigError(f"{opt.flag} is declared by {owners} and, otherwise, by "
                                   f"--{other.option} {', '.join(other.owners(name))}: one "
                                   f"of them must name it otherwise")
             out.setdefault(name, (reg, opt))
     return out
+
+
+def _declared(opt) -> tuple:
+    """What makes two declarations of an option one config key (as within a registry:
+    :meth:`~spslidar.registry.Registry.add`): default, kind and bounds."""
+    return (opt.default, opt.kind, opt.lo, opt.hi)
 
 
 @functools.lru_cache(maxsize=1)
