@@ -331,3 +331,18 @@ def test_replacing_a_registered_stage_is_said():
         assert SOLVERS.get("fista").target is _Fista
     finally:
         SOLVERS._entries["fista"] = entry
+
+
+def test_a_plugin_experiment_is_a_reproduce_choice():
+    """``reproduce`` took its choices from names frozen at import: a plugin's experiment was
+    an "invalid choice" (an audit); they are read when the parser is built."""
+    from spslidar.experiments.reproduce import EXPERIMENT_REGISTRY
+
+    EXPERIMENT_REGISTRY.add("mine", lambda ctx: ("", []), "Mine", "a plugin's experiment",
+                            in_all=False)
+    try:
+        choices = build_parser()._subparsers._group_actions[0].choices["reproduce"]
+        action = next(a for a in choices._actions if a.dest == "experiment")
+        assert "mine" in action.choices and "all" in action.choices
+    finally:
+        EXPERIMENT_REGISTRY._entries.pop("mine", None)

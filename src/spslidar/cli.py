@@ -265,16 +265,19 @@ def build_parser() -> argparse.ArgumentParser:
     _add_reconstruct_parser(sub)
     _add_calibrate_parser(sub)
 
-    from .experiments.names import EXPERIMENTS
+    from .experiments.reproduce import ALL, EXPERIMENT_REGISTRY
 
+    # read from the registry when the parser is built, so a plugin's experiment (--plugin)
+    # is a choice (the names frozen at import left it "invalid choice", an audit)
+    experiments = (*EXPERIMENT_REGISTRY.names(), ALL)
     r = sub.add_parser("reproduce", help="reproduce the paper's figures and numbers beside ours",
                        description="Run one of the paper's experiments (or all) through the "
                                    "sweep engine; writes DIR/<experiment>/ (PNG figures, tidy "
                                    "CSV) and DIR/report.md + report.html with the paper's "
                                    "numbers next to ours. Finished runs are cached in "
                                    "DIR/cache, so an interrupted run resumes.")
-    r.add_argument("experiment", choices=EXPERIMENTS, metavar="EXPERIMENT",
-                   help=f"one of: {', '.join(EXPERIMENTS)}")
+    r.add_argument("experiment", choices=experiments, metavar="EXPERIMENT",
+                   help=f"one of: {', '.join(experiments)}")
     r.add_argument("--out", required=True, metavar="DIR", help="report folder")
     r.add_argument("--quick", action="store_true",
                    help="reduced smoke-test version (32x32, fewer settings, one trial "
