@@ -19,7 +19,7 @@ from .base import DepthContext
 __all__ = ["NOISE_BESIDE_MIN", "NOISE_ONLY_MARGIN", "NOISE_ONLY_MIN_SLICES",
            "NOISE_VERDICT_PIXELS", "effective_slices", "grid_shape", "index_to_depth",
            "no_return", "noise_maxima", "noise_only_ratio", "noise_scale", "noise_verdict",
-           "peak_to_noise", "pulse_filter", "refine_subbin", "shift2d", "verdict_room"]
+           "peak_to_noise", "pulse_filter", "refine_subbin", "shift2d", "verdict_and_room"]
 
 #: An image is said to be noise where the 90th percentile of :func:`peak_to_noise` is below
 #: this many times what non-negative white noise gives at as many effective slices
@@ -276,7 +276,6 @@ def _reference_blocks(k: int, pixels: int = 2048, seed: int = 0):
         yield np.maximum(rng.standard_normal((min(step, pixels - start), k)), 0.0)
 
 
-
 def noise_only_ratio(k: int, pixels: int = 2048, seed: int = 0, exclude: int = 2) -> float:
     """The 90th percentile of :func:`peak_to_noise` over profiles of ``k`` slices of white
     Gaussian noise clipped at zero (the non-negative solve's noise floor): what an image
@@ -354,40 +353,36 @@ def noise_verdict(slices: np.ndarray, cap: float = 1000.0,
         ``null``, :func:`noise_only_ratio` at :func:`effective_slices`; ``p90 < floor``
         means that at most a tenth of the pixels hold a return. None where there is no
         verdict: fewer than :data:`NOISE_ONLY_MIN_SLICES` (effective) slices, fewer than
-        :data:`NOISE_BESIDE_MIN` of them beside a return (:func:`verdict_room`), or
+        :data:`NOISE_BESIDE_MIN` of them beside a return (:func:`verdict_and_room`), or
         slices that are not finite (a diverged solve).
     """
+    return verdict_and_room(slices, cap, max_pixels, exclude)[0]
+
+
+def verdict_and_room(slices: np.ndarray, cap: float = 1000.0,
+                     max_pixels: int = NOISE_VERDICT_PIXELS, exclude: int = 2
+                     ) -> tuple[tuple[float, float, float] | None, tuple[int, int] | None]:
+    """:func:`noise_verdict`, and the room it had: ``(k_eff, beside)``, the independent
+    slices (:func:`effective_slices`) and how many of them lie beside a return of half width
+    ``exclude``, from the same pass (None where the slices are too few or not finite), so
+    that a caller can say why there is no verdict without reading the slices again."""
     sl = np.asarray(slices)
     if sl.ndim != 2 or sl.shape[1] < NOISE_ONLY_MIN_SLICES or not np.isfinite(sl).all():
-        return None
+        return None, None
     if sl.shape[0] > max_pixels:
         keep = np.random.default_rng(0).choice(sl.shape[0], max_pixels, replace=False)
         sl = sl[np.sort(keep)]
     exclude = max(2, int(exclude))
     ratio, tau = _noise_stats(sl, exclude, corr_exclude=exclude + 1)
-    k_eff, ref_exclude = _beside(sl.shape[1], tau, exclude)
+    k_eff = _effective(sl.shape[1], tau)
+    # the return's width in the reference's independent slices (2 for an ideal pulse)
+    ref_exclude = max(2, int(round(exclude * k_eff / sl.shape[1])))
+    room = (k_eff, max(0, k_eff - (2 * ref_exclude + 1)))
     null = noise_only_ratio(k_eff, exclude=ref_exclude)
-    if not np.isfinite(null) or k_eff - (2 * ref_exclude + 1) < NOISE_BESIDE_MIN:
-        return None
-    return float(np.percentile(np.minimum(ratio, cap), 90)), NOISE_ONLY_MARGIN * null, null
-
-
-def _beside(k: int, tau: float, exclude: int) -> tuple[int, int]:
-    """Effective slices and the return's half width in them (2 for an ideal pulse)."""
-    k_eff = _effective(k, tau)
-    return k_eff, max(2, int(round(max(2, int(exclude)) * k_eff / k)))
-
-
-def verdict_room(slices: np.ndarray, exclude: int = 2) -> tuple[int, int]:
-    """The independent slices (:func:`effective_slices`) of these profiles, and how many of
-    them lie beside a return of half width ``exclude`` slices: what :func:`noise_verdict`
-    reads the noise from (it gives no verdict under :data:`NOISE_ONLY_MIN_SLICES` and
-    :data:`NOISE_BESIDE_MIN` of them)."""
-    sl = np.asarray(slices)[:NOISE_VERDICT_PIXELS]
-    exclude = max(2, int(exclude))
-    k_eff, ref_exclude = _beside(sl.shape[1], _noise_stats(sl, exclude, exclude + 1)[1],
-                                 exclude)
-    return k_eff, max(0, k_eff - (2 * ref_exclude + 1))
+    if not np.isfinite(null) or room[1] < NOISE_BESIDE_MIN:
+        return None, room
+    return (float(np.percentile(np.minimum(ratio, cap), 90)), NOISE_ONLY_MARGIN * null,
+            null), room
 
 
 def no_return(peak: np.ndarray, fraction: float = 0.05) -> np.ndarray:

@@ -15,8 +15,7 @@ from ..constants import SPEED_OF_LIGHT
 from ..depth.profile import (
     NOISE_BESIDE_MIN,
     NOISE_ONLY_MIN_SLICES,
-    noise_verdict,
-    verdict_room,
+    verdict_and_room,
 )
 from ..metrics import depth_errors, edge_agreement, sobel_edges, truth_edge_mask
 from ..products import reflectivity_image
@@ -78,8 +77,9 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
     # (an aliased profile's noise maximum beside its peak is the peak's own repeat, ratio
     # 1.00: no verdict to make; its white-noise reference of 2048 x K slices ran out of
     # memory at K = 66 714, a 0-1000 m gate, an audit)
-    verdict = (None if noiseless or aliased else
-               noise_verdict(slices, exclude=int(sim.get("response_half_width") or 2)))
+    half = max(2, int(sim.get("response_half_width") or 2))
+    verdict, room = ((None, None) if noiseless or aliased else
+                     verdict_and_room(slices, exclude=half))
     # None: no verdict (noiseless, aliased, too few slices, a diverged solve)
     peak_ratio, peak_floor, null = verdict if verdict is not None else (None, None, None)
     if aliased and not noiseless:
@@ -97,16 +97,17 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
             f"gives {null:.2f} here, {np.shape(slices)[1]} slices): check that the range gate "
             f"{gate_text(meas.gate)} m holds the scene, the signal level, or "
             f"acquire longer")
-    elif verdict is None and not noiseless and np.isfinite(slices).all():
+    elif verdict is None and not noiseless and (
+            room is not None or (np.shape(slices)[1] < NOISE_ONLY_MIN_SLICES
+                                 and np.isfinite(slices).all())):
         # (a gate of 16+ slices that leaves too few beside a calibrated response's width
         # had its verdict dropped without a word)
         n_sl = int(np.shape(slices)[1])
-        half = max(2, int(sim.get("response_half_width") or 2))
-        if n_sl < NOISE_ONLY_MIN_SLICES:
+        if room is None:
             held = f"{n_sl} slices, too few beside a return"
             need = f"{NOISE_ONLY_MIN_SLICES} or more"
         else:
-            k_eff, beside = verdict_room(slices, half)
+            k_eff, beside = room
             wide = (f" {2 * half + 1} slices wide (the instrument's response)" if half > 2
                     else "")
             held = (f"{n_sl} slices, as independent as {k_eff} (the matched filter "
