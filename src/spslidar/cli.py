@@ -13,7 +13,7 @@ import warnings
 from pathlib import Path
 
 from .cli_snr import add_snr_parser, cmd_snr  # noqa: F401  (re-exported: spslidar.cli.cmd_snr)
-from .errors import warning_origin
+from .errors import numbers_blanked, warning_origin
 
 EXIT_BAD_INPUT = 2
 #: what this command wrote so far (the interrupted line says it)
@@ -412,13 +412,10 @@ def _cmd_reconstruct(args) -> int:
     from .pipeline.real import _load_npy, load_code, load_patterns, reconstruct_ptu
 
     check_output(args.out, args.overwrite)  # refuse before any work
-    from .config import registries
+    from .pipeline.measurement import processing_keys
 
-    # (and the options the solvers and estimators declare: a plugin's had no flag)
-    declared = (*registries()["solver"].options(), *registries()["depth"].options())
-    processing = {k: getattr(args, k) for k in ("solver", "regulariser", "depth", "lam_scale",
-                                                 "iterations", "qcr", "max_time", *declared)
-                  if hasattr(args, k)}
+    # (with the options the solvers and estimators declare: a plugin's had no flag)
+    processing = {k: getattr(args, k) for k in processing_keys() if hasattr(args, k)}
     truth = _load_npy(args.truth, "truth") if args.truth else None
     result = reconstruct_ptu(args.ptu, load_patterns(args.patterns),
                              load_code(args.code, args.code_length), args.bit_rate,
@@ -613,31 +610,27 @@ class _OneLineWarnings:
 
     def __call__(self, message, category, filename, lineno, file=None, line=None):
         text = " ".join(str(message).split())
-        key = (category, filename, lineno, re.sub(r"[-+]?\d[\d.,]*(e[-+]?\d+)?", "#", text))
+        key = (category, filename, lineno, numbers_blanked(text))
         if key in self.repeats:
             self.repeats[key] += 1
             return
         self.repeats[key] = 0
         self.first[key] = text
-        print(f"spslidar {self.command}: warning: {text}{self._origin(category, filename, lineno)}",
+        print(f"spslidar {self.command}: warning: {text}"
+              f"{warning_origin(category, filename, lineno)}",
               file=sys.stderr if file is None else file)
-
-    @staticmethod
-    def _origin(category, filename, lineno) -> str:
-        return warning_origin(category, filename, lineno)
 
     def close(self) -> None:
         for key, n in self.repeats.items():
             category, filename, lineno, _ = key
             if n:
                 what = (f"the warning above (\"{' '.join(self.first[key].split()[:8])} ...\")"
-                        if not self._origin(category, filename, lineno) else
+                        if not warning_origin(category, filename, lineno) else
                         f"the {category.__name__} of {Path(filename).name}:{lineno} above")
                 print(f"spslidar {self.command}: warning: {what} came {n} more time"
                       f"{'s' if n > 1 else ''} (its numbers changed)", file=sys.stderr)
         self.repeats.clear()
         self.first.clear()
-
 
 
 def _load_plugins(argv: list[str]) -> list[str]:

@@ -19,6 +19,14 @@ class SceneError(SpslidarError):
     """A scene that cannot be read or is physically invalid (NaN or negative depth...)."""
 
 
+def numbers_blanked(text: str) -> str:
+    """``text`` with its numbers replaced by ``#``: what tells a warning that comes again with
+    other numbers (a fixed point's relative change, per block) from another one."""
+    import re
+
+    return re.sub(r"[-+]?\d[\d.,]*(e[-+]?\d+)?", "#", text)
+
+
 def warning_origin(category: type, filename: str, lineno: int) -> str:
     """Where a library's warning came from, as the user sees it after the warning's text
     (`` (RuntimeWarning in fromnumeric.py:3860)``); ``""`` for spslidar's own, which say

@@ -84,12 +84,12 @@ def load_plugins(specs: list[str] | None = None, export: bool = False) -> list[s
         A plugin that cannot be found or fails to import, in one line with its error.
     """
     specs = plugin_specs() if specs is None else list(specs)
-    if "" not in sys.path and os.getcwd() not in sys.path:
-        sys.path.append(os.getcwd())  # (a module beside the data, as python -m finds it)
     for spec in specs:
         key = str(Path(spec).expanduser().resolve()) if spec.endswith(".py") else spec
         if key in _LOADED:
             continue
+        if not spec.endswith(".py") and "" not in sys.path and os.getcwd() not in sys.path:
+            sys.path.append(os.getcwd())  # (a module beside the data, as python -m finds it)
         try:
             _LOADED[key] = _import(key if spec.endswith(".py") else spec)
         except ConfigError:

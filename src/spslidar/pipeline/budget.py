@@ -197,6 +197,13 @@ def config_solve_seconds(cfg, m: int, q: int, k: int, dense: bool,
     return solve_seconds(m, q, k, dense, iterations, flop_rate(cfg.dtype))
 
 
+def reconstruction_seconds(cfg, m: int, q: int, k: int, n_lags: int) -> float:
+    """A measured acquisition's reconstruction, priced: :func:`config_solve_seconds` of ``k``
+    solved slices (dense patterns) and :func:`depth_seconds` over the ``n_lags`` gated ones
+    (``reconstruct``'s price before its file is read, and once its gate is known)."""
+    return config_solve_seconds(cfg, m, q, k, True) + depth_seconds(cfg.depth, q, n_lags)
+
+
 #: a run estimated to take longer than this says so on stderr before it starts (seconds)
 ANNOUNCE_SECONDS = 30.0
 

@@ -266,11 +266,19 @@ def _head_start(g: np.ndarray, p0: int) -> tuple[int, bool]:
         head = g[(p0 - n - 1 - np.arange(2 * IRF_BEFORE)) % period]
         return float(head.mean() - far.mean()) > error
 
-    while stands(start):
-        if 2 * start > period // 4:
-            return start, start > IRF_BEFORE
-        start *= 2
-    return start, False
+    return _grow(start, stands, period // 4)
+
+
+def _grow(n: int, stands, cap: int) -> tuple[int, bool]:
+    """``n`` doubled while the response ``stands(n)`` beyond it and twice ``n`` is within
+    ``cap``; and whether it still stood where it was cut there (after a doubling: a short
+    code's first window may reach past ``cap`` already)."""
+    first = n
+    while stands(n):
+        if 2 * n > cap:
+            return n, n > first
+        n *= 2
+    return n, False
 
 
 def _tail_end(g: np.ndarray, p0: int, start: int = IRF_BEFORE) -> tuple[int, bool]:
@@ -292,12 +300,7 @@ def _tail_end(g: np.ndarray, p0: int, start: int = IRF_BEFORE) -> tuple[int, boo
         past = g[(p0 + n + 1 + np.arange(2 * IRF_BEFORE)) % period]
         return float(past.mean() - before.mean()) > error
 
-    after = IRF_AFTER
-    while stands(after):
-        if 2 * after > period // 4:
-            return after, after > IRF_AFTER  # (a short code's 40 bins reach past it)
-        after *= 2
-    return after, False
+    return _grow(IRF_AFTER, stands, period // 4)
 
 
 #: a calibration response below this many noise deviations is said to be read through the

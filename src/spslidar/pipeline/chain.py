@@ -12,7 +12,6 @@ changing e.g. the noise level does not change the patterns.
 from __future__ import annotations
 
 import functools
-import re
 import time
 import warnings
 from dataclasses import replace
@@ -25,7 +24,7 @@ from ..config import Config, chosen_stage_options
 from ..depth import ESTIMATORS, DepthContext
 from ..detectors import build_detector
 from ..detectors.counting import NoiseModel
-from ..errors import ConfigError, warning_origin
+from ..errors import ConfigError, numbers_blanked, warning_origin
 from ..operators.parallel import one_blas_thread
 from ..patterns import build_patterns
 from ..qcr import MeanEliminated, plain_problem, qcr_problem
@@ -86,7 +85,7 @@ def keeping_warnings(fn):
         for w in caught:  # (a library's with where it came from, as the command line says it)
             text = (" ".join(str(w.message).split())
                     + warning_origin(w.category, w.filename, w.lineno))
-            key = re.sub(r"[-+]?\d[\d.,]*(e[-+]?\d+)?", "#", text)
+            key = numbers_blanked(text)
             kept.setdefault(key, [text, 0])[1] += 1
         for text, n in kept.values():
             if text not in result.warnings:
@@ -411,11 +410,11 @@ def _price_measured(cfg: Config, m: int, q: int, k: int, n_lags: int) -> None:
     the depth stage over the ``n_lags`` gated slices (:mod:`.budget`), refused beyond
     ``--max-time`` and said when long. Priced before the file was read over every gated slice,
     a 64x64 file through a 0-100 m gate was announced at 67 s and took 15.5 s (an audit)."""
-    from .budget import check_time, config_solve_seconds, depth_seconds
+    from .budget import check_time, reconstruction_seconds
 
-    seconds = config_solve_seconds(cfg, m, q, k, True) + depth_seconds(cfg.depth, q, n_lags)
-    check_time(seconds, cfg.max_time, "this reconstruction", basis=f"its {k} slices with "
-               f"returns of {n_lags} gated", reduce="--iterations or the range gate")
+    check_time(reconstruction_seconds(cfg, m, q, k, n_lags), cfg.max_time,
+               "this reconstruction", basis=f"its {k} slices with returns of {n_lags} gated",
+               reduce="--iterations or the range gate")
 
 
 def _host(be, a):

@@ -303,16 +303,14 @@ def _check_solve_time(cfg: Config, n_patterns: int, n_pixels: int, n_lags: int,
     a fixed cost each, 1.2-1.6 times the time of 64x64 and 128x128 solves;
     :func:`~.budget.depth_seconds`, which this price left out: a 128x128 acquisition priced
     at 16 s took 35 s, 23 s of it the MRF, an audit)."""
-    from .budget import check_time, config_solve_seconds, depth_seconds
+    from .budget import check_time, reconstruction_seconds
     from .gate import AUTO_GATE_MIN_SLICES
 
     k = min(n_lags, period)
     if cfg.auto_gate if cfg.auto_gate is not None else k > AUTO_GATE_MIN_SLICES:
         return  # the gate keeps the slices with returns: priced once they are known
-    seconds = (config_solve_seconds(cfg, n_patterns, n_pixels, k, True)
-               + depth_seconds(cfg.depth, n_pixels, n_lags))
-    check_time(seconds, cfg.max_time, "this reconstruction", announce=False,
-               reduce="--iterations or the range gate")
+    check_time(reconstruction_seconds(cfg, n_patterns, n_pixels, k, n_lags), cfg.max_time,
+               "this reconstruction", announce=False, reduce="--iterations or the range gate")
 
 
 #: the weight factor per unit of a calibrated filter's spread (:func:`calibrated_lam_scale`)
@@ -517,8 +515,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     result = reconstruct(meas)
     # only what applied: the simulation's keys (scene "camera", signal 5, noise 10, gaussian
     # patterns...) were written as if they had been measured
-    result.metrics["config"] = {k: v for k, v in result.metrics["config"].items()
-                                if k in processing_keys() or k in _MEASURED_KEYS}
+    kept = processing_keys() | _MEASURED_KEYS
+    result.metrics["config"] = {k: v for k, v in result.metrics["config"].items() if k in kept}
     result.metrics["ptu"] = {
         "file": os.fspath(ptu), "counts_per_pattern": data.counts_per_pattern[:m].tolist(),
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":

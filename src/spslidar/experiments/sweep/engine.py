@@ -587,6 +587,7 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
 
     seconds: dict[str, float] = {}
     total = 0.0
+    processing = processing_keys()
     for params in points:
         config = {key: value for key, value in params.items()
                   if key not in (TRIAL_KEY, SCENE_HASH_KEY, IRF_HASH_KEY)}
@@ -596,7 +597,7 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
                 ignored.append(ignored_keys(cfg))
             # the scene loads and the memory fits: once per simulated configuration
             key = canonical_json({k: v for k, v in cfg.to_dict().items()
-                                  if k not in processing_keys() and k != "seed"})
+                                  if k not in processing and k != "seed"})
             if key not in seconds:
                 seconds[key] = preflight(cfg).seconds
             total += seconds[key]
