@@ -214,6 +214,15 @@ def test_a_map_of_noise_is_not_summed_up_as_returns(tmp_path, capsys):
     assert main([*files, "--range-gate", "0.8", "1.8", "--out", str(tmp_path / "b")]) == 0
     out = capsys.readouterr().out
     assert "returns in 100% of pixels" in out and "mostly noise" not in out
+    # and depth.png's title, as the line says it
+    from spslidar.figures import _title
+    from spslidar.pipeline.real import load_code, load_patterns, reconstruct_ptu
+
+    pats, code = load_patterns(tmp_path / "a_patterns.npy"), load_code(tmp_path / "a_code.npy")
+    noise = _title(reconstruct_ptu(tmp_path / "a.ptu", pats, code, 10e9, (2.2, 3.2)))
+    lit = _title(reconstruct_ptu(tmp_path / "a.ptu", pats, code, 10e9, (0.8, 1.8)))
+    assert "a depth in" in noise and "MOSTLY NOISE" in noise and "returns in" not in noise
+    assert "returns in 100% of pixels" in lit and "MOSTLY NOISE" not in lit
 
 
 def test_reconstruct_refuses_a_truth_without_depths_and_a_text_bit_rate(tmp_path):

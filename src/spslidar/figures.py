@@ -193,7 +193,9 @@ def _title(result) -> str:
     if mostly_noise(m):
         noise = "; MOSTLY NOISE: at most a tenth of the pixels hold a return (see the warnings)"
     if m.get("depth_rmse_m") is None:
-        return (f"{what}: no ground truth; returns in {_percent(m['coverage'])} of "
+        # (not "returns in 97% of pixels" beside MOSTLY NOISE, as the summary line says it)
+        found = "a depth" if noise else "returns"
+        return (f"{what}: no ground truth; {found} in {_percent(m['coverage'])} of "
                 f"pixels{noise}")
     return (f"{what}: RMSE = {m['depth_rmse_m']:.4f} m over {_percent(m['coverage'])} "
             f"of pixels{noise}")
