@@ -249,7 +249,8 @@ API_SECTIONS: list[tuple[str, str, str, list[str]]] = [
     ("pipeline", "Pipeline",
      "One acquisition and reconstruction end to end, measured acquisitions (PTU) and "
      "calibration, and the result folder.",
-     ["spslidar.pipeline", "spslidar.pipeline.*", "spslidar.outdir", "spslidar.machine"]),
+     ["spslidar.pipeline", "spslidar.pipeline.*", "spslidar.outdir", "spslidar.outfiles",
+      "spslidar.machine"]),
     ("backends", "Backends",
      "Where the numeric core runs (NumPy, array-API libraries, GPU).",
      ["spslidar.backends", "spslidar.backends.*"]),
@@ -259,9 +260,13 @@ API_SECTIONS: list[tuple[str, str, str, list[str]]] = [
     ("experiments", "Experiments",
      "Parameter sweeps and the reproduction of the paper's experiments.",
      ["spslidar.experiments", "spslidar.experiments.*"]),
+    ("plugins", "Stages of your own",
+     "A plugin's stages from the command line (``--plugin``), and the conformance checks "
+     "every stage is held to (``spslidar check``, ``spslidar.testing.check_stage``).",
+     ["spslidar.plugins", "spslidar.testing", "spslidar.testing.*"]),
     ("cli", "Command line",
      "The ``spslidar`` command; its options are listed in full in the :doc:`../cli`.",
-     ["spslidar.cli", "spslidar.interrupts"]),
+     ["spslidar.cli", "spslidar.cli_*", "spslidar.interrupts"]),
 ]
 
 #: Extra reST at the top of a section page (after its introduction).

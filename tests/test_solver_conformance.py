@@ -1,22 +1,25 @@
-"""Conformance suites: every registered solver and every regulariser, discovered.
+"""Conformance suites: every registered solver and every regulariser, discovered, held by
+the checks of :mod:`spslidar.testing.solvers` (the ones ``spslidar check`` runs on a plugin's
+stages).
 
 Solvers come from :data:`spslidar.solvers.SOLVERS` (a new entry is tested without touching this
 file); each is run on every small problem whose regulariser its ``validate`` hook accepts:
 
 * ``tv``: a 16 x 16 compressive problem (128 Gaussian measurements, K = 2) with isotropic TV.
-  Reference: a plain FISTA loop written here (only ``reg.prox`` of a tightly converged
-  :class:`TV`), run to a fixed point; its optimality is checked by the proximal fixed-point
-  residual, the prox itself against scikit-image in ``test_regularisers.py``.
+  Reference: the kit's plain FISTA loop (only ``reg.prox`` of a tightly converged
+  :class:`TV`), run to a fixed point; its optimality is checked here by the proximal
+  fixed-point residual, the prox itself against scikit-image in ``test_regularisers.py``.
 * ``tv-aniso``: the same problem with the anisotropic TV (``--regulariser tv-aniso``), the
   same plain FISTA reference with the anisotropic prox (checked against an exact reference in
   ``test_solvers_tval3_gpsr.py``).
 * ``tv-denoise``: ``A = I`` (two noisy images): the optimum is scikit-image's
   ``denoise_tv_chambolle``, which also cross-checks the FISTA reference.
-* ``l1`` (sparse spikes) and ``wavelet`` (Haar l1 of the images): scikit-learn's ``Lasso``
-  (coordinate descent to 1e-12) on ``A`` and on ``A W^H``.
+* ``l1`` (sparse spikes) and ``wavelet`` (Haar l1 of the images): the kit's polished FISTA,
+  checked here against scikit-learn's ``Lasso`` (coordinate descent to 1e-12).
 
 Regularisers are the subclasses of :class:`Regulariser` in the package (found recursively);
-each needs an example in :data:`REG_EXAMPLES`, a test fails for one without.
+each needs an example in :data:`REG_EXAMPLES`, a test fails for one without; the registered
+ones are checked through their factories too.
 """
 
 from __future__ import annotations
@@ -26,37 +29,19 @@ import subprocess
 import sys
 import textwrap
 from collections.abc import Callable
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from _reference import fista_tv
 
 from spslidar.errors import ConfigError
-from spslidar.operators import Identity, MatrixOperator, Wavelet2D
-from spslidar.solvers import SOLVERS, Solver, StopRule, get_solver, progress
+from spslidar.operators import MatrixOperator, Wavelet2D
+from spslidar.solvers import REGULARISERS, SOLVERS, Solver, StopRule, get_solver, progress
+from spslidar.solvers.fista import FISTA
 from spslidar.solvers.regularisers import L1, TV, Regulariser, Zero
+from spslidar.testing import check_stage
+from spslidar.testing import solvers as kit
 
-SHAPE = (16, 16)
-N = SHAPE[0] * SHAPE[1]
-#: relative objective gap to the reference optimum every solver must reach ...
-REL_TOL = 1e-4
-#: ... within this many iterations (all in-tree solvers need at most ~130)
-MAX_ITER = 1000
-KINDS = ("tv", "tv-aniso", "tv-denoise", "l1", "wavelet")
-
-
-# -- problems and references -------------------------------------------------------------------
-def _tv(**kw) -> TV:
-    """The TV of the solver runs (accurate enough for a 1e-4 objective gap)."""
-    return TV(SHAPE, **{"max_inner": 100, "inner_tol": 1e-6, **kw})
-
-
-def _fista_reference(a: np.ndarray, y: np.ndarray, lam: float, n_iter: int,
-                     isotropic: bool = True) -> np.ndarray:
-    """Plain FISTA with a tightly converged TV prox (independent of the solver classes)."""
-    return fista_tv(a, y, lam, TV(SHAPE, isotropic=isotropic, max_inner=200, inner_tol=1e-8),
-                    n_iter)
+SHAPE, N, KINDS = kit.SHAPE, kit.N, kit.KINDS
 
 
 def _lasso(b: np.ndarray, y: np.ndarray, lam: float) -> np.ndarray:
@@ -67,67 +52,12 @@ def _lasso(b: np.ndarray, y: np.ndarray, lam: float) -> np.ndarray:
     return np.stack([las.fit(b, y[:, j]).coef_.copy() for j in range(y.shape[1])], axis=1)
 
 
-class Problem(SimpleNamespace):
-    """``op``, dense ``a`` (``None``: identity), ``y``, ``lam``, ``make_reg()``, the
-    reference solution ``x_ref`` and its objective ``f_ref``."""
-
-    def objective(self, x: np.ndarray) -> float:
-        r = (x - self.y) if self.a is None else (self.a @ x - self.y)
-        return 0.5 * float(np.sum(r**2)) + self.lam * self.make_reg()(x)
-
-
 @pytest.fixture(scope="module")
-def problems() -> dict[str, Problem]:
-    rng = np.random.default_rng(7)
-    m, k = 128, 2
-    a = rng.standard_normal((m, N)) / np.sqrt(m)
-    img = np.zeros(SHAPE + (k,))
-    img[3:10, 4:12, 0] = 1.0
-    img[8:14, 2:9, 0] += 0.5
-    img[5:13, 6:15, 1] = -0.7
-    img[:, 12:, 1] += 0.4
-    x_img = img.reshape(N, k)
-    y_img = a @ x_img + 0.05 * rng.standard_normal((m, k))
-    spikes = np.zeros((N, k))
-    for j in range(k):
-        spikes[rng.choice(N, 10, replace=False), j] = 2.0 * rng.standard_normal(10)
-    y_sp = a @ spikes + 0.05 * rng.standard_normal((m, k))
-    noisy = x_img + 0.2 * rng.standard_normal((N, k))
-    haar = Wavelet2D(SHAPE, "haar")
-
-    from skimage.restoration import denoise_tv_chambolle
-
-    out = {
-        "tv": Problem(op=MatrixOperator(a), a=a, y=y_img, lam=0.05, make_reg=_tv,
-                      x_ref=_fista_reference(a, y_img, 0.05, 300)),
-        "tv-aniso": Problem(op=MatrixOperator(a), a=a, y=y_img, lam=0.05,
-                            make_reg=lambda: _tv(isotropic=False),
-                            x_ref=_fista_reference(a, y_img, 0.05, 300, isotropic=False)),
-        "tv-denoise": Problem(
-            op=Identity(N), a=None, y=noisy, lam=0.1, make_reg=_tv,
-            x_ref=np.stack([denoise_tv_chambolle(noisy[:, j].reshape(SHAPE), weight=0.1,
-                                                 eps=1e-10, max_num_iter=10_000).ravel()
-                            for j in range(k)], axis=1)),
-        "l1": Problem(op=MatrixOperator(a), a=a, y=y_sp, lam=0.05, make_reg=L1,
-                      x_ref=_lasso(a, y_sp, 0.05)),
-        "wavelet": Problem(op=MatrixOperator(a), a=a, y=y_img, lam=0.03,
-                           make_reg=lambda: L1(haar),
-                           x_ref=haar.rmatvec(_lasso(a @ haar.todense().T, y_img, 0.03))),
-    }
-    for p in out.values():
-        p.f_ref = p.objective(p.x_ref)
-    return out
+def problems():
+    return kit.problems()
 
 
-def _accepts(name: str, kind: str) -> bool:
-    """Whether the registry entry's ``validate`` hook accepts the regulariser of ``kind``."""
-    try:
-        SOLVERS.get(name).check(SimpleNamespace(regulariser=kind.split("-")[0]))
-    except ConfigError:
-        return False
-    return True
-
-
+_accepts = kit.accepts
 CASES = [pytest.param(name, kind, id=f"{name}-{kind}")
          for name in SOLVERS.names() for kind in KINDS if _accepts(name, kind)]
 #: one problem per solver, for the behavioural tests
@@ -145,7 +75,8 @@ def test_tv_reference_is_optimal(problems):
     assert np.linalg.norm(fp - p.x_ref) <= 1e-6 * np.linalg.norm(p.x_ref)
     # the same reference loop on A = I agrees with scikit-image's Chambolle denoiser
     d = problems["tv-denoise"]
-    x = _fista_reference(np.eye(N), d.y, d.lam, 20)
+    x = kit.fista_tv(np.eye(N), d.y, d.lam,
+                     TV(SHAPE, max_inner=200, inner_tol=1e-8), 20)
     assert d.objective(x) == pytest.approx(d.f_ref, rel=1e-6)
 
 
@@ -160,6 +91,10 @@ def test_lasso_references_are_optimal(problems):
         assert on.any()
         np.testing.assert_allclose(g[on], -p.lam * np.sign(z[on]), atol=1e-6)
         assert np.all(np.abs(g[~on]) <= p.lam * (1 + 1e-6))
+        # and equal to scikit-learn's coordinate descent (its tolerance 1e-12: the two agree
+        # to 1e-9 in the coefficients, measured 5e-12 / 4e-11)
+        ref = _lasso(b, p.y, p.lam)
+        np.testing.assert_allclose(z, ref, atol=1e-9)
 
 
 # -- the registry ------------------------------------------------------------------------------
@@ -242,87 +177,56 @@ def test_every_solver_has_a_conformance_problem(name):
 # -- solvers: the optimum, the objective, the stop rule, callbacks, determinism ----------------
 @pytest.mark.parametrize("name,kind", CASES)
 def test_reaches_the_reference_optimum(name, kind, problems):
-    p = problems[kind]
-    x, info = get_solver(name)(stop=StopRule(MAX_ITER, rtol=1e-10)).solve(
-        p.op, p.y, p.make_reg(), p.lam)
-    assert x.shape == p.x_ref.shape
-    f = p.objective(x)
-    assert f <= p.f_ref * (1 + REL_TOL), f"{name} on {kind}: {f} vs reference {p.f_ref}"
-    assert f >= p.f_ref * (1 - REL_TOL)  # the reference is (near) optimal too
-    # the recorded objective is that of the returned iterate
-    assert info.objective[-1] == pytest.approx(f, rel=1e-9)
-    # decreases overall, and is never above the objective at the start (x0 = 0)
-    h = np.asarray(info.objective)
-    f0 = p.objective(np.zeros_like(x))
-    assert np.all(np.isfinite(h)) and h[-1] < h[0] and h.max() <= f0
+    assert kit.check_optimum(name, kind) == [f"{kind}: reaches the reference optimum"]
 
 
 @pytest.mark.parametrize("name,kind", FIRST)
-def test_honours_max_iter_and_calls_callbacks_once_per_iteration(name, kind, problems):
-    p = problems[kind]
-    seen = []
-
-    def callback(solver):
-        seen.append((solver.it, len(solver.info.objective), solver.x.shape, solver.done()))
-
-    x, info = get_solver(name)(stop=StopRule(max_iter=7, rtol=0)).solve(
-        p.op, p.y, p.make_reg(), p.lam, callback=[callback])
-    assert info.iterations == 7 and info.stop_reason == "max_iter"
-    assert len(info.objective) == 7 and info.solver == name
-    assert [s[0] for s in seen] == list(range(1, 8))
-    assert [s[1] for s in seen] == list(range(1, 8))
-    assert all(s[2] == x.shape for s in seen)
-    assert [s[3] for s in seen] == [False] * 6 + [True]
-    # 1-D data: 1-D result, also in the callback
-    shapes = []
-    x1, _ = get_solver(name)(stop=StopRule(3, rtol=0)).solve(
-        p.op, p.y[:, 0], p.make_reg(), p.lam, callback=lambda s: shapes.append(s.x.shape))
-    assert x1.shape == (N,) and shapes == [(N,)] * 3
+def test_stop_rule_callbacks_determinism_and_reuse(name, kind, problems):
+    assert "step by step equals solve" in kit.check_behaviour(name, kind)
 
 
-@pytest.mark.parametrize("name,kind", FIRST)
-def test_deterministic_and_stepwise_equals_solve(name, kind, problems):
-    p = problems[kind]
-    cls = get_solver(name)
-    stop = StopRule(max_iter=25, rtol=0)
-    x1, i1 = cls(stop=stop).solve(p.op, p.y, p.make_reg(), p.lam)
-    solver = cls(stop=stop)
-    x2, i2 = solver.solve(p.op, p.y, p.make_reg(), p.lam)
-    x3, i3 = solver.solve(p.op, p.y, p.make_reg(), p.lam)  # the same instance again
-    # driven by hand
-    s = cls(stop=stop)
-    s.setup(p.op, p.y, p.make_reg(), p.lam)
-    while not s.done():
-        s.step()
-    x4, i4 = s.finish()
-    for x, i in ((x2, i2), (x3, i3), (x4, i4)):
-        np.testing.assert_array_equal(x, x1)
-        assert i.objective == i1.objective and i.stop_reason == i1.stop_reason
-    # left before a rule is met: the iterations done so far, reason 'stopped'
-    s = cls(stop=StopRule(max_iter=100, rtol=0))
-    s.setup(p.op, p.y, p.make_reg(), p.lam)
-    for _ in range(4):
-        s.step()
-    x5, i5 = s.finish()
-    assert i5.iterations == 4 and i5.stop_reason == "stopped" and x5.shape == x1.shape
-    assert i5.objective == i1.objective[:4]
-    with pytest.raises(RuntimeError):
-        cls().step()
+@pytest.mark.parametrize("name", SOLVERS.names())
+def test_check_stage_of_every_solver(name, problems):
+    assert check_stage("solver", name)[0] == "entry"
 
 
-@pytest.mark.parametrize("name,kind", CASES)
-def test_reused_regulariser_gives_the_fresh_result(name, kind, problems):
-    # Solver.setup resets the regulariser: a TV reused from an earlier solve used to start
-    # its prox from the old warm-start dual (a 1.5e-4 relative difference)
-    p = problems[kind]
-    cls = get_solver(name)
-    stop = StopRule(max_iter=30, rtol=0)
-    reg = p.make_reg()
-    cls(stop=stop).solve(p.op, p.y * 0.5, reg, p.lam)
-    x_reused, i_reused = cls(stop=stop).solve(p.op, p.y, reg, p.lam)
-    x_fresh, i_fresh = cls(stop=stop).solve(p.op, p.y, p.make_reg(), p.lam)
-    np.testing.assert_array_equal(x_reused, x_fresh)
-    assert i_reused.objective == i_fresh.objective
+class _Early(FISTA):
+    """FISTA that stops after a tenth of the iterations asked for."""
+
+    name = "early"
+
+    def done(self):
+        return super().done() or self.it >= max(1, self.stop.max_iter // 10)
+
+
+class _Sticky(FISTA):
+    """FISTA whose weight drifts from one solve to the next (state kept between calls)."""
+
+    name = "sticky"
+    calls = 0
+
+    def setup(self, A, y, reg, lam, x0=None):
+        _Sticky.calls += 1
+        super().setup(A, y, reg, lam * (1 + 0.1 * _Sticky.calls), x0)
+
+
+@pytest.fixture
+def broken_solvers():
+    for name, cls in (("early", _Early), ("sticky", _Sticky)):
+        SOLVERS.add(name, cls, name, "broken", iterations=60, lam_scale=0.45,
+                    regulariser="tv")
+    try:
+        yield
+    finally:
+        for name in ("early", "sticky"):
+            SOLVERS._entries.pop(name, None)
+
+
+def test_solver_checks_fail_on_broken_solvers(broken_solvers, problems):
+    with pytest.raises(AssertionError, match="more than 0.0001 above"):
+        check_stage("solver", "early")
+    with pytest.raises(AssertionError, match="not the same iterates twice"):
+        kit.check_behaviour("sticky", "tv")
 
 
 def test_progress_callback():
@@ -372,75 +276,37 @@ def test_every_regulariser_has_an_example():
     assert not missing, f"add examples to REG_EXAMPLES for {missing}"
 
 
-def _block(seed: int, k: int = 3, dtype=np.float64) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    img = np.zeros((8, 8, k))
-    img[2:6, 1:5] = 1.0
-    img[:, 6:] -= 0.6
-    return (img.reshape(64, k) + 0.3 * rng.standard_normal((64, k))).astype(dtype)
-
-
-def _prox_objective(reg: Regulariser, z: np.ndarray, v: np.ndarray, t: float) -> float:
-    return 0.5 * float(np.sum((z - v) ** 2)) + t * reg(z)
-
-
 @pytest.mark.parametrize("make", REG_CASES)
-@pytest.mark.parametrize("t", [0.05, 0.4])
-def test_prox_is_optimal(make, t):
-    reg = make()
-    v = _block(1)
-    z = reg.prox(v, t)
-    feasible = (lambda w: np.maximum(w, 0)) if reg.nonneg else (lambda w: w)
-    if reg.nonneg:
-        assert z.min() >= 0
-    best = _prox_objective(reg, z, v, t)
-    slack = 1e-10 * max(1.0, abs(best))
-    assert best <= _prox_objective(reg, feasible(v), v, t) + slack  # better than the input
-    rng = np.random.default_rng(2)
-    for scale in (1e-1, 1e-3, 1e-5):  # and than random feasible perturbations
-        for _ in range(5):
-            w = feasible(z + scale * rng.standard_normal(z.shape))
-            assert _prox_objective(reg, w, v, t) >= best - slack
-    np.testing.assert_allclose(reg.prox(v, 0.0), feasible(v), rtol=0, atol=1e-12)  # t = 0
+def test_regulariser_contract(make):
+    assert kit.check_regulariser_instance(make)[0] == "prox optimal"
 
 
-@pytest.mark.parametrize("make", REG_CASES)
-def test_values_agree_with_call(make):
-    reg = make()
-    x = _block(3, k=4)
-    vals = reg.values(x)
-    assert vals.shape == (4,) and np.all(np.isfinite(vals)) and np.all(vals >= 0)
-    assert reg(x) == pytest.approx(float(np.sum(vals)), rel=1e-12)
-    for j in range(4):
-        assert reg(x[:, j]) == pytest.approx(vals[j], rel=1e-12, abs=1e-12)
-        assert reg.values(x[:, j]).shape == (1,)
-    assert reg(np.zeros(64)) == 0.0
+@pytest.mark.parametrize("name", REGULARISERS.names())
+def test_registered_regulariser_contract(name):
+    assert "reset" in check_stage("regulariser", name)
 
 
-@pytest.mark.parametrize("make", REG_CASES)
-@pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_no_side_effects_and_dtype_preserved(make, dtype):
-    reg = make()
-    for v in (_block(4, dtype=dtype), _block(5, k=1, dtype=dtype)[:, 0]):
-        keep = v.copy()
-        z = reg.prox(v, 0.2)
-        reg.values(v)
-        reg(v)
-        np.testing.assert_array_equal(v, keep)
-        assert z.dtype == dtype and z.shape == v.shape
-        assert not np.shares_memory(z, v)
-        z0 = reg.prox(v, 0.0)
-        assert z0.dtype == dtype and not np.shares_memory(z0, v)
+class _Shrunk(L1):
+    """l1 whose prox over-shrinks by a tenth."""
+
+    def prox(self, x, t):
+        return super().prox(x, 1.1 * t)
 
 
-@pytest.mark.parametrize("make", REG_CASES)
-def test_reset_restores_the_fresh_state(make):
-    v1, v2 = _block(6), _block(7)
-    reg = make()
-    reg.prox(v1, 0.3)
-    reg.prox(v1 * 1.1, 0.2)
-    reg.reset()
-    np.testing.assert_array_equal(reg.prox(v2, 0.3), make().prox(v2, 0.3))
+class _Inplace(L1):
+    """l1 whose prox writes into its input."""
+
+    def prox(self, x, t):
+        z = super().prox(x, t)
+        x[...] = z
+        return z
+
+
+@pytest.mark.parametrize("cls,why", [(_Shrunk, "from it does better"),
+                                     (_Inplace, "changed the input")])
+def test_regulariser_checks_fail_on_broken_ones(cls, why):
+    with pytest.raises(AssertionError, match=why):
+        kit.check_regulariser_instance(cls)
 
 
 def test_tv_registry_entries_and_the_default():

@@ -12,6 +12,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from .cli_check import add_check_parser, cmd_check
 from .cli_snr import add_snr_parser, cmd_snr  # noqa: F401  (re-exported: spslidar.cli.cmd_snr)
 from .errors import numbers_blanked, warning_origin
 
@@ -264,6 +265,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_snr_parser(sub)
     _add_reconstruct_parser(sub)
     _add_calibrate_parser(sub)
+    add_check_parser(sub)
 
     from .experiments.reproduce import ALL, EXPERIMENT_REGISTRY
 
@@ -593,7 +595,7 @@ def _cmd_sweep(args) -> int:
 
 
 COMMANDS = {"run": _cmd_run, "reconstruct": _cmd_reconstruct, "calibrate": _cmd_calibrate,
-            "snr": cmd_snr,
+            "snr": cmd_snr, "check": cmd_check,
             "reproduce": _cmd_reproduce, "sweep": _cmd_sweep}
 
 

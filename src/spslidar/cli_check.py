@@ -1,0 +1,91 @@
+"""``spslidar check``: the conformance checks of :mod:`spslidar.testing` over registered
+stages, for a researcher's own (``spslidar --plugin mystages check --plugins-only``) as for
+the built-in ones; the sub-command's parser and its command, as :mod:`spslidar.cli`
+registers them."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+__all__ = ["add_check_parser", "cmd_check"]
+
+#: exit status where a stage breaks its contract (bad input stays 2)
+EXIT_FAILED = 1
+
+
+def add_check_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add the ``check`` sub-command to ``add_subparsers()``.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-command registry of the ``spslidar`` parser.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The new sub-parser; :func:`cmd_check` runs it.
+    """
+    from .testing import STAGE_KINDS
+
+    p = subparsers.add_parser(
+        "check", help="check registered stages (yours: --plugin) against their contracts",
+        description="Run the conformance checks of spslidar.testing, which the project's own "
+                    "tests run over every built-in stage, on registered stages: a code "
+                    "family's bits and correlation, a pattern operator's adjoint, a detector "
+                    "model's mean, a solver's optimum against a reference, a regulariser's "
+                    "prox, a depth estimator's noiseless recovery, a scene kind's shape. One "
+                    "line per stage; exit status 1 if any breaks its contract.")
+    p.add_argument("stages", nargs="*", metavar="KIND[:NAME]",
+                   help=f"stage kinds ({', '.join(STAGE_KINDS)}) or single stages "
+                        f"(depth:mrf); default every kind")
+    p.add_argument("--plugins-only", action="store_true",
+                   help="only the stages a plugin registered (--plugin or SPSLIDAR_PLUGINS)")
+    return p
+
+
+def _selection(specs: list[str]) -> list[tuple[str, str | None]]:
+    """``KIND[:NAME]`` arguments as ``(kind, name or None)``; unknown ones are ConfigErrors."""
+    from .errors import ConfigError
+    from .testing import STAGE_KINDS, registry_of
+
+    out = []
+    for spec in specs:
+        kind, _, name = spec.partition(":")
+        if kind not in STAGE_KINDS:
+            raise ConfigError(f"unknown stage kind {kind!r} in {spec!r}; choose one of "
+                              f"{', '.join(STAGE_KINDS)}")
+        if name and name not in registry_of(kind):
+            raise ConfigError(f"unknown {registry_of(kind).kind} {name!r}; choose one of "
+                              f"{', '.join(registry_of(kind).names())}")
+        out.append((kind, name or None))
+    return out
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    """Run ``spslidar check``; return the exit status (0: every stage passes, 1: one breaks
+    its contract, 2: an unknown kind or name, or nothing to check)."""
+    from .errors import ConfigError
+    from .testing import STAGE_KINDS, check_stages
+
+    chosen = _selection(args.stages) or [(kind, None) for kind in STAGE_KINDS]
+
+    def say(r) -> None:
+        if r.ok:
+            print(f"ok    {r.kind} {r.name} ({len(r.passed)} contracts, {r.seconds:.1f} s)",
+                  flush=True)
+        else:
+            print(f"FAIL  {r.kind} {r.name}: {r.error}", flush=True)
+
+    results = []
+    for kind, name in chosen:
+        results += check_stages([kind], None if name is None else [name],
+                                plugins_only=args.plugins_only, on_result=say)
+    if not results:
+        raise ConfigError("no stage to check" + (": no plugin registered one of those kinds"
+                                                 if args.plugins_only else ""))
+    failed = [r for r in results if not r.ok]
+    print(f"{len(results) - len(failed)} of {len(results)} stages pass their contracts",
+          file=sys.stderr if failed else sys.stdout)
+    return EXIT_FAILED if failed else 0
