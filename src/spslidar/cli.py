@@ -545,6 +545,14 @@ def _cmd_run(args) -> int:
     check_output(args.out, args.overwrite)  # refuse before any work
     base = read_toml(args.config) if args.config else {}
     cfg = Config.from_dict(base, **opts)  # (a TOML's code-length, overridden by --code-length)
+    if save_ptu and "hadamard" in cfg.patterns and cfg.hadamard_realisation == "differential":
+        from .errors import ConfigError
+
+        # (its +-1 rows went into the photon rates: a traceback, "lam < 0", an audit)
+        raise ConfigError("--save-ptu writes one marker block per pattern, a DMD frame of "
+                          "mirror states in [0, 1]: --hadamard-realisation differential shows "
+                          "each pattern as two frames, which 'spslidar reconstruct' does not "
+                          "read; use --hadamard-realisation shifted")
     if save_ptu:
         from .outfiles import write_files
         from .pipeline import measure, reconstruct

@@ -429,10 +429,12 @@ def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
         if whole:
             left = (f"; the last {stray} byte{'s' if stray != 1 else ''}, part of a record, "
                     f"are left out" if stray else "")
-            warnings.warn(f"{path!r}: the header's record count (TTResult_NumberOfRecords) is "
-                          f"0, as an acquisition that did not finish (or software that does not "
-                          f"fill it in) leaves it: all {whole} whole records in the file are "
-                          f"read, as ptufile does{left}; check that the acquisition is complete",
+            said = ("is 0" if "TTResult_NumberOfRecords" in f.tags else "is missing")
+            warnings.warn(f"{path!r}: the header's record count (TTResult_NumberOfRecords) "
+                          f"{said}, as an acquisition that did not finish (or software "
+                          f"that does not fill it in) leaves it: all {whole} whole records "
+                          f"in the file are read, as ptufile does{left}; check that the "
+                          f"acquisition is complete",
                           RuntimeWarning, stacklevel=3)
     elif available < 4 * n_records:
         raise ConfigError(f"{path!r} is truncated: header announces {n_records} records "

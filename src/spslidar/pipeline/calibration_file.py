@@ -118,7 +118,8 @@ def load_calibration(path: str | os.PathLike, bit_rate: float, code: np.ndarray)
     the same); one line otherwise, and for a file edited since it was written."""
     p = Path(path)
     try:
-        cal = json.loads(p.read_text())
+        # (utf-8-sig: a file a Windows editor saved with a byte-order mark was "not JSON")
+        cal = json.loads(p.read_text(encoding="utf-8-sig"))
     except OSError as exc:
         raise ConfigError(f"cannot read --calibration {p}: {exc.strerror or exc}") from None
     except ValueError:
@@ -130,6 +131,15 @@ def load_calibration(path: str | os.PathLike, bit_rate: float, code: np.ndarray)
                           f"(its content no longer matches its checksum, content_sha256); "
                           f"calibrate again")
     cal = check_calibration(cal, f"--calibration {p}", bit_rate, code)
+    if "content_sha256" not in cal:
+        # (files of 0.2.0 before 2026-11-28 have none; a file whose checksum was deleted
+        # took a lag_shift edited by one bin, 15 mm on every depth, without a word: an audit)
+        import warnings
+
+        warnings.warn(f"--calibration {p} has no checksum (content_sha256): written before "
+                      f"2026-11-28, or edited and the checksum removed; only its fields' "
+                      f"consistency is checked, so calibrate again if in doubt", UserWarning,
+                      stacklevel=2)
     cal["file"] = str(p)
     cal["file_sha256"] = sha256_file(p)
     return cal
@@ -199,6 +209,11 @@ def _check_consistent(cal: dict, offsets: np.ndarray, values: np.ndarray, number
                           f"(the rest of the delay is lag_shift); calibrate again")
     period = whole[0]
     delay_bins = numbers[1] * numbers[0]  # delay_s x bit rate
+    if "delay_bins" in cal and not (reals("delay_bins") and abs(
+            float(cal["delay_bins"]) - delay_bins) <= 1e-6 * max(1.0, abs(delay_bins))):
+        # (written as delay_s x bit rate; an edited delay_bins of 500 was taken, an audit)
+        raise ConfigError(f"{what}: delay_bins {cal['delay_bins']!r} disagrees with delay_s x "
+                          f"bit_rate_hz ({delay_bins:.6g} bins); calibrate again")
     miss = (delay_bins - (whole[1] - numbers[3]) + period / 2) % period - period / 2
     if abs(miss) > 1.5:  # the sub-bin peak lies within 1 + 1/64 bins of the lag's
         raise ConfigError(f"{what}: lag_shift {whole[1]} and lag_fraction {numbers[3]:g} "
