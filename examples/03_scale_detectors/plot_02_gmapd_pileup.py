@@ -20,6 +20,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from spslidar.codes import make_code
+from spslidar.detectors.gmapd import GMAPD
 from spslidar.detectors.pileup import coates_correction, renewal_detection
 
 DEAD = 500  # dead time in bins: 50 ns at 10 GHz
@@ -63,20 +64,25 @@ _ = ax.legend()
 # fraction of its strength and the background after it is lost. The code
 # spreads the same photons over 512 pulses, a hundredth of a photon per bin: every bin is
 # seen with nearly the same efficiency, a constant factor that the matched filter ignores.
-# The Coates correction estimates the incident photons from the measured histogram: for the
-# code to about a percent; for the conventional pulse hardly at all, since its bin is nearly
-# saturated (when the detector is armed there, a photon arrives in 99.6 % of the periods), so
-# a few counts more or less change the estimate by tens of percent.
+# The Coates correction estimates the incident photons from a measured histogram, here drawn
+# as the detector records it, one detection at a time (``GMAPD.detect``: at most one per
+# dead time). For the code the correction is a nearly constant factor; for the conventional
+# pulse it divides each bin by the share of periods in which the detector was still armed
+# there: the pulse period (1023 bins) is longer than the dead time, so the detector re-arms
+# before every pulse, and the correction, exact for such a synchronous detector, recovers the
+# pulse to within its counting noise, though the bin behind a nearly saturated one is seen in
+# few periods and is noisier.
 n = 3.0
 periods = 100_000
 rng = np.random.default_rng(0)
+gmapd = GMAPD(dead_time=DEAD * 1e-10, bin_width=1e-10)
 window = slice(delay - 60, delay + 120)
 bins = np.arange(L)[window]
 fig, axes = plt.subplots(2, 2, figsize=(11, 5.5), sharex=True, layout="constrained")
 for col, lidar in enumerate(("conventional", "psst")):
     mu = incident(lidar, n)
     p = renewal_detection(mu, DEAD)  # detections per bin per period
-    hist = rng.poisson(p * periods).astype(float)  # a measured histogram
+    hist = gmapd.detect((mu * periods)[None, :], rng, periods)[0][0]  # a measured histogram
     # incident photons per bin and period, estimated from the measured histogram
     corrected = coates_correction(hist, periods, DEAD) / periods
     axes[0, col].semilogy(bins, mu[window], lw=1, label="incident")
@@ -97,5 +103,6 @@ plt.show()
 # %%
 # What to do with it: run a GMAPD near one photon per dead time and make up the photons with
 # a longer dwell (``periods``). The reproduction's ``pileup`` experiment measures the depth
-# error against the flux: the PSST lidar stays within 2 cm from 1 to 10 photons per dead time,
-# while the conventional lidar's error grows to decimetres above one photon per dead time.
+# error against the flux: the PSST lidar is at 1.3-2.2 cm from 1 to 10 photons per dead time
+# with or without the correction; the conventional lidar's error grows to decimetres above one
+# photon per dead time uncorrected, and stays at 0.4-1.1 cm corrected.
