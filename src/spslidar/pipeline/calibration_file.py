@@ -209,13 +209,13 @@ def _check_consistent(cal: dict, offsets: np.ndarray, values: np.ndarray, number
                           f"(the rest of the delay is lag_shift); calibrate again")
     period = whole[0]
     delay_bins = numbers[1] * numbers[0]  # delay_s x bit rate
-    if "delay_bins" in cal and not (reals("delay_bins") and abs(
-            float(cal["delay_bins"]) - delay_bins) <= 1e-6 * max(1.0, abs(delay_bins))):
-        # (written as delay_s x bit rate; an edited delay_bins of 500 was taken, an audit)
-        raise ConfigError(f"{what}: delay_bins {cal['delay_bins']!r} disagrees with delay_s x "
-                          f"bit_rate_hz ({delay_bins:.6g} bins); calibrate again")
     miss = (delay_bins - (whole[1] - numbers[3]) + period / 2) % period - period / 2
     if abs(miss) > 1.5:  # the sub-bin peak lies within 1 + 1/64 bins of the lag's
         raise ConfigError(f"{what}: lag_shift {whole[1]} and lag_fraction {numbers[3]:g} "
                           f"disagree with delay_s ({delay_bins:.4g} bins) by {miss:.3g} "
                           f"bins; calibrate again")
+    if "delay_bins" in cal and not (reals("delay_bins") and abs(
+            float(cal["delay_bins"]) - delay_bins) <= 1e-6 * max(1.0, abs(delay_bins))):
+        # (written as delay_s x bit rate; an edited delay_bins of 500 was taken, an audit)
+        raise ConfigError(f"{what}: delay_bins {cal['delay_bins']!r} disagrees with delay_s x "
+                          f"bit_rate_hz ({delay_bins:.6g} bins); calibrate again")

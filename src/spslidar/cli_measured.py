@@ -1,0 +1,171 @@
+"""``spslidar reconstruct`` and ``spslidar calibrate``: a measured T3 PTU acquisition to a
+depth map, and a flat target's to the instrument's system delay and response; the
+sub-commands' parsers and commands, as :mod:`spslidar.cli` registers them (moved out of
+``cli.py``, which had grown past 750 lines)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+__all__ = ["add_calibrate_parser", "add_reconstruct_parser", "cmd_calibrate",
+           "cmd_reconstruct"]
+
+
+def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help: str) -> None:
+    """The flags that describe a measured acquisition (reconstruct, calibrate)."""
+    p.add_argument("--ptu", required=True, metavar=ptu_metavar, help=ptu_help)
+    p.add_argument("--patterns", required=True, metavar="PATTERNS.npy",
+                   help="(M, N, N) mirror states shown, in marker order (0/1 or grey in [0, 1])")
+    p.add_argument("--code", required=True, metavar="CODE.npy|mseq",
+                   help="unipolar bits of one code period (.npy), or mseq with --code-length")
+    p.add_argument("--code-length", type=int, metavar="L", help="m-sequence length (2^n - 1)")
+    p.add_argument("--bit-rate", type=float, required=True, metavar="HZ",
+                   help="bits (TDC bins) per second; must match the file's resolution")
+    p.add_argument("--marker", type=int, default=1, metavar="K",
+                   help="marker input flagging a pattern change (default 1)")
+    p.add_argument("--channel", type=int, metavar="C",
+                   help="detector channel, numbered from 0: the channel field of HydraHarp, "
+                        "TimeHarp and MultiHarp records; a PicoHarp's inputs 1-4 are 0-3 "
+                        "(default all; a channel without photons is refused)")
+    p.add_argument("--allow-binning", action="store_true",
+                   help="merge k dtime units into one bin where the file's resolution is "
+                        "1/k of 1/--bit-rate (a TDC finer than the code's bits)")
+
+
+def add_reconstruct_parser(sub) -> None:
+    """``spslidar reconstruct``: a measured T3 PTU acquisition -> depth map."""
+    from .cli import _add_fov_option, _add_stage_options, _choices, _duration
+
+    solvers, _ = _choices("solver")
+    depths, _ = _choices("depth")
+    S = argparse.SUPPRESS
+    p = sub.add_parser(
+        "reconstruct", help="reconstruct a measured PicoQuant T3 PTU acquisition",
+        description="Read photon time tags (sync = code period start, a marker per DMD "
+                    "pattern change), histogram them per pattern over the code period and run "
+                    "the matched filter, QCR, solver and depth stages of 'run'; writes "
+                    "metrics.json, depth.npy, reflectivity.npy, confidence.npy, points.ply, "
+                    "depth.png (and depth2.npy from --depth guarded/evidence; truth.npy and "
+                    "valid.npy with --truth) into --out (only when complete).")
+    _add_acquisition_args(p, "FILE.ptu", "T3 PTU file")
+    p.add_argument("--range-gate", type=float, nargs=2, required=True, metavar=("MIN", "MAX"),
+                   help="depths to reconstruct, metres")
+    p.add_argument("--calibration", metavar="CAL.json",
+                   help="remove the system delay and match the IRF measured by 'spslidar "
+                        "calibrate' (the range gate is then in true metres)")
+    p.add_argument("--truth", metavar="TRUTH.npy",
+                   help="(N, N) true depth in metres (NaN where unknown), only to score the "
+                        "result: without it every metric that needs no truth is given")
+    _add_fov_option(p)
+    p.add_argument("--solver", choices=solvers, default=S)
+    _add_stage_options(p, "solver")
+    from .solvers import REGULARISERS
+
+    p.add_argument("--regulariser", choices=("auto", *REGULARISERS.names()), default=S,
+                   help="auto: the solver's default (tv for fista, twist, tval3); tv-aniso: "
+                        "the anisotropic TV")
+    p.add_argument("--depth", choices=depths, default=S)
+    _add_stage_options(p, "depth")
+    p.add_argument("--lam-scale", type=float, default=S, metavar="K")
+    p.add_argument("--iterations", type=int, default=S, metavar="K")
+    p.add_argument("--qcr", action=argparse.BooleanOptionalAction, default=S)
+    p.add_argument("--max-time", type=_duration, default=S, metavar="TIME",
+                   help="refuse a reconstruction whose estimated solve time exceeds this: "
+                        "seconds, or with a unit (90s, 10min, 2h; default 1h)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the previous spslidar result in --out")
+    p.add_argument("--no-figure", action="store_true", help="skip depth.png")
+
+
+def cmd_reconstruct(args) -> int:
+    """Run ``spslidar reconstruct``; return the exit status."""
+    from .cli import _WRITTEN, _written
+    from .outdir import check_output
+    from .pipeline.real import _load_npy, load_code, load_patterns, reconstruct_ptu
+
+    check_output(args.out, args.overwrite)  # refuse before any work
+    from .pipeline.measurement import processing_keys
+
+    # (with the options the solvers and estimators declare: a plugin's had no flag)
+    processing = {k: getattr(args, k) for k in processing_keys() if hasattr(args, k)}
+    truth = _load_npy(args.truth, "truth") if args.truth else None
+    result = reconstruct_ptu(args.ptu, load_patterns(args.patterns),
+                             load_code(args.code, args.code_length), args.bit_rate,
+                             tuple(args.range_gate), marker=args.marker, channel=args.channel,
+                             allow_binning=args.allow_binning, truth=truth,
+                             calibration=args.calibration, **processing)
+    for w in result.warnings:
+        print(f"spslidar: warning: {w}", file=sys.stderr)
+    out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
+                      fov_deg=args.fov, option="--out", replace="--overwrite")
+    _WRITTEN.append(f"{out}/")
+    m = result.metrics
+    rmse = m.get("depth_rmse_m")
+    import numpy as np
+
+    from .metrics import percent as _percent
+    from .metrics import returns_phrase
+
+    # returns among all pixels (coverage is the share with a truth and a return)
+    print(f"{m['n_patterns']} patterns, {int(sum(m['ptu']['counts_per_pattern']))} photons; "
+          f"{returns_phrase(m, float(np.isfinite(result.depth).mean()))}, mean "
+          f"reflectivity {m.get('mean_reflectivity') or 0.0:.3g} photons per pulse; "
+          + (f"depth RMSE {rmse:.4f} m over the {_percent(m['coverage'])} of pixels with a "
+             f"truth and a return" if rmse is not None else "no ground truth (--truth)"))
+    print(f"wrote {out}/: {' '.join(_written(out))}")
+    return 0
+
+
+def add_calibrate_parser(sub) -> None:
+    """``spslidar calibrate``: a flat target at a known distance -> system delay and IRF."""
+    from .cli import _fov
+
+    p = sub.add_parser(
+        "calibrate", help="measure the system delay and IRF from a flat target",
+        description="Measure the instrument's system delay (sub-bin) and response (IRF) from a "
+                    "T3 PTU acquisition of a flat target at a known distance (any patterns) "
+                    "and write them, with what they were measured from, to CAL.json for "
+                    "'spslidar reconstruct --calibration'.")
+    _add_acquisition_args(p, "FLAT.ptu", "T3 PTU file of the target")
+    p.add_argument("--distance", type=float, required=True, metavar="M",
+                   help="the flat target's distance from the lidar (on the optical axis), "
+                        "metres")
+    p.add_argument("--target", choices=("auto", "plane", "range"), default="auto",
+                   help="what the target's pixels see: 'plane', a flat wall facing the lidar, "
+                        "farther towards the corners (its spread removed); 'range', one range "
+                        "on every pixel (a small target, a sphere); 'auto' (default): the "
+                        "plane where the data ask for one")
+    p.add_argument("--fov", type=_fov, default=None, metavar="DEG",
+                   help="the flat wall's field of view across the image, degrees (default: "
+                        "fitted from the data)")
+    p.add_argument("--out", required=True, metavar="CAL.json", help="calibration file to write")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a calibration file spslidar wrote")
+
+
+def cmd_calibrate(args) -> int:
+    """Run ``spslidar calibrate``; return the exit status."""
+    from .cli import _WRITTEN
+    from .pipeline.calibration import calibrate_ptu
+    from .pipeline.calibration_file import check_calibration_out, write_calibration
+    from .pipeline.real import load_code, load_patterns
+
+    check_calibration_out(args.out, args.overwrite)  # refuse before any work
+    cal = calibrate_ptu(args.ptu, load_patterns(args.patterns, distinct=False),
+                        load_code(args.code, args.code_length), args.bit_rate, args.distance,
+                        marker=args.marker, channel=args.channel,
+                        allow_binning=args.allow_binning, target=args.target,
+                        fov_deg=args.fov)
+    path = write_calibration(cal, args.out, args.overwrite)
+    _WRITTEN.append(str(path))
+    period_ns = cal["code_length"] / args.bit_rate * 1e9
+    print(f"system delay {cal['delay_s'] * 1e9:.4f} ns ({cal['delay_bins']:.3f} bins, "
+          f"{cal['delay_s'] * 149896229.0:.4f} m; known modulo the code's period, "
+          f"{period_ns:.4g} ns); IRF FWHM {cal['irf_fwhm_bins']:.2f} bins; "
+          f"{cal['measured_from']['photons']} photons, peak {cal['peak_to_noise']:.3g} noise "
+          f"standard deviations")
+    print(f"target: {cal['target']['reason']}")
+    print(f"wrote {path}")
+    return 0
