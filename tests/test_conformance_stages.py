@@ -29,6 +29,7 @@ from spslidar.depth.argmax import ArgmaxDepth
 from spslidar.detectors import DETECTORS
 from spslidar.detectors.linear import LinearDetector
 from spslidar.patterns import PATTERNS
+from spslidar.registry import Option
 from spslidar.scenes import SCENES
 from spslidar.testing import check_stage, check_stages, is_plugin
 
@@ -107,16 +108,87 @@ def _scaled_patterns(kind, m, n, rng, dtype, **_):
     return DensePatterns(2.0 * rng.random((m, n * n)).astype(dtype))  # mirrors at 2
 
 
+def _bad_mean(kind, m, n, rng, dtype, **_):
+    """Patterns whose mean pattern forgets to divide by M (QCR then centres wrongly: RMSE
+    0.0048 -> 0.051 m and 55 % of the pixels lost, an audit)."""
+    from spslidar.patterns.dense import DensePatterns
+
+    class Bad(DensePatterns):
+        def mean_pattern(self):
+            return super().mean_pattern() * self.shape[0]
+
+    return Bad((rng.random((m, n * n)) < 0.5).astype(dtype))
+
+
+def _big_patterns(kind, m, n, rng, dtype, **_):
+    """A pattern kind that needs sides that are multiples of 16 (superpixels)."""
+    from spslidar.errors import ConfigError
+    from spslidar.patterns.dense import DensePatterns
+
+    if n % 16:
+        raise ConfigError(f"superpixel patterns need a multiple of 16, not {n}")
+    return DensePatterns((rng.random((m, n * n)) < 0.5).astype(dtype))
+
+
+class _Optimist(LinearDetector):
+    """Promises 2 % more counts than it detects."""
+
+    name = "optimist"
+
+    def expected(self, lam, n_periods=1):
+        return 1.02 * super().expected(lam, n_periods)
+
+
+class _Late(ArgmaxDepth):
+    """Argmax, a whole bin late when asked for sub-bin depths."""
+
+    name = "late"
+
+    def estimate(self, slices, ctx):
+        est = super().estimate(slices, ctx)
+        if ctx.subbin:
+            est.depth = est.depth + 0.015
+        return est
+
+
+class _Filler(ArgmaxDepth):
+    """Argmax that gives a pixel without a return the first lag's depth."""
+
+    name = "filler"
+
+    def estimate(self, slices, ctx):
+        from spslidar.constants import SPEED_OF_LIGHT
+
+        est = super().estimate(slices, ctx)
+        est.depth = np.where(np.isnan(est.depth) & np.isfinite(est.depth).any(),
+                             ctx.lags[0] * SPEED_OF_LIGHT * ctx.bin_width / 2, est.depth)
+        return est
+
+
+def _flat(size, depth_min=None, depth_max=None):
+    from spslidar.scenes.base import Scene
+
+    depth = 5.0 if depth_min is None else depth_min  # flat: at the window's near end
+    return Scene("wall", np.full((size, size), depth), np.full((size, size), 0.7),
+                 np.ones((size, size), bool))
+
+
 @pytest.fixture
 def broken():
     added = [(CODES, "run"), (CODES, "sparse10"), (DETECTORS, "leaky"),
-             (ESTIMATORS, "shifted"), (ESTIMATORS, "dirty"), (PATTERNS, "bright")]
+             (ESTIMATORS, "shifted"), (ESTIMATORS, "dirty"), (PATTERNS, "bright"),
+             (PATTERNS, "bad-mean"), (DETECTORS, "optimist"), (ESTIMATORS, "late"),
+             (ESTIMATORS, "filler")]
     CODES.add("run", _bad_code, "run", "one long run", index=0)
     CODES.add("sparse10", _unbalanced, "sparse", "a tenth of ones", index=0)
     DETECTORS.add("leaky", _Leaky, "leaky", "loses photons")
+    DETECTORS.add("optimist", _Optimist, "optimist", "expects 2 % too many")
     ESTIMATORS.add("shifted", _Shifted, "shifted", "one bin late")
     ESTIMATORS.add("dirty", _Dirty, "dirty", "zeroes its input")
+    ESTIMATORS.add("late", _Late, "late", "a bin late with --subbin")
+    ESTIMATORS.add("filler", _Filler, "filler", "fills pixels without returns")
     PATTERNS.add("bright", _scaled_patterns, "bright", "mirror states up to 2", dense=True)
+    PATTERNS.add("bad-mean", _bad_mean, "bad mean", "mean pattern x M", dense=True)
     try:
         yield
     finally:
@@ -127,11 +199,58 @@ def broken():
 @pytest.mark.parametrize("kind,name,why", [
     ("code", "run", "sidelobe"), ("code", "sparse10", "not about half"),
     ("detector", "leaky", "detections' totals"),
+    ("detector", "optimist", r"detections' totals .* \(-1.9 %"),
     ("depth", "shifted", "noiseless recovery: 144 of 144 pixels wrong"),
-    ("depth", "dirty", "changed the slices"), ("patterns", "bright", "mirror states in")])
+    ("depth", "dirty", "changed the slices"), ("patterns", "bright", "mirror states in"),
+    ("patterns", "bad-mean", r"mean_pattern\(\) is not the patterns' mean"),
+    ("depth", "late", "more than half a bin from"),
+    ("depth", "filler", r"hold no return, among pixels that do")])
 def test_checks_fail_on_broken_stages(broken, kind, name, why):
     with pytest.raises(AssertionError, match=why):
         check_stage(kind, name)
+
+
+@pytest.fixture
+def legitimate():
+    """Stages an audit's plugin wrote that the checks refused: a detector of efficiency 0.5
+    (its correct() leaves the efficiency, as the built-in linear counter's does), patterns
+    that need sides of 16, a flat wall, a built-in class registered under a new name."""
+    from spslidar.patterns.dense import DensePatterns  # noqa: F401  (the factory's import)
+
+    added = [(DETECTORS, "half"), (PATTERNS, "superpixel"), (SCENES, "wall"),
+             (ESTIMATORS, "argmax-strict")]
+    DETECTORS.add("half", LinearDetector, "half", "efficiency 0.5",
+                  options=(Option("efficiency", 1.0, "detection efficiency", lo=0, hi=1,
+                                  lo_open=True),))
+    PATTERNS.add("superpixel", _big_patterns, "superpixel", "sides of 16", dense=True,
+                 check={"size": 16})
+    SCENES.add("wall", _flat, "wall", "a flat wall")
+    ESTIMATORS.add("argmax-strict", ArgmaxDepth, "strict argmax", "argmax, another name")
+    try:
+        yield
+    finally:
+        for reg, name in added:
+            reg._entries.pop(name, None)
+
+
+def test_checks_pass_legitimate_stages(legitimate, monkeypatch):
+    from spslidar.config import Config
+
+    original = Config.from_dict.__func__
+
+    def half_efficiency(cls, data=None, **kw):  # the plugin's option set to 0.5
+        data = dict(data or {})
+        if data.get("detector") == "half":
+            data["efficiency"] = 0.5
+        return original(cls, data, **kw)
+
+    monkeypatch.setattr(Config, "from_dict", classmethod(half_efficiency))
+    assert "correct undoes the non-linearity" in check_stage("detector", "half")
+    assert "adjoint" in check_stage("patterns", "superpixel")
+    assert "rescaled into a window" in check_stage("scene", "wall")
+    plugins = [(r.kind, r.name) for r in check_stages(plugins_only=True)]
+    assert plugins == [("patterns", "superpixel"), ("detector", "half"),
+                       ("depth", "argmax-strict"), ("scene", "wall")], plugins
 
 
 def test_check_stages_keeps_failures_and_selects_plugins(broken):
@@ -139,7 +258,7 @@ def test_check_stages_keeps_failures_and_selects_plugins(broken):
     res = check_stages(["code", "depth"], plugins_only=True, on_result=seen.append)
     assert [(r.kind, r.name, r.ok) for r in res] == [
         ("code", "run", False), ("code", "sparse10", False), ("depth", "shifted", False),
-        ("depth", "dirty", False)]
+        ("depth", "dirty", False), ("depth", "late", False), ("depth", "filler", False)]
     assert seen == res and all(r.error and not r.passed for r in res)
     assert not is_plugin(CODES.get("mseq")) and is_plugin(CODES.get("run"))
     with pytest.raises(ValueError, match="unknown stage kind 'codes'"):
@@ -151,13 +270,13 @@ def test_check_stages_keeps_failures_and_selects_plugins(broken):
 def test_check_command(broken, capsys):
     assert main(["check", "depth:argmax", "code:mseq"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0].startswith("ok    depth argmax (4 contracts, ")
+    assert out[0].startswith("ok    depth argmax (5 contracts, ")
     assert out[-1] == "2 of 2 stages pass their contracts"
     assert main(["check", "--plugins-only", "depth"]) == 1
     cap = capsys.readouterr()
     assert cap.out.splitlines()[0].startswith(
         "FAIL  depth shifted: depth estimator 'shifted': noiseless recovery")
-    assert cap.err.strip() == "0 of 2 stages pass their contracts"
+    assert cap.err.strip() == "0 of 4 stages pass their contracts"
     for argv, why in ((["check", "nope"], "unknown stage kind 'nope'"),
                       (["check", "depth:nope"], "unknown depth estimator 'nope'"),
                       (["check", "--plugins-only", "solver"], "no stage to check")):

@@ -215,8 +215,15 @@ def test_a_plugin_that_fails_is_one_line(tmp_path, capsys, monkeypatch):
     bad.write_text("raise RuntimeError('no licence server')\n")
     assert main(["--plugin", str(bad), "run", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
+    # (where in the plugin, too: an audit of the check command had only the message)
     assert err == [f"spslidar: error: plugin {bad} failed to import: RuntimeError: no "
-                   f"licence server"]
+                   f"licence server (bad.py:1)"]
+    helper = tmp_path / "helper_mod.py"  # a sibling module, as `python mystages.py` finds it
+    helper.write_text("VALUE = 3\n")
+    good = tmp_path / "uses_helper.py"
+    good.write_text("import helper_mod\nassert helper_mod.VALUE == 3\n")
+    assert main(["--plugin", str(good), "check", "code:mseq"]) == 0
+    capsys.readouterr()
     assert main(["--plugin", "no_such_module_here", "run", "--out", str(tmp_path / "o")]) == 2
     assert "No module named 'no_such_module_here'" in capsys.readouterr().err
 

@@ -322,3 +322,26 @@ def test_tv_registry_entries_and_the_default():
     assert r.metrics["config"]["lam_scale"] == 0.45
     r = run(size=8, code_length=127, noise=1.0, regulariser="tv-aniso")
     assert r.metrics["config"]["regulariser"] == "tv-aniso"
+
+
+def test_solver_check_reads_a_whole_config_and_names_a_misnamed_class(problems):
+    """A validate hook that reads another key (``cfg.lam``, as the project's own do) raised
+    AttributeError on the check's bare namespace, blamed on the stage; FISTA registered under
+    a new name failed with 'does not load a Solver subclass of that name' (an audit)."""
+
+    def hook(cfg):
+        if cfg.lam == 0:
+            raise ConfigError("no weight")
+
+    SOLVERS.add("fista-hook", _Early, "hooked", "reads cfg.lam", validate=hook,
+                iterations=60, lam_scale=0.45, regulariser="tv")
+    SOLVERS.add("fista-mono", FISTA, "renamed", "FISTA, another name", iterations=60,
+                lam_scale=0.45, regulariser="tv")
+    try:
+        assert kit.solver_kinds("fista-hook") == list(KINDS)
+        with pytest.raises(AssertionError, match="its class FISTA is named 'fista': give a "
+                                                 "subclass name = 'fista-mono'"):
+            check_stage("solver", "fista-mono")
+    finally:
+        for name in ("fista-hook", "fista-mono"):
+            SOLVERS._entries.pop(name, None)

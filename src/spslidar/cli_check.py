@@ -83,8 +83,11 @@ def cmd_check(args: argparse.Namespace) -> int:
         results += check_stages([kind], None if name is None else [name],
                                 plugins_only=args.plugins_only, on_result=say)
     if not results:
-        raise ConfigError("no stage to check" + (": no plugin registered one of those kinds"
-                                                 if args.plugins_only else ""))
+        named = [f"{k}:{n}" for k, n in chosen if n is not None]
+        raise ConfigError("no stage to check" + (
+            f": {', '.join(named)} {'is' if len(named) == 1 else 'are'} built in, and "
+            f"--plugins-only checks only a plugin's stages" if named and args.plugins_only
+            else ": no plugin registered one of those kinds" if args.plugins_only else ""))
     failed = [r for r in results if not r.ok]
     print(f"{len(results) - len(failed)} of {len(results)} stages pass their contracts",
           file=sys.stderr if failed else sys.stdout)

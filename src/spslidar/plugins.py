@@ -24,7 +24,7 @@ from pathlib import Path
 
 from .errors import ConfigError
 
-__all__ = ["ENV", "load_plugins", "plugin_specs"]
+__all__ = ["ENV", "load_plugins", "plugin_specs", "where"]
 
 #: the environment variable of the plugins to import (modules or ``.py`` files, commas)
 ENV = "SPSLIDAR_PLUGINS"
@@ -50,6 +50,10 @@ def _import(spec: str):
         if not path.is_file():
             raise ConfigError(f"plugin {spec}: no such file")
         name = f"spslidar_plugin_{path.stem}"
+        if str(path.parent) not in sys.path:
+            # (its own sibling modules: `import helpers` beside mystages.py failed, where
+            # `python mystages.py` finds them, an audit)
+            sys.path.append(str(path.parent))
         module_spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(module_spec)
         sys.modules[name] = module
@@ -60,6 +64,15 @@ def _import(spec: str):
             raise
         return module
     return importlib.import_module(spec)
+
+
+def where(exc: BaseException) -> str:
+    """`` (file.py:LINE)`` of the innermost frame an exception came from ('' without one):
+    a plugin's error said in one line still says where it is."""
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    return f" ({Path(frames[-1].filename).name}:{frames[-1].lineno})" if frames else ""
 
 
 def load_plugins(specs: list[str] | None = None, export: bool = False) -> list[str]:
@@ -96,7 +109,8 @@ def load_plugins(specs: list[str] | None = None, export: bool = False) -> list[s
             raise
         except Exception as exc:  # a plugin's own error: said in one line, with its type
             raise ConfigError(f"plugin {spec} failed to import: {type(exc).__name__}: "
-                              f"{str(exc).splitlines()[0] if str(exc) else ''}") from None
+                              f"{str(exc).splitlines()[0] if str(exc) else ''}"
+                              f"{where(exc)}") from None
     if export and specs:
         keys = [str(Path(s).expanduser().resolve()) if s.endswith(".py") else s for s in specs]
         os.environ[ENV] = ",".join(plugin_specs(",".join([*plugin_specs(), *keys])))

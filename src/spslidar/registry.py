@@ -145,6 +145,9 @@ class Entry:
     options : tuple of Option
         The options this choice takes (its constructor's keywords), declared once: the
         config, the CLI flags, ``--help`` and ``metrics.json`` follow them.
+    origin : str
+        The module that registered it (``spslidar.*`` for the built-in stages; a plugin's
+        own module otherwise, also where it registers a built-in class under a new name).
     """
 
     name: str
@@ -154,6 +157,7 @@ class Entry:
     defaults: dict[str, Any] = field(default_factory=dict)
     validate: Callable[[Any], None] | None = None
     options: tuple[Option, ...] = ()
+    origin: str = ""
 
     def load(self) -> Any:
         """The implementation (imported on first use)."""
@@ -203,8 +207,15 @@ class Registry:
                             opt.default, opt.kind, opt.lo, opt.hi):
                         raise ValueError(f"option {opt.name!r} of {self.kind} {name!r} differs "
                                          f"from {other.name!r}'s declaration")
+        import sys
+
+        # who registered it: the caller, past this module's own decorator (register)
+        frame, depth = sys._getframe(1), 1
+        while frame is not None and frame.f_globals.get("__name__") == __name__:
+            frame, depth = frame.f_back, depth + 1
+        origin = "" if frame is None else str(frame.f_globals.get("__name__", ""))
         entry = Entry(name, target, display or name, help, dict(defaults), validate,
-                      tuple(options))
+                      tuple(options), origin)
         old = self._entries.get(name)
         if old is not None and old.target != entry.target:
             # (a plugin's "fista" replaced the built-in without a word, and metrics.json still

@@ -107,12 +107,11 @@ class CheckResult:
 
 
 def is_plugin(entry) -> bool:
-    """Whether a registry entry was added from outside the package (its target an object,
-    not an import path into spslidar)."""
-    target = entry.target
-    if isinstance(target, str):
-        return not target.startswith("spslidar.")
-    return not str(getattr(target, "__module__", "")).startswith("spslidar.")
+    """Whether a registry entry was added from outside the package: registered by a module
+    that is not spslidar's own (a built-in class registered under a new name by a plugin is
+    the plugin's, and so is a plugin's replacement of a built-in name)."""
+    origin = getattr(entry, "origin", "")
+    return not (origin == "spslidar" or origin.startswith("spslidar."))
 
 
 def check_stages(kinds: Iterable[str] | None = None, names: Iterable[str] | None = None,
@@ -150,7 +149,10 @@ def check_stages(kinds: Iterable[str] | None = None, names: Iterable[str] | None
             except AssertionError as err:
                 passed, error = (), str(err) or "an assertion failed"
             except Exception as err:  # a stage that raises is a failed contract too
-                passed, error = (), f"{kind} {entry.name!r} raised {type(err).__name__}: {err}"
+                from ..plugins import where
+
+                passed, error = (), (f"{kind} {entry.name!r} raised {type(err).__name__}: "
+                                     f"{err}{where(err)}")
             res = CheckResult(kind, entry.name, passed, error, time.perf_counter() - t0)
             out.append(res)
             if on_result is not None:

@@ -169,12 +169,21 @@ def problems() -> dict[str, Problem]:
     return out
 
 
+#: the regulariser (``--regulariser``) of each conformance problem
+REGULARISER_OF = {"tv": "tv", "tv-aniso": "tv-aniso", "tv-denoise": "tv", "l1": "l1",
+                  "wavelet": "wavelet"}
+
+
 def accepts(name: str, kind: str) -> bool:
-    """Whether solver ``name``'s registry hook accepts the regulariser of problem ``kind``."""
+    """Whether solver ``name`` takes the regulariser of problem ``kind``: a whole
+    :class:`~spslidar.config.Config` choosing both passes its registry hook (a hook that reads
+    another key, ``cfg.lam``, found a bare namespace without it: an audit)."""
+    from ..config import Config
     from ..solvers import SOLVERS
 
     try:
-        SOLVERS.get(name).check(SimpleNamespace(regulariser=kind.split("-")[0]))
+        cfg = Config.from_dict({"solver": name, "regulariser": REGULARISER_OF.get(kind, kind)})
+        SOLVERS.get(name).check(cfg)
     except ConfigError:
         return False
     return True
@@ -190,7 +199,7 @@ def _solver(name: str, stop):
     from ..config import Config, chosen_stage_options
     from ..solvers import SOLVERS, get_solver
 
-    kind = next(iter(solver_kinds(name)), "tv").split("-")[0]
+    kind = REGULARISER_OF[next(iter(solver_kinds(name)), "tv")]
     cfg = Config.from_dict({"solver": name, "regulariser": kind})
     SOLVERS.get(name).check(cfg)
     return get_solver(name)(stop=stop, **chosen_stage_options(cfg, "solver"))
@@ -304,8 +313,12 @@ def check_solver(name: str) -> list[str]:
     what = f"solver {name!r}"
     entry = SOLVERS.get(name)
     cls = get_solver(name)
-    if not (isinstance(cls, type) and issubclass(cls, Solver) and cls.name == name):
-        raise _fail(what, "its entry does not load a Solver subclass of that name")
+    if not (isinstance(cls, type) and issubclass(cls, Solver)):
+        raise _fail(what, f"its entry loads {cls!r}, not a Solver subclass")
+    if cls.name != name:
+        raise _fail(what, f"its class {cls.__name__} is named {cls.name!r}: give a subclass "
+                          f"name = {name!r} (each solve records it, info.solver, in "
+                          f"metrics.json)")
     for key in ("iterations", "lam_scale", "regulariser"):
         if key not in entry.defaults:
             raise _fail(what, f"its entry declares no default {key!r}")
@@ -433,6 +446,13 @@ def check_regulariser(name: str) -> list[str]:
     done: list[str] = []
     for nonneg in (False, True):
         label = f"regulariser {name!r}" + (" (non-negative)" if nonneg else "")
+        try:
+            make(nonneg)
+        except ConfigError:
+            if not nonneg:
+                raise
+            done.append("refuses non-negativity (ConfigError)")
+            continue
         done = check_regulariser_instance(lambda nonneg=nonneg: make(nonneg), label,
-                                          slack=1e-9)
+                                          slack=1e-9) + done
     return done

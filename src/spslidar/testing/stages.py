@@ -8,15 +8,24 @@ contract that failed; it returns the list of the contracts it checked.
 * code family: the length asked for, 0/1 bits, reproducible from the generator, about as many
   ones as zeros (what the bipolar replica of eq. 5-6 needs), a periodic correlation with a
   single peak;
-* pattern kind: the adjoint (dot) test for one and several columns, the dtype asked for,
-  mirror states in [0, 1] as the DMD shows them, no side effect on the input, the same
-  patterns from the same seed;
-* detector model: the mean of ``detect`` is ``expected`` (Monte Carlo, 5 standard errors),
-  ``correct`` inverts ``expected`` at low flux;
+* pattern kind: the adjoint (dot) test for one and several columns, the dtype asked for (of
+  both products), mirror states in [0, 1] as the DMD shows them, no side effect on the input,
+  the same patterns from the same seed, and what QCR reads: the mean pattern, the centred
+  operator and the cast, against the dense patterns;
+* detector model: the mean of ``detect`` is ``expected`` (Monte Carlo, 5 standard errors,
+  bin by bin and in total), ``correct`` undoes the model's non-linearity at low flux (the
+  identity for a linear model);
 * depth estimator: noiseless recovery of a step, a slanted plane and a one-pixel pole,
-  confidence in [0, 1], no depth where no pixel has a return;
-* scene kind: loads at any size as a valid scene, the same twice, rescaled into a window
-  given.
+  confidence in [0, 1], no depth where no pixel has a return (all of them, or a few among
+  pixels that have one), and with ``subbin`` a two-bin return read monotonically within half
+  a bin;
+* scene kind: loads at the probe's size as a valid scene, the same twice, rescaled into a
+  window given (a flat scene to its near end).
+
+A stage that needs other probe settings declares them where it is registered:
+``check={"code_length": 131}`` for a code family, ``check={"size": 16}`` for a pattern kind
+(``"compression"`` too) or a scene kind; a scene kind with an argument is loaded with its
+``example=`` (default ``0``).
 """
 
 from __future__ import annotations
@@ -47,13 +56,32 @@ def _config(option: str, name: str, **more) -> Config:
     return cfg
 
 
+def _probe(option: str, name: str) -> dict:
+    """The config overrides an entry declares for its checks (``check={"size": 16}``): a
+    stage that needs other sizes than the probe's says so where it is registered."""
+    from ..config import registries
+    from ..scenes import SCENES
+
+    regs = {**registries(), "scene": SCENES}
+    probe = regs[option].get(name).defaults.get("check", {})
+    if not isinstance(probe, dict):
+        raise AssertionError(f"{option} {name!r}: its entry's check= must be a dict of config "
+                             f"keys, got {probe!r}")
+    return dict(probe)
+
+
 def _code_config(name: str) -> Config:
+    probe = _probe("code", name)
+    if "code_length" in probe:
+        return _config("code", name, **probe)
     for length in CODE_LENGTHS:
         try:
             return _config("code", name, code_length=length)
         except ConfigError:
             continue
-    raise _fail(f"code family {name!r}", f"accepts none of the lengths {CODE_LENGTHS}")
+    raise _fail(f"code family {name!r}", f"accepts none of the probe's lengths "
+                                         f"{CODE_LENGTHS}; declare one it accepts with "
+                                         f"check={{'code_length': L}} where it is registered")
 
 
 def check_code_family(name: str) -> list[str]:
@@ -114,9 +142,11 @@ def check_pattern_kind(name: str, dtypes=(np.float32, np.float64)) -> list[str]:
     from ..operators import dottest
     from ..patterns import build_patterns
 
-    cfg = _config("patterns", name, size=8, compression=0.5)
+    cfg = _config("patterns", name, **{"size": 8, "compression": 0.5,
+                                       **_probe("patterns", name)})
     options = chosen_stage_options(cfg, "patterns")
-    m, n = 32, cfg.size
+    n = cfg.size
+    m = max(2, int(round(cfg.compression * n * n)))
     for dtype in dtypes:
         what = f"pattern kind {name!r} ({np.dtype(dtype).name})"
 
@@ -151,8 +181,25 @@ def check_pattern_kind(name: str, dtypes=(np.float32, np.float64)) -> list[str]:
         err = np.abs(shown @ x[:, 0].astype(np.float64) - y[:, 0])
         if np.any(err > 1e-5 * (np.abs(y[:, 0]) + n * n)):
             raise _fail(what, f"apply_rows and matvec differ by {err.max():.3g}")
+        back = np.asarray(op.rmatvec(np.ones((m, 1), dtype=dtype)))
+        if back.dtype != np.dtype(dtype):
+            raise _fail(what, f"rmatvec gave {back.dtype}")
+        # what QCR reads (eq. 11): the mean pattern, the centred operator and the cast, each
+        # against the dense patterns (round-off of the dtype, relative to the row sums)
+        tol = (1e-5 if np.dtype(dtype) == np.float32 else 1e-10) * n * n
+        mean = np.asarray(op.mean_pattern(), np.float64)
+        if mean.shape != (n * n,) or np.abs(mean - shown.mean(axis=0)).max() > tol / m:
+            raise _fail(what, "mean_pattern() is not the patterns' mean over M (eq. 11)")
+        centred = np.asarray(op.centred(2.0, dtype=np.float64).matvec(
+            x.astype(np.float64)), np.float64)
+        want = (shown - shown.mean(axis=0)) @ x.astype(np.float64) / 2.0
+        if np.abs(centred - want).max() > tol:
+            raise _fail(what, "centred(norm) is not (Phi - mean pattern) / norm")
+        cast = op.as_dtype(np.float64)
+        if np.abs(np.asarray(cast.matvec(x.astype(np.float64))) - shown @ x).max() > tol:
+            raise _fail(what, "as_dtype(float64) is not the same patterns")
     return ["shape", "adjoint", "no side effect", "dtype", "same seed, same patterns",
-            "mirror states in [0, 1]"]
+            "mirror states in [0, 1]", "mean pattern, centred and cast (QCR)"]
 
 
 def _detector(name: str):
@@ -165,6 +212,14 @@ def _detector(name: str):
 def check_detector(name: str) -> list[str]:
     """The contract of a detector model (see the module docstring).
 
+    ``detect``'s mean over 200 rows of 5 000 periods (one call, as the simulation draws a
+    block of patterns) against ``expected``, bin by bin within 5 standard errors and in total
+    within 5 standard errors (a fraction of a percent here: a model whose ``expected`` is 1-2 %
+    off fails); and
+    ``correct(expected(lam))`` linear in ``lam`` at low flux (the non-linearity, pile-up,
+    removed; an efficiency and dark counts, which ``correct`` leaves, may remain), the
+    identity for a model that says it is ``linear``.
+
     Returns
     -------
     list of str
@@ -173,41 +228,51 @@ def check_detector(name: str) -> list[str]:
     what = f"detector {name!r}"
     det = _detector(name)
     rng = np.random.default_rng(7)
-    period, n_periods, reps = 64, 50, 400
-    lam = np.full((1, period), 0.002 * n_periods)
-    lam[0, 10] = 0.05 * n_periods  # a return over a low background
-    mean, sq = np.zeros(period), np.zeros(period)
-    for _ in range(reps):
-        counts, totals = det.detect(lam.copy(), rng, n_periods)
-        c = np.asarray(counts, np.float64)[0]
-        if not np.isclose(float(np.asarray(totals)[0]), c.sum(), rtol=1e-6):
-            raise _fail(what, f"detect's total {np.asarray(totals)[0]} is not its counts' sum "
-                              f"{c.sum()}")
-        mean += c
-        sq += c * c
-    mean /= reps
-    se = np.sqrt(np.maximum(sq / reps - mean**2, 1e-12) / reps)
-    expected = np.asarray(det.expected(lam, n_periods), np.float64)[0]
-    # the total over the bins too, where a loss spread thin over every bin shows (its
-    # variance the sum of the bins': exact for Poisson counts, an upper bound where a dead
-    # time anti-correlates the bins)
-    total_se = np.sqrt(max(float(np.sum(sq / reps - mean**2)), 1e-12) / reps)
-    if abs(mean.sum() - expected.sum()) > 5 * total_se + 1e-9:
+    period, n_periods, reps = 64, 5000, 200
+    lam = np.full((reps, period), 0.02 * n_periods)
+    lam[:, 10] = 0.3 * n_periods  # a return over a background
+    counts, totals = det.detect(lam.copy(), rng, n_periods)
+    c = np.asarray(counts, np.float64)
+    totals = np.asarray(totals, np.float64)
+    if c.shape != lam.shape or totals.shape != (reps,):
+        raise _fail(what, f"detect gave counts of shape {c.shape} and totals {totals.shape} "
+                          f"for {lam.shape} rows")
+    if not np.allclose(totals, c.sum(axis=1), rtol=1e-6, atol=1e-6):
+        raise _fail(what, "detect's totals are not its counts' row sums")
+    mean = c.mean(axis=0)
+    expected = np.asarray(det.expected(lam[:1], n_periods), np.float64)[0]
+    se_total = c.sum(axis=1).std() / np.sqrt(reps)
+    if abs(mean.sum() - expected.sum()) > 5 * se_total + 1e-9:
         raise _fail(what, f"mean of {reps} detections' totals {mean.sum():.5g}, expected "
-                          f"{expected.sum():.5g} (5 standard errors: {5 * total_se:.2g})")
+                          f"{expected.sum():.5g} ({100 * (mean.sum() / expected.sum() - 1):+.2g}"
+                          f" %; 5 standard errors: {5 * se_total:.2g})")
+    se = np.sqrt(np.maximum(c.var(axis=0), 1e-12) / reps)
     off = np.abs(mean - expected) - 5 * se
     if np.any(off > 1e-9):
         b = int(np.argmax(off))
         raise _fail(what, f"mean of {reps} detections {mean[b]:.5g} in bin {b}, expected "
                           f"{expected[b]:.5g} (5 standard errors: {5 * se[b]:.2g})")
-    # at 0.1 % of the flux per dead time pile-up is a per-mille effect: correct removes it
     n_periods = 100
     lam = np.full((2, 128), 1e-4 * n_periods)
     lam[:, 20] = 5e-3 * n_periods
-    back = np.asarray(det.correct(np.asarray(det.expected(lam, n_periods)), n_periods))
-    if back.shape != lam.shape or not np.allclose(back, lam, rtol=1e-4, atol=0):
-        raise _fail(what, "correct(expected(lam)) is not lam at low flux (rtol 1e-4)")
-    return ["detect's totals", "mean of detect is expected", "correct inverts expected"]
+    lam[1] *= 3
+    out = np.asarray(det.expected(lam, n_periods), np.float64)
+    back = np.asarray(det.correct(out.copy(), n_periods), np.float64)
+    if back.shape != lam.shape:
+        raise _fail(what, f"correct gave shape {back.shape} for {lam.shape}")
+    if getattr(det, "linear", True):
+        if not np.allclose(back, out, rtol=1e-12, atol=0):
+            raise _fail(what, "a linear model's correct() changed its histogram")
+    else:
+        # at 0.1 % of the flux per dead time pile-up is a per-mille effect: what correct
+        # leaves must be linear in lam (an efficiency a, dark counts b), to 1e-4
+        design = np.stack([lam.ravel(), np.ones(lam.size)], axis=1)
+        coef, *_ = np.linalg.lstsq(design, back.ravel(), rcond=None)
+        fit = design @ coef
+        if not (coef[0] > 0 and np.allclose(back.ravel(), fit, rtol=1e-4, atol=0)):
+            raise _fail(what, "correct(expected(lam)) is not linear in lam at low flux (rtol "
+                              "1e-4): it does not undo the model's pile-up")
+    return ["detect's totals", "mean of detect is expected", "correct undoes the non-linearity"]
 
 
 def depth_problem(n: int = 12, bins: int = 40):
@@ -272,8 +337,48 @@ def check_depth_estimator(name: str) -> list[str]:
     est = ESTIMATORS.load(name)(**options).estimate(np.zeros_like(slices), ctx)
     if not np.all(np.isnan(est.depth)) or not np.all(np.asarray(est.confidence) == 0):
         raise _fail(what, "a depth or a confidence where no pixel has a return")
+    empty = [5, 40, 77]  # pixels without a return among pixels with one
+    holed = slices.copy()
+    holed[empty] = 0.0
+    est = ESTIMATORS.load(name)(**options).estimate(holed, ctx)
+    got = np.asarray(est.depth, np.float64)
+    if not np.all(np.isnan(got[empty])) or np.any(np.asarray(est.confidence)[empty] != 0):
+        raise _fail(what, f"pixels {empty} hold no return, among pixels that do, and were "
+                          f"given depths {got[empty]} (NaN and confidence 0 expected)")
+    _check_subbin(name, options, ctx, what)
     return ["no side effect", "noiseless recovery (step, slanted plane, one-pixel pole)",
-            "confidence in [0, 1]", "no depth without returns"]
+            "confidence in [0, 1]", "no depth without returns",
+            "sub-bin returns (subbin on): monotone, within half a bin"]
+
+
+def _check_subbin(name: str, options: dict, ctx, what: str) -> None:
+    """With ``subbin``, a return shared between bins ``t`` and ``t + 1`` as ``(1 - f, f)``
+    reads as a depth that grows with ``f`` and lies within half a bin of ``t + f`` (read
+    at the pulse's middle, eq. 2-3); an estimator without sub-bin refinement reads ``t`` or
+    ``t + 1``, which passes too."""
+    from dataclasses import replace
+
+    from ..depth import ESTIMATORS
+
+    share = np.linspace(0.05, 0.95, 12)
+    t = 20
+    slices = np.zeros((share.size, ctx.lags.size))
+    slices[:, t], slices[:, t + 1] = 1.0 - share, share
+    fine = replace(ctx, shape=(1, share.size), subbin=True)
+    est = ESTIMATORS.load(name)(**options).estimate(slices, fine)
+    d_bin = SPEED_OF_LIGHT * ctx.bin_width / 2
+    got = np.asarray(est.depth, np.float64) / d_bin - ctx.lags[0]
+    want = t + share + 0.5 - ctx.pulse_width / 2
+    if not np.all(np.isfinite(got)):
+        raise _fail(what, "a two-bin return read as no return (subbin on)")
+    if np.any(np.diff(got) < -1e-6):
+        raise _fail(what, f"with subbin on, a return moving from bin {t} to {t + 1} reads "
+                          f"depths that go back (in bins: {np.round(got, 3).tolist()})")
+    if np.any(np.abs(got - want) > 0.5 + 1e-6):
+        k = int(np.argmax(np.abs(got - want)))
+        raise _fail(what, f"with subbin on, a return shared {1 - share[k]:.2f} / "
+                          f"{share[k]:.2f} between bins {t} and {t + 1} reads at bin "
+                          f"{got[k]:.3f}, more than half a bin from {want[k]:.3f}")
 
 
 def scene_spec(name: str) -> str:
@@ -287,7 +392,10 @@ def scene_spec(name: str) -> str:
 
 
 def check_scene_kind(name: str) -> list[str]:
-    """The contract of a scene kind (see the module docstring), at 16 x 16 pixels.
+    """The contract of a scene kind (see the module docstring), at 16 x 16 pixels (or the
+    ``size`` its entry's ``check=`` declares), with the argument its entry's ``example=``
+    gives (default ``0``). A flat scene is rescaled to the window's near end, as
+    ``load_scene`` documents.
 
     Returns
     -------
@@ -297,19 +405,23 @@ def check_scene_kind(name: str) -> list[str]:
     from ..scenes import load_scene
 
     spec = scene_spec(name)
+    size = int(_probe("scene", name).get("size", 16))
     what = f"scene {spec!r}"
-    a, b = load_scene(spec, 16), load_scene(spec, 16)
-    if not a.depth.shape == a.reflectivity.shape == a.valid.shape == (16, 16):
-        raise _fail(what, "depth, reflectivity and valid are not all 16 x 16")
+    a, b = load_scene(spec, size), load_scene(spec, size)
+    if not a.depth.shape == a.reflectivity.shape == a.valid.shape == (size, size):
+        raise _fail(what, f"depth, reflectivity and valid are not all {size} x {size}")
     if not (a.valid.any() and np.all(np.isfinite(a.depth)) and a.depth.min() >= 0):
         raise _fail(what, "no valid pixel, or a negative or non-finite depth")
     if not (0 <= a.reflectivity.min() and a.reflectivity.max() <= 1):
         raise _fail(what, "reflectivity outside [0, 1]")
-    if not np.array_equal(a.depth, b.depth):
-        raise _fail(what, "not the same scene twice")
-    w = load_scene(spec, 16, 7.0, 8.0)
+    if not (np.array_equal(a.depth, b.depth) and np.array_equal(a.reflectivity, b.reflectivity)
+            and np.array_equal(a.valid, b.valid)):
+        raise _fail(what, "not the same scene twice (depth, reflectivity and valid)")
+    w = load_scene(spec, size, 7.0, 8.0)
     d = w.depth[w.valid]
-    # the window is filled to round-off (a linear remap in float64)
-    if abs(d.min() - 7.0) > 1e-9 or abs(d.max() - 8.0) > 1e-9:
+    flat = float(np.ptp(a.depth[a.valid])) == 0.0
+    # the window is filled to round-off (a linear remap in float64); a flat scene goes to
+    # its near end
+    if abs(d.min() - 7.0) > 1e-9 or (abs(d.max() - 8.0) > 1e-9 and not flat):
         raise _fail(what, f"rescaled into [7, 8] m it spans [{d.min():.9g}, {d.max():.9g}]")
     return ["shape", "valid values", "deterministic", "rescaled into a window"]
