@@ -156,3 +156,17 @@ def test_a_missing_record_count_is_said_missing(tmp_path):
     lines = [str(w.message) for w in said if "NumberOfRecords" in str(w.message)]
     assert len(lines) == 1 and "(TTResult_NumberOfRecords) is missing" in lines[0], lines
     assert acq.histograms.sum() == 60
+
+
+def test_differential_frames_of_half_a_period_are_said():
+    """Half a code period per frame was simulated as a whole period at half the rate without
+    a word (an outside physics audit); an even dwell says nothing."""
+    import spslidar
+
+    common = dict(size=8, code_length=127, patterns="hadamard", noise=1.0,
+                  hadamard_realisation="differential", range_gate=(1.0, 1.8),
+                  depth_min=1.2, depth_max=1.6)
+    said = [w for w in spslidar.measure(**common).warnings if "two frames" in w]
+    assert len(said) == 1 and "half of its 1 code period:" in said[0]
+    assert "even --periods" in said[0]
+    assert not [w for w in spslidar.measure(**common, periods=2).warnings if "two frames" in w]

@@ -187,6 +187,19 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
         # the acquisition time, and the patterns combine the frames' outputs into one each
         shown, share = host.exposures() if hasattr(host, "exposures") else (host, 1.0)
         acq_shown = acq if share == 1.0 else replace(acq, n_periods=acq.n_periods * share)
+        if share != 1.0 and (acq.n_periods * share) % 1:
+            # (half a code period per frame was simulated as a whole period at half the
+            # rate, without a word: a real frame that short breaks the periodic correlation,
+            # an outside audit of 2026-11-29)
+            what = ("pulses" if acq.lidar == "conventional" else "code periods")
+            had = what if acq.n_periods != 1 else what[:-1]
+            warns.append(
+                f"--hadamard-realisation differential shows each pattern as two frames, each "
+                f"for half of its {acq.n_periods:g} {had}: the simulation takes each frame as "
+                f"whole {what} at half the rate, which a DMD cannot show (a frame must last "
+                f"whole {what} for the matched filter's periodic correlation); give an even "
+                f"--periods" + (" (an even number of pulses)" if acq.lidar == "conventional"
+                                else ""))
         sim = simulate_correlations(shown, scene, acq_shown, ulags, noise, detector,
                                     cfg.pulse_width, np.random.default_rng(seq_counts),
                                     noiseless=cfg.noiseless, instrument=cfg,
