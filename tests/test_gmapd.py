@@ -295,13 +295,14 @@ def test_flat_wall_at_three_photons_per_dead_time_keeps_every_pixel(tmp_path):
     # the incident flux read back from the detections, n = r / (1 - r)
     assert meas.sim["pileup"]["incident_per_dead_time"] == pytest.approx(3.0, rel=0.02)
     assert not any("pileup-correction" in w for w in meas.warnings)
-    # at 30 photons per dead time the correction costs more than it mends: said, with the
-    # way out; not said when the correction is off
+    # at 30 photons per dead time the correction mends more than it costs, with the counts
+    # drawn as the detector records them (it was said to cost more, measured on counts drawn
+    # bin by bin): nothing is said, and the corrected wall is no worse than the uncorrected
     loud = {**base, "signal": 10 * ms, "noise": ms, "detector": "gmapd"}
-    said = [w for w in measure(loud).warnings if "pileup-correction" in w]
-    assert len(said) == 1 and "--pileup-correction off" in said[0] and "29." in said[0]
-    quiet = measure({**loud, "pileup_correction": False}).warnings
-    assert not any("pileup-correction" in w for w in quiet)
+    high = measure(loud)
+    assert not any("pileup-correction" in w for w in high.warnings)
+    plain = reconstruct(measure({**loud, "pileup_correction": False}))
+    assert reconstruct(high).metrics["depth_rmse_m"] <= plain.metrics["depth_rmse_m"] + 1e-3
 
 
 def test_fixed_point_keeps_its_scale_beyond_a_period_and_in_a_mixed_batch():
