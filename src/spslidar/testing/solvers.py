@@ -15,7 +15,7 @@ The project's own tests check these references against scikit-learn's ``Lasso`` 
 scikit-image (``tests/test_solver_conformance.py``); they are written here, not imported from
 those libraries, so that the kit needs only spslidar's own dependencies.
 
-Besides the optimum (objective within :data:`REL_TOL` of the reference's), a solver must stop
+Besides the optimum (objective within ``REL_TOL`` of the reference's), a solver must stop
 at ``max_iter``, call its callbacks once per iteration, give the same iterates twice and when
 driven step by step, and give a reused regulariser's result as a fresh one's. A regulariser's
 prox must beat random feasible perturbations, ``values`` agree with the call, no input be
@@ -31,8 +31,8 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["KINDS", "check_regulariser", "check_solver", "fista_tv", "lasso", "problems",
-           "solver_kinds"]
+__all__ = ["KINDS", "Problem", "check_regulariser", "check_solver", "fista_tv", "lasso",
+           "problems", "solver_kinds"]
 
 SHAPE = (16, 16)
 N = SHAPE[0] * SHAPE[1]
@@ -207,7 +207,7 @@ def _solver(name: str, stop):
 
 def check_optimum(name: str, kind: str) -> list[str]:
     """Solver ``name`` reaches the reference optimum of problem ``kind``: its objective within
-    :data:`REL_TOL` of the reference's in :data:`MAX_ITER` iterations, its recorded objective
+    ``REL_TOL`` of the reference's in ``MAX_ITER`` iterations, its recorded objective
     that of the iterate it returns, never above the start's."""
     from ..solvers import StopRule
 
