@@ -329,7 +329,10 @@ METRICS: dict[str, str] = {
                    "``stop_reason``, ``time_s`` and solver-specific keys.",
     "detector": "The detector model and its flux: ``model``, ``count_rate_hz``, "
                 "``counts_per_dead_time``, ``gmapd_saturated`` and a ``note`` when a real "
-                "GMAPD would saturate; the GMAPD adds its dead-time and pile-up figures.",
+                "GMAPD would saturate; the GMAPD adds ``dead_fraction`` and "
+                "``incident_per_dead_time`` (the photons that reached it, the simulation's "
+                "own), and for the conventional lidar ``incident_per_pulse`` and "
+                "``detections_per_pulse``.",
     "estimate": "The memory (GB) and time (s) estimated before the run; ``time_s_at_floor`` "
                 "where the weight met its floor and the run was priced again with the "
                 "floored iteration cap.",

@@ -73,9 +73,13 @@ class DetectorModel:
         return totals
 
     def report(self, counts_per_period: float, period_s: float,
-               pulsed: bool = False) -> dict[str, Any]:
+               pulsed: bool = False, incident_per_period: float | None = None
+               ) -> dict[str, Any]:
         """Numbers for ``metrics.json`` (e.g. detections per dead time); ``pulsed``: the
-        period holds one short pulse (the conventional lidar), not a code's spread flux."""
+        period holds one short pulse (the conventional lidar), not a code's spread flux;
+        ``incident_per_period``: the photons that reached the detector per period (mean over
+        the patterns), where the simulation knows them. (A model whose ``report`` does not
+        take that keyword is called without it.)"""
         return {"model": self.name}
 
     def notes(self) -> list[str]:

@@ -334,21 +334,27 @@ class GMAPD(DetectorModel):
         return []
 
     def report(self, counts_per_period: float, period_s: float,
-               pulsed: bool = False) -> dict[str, Any]:
-        """Detected rate, detections per dead time and the fraction of time dead."""
+               pulsed: bool = False, incident_per_period: float | None = None
+               ) -> dict[str, Any]:
+        """Detected rate, detections per dead time, the fraction of time dead, and the
+        incident photons per dead time: the simulation's own where it gives them
+        (``incident_per_period``), else read back from the detections as a steady flux's,
+        ``n = r / (1 - r)`` (which reads a pulsed flux low)."""
         rate = counts_per_period / period_s
         per_dead = float(rate * self.dead_time)
         out = {"model": self.name, "count_rate_hz": float(rate),
                "counts_per_dead_time": per_dead, "dead_fraction": float(min(per_dead, 1.0))}
-        if self.dead_time > 0 and pulsed and period_s >= self.dead_time:
-            # one pulse per period at least a dead time long (the conventional lidar: 712
-            # bins against 500): the detector re-arms between pulses and fires at most once
-            # on each, so a pulse's photons are read as a synchronous detector's (Coates),
-            # -ln(1 - detections per period). The steady-flux inverse below read a pulsed
-            # 18.8 photons per dead time as 2.4 and never warned (an audit of 2026-11-28).
-            out["detections_per_pulse"] = float(counts_per_period)
-            if counts_per_period < 1.0:
-                out["incident_per_dead_time"] = float(-np.log1p(-counts_per_period))
+        if self.dead_time > 0 and incident_per_period is not None:
+            # (the conventional lidar's pulse period, 1392 bins at the default gate, is longer
+            # than twice the 500-bin dead time: its detector fires up to 3 times a period, on
+            # the background, so -ln(1 - detections per pulse) read 0.84 for 0.88 photons per
+            # dead time and warned of saturation on every run, an outside audit of
+            # 2026-11-29; the simulation knows what arrived)
+            out["incident_per_dead_time"] = float(incident_per_period / period_s
+                                                  * self.dead_time)
+            if pulsed:
+                out["incident_per_pulse"] = float(incident_per_period)
+                out["detections_per_pulse"] = float(counts_per_period)
         elif self.dead_time > 0 and per_dead < 1.0:
             # the non-paralysable count rate n / (1 + n) per dead time, inverted (dark
             # counts and afterpulses included)
@@ -359,12 +365,6 @@ class GMAPD(DetectorModel):
         """What to say once the counts are known: a detector saturated past reading a flux
         from its counts (``noiseless`` is kept for the callers: nothing said depends on it
         now)."""
-        if self.dead_time and "incident_per_dead_time" not in report \
-                and "detections_per_pulse" in report:
-            return [f"the detector is saturated: {report['detections_per_pulse']:.3g} "
-                    f"detections per pulse, where a detector that goes dead on its first "
-                    f"photon makes at most 1 (background included): no photons per pulse "
-                    f"can be read from them; lower --signal and --noise (and raise --periods)"]
         if self.dead_time and "incident_per_dead_time" not in report:
             # (said "at inf incident photons per dead time")
             return [f"the detector is saturated: {report['counts_per_dead_time']:.3g} detections "

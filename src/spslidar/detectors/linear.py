@@ -33,5 +33,6 @@ class LinearDetector(PhotonCountingDetector, DetectorModel):
         return self.detected_means(lam)
 
     def report(self, counts_per_period: float, period_s: float,
-               pulsed: bool = False) -> dict[str, Any]:
+               pulsed: bool = False, incident_per_period: float | None = None
+               ) -> dict[str, Any]:
         return {"model": self.name, **self.pileup_report(counts_per_period, period_s)}

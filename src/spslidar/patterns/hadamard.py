@@ -296,7 +296,9 @@ class HadamardPatterns(PatternOperator):
         out["corr"] = (c[0::2] - c[1::2]).astype(c.dtype, copy=False)
         s = np.asarray(sim["sigma"], dtype=np.float64)
         out["sigma"] = np.sqrt(s[0::2] ** 2 + s[1::2] ** 2)
-        for key in ("counts", "signal_counts"):
+        for key in ("counts", "signal_counts", "incident_counts"):
+            if key not in sim:
+                continue
             v = np.asarray(sim[key], dtype=np.float64)
             out[key] = v[0::2] + v[1::2]
         nb = np.asarray(sim["noise_per_bin"], dtype=np.float64)

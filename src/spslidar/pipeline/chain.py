@@ -206,8 +206,15 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
                                     max_time=cfg.max_time)
         if shown is not host:
             sim = host.combine(sim)
+    import inspect
+
+    known = {}
+    if ("incident_counts" in sim
+            and "incident_per_period" in inspect.signature(detector.report).parameters):
+        known["incident_per_period"] = float(np.mean(sim["incident_counts"])) / acq.n_periods
     pile = detector.report(float(np.mean(sim["counts"])) / acq.n_periods,
-                           acq.period * bin_width, pulsed=acq.lidar == "conventional")
+                           acq.period * bin_width, pulsed=acq.lidar == "conventional",
+                           **known)
     sim["pileup"] = pile
     warns.extend(detector.notes_after(pile, noiseless=cfg.noiseless))
     sim["estimate"] = {"memory_gb": budget.bytes / 1e9, "time_s": budget.seconds}

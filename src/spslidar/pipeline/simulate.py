@@ -128,15 +128,15 @@ def simulate_correlations(
     args = (patterns, weights, shifts, noise_bin, acq, detector, replica, lags, gain, edges,
             children, noiseless)
     if method == "fast":
-        corr, totals, noise_tot, amp_sum = _simulate_fast(*args, threads=threads,
+        corr, totals, noise_tot, amp_sum, incident = _simulate_fast(*args, threads=threads,
                                                           max_time=max_time)
     else:
-        corr, totals, noise_tot, amp_sum = _simulate_reference(*args)
+        corr, totals, noise_tot, amp_sum, incident = _simulate_reference(*args)
     n_pulses = float(acq.code.sum()) * acq.n_periods
     signal_counts = acq.signal_per_pulse * n_pulses * amp_sum
     sigma = noise_sigma_from_totals(noise_tot, replica, gain)
     return {"corr": corr, "sigma": sigma, "counts": totals, "signal_counts": signal_counts,
-            "noise_per_bin": noise_bin}
+            "noise_per_bin": noise_bin, "incident_counts": incident}
 
 
 def single_threaded_blas():
@@ -191,6 +191,7 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
     totals = np.empty(m)
     noise_tot = totals if detector.linear else np.empty(m)
     amp_sum = np.empty(m)
+    incident = np.empty(m)  # photons reaching the detector, each pattern's (for its report)
     # every bin's mean is at most n_periods * (m_s * sum_s |amp_s| + |noise|) (efficiency <= 1):
     # only a block whose bound reaches float32's exact integer range is scanned (NumPy's sampler
     # itself rejects negative or NaN means)
@@ -201,6 +202,7 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
         amp_sum[rows] = amp.sum(axis=1)
         lam = expected_counts(amp, shifts, acq.code, acq.signal_per_pulse, noise_bin[rows],
                               acq.n_periods, code_matrix=code_matrix)
+        incident[rows] = lam.sum(axis=1, dtype=np.float64)
         if noiseless:
             lam = detector.expected(lam, acq.n_periods)
             # (the noise level's totals too: a non-linear model's are a separate array, left
@@ -252,7 +254,7 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
     else:
         with blas_limit, ThreadPoolExecutor(workers) as pool:
             list(pool.map(block, todo))
-    return corr, totals, noise_tot, amp_sum
+    return corr, totals, noise_tot, amp_sum, incident
 
 
 def _check_counts(counts, shape: tuple, detector, what: str = "detect") -> None:
@@ -281,6 +283,7 @@ def _simulate_reference(patterns, weights, shifts, noise_bin, acq, detector, rep
     corr = np.empty((m, lags.size), dtype=np.float32)
     totals = np.empty(m)
     noise_tot = np.empty(m)
+    incident = np.empty(m)
     for b in range(edges.size - 1):
         rows = slice(edges[b], edges[b + 1])
         # eq. (4): each pattern's return amplitude per delay bin, circularly convolved with the
@@ -290,6 +293,7 @@ def _simulate_reference(patterns, weights, shifts, noise_bin, acq, detector, rep
         signal = np.fft.irfft(np.fft.rfft(profile, axis=1) * code_f, n=period, axis=1)
         signal[np.abs(signal) <= 1e-9 * np.abs(amp[rows]).sum(axis=1, keepdims=True)] = 0.0
         lam = acq.n_periods * (acq.signal_per_pulse * signal + noise_bin[rows, None])
+        incident[rows] = lam.sum(axis=1)
         if noiseless:
             hist = detector.expected(lam, acq.n_periods)
             totals[rows] = noise_tot[rows] = hist.sum(axis=1)
@@ -306,4 +310,4 @@ def _simulate_reference(patterns, weights, shifts, noise_bin, acq, detector, rep
         # C(tau) = sum_t h(t) f(t - tau) at every tau (eq. 5-6), then the gated lags
         full = np.fft.irfft(np.fft.rfft(hist, axis=1) * rep_f, n=period, axis=1)
         corr[rows] = full[:, np.mod(lags, period)] / gain
-    return corr, totals, noise_tot, amp.sum(axis=1)
+    return corr, totals, noise_tot, amp.sum(axis=1), incident
