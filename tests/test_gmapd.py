@@ -490,3 +490,18 @@ def test_a_flux_that_saturates_the_detector_beyond_use_is_refused(tmp_path, caps
         det.detection_probability(np.full((1, 1000), 2.0))
     short = GMAPD(dead_time=200e-12, bin_width=100e-12)
     assert np.all(short.detection_probability(np.full((1, 1000), 2.0)) > 0)
+
+
+def test_a_dead_time_the_model_cannot_hold_is_one_line(monkeypatch):
+    """``--dead-time 1e-4`` (a million bins, inside the accepted range) ended in a
+    MemoryError traceback after 3.3 GB (an outside audit of 2026-11-29): refused before the
+    model allocates, naming the memory it would need."""
+    import spslidar.machine
+    from spslidar.errors import ConfigError
+    from spslidar.pipeline import measure
+
+    monkeypatch.setattr(spslidar.machine, "available_memory", lambda: 5e8)
+    with pytest.raises(ConfigError, match=r"^--dead-time 1e-05 s is 1e\+05 TDC bins .* would "
+                                          r"hold about .* more than the 0.5 GB available"):
+        measure(detector="gmapd", dead_time=1e-5, size=8, signal=2.5e-6, noise=2.5e-7,
+                periods=100)
