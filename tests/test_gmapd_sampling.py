@@ -100,3 +100,16 @@ def test_long_dwell_is_scaled_with_the_exact_statistics(monkeypatch):
     assert abs(scaled.sum(1).var() / exact.sum(1).var() - 1) < 0.3
     w = slice(55, 55 + DEAD)
     assert abs(scaled[:, w].sum(1).var() / exact[:, w].sum(1).var() - 1) < 0.3
+
+
+def test_a_dim_row_beside_a_bright_one_is_drawn_exactly(monkeypatch):
+    """Whether a row was drawn or scaled followed the brightest row of its block: a dim row
+    beside a bright one came out on a lattice of 2 values per bin (an audit). Each row is
+    drawn exactly where its own detections allow."""
+    g = GMAPD(dead_time=DEAD * 1e-10, bin_width=1e-10)
+    n = 300
+    lam = np.stack([_flux(3.0) * n, _flux(0.01) * n])
+    monkeypatch.setattr(sampling, "EXACT_DETECTIONS", 90)
+    counts = np.asarray(g.detect(lam, np.random.default_rng(4), n)[0], np.float64)
+    assert np.all(counts[1] == np.rint(counts[1]))  # the dim row: whole counts
+    assert not np.all(counts[0] == np.rint(counts[0]))  # the bright row: scaled
