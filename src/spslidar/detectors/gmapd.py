@@ -398,5 +398,5 @@ class GMAPD(DetectorModel):
         # above 10 photons per dead time was withdrawn on 2026-11-29: it was measured on
         # counts drawn bin by bin, without the dead time's correlations, 1.5-3.8 times the
         # uncorrected RMSE at 30; drawn as a detector records them, 0.02-1.20 at 30 and
-        # 0.04-0.78 at 100, six built-in scenes)
+        # 0.04-0.79 at 100, six built-in scenes)
         return []

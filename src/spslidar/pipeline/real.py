@@ -72,8 +72,11 @@ def _load_npy(path: str | os.PathLike, what: str) -> np.ndarray:
         raise
     except (ValueError, OSError, EOFError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        with open(p, "rb") as fh:
-            zipped = fh.read(4) == b"PK\x03\x04"
+        try:
+            with open(p, "rb") as fh:
+                zipped = fh.read(4) == b"PK\x03\x04"
+        except OSError:  # (unreadable: the first error says so)
+            zipped = False
         if zipped:  # (said as NumPy's "the magic string is not correct ... got b'PK...'")
             msg = "it is an .npz archive (np.savez); save the one array with np.save"
         raise ConfigError(f"cannot read {what} {p} as a .npy array: {msg}") from None
