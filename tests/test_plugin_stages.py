@@ -353,3 +353,31 @@ def test_a_plugin_experiment_is_a_reproduce_choice():
         assert "mine" in action.choices and "all" in action.choices
     finally:
         EXPERIMENT_REGISTRY._entries.pop("mine", None)
+
+
+def test_a_plugin_stage_that_raises_is_one_line(tmp_path, capsys, monkeypatch):
+    """``--scene disc:abc`` of a plugin scene kind ended in the plugin's ValueError
+    traceback (an audit of 2026-11-29); a plugin stage's own error is one line with where it
+    is, exit 2, nothing written."""
+    import spslidar.plugins as plugins
+    from spslidar.scenes import SCENES
+
+    monkeypatch.setenv(plugins.ENV, "")
+    mod = tmp_path / "discs.py"
+    mod.write_text(
+        "import numpy as np\n"
+        "from spslidar.scenes import SCENES, Scene\n"
+        "def disc(size, depth_min=None, depth_max=None, arg='3'):\n"
+        "    r = float(arg)\n"
+        "    d = np.full((size, size), 5.0 if depth_min is None else depth_min)\n"
+        "    return Scene('disc', d, np.ones((size, size)), np.ones((size, size), bool))\n"
+        "SCENES.add('disc', disc, 'disc', 'a disc', argument='R', example='3')\n")
+    try:
+        assert main(["--plugin", str(mod), "run", "--scene", "disc:abc", "--size", "8",
+                     "--code-length", "127", "--out", str(tmp_path / "o")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err == ["spslidar run: error: a plugin's stage raised ValueError: could not "
+                       "convert string to float: 'abc' (discs.py:4)"], err
+        assert not (tmp_path / "o").exists()
+    finally:
+        SCENES._entries.pop("disc", None)

@@ -592,6 +592,16 @@ def main(argv: list[str] | None = None) -> int:
         print(f"spslidar {args.command}: error: {exc.strerror or exc}: "
               f"{exc.filename or ''}".rstrip(": "), file=sys.stderr)
         return EXIT_BAD_INPUT
+    except Exception as exc:
+        from .plugins import raised_in_plugin
+
+        place = raised_in_plugin(exc)
+        if place is None:  # spslidar's own error: its traceback, for a bug report
+            raise
+        text = str(exc).splitlines()[0] if str(exc) else ""
+        print(f"spslidar {args.command}: error: a plugin's stage raised "
+              f"{type(exc).__name__}: {text}{place}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt as exc:
         # a sweep's result generator, held by this exception's traceback, is closed when the
         # exception goes; joblib then warns of the tasks it cancelled, after this command's

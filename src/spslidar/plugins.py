@@ -24,7 +24,7 @@ from pathlib import Path
 
 from .errors import ConfigError
 
-__all__ = ["ENV", "load_plugins", "plugin_specs", "where"]
+__all__ = ["ENV", "load_plugins", "plugin_specs", "raised_in_plugin", "where"]
 
 #: the environment variable of the plugins to import (modules or ``.py`` files, commas)
 ENV = "SPSLIDAR_PLUGINS"
@@ -73,6 +73,28 @@ def where(exc: BaseException) -> str:
 
     frames = traceback.extract_tb(exc.__traceback__)
     return f" ({Path(frames[-1].filename).name}:{frames[-1].lineno})" if frames else ""
+
+
+def raised_in_plugin(exc: BaseException) -> str | None:
+    """`` (file.py:LINE)`` of the last frame of a loaded plugin's own code in ``exc``'s
+    traceback, or ``None`` where none of it ran there: an error raised while a researcher's
+    stage ran, which the command line says in one line rather than as a traceback (an audit
+    of 2026-11-29: ``--scene disc:abc``, a pattern factory's wrong shape and a solver
+    without its monitor each ended in one)."""
+    import traceback
+
+    files = {str(Path(m.__file__).resolve()) for m in _LOADED.values()
+             if getattr(m, "__file__", None)}
+    if not files:
+        return None
+    found = None
+    for frame in traceback.extract_tb(exc.__traceback__):
+        try:
+            if str(Path(frame.filename).resolve()) in files:
+                found = frame
+        except (OSError, ValueError):  # pragma: no cover - an unresolvable frame name
+            continue
+    return None if found is None else f" ({Path(found.filename).name}:{found.lineno})"
 
 
 def load_plugins(specs: list[str] | None = None, export: bool = False) -> list[str]:
