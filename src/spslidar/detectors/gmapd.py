@@ -207,7 +207,7 @@ class GMAPD(DetectorModel):
 
     def _check_model_memory(self, rows: int, period: int, sub: int) -> None:
         """Refuse, in one line, a dead time whose renewal model would not fit in memory: it
-        keeps about :data:`MODEL_ARRAYS` float64 arrays of the dead time plus a period per
+        keeps about ``MODEL_ARRAYS`` float64 arrays of the dead time plus a period per
         row (``--dead-time 1e-4``, a million bins, ended in a MemoryError traceback after
         3.3 GB: an outside audit of 2026-11-29)."""
         from ..machine import _gb, available_memory

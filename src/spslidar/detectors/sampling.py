@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["EXACT_DETECTIONS", "renewal_counts"]
+__all__ = ["EXACT_DETECTIONS", "SCALED_DEAD_TIMES", "renewal_counts"]
 
 #: largest expected detections per row drawn one by one over the whole dwell (one step per
 #: detection, about 20 us for a block of 64 rows, so 0.1 s a block); beyond it the dwell is
