@@ -505,3 +505,30 @@ def test_a_dead_time_the_model_cannot_hold_is_one_line(monkeypatch):
                                           r"hold about .* more than the 0.5 GB available"):
         measure(detector="gmapd", dead_time=1e-5, size=8, signal=2.5e-6, noise=2.5e-7,
                 periods=100)
+
+
+def test_gmapd_blocks_are_priced_one_after_another(monkeypatch):
+    """The rest of a GMAPD run was priced at its first block's time shared among the threads;
+    its blocks are mostly Python and gained little from them (25.7 s against 17 s priced, an
+    audit of 2026-11-29): priced as if they ran one after another."""
+    import time
+
+    import spslidar.pipeline.budget as budget
+    from spslidar.detectors.counting import NoiseModel
+    from spslidar.pipeline import measure
+    from spslidar.pipeline.plan import detector_options
+    from spslidar.pipeline.simulate import simulate_correlations
+
+    meas = measure(detector="gmapd", size=32, compression=0.25, code_length=255,
+                   signal=2e-4, noise=2e-5)
+    assert meas.patterns.shape[0] == 256  # four blocks of 64
+    priced = []
+    monkeypatch.setattr(budget, "check_time", lambda seconds, *a, **k: priced.append(seconds))
+    clock = iter(range(1000))
+    monkeypatch.setattr(time, "perf_counter", lambda: float(next(clock)))  # 1 s a call
+    cfg = meas.config
+    simulate_correlations(meas.patterns, meas.scene, meas.acq, meas.ulags,
+                          NoiseModel(cfg.noise), build_detector("gmapd",
+                                                                **detector_options(cfg)),
+                          cfg.pulse_width, np.random.default_rng(0), threads=2, max_time=60)
+    assert priced == [4.0]  # the first block's 1 s, and 3 more (not 1 + 3 / 2)

@@ -240,7 +240,11 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
         t0 = time.perf_counter()
         block(0)
         took = time.perf_counter() - t0
-        rest = took * (n_blocks - 1) / min(simulation_threads(threads), n_blocks - 1)
+        # priced as if the blocks ran one after another: a detector model's block is mostly
+        # Python (the GMAPD's renewal model, its detection-by-detection draws, the Coates
+        # correction), so the threads gain little (an audit of 2026-11-29 measured 25.7 s
+        # where the rest had been priced at half its sequential time, 17 s; sequential, 27 s)
+        rest = took * (n_blocks - 1)
         check_time(took + rest, max_time, f"the {detector.name} detector model's simulation",
                    reduce="--size, --compression, --code-length or the flux (--signal, "
                           "--noise)", basis="its first block of patterns")
