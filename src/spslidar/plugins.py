@@ -66,13 +66,18 @@ def _import(spec: str):
     return importlib.import_module(spec)
 
 
+def _place(frame) -> str:
+    """`` (file.py:LINE)`` of a traceback frame."""
+    return f" ({Path(frame.filename).name}:{frame.lineno})"
+
+
 def where(exc: BaseException) -> str:
     """`` (file.py:LINE)`` of the innermost frame an exception came from ('' without one):
     a plugin's error said in one line still says where it is."""
     import traceback
 
     frames = traceback.extract_tb(exc.__traceback__)
-    return f" ({Path(frames[-1].filename).name}:{frames[-1].lineno})" if frames else ""
+    return _place(frames[-1]) if frames else ""
 
 
 def raised_in_plugin(exc: BaseException) -> str | None:
@@ -94,7 +99,7 @@ def raised_in_plugin(exc: BaseException) -> str | None:
                 found = frame
         except (OSError, ValueError):  # pragma: no cover - an unresolvable frame name
             continue
-    return None if found is None else f" ({Path(found.filename).name}:{found.lineno})"
+    return None if found is None else _place(found)
 
 
 def load_plugins(specs: list[str] | None = None, export: bool = False) -> list[str]:

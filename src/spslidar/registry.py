@@ -210,9 +210,9 @@ class Registry:
         import sys
 
         # who registered it: the caller, past this module's own decorator (register)
-        frame, depth = sys._getframe(1), 1
+        frame = sys._getframe(1)
         while frame is not None and frame.f_globals.get("__name__") == __name__:
-            frame, depth = frame.f_back, depth + 1
+            frame = frame.f_back
         origin = "" if frame is None else str(frame.f_globals.get("__name__", ""))
         entry = Entry(name, target, display or name, help, dict(defaults), validate,
                       tuple(options), origin)

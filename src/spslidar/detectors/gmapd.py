@@ -180,7 +180,11 @@ class GMAPD(DetectorModel):
 
     def detection_probability(self, lam: np.ndarray, n_periods: int = 1) -> np.ndarray:
         """``q_t``: mean detections per bin per period (steady state), float64 (B, L)."""
-        lam = np.atleast_2d(np.asarray(lam, dtype=np.float64))
+        return self._model(np.atleast_2d(np.asarray(lam, dtype=np.float64)), n_periods)[0]
+
+    def _model(self, lam: np.ndarray, n_periods: int):
+        """:meth:`detection_probability` of the float64 ``(B, L)`` ``lam``, with the flux per
+        bin and each row's sub-bins it was solved with (:meth:`detect` draws from them)."""
         mu = self.flux(lam, n_periods)
         n_rows, period = lam.shape
         self._check_flux(mu)
@@ -191,19 +195,18 @@ class GMAPD(DetectorModel):
         q = np.empty((n_rows, period))
         for sub in np.unique(subs):
             rows = np.flatnonzero(subs == sub)
-            self._check_model_memory(min(rows.size, max(1, MAX_BLOCK // (period * sub)))
-                                     if sub > 1 else rows.size, period, int(sub))
+            step = rows.size if sub == 1 else max(1, MAX_BLOCK // (period * sub))
+            self._check_model_memory(min(rows.size, step), period, int(sub))
             args = (self.afterpulse_prob, self._ap_rate() / sub)
             if sub == 1:
                 q[rows] = renewal_detection(mu[rows], self.dead_bins, *args, tol=self.tol)
                 continue
-            step = max(1, MAX_BLOCK // (period * sub))
             for i in range(0, rows.size, step):
                 part = rows[i : i + step]
                 fine = renewal_detection(self.flux(lam[part], n_periods, sub),
                                          self.dead_bins * sub, *args, tol=self.tol)
                 q[part] = fine.reshape(-1, period, sub).sum(axis=2)
-        return q
+        return q, mu, subs
 
     def _check_model_memory(self, rows: int, period: int, sub: int) -> None:
         """Refuse, in one line, a dead time whose renewal model would not fit in memory: it
@@ -288,21 +291,21 @@ class GMAPD(DetectorModel):
         totals : ndarray of float64, shape (B,)
         """
         lam = np.atleast_2d(np.asarray(lam, dtype=np.float64))
-        q = self.detection_probability(lam, n_periods)
+        q, mu, subs = self._model(lam, n_periods)
         if self.dead_bins == 0:
             counts = rng.poisson(n_periods * q)
         else:
             from .sampling import renewal_counts
 
             counts = np.empty(q.shape)
-            subs = self._subs(self.flux(lam, n_periods))
             for sub in np.unique(subs):
                 rows = np.flatnonzero(subs == sub)
                 step = max(1, MAX_BLOCK // (lam.shape[1] * int(sub)))
                 for i in range(0, rows.size, step):
                     part = rows[i : i + step]
+                    fine = mu[part] if sub == 1 else self.flux(lam[part], n_periods, int(sub))
                     counts[part] = renewal_counts(
-                        self.flux(lam[part], n_periods, int(sub)), self.dead_bins * sub,
+                        fine, self.dead_bins * sub,
                         int(n_periods), n_periods * q[part], rng, self.afterpulse_prob,
                         self.afterpulse_delay / self.bin_width * sub, int(sub))
         if out is None:

@@ -137,7 +137,12 @@ def renewal_counts(mu: np.ndarray, dead_bins: float, n_periods: int, expected: n
     expected = np.atleast_2d(np.asarray(expected, dtype=np.float64))
     n_rows, fine = mu.shape
     period = fine // sub
-    args = (float(dead_bins), float(afterpulse_prob), float(afterpulse_delay_bins), rng)
+
+    def draw(rows: np.ndarray, periods: int) -> np.ndarray:
+        counts = _draw(mu[rows], float(dead_bins), periods, float(afterpulse_prob),
+                       float(afterpulse_delay_bins), rng)
+        return counts.reshape(-1, period, sub).sum(axis=2)
+
     per_row = expected.sum(axis=1)
     # each row drawn exactly where its own detections allow (a dim row beside a bright one
     # was scaled with it, an audit): the scaled rows apart
@@ -151,11 +156,10 @@ def renewal_counts(mu: np.ndarray, dead_bins: float, n_periods: int, expected: n
         long[:] = False
     out = np.empty((n_rows, period))
     if (~long).any():
-        drawn = _draw(mu[~long], args[0], int(n_periods), *args[1:])
-        out[~long] = drawn.reshape(-1, period, sub).sum(axis=2)
+        out[~long] = draw(~long, int(n_periods))
     if long.any():
         e = expected[long]
-        drawn = _draw(mu[long], args[0], m, *args[1:]).reshape(-1, period, sub).sum(axis=2)
+        drawn = draw(long, m)
         scaled = e + (drawn - e * (m / n_periods)) * np.sqrt(n_periods / m)
         # not rounded: np.rint of these lattice values lost 0.2 % of a row's counts, and
         # rounding at random added up to 1/4 per bin to a variance the dead time holds far

@@ -54,6 +54,17 @@ def registry_of(kind: str):
     return regs[kind]
 
 
+def config_for(kind: str, name: str, **more):
+    """The :class:`~spslidar.config.Config` choosing stage ``name`` of ``kind`` (with the keys
+    ``more``), its registry hook passed: the stage is built from it as the pipeline builds
+    it (a :class:`~spslidar.errors.ConfigError` where the hook refuses it)."""
+    from ..config import Config
+
+    cfg = Config.from_dict({kind: name, **more})
+    registry_of(kind).get(name).check(cfg)
+    return cfg
+
+
 def _check_function(kind: str) -> Callable[[str], list[str]]:
     import importlib
 

@@ -178,12 +178,10 @@ def accepts(name: str, kind: str) -> bool:
     """Whether solver ``name`` takes the regulariser of problem ``kind``: a whole
     :class:`~spslidar.config.Config` choosing both passes its registry hook (a hook that reads
     another key, ``cfg.lam``, found a bare namespace without it: an audit)."""
-    from ..config import Config
-    from ..solvers import SOLVERS
+    from . import config_for
 
     try:
-        cfg = Config.from_dict({"solver": name, "regulariser": REGULARISER_OF.get(kind, kind)})
-        SOLVERS.get(name).check(cfg)
+        config_for("solver", name, regulariser=REGULARISER_OF.get(kind, kind))
     except ConfigError:
         return False
     return True
@@ -196,12 +194,12 @@ def solver_kinds(name: str) -> list[str]:
 
 def _solver(name: str, stop):
     """The solver as the pipeline builds it: its declared options at their defaults."""
-    from ..config import Config, chosen_stage_options
-    from ..solvers import SOLVERS, get_solver
+    from ..config import chosen_stage_options
+    from ..solvers import get_solver
+    from . import config_for
 
-    kind = REGULARISER_OF[next(iter(solver_kinds(name)), "tv")]
-    cfg = Config.from_dict({"solver": name, "regulariser": kind})
-    SOLVERS.get(name).check(cfg)
+    cfg = config_for("solver", name,
+                     regulariser=REGULARISER_OF[next(iter(solver_kinds(name)), "tv")])
     return get_solver(name)(stop=stop, **chosen_stage_options(cfg, "solver"))
 
 

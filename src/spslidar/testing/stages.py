@@ -35,6 +35,7 @@ import numpy as np
 from ..config import Config, chosen_stage_options
 from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
+from . import config_for
 
 __all__ = ["check_code_family", "check_depth_estimator", "check_detector",
            "check_pattern_kind", "check_scene_kind"]
@@ -47,23 +48,12 @@ def _fail(what: str, why: str) -> AssertionError:
     return AssertionError(f"{what}: {why}")
 
 
-def _config(option: str, name: str, **more) -> Config:
-    """The config choosing ``name`` in registry ``option``, the entry's hook passed."""
-    from ..config import registries
-
-    cfg = Config.from_dict({option: name, **more})
-    registries()[option].get(name).check(cfg)
-    return cfg
-
-
 def _probe(option: str, name: str) -> dict:
     """The config overrides an entry declares for its checks (``check={"size": 16}``): a
     stage that needs other sizes than the probe's says so where it is registered."""
-    from ..config import registries
-    from ..scenes import SCENES
+    from . import registry_of
 
-    regs = {**registries(), "scene": SCENES}
-    probe = regs[option].get(name).defaults.get("check", {})
+    probe = registry_of(option).get(name).defaults.get("check", {})
     if not isinstance(probe, dict):
         raise AssertionError(f"{option} {name!r}: its entry's check= must be a dict of config "
                              f"keys, got {probe!r}")
@@ -73,10 +63,10 @@ def _probe(option: str, name: str) -> dict:
 def _code_config(name: str) -> Config:
     probe = _probe("code", name)
     if "code_length" in probe:
-        return _config("code", name, **probe)
+        return config_for("code", name, **probe)
     for length in CODE_LENGTHS:
         try:
-            return _config("code", name, code_length=length)
+            return config_for("code", name, code_length=length)
         except ConfigError:
             continue
     raise _fail(f"code family {name!r}", f"accepts none of the probe's lengths "
@@ -142,7 +132,7 @@ def check_pattern_kind(name: str, dtypes=(np.float32, np.float64)) -> list[str]:
     from ..operators import dottest
     from ..patterns import build_patterns
 
-    cfg = _config("patterns", name, **{"size": 8, "compression": 0.5,
+    cfg = config_for("patterns", name, **{"size": 8, "compression": 0.5,
                                        **_probe("patterns", name)})
     options = chosen_stage_options(cfg, "patterns")
     n = cfg.size
@@ -206,7 +196,7 @@ def _detector(name: str):
     from ..detectors import build_detector
     from ..pipeline.chain import detector_options
 
-    return build_detector(name, **detector_options(_config("detector", name)))
+    return build_detector(name, **detector_options(config_for("detector", name)))
 
 
 def check_detector(name: str) -> list[str]:
@@ -314,7 +304,7 @@ def check_depth_estimator(name: str) -> list[str]:
     from ..depth import ESTIMATORS
 
     what = f"depth estimator {name!r}"
-    options = chosen_stage_options(_config("depth", name), "depth")
+    options = chosen_stage_options(config_for("depth", name), "depth")
     slices, ctx, depth = depth_problem()
     keep = slices.copy()
     est = ESTIMATORS.load(name)(**options).estimate(slices, ctx)
