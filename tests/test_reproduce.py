@@ -256,7 +256,8 @@ def _scene(name: str, size: int):
 
 
 def _fake_sweep(
-    func, points, out_dir, *, seed=0, jobs=1, scheduler=None, progress=True, seed_ignore=()
+    func, points, out_dir, *, seed=0, jobs=1, scheduler=None, progress=True, seed_ignore=(),
+    code=None,
 ):
     """Stand-in for run_sweep: truth plus noise of a plausible size, no simulation."""
     import numpy as np

@@ -16,6 +16,7 @@ distribution; a researcher's module beside their data needs only a name or a pat
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import importlib.util
 import os
@@ -24,7 +25,7 @@ from pathlib import Path
 
 from .errors import ConfigError
 
-__all__ = ["ENV", "load_plugins", "plugin_specs", "raised_in_plugin", "where"]
+__all__ = ["ENV", "code_fingerprint", "load_plugins", "plugin_specs", "raised_in_plugin", "where"]
 
 #: the environment variable of the plugins to import (modules or ``.py`` files, commas)
 ENV = "SPSLIDAR_PLUGINS"
@@ -142,3 +143,51 @@ def load_plugins(specs: list[str] | None = None, export: bool = False) -> list[s
         keys = [str(Path(s).expanduser().resolve()) if s.endswith(".py") else s for s in specs]
         os.environ[ENV] = ",".join(plugin_specs(",".join([*plugin_specs(), *keys])))
     return list(_LOADED)
+
+
+def code_fingerprint() -> str:
+    """The code a run's result depends on, as 16 hex digits: the SHA-256 of spslidar's version,
+    the bytes of every module of the package, and those of every loaded plugin and of the
+    modules imported from a plugin's folder (its helpers).
+
+    The run caches of ``sweep`` and ``reproduce`` record it and read a cached run only under
+    the same fingerprint, so a plugin edited between two sweeps, or spslidar upgraded or edited,
+    runs its points again (with the same seeds, so on the same noise) instead of returning the
+    old code's results (an audit of 2026-11-29: a plugin solver's bug fixed, the sweep rerun,
+    every row the buggy one's). NumPy's or SciPy's version is not in it: results across
+    library releases agree to float tolerance, not bit for bit, and a cache is not a claim of
+    either. A module a worker imports that the parent never did is not seen.
+    """
+    from .version import __version__
+
+    package = Path(__file__).resolve().parent
+    files = set(package.rglob("*.py"))
+    folders = set()
+    for module in list(_LOADED.values()):
+        name = getattr(module, "__file__", None)
+        if name:
+            files.add(Path(name).resolve())
+            folders.add(Path(name).resolve().parent)
+    if folders:
+        for module in list(sys.modules.values()):
+            name = getattr(module, "__file__", None)
+            if not name:
+                continue
+            try:
+                path = Path(name).resolve()
+            except (OSError, ValueError):  # pragma: no cover - an unresolvable module file
+                continue
+            if ("site-packages" not in path.parts and "dist-packages" not in path.parts
+                    and any(folder in path.parents for folder in folders)):
+                files.add(path)  # (a plugin beside a venv: not the venv's libraries)
+    digest = hashlib.sha256(__version__.encode())
+    for path in sorted(files):
+        try:
+            data = path.read_bytes()
+        except OSError:  # a module deleted since it was imported: its name still counts
+            data = b""
+        # named inside its folder: the same code cloned elsewhere keeps its cache
+        label = path.relative_to(package) if package in path.parents else Path(path.name)
+        digest.update(label.as_posix().encode("utf-8", "surrogateescape") + b"\0")
+        digest.update(hashlib.sha256(data).digest())
+    return digest.hexdigest()[:16]

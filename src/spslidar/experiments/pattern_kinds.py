@@ -210,7 +210,8 @@ def exp_pattern_kinds(ctx: Context) -> tuple[str, list[Claim]]:
 
         _check_batch_time(ctx, points)
     rows = run_sweep(func, points, ctx.cache, seed=ctx.seed, jobs=ctx.jobs,
-                     scheduler=ctx.scheduler, progress=ctx.progress, seed_ignore=processing_keys())
+                     scheduler=ctx.scheduler, progress=ctx.progress, seed_ignore=processing_keys(),
+                     code=ctx.code)
     ctx.failed += sum(ERROR_KEY in r for r in rows)
     full = [{**p, **r, "label": _label(p)} for p, r in zip(points, rows, strict=True)]
     ok = [r for r in full if ERROR_KEY not in r]

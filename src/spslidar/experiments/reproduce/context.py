@@ -133,6 +133,14 @@ class Context:
         """Image side in pixels: 64 (the paper's), 32 in quick mode."""
         return 32 if self.quick else 64
 
+    @functools.cached_property
+    def code(self) -> str:
+        """The fingerprint of the code that runs (:func:`spslidar.plugins.code_fingerprint`,
+        taken once): a cached run of other code is run again."""
+        from spslidar.plugins import code_fingerprint
+
+        return code_fingerprint()
+
     @property
     def cache(self) -> Path:
         """The shared sweep folder (``runs/`` cache and ``maps/`` depth maps)."""
@@ -334,16 +342,24 @@ def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
     :func:`spslidar.pipeline.preflight`, times its runs, over the workers), added to the
     batches' before it in this command, exceeds ``ctx.max_time``; one over 30 s says its
     estimate first. The experiments finished before a refusal keep their report sections."""
-    from spslidar.experiments.sweep.grid import TRIAL_KEY, point_key, with_seed
+    from spslidar.experiments.sweep.grid import (
+        KEY_LENGTH,
+        TRIAL_KEY,
+        canonical_json,
+        sha256_hex,
+        with_seed,
+    )
+    from spslidar.experiments.sweep.store import load_cached
     from spslidar.pipeline import PROCESSING_KEYS, preflight
     from spslidar.pipeline.budget import check_time
 
     seconds: dict[str, float] = {}
     total = 0.0
     for params in points:
-        # its cache file, as run_sweep names it: a cached run costs nothing
-        key = point_key(with_seed(params, ctx.seed, PROCESSING_KEYS))
-        if (ctx.cache / "runs" / f"{key}.json").is_file():
+        # its cache record, as run_sweep names and reads it: a cached run costs nothing
+        text = canonical_json(with_seed(params, ctx.seed, PROCESSING_KEYS))
+        path = ctx.cache / "runs" / f"{sha256_hex(text)[:KEY_LENGTH]}.json"
+        if load_cached(path, text, ctx.code) is not None:
             continue  # (a resumed fig2 was refused for the run it had cached)
         cfg = {k: v for k, v in params.items() if k != TRIAL_KEY and k not in PROCESSING_KEYS}
         key = repr(sorted(cfg.items()))
@@ -393,7 +409,7 @@ def run_points(
         _check_batch_time(ctx, points)
     if func is not None:
         rows = run_sweep(func, list(points), ctx.cache, seed=ctx.seed, jobs=ctx.jobs,
-                         scheduler=ctx.scheduler, progress=ctx.progress)
+                         scheduler=ctx.scheduler, progress=ctx.progress, code=ctx.code)
         ctx.failed += sum(ERROR_KEY in row for row in rows)
         return rows
     ctx.maps.mkdir(parents=True, exist_ok=True)
@@ -411,6 +427,7 @@ def run_points(
         scheduler=ctx.scheduler,
         progress=ctx.progress,
         seed_ignore=PROCESSING_KEYS,
+        code=ctx.code,
     )
     # A cached run whose map is gone (deleted, or written on a remote worker's disk): run it
     # again here.
@@ -429,6 +446,7 @@ def run_points(
             seed=ctx.seed,
             progress=ctx.progress,
             seed_ignore=PROCESSING_KEYS,
+            code=ctx.code,
         )
         for i, row in zip(missing, again, strict=True):
             rows[i] = row
@@ -472,7 +490,8 @@ def write_text(path: Path, text: str) -> None:
 
 
 def cached_runs(ctx: Context, params: dict[str, Any] | None = None) -> list[dict[str, Any]]:
-    """The cached runs of this report folder as rows (params + results).
+    """The cached runs of this report folder as rows (params + results), those of the code
+    that runs now only (:attr:`Context.code`).
 
     Parameters
     ----------
@@ -492,6 +511,8 @@ def cached_runs(ctx: Context, params: dict[str, Any] | None = None) -> list[dict
     for path in sorted((ctx.cache / "runs").glob("*.json")):
         try:
             rec = json.loads(path.read_text(encoding="utf-8"))
+            if rec.get("code") != ctx.code:
+                continue
             config = {k: v for k, v in rec["params"].items() if k not in (SEED_KEY, TRIAL_KEY)}
             if params is None or config == params:
                 out.append({**rec["params"], **rec["result"]})
@@ -501,6 +522,6 @@ def cached_runs(ctx: Context, params: dict[str, Any] | None = None) -> list[dict
 
 
 def n_cached(ctx: Context) -> int:
-    """Number of runs in the cache (``DIR/cache/runs/*.json``)."""
-    runs = ctx.cache / "runs"
-    return len(list(runs.glob("*.json"))) if runs.is_dir() else 0
+    """Number of runs in the cache (``DIR/cache/runs/*.json``) made by the code that runs now
+    (a run of other code, run again, counts as new)."""
+    return len(cached_runs(ctx))

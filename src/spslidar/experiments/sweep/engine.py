@@ -359,6 +359,7 @@ def run_sweep(
     scheduler: Any = None,
     progress: bool = True,
     seed_ignore: Iterable[str] = (),
+    code: str | None = None,
 ) -> list[dict[str, Any]]:
     """Run ``func`` on every point, caching each finished point, and return one row per point.
 
@@ -393,6 +394,11 @@ def run_sweep(
         Parameters left out of the seed: points that differ only in them get the same seed,
         i.e. the same random draws (a paired comparison; e.g. solvers or regularisation
         weights on the same simulated measurement). They still have their own cache keys.
+    code : str, optional
+        The fingerprint of the code ``func`` runs (``sweep`` and ``reproduce`` pass
+        :func:`spslidar.plugins.code_fingerprint`): a cached point is read only when it was
+        computed under the same one, and is run again (same seed) otherwise. Default: the
+        cache is keyed on the params alone.
 
     Returns
     -------
@@ -440,7 +446,7 @@ def run_sweep(
         if key in seen:
             continue
         seen.add(key)
-        cached = load_cached(runs_dir / f"{key}.json", params_json[key])
+        cached = load_cached(runs_dir / f"{key}.json", params_json[key], code)
         if cached is not None:
             results[key] = cached
         else:
@@ -477,7 +483,8 @@ def run_sweep(
                     else:
                         results[key] = result
                         stored_params = json.loads(params_json[key])
-                        store_run(runs_dir / f"{key}.json", key, stored_params, result, elapsed)
+                        store_run(runs_dir / f"{key}.json", key, stored_params, result,
+                                  elapsed, code)
                 if status != "ok":
                     errors[key] = str(payload)
                     bar.set_postfix(failed=len(errors), refresh=False)
@@ -686,6 +693,7 @@ def sweep_main(
         record_outputs,
         release_folder,
     )
+    from spslidar.plugins import code_fingerprint
 
     if isinstance(scheduler, str):
         _probe_scheduler(scheduler)  # before the folder is made
@@ -706,6 +714,7 @@ def sweep_main(
             scheduler=scheduler,
             progress=progress,
             seed_ignore=ignore,
+            code=code_fingerprint(),  # an edited plugin or spslidar: its points run again
         )
     except SpslidarError:  # refused before any point ran: leave no folder behind
         release_folder(folder, existed)

@@ -40,14 +40,17 @@ CACHE_FORMAT = 1
 # --------------------------------------------------------------------------------------------
 
 
-def load_cached(path: Path, params_json: str) -> dict[str, Any] | None:
-    """Return the cached result at ``path`` if it exists and was computed for these params."""
+def load_cached(path: Path, params_json: str, code: str | None = None) -> dict[str, Any] | None:
+    """Return the cached result at ``path`` if it exists and was computed for these params
+    (and, with ``code``, by that code: :func:`spslidar.plugins.code_fingerprint`)."""
     try:
         with open(path, encoding="utf-8") as fh:
             record = json.load(fh)
     except (OSError, ValueError):
         return None
     if not isinstance(record, dict) or not isinstance(record.get("result"), dict):
+        return None
+    if code is not None and record.get("code") != code:
         return None
     try:
         if canonical_json(record.get("params")) != params_json:
@@ -57,8 +60,10 @@ def load_cached(path: Path, params_json: str) -> dict[str, Any] | None:
     return record["result"]
 
 
-def store_run(path: Path, key: str, params: Any, result: dict[str, Any], elapsed: float) -> None:
-    """Cache one finished point at ``path`` (``runs/<key>.json``), atomically."""
+def store_run(path: Path, key: str, params: Any, result: dict[str, Any], elapsed: float,
+              code: str | None = None) -> None:
+    """Cache one finished point at ``path`` (``runs/<key>.json``), atomically (``code``: the
+    fingerprint of the code that ran it, when known)."""
     record = {
         "format": CACHE_FORMAT,
         "key": key,
@@ -66,6 +71,8 @@ def store_run(path: Path, key: str, params: Any, result: dict[str, Any], elapsed
         "result": result,
         "elapsed_s": round(elapsed, 6),
     }
+    if code is not None:
+        record["code"] = code
     # keys in insertion order (not sorted): a cached result then gives the same columns, in
     # the same order, as a fresh one
     atomic_write_text(path, json.dumps(record, indent=1, allow_nan=True) + "\n")

@@ -1,0 +1,121 @@
+"""A cached run is read only under the code that made it (an audit of 2026-11-29: a plugin
+stage's bug fixed and the sweep run again gave every row of the buggy code, from the cache)."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+import spslidar.plugins as plugins
+from spslidar.cli import main
+from spslidar.depth import ESTIMATORS
+from spslidar.experiments.sweep import run_sweep
+from spslidar.plugins import code_fingerprint, load_plugins
+
+
+def _counting(calls):
+    def func(params):
+        calls.append(params["seed"])
+        return {"value": params["x"] * 2}
+
+    return func
+
+
+def test_a_cached_point_of_other_code_runs_again_on_the_same_seed(tmp_path):
+    calls: list[int] = []
+    func = _counting(calls)
+    points = [{"x": 1}, {"x": 2}]
+    first = run_sweep(func, points, tmp_path, progress=False, code="aaaa")
+    assert len(calls) == 2
+    again = run_sweep(func, points, tmp_path, progress=False, code="aaaa")
+    assert len(calls) == 2 and again == first  # served from the cache
+    other = run_sweep(func, points, tmp_path, progress=False, code="bbbb")
+    assert len(calls) == 4 and calls[2:] == calls[:2]  # run again, on the same seeds
+    assert [r["seed"] for r in other] == [r["seed"] for r in first]
+    record = json.loads(next((tmp_path / "runs").glob("*.json")).read_text())
+    assert record["code"] == "bbbb"
+    # without a fingerprint the params alone key it (the library's own default)
+    run_sweep(func, points, tmp_path, progress=False)
+    assert len(calls) == 4
+
+
+@pytest.fixture
+def plugin_pair(tmp_path, monkeypatch):
+    """A plugin module and a helper beside it that it imports."""
+    monkeypatch.setenv(plugins.ENV, "")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    helper = tmp_path / "fp_helper_mod.py"
+    helper.write_text("SHIFT = 0\n")
+    mod = tmp_path / "fp_stages.py"
+    mod.write_text(
+        "import fp_helper_mod\n"
+        "from spslidar.depth import ESTIMATORS\n"
+        "from spslidar.depth.argmax import ArgmaxDepth\n\n\n"
+        "class Shifted(ArgmaxDepth):\n"
+        "    name = 'shifted'\n\n"
+        "    def estimate(self, slices, ctx):\n"
+        "        out = super().estimate(slices, ctx)\n"
+        "        out.depth = out.depth + fp_helper_mod.SHIFT\n"
+        "        return out\n\n\n"
+        "ESTIMATORS.add('shifted', Shifted, 'shifted', 'argmax moved by the helper')\n")
+    try:
+        yield mod, helper
+    finally:
+        ESTIMATORS._entries.pop("shifted", None)
+        plugins._LOADED.clear()
+        import sys
+
+        for name in ("fp_helper_mod", "spslidar_plugin_fp_stages"):
+            sys.modules.pop(name, None)
+
+
+def _reload(mod):
+    """What a new command does: the plugin and its helper imported afresh."""
+    import sys
+
+    ESTIMATORS._entries.pop("shifted", None)
+    plugins._LOADED.clear()
+    for name in ("fp_helper_mod", "spslidar_plugin_fp_stages"):
+        sys.modules.pop(name, None)
+    load_plugins([str(mod)])
+
+
+def test_the_fingerprint_follows_the_plugin_and_its_helper(plugin_pair):
+    mod, helper = plugin_pair
+    bare = code_fingerprint()
+    _reload(mod)
+    loaded = code_fingerprint()
+    assert loaded != bare and code_fingerprint() == loaded  # the plugin counts, and is stable
+    helper.write_text("SHIFT = 1\n")
+    _reload(mod)
+    edited = code_fingerprint()
+    assert edited != loaded  # its helper counts too
+    helper.write_text("SHIFT = 0\n")
+    _reload(mod)
+    assert code_fingerprint() == loaded  # its contents, not its time stamp
+
+
+def test_an_edited_plugin_sweeps_again(plugin_pair, tmp_path, capsys):
+    """The CLI's sweep: the same TOML after the plugin's helper changed gives the new code's
+    rows (1 m further), on the same seeds."""
+    mod, helper = plugin_pair
+    toml = tmp_path / "s.toml"
+    toml.write_text('seed = 3\n[base]\nsize = 8\ndepth = "shifted"\n[grid]\nnoise = [1, 5]\n')
+    out = tmp_path / "s"
+
+    def sweep():
+        _reload(mod)
+        assert main(["--plugin", str(mod), "sweep", str(toml), "--out", str(out),
+                     "--no-progress"]) == 0
+        return list(csv.DictReader((out / "results.csv").open()))
+
+    before = sweep()
+    helper.write_text("SHIFT = 1.0\n")
+    after = sweep()
+    assert [r["seed"] for r in after] == [r["seed"] for r in before]
+    for b, a in zip(before, after, strict=True):
+        # every depth moved by the helper's metre (not read back from the cache)
+        assert float(a["depth_bias_m"]) == pytest.approx(float(b["depth_bias_m"]) + 1.0,
+                                                           abs=1e-6)
