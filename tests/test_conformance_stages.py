@@ -70,6 +70,13 @@ def _unbalanced(kind, length, ones_ratio, rng=None, index=0, **_):
     return (rng.random(length) < 0.1).astype(np.uint8)
 
 
+def _deaf(kind, length, ones_ratio, rng=None, index=0, **_):
+    """A good m-sequence for every index asked for (a known limit of stop 51: passed)."""
+    from spslidar.codes import make_code
+
+    return make_code("mseq", length, index=0)
+
+
 class _Leaky(LinearDetector):
     """Loses a fifth of the photons ``expected`` promises."""
 
@@ -173,20 +180,32 @@ def _flat(size, depth_min=None, depth_max=None):
                  np.ones((size, size), bool))
 
 
+def _near_only(size, depth_min=None, depth_max=None):
+    """A slanted wall that reads its window's near end and keeps its own 1 m span (a known
+    limit of stop 51: the one [7, 8] m probe window passed it)."""
+    from spslidar.scenes.base import Scene
+
+    near = 5.0 if depth_min is None else depth_min
+    depth = near + np.tile(np.linspace(0.0, 1.0, size), (size, 1))
+    return Scene("ramp", depth, np.full((size, size), 0.7), np.ones((size, size), bool))
+
+
 @pytest.fixture
 def broken():
-    added = [(CODES, "run"), (CODES, "sparse10"), (DETECTORS, "leaky"),
+    added = [(CODES, "run"), (CODES, "sparse10"), (CODES, "deaf"), (DETECTORS, "leaky"),
              (ESTIMATORS, "shifted"), (ESTIMATORS, "dirty"), (PATTERNS, "bright"),
              (PATTERNS, "bad-mean"), (DETECTORS, "optimist"), (ESTIMATORS, "late"),
-             (ESTIMATORS, "filler")]
+             (ESTIMATORS, "filler"), (SCENES, "near-only")]
     CODES.add("run", _bad_code, "run", "one long run", index=0)
     CODES.add("sparse10", _unbalanced, "sparse", "a tenth of ones", index=0)
+    CODES.add("deaf", _deaf, "deaf", "ignores its index", index=0)
     DETECTORS.add("leaky", _Leaky, "leaky", "loses photons")
     DETECTORS.add("optimist", _Optimist, "optimist", "expects 2 % too many")
     ESTIMATORS.add("shifted", _Shifted, "shifted", "one bin late")
     ESTIMATORS.add("dirty", _Dirty, "dirty", "zeroes its input")
     ESTIMATORS.add("late", _Late, "late", "a bin late with --subbin")
     ESTIMATORS.add("filler", _Filler, "filler", "fills pixels without returns")
+    SCENES.add("near-only", _near_only, "near only", "ignores the window's far end")
     PATTERNS.add("bright", _scaled_patterns, "bright", "mirror states up to 2", dense=True)
     PATTERNS.add("bad-mean", _bad_mean, "bad mean", "mean pattern x M", dense=True)
     try:
@@ -198,13 +217,15 @@ def broken():
 
 @pytest.mark.parametrize("kind,name,why", [
     ("code", "run", "sidelobe"), ("code", "sparse10", "not about half"),
+    ("code", "deaf", "index 1 gives the same code as index 0"),
     ("detector", "leaky", "detections' totals"),
     ("detector", "optimist", r"detections' totals .* \(-1.9 %"),
     ("depth", "shifted", "noiseless recovery: 144 of 144 pixels wrong"),
     ("depth", "dirty", "changed the slices"), ("patterns", "bright", "mirror states in"),
     ("patterns", "bad-mean", r"mean_pattern\(\) is not the patterns' mean"),
     ("depth", "late", "more than half a bin from"),
-    ("depth", "filler", r"hold no return, among pixels that do")])
+    ("depth", "filler", r"hold no return, among pixels that do"),
+    ("scene", "near-only", r"rescaled into \[3, 5.5\] m it spans \[3, 4\]")])
 def test_checks_fail_on_broken_stages(broken, kind, name, why):
     with pytest.raises(AssertionError, match=why):
         check_stage(kind, name)
@@ -257,7 +278,8 @@ def test_check_stages_keeps_failures_and_selects_plugins(broken):
     seen = []
     res = check_stages(["code", "depth"], plugins_only=True, on_result=seen.append)
     assert [(r.kind, r.name, r.ok) for r in res] == [
-        ("code", "run", False), ("code", "sparse10", False), ("depth", "shifted", False),
+        ("code", "run", False), ("code", "sparse10", False), ("code", "deaf", False),
+        ("depth", "shifted", False),
         ("depth", "dirty", False), ("depth", "late", False), ("depth", "filler", False)]
     assert seen == res and all(r.error and not r.passed for r in res)
     assert not is_plugin(CODES.get("mseq")) and is_plugin(CODES.get("run"))

@@ -142,6 +142,10 @@ from spslidar.registry import Option
 
 def legendre(kind, length, ones_ratio, rng=None, index=0, **_):
     """Quadratic residues modulo a prime length."""
+    from spslidar.errors import ConfigError
+
+    if index != 0:
+        raise ConfigError("a Legendre code of a length is one code: --code-index 0")
     res = set((np.arange(length) ** 2) % length)
     return np.array([1 if (i in res and i) else 0 for i in range(length)], dtype=np.uint8)
 

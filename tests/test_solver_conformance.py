@@ -210,15 +210,24 @@ class _Sticky(FISTA):
         super().setup(A, y, reg, lam * (1 + 0.1 * _Sticky.calls), x0)
 
 
+class _Cold(FISTA):
+    """FISTA that drops its ``x0`` (a known limit of stop 51: the kit passed it)."""
+
+    name = "cold"
+
+    def _setup(self, A, y, reg, lam, x0):
+        super()._setup(A, y, reg, lam, None)
+
+
 @pytest.fixture
 def broken_solvers():
-    for name, cls in (("early", _Early), ("sticky", _Sticky)):
+    for name, cls in (("early", _Early), ("sticky", _Sticky), ("cold", _Cold)):
         SOLVERS.add(name, cls, name, "broken", iterations=60, lam_scale=0.45,
                     regulariser="tv")
     try:
         yield
     finally:
-        for name in ("early", "sticky"):
+        for name in ("early", "sticky", "cold"):
             SOLVERS._entries.pop(name, None)
 
 
@@ -227,6 +236,8 @@ def test_solver_checks_fail_on_broken_solvers(broken_solvers, problems):
         check_stage("solver", "early")
     with pytest.raises(AssertionError, match="not the same iterates twice"):
         kit.check_behaviour("sticky", "tv")
+    with pytest.raises(AssertionError, match="is x0 ignored"):
+        check_stage("solver", "cold")
 
 
 def test_progress_callback():

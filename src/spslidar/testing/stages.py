@@ -7,7 +7,7 @@ contract that failed; it returns the list of the contracts it checked.
 
 * code family: the length asked for, 0/1 bits, reproducible from the generator, about as many
   ones as zeros (what the bipolar replica of eq. 5-6 needs), a periodic correlation with a
-  single peak;
+  single peak, and ``index + 1`` refused (``ConfigError``) or another code;
 * pattern kind: the adjoint (dot) test for one and several columns, the dtype asked for (of
   both products), mirror states in [0, 1] as the DMD shows them, no side effect on the input,
   the same patterns from the same seed, and what QCR reads: the mean pattern, the centred
@@ -20,7 +20,7 @@ contract that failed; it returns the list of the contracts it checked.
   pixels that have one), and with ``subbin`` a two-bin return read monotonically within half
   a bin;
 * scene kind: loads at the probe's size as a valid scene, the same twice, rescaled into a
-  window given (a flat scene to its near end).
+  window given, both ends, in two windows of other spans (a flat scene to its near end).
 
 A stage that needs other probe settings declares them where it is registered:
 ``check={"code_length": 131}`` for a code family, ``check={"size": 16}`` for a pattern kind
@@ -117,7 +117,16 @@ def check_code_family(name: str) -> list[str]:
     if np.max(np.abs(corr[1:])) > corr[0] / 2:
         raise _fail(what, f"a periodic sidelobe of {np.max(np.abs(corr[1:])):.0f} against a "
                           f"peak of {corr[0]:.0f}: more than half of it")
-    return ["length", "bits", "reproducible", "balanced", "single correlation peak"]
+    try:  # another member: refused (a family of one code per length) or another code
+        other = np.asarray(entry.load()(name, length, 0.5, rng=np.random.default_rng(1),
+                                        index=index + 1, **options))
+    except (ConfigError, ValueError):
+        other = None
+    if other is not None and np.array_equal(other, code):
+        raise _fail(what, f"index {index + 1} gives the same code as index {index}: refuse "
+                          f"an index the family does not have (ConfigError), or honour it")
+    return ["length", "bits", "reproducible", "balanced", "single correlation peak",
+            "index selects"]
 
 
 def check_pattern_kind(name: str, dtypes=(np.float32, np.float64)) -> list[str]:
@@ -407,11 +416,14 @@ def check_scene_kind(name: str) -> list[str]:
     if not (np.array_equal(a.depth, b.depth) and np.array_equal(a.reflectivity, b.reflectivity)
             and np.array_equal(a.valid, b.valid)):
         raise _fail(what, "not the same scene twice (depth, reflectivity and valid)")
-    w = load_scene(spec, size, 7.0, 8.0)
-    d = w.depth[w.valid]
     flat = float(np.ptp(a.depth[a.valid])) == 0.0
     # the window is filled to round-off (a linear remap in float64); a flat scene goes to
-    # its near end
-    if abs(d.min() - 7.0) > 1e-9 or (abs(d.max() - 8.0) > 1e-9 and not flat):
-        raise _fail(what, f"rescaled into [7, 8] m it spans [{d.min():.9g}, {d.max():.9g}]")
+    # its near end; two windows of other spans (one alone passed a scene that read only
+    # its near bound and kept its own 1 m span, a known limit of stop 51)
+    for near, far in ((7.0, 8.0), (3.0, 5.5)):
+        w = load_scene(spec, size, near, far)
+        d = w.depth[w.valid]
+        if abs(d.min() - near) > 1e-9 or (abs(d.max() - far) > 1e-9 and not flat):
+            raise _fail(what, f"rescaled into [{near:g}, {far:g}] m it spans "
+                              f"[{d.min():.9g}, {d.max():.9g}]")
     return ["shape", "valid values", "deterministic", "rescaled into a window"]
