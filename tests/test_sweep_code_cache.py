@@ -1,4 +1,4 @@
-"""A cached run is read only under the code that made it (an audit of 2026-11-29: a plugin
+"""A cached run is read only under the code that made it (a known limit of stop 51: a plugin
 stage's bug fixed and the sweep run again gave every row of the buggy code, from the cache)."""
 
 from __future__ import annotations
