@@ -63,8 +63,7 @@ def add_reconstruct_parser(sub) -> None:
     from .solvers import REGULARISERS
 
     p.add_argument("--regulariser", choices=("auto", *REGULARISERS.names()), default=S,
-                   help="auto: the solver's default (tv for fista, twist, tval3); tv-aniso: "
-                        "the anisotropic TV")
+                   help=f"auto: the solver's default; {REGULARISERS.help_text()}")
     p.add_argument("--depth", choices=depths, default=S)
     _add_stage_options(p, "depth")
     p.add_argument("--lam-scale", type=float, default=S, metavar="K")
