@@ -154,9 +154,9 @@ def code_fingerprint() -> str:
     the same fingerprint, so a plugin edited between two sweeps, or spslidar upgraded or edited,
     runs its points again (with the same seeds, so on the same noise) instead of returning the
     old code's results (a known limit of stop 51: a plugin's bug fixed and the sweep run again
-    gave the buggy code's rows, from the cache). NumPy's or SciPy's version is not in it: results across
-    library releases agree to float tolerance, not bit for bit, and a cache is not a claim of
-    either. A module a worker imports that the parent never did is not seen.
+    gave the buggy code's rows, from the cache). NumPy's or SciPy's version is not in it:
+    results across library releases agree to float tolerance, not bit for bit, and a cache is
+    not a claim of either. A module a worker imports that the parent never did is not seen.
     """
     from .version import __version__
 

@@ -58,7 +58,7 @@ SCENES = Registry("scene", "scene")
 SCENES.add("camera", "spslidar.scenes.builtin:_camera", "camera",
            "skimage's camera image as depth, 20-20.8 m (the paper's 'airplane'; default)")
 SCENES.add("motorcycle", "spslidar.scenes.builtin:_motorcycle", "motorcycle",
-           "Middlebury 2014 disparity as depth, 2.1-4.9 m (the paper's 'doll')")
+           "Middlebury 2014 disparity as depth, 2.1-4.7 m (the paper's 'doll')")
 SCENES.add("steps", "spslidar.scenes.builtin:_steps", "steps",
            "raised rectangles and a disc on a back plane, 10-10.6 m")
 SCENES.add("ramp", "spslidar.scenes.builtin:_ramp", "ramp",
