@@ -7,7 +7,8 @@ contract that failed; it returns the list of the contracts it checked.
 
 * code family: the length asked for, 0/1 bits, reproducible from the generator, about as many
   ones as zeros (what the bipolar replica of eq. 5-6 needs), a periodic correlation with a
-  single peak, and ``index + 1`` refused (``ConfigError``) or another code;
+  single peak, ``index + 1`` refused (``ConfigError``) or another code, and the same code in
+  a fresh process (:mod:`.process`: not drawn from ``hash()`` or the time);
 * pattern kind: the adjoint (dot) test for one and several columns, the dtype asked for (of
   both products), mirror states in [0, 1] as the DMD shows them, no side effect on the input,
   the same patterns from the same seed, and what QCR reads: the mean pattern, the centred
@@ -20,7 +21,8 @@ contract that failed; it returns the list of the contracts it checked.
   pixels that have one), and with ``subbin`` a two-bin return read monotonically within half
   a bin;
 * scene kind: loads at the probe's size as a valid scene, the same twice, rescaled into a
-  window given, both ends, in two windows of other spans (a flat scene to its near end).
+  window given, both ends, in two windows of other spans (a flat scene to its near end), and
+  the same scene in a fresh process.
 
 A stage that needs other probe settings declares them where it is registered:
 ``check={"code_length": 131}`` for a code family, ``check={"size": 16}`` for a pattern kind
@@ -87,20 +89,10 @@ def check_code_family(name: str) -> list[str]:
     list of str
         The contracts checked.
     """
-    from ..codes import CODES
-
-    cfg = _code_config(name)
-    entry = CODES.get(name)
-    index = entry.defaults.get("index", 0)
-    options = chosen_stage_options(cfg, "code")
-    length = cfg.code_length
-
-    def make():
-        return np.asarray(entry.load()(name, length, 0.5, rng=np.random.default_rng(1),
-                                       index=index, **options))
-
+    code, make = probe_code(name)
+    length, index = code.size, make.index
     what = f"code family {name!r} at {length} bits"
-    code, again = make(), make()
+    again = make()
     if code.shape != (length,):
         raise _fail(what, f"shape {code.shape}, not ({length},)")
     if not set(np.unique(code).tolist()) <= {0, 1}:
@@ -118,15 +110,47 @@ def check_code_family(name: str) -> list[str]:
         raise _fail(what, f"a periodic sidelobe of {np.max(np.abs(corr[1:])):.0f} against a "
                           f"peak of {corr[0]:.0f}: more than half of it")
     try:  # another member: refused (a family of one code per length) or another code
-        other = np.asarray(entry.load()(name, length, 0.5, rng=np.random.default_rng(1),
-                                        index=index + 1, **options))
+        other = make(index + 1)
     except (ConfigError, ValueError):
         other = None
     if other is not None and np.array_equal(other, code):
         raise _fail(what, f"index {index + 1} gives the same code as index {index}: refuse "
                           f"an index the family does not have (ConfigError), or honour it")
     return ["length", "bits", "reproducible", "balanced", "single correlation peak",
-            "index selects"]
+            "index selects", *_same_in_a_fresh_process("code", name, what)]
+
+
+def probe_code(name: str):
+    """The probe's code of family ``name`` and the function that made it (``make(index)``,
+    its ``index`` attribute the entry's default), as :func:`check_code_family` builds them."""
+    from ..codes import CODES
+
+    cfg = _code_config(name)
+    entry = CODES.get(name)
+    options = chosen_stage_options(cfg, "code")
+    length = cfg.code_length
+
+    def make(index=None):
+        index = make.index if index is None else index
+        return np.asarray(entry.load()(name, length, 0.5, rng=np.random.default_rng(1),
+                                       index=index, **options))
+
+    make.index = entry.defaults.get("index", 0)
+    return make(), make
+
+
+def _same_in_a_fresh_process(kind: str, name: str, what: str) -> list[str]:
+    """The contract of :mod:`.process` (none where the stage cannot be built afresh)."""
+    from .process import fresh_digest, output_digest
+
+    there = fresh_digest(kind, name)
+    if there is None:
+        return []
+    if set(there) != {output_digest(kind, name)}:
+        raise _fail(what, "another output in a fresh process (another PYTHONHASHSEED): a "
+                          "sweep's workers would each get their own; draw from the rng given "
+                          "or from the arguments, not from hash(), the time or a global state")
+    return ["the same in a fresh process"]
 
 
 def check_pattern_kind(name: str, dtypes=(np.float32, np.float64)) -> list[str]:
@@ -390,6 +414,11 @@ def scene_spec(name: str) -> str:
     return name
 
 
+def scene_size(name: str) -> int:
+    """The probe's side for scene kind ``name`` (16, or its entry's ``check={"size": N}``)."""
+    return int(_probe("scene", name).get("size", 16))
+
+
 def check_scene_kind(name: str) -> list[str]:
     """The contract of a scene kind (see the module docstring), at 16 x 16 pixels (or the
     ``size`` its entry's ``check=`` declares), with the argument its entry's ``example=``
@@ -404,7 +433,7 @@ def check_scene_kind(name: str) -> list[str]:
     from ..scenes import load_scene
 
     spec = scene_spec(name)
-    size = int(_probe("scene", name).get("size", 16))
+    size = scene_size(name)
     what = f"scene {spec!r}"
     a, b = load_scene(spec, size), load_scene(spec, size)
     if not a.depth.shape == a.reflectivity.shape == a.valid.shape == (size, size):
@@ -426,4 +455,5 @@ def check_scene_kind(name: str) -> list[str]:
         if abs(d.min() - near) > 1e-9 or (abs(d.max() - far) > 1e-9 and not flat):
             raise _fail(what, f"rescaled into [{near:g}, {far:g}] m it spans "
                               f"[{d.min():.9g}, {d.max():.9g}]")
-    return ["shape", "valid values", "deterministic", "rescaled into a window"]
+    return ["shape", "valid values", "deterministic", "rescaled into a window",
+            *_same_in_a_fresh_process("scene", name, what)]
