@@ -80,9 +80,15 @@ def fresh_digest(kind: str, name: str) -> list[str] | None:
     code = ("import sys\nfrom spslidar.plugins import load_plugins\nload_plugins()\n"
             "from spslidar.testing.process import output_digest\n"
             "print(output_digest(sys.argv[1], sys.argv[2]))\n")
+    from pathlib import Path
+
+    # this spslidar, also where it is imported from a source tree rather than installed
+    here = str(Path(__file__).resolve().parents[2])
+    path = os.pathsep.join(p for p in (here, os.environ.get("PYTHONPATH", "")) if p)
     out = []
     for seed in HASH_SEEDS:
-        env = {**os.environ, "PYTHONHASHSEED": seed, "SPSLIDAR_PLUGINS": ",".join(specs)}
+        env = {**os.environ, "PYTHONHASHSEED": seed, "SPSLIDAR_PLUGINS": ",".join(specs),
+               "PYTHONPATH": path}
         proc = subprocess.run([sys.executable, "-c", code, kind, name], env=env,
                               capture_output=True, text=True, timeout=TIMEOUT_S,
                               cwd=os.getcwd())
