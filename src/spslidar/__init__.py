@@ -29,9 +29,17 @@ def _plugins_of_the_environment() -> None:
     import os
 
     if os.environ.get("SPSLIDAR_PLUGINS"):
-        from .plugins import load_plugins
+        from . import plugins
+        from .errors import ConfigError
 
-        load_plugins()
+        try:
+            plugins.load_plugins()
+        except ConfigError as err:
+            # not raised here, as a traceback out of `import spslidar` (the command line's
+            # one-line refusal never ran, an audit of 2026-11-29): the command line loads the
+            # plugins again and refuses in one line; elsewhere an unknown stage's message
+            # says which plugin failed
+            plugins.FAILED.append(str(err))
 
 
 _plugins_of_the_environment()

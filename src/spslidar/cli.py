@@ -299,6 +299,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "are cached in DIR/runs, so an interrupted sweep resumes.")
     w.add_argument("config", metavar="CONFIG.toml", help="sweep definition")
     w.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    w.add_argument("--overwrite", action="store_true",
+                   help="replace the results.csv of another sweep (other points) in DIR; the "
+                        "same sweep resumes without it")
     _add_sweep_options(w, trials=False)
     return parser
 
@@ -387,10 +390,12 @@ def _cmd_run(args) -> int:
             if k not in ("command", "config", "out", "no_figure", "overwrite", "func",
                          "save_ptu", "fov")}
     save_ptu = getattr(args, "save_ptu", None)
-    if save_ptu is not None and not str(save_ptu).strip():  # "" wrote nothing, saying nothing
+    if save_ptu is not None and (not str(save_ptu).strip()  # "" wrote nothing, saying nothing
+                                 or Path(save_ptu).name in ("", ".", "..")
+                                 or Path(save_ptu).is_dir()):  # ('.': a traceback, an audit)
         from .errors import ConfigError
 
-        raise ConfigError("--save-ptu must name a file (FILE.ptu)")
+        raise ConfigError(f"--save-ptu must name a file (FILE.ptu), not {save_ptu!r}")
     if save_ptu:
         from .outfiles import check_files
         from .pipeline.real import ptu_companions
@@ -454,7 +459,8 @@ def _cmd_sweep(args) -> int:
     from .experiments.sweep import sweep_main
 
     return 1 if sweep_main(args.config, args.out, jobs=args.jobs, scheduler=args.scheduler,
-                           progress=not args.no_progress, max_time=args.max_time) else 0
+                           progress=not args.no_progress, max_time=args.max_time,
+                           overwrite=args.overwrite) else 0
 
 
 COMMANDS = {"run": _cmd_run, "reconstruct": cmd_reconstruct, "calibrate": cmd_calibrate,

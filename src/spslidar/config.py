@@ -525,6 +525,29 @@ def registries() -> dict:
     return {r.option: r for r in (CODES, PATTERNS, DETECTORS, SOLVERS, ESTIMATORS)}
 
 
+#: a TOML config is a few kilobytes: a file or stream past this is not one
+MAX_CONFIG_BYTES = 16 * 2**20
+
+
+def read_config_bytes(path: Path, what: str = "config file") -> bytes:
+    """The bytes of a config file, or of a stream such as bash's ``<(...)`` (it was "not
+    found"), read to at most :data:`MAX_CONFIG_BYTES` (``/dev/zero`` ran out of memory, an
+    audit of 2026-11-29); one line (:class:`ConfigError`) naming ``what`` otherwise."""
+    if path.is_dir():
+        raise ConfigError(f"{what} {path} is a directory, not a TOML file")
+    if not path.exists():
+        raise ConfigError(f"{what} not found: {path}")
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_CONFIG_BYTES + 1)
+    except OSError as exc:
+        raise ConfigError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    if len(raw) > MAX_CONFIG_BYTES:
+        raise ConfigError(f"{what} {path} holds more than {MAX_CONFIG_BYTES // 2**20} MiB: "
+                          f"not a TOML config")
+    return raw
+
+
 def read_toml(path: str | Path) -> dict[str, Any]:
     """Read a TOML config file into a flat dict (a ``[run]`` table is also accepted)."""
     if sys.version_info >= (3, 11):
@@ -532,13 +555,8 @@ def read_toml(path: str | Path) -> dict[str, Any]:
     else:  # pragma: no cover
         import tomli as tomllib
     p = Path(path)
-    if p.is_dir():
-        raise ConfigError(f"config file {p} is a directory, not a TOML file")
-    if not p.is_file():
-        raise ConfigError(f"config file not found: {p}")
+    raw = read_config_bytes(p)
     try:
-        with open(p, "rb") as fh:
-            raw = fh.read()
         if raw.startswith(b"\xef\xbb\xbf"):  # invisible, and TOML refuses it at 1:1
             raise ConfigError(f"config file {p} starts with a UTF-8 byte-order mark, which TOML "
                               f"does not allow: save it as UTF-8 without BOM")

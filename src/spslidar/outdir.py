@@ -535,12 +535,14 @@ def foreign_outputs(folder: str | os.PathLike, names) -> list[str]:
     return [] if sums is None else changed_files(Path(folder), names, sums)
 
 
-def record_outputs(folder: str | os.PathLike, names, legacy=()) -> None:
+def record_outputs(folder: str | os.PathLike, names, legacy=(), extra=None) -> None:
     """Record in the marker, as ``written`` with their SHA-256, the files ``names`` that
     exist (and ``legacy`` too, in a folder of an earlier version whose marker recorded none),
-    and drop their pending record."""
+    and drop their pending record (``extra``: more keys for the marker, e.g. what made
+    them)."""
     folder = Path(folder)
     meta = read_marker(folder) or {"kind": "unknown", "files": []}
+    meta.update(extra or {})
     written = meta.get("written")
     if not isinstance(written, dict):
         written, names = {}, [*names, *legacy]

@@ -67,7 +67,9 @@ def check_files(paths, overwrite: bool = False, option: str = "--save-ptu",
     paths = [Path(p) for p in paths]
     if outside is not None and str(outside).strip():
         folder = Path(os.path.abspath(os.fspath(outside)))
-        for p in paths:
+        # (and the marker: --out .FILE.ptu.spslidar.json wrote the PTU, then refused the
+        # folder the marker had become, leaving the files; an audit of 2026-11-29)
+        for p in [*paths, _files_marker(paths[0])]:
             full = Path(os.path.abspath(p))
             if full == folder or folder in full.parents:
                 where = "the --out folder" if full == folder else "inside --out"

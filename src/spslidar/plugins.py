@@ -31,6 +31,8 @@ __all__ = ["ENV", "code_fingerprint", "load_plugins", "plugin_specs", "raised_in
 ENV = "SPSLIDAR_PLUGINS"
 
 _LOADED: dict[str, object] = {}
+#: the errors of the environment's plugins that failed to import with ``import spslidar``
+FAILED: list[str] = []
 
 
 def plugin_specs(value: str | None = None) -> list[str]:
@@ -77,7 +79,11 @@ def where(exc: BaseException) -> str:
     a plugin's error said in one line still says where it is."""
     import traceback
 
-    frames = traceback.extract_tb(exc.__traceback__)
+    # (not the import machinery's own frames: "(<frozen importlib._bootstrap>:1140)" for a
+    # module that is not there)
+    machinery = (str(Path(importlib.__file__).parent), __file__)
+    frames = [f for f in traceback.extract_tb(exc.__traceback__)
+              if not (f.filename.startswith("<") or f.filename.startswith(machinery))]
     return _place(frames[-1]) if frames else ""
 
 

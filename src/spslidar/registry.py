@@ -264,8 +264,11 @@ class Registry:
                                   f"got {type(name).__name__} {name!r} (a stage's options are "
                                   f"keys of their own beside its name, not a table"
                                   f"{example})") from None
+            from .plugins import FAILED
+
+            failed = f" ({'; '.join(FAILED)})" if FAILED else ""
             raise ConfigError(f"unknown {opt} {name!r}; choose one of "
-                              f"{', '.join(self.names())}") from None
+                              f"{', '.join(self.names())}{failed}") from None
 
     def load(self, name: str) -> Any:
         """The implementation registered under ``name``."""

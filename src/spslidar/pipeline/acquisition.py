@@ -133,7 +133,14 @@ def make_acquisition(cfg: Config, gate: tuple[float, float], rng_code) -> Acquis
     if cfg.rep_rate is None:
         period = int(np.ceil(gate[1] * 2.0 / (SPEED_OF_LIGHT * bin_width))) + 1
     else:
-        period = int(round(cfg.bit_rate / cfg.rep_rate))
+        ratio = cfg.bit_rate / cfg.rep_rate
+        dwell = cfg.code_length * cfg.periods
+        if not ratio <= dwell:  # (1e-300 Hz: an OverflowError out of int(inf), an audit)
+            raise ConfigError(
+                f"--rep-rate {cfg.rep_rate:g} Hz: a repetition period of {ratio:.3g} bins "
+                f"exceeds the acquisition time of {dwell} bins per pattern: use a faster "
+                f"--rep-rate, a longer --code-length or more --periods")
+        period = int(round(ratio))
     if period < 2:
         raise ConfigError(f"--rep-rate {cfg.rep_rate:g} Hz is too fast for --bit-rate "
                           f"{cfg.bit_rate:g} Hz: the period must be at least 2 TDC bins")

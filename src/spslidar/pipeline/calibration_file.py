@@ -23,6 +23,8 @@ __all__ = ["CAL_KIND", "check_calibration", "check_calibration_out", "code_sha25
 
 #: format tag of a calibration file
 CAL_KIND = "spslidar-calibration"
+#: a calibration file is a few kilobytes; anything far larger is not one (read whole)
+MAX_CAL_BYTES = 64 * 2**20
 
 
 def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Path:
@@ -42,9 +44,13 @@ def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Pa
         if not overwrite:
             raise SpslidarError(f"--out {out} exists; use --overwrite to replace it")
         try:
+            # (a FIFO hung the command, /dev/zero ran out of memory, a deeply nested file
+            # ended in a RecursionError: an audit of 2026-11-29)
+            if not path.is_file() or path.stat().st_size > MAX_CAL_BYTES:
+                raise ValueError("not a calibration's size or kind of file")
             old = json.loads(path.read_text())
             ours = old.get("kind") == CAL_KIND
-        except (OSError, ValueError, AttributeError):
+        except (OSError, ValueError, AttributeError, RecursionError):
             ours = False
         if not ours:
             raise SpslidarError(f"--out {out} exists and is not a spslidar calibration; "
@@ -117,12 +123,16 @@ def load_calibration(path: str | os.PathLike, bit_rate: float, code: np.ndarray)
     other code bits of the same length applies, and ``metrics.json`` says whether they were
     the same); one line otherwise, and for a file edited since it was written."""
     p = Path(path)
+    if p.exists() and (not p.is_file() or p.stat().st_size > MAX_CAL_BYTES):
+        # (/dev/zero: a MemoryError traceback, an audit of 2026-11-29)
+        raise ConfigError(f"--calibration {p} is not a calibration file (not a regular file "
+                          f"of at most {MAX_CAL_BYTES // 2**20} MiB)")
     try:
         # (utf-8-sig: a file a Windows editor saved with a byte-order mark was "not JSON")
         cal = json.loads(p.read_text(encoding="utf-8-sig"))
     except OSError as exc:
         raise ConfigError(f"cannot read --calibration {p}: {exc.strerror or exc}") from None
-    except ValueError:
+    except (ValueError, RecursionError):  # (a deeply nested file: RecursionError)
         raise ConfigError(f"--calibration {p} is not a calibration file (not JSON)") from None
     if not isinstance(cal, dict) or cal.get("kind") != CAL_KIND:
         raise ConfigError(f"--calibration {p} is not a file written by 'spslidar calibrate'")
@@ -154,7 +164,7 @@ def check_calibration(cal: dict, what: str, bit_rate: float, code: np.ndarray) -
         numbers = [float(cal[k]) for k in ("bit_rate_hz", "delay_s", "irf_fwhm_bins")]
         whole = [int(cal[k]) for k in ("code_length", "lag_shift")]
         numbers.append(float(cal.get("lag_fraction", 0.0)))
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:  # (an int of 21 digits)
         raise ConfigError(f"{what} is incomplete or damaged ({type(exc).__name__}: "
                           f"{exc}); calibrate again") from None
     if (offsets.shape != values.shape or values.ndim != 1 or not values.size
@@ -210,7 +220,9 @@ def _check_consistent(cal: dict, offsets: np.ndarray, values: np.ndarray, number
     period = whole[0]
     delay_bins = numbers[1] * numbers[0]  # delay_s x bit rate
     miss = (delay_bins - (whole[1] - numbers[3]) + period / 2) % period - period / 2
-    if abs(miss) > 1.5:  # the sub-bin peak lies within 1 + 1/64 bins of the lag's
+    # the sub-bin peak lies within 1 + 1/64 bins of the lag's (not NaN: a delay_s of 1e300
+    # overflowed to inf and passed, an audit of 2026-11-29)
+    if not abs(miss) <= 1.5:
         raise ConfigError(f"{what}: lag_shift {whole[1]} and lag_fraction {numbers[3]:g} "
                           f"disagree with delay_s ({delay_bins:.4g} bins) by {miss:.3g} "
                           f"bins; calibrate again")

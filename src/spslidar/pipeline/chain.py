@@ -300,6 +300,11 @@ def reconstruct(meas: Measurement, **processing) -> Result:
             A, y = eliminated, eliminated.data(y)
         # the floor of the default weight, and the scale a given --lam is checked against
         lam_max = float(np.abs(np.asarray(A.rmatvec(y))).max(initial=0.0))
+    if not lam_max > 0:  # (a zero operator: a Lipschitz traceback from the solver, an audit)
+        hint = (f" (--pattern-sigma {cfg.pattern_sigma:g} is below what {cfg.dtype} patterns "
+                f"resolve)" if cfg.patterns == "gaussian" and cfg.pattern_sigma < 1e-4 else "")
+        raise ConfigError(f"nothing to reconstruct: max |A^T y| is 0, the patterns do not vary "
+                          f"from one to the next or the measurements are all zero{hint}")
     lam, lam_scale, floored = default_weight(cfg, sigma_eff, lam_max)
     warns.extend(weight_warnings(cfg, lam, lam_max, floored))
     if not lam * 1e6 < float(np.finfo(cfg.dtype).max):  # its steps would overflow: NaN slices

@@ -48,7 +48,8 @@ def _load_npy(path: str | os.PathLike, what: str) -> np.ndarray:
 
     p = Path(path)
     if not p.is_file():
-        raise ConfigError(f"{what} file not found: {p}")
+        raise ConfigError(f"{what} file not found: {p}" if not p.exists() else
+                          f"{what} {p} is not a file (a folder or a device)")
     try:
         with open(p, "rb") as fh:
             version = npformat.read_magic(fh)

@@ -429,12 +429,13 @@ def run_points(
         seed_ignore=PROCESSING_KEYS,
         code=ctx.code,
     )
-    # A cached run whose map is gone (deleted, or written on a remote worker's disk): run it
+    # A cached run whose map is gone (deleted, or written on a remote worker's disk) or cannot
+    # be read (cut short: a traceback on every later run, an audit of 2026-11-29): run it
     # again here.
     missing = [
         i
         for i, row in enumerate(rows)
-        if ERROR_KEY not in row and not (ctx.maps / f"{row['map_key']}.npy").is_file()
+        if ERROR_KEY not in row and _read_map(ctx.maps / f"{row['map_key']}.npy") is None
     ]
     if missing:
         for i in missing:
@@ -458,8 +459,15 @@ def load_map(ctx: Context, row: dict[str, Any] | None) -> np.ndarray | None:
     """The depth map of a run's row (None for a failed run or a lost map)."""
     if row is None or ERROR_KEY in row:
         return None
-    path = ctx.maps / f"{row['map_key']}.npy"
-    return np.load(path) if path.is_file() else None
+    return _read_map(ctx.maps / f"{row['map_key']}.npy")
+
+
+def _read_map(path: Path) -> np.ndarray | None:
+    """A depth map file, or None where it is missing or cannot be read."""
+    try:
+        return np.load(path) if path.is_file() else None
+    except (OSError, ValueError, EOFError):
+        return None
 
 
 def write_rows(ctx: Context, name: str, rows: Sequence[dict[str, Any]], stem: str = "") -> Path:

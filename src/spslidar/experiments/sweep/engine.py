@@ -625,6 +625,7 @@ def sweep_main(
     *,
     func: Callable[[dict[str, Any]], Mapping[str, Any]] | None = None,
     max_time: float | None = None,
+    overwrite: bool = False,
 ) -> int:
     """Run the sweep of a TOML config and write ``out_dir/results.csv``.
 
@@ -646,6 +647,10 @@ def sweep_main(
     max_time : float, optional
         Refuse a sweep whose estimated total time (the sum of its runs' estimates, before
         any runs) exceeds this many seconds; one over 30 s says its estimate first.
+    overwrite : bool, default False
+        Replace the ``results.csv`` of another sweep (other points) in ``out_dir``; without
+        it that is refused, while the same sweep again resumes (its points are recorded in
+        the folder's marker as ``sweep_points``, a SHA-256).
 
     Returns
     -------
@@ -690,6 +695,7 @@ def sweep_main(
         claim_folder,
         foreign_outputs,
         journal,
+        read_marker,
         record_outputs,
         release_folder,
     )
@@ -703,6 +709,21 @@ def sweep_main(
         raise SpslidarError(
             f"--out {out_dir}: {RESULTS_CSV} was not written by spslidar sweep (or changed "
             f"since); refusing to replace it (move it away, or choose another folder)")
+    # the sweep's identity: its points with their seeds, as the TOML gives them (a second
+    # sweep of another grid replaced the first one's table without a word, an audit of
+    # 2026-11-29; an edited scene or IRF file is the same sweep, run again)
+    hashes = (SCENE_HASH_KEY, IRF_HASH_KEY)
+    identity = sha256_hex(canonical_json(
+        {"seed": spec.seed,
+         "points": [{k: v for k, v in p.items() if k not in hashes} for p in points]},
+        "points"))
+    before = (read_marker(folder) or {}).get("sweep_points")
+    if ((folder / RESULTS_CSV).is_file() and isinstance(before, str) and before != identity
+            and not overwrite):
+        raise SpslidarError(
+            f"--out {out_dir}: holds the {RESULTS_CSV} of another sweep (other points); pass "
+            f"--overwrite to replace it (its finished runs stay cached), or choose another "
+            f"folder")
     try:
         rows = run_sweep(
             functools.partial(_run_opened, None if spec.path is None else str(spec.path.parent),
@@ -724,5 +745,5 @@ def sweep_main(
         raise
     with journal(folder, [RESULTS_CSV]):  # its SHA-256 in the marker before it is in place
         csv_path = write_csv(rows, Path(out_dir) / RESULTS_CSV)
-    record_outputs(folder, [RESULTS_CSV])
+    record_outputs(folder, [RESULTS_CSV], extra={"sweep_points": identity})
     return say_outcome(rows, [*spec.grid, TRIAL_KEY], csv_path)

@@ -424,14 +424,12 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
         If the file is missing or unreadable, is not valid TOML (the message names the file and
         line), has unknown top-level keys or tables, or holds invalid values.
     """
+    from spslidar.config import read_config_bytes
+
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"sweep config not found: {path}") from None
-    except IsADirectoryError:
-        raise ConfigError(f"sweep config is a directory, not a file: {path}") from None
-    except (OSError, UnicodeDecodeError) as exc:
+        text = read_config_bytes(path, "sweep config").decode("utf-8")
+    except UnicodeDecodeError as exc:
         raise ConfigError(f"cannot read sweep config {path}: {one_line(exc)}") from None
     try:
         data = tomllib.loads(text)

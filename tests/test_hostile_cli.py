@@ -1,0 +1,203 @@
+"""A hostile but realistic user's inputs, as an outside audit of 2026-11-29 gave them: each
+ended in a traceback, left files behind after a refusal, hung, or replaced a result without a
+word. Bad input is one line and exit 2, before any work."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from spslidar.cli import main
+from spslidar.errors import ConfigError, SpslidarError
+
+B = ["--size", "8", "--code-length", "127", "--no-figure"]
+
+
+def _one_line(capsys, *needles):
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    for n in needles:
+        assert n in err, err
+    return err
+
+
+def test_out_named_as_the_ptu_marker_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    """``--out .q.ptu.spslidar.json --save-ptu q.ptu`` wrote the PTU, its arrays and its marker
+    (where --out pointed), then refused the folder, leaving them all."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", *B, "--out", ".q.ptu.spslidar.json", "--save-ptu", "q.ptu"]) == 2
+    _one_line(capsys, "would be the --out folder")
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("name", [".", "..", "/"])
+def test_save_ptu_naming_a_folder_is_one_line(tmp_path, capsys, name):
+    assert main(["run", *B, "--out", str(tmp_path / "o"), "--save-ptu", name]) == 2
+    _one_line(capsys, "--save-ptu must name a file")
+    assert not (tmp_path / "o").exists()
+
+
+def test_patterns_without_contrast_are_one_line(tmp_path, capsys):
+    """``--pattern-sigma 1e-10``: float32 patterns that are all 0.5, a zero operator, and a
+    Lipschitz ValueError out of the solver."""
+    assert main(["run", *B, "--pattern-sigma", "1e-10", "--out", str(tmp_path / "o")]) == 2
+    _one_line(capsys, "nothing to reconstruct", "--pattern-sigma 1e-10")
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_vanishing_rep_rate_is_one_line(tmp_path, capsys):
+    """``--rep-rate 1e-300``: an OverflowError out of int(inf), and in a sweep's pre-check a
+    traceback that ended the whole sweep."""
+    assert main(["run", *B, "--lidar", "conventional", "--rep-rate", "1e-300",
+                 "--out", str(tmp_path / "o")]) == 2
+    _one_line(capsys, "--rep-rate 1e-300 Hz", "exceeds the acquisition time")
+    toml = tmp_path / "s.toml"
+    toml.write_text('[base]\nsize = 8\ncode_length = 127\nlidar = "conventional"\n'
+                    '[grid]\nrep_rate = [1e-300, 1e8]\n')
+    assert main(["sweep", str(toml), "--out", str(tmp_path / "s"), "--no-progress"]) == 2
+    _one_line(capsys, "--rep-rate 1e-300 Hz")
+
+
+def test_a_sweep_of_another_grid_does_not_replace_the_first_ones_table(tmp_path, capsys):
+    a, b = tmp_path / "a.toml", tmp_path / "b.toml"
+    head = "seed = 1\n[base]\nsize = 8\ncode_length = 127\n[grid]\n"
+    a.write_text(head + "noise = [1, 5]\n")
+    b.write_text(head + "noise = [1, 5, 10]\n")
+    out = tmp_path / "S"
+    run = ["--out", str(out), "--no-progress"]
+    assert main(["sweep", str(a), *run]) == 0
+    first = (out / "results.csv").read_bytes()
+    assert main(["sweep", str(a), *run]) == 0  # the same sweep resumes
+    capsys.readouterr()
+    assert main(["sweep", str(b), *run]) == 2
+    _one_line(capsys, "holds the results.csv of another sweep", "--overwrite")
+    assert (out / "results.csv").read_bytes() == first
+    assert main(["sweep", str(b), *run, "--overwrite"]) == 0
+    assert len((out / "results.csv").read_text().splitlines()) == 4
+
+
+def _env_main(argv, **env):
+    code = "import sys\nfrom spslidar.cli import main\nraise SystemExit(main(sys.argv[1:]))\n"
+    return subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True,
+                          env={**os.environ, **env}, timeout=120)
+
+
+def test_a_plugin_of_the_environment_that_fails_is_one_line():
+    """``SPSLIDAR_PLUGINS=nosuch spslidar --help`` was a 10-line traceback out of ``import
+    spslidar``; in Python an unknown stage now says which plugin failed."""
+    proc = _env_main(["run", "--help"], SPSLIDAR_PLUGINS="nosuch_plugin_here")
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == ("spslidar: error: plugin nosuch_plugin_here failed to "
+                                   "import: ModuleNotFoundError: No module named "
+                                   "'nosuch_plugin_here'")
+    code = ("import spslidar\ntry:\n    spslidar.Config(code='legendre')\n"
+            "except Exception as e:\n    print(e)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env={**os.environ, "SPSLIDAR_PLUGINS": "nosuch_plugin_here"},
+                          timeout=120)
+    assert "unknown code 'legendre'" in proc.stdout
+    assert "plugin nosuch_plugin_here failed to import" in proc.stdout
+
+
+def test_a_damaged_reproduce_map_is_run_again(tmp_path, capsys):
+    """A depth map cut short in the cache was a traceback on this and every later run."""
+    from spslidar.experiments.reproduce import reproduce_main
+
+    assert reproduce_main("fig2", tmp_path, quick=True, progress=False) == 0
+    maps = sorted((tmp_path / "cache" / "maps").glob("*.npy"))
+    with open(maps[0], "r+b") as fh:
+        fh.truncate(100)
+    assert reproduce_main("fig2", tmp_path, quick=True, progress=False) == 0
+    assert np.load(maps[0]).ndim == 2
+    capsys.readouterr()
+
+
+def test_config_streams_and_devices(tmp_path, capsys):
+    """A config from bash's ``<(...)`` (a pipe) was "not found"; ``/dev/zero`` ran out of
+    memory."""
+    from spslidar.config import read_toml
+    from spslidar.experiments.sweep import load_sweep_config
+
+    r, w = os.pipe()
+    os.write(w, b"noise = 3\n")
+    os.close(w)
+    try:
+        assert read_toml(f"/dev/fd/{r}")["noise"] == 3
+    finally:
+        os.close(r)
+    if os.path.exists("/dev/zero"):
+        with pytest.raises(ConfigError, match="holds more than 16 MiB: not a TOML config"):
+            read_toml("/dev/zero")
+        with pytest.raises(ConfigError, match="sweep config /dev/zero holds more than"):
+            load_sweep_config("/dev/zero")
+
+
+def test_patterns_given_a_folder_is_said(tmp_path):
+    from spslidar.pipeline.real import load_patterns
+
+    with pytest.raises(ConfigError, match="is not a file"):
+        load_patterns(tmp_path)
+
+
+# -- calibration files edited by hand ----------------------------------------------------------
+@pytest.fixture(scope="module")
+def calibration(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cal")
+    np.save(d / "wall.npy", np.full((8, 8), 5.0))
+    assert main(["run", "--scene", str(d / "wall.npy"), "--size", "8", "--code-length", "1023",
+                 "--signal", "1", "--noise", "0.05", "--compression", "0.5", "--range-gate",
+                 "4", "6", "--no-figure", "--save-ptu", str(d / "a.ptu"),
+                 "--out", str(d / "w")]) == 0
+    assert main(["calibrate", "--ptu", str(d / "a.ptu"), "--patterns",
+                 str(d / "a_patterns.npy"), "--code", str(d / "a_code.npy"), "--bit-rate",
+                 "10e9", "--distance", "5", "--out", str(d / "cal.json")]) == 0
+    return d
+
+
+def _edited(calibration, tmp_path, **change):
+    cal = json.loads((calibration / "cal.json").read_text())
+    cal.pop("content_sha256")
+    cal.update(change)
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps(cal))
+    return path
+
+
+@pytest.mark.parametrize("change,why", [
+    ({"irf_offsets": [-10**20, 0]}, "incomplete or damaged (OverflowError"),
+    ({"delay_s": 1e300}, "disagree with delay_s"),
+])
+def test_calibration_numbers_past_any_range_are_refused(calibration, tmp_path, change, why):
+    """An offset of 21 digits was an OverflowError traceback; a delay of 1e300 s overflowed
+    to inf and passed the consistency check (exit 0, metrics.json said 1e+300)."""
+    from spslidar.pipeline.calibration_file import load_calibration
+
+    code = np.load(calibration / "a_code.npy")
+    with pytest.raises(ConfigError, match=why.replace("(", r"\(")):
+        load_calibration(_edited(calibration, tmp_path, **change), 10e9, code)
+
+
+def test_calibration_files_that_are_no_files(calibration, tmp_path):
+    """A deeply nested JSON file was a RecursionError, ``/dev/zero`` a MemoryError, and a FIFO
+    as ``calibrate --out F --overwrite`` hung the command."""
+    from spslidar.pipeline.calibration_file import check_calibration_out, load_calibration
+
+    code = np.load(calibration / "a_code.npy")
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(ConfigError, match="is not a calibration file"):
+        load_calibration(deep, 10e9, code)
+    with pytest.raises(SpslidarError, match="is not a spslidar calibration"):
+        check_calibration_out(deep, overwrite=True)
+    if os.path.exists("/dev/zero"):
+        with pytest.raises(ConfigError, match="not a regular file"):
+            load_calibration("/dev/zero", 10e9, code)
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    with pytest.raises(SpslidarError, match="is not a spslidar calibration"):
+        check_calibration_out(fifo, overwrite=True)
