@@ -201,3 +201,94 @@ def test_calibration_files_that_are_no_files(calibration, tmp_path):
     os.mkfifo(fifo)
     with pytest.raises(SpslidarError, match="is not a spslidar calibration"):
         check_calibration_out(fifo, overwrite=True)
+
+
+# -- messages: one line, naming what the user gave ---------------------------------------------
+def test_a_signal_below_float32s_reach_is_one_line(tmp_path, capsys):
+    """``--signal 1e-20`` leaked NumPy's overflow warnings and ran; ``1e-300`` leaked four and
+    blamed the weight."""
+    for signal in ("1e-20", "1e-300"):
+        assert main(["run", *B, "--signal", signal, "--out", str(tmp_path / "o")]) == 2
+        _one_line(capsys, f"--signal {signal} photons per pulse is too small",
+                  "raise --signal")
+    assert main(["run", *B, "--signal", "1e-12", "--out", str(tmp_path / "o")]) == 0
+    assert "overflow" not in capsys.readouterr().err
+
+
+def test_a_huge_pattern_sigma_leaks_no_overflow(tmp_path, capsys):
+    from spslidar.patterns.dense import make_patterns
+
+    phi = make_patterns("gaussian", 64, 64, np.random.default_rng(0), sigma=1e308)
+    assert set(np.unique(phi).tolist()) <= {0.0, 1.0}
+    assert main(["run", *B, "--pattern-sigma", "1e308", "--out", str(tmp_path / "o")]) == 0
+    assert "overflow" not in capsys.readouterr().err
+
+
+def test_max_memory_with_a_unit_in_a_toml(tmp_path, capsys):
+    """``max_memory = "500MB"`` was "must be a number" where the command line takes units."""
+    from spslidar.config import Config
+
+    assert Config(max_memory="500MB").max_memory == pytest.approx(0.5)
+    assert Config(max_memory="1.5GiB").max_memory == pytest.approx(1.5 * 2**30 / 1e9)
+    with pytest.raises(ConfigError, match="not a memory size: '2XB'"):
+        Config(max_memory="2XB")
+    with pytest.raises(SystemExit) as exc:
+        main(["run", *B, "--max-memory", "2XB", "--out", str(tmp_path / "o")])
+    assert exc.value.code == 2
+    _one_line(capsys, "argument --max-memory: not a memory size: '2XB'")
+
+
+def test_a_damaged_tif_scene_is_one_line(tmp_path, capsys):
+    """A TIFF of a header and garbage logged tifffile's "invalid offset" and was then "got
+    shape (0,)"."""
+    bad = tmp_path / "bad.tif"
+    bad.write_bytes(b"II*\x00garbage")
+    assert main(["run", *B, "--scene", str(bad), "--out", str(tmp_path / "o")]) == 2
+    _one_line(capsys, "cannot read scene image bad.tif")
+
+
+def test_a_plugin_replacing_a_builtin_is_said_in_one_line(tmp_path, capsys, monkeypatch):
+    import spslidar.plugins as plugins
+    from spslidar.depth import ESTIMATORS
+
+    entry = ESTIMATORS.get("argmax")
+    rep = tmp_path / "rep_argmax.py"
+    rep.write_text("from spslidar.depth import ESTIMATORS\n"
+                   "from spslidar.depth.argmax import ArgmaxDepth\n"
+                   "ESTIMATORS.add('argmax', ArgmaxDepth, 'argmax', 'mine')\n")
+    monkeypatch.setenv(plugins.ENV, "")
+    try:
+        with pytest.raises(SystemExit):
+            main(["--plugin", str(rep), "run", "--help"])
+    finally:
+        ESTIMATORS._entries["argmax"] = entry
+        plugins._LOADED.clear()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("spslidar --plugin: warning: the depth "
+                                               "estimator 'argmax'"), err
+
+
+@pytest.mark.parametrize("argv,prog", [
+    (["reproduce", "snr", "fig2", "--out", "r"], "spslidar reproduce"),
+    (["snr", "--bogus"], "spslidar snr"),
+    (["--bogus"], "spslidar")])
+def test_an_unrecognised_argument_is_said_by_its_command(argv, prog, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    _one_line(capsys, f"{prog}: error: unrecognized arguments", f"(see {prog} --help)")
+
+
+def test_snr_is_not_told_to_lower_periods(capsys):
+    assert main(["snr", "--method", "histogram", "--signal", "1e7"]) == 2
+    err = _one_line(capsys, "lower --signal or --noise")
+    assert "--periods" not in err
+
+
+def test_a_calibration_target_at_the_lidar_fits_no_wall():
+    """``calibrate --distance 1e-300`` said "the field of view must lie in (0, 180) degrees,
+    got 180.0", of an option never given."""
+    from spslidar.pipeline.target import MAX_FIT_FOV, _fov_of_spread
+
+    assert _fov_of_spread(1.0, 0.0, 8) == 180.0 >= MAX_FIT_FOV
+    assert 0 < _fov_of_spread(1.0, 1e6, 8) < MAX_FIT_FOV

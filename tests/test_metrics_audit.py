@@ -173,8 +173,11 @@ def test_a_sweep_says_what_its_runs_warned(tmp_path, capsys):
     assert "mostly noise" in err and "runs warned (the warnings column" in err
 
 
-@pytest.mark.parametrize("key,value", [("out", '"x"'), ("fov", "20")])
-def test_a_sweep_names_an_output_option_as_such(tmp_path, capsys, key, value):
+@pytest.mark.parametrize("key,value,said", [
+    ("out", '"x"', "belongs to spslidar run's command line"),
+    ("fov", "20", "belongs to spslidar run's command line"),
+    ("config", '"r.toml"', "--config names a run's TOML file")])
+def test_a_sweep_names_an_output_option_as_such(tmp_path, capsys, key, value, said):
     """``out = "x"`` in [base] was "unknown config key 'out'" where run --config says what
     it is."""
     cfg = tmp_path / "s.toml"
@@ -182,7 +185,7 @@ def test_a_sweep_names_an_output_option_as_such(tmp_path, capsys, key, value):
     assert main(["sweep", str(cfg), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
-    assert f"base.{key} is a command-line option of a run's output" in err
+    assert f"base.{key} is not a sweep key: {said}" in err
     assert not (tmp_path / "o").exists()
 
 

@@ -370,6 +370,10 @@ class Config:
         number("iterations", 1, integer=True, optional=True)
         number("tol", 0)
         number("seed", 0, integer=True)
+        if isinstance(self.max_memory, str):  # "500MB", "2GB" as on the command line
+            from .machine import parse_memory
+
+            self.max_memory = parse_memory(self.max_memory)
         number("max_memory", 0, lo_open=True, optional=True)
         if isinstance(self.max_time, str):  # "90s", "10min", "2h" as on the command line
             from .machine import parse_duration

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["DURATION_UNITS", "available_memory", "parse_duration"]
+__all__ = ["DURATION_UNITS", "MEMORY_UNITS", "available_memory", "parse_duration",
+           "parse_memory"]
 
 
 def _gb(b: float) -> str:
@@ -95,3 +96,38 @@ def parse_duration(text: str | float | int, what: str = "--max-time") -> float:
     if not (math.isfinite(seconds) and seconds > 0):
         raise ConfigError(f"{what} must be a positive, finite duration, got {text!r}")
     return seconds
+
+
+#: units ``--max-memory`` takes after its number, in gigabytes (GB when none is given)
+MEMORY_UNITS = {"": 1.0, "k": 1e-6, "kb": 1e-6, "m": 1e-3, "mb": 1e-3, "g": 1.0, "gb": 1.0,
+                "t": 1e3, "tb": 1e3, "kib": 2**10 / 1e9, "mib": 2**20 / 1e9,
+                "gib": 2**30 / 1e9, "tib": 2**40 / 1e9}
+
+
+def parse_memory(text: str | float | int, what: str = "--max-memory") -> float:
+    """A memory size in gigabytes from ``2``, ``500MB``, ``2GB`` or ``1.5GiB`` (a number is
+    in GB): the command line's and a TOML's ``max_memory`` alike (``"500MB"`` in a TOML was
+    "must be a number" while the command line took it, an audit of 2026-11-29).
+
+    Raises
+    ------
+    ConfigError
+        Anything else (one line); the range is checked by the config.
+    """
+    import re
+
+    from .errors import ConfigError
+
+    if isinstance(text, bool):
+        raise ConfigError(f"{what} must be a memory size such as 2, 500MB or 2GB, got {text!r}")
+    if isinstance(text, (int, float)):
+        return float(text)
+    match = re.fullmatch(r"\s*([0-9.eE+-]+)\s*([A-Za-z]*)\s*", str(text))
+    unit = match.group(2).lower() if match else None
+    try:
+        if unit in MEMORY_UNITS:
+            return float(match.group(1)) * MEMORY_UNITS[unit]
+    except ValueError:
+        pass
+    raise ConfigError(f"{what}: not a memory size: {text!r} (write GB, or e.g. 500MB, 2GB, "
+                      f"1.5GiB)")

@@ -75,7 +75,9 @@ def make_patterns(
             raise ConfigError(f"pattern sigma must be positive, got {sigma}")
         phi = rng.standard_normal((n_patterns, n_pixels), dtype=np.float32 if dtype == np.float32
                                   else np.float64)
-        phi *= sigma
+        # (1e308 overflowed the float32 cast, with NumPy's warning: past 1e30 every value
+        # but an exact zero clips to 0 or 1 alike, so the product is taken there)
+        phi *= min(float(sigma), 1e30)
         phi += 0.5
         np.clip(phi, 0.0, 1.0, out=phi)
         return phi.astype(dtype, copy=False)

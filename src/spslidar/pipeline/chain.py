@@ -60,6 +60,13 @@ __all__ = ["LAM_FLOOR", "PROCESSING_KEYS", "TV_INNER", "Measurement", "build_reg
            "solver_default", "timeline"]
 
 
+def _zero_operator(A) -> bool:
+    """Whether ``A`` maps a random vector to zero: patterns that do not vary (QCR centres them
+    to nothing), not a measurement without photons."""
+    v = np.random.default_rng(0).standard_normal(A.shape[1]).astype(A.dtype)
+    return not bool(np.any(np.asarray(A.matvec(v))))
+
+
 def keeping_warnings(fn):
     """``fn`` (returning a :class:`Result` or a :class:`Measurement`) with the Python
     warnings raised while it works (a stage's or a library's ``warnings.warn``: the wavelet
@@ -300,17 +307,21 @@ def reconstruct(meas: Measurement, **processing) -> Result:
             A, y = eliminated, eliminated.data(y)
         # the floor of the default weight, and the scale a given --lam is checked against
         lam_max = float(np.abs(np.asarray(A.rmatvec(y))).max(initial=0.0))
-    if not lam_max > 0:  # (a zero operator: a Lipschitz traceback from the solver, an audit)
+    if not lam_max > 0 and not device and _zero_operator(A):
+        # (patterns without contrast: a Lipschitz traceback from the solver, an audit; no
+        # photons at all, with patterns that vary, is an empty depth map, not an error)
         hint = (f" (--pattern-sigma {cfg.pattern_sigma:g} is below what {cfg.dtype} patterns "
                 f"resolve)" if cfg.patterns == "gaussian" and cfg.pattern_sigma < 1e-4 else "")
-        raise ConfigError(f"nothing to reconstruct: max |A^T y| is 0, the patterns do not vary "
-                          f"from one to the next or the measurements are all zero{hint}")
+        raise ConfigError(f"nothing to reconstruct: the patterns do not vary from one to the "
+                          f"next, so the {'centred ' if cfg.qcr else ''}operator is zero{hint}")
     lam, lam_scale, floored = default_weight(cfg, sigma_eff, lam_max)
     warns.extend(weight_warnings(cfg, lam, lam_max, floored))
     if not lam * 1e6 < float(np.finfo(cfg.dtype).max):  # its steps would overflow: NaN slices
+        # (the option given: reconstruct, which has no --lam, was told to lower it)
+        given = "--lam" if cfg.lam is not None else "--lam-scale"
         raise ConfigError(f"the weight {lam:.3g} is beyond what {cfg.dtype} can hold through "
-                          f"the solve: lower --lam or --lam-scale (the default is about 0.01 "
-                          f"max |A^T y|, {lam_max:.3g} here)")
+                          f"the solve: lower {given} (the default is about 0.01 max |A^T y|, "
+                          f"{lam_max:.3g} here)")
     if be is not None:
         be.sync()
     timing["qcr"] = time.perf_counter() - t0
@@ -366,7 +377,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         # (a weight that overflows float32, 1e39, gave NaN slices scored as a depth map)
         # (it said "or use --dtype float64" to a float64 run, an audit)
         cure = ("raise --signal: measurements this small underflow" if not lam > 0 else
-                "lower --lam or --lam-scale"
+                f"lower {'--lam' if cfg.lam is not None else '--lam-scale'}"
                 + (", or use --dtype float64" if cfg.dtype == "float32" else ""))
         raise ConfigError(f"the {cfg.solver} solve diverged (its estimate is not finite) at "
                           f"the weight {lam:.3g} in {cfg.dtype}: {cure}")

@@ -178,11 +178,17 @@ def _kernels(light: np.ndarray, offsets: np.ndarray, period: int) -> np.ndarray:
     return kern
 
 
+#: the widest field of view (degrees) the wall fit tries
+MAX_FIT_FOV = 170.0
+
+
 def _fov_of_spread(spread: float, tau_d: float, n: int) -> float:
     """The field of view (degrees) whose corner pixels of an ``n`` x ``n`` image see a facing
     wall ``spread`` bins of round trip behind the axis's ``tau_d``."""
     if spread <= 0:
         return 0.0
+    if not tau_d > 0:  # a wall at the lidar: no field of view spreads it
+        return 180.0
     t = np.sqrt(((1.0 + spread / tau_d) ** 2 - 1.0) / 2.0) / (1.0 - 1.0 / n)
     return float(np.degrees(2.0 * np.arctan(t)))
 
@@ -261,6 +267,10 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     spreads, residuals = [], []
     for spread in np.arange(0.0, limit + SPREAD_STEP / 2, SPREAD_STEP):
         fov = _fov_of_spread(spread, tau_d, n)
+        if not fov < MAX_FIT_FOV:
+            # a wall this near spreads no further within any lens (--distance 1e-300 ended
+            # in "the field of view must lie in (0, 180) degrees, got 180.0", an audit)
+            break
         off = (plane_offsets(shape, distance, fov, bin_width)[first] if fov > 0
                else np.zeros(keys.size))
         kf = np.fft.rfft(_kernels(light, off, size), axis=1)

@@ -141,13 +141,20 @@ def _load_npz(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 
 def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype]:
+    import logging
+
     from skimage import io
     from skimage.color import rgb2gray
 
+    quiet = logging.getLogger("tifffile")  # (it logged "invalid offset to first page" on a
+    level = quiet.level                     # damaged file, beside the refusal: an audit)
+    quiet.setLevel(logging.CRITICAL)
     try:
         with warnings.catch_warnings():  # imageio warns while probing plugins on bad files
             warnings.simplefilter("ignore")
             img = np.asarray(io.imread(path))
+        if img.size == 0:  # (a TIFF with no page read as an empty array: "shape (0,)")
+            raise ValueError("no image in it")
     except Exception as exc:
         reason = _reason(exc)
         reason = reason if len(reason) <= 120 else reason[:117] + "..."
@@ -155,6 +162,8 @@ def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype]:
             f"cannot read scene image {label} ({reason}): use a grey or RGB "
             f"{'/'.join(_IMAGE_SUFFIXES)} image"
         ) from None
+    finally:
+        quiet.setLevel(level)
     if np.iscomplexobj(img) or not (np.issubdtype(img.dtype, np.number)
                                     or img.dtype == bool):
         # a complex TIFF (e.g. a saved FFT) has no grey level to map onto depth

@@ -128,7 +128,10 @@ def _counts_histogram(
         try:
             hist = poisson_counts(np.broadcast_to(lam, (rows, period)), rng)
         except ValueError as exc:
-            raise config_error(f"cannot simulate the histogram: {exc}") from None
+            # (one code period a row: snr has no --periods to lower, an audit)
+            raise config_error(f"cannot simulate the histogram: "
+                               f"{str(exc).replace(', --noise or --periods', ' or --noise')}"
+                               ) from None
         c = matched_filter(hist, replica, lags, out_dtype=np.float64, bank=bank)
         out[start : start + rows] = c[:, 0]
     return out

@@ -472,9 +472,12 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
     for where, table in (("base", base), ("grid", grid)):  # (was "unknown config key 'out'")
         said = sorted(k for k in table if str(k).replace("-", "_") in CLI_ONLY_KEYS)
         if said:
-            raise ConfigError(f"{path}: {where}.{said[0]} is a command-line option of a "
-                              f"run's output, not a sweep key (a sweep writes results.csv, in "
-                              f"the folder its command line's --out names)")
+            # (grid.config was "a command-line option of a run's output", an audit)
+            what = ("--config names a run's TOML file: a sweep's [base] and [grid] are that "
+                    "file's keys" if said[0].replace("-", "_") == "config" else
+                    "belongs to spslidar run's command line (its output), not to a sweep: "
+                    "a sweep writes results.csv in the folder its own --out names")
+            raise ConfigError(f"{path}: {where}.{said[0]} is not a sweep key: {what}")
     if SEED_KEY in base and trials > 1 and SEED_KEY not in grid:
         raise ConfigError(
             f"{path}: base.seed gives every trial the same noise; set the top-level seed instead"
