@@ -64,7 +64,8 @@ def _start(tmp_path):
 
 
 @pytest.mark.parametrize("sig,code,word", [(signal.SIGTERM, 143, "terminated"),
-                                           (signal.SIGINT, 130, "interrupted")])
+                                           (signal.SIGINT, 130, "interrupted"),
+                                           (signal.SIGHUP, 129, "terminated")])
 def test_signal_leaves_no_worker_and_one_line(tmp_path, sig, code, word):
     proc, children = _start(tmp_path)
     # let the pool finish starting (two runs done: both workers past their imports): a worker

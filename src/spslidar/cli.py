@@ -550,7 +550,6 @@ def main(argv: list[str] | None = None) -> int:
     from .errors import SpslidarError
     from .interrupts import (
         EXIT_INTERRUPTED,
-        EXIT_TERMINATED,
         STOP_GRACE_S,
         Stopper,
         Terminated,
@@ -620,7 +619,7 @@ def main(argv: list[str] | None = None) -> int:
         if own:
             kill_pool()
         stopper.say(terminated)
-        return EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
+        return exc.status if terminated else EXIT_INTERRUPTED
     finally:
         if own:  # the handlers stay until the process ends
             stopper.exiting = True

@@ -1,5 +1,5 @@
-"""Ctrl-C and SIGTERM for the command line: one line, exit 130 / 143, no process left behind,
-and a bounded time to get there.
+"""Ctrl-C, SIGTERM and SIGHUP for the command line: one line, exit 130 / 143 / 129, no process
+left behind, and a bounded time to get there.
 
 A command run as a process of its own (``spslidar ...``, ``main(argv=None)``) installs a
 :class:`Stopper` for both signals. The first signal raises :class:`KeyboardInterrupt` (or
@@ -36,9 +36,20 @@ EXIT_TERMINATED = 143
 STOP_GRACE_S = 20.0
 
 
+#: the signals a command handles: Ctrl-C, SIGTERM and (a closed terminal) SIGHUP, which
+#: ended a run with status 129 and nothing said (an audit of 2026-11-29)
+SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                if hasattr(signal, name))
+
+
 class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised in the main thread so that the same clean-up as Ctrl-C runs (temporary
-    files removed, worker processes stopped)."""
+    """SIGTERM (or SIGHUP), raised in the main thread so that the same clean-up as Ctrl-C runs
+    (temporary files removed, worker processes stopped); ``status`` is the exit status a
+    shell reports for it, 128 + the signal's number."""
+
+    def __init__(self, status: int = EXIT_TERMINATED):
+        super().__init__()
+        self.status = status
 
 
 class Stopper:
@@ -63,7 +74,7 @@ class Stopper:
         self.exiting = False
         self._previous: dict[int, object] = {}
 
-    def install(self, signals=(signal.SIGINT, signal.SIGTERM)) -> None:
+    def install(self, signals=SIGNALS) -> None:
         """Handle ``signals`` (main thread only; a no-op elsewhere)."""
         if threading.current_thread() is not threading.main_thread():
             return
@@ -85,23 +96,24 @@ class Stopper:
     def _handle(self, signum, frame):  # noqa: ARG002 - the signal handler's signature
         if self.timer is not None:  # already stopping: let the clean-up finish
             return
-        terminated = signum == signal.SIGTERM
+        terminated = signum != signal.SIGINT
+        status = 128 + int(signum)
         if self.grace is not None:  # arm the watchdog
-            self.timer = threading.Timer(self.grace, self._fire, (terminated,))
+            self.timer = threading.Timer(self.grace, self._fire, (terminated, status))
             self.timer.daemon = True
             self.timer.start()
             if self.exiting:
                 return
-        raise Terminated() if terminated else KeyboardInterrupt()
+        raise Terminated(status) if terminated else KeyboardInterrupt()
 
-    def _fire(self, terminated: bool) -> None:
+    def _fire(self, terminated: bool, status: int = EXIT_TERMINATED) -> None:
         """The clean-up took too long: kill the workers, say the line, end the process."""
         kill_pool()
         self.say(terminated)
         try:
             sys.stderr.flush()
         finally:
-            os._exit(EXIT_TERMINATED if terminated else EXIT_INTERRUPTED)
+            os._exit(status if terminated else EXIT_INTERRUPTED)
 
 
 def _executor():
