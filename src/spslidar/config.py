@@ -310,6 +310,13 @@ class Config:
         choice("fairness", FAIRNESS)
         choice("ambient", ("paper", "modulated"))
         choice("qcr_form", ("centred", "covariance"))
+        if not isinstance(self.dtype, str):  # np.float32 or np.dtype("float32"): its name
+            import numpy as np  # (a NumPy type was "unknown dtype <class ...>", an audit)
+
+            try:
+                self.dtype = np.dtype(self.dtype).name
+            except TypeError:
+                pass  # refused by choice() below, as given
         choice("dtype", ("float32", "float64"))
         from .patterns import HADAMARD_ORDERS, HADAMARD_REALISATIONS
 

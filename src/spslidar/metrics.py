@@ -18,6 +18,11 @@ def _mask(valid, size: int) -> np.ndarray:
     return v
 
 
+def _same_grid(a: tuple, b: tuple) -> bool:
+    """Two shapes of one pixel grid: equal, or one of them the other's pixels flattened."""
+    return a == b or len(a) == 1 or len(b) == 1
+
+
 def depth_errors(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None) -> dict:
     """Depth error statistics over pixels with known truth.
 
@@ -44,8 +49,11 @@ def depth_errors(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | No
     """
     est = np.asarray(estimate, dtype=np.float64).ravel()
     tru = np.asarray(truth, dtype=np.float64).ravel()
-    if est.shape != tru.shape:
+    if est.shape != tru.shape or not _same_grid(np.shape(estimate), np.shape(truth)):
+        # ((2, 8) against (8, 2) scored 0.0, an audit: a map and its flat pixels still agree)
         raise ValueError(f"estimate {np.shape(estimate)} and truth {np.shape(truth)} differ")
+    if valid is not None and not _same_grid(np.shape(valid), np.shape(truth)):
+        raise ValueError(f"valid {np.shape(valid)} and truth {np.shape(truth)} differ")
     ok = np.isfinite(tru) if valid is None else (_mask(valid, tru.size) & np.isfinite(tru))
     have = ok & np.isfinite(est)
     n_valid = int(ok.sum())
@@ -77,6 +85,8 @@ def sobel_edges(depth: np.ndarray) -> np.ndarray:
     scikit-image to round-off (``tests/test_metrics.py``).
     """
     d = np.array(depth, dtype=np.float64)
+    if d.ndim != 2:  # (a (2, 3, 3) stack came back (2, 3, 5), an audit)
+        raise ValueError(f"depth must be a 2-D map, got shape {d.shape}")
     bad = ~np.isfinite(d)
     if bad.all():
         return np.zeros_like(d)
@@ -121,6 +131,11 @@ def edge_agreement(est_edges: np.ndarray, true_edges: np.ndarray,
     null) or fewer than two pixels are scored."""
     a = np.asarray(est_edges, dtype=np.float64)
     b = np.asarray(true_edges, dtype=np.float64)
+    if a.shape != b.shape or (mask is not None and np.shape(mask) != a.shape):
+        # ((4, 4) against (3, 3): NaN or NumPy's concatenation error, an audit)
+        raise ValueError(f"edge maps {a.shape} and {b.shape}"
+                         + ("" if mask is None else f" and mask {np.shape(mask)}")
+                         + " differ")
     if mask is not None:
         m = np.asarray(mask, dtype=bool)
         a, b = a[m], b[m]

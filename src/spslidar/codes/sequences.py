@@ -459,7 +459,8 @@ def periodic_xcorr(a: np.ndarray, b: np.ndarray, bipolar: bool = True) -> np.nda
     Raises
     ------
     ConfigError
-        If the inputs are not 1-D arrays of the same non-zero length.
+        If the inputs are not 1-D arrays of the same non-zero length, or hold a non-finite or
+        fractional value.
 
     Notes
     -----
@@ -475,6 +476,11 @@ def periodic_xcorr(a: np.ndarray, b: np.ndarray, bipolar: bool = True) -> np.nda
         )
     x = a.astype(np.float64)
     y = b.astype(np.float64)
+    if not (np.isfinite(x).all() and np.isfinite(y).all()
+            and np.array_equal(x, np.rint(x)) and np.array_equal(y, np.rint(y))):
+        # (a NaN came back as -2^63 in every lag, and 0.4 counts were rounded away, an audit)
+        raise ConfigError("periodic_xcorr correlates bits or whole counts: its inputs hold a "
+                          "non-finite or fractional value")
     if bipolar:
         x = 2.0 * x - 1.0
         y = 2.0 * y - 1.0

@@ -57,9 +57,23 @@ def ml_depth(
     tallest correlation peak".
     """
     x = np.asarray(slices, dtype=np.float64)
+    # (an audit of 2026-11-29: a NaN slice was each pixel's argmax, 10 lags for 6 slices and
+    # a negative bin width were taken; the registered estimators checked, this did not)
+    if x.ndim != 2 or x.shape[1] == 0:
+        raise ValueError(f"slices must be a (Q, K) array with K >= 1, got shape {x.shape}")
+    if np.shape(lags) != (x.shape[1],):
+        raise ValueError(f"lags must hold one delay per slice ({x.shape[1]}), got shape "
+                         f"{np.shape(lags)}")
+    if not (np.isfinite(bin_width) and bin_width > 0):
+        raise ValueError(f"bin_width must be a positive number of seconds, got {bin_width}")
+    missing = np.isnan(x)
+    if missing.any():  # a NaN slice is no evidence: never the tallest
+        x = np.where(missing, -np.inf, x)
     idx = np.argmax(x, axis=1)
     rows = np.arange(x.shape[0])
     peak = x[rows, idx]
+    if missing.any():
+        peak = np.where(missing.all(axis=1), 0.0, peak)  # nothing at all: no return
     below = above = None
     if subbin and x.shape[1] >= 3:
         below = x[rows, np.clip(idx - 1, 0, x.shape[1] - 1)]

@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from .base import DetectorModel
 from .counting import PhotonCountingDetector, poisson_rows
 
@@ -25,7 +27,9 @@ class LinearDetector(PhotonCountingDetector, DetectorModel):
 
     def detect(self, lam, rng, n_periods=1, out=None):
         lam = self.detected_means(lam)
-        out = lam if out is None else out
+        if out is None:  # (the counts were written over the caller's means, an audit)
+            out = np.empty(np.shape(lam), dtype=np.result_type(np.asarray(lam).dtype,
+                                                              np.float32))
         totals = poisson_rows(lam, rng, out)
         return out, totals
 

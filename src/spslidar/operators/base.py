@@ -18,6 +18,19 @@ import numpy as np
 from . import parallel as _parallel
 
 
+def _shape2(shape, what: str, least: int) -> tuple[int, int]:
+    """``shape`` as two whole numbers of at least ``least``; one clear ``ValueError``
+    otherwise (an int for a pair was "'int' object is not subscriptable", an audit)."""
+    try:
+        a, b = shape
+        out = (int(a), int(b))
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be a pair of whole numbers, got {shape!r}") from None
+    if out != (a, b) or min(out) < least:
+        raise ValueError(f"{what} must be a pair of whole numbers >= {least}, got {shape!r}")
+    return out
+
+
 class LinearOperator:
     """Real linear map from R^n to R^m acting on vectors or column blocks.
 
@@ -30,7 +43,7 @@ class LinearOperator:
     """
 
     def __init__(self, shape: tuple[int, int], dtype=np.float64):
-        self.shape = (int(shape[0]), int(shape[1]))
+        self.shape = _shape2(shape, "shape", 0)  # (Identity(-1) was taken, an audit)
         self.dtype = np.dtype(dtype)
 
     # -- to implement --------------------------------------------------------------------
@@ -184,9 +197,9 @@ class MatrixOperator(LinearOperator):
     """
 
     def __init__(self, A: np.ndarray, dtype=None):
-        A = np.asarray(A)
-        if dtype is not None:
-            A = A.astype(dtype, copy=False)
+        A = float_matrix(A, "A") if dtype is None else np.asarray(A).astype(dtype, copy=False)
+        if A.ndim != 2:
+            raise ValueError(f"A must be an (M, N) matrix, got shape {A.shape}")
         super().__init__(A.shape, A.dtype)
         self.A = A
         self._AT = np.ascontiguousarray(A.T)
@@ -200,6 +213,21 @@ class MatrixOperator(LinearOperator):
     def todense(self) -> np.ndarray:
         """A copy of the matrix (rather than its products with the identity)."""
         return self.A.copy()
+
+
+def float_matrix(a, what: str = "matrix") -> np.ndarray:
+    """``a`` as an array of a floating (or complex) type: integers and booleans as float64,
+    float16 as float32. An operator computes in its matrix's dtype, so a 0/1 ``uint8`` or
+    ``bool`` matrix gave products cast back to it (``[0.9, 1.2]`` read ``[0, 0]`` or
+    ``[True, True]``, an audit of 2026-11-29)."""
+    a = np.asarray(a)
+    if a.dtype == np.float16:
+        return a.astype(np.float32)
+    if a.dtype == bool or np.issubdtype(a.dtype, np.integer):
+        return a.astype(np.float64)
+    if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.complexfloating)):
+        raise ValueError(f"{what} must hold numbers, got dtype {a.dtype}")
+    return a
 
 
 def _product(M: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -262,7 +290,7 @@ def dottest(
     err = abs(lhs - rhs) / max(abs(lhs), abs(rhs), 1e-300)
     if rtol is None:
         rtol = 1e-4 if op.dtype == np.float32 else 1e-10
-    if raise_error and err > rtol:
+    if raise_error and not err <= rtol:  # (NaN passed: an operator of NaNs, an audit)
         raise AssertionError(f"dot test failed for {op!r}: <Ax,y>={lhs:.8g}, <x,A'y>={rhs:.8g}")
     return err
 

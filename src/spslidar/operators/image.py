@@ -45,9 +45,9 @@ class Gradient2D(LinearOperator):
     """
 
     def __init__(self, shape: tuple[int, int], dtype=np.float64):
-        self.image_shape = (int(shape[0]), int(shape[1]))
-        if min(self.image_shape) < 1:
-            raise ValueError(f"Gradient2D needs an image of at least 1x1, got {self.image_shape}")
+        from .base import _shape2
+
+        self.image_shape = _shape2(shape, "Gradient2D's image shape", 1)
         q = self.image_shape[0] * self.image_shape[1]
         super().__init__((2 * q, q), dtype)
 

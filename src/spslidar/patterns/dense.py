@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConfigError
-from ..operators.base import _product
+from ..operators.base import _product, float_matrix
 from .base import PatternOperator
 
 PATTERN_KINDS = ("gaussian", "bernoulli")
@@ -68,6 +68,9 @@ def make_patterns(
     """
     rng = np.random.default_rng(rng)
     dtype = np.dtype(dtype)  # a string "float32" drew float64 normals: other patterns
+    if not np.issubdtype(dtype, np.floating):  # (int: gaussian patterns of all zeros, an audit)
+        raise ConfigError(f"patterns are mirror states in [0, 1]: dtype {dtype} holds none but "
+                          f"0 and 1; use float32 or float64")
     if n_patterns < 1 or n_pixels < 1:
         raise ConfigError("need at least one pattern and one pixel")
     if kind == "gaussian":
@@ -100,7 +103,7 @@ class DensePatterns(PatternOperator):
     """
 
     def __init__(self, matrix: np.ndarray, kind: str = "dense"):
-        matrix = np.asarray(matrix)
+        matrix = float_matrix(matrix, "patterns")  # (a 0/1 uint8 matrix: uint8 products)
         if matrix.ndim != 2:
             raise ValueError(f"patterns must be an (M, Q) array, got shape {matrix.shape}")
         super().__init__(matrix.shape, matrix.dtype)

@@ -119,11 +119,12 @@ class Scene:
 
 
 def _read_only(arr, dtype) -> np.ndarray:
-    """``arr`` as an array of ``dtype`` seen through a read-only view (the array given, or
-    the caller's own, stays writable for its owner; the scene's view cannot write into it)."""
-    view = np.asarray(arr, dtype=dtype).view()
-    view.flags.writeable = False
-    return view
+    """``arr`` as a read-only copy of ``dtype``, the scene's own (a view of the caller's array
+    let them change the checked scene afterwards: depths set to 5 m in a scene at 20 m, an
+    audit of 2026-11-29; a copy of N x N values is cheap). The caller's array stays theirs."""
+    own = np.array(arr, dtype=dtype, copy=True)
+    own.flags.writeable = False
+    return own
 
 
 def _one_line(text: object, limit: int = 120) -> str:

@@ -55,8 +55,10 @@ class StopRule:
     max_time: float | None = None
 
     def __post_init__(self):
-        if int(self.max_iter) < 1:
-            raise ValueError("max_iter must be >= 1")
+        if (isinstance(self.max_iter, bool) or not isinstance(self.max_iter, (int, np.integer))
+                or self.max_iter < 1):  # (5.5 was taken, an audit)
+            raise ValueError(f"max_iter must be a whole number >= 1, got {self.max_iter!r}")
+        self.max_iter = int(self.max_iter)
         if self.rtol < 0 or (self.obj_rtol is not None and self.obj_rtol < 0):
             raise ValueError("tolerances must be non-negative")
 
@@ -292,7 +294,13 @@ class Solver:
         """
         if not 0 <= lam < np.inf:  # NaN returned NaN, inf a ZeroDivisionError in TVAL3
             raise ValueError(f"lam must be finite and non-negative, got {lam}")
+        if isinstance(A, np.ndarray):  # (a matrix: an AttributeError on 'rmatvec', an audit)
+            from ..operators import MatrixOperator
+
+            A = MatrixOperator(A)
         yb, self._was_1d = as_block(y)
+        if not np.isfinite(yb).all():  # (an all-NaN estimate came back, an audit)
+            raise ValueError("the data y hold a NaN or an infinity")
         if yb.shape[0] != A.shape[0]:
             raise ValueError(f"data has {yb.shape[0]} rows, operator expects {A.shape[0]}")
         if x0 is not None:
@@ -301,6 +309,8 @@ class Solver:
                 raise ValueError(f"x0 of shape {np.shape(x0)} for {A.shape[1]} unknowns and "
                                  f"{yb.shape[1]} column(s): give ({A.shape[1]},) or "
                                  f"({A.shape[1]}, {yb.shape[1]})")
+            if not np.isfinite(x0).all():
+                raise ValueError("x0 holds a NaN or an infinity")
         reset = getattr(reg, "reset", None)
         if callable(reset):
             reset()

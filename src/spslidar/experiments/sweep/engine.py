@@ -75,7 +75,8 @@ def _call(func: Callable[[dict[str, Any]], Any], params: dict[str, Any],
             from spslidar.plugins import load_plugins
 
             load_plugins(list(plugins))
-        result = func(params)
+        # (a copy: a function that changed its params changed the row's, an audit)
+        result = func(copy.deepcopy(params))
     except Exception as exc:
         return "error", _error_message(exc), time.perf_counter() - start
     return "ok", result, time.perf_counter() - start
@@ -404,7 +405,8 @@ def run_sweep(
     -------
     list[dict[str, Any]]
         One row per point, in the order of ``points``: the params (with ``seed``) merged with
-        the results (a result key equal to a param name overrides it), or with ``error``.
+        the results, or with ``error`` (also where a result key is a param name: it would
+        replace the parameter in the row). ``func`` gets a copy of the params.
 
     Raises
     ------
@@ -478,6 +480,11 @@ def run_sweep(
                 if status == "ok":
                     try:
                         result = _normalize_result(payload)
+                        clash = sorted(set(result) & set(json.loads(params_json[key])))
+                        if clash:  # (it replaced the parameter in the row: results.csv then
+                            # credited each RMSE to another noise, an audit of 2026-11-29)
+                            raise TypeError(f"func returned the key {clash[0]!r}, a parameter "
+                                            f"of the point: name results apart from params")
                     except TypeError as exc:
                         status, payload = "error", _error_message(exc)
                     else:

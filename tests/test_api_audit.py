@@ -1,0 +1,155 @@
+"""The Python API as a researcher scripts it, as an outside audit of 2026-11-29 did (about 600
+probes): what gave a silently wrong number, changed the caller's arrays, or ended deep in
+NumPy."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from spslidar.errors import ConfigError
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, bool, np.int64, np.float16])
+def test_integer_and_half_matrices_give_float_products(dtype):
+    """A 0/1 uint8 (or bool) pattern matrix computed its products in uint8: [0.9, 1.2] read
+    [0, 0] (or [True, True]), and its adjoint likewise."""
+    from spslidar.operators import MatrixOperator, dottest
+    from spslidar.patterns import as_patterns
+
+    b = np.array([[1, 0, 1, 1], [0, 1, 1, 0]]).astype(dtype)
+    x = np.array([0.4, 0.9, 0.3, 0.2])
+    exact = b.astype(np.float64) @ x
+    tol = 1e-3 if dtype == np.float16 else 1e-12  # (float16 is read as float32)
+    for op in (as_patterns(b), MatrixOperator(b)):
+        assert np.allclose(op @ x, exact, rtol=tol, atol=tol)
+        assert np.issubdtype(op.dtype, np.floating) and op.dtype != np.float16
+        assert dottest(op, rng=0) < 1e-4
+
+
+def test_integer_dtype_patterns_are_refused():
+    from spslidar.patterns.dense import make_patterns
+
+    with pytest.raises(ConfigError, match="use float32 or float64"):
+        make_patterns("gaussian", 2, 4, np.random.default_rng(1), dtype=int)
+
+
+def test_the_linear_detector_leaves_the_callers_means():
+    from spslidar.detectors import build_detector
+
+    lam = np.full((1, 4), 0.5)
+    counts, _ = build_detector("linear").detect(lam, np.random.default_rng(0))
+    assert np.array_equal(lam, np.full((1, 4), 0.5)) and counts is not lam
+    frozen = np.full((2, 3), 2.0)
+    frozen.flags.writeable = False  # (a read-only lam was "assignment destination ...")
+    assert build_detector("linear").detect(frozen, np.random.default_rng(0))[0].shape == (2, 3)
+
+
+def test_a_scene_keeps_its_own_copy():
+    from spslidar.scenes.base import Scene
+
+    d = np.full((8, 8), 20.0)
+    s = Scene("m", d, np.ones((8, 8)), np.ones((8, 8), bool))
+    d[:] = 5.0
+    assert s.depth[0, 0] == 20.0 and not s.depth.flags.writeable and d.flags.writeable
+
+
+def test_a_sweep_result_named_as_a_parameter_is_an_error_row(tmp_path):
+    """``{"noise": 0, ...}`` replaced each point's noise in its row, so results.csv credited
+    each RMSE to another noise; a function that changed its params changed the row's."""
+    from spslidar.experiments.sweep import ERROR_KEY, run_sweep
+
+    rows = run_sweep(lambda p: {"noise": 0, "rmse": p["noise"] * 0.1},
+                     [{"noise": 1}, {"noise": 5}], tmp_path / "a", progress=False)
+    assert [r["noise"] for r in rows] == [1, 5]
+    assert all("a parameter of the point" in r[ERROR_KEY] for r in rows)
+
+    def meddler(p):
+        p["noise"] = 99
+        return {"r": 1}
+
+    rows = run_sweep(meddler, [{"noise": 1}], tmp_path / "b", progress=False)
+    assert rows[0]["noise"] == 1 and rows[0]["r"] == 1
+
+
+def test_ml_depth_reads_no_nan_and_checks_its_arguments():
+    from spslidar.depth.argmax import ml_depth
+
+    s = np.random.default_rng(0).random((3, 6))
+    s[:, 2] += 5
+    s[1, 4] = np.nan  # not the tallest
+    s[2] = np.nan  # nothing at all: no return
+    depth, _ = ml_depth(s, np.arange(6), 1e-10)
+    assert depth[0] == depth[1] and np.isnan(depth[2])
+    for lags, bw, why in ((np.arange(10), 1e-10, "one delay per slice"),
+                          (np.arange(6), -1e-10, "positive number of seconds"),
+                          (np.arange(6), 0.0, "positive number of seconds")):
+        with pytest.raises(ValueError, match=why):
+            ml_depth(s, lags, bw)
+    with pytest.raises(ValueError, match=r"\(Q, K\) array"):
+        ml_depth(np.ones(6), np.arange(6), 1e-10)
+
+
+def test_metrics_need_one_pixel_grid():
+    from spslidar.metrics import edge_agreement, rmse, sobel_edges
+
+    with pytest.raises(ValueError, match="differ"):
+        rmse(np.ones((2, 8)), np.ones((8, 2)))
+    assert rmse(np.ones((4, 4)), np.ones(16)) == 0.0  # a map and its flat pixels
+    with pytest.raises(ValueError, match="valid"):
+        rmse(np.ones((4, 4)), np.ones((4, 4)), np.ones((2, 8), bool))
+    with pytest.raises(ValueError, match="2-D map"):
+        sobel_edges(np.ones((2, 3, 3)))
+    with pytest.raises(ValueError, match="differ"):
+        edge_agreement(np.ones((4, 4)), np.ones((3, 3)))
+
+
+def test_non_finite_or_fractional_codes_and_operators_are_refused():
+    from spslidar.codes import periodic_xcorr
+    from spslidar.operators import MatrixOperator, dottest
+
+    with pytest.raises(ConfigError, match="non-finite or fractional"):
+        periodic_xcorr([np.nan, 1, 0], [1, 0, 1], bipolar=False)
+    with pytest.raises(ConfigError, match="non-finite or fractional"):
+        periodic_xcorr([0.4, 0.4, 0.4], [1, 1, 1], bipolar=False)
+    with pytest.raises(AssertionError, match="dot test failed"):
+        dottest(MatrixOperator([[np.nan, 1.0], [1.0, 1.0]]), rng=0)
+
+
+def test_solvers_refuse_non_finite_data_and_take_a_matrix():
+    from spslidar.solvers import StopRule
+    from spslidar.solvers.fista import FISTA
+    from spslidar.solvers.regularisers import L1
+
+    a = np.random.default_rng(0).standard_normal((6, 4))
+    y = a @ np.array([1.0, 0, 0, 2.0])
+    x, _ = FISTA(stop=StopRule(50)).solve(a, y, L1(), 0.01)  # (an AttributeError before)
+    assert np.isfinite(x).all()
+    bad = y.copy()
+    bad[0] = np.nan
+    with pytest.raises(ValueError, match="NaN or an infinity"):
+        FISTA(stop=StopRule(5)).solve(a, bad, L1(), 0.01)
+    with pytest.raises(ValueError, match="x0 holds"):
+        FISTA(stop=StopRule(5)).solve(a, y, L1(), 0.01, x0=np.full(4, np.inf))
+    with pytest.raises(ValueError, match="whole number"):
+        StopRule(5.5)
+
+
+def test_operator_shapes_are_checked():
+    from spslidar.operators import Identity, MatrixOperator
+    from spslidar.operators.image import Gradient2D
+
+    for make, why in ((lambda: Identity(-1), ">= 0"), (lambda: Gradient2D(4), "a pair"),
+                      (lambda: Gradient2D((2, 3, 4)), "a pair"),
+                      (lambda: MatrixOperator(np.ones(5)), r"\(M, N\) matrix")):
+        with pytest.raises(ValueError, match=why):
+            make()
+
+
+def test_a_numpy_dtype_is_a_config_dtype():
+    from spslidar.config import Config
+
+    assert Config(dtype=np.float32).dtype == "float32"
+    assert Config(dtype=np.dtype("float64")).dtype == "float64"
+    with pytest.raises(ConfigError, match="unknown dtype 'int32'"):
+        Config(dtype=np.int32)
