@@ -153,3 +153,13 @@ def test_a_numpy_dtype_is_a_config_dtype():
     assert Config(dtype=np.dtype("float64")).dtype == "float64"
     with pytest.raises(ConfigError, match="unknown dtype 'int32'"):
         Config(dtype=np.int32)
+
+
+def test_an_l1_basis_of_other_images_is_refused():
+    from spslidar.operators import Wavelet2D
+    from spslidar.solvers.regularisers import L1
+
+    reg = L1(Wavelet2D((4, 16)))
+    with pytest.raises(ValueError, match="takes 64 pixels, the problem has 32 rows"):
+        reg.prox(np.ones((32, 2)), 0.1)
+    assert reg.prox(np.ones((64, 2)), 0.1).shape == (64, 2)

@@ -164,11 +164,19 @@ class L1(Regulariser):
         self.basis = basis
         self.nonneg = bool(nonneg)
 
+    def _check(self, x: np.ndarray) -> None:
+        # (a basis of other images ran on the problem's, as TV's row check refuses, an audit)
+        if self.basis is not None and x.shape[0] != self.basis.shape[1]:
+            raise ValueError(f"the l1 basis takes {self.basis.shape[1]} pixels, the problem "
+                             f"has {x.shape[0]} rows")
+
     def _values(self, x):
+        self._check(x)
         c = x if self.basis is None else self.basis.matvec(x)
         return np.sum(np.abs(c), axis=0, dtype=np.float64)
 
     def _prox(self, v, t):
+        self._check(v)
         if self.basis is None:
             if self.nonneg:
                 return np.maximum(v - np.asarray(t, dtype=v.dtype), 0)
