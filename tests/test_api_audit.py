@@ -163,3 +163,12 @@ def test_an_l1_basis_of_other_images_is_refused():
     with pytest.raises(ValueError, match="takes 64 pixels, the problem has 32 rows"):
         reg.prox(np.ones((32, 2)), 0.1)
     assert reg.prox(np.ones((64, 2)), 0.1).shape == (64, 2)
+
+
+@pytest.mark.parametrize("name", ["linear", "gmapd"])
+@pytest.mark.parametrize("bad", [-1.0, np.nan, np.inf])
+def test_a_detector_refuses_impossible_means(name, bad):
+    from spslidar.detectors import build_detector
+
+    with pytest.raises(ValueError, match="finite and non-negative"):
+        build_detector(name).detect(np.array([[0.5, bad]]), np.random.default_rng(0))

@@ -129,7 +129,7 @@ def test_an_operator_refuses_what_it_cannot_take_in_one_message(arg):
 
 
 def test_an_empty_image_has_no_gradient():
-    with pytest.raises(ValueError, match="at least 1x1"):
+    with pytest.raises(ValueError, match="whole numbers >= 1"):
         Gradient2D((0, 4))
 
 

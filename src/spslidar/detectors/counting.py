@@ -123,6 +123,16 @@ def too_many_counts(per_bin: float) -> str:
             f"saturates at about one count per dead time)")
 
 
+def check_rates(lam) -> None:
+    """A detector's expected photons per bin: finite and non-negative, or one ``ValueError``
+    (NaN read "lam value too large" from NumPy's sampler, and a GMAPD took negative means:
+    an audit of 2026-11-29)."""
+    a = np.asarray(lam)
+    if a.size and not (np.isfinite(a).all() and a.min() >= 0):
+        raise ValueError("a detector's expected photons per bin must be finite and "
+                         "non-negative")
+
+
 def check_means(lam: np.ndarray) -> None:
     """Raise ``ValueError`` unless all Poisson means are finite, non-negative and small enough
     for float32 counts (exact integers up to 2^24 per bin; a
@@ -256,6 +266,7 @@ class PhotonCountingDetector:
         ndarray
             ``efficiency * lam`` (``lam`` itself when the efficiency is 1).
         """
+        check_rates(lam)
         if self.efficiency != 1.0:
             lam = self.efficiency * np.asarray(lam)
         return lam

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from .base import DetectorModel
+from .counting import check_rates
 from .jitter import convolve_periodic, jitter_kernel
 from .pileup import auto_oversample, coates_correction, renewal_detection
 
@@ -291,6 +292,7 @@ class GMAPD(DetectorModel):
         totals : ndarray of float64, shape (B,)
         """
         lam = np.atleast_2d(np.asarray(lam, dtype=np.float64))
+        check_rates(lam)
         q, mu, subs = self._model(lam, n_periods)
         if self.dead_bins == 0:
             counts = rng.poisson(n_periods * q)
