@@ -6,8 +6,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if [[ "${1:-}" != "--page-only" ]]; then
-  # the run cache is keyed by each point's parameters, not by the code: start from an empty
-  # one so that every number comes from the code being documented
+  # the run cache reads a run only under the code that made it (its fingerprint), but an
+  # empty one also drops the runs no experiment asks for any more
   rm -rf docs/reproduction/cache
   spslidar reproduce all --out docs/reproduction --jobs 2 "$@"
 fi

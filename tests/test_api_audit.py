@@ -62,7 +62,10 @@ def test_a_sweep_result_named_as_a_parameter_is_an_error_row(tmp_path):
     rows = run_sweep(lambda p: {"noise": 0, "rmse": p["noise"] * 0.1},
                      [{"noise": 1}, {"noise": 5}], tmp_path / "a", progress=False)
     assert [r["noise"] for r in rows] == [1, 5]
-    assert all("a parameter of the point" in r[ERROR_KEY] for r in rows)
+    assert all("a parameter of the point (there " in r[ERROR_KEY] for r in rows)
+    same = run_sweep(lambda p: {"noise": p["noise"], "r": 2}, [{"noise": 1}], tmp_path / "c",
+                     progress=False)
+    assert same[0]["noise"] == 1 and same[0]["r"] == 2  # (the same value: a row, as snr's)
 
     def meddler(p):
         p["noise"] = 99

@@ -354,6 +354,11 @@ def reconstruct(meas: Measurement, **processing) -> Result:
                 print(f"spslidar: the weight met its floor, so the solve runs up to "
                       f"{iterations} iterations: about {solve_s:.0f} s more (an estimate; "
                       f"--iterations to cap it)", file=sys.stderr, flush=True)
+    if not device and not np.isfinite(np.asarray(y)).all():
+        # (a noiseless run at 1e-300 photons: its normalised correlations overflow; the
+        # solvers now refuse such data, which the command line said as a traceback)
+        raise ConfigError(f"the measurements are not finite in {cfg.dtype} (normalised to a "
+                          f"signal of {cfg.signal:g} photons per pulse): raise --signal")
     if device:
         x, finfo = dev.solve(be, A, y, (cfg.size, cfg.size), cfg.nonneg, lam, iterations,
                              cfg.tol, TV_INNER, isotropic=reg_kind == "tv")

@@ -334,7 +334,10 @@ def snr_point(params: dict[str, Any]) -> dict[str, Any]:
         rng=np.random.default_rng(params["seed"]),
         method=params["method"],
     )
-    return dict(rows[0])
+    # the point's own keys stay the point's (an m-sequence's row gave its actual share of
+    # ones as "ones_ratio", which the sweep engine now refuses as a changed parameter; the
+    # share is the row's "ones_ratio_actual")
+    return {k: v for k, v in rows[0].items() if k not in params}
 
 
 def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:

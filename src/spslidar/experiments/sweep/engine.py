@@ -405,8 +405,8 @@ def run_sweep(
     -------
     list[dict[str, Any]]
         One row per point, in the order of ``points``: the params (with ``seed``) merged with
-        the results, or with ``error`` (also where a result key is a param name: it would
-        replace the parameter in the row). ``func`` gets a copy of the params.
+        the results, or with ``error`` (also where a result gives a param another value: it
+        would replace the parameter in the row). ``func`` gets a copy of the params.
 
     Raises
     ------
@@ -480,11 +480,15 @@ def run_sweep(
                 if status == "ok":
                     try:
                         result = _normalize_result(payload)
-                        clash = sorted(set(result) & set(json.loads(params_json[key])))
+                        given = json.loads(params_json[key])
+                        clash = sorted(k for k in set(result) & set(given)
+                                       if result[k] != given[k])
                         if clash:  # (it replaced the parameter in the row: results.csv then
                             # credited each RMSE to another noise, an audit of 2026-11-29)
-                            raise TypeError(f"func returned the key {clash[0]!r}, a parameter "
-                                            f"of the point: name results apart from params")
+                            raise TypeError(f"func returned {clash[0]!r} = "
+                                            f"{result[clash[0]]!r}, a parameter of the point "
+                                            f"(there {given[clash[0]]!r}): name results apart "
+                                            f"from params")
                     except TypeError as exc:
                         status, payload = "error", _error_message(exc)
                     else:
