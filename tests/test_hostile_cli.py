@@ -145,22 +145,8 @@ def test_patterns_given_a_folder_is_said(tmp_path):
 
 
 # -- calibration files edited by hand ----------------------------------------------------------
-@pytest.fixture(scope="module")
-def calibration(tmp_path_factory):
-    d = tmp_path_factory.mktemp("cal")
-    np.save(d / "wall.npy", np.full((8, 8), 5.0))
-    assert main(["run", "--scene", str(d / "wall.npy"), "--size", "8", "--code-length", "1023",
-                 "--signal", "1", "--noise", "0.05", "--compression", "0.5", "--range-gate",
-                 "4", "6", "--no-figure", "--save-ptu", str(d / "a.ptu"),
-                 "--out", str(d / "w")]) == 0
-    assert main(["calibrate", "--ptu", str(d / "a.ptu"), "--patterns",
-                 str(d / "a_patterns.npy"), "--code", str(d / "a_code.npy"), "--bit-rate",
-                 "10e9", "--distance", "5", "--out", str(d / "cal.json")]) == 0
-    return d
-
-
-def _edited(calibration, tmp_path, **change):
-    cal = json.loads((calibration / "cal.json").read_text())
+def _edited(calibrated_wall, tmp_path, **change):
+    cal = json.loads((calibrated_wall / "cal.json").read_text())
     cal.pop("content_sha256")
     cal.update(change)
     path = tmp_path / "c.json"
@@ -172,22 +158,22 @@ def _edited(calibration, tmp_path, **change):
     ({"irf_offsets": [-10**20, 0]}, "incomplete or damaged (OverflowError"),
     ({"delay_s": 1e300}, "disagree with delay_s"),
 ])
-def test_calibration_numbers_past_any_range_are_refused(calibration, tmp_path, change, why):
+def test_calibration_numbers_past_any_range_are_refused(calibrated_wall, tmp_path, change, why):
     """An offset of 21 digits was an OverflowError traceback; a delay of 1e300 s overflowed
     to inf and passed the consistency check (exit 0, metrics.json said 1e+300)."""
     from spslidar.pipeline.calibration_file import load_calibration
 
-    code = np.load(calibration / "a_code.npy")
+    code = np.load(calibrated_wall / "a_code.npy")
     with pytest.raises(ConfigError, match=why.replace("(", r"\(")):
-        load_calibration(_edited(calibration, tmp_path, **change), 10e9, code)
+        load_calibration(_edited(calibrated_wall, tmp_path, **change), 10e9, code)
 
 
-def test_calibration_files_that_are_no_files(calibration, tmp_path):
+def test_calibration_files_that_are_no_files(calibrated_wall, tmp_path):
     """A deeply nested JSON file was a RecursionError, ``/dev/zero`` a MemoryError, and a FIFO
     as ``calibrate --out F --overwrite`` hung the command."""
     from spslidar.pipeline.calibration_file import check_calibration_out, load_calibration
 
-    code = np.load(calibration / "a_code.npy")
+    code = np.load(calibrated_wall / "a_code.npy")
     deep = tmp_path / "deep.json"
     deep.write_text("[" * 100_000 + "]" * 100_000)
     with pytest.raises(ConfigError, match="is not a calibration file"):

@@ -81,44 +81,27 @@ def test_an_npz_where_an_npy_is_expected_is_named(acquisition, tmp_path, capsys,
     assert not (tmp_path / "r").exists()
 
 
-def _calibration(d):
-    files = ["--ptu", str(d / "a.ptu"), "--patterns", str(d / "a_patterns.npy"),
-             "--code", str(d / "a_code.npy"), "--bit-rate", "10e9"]
-    return files
-
-
-@pytest.fixture(scope="module")
-def wall(tmp_path_factory):
-    d = tmp_path_factory.mktemp("wall")
-    np.save(d / "wall.npy", np.full((8, 8), 5.0))
-    assert main(["run", "--scene", str(d / "wall.npy"), "--size", "8", "--code-length", "1023",
-                 "--signal", "1", "--noise", "0.05", "--compression", "0.5", "--range-gate",
-                 "4", "6", "--no-figure", "--save-ptu", str(d / "a.ptu"),
-                 "--out", str(d / "w")]) == 0
-    assert main(["calibrate", *_calibration(d), "--distance", "5",
-                 "--out", str(d / "cal.json")]) == 0
-    return d
-
-
 def _use(acquisition, cal, out):
     return main(["reconstruct", *_files(acquisition), "--calibration", str(cal),
                  "--out", str(out)])
 
 
-def test_calibration_without_its_checksum_is_said(acquisition, wall, tmp_path, capsys):
+def test_calibration_without_its_checksum_is_said(acquisition, calibrated_wall, tmp_path,
+                                                  capsys):
     """With content_sha256 deleted, a lag_shift edited by one bin moved every depth 15 mm
     without a word."""
-    cal = json.loads((wall / "cal.json").read_text())
+    cal = json.loads((calibrated_wall / "cal.json").read_text())
     del cal["content_sha256"]
     (tmp_path / "c.json").write_text(json.dumps(cal))
     assert _use(acquisition, tmp_path / "c.json", tmp_path / "r") == 0
     assert "has no checksum (content_sha256)" in capsys.readouterr().err
-    assert _use(acquisition, wall / "cal.json", tmp_path / "r2") == 0
+    assert _use(acquisition, calibrated_wall / "cal.json", tmp_path / "r2") == 0
     assert "no checksum" not in capsys.readouterr().err
 
 
-def test_calibration_delay_bins_is_checked(acquisition, wall, tmp_path, capsys):
-    cal = json.loads((wall / "cal.json").read_text())
+def test_calibration_delay_bins_is_checked(acquisition, calibrated_wall, tmp_path,
+                                           capsys):
+    cal = json.loads((calibrated_wall / "cal.json").read_text())
     del cal["content_sha256"]
     cal["delay_bins"] = 500
     (tmp_path / "c.json").write_text(json.dumps(cal))
@@ -127,12 +110,13 @@ def test_calibration_delay_bins_is_checked(acquisition, wall, tmp_path, capsys):
     assert len(err.splitlines()) == 1 and "delay_bins 500 disagrees with delay_s" in err
 
 
-def test_calibration_with_a_byte_order_mark_is_read(acquisition, wall, tmp_path):
+def test_calibration_with_a_byte_order_mark_is_read(acquisition, calibrated_wall, tmp_path):
     """As a Windows editor saves it ('not JSON' before)."""
-    (tmp_path / "c.json").write_bytes(b"\xef\xbb\xbf" + (wall / "cal.json").read_bytes())
+    (tmp_path / "c.json").write_bytes(b"\xef\xbb\xbf"
+                                      + (calibrated_wall / "cal.json").read_bytes())
     assert _use(acquisition, tmp_path / "c.json", tmp_path / "r") == 0
     a = np.load(tmp_path / "r" / "depth.npy")
-    assert _use(acquisition, wall / "cal.json", tmp_path / "r2") == 0
+    assert _use(acquisition, calibrated_wall / "cal.json", tmp_path / "r2") == 0
     np.testing.assert_array_equal(a, np.load(tmp_path / "r2" / "depth.npy"))
 
 
