@@ -172,3 +172,14 @@ def test_errors_beyond_the_error_bar_are_crossed_and_counted(tmp_path):
     assert _pixel(img, 2, 9, 9, n) != OUT_OF_RANGE
     assert any("error beyond its colour bar (1 pixel," in t
                for _, t in _legend_items(r, np.zeros((n, n), bool), _beyond(*_limits(r)[2:])))
+
+
+def test_reflectivities_above_the_bar_are_counted(result):
+    """The reflectivity's bar ends at its 99th percentile: the brighter pixels showed its end
+    colour without a word (an audit of 2026-11-29); the panel's title now counts them."""
+    from spslidar.figures import _panels, _reflectivity_range
+
+    _, hi = _reflectivity_range(result)
+    above = int(np.count_nonzero(result.reflectivity > hi * (1 + 1e-9)))
+    title = next(p[1] for p in _panels(result) if p[0] == "reflectivity")
+    assert above > 0 and title.startswith(f"reflectivity: {above} px above the bar")

@@ -254,6 +254,14 @@ class ConfigDirective(_Generated):
 
 
 # -- metrics.json ----------------------------------------------------------------------------
+def _thresholds() -> str:
+    """Each registered depth estimator's default low-confidence threshold, from its class (a
+    hand-written list went stale: ``guarded`` and ``evidence`` said 0.25, wrote 0.5)."""
+    from spslidar.depth import ESTIMATORS
+
+    return ", ".join(f"``{e.name}`` {e.load().LOW_CONFIDENCE:g}" for e in ESTIMATORS)
+
+
 #: Description of every key of metrics.json (dotted for nested keys).
 METRICS: dict[str, str] = {
     "depth_rmse_m": "Depth RMSE (eq. 19 of the paper, which calls it MSE) over the pixels with "
@@ -299,15 +307,17 @@ METRICS: dict[str, str] = {
                                "(with ``--noiseless``, what the same run with Poisson noise "
                                "would have).",
     "depth_estimator": "The depth estimator used.",
-    "low_confidence_fraction": "Share of the pixels whose depth has a low confidence "
-                               "(``confidence.npy`` below ``low_confidence_threshold``).",
+    "low_confidence_fraction": "Share of all pixels that have a depth of low confidence "
+                               "(``confidence.npy`` below ``low_confidence_threshold``); a "
+                               "pixel without a return has no depth, confidence 0, and is "
+                               "not counted (it is in ``missing_fraction``).",
     "low_confidence_threshold": "The depth estimator's confidence below which a depth is "
-                                "flagged low-confidence (``mrf`` 0.5, ``censor`` 0.3, the "
-                                "others 0.25).",
+                                "flagged low-confidence: " + _thresholds() + ".",
     "peak_to_noise_p90": "90th percentile over the pixels of each profile's peak over its "
                          "own largest noise peak beside it "
                          "(:func:`~spslidar.depth.profile.peak_to_noise`); null under 16 "
-                         "slices.",
+                         "slices, and where no pixel has a noise peak to compare with (a "
+                         "``--noiseless`` run).",
     "peak_to_noise_floor": "The level below which at most a tenth of the pixels hold a "
                            "return and the run warns that the map is mostly noise: 1.4 "
                            "times what non-negative white noise gives at as many effective "
@@ -327,15 +337,17 @@ METRICS: dict[str, str] = {
                    "noise reaches the prox and the weight is the floor (``lam_floored``).",
     "solver_info": "What the solver reports: ``solver``, ``iterations``, ``final_objective``, "
                    "``stop_reason``, ``time_s`` and solver-specific keys.",
-    "detector": "The detector model and its flux: ``model``, ``count_rate_hz``, "
-                "``counts_per_dead_time``, ``gmapd_saturated`` and a ``note`` when a real "
-                "GMAPD would saturate; the GMAPD adds ``dead_fraction`` and "
-                "``incident_per_dead_time`` (the photons that reached it, the simulation's "
-                "own), and for the conventional lidar ``incident_per_pulse`` and "
-                "``detections_per_pulse``.",
-    "estimate": "The memory (GB) and time (s) estimated before the run; ``time_s_at_floor`` "
-                "where the weight met its floor and the run was priced again with the "
-                "floored iteration cap.",
+    "detector": "The detector model and its flux: ``model``, ``count_rate_hz``, and for a "
+                "simulation ``counts_per_dead_time`` with ``gmapd_saturated`` and a ``note`` "
+                "where a real GMAPD would saturate (the linear counter's); the GMAPD "
+                "reports ``dead_fraction`` and ``incident_per_dead_time`` (the photons that "
+                "reached it, the simulation's own) instead, and for the conventional lidar "
+                "``incident_per_pulse`` and ``detections_per_pulse``; ``reconstruct`` writes "
+                "``model: measured`` and the measured ``count_rate_hz``.",
+    "estimate": "The memory (GB) and time (s) estimated before a simulated run "
+                "(``time_s_at_floor`` where the weight met its floor and the run was priced "
+                "again with the floored iteration cap); empty for ``reconstruct``, whose "
+                "file is priced as it is read.",
     "warnings": "The warnings printed on stderr.",
     "timing_s": "Wall-clock seconds by stage (scene, setup, simulate, qcr, solve, depth, "
                 "metrics, write); ``total`` is the run up to the metrics, the time the "

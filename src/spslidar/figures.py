@@ -250,8 +250,14 @@ def _panels(result):
     if result.reflectivity is not None:
         rlo, rhi = _reflectivity_range(result)
         unit = "ph/pulse" if "ptu" in m else "alpha"
-        panels.append(("reflectivity", "reflectivity (intensity)", result.reflectivity, rlo,
-                       rhi, _VIRIDIS, unit))
+        with np.errstate(invalid="ignore"):
+            above = int(np.count_nonzero(np.asarray(result.reflectivity) > rhi * (1 + 1e-9)))
+        # (the bar ends at the 99th percentile: the brighter pixels showed its end colour
+        # unmarked, an audit of 2026-11-29)
+        title = ("reflectivity (intensity)" if not above else
+                 f"reflectivity: {above} px above the bar, to "
+                 f"{float(np.nanmax(result.reflectivity)):.3g}")
+        panels.append(("reflectivity", title, result.reflectivity, rlo, rhi, _VIRIDIS, unit))
     depth2 = getattr(result, "depth2", None)
     if depth2 is not None and np.isfinite(depth2).any():
         panels.append(("depth2", f"second surface ({100 * np.isfinite(depth2).mean():.1f}% "

@@ -152,8 +152,8 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         "correlation_noise_sigma": float(np.sqrt(np.mean(sim["sigma"] ** 2))),
         "depth_estimator": cfg.depth,
         "low_confidence_fraction": float(np.mean(low_confidence)),
-        # the estimator's confidence below which a depth is flagged (mrf 0.5, censor 0.3,
-        # the others 0.25): a fraction means nothing without it
+        # the estimator's confidence below which a depth is flagged (its class's
+        # LOW_CONFIDENCE): a fraction means nothing without it
         "low_confidence_threshold": low_confidence_threshold,
         # 90th percentile of each pixel's peak over its own profile's noise maximum
         # (spslidar.depth.profile.peak_to_noise), and the level below which the image is said
