@@ -184,7 +184,7 @@ def test_a_sweep_takes_one_scene_spelled_two_ways_as_one():
     as a value listed twice, and a point's seed and cache key do not depend on the spelling
     (they were two seeds and two cache files)."""
     from spslidar.errors import ConfigError
-    from spslidar.experiments.sweep.engine import _seeded
+    from spslidar.experiments.sweep.command import _seeded
     from spslidar.experiments.sweep.grid import _check_grid, point_key
     from spslidar.scenes import scene_spec
 

@@ -31,16 +31,21 @@ The package follows the engine's seams, and re-exports everything public:
 * :mod:`spslidar.experiments.sweep.grid`: points, seeds, cache keys, TOML definitions (no run
   is started there);
 * :mod:`spslidar.experiments.sweep.store`: atomic files, cache records, the tidy CSV;
-* :mod:`spslidar.experiments.sweep.engine`: executors, :func:`run_sweep`, :func:`run_point`,
-  :func:`sweep_main`.
+* :mod:`spslidar.experiments.sweep.engine`: executors, :func:`run_sweep`;
+* :mod:`spslidar.experiments.sweep.command`: the ``spslidar sweep`` command,
+  :func:`run_point`, :func:`sweep_main`.
 
 Notes
 -----
-The cache key covers the point's parameters (including its seed) but not the code of ``func``:
-after changing the simulation code, use a fresh ``out_dir`` (or delete ``out_dir/runs``).
+The cache key covers the point's parameters (including its seed). ``run_sweep(..., code=...)``
+also records the code's fingerprint and reads a cached run only under the same one: ``sweep``
+and ``reproduce`` pass :func:`spslidar.plugins.code_fingerprint`, so an edited plugin or
+spslidar runs its points again; a call without ``code`` keys on the parameters alone (after
+changing ``func``, use a fresh ``out_dir`` or pass ``code``).
 """
 
-from spslidar.experiments.sweep.engine import run_point, run_sweep, sweep_main
+from spslidar.experiments.sweep.command import run_point, sweep_main
+from spslidar.experiments.sweep.engine import run_sweep
 from spslidar.experiments.sweep.grid import (
     ERROR_KEY,
     KEY_LENGTH,

@@ -1,0 +1,270 @@
+"""The ``spslidar sweep`` command: a TOML grid of pipeline runs, checked and priced before any
+runs, run through :func:`~spslidar.experiments.sweep.engine.run_sweep` and written as
+``results.csv``. :func:`run_point` is the one adapter from a sweep point to the pipeline's flat
+metrics.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from spslidar.errors import ConfigError, SpslidarError
+from spslidar.experiments.sweep import engine
+from spslidar.experiments.sweep.engine import RESULTS_CSV
+from spslidar.experiments.sweep.grid import (
+    IRF_HASH_KEY,
+    SCENE_HASH_KEY,
+    SEED_KEY,
+    TRIAL_KEY,
+    canonical_json,
+    derive_seed,
+    load_sweep_config,
+    resolve_point_files,
+    same_value,
+    sha256_hex,
+    with_scene_hashes,
+)
+from spslidar.experiments.sweep.store import say_outcome, write_csv
+
+__all__ = ["run_point", "sweep_main"]
+
+
+
+def run_point(params: dict[str, Any]) -> dict[str, Any]:
+    """Run the pipeline on one sweep point and return its flat metrics.
+
+    The ``trial`` index is dropped (its effect is already in the point's ``seed``); every other
+    key is passed to :func:`spslidar.pipeline.run_metrics` as a run config. Points that differ
+    only in processing keys (solver, weights, QCR...) share their seed (see
+    :func:`sweep_main`) and, in one process, their simulated measurement
+    (:func:`spslidar.pipeline.run_shared`).
+
+    Parameters
+    ----------
+    params : dict[str, Any]
+        A sweep point: run-config keys, ``seed`` and ``trial``.
+
+    Returns
+    -------
+    dict[str, Any]
+        The metrics (e.g. ``depth_rmse_m``).
+    """
+    from spslidar.pipeline import run_metrics
+
+    config = {key: value for key, value in params.items()
+              if key not in (TRIAL_KEY, SCENE_HASH_KEY, IRF_HASH_KEY)}
+    return run_metrics(config)
+
+
+def _run_opened(folder: str | None, func: Callable[[dict[str, Any]], Any],
+                params: dict[str, Any]) -> Any:
+    """``func`` of a sweep point whose scene and IRF files are read from the TOML's folder
+    (``folder``); top-level so that joblib and Dask can pickle it."""
+    return func(resolve_point_files(params, folder))
+
+
+def _seeded(points: Sequence[Mapping[str, Any]], ignored: list[dict[str, str]],
+            ignore: frozenset[str], seed: int) -> list[dict[str, Any]]:
+    """Each point with its seed (unless the grid sets one): :func:`derive_seed` of the point
+    without ``ignore`` and without the options its configuration ignores, each number a whole
+    float written as an int (:func:`~spslidar.experiments.sweep.grid.same_value`). A grid over
+    ``rep_rate`` of a PSST lidar, or ``noise = 1`` beside ``noise = 1.0``, gave points that
+    are one configuration different noise, an effect that was not there (RMSE 0.31 against
+    0.25 m). Options that some points ignore are said once each, on stderr."""
+    from spslidar.scenes import scene_spec
+
+    out, said = [], {}
+    for point, skip in zip(points, ignored, strict=True):
+        point = dict(point)
+        if "scene" in point:  # one scene spelled two ways is one point (procedural:007 / :7)
+            point["scene"] = scene_spec(point["scene"])
+        if SEED_KEY not in point:
+            point[SEED_KEY] = derive_seed(seed, {
+                k: same_value(v) for k, v in point.items() if k not in ignore and k not in skip})
+        for text in skip.values():
+            said[text] = said.get(text, 0) + 1
+        out.append(point)
+    for text, count in list(said.items())[:5]:
+        print(f"sweep: warning: {text} (at {count} of {len(out)} points, which share their "
+              f"seeds with the points that differ from them only there)", file=sys.stderr)
+    if len(said) > 5:
+        print(f"sweep: warning: ... and {len(said) - 5} more ignored options", file=sys.stderr)
+    return out
+
+
+def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
+                         ignored: list[dict[str, str]] | None = None,
+                         unpriced: dict[str, int] | None = None) -> float:
+    """Check every point's run config before anything runs: a bad grid is bad input (one
+    ConfigError naming the file), not a sweep of failed runs. Returns the estimated total
+    time of the runs (seconds, from each configuration's budget); ``ignored`` receives each
+    point's options that its configuration ignores
+    (:func:`~spslidar.pipeline.plan.ignored_keys`), ``unpriced`` the number of points per
+    detector model whose cost depends on the flux (not ``linear``: the GMAPD's dead-time
+    model, which a run prices from its first block of patterns as it runs, not before)."""
+    from spslidar.config import Config
+    from spslidar.detectors import DETECTORS
+    from spslidar.pipeline import preflight
+    from spslidar.pipeline.measurement import processing_keys
+    from spslidar.pipeline.plan import ignored_keys
+
+    seconds: dict[str, float] = {}
+    total = 0.0
+    processing = processing_keys()
+    for params in points:
+        config = {key: value for key, value in params.items()
+                  if key not in (TRIAL_KEY, SCENE_HASH_KEY, IRF_HASH_KEY)}
+        try:
+            cfg = Config.from_dict(config)
+            if ignored is not None:
+                ignored.append(ignored_keys(cfg))
+            # the scene loads and the memory fits: once per simulated configuration
+            key = canonical_json({k: v for k, v in cfg.to_dict().items()
+                                  if k not in processing and k != "seed"})
+            if key not in seconds:
+                seconds[key] = preflight(cfg).seconds
+            total += seconds[key]
+            if unpriced is not None and not getattr(DETECTORS.load(cfg.detector), "linear",
+                                                    True):
+                unpriced[cfg.detector] = unpriced.get(cfg.detector, 0) + 1
+        except (ConfigError, SpslidarError) as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+    return total
+
+
+def sweep_main(
+    config_path: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str],
+    jobs: int = 1,
+    scheduler: Any = None,
+    progress: bool = True,
+    *,
+    func: Callable[[dict[str, Any]], Mapping[str, Any]] | None = None,
+    max_time: float | None = None,
+    overwrite: bool = False,
+) -> int:
+    """Run the sweep of a TOML config and write ``out_dir/results.csv``.
+
+    Parameters
+    ----------
+    config_path : str or os.PathLike
+        The sweep TOML file (see :func:`load_sweep_config`).
+    out_dir : str or os.PathLike
+        Output folder: ``runs/`` (cache, filled as points finish) and ``results.csv``
+        (written atomically once every point has been attempted).
+    jobs : int, default 1
+        Local worker processes (see :func:`run_sweep`).
+    scheduler : str, distributed.Client or cluster, optional
+        Dask scheduler (see :func:`run_sweep`).
+    progress : bool, default True
+        Show a progress bar on stderr.
+    func : Callable, optional
+        The function of a point; default :func:`run_point`.
+    max_time : float, optional
+        Refuse a sweep whose estimated total time (the sum of its runs' estimates, before
+        any runs) exceeds this many seconds; one over 30 s says its estimate first.
+    overwrite : bool, default False
+        Replace the ``results.csv`` of another sweep (other points) in ``out_dir``; without
+        it that is refused, while the same sweep again resumes (its points are recorded in
+        the folder's marker as ``sweep_points``, a SHA-256).
+
+    Returns
+    -------
+    int
+        The number of failed points (0 when all succeeded). A one-line summary, and the first
+        few errors, are printed on stderr.
+    """
+    spec = load_sweep_config(config_path)
+    points = spec.points()  # files named as the TOML names them: seeds and keys follow those
+    jobs = engine._check_jobs(jobs)  # before the estimate and the folder
+    ignore: frozenset[str] = frozenset()
+    if func is None:
+        from spslidar.pipeline.measurement import processing_keys
+
+        ignored: list[dict[str, str]] = []
+        opened = [spec.resolve(point) for point in points]
+        unpriced: dict[str, int] = {}
+        total = _validate_run_points(opened, config_path, ignored, unpriced)
+        points = [{**point, **{k: hashed[k] for k in (SCENE_HASH_KEY, IRF_HASH_KEY)
+                               if k in hashed}}
+                  for point, hashed in zip(points, with_scene_hashes(opened), strict=True)]
+        # an edited scene, another array library or device: the same seed (a grid over
+        # backend compared NumPy and array-api-strict on different noise; not dtype: float32
+        # and float64 Gaussian patterns are different draws of one seed)
+        ignore = processing_keys() | {SCENE_HASH_KEY, IRF_HASH_KEY, "backend", "device"}
+        points = _seeded(points, ignored, ignore, spec.seed)
+        from spslidar.pipeline.budget import check_time
+
+        # local workers are at most the cores (--jobs 1000 divided a 9 h sweep into 31 s)
+        workers = jobs if scheduler is not None else (
+            engine._cores() if jobs == -1 else min(jobs, engine._cores()))
+        check_time(total / max(1, min(len(points), workers)), max_time,
+                   f"this sweep of {len(points)} runs")
+        if unpriced:  # (a 3-point GMAPD sweep ran 70 s with nothing said, an audit)
+            said = ", ".join(f"the {n} point{'s' if n > 1 else ''} through --detector {name}"
+                             for name, n in unpriced.items())
+            print(f"sweep: note: the estimate leaves out the detector model of {said}: its "
+                  f"time depends on the flux (the camera at 16x16: 3.6 s a run at 0.03 photons "
+                  f"per bin, 13 s at 0.8), so time one point with spslidar run first",
+                  file=sys.stderr)
+    from spslidar.outdir import (
+        claim_folder,
+        foreign_outputs,
+        journal,
+        read_marker,
+        record_outputs,
+        release_folder,
+    )
+    from spslidar.plugins import code_fingerprint
+
+    if isinstance(scheduler, str):
+        engine._probe_scheduler(scheduler)  # before the folder is made
+    existed = Path(out_dir).exists()
+    folder = claim_folder(out_dir, "sweep")  # new, empty or an earlier sweep's: never a user's
+    if foreign_outputs(folder, [RESULTS_CSV]):  # a user's edit was replaced without a word
+        raise SpslidarError(
+            f"--out {out_dir}: {RESULTS_CSV} was not written by spslidar sweep (or changed "
+            f"since); refusing to replace it (move it away, or choose another folder)")
+    # the sweep's identity: its points with their seeds, as the TOML gives them (a second
+    # sweep of another grid replaced the first one's table without a word, an audit of
+    # 2026-11-29; an edited scene or IRF file is the same sweep, run again)
+    hashes = (SCENE_HASH_KEY, IRF_HASH_KEY)
+    identity = sha256_hex(canonical_json(
+        {"seed": spec.seed,
+         "points": [{k: v for k, v in p.items() if k not in hashes} for p in points]},
+        "points"))
+    before = (read_marker(folder) or {}).get("sweep_points")
+    if ((folder / RESULTS_CSV).is_file() and isinstance(before, str) and before != identity
+            and not overwrite):
+        raise SpslidarError(
+            f"--out {out_dir}: holds the {RESULTS_CSV} of another sweep (other points); pass "
+            f"--overwrite to replace it (its finished runs stay cached), or choose another "
+            f"folder")
+    try:
+        rows = engine.run_sweep(
+            functools.partial(_run_opened, None if spec.path is None else str(spec.path.parent),
+                              run_point if func is None else func),
+            points,
+            out_dir,
+            seed=spec.seed,
+            jobs=jobs,
+            scheduler=scheduler,
+            progress=progress,
+            seed_ignore=ignore,
+            code=code_fingerprint(),  # an edited plugin or spslidar: its points run again
+        )
+    except SpslidarError:  # refused before any point ran: leave no folder behind
+        release_folder(folder, existed)
+        raise
+    except KeyboardInterrupt:  # before any run finished: no folder of nothing but a marker
+        release_folder(folder, existed)
+        raise
+    with journal(folder, [RESULTS_CSV]):  # its SHA-256 in the marker before it is in place
+        csv_path = write_csv(rows, Path(out_dir) / RESULTS_CSV)
+    record_outputs(folder, [RESULTS_CSV], extra={"sweep_points": identity})
+    return say_outcome(rows, [*spec.grid, TRIAL_KEY], csv_path)
