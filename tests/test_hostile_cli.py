@@ -278,3 +278,13 @@ def test_a_calibration_target_at_the_lidar_fits_no_wall():
 
     assert _fov_of_spread(1.0, 0.0, 8) == 180.0 >= MAX_FIT_FOV
     assert 0 < _fov_of_spread(1.0, 1e6, 8) < MAX_FIT_FOV
+
+
+def test_a_calibration_with_a_byte_order_mark_can_be_replaced(calibrated_wall, tmp_path):
+    """Read with a byte-order mark by ``--calibration``, it was "not a spslidar calibration"
+    to ``calibrate --overwrite``, which read it without."""
+    from spslidar.pipeline.calibration_file import check_calibration_out
+
+    bom = tmp_path / "bom.json"
+    bom.write_bytes(b"\xef\xbb\xbf" + (calibrated_wall / "cal.json").read_bytes())
+    assert check_calibration_out(bom, overwrite=True) == bom

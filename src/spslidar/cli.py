@@ -165,10 +165,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--solver", choices=solvers, default=S,
                    help=f"reconstruction algorithm: {solvers_help}")
     _add_stage_options(g, "solver")
-    from .solvers import REGULARISERS
-
-    g.add_argument("--regulariser", choices=("auto", *REGULARISERS.names()), default=S,
-                   help=f"auto: the solver's default; {REGULARISERS.help_text()}")
+    _add_regulariser_option(g)
     g.add_argument("--lam", type=float, default=S, metavar="W",
                    help="regularisation weight (default: lam-scale x the noise level estimated "
                         "from the measurements, never below 0.003 max|A^T y|, where the "
@@ -213,6 +210,15 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="refuse a run whose estimated time exceeds this: seconds, or with a "
                         "unit (90s, 10min, 2h; default 1h); a run estimated over 30 s says so "
                         "before it starts")
+
+
+def _add_regulariser_option(g) -> None:
+    """``--regulariser``, its choices and help from the registry (run's and reconstruct's)."""
+    from .solvers import REGULARISERS
+
+    g.add_argument("--regulariser", choices=("auto", *REGULARISERS.names()),
+                   default=argparse.SUPPRESS,
+                   help=f"auto: the solver's default; {REGULARISERS.help_text()}")
 
 
 def _add_stage_options(g, option: str) -> None:

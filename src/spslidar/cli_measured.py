@@ -35,7 +35,13 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
 
 def add_reconstruct_parser(sub) -> None:
     """``spslidar reconstruct``: a measured T3 PTU acquisition -> depth map."""
-    from .cli import _add_fov_option, _add_stage_options, _choices, _duration
+    from .cli import (
+        _add_fov_option,
+        _add_regulariser_option,
+        _add_stage_options,
+        _choices,
+        _duration,
+    )
 
     solvers, _ = _choices("solver")
     depths, _ = _choices("depth")
@@ -60,10 +66,7 @@ def add_reconstruct_parser(sub) -> None:
     _add_fov_option(p)
     p.add_argument("--solver", choices=solvers, default=S)
     _add_stage_options(p, "solver")
-    from .solvers import REGULARISERS
-
-    p.add_argument("--regulariser", choices=("auto", *REGULARISERS.names()), default=S,
-                   help=f"auto: the solver's default; {REGULARISERS.help_text()}")
+    _add_regulariser_option(p)
     p.add_argument("--depth", choices=depths, default=S)
     _add_stage_options(p, "depth")
     p.add_argument("--lam-scale", type=float, default=S, metavar="K")

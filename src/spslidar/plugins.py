@@ -87,6 +87,12 @@ def where(exc: BaseException) -> str:
     return _place(frames[-1]) if frames else ""
 
 
+def _loaded_files() -> list[Path]:
+    """The resolved files of the loaded plugins (a package plugin's ``__init__.py``)."""
+    return [Path(m.__file__).resolve() for m in _LOADED.values()
+            if getattr(m, "__file__", None)]
+
+
 def raised_in_plugin(exc: BaseException) -> str | None:
     """`` (file.py:LINE)`` of the last frame of a loaded plugin's own code in ``exc``'s
     traceback, or ``None`` where none of it ran there: an error raised while a researcher's
@@ -95,8 +101,7 @@ def raised_in_plugin(exc: BaseException) -> str | None:
     without its monitor each ended in one)."""
     import traceback
 
-    files = {str(Path(m.__file__).resolve()) for m in _LOADED.values()
-             if getattr(m, "__file__", None)}
+    files = {str(f) for f in _loaded_files()}
     if not files:
         return None
     found = None
@@ -167,13 +172,9 @@ def code_fingerprint() -> str:
     from .version import __version__
 
     package = Path(__file__).resolve().parent
-    files = set(package.rglob("*.py"))
-    folders = set()
-    for module in list(_LOADED.values()):
-        name = getattr(module, "__file__", None)
-        if name:
-            files.add(Path(name).resolve())
-            folders.add(Path(name).resolve().parent)
+    plugin_files = _loaded_files()
+    files = set(package.rglob("*.py")) | set(plugin_files)
+    folders = {f.parent for f in plugin_files}
     if folders:
         for module in list(sys.modules.values()):
             name = getattr(module, "__file__", None)

@@ -126,9 +126,11 @@ def too_many_counts(per_bin: float) -> str:
 def check_rates(lam) -> None:
     """A detector's expected photons per bin: finite and non-negative, or one ``ValueError``
     (NaN read "lam value too large" from NumPy's sampler, and a GMAPD took negative means:
-    an audit of 2026-11-29)."""
+    an audit of 2026-11-29). Two reductions, as :func:`check_means` reads its means (whose
+    bound on float32 counts a GMAPD's flux does not have)."""
     a = np.asarray(lam)
-    if a.size and not (np.isfinite(a).all() and a.min() >= 0):
+    # NaN fails every comparison, so the two reductions check finiteness and sign at once
+    if a.size and not (a.min() >= 0 and a.max() < np.inf):
         raise ValueError("a detector's expected photons per bin must be finite and "
                          "non-negative")
 

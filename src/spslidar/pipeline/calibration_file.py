@@ -27,6 +27,12 @@ CAL_KIND = "spslidar-calibration"
 MAX_CAL_BYTES = 64 * 2**20
 
 
+def _file_of_a_calibration(path: Path) -> bool:
+    """Whether ``path`` can be a calibration to read whole: a regular file of at most
+    ``MAX_CAL_BYTES`` (a FIFO hung the command, ``/dev/zero`` ran out of memory)."""
+    return path.is_file() and path.stat().st_size <= MAX_CAL_BYTES
+
+
 def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Path:
     """Refuse (one line) to write ``CAL.json`` over anything but a calibration spslidar
     wrote, and that only with ``overwrite``, or where it cannot be written (a file in its
@@ -46,9 +52,9 @@ def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Pa
         try:
             # (a FIFO hung the command, /dev/zero ran out of memory, a deeply nested file
             # ended in a RecursionError: an audit of 2026-11-29)
-            if not path.is_file() or path.stat().st_size > MAX_CAL_BYTES:
+            if not _file_of_a_calibration(path):
                 raise ValueError("not a calibration's size or kind of file")
-            old = json.loads(path.read_text())
+            old = json.loads(path.read_text(encoding="utf-8-sig"))  # (as it is loaded)
             ours = old.get("kind") == CAL_KIND
         except (OSError, ValueError, AttributeError, RecursionError):
             ours = False
@@ -123,7 +129,7 @@ def load_calibration(path: str | os.PathLike, bit_rate: float, code: np.ndarray)
     other code bits of the same length applies, and ``metrics.json`` says whether they were
     the same); one line otherwise, and for a file edited since it was written."""
     p = Path(path)
-    if p.exists() and (not p.is_file() or p.stat().st_size > MAX_CAL_BYTES):
+    if p.exists() and not _file_of_a_calibration(p):
         # (/dev/zero: a MemoryError traceback, an audit of 2026-11-29)
         raise ConfigError(f"--calibration {p} is not a calibration file (not a regular file "
                           f"of at most {MAX_CAL_BYTES // 2**20} MiB)")

@@ -22,7 +22,7 @@ import sys
 
 import numpy as np
 
-__all__ = ["fresh_digest", "output_digest"]
+__all__ = ["digest", "fresh_digest", "output_digest"]
 
 #: seconds a fresh interpreter may take to import spslidar, the plugins and make the output
 TIMEOUT_S = 120
@@ -30,34 +30,39 @@ TIMEOUT_S = 120
 HASH_SEEDS = ("1", "2")
 
 
+def digest(arrays) -> str:
+    """SHA-256 of a stage's probe output, its arrays' bytes in order."""
+    h = hashlib.sha256()
+    for a in arrays:
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
 def output_digest(kind: str, name: str) -> str:
-    """SHA-256 of the probe output of stage ``name`` (``kind`` ``code`` or ``scene``), as the
-    conformance checks build it."""
+    """:func:`digest` of the probe output of stage ``name`` (``kind`` ``code`` or
+    ``scene``), as the conformance checks build it."""
     from . import stages
 
-    h = hashlib.sha256()
     if kind == "code":
-        h.update(np.ascontiguousarray(stages.probe_code(name)[0]).tobytes())
-    elif kind == "scene":
+        make, index = stages.probe_code(name)
+        return digest((make(index),))
+    if kind == "scene":
         from ..scenes import load_scene
 
         scene = load_scene(stages.scene_spec(name), stages.scene_size(name))
-        for a in (scene.depth, scene.reflectivity, scene.valid):
-            h.update(np.ascontiguousarray(a).tobytes())
-    else:
-        raise ValueError(f"no fresh-process digest for stage kind {kind!r}")
-    return h.hexdigest()
+        return digest((scene.depth, scene.reflectivity, scene.valid))
+    raise ValueError(f"no fresh-process digest for stage kind {kind!r}")
 
 
 def _importable(entry) -> list[str] | None:
     """The plugin specs a new interpreter needs to know ``entry`` (``None``: it cannot)."""
     from .. import plugins
+    from . import is_plugin
 
-    origin = getattr(entry, "origin", "")
-    if origin == "spslidar" or origin.startswith("spslidar."):
+    if not is_plugin(entry):
         return []
-    loaded = {getattr(m, "__name__", None): spec for spec, m in plugins._LOADED.items()}
-    if origin not in loaded:
+    loaded = {getattr(m, "__name__", None) for m in plugins._LOADED.values()}
+    if getattr(entry, "origin", "") not in loaded:
         return None
     return list(plugins._LOADED)  # all of them, in order: one may import another's stages
 

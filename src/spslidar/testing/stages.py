@@ -89,10 +89,10 @@ def check_code_family(name: str) -> list[str]:
     list of str
         The contracts checked.
     """
-    code, make = probe_code(name)
-    length, index = code.size, make.index
+    make, index = probe_code(name)
+    code, again = make(index), make(index)
+    length = code.size
     what = f"code family {name!r} at {length} bits"
-    again = make()
     if code.shape != (length,):
         raise _fail(what, f"shape {code.shape}, not ({length},)")
     if not set(np.unique(code).tolist()) <= {0, 1}:
@@ -117,12 +117,12 @@ def check_code_family(name: str) -> list[str]:
         raise _fail(what, f"index {index + 1} gives the same code as index {index}: refuse "
                           f"an index the family does not have (ConfigError), or honour it")
     return ["length", "bits", "reproducible", "balanced", "single correlation peak",
-            "index selects", *_same_in_a_fresh_process("code", name, what)]
+            "index selects", *_same_in_a_fresh_process("code", name, what, (code,))]
 
 
 def probe_code(name: str):
-    """The probe's code of family ``name`` and the function that made it (``make(index)``,
-    its ``index`` attribute the entry's default), as :func:`check_code_family` builds them."""
+    """``(make, index)``: the probe's maker of family ``name``'s code, ``make(index)``, and the
+    entry's default index, as :func:`check_code_family` builds them."""
     from ..codes import CODES
 
     cfg = _code_config(name)
@@ -130,23 +130,22 @@ def probe_code(name: str):
     options = chosen_stage_options(cfg, "code")
     length = cfg.code_length
 
-    def make(index=None):
-        index = make.index if index is None else index
+    def make(index):
         return np.asarray(entry.load()(name, length, 0.5, rng=np.random.default_rng(1),
                                        index=index, **options))
 
-    make.index = entry.defaults.get("index", 0)
-    return make(), make
+    return make, entry.defaults.get("index", 0)
 
 
-def _same_in_a_fresh_process(kind: str, name: str, what: str) -> list[str]:
-    """The contract of :mod:`.process` (none where the stage cannot be built afresh)."""
-    from .process import fresh_digest, output_digest
+def _same_in_a_fresh_process(kind: str, name: str, what: str, arrays) -> list[str]:
+    """The contract of :mod:`.process` (none where the stage cannot be built afresh), on the
+    probe output ``arrays`` this process built."""
+    from .process import digest, fresh_digest
 
     there = fresh_digest(kind, name)
     if there is None:
         return []
-    if set(there) != {output_digest(kind, name)}:
+    if set(there) != {digest(arrays)}:
         raise _fail(what, "another output in a fresh process (another PYTHONHASHSEED): a "
                           "sweep's workers would each get their own; draw from the rng given "
                           "or from the arguments, not from hash(), the time or a global state")
@@ -456,4 +455,5 @@ def check_scene_kind(name: str) -> list[str]:
             raise _fail(what, f"rescaled into [{near:g}, {far:g}] m it spans "
                               f"[{d.min():.9g}, {d.max():.9g}]")
     return ["shape", "valid values", "deterministic", "rescaled into a window",
-            *_same_in_a_fresh_process("scene", name, what)]
+            *_same_in_a_fresh_process("scene", name, what,
+                                      (a.depth, a.reflectivity, a.valid))]

@@ -21,12 +21,11 @@ from typing import Any
 from spslidar.errors import ConfigError
 from spslidar.experiments.sweep.grid import (
     ERROR_KEY,
-    KEY_LENGTH,
     canonical,
     canonical_json,
     check_int,
     one_line,
-    sha256_hex,
+    text_key,
     with_seed,
 )
 from spslidar.experiments.sweep.store import load_cached, store_run
@@ -422,7 +421,7 @@ def run_sweep(
         canonical(dict(point), f"point {i}")  # validate first, for a clear message
         params = with_seed(point, seed, ignore)
         text = canonical_json(params, f"point {i}")
-        key = sha256_hex(text)[:KEY_LENGTH]
+        key = text_key(text)
         full_params.append(params)
         keys.append(key)
         params_json.setdefault(key, text)
@@ -481,9 +480,8 @@ def run_sweep(
                         status, payload = "error", _error_message(exc)
                     else:
                         results[key] = result
-                        stored_params = json.loads(params_json[key])
-                        store_run(runs_dir / f"{key}.json", key, stored_params, result,
-                                  elapsed, code)
+                        store_run(runs_dir / f"{key}.json", key, given, result, elapsed,
+                                  code)
                 if status != "ok":
                     errors[key] = str(payload)
                     bar.set_postfix(failed=len(errors), refresh=False)

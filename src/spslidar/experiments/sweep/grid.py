@@ -47,6 +47,7 @@ __all__ = [
     "with_seed",
     "load_sweep_config",
     "point_key",
+    "text_key",
 ]
 
 #: Parameter added to every point by :func:`expand_grid` (the Monte-Carlo trial index).
@@ -203,7 +204,13 @@ def point_key(params: Mapping[str, Any]) -> str:
     str
         The key; the point is cached in ``out_dir/runs/<key>.json``.
     """
-    return sha256_hex(canonical_json(params))[:KEY_LENGTH]
+    return text_key(canonical_json(params))
+
+
+def text_key(text: str) -> str:
+    """The cache key of a point's canonical JSON text (:func:`point_key` of its params): for
+    whoever holds the text already, to read the cache record against it."""
+    return sha256_hex(text)[:KEY_LENGTH]
 
 
 # --------------------------------------------------------------------------------------------
