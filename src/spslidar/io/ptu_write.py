@@ -1,5 +1,5 @@
 """Writing simulated acquisitions as PicoQuant T3 PTU files (the record layouts and the reason
-for an own encoder are in :mod:`spslidar.io.ptu`)."""
+for an own encoder are in :mod:`spslidar.io.ptu_format`)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..version import __version__
-from .ptu import (
+from .ptu_format import (
     _FAMILY,
     _MAGIC,
     _TAG,

@@ -1,0 +1,298 @@
+"""The PTU container: PicoQuant's T3 and T2 record types, opening a file, its header
+summary and the checks a T3 acquisition must pass, shared by the reader (:mod:`spslidar.io.ptu`)
+and the writer (:mod:`spslidar.io.ptu_write`).
+
+Record layouts (32-bit little-endian words, PicoQuant's published TTTR formats):
+
+=================  ==========================================================================
+``PicoHarpT3``     channel 4 bits (31-28; photons 1..4, 15 = special), dtime 12 bits (27-16),
+                   nsync 16 bits (15-0). Special: dtime 0 = overflow (+65536 syncs), else
+                   marker with the marker bits in the low 4 bits of dtime.
+``HydraHarpT3``    special 1 bit (31), channel 6 bits (30-25), dtime 15 bits (24-10),
+                   nsync 10 bits (9-0). Special: channel 63 = overflow (+1024 syncs, v1
+                   ignores the nsync field), channel 1..15 = marker bits.
+``HydraHarp2T3``   as ``HydraHarpT3`` but an overflow record adds ``1024 * nsync`` syncs
+                   (``nsync == 0`` counts as 1). ``TimeHarp260NT3``, ``TimeHarp260PT3`` and
+                   ``GenericT3`` (MultiHarp, PicoHarp 330) use the same layout.
+=================  ==========================================================================
+
+All six T3 record types are read (decoded by ``ptufile``) and written (own encoder).
+
+Why an own writer: ``ptufile.PtuWriter`` only encodes TCSPC *image* stacks (line/frame markers
+at fixed pixel times), not event lists. ``tttrlib`` 0.26.2 (9 MB compiled wheel) installs
+cleanly and encodes HydraHarp T3 v2 records correctly (``TTTR.append_events`` +
+``TTTR.write``), but its PTU header writer is documented as unimplemented and in practice
+writes a ``Header_End`` identifier with uninitialised bytes and no
+``TTResultFormat_BitsPerRecord`` / ``TTResult_NumberOfRecords`` tags, so ``ptufile`` cannot open
+its output. The documented format takes ~150 lines of NumPy + ``struct``, with no dependency.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import struct
+import warnings
+from datetime import datetime
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+
+PathLike = str | os.PathLike
+
+#: T3 record types: name -> (TTResultFormat_TTTRRecType, layout family, hardware name)
+T3_RECORD_TYPES: dict[str, tuple[int, str, str]] = {
+    "PicoHarpT3": (0x00010303, "picoharp", "PicoHarp 300"),
+    "HydraHarpT3": (0x00010304, "hydraharp1", "HydraHarp"),
+    "HydraHarp2T3": (0x01010304, "hydraharp2", "HydraHarp"),
+    "TimeHarp260NT3": (0x00010305, "hydraharp2", "TimeHarp 260 N"),
+    "TimeHarp260PT3": (0x00010306, "hydraharp2", "TimeHarp 260 P"),
+    "GenericT3": (0x00010307, "hydraharp2", "MultiHarp"),
+}
+#: T2 record types (absolute time tags, no sync reference): code -> name
+T2_RECORD_TYPES: dict[int, str] = {
+    0x00010203: "PicoHarpT2", 0x00010204: "HydraHarpT2", 0x01010204: "HydraHarp2T2",
+    0x00010205: "TimeHarp260NT2", 0x00010206: "TimeHarp260PT2", 0x00010207: "GenericT2",
+}
+_T3_BY_CODE = {code: (name, family) for name, (code, family, _) in T3_RECORD_TYPES.items()}
+#: per layout family: (sync counter wrap, dtime limit, photon channel limit)
+_FAMILY = {"picoharp": (65536, 4096, 4), "hydraharp1": (1024, 32768, 64),
+           "hydraharp2": (1024, 32768, 64)}
+
+_MAGIC = b"PQTTTR\x00\x00"
+_TAG = struct.Struct("<32siI")  # ident, index, type; followed by an 8-byte value
+# tag type codes: Empty8, Int8, Float8, TDateTime, AnsiString
+_TY_EMPTY8, _TY_INT8, _TY_FLOAT8 = 0xFFFF0008, 0x10000008, 0x20000008
+_TY_TDATETIME, _TY_ANSISTRING = 0x21000008, 0x4001FFFF
+
+
+
+def _positive_int(value: Any, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise ConfigError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
+
+
+def _marker_input(marker: Any) -> int:
+    if isinstance(marker, bool) or not isinstance(marker, int | np.integer) or not (
+            1 <= marker <= 4):
+        raise ConfigError(f"marker must be a marker input number 1..4, got {marker!r}")
+    return int(marker)
+
+
+def _import_ptufile():
+    try:
+        import ptufile
+    except ImportError as exc:
+        raise ConfigError(
+            "reading PTU files needs the 'ptufile' package (a dependency of spslidar): "
+            "pip install ptufile"
+        ) from exc
+    return ptufile
+
+
+@contextlib.contextmanager
+def _ptufile_log():
+    """The records ptufile logs while a file is opened, kept from stderr: it logs a tag it
+    cannot read (and stops reading the header there) instead of raising, which printed a
+    second line before spslidar's own, which then named the wrong cause."""
+    records: list[logging.LogRecord] = []
+
+    class _Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            records.append(record)
+
+    log = logging.getLogger("ptufile")
+    handler, propagate = _Keep(logging.WARNING), log.propagate
+    log.addHandler(handler)
+    log.propagate = False
+    try:
+        yield records
+    finally:
+        log.removeHandler(handler)
+        log.propagate = propagate
+
+
+def _tag_of(message: str) -> str:
+    """`` at tag 'NAME'`` from a ptufile message (``... tagid='NAME', ...``), or nothing."""
+    i = message.find("tagid=")
+    return f" at tag {message[i + 6:].split(',')[0]}" if i >= 0 else ""
+
+
+#: PicoQuant's files before PTU, by the identifier they begin with (16 bytes, NUL-padded):
+#: (device, their extensions, whether PTU has a record type for their T3 records)
+_LEGACY = {b"PicoHarp 300": ("PicoHarp 300", (".pt3", ".pt2", ".phd"), True),
+           b"HydraHarp": ("HydraHarp", (".ht3", ".ht2", ".hhd"), True),
+           b"TimeHarp 200": ("TimeHarp 200", (".t3r", ".thd"), False)}
+#: PicoQuant's other tagged files: ptufile opens them, they hold no time tags
+_OTHER_PQ = {b"PQHISTO\0": "a PicoQuant histogram file (.phu), not time-tagged records"}
+
+
+def _legacy_format(path: PathLike) -> str | None:
+    """What a file that is not PTU is, in words with what to do, where its first bytes are
+    one of PicoQuant's other formats (:data:`_LEGACY`, :data:`_OTHER_PQ`); else None."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(16)
+    except OSError:
+        return None
+    if head[:8] in _OTHER_PQ:
+        return (f"{_OTHER_PQ[head[:8]]}: spslidar reads T3 PTU files (.ptu); record the "
+                f"lidar in T3 (TTTR) mode")
+    ident = head.split(b"\0")[0].rstrip()
+    if ident not in _LEGACY:
+        return None
+    device, exts, in_ptu = _LEGACY[ident]
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    kind = ext if ext in exts else "/".join(exts)
+    what = (f"a legacy {device} {kind} file (PicoQuant's format before PTU), which spslidar "
+            f"does not read")
+    if in_ptu:
+        return (f"{what}: convert it to PTU (a T3 file's records are the same in PTU, under a "
+                f"PTU header) or record in PTU (.ptu)")
+    return (f"{what}: PTU has no {device} record type, so it cannot be converted; record in "
+            f"PTU (.ptu) with a PTU-capable instrument")
+
+
+def _open_ptu(path: PathLike):
+    """Open ``path`` with ``ptufile.PtuFile``, mapping failures to one-line ConfigErrors."""
+    ptufile = _import_ptufile()
+    if not os.path.exists(path):
+        raise ConfigError(f"PTU file not found: {os.fspath(path)!r}")
+    if not os.path.isfile(path):
+        raise ConfigError(f"{os.fspath(path)!r} is not a PTU file (a folder or a device, not a "
+                          f"regular file)")
+    try:
+        with _ptufile_log() as logged:
+            f = ptufile.PtuFile(path)
+    except ptufile.PqFileError as exc:
+        legacy = _legacy_format(path)
+        if legacy:
+            raise ConfigError(f"{os.fspath(path)!r} is {legacy}") from exc
+        msg = (str(exc).splitlines() or [type(exc).__name__])[0][:120]
+        what = ("has a truncated or corrupt PTU tag header" if "corrupted" in msg
+                else "is not a readable PicoQuant PTU file")
+        raise ConfigError(f"{os.fspath(path)!r} {what} ({msg})") from exc
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"cannot open {os.fspath(path)!r} as a PTU file: {exc}") from exc
+    except Exception as exc:  # ptufile's parser on a header cut short (UnboundLocalError...)
+        raise ConfigError(f"{os.fspath(path)!r} has a truncated or corrupt PTU tag header "
+                          f"(the file ends after {os.path.getsize(path)} bytes, or a tag is "
+                          f"malformed)") from exc
+    bad = [r for r in logged if r.levelno >= logging.ERROR]
+    if bad:  # ptufile logs a tag it cannot read and stops reading the header there
+        f.close()
+        raise ConfigError(f"{os.fspath(path)!r} has a truncated or corrupt PTU tag header "
+                          f"(ptufile: {bad[0].getMessage().split(' @ ')[0]}"
+                          f"{_tag_of(bad[0].getMessage())})")
+    for r in logged:  # duplicate tags and the like: one line each, as any warning
+        warnings.warn(f"{os.fspath(path)!r}: ptufile: {r.getMessage()[:160]}", stacklevel=2)
+    return f
+
+
+def _header_summary(f, path: PathLike) -> dict[str, Any]:
+    tags = f.tags
+    code = tags.get("TTResultFormat_TTTRRecType")
+    if code in _T3_BY_CODE:
+        rtype = _T3_BY_CODE[code][0]
+    elif code in T2_RECORD_TYPES:
+        rtype = T2_RECORD_TYPES[code]
+    else:
+        rtype = None if code is None else f"unknown(0x{int(code):08x})"
+    mode = tags.get("Measurement_Mode")
+    glob = float(tags.get("MeasDesc_GlobalResolution", 0.0) or 0.0)
+    res = float(tags.get("MeasDesc_Resolution", 0.0) or 0.0)
+    created = tags.get("File_CreatingTime")
+    acq_ms = tags.get("MeasDesc_AcquisitionTime")
+    data_bytes = max(0, os.path.getsize(path) - f.record_offset)
+    return {
+        "path": os.fspath(path),
+        "version": f.version,
+        "record_type": rtype,
+        "record_type_code": None if code is None else int(code),
+        "measurement_mode": {2: "T2", 3: "T3"}.get(mode, mode),
+        "n_records": int(tags.get("TTResult_NumberOfRecords", 0) or 0),
+        "n_records_in_file": data_bytes // 4,
+        "resolution_s": res,
+        "sync_period_s": glob,
+        "sync_rate_hz": tags.get("TTResult_SyncRate"),
+        "bins_per_period": glob / res if res > 0 else None,
+        "acquisition_time_s": None if acq_ms is None else float(acq_ms) * 1e-3,
+        "hardware": tags.get("HW_Type"),
+        "creator": tags.get("CreatorSW_Name"),
+        "comment": tags.get("File_Comment"),
+        "created": created.isoformat() if isinstance(created, datetime) else created,
+    }
+
+
+def _finite_number(value, name: str, positive: bool = False,
+                   hi: float | None = None) -> float:
+    """``value`` as a finite float >= 0 (> 0 with ``positive``; at most ``hi`` where given),
+    or one line."""
+    import math
+
+    if isinstance(value, (bool, str, bytes)) or np.iscomplexobj(value):
+        raise ConfigError(f"{name} must be a number, got {value!r}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be a number, got {value!r}") from None
+    if hi is not None and not (v <= hi and (v > 0 if positive else v >= 0)):
+        raise ConfigError(f"{name} must be in {'(' if positive else '['}0, {hi:g}], got "
+                          f"{value!r}")
+    if not math.isfinite(v) or v < 0 or (positive and v == 0):
+        raise ConfigError(f"{name} must be a finite number {'>' if positive else '>='} 0, "
+                          f"got {value!r}")
+    return v
+
+
+
+def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
+    """(layout family, number of records) of a T3 file; raise for T2, unknown or truncated."""
+    code = header["record_type_code"]
+    if code is None:
+        raise ConfigError(f"{path!r}: header has no TTResultFormat_TTTRRecType tag")
+    if code in T2_RECORD_TYPES:
+        raise ConfigError(f"{path!r} holds T2 records ({header['record_type']}): absolute time "
+                          "tags without a sync reference; record the lidar in T3 mode")
+    if header["measurement_mode"] == "T2":  # ("holds T2 records (PicoHarpT3)" contradicted)
+        raise ConfigError(f"{path!r}: its header says T2 mode (Measurement_Mode 2) but "
+                          f"{header['record_type']} records: the header contradicts itself")
+    if code not in _T3_BY_CODE:
+        raise ConfigError(f"{path!r}: unsupported TTTR record type 0x{code:08x}")
+    bits = f.tags.get("TTResultFormat_BitsPerRecord", 32)
+    if bits not in (0, 32):
+        raise ConfigError(f"{path!r}: {bits} bits per record, expected 32")
+    n_records = header["n_records"]
+    available = os.path.getsize(path) - f.record_offset
+    whole, stray = divmod(available, 4)
+    if n_records < 0:  # a corrupt header: no reader can say which records are meant
+        raise ConfigError(f"{path!r}: header announces {n_records} records (corrupt file)")
+    if n_records == 0:  # no record count in the header: the whole file, as ptufile reads it
+        n_records = whole
+        if whole:
+            left = (f"; the last {stray} byte{'s' if stray != 1 else ''}, part of a record, "
+                    f"are left out" if stray else "")
+            said = ("is 0" if "TTResult_NumberOfRecords" in f.tags else "is missing")
+            warnings.warn(f"{path!r}: the header's record count (TTResult_NumberOfRecords) "
+                          f"{said}, as an acquisition that did not finish (or software "
+                          f"that does not fill it in) leaves it: all {whole} whole records "
+                          f"in the file are read, as ptufile does{left}; check that the "
+                          f"acquisition is complete",
+                          RuntimeWarning, stacklevel=3)
+    elif available < 4 * n_records:
+        raise ConfigError(f"{path!r} is truncated: header announces {n_records} records "
+                          f"({4 * n_records} bytes) but only {available} bytes follow the header")
+    elif available > 4 * n_records:
+        more = (f"{whole} whole records" if whole > n_records
+                else f"{n_records} records and {stray} stray byte{'s' if stray != 1 else ''}")
+        warnings.warn(f"{path!r}: the header says {n_records} records "
+                      f"(TTResult_NumberOfRecords) but the file holds {more} after the header: "
+                      f"only the first {n_records} are read, as ptufile and PicoQuant's readers "
+                      f"do; if the rest is part of the acquisition, the header's count is wrong "
+                      f"(correct TTResult_NumberOfRecords to {whole})",
+                      RuntimeWarning, stacklevel=3)
+    return _T3_BY_CODE[code][1], n_records
