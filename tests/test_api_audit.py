@@ -175,3 +175,28 @@ def test_a_detector_refuses_impossible_means(name, bad):
 
     with pytest.raises(ValueError, match="finite and non-negative"):
         build_detector(name).detect(np.array([[0.5, bad]]), np.random.default_rng(0))
+
+
+def test_stage_names_are_read_in_any_case():
+    """Scene names were read in any case, but ``solver="FISTA"`` (Config or ``--solver``) was
+    an unknown stage: every registry now reads a name that differs only in case as the
+    registered one, and metrics say the registered spelling."""
+    from spslidar.cli import build_parser
+    from spslidar.config import Config
+    from spslidar.registry import Registry
+
+    cfg = Config(solver="FISTA", detector="GMAPD", depth="Mrf", code="MSEQ",
+                 patterns="Gaussian", dead_time=2e-8)
+    assert (cfg.solver, cfg.detector, cfg.depth, cfg.code, cfg.patterns) == (
+        "fista", "gmapd", "mrf", "mseq", "gaussian")
+    assert cfg.extra["dead_time"] == 2e-8  # the stage's option reached the canonical stage
+    args = build_parser().parse_args(["run", "--out", "o", "--solver", "TwIST", "--depth", "ARGMAX"])
+    assert (args.solver, args.depth) == ("twist", "argmax")
+    with pytest.raises(ConfigError, match="unknown solver 'fistaa'"):
+        Config(solver="fistaa")
+    reg = Registry("thing", "thing")  # two entries differing only in case stay exact
+    reg.add("a", object)
+    reg.add("A", dict)
+    assert reg.canonical("a") == "a" and reg.canonical("A") == "A"
+    with pytest.raises(ConfigError, match="unknown thing"):
+        reg.get(reg.canonical("b"))

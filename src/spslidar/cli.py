@@ -51,6 +51,14 @@ def _choices(option: str):
     return reg.names(), reg.help_text()
 
 
+def _stage_name(option: str):
+    """An argparse ``type`` that reads a stage's name in any case (``--solver FISTA``), before
+    argparse checks it against the registered names."""
+    from .config import registries
+
+    return registries()[option].canonical
+
+
 def _add_run_options(p: argparse.ArgumentParser) -> None:
     S = argparse.SUPPRESS  # only options given on the command line override the config file
     codes, codes_help = _choices("code")
@@ -74,7 +82,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="psst: pseudo-random coded laser (default); conventional: periodic "
                         "single pulses in the same acquisition time (whole pulse periods: up "
                         "to one period less)")
-    g.add_argument("--code", choices=codes, default=S, help=codes_help)
+    g.add_argument("--code", choices=codes, type=_stage_name("code"), default=S, help=codes_help)
     _add_stage_options(g, "code")
     g.add_argument("--code-length", type=int, default=S, metavar="L",
                    help="bits per code period; 2^n - 1 for mseq/gold (default 16383); sets the "
@@ -106,7 +114,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--periods", type=int, default=S, metavar="N",
                    help="code periods accumulated per DMD pattern, the dwell (default 1, the "
                         "paper's); signal and noise photons grow with it")
-    g.add_argument("--patterns", choices=patterns, default=S,
+    g.add_argument("--patterns", choices=patterns, type=_stage_name("patterns"), default=S,
                    help=f"DMD patterns: {patterns_help}")
     _add_stage_options(g, "patterns")
     g.add_argument("--pattern-sigma", type=float, default=S, metavar="S",
@@ -140,7 +148,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="extra background counts per second (physical units)")
     g.add_argument("--dark-count-rate", type=float, default=S, metavar="CPS",
                    help="extra dark counts per second")
-    g.add_argument("--detector", choices=detectors, default=S,
+    g.add_argument("--detector", choices=detectors, type=_stage_name("detector"), default=S,
                    help=f"detector model: {detectors_help}")
     _add_stage_options(g, "detector")
     g.add_argument("--noiseless", action=argparse.BooleanOptionalAction, default=S,
@@ -162,7 +170,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="quadratic correlation reconstruction (default on)")
     g.add_argument("--qcr-form", choices=("centred", "covariance"), default=S,
                    help="centred least squares (default) or the paper's literal ||Delta - Hp||")
-    g.add_argument("--solver", choices=solvers, default=S,
+    g.add_argument("--solver", choices=solvers, type=_stage_name("solver"), default=S,
                    help=f"reconstruction algorithm: {solvers_help}")
     _add_stage_options(g, "solver")
     _add_regulariser_option(g)
@@ -184,7 +192,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                         "(default on; physical, since photon returns cannot be negative; "
                         "not with --regulariser wavelet, gpsr's default, whose prox has no "
                         "closed form under the bound: metrics.json's config says which)")
-    g.add_argument("--depth", choices=depths, default=S,
+    g.add_argument("--depth", choices=depths, type=_stage_name("depth"), default=S,
                    help=f"depth estimator: {depths_help}")
     _add_stage_options(g, "depth")
     g.add_argument("--subbin", action=argparse.BooleanOptionalAction, default=S,

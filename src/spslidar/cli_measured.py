@@ -41,6 +41,7 @@ def add_reconstruct_parser(sub) -> None:
         _add_stage_options,
         _choices,
         _duration,
+        _stage_name,
     )
 
     solvers, _ = _choices("solver")
@@ -64,10 +65,10 @@ def add_reconstruct_parser(sub) -> None:
                    help="(N, N) true depth in metres (NaN where unknown), only to score the "
                         "result: without it every metric that needs no truth is given")
     _add_fov_option(p)
-    p.add_argument("--solver", choices=solvers, default=S)
+    p.add_argument("--solver", choices=solvers, type=_stage_name("solver"), default=S)
     _add_stage_options(p, "solver")
     _add_regulariser_option(p)
-    p.add_argument("--depth", choices=depths, default=S)
+    p.add_argument("--depth", choices=depths, type=_stage_name("depth"), default=S)
     _add_stage_options(p, "depth")
     p.add_argument("--lam-scale", type=float, default=S, metavar="K")
     p.add_argument("--iterations", type=int, default=S, metavar="K")

@@ -371,6 +371,8 @@ class Config:
                                   f"about {v:.3g} expected photons per TDC bin per pixel, more "
                                   f"than the {MAX_COUNT_MEAN:.3g} a count holds exactly (a "
                                   f"real detector saturates at about one count per dead time)")
+        for reg in registries().values():  # "FISTA", "GMAPD": names are read in any case
+            setattr(self, reg.option, reg.canonical(getattr(self, reg.option)))
         self._validate_stage_options()
         number("lam", 0, optional=True)
         number("lam_scale", 0, lo_open=True, optional=True)

@@ -270,6 +270,15 @@ class Registry:
             raise ConfigError(f"unknown {opt} {name!r}; choose one of "
                               f"{', '.join(self.names())}{failed}") from None
 
+    def canonical(self, name: Any) -> Any:
+        """``name`` as registered where it differs only in case (``"FISTA"`` -> ``"fista"``,
+        as scene names already were read), else ``name`` unchanged, for :meth:`get` to take
+        or refuse. Two entries that differ only in case keep their exact spellings."""
+        if not isinstance(name, str) or name in self._entries:
+            return name
+        same = [n for n in self._entries if n.casefold() == name.casefold()]
+        return same[0] if len(same) == 1 else name
+
     def load(self, name: str) -> Any:
         """The implementation registered under ``name``."""
         return self.get(name).load()
