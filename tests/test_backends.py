@@ -421,3 +421,22 @@ def test_a_sweep_over_backends_compares_them_on_one_seed(tmp_path):
     rows = list(csv.DictReader(open(tmp_path / "o" / "results.csv", newline="")))
     assert rows[0]["seed"] == rows[1]["seed"]
     assert rows[0]["depth_rmse_m"] == rows[1]["depth_rmse_m"]  # 8x8: the same map
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--pattern-sigma", "1e-10"], "nothing to reconstruct"),
+    (["--signal", "1e-300", "--noise", "0", "--noiseless", "--scene", "steps", "--depth-min",
+      "1", "--depth-max", "2"], "measurements are not finite"),
+])
+@pytest.mark.parametrize("backend", ["numpy", STRICT])
+def test_a_device_reconstruction_keeps_the_hosts_refusals(tmp_path, capsys, args, words,
+                                                          backend):
+    """Patterns without contrast and measurements that are not finite were refused on the
+    NumPy path only: on another backend the first was a Lipschitz ValueError's traceback
+    out of the device FISTA, the second a diverged solve blamed on the weight."""
+    out = tmp_path / "o"
+    assert main(["run", "--size", "8", "--code-length", "127", "--no-figure", "--backend",
+                 backend, *args, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0], err
+    assert not out.exists()

@@ -60,11 +60,14 @@ __all__ = ["LAM_FLOOR", "PROCESSING_KEYS", "TV_INNER", "Measurement", "build_reg
            "solver_default", "timeline"]
 
 
-def _zero_operator(A) -> bool:
+def _zero_operator(A, be=None) -> bool:
     """Whether ``A`` maps a random vector to zero: patterns that do not vary (QCR centres them
-    to nothing), not a measurement without photons."""
-    v = np.random.default_rng(0).standard_normal(A.shape[1]).astype(A.dtype)
-    return not bool(np.any(np.asarray(A.matvec(v))))
+    to nothing), not a measurement without photons. ``be``: the array backend ``A`` lives on
+    (None: NumPy)."""
+    v = np.random.default_rng(0).standard_normal(A.shape[1])
+    if be is None:
+        return not bool(np.any(np.asarray(A.matvec(v.astype(A.dtype)))))
+    return not bool(be.xp.any(A.matvec(be.xp.astype(be.asarray(v), A.dtype)) != 0))
 
 
 def keeping_warnings(fn):
@@ -307,7 +310,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
             A, y = eliminated, eliminated.data(y)
         # the floor of the default weight, and the scale a given --lam is checked against
         lam_max = float(np.abs(np.asarray(A.rmatvec(y))).max(initial=0.0))
-    if not lam_max > 0 and not device and _zero_operator(A):
+    if not lam_max > 0 and _zero_operator(A, be if device else None):
         # (patterns without contrast: a Lipschitz traceback from the solver, an audit; no
         # photons at all, with patterns that vary, is an empty depth map, not an error)
         hint = (f" (--pattern-sigma {cfg.pattern_sigma:g} is below what {cfg.dtype} patterns "
@@ -354,7 +357,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
                 print(f"spslidar: the weight met its floor, so the solve runs up to "
                       f"{iterations} iterations: about {solve_s:.0f} s more (an estimate; "
                       f"--iterations to cap it)", file=sys.stderr, flush=True)
-    if not device and not np.isfinite(np.asarray(y)).all():
+    if not (bool(xp.all(xp.isfinite(y))) if device else bool(np.isfinite(np.asarray(y)).all())):
         # (a noiseless run at 1e-300 photons: its normalised correlations overflow; the
         # solvers now refuse such data, which the command line said as a traceback)
         raise ConfigError(f"the measurements are not finite in {cfg.dtype} (normalised to a "
