@@ -190,7 +190,8 @@ def test_stage_names_are_read_in_any_case():
     assert (cfg.solver, cfg.detector, cfg.depth, cfg.code, cfg.patterns) == (
         "fista", "gmapd", "mrf", "mseq", "gaussian")
     assert cfg.extra["dead_time"] == 2e-8  # the stage's option reached the canonical stage
-    args = build_parser().parse_args(["run", "--out", "o", "--solver", "TwIST", "--depth", "ARGMAX"])
+    args = build_parser().parse_args(["run", "--out", "o", "--solver", "TwIST", "--depth",
+                                      "ARGMAX"])
     assert (args.solver, args.depth) == ("twist", "argmax")
     with pytest.raises(ConfigError, match="unknown solver 'fistaa'"):
         Config(solver="fistaa")

@@ -245,7 +245,7 @@ def test_bad_files_raise_config_error(tmp_path):
     _raises("no markers at all", nomark, L)
     _raises("markers present on inputs \\[1\\]", good, L, marker=2)
 
-    _raises("6 marker-delimited blocks .* fewer than n_patterns=7", good, L, n_patterns=7)
+    _raises("6 marker-delimited blocks .* fewer than the 7 patterns", good, L, n_patterns=7)
 
     _raises("dtime resolution .* does not match bin_width", good, L, bin_width=1.5 * BW)
     # a bit rate a little off names the one the file's bins are (a user typed 10.3e9 for a

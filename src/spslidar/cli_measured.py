@@ -24,6 +24,8 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                    help="bits (TDC bins) per second; must match the file's resolution")
     p.add_argument("--marker", type=int, default=1, metavar="K",
                    help="marker input flagging a pattern change (default 1)")
+    p.add_argument("--marker-edge", choices=("start", "end"), default="start",
+                   help="whether the DMD's marker starts each pattern (default) or ends it")
     p.add_argument("--channel", type=int, metavar="C",
                    help="detector channel, numbered from 0: the channel field of HydraHarp, "
                         "TimeHarp and MultiHarp records; a PicoHarp's inputs 1-4 are 0-3 "
@@ -98,7 +100,8 @@ def cmd_reconstruct(args) -> int:
                              load_code(args.code, args.code_length), args.bit_rate,
                              tuple(args.range_gate), marker=args.marker, channel=args.channel,
                              allow_binning=args.allow_binning, truth=truth,
-                             calibration=args.calibration, **processing)
+                             calibration=args.calibration, marker_edge=args.marker_edge,
+                             **processing)
     for w in result.warnings:
         print(f"spslidar: warning: {w}", file=sys.stderr)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
@@ -160,7 +163,7 @@ def cmd_calibrate(args) -> int:
                         load_code(args.code, args.code_length), args.bit_rate, args.distance,
                         marker=args.marker, channel=args.channel,
                         allow_binning=args.allow_binning, target=args.target,
-                        fov_deg=args.fov)
+                        fov_deg=args.fov, marker_edge=args.marker_edge)
     path = write_calibration(cal, args.out, args.overwrite)
     _WRITTEN.append(str(path))
     period_ns = cal["code_length"] / args.bit_rate * 1e9

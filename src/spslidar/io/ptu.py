@@ -120,8 +120,9 @@ def ptu_info(path: PathLike) -> dict[str, Any]:
     Returns a dict: ``record_type`` (e.g. ``'HydraHarp2T3'``), ``measurement_mode``
     (``'T2'``/``'T3'``), ``n_records`` (header) and ``n_records_in_file`` (whole records after
     the header), ``resolution_s``, ``sync_period_s``, ``sync_rate_hz``, ``bins_per_period``,
-    ``acquisition_time_s``, ``hardware``, ``creator``, ``comment``, ``created``, ``version``,
-    ``path``. Raises :class:`~spslidar.errors.ConfigError` if ``path`` is not a PTU file.
+    ``acquisition_time_s``, ``hardware``, ``sync_divider`` (``HWSync_Divider``), ``creator``,
+    ``comment``, ``created``, ``version``, ``path``. Raises
+    :class:`~spslidar.errors.ConfigError` if ``path`` is not a PTU file.
     """
     with _open_ptu(path) as f:
         return _header_summary(f, path)
@@ -271,6 +272,8 @@ def read_ptu_histograms(
     marker: int = 1,
     channel: int | Sequence[int] | None = None,
     n_patterns: int | None = None,
+    extra_blocks: int = 0,
+    marker_edge: str = "start",
     chunk_records: int = 2**20,
     rtol: float = 1e-3,
     period_tol_bins: float = 0.5,
@@ -293,7 +296,15 @@ def read_ptu_histograms(
     ``n_dropped_before_first_marker``). Without ``n_patterns`` there is one pattern per marker,
     including blocks that hold no photons (a row of zeros), wherever they are in the file; with
     it the first ``n_patterns`` blocks are kept and later photons dropped
-    (``n_dropped_after_last_pattern``).
+    (``n_dropped_after_last_pattern``); ``extra_blocks`` keeps up to that many more where the
+    file holds them (the caller decides which block is not a pattern: an arming marker before
+    the first, an end-of-acquisition marker after the last).
+
+    **Marker edge.** ``marker_edge="start"`` (the default) reads a marker as the start of its
+    pattern, as above. ``"end"`` reads it as the end: photons up to the k-th marker (0-based)
+    and after the one before it belong to pattern k, pattern 0 starting with the measurement
+    (sync 0), and photons after the last marker are dropped (``n_dropped_after_last_pattern``);
+    nothing is dropped before the first. DMD controllers emit either.
 
     **A trailing empty block.** A marker that is the file's last event (an end-of-acquisition
     marker, or a pattern cut off at once) opens a block with no photons and a dwell of at most
@@ -335,6 +346,10 @@ def read_ptu_histograms(
         which the file holds no photon is refused.
     n_patterns : int, optional
         Number of patterns ``M``; the file must hold at least that many blocks.
+    extra_blocks : int
+        With ``n_patterns``: blocks beyond it to keep where the file holds them (default 0).
+    marker_edge : {"start", "end"}
+        Whether a marker starts (default) or ends its pattern's block.
     chunk_records : int
         Records per read/decode chunk (about 64 bytes of working memory each).
     rtol, period_tol_bins : float
@@ -365,6 +380,11 @@ def read_ptu_histograms(
     n_bins = _positive_int(n_bins, "n_bins")
     chunk_records = _positive_int(chunk_records, "chunk_records")
     limit = None if n_patterns is None else _positive_int(n_patterns, "n_patterns")
+    if isinstance(extra_blocks, bool) or not isinstance(extra_blocks, int | np.integer) or \
+            extra_blocks < 0:
+        raise ConfigError(f"extra_blocks must be an integer >= 0, got {extra_blocks!r}")
+    if marker_edge not in ("start", "end"):
+        raise ConfigError(f"marker_edge must be 'start' or 'end', got {marker_edge!r}")
     mask = 1 << (_marker_input(marker) - 1)
     if not isinstance(path, (str, os.PathLike)):
         raise ConfigError(f"path must be the path of a PTU file, got {type(path).__name__}")
@@ -398,7 +418,7 @@ def read_ptu_histograms(
             _check_histogram_memory(1, n_bins, chunk_records, spath)
             rows = _count_markers(f, n_records, chunk_records, mask, spath)
         else:
-            rows = limit
+            rows = limit + int(extra_blocks)
         _check_histogram_memory(rows, n_bins, chunk_records, spath)
         wrap = _FAMILY[family][0]
         hist = np.zeros((rows, n_bins), np.int32)  # counts per bin: < 2^31
@@ -428,7 +448,8 @@ def read_ptu_histograms(
             n_sel = int(np.count_nonzero(photon))
             n_photons += n_sel
             if n_sel:
-                block = (np.cumsum(is_mark, dtype=np.int64) + (n_markers - 1))[photon]
+                block = (np.cumsum(is_mark, dtype=np.int64)
+                         + (n_markers - (marker_edge == "start")))[photon]
                 bins = dec["dtime"][photon].astype(np.int64) // binning
                 keep = block >= 0
                 n_before += n_sel - int(np.count_nonzero(keep))
@@ -450,9 +471,12 @@ def read_ptu_histograms(
             f"{spath!r} has no marker records on marker input {marker} (needed to split photons"
             " into patterns); "
             + (f"markers present on inputs {seen}" if seen else "the file has no markers at all"))
-    if n_markers < rows:
+    if n_markers < rows - (0 if limit is None else extra_blocks):
         raise ConfigError(f"{spath!r} has {n_markers} marker-delimited blocks on marker input "
-                          f"{marker}, fewer than n_patterns={rows}")
+                          f"{marker}, fewer than the {rows - extra_blocks} patterns")
+    if n_markers < rows:  # the extra blocks the file does not hold
+        n_after += int(hist[n_markers:].sum(dtype=np.int64))  # ("end": after the last marker)
+        rows, hist = n_markers, hist[:n_markers]
     if channels is not None and not seen_channels[channels].all():
         # (every listed channel: [0, 2] on a file without photons on 2 was taken)
         have = ", ".join(map(str, np.flatnonzero(seen_channels))) or "no channel"
@@ -461,8 +485,13 @@ def read_ptu_histograms(
             f"{spath!r} has no photons on channel {', '.join(map(str, empty))} "
             f"(channels are numbered from 0; photons on {have})")
     counts = hist.sum(axis=1, dtype=np.int64)
-    end = starts[rows] if n_markers > rows else last_sync + 1
-    dwell = np.diff(np.append(starts[:rows], end))
+    if marker_edge == "end":  # pattern k from the sync after marker k - 1 through marker k's
+        ends = starts[:rows] + 1
+        starts = np.append(0, ends[:-1])
+        dwell = ends - starts
+    else:
+        end = starts[rows] if n_markers > rows else last_sync + 1
+        dwell = np.diff(np.append(starts[:rows], end))
     acq = PtuAcquisition(
         histograms=_to_float32(hist), counts_per_pattern=counts,
         pattern_start_sync=starts[:rows], last_sync=last_sync,
@@ -470,7 +499,7 @@ def read_ptu_histograms(
         n_records=n_records, n_photons=n_photons, n_markers=n_markers, n_overflows=n_ofl,
         n_dropped_before_first_marker=n_before, n_dropped_after_last_pattern=n_after,
         n_out_of_range=n_out, header=header, periods_per_pattern=dwell)
-    if n_markers == rows and acq.ends_in_empty_block:
+    if marker_edge == "start" and n_markers == rows and acq.ends_in_empty_block:
         acq.warnings.append(f"the last of the {rows} marker blocks holds no photons and lasts "
                             f"{int(dwell[-1])} code period(s) (an end-of-acquisition marker?): "
                             f"it is kept as a pattern of zeros; n_patterns={rows - 1} leaves "

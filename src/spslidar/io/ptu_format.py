@@ -222,6 +222,7 @@ def _header_summary(f, path: PathLike) -> dict[str, Any]:
         "bins_per_period": glob / res if res > 0 else None,
         "acquisition_time_s": None if acq_ms is None else float(acq_ms) * 1e-3,
         "hardware": tags.get("HW_Type"),
+        "sync_divider": tags.get("HWSync_Divider"),
         "creator": tags.get("CreatorSW_Name"),
         "comment": tags.get("File_Comment"),
         "created": created.isoformat() if isinstance(created, datetime) else created,

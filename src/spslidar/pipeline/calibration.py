@@ -394,10 +394,10 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                   bit_rate: float, distance: float, *, marker: int = 1,
                   channel: int | None = None, pulse_width: float = 0.5,
                   allow_binning: bool = False, target: str = "auto",
-                  fov_deg: float | None = None) -> dict[str, Any]:
+                  fov_deg: float | None = None, marker_edge: str = "start") -> dict[str, Any]:
     """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target,
     with what it was measured from (file, hash, photons, patterns, bit rate, code);
-    ``allow_binning`` as :func:`~spslidar.pipeline.real.reconstruct_ptu`.
+    ``allow_binning`` and ``marker_edge`` as :func:`~spslidar.pipeline.real.reconstruct_ptu`.
 
     ``target`` says what the target's pixels see (:mod:`spslidar.pipeline.target`):
     ``range``, one range (the patterns' sum is read as it is); ``plane``, a flat wall at
@@ -410,11 +410,9 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     ``allow_binning`` that is not a bool, an unknown ``target`` or a ``fov_deg`` outside
     ``(0, 180)`` degrees (or with ``target='range'``) raise a one-line
     :class:`~spslidar.errors.ConfigError`."""
-    from ..io import read_ptu_histograms
     from ..version import __version__
+    from .blocks import read_blocks
     from .real import (
-        block_notes,
-        check_blocks,
         check_code,
         check_patterns,
         check_ptu_path,
@@ -439,11 +437,10 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
 
         side = int(round(np.sqrt(patterns.shape[1])))
         wall_offsets((side, side), distance, fov, bin_width, int(code.size))
-    data = read_ptu_histograms(ptu, int(code.size), bin_width=bin_width, marker=marker,
-                               channel=channel, n_patterns=int(patterns.shape[0]),
-                               allow_binning=allow_binning)
-    check_blocks(data, int(patterns.shape[0]), ptu)
-    for note in block_notes(data, int(patterns.shape[0])):
+    data, notes = read_blocks(ptu, int(patterns.shape[0]), int(code.size), bin_width=bin_width,
+                              marker=marker, channel=channel, allow_binning=allow_binning,
+                              marker_edge=marker_edge)
+    for note in notes:
         warnings.warn(note, stacklevel=2)
     hists = data.histograms
     total = hists.astype(np.float64).sum(axis=0)

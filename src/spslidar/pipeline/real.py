@@ -229,42 +229,10 @@ def check_gate(range_gate: Any) -> tuple[float, float]:
     return lo, hi
 
 
-def check_blocks(data, m: int, ptu) -> None:
-    """The file's marker-delimited blocks against the ``m`` pattern rows: more blocks than
-    rows (one trailing end-of-acquisition marker aside) is a mismatch, refused in one line
-    (``calibrate`` used the first rows' blocks of such a file and said nothing)."""
-    if data.n_markers > m + 1:  # one trailing end-of-acquisition marker is common
-        raise ConfigError(f"{os.fspath(ptu)!r} has {data.n_markers} marker-delimited blocks "
-                          f"but --patterns has {m} rows: the patterns shown do not match the "
-                          f"file (or --marker names the wrong input)")
-
-
 #: the configuration keys a measured acquisition sets (with the processing keys, what
 #: ``reconstruct`` writes in ``metrics['config']``)
 _MEASURED_KEYS = frozenset({"size", "bit_rate", "code_length", "range_gate", "compression",
                             "replica", "dtype", "seed", "backend", "device"})
-
-
-def block_notes(data, m: int) -> list[str]:
-    """What the file's blocks say beyond :func:`check_blocks`: a block after the last
-    pattern's end that lasts as long as a pattern (a row missing from ``--patterns``; its
-    photons are left out), said with its dwell and photons."""
-    if data.n_markers <= m or not m:
-        return []
-    end = int(data.pattern_start_sync[-1] + data.periods_per_pattern[-1])
-    trailing = int(data.last_sync) + 1 - end
-    typical = float(np.median(data.periods_per_pattern))
-    if trailing < 0.5 * typical:
-        return []
-    return [f"the file holds {data.n_markers} marker-delimited blocks for {m} pattern rows, and "
-            f"its last block ({trailing} code periods, {data.n_dropped_after_last_pattern} "
-            f"photons) lasts as long as a pattern ({typical:.0f}): it is left out; is a row "
-            f"missing from --patterns?"]
-
-
-#: photons before the first marker beyond this share of a file's are said (they are always
-#: left out: no pattern is known for them)
-DROPPED_SHARE = 0.05
 
 
 def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: int,
@@ -357,7 +325,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                     bit_rate: float, range_gate: tuple[float, float], *, marker: int = 1,
                     channel: int | None = None, truth: np.ndarray | None = None,
                     calibration: str | os.PathLike | dict | None = None,
-                    allow_binning: bool = False, **processing: Any) -> Result:
+                    allow_binning: bool = False, marker_edge: str = "start",
+                    **processing: Any) -> Result:
     """Depth map from a measured T3 PTU acquisition.
 
     Parameters
@@ -385,6 +354,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     allow_binning : bool
         Merge ``k`` dtime units into one bin where the file's resolution is ``1 / k`` of
         ``1 / bit_rate`` (:func:`~spslidar.io.read_ptu_histograms`); default: they must agree.
+    marker_edge : {"start", "end"}
+        Whether the DMD's marker starts (default) or ends each pattern
+        (:func:`~spslidar.pipeline.blocks.read_blocks`: one block beyond the patterns, an
+        arming or end-of-acquisition marker's, is left out and said).
     **processing
         Config keys of the processing (``solver``, ``qcr``, ``depth``, ``lam_scale``...).
 
@@ -402,9 +375,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     per bin is ``(Σ_t h_k(t) - S_k) / L`` with the signal ``S_k = Σ_τ C_k(τ) n w``
     (``w`` ones in the code), summed over the gated delays.
     """
-    from ..io import read_ptu_histograms
     from ..patterns import as_patterns
     from ..scenes import Scene
+    from .blocks import read_blocks
     from .measurement import check_processing_keys, processing_keys
 
     check_ptu_path(ptu)
@@ -428,18 +401,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         truth = _check_truth(truth, n)
         truth_note = truth_outside_gate(truth, cfg.range_gate)
     _check_solve_time(cfg, m, q, int(gate_lags(cfg.range_gate, bin_width).size), period)
-    data = read_ptu_histograms(ptu, period, bin_width=bin_width, marker=marker,
-                               channel=channel, n_patterns=m, allow_binning=allow_binning)
-    check_blocks(data, m, ptu)
-    dwell_warning = block_notes(data, m) + ([truth_note] if truth_note else [])
-    before = int(data.n_dropped_before_first_marker)
-    if data.n_photons and before > DROPPED_SHARE * data.n_photons:
-        # (a fifth of a file's photons were dropped, said only in metrics.json: an audit)
-        dwell_warning.append(
-            f"{before} of the file's {data.n_photons} photons on the channel "
-            f"({100 * before / data.n_photons:.3g} %) came before the first marker on input "
-            f"{marker}, while no pattern was known, and are left out: check --marker, or that "
-            f"the acquisition started with the first pattern")
+    data, dwell_warning = read_blocks(ptu, m, period, bin_width=bin_width, marker=marker,
+                                      channel=channel, allow_binning=allow_binning,
+                                      marker_edge=marker_edge)
+    dwell_warning += [truth_note] if truth_note else []
     # the reader's dwell: to the next block's marker, also where that block is not a pattern
     # (the file's ends, recomputed here, gave the last of m rows in an (m + 1)-block file the
     # extra block's periods too: twice its dwell, its histogram halved)
@@ -539,6 +504,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         "n_dropped_before_first_marker": data.n_dropped_before_first_marker,
         "n_dropped_after_last_pattern": data.n_dropped_after_last_pattern,
         "n_patterns_solved": int(m), "n_out_of_range": data.n_out_of_range,
+        "marker_edge": marker_edge,
         "record_type": data.header.get("record_type")}
     result.metrics["calibration"] = None if cal is None else {
         "file": cal.get("file"), "sha256": cal.get("file_sha256"), "delay_s": cal["delay_s"],

@@ -1,0 +1,174 @@
+"""A file's marker blocks against the patterns, as labs' hardware writes them (an outside
+audit of 2026-11-29 with its own PTU writer): a DMD whose marker ends each pattern, an arming
+marker before the first pattern, an end-of-acquisition marker after the last, photons past
+the code period. Read wrongly, every pattern was paired with its neighbour's photons (median
+error 0.25 m against 2 mm) and nothing was said."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from spslidar.cli import main
+from spslidar.errors import ConfigError
+from spslidar.io import read_ptu_histograms, write_ptu_t3
+from spslidar.pipeline.blocks import read_blocks
+
+pytest.importorskip("ptufile")
+
+L, M, DWELL, PER = 31, 6, 200, 400  # bins, patterns, syncs per pattern, photons per pattern
+RES = 1e-10
+
+
+def _events(rng, start_syncs, marker_syncs, extra=()):
+    """Pattern k's photons in syncs ``start_syncs[k] .. + DWELL - 1``, all in bin ``k + 3``
+    (so a row's pattern is its peak bin), markers at ``marker_syncs``; ``extra``: more
+    (sync, dtime) photons. Returns time-ordered (nsync, dtime, marker): a marker sorts before
+    the photons of its own sync."""
+    ev = []
+    for k, s0 in enumerate(start_syncs):
+        syncs = np.sort(rng.integers(s0, s0 + DWELL, PER))
+        ev += [(int(s), 1, k + 3, 0) for s in syncs]
+    ev += [(int(s), 0, 0, 1) for s in marker_syncs]
+    ev += [(int(s), 1, int(d), 0) for s, d in extra]
+    ev.sort()
+    a = np.array(ev)
+    return a[:, 0], a[:, 2], a[:, 3]
+
+
+def _write(path, nsync, dtime, marker, **tags):
+    write_ptu_t3(path, nsync=nsync, dtime=dtime, marker=marker, resolution_s=RES,
+                 sync_rate_hz=1 / (L * RES), extra_tags=tags or None)
+    return path
+
+
+def _peaks(data):
+    return list(np.argmax(data.histograms, axis=1) - 3)
+
+
+def test_markers_that_start_their_patterns_read_as_before(tmp_path):
+    rng = np.random.default_rng(0)
+    starts = [DWELL * k for k in range(M)]
+    f = _write(tmp_path / "a.ptu", *_events(rng, starts, starts))
+    data, notes = read_blocks(f, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M)) and notes == []
+    assert data.n_dropped_before_first_marker == 0
+
+
+def test_a_marker_that_ends_its_pattern_is_said_and_read_with_marker_edge_end(tmp_path):
+    """Markers at each pattern's last sync: read as starts, pattern k got pattern k + 1's
+    photons (pattern 0's dropped, 1/M of the file, under the 5 % that is said) and the only
+    warning was about an empty last block."""
+    rng = np.random.default_rng(1)
+    starts = [DWELL * k for k in range(M)]
+    ends = [s + DWELL - 1 for s in starts]
+    nsync, dtime, marker = _events(rng, starts, ends)
+    order = np.lexsort((marker, nsync))  # a pattern's last photons before its marker
+    f = _write(tmp_path / "e.ptu", nsync[order], dtime[order], marker[order])
+    data, notes = read_blocks(f, M, L, bin_width=RES)
+    assert _peaks(data)[:M - 1] == list(range(1, M))  # misread, as before: but now said
+    assert any("--marker-edge end" in n for n in notes), notes
+    data, notes = read_blocks(f, M, L, bin_width=RES, marker_edge="end")
+    assert _peaks(data) == list(range(M))
+    assert not any("--marker-edge" in n for n in notes), notes
+    assert data.counts_per_pattern.sum() == M * PER  # nothing dropped
+    assert list(data.periods_per_pattern) == [DWELL] * M
+    # and a file whose markers start their patterns, read with "end", is said the other way
+    g = _write(tmp_path / "s.ptu", *_events(rng, starts, starts))
+    _, notes = read_blocks(g, M, L, bin_width=RES, marker_edge="end")
+    assert any("--marker-edge start" in n for n in notes), notes
+
+
+def test_an_arming_marker_before_the_first_pattern_is_left_out(tmp_path):
+    """A marker at sync 0 and the patterns from sync 5: M + 1 blocks were read as patterns
+    0..M-1 (the 5-sync block scaled up as pattern 0) and the warning pointed at the file's
+    end ("is a row missing from --patterns?")."""
+    rng = np.random.default_rng(2)
+    starts = [5 + DWELL * k for k in range(M)]
+    f = _write(tmp_path / "arm.ptu", *_events(rng, starts, [0, *starts]))
+    data, notes = read_blocks(f, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M)) and data.n_patterns == M
+    assert len(notes) == 1 and "first block (5 code periods, 0 photons)" in notes[0], notes
+    assert "arming" in notes[0]
+
+
+def test_one_block_after_the_patterns_is_left_out(tmp_path):
+    """An end-of-acquisition marker is left out without a word; a last block as long as a
+    pattern is left out and said (a row missing from --patterns?)."""
+    rng = np.random.default_rng(3)
+    starts = [DWELL * k for k in range(M)]
+    f = _write(tmp_path / "end.ptu", *_events(rng, starts, [*starts, DWELL * M]))
+    data, notes = read_blocks(f, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M)) and notes == []
+    g = _write(tmp_path / "more.ptu", *_events(rng, [*starts, DWELL * M], [*starts, DWELL * M]))
+    data, notes = read_blocks(g, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M)) and data.n_dropped_after_last_pattern == PER
+    assert len(notes) == 1 and "is a row missing from --patterns?" in notes[0]
+    h = _write(tmp_path / "many.ptu", *_events(rng, starts, [*starts, DWELL * M, DWELL * M + 1]))
+    with pytest.raises(ConfigError, match="8 marker-delimited blocks but --patterns has 6"):
+        read_blocks(h, M, L, bin_width=RES)
+    with pytest.raises(ConfigError, match="7 marker-delimited blocks .* fewer than the 8"):
+        read_blocks(f, M + 2, L, bin_width=RES)
+
+
+def test_photons_past_the_code_period_are_said(tmp_path):
+    """Photons at a TDC time past the code period were dropped without a word (a fifth of a
+    file's, or half with a sync divider of 2)."""
+    rng = np.random.default_rng(4)
+    starts = [DWELL * k for k in range(M)]
+    late = [(int(s), L + 2) for s in rng.integers(0, DWELL * M, M * PER // 5)]
+    f = _write(tmp_path / "late.ptu", *_events(rng, starts, starts, late))
+    data, notes = read_blocks(f, M, L, bin_width=RES)
+    assert data.n_out_of_range == len(late)
+    assert any("past the code period (31 bins)" in n and "sync divider" in n for n in notes)
+    g = _write(tmp_path / "div.ptu", *_events(rng, starts, starts, late), HWSync_Divider=2)
+    _, notes = read_blocks(g, M, L, bin_width=RES)
+    assert any("the header's sync divider is 2" in n for n in notes), notes
+    few = late[: M * PER // 50]  # 2 % of the photons: not said
+    h = _write(tmp_path / "few.ptu", *_events(rng, starts, starts, few))
+    assert read_blocks(h, M, L, bin_width=RES)[1] == []
+
+
+def test_the_reader_keeps_extra_blocks_only_where_the_file_has_them(tmp_path):
+    rng = np.random.default_rng(5)
+    starts = [DWELL * k for k in range(M)]
+    f = _write(tmp_path / "a.ptu", *_events(rng, starts, starts))
+    for extra in (0, 1, 3):
+        d = read_ptu_histograms(f, L, n_patterns=M, extra_blocks=extra)
+        assert d.n_patterns == M and d.counts_per_pattern.sum() == M * PER
+    # read as ending their patterns, the M markers close M blocks: the first (sync 0, before
+    # any photon) empty, and the last pattern's photons after the last marker dropped
+    e = read_ptu_histograms(f, L, n_patterns=M - 1, extra_blocks=1, marker_edge="end")
+    assert e.n_patterns == M and list(e.periods_per_pattern) == [1] + [DWELL] * (M - 1)
+    assert e.counts_per_pattern[0] == 0 and e.n_dropped_after_last_pattern == PER
+    for bad, words in (({"extra_blocks": -1}, "extra_blocks"),
+                       ({"marker_edge": "middle"}, "marker_edge")):
+        with pytest.raises(ConfigError, match=words):
+            read_ptu_histograms(f, L, n_patterns=M, **bad)
+
+
+def test_reconstruct_takes_marker_edge(tmp_path, capsys):
+    """--marker-edge on the command line, for reconstruct and calibrate, and said in
+    metrics.json."""
+    import json
+
+    rng = np.random.default_rng(6)
+    starts = [DWELL * k for k in range(M)]
+    ends = [s + DWELL - 1 for s in starts]
+    nsync, dtime, marker = _events(rng, starts, ends)
+    f = _write(tmp_path / "e.ptu", nsync, dtime, marker)
+    pats = rng.random((M, 4, 4)).astype(np.float32)
+    np.save(tmp_path / "p.npy", pats)
+    np.save(tmp_path / "c.npy", (rng.random(L) < 0.5).astype(np.uint8))
+    args = ["reconstruct", "--ptu", str(f), "--patterns", str(tmp_path / "p.npy"), "--code",
+            str(tmp_path / "c.npy"), "--bit-rate", "10e9", "--range-gate", "0", "0.3",
+            "--no-figure"]
+    assert main([*args, "--out", str(tmp_path / "r1")]) == 0
+    assert "pass --marker-edge end" in capsys.readouterr().err
+    assert main([*args, "--marker-edge", "end", "--out", str(tmp_path / "r2")]) == 0
+    assert "--marker-edge" not in capsys.readouterr().err
+    m = json.loads((tmp_path / "r2" / "metrics.json").read_text())
+    assert m["ptu"]["marker_edge"] == "end" and m["ptu"]["n_patterns_solved"] == M
+    with pytest.raises(SystemExit) as exc:  # (argparse's own refusals exit from the parser)
+        main([*args, "--marker-edge", "middle", "--out", str(tmp_path / "r3")])
+    assert exc.value.code == 2 and "invalid choice: 'middle'" in capsys.readouterr().err
