@@ -103,6 +103,37 @@ def test_metrics_say_whether_the_calibration_saw_the_same_code(tmp_path, code):
     cal = _calibrate(tmp_path, _acquire(tmp_path, "wall", 10.0, inst))
     m = _reconstruct(tmp_path, _acquire(tmp_path, "scene", 12.3, [*inst, "--code", code]), cal)
     assert m["calibration"]["same_code"] is (code == "mseq")
+    # and said where it is not (only metrics.json said it, an audit): "another code"
+    said = [w for w in m["warnings"] if "measured with another code" in w]
+    assert len(said) == (code != "mseq")
+
+
+def test_a_code_shifted_from_the_calibrations_is_named_with_its_range(tmp_path, capsys):
+    """A code file that is the calibration's rotated by 100 bits (a generator started at
+    another bit, or a file rotated by mistake) moved every depth 1.5 m without a word (an
+    outside audit): the shift is now named with its range; the calibration stores its code's
+    bits for that, and one without them (an earlier version's) still says "another code"."""
+    from spslidar.pipeline.calibration_file import code_bits, code_note, code_sha256
+
+    inst = ["--signal", "1", "--noise", "0.02"]
+    cal = _calibrate(tmp_path, _acquire(tmp_path, "wall", 10.0, inst))
+    files = _acquire(tmp_path, "scene", 12.3, inst)
+    code = np.load(tmp_path / "scene_code.npy")
+    np.save(tmp_path / "rolled.npy", np.roll(code, 100))
+    files[files.index(str(tmp_path / "scene_code.npy"))] = str(tmp_path / "rolled.npy")
+    m = _reconstruct(tmp_path, files, cal, out="rolled")
+    said = [w for w in m["warnings"] if "shifted by +100 bits (1.499 m of range)" in w]
+    assert len(said) == 1, m["warnings"]
+    assert "shifted" in capsys.readouterr().err
+    data = json.loads(cal.read_text())
+    assert data["code_bits"] == code_bits(code)
+    del data["code_bits"]
+    assert "another code of the same length" in code_note(data, np.roll(code, -7), 10e9)
+    assert "shifted by -7 bits" in code_note({**data, "code_bits": code_bits(code)},
+                                             np.roll(code, -7), 10e9)
+    assert code_note({"code_sha256": code_sha256(code)}, code, 10e9) is None
+    damaged = {**data, "code_bits": "zz", "code_length": 1023}
+    assert "another code" in code_note(damaged, np.roll(code, 3), 10e9)
 
 
 def test_a_long_tail_is_read_past_forty_bins(tmp_path):

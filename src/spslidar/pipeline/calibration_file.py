@@ -18,8 +18,8 @@ import numpy as np
 from ..errors import ConfigError
 from ..outdir import sha256_file
 
-__all__ = ["CAL_KIND", "check_calibration", "check_calibration_out", "code_sha256",
-           "content_sha256", "edited", "load_calibration", "write_calibration"]
+__all__ = ["CAL_KIND", "check_calibration", "check_calibration_out", "code_bits", "code_note",
+           "code_sha256", "content_sha256", "edited", "load_calibration", "write_calibration"]
 
 #: format tag of a calibration file
 CAL_KIND = "spslidar-calibration"
@@ -106,6 +106,53 @@ def code_sha256(code: np.ndarray) -> str:
     """The SHA-256 of a code's bits (one byte each): ``code_sha256`` in ``CAL.json``, and
     what ``reconstruct`` compares it with (``same_code`` in ``metrics.json``)."""
     return hashlib.sha256(np.asarray(code, np.uint8).tobytes()).hexdigest()
+
+
+def code_bits(code: np.ndarray) -> str:
+    """A code's bits as hexadecimal (``np.packbits``, L / 4 characters): ``code_bits`` in
+    ``CAL.json``, so that ``reconstruct`` can tell a code that is the calibration's shifted
+    (:func:`code_note`) from another one."""
+    return np.packbits(np.asarray(code, np.uint8) != 0).tobytes().hex()
+
+
+def _bits_of(cal: dict[str, Any]) -> np.ndarray | None:
+    """The calibration's code bits where it holds them intact (files before 2026-11-29 do
+    not), else None."""
+    text, n = cal.get("code_bits"), cal.get("code_length")
+    if not isinstance(text, str) or not isinstance(n, int):
+        return None
+    try:
+        bits = np.unpackbits(np.frombuffer(bytes.fromhex(text), np.uint8))[:n]
+    except ValueError:
+        return None
+    return bits if bits.size == n and code_sha256(bits) == cal.get("code_sha256") else None
+
+
+def code_note(cal: dict[str, Any], code: np.ndarray, bit_rate: float) -> str | None:
+    """What to say where the acquisition's code is not the calibration's (None where it is):
+    the delay it measured holds only if both code files give the bits as sent from the sync
+    on. A code that is the calibration's shifted by ``s`` bits (a generator started at
+    another bit, or a code file rotated by mistake) moves every depth by ``s`` bits if the
+    hardware sent the same phase both times, so the shift is named with its range (an audit's
+    ``np.roll(code, 100)`` put every depth 1.5 m off without a word)."""
+    code = np.asarray(code, np.uint8) != 0
+    if cal.get("code_sha256") == code_sha256(code.astype(np.uint8)):
+        return None
+    head = "the calibration was measured with another code of the same length"
+    tail = ("its delay holds only where both code files give the bits as sent from the sync "
+            "on; if not, calibrate with this acquisition's code")
+    theirs = _bits_of(cal)
+    if theirs is not None:
+        a, b = code.astype(np.float64), theirs.astype(np.float64)
+        corr = np.fft.irfft(np.fft.rfft(a) * np.conj(np.fft.rfft(b)), a.size)
+        s = int(np.argmax(corr))
+        if np.array_equal(np.roll(theirs != 0, s), code):
+            s = s if s <= a.size // 2 else s - a.size
+            metres = abs(s) * 299792458.0 / (2.0 * float(bit_rate))
+            return (f"the calibration was measured with this code shifted by {s:+d} bits "
+                    f"({metres:.4g} m of range): {tail}; a code file rotated by mistake moves "
+                    f"every depth by that much")
+    return f"{head}: {tail}"
 
 
 def content_sha256(cal: dict[str, Any]) -> str:

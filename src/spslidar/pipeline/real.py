@@ -432,7 +432,12 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     response, half_width = None, 0
     if calibration is not None:
         from .calibration import calibrated_filter
-        from .calibration_file import check_calibration, code_sha256, load_calibration
+        from .calibration_file import (
+            check_calibration,
+            code_note,
+            code_sha256,
+            load_calibration,
+        )
 
         cal = (check_calibration(dict(calibration), "calibration", bit_rate, code)
                if isinstance(calibration, dict)
@@ -442,6 +447,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         if cfg.lam is None and cfg.lam_scale is None:
             cfg = cfg.replace(lam_scale=calibrated_lam_scale(cfg.solver, spread))
         dwell_warning.extend(calibration_warnings(cal))
+        note = code_note(cal, code, bit_rate)
+        dwell_warning += [note] if note else []
     gain = correlation_gain(signal_code, replica) * n_mean * scale
     # a calibrated instrument's returns arrive lag_shift bins late: filter there, while the
     # depths stay those of the gated lags (true metres)
