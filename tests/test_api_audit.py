@@ -201,3 +201,26 @@ def test_stage_names_are_read_in_any_case():
     assert reg.canonical("a") == "a" and reg.canonical("A") == "A"
     with pytest.raises(ConfigError, match="unknown thing"):
         reg.get(reg.canonical("b"))
+
+
+def test_pattern_files_other_tools_write_are_said_plainly(tmp_path):
+    """A 0/255 uint8 bitplane, a NaN and a TIFF stack were told "must hold mirror states in
+    [0, 1]" (the NaN unnamed) and NumPy's "the magic string is not correct; expected
+    b'\\x93NUMPY', got b'II*\\x00'" (an outside audit of lab formats)."""
+    from spslidar.pipeline.real import check_patterns, load_patterns
+
+    p = (np.random.default_rng(0).random((4, 4, 4)) < 0.5).astype(np.uint8)
+    with pytest.raises(ConfigError, match="values from 0 to 255: 8-bit levels 0-255"):
+        check_patterns(p * 255)
+    with pytest.raises(ConfigError, match="give the two complementary patterns"):
+        check_patterns(2.0 * p - 1)
+    nan = p.astype(np.float32)
+    nan[1, 2, 3] = np.nan
+    with pytest.raises(ConfigError, match="holds 1 NaN or infinite value"):
+        check_patterns(nan)
+    tif = tmp_path / "p.tif"
+    tif.write_bytes(b"II*\x00" + bytes(200))
+    with pytest.raises(ConfigError, match="it is not a .npy file .* np.save it") as info:
+        load_patterns(tif)
+    assert "magic" not in str(info.value)
+    assert check_patterns(p).shape == (4, 16)  # 0/1 uint8 as before

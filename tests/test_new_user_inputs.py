@@ -232,7 +232,7 @@ _CHANGES = {
 @pytest.mark.parametrize("name,match", [
     ("patterns as a list", None),  # a list of lists is an array: accepted
     ("patterns not square", "(M, N, N) array (or (M, N*N))"),
-    ("NaN in patterns", "mirror states in [0, 1]"),
+    ("NaN in patterns", "NaN or infinite value"),
     ("patterns all off", "every mirror of every pattern is off"),
     ("code of 0/2", "other values (first: 2)"),
     ("code all 0", "all 127 bits are 0"),

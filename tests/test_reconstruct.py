@@ -67,6 +67,8 @@ def test_cli_reconstruct_without_truth(tmp_path, capsys):
     assert m["has_truth"] is False and m["depth_rmse_m"] is None
     assert m["edge_correlation"] is None and m["coverage"] >= 0.95
     assert m["mean_reflectivity"] > 0
+    # (not measured, and no truth: null, as the outputs page says, not 1.0 and 0)
+    assert m["signal_per_pulse"] is None and m["n_valid"] is None
     depth = np.load(out / "depth.npy")
     assert np.nanmedian(np.abs(depth - truth)) <= 0.015
     assert np.sqrt(np.nanmean((depth - truth) ** 2)) < 0.03

@@ -159,8 +159,8 @@ def _check_resolution(res: float, bin_width: float | None, rtol: float, allow_bi
     hint = (f" (it is {k} dtime units: merge them with --allow-binning, allow_binning=True in "
             f"Python)" if close else
             f" (a bin of {res:.6g} s is a bit rate of {1 / res:.6g} Hz: --bit-rate {1 / res:.6g})")
-    raise ConfigError(f"{path!r}: dtime resolution {res:.6g} s does not match bin_width "
-                      f"{bin_width:.6g} s (rtol {rtol:g}){hint}")
+    raise ConfigError(f"{path!r}: dtime resolution {res:.6g} s does not match the bin width "
+                      f"{bin_width:.6g} s (1 / --bit-rate; within {100 * rtol:g} %){hint}")
 
 
 def _fitting_codes(bins: float, width: float, tol: float) -> str:
@@ -324,8 +324,8 @@ def read_ptu_histograms(
     ``ptufile`` and PicoQuant's own readers read them; whole records after them are left out
     with a warning that names both counts (``ptu_info`` gives ``n_records_in_file``). A count
     of 0 (an acquisition that did not finish, or software that does not fill it in) reads
-    every whole record in the file, as ``ptufile`` does, also with a warning; a count beyond
-    the file's end is refused.
+    every whole record in the file, as ``ptufile`` does, also with a warning; so does a count
+    beyond the file's end (a file cut short), with a warning that names both counts.
 
     **Channels** are numbered from 0: the channel field of HydraHarp, TimeHarp 260 and
     MultiHarp / generic T3 records as it is, and a PicoHarp's detector inputs 1-4 (its
@@ -366,13 +366,13 @@ def read_ptu_histograms(
     Warns
     -----
     RuntimeWarning
-        The header's record count is 0, or smaller than the records the file holds.
+        The header's record count is 0, or differs from the records the file holds.
 
     Raises
     ------
     ConfigError
         Not a PTU file (PicoQuant's legacy ``.pt3``, ``.ht3``, ``.t3r`` files named as
-        such); a T2 file; unsupported record type; truncated record stream;
+        such); a T2 file; unsupported record type;
         resolution or sync period disagreeing with ``bin_width`` / ``n_bins``; no markers on
         input ``marker``; fewer blocks than ``n_patterns``; no photons on ``channel``;
         histograms too large for the memory available; bad arguments.

@@ -285,8 +285,15 @@ def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
                           f"acquisition is complete",
                           RuntimeWarning, stacklevel=3)
     elif available < 4 * n_records:
-        raise ConfigError(f"{path!r} is truncated: header announces {n_records} records "
-                          f"({4 * n_records} bytes) but only {available} bytes follow the header")
+        # (refused, while a count of 0, also an acquisition that did not finish, was read: an
+        # audit; a lab's file cut short by a crash or a copy keeps its whole records)
+        left = (f" and {stray} byte{'s' if stray != 1 else ''} of one more" if stray else "")
+        warnings.warn(f"{path!r} is truncated: the header announces {n_records} records "
+                      f"(TTResult_NumberOfRecords) but the file holds {whole} whole records"
+                      f"{left} after the header: the {whole} are read; check that the "
+                      f"acquisition (or the file's copy) is complete",
+                      RuntimeWarning, stacklevel=3)
+        n_records = whole
     elif available > 4 * n_records:
         more = (f"{whole} whole records" if whole > n_records
                 else f"{n_records} records and {stray} stray byte{'s' if stray != 1 else ''}")

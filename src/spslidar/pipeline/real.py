@@ -80,6 +80,9 @@ def _load_npy(path: str | os.PathLike, what: str) -> np.ndarray:
             zipped = False
         if zipped:  # (said as NumPy's "the magic string is not correct ... got b'PK...'")
             msg = "it is an .npz archive (np.savez); save the one array with np.save"
+        elif "magic string" in msg:  # (a TIFF, .mat, PNG or text file: NumPy's bytes, an audit)
+            msg = ("it is not a .npy file (spslidar reads arrays saved with numpy.save; "
+                   "load a TIFF, .mat, image or text file in Python and np.save it)")
         raise ConfigError(f"cannot read {what} {p} as a .npy array: {msg}") from None
     need = float(head.size) * 8 * 2  # float64 copies while checking
     if need > 0.8 * available_memory():
@@ -110,8 +113,18 @@ def check_patterns(patterns: Any, distinct: bool = True, what: str = "patterns")
                           f"patterns of N x N >= 4 x 4 mirrors, got shape {arr.shape}")
     _real_numbers(arr, what)
     arr = np.asarray(arr, dtype=np.float64)
-    if not np.all(np.isfinite(arr)) or arr.min() < 0 or arr.max() > 1:
-        raise ConfigError(f"{what} must hold mirror states in [0, 1] (0/1 or grey levels)")
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.count_nonzero(~np.isfinite(arr)))
+        raise ConfigError(f"{what} holds {bad} NaN or infinite value(s): mirror states are "
+                          f"numbers in [0, 1] (0/1 or grey levels)")
+    if arr.min() < 0 or arr.max() > 1:
+        # (a DMD bitplane saved as 0/255 uint8 was told only "must hold ... [0, 1]": an audit)
+        hint = (": 8-bit levels 0-255? divide by 255" if arr.min() >= 0 and arr.max() <= 255
+                and np.all(arr == np.round(arr)) else
+                ": +1/-1 differences? give the two complementary patterns as rows of their own"
+                if arr.min() >= -1 and arr.max() <= 1 else "")
+        raise ConfigError(f"{what} must hold mirror states in [0, 1] (0/1 or grey levels), got "
+                          f"values from {arr.min():g} to {arr.max():g}{hint}")
     flat = arr.reshape(arr.shape[0], -1)
     if not flat.any():
         raise ConfigError(f"{what}: every mirror of every pattern is off, so no light reaches "
@@ -503,6 +516,11 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     # patterns...) were written as if they had been measured
     kept = processing_keys() | _MEASURED_KEYS
     result.metrics["config"] = {k: v for k, v in result.metrics["config"].items() if k in kept}
+    # (an audit: a measured file's metrics said signal_per_pulse 1.0, the config's default,
+    # and n_valid 0 without a truth, where the outputs page says such numbers are null)
+    result.metrics["signal_per_pulse"] = None  # not measured: slices are detected counts
+    if truth is None:
+        result.metrics["n_valid"] = None
     result.metrics["ptu"] = {
         "file": os.fspath(ptu), "counts_per_pattern": data.counts_per_pattern[:m].tolist(),
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":
