@@ -312,9 +312,15 @@ def test_photons_before_the_first_marker_are_said_when_many(tmp_path):
                  "10.3125e9", "--marker", "3", "--range-gate", "0.1", "1.8", "--no-figure",
                  "--out", str(tmp_path / "o")]) == 0
     m = json.loads((tmp_path / "o" / "metrics.json").read_text())
-    said = [w for w in m["warnings"] if "came before the first marker on input 3" in w]
+    said = [w for w in m["warnings"] if "of the file's 150363 photons" in w]
     assert len(said) == 1 and "30479 of the file's 150363 photons" in said[0]
+    assert "came before the first marker on input 3" in said[0]
     assert m["ptu"]["n_dropped_before_first_marker"] == 30479
+    # a frame's photons (30479 over 32374784 periods, against 29934 over as many) before the
+    # first of its 5 frame markers and a last block of 1 period: markers that end their
+    # frames, as the audit of 2026-11-29's block rules reads it, said with the flag to use
+    edge = [w for w in m["warnings"] if "--marker-edge end" in w]
+    assert len(edge) == 1 and "30479 photons over 32374784 code periods" in edge[0]
 
 
 def test_a_gmapd_sweep_says_its_estimate_leaves_the_detector_model_out(tmp_path, capsys):

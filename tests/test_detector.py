@@ -93,6 +93,15 @@ def test_pileup_flag():
     high = d.pileup_report(counts_per_period=1e6, period_s=1.6e-6)
     assert not low["gmapd_saturated"] and high["gmapd_saturated"]
     assert high["counts_per_dead_time"] == pytest.approx(1e6 / 1.6e-6 * 50e-9)
+    assert "note" not in low
+    # 0.135 per dead time was called saturating (an audit): a GMAPD loses 12 % there, said
+    # so; it saturates past the 10 it works at with its pile-up corrected
+    mid = d.pileup_report(counts_per_period=0.135 * 1.6e-6 / 50e-9, period_s=1.6e-6)
+    assert not mid["gmapd_saturated"] and "would lose 12 %" in mid["note"]
+    edge = d.pileup_report(counts_per_period=9.9 * 1.6e-6 / 50e-9, period_s=1.6e-6)
+    assert not edge["gmapd_saturated"] and "would lose 91 %" in edge["note"]
+    over = d.pileup_report(counts_per_period=10.1 * 1.6e-6 / 50e-9, period_s=1.6e-6)
+    assert over["gmapd_saturated"] and "would saturate" in over["note"]
 
 
 def test_linear_saturation_is_said_once_in_the_metrics():

@@ -21,6 +21,7 @@ import numpy as np
 from ..backends.device import reconstructs_on_device, simulates_on_device
 from ..backends.patterns import host_patterns
 from ..config import Config, chosen_stage_options
+from ..correlate import PLATEAU_SHARE, remove_plateau, replica_plateau
 from ..depth import ESTIMATORS, DepthContext
 from ..detectors import build_detector
 from ..detectors.counting import NoiseModel
@@ -408,6 +409,10 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         full[:, keep] = x
         slices = full[:, meas.inverse]
     depth2 = depth_info = None
+    plateau = replica_plateau(meas.acq.code, meas.acq.replica)
+    if plateau >= PLATEAU_SHARE:  # (--replica unipolar: each profile rides on q times its peak)
+        slices = remove_plateau(_host(be, slices), plateau)
+        device = False  # (the plateau's median is the host's: NumPy from here on)
     if device and cfg.depth == "argmax" and sim.get("delay_response") is None:
         from ..depth.argmax import ArgmaxDepth, depth_from_peaks, peak_confidence
 
