@@ -288,3 +288,35 @@ def test_a_calibration_with_a_byte_order_mark_can_be_replaced(calibrated_wall, t
     bom = tmp_path / "bom.json"
     bom.write_bytes(b"\xef\xbb\xbf" + (calibrated_wall / "cal.json").read_bytes())
     assert check_calibration_out(bom, overwrite=True) == bom
+
+
+def test_running_out_of_memory_is_one_line(tmp_path, capsys, monkeypatch):
+    """An allocation past what the machine had free was NumPy's traceback and exit 1 (an
+    audit of memory limits: --save-ptu, the GMAPD, a 0-150 m gate under `ulimit -v`)."""
+    import spslidar.cli as cli
+
+    def starved(args):
+        raise MemoryError("Unable to allocate 14.2 MiB for an array with shape (57, 32766) "
+                          "and data type float64")
+
+    monkeypatch.setitem(cli.COMMANDS, "run", starved)
+    assert main(["run", *B, "--out", str(tmp_path / "o")]) == 2
+    _one_line(capsys, "spslidar run: error: out of memory (Unable to allocate 14.2 MiB",
+              "--max-memory")
+    assert not (tmp_path / "o").exists()
+
+
+def test_save_ptu_refuses_a_bright_acquisition_before_the_solve(tmp_path, capsys, monkeypatch):
+    """The photon cap of --save-ptu was checked once the solve and the depth stage were done
+    (34 s into a 128x128 run, an audit): now once the acquisition is simulated."""
+    import spslidar.pipeline as pipeline
+
+    def no_solve(*a, **k):
+        raise AssertionError("reconstructed before the photon cap was checked")
+
+    monkeypatch.setattr(pipeline, "reconstruct", no_solve)
+    ptu = tmp_path / "bright.ptu"
+    assert main(["run", *B, "--noise", "1000", "--save-ptu", str(ptu),
+                 "--out", str(tmp_path / "o")]) == 2
+    _one_line(capsys, "--save-ptu writes photon by photon", "exceed 2e+07")
+    assert not ptu.exists() and not (tmp_path / "o").exists()

@@ -423,9 +423,14 @@ def _cmd_run(args) -> int:
     if save_ptu:
         from .outfiles import write_files
         from .pipeline import measure, reconstruct
-        from .pipeline.real import write_measurement_arrays, write_measurement_ptu
+        from .pipeline.real import (
+            check_ptu_photons,
+            write_measurement_arrays,
+            write_measurement_ptu,
+        )
 
         meas = measure(cfg)
+        check_ptu_photons(meas)  # before the solve
         result = reconstruct(meas)
         if cfg.detector != "linear":  # (its dead time and jitter were silently left out)
             result.warnings.append(
@@ -612,6 +617,16 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"spslidar {args.command}: error: {exc.strerror or exc}: "
               f"{exc.filename or ''}".rstrip(": "), file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except MemoryError as exc:
+        # (an allocation past what the machine had free was a NumPy traceback, exit 1: an
+        # audit of 2026-11-29 met it under --save-ptu, the GMAPD, a 0-150 m gate and a
+        # reconstruct of large patterns; the commands write their outputs only when complete)
+        what = str(exc).splitlines()[0] if str(exc) else "an allocation failed"
+        print(f"spslidar {args.command}: error: out of memory ({what}): the machine has less "
+              f"memory free than this needs; lower --size, the pattern count or the range "
+              f"gate, or give --max-memory to have a run that will not fit refused before "
+              f"the work", file=sys.stderr)
         return EXIT_BAD_INPUT
     except Exception as exc:
         from .plugins import raised_in_plugin

@@ -8,7 +8,7 @@ the ``ptufile`` package (a core dependency of spslidar); writing needs only NumP
 from __future__ import annotations
 
 from .ptu import PtuAcquisition, ptu_info, read_ptu_histograms
-from .ptu_write import write_acquisition_ptu, write_ptu_t3
+from .ptu_write import write_acquisition_ptu, write_ptu_t3, write_ptu_t3_stream
 
 __all__ = [
     "PtuAcquisition",
@@ -16,4 +16,5 @@ __all__ = [
     "read_ptu_histograms",
     "write_acquisition_ptu",
     "write_ptu_t3",
+    "write_ptu_t3_stream",
 ]

@@ -3,10 +3,11 @@ for an own encoder are in :mod:`spslidar.io.ptu_format`)."""
 
 from __future__ import annotations
 
+import itertools
 import os
 import struct
 import uuid
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -34,7 +35,7 @@ from .ptu_format import (
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
-__all__ = ["write_acquisition_ptu", "write_ptu_t3"]
+__all__ = ["write_acquisition_ptu", "write_ptu_t3", "write_ptu_t3_stream"]
 
 
 # --------------------------------------------------------------------------------------------
@@ -154,56 +155,49 @@ def write_ptu_t3(
         Number of 32-bit records written. Raises :class:`~spslidar.errors.ConfigError` for an
         unknown record type, values out of range for the layout or unsorted ``nsync``.
     """
+    return write_ptu_t3_stream(
+        path, [(nsync, dtime, channel, marker)], resolution_s=resolution_s,
+        sync_rate_hz=sync_rate_hz, record_type=record_type, comment=comment, created=created,
+        extra_tags=extra_tags)
+
+
+def write_ptu_t3_stream(
+    path: PathLike,
+    chunks: Iterable[tuple[ArrayLike, ArrayLike, ArrayLike, ArrayLike | None]],
+    *,
+    resolution_s: float,
+    sync_rate_hz: float,
+    record_type: str = "HydraHarp2T3",
+    comment: str = "",
+    created: datetime | None = None,
+    extra_tags: dict[str, Any] | None = None,
+) -> int:
+    """:func:`write_ptu_t3` for events that come in time-ordered chunks, each encoded and
+    written as it comes: memory is one chunk's, whatever the file's length (``run
+    --save-ptu`` held every photon of an acquisition, about 180 bytes each, 3.2 GB past its
+    ``--max-memory`` of 0.3 GB: an audit). The header's record count and acquisition time
+    are written once the last chunk is.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        As :func:`write_ptu_t3`.
+    chunks : iterable of (nsync, dtime, channel, marker)
+        Each as :func:`write_ptu_t3`'s arrays (``channel`` a scalar or an array, ``marker``
+        None for photons only); ``nsync`` non-decreasing across chunks too.
+    resolution_s, sync_rate_hz, record_type, comment, created, extra_tags
+        As :func:`write_ptu_t3`.
+
+    Returns
+    -------
+    int
+        Number of 32-bit records written.
+    """
     name, code, family, hardware = _record_type(record_type)
-    wrap, dtime_max, channel_max = _FAMILY[family]
-    t = np.asarray(nsync)
-    if t.ndim != 1:
-        raise ConfigError(f"nsync must be one-dimensional, got shape {t.shape}")
-    n = t.size
-    t = _as_int_array(t, n, "nsync")
-    dt = _as_int_array(dtime, n, "dtime")
-    ch = _as_int_array(channel, n, "channel")
-    mk = np.zeros(n, np.int64) if marker is None else _as_int_array(marker, n, "marker")
     resolution_s = _finite_number(resolution_s, "resolution_s", True, 1.0)  # s per dtime unit
     sync_rate_hz = _finite_number(sync_rate_hz, "sync_rate_hz", True, 1e12)
     if sync_rate_hz < 1.0:  # the header's acquisition time (ms) would overflow its integer
         raise ConfigError(f"sync_rate_hz must be at least 1 Hz, got {sync_rate_hz!r}")
-    if n and (t[0] < 0 or np.any(np.diff(t) < 0)):
-        raise ConfigError("nsync must be non-negative and non-decreasing (time-ordered events)")
-    photon = mk == 0
-    if np.any((mk < 0) | (mk > 15)):
-        raise ConfigError("marker bits must be in 0..15 (0 = photon)")
-    if np.any(photon & ((dt < 0) | (dt >= dtime_max))):
-        raise ConfigError(f"dtime out of range 0..{dtime_max - 1} for {name} records")
-    if np.any(photon & ((ch < 0) | (ch >= channel_max))):
-        raise ConfigError(f"channel out of range 0..{channel_max - 1} for {name} records")
-
-    wraps = t // wrap
-    local = (t - wraps * wrap).astype(np.uint32)
-    gap = np.diff(wraps, prepend=0)
-    per = 1023 if family == "hydraharp2" else 1
-    n_ofl = -(-gap // per)  # overflow records before each event
-    if int(n_ofl.sum()) > MAX_OVERFLOW_RECORDS:  # counted before they are made
-        raise ConfigError(f"nsync spans {int(t[-1]):.3g} syncs: {int(n_ofl.sum()):.3g} overflow "
-                          f"records, more than {MAX_OVERFLOW_RECORDS}; is nsync in syncs?")
-    total = n + int(n_ofl.sum())
-    records = np.empty(total, np.uint32)
-    ev_pos = np.arange(n) + np.cumsum(n_ofl)
-    is_ev = np.zeros(total, bool)
-    is_ev[ev_pos] = True
-    owner = np.repeat(np.arange(n), n_ofl)
-    first = np.repeat(np.cumsum(n_ofl) - n_ofl, n_ofl)
-    count = np.minimum(per, gap[owner] - per * (np.arange(owner.size) - first))
-    dtu, chu, mku = dt.astype(np.uint32), ch.astype(np.uint32), mk.astype(np.uint32)
-    if family == "picoharp":
-        ev = np.where(photon, ((chu + 1) << 28) | (dtu << 16), (15 << 28) | (mku << 16)) | local
-        ofl = np.full(owner.size, 15 << 28, np.uint32)
-    else:
-        ev = np.where(photon, (chu << 25) | (dtu << 10), (1 << 31) | (mku << 25)) | local
-        ofl = ((0x7F << 25) | count).astype(np.uint32)
-    records[is_ev] = ev.astype(np.uint32)
-    records[~is_ev] = ofl
-
     period = 1.0 / float(sync_rate_hz)
     tags: dict[str, Any] = {
         "File_GUID": "{" + str(uuid.uuid4()) + "}", "File_Comment": comment,
@@ -211,8 +205,8 @@ def write_ptu_t3(
         "CreatorSW_Name": "spslidar", "CreatorSW_Version": __version__, "HW_Type": hardware,
         "Measurement_Mode": 3, "Measurement_SubMode": 0, "MeasDesc_BinningFactor": 1,
         "MeasDesc_Resolution": float(resolution_s), "MeasDesc_GlobalResolution": period,
-        "MeasDesc_AcquisitionTime": round((int(t[-1]) + 1 if n else 0) * period * 1e3),  # ms
-        "TTResult_SyncRate": round(float(sync_rate_hz)), "TTResult_NumberOfRecords": total,
+        "MeasDesc_AcquisitionTime": 0,  # ms, and the count: written once they are known
+        "TTResult_SyncRate": round(float(sync_rate_hz)), "TTResult_NumberOfRecords": 0,
         "TTResultFormat_TTTRRecType": code, "TTResultFormat_BitsPerRecord": 32,
     }
     if extra_tags is not None and not isinstance(extra_tags, dict):
@@ -224,9 +218,12 @@ def write_ptu_t3(
                            "Header_End")):
             raise ConfigError(f"extra_tags cannot set the format tag {key!r}")
         tags[key] = value
-    header = [_MAGIC, b"1.0.00\x00\x00"]
-    header += [_encode_tag(key, value) for key, value in tags.items()]
-    header.append(_encode_tag("Header_End", None))
+    parts = [_MAGIC, b"1.0.00\x00\x00"]
+    value_at: dict[str, int] = {}  # byte offset of a tag's 8-byte value
+    for key, value in tags.items():
+        value_at[key] = sum(map(len, parts)) + _TAG.size
+        parts.append(_encode_tag(key, value))
+    parts.append(_encode_tag("Header_End", None))
     from ..outdir import atomic_file
 
     where = Path(os.fspath(path))
@@ -235,25 +232,93 @@ def write_ptu_t3(
     if not where.parent.is_dir():
         raise ConfigError(f"cannot write the PTU file {os.fspath(path)!r}: the folder "
                           f"{where.parent} does not exist")
+    state = _Encoder(name, family)
     with atomic_file(path) as fh:  # a failed write (a full disk) leaves no partial file
-        _dump(fh, b"".join(header), records)
-    return total
+        fh.write(b"".join(parts))
+        for nsync, dtime, channel, marker in chunks:
+            _dump(fh, b"", state.encode(nsync, dtime, channel, marker))
+        for key, value in (("TTResult_NumberOfRecords", state.total),
+                           ("MeasDesc_AcquisitionTime",
+                            round((state.last + 1) * period * 1e3))):
+            fh.seek(value_at[key])
+            fh.write(struct.pack("<q", int(value)))
+    return state.total
+
+
+class _Encoder:
+    """T3 records of time-ordered events, chunk after chunk: the sync counter's wraps and the
+    overflow records between chunks carry over (:func:`write_ptu_t3_stream`)."""
+
+    def __init__(self, name: str, family: str):
+        self.name, self.family = name, family
+        self.wrap, self.dtime_max, self.channel_max = _FAMILY[family]
+        self.wraps = 0  # the last event's sync counter wraps
+        self.last = -1  # the last event's sync
+        self.total = self.n_ofl = 0
+
+    def encode(self, nsync: Any, dtime: Any, channel: Any, marker: Any) -> np.ndarray:
+        name, wrap = self.name, self.wrap
+        t = np.asarray(nsync)
+        if t.ndim != 1:
+            raise ConfigError(f"nsync must be one-dimensional, got shape {t.shape}")
+        n = t.size
+        t = _as_int_array(t, n, "nsync")
+        dt = _as_int_array(dtime, n, "dtime")
+        ch = _as_int_array(channel, n, "channel")
+        mk = np.zeros(n, np.int64) if marker is None else _as_int_array(marker, n, "marker")
+        if n and (t[0] < max(self.last, 0) or np.any(np.diff(t) < 0)):
+            raise ConfigError("nsync must be non-negative and non-decreasing (time-ordered "
+                              "events)")
+        photon = mk == 0
+        if np.any((mk < 0) | (mk > 15)):
+            raise ConfigError("marker bits must be in 0..15 (0 = photon)")
+        if np.any(photon & ((dt < 0) | (dt >= self.dtime_max))):
+            raise ConfigError(f"dtime out of range 0..{self.dtime_max - 1} for {name} records")
+        if np.any(photon & ((ch < 0) | (ch >= self.channel_max))):
+            raise ConfigError(f"channel out of range 0..{self.channel_max - 1} for {name} "
+                              f"records")
+        if not n:
+            return np.zeros(0, np.uint32)
+        wraps = t // wrap
+        local = (t - wraps * wrap).astype(np.uint32)
+        gap = np.diff(wraps, prepend=self.wraps)
+        per = 1023 if self.family == "hydraharp2" else 1
+        n_ofl = -(-gap // per)  # overflow records before each event
+        self.n_ofl += int(n_ofl.sum())
+        if self.n_ofl > MAX_OVERFLOW_RECORDS:  # counted before they are made
+            raise ConfigError(f"nsync spans {int(t[-1]):.3g} syncs: {self.n_ofl:.3g} overflow "
+                              f"records, more than {MAX_OVERFLOW_RECORDS}; is nsync in syncs?")
+        total = n + int(n_ofl.sum())
+        records = np.empty(total, np.uint32)
+        ev_pos = np.arange(n) + np.cumsum(n_ofl)
+        is_ev = np.zeros(total, bool)
+        is_ev[ev_pos] = True
+        owner = np.repeat(np.arange(n), n_ofl)
+        first = np.repeat(np.cumsum(n_ofl) - n_ofl, n_ofl)
+        count = np.minimum(per, gap[owner] - per * (np.arange(owner.size) - first))
+        dtu, chu, mku = dt.astype(np.uint32), ch.astype(np.uint32), mk.astype(np.uint32)
+        if self.family == "picoharp":
+            ev = np.where(photon, ((chu + 1) << 28) | (dtu << 16), (15 << 28) | (mku << 16)) | local
+            ofl = np.full(owner.size, 15 << 28, np.uint32)
+        else:
+            ev = np.where(photon, (chu << 25) | (dtu << 10), (1 << 31) | (mku << 25)) | local
+            ofl = ((0x7F << 25) | count).astype(np.uint32)
+        records[is_ev] = ev.astype(np.uint32)
+        records[~is_ev] = ofl
+        self.wraps, self.last, self.total = int(wraps[-1]), int(t[-1]), self.total + total
+        return records
 
 
 def _dump(fh: Any, header: bytes, records: np.ndarray) -> None:
-    """The header, then the records as little-endian 32-bit words (no copy on a
+    """The header (or nothing), then the records as little-endian 32-bit words (no copy on a
     little-endian machine)."""
     fh.write(header)
     fh.write(memoryview(np.ascontiguousarray(records.astype("<u4", copy=False))).cast("B"))
 
 
-def _concat(parts: list[np.ndarray]) -> np.ndarray:
-    return np.concatenate(parts) if parts else np.zeros(0, np.int64)
-
-
 def write_acquisition_ptu(
     path: PathLike,
-    pattern_events: Sequence[ArrayLike],
+    pattern_events: Iterable[ArrayLike],
     period_bins: int,
     bin_width_s: float,
     *,
@@ -279,9 +344,11 @@ def write_acquisition_ptu(
     path : str or os.PathLike
         Output file, replaced (written under a temporary name in its folder and moved onto
         ``path`` once complete: a failed write leaves ``path`` as it was and no partial file).
-    pattern_events : sequence of array_like
+    pattern_events : iterable of array_like
         Per pattern, an ``(n_k, 2)`` integer array of ``(period index, bin)`` photon events,
-        ``0 <= period < P_k`` and ``0 <= bin < period_bins``, in any order.
+        ``0 <= period < P_k`` and ``0 <= bin < period_bins``, in any order. With one
+        ``periods_per_pattern`` for all, a generator is read one pattern at a time (memory:
+        one pattern's events, not the acquisition's).
     period_bins : int
         Bins per code period ``L`` (at most 32768, 4096 for PicoHarp records).
     bin_width_s : float
@@ -303,8 +370,8 @@ def write_acquisition_ptu(
     bit = 1 << (_marker_input(marker) - 1)
     if not bin_width_s > 0:
         raise ConfigError(f"bin_width_s must be > 0, got {bin_width_s!r}")
-    events = []
-    for k, ev in enumerate(pattern_events):
+
+    def checked(k: int, ev: Any) -> np.ndarray:
         arr = np.asarray(ev)
         if arr.size == 0:
             arr = np.zeros((0, 2), np.int64)
@@ -315,27 +382,42 @@ def write_acquisition_ptu(
         if np.any(arr < 0) or np.any(arr[:, 1] >= period_bins):
             raise ConfigError(f"pattern_events[{k}]: periods must be >= 0 and bins in "
                               f"0..{period_bins - 1}")
-        events.append(arr)
-    m = len(events)
-    if periods_per_pattern is None:
-        periods = np.array([int(e[:, 0].max()) + 1 if len(e) else 1 for e in events], np.int64)
+        return arr
+
+    if periods_per_pattern is not None and np.ndim(periods_per_pattern) == 0:
+        # one dwell for all: each pattern is checked, encoded and written as it comes (a
+        # generator of patterns is never held whole)
+        if isinstance(periods_per_pattern, bool) or int(periods_per_pattern) < 1:
+            raise ConfigError("periods_per_pattern must be a positive int or one per pattern")
+        items: Iterable[np.ndarray] = (checked(k, e) for k, e in enumerate(pattern_events))
+        periods: Iterable[int] = itertools.repeat(int(periods_per_pattern))
     else:
-        periods = np.asarray(periods_per_pattern, np.int64)
-        periods = np.full(m, periods) if periods.ndim == 0 else periods
-        if periods.shape != (m,) or np.any(periods < 1):
-            raise ConfigError(f"periods_per_pattern must be a positive int or {m} positive ints")
-        for k, e in enumerate(events):
-            if len(e) and e[:, 0].max() >= periods[k]:
+        events = [checked(k, e) for k, e in enumerate(pattern_events)]
+        m = len(events)
+        if periods_per_pattern is None:
+            periods = [int(e[:, 0].max()) + 1 if len(e) else 1 for e in events]
+        else:
+            arr = np.asarray(periods_per_pattern, np.int64)
+            if arr.shape != (m,) or np.any(arr < 1):
+                raise ConfigError(f"periods_per_pattern must be a positive int or {m} positive "
+                                  f"ints")
+            periods = arr.tolist()
+        items = events
+
+    def chunks():
+        start = 0
+        for k, (e, dwell) in enumerate(zip(items, periods, strict=False)):  # (repeat())
+            if len(e) and e[:, 0].max() >= dwell:
                 raise ConfigError(f"pattern_events[{k}] has a period index >= "
-                                  f"periods_per_pattern ({periods[k]})")
-    starts = np.concatenate([[0], np.cumsum(periods)[:-1]]) if m else np.zeros(0, np.int64)
-    nsync, dtime, marks = [], [], []
-    for k, e in enumerate(events):
-        e = e[np.lexsort((e[:, 1], e[:, 0]))]  # time order
-        nsync += [np.array([starts[k]]), starts[k] + e[:, 0]]
-        dtime += [np.zeros(1, np.int64), e[:, 1]]
-        marks += [np.array([bit]), np.zeros(len(e), np.int64)]
-    return write_ptu_t3(
-        path, nsync=_concat(nsync), dtime=_concat(dtime), channel=channel, marker=_concat(marks),
-        resolution_s=float(bin_width_s), sync_rate_hz=1.0 / (period_bins * float(bin_width_s)),
-        record_type=record_type, comment=comment, created=created)
+                                  f"periods_per_pattern ({dwell})")
+            e = e[np.lexsort((e[:, 1], e[:, 0]))]  # time order
+            mark = np.zeros(len(e) + 1, np.int64)
+            mark[0] = bit  # the pattern's marker, at its first sync, before its photons
+            yield (np.concatenate([[start], start + e[:, 0]]),
+                   np.concatenate([[0], e[:, 1]]), channel, mark)
+            start += dwell
+
+    return write_ptu_t3_stream(
+        path, chunks(), resolution_s=float(bin_width_s),
+        sync_rate_hz=1.0 / (period_bins * float(bin_width_s)), record_type=record_type,
+        comment=comment, created=created)

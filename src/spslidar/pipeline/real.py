@@ -603,6 +603,20 @@ def calibration_warnings(cal: dict[str, Any]) -> list[str]:
     return []
 
 
+def check_ptu_photons(meas: Measurement, max_photons: float = 2e7) -> float:
+    """The photons :func:`write_measurement_ptu` would write (expected), refused in one line
+    beyond ``max_photons``: ``run --save-ptu`` checks it once the acquisition is simulated,
+    before the solve (it was checked after it, 34 s into a run it then refused, an audit)."""
+    acq = meas.acq
+    noise_bin = np.asarray(meas.sim["noise_per_bin"], np.float64)
+    expected = float(np.asarray(meas.sim["signal_counts"]).sum()
+                     + noise_bin.sum() * acq.period * acq.n_periods)
+    if expected > max_photons:
+        raise ConfigError(f"--save-ptu writes photon by photon: {expected:.3g} expected photons "
+                          f"exceed {max_photons:.3g}; lower --signal / --noise")
+    return expected
+
+
 def write_measurement_ptu(meas: Measurement, path: str | os.PathLike, *,
                           max_photons: float = 2e7) -> dict[str, Any]:
     """Write a simulated acquisition photon by photon as a T3 PTU file (``run --save-ptu``).
@@ -630,29 +644,30 @@ def write_measurement_ptu(meas: Measurement, path: str | os.PathLike, *,
         raise ConfigError(f"--save-ptu: a code period of {acq.period} bins exceeds the T3 dtime "
                           "field (32768 bins)")
     noise_bin = np.asarray(meas.sim["noise_per_bin"], np.float64)
-    expected = float(np.asarray(meas.sim["signal_counts"]).sum()
-                      + noise_bin.sum() * acq.period * acq.n_periods)
-    if expected > max_photons:
-        raise ConfigError(f"--save-ptu writes photon by photon: {expected:.3g} expected photons "
-                          f"exceed {max_photons:.3g}; lower --signal / --noise")
+    check_ptu_photons(meas, max_photons)
     from ..instrument import instrument_weights
 
     shifts, weights = instrument_weights(scene, acq, cfg)  # system delay and IRF as run's
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0x505455]))
     m = patterns.shape[0]
-    events = []
-    for k0 in range(0, m, 64):
-        rows = slice(k0, min(m, k0 + 64))
-        amp = np.asarray(patterns.apply_rows(rows, weights), np.float64)
-        lam = expected_counts(amp, shifts, acq.code, acq.signal_per_pulse, noise_bin[rows],
-                              acq.n_periods)
-        counts = rng.poisson(np.asarray(lam, np.float64))
-        for row in counts:
-            bins = np.repeat(np.arange(acq.period), row)
-            events.append(np.stack([rng.integers(0, acq.n_periods, bins.size), bins], axis=1))
-    n = write_acquisition_ptu(path, events, acq.period, acq.bin_width,
+    photons = 0
+
+    def events():  # pattern by pattern, drawn as the file is written (memory: 64 patterns')
+        nonlocal photons
+        for k0 in range(0, m, 64):
+            rows = slice(k0, min(m, k0 + 64))
+            amp = np.asarray(patterns.apply_rows(rows, weights), np.float64)
+            lam = expected_counts(amp, shifts, acq.code, acq.signal_per_pulse, noise_bin[rows],
+                                  acq.n_periods)
+            counts = rng.poisson(np.asarray(lam, np.float64))
+            for row in counts:
+                bins = np.repeat(np.arange(acq.period), row)
+                photons += bins.size
+                yield np.stack([rng.integers(0, acq.n_periods, bins.size), bins], axis=1)
+
+    n = write_acquisition_ptu(path, events(), acq.period, acq.bin_width,
                               periods_per_pattern=acq.n_periods)
-    return {"records": n, "photons": int(sum(len(e) for e in events))}
+    return {"records": n, "photons": photons}
 
 
 def ptu_companions(ptu_path) -> tuple[str, str]:
