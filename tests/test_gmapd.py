@@ -532,3 +532,56 @@ def test_gmapd_blocks_are_priced_one_after_another(monkeypatch):
                                                                 **detector_options(cfg)),
                           cfg.pulse_width, np.random.default_rng(0), threads=2, max_time=60)
     assert priced == [4.0]  # the first block's 1 s, and 3 more (not 1 + 3 / 2)
+
+
+def test_a_detector_models_blocks_run_as_many_at_once_as_fit(monkeypatch):
+    """No estimate made before the flux holds a GMAPD's model: a run peaked at 0.82 GB under
+    a 0.3 GB --max-memory, two blocks at a time (an audit). The first block's peak is
+    measured (tracemalloc) and the rest run as many at once as fit; none fitting is one
+    line."""
+    import spslidar.machine as machine
+    from spslidar.errors import ConfigError
+    from spslidar.pipeline.simulate import _measured_block
+
+    monkeypatch.setattr(machine, "resident_memory", lambda: 100e6)
+    kept = []
+
+    def block(b):  # holds 40 MB at its peak
+        kept.append(np.ones(5_000_000).sum())
+
+    class Det:
+        name = "gmapd"
+
+    assert _measured_block(block, Det(), 0.24) == 3  # 140 MB left: 3 blocks of 40 MB
+    assert _measured_block(block, Det(), 0.15) == 1
+    with pytest.raises(ConfigError, match=r"holds about 40 MB per block .* beside the 0\.1 GB "
+                                          r"the run holds: more than the 0\.1 GB --max-memory"):
+        _measured_block(block, Det(), 0.12)
+    assert len(kept) == 3  # each call ran the block once
+
+
+def test_a_gmapd_run_under_a_memory_cap_gives_the_same_map(monkeypatch):
+    """Blocks one at a time (as under a cap that fits one) give the map of blocks two at a
+    time: each block draws from its own stream."""
+    import spslidar.pipeline.simulate as simulate
+    from spslidar.pipeline import run
+
+    kw = dict(detector="gmapd", size=16, code_length=127, signal=2e-5, noise=2e-6, periods=20,
+              compression=1.0, seed=3)  # (0.9 photons per dead time, 4 blocks)
+    free = run(**kw, max_memory=4.0)
+    measured = simulate._measured_block
+    calls = []
+
+    def one_at_a_time(*a):
+        calls.append(measured(*a))
+        return 1
+
+    monkeypatch.setattr(simulate, "_measured_block", one_at_a_time)
+
+    def no_pool():  # (only asked for where blocks run on threads)
+        raise AssertionError("blocks ran two at a time where one fits")
+
+    monkeypatch.setattr(simulate, "single_threaded_blas", no_pool)
+    capped = run(**kw, max_memory=4.0)
+    assert calls and calls[0] >= 1
+    assert np.array_equal(free.depth, capped.depth, equal_nan=True)

@@ -17,6 +17,16 @@ def _gb(b: float) -> str:
     return f"{b / 1e6:.0f} MB" if b >= 1e6 else f"{b / 1e6:.2g} MB"
 
 
+def resident_memory() -> float:
+    """Bytes this process holds now (its resident set, ``/proc/self/statm``; 0 where the
+    system does not say)."""
+    try:
+        with open("/proc/self/statm") as fh:
+            return float(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError, AttributeError):  # pragma: no cover - not Linux
+        return 0.0
+
+
 def available_memory() -> float:
     """Bytes of memory this process may still use: ``MemAvailable`` of ``/proc/meminfo``
     (falling back to the physical memory), capped by ``RLIMIT_AS`` when one is set."""

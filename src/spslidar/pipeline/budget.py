@@ -90,6 +90,14 @@ def _secs(s: float) -> str:
     return f"{s / 3600:.0f} h"
 
 
+def _solver_copies(solver: str) -> float:
+    """The dense ``(M, Q)`` pattern copies a solver makes beyond :data:`DENSE_PATTERN_COPIES`:
+    its registry default ``pattern_copies`` (GPSR's wavelet-composed matrix), else 0."""
+    from ..solvers import SOLVERS
+
+    return float(SOLVERS.get(solver).defaults.get("pattern_copies", 0))
+
+
 def _slice_cost(depth: str, key: str, default: float) -> float:
     """The depth estimator's cost per slice-block entry, its registry default ``key``
     (``slice_bytes`` or ``slice_seconds``), else ``default`` (:data:`SLICE_BYTES`,
@@ -141,7 +149,8 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
     shifts = min(n_ulags + 2, 2 * q)
     parts = {
         "interpreter": BASE_BYTES,
-        "patterns": (DENSE_PATTERN_COPIES * m * q * pattern_bytes_per_entry
+        "patterns": ((DENSE_PATTERN_COPIES + _solver_copies(cfg.solver)) * m * q
+                     * pattern_bytes_per_entry
                      if pattern_bytes_per_entry else 2.0 * m * shifts * 8),
         "simulation": threads * 3.0 * 64 * period * 4 + shifts * period * 4.0
         + q * shifts * 8.0 + 2.0 * m * n_ulags * 4,

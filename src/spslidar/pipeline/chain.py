@@ -214,7 +214,7 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
         sim = simulate_correlations(shown, scene, acq_shown, ulags, noise, detector,
                                     cfg.pulse_width, np.random.default_rng(seq_counts),
                                     noiseless=cfg.noiseless, instrument=cfg,
-                                    max_time=cfg.max_time)
+                                    max_time=cfg.max_time, max_memory=cfg.max_memory)
         if shown is not host:
             sim = host.combine(sim)
     import inspect

@@ -48,6 +48,7 @@ def simulate_correlations(
     threads: int | None = None,
     instrument=None,
     max_time: float | None = None,
+    max_memory: float | None = None,
 ) -> dict[str, np.ndarray]:
     """Expected counts -> Poisson counts -> matched filter, streamed over blocks of patterns.
 
@@ -92,6 +93,13 @@ def simulate_correlations(
         of patterns is simulated alone and timed, and the rest estimated from it is refused
         beyond ``max_time`` seconds or said on stderr when over 30 s
         (:func:`spslidar.pipeline.budget.check_time`). None: not timed.
+    max_memory : float, optional
+        For such a model the first block's peak memory is measured too (``tracemalloc``: the
+        run's estimate, made before the flux is known, leaves the model out), and the blocks
+        run on as many threads as fit under ``max_memory`` GB (default: the memory
+        available), one at a time if need be; where one does not fit, a one-line
+        :class:`~spslidar.errors.ConfigError` (a GMAPD run peaked at 0.82 GB under a 0.3 GB
+        ``--max-memory``, two blocks at a time: an audit of 2026-11-29).
 
     Returns
     -------
@@ -142,8 +150,8 @@ def simulate_correlations(
     args = (patterns, weights, shifts, noise_bin, acq, detector, replica, lags, gain, edges,
             children, noiseless)
     if method == "fast":
-        corr, totals, noise_tot, amp_sum, incident = _simulate_fast(*args, threads=threads,
-                                                          max_time=max_time)
+        corr, totals, noise_tot, amp_sum, incident = _simulate_fast(
+            *args, threads=threads, max_time=max_time, max_memory=max_memory)
     else:
         corr, totals, noise_tot, amp_sum, incident = _simulate_reference(*args)
     n_pulses = float(acq.code.sum()) * acq.n_periods
@@ -195,7 +203,7 @@ def simulation_threads(threads: int | None = None) -> int:
 
 
 def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica, lags, gain,
-                   edges, children, noiseless, threads=None, max_time=None):
+                   edges, children, noiseless, threads=None, max_time=None, max_memory=None):
     """The streamed simulation of :func:`simulate_correlations` (``method='fast'``)."""
     m = patterns.shape[0]
     n_blocks = edges.size - 1
@@ -243,17 +251,20 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
                 lam = fixed
         corr[rows] = matched_filter(lam, replica, lags, gain, bank=bank)
 
-    first = 0
-    if max_time is not None and not detector.linear and n_blocks > 1:
+    first, fit = 0, None
+    if not detector.linear and n_blocks > 1:
         # a flux-dependent detector model: time the first block, price the rest from it (each
-        # block draws from its own stream, so the order does not change the result)
+        # block draws from its own stream, so the order does not change the result), and
+        # measure its memory, which no estimate made before the flux holds
         import time
 
         from .budget import check_time
 
         t0 = time.perf_counter()
-        block(0)
+        fit = _measured_block(block, detector, max_memory)
         took = time.perf_counter() - t0
+        first = 1
+    if max_time is not None and first:
         # priced as if the blocks ran one after another: a detector model's block is mostly
         # Python (the GMAPD's renewal model, its detection-by-detection draws, the Coates
         # correction), so the threads gain little (an audit of 2026-11-29 measured 25.7 s
@@ -262,9 +273,8 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
         check_time(took + rest, max_time, f"the {detector.name} detector model's simulation",
                    reduce="--size, --compression, --code-length or the flux (--signal, "
                           "--noise)", basis="its first block of patterns")
-        first = 1
     todo = range(first, n_blocks)
-    workers = min(simulation_threads(threads), len(todo))
+    workers = min(simulation_threads(threads), len(todo), fit or len(todo))
     blas_limit = single_threaded_blas() if workers > 1 else None
     if blas_limit is None:
         for b in todo:
@@ -273,6 +283,40 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
         with blas_limit, ThreadPoolExecutor(workers) as pool:
             list(pool.map(block, todo))
     return corr, totals, noise_tot, amp_sum, incident
+
+
+def _measured_block(block, detector, max_memory: float | None) -> int:
+    """Run ``block(0)`` and return how many such blocks fit at once in what is left of
+    ``max_memory`` GB (default: the memory available) beside what the process holds: the
+    block's peak as ``tracemalloc`` sees NumPy's and Python's allocations. None of them is a
+    one-line ConfigError."""
+    import tracemalloc
+
+    from ..machine import _gb, available_memory, resident_memory
+
+    mine = not tracemalloc.is_tracing()
+    if mine:
+        tracemalloc.start()
+    try:
+        tracemalloc.reset_peak()
+        before = tracemalloc.get_traced_memory()[0]
+        block(0)
+        need = max(1.0, float(tracemalloc.get_traced_memory()[1] - before))
+    finally:
+        if mine:
+            tracemalloc.stop()
+    limit = available_memory() if max_memory is None else float(max_memory) * 1e9
+    held = resident_memory()
+    fit = int((limit - held) // need)
+    if fit < 1:
+        src = "available" if max_memory is None else "--max-memory"
+        raise ConfigError(
+            f"the {detector.name} detector model's simulation holds about {_gb(need)} per "
+            f"block of patterns (measured on its first), beside the {_gb(held)} the run "
+            f"holds: more than the {_gb(limit)} {src}; lower the flux (--signal, --noise), "
+            f"--periods, --size or --code-length" + ("" if max_memory is None
+                                                     else ", or raise --max-memory"))
+    return fit
 
 
 def _check_counts(counts, shape: tuple, detector, what: str = "detect") -> None:
