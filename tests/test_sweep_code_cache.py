@@ -119,3 +119,30 @@ def test_an_edited_plugin_sweeps_again(plugin_pair, tmp_path, capsys):
         # every depth moved by the helper's metre (not read back from the cache)
         assert float(a["depth_bias_m"]) == pytest.approx(float(b["depth_bias_m"]) + 1.0,
                                                            abs=1e-6)
+
+
+def test_a_sweeps_workers_fit_its_memory_together(tmp_path, capsys, monkeypatch):
+    """Each point was checked against max_memory alone while --jobs ran several at once (a
+    sweep of 128x128 points at max_memory 1.5 peaked at 2.17 GB on two workers, an audit):
+    the workers are now as many as fit together, and that is said."""
+    import csv
+
+    from spslidar.cli import main
+    from spslidar.experiments.sweep import engine
+    from spslidar.experiments.sweep.command import _jobs_that_fit
+
+    monkeypatch.setattr(engine, "_cores", lambda: 2)
+    toml = tmp_path / "s.toml"
+    toml.write_text('[base]\nsize = 8\ncode_length = 127\nmax_memory = 0.3\n'
+                    '[grid]\nseed = [1, 2]\n')
+    assert main(["sweep", str(toml), "--out", str(tmp_path / "o"), "--jobs", "2",
+                 "--no-progress"]) == 0
+    err = capsys.readouterr().err
+    assert "sweep: note: 1 run at a time, not 2" in err and "0.3 GB max_memory" in err
+    rows = list(csv.DictReader(open(tmp_path / "o" / "results.csv")))
+    assert len(rows) == 2 and all(r["depth_rmse_m"] for r in rows)
+    # the count itself: the largest point against the smallest cap, or what is available
+    assert _jobs_that_fit([(0.2e9, 1.0), (0.3e9, 1.0)], 4) == 3
+    assert _jobs_that_fit([(0.2e9, 1.0), (0.3e9, 0.5)], 4) == 1
+    assert _jobs_that_fit([], 4) == 4
+    assert capsys.readouterr().err.count("sweep: note:") == 2

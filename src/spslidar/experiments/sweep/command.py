@@ -99,14 +99,16 @@ def _seeded(points: Sequence[Mapping[str, Any]], ignored: list[dict[str, str]],
 
 def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
                          ignored: list[dict[str, str]] | None = None,
-                         unpriced: dict[str, int] | None = None) -> float:
+                         unpriced: dict[str, int] | None = None,
+                         memory: list[tuple[float, float | None]] | None = None) -> float:
     """Check every point's run config before anything runs: a bad grid is bad input (one
     ConfigError naming the file), not a sweep of failed runs. Returns the estimated total
     time of the runs (seconds, from each configuration's budget); ``ignored`` receives each
     point's options that its configuration ignores
     (:func:`~spslidar.pipeline.plan.ignored_keys`), ``unpriced`` the number of points per
     detector model whose cost depends on the flux (not ``linear``: the GMAPD's dead-time
-    model, which a run prices from its first block of patterns as it runs, not before)."""
+    model, which a run prices from its first block of patterns as it runs, not before),
+    ``memory`` each point's estimated bytes with its ``max_memory`` (GB, or None)."""
     from spslidar.config import Config
     from spslidar.detectors import DETECTORS
     from spslidar.pipeline import preflight
@@ -114,6 +116,7 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
     from spslidar.pipeline.plan import ignored_keys
 
     seconds: dict[str, float] = {}
+    peak: dict[str, float] = {}
     total = 0.0
     processing = processing_keys()
     for params in points:
@@ -127,14 +130,39 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
             key = canonical_json({k: v for k, v in cfg.to_dict().items()
                                   if k not in processing and k != "seed"})
             if key not in seconds:
-                seconds[key] = preflight(cfg).seconds
+                budget = preflight(cfg)
+                seconds[key], peak[key] = budget.seconds, budget.bytes
             total += seconds[key]
+            if memory is not None:
+                memory.append((peak[key], cfg.max_memory))
             if unpriced is not None and not getattr(DETECTORS.load(cfg.detector), "linear",
                                                     True):
                 unpriced[cfg.detector] = unpriced.get(cfg.detector, 0) + 1
         except (ConfigError, SpslidarError) as exc:
             raise ConfigError(f"{where}: {exc}") from None
     return total
+
+
+def _jobs_that_fit(memory: list[tuple[float, float | None]], workers: int) -> int:
+    """The local workers whose runs fit at once: ``max_memory`` (or, where no point sets it,
+    the memory available) holds each point's limit alone, so ``workers`` of the largest
+    points at once must fit under it; fewer are run, and said, where they do not (a sweep of
+    128x128 points at ``max_memory = 1.5`` peaked at 2.17 GB on two workers, an audit)."""
+    from spslidar.machine import _gb, available_memory
+
+    if not memory:
+        return workers
+    largest = max(b for b, _ in memory)
+    caps = [c for _, c in memory if c is not None]
+    limit = min(caps) * 1e9 if caps else available_memory()
+    fit = max(1, int(limit // max(largest, 1.0)))
+    if fit < workers:
+        src = "max_memory" if caps else "memory available"
+        print(f"sweep: note: {fit} run{'s' if fit > 1 else ''} at a time, not {workers}: "
+              f"{workers} of its largest points at once need about {_gb(workers * largest)}, "
+              f"more than the {_gb(limit)} {src} (each run is checked against it alone)",
+              file=sys.stderr)
+    return min(fit, workers)
 
 
 def sweep_main(
@@ -189,7 +217,8 @@ def sweep_main(
         ignored: list[dict[str, str]] = []
         opened = [spec.resolve(point) for point in points]
         unpriced: dict[str, int] = {}
-        total = _validate_run_points(opened, config_path, ignored, unpriced)
+        memory: list[tuple[float, float | None]] = []
+        total = _validate_run_points(opened, config_path, ignored, unpriced, memory)
         points = [{**point, **{k: hashed[k] for k in (SCENE_HASH_KEY, IRF_HASH_KEY)
                                if k in hashed}}
                   for point, hashed in zip(points, with_scene_hashes(opened), strict=True)]
@@ -203,6 +232,8 @@ def sweep_main(
         # local workers are at most the cores (--jobs 1000 divided a 9 h sweep into 31 s)
         workers = jobs if scheduler is not None else (
             engine._cores() if jobs == -1 else min(jobs, engine._cores()))
+        if scheduler is None and workers > 1:
+            jobs = workers = _jobs_that_fit(memory, workers)
         check_time(total / max(1, min(len(points), workers)), max_time,
                    f"this sweep of {len(points)} runs")
         if unpriced:  # (a 3-point GMAPD sweep ran 70 s with nothing said, an audit)
