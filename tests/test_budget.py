@@ -58,8 +58,14 @@ def test_estimate_grows_with_the_problem():
 def test_check_budget_limits():
     b = Budget(2e9, 10.0, {"patterns": 1.5e9, "solver": 0.5e9})
     check_budget(b, 3.0)  # fits
-    with pytest.raises(SpslidarError, match=r"~2\.0 GB .*patterns, 1\.5 GB.*1\.0 GB --max-memory"):
+    with pytest.raises(SpslidarError, match=r"~2\.00 GB .*patterns, 1\.50 GB.*1\.00 GB "
+                                            r"--max-memory"):
         check_budget(b, 1.0)
+    # (1.22 against 1.2 read "needs ~1.2 GB ... more than the 1.2 GB"; 0.25 read "0.2 GB")
+    with pytest.raises(SpslidarError, match=r"~1\.22 GB .* more than the 1\.20 GB"):
+        check_budget(Budget(1.22e9, 1.0, {"patterns": 1e9}), 1.2)
+    with pytest.raises(SpslidarError, match=r"more than the 0\.25 GB"):
+        check_budget(b, 0.25)
     assert "patterns" in b.describe() and "10 s" in b.describe()
 
 

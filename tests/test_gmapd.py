@@ -502,7 +502,7 @@ def test_a_dead_time_the_model_cannot_hold_is_one_line(monkeypatch):
 
     monkeypatch.setattr(spslidar.machine, "available_memory", lambda: 5e8)
     with pytest.raises(ConfigError, match=r"^--dead-time 1e-05 s is 1e\+05 TDC bins .* would "
-                                          r"hold about .* more than the 0.5 GB available"):
+                                          r"hold about .* more than the 0.50 GB available"):
         measure(detector="gmapd", dead_time=1e-5, size=8, signal=2.5e-6, noise=2.5e-7,
                 periods=100)
 
@@ -554,8 +554,8 @@ def test_a_detector_models_blocks_run_as_many_at_once_as_fit(monkeypatch):
 
     assert _measured_block(block, Det(), 0.24) == 3  # 140 MB left: 3 blocks of 40 MB
     assert _measured_block(block, Det(), 0.15) == 1
-    with pytest.raises(ConfigError, match=r"holds about 40 MB per block .* beside the 0\.1 GB "
-                                          r"the run holds: more than the 0\.1 GB --max-memory"):
+    with pytest.raises(ConfigError, match=r"holds about 40 MB per block .* beside the 0\.10 GB "
+                                          r"the run holds: more than the 0\.12 GB --max-memory"):
         _measured_block(block, Det(), 0.12)
     assert len(kept) == 3  # each call ran the block once
 

@@ -138,7 +138,7 @@ def test_a_sweeps_workers_fit_its_memory_together(tmp_path, capsys, monkeypatch)
     assert main(["sweep", str(toml), "--out", str(tmp_path / "o"), "--jobs", "2",
                  "--no-progress"]) == 0
     err = capsys.readouterr().err
-    assert "sweep: note: 1 run at a time, not 2" in err and "0.3 GB max_memory" in err
+    assert "sweep: note: 1 run at a time, not 2" in err and "0.30 GB max_memory" in err
     rows = list(csv.DictReader(open(tmp_path / "o" / "results.csv")))
     assert len(rows) == 2 and all(r["depth_rmse_m"] for r in rows)
     # the count itself: the largest point against the smallest cap, or what is available

@@ -12,8 +12,12 @@ __all__ = ["DURATION_UNITS", "MEMORY_UNITS", "available_memory", "parse_duration
 
 def _gb(b: float) -> str:
     # (under 1 MB two significant digits: "--max-memory 1e-6" read "more than the 0 MB")
+    # (two decimals: "needs ~1.2 GB ... more than the 1.2 GB --max-memory" was 1.22 against
+    # 1.2, and --max-memory 0.25 read "0.2 GB", an audit)
+    if b >= 1e10:
+        return f"{b / 1e9:.0f} GB"
     if b >= 1e8:
-        return f"{b / 1e9:.1f} GB"
+        return f"{b / 1e9:.2f} GB"
     return f"{b / 1e6:.0f} MB" if b >= 1e6 else f"{b / 1e6:.2g} MB"
 
 
