@@ -469,6 +469,13 @@ def test_reconstruct_refuses_histograms_that_cannot_fit(monkeypatch):
     with pytest.raises(ConfigError, match="400000 patterns of 1023 bins .* of histograms"):
         check_real_inputs(10e9, (1.0, 2.0), 16, 400_000, 1023)
     check_real_inputs(10e9, (1.0, 2.0), 16, 4000, 1023)  # 98 MB: fine
+    # the chain's dense copies of the patterns, which were not counted (a 128x128 file's
+    # 268 MB of patterns peaked at 1.51 GB, a MemoryError under 1.6 GB, an audit): 4 096
+    # patterns of 16 384 mirrors are 1.07 GB as the chain holds them
+    monkeypatch.setattr(spslidar.machine, "available_memory", lambda: 1.2e9)
+    with pytest.raises(ConfigError, match="4096 patterns of 16384 mirrors need about 1.18 GB"):
+        check_real_inputs(10e9, (1.0, 2.0), 16384, 4096, 1023)
+    check_real_inputs(10e9, (1.0, 2.0), 16384, 1024, 1023)  # 0.27 GB: fine
 
 
 def test_reconstruct_input_arrays_checked_by_their_header(tmp_path):

@@ -274,12 +274,23 @@ def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: in
     if hists > 0.8 * available_memory():
         raise ConfigError(f"{n_patterns} patterns of {period} bins (the code length) need "
                           f"{_gb(hists)} of histograms, more than the memory available")
+    # the (M, Q) patterns as the chain holds them (float32: the matrix, its centred copy,
+    # their float64 blocks while centring; a 128x128 file's 268 MB of patterns peaked at
+    # 1.51 GB, which these checks did not count: an audit), before the gate's share
+    from .budget import DENSE_PATTERN_COPIES
+
+    dense = DENSE_PATTERN_COPIES * float(n_patterns) * n_pixels * 4
+    if hists + dense > 0.8 * available_memory():
+        raise ConfigError(f"{n_patterns} patterns of {n_pixels} mirrors need about "
+                          f"{_gb(hists + dense)} with their histograms, more than the memory "
+                          f"available; fewer patterns or a smaller image")
     # range slices (float32 and the estimator's float64 copies) and the solver's blocks
     need = float(n_pixels) * n_lags * 20 + 16.0 * n_pixels * min(n_lags, period) * 4
-    if need > 0.8 * available_memory():
+    if need + dense > 0.8 * available_memory():
         raise ConfigError(f"--range-gate {lo:g} {hi:g} spans {n_lags:.3g} TDC bins: "
-                          f"{_gb(need)} of range slices for {n_pixels} pixels, more than the "
-                          f"memory available; narrow the range gate")
+                          f"{_gb(need)} of range slices for {n_pixels} pixels (beside "
+                          f"{_gb(dense)} of patterns), more than the memory available; narrow "
+                          f"the range gate")
 
 
 def _check_solve_time(cfg: Config, n_patterns: int, n_pixels: int, n_lags: int,
