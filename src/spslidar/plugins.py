@@ -156,24 +156,13 @@ def load_plugins(specs: list[str] | None = None, export: bool = False) -> list[s
     return list(_LOADED)
 
 
-def code_fingerprint() -> str:
-    """The code a run's result depends on, as 16 hex digits: the SHA-256 of spslidar's version,
-    the bytes of every module of the package, and those of every loaded plugin and of the
-    modules imported from a plugin's folder (its helpers).
-
-    The run caches of ``sweep`` and ``reproduce`` record it and read a cached run only under
-    the same fingerprint, so a plugin edited between two sweeps, or spslidar upgraded or edited,
-    runs its points again (with the same seeds, so on the same noise) instead of returning the
-    old code's results (a known limit of stop 51: a plugin's bug fixed and the sweep run again
-    gave the buggy code's rows, from the cache). NumPy's or SciPy's version is not in it:
-    results across library releases agree to float tolerance, not bit for bit, and a cache is
-    not a claim of either. A module a worker imports that the parent never did is not seen.
-    """
-    from .version import __version__
-
-    package = Path(__file__).resolve().parent
+def _fingerprint_files(package: Path) -> set[Path]:
+    """The files :func:`code_fingerprint` reads: the package's modules and data, the loaded
+    plugins and the modules imported from their folders."""
     plugin_files = _loaded_files()
-    files = set(package.rglob("*.py")) | set(plugin_files)
+    # (with the data the package ships, its built-in scenes: regenerated, they left the
+    # cache's old numbers in a sweep's results, an audit of 2026-11-29)
+    files = set(package.rglob("*.py")) | set((package / "data").glob("*")) | set(plugin_files)
     folders = {f.parent for f in plugin_files}
     if folders:
         for module in list(sys.modules.values()):
@@ -187,6 +176,27 @@ def code_fingerprint() -> str:
             if ("site-packages" not in path.parts and "dist-packages" not in path.parts
                     and any(folder in path.parents for folder in folders)):
                 files.add(path)  # (a plugin beside a venv: not the venv's libraries)
+    return files
+
+
+def code_fingerprint() -> str:
+    """The code a run's result depends on, as 16 hex digits: the SHA-256 of spslidar's version,
+    the bytes of every module of the package and of the data it ships (``spslidar/data``: the
+    built-in scenes), and those of every loaded plugin and of the modules imported from a
+    plugin's folder (its helpers).
+
+    The run caches of ``sweep`` and ``reproduce`` record it and read a cached run only under
+    the same fingerprint, so a plugin edited between two sweeps, or spslidar upgraded or edited,
+    runs its points again (with the same seeds, so on the same noise) instead of returning the
+    old code's results (a known limit of stop 51: a plugin's bug fixed and the sweep run again
+    gave the buggy code's rows, from the cache). NumPy's or SciPy's version is not in it:
+    results across library releases agree to float tolerance, not bit for bit, and a cache is
+    not a claim of either. A module a worker imports that the parent never did is not seen.
+    """
+    from .version import __version__
+
+    package = Path(__file__).resolve().parent
+    files = _fingerprint_files(package)
     digest = hashlib.sha256(__version__.encode())
     for path in sorted(files):
         try:

@@ -68,6 +68,24 @@ def _run_opened(folder: str | None, func: Callable[[dict[str, Any]], Any],
     return func(resolve_point_files(params, folder))
 
 
+def _config_defaults() -> dict[str, Any]:
+    """Each run key's default (:class:`~spslidar.config.Config`'s fields and the options the
+    stages declare), as :func:`~spslidar.experiments.sweep.grid.same_value` compares them; a
+    key whose default is resolved at run time (None) is left out."""
+    import dataclasses
+
+    from spslidar.config import Config, stage_options
+
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(Config):
+        if f.default is not dataclasses.MISSING and f.default is not None:
+            out[f.name] = same_value(f.default)
+    for name, (_reg, opt) in stage_options().items():
+        if opt.default is not None:
+            out.setdefault(name, same_value(opt.default))
+    return out
+
+
 def _seeded(points: Sequence[Mapping[str, Any]], ignored: list[dict[str, str]],
             ignore: frozenset[str], seed: int) -> list[dict[str, Any]]:
     """Each point with its seed (unless the grid sets one): :func:`derive_seed` of the point
@@ -78,14 +96,19 @@ def _seeded(points: Sequence[Mapping[str, Any]], ignored: list[dict[str, str]],
     0.25 m). Options that some points ignore are said once each, on stderr."""
     from spslidar.scenes import scene_spec
 
+    defaults = _config_defaults()
     out, said = [], {}
     for point, skip in zip(points, ignored, strict=True):
         point = dict(point)
         if "scene" in point:  # one scene spelled two ways is one point (procedural:007 / :7)
             point["scene"] = scene_spec(point["scene"])
         if SEED_KEY not in point:
+            # (a default written out, signal = 5.0 in [base], drew other noise for every
+            # point than the same sweep without it: an audit of 2026-11-29)
             point[SEED_KEY] = derive_seed(seed, {
-                k: same_value(v) for k, v in point.items() if k not in ignore and k not in skip})
+                k: same_value(v) for k, v in point.items()
+                if k not in ignore and k not in skip
+                and not (k in defaults and same_value(v) == defaults[k])})
         for text in skip.values():
             said[text] = said.get(text, 0) + 1
         out.append(point)
@@ -276,6 +299,7 @@ def sweep_main(
             f"--out {out_dir}: holds the {RESULTS_CSV} of another sweep (other points); pass "
             f"--overwrite to replace it (its finished runs stay cached), or choose another "
             f"folder")
+    counts: dict[str, int] = {}
     try:
         rows = engine.run_sweep(
             functools.partial(_run_opened, None if spec.path is None else str(spec.path.parent),
@@ -288,6 +312,7 @@ def sweep_main(
             progress=progress,
             seed_ignore=ignore,
             code=code_fingerprint(),  # an edited plugin or spslidar: its points run again
+            counts=counts,
         )
     except SpslidarError:  # refused before any point ran: leave no folder behind
         release_folder(folder, existed)
@@ -298,4 +323,4 @@ def sweep_main(
     with journal(folder, [RESULTS_CSV]):  # its SHA-256 in the marker before it is in place
         csv_path = write_csv(rows, Path(out_dir) / RESULTS_CSV)
     record_outputs(folder, [RESULTS_CSV], extra={"sweep_points": identity})
-    return say_outcome(rows, [*spec.grid, TRIAL_KEY], csv_path)
+    return say_outcome(rows, [*spec.grid, TRIAL_KEY], csv_path, counts)

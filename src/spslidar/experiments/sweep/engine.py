@@ -348,6 +348,7 @@ def run_sweep(
     progress: bool = True,
     seed_ignore: Iterable[str] = (),
     code: str | None = None,
+    counts: dict[str, int] | None = None,
 ) -> list[dict[str, Any]]:
     """Run ``func`` on every point, caching each finished point, and return one row per point.
 
@@ -387,6 +388,9 @@ def run_sweep(
         :func:`spslidar.plugins.code_fingerprint`): a cached point is read only when it was
         computed under the same one, and is run again (same seed) otherwise. Default: the
         cache is keyed on the params alone.
+    counts : dict, optional
+        Filled with ``cached`` (distinct points read from the cache) and ``run`` (those run
+        now), for the caller to say.
 
     Returns
     -------
@@ -443,6 +447,8 @@ def run_sweep(
             task_keys.append(key)
 
     n_unique = len(results) + len(tasks)
+    if counts is not None:
+        counts.update(cached=len(results), run=len(tasks))
     from tqdm import tqdm
 
     bar = tqdm(

@@ -152,13 +152,18 @@ def write_csv(rows: Iterable[Mapping[str, Any]], path: str | os.PathLike[str]) -
     return path
 
 
-def say_outcome(rows: list[dict[str, Any]], names: list[str], csv_path: Path) -> int:
-    """Say on stderr how a sweep's runs went: the count of failures and the first few, each
-    warning its runs gave once (where first and how often) and how many runs warned. Returns
-    the number of failed runs."""
+def say_outcome(rows: list[dict[str, Any]], names: list[str], csv_path: Path,
+                counts: dict[str, int] | None = None) -> int:
+    """Say on stderr how a sweep's runs went: how many were read from the cache and how many
+    run (``counts``, from :func:`~spslidar.experiments.sweep.engine.run_sweep`; a resumed
+    sweep said "48 runs" of 23 cached and 25 run, an audit), the count of failures and the
+    first few, each warning its runs gave once (where first and how often) and how many runs
+    warned. Returns the number of failed runs."""
     failed = [row for row in rows if ERROR_KEY in row]
+    how = (f" ({counts['cached']} read from the cache, {counts['run']} run)"
+           if counts and counts.get("cached") else "")
     print(
-        f"sweep: {len(rows)} runs, {len(rows) - len(failed)} ok, {len(failed)} failed; "
+        f"sweep: {len(rows)} runs{how}, {len(rows) - len(failed)} ok, {len(failed)} failed; "
         f"results in {csv_path}",
         file=sys.stderr,
     )
