@@ -195,6 +195,11 @@ def test_stage_names_are_read_in_any_case():
     assert (args.solver, args.depth) == ("twist", "argmax")
     with pytest.raises(ConfigError, match="unknown solver 'fistaa'"):
         Config(solver="fistaa")
+    snr = build_parser().parse_args(["snr", "--code", "MSEQ"])  # (snr's --code too: a review)
+    assert snr.code == "mseq"
+    from spslidar.pipeline.real import load_code
+
+    assert load_code("MSEQ", 127).size == 127  # reconstruct's --code MSEQ was read as a file
     reg = Registry("thing", "thing")  # two entries differing only in case stay exact
     reg.add("a", object)
     reg.add("A", dict)

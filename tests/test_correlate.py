@@ -141,10 +141,22 @@ def test_a_unipolar_replicas_plateau_is_taken_away(tmp_path):
     pulse = np.zeros(64, np.uint8)
     pulse[0] = 1
     assert replica_plateau(pulse, "unipolar") == 0.0  # the conventional lidar's pulse
-    profile = np.full((1, 20), 0.5 * 0.3)  # a return of 0.3 on its plateau of 0.15
-    profile[0, 7] = 0.3
-    assert np.allclose(remove_plateau(profile, 0.5)[0, 7], 0.3)
-    assert np.allclose(np.delete(remove_plateau(profile, 0.5)[0], 7), 0.0)
+    for k in (1, 2, 3, 20):  # a return of 0.3 on its plateau of 0.15, gates of k slices
+        profile = np.full((1, k), 0.5 * 0.3)
+        profile[0, 0] = 0.3
+        assert np.allclose(remove_plateau(profile, 0.5)[0, 0], 0.3)
+        assert np.allclose(remove_plateau(profile, 0.5)[0, 1:], 0.0)
+    # a return spread over 8 of 16 slices, and two returns: their strengths, their sum
+    # (a median over the gate read half of them: a review)
+    spread = np.full((1, 16), 0.5 * 0.3)
+    spread[0, 4:12] += 0.5 * 0.3 / 8
+    assert np.allclose(remove_plateau(spread, 0.5)[0, 4:12].sum(), 0.3)
+    two = np.full((1, 16), 0.5 * (0.3 + 0.2))
+    two[0, 3] += 0.5 * 0.3
+    two[0, 9] += 0.5 * 0.2
+    assert np.allclose(remove_plateau(two, 0.5)[0, [3, 9]], [0.3, 0.2])
+    with pytest.raises(ValueError, match="all ones"):
+        remove_plateau(two, 1.0)
 
     depth = np.full((16, 16), 12.0)
     depth[:, 8:] = 12.3

@@ -557,7 +557,22 @@ def test_a_detector_models_blocks_run_as_many_at_once_as_fit(monkeypatch):
     with pytest.raises(ConfigError, match=r"holds about 40 MB per block .* beside the 0\.10 GB "
                                           r"the run holds: more than the 0\.12 GB --max-memory"):
         _measured_block(block, Det(), 0.12)
-    assert len(kept) == 3  # each call ran the block once
+    # no cap: the memory available, which already leaves the process's own out (it was
+    # subtracted again: a 16 MB block refused with 1 GB free, a review)
+    monkeypatch.setattr(machine, "available_memory", lambda: 100e6)
+    assert _measured_block(block, Det(), None) == 2
+    # a caller tracing already keeps its peak: nothing measured
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        big = np.ones(10_000_000)  # 80 MB
+        del big
+        assert _measured_block(block, Det(), 0.12) is None
+        assert tracemalloc.get_traced_memory()[1] >= 80e6
+    finally:
+        tracemalloc.stop()
+    assert len(kept) == 5  # each call ran the block once
 
 
 def test_a_gmapd_run_under_a_memory_cap_gives_the_same_map(monkeypatch):

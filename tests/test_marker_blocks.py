@@ -172,3 +172,49 @@ def test_reconstruct_takes_marker_edge(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:  # (argparse's own refusals exit from the parser)
         main([*args, "--marker-edge", "middle", "--out", str(tmp_path / "r3")])
     assert exc.value.code == 2 and "invalid choice: 'middle'" in capsys.readouterr().err
+
+
+def test_marker_edge_end_starts_pattern_0_a_patterns_dwell_before_its_marker(tmp_path):
+    """Read with "end", pattern 0 ran from sync 0: a recording started 1 000 syncs before
+    the DMD gave it a dwell of 1 200 and the background before it, and the reconstruction
+    scaled its signal down six-fold (a review). It now lasts as long as pattern 1."""
+    rng = np.random.default_rng(7)
+    starts = [1000 + DWELL * k for k in range(M)]
+    ends = [s + DWELL - 1 for s in starts]
+    early = [(int(s), 20) for s in rng.integers(0, 1000, 40)]
+    nsync, dtime, marker = _events(rng, starts, ends, early)
+    order = np.lexsort((marker, nsync))
+    f = _write(tmp_path / "late.ptu", nsync[order], dtime[order], marker[order])
+    data, _ = read_blocks(f, M, L, bin_width=RES, marker_edge="end")
+    assert list(data.periods_per_pattern) == [DWELL] * M
+    assert _peaks(data) == list(range(M))
+    assert data.counts_per_pattern[0] == PER and data.n_dropped_before_first_marker == 40
+
+
+def test_both_short_ends_leave_out_the_one_without_a_patterns_photons(tmp_path):
+    """An arming marker and a last pattern cut short: the last block was left out because
+    it was short, the arming block kept as pattern 0 and every pattern read with its
+    neighbour's photons, nothing said (a review)."""
+    rng = np.random.default_rng(8)
+    starts = [10 + DWELL * k for k in range(M)]
+    nsync, dtime, marker = _events(rng, starts, [0, *starts])
+    cut = nsync < starts[-1] + 80  # the acquisition stops 80 syncs into the last pattern
+    f = _write(tmp_path / "cut.ptu", nsync[cut], dtime[cut], marker[cut])
+    data, notes = read_blocks(f, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M))
+    assert len(notes) == 1 and "the first, at 0 of a pattern's photon rate" in notes[0]
+
+
+def test_a_recording_started_early_is_not_told_to_change_the_edge(tmp_path):
+    """Start markers, the recording begun three quarters of a pattern early with background
+    at a pattern's rate, the last pattern cut short: told "--marker-edge end", which misread
+    every pattern (a review)."""
+    rng = np.random.default_rng(9)
+    starts = [150 + DWELL * k for k in range(M)]
+    early = [(int(s), 25) for s in rng.integers(0, 150, 300)]
+    nsync, dtime, marker = _events(rng, starts, starts, early)
+    cut = nsync < starts[-1] + 80
+    f = _write(tmp_path / "early.ptu", nsync[cut], dtime[cut], marker[cut])
+    data, notes = read_blocks(f, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M))
+    assert not any("--marker-edge" in n for n in notes), notes

@@ -544,6 +544,9 @@ def test_a_stream_of_chunks_writes_the_file_of_one_call(tmp_path, record_type):
         write_ptu_t3_stream(bad, [(t[100:], dt[100:], 0, None), (t[:100], dt[:100], 0, None)],
                             resolution_s=BW, sync_rate_hz=1e7)
     assert not bad.exists() and list(tmp_path.glob(".bad*")) == []
+    with pytest.raises(ConfigError, match=r"each chunk must be \(nsync, dtime, channel, "):
+        write_ptu_t3_stream(bad, [(t, dt)], resolution_s=BW, sync_rate_hz=1e7)
+    assert not bad.exists()
 
 
 def test_a_generator_of_patterns_is_read_one_at_a_time(tmp_path):

@@ -623,10 +623,13 @@ def main(argv: list[str] | None = None) -> int:
         # audit of 2026-11-29 met it under --save-ptu, the GMAPD, a 0-150 m gate and a
         # reconstruct of large patterns; the commands write their outputs only when complete)
         what = str(exc).splitlines()[0] if str(exc) else "an allocation failed"
+        less = ("fewer patterns or a narrower --range-gate"
+                if args.command in ("reconstruct", "calibrate") else
+                "lower --size, the pattern count or the range gate, or give --max-memory to "
+                "have a run that will not fit refused before the work")
+        kept = f" ({', '.join(_WRITTEN)} had been written)" if _WRITTEN else ""
         print(f"spslidar {args.command}: error: out of memory ({what}): the machine has less "
-              f"memory free than this needs; lower --size, the pattern count or the range "
-              f"gate, or give --max-memory to have a run that will not fit refused before "
-              f"the work", file=sys.stderr)
+              f"memory free than this needs; {less}{kept}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except Exception as exc:
         from .plugins import raised_in_plugin

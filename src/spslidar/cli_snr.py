@@ -40,7 +40,7 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
                     "95% interval). Where the periods cannot resolve the SNR (periods x SNR "
                     "under 4, or no variance in their counts) the ratio reads 'unresolved' and "
                     "a warning names the --trials that would.")
-    p.add_argument("--code", choices=CODES.names(), default="mseq",
+    p.add_argument("--code", choices=CODES.names(), type=CODES.canonical, default="mseq",
                    help=f"code family: {CODES.help_text()}")
     p.add_argument("--code-length", type=int, default=16383, metavar="L",
                    help="code length T in bits; 2^n - 1 for mseq/gold (default 16383)")

@@ -78,16 +78,23 @@ def replica_plateau(code: np.ndarray, kind: str) -> float:
 
 def remove_plateau(slices: np.ndarray, share: float) -> np.ndarray:
     """Each pixel's profile (rows of ``slices``) without the plateau a replica of
-    :func:`replica_plateau` ``share`` leaves, and scaled so that a return reads its strength:
-    ``(x - median_tau x) / (1 - q)``. The plateau is ``q`` times the pixel's own return, so it
-    is read from the profile itself (its median over the gated delays, which a return a few
-    slices wide does not move); the depths do not change, the reflectivity, the confidence and
-    the noise verdict read the return instead of ``(1 + 2q)`` times it over a floor of ``q``
+    :func:`replica_plateau` ``share`` ``q`` leaves, scaled so that a return reads its
+    strength: ``(x - p) / (1 - q)``. A return ``a`` reads ``a (1 - q)`` spread over its
+    slices and ``q a`` at every gated delay, so the profile's sum over ``K`` gated delays is
+    ``a (1 - q + q K)`` and the plateau ``p = q sum(x) / (1 - q + q K)``: exact for one or
+    several returns inside the gate, a wide one or a gate of one slice (a median over the
+    gate, first used, read half the strength on a 2-slice gate or a return over half the
+    slices: a review). The depths do not change; the reflectivity, the confidence and the
+    noise verdict read the return instead of ``(1 + 2q)`` times it over a floor of ``q``
     (an outside audit of 2026-11-29: ``--replica unipolar`` read 0.604 for a reflectivity of
     0.3 and called a 4.7 mm map "mostly noise")."""
+    if not 0.0 <= share < 1.0:
+        raise ValueError(f"a plateau share must be in [0, 1), got {share!r} (a code of all "
+                         f"ones correlates flat: no delay can be read)")
     x = np.asarray(slices, dtype=np.float64)
-    base = np.median(x, axis=1, keepdims=True)
-    return ((x - base) / (1.0 - share)).astype(np.asarray(slices).dtype, copy=False)
+    k = x.shape[1]
+    plateau = share * x.sum(axis=1, keepdims=True) / (1.0 - share + share * k)
+    return ((x - plateau) / (1.0 - share)).astype(np.asarray(slices).dtype, copy=False)
 
 
 def correlation_gain(code: np.ndarray, replica: np.ndarray) -> float:

@@ -241,6 +241,20 @@ def _count_markers(f, n_records: int, chunk_records: int, mask: int, path: str) 
     return n
 
 
+def _first_marker_syncs(f, n_records: int, chunk_records: int, mask: int, family: str,
+                        path: str, count: int = 2) -> list[int]:
+    """The global syncs of the file's first ``count`` markers with bit ``mask`` (fewer where
+    the file holds fewer), read until they are found: usually the first chunk."""
+    wrap, carry, found = _FAMILY[family][0], 0, []
+    for raw, dec in _chunks(f, n_records, chunk_records, path):
+        is_mark = (dec["channel"] < 0) & ((dec["marker"] & mask) != 0)
+        found += (dec["time"][is_mark].astype(np.int64) + carry)[: count - len(found)].tolist()
+        if len(found) >= count:
+            break
+        carry += _overflows(raw, family)[1] * wrap
+    return found
+
+
 def _accumulate(hist: np.ndarray, blocks: np.ndarray, bins: np.ndarray) -> None:
     """``hist[blocks[i], bins[i]] += 1`` for every photon of a chunk, in memory bounded by the
     chunk (``blocks`` non-decreasing)."""
@@ -302,9 +316,10 @@ def read_ptu_histograms(
 
     **Marker edge.** ``marker_edge="start"`` (the default) reads a marker as the start of its
     pattern, as above. ``"end"`` reads it as the end: photons up to the k-th marker (0-based)
-    and after the one before it belong to pattern k, pattern 0 starting with the measurement
-    (sync 0), and photons after the last marker are dropped (``n_dropped_after_last_pattern``);
-    nothing is dropped before the first. DMD controllers emit either.
+    and after the one before it belong to pattern k, and photons after the last marker are
+    dropped (``n_dropped_after_last_pattern``). Pattern 0 is taken to last as long as pattern
+    1 (from sync 0 where the file holds one marker): photons before it are dropped
+    (``n_dropped_before_first_marker``). DMD controllers emit either.
 
     **A trailing empty block.** A marker that is the file's last event (an end-of-acquisition
     marker, or a pattern cut off at once) opens a block with no photons and a dwell of at most
@@ -421,6 +436,12 @@ def read_ptu_histograms(
             rows = limit + int(extra_blocks)
         _check_histogram_memory(rows, n_bins, chunk_records, spath)
         wrap = _FAMILY[family][0]
+        first_sync = 0  # ("end": pattern 0 from its own start, not the measurement's)
+        if marker_edge == "end":
+            marks = _first_marker_syncs(f, n_records, chunk_records, mask, family, spath)
+            if len(marks) == 2:  # as long as pattern 1 (time before it was pattern 0's, and
+                # its histogram was scaled down by that dwell: a review)
+                first_sync = max(0, 2 * marks[0] + 1 - marks[1])
         hist = np.zeros((rows, n_bins), np.int32)  # counts per bin: < 2^31
         starts = np.zeros(rows + 1, np.int64)  # marker syncs, and the next block's if any
         seen_channels = np.zeros(128, bool)  # ptufile's channel is an int8
@@ -452,6 +473,8 @@ def read_ptu_histograms(
                          + (n_markers - (marker_edge == "start")))[photon]
                 bins = dec["dtime"][photon].astype(np.int64) // binning
                 keep = block >= 0
+                if first_sync:  # ("end": before pattern 0's start, no pattern is known)
+                    keep &= (block > 0) | (time[photon].astype(np.int64) + carry >= first_sync)
                 n_before += n_sel - int(np.count_nonzero(keep))
                 late = block >= rows
                 n_after += int(np.count_nonzero(late))
@@ -487,7 +510,7 @@ def read_ptu_histograms(
     counts = hist.sum(axis=1, dtype=np.int64)
     if marker_edge == "end":  # pattern k from the sync after marker k - 1 through marker k's
         ends = starts[:rows] + 1
-        starts = np.append(0, ends[:-1])
+        starts = np.append(first_sync, ends[:-1])
         dwell = ends - starts
     else:
         end = starts[rows] if n_markers > rows else last_sync + 1

@@ -235,7 +235,12 @@ def write_ptu_t3_stream(
     state = _Encoder(name, family)
     with atomic_file(path) as fh:  # a failed write (a full disk) leaves no partial file
         fh.write(b"".join(parts))
-        for nsync, dtime, channel, marker in chunks:
+        for item in chunks:
+            try:
+                nsync, dtime, channel, marker = item
+            except (TypeError, ValueError):
+                raise ConfigError(f"each chunk must be (nsync, dtime, channel, marker), got "
+                                  f"{type(item).__name__}") from None
             _dump(fh, b"", state.encode(nsync, dtime, channel, marker))
         for key, value in (("TTResult_NumberOfRecords", state.total),
                            ("MeasDesc_AcquisitionTime",

@@ -29,6 +29,11 @@ DROPPED_SHARE = 0.05
 #: a block shorter than this share of the median pattern's dwell, and as poor in photons, is
 #: no pattern (an arming or end-of-acquisition marker's)
 SHORT_BLOCK = 0.5
+#: a marker read at the wrong edge of its pattern: the periods outside the first (last)
+#: block within this share of a pattern's dwell, and a block of at most this many periods
+#: at the other end
+EDGE_SPAN = 0.1
+EDGE_BLOCK_PERIODS = 2
 
 
 def check_blocks(data, m: int, ptu) -> None:
@@ -43,14 +48,16 @@ def check_blocks(data, m: int, ptu) -> None:
 
 def _rows(data, keep: slice, before: int = 0, after: int = 0):
     """``data`` with the blocks ``keep`` only; the photons of those left out counted as
-    dropped before the first pattern (``before``) or after the last (``after``)."""
+    dropped before the first pattern (``before``) or after the last (``after``), and the
+    reader's word on a last block kept as a pattern of zeros dropped with that block."""
+    said = [w for w in data.warnings if not (after and "kept as a pattern of zeros" in w)]
     return dataclasses.replace(
         data, histograms=data.histograms[keep], counts_per_pattern=data.counts_per_pattern[keep],
         pattern_start_sync=data.pattern_start_sync[keep],
         periods_per_pattern=data.periods_per_pattern[keep],
         n_dropped_before_first_marker=data.n_dropped_before_first_marker + before,
         n_dropped_after_last_pattern=data.n_dropped_after_last_pattern + after,
-        warnings=list(data.warnings))
+        warnings=said)
 
 
 def _short(dwell: float, photons: float, typical_dwell: float, typical_photons: float) -> bool:
@@ -68,7 +75,24 @@ def _drop_extra_block(data, m: int, marker: int) -> tuple[Any, str | None]:
     last = _short(d[-1], c[-1], typ_d, typ_c)
     head = (f"the file holds {m + 1} marker-delimited blocks on input {marker} for {m} "
             f"pattern rows")
-    if first and not last:
+    if first and last:
+        # both ends short: an arming marker's block and a pattern cut short, or a cut pattern
+        # and an end marker's; the one without a pattern's photon rate is no pattern (the
+        # last was always left out, which kept an arming block as pattern 0: a review)
+        rate = typ_c / max(typ_d, 1.0)
+        r0, r1 = c[0] / max(d[0], 1.0), c[-1] / max(d[-1], 1.0)
+        drop_first = r0 < r1
+        which = "first" if drop_first else "last"
+        k = 0 if drop_first else -1
+        note = (f"{head}, and both its first ({int(d[0])} code periods, {int(c[0])} photons) "
+                f"and its last block ({int(d[-1])}, {int(c[-1])}) are shorter than a pattern "
+                f"({typ_d:.0f} periods, {typ_c:.0f} photons): the {which}, at "
+                f"{c[k] / max(d[k], 1.0) / max(rate, 1e-300):.2g} of a pattern's photon rate, "
+                f"is left out as no pattern")
+        if drop_first:
+            return _rows(data, slice(1, None), before=int(c[0])), note
+        return _rows(data, slice(0, m), after=int(c[-1])), note
+    if first:
         return (_rows(data, slice(1, None), before=int(c[0])),
                 f"{head}, and its first block ({int(d[0])} code periods, {int(c[0])} photons) "
                 f"is no pattern's ({typ_d:.0f} periods, {typ_c:.0f} photons typical): an arming "
@@ -95,8 +119,11 @@ def _edge_note(data, marker: int, edge: str) -> str | None:
         outside = data.n_dropped_after_last_pattern
         span = int(data.last_sync) + 1 - int(data.pattern_start_sync[-1] + d[-1])
         where, fix, other = "after the last marker", "start", d[0]
-    if not (outside >= SHORT_BLOCK * typ_c and span >= SHORT_BLOCK * typ_d
-            and other < SHORT_BLOCK * typ_d):
+    # a marker at the other edge leaves exactly one pattern's span outside and a block of a
+    # period or two at the other end (a recording started early with start markers, and a
+    # last pattern cut short, was told to pass --marker-edge end: a review)
+    if not (outside >= SHORT_BLOCK * typ_c and abs(span - typ_d) <= EDGE_SPAN * typ_d
+            and other <= EDGE_BLOCK_PERIODS):
         return None
     return (f"{outside} photons over {span} code periods came {where} on input {marker}, about "
             f"one pattern's ({typ_d:.0f} periods, {typ_c:.0f} photons), and the "

@@ -410,9 +410,9 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         slices = full[:, meas.inverse]
     depth2 = depth_info = None
     plateau = replica_plateau(meas.acq.code, meas.acq.replica)
-    if plateau >= PLATEAU_SHARE:  # (--replica unipolar: each profile rides on q times its peak)
+    if PLATEAU_SHARE <= plateau < 1.0:  # (--replica unipolar: each profile rides on q x peak)
         slices = remove_plateau(_host(be, slices), plateau)
-        device = False  # (the plateau's median is the host's: NumPy from here on)
+        device = False  # (the depth stage on the host from here on)
     if device and cfg.depth == "argmax" and sim.get("delay_response") is None:
         from ..depth.argmax import ArgmaxDepth, depth_from_peaks, peak_confidence
 

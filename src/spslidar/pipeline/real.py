@@ -189,7 +189,7 @@ def _check_truth(truth: Any, n: int) -> np.ndarray:
 def load_code(code: str | os.PathLike, code_length: int | None = None) -> np.ndarray:
     """The unipolar code of one period: a ``.npy`` of 0/1 bits, or ``'mseq'`` with
     ``code_length`` (the m-sequence ``spslidar run`` uses, shift 0)."""
-    if str(code) == "mseq":
+    if str(code).lower() == "mseq" and not Path(code).exists():  # (as run reads MSEQ)
         from ..codes.sequences import make_code
 
         if code_length is None:

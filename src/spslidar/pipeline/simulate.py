@@ -285,37 +285,38 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
     return corr, totals, noise_tot, amp_sum, incident
 
 
-def _measured_block(block, detector, max_memory: float | None) -> int:
-    """Run ``block(0)`` and return how many such blocks fit at once in what is left of
-    ``max_memory`` GB (default: the memory available) beside what the process holds: the
-    block's peak as ``tracemalloc`` sees NumPy's and Python's allocations. None of them is a
-    one-line ConfigError."""
+def _measured_block(block, detector, max_memory: float | None) -> int | None:
+    """Run ``block(0)`` and return how many such blocks fit at once: in ``max_memory`` GB less
+    what the process holds, or (no cap) in the memory available, which already leaves the
+    process's own out (subtracting it too refused a 16 MB block with 1 GB free: a review).
+    The block's peak is what ``tracemalloc`` sees of NumPy's and Python's allocations; where
+    the caller traces already, nothing is measured (its peak would be reset) and None is
+    returned. None fitting is a one-line ConfigError."""
     import tracemalloc
 
     from ..machine import _gb, available_memory, resident_memory
 
-    mine = not tracemalloc.is_tracing()
-    if mine:
-        tracemalloc.start()
-    try:
-        tracemalloc.reset_peak()
-        before = tracemalloc.get_traced_memory()[0]
+    if tracemalloc.is_tracing():
         block(0)
-        need = max(1.0, float(tracemalloc.get_traced_memory()[1] - before))
+        return None
+    tracemalloc.start()
+    try:
+        block(0)
+        need = max(1.0, float(tracemalloc.get_traced_memory()[1]))
     finally:
-        if mine:
-            tracemalloc.stop()
-    limit = available_memory() if max_memory is None else float(max_memory) * 1e9
-    held = resident_memory()
+        tracemalloc.stop()
+    if max_memory is None:
+        limit, held, src = available_memory(), 0.0, "available"
+    else:
+        limit, held, src = float(max_memory) * 1e9, resident_memory(), "--max-memory"
     fit = int((limit - held) // need)
     if fit < 1:
-        src = "available" if max_memory is None else "--max-memory"
+        beside = f", beside the {_gb(held)} the run holds" if held else ""
         raise ConfigError(
             f"the {detector.name} detector model's simulation holds about {_gb(need)} per "
-            f"block of patterns (measured on its first), beside the {_gb(held)} the run "
-            f"holds: more than the {_gb(limit)} {src}; lower the flux (--signal, --noise), "
-            f"--periods, --size or --code-length" + ("" if max_memory is None
-                                                     else ", or raise --max-memory"))
+            f"block of patterns (measured on its first){beside}: more than the {_gb(limit)} "
+            f"{src}; lower the flux (--signal, --noise), --periods, --size or --code-length"
+            + ("" if max_memory is None else ", or raise --max-memory"))
     return fit
 
 
