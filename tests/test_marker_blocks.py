@@ -104,9 +104,22 @@ def test_one_block_after_the_patterns_is_left_out(tmp_path):
     data, notes = read_blocks(g, M, L, bin_width=RES)
     assert _peaks(data) == list(range(M)) and data.n_dropped_after_last_pattern == PER
     assert len(notes) == 1 and "is a row missing from --patterns?" in notes[0]
-    h = _write(tmp_path / "many.ptu", *_events(rng, starts, [*starts, DWELL * M, DWELL * M + 1]))
-    with pytest.raises(ConfigError, match="8 marker-delimited blocks but --patterns has 6"):
+    h = _write(tmp_path / "many.ptu",
+               *_events(rng, starts, [*starts, DWELL * M, DWELL * M + 1, DWELL * M + 2]))
+    with pytest.raises(ConfigError, match="9 marker-delimited blocks but --patterns has 6"):
         read_blocks(h, M, L, bin_width=RES)
+    # M + 2 blocks: an arming and an end marker are both left out (they were refused); two
+    # blocks as long as patterns are a mismatch
+    both = [5 + DWELL * k for k in range(M)]
+    g2 = _write(tmp_path / "both.ptu", *_events(rng, both, [0, *both, 5 + DWELL * M]))
+    data, notes = read_blocks(g2, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M)) and data.n_patterns == M
+    assert len(notes) == 1 and "an arming and an end marker? both are left out" in notes[0]
+    two = _write(tmp_path / "two.ptu", *_events(rng, [*starts, DWELL * M, DWELL * (M + 1)],
+                                                 [*starts, DWELL * M, DWELL * (M + 1)]))
+    with pytest.raises(ConfigError, match="8 marker-delimited blocks but --patterns has 6 "
+                                          "rows, and its first and last blocks are not both"):
+        read_blocks(two, M, L, bin_width=RES)
     with pytest.raises(ConfigError, match="7 marker-delimited blocks .* fewer than the 8"):
         read_blocks(f, M + 2, L, bin_width=RES)
 

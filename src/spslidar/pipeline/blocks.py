@@ -5,7 +5,7 @@ acquisition marker adds a block after the last pattern, an arming (or start) pul
 the first, and some DMD controllers mark the *end* of each pattern. Read the wrong way, every
 pattern is paired with its neighbour's photons and the depth map is noise while the run says
 nothing (an outside audit of 2026-11-29, with files from its own PTU writer: a median error of
-0.25 m against 2 mm). :func:`read_blocks` reads the file with one block more than the patterns
+0.25 m against 2 mm). :func:`read_blocks` reads the file with two blocks more than the patterns
 (:func:`spslidar.io.read_ptu_histograms`'s ``extra_blocks``), keeps the ``M`` that are the
 patterns, and says, in one line each, what it left out and what looks like a marker read at
 the wrong edge (``--marker-edge``).
@@ -38,12 +38,30 @@ EDGE_BLOCK_PERIODS = 2
 
 def check_blocks(data, m: int, ptu) -> None:
     """The file's marker-delimited blocks against the ``m`` pattern rows: more blocks than
-    rows (one block that is not a pattern aside) is a mismatch, refused in one line
-    (``calibrate`` used the first rows' blocks of such a file and said nothing)."""
-    if data.n_markers > m + 1:  # one end-of-acquisition or arming marker is common
+    rows (an arming and an end-of-acquisition marker aside) is a mismatch, refused in one
+    line (``calibrate`` used the first rows' blocks of such a file and said nothing)."""
+    if data.n_markers > m + 2:  # an end-of-acquisition or arming marker is common
         raise ConfigError(f"{os.fspath(ptu)!r} has {data.n_markers} marker-delimited blocks "
                           f"but --patterns has {m} rows: the patterns shown do not match the "
                           f"file (or --marker names the wrong input)")
+
+
+def _drop_both_ends(data, m: int, marker: int, ptu) -> tuple[Any, str]:
+    """Of ``m + 2`` blocks, the ``m`` between a short, photon-poor first and last block (an
+    arming and an end-of-acquisition marker's); any other ``m + 2`` is a mismatch."""
+    d = data.periods_per_pattern.astype(np.float64)
+    c = data.counts_per_pattern.astype(np.float64)
+    typ_d, typ_c = float(np.median(d[1:-1])), float(np.median(c[1:-1]))
+    if not (_short(d[0], c[0], typ_d, typ_c) and _short(d[-1], c[-1], typ_d, typ_c)):
+        raise ConfigError(f"{os.fspath(ptu)!r} has {m + 2} marker-delimited blocks but "
+                          f"--patterns has {m} rows, and its first and last blocks are not both "
+                          f"short of a pattern's (an arming and an end marker's): the patterns "
+                          f"shown do not match the file (or --marker names the wrong input)")
+    return (_rows(data, slice(1, m + 1), before=int(c[0]), after=int(c[-1])),
+            f"the file holds {m + 2} marker-delimited blocks on input {marker} for {m} pattern "
+            f"rows, and its first ({int(d[0])} code periods, {int(c[0])} photons) and last "
+            f"({int(d[-1])}, {int(c[-1])}) are no pattern's ({typ_d:.0f} periods, {typ_c:.0f} "
+            f"photons typical): an arming and an end marker? both are left out")
 
 
 def _rows(data, keep: slice, before: int = 0, after: int = 0):
@@ -182,9 +200,9 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
     Returns
     -------
     data : spslidar.io.PtuAcquisition
-        ``m`` rows (fewer blocks than ``m`` is refused by the reader, more than ``m + 1``
-        here); of ``m + 1`` blocks the one that is no pattern is left out, its photons
-        counted as dropped.
+        ``m`` rows (fewer blocks than ``m`` is refused by the reader, more than ``m + 2``
+        here); of ``m + 1`` blocks the one that is no pattern is left out, of ``m + 2`` a
+        short first and last (else refused), their photons counted as dropped.
     notes : list of str
         One line each: the block left out, a marker edge that looks wrong, photons left out
         beyond :data:`DROPPED_SHARE`.
@@ -192,11 +210,14 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
     from ..io import read_ptu_histograms
 
     data = read_ptu_histograms(ptu, n_bins, bin_width=bin_width, marker=marker,
-                               channel=channel, n_patterns=m, extra_blocks=1,
+                               channel=channel, n_patterns=m, extra_blocks=2,
                                marker_edge=marker_edge, allow_binning=allow_binning)
     check_blocks(data, m, ptu)
     notes: list[str] = []
-    if data.n_patterns > m:
+    if data.n_patterns == m + 2:
+        data, note = _drop_both_ends(data, m, marker, ptu)
+        notes.append(note)
+    elif data.n_patterns > m:
         data, note = _drop_extra_block(data, m, marker)
         notes += [note] if note else []
     edge = _edge_note(data, marker, marker_edge)
