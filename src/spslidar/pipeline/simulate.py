@@ -94,8 +94,9 @@ def simulate_correlations(
         beyond ``max_time`` seconds or said on stderr when over 30 s
         (:func:`spslidar.pipeline.budget.check_time`). None: not timed.
     max_memory : float, optional
-        For such a model the first block's peak memory is measured too (``tracemalloc``: the
-        run's estimate, made before the flux is known, leaves the model out), and the blocks
+        For such a model the first block's peak memory is measured too (the rise of the
+        resident memory it causes: the run's estimate, made before the flux is known, leaves
+        the model out), and the blocks
         run on as many threads as fit under ``max_memory`` GB (default: the memory
         available), one at a time if need be; where one does not fit, a one-line
         :class:`~spslidar.errors.ConfigError` (a GMAPD run peaked at 0.82 GB under a 0.3 GB
@@ -285,26 +286,42 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
     return corr, totals, noise_tot, amp_sum, incident
 
 
-def _measured_block(block, detector, max_memory: float | None) -> int | None:
+def _peak_growth(fn) -> float:
+    """Run ``fn()`` and return how far the process's resident memory rose above where it
+    started, sampled every 5 ms by a thread (``/proc/self/statm``; 0 where the system does
+    not say). ``tracemalloc`` measured it exactly, but slowed the GMAPD's Python-heavy model
+    by half (``reproduce pileup`` 80 -> 121 s) and its traces made joblib's workers restart."""
+    import threading
+
+    from ..machine import resident_memory
+
+    start = resident_memory()
+    peak = [start]
+    done = threading.Event()
+
+    def watch() -> None:
+        while not done.wait(0.005):
+            peak[0] = max(peak[0], resident_memory())
+
+    watcher = threading.Thread(target=watch, daemon=True)
+    watcher.start()
+    try:
+        fn()
+    finally:
+        done.set()
+        watcher.join()
+    return max(peak[0], resident_memory()) - start
+
+
+def _measured_block(block, detector, max_memory: float | None) -> int:
     """Run ``block(0)`` and return how many such blocks fit at once: in ``max_memory`` GB less
     what the process holds, or (no cap) in the memory available, which already leaves the
     process's own out (subtracting it too refused a 16 MB block with 1 GB free: a review).
-    The block's peak is what ``tracemalloc`` sees of NumPy's and Python's allocations; where
-    the caller traces already, nothing is measured (its peak would be reset) and None is
-    returned. None fitting is a one-line ConfigError."""
-    import tracemalloc
-
+    The block's peak is the rise of the resident memory it causes (:func:`_peak_growth`).
+    None fitting is a one-line ConfigError."""
     from ..machine import _gb, available_memory, resident_memory
 
-    if tracemalloc.is_tracing():
-        block(0)
-        return None
-    tracemalloc.start()
-    try:
-        block(0)
-        need = max(1.0, float(tracemalloc.get_traced_memory()[1]))
-    finally:
-        tracemalloc.stop()
+    need = max(1.0, _peak_growth(lambda: block(0)))
     if max_memory is None:
         limit, held, src = available_memory(), 0.0, "available"
     else:
