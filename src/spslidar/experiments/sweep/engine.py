@@ -89,10 +89,17 @@ def _run_local(
             yield index, _call(func, params)
         return
 
+    import warnings
+
     from joblib import Parallel, delayed
 
     from spslidar.plugins import plugin_specs
 
+    # loky replaces a worker that stopped (its memory guard, or its idle timeout) and runs the
+    # queued jobs on the new one, saying so as a UserWarning: every `reproduce all` printed it
+    # (stop 52's code too), with every result in place
+    warnings.filterwarnings("ignore", message="A worker stopped while some jobs were given to "
+                            "the executor", category=UserWarning)
     plugins = tuple(plugin_specs())
 
     def calls(chunk: list[tuple[int, dict[str, Any]]]) -> Iterator[Any]:
