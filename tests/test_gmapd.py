@@ -554,7 +554,9 @@ def test_a_detector_models_blocks_run_as_many_at_once_as_fit(monkeypatch):
         time.sleep(0.06)
         ran.append(float(big[-1]))
 
-    rise = simulate._peak_growth(lambda: block(0))
+    # the process's resident memory also moves with what other threads free: the best of
+    # three (one measured 0 in a CI run beside another test suite)
+    rise = max(simulate._peak_growth(lambda: block(0)) for _ in range(3))
     assert 35e6 < rise < 60e6  # (40 MB and the allocator's slack)
 
     class Det:
@@ -573,7 +575,7 @@ def test_a_detector_models_blocks_run_as_many_at_once_as_fit(monkeypatch):
         simulate._measured_block(block, Det(), 0.12)
     monkeypatch.setattr(machine, "available_memory", lambda: 100e6)
     assert simulate._measured_block(block, Det(), None) == 2
-    assert len(ran) == 5  # each measurement ran the block once
+    assert len(ran) == 7  # each measurement ran the block once
 
 
 def test_a_gmapd_run_under_a_memory_cap_gives_the_same_map(monkeypatch):

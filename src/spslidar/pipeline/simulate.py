@@ -291,10 +291,12 @@ def _peak_growth(fn) -> float:
     started, sampled every 5 ms by a thread (``/proc/self/statm``; 0 where the system does
     not say). ``tracemalloc`` measured it exactly, but slowed the GMAPD's Python-heavy model
     by half (``reproduce pileup`` 80 -> 121 s) and its traces made joblib's workers restart."""
+    import gc
     import threading
 
     from ..machine import resident_memory
 
+    gc.collect()  # (garbage freed during the block would hide its rise)
     start = resident_memory()
     peak = [start]
     done = threading.Event()
