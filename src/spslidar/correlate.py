@@ -66,14 +66,15 @@ def replica_plateau(code: np.ndarray, kind: str) -> float:
     the peak: a return of strength ``a`` reads ``a`` at its delay and ``q a`` at every other
     one. 0.5 for an m-sequence's ``unipolar`` replica (``(T + 1) / 4`` against ``(T + 1) /
     2``), 0 for its ``bipolar`` one and for a single pulse (the conventional lidar), about
-    ``-1 / T`` for ``zero-mean``."""
+    ``-1 / T`` for ``zero-mean``. The correlation summed over all ``T`` lags is
+    ``sum(s) sum(f)``, so the off-peak mean is ``(sum(s) sum(f) - G) / (T - 1)`` with ``G``
+    the peak (:func:`correlation_gain`)."""
     s = np.asarray(code, dtype=np.float64)
     f = make_replica(s, kind)
-    corr = np.fft.irfft(np.fft.rfft(s) * np.conj(np.fft.rfft(f)), s.size)
-    peak = float(corr[0])
+    peak = correlation_gain(s, f)
     if s.size < 2 or not peak > 0:
         return 0.0
-    return float(np.mean(corr[1:]) / peak)
+    return float((s.sum() * f.sum() - peak) / ((s.size - 1) * peak))
 
 
 def remove_plateau(slices: np.ndarray, share: float) -> np.ndarray:

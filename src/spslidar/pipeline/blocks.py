@@ -46,12 +46,19 @@ def check_blocks(data, m: int, ptu) -> None:
                           f"file (or --marker names the wrong input)")
 
 
+def _typical(data) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Each block's dwell and photons, and the median of the blocks between the two ends (of
+    all of them where there are no more than two): what a pattern's look like."""
+    d = data.periods_per_pattern.astype(np.float64)
+    c = data.counts_per_pattern.astype(np.float64)
+    inner = slice(1, -1) if d.size > 2 else slice(None)
+    return d, c, float(np.median(d[inner])), float(np.median(c[inner]))
+
+
 def _drop_both_ends(data, m: int, marker: int, ptu) -> tuple[Any, str]:
     """Of ``m + 2`` blocks, the ``m`` between a short, photon-poor first and last block (an
     arming and an end-of-acquisition marker's); any other ``m + 2`` is a mismatch."""
-    d = data.periods_per_pattern.astype(np.float64)
-    c = data.counts_per_pattern.astype(np.float64)
-    typ_d, typ_c = float(np.median(d[1:-1])), float(np.median(c[1:-1]))
+    d, c, typ_d, typ_c = _typical(data)
     if not (_short(d[0], c[0], typ_d, typ_c) and _short(d[-1], c[-1], typ_d, typ_c)):
         raise ConfigError(f"{os.fspath(ptu)!r} has {m + 2} marker-delimited blocks but "
                           f"--patterns has {m} rows, and its first and last blocks are not both "
@@ -85,10 +92,7 @@ def _short(dwell: float, photons: float, typical_dwell: float, typical_photons: 
 def _drop_extra_block(data, m: int, marker: int) -> tuple[Any, str | None]:
     """Of ``m + 1`` blocks, the ``m`` that are patterns: the first left out where it is short
     and poor in photons while the last is not (an arming marker), else the last."""
-    d = data.periods_per_pattern.astype(np.float64)
-    c = data.counts_per_pattern.astype(np.float64)
-    inner = slice(1, -1) if m > 1 else slice(None)
-    typ_d, typ_c = float(np.median(d[inner])), float(np.median(c[inner]))
+    d, c, typ_d, typ_c = _typical(data)
     first = _short(d[0], c[0], typ_d, typ_c)
     last = _short(d[-1], c[-1], typ_d, typ_c)
     head = (f"the file holds {m + 1} marker-delimited blocks on input {marker} for {m} "

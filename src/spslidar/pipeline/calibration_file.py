@@ -143,12 +143,14 @@ def code_note(cal: dict[str, Any], code: np.ndarray, bit_rate: float) -> str | N
             "on; if not, calibrate with this acquisition's code")
     theirs = _bits_of(cal)
     if theirs is not None:
-        a, b = code.astype(np.float64), theirs.astype(np.float64)
-        corr = np.fft.irfft(np.fft.rfft(a) * np.conj(np.fft.rfft(b)), a.size)
-        s = int(np.argmax(corr))
+        from ..codes.sequences import periodic_xcorr
+        from ..constants import SPEED_OF_LIGHT
+
+        # r[k] = sum_t theirs[t] code[t + k]: peaks at the shift that makes one the other
+        s = int(np.argmax(periodic_xcorr(theirs, code.astype(np.uint8))))
         if np.array_equal(np.roll(theirs != 0, s), code):
-            s = s if s <= a.size // 2 else s - a.size
-            metres = abs(s) * 299792458.0 / (2.0 * float(bit_rate))
+            s = s if s <= code.size // 2 else s - code.size
+            metres = abs(s) * SPEED_OF_LIGHT / (2.0 * float(bit_rate))
             return (f"the calibration was measured with this code shifted by {s:+d} bits "
                     f"({metres:.4g} m of range): {tail}; a code file rotated by mistake moves "
                     f"every depth by that much")
