@@ -405,7 +405,7 @@ def _cmd_run(args) -> int:
         raise ConfigError(f"--save-ptu must name a file (FILE.ptu), not {save_ptu!r}")
     if save_ptu:
         from .outfiles import check_files
-        from .pipeline.real import ptu_companions
+        from .pipeline.export import ptu_companions
 
         ptu_files = [save_ptu, *ptu_companions(save_ptu)]
         check_files(ptu_files, args.overwrite, outside=args.out)  # refuse before any work
@@ -423,7 +423,7 @@ def _cmd_run(args) -> int:
     if save_ptu:
         from .outfiles import write_files
         from .pipeline import measure, reconstruct
-        from .pipeline.real import (
+        from .pipeline.export import (
             check_ptu_photons,
             write_measurement_arrays,
             write_measurement_ptu,

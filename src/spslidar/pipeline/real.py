@@ -37,6 +37,10 @@ __all__ = ["FILTER_LAM_SCALE", "calibrated_lam_scale", "check_code", "check_gate
            "check_ptu_path", "load_code", "load_patterns", "reconstruct_ptu",
            "write_measurement_ptu"]
 
+# (a simulated acquisition written as a lab's files, ``run --save-ptu``: re-exported here, its
+# public home since it was written)
+from .export import write_measurement_ptu  # noqa: E402
+
 
 def _load_npy(path: str | os.PathLike, what: str) -> np.ndarray:
     """A ``.npy`` array, its header checked first: a shape the file's body cannot hold, Python
@@ -612,112 +616,3 @@ def calibration_warnings(cal: dict[str, Any]) -> list[str]:
                 f"high: its IRF is read through the noise, and the depths through it may be "
                 f"worse than uncalibrated ones; calibrate on a longer acquisition"]
     return []
-
-
-def check_ptu_photons(meas: Measurement, max_photons: float = 2e7) -> float:
-    """The photons :func:`write_measurement_ptu` would write (expected), refused in one line
-    beyond ``max_photons``: ``run --save-ptu`` checks it once the acquisition is simulated,
-    before the solve (it was checked after it, 34 s into a run it then refused, an audit)."""
-    acq = meas.acq
-    noise_bin = np.asarray(meas.sim["noise_per_bin"], np.float64)
-    expected = float(np.asarray(meas.sim["signal_counts"]).sum()
-                     + noise_bin.sum() * acq.period * acq.n_periods)
-    if expected > max_photons:
-        raise ConfigError(f"--save-ptu writes photon by photon: {expected:.3g} expected photons "
-                          f"exceed {max_photons:.3g}; lower --signal / --noise")
-    return expected
-
-
-def write_measurement_ptu(meas: Measurement, path: str | os.PathLike, *,
-                          max_photons: float = 2e7) -> dict[str, Any]:
-    """Write a simulated acquisition photon by photon as a T3 PTU file (``run --save-ptu``).
-
-    The expected counts per TDC bin of every pattern are those of the simulation
-    (:func:`spslidar.forward.expected_counts`, eq. 4 plus the noise of eq. 9); the photons are
-    drawn afresh (linear Poisson counting, from the measurement's own seed), each placed in a
-    uniformly drawn code period of the pattern's dwell, and written with a marker per pattern
-    (:func:`spslidar.io.write_acquisition_ptu`). So the file is another realisation of the same
-    acquisition: ``reconstruct`` on it gives ``run``'s depth map to within the photon noise.
-
-    Raises
-    ------
-    ConfigError
-        More than ``max_photons`` expected photons (not a low-flux acquisition), or a code
-        period longer than the T3 dtime field (32768 bins).
-    """
-    from ..backends.patterns import host_patterns
-    from ..forward import expected_counts
-    from ..io import write_acquisition_ptu
-
-    # (a device's pattern set has no apply_rows: --save-ptu ended in an AttributeError)
-    acq, patterns, scene, cfg = meas.acq, host_patterns(meas.patterns), meas.scene, meas.config
-    if acq.period > 32768:
-        raise ConfigError(f"--save-ptu: a code period of {acq.period} bins exceeds the T3 dtime "
-                          "field (32768 bins)")
-    noise_bin = np.asarray(meas.sim["noise_per_bin"], np.float64)
-    check_ptu_photons(meas, max_photons)
-    from ..instrument import instrument_weights
-
-    shifts, weights = instrument_weights(scene, acq, cfg)  # system delay and IRF as run's
-    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0x505455]))
-    m = patterns.shape[0]
-    photons = 0
-
-    def events():  # pattern by pattern, drawn as the file is written (memory: 64 patterns')
-        nonlocal photons
-        for k0 in range(0, m, 64):
-            rows = slice(k0, min(m, k0 + 64))
-            amp = np.asarray(patterns.apply_rows(rows, weights), np.float64)
-            lam = expected_counts(amp, shifts, acq.code, acq.signal_per_pulse, noise_bin[rows],
-                                  acq.n_periods)
-            counts = rng.poisson(np.asarray(lam, np.float64))
-            for row in counts:
-                bins = np.repeat(np.arange(acq.period), row)
-                photons += bins.size
-                yield np.stack([rng.integers(0, acq.n_periods, bins.size), bins], axis=1)
-
-    n = write_acquisition_ptu(path, events(), acq.period, acq.bin_width,
-                              periods_per_pattern=acq.n_periods)
-    return {"records": n, "photons": photons}
-
-
-def ptu_companions(ptu_path) -> tuple[str, str]:
-    """The two arrays written beside a PTU file by ``run --save-ptu``:
-    ``<stem>_patterns.npy`` and ``<stem>_code.npy``."""
-    base = Path(ptu_path)
-    return (str(base.with_name(base.stem + "_patterns.npy")),
-            str(base.with_name(base.stem + "_code.npy")))
-
-
-def write_measurement_arrays(meas, ptu_path, paths=None) -> tuple[str, str]:
-    """Beside a PTU file written by :func:`write_measurement_ptu`, the two arrays
-    ``spslidar reconstruct`` needs with it: ``<stem>_patterns.npy``, the ``(M, N, N)`` mirror
-    states in marker order, and ``<stem>_code.npy``, the unipolar bits of one code period
-    (:func:`ptu_companions`), or into the two ``paths`` given (written as ``.npy`` whatever
-    their names).
-
-    Returns
-    -------
-    (str, str)
-        The two paths.
-    """
-    from ..backends.patterns import host_patterns
-
-    n = meas.config.size
-    q = n * n
-    patterns = host_patterns(meas.patterns)
-    pats = np.empty((patterns.shape[0], q), dtype=np.float32)
-    step = 4096  # columns of the identity at a time: memory bounded for implicit patterns
-    for start in range(0, q, step):
-        eye = np.zeros((q, min(step, q - start)))
-        eye[np.arange(start, start + eye.shape[1]), np.arange(eye.shape[1])] = 1.0
-        pats[:, start:start + eye.shape[1]] = patterns.apply_rows(
-            slice(0, patterns.shape[0]), eye)
-    p_path, c_path = ptu_companions(ptu_path) if paths is None else (str(p) for p in paths)
-    from ..outdir import atomic_file
-
-    with atomic_file(p_path) as fh:  # a failed write leaves no partial file
-        np.save(fh, pats.reshape(-1, n, n))
-    with atomic_file(c_path) as fh:
-        np.save(fh, np.asarray(meas.acq.code, dtype=np.uint8))
-    return str(p_path), str(c_path)
