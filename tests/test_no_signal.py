@@ -162,7 +162,7 @@ def test_a_gate_of_a_few_slices_runs_without_a_verdict(tmp_path, k, capsys):
 
 
 def test_a_range_gate_that_misses_the_scene_is_said_to_be_noise():
-    """The camera (5-5.9 m by default) through a gate at 30-31 m; through its own gate it
+    """The camera (20-20.8 m by default) through a gate at 30-31 m; through its own gate it
     stands far above the noise (11.6 at 32x32, 7-13 at 64x64 with m_n = 10)."""
     missed = spslidar.run(size=32, range_gate=(30.0, 31.0), seed=1)
     assert _warned(missed)
@@ -206,3 +206,92 @@ def test_a_small_object_in_an_empty_field_is_what_the_warning_says(tmp_path):
     assert len(_warned(r)) == 1 and "at most a tenth of the pixels hold a return" in _warned(r)[0]
     err = np.abs(r.depth[5:8, 5:8] - 11.0)
     assert np.all(err < 0.05)  # 3 bins (1.5 cm each)
+
+
+# ---------------------------------------------------------------- the automatic range gate
+# (gates of more than 256 delays are pruned to the occupied ones before the solve; an audit of
+# 2026-11-29 found that a gate in which none rose kept the noisiest delay, whose profiles,
+# zero at every other delay, read as returns at full confidence: a black scene 30-35 m away
+# came out a wall at 35.0 m over 92 % of the pixels, 0.4 % low-confidence, said nowhere)
+
+AUTO = "the automatic range gate found no delay"
+
+
+def test_occupied_lags_keeps_nothing_where_nothing_rises():
+    """Pure noise: no delay 5 sigma above the median (358 delays of N(0, 1) correlations,
+    whose largest mean over 64 patterns stands about 3 sigma up), so the mask is empty; a
+    return 10 sigma up is kept with two delays either side."""
+    from spslidar.pipeline.gate import occupied_lags
+
+    rng = np.random.default_rng(3)
+    corr, sigma = rng.standard_normal((64, 358)), np.ones(64)
+    assert not occupied_lags(corr, sigma).any()
+    corr[:, 100] += 10.0 / np.sqrt(64) * 8  # the mean rises 10 of its sigmas (1/8)
+    assert np.flatnonzero(occupied_lags(corr, sigma)).tolist() == [98, 99, 100, 101, 102]
+
+
+def test_with_reference_samples_the_noise_beside_the_occupied_delays():
+    """Up to 32 delays, evenly spaced, none within the margin of an occupied one; the
+    occupied ones kept; an empty mask gets the sample alone; no room, nothing added."""
+    from spslidar.pipeline.gate import AUTO_GATE_REFERENCE, with_reference
+
+    keep = np.zeros(1000, dtype=bool)
+    keep[500:505] = True
+    out = with_reference(keep)
+    added = np.flatnonzero(out & ~keep)
+    assert out[500:505].all() and added.size == AUTO_GATE_REFERENCE
+    assert np.min(np.abs(added[:, None] - np.arange(500, 505)[None, :])) > 2
+    assert np.ptp(np.diff(added)) <= 35  # evenly spread (the occupied run and margin skipped)
+    assert with_reference(np.zeros(40, dtype=bool)).sum() == 32
+    assert not (with_reference(np.ones(40, dtype=bool)) ^ np.ones(40, dtype=bool)).any()
+
+
+def _far_black(tmp_path):
+    x = np.arange(16)[None, :] * np.ones((16, 1))
+    np.savez(tmp_path / "far.npz", depth=30 + 0.35 * x, reflectivity=np.zeros((16, 16)))
+    return str(tmp_path / "far.npz")
+
+
+def test_a_black_scene_through_an_automatic_gate_has_no_return(tmp_path):
+    """The audit's scene (358 delays, so the gate is automatic): it is said that nothing
+    rises, the verdict reads the noise's sample (it read zeros: 1000, the cap, against a
+    floor of 1.7) and calls the map noise, and no pixel is given a depth."""
+    r = spslidar.run(scene=_far_black(tmp_path), size=16, seed=0)
+    assert r.metrics["auto_gate"] and r.metrics["n_slices"] > 256
+    assert sum(w.startswith(AUTO) for w in r.warnings) == 1
+    assert len(_warned(r)) == 1 and "the 32 slices solved of" in _warned(r)[0]
+    assert r.metrics["peak_to_noise_p90"] < r.metrics["peak_to_noise_floor"]
+    assert not np.isfinite(r.depth).any()
+
+
+def test_a_dim_wide_scene_through_an_automatic_gate_is_said_to_be_noise(tmp_path):
+    """A 3-20 m ramp with a box at 5 m at m_s = 0.05: came back a confident wall (RMSE
+    7.8 m, 0.4 % low-confidence, no word); through --no-auto-gate it was said to be noise.
+    Both say so now."""
+    y = np.mgrid[0:16, 0:16][0]
+    d = 3 + 17 * y / 15
+    d[4:9, 4:8] = 5.0
+    np.save(tmp_path / "ramp.npy", d)
+    for auto in (None, False):
+        r = spslidar.run(scene=str(tmp_path / "ramp.npy"), size=16, signal=0.05, seed=0,
+                         auto_gate=auto)
+        assert r.metrics["auto_gate"] is (auto is None)
+        assert len(_warned(r)) == 1, auto
+
+
+def test_the_noise_sample_leaves_a_lit_scenes_depths_as_they_were(monkeypatch):
+    """Solved beside the occupied delays, the sample is read by the verdict and then left
+    out: the camera (20-20.8 m) through a 15-40 m gate (1670 delays, 59 occupied) gives the
+    depth map it gives without the sample, and no noise verdict."""
+    import spslidar.pipeline.chain as chain
+
+    with_sample = spslidar.run(size=32, range_gate=(15.0, 40.0), seed=1)
+    assert with_sample.metrics["auto_gate"] and not _warned(with_sample)
+    monkeypatch.setattr(chain, "with_reference", lambda keep: keep)
+    without = spslidar.run(size=32, range_gate=(15.0, 40.0), seed=1)
+    assert with_sample.metrics["n_slices_solved"] == without.metrics["n_slices_solved"] + 32
+    # the same depths (the solve's columns are independent problems; its stopping rule reads
+    # them all, so a few pixels may differ by a bin's fraction)
+    same = np.isclose(with_sample.depth, without.depth, atol=1e-3, equal_nan=True)
+    assert same.mean() > 0.99
+    assert with_sample.depth_rmse == pytest.approx(without.depth_rmse, rel=0.02)

@@ -31,7 +31,7 @@ from ..patterns import build_patterns
 from ..qcr import MeanEliminated, plain_problem, qcr_problem
 from ..scenes import load_scene
 from ..solvers.entries import TV_REGULARISERS
-from .gate import AUTO_GATE_MIN_SLICES, occupied_lags
+from .gate import AUTO_GATE_MIN_SLICES, AUTO_GATE_SIGMAS, gate_text, occupied_lags, with_reference
 from .measurement import (
     PROCESSING_KEYS,
     Measurement,
@@ -283,6 +283,17 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     auto = cfg.auto_gate if cfg.auto_gate is not None else ulags.size > AUTO_GATE_MIN_SLICES
     keep = (occupied_lags(_host(be, corr), sim["sigma"]) if auto
             else np.ones(ulags.size, dtype=bool))
+    occupied = keep
+    if auto:
+        if not keep.any():
+            warns.append(
+                f"the automatic range gate found no delay of {gate_text(meas.gate)} m whose "
+                f"pattern-averaged return rises {AUTO_GATE_SIGMAS:g} noise standard deviations "
+                f"above the background: nothing in the gate returns light this acquisition "
+                f"tells from it (a dark or distant scene, too little signal, or a gate that "
+                f"misses the scene); only a sample of the noise was solved (--no-auto-gate "
+                f"solves every delay)")
+        keep = with_reference(keep)
     if not sim.get("estimate") and not device:  # a measured acquisition: no config priced it
         _price_measured(cfg, patterns.shape[0], q, int(keep.sum()), int(meas.lags.size))
     eliminated = None
@@ -398,6 +409,16 @@ def reconstruct(meas: Measurement, **processing) -> Result:
 
     t0 = time.perf_counter()
     shape = (cfg.size, cfg.size)
+    noise_sample = None
+    if auto and bool((keep & ~occupied).any()):
+        # the automatic gate's noise sample: read by the noise verdict, in delay order, and
+        # then left out (zeros, as every delay not solved), so that the depth stage reads
+        # the occupied delays alone, as it did before the sample was solved
+        cols = (np.cumsum(keep) - 1)[np.asarray(meas.inverse)[keep[meas.inverse]]]
+        noise_sample = _host(be, xp.take(x, be.asarray(cols), axis=1) if device
+                             else np.asarray(x)[:, cols])
+        occ = occupied[keep].astype(np.asarray(noise_sample).dtype)
+        x = x * (be.asarray(occ) if device else occ)
     if device:
         full = x
         if not keep.all():
@@ -450,7 +471,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         confidence=confidence, low_confidence=low, depth_info=depth_info,
         lam=lam, lam_scale=lam_scale, sigma_eff=sigma_eff, info=info, iterations=iterations,
         timing=timing, warns=warns, lam_floored=floored, depth2=depth2,
-        low_confidence_threshold=threshold, estimate=estimate)
+        low_confidence_threshold=threshold, estimate=estimate, noise_sample=noise_sample)
 
 
 def _price_measured(cfg: Config, m: int, q: int, k: int, n_lags: int) -> None:

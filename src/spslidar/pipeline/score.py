@@ -35,10 +35,14 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
                   timing: dict[str, float], warns: list[str],
                   lam_floored: bool = False, depth2: np.ndarray | None = None,
                   low_confidence_threshold: float | None = None,
-                  estimate: dict[str, float] | None = None) -> Result:
+                  estimate: dict[str, float] | None = None,
+                  noise_sample: np.ndarray | None = None) -> Result:
     """Score a reconstruction (eq. 19, Sobel edges) and assemble its :class:`Result` and
     ``metrics.json``: the last step of :func:`reconstruct` (on every backend) and of a
-    measured acquisition's reconstruction, so all report the same keys."""
+    measured acquisition's reconstruction, so all report the same keys. ``noise_sample``:
+    an automatic gate's solved delays, its occupied ones and the noise's sample beside them
+    (:func:`~spslidar.pipeline.gate.with_reference`), which the noise verdict reads in place
+    of ``slices``, where the delays not solved are zeros."""
     scene, acq, sim = meas.scene, meas.acq, meas.sim
     bin_depth = SPEED_OF_LIGHT * acq.bin_width / 2.0
     shape = (cfg.size, cfg.size)
@@ -78,8 +82,13 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
     # 1.00: no verdict to make; its white-noise reference of 2048 x K slices ran out of
     # memory at K = 66 714, a 0-1000 m gate, an audit)
     half = max(2, int(sim.get("response_half_width") or 2))
+    # (an automatic gate's unsolved delays are zeros, no noise: the verdict reads the solved
+    # ones, the occupied delays and the noise's sample beside them, ``noise_sample``)
+    seen = slices if noise_sample is None else noise_sample
+    n_seen = (f"{np.shape(seen)[1]} slices" if seen is slices else
+              f"the {np.shape(seen)[1]} slices solved of {np.shape(slices)[1]}")
     verdict, room = ((None, None) if noiseless or aliased else
-                     verdict_and_room(slices, exclude=half))
+                     verdict_and_room(seen, exclude=half))
     # None: no verdict (noiseless, aliased, too few slices, a diverged solve)
     peak_ratio, peak_floor, null = verdict if verdict is not None else (None, None, None)
     if aliased and not noiseless:
@@ -94,15 +103,15 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
             f"the depth map is mostly noise: at most a tenth of the pixels hold a return above "
             f"it (the 90th percentile of each pixel's peak over its own profile's noise maximum "
             f"is {peak_ratio:.2f}, under the {peak_floor:.2f} a return stands at; noise alone "
-            f"gives {null:.2f} here, {np.shape(slices)[1]} slices): check that the range gate "
+            f"gives {null:.2f} here, {n_seen}): check that the range gate "
             f"{gate_text(meas.gate)} m holds the scene, the signal level, or "
             f"acquire longer")
     elif verdict is None and not noiseless and (
-            room is not None or (np.shape(slices)[1] < NOISE_ONLY_MIN_SLICES
-                                 and np.isfinite(slices).all())):
+            room is not None or (np.shape(seen)[1] < NOISE_ONLY_MIN_SLICES
+                                 and np.isfinite(seen).all())):
         # (a gate of 16+ slices that leaves too few beside a calibrated response's width
         # had its verdict dropped without a word)
-        n_sl = int(np.shape(slices)[1])
+        n_sl = int(np.shape(seen)[1])
         if room is None:
             held = f"{n_sl} slices, too few beside a return"
             need = f"{NOISE_ONLY_MIN_SLICES} or more"
