@@ -164,7 +164,8 @@ def _check_truth(truth: Any, n: int) -> np.ndarray:
     """``truth`` as an ``(n, n)`` float64 depth map in metres, NaN where unknown; one line for
     anything else: a complex, boolean or non-numeric array (a complex one was cast to its
     real part with a library warning, a boolean mask scored as depths of 0 and 1 m), an
-    infinite or negative depth, or one beyond :data:`~spslidar.constants.MAX_DEPTH_M`."""
+    infinite, negative or zero depth (zero is "no data" in many datasets), or one beyond
+    :data:`~spslidar.constants.MAX_DEPTH_M`."""
     arr = _as_array(truth, "--truth")
     if arr.dtype == np.bool_:
         raise ConfigError("--truth holds booleans (a mask?): a depth map in metres is expected, "
@@ -183,6 +184,11 @@ def _check_truth(truth: Any, n: int) -> np.ndarray:
     if bad:
         raise ConfigError(f"--truth has {bad} infinite or negative depths (depths are finite "
                           f"metres >= 0; NaN marks a pixel without a truth)")
+    zeros = int(np.count_nonzero(known & (arr == 0)))
+    if zeros:  # (0 for "no data" was scored as a depth: a 16x16 plane read 9.29 m for 0.028)
+        raise ConfigError(f"--truth has {zeros} depths of 0 m, where a lidar measures no "
+                          f"distance: mark pixels without a truth NaN (0 is 'no data' in many "
+                          f"depth datasets)")
     if known.any() and float(arr[known].max()) > MAX_DEPTH_M:
         raise ConfigError(f"--truth holds depths up to {float(arr[known].max()):.3g} m, beyond "
                           f"any lidar range (at most {MAX_DEPTH_M:.0e} m): are the values in "

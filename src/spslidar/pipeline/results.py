@@ -46,11 +46,16 @@ class Result:
 
     @property
     def truth(self) -> np.ndarray:
-        """The ground-truth depth (all NaN for a measured acquisition without one); read-only:
-        it is the measurement's scene, which later reconstructions score against."""
+        """The ground-truth depth, NaN where the scene has none (its ``valid`` mask is False,
+        as in ``truth.npy``; all NaN for a measured acquisition without one); read-only: it is
+        the measurement's scene, which later reconstructions score against. (The holes held
+        the nearest pixel's depth, which the scene carries to simulate them, and a user's own
+        RMSE from ``depth - truth`` scored them, an audit.)"""
         if not self.has_truth:
             return np.full(np.shape(self.scene.depth), np.nan)
-        view = self.scene.depth.view()
+        valid = np.asarray(self.scene.valid, dtype=bool)
+        view = (self.scene.depth.view() if valid.all()
+                else np.where(valid, self.scene.depth, np.nan))
         view.flags.writeable = False
         return view
 

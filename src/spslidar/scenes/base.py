@@ -214,10 +214,14 @@ def _resize(img: np.ndarray, size: int) -> np.ndarray:
     )
 
 
-def _resize_surfaces(img: np.ndarray, size: int) -> np.ndarray:
+def _resize_surfaces(img: np.ndarray, size: int, companion: np.ndarray | None = None):
     """Resize a square depth map so that every output pixel holds a depth its footprint holds:
     the lower median of the source pixels it covers (:func:`footprints`; one source pixel when
-    up-sampling, the nearer of two where a footprint straddles them).
+    up-sampling, the nearer of two where a footprint straddles them). With ``companion`` (the
+    reflectivity, same shape), also its value at that same source pixel: ``(depth,
+    companion)``. (The reflectivity was resized bilinearly beside it: a 0/1 texture
+    up-sampled to greys of 0.25-0.75 that are in no file, and a pixel given a dark surface's
+    depth took a bright neighbour's light, an audit.)
 
     The simulation gives each pixel one return. A bilinear, anti-aliased resize averaged the
     depths across edges: a one-pixel pole at 8 m in front of a 10 m wall became a surface at
@@ -230,24 +234,31 @@ def _resize_surfaces(img: np.ndarray, size: int) -> np.ndarray:
     """
     img = np.asarray(img, dtype=np.float64)
     src = img.shape[0]
+    other = None if companion is None else np.asarray(companion, dtype=np.float64)
     if img.shape == (size, size):
-        return img.copy()
+        return img.copy() if other is None else (img.copy(), other.copy())
     start, stop = footprints(src, size)
     k = int((stop - start).max())
     idx = start[:, None] + np.arange(k)[None, :]  # (size, k) source rows (or columns)
     inside = idx < stop[:, None]
     idx = np.minimum(idx, src - 1)
     out = np.empty((size, size))
+    out2 = None if other is None else np.empty((size, size))
     rows = max(1, (1 << 22) // max(1, size * k * k))  # output rows per block (~32 MB)
     for r0 in range(0, size, rows):
         r = slice(r0, min(size, r0 + rows))
-        block = img[idx[r][:, None, :, None], idx[None, :, None, :]]  # (R, size, k, k)
+        at = (idx[r][:, None, :, None], idx[None, :, None, :])
+        block = img[at]  # (R, size, k, k)
         mask = inside[r][:, None, :, None] & inside[None, :, None, :]
         vals = np.where(mask, block, np.inf).reshape(block.shape[0], size, k * k)
-        vals.sort(axis=2)
+        order = np.argsort(vals, axis=2, kind="stable")
         count = mask.reshape(block.shape[0], size, k * k).sum(axis=2)
-        out[r] = np.take_along_axis(vals, ((count - 1) // 2)[..., None], axis=2)[..., 0]
-    return out
+        pick = np.take_along_axis(order, ((count - 1) // 2)[..., None], axis=2)
+        out[r] = np.take_along_axis(vals, pick, axis=2)[..., 0]
+        if out2 is not None:
+            comp = other[at].reshape(block.shape[0], size, k * k)
+            out2[r] = np.take_along_axis(comp, pick, axis=2)[..., 0]
+    return out if out2 is None else (out, out2)
 
 
 def footprints(src: int, size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -363,8 +374,13 @@ def _finish(
         notes.append(_surface_note(name, min(depth.shape), size))
     given = valid | (np.isfinite(depth) & (depth > 0)) if surfaces else valid
     depth = _fill_invalid(depth, given)
-    depth = (_resize_surfaces if surfaces else _resize)(_center_crop(depth), size)
-    reflectivity = np.clip(_resize(_center_crop(reflectivity), size), 0.0, 1.0)
+    if surfaces:  # each pixel's reflectivity from the file's pixel whose depth it holds
+        depth, reflectivity = _resize_surfaces(_center_crop(depth), size,
+                                               _center_crop(reflectivity))
+    else:
+        depth = _resize(_center_crop(depth), size)
+        reflectivity = _resize(_center_crop(reflectivity), size)
+    reflectivity = np.clip(reflectivity, 0.0, 1.0)
     valid = _resize_mask(_center_crop(valid), size)
     if not valid.any():
         raise SceneError(

@@ -169,6 +169,10 @@ def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype]:
         # a complex TIFF (e.g. a saved FFT) has no grey level to map onto depth
         raise SceneError(f"scene image {label} holds {img.dtype} values, not grey levels: use "
                          f"a grey or RGB image (or a real .npy depth map)")
+    # the file's own type and range, before an RGB image is made grey (an 8-bit RGB PNG was
+    # said to be "(float64, 0 .. 1)", a float TIFF or 16-bit PNG, an audit)
+    kind = img.dtype
+    span = (float(np.nanmin(img)), float(np.nanmax(img))) if img.size else (0.0, 0.0)
     if img.ndim == 3 and img.shape[-1] in (3, 4):
         if img.shape[-1] == 4:
             img = img[..., :3]
@@ -177,12 +181,11 @@ def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype]:
         raise SceneError(
             f"scene image {label} must be a 2-D grey or RGB image, got shape {img.shape}"
         )
-    kind = img.dtype
     img = img.astype(np.float64)
     if not np.isfinite(img).all():
         count = int(np.count_nonzero(~np.isfinite(img)))
         raise SceneError(f"scene image {label}: {_pixels(count)} NaN or infinite values")
-    return img, kind
+    return img, kind, span
 
 
 def _load_file(path: Path, size: int, depth_min: float | None, depth_max: float | None) -> Scene:
@@ -194,11 +197,11 @@ def _load_file(path: Path, size: int, depth_min: float | None, depth_max: float 
     suffix = path.suffix.lower()
     if suffix in _IMAGE_SUFFIXES:
         lo, hi = _window(depth_min, depth_max, _IMAGE_WINDOW)
-        img, kind = _load_image(path, label)
+        img, kind, span = _load_image(path, label)
         scene = _grey_to_scene(label, img, size, lo, hi, surfaces=True)
         if kind.kind == "f" or kind.itemsize > 1:  # a float TIFF or 16-bit PNG: metres?
             scene.notes.append(
-                f"scene image {label} ({kind}, {img.min():.4g} .. {img.max():.4g}) is read as grey "
+                f"scene image {label} ({kind}, {span[0]:.4g} .. {span[1]:.4g}) is read as grey "
                 f"levels mapped onto {lo:g}-{hi:g} m (--depth-min/--depth-max), not as "
                 f"distances: a depth map in metres belongs in an .npy or .npz")
         return scene
@@ -215,6 +218,14 @@ def _load_file(path: Path, size: int, depth_min: float | None, depth_max: float 
         # a lidar measures distance: a scene entirely at 0 m is a wrong file or wrong units
         raise SceneError(f"scene file {label}: every depth is 0 m; give distances from the "
                          f"lidar in metres (or a window with --depth-min/--depth-max)")
+    zeros = int(np.count_nonzero(known == 0))
+    if zeros and depth_min is None and depth_max is None:
+        # (0 is "no data" in many depth datasets: such holes were simulated as a surface at
+        # 0 m and scored, over 100 % of the pixels, with no word, an audit; a window maps the
+        # file's nearest depth to --depth-min, so 0 is a depth there)
+        raise SceneError(f"scene file {label}: {_pixels(zeros)} a depth of 0 m, where a lidar "
+                         f"measures no distance: holes without a depth (0 in many depth "
+                         f"datasets) belong in an .npz with a 'valid' mask, False there")
     scene = _finish(label, depth, refl, valid, size, depth_min, depth_max, surfaces=True)
     scene.notes[:0] = notes
     return scene

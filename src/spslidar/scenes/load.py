@@ -68,10 +68,13 @@ def load_scene(
     mapped onto the window like ``camera`` (their own darkest to brightest level), with
     reflectivity 1.
 
-    *Resampling.* Non-square inputs are centre-cropped to a square, then resized bilinearly
-    (anti-aliased when down-sampling). The validity mask is resized by the share of valid source
-    pixels under each output pixel's footprint, thresholded at 0.999, so a pixel stays valid
-    only when all its source pixels were valid.
+    *Resampling.* Non-square inputs are centre-cropped to a square, then resized. A user's
+    file (and image): every pixel takes the depth of its footprint's median source pixel (up-
+    sampling repeats the file's pixels, :func:`~spslidar.scenes.base._resize_surfaces`), and
+    the reflectivity of that same source pixel. The built-in camera and motorcycle: bilinearly
+    (anti-aliased when down-sampling), as their benchmarks were measured. The validity mask
+    is resized by the share of valid source pixels under each output pixel's footprint,
+    thresholded at 0.999, so a pixel stays valid only when all its source pixels were valid.
     """
     size = _check_size(size)
     lo = _check_bound(depth_min, "depth_min")
