@@ -14,8 +14,8 @@ from ..registry import Registry, lazy_exports
 if TYPE_CHECKING:
     from .base import PatternOperator
 
-__all__ = ["HADAMARD_ORDERS", "HADAMARD_REALISATIONS", "PATTERNS", "PATTERN_KINDS",
-           "CentredPatterns", "DensePatterns", "PatternOperator",
+__all__ = ["HADAMARD_KINDS", "HADAMARD_ORDERS", "HADAMARD_REALISATIONS", "PATTERNS",
+           "PATTERN_KINDS", "CentredPatterns", "DensePatterns", "PatternOperator",
            "as_patterns", "build_patterns", "make_patterns", "n_patterns_for"]
 
 # the operators themselves import numpy: re-exported on first access, so reading the registry
@@ -29,6 +29,8 @@ __getattr__ = lazy_exports(__name__, {
 HADAMARD_ORDERS = ("sequency", "cake-cutting", "random", "natural")
 #: how +-1 Hadamard patterns are shown on a 0/1 DMD (``--hadamard-realisation``)
 HADAMARD_REALISATIONS = ("shifted", "differential")
+#: the pattern kinds whose rows ``--hadamard-realisation`` shows (both are +-1 Hadamard rows)
+HADAMARD_KINDS = ("hadamard", "scrambled-hadamard")
 
 #: pattern kinds by name (the ``patterns`` config key / ``--patterns`` option)
 PATTERNS = Registry("pattern kind", "patterns")

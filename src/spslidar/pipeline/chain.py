@@ -204,6 +204,14 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
             # an outside audit of 2026-11-29)
             what = ("pulses" if acq.lidar == "conventional" else "code periods")
             had = what if acq.n_periods != 1 else what[:-1]
+            if cfg.detector != "linear":
+                # (a dead-time model draws whole periods: the GMAPD drew none of half a
+                # period, exit 0 with an empty map, and a third too few of 1.5, an audit)
+                raise ConfigError(
+                    f"--hadamard-realisation differential shows each pattern as two frames, "
+                    f"each for half of its {acq.n_periods:g} {had}, and --detector "
+                    f"{cfg.detector} simulates whole {what}: give an even --periods"
+                    + (" (an even number of pulses)" if acq.lidar == "conventional" else ""))
             warns.append(
                 f"--hadamard-realisation differential shows each pattern as two frames, each "
                 f"for half of its {acq.n_periods:g} {had}: the simulation takes each frame as "

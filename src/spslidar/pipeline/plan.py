@@ -12,7 +12,7 @@ import numpy as np
 from ..config import Config
 from ..constants import SPEED_OF_LIGHT
 from ..correlate import gate_lags
-from ..patterns import PATTERNS, n_patterns_for
+from ..patterns import HADAMARD_KINDS, PATTERNS, n_patterns_for
 from ..scenes import load_scene
 from .acquisition import GATE_PAD_BINS, Acquisition, default_gate, make_acquisition
 from .budget import check_budget, estimate_budget
@@ -167,10 +167,20 @@ def ignored_keys(cfg: Config) -> dict[str, str]:
                                  f"the rows of --patterns hadamard, not {cfg.patterns}")
     if changed("qcr_form") and not cfg.qcr:
         out["qcr_form"] = f"--qcr-form {cfg.qcr_form} is ignored with --no-qcr"
-    if changed("hadamard_realisation") and cfg.patterns != "hadamard":
+    if changed("hadamard_realisation") and cfg.patterns not in HADAMARD_KINDS:
+        # (scrambled Hadamard rows are shown so too: it was said to be ignored there while it
+        # was applied, an outside audit)
         out["hadamard_realisation"] = (
             f"--hadamard-realisation {cfg.hadamard_realisation} is ignored: it shows the rows "
-            f"of --patterns hadamard, not {cfg.patterns}")
+            f"of --patterns {' or '.join(HADAMARD_KINDS)}, not {cfg.patterns}")
+    if changed("noise_split") and cfg.ambient == "paper":
+        # (under the paper's ambient light the three shares add up to m_n per bin whatever
+        # they are: an audit's splits gave the same depth map, the GMAPD's included)
+        out["noise_split"] = (
+            f"--noise-split {' '.join(f'{v:g}' for v in cfg.noise_split)} is ignored with "
+            f"--ambient paper, where the three shares add up to --noise per bin whatever they "
+            f"are; they differ under --ambient modulated (the ambient share through the "
+            f"patterns)")
     if changed("pattern_sigma") and cfg.patterns != "gaussian":
         out["pattern_sigma"] = (f"--pattern-sigma {cfg.pattern_sigma:g} is ignored: it spreads "
                                 f"the grey levels of --patterns gaussian, not {cfg.patterns}")
