@@ -53,3 +53,21 @@ def test_a_noise_split_is_said_to_be_ignored_under_the_papers_ambient_light():
     m = spslidar.run(**SMALL, noise_split=(1.0, 0.0, 0.0), ambient="modulated")
     assert not any("--noise-split" in w for w in m.warnings)
     assert not np.array_equal(m.depth, b.depth)
+
+
+def test_the_afterpulse_correction_is_unbiased_on_low_count_histograms():
+    """About one count per bin: the bins without a count kept their share of the expected
+    afterpulses (clipped at 0), so the corrected photons read +14 % at P = 0.3 without dead
+    time and +8 % at P = 0.1 with 20 ns (200 bins); the signed estimate is unbiased without
+    dead time (40 histograms of 100 periods: 1.002 +- 0.004) and within the dead time's
+    own finite-count bias with it (1.023 +- 0.010, against 1.013 without afterpulses)."""
+    from spslidar.codes import make_code
+    from spslidar.detectors.gmapd import GMAPD
+
+    code = make_code("mseq", 1023).astype(float)
+    lam = np.repeat((0.02 * np.roll(code, 300) + 5e-4)[None, :], 40, axis=0)
+    for dead, prob, most in ((0.0, 0.3, 0.02), (20e-9, 0.1, 0.05)):
+        g = GMAPD(dead_time=dead, afterpulse_prob=prob, afterpulse_delay=2e-9, bin_width=1e-10)
+        counts, _ = g.detect(lam * 100, np.random.default_rng(7), n_periods=100)
+        ratio = g.correct(counts, 100).sum(axis=1) / (100 * lam[0].sum())
+        assert abs(ratio.mean() - 1.0) < most, (dead, prob, ratio.mean())

@@ -125,7 +125,10 @@ def _circular_window(h: np.ndarray, d: int, f: float) -> np.ndarray:
 def _invert_photon_map(target, alpha, g, n_iter: int = 60, tol: float = 1e-14):
     """Solve ``alpha p(mu) + g (1 - phi(mu)) = target`` for ``mu >= 0`` (Newton from the lower
     bound ``-log(1 - target / (alpha + g))``: the map is increasing and concave, so the
-    iterates increase monotonically to the root)."""
+    iterates increase monotonically to the root). A negative ``target`` (counts less their
+    expected afterpulses) continues the map through 0 along its slope there, ``alpha +
+    g / 2``: ``mu = target / (alpha + g / 2)``, so that the estimate stays unbiased where a
+    bin's counts are few."""
     shape = np.shape(target)
     target, alpha, g = (np.ravel(v) for v in (target, alpha, g))
     limit = alpha + g
@@ -140,7 +143,10 @@ def _invert_photon_map(target, alpha, g, n_iter: int = 60, tol: float = 1e-14):
         res = a * -np.expm1(-m) + gg * _one_minus_phi(m) - t
         mu[live] = m - res / (a * np.exp(-m) + gg * _chi(m))
         live = live[np.abs(res) > tol * np.maximum(t, 1e-300)]
-    return np.maximum(mu, 0.0).reshape(shape)
+    slope = alpha + 0.5 * g
+    below = (target < 0) & (slope > 0)
+    mu = np.where(below, target / np.where(below, slope, 1.0), np.maximum(mu, 0.0))
+    return mu.reshape(shape)
 
 
 def _periodic_scan(c: np.ndarray, forcing: np.ndarray) -> np.ndarray:

@@ -345,7 +345,8 @@ class GMAPD(DetectorModel):
             return np.asarray(totals, dtype=np.float64)
         c = np.atleast_2d(np.asarray(counts, dtype=np.float64))
         fixed = self.correct(c, n_periods) if corrected is None else corrected
-        mu = np.atleast_2d(np.asarray(fixed, dtype=np.float64)) / n_periods
+        # (|mu|: counts less their expected afterpulses may read a little below 0)
+        mu = np.abs(np.atleast_2d(np.asarray(fixed, dtype=np.float64))) / n_periods
         armed = np.clip(c / n_periods / np.maximum(-np.expm1(-mu), 1e-300), 0.0, 1.0)
         var = n_periods * np.expm1(np.minimum(mu, 700.0)) / np.maximum(armed, 1e-300)
         # a bin that (nearly) saturated carries almost no information, but its corrected value

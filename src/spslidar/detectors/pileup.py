@@ -452,7 +452,10 @@ def coates_correction(hist: np.ndarray, n_periods: int, dead_time_bins: float,
         if afterpulse_prob:
             kern = jitter_kernel(h.shape[1], 0.0, float(afterpulse_delay_bins), 1.0)
             mu = h - afterpulse_prob * convolve_periodic(h, kern)
-        out = np.maximum(mu, 0.0) * n_periods
+        # (not clipped at 0: the inverse is linear here and unbiased only signed; clipped, the
+        # half of a low-count histogram's bins that hold no count kept their share of the
+        # afterpulses, +5 % of the photons at P = 0.1, an outside audit)
+        out = mu * n_periods
         return out[0] if one_d else out
     if dead_time_bins < 1:
         raise ValueError("the dead time must be 0 or at least one bin")
@@ -497,6 +500,7 @@ def _defect_correction(h, mu, sub, profile, args, max_iter: int = 100, tol: floa
     rate = 1.0 / delay if prob else 0.0
     period = h.shape[1]
     base = mu.copy()
+    mu = np.maximum(mu, 0.0)
     weight = np.ones_like(mu)
     prev = np.zeros_like(mu)
     scale = max(float(h.max(initial=0.0)), 1e-300)
@@ -525,7 +529,11 @@ def _defect_correction(h, mu, sub, profile, args, max_iter: int = 100, tol: floa
             f"change {info['change']:.2e}): so near saturation the corrected counts are "
             f"uncertain; --pileup-correction off, or less light and more --periods",
             RuntimeWarning, stacklevel=3)
-    return mu
+    # bins whose counts are fewer than their expected afterpulses read below 0 at the bin
+    # level (unbiased, signed: :func:`_coates_bins`), where the sub-binned model, a flux,
+    # cannot follow: they keep that reading (clipped, +22-47 % of the photons at P = 0.3,
+    # a 20 ns dead time and 100 periods, an outside audit)
+    return np.where(base < 0, base, mu)
 
 
 def _coates_bins(h: np.ndarray, n_periods: float, dead_time_bins: float,
@@ -557,11 +565,15 @@ def _coates_bins(h: np.ndarray, n_periods: float, dead_time_bins: float,
     if afterpulse_prob:
         rate = 1.0 / float(afterpulse_delay_bins)
         for _ in range(max_iter):
-            coef = _Coefficients(mu, afterpulse_prob, rate)
-            gamma = _periodic_scan(mu + rate, g * coef.coef_gamma)
+            # (the trap's state from the flux the bins can have, never below 0)
+            flux = np.maximum(mu, 0.0)
+            coef = _Coefficients(flux, afterpulse_prob, rate)
+            gamma = _periodic_scan(flux + rate, g * coef.coef_gamma)
             extra = g * coef.ap_g + gamma * coef.dexp
-            new = np.minimum(_invert_photon_map(np.maximum(target - extra, 0.0), alpha, g),
-                             cap)
+            # signed: a bin with fewer counts than its expected afterpulses reads below 0
+            # (clipped there, the bins without a count kept their share of the afterpulses:
+            # +8 % of the photons at P = 0.1 and a 20 ns dead time, +27 % at 0.3, an audit)
+            new = np.minimum(_invert_photon_map(target - extra, alpha, g), cap)
             change = np.max(np.abs(new - mu)) / max(float(np.max(mu)), 1e-300)
             mu = new
             if change <= tol:
