@@ -266,20 +266,25 @@ def _profiles(seed: int = 0) -> tuple[np.ndarray, object]:
 
 
 @pytest.mark.parametrize("name", ["argmax", "censor", "evidence", "guarded", "mrf"])
-def test_a_pixel_that_is_not_finite_has_no_return_and_leaves_the_others(name):
+def test_a_value_that_is_not_finite_is_no_evidence_and_leaves_the_others(name):
     """One NaN moved 62 of 64 MRF depths to the first lag and made every confidence NaN;
-    all-NaN slices gave 64 finite depths."""
+    all-NaN slices gave 64 finite depths. A value that is not finite reads as 0 (it voided
+    its whole pixel until an audit of 2026-11-29 found one NaN delay voiding every pixel);
+    a pixel with no finite value has no return."""
     from spslidar.depth import ESTIMATORS
 
     s, ctx = _profiles()
     bad = s.copy()
     bad[3, 5] = np.nan
     bad[7, 0] = np.inf
-    a = ESTIMATORS.load(name)().estimate(s, ctx)
+    bad[9] = np.nan
+    zeroed = np.where(np.isfinite(bad), bad, 0.0)
+    a = ESTIMATORS.load(name)().estimate(zeroed, ctx)
     b = ESTIMATORS.load(name)().estimate(bad, ctx)
-    rest = ~np.isin(np.arange(64), [3, 7])
+    rest = np.arange(64) != 9
     assert np.array_equal(a.depth[rest], b.depth[rest], equal_nan=True)
-    assert np.isnan(b.depth[[3, 7]]).all() and (b.confidence[[3, 7]] == 0).all()
+    assert np.isfinite(b.depth[[3, 7]]).all()
+    assert np.isnan(b.depth[9]) and b.confidence[9] == 0
     assert np.all((b.confidence >= 0) & (b.confidence <= 1))
     allnan = ESTIMATORS.load(name)().estimate(np.full((64, 40), np.nan), ctx)
     assert np.isnan(allnan.depth).all() and not allnan.confidence.any()

@@ -132,17 +132,21 @@ class DepthEstimator:
 #: squares of 1e20 overflow too. Every built-in estimator is invariant to the scale (equal
 #: depths and confidences at 2^-60 .. 2^60, measured), and a power of two scales exactly.
 RANGE_EXP = 60
+#: once scaled, a cube whose typical (median non-zero) magnitude is below this has a value
+#: far beyond the rest: the others would underflow float32 (min normal 1.2e-38 and the
+#: estimators square them) and are refused in one line
+SPAN_FLOOR = 1e-30
 
 
 def checked_slices(slices: Any, ctx: DepthContext) -> tuple[np.ndarray, np.ndarray, float]:
-    """The ``(Q, K)`` slices as a real array that matches ``ctx``, with every value of a
-    pixel whose profile is not finite set to 0; the mask of those pixels; and the power of two
+    """The ``(Q, K)`` slices as a real array that matches ``ctx``, with every value that is
+    not finite set to 0; the mask of the pixels without any finite value; and the power of two
     the slices were multiplied by (1.0 unless their magnitude is outside
     ``2^±RANGE_EXP``: see ``RANGE_EXP`` in this module).
 
     A NaN in one pixel moved 62 of 64 MRF depths to the first lag and made every confidence
-    NaN (a solve whose weight overflows float32 gives such slices): such a pixel has no
-    return, and the others are read as if it held nothing.
+    NaN (a solve whose weight overflows float32 gives such slices): a pixel with no finite
+    value has no return, and the others are read as if it held nothing.
 
     Raises
     ------
@@ -163,13 +167,27 @@ def checked_slices(slices: Any, ctx: DepthContext) -> tuple[np.ndarray, np.ndarr
     bad = (~np.isfinite(x.sum(axis=1, dtype=np.float64)) if x.dtype.kind == "f"
            else np.zeros(x.shape[0], bool))
     if bad.any():
-        x = np.where(bad[:, None], 0, x)
+        # a value that is not finite is no evidence (0); a pixel without any finite value has
+        # no return (one NaN delay voided every pixel, all "no return" without a word, an
+        # outside audit: as ml_depth, a NaN slice is never the tallest)
+        finite = np.isfinite(x)
+        x = np.where(finite, x, 0)
+        bad = ~finite.any(axis=1)
     scale = 1.0
     if x.dtype.kind == "f":
         top = float(np.max(np.abs(x)))
         if top > 0 and not 2.0**-RANGE_EXP <= top <= 2.0**RANGE_EXP:
             scale = 2.0 ** -np.frexp(top)[1]
             x = np.asarray(x, dtype=np.float64) * scale
+            nz = np.abs(x[x != 0])
+            typical = float(np.median(nz)) if nz.size else 0.0
+            if 0 < typical < SPAN_FLOOR:
+                # (one value of 3e38 or 1e45 among values of 1: the others underflowed the
+                # estimators' float32, every MRF depth the first lag or NaN, an audit)
+                raise ConfigError(
+                    f"the slices' values span {np.log10(1.0 / typical):.0f} decades (largest "
+                    f"{top:.3g}, typical {typical / scale:.3g}): more than the depth "
+                    f"estimators' float32 resolves; is a value corrupt?")
     return x, bad, scale
 
 
@@ -189,9 +207,12 @@ def _checked_estimate(out: Any, q: int, who: str) -> Any:
                               f"entries for {q} pixels")
         setattr(out, name, arr.reshape(q))
     c = np.asarray(out.confidence, dtype=np.float64)
-    if np.any((c < 0) | (c > 1)):
+    if np.any((c < 0) | (c > 1) | np.isnan(c)):  # (NaN passed: an audit's 3e38 pixel)
+        nan = int(np.isnan(c).sum())
+        span = (f"{float(np.nanmin(c)):.3g} to {float(np.nanmax(c)):.3g}" if nan < c.size
+                else "all NaN")
         raise ConfigError(f"the depth estimator {who} returned confidences outside [0, 1] "
-                          f"({float(np.nanmin(c)):.3g} to {float(np.nanmax(c)):.3g})")
+                          f"({span}{f', {nan} NaN' if 0 < nan < c.size else ''})")
     return out
 
 

@@ -235,7 +235,8 @@ def _choose(lab: np.ndarray, bad: np.ndarray, prop: np.ndarray, zwin: np.ndarray
     proposals) scores the evidence of the pixel's own profile in a window of +-``window``
     slices around it plus ``vote`` per reliable 8-neighbour whose depth lies in that window
     (one round of iterated conditional modes on a truncated Potts prior). The best candidate
-    wins, and the pixel takes the tallest slice of its window.
+    wins, and the pixel takes the tallest slice of its window (the candidate itself where
+    the window is flat).
     """
     n1, n2, k = z.shape
     iy, ix = np.nonzero(bad)
@@ -253,5 +254,9 @@ def _choose(lab: np.ndarray, bad: np.ndarray, prop: np.ndarray, zwin: np.ndarray
     cols = np.clip(centre[:, None] + offs[None, :], 0, k - 1)
     vals = z[iy[:, None], ix[:, None], cols]
     out = lab.copy()
-    out[iy, ix] = cols[np.arange(iy.size), np.argmax(vals, axis=1)]
+    best = cols[np.arange(iy.size), np.argmax(vals, axis=1)]
+    # a window without any evidence (after the non-negative solve, exact zeros) keeps the
+    # chosen candidate itself (its first slice, two in front, was taken, an outside audit)
+    flat = np.ptp(vals, axis=1) == 0
+    out[iy, ix] = np.where(flat, centre, best)
     return out

@@ -41,6 +41,11 @@ NOISE_ONLY_MIN_SLICES = 16
 NOISE_BESIDE_MIN = 8
 
 
+#: :func:`noise_scale` of a noiseless block (zero beside every peak), as a share of its
+#: largest value
+NOISELESS_SCALE = 1e-6
+
+
 def noise_scale(slices: np.ndarray, exclude: int = 2) -> float:
     """RMS of the profiles away from each pixel's tallest slice: the noise floor's scale.
 
@@ -53,8 +58,10 @@ def noise_scale(slices: np.ndarray, exclude: int = 2) -> float:
     Returns
     -------
     float
-        The RMS over all remaining entries, or the RMS of the whole block when nothing
-        remains (a block of 2 * exclude + 1 slices or fewer); never 0 for a non-zero block.
+        The RMS over all remaining entries; :data:`NOISELESS_SCALE` times the block's
+        largest value where they are all 0 (a noiseless block); the RMS of the whole block
+        when nothing remains (a block of 2 * exclude + 1 slices or fewer); never 0 for a
+        non-zero block.
 
     Notes
     -----
@@ -72,6 +79,11 @@ def noise_scale(slices: np.ndarray, exclude: int = 2) -> float:
     far = np.abs(np.arange(k)[None, :] - idx[:, None]) > exclude
     sel = x[far] if far.any() else x.ravel()
     rms = float(np.sqrt(np.mean(sel**2)))
+    if not rms > 0 and far.any():
+        # a noiseless block (nothing beside any peak): every return stands out, so the scale
+        # is far below the data's (it was the whole block's RMS, which made a pole at a
+        # tenth of the wall one noise unit, and the MRF gave it the wall, an outside audit)
+        rms = NOISELESS_SCALE * float(np.max(np.abs(x)))
     if not rms > 0:
         rms = float(np.sqrt(np.mean(x**2)))
     return rms if rms > 0 else 1.0
