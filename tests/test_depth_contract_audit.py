@@ -88,3 +88,24 @@ def test_censor_keeps_its_candidate_where_the_window_is_flat():
     out = ESTIMATORS.load("censor")().estimate(x, DepthContext(np.arange(k), 1e-10, 0.5, (n, n)))
     assert out.info["censored_fraction"] > 0
     assert _lags(out.depth)[27] == 40.0
+
+
+def test_censor_reads_a_straight_edge_and_a_pole_at_the_border_as_no_outliers():
+    """The ROAD statistic is 0 on both sides of a straight edge and along a one-pixel pole,
+    but at the image's border the pair along the edge is missing, and the pair across it
+    alone read 10 slices (confidence 0.19 and flagged on a noiseless step; 0.036 at a pole's
+    ends): the extrapolations now join the pairs there are."""
+    from spslidar.depth.censor import road_linear
+
+    step = np.where(np.arange(8)[None, :] < 4, 40.0, 20.0) * np.ones((8, 1))
+    assert not road_linear(step).any()
+    pole = np.full((8, 8), 40.0)
+    pole[:, 4] = 10.0
+    assert not road_linear(pole).any()
+    spike = step.copy()
+    spike[0, 1] = 55.0  # an outlier at the border is still one
+    assert road_linear(spike)[0, 1] >= 15.0
+    x = np.zeros((64, 60))
+    x[np.arange(64), step.ravel().astype(int)] = 1.0
+    out = ESTIMATORS.load("censor")().estimate(x, DepthContext(np.arange(60), 1e-10, 0.5, (8, 8)))
+    assert out.confidence.min() == 1.0 and not out.low_confidence.any()
