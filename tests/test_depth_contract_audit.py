@@ -67,12 +67,20 @@ def test_one_corrupt_value_is_refused_not_read(hot):
     assert (_lags(out.depth)[1:] == 30.0).all()
 
 
-def test_a_nan_confidence_breaks_the_contract_check():
+def test_a_nan_confidence_is_no_confidence_and_its_depth_is_flagged():
+    """NaN confidences were written as they were; refused (an audit's first mend), a plugin
+    whose confidence is a peak share (0/0 on an all-zero profile) was refused over pixels
+    without a return, which an empty automatic gate makes of every pixel (a review)."""
     from spslidar.depth.base import DepthEstimate, _checked_estimate
 
-    est = DepthEstimate(depth=np.zeros(4), confidence=np.array([0.5, np.nan, 1.0, 0.0]),
+    est = DepthEstimate(depth=np.array([0.0, 1.0, np.nan, 2.0]),
+                        confidence=np.array([0.5, np.nan, np.nan, 0.0]),
                         peak=np.ones(4), low_confidence=np.zeros(4, bool))
-    with pytest.raises(ConfigError, match="1 NaN"):
+    out = _checked_estimate(est, 4, "Mine")
+    assert out.confidence.tolist() == [0.5, 0.0, 0.0, 0.0]
+    assert out.low_confidence.tolist() == [False, True, False, False]
+    est.confidence = np.array([0.5, 1.5, 0.0, 0.0])
+    with pytest.raises(ConfigError, match="outside"):
         _checked_estimate(est, 4, "Mine")
 
 
@@ -109,3 +117,16 @@ def test_censor_reads_a_straight_edge_and_a_pole_at_the_border_as_no_outliers():
     x[np.arange(64), step.ravel().astype(int)] = 1.0
     out = ESTIMATORS.load("censor")().estimate(x, DepthContext(np.arange(60), 1e-10, 0.5, (8, 8)))
     assert out.confidence.min() == 1.0 and not out.low_confidence.any()
+
+
+def test_a_sparse_cube_at_any_scale_is_read_not_refused():
+    """The corrupt-value check read the median of all non-zero values, the dust of a sparse
+    cube: one return of 2e19 per pixel over 1e-15 dust was refused, the same cube divided by
+    1e5 read (a review). It reads the typical pixel's peak."""
+    rng = np.random.default_rng(0)
+    x = np.where(rng.random((64, 40)) < 0.9, 1e-15, 0.0)
+    x[np.arange(64), 12] = 2e19
+    for scale in (1.0, 1e-5):
+        out = ESTIMATORS.load("argmax")().estimate(x * scale, DepthContext(
+            np.arange(40), 1e-10, 0.5, (8, 8)))
+        assert (_lags(out.depth) == 12.0).all()

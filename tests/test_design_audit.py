@@ -4,6 +4,7 @@ the run does must be what it says. Each test failed before its mend."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import spslidar
 from spslidar.cli import main
@@ -25,9 +26,22 @@ def test_a_dead_time_detector_with_half_period_frames_is_refused(tmp_path, capsy
         assert len(err) == 1 and "give an even --periods" in err[0] and "gmapd" in err[0]
         assert not out.exists()
     assert main([*args, "--periods", "2", "--out", str(tmp_path / "o2")]) == 0
-    r = spslidar.run(**SMALL, detector="gmapd", signal=0.0005, noise=0.00002,
-                     patterns="hadamard", hadamard_realisation="differential", periods=2)
+    kw = dict(SMALL, detector="gmapd", signal=0.0005, noise=0.00002, patterns="hadamard",
+              hadamard_realisation="differential")
+    r = spslidar.run(**kw, periods=2)
     assert r.metrics["detector"]["count_rate_hz"] > 0 and np.isfinite(r.depth).all()
+    # with the plan, so that a sweep's check refuses it before any run (a review)
+    from spslidar.config import Config
+    from spslidar.errors import ConfigError
+    from spslidar.pipeline import preflight
+
+    with pytest.raises(ConfigError, match="give an even --periods"):
+        preflight(Config(**kw))
+    # without a dead time the counts are Poisson over any dwell: it runs (it was refused)
+    assert np.isfinite(spslidar.run(**kw, dead_time=0.0).depth).any()
+    # the conventional lidar's pulses, not --periods, are what must be even
+    with pytest.raises(ConfigError, match=r"even number of pulses per pattern \(3 now"):
+        preflight(Config(**dict(kw, lidar="conventional", periods=2, rep_rate=10e9 / 682)))
 
 
 def test_the_realisation_of_scrambled_hadamard_rows_is_not_said_to_be_ignored():
@@ -71,3 +85,46 @@ def test_the_afterpulse_correction_is_unbiased_on_low_count_histograms():
         counts, _ = g.detect(lam * 100, np.random.default_rng(7), n_periods=100)
         ratio = g.correct(counts, 100).sum(axis=1) / (100 * lam[0].sum())
         assert abs(ratio.mean() - 1.0) < most, (dead, prob, ratio.mean())
+
+
+def test_the_signed_afterpulse_correction_stays_bounded_inside_a_bright_return():
+    """Inside a bright return the detector is dead after its first detection: the bins' armed
+    share vanishes, and continuing a slightly negative count through that slope read
+    -1.6e13 photons (a mean reflectivity of 3.7e12 through run, a review). A bin armed less
+    than one period's worth reads 0 there."""
+    from spslidar.detectors.gmapd import GMAPD
+
+    det = GMAPD(dead_time=5e-9, afterpulse_prob=0.1, afterpulse_delay=1e-9)
+    n = 100
+    lam = np.full((32, 1023), 0.002 * n)
+    lam[:, 100:103] += 3.0 * n
+    counts, _ = det.detect(lam.copy(), np.random.default_rng(0), n)
+    fixed = det.correct(counts, n)
+    assert fixed.min() > -10.0 and np.isfinite(fixed).all()  # a few counts at the most
+    r = spslidar.run(size=16, code_length=1023, range_gate=(19.5, 21.5), detector="gmapd",
+                     afterpulse_prob=0.3, afterpulse_delay=1e-9, dead_time=2e-9, noise=1e-4,
+                     periods=10, signal=0.01, seed=0)
+    assert r.metrics["mean_reflectivity"] < 10.0  # 1.7 (3.7e12 before)
+
+
+def test_an_option_is_not_taken_for_a_prefix_of_another(tmp_path, capsys):
+    """``reconstruct --lam 0.1`` (it has no --lam) was read as --lam-scale 0.1, a weight 134
+    times smaller than asked, with exit 0."""
+    for args, said in ((["run", "--siz", "16"], "--siz 16"),
+                       (["reconstruct", "--ptu", "x.ptu", "--patterns", "p.npy", "--code",
+                         "c.npy", "--bit-rate", "10e9", "--range-gate", "1", "2", "--lam",
+                         "0.1"], "--lam 0.1")):
+        with pytest.raises(SystemExit) as stop:
+            main([*args, "--out", str(tmp_path / "o")])
+        assert stop.value.code == 2
+        assert f"unrecognized arguments: {said}" in capsys.readouterr().err
+        assert not (tmp_path / "o").exists()
+
+
+def test_tval3_is_told_to_raise_a_weight_too_small_for_it(tmp_path, capsys):
+    """A diverged TVAL3 solve at --lam 1e-45 was told to lower --lam: its data term is
+    1/(2 lam) ||A x - y||^2, so the weight must rise."""
+    assert main(["run", "--size", "16", "--solver", "tval3", "--lam", "1e-45", "--no-figure",
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "raise --lam" in err and "lower --lam" not in err

@@ -38,9 +38,12 @@ def test_zero_holes_in_a_depth_map_are_refused_with_the_valid_mask_hint(tmp_path
     np.savez(tmp_path / "holes.npz", depth=d, valid=d > 0)
     r = spslidar.run(scene=str(tmp_path / "holes.npz"), size=16, seed=0)
     assert r.metrics["n_valid"] == 256 - 24 and r.depth_rmse < 0.02
-    # a window maps the file's nearest depth to --depth-min: 0 is a depth there
+    # --depth-min maps the file's nearest depth to it: 0 is a depth there; --depth-max alone
+    # keeps the nearest depth, 0 m (it let the holes through, a review)
     assert load_scene(str(tmp_path / "holes.npy"), 16, depth_min=2.0, depth_max=5.0).depth.min() \
         == pytest.approx(2.0)
+    with pytest.raises(SceneError, match="depth of 0 m"):
+        load_scene(str(tmp_path / "holes.npy"), 16, depth_max=12.0)
 
 
 def test_a_truth_with_zeros_for_no_data_is_refused():
@@ -68,9 +71,10 @@ def test_a_scene_in_millimetres_is_asked_about_its_units(tmp_path):
     timeline(Config(size=16), scene, warns)
     said = [w for w in warns if "are the scene's depths in metres?" in w]
     assert len(said) == 1 and "2.5-3.55 m" in said[0]
-    metres: list[str] = []  # the camera at 20 m: no such question
-    timeline(Config(size=16), load_scene("camera", 16), metres)
-    assert not any("in metres?" in w for w in metres)
+    metres: list[str] = []  # the camera at 20 m beyond a 1023-bit code's 15 m: no question
+    timeline(Config(size=16, code_length=1023), load_scene("camera", 16), metres)
+    assert any("unambiguous range" in w for w in metres)
+    assert not any("in metres?" in w for w in metres)  # (it asked, a review)
 
 
 def test_result_truth_is_nan_where_the_scene_has_none(tmp_path):

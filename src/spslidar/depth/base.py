@@ -132,7 +132,7 @@ class DepthEstimator:
 #: squares of 1e20 overflow too. Every built-in estimator is invariant to the scale (equal
 #: depths and confidences at 2^-60 .. 2^60, measured), and a power of two scales exactly.
 RANGE_EXP = 60
-#: once scaled, a cube whose typical (median non-zero) magnitude is below this has a value
+#: once scaled, a cube whose typical pixel's peak (the median over pixels) is below this has a value
 #: far beyond the rest: the others would underflow float32 (min normal 1.2e-38 and the
 #: estimators square them) and are refused in one line
 SPAN_FLOOR = 1e-30
@@ -179,8 +179,11 @@ def checked_slices(slices: Any, ctx: DepthContext) -> tuple[np.ndarray, np.ndarr
         if top > 0 and not 2.0**-RANGE_EXP <= top <= 2.0**RANGE_EXP:
             scale = 2.0 ** -np.frexp(top)[1]
             x = np.asarray(x, dtype=np.float64) * scale
-            nz = np.abs(x[x != 0])
-            typical = float(np.median(nz)) if nz.size else 0.0
+            # the typical pixel's peak (a median over all non-zero values read the dust of
+            # a sparse cube and refused it at one scale, not at another, a review)
+            peaks = np.abs(x).max(axis=1)
+            peaks = peaks[peaks > 0]
+            typical = float(np.median(peaks)) if peaks.size else 0.0
             if 0 < typical < SPAN_FLOOR:
                 # (one value of 3e38 or 1e45 among values of 1: the others underflowed the
                 # estimators' float32, every MRF depth the first lag or NaN, an audit)
@@ -194,7 +197,8 @@ def checked_slices(slices: Any, ctx: DepthContext) -> tuple[np.ndarray, np.ndarr
 def _checked_estimate(out: Any, q: int, who: str) -> Any:
     """An estimator's :class:`DepthEstimate` as the pipeline takes it: each per-pixel array of
     ``q`` entries (depth, confidence, peak, low-confidence; a ``depth2`` too), the confidence
-    in [0, 1] where it is finite; a one-line ConfigError naming the estimator otherwise (a
+    in [0, 1], NaN read as 0 and its depth flagged; a one-line ConfigError naming the
+    estimator otherwise (a
     plugin's short depth array ended in a reshape traceback, a confidence in [-2, 4] was
     written to ``confidence.npy``; an audit)."""
     for name in ("depth", "confidence", "peak", "low_confidence", "depth2"):
@@ -207,12 +211,18 @@ def _checked_estimate(out: Any, q: int, who: str) -> Any:
                               f"entries for {q} pixels")
         setattr(out, name, arr.reshape(q))
     c = np.asarray(out.confidence, dtype=np.float64)
-    if np.any((c < 0) | (c > 1) | np.isnan(c)):  # (NaN passed: an audit's 3e38 pixel)
-        nan = int(np.isnan(c).sum())
-        span = (f"{float(np.nanmin(c)):.3g} to {float(np.nanmax(c)):.3g}" if nan < c.size
-                else "all NaN")
+    if np.any((c < 0) | (c > 1)):
         raise ConfigError(f"the depth estimator {who} returned confidences outside [0, 1] "
-                          f"({span}{f', {nan} NaN' if 0 < nan < c.size else ''})")
+                          f"({float(np.nanmin(c)):.3g} to {float(np.nanmax(c)):.3g})")
+    nan = np.isnan(c)
+    if nan.any():
+        # no confidence is 0 confidence (a peak share of an all-zero profile, 0/0), and a
+        # depth that has none is flagged (NaN confidences were written as they were: an
+        # audit; refusing them refused a plugin over pixels it had no return in, a review)
+        out.confidence = np.where(nan, 0.0, c)
+        depth = np.asarray(out.depth, dtype=np.float64)
+        out.low_confidence = np.asarray(out.low_confidence, dtype=bool) | (
+            nan & np.isfinite(depth))
     return out
 
 

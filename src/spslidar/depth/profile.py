@@ -58,7 +58,7 @@ def noise_scale(slices: np.ndarray, exclude: int = 2) -> float:
     Returns
     -------
     float
-        The RMS over all remaining entries; :data:`NOISELESS_SCALE` times the block's
+        The RMS over all remaining entries; ``NOISELESS_SCALE`` times the block's
         largest value where they are all 0 (a noiseless block); the RMS of the whole block
         when nothing remains (a block of 2 * exclude + 1 slices or fewer); never 0 for a
         non-zero block.

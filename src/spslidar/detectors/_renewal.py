@@ -122,13 +122,17 @@ def _circular_window(h: np.ndarray, d: int, f: float) -> np.ndarray:
     return w
 
 
-def _invert_photon_map(target, alpha, g, n_iter: int = 60, tol: float = 1e-14):
+def _invert_photon_map(target, alpha, g, n_iter: int = 60, tol: float = 1e-14,
+                       min_armed: float = 0.0):
     """Solve ``alpha p(mu) + g (1 - phi(mu)) = target`` for ``mu >= 0`` (Newton from the lower
     bound ``-log(1 - target / (alpha + g))``: the map is increasing and concave, so the
     iterates increase monotonically to the root). A negative ``target`` (counts less their
     expected afterpulses) continues the map through 0 along its slope there, ``alpha +
     g / 2``: ``mu = target / (alpha + g / 2)``, so that the estimate stays unbiased where a
-    bin's counts are few."""
+    bin's counts are few; only where the bin was armed ``min_armed`` of the periods or more
+    (one period's worth: a bin that was dead throughout holds no information, and the
+    continuation through its vanishing slope read -1.6e13 photons inside a bright return, a
+    review), 0 elsewhere."""
     shape = np.shape(target)
     target, alpha, g = (np.ravel(v) for v in (target, alpha, g))
     limit = alpha + g
@@ -144,7 +148,7 @@ def _invert_photon_map(target, alpha, g, n_iter: int = 60, tol: float = 1e-14):
         mu[live] = m - res / (a * np.exp(-m) + gg * _chi(m))
         live = live[np.abs(res) > tol * np.maximum(t, 1e-300)]
     slope = alpha + 0.5 * g
-    below = (target < 0) & (slope > 0)
+    below = (target < 0) & (slope > 0) & (limit >= max(min_armed, 1e-300))
     mu = np.where(below, target / np.where(below, slope, 1.0), np.maximum(mu, 0.0))
     return mu.reshape(shape)
 

@@ -573,7 +573,8 @@ def _coates_bins(h: np.ndarray, n_periods: float, dead_time_bins: float,
             # signed: a bin with fewer counts than its expected afterpulses reads below 0
             # (clipped there, the bins without a count kept their share of the afterpulses:
             # +8 % of the photons at P = 0.1 and a 20 ns dead time, +27 % at 0.3, an audit)
-            new = np.minimum(_invert_photon_map(target - extra, alpha, g), cap)
+            new = np.minimum(_invert_photon_map(target - extra, alpha, g,
+                                                min_armed=1.0 / n_periods), cap)
             change = np.max(np.abs(new - mu)) / max(float(np.max(mu)), 1e-300)
             mu = new
             if change <= tol:

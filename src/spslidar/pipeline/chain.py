@@ -204,14 +204,6 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
             # an outside audit of 2026-11-29)
             what = ("pulses" if acq.lidar == "conventional" else "code periods")
             had = what if acq.n_periods != 1 else what[:-1]
-            if cfg.detector != "linear":
-                # (a dead-time model draws whole periods: the GMAPD drew none of half a
-                # period, exit 0 with an empty map, and a third too few of 1.5, an audit)
-                raise ConfigError(
-                    f"--hadamard-realisation differential shows each pattern as two frames, "
-                    f"each for half of its {acq.n_periods:g} {had}, and --detector "
-                    f"{cfg.detector} simulates whole {what}: give an even --periods"
-                    + (" (an even number of pulses)" if acq.lidar == "conventional" else ""))
             warns.append(
                 f"--hadamard-realisation differential shows each pattern as two frames, each "
                 f"for half of its {acq.n_periods:g} {had}: the simulation takes each frame as "
@@ -404,8 +396,13 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     if not (bool(xp.all(xp.isfinite(x))) if device else bool(np.isfinite(x).all())):
         # (a weight that overflows float32, 1e39, gave NaN slices scored as a depth map)
         # (it said "or use --dtype float64" to a float64 run, an audit)
+        given = "--lam" if cfg.lam is not None else "--lam-scale"
+        # (TVAL3 weighs the data by 1/(2 lam): a tiny weight overflows it, and "lower --lam"
+        # was said to a --lam of 1e-45, an outside audit)
+        tiny = cfg.solver == "tval3" and lam < TVAL3_TINY_WEIGHT * max(lam_max, 1e-300)
         cure = ("raise --signal: measurements this small underflow" if not lam > 0 else
-                f"lower {'--lam' if cfg.lam is not None else '--lam-scale'}"
+                f"raise {given} (TVAL3 weighs the data by 1/(2 lam))" if tiny else
+                f"lower {given}"
                 + (", or use --dtype float64" if cfg.dtype == "float32" else ""))
         raise ConfigError(f"the {cfg.solver} solve diverged (its estimate is not finite) at "
                           f"the weight {lam:.3g} in {cfg.dtype}: {cure}")
@@ -418,15 +415,26 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     t0 = time.perf_counter()
     shape = (cfg.size, cfg.size)
     noise_sample = None
-    if auto and bool((keep & ~occupied).any()):
-        # the automatic gate's noise sample: read by the noise verdict, in delay order, and
-        # then left out (zeros, as every delay not solved), so that the depth stage reads
-        # the occupied delays alone, as it did before the sample was solved
+    plateau = replica_plateau(meas.acq.code, meas.acq.replica)
+    unipolar = PLATEAU_SHARE <= plateau < 1.0  # (--replica unipolar: profiles ride on q x peak)
+    if unipolar and auto:
+        # an automatic gate's plateau is read over the delays solved, before its noise
+        # sample is taken (the delays not solved are zeros, no plateau: read over the whole
+        # gate, and after the sample, the verdict called a 2.8 cm map noise and the
+        # reflectivity read 3.61 for 0.83, a review)
+        x = remove_plateau(_host(be, x), plateau)
+        device = False  # (the depth stage on the host from here on)
+    if auto and not keep.all():
+        # the automatic gate's solved delays, for the noise verdict in delay order (the rest
+        # are zeros, no noise); its noise sample is then left out (zeros, as every delay not
+        # solved), so that the depth stage reads the occupied delays alone, as it did before
+        # the sample was solved
         cols = (np.cumsum(keep) - 1)[np.asarray(meas.inverse)[keep[meas.inverse]]]
         noise_sample = _host(be, xp.take(x, be.asarray(cols), axis=1) if device
                              else np.asarray(x)[:, cols])
-        occ = occupied[keep].astype(np.asarray(noise_sample).dtype)
-        x = x * (be.asarray(occ) if device else occ)
+        if bool((keep & ~occupied).any()):
+            occ = occupied[keep].astype(np.asarray(noise_sample).dtype)
+            x = x * (be.asarray(occ) if device else occ)
     if device:
         full = x
         if not keep.all():
@@ -438,8 +446,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         full[:, keep] = x
         slices = full[:, meas.inverse]
     depth2 = depth_info = None
-    plateau = replica_plateau(meas.acq.code, meas.acq.replica)
-    if PLATEAU_SHARE <= plateau < 1.0:  # (--replica unipolar: each profile rides on q x peak)
+    if unipolar and not auto:
         slices = remove_plateau(_host(be, slices), plateau)
         device = False  # (the depth stage on the host from here on)
     if device and cfg.depth == "argmax" and sim.get("delay_response") is None:
@@ -493,6 +500,11 @@ def _price_measured(cfg: Config, m: int, q: int, k: int, n_lags: int) -> None:
     check_time(reconstruction_seconds(cfg, m, q, k, n_lags), cfg.max_time,
                "this reconstruction", basis=f"its {k} slices with returns of {n_lags} gated",
                reduce="--iterations or the range gate")
+
+
+#: a TVAL3 weight this share of max |A^T y| or less is named too small where its solve
+#: diverges (its data term is 1/(2 lam) ||A x - y||^2)
+TVAL3_TINY_WEIGHT = 1e-6
 
 
 def _host(be, a):

@@ -85,12 +85,19 @@ def default_gate_beyond_warning(scene, gate: tuple[float, float], acq: Acquisiti
             f"know, or {cure}{_units_hint(scene, ru)}")
 
 
+#: the nearest depth from which a scene beyond the unambiguous range is asked whether it is
+#: in millimetres (10 cm in millimetres)
+MM_PLAUSIBLE_M = 100.0
+
+
 def _units_hint(scene, ru: float) -> str:
     """Where a whole scene lies beyond the code's unambiguous range, the question of its
     units (a depth map in millimetres, 2500-3550, was simulated at 2.5-3.55 km, and each
     warning said only to lengthen the code, which left an RMSE of 137 m, an audit)."""
     near, far = float(scene.depth_min), float(scene.depth_max)
-    if not near > ru:
+    # (not of a scene within MM_PLAUSIBLE_M, whose metres would be a few centimetres: the
+    # camera at 20 m with a 1023-bit code was asked, a review)
+    if not (near > ru and near >= MM_PLAUSIBLE_M):
         return ""
     return (f"; are the scene's depths in metres? It lies at {near:.4g}-{far:.4g} m (read as "
             f"millimetres, {near / 1000:.4g}-{far / 1000:.4g} m)")
@@ -269,10 +276,34 @@ def _plan(cfg: Config, scene, warns: list[str], announce: bool = True,
         window_bins=int((scene.depth_max - scene.depth_min) / bin_depth) + 2 * GATE_PAD_BINS,
         pattern_bytes_per_entry=(np.dtype(dtype).itemsize if _dense_patterns(cfg) else None),
         threads=simulation_threads())
+    _check_half_frames(cfg, acq)
     if check:
         check_budget(budget, cfg.max_memory, cfg.patterns, cfg.max_time, announce=announce)
     return _Plan(seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse, m, dtype,
                  budget)
+
+
+def _check_half_frames(cfg: Config, acq: Acquisition) -> None:
+    """Refuse (one line) a GMAPD with a dead time under differential Hadamard frames of a
+    whole number and a half of periods: each frame lasts half the dwell, and the dead-time
+    model draws whole periods (none of half a period: exit 0 with an empty map, an outside
+    audit; a third too few of 1.5). Checked with the plan, so that ``preflight`` and a
+    sweep's check see it (a review); without a dead time the counts are Poisson, any dwell."""
+    if not (cfg.patterns in HADAMARD_KINDS and cfg.hadamard_realisation == "differential"
+            and cfg.detector == "gmapd" and cfg.dead_time > 0 and acq.n_periods % 2):
+        return
+    from ..errors import ConfigError
+
+    if acq.lidar == "conventional":
+        fix = (f"give an even number of pulses per pattern ({acq.n_periods} now: --periods "
+               f"or --rep-rate)")
+        what = f"{acq.n_periods} pulses"
+    else:
+        fix = "give an even --periods"
+        what = f"{acq.n_periods} code period{'s' if acq.n_periods != 1 else ''}"
+    raise ConfigError(f"--hadamard-realisation differential shows each pattern as two frames, "
+                      f"each for half of its {what}, and --detector gmapd with a dead time "
+                      f"simulates whole periods: {fix}")
 
 
 def preflight(config: Config | dict | None = None, **overrides):

@@ -113,21 +113,27 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         # had its verdict dropped without a word)
         n_sl = int(np.shape(seen)[1])
         if room is None:
-            held = f"{n_sl} slices, too few beside a return"
+            qual = "too few beside a return"
             need = f"{NOISE_ONLY_MIN_SLICES} or more"
         else:
             k_eff, beside = room
             wide = (f" {2 * half + 1} slices wide (the instrument's response)" if half > 2
                     else "")
-            held = (f"{n_sl} slices, as independent as {k_eff} (the matched filter "
-                    f"correlates neighbouring delays) and {beside} of them beside a "
-                    f"return{wide}, too few")
+            qual = (f"as independent as {k_eff} (the matched filter correlates neighbouring "
+                    f"delays) and {beside} of them beside a return{wide}, too few")
             need = (f"{NOISE_ONLY_MIN_SLICES} independent slices, {NOISE_BESIDE_MIN} of them "
                     f"beside the return")
-        warns.append(
-            f"the range gate {gate_text(meas.gate)} m holds {held} to tell it from "
-            f"noise ({need}): nothing here checks that the depth map is not noise (a wider "
-            f"--range-gate lets it)")
+        if noise_sample is None:
+            warns.append(
+                f"the range gate {gate_text(meas.gate)} m holds {n_sl} slices, {qual} to "
+                f"tell it from noise ({need}): nothing here checks that the depth map is not "
+                f"noise (a wider --range-gate lets it)")
+        else:  # (it said "holds 15 slices" of a 19-slice gate, 15 of them solved, a review)
+            warns.append(
+                f"the automatic gate solved {n_sl} of the {np.shape(slices)[1]} slices of the "
+                f"range gate {gate_text(meas.gate)} m, {qual} to tell it from noise ({need}): "
+                f"nothing here checks that the depth map is not noise (--no-auto-gate solves "
+                f"them all)")
     timing["metrics"] = time.perf_counter() - t0
     timing["total"] = sum(timing.values())
 

@@ -219,10 +219,10 @@ def _load_file(path: Path, size: int, depth_min: float | None, depth_max: float 
         raise SceneError(f"scene file {label}: every depth is 0 m; give distances from the "
                          f"lidar in metres (or a window with --depth-min/--depth-max)")
     zeros = int(np.count_nonzero(known == 0))
-    if zeros and depth_min is None and depth_max is None:
+    if zeros and depth_min is None:  # (--depth-max alone keeps the nearest depth: a review)
         # (0 is "no data" in many depth datasets: such holes were simulated as a surface at
-        # 0 m and scored, over 100 % of the pixels, with no word, an audit; a window maps the
-        # file's nearest depth to --depth-min, so 0 is a depth there)
+        # 0 m and scored, over 100 % of the pixels, with no word, an audit; --depth-min maps
+        # the file's nearest depth to it, so 0 is a depth there)
         raise SceneError(f"scene file {label}: {_pixels(zeros)} a depth of 0 m, where a lidar "
                          f"measures no distance: holes without a depth (0 in many depth "
                          f"datasets) belong in an .npz with a 'valid' mask, False there")

@@ -37,6 +37,10 @@ def twist_parameters(lambda_1: float = 1e-4, lambda_n: float = 1.0) -> tuple[flo
 
 #: share of fallback columns above which the IST objective is computed for the whole block
 _WHOLE_BLOCK_SHARE = 0.25
+#: a non-negative problem's two-step point is projected where an entry is below -NEG_TOL
+#: times its column's largest magnitude (smaller negatives are clipped on return: projecting
+#: them too made the pipeline's TwIST solve 1.6 times as long for the same objective)
+NEG_TOL = 1e-3
 
 
 class TwIST(Solver):
@@ -108,6 +112,7 @@ class TwIST(Solver):
         alpha = alpha if a_opt is None else float(a_opt)
         beta = beta if b_opt is None else float(b_opt)
         self._monotone = bool(opts.pop("monotone", True))
+        self._nonneg = bool(getattr(reg, "nonneg", False))
         sparse = opts.pop("sparse", None)
         if opts:
             raise TypeError(f"unknown TwIST options: {', '.join(sorted(opts))}")
@@ -155,6 +160,20 @@ class TwIST(Solver):
             _axpy(axm, ax_new, c_prev)
         f_new = _col_objective(ax_new - y, x_new, reg, lam)
         x_tried = None
+        if it > 1 and self._nonneg:
+            # the two-step combination weighs x_{k-1} by 1 - alpha < 0, so it can leave the
+            # non-negative set, and the objective without the constraint's indicator kept
+            # such points (non-negative least squares ended 27 % above scipy's nnls with
+            # entries of -0.025, an outside audit): an infeasible column is projected back
+            # and its image recomputed (below NEG_TOL of the column's largest entry,
+            # round-off, is taken as it is and clipped on return; the IST step instead slowed
+            # the pipeline's solve, the camera 0.0049 -> 0.0084 m at 60 iterations)
+            top = np.maximum(np.abs(x_new).max(axis=0), np.finfo(dt).tiny)
+            out = np.flatnonzero(x_new.min(axis=0) < -NEG_TOL * top)
+            if out.size:
+                x_new[:, out] = np.maximum(x_new[:, out], 0)
+                ax_new[:, out] = np.asarray(A.matvec(x_new[:, out]), dtype=dt)
+                f_new[out] = _col_objective(ax_new[:, out] - y[:, out], x_new[:, out], reg, lam)
         if self._monotone:
             bad = f_new > f
             if it > 1 and bad.any():
@@ -199,7 +218,8 @@ class TwIST(Solver):
             L=self._L, alpha=self._alpha, beta=self._beta, ist_fallbacks=self._n_fallback,
             rejected=self._n_reject,
         )
-        return self._x
+        # (feasible to the last entry: the round-off negatives below NEG_TOL go)
+        return np.maximum(self._x, 0) if self._nonneg else self._x
 
 
 def twist(
