@@ -50,10 +50,11 @@ def test_a_nan_delay_is_no_evidence_not_a_void_image(name):
     assert (np.delete(d, 5) == 10.0).all()
 
 
-@pytest.mark.parametrize("hot", [1e36, 3e38, 1e45])
+@pytest.mark.parametrize("hot", [3e38, 1e45])
 def test_one_corrupt_value_is_refused_not_read(hot):
-    """A value 1e36-1e45 times the rest: the rest underflowed the estimators' float32 (every
-    MRF depth the first lag and NaN confidences, or 129 of 255 pixels NaN). One line."""
+    """A value 3e38-1e45 times the rest: the rest underflowed the estimators' float32 (every
+    MRF depth the first lag and NaN confidences, or 129 of 255 pixels NaN). One line; at
+    1e36 the rest stays within float32 and is read right (below)."""
     rng = np.random.default_rng(0)
     y = np.maximum(0.05 * rng.standard_normal((256, 60)), 0)
     y[:, 30] += 1.0
@@ -62,7 +63,7 @@ def test_one_corrupt_value_is_refused_not_read(hot):
         with pytest.raises(ConfigError, match="decades.*is a value corrupt"):
             ESTIMATORS.load(name)().estimate(y, DepthContext(np.arange(60), 1e-10, 0.5,
                                                              (16, 16)))
-    y[0, 10] = 1e17  # large, within what the estimators resolve: read, the wall at lag 30
+    y[0, 10] = 1e36  # large, within what the estimators resolve: read, the wall at lag 30
     out = ESTIMATORS.load("mrf")().estimate(y, DepthContext(np.arange(60), 1e-10, 0.5, (16, 16)))
     assert (_lags(out.depth)[1:] == 30.0).all()
 
@@ -126,7 +127,8 @@ def test_a_sparse_cube_at_any_scale_is_read_not_refused():
     rng = np.random.default_rng(0)
     x = np.where(rng.random((64, 40)) < 0.9, 1e-15, 0.0)
     x[np.arange(64), 12] = 2e19
-    for scale in (1.0, 1e-5):
+    x[:32, 12] = 0.0  # half the pixels hold dust alone: still read, at every scale
+    for scale in (1.0, 1e-5, 2.0**70, 2.0**-70):
         out = ESTIMATORS.load("argmax")().estimate(x * scale, DepthContext(
             np.arange(40), 1e-10, 0.5, (8, 8)))
-        assert (_lags(out.depth) == 12.0).all()
+        assert (_lags(out.depth)[32:] == 12.0).all()

@@ -132,10 +132,11 @@ class DepthEstimator:
 #: squares of 1e20 overflow too. Every built-in estimator is invariant to the scale (equal
 #: depths and confidences at 2^-60 .. 2^60, measured), and a power of two scales exactly.
 RANGE_EXP = 60
-#: once scaled, a cube whose typical pixel's peak (the median over pixels) is below this has a value
-#: far beyond the rest: the others would underflow float32 (min normal 1.2e-38 and the
-#: estimators square them) and are refused in one line
-SPAN_FLOOR = 1e-30
+#: a cube whose typical pixel's peak (the median over pixels) is below this share of its
+#: largest value is refused in one line: scaled so that the largest fits float32, the rest
+#: underflow (min normal 1.2e-38; measured: a value 1e36 above the rest is read right, 3e38
+#: is not)
+SPAN_FLOOR = 1e-37
 
 
 def checked_slices(slices: Any, ctx: DepthContext) -> tuple[np.ndarray, np.ndarray, float]:
@@ -176,21 +177,23 @@ def checked_slices(slices: Any, ctx: DepthContext) -> tuple[np.ndarray, np.ndarr
     scale = 1.0
     if x.dtype.kind == "f":
         top = float(np.max(np.abs(x)))
+        if top > 0:
+            # the typical pixel's peak against the largest value, at any scale (a median
+            # over all non-zero values read the dust of a sparse cube, and a check made only
+            # where the cube was rescaled refused it at one scale and not another: a review)
+            peaks = np.abs(x).max(axis=1)
+            peaks = peaks[peaks > 0]
+            typical = float(np.median(peaks)) if peaks.size else top
+            if typical < SPAN_FLOOR * top:
+                # (one value of 3e38 or 1e45 among values of 1: scaled into float32, the
+                # others underflowed, every MRF depth the first lag or NaN, an audit)
+                raise ConfigError(
+                    f"the slices' values span {np.log10(top / typical):.0f} decades (largest "
+                    f"{top:.3g}, a typical pixel's peak {typical:.3g}): more than the depth "
+                    f"estimators' float32 resolves; is a value corrupt?")
         if top > 0 and not 2.0**-RANGE_EXP <= top <= 2.0**RANGE_EXP:
             scale = 2.0 ** -np.frexp(top)[1]
             x = np.asarray(x, dtype=np.float64) * scale
-            # the typical pixel's peak (a median over all non-zero values read the dust of
-            # a sparse cube and refused it at one scale, not at another, a review)
-            peaks = np.abs(x).max(axis=1)
-            peaks = peaks[peaks > 0]
-            typical = float(np.median(peaks)) if peaks.size else 0.0
-            if 0 < typical < SPAN_FLOOR:
-                # (one value of 3e38 or 1e45 among values of 1: the others underflowed the
-                # estimators' float32, every MRF depth the first lag or NaN, an audit)
-                raise ConfigError(
-                    f"the slices' values span {np.log10(1.0 / typical):.0f} decades (largest "
-                    f"{top:.3g}, typical {typical / scale:.3g}): more than the depth "
-                    f"estimators' float32 resolves; is a value corrupt?")
     return x, bad, scale
 
 

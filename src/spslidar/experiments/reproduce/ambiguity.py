@@ -150,7 +150,8 @@ def exp_ambiguity(ctx: Context) -> tuple[str, list[Claim]]:
     ]
     gate_text = (
         "the automatic range gate (delays where the pattern-averaged matched-filter output "
-        "rises above the noise are reconstructed, the rest are set to zero)"
+        "rises above the noise are reconstructed, with 32 delays of noise beside them for "
+        "the noise verdict, and the rest are set to zero)"
         if auto
         else "32x32 pixels (no automatic range gate in this version)"
     )
