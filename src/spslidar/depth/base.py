@@ -176,14 +176,14 @@ def checked_slices(slices: Any, ctx: DepthContext) -> tuple[np.ndarray, np.ndarr
         bad = ~finite.any(axis=1)
     scale = 1.0
     if x.dtype.kind == "f":
-        top = float(np.max(np.abs(x)))
+        peaks = np.abs(x).max(axis=1)  # each pixel's, and so the largest value: one pass
+        top = float(peaks.max())
         if top > 0:
             # the typical pixel's peak against the largest value, at any scale (a median
             # over all non-zero values read the dust of a sparse cube, and a check made only
             # where the cube was rescaled refused it at one scale and not another: a review)
-            peaks = np.abs(x).max(axis=1)
             peaks = peaks[peaks > 0]
-            typical = float(np.median(peaks)) if peaks.size else top
+            typical = float(np.median(peaks))
             if typical < SPAN_FLOOR * top:
                 # (one value of 3e38 or 1e45 among values of 1: scaled into float32, the
                 # others underflowed, every MRF depth the first lag or NaN, an audit)
@@ -201,9 +201,8 @@ def _checked_estimate(out: Any, q: int, who: str) -> Any:
     """An estimator's :class:`DepthEstimate` as the pipeline takes it: each per-pixel array of
     ``q`` entries (depth, confidence, peak, low-confidence; a ``depth2`` too), the confidence
     in [0, 1], NaN read as 0 and its depth flagged; a one-line ConfigError naming the
-    estimator otherwise (a
-    plugin's short depth array ended in a reshape traceback, a confidence in [-2, 4] was
-    written to ``confidence.npy``; an audit)."""
+    estimator otherwise (a plugin's short depth array ended in a reshape traceback, a
+    confidence in [-2, 4] was written to ``confidence.npy``; an audit)."""
     for name in ("depth", "confidence", "peak", "low_confidence", "depth2"):
         value = getattr(out, name, None)
         if value is None and name == "depth2":

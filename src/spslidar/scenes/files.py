@@ -140,7 +140,7 @@ def _load_npz(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return depth, refl, valid, notes
 
 
-def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype]:
+def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype, tuple[float, float]]:
     import logging
 
     from skimage import io

@@ -21,6 +21,7 @@ from spslidar.experiments.reproduce.plotting import (
 from spslidar.experiments.reproduce.prose import section
 from spslidar.experiments.reproduce.stats import consistent, first_row, num, stat
 from spslidar.experiments.sweep import expand_grid
+from spslidar.pipeline.gate import AUTO_GATE_REFERENCE
 
 
 def has_auto_gate() -> bool:
@@ -150,8 +151,8 @@ def exp_ambiguity(ctx: Context) -> tuple[str, list[Claim]]:
     ]
     gate_text = (
         "the automatic range gate (delays where the pattern-averaged matched-filter output "
-        "rises above the noise are reconstructed, with 32 delays of noise beside them for "
-        "the noise verdict, and the rest are set to zero)"
+        f"rises above the noise are reconstructed, with {AUTO_GATE_REFERENCE} delays of noise "
+        "beside them for the noise verdict, and the rest are set to zero)"
         if auto
         else "32x32 pixels (no automatic range gate in this version)"
     )

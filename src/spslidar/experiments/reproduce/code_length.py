@@ -40,13 +40,15 @@ from spslidar.experiments.reproduce.stats import (
     unresolved_clause,
 )
 from spslidar.experiments.sweep import expand_grid
+from spslidar.solvers.base import registered_defaults
 
 #: iterations of Fig. 4's no-QCR runs solved to convergence, by TwIST at FISTA's weight (the
 #: same objective: FISTA's 3-step TV prox settles above its optimum and drifts with more
 #: iterations, an outside audit of 2026-11-29, so its 1500 iterations did not solve it)
 FIG4_SOLVED_ITERATIONS = 1500
 #: the solver and weight of those runs
-FIG4_SOLVED = {"solver": "twist", "lam_scale": 0.45, "tol": 0.0}  # (all its iterations)
+FIG4_SOLVED = {"solver": "twist", "lam_scale": registered_defaults("fista")[1],
+               "tol": 0.0}  # (all its iterations)
 
 
 def fig4_lengths(ctx: Context) -> list[int]:
