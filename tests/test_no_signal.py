@@ -323,3 +323,12 @@ def test_a_forced_automatic_gate_says_how_many_slices_it_solved(tmp_path):
     (said,) = [w for w in r.warnings if "to tell it from noise" in w]
     n, k = r.metrics["n_slices_solved"], r.metrics["n_slices"]
     assert f"solved {n} of the {k} slices" in said and "--no-auto-gate" in said and n < k
+
+
+def test_an_empty_map_s_figure_title_says_there_is_no_depth_to_score(tmp_path):
+    """depth.png's title of a map without any depth read "RMSE = nan m over 0% of pixels"
+    (an empty automatic gate makes one); it says what the summary line says."""
+    from spslidar.figures import _title
+
+    r = spslidar.run(scene=_far_black(tmp_path), size=16, seed=0)
+    assert "no depth to score" in _title(r) and "nan" not in _title(r)

@@ -10,6 +10,7 @@ colour-mapped images with Pillow (colour bars with their ranges, the title with 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -197,6 +198,8 @@ def _title(result) -> str:
         found = "a depth" if noise else "returns"
         return (f"{what}: no ground truth; {found} in {_percent(m['coverage'])} of "
                 f"pixels{noise}")
+    if not math.isfinite(m["depth_rmse_m"]):  # (it read "RMSE = nan m over 0% of pixels")
+        return f"{what}: no depth to score, no pixel with a truth holds a return{noise}"
     return (f"{what}: RMSE = {m['depth_rmse_m']:.4f} m over {_percent(m['coverage'])} "
             f"of pixels{noise}")
 
