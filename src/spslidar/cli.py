@@ -141,7 +141,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                         "(eq. 8). Default 5")
     g.add_argument("--noise", type=float, default=S, metavar="MN",
                    help="m_n: mean noise counts per TDC bin per pixel, ambient + background + "
-                        "dark, so N^2 * m_n per bin in total (eq. 9-10). Default 10")
+                        "dark, so N^2 * m_n per bin in total (eq. 9-10 read per pixel: "
+                        "docs/reading.md). Default 10")
     g.add_argument("--noise-split", type=float, nargs=3, default=S,
                    metavar=("AMB", "BG", "DARK"),
                    help="shares of m_n: ambient via the scene, background, dark (default 1/3 "

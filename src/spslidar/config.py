@@ -109,7 +109,7 @@ class Config:
     #: 1); a pattern collects m_s sum(Phi alpha) per pulse (equation 8)
     signal: float = 5.0
     #: [counts] m_n: mean noise counts per TDC bin per pixel (ambient + background + dark), N^2 m_n
-    #: per bin in all (equations 9-10)
+    #: per bin in all (equations 9-10, each term read per pixel: docs/reading.md)
     noise: float = 10.0
     #: shares of ``noise`` that are ambient light (through the scene), background and dark counts;
     #: three non-negative numbers summing to 1

@@ -10,7 +10,8 @@ solves ``Delta = H p`` (eq. 17) with the sparse/TV solver (eq. 18). Anything com
 patterns (the DC part of the signal, and background that does not depend on the pattern) drops
 out. ``H`` is Q x Q: it is applied as ``Phi_c^T (Phi_c x) / M`` and never formed.
 
-Two equivalent data terms are offered:
+Two data terms with the same unregularised solutions are offered (with a regulariser at the
+same weight their optima differ: the terms are scaled differently):
 
 * ``form='covariance'``: the paper's literal eq. (18), ``1/2 ||Delta - H p||^2``.
 * ``form='centred'`` (default): ``1/2 ||C_c - Phi_c p||^2 / M``. Its gradient is
@@ -99,8 +100,9 @@ class MeanEliminated(LinearOperator):
     """``B = (I - v v^T) A`` with ``v = A 1 / ||A 1||``: the operator of eq. (7) without QCR,
     its dominant direction removed exactly (variable projection).
 
-    Without QCR the patterns' mean gives ``A = Phi`` one singular value about ``2 sqrt(Q)``
-    times the others (along the constant image), so a first-order solver stepping at
+    Without QCR the patterns' mean gives ``A = Phi`` one singular value far above the others
+    (along the constant image; default Gaussian patterns at 64x64: 44 times the second, 132
+    times the smallest), so a first-order solver stepping at
     ``1 / ||A||^2`` barely moves in every other direction. A TV-regularised problem is
     invariant to adding a constant to each slice, so write ``p = z + c 1``: for any ``z`` the
     best ``c`` is ``c(z) = v^T (C - A z) / ||A 1||`` (a least-squares fit of the constant), and

@@ -10,7 +10,7 @@ kernels here are written against the array API (:mod:`spslidar.backends.kernels`
 
 * :func:`simulate` - expected counts, Poisson counts and the matched filter of a block of
   patterns at a time (eq. 4-6), for the ``linear`` detector;
-* :func:`problem` - the centred QCR problem (eq. 15-18) with the noise probe of the
+* :func:`problem` - the centred QCR problem (eq. 11-18) with the noise probe of the
   regularisation default and ``max |A^T y|``;
 * :func:`solve` - FISTA with the TV prox (a CUDA graph on PyTorch + CUDA);
 * :func:`argmax_depth` - the argmax estimator's peaks (eq. 2-3), only the peaks come back.

@@ -465,7 +465,8 @@ def periodic_xcorr(a: np.ndarray, b: np.ndarray, bipolar: bool = True) -> np.nda
     Notes
     -----
     With ``a = b`` an m-sequence, ``r = {T at k = 0, -1 elsewhere}`` (bipolar); this is the
-    matched filter ``sum_t s(t) f(t + tau)`` of eqs. (8)-(9) evaluated for every delay.
+    correlation ``sum_t a'(t) b'(t + k)`` of eq. (1), the matched filter of eqs. (5)-(6), evaluated
+    for every delay.
     """
     a = np.asarray(a)
     b = np.asarray(b)

@@ -10,8 +10,9 @@ Noise (eq. 4, 9): three additive Poisson processes per TDC bin,
 * ``B3`` detector noise (dark counts): ``N^2 m_n^(3)``.
 
 ``m_n = m_n^(1) + m_n^(2) + m_n^(3)`` is the paper's single noise number, read (see
-``docs/model.md``) as mean noise counts per TDC bin *per pixel*, so that the total per bin is
-``N^2 m_n`` as in eq. (9)-(10); ``noise_split`` divides it among the three terms. Physical rates
+``docs/reading.md``) as mean noise counts per TDC bin *per pixel*, each term too, so that the
+total per bin is ``N^2 m_n`` (eq. (9)-(10) as written put ``N^2`` on ``m_n^(1)`` alone: a
+reading, not the paper's letter); ``noise_split`` divides it among the three terms. Physical rates
 can be added on top: ``background_rate`` and ``dark_count_rate`` in counts per second.
 
 The counting itself is the paper's linear model (no dead time): counts ~ Poisson(lambda) per

@@ -134,7 +134,7 @@ def check_patterns(patterns: Any, distinct: bool = True, what: str = "patterns")
         raise ConfigError(f"{what}: every mirror of every pattern is off, so no light reaches "
                           f"the scene")
     if distinct and np.all(flat == flat[0]):
-        # the reconstruction (QCR, eq. 10-11) uses how the patterns differ from their mean:
+        # the reconstruction (QCR, eq. 11-17) uses how the patterns differ from their mean:
         # the same pattern M times measures one number per delay, not an image
         raise ConfigError(f"{what}: all {arr.shape[0]} patterns are the same, so they hold no "
                           f"spatial information (single-pixel imaging needs patterns that "
