@@ -492,3 +492,29 @@ def test_calibrate_overwrite_keeps_an_edited_calibration(acquisitions, tmp_path,
     assert main(["calibrate", *files, "--out", str(out), "--overwrite"]) == 2
     assert "edited since" in capsys.readouterr().err
     assert json.loads(out.read_text())["note"] == "hand tuned"
+
+
+def test_a_calibrated_second_surface_is_refined_as_the_first(acquisitions, monkeypatch):
+    """refine_depth moved depth.npy below a lag but left depth2.npy on the lags' grid (+9.6 mm
+    on a fence, an audit of 2026-11-29). With an estimator whose second surface is its first,
+    the two files now agree."""
+    from dataclasses import replace
+
+    from spslidar.depth.guarded import GuardedDepth
+
+    plain = GuardedDepth.estimate
+
+    def twin(self, slices, ctx):
+        out = plain(self, slices, ctx)
+        return replace(out, depth2=np.array(out.depth, copy=True))
+
+    monkeypatch.setattr(GuardedDepth, "estimate", twin)
+    out = acquisitions / "twin"
+    assert main(["reconstruct", "--ptu", str(acquisitions / "scene.ptu"), "--patterns",
+                 str(acquisitions / "scene_patterns.npy"), "--code",
+                 str(acquisitions / "scene_code.npy"), "--bit-rate", "10e9", "--range-gate",
+                 "24", "26", "--calibration", str(acquisitions / "cal.json"), "--depth",
+                 "guarded", "--no-figure", "--out", str(out)]) == 0
+    depth, depth2 = np.load(out / "depth.npy"), np.load(out / "depth2.npy")
+    assert np.isfinite(depth).sum() > 32
+    np.testing.assert_array_equal(depth2, depth)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from spslidar.cli import main
@@ -182,3 +183,26 @@ def test_a_noiseless_spread_return_is_not_called_noise(tmp_path):
     assert main(["run", *SMALL, "--noiseless", "--range-gate", "1", "3",
                  "--out", str(miss)]) == 0
     assert any("no pixel holds a return" in w for w in _metrics(miss)["warnings"])
+
+
+def test_a_default_gate_reaches_a_second_layer_behind_every_pixel():
+    """A scene whose every pixel also sees a wall behind it (a net before a wall, its first
+    surface all at 3 m) was gated at 2.87-3.13 m from its first surface alone: the wall at
+    4 m fell outside without a word, and two_surface_fraction read 0.001 (an audit of
+    2026-11-29). The gate now reaches the farthest return, first or second."""
+    from spslidar.constants import SPEED_OF_LIGHT
+    from spslidar.pipeline.acquisition import default_gate
+    from spslidar.scenes.procgen import LayeredScene
+
+    n, bw = 8, 1e-10
+    one = np.ones((n, n), bool)
+    net = LayeredScene(name="net", depth=np.full((n, n), 3.0),
+                       reflectivity=np.full((n, n), 0.5), valid=one,
+                       behind_depth=np.full((n, n), 4.0),
+                       behind_reflectivity=np.full((n, n), 0.3))
+    lo, hi = default_gate(net, bw)
+    bin_m = SPEED_OF_LIGHT * bw / 2
+    assert lo == pytest.approx(3.0 - 3 * bin_m) and hi == pytest.approx(4.0 + 3 * bin_m)
+    plain = LayeredScene(name="plain", depth=np.full((n, n), 3.0),
+                         reflectivity=np.full((n, n), 0.5), valid=one)
+    assert default_gate(plain, bw)[1] < 3.2  # one layer: the first surface's window

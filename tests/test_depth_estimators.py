@@ -13,7 +13,8 @@ import pytest
 
 from spslidar.constants import SPEED_OF_LIGHT
 from spslidar.depth import ESTIMATORS, DepthContext, DepthEstimate, profile
-from spslidar.depth.censor import road_linear
+from spslidar.depth.censor import CensorDepth, road_linear
+from spslidar.depth.guarded import GuardedDepth
 from spslidar.depth.mrf import MRFDepth, min_sum_bp, truncated_linear_envelope
 from spslidar.forward import depth_to_delay, pulse_overlaps
 from spslidar.scenes import load_scene
@@ -443,3 +444,29 @@ def test_a_featureless_profile_holds_no_second_surface(name):
     ctx = DepthContext(lags=np.arange(100, 120), bin_width=1e-10, shape=(8, 8))
     out = ESTIMATORS.load(name)().estimate(x, ctx)
     assert out.depth2 is not None and not np.isfinite(out.depth2).any()
+
+
+@pytest.mark.parametrize("make", [
+    lambda: GuardedDepth(scale=float("nan")), lambda: GuardedDepth(scale=float("inf")),
+    lambda: GuardedDepth(gap=2.9), lambda: GuardedDepth(support=1.5),
+    lambda: GuardedDepth(quantile="x"), lambda: MRFDepth(smoothness=float("nan")),
+    lambda: MRFDepth(iterations=True), lambda: MRFDepth(truncation=float("nan")),
+    lambda: CensorDepth(window=2.5), lambda: CensorDepth(gap=0),
+])
+def test_estimator_options_are_finite_whole_where_counted_and_one_line(make):
+    """NaN passed every '<' test and gap=2.9 was taken as 2 (an audit of 2026-11-29): each is
+    a ConfigError now, the CLI's one line."""
+    from spslidar.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="must be"):
+        make()
+
+
+def test_evidence_options_refuse_nan():
+    from spslidar.depth.evidence import EvidenceDepth
+    from spslidar.errors import ConfigError
+
+    for kw in ({"strong": float("nan")}, {"line": float("nan"), "strong": 1.0}):
+        with pytest.raises(ConfigError, match="finite"):
+            EvidenceDepth(**kw)
+    assert GuardedDepth(gap=3.0).gap == 3 and isinstance(GuardedDepth(gap=3.0).gap, int)

@@ -183,3 +183,35 @@ def test_reflectivities_above_the_bar_are_counted(result):
     above = int(np.count_nonzero(result.reflectivity > hi * (1 + 1e-9)))
     title = next(p[1] for p in _panels(result) if p[0] == "reflectivity")
     assert above > 0 and title.startswith(f"reflectivity: {above} px above the bar")
+
+
+def test_second_surface_panel_marks_no_return_and_outliers(tmp_path):
+    """The second-surface panel drew pixels without any return in the grey of 'one surface',
+    second surfaces beyond its bar at the end colour unmarked, and its legend rounded 1 of
+    256 pixels with two surfaces to '100%' one surface (an audit of 2026-11-29)."""
+    from PIL import Image
+
+    from spslidar.figures import ONE_SURFACE, OUT_OF_RANGE, _legend_items, _outside
+
+    r = pipeline.run(scene="fence", size=16, code_length=1023, noise=1, compression=0.5,
+                     depth="guarded", seed=0)
+    n = r.depth.shape[0]
+    r.depth[0, 0] = np.nan
+    r.depth2[...] = np.nan
+    r.depth2[3, 3] = float(np.nanmax(r.truth)) + 5.0  # beyond the bar
+    one = np.argwhere(np.isfinite(r.depth) & ~np.isfinite(r.depth2))[0]
+    img = Image.open(depth_figure(r, tmp_path / "d2.png")).convert("RGB")
+    panel = 4  # truth, estimate, error, reflectivity, second surface
+    assert _pixel(img, panel, 0, 0, n) == NO_RETURN
+    assert _pixel(img, panel, *one, n) == ONE_SURFACE
+    assert _pixel(img, panel, 3, 3, n) == OUT_OF_RANGE
+    texts = " ".join(t for _, t in _legend_items(r, _outside(r, *_limits_of(r))))
+    assert "second surface outside the colour range (1 pixel, cross)" in texts
+    assert "100%" not in texts.split("one surface (second-surface panel, ")[1].split(")")[0]
+    assert depth_figure(r, tmp_path / "m2.png", engine="matplotlib").stat().st_size > 10_000
+
+
+def _limits_of(r):
+    from spslidar.figures import _limits
+
+    return _limits(r)[:2]

@@ -200,3 +200,16 @@ def test_run_into_a_sweeps_folder_says_whose_it_is(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "it is the folder of a 'spslidar sweep', not of a run" in err
     assert sorted(p.name for p in (tmp_path / "w").iterdir()) == before
+
+
+def test_an_empty_noiseless_gate_says_no_second_surface_consistently(tmp_path):
+    """An estimator that looks for second surfaces and finds none in an empty gate writes an
+    all-NaN depth2.npy and a share of 0, where its own depth_info said 0.0039 beside a null
+    share and no depth2.npy (an audit of 2026-11-29)."""
+    out = tmp_path / "o"
+    assert main(["run", "--scene", "steps", "--size", "16", "--noiseless", "--range-gate",
+                 "12", "13", "--depth", "guarded", "--no-figure", "--out", str(out)]) == 0
+    m = _metrics(out)
+    assert m["two_surface_fraction"] == 0.0
+    assert m["depth_info"]["two_surface_fraction"] == 0.0
+    assert np.isnan(np.load(out / "depth2.npy")).all()

@@ -105,9 +105,10 @@ def _classes(result) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return ~valid, no_return, low
 
 
-def _outside(result, lo: float, hi: float) -> np.ndarray:
-    """Depths the colour bar cannot show (drawn at its end colour, marked by a cross)."""
-    d = np.asarray(result.depth, dtype=np.float64)
+def _outside(result, lo: float, hi: float, values=None) -> np.ndarray:
+    """Depths the colour bar cannot show (drawn at its end colour, marked by a cross): of the
+    estimate, or of ``values`` (the second surfaces, drawn on the same bar)."""
+    d = np.asarray(result.depth if values is None else values, dtype=np.float64)
     tol = float(result.metrics.get("bin_depth_m", 0.0))  # a bin's error is not "outside"
     with np.errstate(invalid="ignore"):
         return np.isfinite(d) & ((d < lo - tol) | (d > hi + tol))
@@ -131,12 +132,20 @@ def _legend_items(result, outside: np.ndarray,
     items += [(NO_RETURN, f"no return ({_percent(share)}{of})"),
               (LOW_CONFIDENCE, f"low-confidence depth ({_percent(low.mean())}, dot)")]
     depth2 = getattr(result, "depth2", None)
+    outside2 = None
     if depth2 is not None and np.isfinite(depth2).any():  # the second-surface panel's grey
-        items.append((ONE_SURFACE, f"one surface (second-surface panel, "
-                                   f"{100 * np.mean(~np.isfinite(depth2)):.0f}%)"))
+        # (pixels without a return are black there too, not "one surface"; the share was
+        # rounded to "100%" with one pixel of 1 024 holding two: an audit of 2026-11-29)
+        one = ~np.isfinite(depth2) & ~no_return
+        items.append((ONE_SURFACE, f"one surface (second-surface panel, {_percent(one.mean())})"))
+        lo, hi = _limits(result)[:2]
+        outside2 = _outside(result, lo, hi, depth2)
     if outside.any():
         items.append((OUT_OF_RANGE, f"depth outside the colour range "
                                     f"({_pixels(int(outside.sum()))}, cross)"))
+    if outside2 is not None and outside2.any():
+        items.append((OUT_OF_RANGE, f"second surface outside the colour range "
+                                    f"({_pixels(int(outside2.sum()))}, cross)"))
     if beyond is not None and beyond.any():  # (the error panel's: _beyond)
         items.append((OUT_OF_RANGE, f"error beyond its colour bar "
                                     f"({_pixels(int(beyond.sum()))}, cross)"))
@@ -220,19 +229,33 @@ def _beyond(err_masked: np.ndarray, lim: float) -> np.ndarray:
         return np.isfinite(err_masked) & (np.abs(err_masked) > lim * (1 + 1e-9))
 
 
-def _marks(kind: str, low: np.ndarray, outside: np.ndarray,
-           beyond: np.ndarray) -> tuple[tuple[np.ndarray, tuple[int, int, int], str], ...]:
+def _marks(kind: str, low: np.ndarray, outside: np.ndarray, beyond: np.ndarray,
+           outside2: np.ndarray | None = None
+           ) -> tuple[tuple[np.ndarray, tuple[int, int, int], str], ...]:
     """What both engines draw over a panel, ``(mask, colour, marker)`` with marker ``'o'`` (a
     dot) or ``'x'`` (a cross): on the estimate the low-confidence depths and the depths
-    outside the colour bar, on the error the errors beyond its bar (:func:`_beyond`)."""
+    outside the colour bar, on the error the errors beyond its bar (:func:`_beyond`), on the
+    second surface its depths outside the bar (``outside2``; they were drawn at its end
+    colour unmarked)."""
     return {"estimate": ((low, LOW_CONFIDENCE, "o"), (outside, OUT_OF_RANGE, "x")),
-            "error": ((beyond, OUT_OF_RANGE, "x"),)}.get(kind, ())
+            "error": ((beyond, OUT_OF_RANGE, "x"),),
+            "depth2": (() if outside2 is None else ((outside2, OUT_OF_RANGE, "x"),))
+            }.get(kind, ())
+
+
+def _outside2(result, lo: float, hi: float) -> np.ndarray | None:
+    """The second surfaces outside the depth bar (None without a second-surface panel)."""
+    depth2 = getattr(result, "depth2", None)
+    if depth2 is None or not np.isfinite(depth2).any():
+        return None
+    return _outside(result, lo, hi, depth2)
 
 
 def _panels(result):
     """The panels of ``depth.png``, left to right: ``(kind, title, values, lo, hi, table,
     unit)``. With a ground truth: truth, estimate, error, reflectivity (and a second surface
-    where the estimator found one); without: estimate, reflectivity, confidence."""
+    where the estimator found one); without: estimate, reflectivity (second surface),
+    confidence."""
     lo, hi, err_masked, lim = _limits(result)
     no_truth, no_return, low = _classes(result)
     m = result.metrics
@@ -271,8 +294,9 @@ def _panels(result):
 
 
 def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
-    """``depth.png``: ground truth | estimate | error | reflectivity, colour bars in metres
-    (without a ground truth: estimate | reflectivity | confidence).
+    """``depth.png``: ground truth | estimate | error | reflectivity (| second surface, where
+    the estimator reports one), colour bars in metres (without a ground truth: estimate |
+    reflectivity (| second surface) | confidence).
 
     Every pixel without a number has the colour of its reason, named in a legend: grey where
     the scene has no ground truth (truth and error panels), white where the estimator found no
@@ -297,6 +321,7 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
     lo, hi, err_masked, lim = _limits(result)
     no_truth, no_return, low = _classes(result)
     outside, beyond = _outside(result, lo, hi), _beyond(err_masked, lim)
+    outside2 = _outside2(result, lo, hi)
     panels = _panels(result)
     width, height = len(panels) * (_PANEL + 70) + 20, _PANEL + 100
     fig = Image.new("RGB", (width, height), (255, 255, 255))
@@ -310,9 +335,11 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
         rgb = _colormap(values, vlo, vhi, table, bad)
         if kind in ("truth", "error"):
             rgb[no_truth] = NO_TRUTH
+        if kind == "depth2":
+            rgb[no_return] = NO_RETURN  # no return at all is not "one surface"
         _panel(fig, x0, y0, rgb, title, vlo, vhi, table, unit)
         r, h = max(1.0, cell / 5), max(1.5, cell / 3)
-        for mask, colour, marker in _marks(kind, low, outside, beyond):
+        for mask, colour, marker in _marks(kind, low, outside, beyond, outside2):
             for yy, xx in zip(*np.nonzero(mask), strict=True):
                 cx, cy = x0 + (xx + 0.5) * cell, y0 + 22 + (yy + 0.5) * cell
                 if marker == "o":
@@ -339,6 +366,7 @@ def _depth_figure_mpl(result, path: str | Path) -> Path:
     lo, hi, err_masked, lim = _limits(result)
     no_truth, no_return, low = _classes(result)
     outside, beyond = _outside(result, lo, hi), _beyond(err_masked, lim)
+    outside2 = _outside2(result, lo, hi)
     panels = _panels(result)
 
     def paint(ax, mask, colour):
@@ -358,9 +386,12 @@ def _depth_figure_mpl(result, path: str | Path) -> Path:
         im = ax.imshow(shown, cmap=cmap, vmin=vlo, vmax=vhi)
         if kind in ("truth", "error"):
             paint(ax, no_truth, NO_TRUTH)
-        if kind in ("estimate", "error"):
+        if kind == "depth2":
+            paint(ax, ~np.isfinite(np.asarray(values, dtype=np.float64)) & ~no_return,
+                  ONE_SURFACE)
+        if kind in ("estimate", "error", "depth2"):
             paint(ax, ~no_truth & no_return if kind == "error" else no_return, NO_RETURN)
-        for mask, colour, marker in _marks(kind, low, outside, beyond):
+        for mask, colour, marker in _marks(kind, low, outside, beyond, outside2):
             if mask.any():
                 yy, xx = np.nonzero(mask)
                 ax.scatter(xx, yy, s=max(1.0, 400.0 / mask.shape[0]), marker=marker,

@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import maximum_filter1d
 
-from .base import DepthContext, DepthEstimate, DepthEstimator
+from .base import DepthContext, DepthEstimate, DepthEstimator, option
 from .profile import (
     grid_shape,
     index_to_depth,
@@ -167,13 +167,11 @@ class CensorDepth(DepthEstimator):
                  gap: float = GAP, vote: float = VOTE, window: int = WINDOW,
                  passes: int = PASSES, subbin: bool | None = None):
         super().__init__(low_confidence)
-        if road_tol <= 0 or gap <= 0 or vote < 0 or window < 0 or passes < 0:
-            raise ValueError("road_tol and gap must be > 0; vote, window and passes >= 0")
-        self.road_tol = float(road_tol)
-        self.gap = float(gap)
-        self.vote = float(vote)
-        self.window = int(window)
-        self.passes = int(passes)
+        self.road_tol = option("road_tol", road_tol, open_lo=True)
+        self.gap = option("gap", gap, open_lo=True)
+        self.vote = option("vote", vote)
+        self.window = option("window", window, integer=True)
+        self.passes = option("passes", passes, integer=True)
         self.subbin = subbin
 
     def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:

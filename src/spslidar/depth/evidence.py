@@ -44,6 +44,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import correlate, maximum_filter1d
 
+from .base import option
 from .guarded import GuardedDepth
 from .profile import noise_maxima
 
@@ -135,10 +136,8 @@ class EvidenceDepth(GuardedDepth):
     def __init__(self, low_confidence: float | None = None, *, strong: float = STRONG,
                  line: float = LINE, occluder: float = OCCLUDER, share: float = SHARE, **kw):
         super().__init__(low_confidence, **kw)
-        if min(strong, line, occluder) < 0 or not 0.0 <= share <= 1.0:
-            raise ValueError("strong, line and occluder must be >= 0, share in [0, 1]")
-        self.strong, self.line = float(strong), float(line)
-        self.occluder, self.share = float(occluder), float(share)
+        self.strong, self.line = option("strong", strong), option("line", line)
+        self.occluder, self.share = option("occluder", occluder), option("share", share, 0, 1)
 
     def guard(self, x: np.ndarray, z: np.ndarray, smooth: np.ndarray,
               shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, dict]:

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import DepthContext, DepthEstimate, DepthEstimator
+from .base import DepthContext, DepthEstimate, DepthEstimator, option
 from .profile import (
     grid_shape,
     index_to_depth,
@@ -231,13 +231,9 @@ class MRFDepth(DepthEstimator):
                  subbin: bool | None = None, lines: bool = True, halo: bool = True,
                  corners: bool = True, gaps: bool = True, edges: bool = True):
         super().__init__(low_confidence)
-        if smoothness < 0 or (truncation is not None and truncation < 0):
-            raise ValueError("smoothness and truncation must be >= 0")
-        if iterations < 0:
-            raise ValueError("iterations must be >= 0")
-        self.smoothness = float(smoothness)
-        self.truncation = None if truncation is None else float(truncation)
-        self.iterations = int(iterations)
+        self.smoothness = option("smoothness", smoothness)
+        self.truncation = None if truncation is None else option("truncation", truncation)
+        self.iterations = option("iterations", iterations, integer=True)
         self.subbin = subbin
         self.lines = bool(lines)
         self.halo = bool(halo)

@@ -65,16 +65,25 @@ def default_gate(scene, bin_width: float) -> tuple[float, float]:
     wall's window padded by three bins held 8 slices, too few for the verdict on whether the
     map is noise, so an image of pure noise (``--signal 1e-6``) was reported as a wall with
     an RMSE of 0.034 m, a mean reflectivity of 8e5 and no word. Padding the near end cannot
-    reach below 0 m: what it cannot add there is added at the far end."""
+    reach below 0 m: what it cannot add there is added at the far end. A scene with a second
+    layer (:class:`~spslidar.scenes.procgen.LayeredScene`'s ``behind_depth``) is gated to its
+    farthest return, first or second (a layer behind every pixel was left outside the gate
+    without a word, an audit of 2026-11-29)."""
     from ..depth.profile import NOISE_ONLY_MIN_SLICES
 
     bin_depth = SPEED_OF_LIGHT * bin_width / 2.0
-    span = (scene.depth_max - scene.depth_min) / bin_depth
+    far = scene.depth_max
+    behind = getattr(scene, "behind_depth", None)
+    if behind is not None:
+        seen = np.isfinite(behind) & np.asarray(scene.valid, dtype=bool)
+        if seen.any():
+            far = max(far, float(np.max(behind[seen])))
+    span = (far - scene.depth_min) / bin_depth
     pad = max(GATE_PAD_BINS, int(np.ceil((NOISE_ONLY_MIN_SLICES + 1 - span) / 2))) * bin_depth
     lo = max(0.0, scene.depth_min - pad)
     # what the lidar's own position cuts off the near end is added at the far end (a scene
     # 3 cm away had a 13-slice gate, too few for the verdict, an audit)
-    return lo, scene.depth_max + pad + (lo - (scene.depth_min - pad))
+    return lo, far + pad + (lo - (scene.depth_min - pad))
 
 
 def _checked_code(bits, cfg: Config) -> np.ndarray:

@@ -56,7 +56,12 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         depth = np.full(np.shape(depth), np.nan)
         confidence = np.zeros(np.shape(depth))
         low_confidence = np.zeros(np.shape(depth), dtype=bool)
-        depth2 = None
+        if depth2 is not None:  # looked for and none found: depth2.npy all NaN, a share of 0
+            # (it was dropped, so no depth2.npy and a null share beside the estimator's own
+            # share in depth_info: an audit of 2026-11-29)
+            depth2 = np.full(np.shape(depth2), np.nan)
+        if depth_info and "two_surface_fraction" in depth_info:
+            depth_info = {**depth_info, "two_surface_fraction": 0.0}
         warns.append(f"no pixel holds a return in the range gate {gate_text(meas.gate)} m "
                      f"(a noiseless run): the depth map is empty; check "
                      f"that the gate holds the scene")
