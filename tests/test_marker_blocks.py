@@ -231,3 +231,22 @@ def test_a_recording_started_early_is_not_told_to_change_the_edge(tmp_path):
     data, notes = read_blocks(f, M, L, bin_width=RES)
     assert _peaks(data) == list(range(M))
     assert not any("--marker-edge" in n for n in notes), notes
+
+
+@pytest.mark.parametrize("periods", ["1", "4"])
+def test_a_wrong_marker_edge_is_said_at_short_dwells(tmp_path, periods):
+    """A one-period dwell (the paper's) read with the wrong --marker-edge end: the photons
+    after the last marker span the marker's own sync, counted as 0 periods against a typical
+    1 (3 against 4 at four periods), so nothing was said while every pattern took its
+    neighbour's photons (an audit of 2026-11-29)."""
+    np.save(tmp_path / "wall.npy", np.full((8, 8), 25.0))
+    f = tmp_path / "w.ptu"
+    assert main(["run", "--scene", str(tmp_path / "wall.npy"), "--size", "8", "--code-length",
+                 "255", "--signal", "1", "--noise", "0.02", "--compression", "0.5",
+                 "--range-gate", "24", "26", "--periods", periods, "--no-figure",
+                 "--save-ptu", str(f), "--out", str(tmp_path / "o")]) == 0
+    m = np.load(tmp_path / "w_patterns.npy").shape[0]
+    _, notes = read_blocks(f, m, 255, bin_width=RES, marker_edge="end")
+    assert any("--marker-edge start" in n for n in notes), notes
+    _, notes = read_blocks(f, m, 255, bin_width=RES)
+    assert not any("--marker-edge" in n for n in notes), notes

@@ -143,8 +143,12 @@ def _edge_note(data, marker: int, edge: str) -> str | None:
         where, fix, other = "after the last marker", "start", d[0]
     # a marker at the other edge leaves exactly one pattern's span outside and a block of a
     # period or two at the other end (a recording started early with start markers, and a
-    # last pattern cut short, was told to pass --marker-edge end: a review)
-    if not (outside >= SHORT_BLOCK * typ_c and abs(span - typ_d) <= EDGE_SPAN * typ_d
+    # last pattern cut short, was told to pass --marker-edge end: a review). The marker's own
+    # sync holds photons on both sides of it, so the span counted in whole syncs is a period
+    # short either way (a one-period dwell read 0 against 1 and a wrong --marker-edge end
+    # went unsaid, every pattern given its neighbour's photons: an audit of 2026-11-29)
+    if not (outside >= SHORT_BLOCK * typ_c
+            and abs(span - typ_d) <= max(EDGE_SPAN * typ_d, 1.0)
             and other <= EDGE_BLOCK_PERIODS):
         return None
     return (f"{outside} photons over {span} code periods came {where} on input {marker}, about "
