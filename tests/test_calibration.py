@@ -156,7 +156,8 @@ def test_calibrated_weight_is_scaled_by_the_filters_spread(acquisitions):
     assert m["lam_scale"] == pytest.approx(base, rel=1e-12)
     assert calibrated_lam_scale("fista", 1.0) == pytest.approx(base, rel=1e-12)
     assert calibrated_lam_scale("fista", 0.5) == pytest.approx(base, rel=1e-12)  # never below
-    assert calibrated_lam_scale("twist", 2.0) == pytest.approx(0.6, rel=1e-12)
+    assert calibrated_lam_scale("twist", 1.5) == pytest.approx(0.45, rel=1e-12)
+    assert calibrated_lam_scale("twist", 2.0) == pytest.approx(0.55, rel=1e-12)  # the cap
     assert calibrated_lam_scale("fista", 1.2) == pytest.approx(base, rel=1e-12)  # 0.36 < 0.45
 
 
@@ -518,3 +519,43 @@ def test_a_calibrated_second_surface_is_refined_as_the_first(acquisitions, monke
     depth, depth2 = np.load(out / "depth.npy"), np.load(out / "depth2.npy")
     assert np.isfinite(depth).sum() > 32
     np.testing.assert_array_equal(depth2, depth)
+
+
+def test_a_reflection_past_the_irf_window_is_read_as_response_not_noise():
+    """An IRF with a reflection half its height 60 bins after its peak (6 ns at 10 GHz, a
+    fibre's): the tail test looked 41-56 bins out and the noise was read 41-63 bins out,
+    over the reflection, so a response 1 100 noise deviations high read 11, was said to be
+    'read through the noise', and a third of the IRF was dropped (an audit of 2026-11-29).
+    The window now grows over it: the reflection's third of the response is kept."""
+    import warnings
+
+    from spslidar.codes.sequences import lfsr_sequence
+    from spslidar.pipeline.calibration import measure_response
+
+    rng = np.random.default_rng(0)
+    code = lfsr_sequence(10).astype(float)  # 1023 bits
+    t = np.arange(code.size)
+    irf = np.exp(-0.5 * ((t - 10) / 0.8) ** 2) + 0.5 * np.exp(-0.5 * ((t - 70) / 0.8) ** 2)
+    irf /= irf.sum()
+    resp = np.roll(irf, 300)
+    lam = np.fft.irfft(np.fft.rfft(resp) * np.fft.rfft(code), code.size)
+    hist = rng.poisson(2e6 * np.clip(lam, 0, None) / lam.sum() + 20.0).astype(float)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        cal = measure_response(hist, code, 1e-10, 0.0)
+    assert cal["peak_to_noise"] > 100
+    assert not any("read through the noise" in str(w.message) for w in said)
+    offsets, values = np.array(cal["irf_offsets"]), np.array(cal["irf_values"])
+    assert values[offsets > 40].sum() == pytest.approx(1 / 3, abs=0.03)
+    assert any("the instrument's own" in str(w.message) for w in said)  # the bump, named
+
+
+def test_the_calibrated_weight_is_capped_for_wide_responses():
+    """0.3 x spread was measured at one IRF's spread (1.67: 0.50); a 6-bin IRF's spread of
+    4.5 gave 1.35, which erased a scan's raised steps (an audit: RMSE 0.47 m against 0.31 at
+    0.45-0.6). It stops at FILTER_LAM_CAP, never below the solver's own default."""
+    from spslidar.pipeline.real import FILTER_LAM_CAP, calibrated_lam_scale
+
+    assert calibrated_lam_scale("fista", 1.67) == pytest.approx(0.501)
+    assert calibrated_lam_scale("fista", 4.5) == FILTER_LAM_CAP == 0.55
+    assert calibrated_lam_scale("fista", 1.0) == 0.45 and calibrated_lam_scale("twist", 1.0) == 0.3

@@ -171,7 +171,7 @@ def test_a_wide_response_is_read_from_its_rising_edge(tmp_path):
 
 # (its broad, noisy top also reads as a second return, and its height through the noise:
 # not what is tested here)
-@pytest.mark.filterwarnings("ignore:the calibration target holds a second return")
+@pytest.mark.filterwarnings("ignore:the calibration.s response holds a second return")
 @pytest.mark.filterwarnings("ignore:the calibration's response stands")
 def test_a_response_wider_than_a_quarter_period_is_said_to_be_cut():
     """A response that still stands above the background where the IRF's window ends (a

@@ -62,6 +62,9 @@ __all__ = ["calibrate_ptu", "calibrated_filter", "code_response", "delay_filter"
 
 #: bins of the IRF kept before and after its peak (a diffusion tail of a few bins fits)
 IRF_BEFORE, IRF_AFTER = 8, 40
+#: bins past the IRF's window that its noise is read over (and that :func:`_tail_end` checks
+#: hold no response)
+NOISE_AFTER = 3 * IRF_BEFORE - 1
 #: the IRF's samples below this many noise standard deviations are set to zero
 IRF_FLOOR_SIGMA = 3.0
 #: Wiener regularisation of the IRF's inverse in ``reconstruct``, relative to its peak power:
@@ -212,7 +215,7 @@ def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, dista
                       f"code and that the acquisition is a lidar's", RuntimeWarning,
                       stacklevel=2)
     side = np.r_[np.arange(p0 - before - 2 * IRF_BEFORE, p0 - before),
-                 np.arange(p0 + after + 1, p0 + after + 3 * IRF_BEFORE)] % period
+                 np.arange(p0 + after + 1, p0 + after + 1 + NOISE_AFTER)] % period
     noise = float(np.std(g[side])) if side.size else 0.0
     peak_to_noise = float(g[p0] / noise) if noise > 0 else float("inf")
     if not peak_to_noise > 5:
@@ -295,11 +298,19 @@ def _tail_end(g: np.ndarray, p0: int, start: int = IRF_BEFORE) -> tuple[int, boo
     before = g[np.arange(p0 - start - 2 * IRF_BEFORE, p0 - start) % period]
     # against the background before the peak, not against 0: the median taken off a weak
     # response's skewed noise leaves its mean above 0, which read as a tail to the end
-    error = 3.0 * float(np.std(before)) * np.sqrt(2.0 / before.size)
+    sd = float(np.std(before))
+    error = 3.0 * sd * np.sqrt(2.0 / before.size)
+    wide = NOISE_AFTER
+    error_wide = 3.0 * sd * np.sqrt(1.0 / before.size + 1.0 / wide)
 
     def stands(n: int) -> bool:
-        past = g[(p0 + n + 1 + np.arange(2 * IRF_BEFORE)) % period]
-        return float(past.mean() - before.mean()) > error
+        past = g[(p0 + n + 1 + np.arange(wide)) % period]
+        # the first 2 IRF_BEFORE bins, or the whole span the noise is then read over (a
+        # reflection 57-63 bins after the peak, half its height, lay beyond the first and
+        # inside the second: read as noise, it called a 1 100-sigma response 11 sigma and
+        # dropped a third of the IRF, an audit of 2026-11-29)
+        return (float(past[:2 * IRF_BEFORE].mean() - before.mean()) > error
+                or float(past.mean() - before.mean()) > error_wide)
 
     return _grow(IRF_AFTER, stands, period // 4)
 
@@ -359,10 +370,14 @@ def _second_return(g: np.ndarray, p0: int, noise: float, bin_width: float) -> No
     if second.any():
         i = int(np.flatnonzero(second)[np.argmax(g[second])])
         metres = offset[i] * bin_width * SPEED_OF_LIGHT / 2
-        warnings.warn(f"the calibration target holds a second return {metres:+.3g} m from the "
-                      f"strongest ({100 * g[i] / g[p0]:.0f} % of it): a calibration wants one "
-                      f"flat surface at --distance; the delay and response were read from the "
-                      f"strongest return", stacklevel=3)
+        # (an instrument's own second peak, a reflection in a fibre or an afterpulse bump, is
+        # the same in the data: it was called the target's alone, an audit)
+        warnings.warn(f"the calibration's response holds a second return {metres:+.3g} m from "
+                      f"the strongest ({100 * g[i] / g[p0]:.0f} % of it): a second surface of "
+                      f"the target (a calibration wants one flat surface at --distance), or "
+                      f"the instrument's own (a reflection, an afterpulse bump); the delay was "
+                      f"read from the strongest return, and the IRF keeps what lies within its "
+                      f"window", stacklevel=3)
 
 
 def fwhm_bins(values: np.ndarray) -> float:
