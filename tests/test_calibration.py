@@ -156,8 +156,7 @@ def test_calibrated_weight_is_scaled_by_the_filters_spread(acquisitions):
     assert m["lam_scale"] == pytest.approx(base, rel=1e-12)
     assert calibrated_lam_scale("fista", 1.0) == pytest.approx(base, rel=1e-12)
     assert calibrated_lam_scale("fista", 0.5) == pytest.approx(base, rel=1e-12)  # never below
-    assert calibrated_lam_scale("twist", 1.5) == pytest.approx(0.45, rel=1e-12)
-    assert calibrated_lam_scale("twist", 2.0) == pytest.approx(0.55, rel=1e-12)  # the cap
+    assert calibrated_lam_scale("twist", 2.0) == pytest.approx(0.6, rel=1e-12)
     assert calibrated_lam_scale("fista", 1.2) == pytest.approx(base, rel=1e-12)  # 0.36 < 0.45
 
 
@@ -552,10 +551,10 @@ def test_a_reflection_past_the_irf_window_is_read_as_response_not_noise():
 
 def test_the_calibrated_weight_is_capped_for_wide_responses():
     """0.3 x spread was measured at one IRF's spread (1.67: 0.50); a 6-bin IRF's spread of
-    4.5 gave 1.35, which erased a scan's raised steps (an audit: RMSE 0.47 m against 0.31 at
-    0.45-0.6). It stops at FILTER_LAM_CAP, never below the solver's own default."""
+    4.5 gave 1.35, which erased a scan's raised steps (an audit: RMSE 0.47 m against 0.30 at
+    1.0). It stops at FILTER_LAM_CAP, never below the solver's own default."""
     from spslidar.pipeline.real import FILTER_LAM_CAP, calibrated_lam_scale
 
     assert calibrated_lam_scale("fista", 1.67) == pytest.approx(0.501)
-    assert calibrated_lam_scale("fista", 4.5) == FILTER_LAM_CAP == 0.55
+    assert calibrated_lam_scale("fista", 4.5) == FILTER_LAM_CAP == 1.0
     assert calibrated_lam_scale("fista", 1.0) == 0.45 and calibrated_lam_scale("twist", 1.0) == 0.3
