@@ -342,3 +342,20 @@ def test_a_measured_configuration_holds_only_what_applied(tmp_path, capsys):
     assert cfg["bit_rate"] == 10.3125e9 and cfg["depth"] == "mrf" and cfg["solver"] == "fista"
     for key in ("scene", "signal", "noise", "patterns", "code", "detector", "lidar"):
         assert key not in cfg, key
+
+
+def test_ptu_info_of_a_t2_file_gives_no_sync_period():
+    """A T2 file's global resolution is its time tag's unit, not a sync period (it was given
+    as a 1 ps sync period of 0.125 bins); a header's acquisition time of 0 is none."""
+    from spslidar.io import ptu_info
+
+    t2 = REAL / "libpicoquant_hh_v30_t2.ptu"
+    if not t2.exists():
+        pytest.skip("../shared/realdata is absent")
+    info = ptu_info(t2)
+    assert info["measurement_mode"] == "T2"
+    assert info["sync_period_s"] is None and info["bins_per_period"] is None
+    assert info["time_unit_s"] == pytest.approx(1e-12)
+    hz = REAL / "hazelnut_z1.ptu"
+    if hz.exists():
+        assert ptu_info(hz)["acquisition_time_s"] is None and ptu_info(hz)["sync_period_s"] > 0

@@ -119,9 +119,11 @@ def ptu_info(path: PathLike) -> dict[str, Any]:
 
     Returns a dict: ``record_type`` (e.g. ``'HydraHarp2T3'``), ``measurement_mode``
     (``'T2'``/``'T3'``), ``n_records`` (header) and ``n_records_in_file`` (whole records after
-    the header), ``resolution_s``, ``sync_period_s``, ``sync_rate_hz``, ``bins_per_period``,
-    ``acquisition_time_s``, ``hardware``, ``sync_divider`` (``HWSync_Divider``), ``creator``,
-    ``comment``, ``created``, ``version``, ``path``. Raises
+    the header), ``resolution_s``, ``sync_period_s`` and ``bins_per_period`` (None for a T2
+    file, whose ``time_unit_s`` is its global resolution), ``sync_rate_hz``,
+    ``acquisition_time_s`` (None where the header gives none, or 0), ``hardware``,
+    ``sync_divider`` (``HWSync_Divider``), ``creator``, ``comment``, ``created``, ``version``,
+    ``path``. Raises
     :class:`~spslidar.errors.ConfigError` if ``path`` is not a PTU file.
     """
     with _open_ptu(path) as f:

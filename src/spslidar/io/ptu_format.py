@@ -208,6 +208,10 @@ def _header_summary(f, path: PathLike) -> dict[str, Any]:
     created = tags.get("File_CreatingTime")
     acq_ms = tags.get("MeasDesc_AcquisitionTime")
     data_bytes = max(0, os.path.getsize(path) - f.record_offset)
+    # T2 files have no sync period: their global resolution is the time tag's unit (it was
+    # given as a sync period of 1 ps, 0.125 bins; a header's acquisition time of 0 is
+    # none given: an audit of 2026-11-29)
+    t2 = code in T2_RECORD_TYPES or mode == 2
     return {
         "path": os.fspath(path),
         "version": f.version,
@@ -217,10 +221,11 @@ def _header_summary(f, path: PathLike) -> dict[str, Any]:
         "n_records": int(tags.get("TTResult_NumberOfRecords", 0) or 0),
         "n_records_in_file": data_bytes // 4,
         "resolution_s": res,
-        "sync_period_s": glob,
+        "sync_period_s": None if t2 else glob,
+        "time_unit_s": glob if t2 else None,
         "sync_rate_hz": tags.get("TTResult_SyncRate"),
-        "bins_per_period": glob / res if res > 0 else None,
-        "acquisition_time_s": None if acq_ms is None else float(acq_ms) * 1e-3,
+        "bins_per_period": glob / res if res > 0 and not t2 else None,
+        "acquisition_time_s": float(acq_ms) * 1e-3 if acq_ms else None,
         "hardware": tags.get("HW_Type"),
         "sync_divider": tags.get("HWSync_Divider"),
         "creator": tags.get("CreatorSW_Name"),

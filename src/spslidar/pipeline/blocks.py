@@ -119,9 +119,13 @@ def _drop_extra_block(data, m: int, marker: int) -> tuple[Any, str | None]:
                 f"{head}, and its first block ({int(d[0])} code periods, {int(c[0])} photons) "
                 f"is no pattern's ({typ_d:.0f} periods, {typ_c:.0f} photons typical): an arming "
                 f"or start marker? it is left out and the next {m} blocks are the patterns")
+    # (a short, photon-poor last block is an end-of-acquisition marker's: left out without a
+    # word; one that is not was said to last "as long as a pattern" at 53 % of its dwell, an
+    # audit of 2026-11-29)
     note = None if last else (
-        f"{head}, and its last block ({int(d[-1])} code periods, {int(c[-1])} photons) lasts as "
-        f"long as a pattern ({typ_d:.0f}): it is left out; is a row missing from --patterns?")
+        f"{head}, and its last block ({int(d[-1])} code periods, {int(c[-1])} photons) is no "
+        f"end marker's: a pattern lasts {typ_d:.0f} periods with {typ_c:.0f} photons; it is "
+        f"left out; is a row missing from --patterns?")
     return _rows(data, slice(0, m), after=int(c[-1])), note
 
 
@@ -173,12 +177,15 @@ def _lost_notes(data, marker: int, n_bins: int) -> list[str]:
     if total and out > DROPPED_SHARE * total:
         # (a fifth, or with a sync divider of 2 half, of a file's photons were dropped
         # without a word: an audit)
+        # (a divider was blamed as spanning several code periods unfolded, but PicoQuant's
+        # sync period in the header is already the divided one: the real HydraHarp files
+        # with dividers of 2, 4 and 8 hold every photon within it, an audit of 2026-11-29)
         divider = data.header.get("sync_divider")
-        why = (f"the header's sync divider is {divider}: each sync then spans {divider} code "
-               f"periods, which spslidar does not fold; record with a sync divider of 1"
-               if isinstance(divider, int | float) and divider > 1 else
-               "is the sync period longer than the code's (a sync divider), or --bit-rate "
-               "not the TDC's bin rate?")
+        named = (f", the header's sync divider is {divider}"
+                 if isinstance(divider, int | float) and divider > 1 else "")
+        why = (f"the photons' TDC times run past the sync period the header gives "
+               f"(MeasDesc_GlobalResolution{named}): is it the period the hardware ran at, "
+               f"and --bit-rate the TDC's bin rate?")
         notes.append(f"{out} of the file's {total} photons on the channel "
                      f"({100 * out / total:.3g} %) came at a TDC time past the code period "
                      f"({n_bins} bins) and are left out: {why}")
