@@ -427,6 +427,10 @@ def test_a_sweep_over_backends_compares_them_on_one_seed(tmp_path):
     (["--pattern-sigma", "1e-10"], "nothing to reconstruct"),
     (["--signal", "1e-300", "--noise", "0", "--noiseless", "--scene", "steps", "--depth-min",
       "1", "--depth-max", "2"], "measurements are not finite"),
+    # (both ran to a map on the device: its simulation skipped the host's two bounds, an
+    # audit of 2026-11-29)
+    (["--signal", "1e-13"], "too small against the noise"),
+    (["--size", "32", "--noise", "100000"], "a count holds exactly"),
 ])
 @pytest.mark.parametrize("backend", ["numpy", STRICT])
 def test_a_device_reconstruction_keeps_the_hosts_refusals(tmp_path, capsys, args, words,
@@ -440,3 +444,58 @@ def test_a_device_reconstruction_keeps_the_hosts_refusals(tmp_path, capsys, args
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and words in err[0], err
     assert not out.exists()
+
+
+def test_a_device_run_at_the_weights_floor_keeps_the_time_limit(tmp_path, capsys):
+    """The floored solve was priced again against --max-time on the host only: on a device
+    backend a run at 300 iterations went 10 s past a --max-time of 2.5 s (an audit)."""
+    for backend in ("numpy", STRICT):
+        assert main(["run", "--size", "64", "--lam-scale", "0.001", "--max-time", "2.5",
+                     "--no-figure", "--backend", backend, "--out", str(tmp_path / backend)]) == 2
+        assert "at the weight's floor" in capsys.readouterr().err
+        assert not (tmp_path / backend).exists()
+
+
+def test_device_tv_prox_below_float32s_reach_is_the_identity(be):
+    """A weight whose inverse overflows float32 (--lam 1e-39) gave NaN in the device prox
+    and a 'diverged' solve; the host treats it as the identity, and so does the device."""
+    tv = TVProx(be.xp, (8, 6), nonneg=True, max_inner=3, be=be)
+    v = _rand((48, 2), seed=1).astype(np.float32)
+    out = be.to_numpy(tv.prox(be.asarray(v), 1e-39))
+    np.testing.assert_array_equal(out, np.maximum(v, 0))
+
+
+def test_many_lags_correlate_through_the_fft_on_the_device(monkeypatch):
+    """More than FFT_LAGS delays were correlated on the device through a dense (L x K) bank of
+    replicas, which no memory estimate counted (2.65 GB past a 0.6 GB cap at 16x16 through a
+    0-200 m gate); the device now takes the FFT in float64 as the host does, and its
+    correlations are the host's."""
+    import spslidar.correlate as correlate
+    from spslidar.correlate import FFT_LAGS
+
+    real = correlate.replica_matrix
+
+    def small_only(replica, lags, *a, **k):
+        assert np.size(lags) <= FFT_LAGS, "a dense bank for many lags"
+        return real(replica, lags, *a, **k)
+
+    monkeypatch.setattr(correlate, "replica_matrix", small_only)
+    kw = {**SMALL, "range_gate": (0.0, 12.0), "seed": 3}
+    host = measure(**kw)
+    dev = measure(**kw, backend=STRICT)
+    assert host.lags.size > FFT_LAGS
+    from spslidar.backends import get_backend
+
+    got = get_backend(STRICT, "cpu").to_numpy(dev.sim["corr"])
+    want = np.asarray(host.sim["corr"])
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-5 * float(np.abs(want).max()))
+
+
+def test_a_measured_acquisition_says_it_has_no_backend(tmp_path):
+    """reconstruct_ptu(backend=...) was told 'the acquisition sets the rest', which sets no
+    backend (an audit): it says that measured files are reconstructed on NumPy."""
+    from spslidar.pipeline.real import reconstruct_ptu
+
+    with pytest.raises(ConfigError, match="runs on NumPy, the host"):
+        reconstruct_ptu(tmp_path / "x.ptu", np.ones((4, 16)), np.ones(7), 1e10, (1.0, 2.0),
+                        backend=STRICT)

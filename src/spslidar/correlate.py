@@ -133,6 +133,34 @@ def replica_matrix(replica: np.ndarray, lags: np.ndarray, dtype=np.float32) -> n
     return np.ascontiguousarray(rows.T)
 
 
+#: the largest noise count, over the matched filter's normalisation, a run accepts: squared
+#: with a margin of 1e6 it stays inside float32 (3.4e38)
+MAX_NOISE_SCALE = 1e16
+
+
+def check_noise_scale(noise_bin: np.ndarray, acq, gain: float) -> None:
+    """Refuse (one line) a signal so small against the noise that the normalised matched
+    filter's outputs leave float32.
+
+    The correlations are float32, normalised so that a unit-reflectivity pixel reads 1: the
+    noise counts over that scale must stay far inside float32, whose squares the solve takes
+    (``--signal 1e-20`` overflowed in the TV, 1e-300 in the cast, leaking NumPy's warnings
+    before a misleading refusal: an audit of 2026-11-29). Shared by the device path, which
+    ran such signals to a map (an audit of the same day)."""
+    noise_scale = float(np.max(noise_bin, initial=0.0)) * acq.code.size * acq.n_periods / gain
+    if not noise_scale <= MAX_NOISE_SCALE:
+        raise ConfigError(
+            f"--signal {acq.signal_per_pulse:g} photons per pulse is too small against the "
+            f"noise: the matched filter's outputs, normalised so that a unit-reflectivity "
+            f"pixel reads 1, would carry noise counts of about {noise_scale:.1e}, past what "
+            f"float32 correlations and their squares hold; raise --signal")
+
+
+#: the most lags the matched filter correlates through a bank of shifted replicas (one BLAS
+#: product); more go through the FFT in float64 (:func:`matched_filter`, and the device path)
+FFT_LAGS = 256
+
+
 def matched_filter(
     hist: np.ndarray,
     replica: np.ndarray,
@@ -174,7 +202,7 @@ def matched_filter(
     if np.ndim(replica) != 1 or np.size(replica) != period:
         raise ValueError(f"replica of shape {np.shape(replica)} for histograms of {period} bins")
     lags = np.mod(np.asarray(lags, dtype=np.int64), period)
-    if bank is not None or lags.size <= 256:
+    if bank is not None or lags.size <= FFT_LAGS:
         wide = np.dtype(out_dtype) == np.float64
         calc = np.float64 if wide else np.float32
         fm = bank if bank is not None else replica_matrix(replica, lags, calc)

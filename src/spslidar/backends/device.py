@@ -89,11 +89,14 @@ def simulate(be: Any, patterns: Any, acq: Any, ulags: np.ndarray, noise: Any, de
         ``corr`` on the device.
     """
     from ..correlate import (
+        FFT_LAGS,
+        check_noise_scale,
         correlation_gain,
         make_replica,
         noise_sigma_from_totals,
         replica_matrix,
     )
+    from ..detectors.counting import MAX_MEAN, check_means
     from ..forward import shifted_codes
 
     xp = be.xp
@@ -101,9 +104,17 @@ def simulate(be: Any, patterns: Any, acq: Any, ulags: np.ndarray, noise: Any, de
     noise_bin = noise_per_bin(be, noise, patterns, refl, acq.bin_width)
     replica = make_replica(acq.code, acq.replica)
     gain = correlation_gain(acq.code, replica) * acq.n_periods * acq.signal_per_pulse
+    check_noise_scale(noise_bin, acq, gain)  # (the device ran such signals: an audit)
     w_dev = be.asarray(weights)
     codes = be.asarray(shifted_codes(acq.code, shifts))
-    bank = be.asarray(replica_matrix(replica, ulags))
+    period = int(acq.code.size)
+    if ulags.size <= FFT_LAGS:  # the NumPy path's matched filter: a bank of shifted replicas
+        bank, rep_f, take = be.asarray(replica_matrix(replica, ulags)), None, None
+    else:  # ... or the FFT in float64 for many lags (the dense bank was L x K floats three
+        # times over, 2.65 GB past a 0.6 GB cap at 16x16 through a 0-200 m gate, unpriced)
+        bank = None
+        rep_f = xp.conj(xp.fft.rfft(be.asarray(np.asarray(replica, dtype=np.float64))))
+        take = be.asarray(np.mod(np.asarray(ulags, dtype=np.int64), period))
     noise_dev = be.asarray(noise_bin)
     counts_stream = Stream(be, seq_counts)
     if counts_stream.host:  # the NumPy path's blocks and streams
@@ -120,9 +131,22 @@ def simulate(be: Any, patterns: Any, acq: Any, ulags: np.ndarray, noise: Any, de
         if noiseless:
             counts, totals = lam, xp.sum(lam, axis=1, dtype=xp.float64)
         else:
+            # the NumPy path's bound on exact float32 counts, read off the device only where
+            # the block's ceiling passes it (it ran 1e8 photons per bin to a map: an audit)
+            ceiling = acq.n_periods * (acq.signal_per_pulse * float(
+                scalars(be, xp.max(xp.sum(xp.abs(amp), axis=1)))[0])
+                + float(np.max(np.abs(noise_bin[a:e]), initial=0.0)))
+            if not ceiling <= MAX_MEAN * 0.99:
+                check_means(np.asarray(scalars(be, xp.min(lam), xp.max(lam))))
             counts, totals = counts_stream.poisson(lam, children[b], detector, acq.n_periods)
         del lam
-        corr_parts.append((counts @ bank) / float(gain))
+        if bank is not None:
+            corr_parts.append((counts @ bank) / float(gain))
+        else:
+            full = xp.fft.irfft(xp.fft.rfft(xp.astype(counts, xp.float64), axis=1)
+                                * rep_f[None, :], n=period, axis=1)
+            corr_parts.append(xp.astype(xp.take(full, take, axis=1) / float(gain), xp.float32))
+            del full
         tot_parts.append(totals)
         amp_parts.append(xp.sum(amp, axis=1))
     corr = corr_parts[0] if n_blocks == 1 else xp.concat(corr_parts, axis=0)

@@ -253,7 +253,9 @@ class TVProx:
         """``argmin_z 1/2 ||z - v||^2 + t TV(z)`` (``+ i_{z >= 0}``) per column of ``v``."""
         xp = self.xp
         v3 = self._cube(v)
-        if t == 0.0:
+        # (a t whose inverse overflows the dtype is the identity, as on the host: v / t gave
+        # NaN in float32 at --lam 1e-39, said as a diverged solve, an audit of 2026-11-29)
+        if t == 0.0 or t * float(xp.finfo(v3.dtype).max) < 1.0:
             z = xp.clip(v3, min=0.0) if self.nonneg else v3
             return xp.reshape(z, v.shape)
         if self._p is None or self._p[0].shape != v3.shape:

@@ -426,6 +426,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     from .blocks import read_blocks
     from .measurement import check_processing_keys, processing_keys
 
+    if {"backend", "device"} & set(processing):  # (it was told the acquisition sets them)
+        raise ConfigError("reconstruct_ptu() runs on NumPy, the host: a measured acquisition "
+                          "has no backend or device option (run's --backend simulates and "
+                          "solves on one)")
     check_ptu_path(ptu)
     patterns = check_patterns(patterns, True, "patterns")
     code = check_code(code, None, "code")

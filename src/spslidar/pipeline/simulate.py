@@ -9,6 +9,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..correlate import (
+    FFT_LAGS,
+    check_noise_scale,
     correlation_gain,
     make_replica,
     matched_filter,
@@ -29,11 +31,6 @@ BLOCK = 64
 MAX_THREADS = 8
 #: implementations of :func:`simulate_correlations`
 SIMULATE_METHODS = ("fast", "reference")
-#: the largest noise count, over the matched filter's normalisation, a run accepts: squared
-#: with a margin of 1e6 it stays inside float32 (3.4e38)
-MAX_NOISE_SCALE = 1e16
-
-
 def simulate_correlations(
     patterns: PatternOperator,
     scene,
@@ -134,17 +131,7 @@ def simulate_correlations(
     noise_bin = noise.per_bin(patterns, refl, acq.bin_width)
     replica = make_replica(acq.code, acq.replica)
     gain = correlation_gain(acq.code, replica) * acq.n_periods * acq.signal_per_pulse
-    # the correlations are float32, normalised so that a unit-reflectivity pixel reads 1: the
-    # noise counts over that scale must stay far inside float32, whose squares the solve
-    # takes (--signal 1e-20 overflowed in the TV, 1e-300 in the cast, leaking NumPy's
-    # warnings before a misleading refusal: an audit of 2026-11-29)
-    noise_scale = float(np.max(noise_bin, initial=0.0)) * acq.code.size * acq.n_periods / gain
-    if not noise_scale <= MAX_NOISE_SCALE:
-        raise ConfigError(
-            f"--signal {acq.signal_per_pulse:g} photons per pulse is too small against the "
-            f"noise: the matched filter's outputs, normalised so that a unit-reflectivity "
-            f"pixel reads 1, would carry noise counts of about {noise_scale:.1e}, past what "
-            f"float32 correlations and their squares hold; raise --signal")
+    check_noise_scale(noise_bin, acq, gain)
     n_blocks = max(1, int(np.ceil(m / BLOCK)))
     edges = np.linspace(0, m, n_blocks + 1).astype(int)
     children = rng_counts.spawn(n_blocks)
@@ -208,7 +195,7 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
     """The streamed simulation of :func:`simulate_correlations` (``method='fast'``)."""
     m = patterns.shape[0]
     n_blocks = edges.size - 1
-    bank = replica_matrix(replica, lags) if lags.size <= 256 else None
+    bank = replica_matrix(replica, lags) if lags.size <= FFT_LAGS else None
     code_matrix = shifted_codes(acq.code, shifts)
     corr = np.empty((m, lags.size), dtype=np.float32)
     totals = np.empty(m)
