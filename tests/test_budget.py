@@ -185,3 +185,27 @@ def test_the_time_estimate_counts_the_depth_stage_and_the_noise_verdict():
     wide = preflight({"range_gate": [0.0, 150.0]}).seconds
     n_extra = round(147.0 / 0.015)  # the wide gate's extra slices (1.5 cm bins)
     assert wide - narrow >= 0.9 * budget_mod.depth_seconds("mrf", 4096, n_extra)
+
+
+def test_a_one_block_detector_model_is_priced_before_it_runs(tmp_path, monkeypatch, capsys):
+    """A GMAPD run of one block of patterns (16x16: 64 patterns) was never priced: estimated
+    at 0.13 s, it took 36 s (noiseless 275 s) without a word and past any --max-time (an
+    audit of 2026-11-29). One pattern's model, on a stream of its own, now prices it."""
+    import time
+
+    import spslidar.pipeline.simulate as simulate
+    from spslidar.cli import main
+
+    calls = []
+
+    def slow(*a, **k):
+        calls.append(1)
+        time.sleep(0.05)  # 16 patterns at 8x8: priced ~0.8 s
+
+    monkeypatch.setattr(simulate, "_probe_row", slow)
+    out = tmp_path / "o"
+    assert main(["run", "--size", "8", "--detector", "gmapd", "--signal", "0.01", "--noise",
+                 "0.001", "--max-time", "0.5", "--no-figure", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "estimated from one pattern's model" in err and calls == [1]
+    assert not out.exists()
