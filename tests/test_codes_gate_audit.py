@@ -206,3 +206,18 @@ def test_a_default_gate_reaches_a_second_layer_behind_every_pixel():
     plain = LayeredScene(name="plain", depth=np.full((n, n), 3.0),
                          reflectivity=np.full((n, n), 0.5), valid=one)
     assert default_gate(plain, bw)[1] < 3.2  # one layer: the first surface's window
+
+
+def test_a_second_layer_of_no_reflectivity_does_not_stretch_the_gate():
+    """A behind layer whose reflectivity is 0 returns nothing; one such pixel at 20 m
+    stretched an 8x8 wall's default gate from 3 m to 2.96-20.04 m (a review)."""
+    from spslidar.pipeline.acquisition import default_gate
+    from spslidar.scenes.procgen import LayeredScene
+
+    n = 8
+    behind = np.full((n, n), np.nan)
+    behind[0, 0] = 20.0
+    wall = LayeredScene(name="w", depth=np.full((n, n), 3.0), reflectivity=np.full((n, n), 0.5),
+                        valid=np.ones((n, n), bool), behind_depth=behind,
+                        behind_reflectivity=np.zeros((n, n)))
+    assert default_gate(wall, 1e-10)[1] < 3.2

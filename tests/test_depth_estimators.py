@@ -470,3 +470,11 @@ def test_evidence_options_refuse_nan():
         with pytest.raises(ConfigError, match="finite"):
             EvidenceDepth(**kw)
     assert GuardedDepth(gap=3.0).gap == 3 and isinstance(GuardedDepth(gap=3.0).gap, int)
+
+
+def test_estimator_options_refuse_a_numpy_bool():
+    from spslidar.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="iterations"):
+        MRFDepth(iterations=np.bool_(True))
+    assert MRFDepth(iterations=np.int64(5)).iterations == 5

@@ -274,3 +274,22 @@ def test_an_empty_short_block_is_left_out_of_the_solve(tmp_path):
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["n_patterns"] == m - 1
     assert any("left out of the solve" in w and "(first: 0)" in w for w in metrics["warnings"])
+
+
+def test_a_recording_started_early_at_a_one_period_dwell_keeps_its_edge(tmp_path):
+    """Start markers read with the default edge, the recording begun two periods before the
+    first pattern (photons at a pattern's rate): the tolerance for the marker's own sync
+    told this correct file to pass --marker-edge end, which would misread every pattern (a
+    review). The span outside is two periods, not one short of one."""
+    rng = np.random.default_rng(6)
+    lead, per = 2, 60
+    ev = [(int(s), 1, 5, 0) for s in np.sort(rng.integers(0, lead, 2 * per))]
+    for k in range(M):
+        s0 = lead + k
+        ev += [(s0, 1, k + 3, 0)] * per + [(s0, 0, 0, 1)]
+    ev.sort()
+    a = np.array(ev)
+    f = _write(tmp_path / "early.ptu", a[:, 0], a[:, 2], a[:, 3])
+    data, notes = read_blocks(f, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M))
+    assert not any("--marker-edge" in n for n in notes), notes

@@ -299,12 +299,12 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
     reflectivity (| second surface) | confidence).
 
     Every pixel without a number has the colour of its reason, named in a legend: grey where
-    the scene has no ground truth (truth and error panels), white where the estimator found no
-    return (estimate and error panels), a magenta dot on the depths the estimator flags as
-    low-confidence, and an orange cross on estimated depths outside the colour bar's range
-    (the truth's range; e.g. an aliased return metres away), which are drawn at the bar's end
-    colour. The title gives the RMSE with the share of pixels it covers (ground truth and a
-    return), never rounded up to 100 % while a pixel is missing.
+    the scene has no ground truth (truth and error panels), black where the estimator found no
+    return (estimate, error and second-surface panels), a magenta dot on the depths the
+    estimator flags as low-confidence, and an orange cross on estimated depths outside the
+    colour bar's range (the truth's range; e.g. an aliased return metres away), which are
+    drawn at the bar's end colour. The title gives the RMSE with the share of pixels it
+    covers (ground truth and a return), never rounded up to 100 % while a pixel is missing.
 
     Parameters
     ----------

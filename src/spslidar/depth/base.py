@@ -153,7 +153,8 @@ def option(name: str, value: Any, lo: float = 0.0, hi: float = np.inf, *,
         v = float(value)
     except (TypeError, ValueError):
         raise ConfigError(f"{name} must be a number, got {value!r}") from None
-    if isinstance(value, bool) or not np.isfinite(v) or v < lo or v > hi or (open_lo and v == lo):
+    if (isinstance(value, bool | np.bool_) or not np.isfinite(v) or v < lo or v > hi
+            or (open_lo and v == lo)):
         left = "(" if open_lo else "["
         span = f"> {lo:g}" if hi == np.inf and open_lo else (
             f">= {lo:g}" if hi == np.inf else f"in {left}{lo:g}, {hi:g}]")

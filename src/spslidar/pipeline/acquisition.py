@@ -74,8 +74,9 @@ def default_gate(scene, bin_width: float) -> tuple[float, float]:
     bin_depth = SPEED_OF_LIGHT * bin_width / 2.0
     far = scene.depth_max
     behind = getattr(scene, "behind_depth", None)
-    if behind is not None:
-        seen = np.isfinite(behind) & np.asarray(scene.valid, dtype=bool)
+    if behind is not None:  # (a layer of reflectivity 0 returns nothing: a review)
+        seen = (np.isfinite(behind) & np.asarray(scene.valid, dtype=bool)
+                & (np.asarray(getattr(scene, "behind_reflectivity", 1.0)) > 0))
         if seen.any():
             far = max(far, float(np.max(behind[seen])))
     span = (far - scene.depth_min) / bin_depth
