@@ -297,6 +297,7 @@ def _probe_row(patterns, weights, shifts, noise_bin, acq, detector, noiseless: b
     if noiseless:
         detector.correct(detector.expected(lam, acq.n_periods), acq.n_periods, expected=True)
         return
+    check_means(lam)  # (the block's own refusal first, as before the probe)
     counts, _ = detector.detect(lam, np.random.default_rng(0), acq.n_periods, out=lam)
     detector.correct(counts, acq.n_periods)
 
