@@ -463,6 +463,12 @@ def test_device_tv_prox_below_float32s_reach_is_the_identity(be):
     v = _rand((48, 2), seed=1).astype(np.float32)
     out = be.to_numpy(tv.prox(be.asarray(v), 1e-39))
     np.testing.assert_array_equal(out, np.maximum(v, 0))
+    # (and just above that guard, where v / t still overflows for |v| > 1: 3e-39 with |v| up
+    # to 100 diverged, a review; below round-off of the largest |v|, the identity too)
+    big = (100 * v).astype(np.float32)
+    for t in (3e-39, 1e-37):
+        out = be.to_numpy(tv.prox(be.asarray(big), t))
+        np.testing.assert_array_equal(out, np.maximum(big, 0))
 
 
 def test_many_lags_correlate_through_the_fft_on_the_device(monkeypatch):

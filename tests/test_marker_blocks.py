@@ -293,3 +293,24 @@ def test_a_recording_started_early_at_a_one_period_dwell_keeps_its_edge(tmp_path
     data, notes = read_blocks(f, M, L, bin_width=RES)
     assert _peaks(data) == list(range(M))
     assert not any("--marker-edge" in n for n in notes), notes
+
+
+def test_a_recording_started_more_than_a_dwell_early_keeps_its_edge(tmp_path):
+    """Start markers, a dwell of 10 periods, photons at a pattern's rate from 11 periods
+    before the first marker and the last pattern cut to one period: a span over the dwell
+    passed the wrong-edge test's upper bound (a second review); the marker's own sync only
+    ever makes the span short, so this file is read as given without a word."""
+    rng = np.random.default_rng(7)
+    dwell, lead, per = 10, 11, 200
+    ev = [(int(s), 1, 5, 0) for s in np.sort(rng.integers(0, lead, per * lead // dwell))]
+    for k in range(M):
+        s0 = lead + dwell * k
+        n = dwell if k < M - 1 else 1
+        ev += [(int(s), 1, k + 3, 0) for s in np.sort(rng.integers(s0, s0 + n, per * n // dwell))]
+        ev.append((s0, 0, 0, 1))
+    ev.sort()
+    a = np.array(ev)
+    f = _write(tmp_path / "early10.ptu", a[:, 0], a[:, 2], a[:, 3])
+    data, notes = read_blocks(f, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M))
+    assert not any("--marker-edge" in n for n in notes), notes

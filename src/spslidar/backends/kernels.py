@@ -253,9 +253,14 @@ class TVProx:
         """``argmin_z 1/2 ||z - v||^2 + t TV(z)`` (``+ i_{z >= 0}``) per column of ``v``."""
         xp = self.xp
         v3 = self._cube(v)
-        # (a t whose inverse overflows the dtype is the identity, as on the host: v / t gave
-        # NaN in float32 at --lam 1e-39, said as a diverged solve, an audit of 2026-11-29)
-        if t == 0.0 or t * float(xp.finfo(v3.dtype).max) < 1.0:
+        # (a t below round-off of the largest |v| is the identity, as on the host: v / t gave
+        # NaN in float32 at --lam 1e-39, said as a diverged solve, an audit of 2026-11-29; the
+        # first mend, t * finfo.max < 1 alone, left 3e-39 diverging, a review. |v|'s largest
+        # is read off the device only for a t that small)
+        fi = xp.finfo(v3.dtype)
+        if (t == 0.0 or t * float(fi.max) < 1.0
+                or (t < 1e-20 and 8.0 * t <= float(fi.eps) * float(
+                    scalars(self.be, xp.max(xp.abs(v3)))[0]))):
             z = xp.clip(v3, min=0.0) if self.nonneg else v3
             return xp.reshape(z, v.shape)
         if self._p is None or self._p[0].shape != v3.shape:

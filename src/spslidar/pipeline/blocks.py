@@ -151,10 +151,10 @@ def _edge_note(data, marker: int, edge: str) -> str | None:
     # sync holds photons on both sides of it, so the span counted in whole syncs is a period
     # short either way (a one-period dwell read 0 against 1 and a wrong --marker-edge end
     # went unsaid, every pattern given its neighbour's photons: an audit of 2026-11-29)
-    # (one-sided: the marker's sync only ever makes the span short, and a recording started
-    # two periods early at a one-period dwell was told to change the edge, a review)
+    # (one-sided: the marker's sync only ever makes the span short, and recordings started
+    # a period or two more than a dwell early were told to change the edge, two reviews)
     if not (outside >= SHORT_BLOCK * typ_c
-            and typ_d - max(EDGE_SPAN * typ_d, 1.0) <= span <= typ_d * (1 + EDGE_SPAN)
+            and typ_d - max(EDGE_SPAN * typ_d, 1.0) <= span <= typ_d
             and other <= EDGE_BLOCK_PERIODS):
         return None
     return (f"{outside} photons over {span} code periods came {where} on input {marker}, about "

@@ -63,11 +63,13 @@ convolved with a kernel ``k_m`` that the patterns and the geometry give. Two ste
    :data:`MIN_SPREAD_BINS`; where it does not, the tilt is said (:func:`_maybe_tilted`).
    Measured on ``run``'s 16 x 16 walls (the README's instrument; 5 degrees about the
    vertical axis on seeds 0, 1, 2, 6, 3 degrees about the horizontal one on seeds 0-1, 5
-   degrees about both on seeds 1 and 4): delays 13.739-13.754 ns for 13.74 and IRFs
-   1.90-2.22 bins wide (a facing wall's: 13.746 ns, 2.00 bins); through a facing-wall scan
-   before the review's mends (one scan along the centroids' direction) seeds 4 and 6 gave
-   IRFs of 3-5 bins. On the independent instrument's 32 x 32 walls a 3 degree tilt is
-   fitted (13.692 ns, 2.3 bins) and a 5 degree one is only said (its centroids stand 3.9
+   degrees about both on seeds 1 and 4): delays 13.695-13.748 ns for 13.74 and IRFs
+   1.82-2.47 bins wide (a facing wall's: 13.746 ns, 2.00 bins); before the review's mends
+   (one scan along the centroids' direction) seeds 4 and 6 gave IRFs of 3-5 bins. The scan
+   finds a tilt where the centroids' direction is within about 10-20 degrees of it (a
+   review forced it 20 degrees or more off and found none; natural runs were 0-9 off). On
+   the independent instrument's 32 x 32 walls a 3 degree tilt is fitted (13.681 ns, 2.2
+   bins) and a 5 degree one is only said (its centroids stand 3.9
    errors out; a tilt fitting better than a facing wall exists but the scans do not reach
    it). On facing walls and walls at one range the centroids' linear terms stood up to 2.7
    errors out (Hadamard patterns), under :data:`Z_TILT_LOOK`, and no tilt was accepted even
@@ -323,11 +325,13 @@ def _tilt_scan(gf: np.ndarray, size: int, light: np.ndarray, shape: tuple[int, i
     """Step 3's scan: round trips ``base + c (x^2 + y^2) + k (cos t x + sin t y)``, the tilt's
     size ``k`` (bins at the image's edge along its direction ``t``), its direction and, where
     ``free_curvature`` (no field of view given), a facing wall's curvature ``c``, each fitted
-    in turn by the residual of step 1's fit: ``k`` from 0 in 2-bin steps then half-bin ones,
-    ``c`` in half-bin steps, ``t`` within 30 degrees of the centroids' direction in 3-degree
-    steps, then ``k`` and ``c`` again about their values. The centroids alone gave a noisy
-    curvature (9-10 bins for 6.4) and direction (56 degrees for 45), and with them the tilts
-    of a review's seeds calibrated to IRFs 3-5 bins wide; fitted so, 2.1-2.5 (2026-11-29).
+    in turn by the residual of step 1's fit: ``k`` and ``c`` on a coarse grid (at most 17 x
+    9) then in half-bin steps, ``t`` within 30 degrees of the centroids' direction in 3-degree
+    steps (the tilt is found where that direction is within 10-20 degrees of it), then ``k``
+    from the coarse grid again, ``c``, ``t`` within 9 degrees and ``k`` about their values.
+    The centroids alone gave a noisy curvature (9-10 bins for 6.4) and direction (56 degrees
+    for 45), and with them the tilts of a review's seeds calibrated to IRFs 3-5 bins wide;
+    fitted so, 1.8-2.5 (2026-11-29).
     The best is kept where its residual stands :data:`Z_TILT` deviations below
     ``reference`` (the best facing wall's, or the given one's) and its tilt spans
     :data:`MIN_SPREAD_BINS`. None otherwise."""
@@ -356,9 +360,10 @@ def _tilt_scan(gf: np.ndarray, size: int, light: np.ndarray, shape: tuple[int, i
         return float(res[i])
 
     k_max = min(limit, 2.0 * h + 8.0)
-    # (at most 33 sizes and 9 curvatures on the coarse grid: a steep 64x64 tilt whose
-    # centroids read 235 bins scanned 513 sizes, 18 s, a review)
-    ks = np.linspace(0.0, k_max, int(min(33, np.ceil(k_max / 2.0) + 1)))
+    # (at most 17 sizes and 9 curvatures on the coarse grid: a steep 64x64 tilt whose
+    # centroids read 235 bins scanned 513 sizes, 18 s, and 33 x 9 took a 64x64 calibration
+    # from 3.7 to 10.7 s, two reviews)
+    ks = np.linspace(0.0, k_max, int(min(17, np.ceil(k_max / 2.0) + 1)))
     if free_curvature:  # k and c together on a coarse grid (one after the other, a review's
         # wall tilted about both axes stopped at k = 7 for 18 on the centroids' curvature)
         c_max = min(limit, max(2.0 * state["c"], 16.0))
@@ -370,14 +375,16 @@ def _tilt_scan(gf: np.ndarray, size: int, light: np.ndarray, shape: tuple[int, i
         _, state["k"], state["c"] = min(grid)
     else:
         best("k", ks)
-    best("k", np.arange(max(0.0, state["k"] - 2.0), state["k"] + 2.25, SPREAD_STEP))
+    dk = float(ks[1] - ks[0]) if ks.size > 1 else 2.0
+    best("k", np.arange(max(0.0, state["k"] - dk), state["k"] + dk + 0.25, SPREAD_STEP))
     if free_curvature:
-        best("c", np.arange(max(0.0, state["c"] - 2.0), state["c"] + 2.25, SPREAD_STEP))
+        dc = float(cs[1] - cs[0]) if cs.size > 1 else 2.0
+        best("c", np.arange(max(0.0, state["c"] - dc), state["c"] + dc + 0.25, SPREAD_STEP))
     best("t", state["t"] + np.radians(np.arange(-30.0, 31.0, 3.0)))
     # a second round from the direction found (the first can stop short along a direction
     # the centroids had 15 degrees off: the independent instrument's 32x32 wall at 5 degrees)
     best("k", ks)
-    best("k", np.arange(max(0.0, state["k"] - 2.0), state["k"] + 2.25, SPREAD_STEP))
+    best("k", np.arange(max(0.0, state["k"] - dk), state["k"] + dk + 0.25, SPREAD_STEP))
     if free_curvature:
         best("c", np.arange(max(0.0, state["c"] - 3.0), state["c"] + 3.25, SPREAD_STEP))
     best("t", state["t"] + np.radians(np.arange(-9.0, 9.5, 1.5)))
