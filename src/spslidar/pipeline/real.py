@@ -350,7 +350,7 @@ def calibrated_lam_scale(solver: str, spread: float) -> float:
     17 of the stand-in's 42 seeds against 24 at 0.50, while its ideal instrument met them on
     all 42 at 0.45 as at 0.3.
 
-    The factor is capped at :data:`FILTER_LAM_CAP` (1.0): measured on one IRF's spread, it
+    The factor is capped at ``FILTER_LAM_CAP`` (1.0): measured on one IRF's spread, it
     did not hold for wider ones (an outside audit of 2026-11-29): the README's IRF at 40 GHz
     (6.4 bins, ``spread`` 4.5) and an asymmetric one at 10 GHz (4.6 bins FWHM, 4.4) were
     solved at 1.33-1.35, which erased whole raised steps of a 16 x 16 scan. Over their seeds

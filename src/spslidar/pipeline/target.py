@@ -92,8 +92,8 @@ from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
 
 __all__ = ["MAX_SPREAD_BINS", "MIN_SPREAD_BINS", "PLANE_REG", "SCAN_PATTERNS", "TARGETS",
-           "Z_HINT", "Z_PLANE", "Z_TILT", "measure_geometry", "plane_offsets", "plane_ranges",
-           "range_free_response", "tilt_of_target", "wall_offsets"]
+           "Z_HINT", "Z_PLANE", "Z_TILT", "Z_TILT_LOOK", "measure_geometry", "plane_offsets",
+           "plane_ranges", "range_free_response", "tilt_of_target", "wall_offsets"]
 
 #: what ``--target`` takes: ``auto`` keeps the plane where the data ask for one
 TARGETS = ("auto", "plane", "range")
