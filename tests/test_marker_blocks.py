@@ -276,41 +276,25 @@ def test_an_empty_short_block_is_left_out_of_the_solve(tmp_path):
     assert any("left out of the solve" in w and "(first: 0)" in w for w in metrics["warnings"])
 
 
-def test_a_recording_started_early_at_a_one_period_dwell_keeps_its_edge(tmp_path):
-    """Start markers read with the default edge, the recording begun two periods before the
-    first pattern (photons at a pattern's rate): the tolerance for the marker's own sync
-    told this correct file to pass --marker-edge end, which would misread every pattern (a
-    review). The span outside is two periods, not one short of one."""
-    rng = np.random.default_rng(6)
-    lead, per = 2, 60
-    ev = [(int(s), 1, 5, 0) for s in np.sort(rng.integers(0, lead, 2 * per))]
-    for k in range(M):
-        s0 = lead + k
-        ev += [(s0, 1, k + 3, 0)] * per + [(s0, 0, 0, 1)]
-    ev.sort()
-    a = np.array(ev)
-    f = _write(tmp_path / "early.ptu", a[:, 0], a[:, 2], a[:, 3])
-    data, notes = read_blocks(f, M, L, bin_width=RES)
-    assert _peaks(data) == list(range(M))
-    assert not any("--marker-edge" in n for n in notes), notes
-
-
-def test_a_recording_started_more_than_a_dwell_early_keeps_its_edge(tmp_path):
-    """Start markers, a dwell of 10 periods, photons at a pattern's rate from 11 periods
-    before the first marker and the last pattern cut to one period: a span over the dwell
-    passed the wrong-edge test's upper bound (a second review); the marker's own sync only
-    ever makes the span short, so this file is read as given without a word."""
-    rng = np.random.default_rng(7)
-    dwell, lead, per = 10, 11, 200
+@pytest.mark.parametrize("dwell, lead, last, per, seed", [(1, 2, 1, 60, 6), (10, 11, 1, 200, 7)])
+def test_a_recording_started_early_keeps_its_edge_at_short_and_long_dwells(tmp_path, dwell, lead,
+                                                                          last, per, seed):
+    """Start markers read with the default edge, photons at a pattern's rate from ``lead``
+    periods before the first marker, the last pattern cut to ``last`` periods: a dwell of 1
+    begun two periods early (the tolerance for the marker's own sync, a review) and a dwell
+    of 10 begun 11 early (a span over the dwell passed the upper bound, a second review) were
+    told to pass --marker-edge end, which would misread every pattern. The marker's own sync
+    only ever makes the span short, so these files are read as given without a word."""
+    rng = np.random.default_rng(seed)
     ev = [(int(s), 1, 5, 0) for s in np.sort(rng.integers(0, lead, per * lead // dwell))]
     for k in range(M):
         s0 = lead + dwell * k
-        n = dwell if k < M - 1 else 1
+        n = dwell if k < M - 1 else last
         ev += [(int(s), 1, k + 3, 0) for s in np.sort(rng.integers(s0, s0 + n, per * n // dwell))]
         ev.append((s0, 0, 0, 1))
     ev.sort()
     a = np.array(ev)
-    f = _write(tmp_path / "early10.ptu", a[:, 0], a[:, 2], a[:, 3])
+    f = _write(tmp_path / "early.ptu", a[:, 0], a[:, 2], a[:, 3])
     data, notes = read_blocks(f, M, L, bin_width=RES)
     assert _peaks(data) == list(range(M))
     assert not any("--marker-edge" in n for n in notes), notes
