@@ -228,7 +228,9 @@ def test_the_pricing_probe_takes_a_pattern_of_median_light():
                      [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 1.0, 1.0]])
     seen = []
 
-    class Model:
+    from spslidar.detectors.base import DetectorModel
+
+    class Model(DetectorModel):
         def detect(self, lam, rng, n, out=None):
             seen.append(float(lam.sum()))
             return lam, lam.sum(axis=1)

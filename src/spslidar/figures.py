@@ -118,8 +118,11 @@ def _pixels(n: int) -> str:
     return f"{n} pixel{'' if n == 1 else 's'}"
 
 
-def _legend_items(result, outside: np.ndarray,
-                  beyond: np.ndarray | None = None) -> list[tuple[tuple[int, int, int], str]]:
+def _legend_items(result, outside: np.ndarray, beyond: np.ndarray | None = None,
+                  outside2: np.ndarray | None = None
+                  ) -> list[tuple[tuple[int, int, int], str]]:
+    """The legend's swatches and texts; ``outside2``: :func:`_outside2`, where the caller has
+    it (else computed here)."""
     no_truth, no_return, low = _classes(result)
     items = []
     if getattr(result, "has_truth", True):
@@ -132,14 +135,13 @@ def _legend_items(result, outside: np.ndarray,
     items += [(NO_RETURN, f"no return ({_percent(share)}{of})"),
               (LOW_CONFIDENCE, f"low-confidence depth ({_percent(low.mean())}, dot)")]
     depth2 = getattr(result, "depth2", None)
-    outside2 = None
     if depth2 is not None and np.isfinite(depth2).any():  # the second-surface panel's grey
         # (pixels without a return are black there too, not "one surface"; the share was
         # rounded to "100%" with one pixel of 1 024 holding two: an audit of 2026-11-29)
         one = ~np.isfinite(depth2) & ~no_return
         items.append((ONE_SURFACE, f"one surface (second-surface panel, {_percent(one.mean())})"))
-        lo, hi = _limits(result)[:2]
-        outside2 = _outside(result, lo, hi, depth2)
+        if outside2 is None:
+            outside2 = _outside2(result, *_limits(result)[:2])
     if outside.any():
         items.append((OUT_OF_RANGE, f"depth outside the colour range "
                                     f"({_pixels(int(outside.sum()))}, cross)"))
@@ -348,7 +350,7 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
                     draw.line((cx - h, cy - h, cx + h, cy + h), fill=colour, width=2)
                     draw.line((cx - h, cy + h, cx + h, cy - h), fill=colour, width=2)
     x, y = 10, y0 + _PANEL + 50
-    for colour, text in _legend_items(result, outside, beyond):
+    for colour, text in _legend_items(result, outside, beyond, outside2):
         draw.rectangle((x, y, x + 14, y + 12), fill=colour, outline=(80, 80, 80))
         draw.text((x + 20, y + 1), text, fill=(0, 0, 0))
         x += 28 + 7 * len(text)
@@ -402,7 +404,7 @@ def _depth_figure_mpl(result, path: str | Path) -> Path:
         ax.set_xticks([])
         ax.set_yticks([])
     fig.legend(handles=[Patch(facecolor=np.asarray(c) / 255, edgecolor="0.3", label=t)
-                        for c, t in _legend_items(result, outside, beyond)],
+                        for c, t in _legend_items(result, outside, beyond, outside2)],
                loc="outside lower center", ncol=4, frameon=False)
     fig.suptitle(_title(result))
     path = Path(path)

@@ -57,6 +57,11 @@ class DetectorModel:
         """Mean detected counts per bin (the noiseless limit of :meth:`detect`)."""
         raise NotImplementedError  # pragma: no cover - abstract
 
+    def check_flux(self, lam: np.ndarray, n_periods: int = 1) -> None:
+        """Refuse (one line, :class:`~spslidar.errors.ConfigError`) means ``lam`` whose flux
+        the model cannot work at, before any work on them; nothing for a model without such
+        a limit. :meth:`detect` makes the same check."""
+
     def correct(self, counts: np.ndarray, n_periods: int = 1,
                 expected: bool = False) -> np.ndarray:
         """Histograms as the matched filter should see them (pile-up corrected); the identity

@@ -235,6 +235,11 @@ class GMAPD(DetectorModel):
         return np.array([auto_oversample(float(m)) for m in mu.max(axis=1, initial=0.0)],
                         dtype=np.int64)
 
+    def check_flux(self, lam: np.ndarray, n_periods: int = 1) -> None:
+        """:meth:`_check_flux` of the means ``lam`` (the detector base's hook)."""
+        self._check_flux(self.flux(np.atleast_2d(np.asarray(lam, dtype=np.float64)),
+                                   n_periods))
+
     def _check_flux(self, mu: np.ndarray) -> None:
         """Refuse a flux that saturates the detector beyond use (:data:`SATURATED_FLUX_PER_BIN`
         and :data:`SATURATED_PER_DEAD_TIME`), in one line that says by how much to lower it."""

@@ -148,11 +148,11 @@ def _edge_note(data, marker: int, edge: str) -> str | None:
     # a marker at the other edge leaves exactly one pattern's span outside and a block of a
     # period or two at the other end (a recording started early with start markers, and a
     # last pattern cut short, was told to pass --marker-edge end: a review). The marker's own
-    # sync holds photons on both sides of it, so the span counted in whole syncs is a period
-    # short either way (a one-period dwell read 0 against 1 and a wrong --marker-edge end
-    # went unsaid, every pattern given its neighbour's photons: an audit of 2026-11-29)
-    # (one-sided: the marker's sync only ever makes the span short, and recordings started
-    # a period or two more than a dwell early were told to change the edge, two reviews)
+    # sync holds photons on both sides of it, so the span counted in whole syncs can be a
+    # period short, never long: the test allows a dwell less one period to a dwell (a
+    # one-period dwell read 0 against 1 and a wrong --marker-edge end went unsaid, an audit
+    # of 2026-11-29; a symmetric allowance told recordings begun early to change the edge,
+    # two reviews)
     if not (outside >= SHORT_BLOCK * typ_c
             and typ_d - max(EDGE_SPAN * typ_d, 1.0) <= span <= typ_d
             and other <= EDGE_BLOCK_PERIODS):

@@ -277,7 +277,8 @@ def tilt_of_target(g: np.ndarray, patterns: np.ndarray, shape: tuple[int, int]
     lo, hi = max(0, lo - 2), min(total.size - 1, hi + 2)
     win = g[:, lo:hi + 1]
     mass = win.sum(axis=1)
-    lit = np.asarray(patterns, dtype=np.float64).sum(axis=1)
+    pats = np.asarray(patterns, dtype=np.float64)
+    lit = pats.sum(axis=1)
     ok = mass > 0.05 * np.median(mass[mass > 0]) if np.any(mass > 0) else mass > 0
     ok &= lit > 0  # (a dark frame's light-weighted means are 0/0: calibrate crashed in
     # LAPACK where its noise passed the mass test, a review of 2026-11-29)
@@ -289,9 +290,8 @@ def tilt_of_target(g: np.ndarray, patterns: np.ndarray, shape: tuple[int, int]
     # (x^2, y^2 and xy apart, as a tilt's square adds them, fitted the noise: a 5 degree
     # tilt's delay 0.35 ns off and its IRF 3.6 bins wide against 0.08 ns and 2.1 bins)
     terms = np.stack([x, y, x * x + y * y], axis=1)  # (Q, 3)
-    light = np.asarray(patterns, dtype=np.float64)[ok]
     design = np.column_stack([np.ones(int(ok.sum())),
-                              (light @ terms) / light.sum(axis=1, keepdims=True)])
+                              (pats[ok] @ terms) / lit[ok, None]])
     if not np.all(np.isfinite(design)) or not np.all(np.isfinite(mu)):
         return None
     try:
@@ -307,16 +307,23 @@ def tilt_of_target(g: np.ndarray, patterns: np.ndarray, shape: tuple[int, int]
             "tilt_z": [float(z[1]), float(z[2])], "curvature_bins": float(coef[3])}
 
 
-def _fit(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int) -> float:
+def _explained(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int) -> float:
     """How much of the responses' power (their FFT ``gf`` on a window of ``size`` bins) one
-    shared IRF explains through the kernels of per-pixel round trips ``offsets``: the scan's
-    least-squares fit, ``sum_f |sum_m conj(K_m) G_m|^2 / sum_m |K_m|^2``."""
-    group, values, _ = _grouped(light, offsets, slice(None))
-    kf = np.fft.rfft(_kernels(group, values, size), axis=1)
+    shared IRF explains through the kernels of the light on groups of pixels (``light``,
+    :func:`_grouped`) at round trips ``offsets``: the scans' least-squares fit,
+    ``sum_f |sum_m conj(K_m) G_m|^2 / sum_m |K_m|^2``."""
+    kf = np.fft.rfft(_kernels(light, offsets, size), axis=1)
     num = np.sum(np.conj(kf) * gf, axis=0)
     den = np.sum(np.abs(kf) ** 2, axis=0)
     return float(np.sum(np.divide(np.abs(num) ** 2, den, out=np.zeros_like(den),
                                   where=den > 0)))
+
+
+def _fit(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int) -> float:
+    """:func:`_explained` of per-pixel round trips ``offsets`` and the patterns ``light``
+    (M, Q), the pixels grouped by their round trip."""
+    group, values, _ = _grouped(light, offsets, slice(None))
+    return _explained(gf, group, values, size)
 
 
 def _tilt_scan(gf: np.ndarray, size: int, light: np.ndarray, shape: tuple[int, int],
@@ -417,8 +424,7 @@ def _maybe_tilted(tilt: dict[str, Any]) -> None:
                   stacklevel=4)
 
 
-def _tilt_geometry(tilt: dict[str, Any], found: dict[str, Any],
-                   fov_deg: float | None) -> dict[str, Any]:
+def _tilt_geometry(found: dict[str, Any], fov_deg: float | None) -> dict[str, Any]:
     """The geometry of a tilted target (:func:`_tilt_scan`'s best round trips, with
     ``fov_deg`` given on the facing wall's through it)."""
     ca, cb = found["direction"]
@@ -503,7 +509,7 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
             given = total - _fit(gf, light_all, offsets, size)
             found = _tilt_scan(gf, size, light_all, shape, tilt, offsets, given, limit)
             if found is not None:
-                return _tilt_geometry(tilt, found, fov_deg)
+                return _tilt_geometry(found, fov_deg)
             _maybe_tilted(tilt)
         return {"model": "plane", "fov_deg": float(fov_deg), "spread_bins": round(spread, 4),
                 "z": None, "offsets": offsets,
@@ -513,7 +519,7 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     col = 2 * np.arange(shape[1]) + 1 - shape[1]
     row = 2 * np.arange(shape[0]) + 1 - shape[0]
     ring = (row[:, None] ** 2 + col[None, :] ** 2).ravel().astype(np.float64)
-    light, keys, first = _grouped(patterns, ring, pick)
+    light, keys, first = _grouped(light_all, ring, slice(None))
     spreads, residuals = [], []
     for spread in np.arange(0.0, limit + SPREAD_STEP / 2, SPREAD_STEP):
         fov = _fov_of_spread(spread, tau_d, n)
@@ -523,12 +529,8 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
             break
         off = (plane_offsets(shape, distance, fov, bin_width)[first] if fov > 0
                else np.zeros(keys.size))
-        kf = np.fft.rfft(_kernels(light, off, size), axis=1)
-        num = np.sum(np.conj(kf) * gf, axis=0)
-        den = np.sum(np.abs(kf) ** 2, axis=0)
-        fit = np.divide(np.abs(num) ** 2, den, out=np.zeros_like(den), where=den > 0)
         spreads.append(float(spread))
-        residuals.append(total - float(fit.sum()))
+        residuals.append(total - _explained(gf, light, off, size))
     res = np.asarray(residuals)
     j = int(np.argmin(res))
     n_f = gf.shape[1]
@@ -541,7 +543,7 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
         found = _tilt_scan(gf, size, light_all, shape, tilt, np.zeros(n * n), float(res[j]),
                            limit, free_curvature=True)
         if found is not None:
-            return _tilt_geometry(tilt, found, None)
+            return _tilt_geometry(found, None)
         _maybe_tilted(tilt)
     out = {"model": "range", "fov_deg": round(fov, 4), "spread_bins": float(spreads[j]),
            "z": round(z, 3), "offsets": None}
