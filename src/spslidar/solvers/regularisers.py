@@ -216,7 +216,8 @@ class TV(Regulariser):
         Maximum number of FGP iterations per prox call.
     inner_tol : float
         FGP stops when ``||p_k - p_{k-1}|| <= inner_tol * ||p_k||`` for the dual iterate ``p``
-        (norms over the whole block).
+        (norms over the whole block: the columns stop together, so a column's prox depends a
+        little on the others' when the test fires before ``max_inner``).
     warm_start : bool
         Start each prox from the dual variable of the previous call when the shapes match.
     threads : int or None
