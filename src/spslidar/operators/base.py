@@ -307,9 +307,9 @@ def power_norm(
     from it stay safe once it has converged. Power iteration approaches the largest singular
     value from below, at the rate of the ratio of the two largest: where they are close and
     ``n_iter`` or ``rtol`` stops it early, the result can still be an under-estimate (0.90 x
-    on a contrived spectrum of an audit). The operators of the pipeline have one singular
-    value well above the rest (the patterns' mean direction), where it converges in a few
-    iterations.
+    on a contrived spectrum of an audit). On the pipeline's operators (32 x 32 Gaussian
+    patterns at 25 %, with QCR or the mean eliminated, whose two largest singular values are
+    0.993 apart; Hadamard patterns) it returned 1.0055-1.01 x the norm from a dense SVD.
     """
     rng = np.random.default_rng(rng)
     x = rng.standard_normal(op.shape[1])
