@@ -414,3 +414,31 @@ def test_stop_rule_refuses_nan_and_negative_times(bad):
     """NaN disabled a test silently; a negative max_time stopped after one iteration."""
     with pytest.raises(ValueError):
         StopRule(**bad)
+
+
+@pytest.mark.parametrize("name, reg", [("fista", "tv"), ("twist", "tv"), ("tval3", "tv"),
+                                       ("fista", "l1"), ("twist", "l1"), ("gpsr", "l1")])
+def test_zero_operator_gives_zero_in_every_solver(name, reg):
+    """A zero operator leaves only ``lam R(x)``, whose minimiser from zero is zero: every
+    solver returns it (FISTA and TwIST refused it with a Lipschitz-constant error where TVAL3
+    and GPSR returned zeros; an audit). Data and weight are arbitrary (seeded)."""
+    from spslidar.solvers.base import get_solver
+    from spslidar.solvers.regularisers import make_l1, make_tv
+
+    rng = np.random.default_rng(7)
+    y = rng.standard_normal((20, 2))
+    make = make_tv if reg == "tv" else make_l1
+    x, info = get_solver(name)(stop=StopRule(20)).solve(
+        MatrixOperator(np.zeros((20, 16))), y, make((4, 4)), 0.3)
+    assert x.shape == (16, 2)
+    assert np.array_equal(x, np.zeros_like(x))
+    assert info.stop_reason != "diverged"
+
+
+def test_fista_zero_operator_refuses_a_given_zero_lipschitz_constant():
+    """``L=0`` given by the caller is still refused: only the computed constant of a zero
+    operator is replaced."""
+    from spslidar.solvers.regularisers import make_l1
+
+    with pytest.raises(ValueError, match="Lipschitz constant must be positive"):
+        FISTA(L=0.0).solve(MatrixOperator(np.zeros((4, 4))), np.ones(4), make_l1((2, 2)), 0.1)

@@ -37,8 +37,14 @@ def _start(A, y, x0, dtype):
 
 
 def _lipschitz(A, L: float | None) -> float:
+    """``L`` as given, else ``power_norm(A) ** 2``; 1 for a zero operator, whose data term has
+    no gradient, so that any step is exact and the iteration is the prox's own fixed-point
+    iteration (zero from zero), as TVAL3 and GPSR solve it (FISTA and TwIST refused it
+    where those returned zeros: an audit)."""
     if L is None:
         L = power_norm(A) ** 2
+        if L == 0.0:
+            return 1.0
     L = float(L)
     if not np.isfinite(L) or L <= 0:
         raise ValueError(f"Lipschitz constant must be positive and finite, got {L}")
@@ -53,8 +59,8 @@ class FISTA(Solver):
     stop : StopRule, optional
     L : float, optional
         Lipschitz constant of the data-term gradient, ``||A||_2^2``; default
-        ``power_norm(A) ** 2`` computed at every solve (nothing is cached between solves).
-        The step is ``1 / L``.
+        ``power_norm(A) ** 2`` computed at every solve (nothing is cached between solves;
+        1 for a zero operator, whose data term has no gradient). The step is ``1 / L``.
     restart : bool
         O'Donoghue & Candes (2015) gradient restart: a column's momentum is reset when
         ``<y_k - z_k, z_k - x_{k-1}> > 0``. Default False.
