@@ -97,7 +97,13 @@ class FISTA(Solver):
     the extrapolated point ``y_k``). Plain FISTA is *not* monotone: its history can go up
     (ripples), restart reduces but does not remove this. ``monotone=True`` gives a
     non-increasing history by construction (with an inexact prox such as TV's, steps that the
-    prox error makes worse are simply rejected). For MFISTA the
+    prox error makes worse are simply rejected). With a very inexact prox the plain iteration
+    can climb far from its best: the TV of :func:`~spslidar.solvers.regularisers.make_tv`
+    (3 inner iterations, the pipeline's) on a random 64 x 256 problem at a weight of half
+    ``max|A^T y|`` reached 33.9 at iteration 15 and 111 at 1000, against an optimum
+    of 28.37 that ``monotone=True`` (28.37) and :class:`TV`'s default of 20 inner iterations
+    (28.41) reach. The pipeline's solves were not seen to (the camera at 1000 iterations:
+    depth RMSE 0.0050 m, 0.0049 m at 60). For MFISTA the
     iterate-change test of ``StopRule.rtol`` compares ``z_k`` with ``x_{k-1}`` (``x_k`` may
     legitimately stay put for one iteration).
 
