@@ -194,6 +194,26 @@ def test_gpsr_history_non_increasing_and_ends_at_returned_objective(monotone):
     assert f_x == pytest.approx(h[-1], rel=1e-9)
 
 
+@pytest.mark.parametrize("monotone", [True, False])
+def test_gpsr_continuation_cut_short_returns_its_best_and_says_so(monotone):
+    """A stop in an intermediate continuation stage (120 iterations for 5 stages of up to
+    200) returns the iterate with the lowest F at ``lam`` seen, whose F the history ends on;
+    the history never rises; ``continuation_stages_done`` says the last stage was not reached
+    (the nonmonotone history rose 51 times and its result was a stage-2 iterate's: an audit)."""
+    rng = np.random.default_rng(3)
+    a, y, lam = rng.standard_normal((30, 64)), rng.standard_normal((30, 4)), 0.3
+    x, info = gpsr(MatrixOperator(a), y, L1(), lam, stop=StopRule(120, rtol=0),
+                   continuation=True, monotone=monotone)
+    h = np.asarray(info.objective)
+    assert np.all(np.diff(h) <= 1e-12 * h[0])
+    assert _l1_obj(a, y, x, lam) == pytest.approx(h[-1], rel=1e-9)
+    assert info.extra["continuation_stages_done"] < info.extra["continuation_stages"] == 5
+    # run on, the same solve reaches every stage
+    _, info = gpsr(MatrixOperator(a), y, L1(), lam, stop=StopRule(2000, rtol=0),
+                   continuation=True, monotone=monotone)
+    assert info.extra["continuation_stages_done"] == 5
+
+
 def test_gpsr_batched_equals_separate():
     rng = np.random.default_rng(6)
     a, _ = _sparse_problem(seed=6)
