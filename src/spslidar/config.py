@@ -148,11 +148,14 @@ class Config:
     #: ``spslidar.solvers.REGULARISERS``
     regulariser: str = "auto"
     #: regularisation weight (default: ``lam_scale`` x the noise level estimated from the
-    #: measurements)
+    #: measurements, but at least ``LAM_FLOOR`` x ``||A^H y||_inf``; a ``noiseless`` run has no
+    #: noise level and always takes the floor: see
+    #: :func:`spslidar.pipeline.weights.default_weight`)
     lam: float | None = None
     #: multiple of the estimated noise level used as the weight (default: the solver's)
     lam_scale: float | None = None
-    #: maximum solver iterations (default: the solver's)
+    #: maximum solver iterations (default: the solver's, ``FLOORED_ITERATIONS`` (5) times as
+    #: many where the floor set the weight, ``metrics['lam_floored']``)
     iterations: int | None = None
     #: relative-change stopping tolerance of the solver
     tol: float = 1e-4

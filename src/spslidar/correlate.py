@@ -225,8 +225,14 @@ def correlation_noise_sigma(hist: np.ndarray, replica: np.ndarray, gain: float =
 
     For Poisson counts ``Var C_i(tau) = sum_t lambda_i(t) f(t - tau)^2 / G^2``; replacing the
     mean by the observed counts gives an unbiased estimate from the measurements alone (for the
-    bipolar replica ``f^2 = 1`` and it is the pattern's total count). The tau dependence is
-    negligible, so one value per pattern is returned.
+    bipolar replica ``f^2 = 1`` and it is the pattern's total count). One value per pattern
+    is returned: the variance averaged over ``tau``. For the bipolar replica (m-sequences)
+    it does not depend on ``tau`` at all; for a replica whose ``f^2`` varies (the unipolar
+    replica of the conventional lidar, the zero-mean replica of random codes) the variance
+    at a strong return's lag is larger than the average (measured with one return of 200
+    photons per '1' bit over a background of 0.5 per bin: 14.3 against 1.6 for a single
+    pulse, 3.2 against 0.94 for a random code), and by about 8 % in the camera scene, whose
+    returns spread over many lags.
     """
     return noise_sigma_from_totals(np.asarray(hist).sum(axis=1, dtype=np.float64), replica,
                                    gain)

@@ -251,6 +251,11 @@ def reconstruct(meas: Measurement, **processing) -> Result:
 
     Notes
     -----
+    The weight is ``lam`` where given, else ``lam_scale`` times the noise level with a floor
+    (:func:`~spslidar.pipeline.weights.default_weight`); where the floor sets it (always
+    for a ``noiseless`` measurement) and ``iterations`` is unset, the solve runs
+    ``FLOORED_ITERATIONS`` (5) times the solver's iterations (``metrics['lam_floored']``).
+
     A measurement made on another array backend is reconstructed here too: the QCR problem,
     the solve and the argmax run on its device where they have device kernels
     (:func:`spslidar.backends.device.reconstructs_on_device`), and every other stage choice
