@@ -76,7 +76,10 @@ class PtuAcquisition:
         Header summary, as returned by :func:`ptu_info`.
     periods_per_pattern : numpy.ndarray
         ``(M,)`` int64 dwell of each pattern in code periods: from its marker to the next
-        block's marker (for the file's last block, to ``last_sync + 1``).
+        block's marker (for the file's last block, to ``last_sync + 1``: a file records
+        nothing of the periods after its last event, so without an end-of-acquisition marker
+        the last pattern's dwell reads short by about one gap between its photons, a
+        relative error of one over its photon count, below its Poisson noise).
     warnings : list of str
         What the caller should know but that is no error (a trailing block without photons
         and of at most one code period, see :func:`read_ptu_histograms`).
