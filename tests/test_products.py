@@ -165,3 +165,26 @@ def test_run_writes_reflectivity_and_points(tmp_path):
                                rtol=1e-6, atol=1e-7)
     _, _, extra = read_ply(out / "points.ply", fields=True)  # mrf: first surfaces only
     assert (extra["return_number"] == 1).all()
+
+
+def test_result_save_leaves_the_result_as_it_was(tmp_path):
+    """``Result.save`` writes the point cloud's summary and the writing's time into
+    metrics.json, not into the caller's result (it added both: an audit); saving twice
+    writes the same metrics but for that time."""
+    import copy
+    import json
+
+    import spslidar
+
+    r = spslidar.run(size=16, code_length=255, seed=0)
+    before_m, before_t = copy.deepcopy(r.metrics), dict(r.timing)
+    r.save(tmp_path / "a", figure=False)
+    assert r.metrics == before_m and r.timing == before_t
+    written = json.loads((tmp_path / "a" / "metrics.json").read_text())
+    assert written["point_cloud"]["n_points"] > 0
+    assert set(written["timing_s"]) == set(before_t) | {"write"}
+    r.save(tmp_path / "b", figure=False)
+    again = json.loads((tmp_path / "b" / "metrics.json").read_text())
+    for m in (written, again):
+        m["timing_s"].pop("write")
+    assert again == written

@@ -133,6 +133,8 @@ class Result:
         surface and, where the scene has a ground truth, ``truth.npy`` and ``valid.npy`` into
         ``out_dir``, all or nothing (see :mod:`spslidar.outdir`).
         ``fov_deg`` is the field of view of the point cloud (default 10 degrees).
+        ``metrics.json`` is ``metrics`` with the point cloud's summary (``point_cloud``) and
+        the time of the writing (``timing_s['write']``) added; the result is not changed.
 
         ``out_dir`` must not exist, be empty, or (with ``overwrite=True``) hold a previous
         spslidar result; anything else is refused before a file is written, so a user's
@@ -168,18 +170,20 @@ class Result:
             points, intensity, fields = self.cloud(fov)
             write_ply(tmp / "points.ply", points, intensity, **fields)
             second = int(np.sum(fields["return_number"] == 2))
-            self.metrics["point_cloud"] = {"file": "points.ply", "fov_deg": fov,
-                                           "n_points": int(points.shape[0]),
-                                           "n_second_surface": second,
-                                           "fields": ["x", "y", "z", "intensity", *fields]}
+            # what the folder adds to the metrics goes into the file, not into the result
+            # (save() added both to the caller's result: an audit)
+            metrics = dict(self.metrics)
+            metrics["point_cloud"] = {"file": "points.ply", "fov_deg": fov,
+                                      "n_points": int(points.shape[0]),
+                                      "n_second_surface": second,
+                                      "fields": ["x", "y", "z", "intensity", *fields]}
             if figure:
                 from ..figures import depth_figure
 
                 depth_figure(self, tmp / "depth.png")
-            self.timing["write"] = time.perf_counter() - t0
-            self.metrics["timing_s"] = dict(self.timing)
+            metrics["timing_s"] = {**self.timing, "write": time.perf_counter() - t0}
             with open(tmp / "metrics.json", "w") as fh:
-                json.dump(_jsonable(self.metrics), fh, indent=2, allow_nan=False)
+                json.dump(_jsonable(metrics), fh, indent=2, allow_nan=False)
 
         return write_result_dir(out_dir, fill, overwrite=overwrite, option=option,
                                 replace=replace)
