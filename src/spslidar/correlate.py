@@ -182,6 +182,8 @@ def matched_filter(
         Divide the output by this (see :func:`correlation_gain`).
     bank : ndarray, optional
         A precomputed :func:`replica_matrix` for these lags.
+    out_dtype : dtype
+        Of the output (default float32; float64 computes in float64 too, see Notes).
 
     Returns
     -------

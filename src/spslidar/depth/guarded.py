@@ -64,6 +64,8 @@ def second_surface(z: np.ndarray, label: np.ndarray, tau: float | None = None, g
         The second return lies more than this many slices from the first.
     ratio : float
         ... and holds at least this share of its evidence.
+    quantile : float
+        The quantile of the noise maxima that sets ``tau`` when it is None (default 0.99).
 
     Returns
     -------

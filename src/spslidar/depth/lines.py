@@ -274,6 +274,10 @@ def thin_structures(a: np.ndarray, label: np.ndarray, strength: np.ndarray, nu: 
     gap, floor, elongation, residual, passes
         The tests of the module docstring; ``passes`` holds, per joining pass, the step in
         slices, the reach in pixels, the minimum number of pixels and the evidence total.
+    robust : float or None
+        A group whose depths are not all on a line keeps the members within ``residual``
+        slices of its Theil-Sen line where at least this share of them are (default
+        ``ROBUST``, 0.9); None: such a group is dropped whole.
 
     Returns
     -------
@@ -313,7 +317,7 @@ def extend_lines(a: np.ndarray, label: np.ndarray, strength: np.ndarray,
 
     Parameters
     ----------
-    a, label, strength, nu, shape, gap, floor, elongation, residual, passes
+    a, label, strength, nu, shape, gap, floor, elongation, residual, robust, passes
         As :func:`thin_structures` (``label`` the labelling to continue: the MRF's with the
         thin structures already kept).
     label_strength : ndarray, shape (Q,)

@@ -17,8 +17,10 @@ __all__ = ["LinearDetector"]
 class LinearDetector(PhotonCountingDetector, DetectorModel):
     """Counts ~ Poisson(efficiency * lambda) per bin (the paper's model, eq. 4).
 
-    The fused fast path of the simulation: the counts overwrite their means in place and each
-    row's exact total comes with them (:func:`spslidar.detectors.counting.poisson_rows`).
+    The fused fast path of the simulation: with ``out`` the means' own array
+    (``detect(lam, rng, out=lam)``, as the simulation calls it) the counts overwrite them in
+    place, and each row's exact total comes with them
+    (:func:`spslidar.detectors.counting.poisson_rows`).
     ``dead_time`` only feeds :meth:`report`'s pile-up flag.
     """
 

@@ -203,7 +203,9 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
     Returns
     -------
     h : ndarray, same shape as ``mu``
-        Mean detections per bin per period (``<= 1``): the expected histogram of one period.
+        Mean detections per bin per period: the expected histogram of one period (``<= 1``
+        with a dead time, one detection per bin at most; without one, ``mu`` itself, with
+        the afterpulse cascade, and not bounded).
 
     Notes
     -----

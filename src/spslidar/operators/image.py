@@ -42,6 +42,9 @@ class Gradient2D(LinearOperator):
     Parameters
     ----------
     shape : (Ny, Nx)
+    dtype : dtype
+        The operator's dtype (default float64); products keep the precision of their input
+        (``result_type(x.dtype, dtype)``).
     """
 
     def __init__(self, shape: tuple[int, int], dtype=np.float64):
@@ -82,7 +85,9 @@ class Wavelet2D(LinearOperator):
     wavelet : str
         Any orthogonal PyWavelets family (``'haar'``, ``'db2'``, ``'db4'``, ``'sym4'``...).
     level : int, optional
-        Decomposition depth; default: as deep as the image sides allow (at most 4).
+        Decomposition depth; default: as deep as the image sides allow periodized levels (at
+        most 4), but no deeper than PyWavelets' ``dwtn_max_level`` for the filter's length
+        (a 16 x 16 image: 4 levels of ``haar``, 2 of ``db2``, 1 of ``db8``).
 
     Notes
     -----

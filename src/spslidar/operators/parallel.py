@@ -179,7 +179,8 @@ def parallel(threads: int | None = None):
     Parameters
     ----------
     threads : int, optional
-        Default: the CPUs available (at most :data:`MAX_THREADS`). With one thread, BLAS is
+        Default: the CPUs available. At most :data:`MAX_THREADS` (4) in any case: a larger
+        number given runs that many. With one thread, BLAS is
         held to one thread and nothing else changes (the same numbers as on several); without
         ``threadpoolctl`` (which is needed to hold BLAS to one thread), nothing changes.
 

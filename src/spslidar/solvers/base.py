@@ -246,8 +246,9 @@ class Solver:
         Threads for large problems (``A.shape[0] * A.shape[1] * K >=``
         :attr:`PARALLEL_MIN_WORK`): the solve then runs inside
         :func:`spslidar.operators.parallel.parallel` (BLAS on one thread, dense products and
-        the TV prox split over our own threads). Default: the CPUs available, at most 4;
-        ``1`` leaves BLAS alone. The iterates do not depend on it.
+        the TV prox split over our own threads). Default: the CPUs available; at most 4 in
+        any case (``info.extra['threads']`` says how many ran); ``1`` leaves BLAS alone.
+        The iterates do not depend on it.
     **options
         Solver-specific options (documented on each subclass).
 

@@ -90,7 +90,8 @@ class Regulariser:
         Returns
         -------
         ndarray
-            Same shape and (floating) dtype as ``v``.
+            Same shape as ``v``; float32 or float64 as ``v`` (any other dtype, float16 or
+            integers, in float64).
         """
         if t < 0:
             raise ValueError("prox threshold t must be non-negative")
