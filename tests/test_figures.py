@@ -215,3 +215,118 @@ def _limits_of(r):
     from spslidar.figures import _limits
 
     return _limits(r)[:2]
+
+
+
+def _big(result, n=400):
+    """The 16 x 16 result blown up to ``n`` x ``n`` (each pixel a block) without a truth (a
+    measured map): its left half at 10 m, its right half at 11 m, and a one-pixel pole at
+    10.5 m in column 101."""
+    import dataclasses
+    import types
+
+    k = n // result.depth.shape[0]
+    def up(a):
+        return None if a is None else np.kron(np.asarray(a, dtype=np.float64), np.ones((k, k)))
+    depth = np.full((n, n), 10.0)
+    depth[:, n // 2:] = 11.0
+    depth[:, 101] = 10.5
+    scene = types.SimpleNamespace(valid=np.zeros((n, n), dtype=bool), name="big",
+                                  depth=depth, has_truth=False)
+    return dataclasses.replace(result, scene=scene, depth=depth,
+                               low_confidence=np.zeros((n, n), dtype=bool),
+                               reflectivity=up(result.reflectivity),
+                               confidence=np.ones((n, n)), depth2=None,
+                               metrics={**result.metrics, "depth_rmse_m": None,
+                                        "missing_fraction": 0.0, "coverage": 1.0})
+
+
+def test_a_panel_larger_than_the_figure_keeps_every_column(result, tmp_path):
+    """A 400 x 400 map is drawn a pixel per pixel, not resized to 320, which leaves out a
+    fifth of the columns (a one-pixel pole at 512 x 512 vanished: an audit)."""
+    from PIL import Image
+
+    from spslidar.figures import _side
+
+    big = _big(result)
+    assert _side(big.depth.shape) == 400
+    img = Image.open(depth_figure(big, tmp_path / "b.png")).convert("RGB")
+    y = 20 + 22 + 200  # the estimate is the first panel without a truth; its middle row
+    here, left, right = (img.getpixel((10 + c, y)) for c in (101, 99, 103))
+    assert here != left and left == right
+
+
+def test_the_title_and_the_legend_wrap_to_the_figure(result, tmp_path, monkeypatch):
+    """A title longer than the figure is written on as many lines as it needs, every word of
+    it, and the legend's items wrap to rows inside the figure (a long file name cut the noise
+    verdict off, and a fifth panel's legend its last item: an audit)."""
+    from PIL import Image, ImageDraw
+
+    import spslidar.figures as figs
+
+    long = " ".join(f"word{i}" for i in range(400)) + " MOSTLY NOISE"
+    monkeypatch.setattr(figs, "_title", lambda r: long)
+    items = [((0, 0, 0), f"a legend item of some length number {i}") for i in range(30)]
+    monkeypatch.setattr(figs, "_legend_items", lambda *a, **k: items)
+    img = Image.open(depth_figure(result, tmp_path / "t.png")).convert("RGB")
+    draw = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+    lines = figs._wrap(draw, long, img.width - 20)
+    assert len(lines) > 1 and " ".join(lines) == long
+    assert max(draw.textlength(x) for x in lines) <= img.width - 20
+    # the last legend row is inside the image: its swatch's black is drawn there
+    bottom = np.asarray(img)[-40:, :, :]
+    assert (bottom.sum(axis=2) == 0).any()
+
+
+def test_the_confidence_panel_draws_no_return_black(result, tmp_path):
+    """Without a truth the last panel is the confidence, where a pixel without a return is
+    black as the legend says, not the colour map's 0 (an audit)."""
+    from PIL import Image
+
+    big = _big(result, 320)
+    big.depth[7, 7] = np.nan
+    big.confidence[7, 7] = 0.0
+    img = Image.open(depth_figure(big, tmp_path / "c.png")).convert("RGB")
+    panel = 2  # estimate | reflectivity | confidence
+    x, y = 10 + panel * (320 + 70) + 7, 20 + 22 + 7
+    assert img.getpixel((x, y)) == NO_RETURN
+    assert img.getpixel((x + 3, y)) != NO_RETURN
+
+
+@pytest.mark.parametrize("lo, hi, labels", [
+    (9.985, 10.015, ("9.985", "10.015")),  # '9.99' and '10' read as a third of the span
+    (99.4, 100.6, ("99.4", "100.6")),
+    (2.13, 4.7, ("2.13", "4.7")),  # three digits resolve it: kept
+    (0.0, 3e-5, ("0", "3e-05")),
+])
+def test_colour_bar_labels_resolve_their_span(lo, hi, labels):
+    from spslidar.figures import _tick
+
+    assert (_tick(lo, lo, hi), _tick(hi, lo, hi)) == labels
+
+
+@pytest.mark.parametrize("share, text", [
+    (6 / 262144, "0.002%"), (1 - 1 / 262144, "99.9996%"), (1e-9, "0.0000001%"),
+    (0.0, "0%"), (1.0, "100%")])
+def test_percent_keeps_a_digit_of_what_is_there(share, text):
+    """6 pixels of 262 144 read '0.00%' beside their dots, one missing '100.00%' (an
+    audit)."""
+    from spslidar.metrics import percent
+
+    assert percent(share) == text
+
+
+def test_without_a_truth_the_depth_bar_takes_in_the_depths_beside_it(result):
+    """Without a truth the bar spans the 1st-99th percentile widened to the depths within a
+    quarter of the span: a ramp's correct end pixels are inside it (2 % of any map were
+    crossed), a return metres away is not."""
+    from spslidar.figures import _limits, _outside
+
+    big = _big(result, 320)
+    ramp = np.linspace(10.0, 10.8, 320)[None, :] * np.ones((320, 1))
+    big.depth[...] = ramp
+    lo, hi = _limits(big)[:2]
+    assert (lo, hi) == (10.0, 10.8) and not _outside(big, lo, hi).any()
+    big.depth[5, 5] = 14.0
+    lo, hi = _limits(big)[:2]
+    assert hi == 10.8 and _outside(big, lo, hi).sum() == 1

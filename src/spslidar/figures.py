@@ -59,28 +59,54 @@ def _colormap(values: np.ndarray, lo: float, hi: float, table, bad) -> np.ndarra
     return np.round(rgb).astype(np.uint8)
 
 
+def _side(shape: tuple[int, ...]) -> int:
+    """A panel's side in the figure: :data:`_PANEL`, or the image's own where it is larger,
+    so that no row or column is left out (a 512 x 512 map resized to 320 lost 192 of its
+    rows and columns, one-pixel poles with them: an audit)."""
+    return max(_PANEL, *(int(n) for n in shape))
+
+
 def _panel(draw_img, x0: int, y0: int, rgb: np.ndarray, title: str, lo: float, hi: float,
-           table, unit: str) -> None:
-    """Paste one colour-mapped panel with its title and a colour bar labelled lo .. hi."""
+           table, unit: str, side: int = _PANEL) -> None:
+    """Paste one colour-mapped panel, ``side`` pixels square, with its title and a colour
+    bar labelled lo .. hi."""
     from PIL import Image, ImageDraw
 
-    img = Image.fromarray(rgb).resize((_PANEL, _PANEL), Image.NEAREST)
+    img = Image.fromarray(rgb)
+    if img.size != (side, side):
+        img = img.resize((side, side), Image.NEAREST)
     draw_img.paste(img, (x0, y0 + 22))
     d = ImageDraw.Draw(draw_img)
     d.text((x0, y0 + 4), title, fill=(0, 0, 0))
-    bar = _colormap(np.linspace(hi, lo, _PANEL)[:, None] * np.ones((1, 12)), lo, hi, table, 0)
-    draw_img.paste(Image.fromarray(bar), (x0 + _PANEL + 6, y0 + 22))
-    d.text((x0 + _PANEL + 22, y0 + 22), _tick(hi, lo, hi), fill=(0, 0, 0))
-    d.text((x0 + _PANEL + 22, y0 + 22 + _PANEL // 2 - 6), unit, fill=(0, 0, 0))
-    d.text((x0 + _PANEL + 22, y0 + 10 + _PANEL), _tick(lo, lo, hi), fill=(0, 0, 0))
+    bar = _colormap(np.linspace(hi, lo, side)[:, None] * np.ones((1, 12)), lo, hi, table, 0)
+    draw_img.paste(Image.fromarray(bar), (x0 + side + 6, y0 + 22))
+    d.text((x0 + side + 22, y0 + 22), _tick(hi, lo, hi), fill=(0, 0, 0))
+    d.text((x0 + side + 22, y0 + 22 + side // 2 - 6), unit, fill=(0, 0, 0))
+    d.text((x0 + side + 22, y0 + 10 + side), _tick(lo, lo, hi), fill=(0, 0, 0))
+
+
+def _wrap(draw, text: str, width: float, sep: str = " ") -> list[str]:
+    """``text`` in lines no wider than ``width`` pixels as ``draw`` writes them, broken at
+    ``sep`` (a word longer than a line keeps its own line)."""
+    lines: list[str] = []
+    for word in text.split(sep):
+        if lines and draw.textlength(lines[-1] + sep + word) <= width:
+            lines[-1] += sep + word
+        else:
+            lines.append(word)
+    return lines
 
 
 def _tick(v: float, lo: float, hi: float) -> str:
-    """A colour bar's end label: three significant digits, or as many decimals as tell the
-    two ends apart (a flat wall at 25 m read '25 .. 25')."""
-    if f"{lo:.3g}" != f"{hi:.3g}" or not hi > lo:
-        return f"{v:.3g}"
-    return f"{v:.{max(0, int(np.ceil(-np.log10(hi - lo))) + 1)}f}"
+    """A colour bar's end label: three significant digits, or more decimals where those do
+    not resolve the span to a tenth of itself (a flat wall at 25 m read '25 .. 25', a bar
+    over 9.985-10.015 m '9.99 .. 10', a third of its span: an audit)."""
+    short = f"{v:.3g}"
+    if not hi > lo or "e" in short or v == 0:
+        return short
+    decimals = min(int(np.ceil(-np.log10(hi - lo))) + 1, 9)
+    have = len(short.partition(".")[2])
+    return short if have >= decimals else f"{v:.{decimals}f}"
 
 
 #: colours (RGB) of the pixels a depth map cannot show, one per reason, named in the legend
@@ -158,13 +184,21 @@ def _limits(result):
     """Colour range of the depth panels, the masked error map and its symmetric range.
 
     With a ground truth the depth range is the truth's (an estimate outside it is marked);
-    without one it is the estimate's 1st to 99th percentile."""
+    without one it is the estimate's 1st to 99th percentile, widened to the depths within a
+    quarter of that span beyond either end."""
     valid = _classes(result)[0] == 0
     truth = result.truth
     if valid.any():
         lo, hi = float(np.min(truth[valid])), float(np.max(truth[valid]))
     elif np.isfinite(result.depth).any():
-        lo, hi = (float(v) for v in np.nanpercentile(result.depth, [1, 99]))
+        d = np.asarray(result.depth, dtype=np.float64)
+        d = d[np.isfinite(d)]
+        lo, hi = (float(v) for v in np.percentile(d, [1, 99]))
+        # widened to the depths within a quarter of that span beyond it, so that only depths
+        # apart from the rest are crossed (a ramp's correct end pixels, 2 % of any map, were
+        # crossed as outside its range: an audit)
+        reach = 0.25 * (hi - lo)
+        lo, hi = float(d[d >= lo - reach].min()), float(d[d <= hi + reach].max())
     else:
         lo, hi = 0.0, 1.0
     bin_m = float(result.metrics.get("bin_depth_m", 0.0)) or 1e-3
@@ -325,21 +359,37 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
     outside, beyond = _outside(result, lo, hi), _beyond(err_masked, lim)
     outside2 = _outside2(result, lo, hi)
     panels = _panels(result)
-    width, height = len(panels) * (_PANEL + 70) + 20, _PANEL + 100
+    side = _side(no_return.shape)
+    width = len(panels) * (side + 70) + 20
+    # the title and the legend wrap to the figure's width (a long file name cut the noise
+    # verdict off the title, and a fifth panel's legend its last item: an audit)
+    measure = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+    title_lines = _wrap(measure, _title(result), width - 20)
+    legend = _legend_items(result, outside, beyond, outside2)
+    rows, x = 1, 10
+    for _, text in legend:
+        w = 28 + measure.textlength(text) + 8
+        if x > 10 and x + w > width:
+            rows, x = rows + 1, 10
+        x += w
+    y0 = 8 + 12 * len(title_lines)
+    height = y0 + side + 50 + 18 * rows + 12
     fig = Image.new("RGB", (width, height), (255, 255, 255))
     draw = ImageDraw.Draw(fig)
-    draw.text((10, 4), _title(result), fill=(0, 0, 0))
-    y0 = 20
-    cell = _PANEL / no_return.shape[0]
+    for k, line in enumerate(title_lines):
+        draw.text((10, 4 + 12 * k), line, fill=(0, 0, 0))
+    cell = side / no_return.shape[0]
     for i, (kind, title, values, vlo, vhi, table, unit) in enumerate(panels):
-        x0 = 10 + i * (_PANEL + 70)
+        x0 = 10 + i * (side + 70)
         bad = ONE_SURFACE if kind == "depth2" else NO_RETURN
         rgb = _colormap(values, vlo, vhi, table, bad)
         if kind in ("truth", "error"):
             rgb[no_truth] = NO_TRUTH
-        if kind == "depth2":
-            rgb[no_return] = NO_RETURN  # no return at all is not "one surface"
-        _panel(fig, x0, y0, rgb, title, vlo, vhi, table, unit)
+        if kind in ("depth2", "confidence"):
+            # no return at all is not "one surface", nor a confidence of 0 (it was drawn in
+            # the colour map's 0, where the legend says black: an audit)
+            rgb[no_return] = NO_RETURN
+        _panel(fig, x0, y0, rgb, title, vlo, vhi, table, unit, side)
         r, h = max(1.0, cell / 5), max(1.5, cell / 3)
         for mask, colour, marker in _marks(kind, low, outside, beyond, outside2):
             for yy, xx in zip(*np.nonzero(mask), strict=True):
@@ -349,11 +399,14 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
                 else:
                     draw.line((cx - h, cy - h, cx + h, cy + h), fill=colour, width=2)
                     draw.line((cx - h, cy + h, cx + h, cy - h), fill=colour, width=2)
-    x, y = 10, y0 + _PANEL + 50
-    for colour, text in _legend_items(result, outside, beyond, outside2):
+    x, y = 10, y0 + side + 50
+    for colour, text in legend:
+        w = 28 + draw.textlength(text) + 8
+        if x > 10 and x + w > width:
+            x, y = 10, y + 18
         draw.rectangle((x, y, x + 14, y + 12), fill=colour, outline=(80, 80, 80))
         draw.text((x + 20, y + 1), text, fill=(0, 0, 0))
-        x += 28 + 7 * len(text)
+        x += w
     path = Path(path)
     fig.save(path, format="PNG", compress_level=1)
     return path
@@ -391,7 +444,7 @@ def _depth_figure_mpl(result, path: str | Path) -> Path:
         if kind == "depth2":
             paint(ax, ~np.isfinite(np.asarray(values, dtype=np.float64)) & ~no_return,
                   ONE_SURFACE)
-        if kind in ("estimate", "error", "depth2"):
+        if kind in ("estimate", "error", "depth2", "confidence"):
             paint(ax, ~no_truth & no_return if kind == "error" else no_return, NO_RETURN)
         for mask, colour, marker in _marks(kind, low, outside, beyond, outside2):
             if mask.any():

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -165,6 +167,9 @@ def percent(share: float) -> str:
     """A share as a percentage that never rounds up to 100 % (or down to 0 %) while a pixel
     is missing (or present): 4095 of 4096 is '99.98%', not '100%'."""
     p = 100.0 * float(share)
-    if 99.5 <= p < 100.0 or 0.0 < p < 0.5:
-        return f"{p:.2f}%"
+    # as many decimals as keep the first digit of what is there (or missing): 6 of 262 144
+    # read '0.00%', and one missing '100.00%' (an audit)
+    for part in (p, 100.0 - p):
+        if 0.0 < part < 0.5:
+            return f"{p:.{max(2, int(math.ceil(-math.log10(part))))}f}%"
     return f"{p:.0f}%"
