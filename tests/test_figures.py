@@ -330,3 +330,11 @@ def test_without_a_truth_the_depth_bar_takes_in_the_depths_beside_it(result):
     big.depth[5, 5] = 14.0
     lo, hi = _limits(big)[:2]
     assert hi == 10.8 and _outside(big, lo, hi).sum() == 1
+
+
+def test_a_noiseless_run_says_so_in_its_title():
+    """A noiseless run's title read 'm_n=10' as a noisy run's does (an audit)."""
+    from spslidar.figures import _title
+
+    r = pipeline.run(size=16, code_length=255, noiseless=True, seed=0)
+    assert "noiseless" in _title(r) and "m_n=" not in _title(r)

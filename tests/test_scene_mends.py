@@ -197,3 +197,20 @@ def test_a_sweep_takes_one_scene_spelled_two_ways_as_one():
                                                             "size": 8}],
                    [{}, {}], frozenset(), 0)
     assert a == b and point_key(a) == point_key(b)
+
+
+def test_unscored_surfaces_outside_the_default_gate_are_said(tmp_path, capsys):
+    """The default gate is the truth's: a scene of one valid pixel at 20.4 m whose 255 other
+    pixels (no truth, but reflecting) lie at 20 m had them outside the gate without a word,
+    its figure all noise (an audit). Now a warning counts them."""
+    from spslidar.cli import main
+
+    depth = np.full((16, 16), 20.0)
+    depth[8, 8] = 20.4
+    valid = np.zeros((16, 16), dtype=bool)
+    valid[8, 8] = True
+    np.savez(tmp_path / "one.npz", depth=depth, reflectivity=np.ones((16, 16)), valid=valid)
+    assert main(["run", "--scene", str(tmp_path / "one.npz"), "--size", "16",
+                 "--code-length", "255", "--no-figure", "--out", str(tmp_path / "o")]) == 0
+    err = capsys.readouterr().err
+    assert "255 pixels without a ground truth (not scored) have surfaces outside" in err

@@ -226,8 +226,11 @@ def _title(result) -> str:
             what += (f", calibrated ({name}delay {1e9 * cal['delay_s']:.3f} ns, IRF FWHM "
                      f"{fwhm:.2f} bin{'' if fwhm == 1 else 's'})")
     else:
+        # (a noiseless run was titled with the m_n of a noisy one: an audit)
+        light = (f"m_s={c.signal:g}, noiseless" if getattr(c, "noiseless", False)
+                 else f"m_s={c.signal:g}, m_n={c.noise:g}")
         what = (f"{c.lidar.upper()} {m['code_description']}, {m['n_patterns']} {c.patterns} "
-                f"patterns ({100 * c.compression:g}%), m_s={c.signal:g}, m_n={c.noise:g}, "
+                f"patterns ({100 * c.compression:g}%), {light}, "
                 f"{'QCR' if c.qcr else 'no QCR'}, {solve}, {c.depth} depth")
         # a simulated instrument, which run reads as an uncalibrated one
         inst = ([f"delay {1e9 * c.system_delay:g} ns (uncalibrated)"] if c.system_delay else []

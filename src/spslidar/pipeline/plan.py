@@ -63,6 +63,15 @@ def timeline(cfg: Config, scene, warns: list[str]):
     if np.any(outside & scene.valid):
         warns.append(f"{int((outside & scene.valid).sum())} pixels lie outside the range gate "
                      f"{gate_text(gate)} m: their returns alias into the gate or are lost")
+    # the pixels without a truth are simulated too, and the default gate is the truth's: a
+    # scene of one valid pixel had 255 surfaces outside it unsaid, its figure all noise (an
+    # audit)
+    unscored = outside & ~np.asarray(scene.valid, dtype=bool) & (
+        np.asarray(scene.reflectivity) > 0)
+    if np.any(unscored):
+        warns.append(f"{int(unscored.sum())} pixels without a ground truth (not scored) have "
+                     f"surfaces outside the range gate {gate_text(gate)} m: their returns "
+                     f"alias into the gate or are lost")
     warns.extend(delay_warnings(cfg, scene, gate, acq.unambiguous_range))
     return seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse
 

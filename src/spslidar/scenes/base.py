@@ -345,7 +345,8 @@ def _surface_note(name: str, side: int, size: int) -> str:
             f"pixel wide at this size is dropped; a file of {size}x{size} is simulated as it "
             f"is" if side > size else
             f"scene {name} ({side}x{side}) is resized to {size}x{size}: each pixel takes the "
-            f"depth of the file's pixel it lies in (no depths between two surfaces)")
+            f"depth of the file's pixel it lies in, the nearer of two where it straddles them "
+            f"(no depths between two surfaces; a near object's edge may grow by a pixel)")
 
 
 def _crop_note(name: str, shape: tuple[int, ...], size: int) -> str:
