@@ -140,13 +140,18 @@ def test_a_long_tail_is_read_past_forty_bins(tmp_path):
     """A 4 ns diffusion tail holding 90 % of the response at 10 GHz was cut at 40 bins and
     every calibrated depth read long (the audit, 16x16: +21.8 mm; with the tail read to 160
     bins +8.7 mm). The IRF now goes on while it stands above the noise past its end."""
-    tail = ["--signal", "1", "--noise", "0.02", "--irf", "gaussian:150e-12,tail:4e-9,weight:0.9"]
+    tail = ["--signal", "1", "--noise", "0.02", "--irf", "gaussian:150e-12,tail:4e-9,weight:0.9",
+            "--compression", "1"]
     cal = json.loads(_calibrate(tmp_path, _acquire(tmp_path, "wall", 10.0, tail)).read_text())
     offsets, values = np.array(cal["irf_offsets"]), np.array(cal["irf_values"])
     assert offsets.max() > 40 and values[offsets > 40].sum() > 0.1
+    assert abs(cal["delay_s"] - 3.3e-9) < 0.02e-9  # seeds 0-7: 3.309-3.318 ns
     _reconstruct(tmp_path, _acquire(tmp_path, "scene", 12.3, tail), tmp_path / "cal.json")
     depth = np.load(tmp_path / "rec" / "depth.npy")
-    assert abs(np.nanmean(depth - 12.3)) < 0.015  # measured -10.4 mm at 8x8
+    # the whole map moves with the solve's noise on so broad a response: seeds 0-7 at all 64
+    # patterns -19..+10 mm (at 32 patterns -16..+205 mm, the top of a response 90 % tail too
+    # flat for half the data; an audit of 2026-11-29 found the test passing on seed 0 only)
+    assert abs(np.nanmean(depth - 12.3)) < 0.025
 
 
 def test_a_wide_response_is_read_from_its_rising_edge(tmp_path):
@@ -155,7 +160,7 @@ def test_a_wide_response_is_read_from_its_rising_edge(tmp_path):
     bins, the noise read inside its rising edge (5.35 deviations from 17 M photons) and the
     wall read 1.47 cm short through it (an audit). Now the response is read from where it
     rises, and the wall through it is within a few millimetres."""
-    wide = ["--signal", "1", "--noise", "0.02", "--irf", "gaussian:2.5e-9"]
+    wide = ["--signal", "1", "--noise", "0.02", "--irf", "gaussian:2.5e-9", "--compression", "1"]
     files = _acquire(tmp_path, "wall", 10.0, wide)
     cal = json.loads(_calibrate(tmp_path, files).read_text())
     assert min(cal["irf_offsets"]) < -16
@@ -163,10 +168,49 @@ def test_a_wide_response_is_read_from_its_rising_edge(tmp_path):
     # for the noise on its shoulders
     assert abs(cal["irf_fwhm_bins"] - 25.02) < 1.0
     assert cal["peak_to_noise"] > 15  # read inside its own rising edge: 5
+    # the peak of a wide top read on the response smoothed (seeds 0-7: 3.287-3.311 ns; its
+    # largest bin gave 2.99-3.53 ns, an audit of 2026-11-29)
+    assert abs(cal["delay_s"] - 3.3e-9) < 0.03e-9
     m = _reconstruct(tmp_path, files, tmp_path / "cal.json", gate=("9", "11"))
     depth = np.load(tmp_path / "rec" / "depth.npy")
-    assert abs(np.nanmean(depth - 10.0)) < 0.005  # a third of a bin; 1.47 cm before
+    # the map moves with the solve's noise on a response this broad (seeds 0-7: -46..+31 mm;
+    # before the response was read from its rising edge, 1.47 cm short on seed 0 alone)
+    assert abs(np.nanmean(depth - 10.0)) < 0.05
     assert m["coverage"] == 1.0
+
+
+def test_a_wide_top_is_read_through_its_noise():
+    """The delay of a response whose top spans many bins is read on the response smoothed
+    over a quarter of that top: over eight noise draws of a 25-bin Gaussian at 0.5 M
+    photons, within half a bin of the truth (the largest bin moved it by up to 2.3 bins)."""
+    from spslidar.codes.sequences import lfsr_sequence
+    from spslidar.pipeline.calibration import measure_response
+
+    code = lfsr_sequence(10).astype(float)
+    n, delay = code.size, 123.0
+    t = (np.arange(n) - delay + n // 2) % n - n // 2
+    irf = np.exp(-0.5 * (t / (25 / 2.3548)) ** 2)
+    mean = np.fft.irfft(np.fft.rfft(code) * np.fft.rfft(irf), n)
+    mean = 5e5 * mean / mean.sum() + 50.0
+    errors = []
+    for seed in range(8):
+        hist = np.random.default_rng(seed).poisson(mean).astype(float)
+        got = measure_response(hist, code, 1e-10, 0.0, pulse_width=1.0)["delay_bins"]
+        errors.append(got - delay)
+    assert np.max(np.abs(errors)) < 0.5, errors
+
+
+def test_a_plane_the_data_barely_tell_whose_response_drowns_is_read_as_one_range(
+        tmp_path, capsys):
+    """An 8 x 8 wall at one range through a 25-bin IRF (seed 4) was fitted as a plane at
+    1.06 deviations, its response with the plane removed 6.3 deviations high against 28 for
+    one range and its delay 1.1 ns short (an audit). Now one range is kept and the plane
+    said."""
+    inst = ["--signal", "1", "--noise", "0.02", "--irf", "gaussian:2.5e-9", "--seed", "4"]
+    cal = json.loads(_calibrate(tmp_path, _acquire(tmp_path, "wall", 10.0, inst)).read_text())
+    assert cal["target"]["model"] == "range" and "leaves a response" in cal["target"]["reason"]
+    assert "response with that spread removed stands only" in capsys.readouterr().err
+    assert abs(cal["delay_s"] - 3.3e-9) < 0.05e-9
 
 
 # (its broad, noisy top also reads as a second return, and its height through the noise:

@@ -304,7 +304,8 @@ def tilt_of_target(g: np.ndarray, patterns: np.ndarray, shape: tuple[int, int]
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     z = np.divide(coef, se, out=np.zeros_like(coef), where=se > 0)
     return {"tilt_bins": [float(coef[1]), float(coef[2])],
-            "tilt_z": [float(z[1]), float(z[2])], "curvature_bins": float(coef[3])}
+            "tilt_z": [float(z[1]), float(z[2])], "curvature_bins": float(coef[3]),
+            "curvature_z": float(z[3])}
 
 
 def _explained(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int) -> float:
