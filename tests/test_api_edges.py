@@ -6,10 +6,9 @@ exception naming the argument."""
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
+from _warn_filters import ours_as_errors
 
 from spslidar.correlate import make_replica, matched_filter
 from spslidar.depth import ESTIMATORS
@@ -143,8 +142,7 @@ def test_an_empty_image_has_no_gradient():
 def test_the_wavelet_prior_at_an_odd_side_says_it_is_the_pixel_l1():
     with pytest.warns(UserWarning, match="pixel l1"):
         make_wavelet_l1((5, 5))
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
+    with ours_as_errors():
         make_wavelet_l1((4, 4))
 
 

@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+from _warn_filters import ours_as_errors
 
 from spslidar.cli import main
 
@@ -91,7 +92,6 @@ def test_the_dead_time_model_settles_at_a_vanishing_flux(scale):
     to say "not converged" (an audit; at 1e-9, 2 000 sweeps left a change of 1e-7). Each
     part's change is now read on its own scale: a few sweeps, and the histogram is the flux
     (a dead time is all but never hit)."""
-    import warnings
 
     from spslidar.detectors.pileup import renewal_detection
 
@@ -102,8 +102,7 @@ def test_the_dead_time_model_settles_at_a_vanishing_flux(scale):
     kern = np.exp(-0.5 * ((np.arange(255) + 127) % 255 - 127) ** 2 / 4.0)
     spread = np.fft.irfft(np.fft.rfft(code, axis=1) * np.fft.rfft(kern), 255, axis=1)
     mu = scale * spread / spread.max() + 3e-13
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
+    with ours_as_errors():
         h, info = renewal_detection(mu, 500.0, return_info=True)
     assert info["sweeps"] < 50, info
     # h = mu (1 - the flux summed over a dead time: 5e-7 at 1e-9)

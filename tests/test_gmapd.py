@@ -12,6 +12,7 @@ import warnings
 
 import numpy as np
 import pytest
+from _warn_filters import ours_as_errors
 
 from spslidar.codes.sequences import make_code
 from spslidar.config import Config
@@ -263,8 +264,7 @@ def test_fixed_point_of_a_flat_wall_is_its_plain_sweeps():
     code = make_code("mseq", 16383, 0.5, np.random.default_rng(0)).astype(float)
     mu = 0.00171 + 0.00825 * code
     plain = renewal_detection(mu, 500.0, anderson=0, max_sweeps=400, tol=1e-12)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
+    with ours_as_errors():
         h, info = renewal_detection(mu, 500.0, return_info=True)
         batch = renewal_detection(np.stack([mu, np.roll(mu, 1354), 1.5 * mu]), 500.0)
     # 1e-8: the floor (1.5e-10 of the largest bin) with room for BLAS differences
@@ -344,8 +344,7 @@ def test_a_batch_is_its_rows_alone():
     shifts = np.random.default_rng(1).integers(1023, size=8)
     lam = np.stack([np.roll(mu, k) * p for k, p in zip(shifts, np.geomspace(0.01, 100, 8),
                                                        strict=True)]) * n
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
+    with ours_as_errors():
         batch = det.expected(lam, n)
         back = det.correct(batch, n)
     alone = np.concatenate([det.expected(lam[i : i + 1], n) for i in range(8)])
@@ -361,7 +360,6 @@ def test_the_corrections_unconverged_model_is_said_once_as_the_corrections(monke
     the first was the flux the correction's refinement tried, not the detector's. It is now
     one warning per call, naming the correction. (The model is made to report a change it
     keeps, as it did there after 245 sweeps in 49 s.)"""
-    import warnings
 
     from spslidar.detectors import pileup
 

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from _cli_inputs import FAST, small_acquisition
 from _cli_inputs import one_line as _one_line
+from _warn_filters import ours_as_errors
 
 from spslidar.cli import main
 from spslidar.constants import MAX_GATE_BINS
@@ -613,7 +614,6 @@ def test_calibrating_on_a_target_that_is_not_flat_is_said():
     """The steps scene (24.5-25.5 m) calibrated to a delay 0.5 m off, read from its farthest
     plane, without a word. A flat target's response (a peak and a tail that only falls) says
     nothing; two surfaces 1 m apart warn once."""
-    import warnings
 
     from spslidar.codes import make_code
     from spslidar.pipeline.calibration import measure_response
@@ -629,8 +629,7 @@ def test_calibrating_on_a_target_that_is_not_flat_is_said():
                 h += w * t * np.roll(code, d + o)
         return 1000 * h + 50.0
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
+    with ours_as_errors():
         one = measure_response(hist([(300, 1.0)]), code, 1e-10, 25.0, 0.5)
     with pytest.warns(UserWarning, match=r"second return \+1 m from the strongest \(50 %"):
         two = measure_response(hist([(300, 1.0), (367, 0.5)]), code, 1e-10, 25.0, 0.5)

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import json
 import struct
-import warnings
 
 import numpy as np
 import pytest
+from _warn_filters import ours_as_errors
 
 from spslidar.cli import main
 from spslidar.errors import ConfigError, SpslidarError
@@ -96,8 +96,7 @@ def test_a_header_count_of_zero_reads_the_whole_file_and_says_so(tmp_path):
 def test_a_header_count_that_matches_says_nothing(tmp_path):
     path = tmp_path / "a.ptu"
     _acquisition(path)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
+    with ours_as_errors():
         read_ptu_histograms(path, L, bin_width=BW)
 
 

@@ -20,7 +20,7 @@ from .cli_measured import (
     cmd_reconstruct,
 )
 from .cli_snr import add_snr_parser, cmd_snr  # noqa: F401  (re-exported: spslidar.cli.cmd_snr)
-from .errors import numbers_blanked, warning_origin
+from .errors import library_notice, numbers_blanked, warning_origin
 
 EXIT_BAD_INPUT = 2
 #: what this command wrote so far (the interrupted line says it)
@@ -497,6 +497,8 @@ class _OneLineWarnings:
         self.first: dict[tuple, str] = {}
 
     def __call__(self, message, category, filename, lineno, file=None, line=None):
+        if library_notice(category, filename):  # a library's deprecation: not the run's
+            return
         text = " ".join(str(message).split())
         key = (category, filename, lineno, numbers_blanked(text))
         if key in self.repeats:

@@ -25,7 +25,7 @@ from ..correlate import PLATEAU_SHARE, remove_plateau, replica_plateau
 from ..depth import ESTIMATORS, DepthContext
 from ..detectors import build_detector
 from ..detectors.counting import NoiseModel
-from ..errors import ConfigError, numbers_blanked, warning_origin
+from ..errors import ConfigError, library_notice, numbers_blanked, warning_origin
 from ..operators.parallel import one_blas_thread
 from ..patterns import build_patterns
 from ..qcr import MeanEliminated, plain_problem, qcr_problem
@@ -94,6 +94,9 @@ def keeping_warnings(fn):
             raise
         kept: dict[str, list] = {}
         for w in caught:  # (a library's with where it came from, as the command line says it)
+            if library_notice(w.category, w.filename):  # (said as Python says it, not kept)
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+                continue
             text = (" ".join(str(w.message).split())
                     + warning_origin(w.category, w.filename, w.lineno))
             key = numbers_blanked(text)
