@@ -184,8 +184,8 @@ def _check_pulse_width(pulse_width: Any) -> float:
 
 
 def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, distance: float,
-                     pulse_width: float = 0.5, response: np.ndarray | None = None
-                     ) -> dict[str, Any]:
+                     pulse_width: float = 0.5, response: np.ndarray | None = None,
+                     phase: float | None = None) -> dict[str, Any]:
     """System delay and IRF from the summed histogram of a flat target at ``distance``.
 
     Parameters
@@ -205,6 +205,11 @@ def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, dista
         The code-free response itself (:func:`code_response` of ``hist``), where it was
         found otherwise: a flat wall's, with its range spread removed
         (:func:`spslidar.pipeline.target.range_free_response`).
+    phase : float, optional
+        Where ``response`` was found with the pulse starting ``phase`` bins into the axis's
+        bin (a response narrower than a bin, :data:`spslidar.pipeline.target.PHASES`): its
+        peak bin holds the pulse's start, so the delay is read from there, not from the
+        bin's centre.
 
     Returns
     -------
@@ -261,7 +266,7 @@ def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, dista
                       f"spike 7 bins early holding 44 %, and calibrated maps 30-70 % worse); "
                       f"acquire the target longer", RuntimeWarning, stacklevel=2)
     _second_return(g, p0, noise, bin_width)
-    c0 = (1.0 - pulse_width) / 2.0
+    c0 = (1.0 - pulse_width) / 2.0 if phase is None else float(phase)
     delay = (_peak(top, p0) + c0 - tau_d) % period
     if delay > period - 2:  # photons arrive late: a delay a hair below 0 is noise, not L
         delay -= period
@@ -495,9 +500,9 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     with warnings.catch_warnings(record=True) as said:  # kept in the file, and said again
         warnings.simplefilter("always")
         geometry, response = _target_geometry(hists, patterns, code, bin_width, distance,
-                                              target, fov_deg)
+                                              target, fov_deg, pulse_width)
         cal = measure_response(total, code, bin_width, distance, pulse_width,
-                               response=response)
+                               response=response, phase=geometry.get("phase_bins"))
     for w in said:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     path = Path(ptu)
@@ -534,8 +539,8 @@ def _check_target(target: Any, fov_deg: Any) -> float | None:
 
 
 def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
-                     bin_width: float, distance: float, target: str, fov_deg: float | None
-                     ) -> tuple[dict[str, Any], np.ndarray | None]:
+                     bin_width: float, distance: float, target: str, fov_deg: float | None,
+                     pulse_width: float = 0.5) -> tuple[dict[str, Any], np.ndarray | None]:
     """What the calibration target's pixels see (:mod:`~spslidar.pipeline.target`): its
     geometry for the JSON, and the response of one range where it is a plane (else None:
     the patterns' sum is read)."""
@@ -546,13 +551,17 @@ def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     if target == "range":
         return {"model": "range", "reason": "--target range"}, None
     n = int(round(np.sqrt(patterns.shape[1])))
-    geo = measure_geometry(hists, patterns, code, bin_width, distance, (n, n), fov_deg, target)
+    geo = measure_geometry(hists, patterns, code, bin_width, distance, (n, n), fov_deg, target,
+                           pulse_width)
     offsets = geo.pop("offsets")
     if geo["model"] != "plane":
         return geo, None
-    response = range_free_response(hists, patterns, code, offsets)
+    phase = geo.get("phase_bins")
+    response = range_free_response(hists, patterns, code, offsets, phase=phase,
+                                   width=pulse_width)
     if target == "auto" and geo.get("z") is not None and geo.get("model") == "plane":
-        plane, one = (_standing(hists, code, bin_width, distance, r) for r in (response, None))
+        plane, one = (_standing(hists, code, bin_width, distance, r, p)
+                      for r, p in ((response, phase), (None, None)))
         if plane < WEAK_RESPONSE <= one:
             # a plane fitted where the data barely tell it, whose range-free response is read
             # through the noise while one range's stands clear, is not kept: 8 x 8 walls at
@@ -568,15 +577,15 @@ def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
                           f"one range; if it is a flat wall facing the lidar, calibrate with "
                           f"--target plane --fov (your optics' field of view)",
                           RuntimeWarning, stacklevel=3)
+            why = (f"one range: the plane fitted ({spread:g} bins, {z:.2g} deviations) leaves "
+                   f"a response {plane:.3g} deviations high, one range's {one:.3g}")
             return {"model": "range", "fov_deg": geo.get("fov_deg"), "spread_bins": 0.0,
-                    "z": z, "reason": f"one range: the plane fitted ({spread:g} bins, "
-                                      f"{z:.2g} deviations) leaves a response {plane:.3g} "
-                                      f"deviations high, one range's {one:.3g}"}, None
+                    "z": z, "phase_bins": None, "reason": why}, None
     return geo, response
 
 
 def _standing(hists: np.ndarray, code: np.ndarray, bin_width: float, distance: float,
-              response: np.ndarray | None) -> float:
+              response: np.ndarray | None, phase: float | None = None) -> float:
     """How many noise deviations the calibration's response stands high (the
     ``peak_to_noise`` of :func:`measure_response`, its warnings kept quiet): of the patterns'
     sum (``response`` None) or of a range-free ``response``; 0 where none stands out."""
@@ -585,7 +594,7 @@ def _standing(hists: np.ndarray, code: np.ndarray, bin_width: float, distance: f
         warnings.simplefilter("ignore")
         try:
             return float(measure_response(total, code, bin_width, distance,
-                                          response=response)["peak_to_noise"])
+                                          response=response, phase=phase)["peak_to_noise"])
         except ConfigError:
             return 0.0
 

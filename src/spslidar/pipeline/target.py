@@ -31,7 +31,17 @@ convolved with a kernel ``k_m`` that the patterns and the geometry give. Two ste
    and 0.1, seeds 0-3, and at 64 x 64, seeds 0-1) but 0.55 on an 8 x 8 one through a 10-bin
    IRF at 0.57 M photons (a 6-bin spread, which would have moved the delay by 1.3 bins): from
    :data:`Z_HINT` to :data:`Z_PLANE` the target is read as one range and said to be perhaps
-   a flat wall (``--target plane --fov`` removes it). Tried first and dropped: the responses of
+   a flat wall (``--target plane --fov`` removes it). Each pixel's return is split between
+   the two bins about its offset linearly, which holds for a response smooth over a bin; a
+   response narrower than a bin (an instrument without jitter) puts each pixel's pulse in
+   one bin or two by where it starts in its bin, so where the linear split finds no plane
+   the spreads are scanned again with the axis's pulse at each of :data:`PHASES` in its bin
+   (and a given field of view takes the place that fits best, where it stands
+   :data:`Z_PLANE` deviations better): an ideal instrument's 10 degree wall at 32 x 32 was
+   read as one range with its delay 4.7 bins off at 13.70 ns and right at 13.74 ns (an
+   audit of 2026-11-29); now 13.695 and 13.735 ns, and 16 x 16 walls at 3.30 ns read
+   3.299-3.314 ns where they read 3.67. The scan takes about five times as long then (5 s
+   at 32 x 32). Tried first and dropped: the responses of
    4 x 4 blocks of the field, each solved by least squares from the blocks' sums, whose
    delays a plane would be fitted to: on a 32 x 32 calibration of 14.5 M photons they stood
    2-4 noise deviations high (each block's response estimated on its own, where this fit's
@@ -91,14 +101,19 @@ import numpy as np
 from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
 
-__all__ = ["MAX_SPREAD_BINS", "MIN_SPREAD_BINS", "PLANE_REG", "SCAN_PATTERNS", "TARGETS",
-           "Z_HINT", "Z_PLANE", "Z_TILT", "Z_TILT_LOOK", "measure_geometry", "plane_offsets",
-           "plane_ranges", "range_free_response", "tilt_of_target", "wall_offsets"]
+__all__ = ["MAX_SPREAD_BINS", "MIN_SPREAD_BINS", "PHASES", "PLANE_REG", "SCAN_PATTERNS",
+           "TARGETS", "Z_HINT", "Z_PLANE", "Z_TILT", "Z_TILT_LOOK", "measure_geometry",
+           "plane_offsets", "plane_ranges", "range_free_response", "tilt_of_target",
+           "wall_offsets"]
 
 #: what ``--target`` takes: ``auto`` keeps the plane where the data ask for one
 TARGETS = ("auto", "plane", "range")
 #: a plane whose pixels spread over less than this many bins is one range (``auto``)
 MIN_SPREAD_BINS = 1.0
+#: where the axis's pulse may start in its bin (bins): a response narrower than a bin is fitted
+#: with each pixel's pulse split between the two bins it falls in from there
+#: (:func:`_kernels`), where the linear split finds no plane
+PHASES = np.arange(8) / 8.0
 #: ``auto`` keeps the plane where its residual stands this many deviations below one range's
 Z_PLANE = 1.0
 #: ... and says (a warning) that the target may be a flat wall from this many
@@ -198,13 +213,20 @@ def _grouped(patterns: np.ndarray, offsets: np.ndarray, rows: slice | np.ndarray
     return light, values, first
 
 
-def _kernels(light: np.ndarray, offsets: np.ndarray, period: int) -> np.ndarray:
+def _kernels(light: np.ndarray, offsets: np.ndarray, period: int,
+             phase: float | None = None, width: float = 0.5) -> np.ndarray:
     """Each pattern's kernel ``k_m`` over one period: the light on each group of pixels
-    (:func:`_grouped`), on the two bins about its offset (linear in the offset's part of a
-    bin)."""
+    (:func:`_grouped`), on the two bins about its offset: linear in the offset's part of a
+    bin (``phase`` None: a response smooth over a bin), or, with ``phase``, the share of a
+    pulse ``width`` bins long starting ``phase`` into the axis's bin that each bin holds (a
+    response narrower than a bin, :data:`PHASES`)."""
     s = np.asarray(offsets, dtype=np.float64)
+    if phase is not None:
+        s = s + float(phase)
     base = np.floor(s).astype(np.int64)
     frac = s - base
+    if phase is not None:
+        frac = np.clip((frac + width - 1.0) / width, 0.0, 1.0)
     kern = np.zeros((light.shape[0], period))
     for b in np.unique(base):
         sel = base == b
@@ -308,16 +330,35 @@ def tilt_of_target(g: np.ndarray, patterns: np.ndarray, shape: tuple[int, int]
             "curvature_z": float(z[3])}
 
 
-def _explained(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int) -> float:
+def _explained(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int,
+               phase: float | None = None, width: float = 0.5) -> float:
     """How much of the responses' power (their FFT ``gf`` on a window of ``size`` bins) one
     shared IRF explains through the kernels of the light on groups of pixels (``light``,
     :func:`_grouped`) at round trips ``offsets``: the scans' least-squares fit,
     ``sum_f |sum_m conj(K_m) G_m|^2 / sum_m |K_m|^2``."""
-    kf = np.fft.rfft(_kernels(light, offsets, size), axis=1)
+    kf = np.fft.rfft(_kernels(light, offsets, size, phase, width), axis=1)
     num = np.sum(np.conj(kf) * gf, axis=0)
     den = np.sum(np.abs(kf) ** 2, axis=0)
     return float(np.sum(np.divide(np.abs(num) ** 2, den, out=np.zeros_like(den),
                                   where=den > 0)))
+
+
+def _phase_of(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int,
+              width: float, linear: float) -> tuple[float | None, float]:
+    """The pulse's start in its bin (:data:`PHASES`) whose kernels leave the least residual
+    for these round trips, where it stands :data:`Z_PLANE` deviations below the linear
+    split's residual ``linear`` (a response narrower than a bin); else None."""
+    best, phase = linear, None
+    for ph in PHASES:
+        r = float(np.sum(np.abs(gf) ** 2)) - _explained(gf, light, offsets, size, float(ph),
+                                                       width)
+        if r < best:
+            best, phase = r, float(ph)
+    n_f = gf.shape[1]
+    sigma2 = best / max((light.shape[0] - 1) * n_f, 1)
+    if phase is None or not sigma2 > 0 or (linear - best) / (sigma2 * np.sqrt(2.0 * n_f)) < Z_PLANE:
+        return None, linear
+    return phase, best
 
 
 def _fit(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int) -> float:
@@ -443,7 +484,8 @@ def _tilt_geometry(found: dict[str, Any], fov_deg: float | None) -> dict[str, An
 
 def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
                      bin_width: float, distance: float, shape: tuple[int, int],
-                     fov_deg: float | None = None, target: str = "auto") -> dict[str, Any]:
+                     fov_deg: float | None = None, target: str = "auto",
+                     pulse_width: float = 0.5) -> dict[str, Any]:
     """The calibration target's geometry from its acquisition (module docstring, step 1).
 
     Parameters
@@ -461,14 +503,17 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
         The field of view, where known (then nothing is scanned): the target is that plane.
     target : {'auto', 'plane'}
         ``plane`` keeps the best plane whatever the test says.
+    pulse_width : float
+        The laser pulse's width in bins, for a response narrower than a bin (:data:`PHASES`).
 
     Returns
     -------
     dict
         ``model`` ('plane' or 'range'), ``fov_deg`` (given or fitted), ``spread_bins`` (the
         pixels' span of round trips), ``z`` (the plane's residual below one range's, in
-        deviations; None where not scanned), ``reason`` (one line), and ``offsets``
-        (per-pixel ``s_p``, bins, or None; not for the JSON).
+        deviations; None where not scanned), ``phase_bins`` (None, or where the axis's pulse
+        starts in its bin for a response narrower than a bin), ``reason`` (one line), and
+        ``offsets`` (per-pixel ``s_p``, bins, or None; not for the JSON).
 
     Raises
     ------
@@ -512,8 +557,11 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
             if found is not None:
                 return _tilt_geometry(found, fov_deg)
             _maybe_tilted(tilt)
+        group, values, _ = _grouped(light_all, offsets, slice(None))
+        phase = _phase_of(gf, group, values, size, pulse_width,
+                          total - _explained(gf, group, values, size))[0]
         return {"model": "plane", "fov_deg": float(fov_deg), "spread_bins": round(spread, 4),
-                "z": None, "offsets": offsets,
+                "z": None, "phase_bins": phase, "offsets": offsets,
                 "reason": f"a wall facing the lidar through the {fov_deg:g} degree field of "
                           f"view given: its pixels over {spread:.3g} bins of round trip"}
     # the pixels at one distance from the axis share every candidate's offset
@@ -521,7 +569,7 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     row = 2 * np.arange(shape[0]) + 1 - shape[0]
     ring = (row[:, None] ** 2 + col[None, :] ** 2).ravel().astype(np.float64)
     light, keys, first = _grouped(light_all, ring, slice(None))
-    spreads, residuals = [], []
+    spreads, residuals, offs = [], [], []
     for spread in np.arange(0.0, limit + SPREAD_STEP / 2, SPREAD_STEP):
         fov = _fov_of_spread(spread, tau_d, n)
         if not fov < MAX_FIT_FOV:
@@ -531,23 +579,41 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
         off = (plane_offsets(shape, distance, fov, bin_width)[first] if fov > 0
                else np.zeros(keys.size))
         spreads.append(float(spread))
+        offs.append(off)
         residuals.append(total - _explained(gf, light, off, size))
     res = np.asarray(residuals)
     j = int(np.argmin(res))
     n_f = gf.shape[1]
-    # the residual's noise: a chi-square of about (M - 1) F complex terms of variance sigma^2,
-    # which a change of model moves by about sigma^2 sqrt(2 F)
-    sigma2 = res[j] / max((light.shape[0] - 1) * n_f, 1)
-    z = float((res[0] - res[j]) / (sigma2 * np.sqrt(2.0 * n_f))) if sigma2 > 0 else 0.0
+    dof = max((light.shape[0] - 1) * n_f, 1)
+
+    def deviations(best: float) -> float:
+        # the residual's noise: a chi-square of about (M - 1) F complex terms of variance
+        # sigma^2, which a change of model moves by about sigma^2 sqrt(2 F)
+        sigma2 = best / dof
+        return float((res[0] - best) / (sigma2 * np.sqrt(2.0 * n_f))) if sigma2 > 0 else 0.0
+
+    z, best, phase = deviations(res[j]), float(res[j]), None
+    if not (z >= Z_PLANE and spreads[j] >= MIN_SPREAD_BINS):
+        # a response narrower than a bin: each pixel's pulse falls in one bin or two by where
+        # it starts in its bin, which the linear split averages away (an ideal instrument's
+        # 10 degree wall at 32 x 32 was read as one range at 0.33 deviations with its delay
+        # at 13.70 ns, 4.7 bins off, and fitted at 19 with it at 13.74 ns; an audit of
+        # 2026-11-29): the spreads again with the pulse at each of PHASES in its bin
+        for ph in PHASES:
+            for i in range(1, len(offs)):
+                r = total - _explained(gf, light, offs[i], size, float(ph), pulse_width)
+                if r < best:
+                    best, j, phase = r, i, float(ph)
+        z = deviations(best)
     fov = _fov_of_spread(spreads[j], tau_d, n)
     if tilt is not None:  # step 3: a tilted wall, which no facing wall's rings fit
-        found = _tilt_scan(gf, size, light_all, shape, tilt, np.zeros(n * n), float(res[j]),
+        found = _tilt_scan(gf, size, light_all, shape, tilt, np.zeros(n * n), best,
                            limit, free_curvature=True)
         if found is not None:
             return _tilt_geometry(found, None)
         _maybe_tilted(tilt)
     out = {"model": "range", "fov_deg": round(fov, 4), "spread_bins": float(spreads[j]),
-           "z": round(z, 3), "offsets": None}
+           "z": round(z, 3), "phase_bins": None, "offsets": None}
     if target != "plane" and not (z >= Z_PLANE and spreads[j] >= MIN_SPREAD_BINS):
         out["reason"] = (f"one range: a plane fits no better (best spread {spreads[j]:g} bins, "
                          f"{z:.2g} deviations)")
@@ -560,7 +626,8 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
                           f"with --target plane --fov (your optics' field of view)",
                           RuntimeWarning, stacklevel=3)
         return out
-    out.update(model="plane", offsets=plane_offsets(shape, distance, fov, bin_width)
+    out.update(model="plane", phase_bins=phase,
+               offsets=plane_offsets(shape, distance, fov, bin_width)
                if fov > 0 else np.zeros(n * n),
                reason=f"a wall facing the lidar, fitted: its pixels over {spreads[j]:g} bins "
                       f"of round trip (a {fov:.3g} degree field of view), {z:.2g} deviations "
@@ -573,7 +640,8 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
 
 
 def range_free_response(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
-                        offsets: np.ndarray, reg: float = PLANE_REG) -> np.ndarray:
+                        offsets: np.ndarray, reg: float = PLANE_REG,
+                        phase: float | None = None, width: float = 0.5) -> np.ndarray:
     """The response a target at one range would have given (module docstring, step 2).
 
     Parameters
@@ -585,6 +653,10 @@ def range_free_response(hists: np.ndarray, patterns: np.ndarray, code: np.ndarra
         Each pixel's round trip beyond the axis's, bins (:func:`plane_offsets`).
     reg : float
         Wiener regularisation over the median of ``sum_m |K_m(f)|^2``.
+    phase, width : float
+        Where a response narrower than a bin was fitted (:func:`measure_geometry`'s
+        ``phase_bins``): the axis's pulse's start in its bin and its width, bins; None: the
+        linear split of a smooth response.
 
     Returns
     -------
@@ -597,7 +669,7 @@ def range_free_response(hists: np.ndarray, patterns: np.ndarray, code: np.ndarra
     den = np.zeros(period // 2 + 1)
     for rows in _rows(patterns.shape[0]):
         light, values, _ = _grouped(patterns, offsets, rows)
-        kf = np.fft.rfft(_kernels(light, values, period), axis=1)
+        kf = np.fft.rfft(_kernels(light, values, period, phase, width), axis=1)
         gf = np.fft.rfft(_code_removed(hists[rows], code), axis=1)
         num += np.sum(np.conj(kf) * gf, axis=0)
         den += np.sum(np.abs(kf) ** 2, axis=0)
