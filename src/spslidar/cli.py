@@ -204,7 +204,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="refine the ML peak by a three-bin centroid (--no-subbin undoes a "
                         "config file's)")
     g.add_argument("--dtype", choices=("float32", "float64"), default=S,
-                   help="precision of the simulation and the solve (default float32)")
+                   help="precision of the solve (default float32); the simulated counts and their "
+                        "correlations are float32 whatever it says")
     g.add_argument("--backend", choices=("numpy", "torch", "cupy", "array-api-strict"),
                    default=S,
                    help="array library of the numeric core (default numpy; torch: pip install "
