@@ -214,3 +214,19 @@ def test_unscored_surfaces_outside_the_default_gate_are_said(tmp_path, capsys):
                  "--code-length", "255", "--no-figure", "--out", str(tmp_path / "o")]) == 0
     err = capsys.readouterr().err
     assert "255 pixels without a ground truth (not scored) have surfaces outside" in err
+
+
+@pytest.mark.parametrize("window, depth", [({"depth_min": 5.0}, 6.0),
+                                           ({"depth_min": 5.0, "depth_max": 5.5}, 5.5),
+                                           ({"depth_max": 9.0}, 6.0)])
+def test_a_flat_scene_keeps_its_depth_in_a_window(tmp_path, window, depth):
+    """A file flat at 6 m has no depth range to map onto a window: it keeps its depth where
+    the window holds it and goes to the nearer end where not, and a note says which (it
+    went to depth_min: 6 m given --depth-min 5 was simulated at 5 m without a word; an
+    audit of 2026-11-29)."""
+    from spslidar.scenes import load_scene
+
+    np.save(tmp_path / "flat.npy", np.full((8, 8), 6.0))
+    scene = load_scene(str(tmp_path / "flat.npy"), 8, **window)
+    assert np.all(scene.depth == depth)
+    assert any("is flat at 6 m" in note for note in scene.notes)

@@ -315,13 +315,16 @@ def _fill_invalid(depth: np.ndarray, valid: np.ndarray) -> np.ndarray:
 
 
 def _remap(depth: np.ndarray, valid: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """Map the valid depth range linearly onto [lo, hi] (a flat scene goes to ``lo``)."""
+    """Map the valid depth range linearly onto [lo, hi]; a flat scene has no range to map and
+    keeps its depth, moved to the nearer end where it lies outside (it went to ``lo``: a file
+    flat at 6 m given ``--depth-min 5`` was simulated at 5 m without a word; an audit of
+    2026-11-29)."""
     dmin = float(depth[valid].min())
     dmax = float(depth[valid].max())
     if dmax > dmin:
         out = lo + (depth - dmin) * ((hi - lo) / (dmax - dmin))
     else:
-        out = np.full_like(depth, lo)
+        out = np.full_like(depth, min(max(dmin, lo), hi))
     return np.clip(out, lo, hi)
 
 
@@ -391,4 +394,10 @@ def _finish(
         native = (float(depth[valid].min()), float(depth[valid].max()))
         lo, hi = _window(depth_min, depth_max, native)
         depth = _remap(depth, valid, lo, hi)
+        if native[0] == native[1]:
+            kept = float(depth[valid][0])
+            notes.append(f"scene {name} is flat at {native[0]:g} m: the depth window "
+                         f"{lo:g}-{hi:g} m has no range to map it onto, so it " + (
+                             "keeps its depth" if kept == native[0] else
+                             f"is moved to the window's nearer end, {kept:g} m"))
     return Scene(name, depth, reflectivity, valid, notes)
