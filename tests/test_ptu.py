@@ -578,3 +578,29 @@ def test_a_generator_of_patterns_is_read_one_at_a_time(tmp_path):
     # (the last pattern's dwell is read to its last photon: no marker ends it)
     assert acq.n_patterns == 5 and list(acq.periods_per_pattern[:4]) == [3] * 4
     assert [int(np.argmax(h)) for h in acq.histograms] == [1, 3, 5, 7, 9]
+
+
+def test_a_damaged_header_is_named_in_spslidars_words_before_ptufile_reads_it(
+        tmp_path, monkeypatch):
+    """A header cut short, a sized tag running past the file's end and an unknown tag type
+    are found by walking PicoQuant's published tag layout, so their messages do not hang on
+    ptufile's wording (the tests read its parser's errors and log; an audit of 2026-11-29):
+    here ptufile is never asked."""
+    import ptufile
+
+    good = tmp_path / "good.ptu"
+    write_acquisition_ptu(good, [np.array([[0, 1]])], L, BW)
+    data = good.read_bytes()
+
+    def not_asked(*a, **k):
+        raise AssertionError("ptufile was asked")
+
+    monkeypatch.setattr(ptufile, "PtuFile", not_asked)
+    cases = {"cut12": (data[:12], "ends after 12 bytes, inside its tag header"),
+             "cut300": (data[:300], "ends after 300 bytes, inside its tag header")}
+    bad = bytearray(data)
+    bad[16 + 36:16 + 40] = (0x12345678).to_bytes(4, "little")  # the first tag's type
+    cases["type"] = (bytes(bad), "invalid tag type at tag 'File_GUID'")
+    for name, (content, said) in cases.items():
+        (tmp_path / f"{name}.ptu").write_bytes(content)
+        _raises(f"truncated or corrupt PTU tag header .*{said}", tmp_path / f"{name}.ptu", L)

@@ -67,6 +67,11 @@ _TAG = struct.Struct("<32siI")  # ident, index, type; followed by an 8-byte valu
 # tag type codes: Empty8, Int8, Float8, TDateTime, AnsiString
 _TY_EMPTY8, _TY_INT8, _TY_FLOAT8 = 0xFFFF0008, 0x10000008, 0x20000008
 _TY_TDATETIME, _TY_ANSISTRING = 0x21000008, 0x4001FFFF
+#: PicoQuant's tag types (PTU's published header layout): fixed 8-byte values, and those whose
+#: value is the byte length of data that follows the tag
+_TY_FIXED = frozenset({0xFFFF0008, 0x00000008, 0x10000008, 0x11000008, 0x12000008,
+                       0x20000008, 0x21000008})
+_TY_SIZED = frozenset({0x2001FFFF, 0x4001FFFF, 0x4002FFFF, 0xFFFFFFFF})
 
 
 
@@ -157,6 +162,42 @@ def _legacy_format(path: PathLike) -> str | None:
             f"PTU (.ptu) with a PTU-capable instrument")
 
 
+def _walk_header(path: PathLike) -> None:
+    """Check a PTU file's tag header as PicoQuant publishes it (the magic, then 48-byte tags
+    up to ``Header_End``, a sized tag's data after it) before ``ptufile`` reads it, so that
+    a file that is not PTU, or whose header is cut or damaged, is named in spslidar's own
+    words, whatever ``ptufile``'s messages say from one release to the next (the tests read
+    the words of its parser's errors and log: an audit of 2026-11-29). A header that passes
+    is left to ``ptufile``; a legacy or other PicoQuant file to :func:`_legacy_format`."""
+    where = os.fspath(path)
+    size = os.path.getsize(path)
+    with open(path, "rb") as fh:
+        head = fh.read(16)
+        if head[:8] != _MAGIC[:len(head[:8])] or not head:
+            return  # not PTU: ptufile and _legacy_format name it
+        if len(head) < 16:
+            raise ConfigError(f"{where!r} has a truncated or corrupt PTU tag header (the file "
+                              f"ends after {size} bytes, inside its tag header)")
+        while True:
+            tag = fh.read(48)
+            if len(tag) < 48:
+                raise ConfigError(f"{where!r} has a truncated or corrupt PTU tag header (the "
+                                  f"file ends after {size} bytes, inside its tag header)")
+            ident = tag[:32].split(b"\0")[0].decode("latin-1", "replace")
+            typ, value = struct.unpack("<I", tag[36:40])[0], struct.unpack("<q", tag[40:48])[0]
+            if ident == "Header_End":
+                return
+            if typ in _TY_SIZED:
+                if value < 0 or fh.tell() + value > size:
+                    raise ConfigError(f"{where!r} has a truncated or corrupt PTU tag header "
+                                      f"(tag {ident!r} says {value} bytes of data, past the "
+                                      f"file's end)")
+                fh.seek(value, os.SEEK_CUR)
+            elif typ not in _TY_FIXED:
+                raise ConfigError(f"{where!r} has a truncated or corrupt PTU tag header "
+                                  f"(invalid tag type at tag {ident!r})")
+
+
 def _open_ptu(path: PathLike):
     """Open ``path`` with ``ptufile.PtuFile``, mapping failures to one-line ConfigErrors."""
     ptufile = _import_ptufile()
@@ -165,6 +206,7 @@ def _open_ptu(path: PathLike):
     if not os.path.isfile(path):
         raise ConfigError(f"{os.fspath(path)!r} is not a PTU file (a folder or a device, not a "
                           f"regular file)")
+    _walk_header(path)
     try:
         with _ptufile_log() as logged:
             f = ptufile.PtuFile(path)
