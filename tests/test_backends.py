@@ -4,6 +4,7 @@ where it is installed (skipped otherwise)."""
 
 from __future__ import annotations
 
+import array_api_strict  # noqa: F401 - a dependency of the tests (no skip)
 import numpy as np
 import pytest
 
@@ -17,8 +18,6 @@ from spslidar.pipeline.chain import measure, reconstruct, run
 from spslidar.solvers import StopRule
 from spslidar.solvers.fista import FISTA
 from spslidar.solvers.regularisers import TV
-
-pytest.importorskip("array_api_strict")
 
 HAS_TORCH = is_available("torch", "cpu")
 needs_torch = pytest.mark.skipif(not HAS_TORCH, reason="PyTorch is not installed")

@@ -109,7 +109,6 @@ def plane_wall(tmp_path_factory):
     """The independent instrument of ``test_independent_ptu`` (its own PicoHarp writer, delay
     and jittered, tailed IRF) on a flat wall 25 m ahead through a 10 degree field of view:
     its corners 0.179 m (11.9 bins) farther than its centre at 32x32."""
-    pytest.importorskip("ptufile")
     import test_independent_ptu as indep
 
     path = tmp_path_factory.mktemp("plane_wall")

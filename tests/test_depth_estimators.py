@@ -227,9 +227,9 @@ def test_linear_road_is_zero_on_planes_edges_and_poles():
 
 
 def test_mrf_options_validated():
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="smoothness must be a finite number >= 0"):
         MRFDepth(smoothness=-1)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"low_confidence must be in \[0, 1\]"):
         MRFDepth(low_confidence=2.0)
 
 
@@ -417,9 +417,9 @@ def test_evidence_keeps_a_one_pixel_pole_the_mrf_erases_by_its_line_alone():
 def test_evidence_options_validated():
     from spslidar.depth.evidence import EvidenceDepth
 
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="strong must be a finite number >= 0"):
         EvidenceDepth(strong=-1)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"share must be a finite number in \[0, 1\]"):
         EvidenceDepth(share=1.5)
 
 

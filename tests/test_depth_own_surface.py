@@ -85,3 +85,28 @@ def test_the_mrf_reports_what_it_gave_back():
     est = MRFDepth().estimate(x, ctx)
     assert est.info["own_surface_pixels"] == 0
     assert MRFDepth(lines=False).estimate(x, ctx).info["own_surface_pixels"] == 0
+
+
+def test_the_mrf_reports_the_count_and_the_labels_the_rule_gave_back(monkeypatch):
+    """What ``keep_own_surface`` gives back, the MRF keeps and counts: a stand-in rule that
+    restores three pixels to slice 5 shows both in the estimate (the test above, at 0 only,
+    passed with the count set to 0 whatever the rule did; an audit of the tests)."""
+    from spslidar.depth import DepthContext, own_surface
+    from spslidar.depth.mrf import MRFDepth
+
+    def rule(mrf_label, label, z, nu, shape):
+        out = np.array(label)
+        out[:3] = 5
+        return out, 3
+
+    monkeypatch.setattr(own_surface, "keep_own_surface", rule)
+    rng = np.random.default_rng(0)
+    x = rng.normal(0.0, 0.05, (SHAPE[0] * SHAPE[1], K)).astype(np.float32)
+    x[:, WALL] += 1.0
+    ctx = DepthContext(np.arange(K), 1e-10, 1e-10, SHAPE, False)
+    est = MRFDepth(corners=False, edges=False).estimate(x, ctx)
+    assert est.info["own_surface_pixels"] == 3
+    from spslidar.forward import delay_to_depth
+
+    np.testing.assert_allclose(est.depth.ravel()[:3],
+                               delay_to_depth(5 + 0.5 - 1e-10 / 2, 1e-10), rtol=1e-9)

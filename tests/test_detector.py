@@ -29,9 +29,9 @@ def test_poisson_depends_on_seed_not_threads(monkeypatch):
 
 
 def test_poisson_rejects_bad_means():
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="Poisson means must be finite and non-negative"):
         det.poisson_counts(np.array([[1.0, -1.0]]), 0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="Poisson means must be finite and non-negative"):
         det.poisson_counts(np.array([[np.nan]]), 0)
     for bad in ([[1.0, np.inf]], [[-np.inf, 1.0]], [[2.0**24, 1.0]], [[np.nan, -1.0]]):
         with pytest.raises(ValueError):

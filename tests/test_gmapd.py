@@ -248,7 +248,7 @@ def test_unconverged_fixed_point_says_the_flux_and_what_to_do():
     with pytest.warns(RuntimeWarning, match=r"at 2e\+04 photons per dead time: the detector "
                                             r"fires at nearly every re-arm.*1-10 photons"):
         renewal_detection((40.0 * (0.5 + code))[None, :], 500, max_sweeps=3)
-    with pytest.warns(RuntimeWarning) as caught:
+    with pytest.warns(RuntimeWarning, match="dead-time fixed point not converged") as caught:
         renewal_detection((0.02 * (0.5 + code))[None, :], 500, max_sweeps=1, tol=0.0)
     assert "photons per dead time" not in str(caught[0].message)
 

@@ -9,9 +9,8 @@ import subprocess
 import sys
 import time
 
+import psutil
 import pytest
-
-psutil = pytest.importorskip("psutil")
 
 # 400 runs (about 0.1 s each here): the signal, sent after two, must find the sweep running (12
 # runs finished before it on a fast CI machine, and the test then saw a clean exit 0)

@@ -14,8 +14,6 @@ from spslidar.errors import ConfigError
 from spslidar.io import read_ptu_histograms, write_ptu_t3
 from spslidar.pipeline.blocks import read_blocks
 
-pytest.importorskip("ptufile")
-
 L, M, DWELL, PER = 31, 6, 200, 400  # bins, patterns, syncs per pattern, photons per pattern
 RES = 1e-10
 

@@ -121,7 +121,7 @@ def test_a_scene_at_the_lidar_gets_a_gate_of_sixteen_slices(tmp_path):
 def test_an_rgb_image_is_not_said_to_be_a_float_or_16_bit_one(tmp_path):
     """The note for float TIFFs and 16-bit PNGs read the type after the RGB image was made
     grey: an 8-bit RGB PNG was "(float64, 0 .. 1)"."""
-    iio = pytest.importorskip("imageio.v3")
+    import imageio.v3 as iio
     rng = np.random.default_rng(0)
     iio.imwrite(tmp_path / "rgb.png", rng.integers(0, 255, (16, 16, 3), dtype=np.uint8))
     iio.imwrite(tmp_path / "g16.png", rng.integers(0, 65535, (16, 16), dtype=np.uint16))

@@ -258,7 +258,7 @@ def test_simulation_counts_are_poisson_totals():
 def test_simulation_rejects_unknown_method():
     from spslidar.errors import ConfigError
 
-    with pytest.raises(ConfigError):
+    with pytest.raises(ConfigError, match="unknown simulation method 'gaussian'"):
         _simulate(_small_measurement(), 0, method="gaussian")
 
 
@@ -272,7 +272,7 @@ def test_simulation_rejects_means_beyond_float32_counts(method):
         pipeline.measure(scene="steps", size=8, code_length=127, signal=1e7)
     meas = _small_measurement()
     meas.patterns = meas.patterns.todense() - 50.0  # negative transmittances: negative means
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="must be finite and non-negative"):
         _simulate(meas, 0, method=method)
 
 

@@ -7,6 +7,7 @@ import struct
 import sys
 
 import numpy as np
+import ptufile
 import pytest
 
 from spslidar.errors import ConfigError
@@ -16,8 +17,6 @@ from spslidar.io import (
     write_acquisition_ptu,
     write_ptu_t3,
 )
-
-ptufile = pytest.importorskip("ptufile")
 
 L = 63
 BW = 250e-12

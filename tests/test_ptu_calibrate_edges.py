@@ -18,8 +18,6 @@ from spslidar.cli import main
 from spslidar.errors import ConfigError, SpslidarError
 from spslidar.io import ptu_info, read_ptu_histograms, write_acquisition_ptu
 
-pytest.importorskip("ptufile")
-
 L = 63
 BW = 250e-12  # 4 GHz
 

@@ -51,7 +51,6 @@ def test_cli_reconstruct_without_truth(tmp_path, capsys):
     """A real acquisition has no ground truth: reconstruct without --truth writes the depth,
     reflectivity, confidence and point cloud, every metric that needs no truth, no truth or
     RMSE; scored offline against the scene, the depth is right (two bins of 1.5 cm)."""
-    pytest.importorskip("ptufile")
     ptu, _, _, truth, _ = _acquisition(tmp_path)
     out = tmp_path / "out"
     assert main(["reconstruct", "--ptu", str(ptu), "--patterns", str(tmp_path / "patterns.npy"),
@@ -75,7 +74,6 @@ def test_cli_reconstruct_without_truth(tmp_path, capsys):
 
 
 def test_reconstruct_ptu_recovers_depth(tmp_path):
-    pytest.importorskip("ptufile")
     ptu, pats, code, truth, counts = _acquisition(tmp_path)
     res = reconstruct_ptu(ptu, pats.reshape(M, -1), code.astype(np.uint8), BIT_RATE, (3.5, 4.8),
                           truth=truth, depth="argmax")
@@ -86,7 +84,6 @@ def test_reconstruct_ptu_recovers_depth(tmp_path):
 
 
 def test_cli_reconstruct_writes_and_refuses(tmp_path, capsys):
-    pytest.importorskip("ptufile")
     ptu, *_ = _acquisition(tmp_path)
     out = tmp_path / "out"
     args = ["reconstruct", "--ptu", str(ptu), "--patterns", str(tmp_path / "patterns.npy"),
@@ -123,7 +120,6 @@ def test_run_save_ptu_round_trip(tmp_path):
     argmax outliers differ between realisations), and the maps equal on >= 85 % of the pixels
     to one bin (measured over seeds 0-5 with either TV: RMSE differences 0.001-0.030 m,
     agreement 0.90-0.93)."""
-    pytest.importorskip("ptufile")
     ptu, run_out, rec_out = tmp_path / "sim.ptu", tmp_path / "run", tmp_path / "rec"
     common = ["--code-length", "1023", "--depth", "argmax"]
     assert main(["run", "--size", "16", "--signal", "1", "--noise", "0.01",
@@ -199,7 +195,6 @@ def test_a_measured_acquisition_is_priced_on_the_slices_its_gate_keeps(tmp_path,
     file through a 0-100 m gate: 67 s announced, 15.5 s taken, its depth stage unpriced):
     with the automatic gate it is priced once the slices with returns are known, solve and
     depth stage, and refused beyond --max-time in one line with nothing written."""
-    pytest.importorskip("ptufile")
     run_dir = tmp_path / "sim"
     assert main(["run", "--scene", "steps", "--depth-min", "4", "--depth-max", "5", "--size",
                  "8", "--code-length", "1023", "--signal", "1", "--noise", "0.02",

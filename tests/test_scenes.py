@@ -322,8 +322,18 @@ def test_shipped_scene_cache_matches_scikit_image(name, size):
 
     fresh = compute(name, size)
     assert shipped.keys() == fresh.keys()
+    # a thousandth of a 1.5 cm bin in metres (the camera's grey levels span its 0.8 m window:
+    # 1.5e-5 m of it is 1.9e-5 of grey), not the 1e-12 the arithmetic gives today (1.8e-15 m
+    # measured): a resize or sample image changed in a new scikit-image at that level is
+    # no scene error of consequence (an audit of the tests)
+    tol = {"grey": 1.9e-5, "depth": 1.5e-5, "reflectivity": 1e-5, "source_shape": 0}
     for key in shipped:
-        np.testing.assert_allclose(shipped[key], fresh[key], rtol=1e-12, atol=0, err_msg=key)
+        if shipped[key].dtype == bool:
+            assert np.array_equal(shipped[key], fresh[key]), key
+            continue
+        np.testing.assert_allclose(
+            shipped[key], fresh[key], rtol=0, atol=tol[key],
+            err_msg=f"{key}: regenerate the cache with python -m spslidar.scene_build")
 
 
 @pytest.mark.parametrize("window", [(None, None), (3.0, 4.0), (1.0, None), (None, 30.0)])
@@ -331,7 +341,7 @@ def test_cached_and_computed_scenes_are_the_same_scene(window, monkeypatch):
     """Loading through the cache gives what the scikit-image path gives, in any depth window
     (the remap is applied after the cache, as after the resize).
 
-    Depth and reflectivity agree to 1e-12 relative, not bit for bit: the anti-aliased resize
+    Depth and reflectivity agree to 1.5e-5 (m), not bit for bit: the anti-aliased resize
     sums in an order that depends on the NumPy/SciPy release and the CPU's SIMD kernels
     (measured: up to 1.8e-15 m on 1165 motorcycle pixels with numpy 2.4.6 / scipy 1.17.1),
     while a scene error of physical consequence is a thousandth of a 1.5 cm bin (1.5e-5 m).
@@ -345,7 +355,7 @@ def test_cached_and_computed_scenes_are_the_same_scene(window, monkeypatch):
             computed = load_scene(name, 64, *window)
         for key in ("depth", "reflectivity"):
             np.testing.assert_allclose(getattr(cached, key), getattr(computed, key),
-                                       rtol=1e-12, atol=1e-12, err_msg=f"{name} {key}")
+                                       rtol=0, atol=1.5e-5, err_msg=f"{name} {key}")
         assert np.array_equal(cached.valid, computed.valid), name
         assert cached.notes == computed.notes
 

@@ -117,8 +117,8 @@ def test_fista_identity_tv_is_denoising():
 
 
 def test_fista_tv_vs_pyproximal(tv_problem, tv_fista):
-    pyproximal = pytest.importorskip("pyproximal")
-    pylops = pytest.importorskip("pylops")
+    import pylops
+    import pyproximal
     from pyproximal.optimization.primal import ProximalGradient
 
     A, y, lam, shape = tv_problem
@@ -315,7 +315,7 @@ def test_parallel_solve_matches_serial(name, big_tv_problem):
         reg = _tv(shape, max_inner=5, inner_tol=1e-3, nonneg=True)
         runs[threads] = SOLVERS[name](op, y, reg, lam, stop=StopRule(25, rtol=0), threads=threads)
     (x1, i1), (x2, i2) = runs[1], runs[2]
-    pytest.importorskip("threadpoolctl")
+    import threadpoolctl  # noqa: F401 - a dependency of the tests (no skip)
     assert i1.extra["threads"] == 1 and i2.extra["threads"] == 2
     # products split by rows and the two-band prox: the same numbers up to float32 rounding
     np.testing.assert_allclose(x2, x1, rtol=0, atol=1e-5 * np.abs(x1).max())

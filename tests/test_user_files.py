@@ -61,7 +61,6 @@ def test_run_out(tmp_path, capsys, overwrite):
 @pytest.fixture(scope="module")
 def acquisition(tmp_path_factory) -> Path:
     """A small PTU of a flat wall at 25 m and its two arrays, written by run --save-ptu."""
-    pytest.importorskip("ptufile")
     d = tmp_path_factory.mktemp("acq")
     np.save(d / "wall.npy", np.full((8, 8), 25.0))
     assert main(["run", *FAST, "--scene", str(d / "wall.npy"), "--signal", "1", "--noise",
