@@ -66,12 +66,15 @@ def test_a_new_detector_option_reaches_config_cli_stage_and_metrics(dim_detector
     capsys.readouterr()
 
 
-def test_an_option_of_another_stage_is_refused(dim_detector, capsys):
-    assert main(["run", "--size", "8", "--qe", "0.5", "--out", "never"]) == 2
+def test_an_option_of_another_stage_is_refused(dim_detector, capsys, tmp_path):
+    never = str(tmp_path / "never")  # (was "never" in the working folder: a regression
+    # would have written into the checkout)
+    assert main(["run", "--size", "8", "--qe", "0.5", "--out", never]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--qe is an option of --detector dim" in err[0]
     assert main(["run", "--size", "8", "--detector", "dim", "--jitter", "1e-11",
-                 "--out", "never"]) == 2
+                 "--out", never]) == 2
+    assert not (tmp_path / "never").exists()
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--jitter is an option of --detector gmapd" in err[0]
     assert "takes --qe" in err[0]
