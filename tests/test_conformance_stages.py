@@ -175,7 +175,10 @@ class _Filler(ArgmaxDepth):
 def _flat(size, depth_min=None, depth_max=None):
     from spslidar.scenes.base import Scene
 
-    depth = 5.0 if depth_min is None else depth_min  # flat: at the window's near end
+    # flat: its own 5 m where the window holds it, else the window's nearer end
+    lo = 0.0 if depth_min is None else depth_min
+    hi = np.inf if depth_max is None else depth_max
+    depth = min(max(5.0, lo), hi)
     return Scene("wall", np.full((size, size), depth), np.full((size, size), 0.7),
                  np.ones((size, size), bool))
 

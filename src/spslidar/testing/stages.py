@@ -21,8 +21,8 @@ contract that failed; it returns the list of the contracts it checked.
   pixels that have one), and with ``subbin`` a two-bin return read monotonically within half
   a bin;
 * scene kind: loads at the probe's size as a valid scene, the same twice, rescaled into a
-  window given, both ends, in two windows of other spans (a flat scene to its near end), and
-  the same scene in a fresh process.
+  window given, both ends, in two windows of other spans (a flat scene at its own depth or the
+  nearer end), and the same scene in a fresh process.
 
 A stage that needs other probe settings declares them where it is registered:
 ``check={"code_length": 131}`` for a code family, ``check={"size": 16}`` for a pattern kind
@@ -421,8 +421,8 @@ def scene_size(name: str) -> int:
 def check_scene_kind(name: str) -> list[str]:
     """The contract of a scene kind (see the module docstring), at 16 x 16 pixels (or the
     ``size`` its entry's ``check=`` declares), with the argument its entry's ``example=``
-    gives (default ``0``). A flat scene is rescaled to the window's near end, as
-    ``load_scene`` documents.
+    gives (default ``0``). A flat scene keeps its depth where the window holds it and goes to
+    the window's nearer end where not, as ``load_scene`` does with a file.
 
     Returns
     -------
@@ -445,13 +445,15 @@ def check_scene_kind(name: str) -> list[str]:
             and np.array_equal(a.valid, b.valid)):
         raise _fail(what, "not the same scene twice (depth, reflectivity and valid)")
     flat = float(np.ptp(a.depth[a.valid])) == 0.0
-    # the window is filled to round-off (a linear remap in float64); a flat scene goes to
-    # its near end; two windows of other spans (one alone passed a scene that read only
-    # its near bound and kept its own 1 m span, a known limit of stop 51)
+    own = float(a.depth[a.valid][0])
+    # the window is filled to round-off (a linear remap in float64); a flat scene keeps its
+    # depth or goes to the nearer end; two windows of other spans (one alone passed a scene
+    # that read only its near bound and kept its own 1 m span, a known limit of stop 51)
     for near, far in ((7.0, 8.0), (3.0, 5.5)):
         w = load_scene(spec, size, near, far)
         d = w.depth[w.valid]
-        if abs(d.min() - near) > 1e-9 or (abs(d.max() - far) > 1e-9 and not flat):
+        lo, hi = (near, far) if not flat else (min(max(own, near), far),) * 2
+        if abs(d.min() - lo) > 1e-9 or abs(d.max() - hi) > 1e-9:
             raise _fail(what, f"rescaled into [{near:g}, {far:g}] m it spans "
                               f"[{d.min():.9g}, {d.max():.9g}]")
     return ["shape", "valid values", "deterministic", "rescaled into a window",
