@@ -307,7 +307,7 @@ def test_colour_bar_labels_resolve_their_span(lo, hi, labels):
 
 @pytest.mark.parametrize("share, text", [
     (6 / 262144, "0.002%"), (1 - 1 / 262144, "99.9996%"), (1e-9, "0.0000001%"),
-    (0.0, "0%"), (1.0, "100%")])
+    (0.995, "99.50%"), (0.005, "0.50%"), (0.0, "0%"), (1.0, "100%")])
 def test_percent_keeps_a_digit_of_what_is_there(share, text):
     """6 pixels of 262 144 read '0.00%' beside their dots, one missing '100.00%' (an
     audit)."""
@@ -338,3 +338,12 @@ def test_a_noiseless_run_says_so_in_its_title():
 
     r = pipeline.run(size=16, code_length=255, noiseless=True, seed=0)
     assert "noiseless" in _title(r) and "m_n=" not in _title(r)
+
+
+def test_a_title_with_a_newline_is_written_on_its_lines(result, tmp_path, monkeypatch):
+    """A PTU file's name may hold a newline: measuring the title refused multi-line text and
+    the figure, so reconstruct, failed (a review)."""
+    import spslidar.figures as figs
+
+    monkeypatch.setattr(figs, "_title", lambda r: "measured wall\nday2.ptu: no ground truth")
+    assert depth_figure(result, tmp_path / "n.png").stat().st_size > 1000

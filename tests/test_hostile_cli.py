@@ -343,6 +343,9 @@ def test_a_librarys_notice_of_its_future_is_not_the_runs_warning(tmp_path, capsy
                                "/site-packages/lib/mod.py", 11)
         warnings.warn_explicit("overflow in a library", RuntimeWarning,
                                "/site-packages/lib/mod.py", 12)
+        # as libraries raise their notices, naming their caller's line (spslidar's own
+        # file: it was taken for spslidar's warning, a review)
+        warnings.warn("argument z is deprecated", FutureWarning, stacklevel=2)
         return here(*a, **k)
 
     monkeypatch.setattr(sim, "simulate_correlations", noisy)

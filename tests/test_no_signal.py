@@ -346,3 +346,12 @@ def test_a_noiseless_runs_float32_rounding_of_its_background_is_said(tmp_path, c
     assert main(["run", "--scene", "steps", "--size", "16", "--noiseless", "--compression", "1",
                  *light, "--no-figure", "--out", str(tmp_path / "o")]) == 0
     assert ("rounding of its background" in capsys.readouterr().err) is said
+
+
+def test_the_device_path_says_the_noiseless_rounding_too(tmp_path, capsys):
+    """The array-API simulation's noiseless branch gave the same 0.20 m map without the
+    host's warning (a review)."""
+    assert main(["run", "--scene", "steps", "--size", "16", "--noiseless", "--compression", "1",
+                 "--noise", "1000", "--signal", "0.001", "--backend", "array-api-strict",
+                 "--no-figure", "--out", str(tmp_path / "o")]) == 0
+    assert "rounding of its background" in capsys.readouterr().err

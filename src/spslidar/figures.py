@@ -89,6 +89,9 @@ def _wrap(draw, text: str, width: float, sep: str = " ") -> list[str]:
     """``text`` in lines no wider than ``width`` pixels as ``draw`` writes them, broken at
     ``sep`` (a word longer than a line keeps its own line)."""
     lines: list[str] = []
+    # (one line of text to measure: a file name's newline made textlength refuse it and
+    # the figure, so reconstruct, fail; a review)
+    text = " ".join(text.splitlines())
     for word in text.split(sep):
         if lines and draw.textlength(lines[-1] + sep + word) <= width:
             lines[-1] += sep + word

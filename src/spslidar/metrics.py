@@ -170,6 +170,6 @@ def percent(share: float) -> str:
     # as many decimals as keep the first digit of what is there (or missing): 6 of 262 144
     # read '0.00%', and one missing '100.00%' (an audit)
     for part in (p, 100.0 - p):
-        if 0.0 < part < 0.5:
+        if 0.0 < part <= 0.5:  # (0.5 itself: 99.5 read "100%", a review)
             return f"{p:.{max(2, int(math.ceil(-math.log10(part))))}f}%"
     return f"{p:.0f}%"

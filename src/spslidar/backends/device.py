@@ -153,6 +153,10 @@ def simulate(be: Any, patterns: Any, acq: Any, ulags: np.ndarray, noise: Any, de
     totals = be.to_numpy(xp.concat(tot_parts) if n_blocks > 1 else tot_parts[0])
     amp_sum = be.to_numpy(xp.concat(amp_parts) if n_blocks > 1 else amp_parts[0])
     n_pulses = float(acq.code.sum()) * acq.n_periods
+    if noiseless:  # (the host's check of its float32 rounding: a review found it missing here)
+        from ..correlate import noiseless_roundoff
+
+        noiseless_roundoff(noise_bin, amp_sum, acq, patterns.shape[1])
     return {"corr": corr, "sigma": noise_sigma_from_totals(totals, replica, gain),
             "counts": totals, "signal_counts": acq.signal_per_pulse * n_pulses * amp_sum,
             "noise_per_bin": noise_bin}

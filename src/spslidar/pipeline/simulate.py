@@ -4,7 +4,6 @@ filter (equations 5-6), streamed over blocks of patterns on a thread pool."""
 from __future__ import annotations
 
 import os
-import warnings
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -16,6 +15,7 @@ from ..correlate import (
     make_replica,
     matched_filter,
     noise_sigma_from_totals,
+    noiseless_roundoff,
     replica_matrix,
 )
 from ..detectors import DetectorModel
@@ -148,36 +148,10 @@ def simulate_correlations(
     n_pulses = float(acq.code.sum()) * acq.n_periods
     signal_counts = acq.signal_per_pulse * n_pulses * amp_sum
     if noiseless:
-        _noiseless_roundoff(noise_bin, amp_sum, acq, patterns.shape[1])
+        noiseless_roundoff(noise_bin, amp_sum, acq, patterns.shape[1])
     sigma = noise_sigma_from_totals(noise_tot, replica, gain)
     return {"corr": corr, "sigma": sigma, "counts": totals, "signal_counts": signal_counts,
             "noise_per_bin": noise_bin, "incident_counts": incident}
-
-
-def _noiseless_roundoff(noise_bin: np.ndarray, amp_sum: np.ndarray, acq: Acquisition,
-                        q: int) -> None:
-    """Warn where a noiseless run's float32 round-off of its background outweighs a pixel's
-    signal: the expected counts and their correlations are float32, whose rounding of a
-    large background per bin is noise that no Poisson draw hides (``--noiseless --noise
-    1000 --signal 0.001`` at 16 x 16 gave an RMSE of 0.21 m with no word, 0.0015 m at
-    ``--noise 0``; an audit of 2026-11-29). The round-off of one correlation is about
-    ``eps * max(mean per bin) * sqrt(L)``; a pixel of average light adds
-    ``m_s * periods * ones * mean(amp) / Q`` to it."""
-    top = acq.n_periods * (float(np.max(np.abs(noise_bin), initial=0.0))
-                           + acq.signal_per_pulse * float(np.max(np.abs(amp_sum), initial=0.0)))
-    roundoff = float(np.finfo(np.float32).eps) * top * np.sqrt(acq.period)
-    pixel = (acq.signal_per_pulse * acq.n_periods * float(acq.code.sum())
-             * float(np.mean(np.abs(amp_sum))) / max(q, 1))
-    if pixel > 0 and roundoff > NOISELESS_ROUNDOFF * pixel:
-        warnings.warn(f"a noiseless run computes its expected counts in float32: the rounding "
-                      f"of its background ({top:.3g} counts in a bin) is {roundoff / pixel:.2g} "
-                      f"times what a pixel of average light adds to a correlation, so the map "
-                      f"holds rounding noise; lower --noise (the noise-free limit needs no "
-                      f"background) or raise --signal", RuntimeWarning, stacklevel=3)
-
-
-#: a noiseless run warns where its float32 round-off reaches this share of a pixel's signal
-NOISELESS_ROUNDOFF = 0.1
 
 
 def single_threaded_blas():

@@ -345,7 +345,7 @@ class GPSR(Solver):
         else:
             obj = float(np.sum(f_col))
         step = float(np.sqrt(np.sum(dzn2))) if last else None
-        reason = self.monitor.check(self.it, z, None, obj, step_norm=step)
+        reason = self.monitor.check(self.it, z, None, obj, step_norm=step, final=last)
         if reason or last:
             return reason
         dzn = np.sqrt(dzn2)
