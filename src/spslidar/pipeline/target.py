@@ -34,14 +34,17 @@ convolved with a kernel ``k_m`` that the patterns and the geometry give. Two ste
    a flat wall (``--target plane --fov`` removes it). Each pixel's return is split between
    the two bins about its offset linearly, which holds for a response smooth over a bin; a
    response narrower than a bin (an instrument without jitter) puts each pixel's pulse in
-   one bin or two by where it starts in its bin, so where the linear split finds no plane
-   the spreads are scanned again with the axis's pulse at each of :data:`PHASES` in its bin
-   (and a given field of view takes the place that fits best, where it stands
-   :data:`Z_PLANE` deviations better): an ideal instrument's 10 degree wall at 32 x 32 was
-   read as one range with its delay 4.7 bins off at 13.70 ns and right at 13.74 ns (an
-   audit of 2026-11-29); now 13.695 and 13.735 ns, and 16 x 16 walls at 3.30 ns read
-   3.299-3.314 ns where they read 3.67. The scan takes about five times as long then (5 s
-   at 32 x 32). Tried first and dropped: the responses of
+   one bin or two by where it starts in its bin, so the spreads are scanned again with the
+   axis's pulse at each of :data:`PHASES` in its bin (every other phase and spread, then
+   all about the best: :func:`_phase_scan`), kept where that fits :data:`Z_PLANE`
+   deviations better than the linear split (a given field of view takes the place that fits
+   best on the same terms): an ideal instrument's 10 degree wall at 32 x 32 was read as one
+   range with its delay 4.7 bins off at 13.70 ns and right at 13.74 ns, and at 16 x 16 and
+   10 m fitted a 1-bin spread for 4.5 with delays 0.6-0.8 bin late at five of eight sub-bin
+   delays (audits of 2026-11-29); now 13.695 and 13.738 ns, and all eight within 0.01 bin.
+   The scan takes about three times as long (3 s at 32 x 32). A plane fitted under
+   :data:`Z_PLANE_SURE` deviations is said to be uncertain (a 10-bin IRF's 25 m wall at
+   1.2-2.2: its delay 0.7-1.1 bins off). Tried first and dropped: the responses of
    4 x 4 blocks of the field, each solved by least squares from the blocks' sums, whose
    delays a plane would be fitted to: on a 32 x 32 calibration of 14.5 M photons they stood
    2-4 noise deviations high (each block's response estimated on its own, where this fit's
@@ -102,9 +105,9 @@ from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
 
 __all__ = ["MAX_SPREAD_BINS", "MIN_SPREAD_BINS", "PHASES", "PLANE_REG", "SCAN_PATTERNS",
-           "TARGETS", "Z_HINT", "Z_PLANE", "Z_TILT", "Z_TILT_LOOK", "measure_geometry",
-           "plane_offsets", "plane_ranges", "range_free_response", "tilt_of_target",
-           "wall_offsets"]
+           "TARGETS", "Z_HINT", "Z_PLANE", "Z_PLANE_SURE", "Z_TILT", "Z_TILT_LOOK",
+           "measure_geometry", "plane_offsets", "plane_ranges", "range_free_response",
+           "tilt_of_target", "wall_offsets"]
 
 #: what ``--target`` takes: ``auto`` keeps the plane where the data ask for one
 TARGETS = ("auto", "plane", "range")
@@ -112,8 +115,10 @@ TARGETS = ("auto", "plane", "range")
 MIN_SPREAD_BINS = 1.0
 #: where the axis's pulse may start in its bin (bins): a response narrower than a bin is fitted
 #: with each pixel's pulse split between the two bins it falls in from there
-#: (:func:`_kernels`), where the linear split finds no plane
+#: (:func:`_kernels`), kept where it fits better than the linear split
 PHASES = np.arange(8) / 8.0
+#: a plane fitted less than this many deviations below one range's is said to be uncertain
+Z_PLANE_SURE = 3.0
 #: ``auto`` keeps the plane where its residual stands this many deviations below one range's
 Z_PLANE = 1.0
 #: ... and says (a warning) that the target may be a flat wall from this many
@@ -341,6 +346,29 @@ def _explained(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int
     den = np.sum(np.abs(kf) ** 2, axis=0)
     return float(np.sum(np.divide(np.abs(num) ** 2, den, out=np.zeros_like(den),
                                   where=den > 0)))
+
+
+#: the phase scan's coarse pass takes every PHASE_STEP-th spread and every other phase, then
+#: refines every phase within PHASE_STEP spreads of the best (a third of a full scan's time)
+PHASE_STEP = 2
+
+
+def _phase_scan(gf: np.ndarray, light: np.ndarray, offs: list, size: int, width: float
+                ) -> tuple[float, int, float] | None:
+    """The best fit of a response narrower than a bin over the spreads ``offs[1:]`` (offsets
+    of each candidate spread's pixel groups) and :data:`PHASES`: ``(residual, index,
+    phase)``, coarse to fine; None without a spread to scan."""
+    if len(offs) < 2:
+        return None
+    total = float(np.sum(np.abs(gf) ** 2))
+
+    def fit(i: int, ph: float) -> float:
+        return total - _explained(gf, light, offs[i], size, ph, width)
+
+    best = min((fit(i, float(ph)), i, float(ph)) for ph in PHASES[::2]
+               for i in range(1, len(offs), PHASE_STEP))
+    near = range(max(1, best[1] - PHASE_STEP), min(len(offs), best[1] + PHASE_STEP + 1))
+    return min([best] + [(fit(i, float(ph)), i, float(ph)) for ph in PHASES for i in near])
 
 
 def _phase_of(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int,
@@ -592,19 +620,21 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
         sigma2 = best / dof
         return float((res[0] - best) / (sigma2 * np.sqrt(2.0 * n_f))) if sigma2 > 0 else 0.0
 
-    z, best, phase = deviations(res[j]), float(res[j]), None
-    if not (z >= Z_PLANE and spreads[j] >= MIN_SPREAD_BINS):
-        # a response narrower than a bin: each pixel's pulse falls in one bin or two by where
-        # it starts in its bin, which the linear split averages away (an ideal instrument's
-        # 10 degree wall at 32 x 32 was read as one range at 0.33 deviations with its delay
-        # at 13.70 ns, 4.7 bins off, and fitted at 19 with it at 13.74 ns; an audit of
-        # 2026-11-29): the spreads again with the pulse at each of PHASES in its bin
-        for ph in PHASES:
-            for i in range(1, len(offs)):
-                r = total - _explained(gf, light, offs[i], size, float(ph), pulse_width)
-                if r < best:
-                    best, j, phase = r, i, float(ph)
-        z = deviations(best)
+    best, phase = float(res[j]), None
+    # a response narrower than a bin: each pixel's pulse falls in one bin or two by where it
+    # starts in its bin, which the linear split averages away (an ideal instrument's 10
+    # degree wall at 32 x 32 was read as one range at 0.33 deviations with its delay at
+    # 13.70 ns, 4.7 bins off, and fitted at 19 with it at 13.74 ns; at 16 x 16 and 10 m the
+    # linear split fitted a 1-bin spread for 6, its delay 0.5-0.8 bin late: audits of
+    # 2026-11-29): the spreads again with the pulse at each of PHASES in its bin, kept where
+    # they fit Z_PLANE deviations better than the linear split's best
+    found = _phase_scan(gf, light, offs, size, pulse_width)
+    if found is not None:
+        r, i, ph = found
+        sigma2 = r / dof
+        if sigma2 > 0 and (best - r) / (sigma2 * np.sqrt(2.0 * n_f)) >= Z_PLANE:
+            best, j, phase = r, i, ph
+    z = deviations(best)
     fov = _fov_of_spread(spreads[j], tau_d, n)
     if tilt is not None:  # step 3: a tilted wall, which no facing wall's rings fit
         found = _tilt_scan(gf, size, light_all, shape, tilt, np.zeros(n * n), best,
@@ -622,7 +652,8 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
             warnings.warn(f"the calibration target may be a flat wall whose pixels spread over "
                           f"{spreads[j]:g} bins of round trip (a {fov:.3g} degree field of "
                           f"view; {z:.2g} deviations, too few to remove it unasked): it was "
-                          f"read as one range; if it is a flat wall facing the lidar, calibrate "
+                          f"read as one range, which puts a flat wall's delay up to half its "
+                          f"spread late; if it is a flat wall facing the lidar, calibrate "
                           f"with --target plane --fov (your optics' field of view)",
                           RuntimeWarning, stacklevel=3)
         return out
@@ -632,10 +663,13 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
                reason=f"a wall facing the lidar, fitted: its pixels over {spreads[j]:g} bins "
                       f"of round trip (a {fov:.3g} degree field of view), {z:.2g} deviations "
                       f"below one range's residual")
-    if z < Z_PLANE:
+    if z < Z_PLANE_SURE:
+        # (at 1-2.3 deviations a 10-bin IRF's wall at 25 m was fitted 1.5-4 degrees off and
+        # its delay 0.7-1.1 bins off, without a word: an audit of 2026-11-29)
         warnings.warn(f"the calibration's data barely tell the wall's spread ({z:.2g} "
-                      f"deviations): the field of view fitted, {fov:.3g} degrees, is uncertain; "
-                      f"give your optics' with --fov", RuntimeWarning, stacklevel=3)
+                      f"deviations): the field of view fitted, {fov:.3g} degrees, is uncertain, "
+                      f"and the delay with it (by up to half the spread's error); give your "
+                      f"optics' with --fov", RuntimeWarning, stacklevel=3)
     return out
 
 
