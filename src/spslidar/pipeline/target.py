@@ -44,7 +44,11 @@ convolved with a kernel ``k_m`` that the patterns and the geometry give. Two ste
    delays (audits of 2026-11-29); now 13.695 and 13.738 ns, and all eight within 0.01 bin.
    The scan takes about three times as long (3 s at 32 x 32). A plane fitted under
    :data:`Z_PLANE_SURE` deviations is said to be uncertain (a 10-bin IRF's 25 m wall at
-   1.2-2.2: its delay 0.7-1.1 bins off). Tried first and dropped: the responses of
+   1.2-2.2: its delay 0.7-1.1 bins off). A tilted wall seen so (step 3) is scanned on the
+   responses smoothed over :data:`SHARP_BLUR_BINS` (:func:`_sharp_tilt`; a 5 degree tilt
+   without jitter was read as one range, 1.9-2.0 bins early; now within 0.06 bin on three
+   of four seeds and delays, 0.39 bin on the fourth). Tried first and dropped: the
+   responses of
    4 x 4 blocks of the field, each solved by least squares from the blocks' sums, whose
    delays a plane would be fitted to: on a 32 x 32 calibration of 14.5 M photons they stood
    2-4 noise deviations high (each block's response estimated on its own, where this fit's
@@ -389,16 +393,19 @@ def _phase_of(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int,
     return phase, best
 
 
-def _fit(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int) -> float:
+def _fit(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int,
+         phase: float | None = None, width: float = 0.5) -> float:
     """:func:`_explained` of per-pixel round trips ``offsets`` and the patterns ``light``
-    (M, Q), the pixels grouped by their round trip."""
+    (M, Q), the pixels grouped by their round trip (``phase``, ``width``: as
+    :func:`_kernels`)."""
     group, values, _ = _grouped(light, offsets, slice(None))
-    return _explained(gf, group, values, size)
+    return _explained(gf, group, values, size, phase, width)
 
 
 def _tilt_scan(gf: np.ndarray, size: int, light: np.ndarray, shape: tuple[int, int],
                tilt: dict[str, Any], base: np.ndarray, reference: float, limit: float,
-               free_curvature: bool = False) -> dict[str, Any] | None:
+               free_curvature: bool = False, phase: float | None = None,
+               width: float = 0.5) -> dict[str, Any] | None:
     """Step 3's scan: round trips ``base + c (x^2 + y^2) + k (cos t x + sin t y)``, the tilt's
     size ``k`` (bins at the image's edge along its direction ``t``), its direction and, where
     ``free_curvature`` (no field of view given), a facing wall's curvature ``c``, each fitted
@@ -411,7 +418,9 @@ def _tilt_scan(gf: np.ndarray, size: int, light: np.ndarray, shape: tuple[int, i
     fitted so, 1.8-2.5 (2026-11-29).
     The best is kept where its residual stands :data:`Z_TILT` deviations below
     ``reference`` (the best facing wall's, or the given one's) and its tilt spans
-    :data:`MIN_SPREAD_BINS`. None otherwise."""
+    :data:`MIN_SPREAD_BINS`. None otherwise. ``phase``, ``width``: the kernels of a response
+    narrower than a bin (:func:`_kernels`), the pulse starting ``phase`` into the axis's
+    bin; ``found['phase']`` says which."""
     a, b = tilt["tilt_bins"]
     h = float(np.hypot(a, b))
     if not h > 0 or max(abs(z) for z in tilt["tilt_z"]) < Z_TILT_LOOK:
@@ -431,7 +440,7 @@ def _tilt_scan(gf: np.ndarray, size: int, light: np.ndarray, shape: tuple[int, i
         for v in values:
             trial[name] = float(v)
             res.append(total - _fit(gf, light, offsets(trial["k"], trial["t"], trial["c"]),
-                                    size))
+                                    size, phase, width))
         i = int(np.argmin(res))
         state[name] = float(values[i])
         return float(res[i])
@@ -472,7 +481,43 @@ def _tilt_scan(gf: np.ndarray, size: int, light: np.ndarray, shape: tuple[int, i
     if not (z >= Z_TILT and 2.0 * state["k"] >= MIN_SPREAD_BINS):
         return None
     return {"k": state["k"], "z": z, "offsets": offsets(state["k"], state["t"], state["c"]),
-            "direction": (float(np.cos(state["t"])), float(np.sin(state["t"])))}
+            "direction": (float(np.cos(state["t"])), float(np.sin(state["t"]))),
+            "phase": phase}
+
+
+#: the geometry of a response narrower than a bin is scanned on the responses smoothed by a
+#: Gaussian of this many bins (:func:`_sharp_tilt`)
+SHARP_BLUR_BINS = 1.5
+
+
+def _sharp_tilt(gf: np.ndarray, size: int, light: np.ndarray, facing: np.ndarray,
+                light_all: np.ndarray, shape: tuple[int, int], tilt: dict[str, Any],
+                limit: float, width: float) -> dict[str, Any] | None:
+    """Step 3 for a response narrower than a bin: its residual is flat away from the exact
+    round trips, so the coarse grid of :func:`_tilt_scan` finds no tilt (a 5 degree tilt seen
+    without jitter was read as one range, its delay 1.9-2.0 bins early: an audit of
+    2026-11-29). The tilt is scanned on the responses smoothed over :data:`SHARP_BLUR_BINS`
+    (the IRF a little wider, the geometry the same) against the best facing wall's rings
+    ``facing`` (offsets of ``light``'s groups) smoothed alike; the pulse's place in its bin
+    is then fitted on the responses as they are (:func:`_phase_of`)."""
+    f = np.fft.rfftfreq(size)
+    gb = gf * np.exp(-2.0 * (np.pi * SHARP_BLUR_BINS * f) ** 2)[None, :]
+    total = float(np.sum(np.abs(gb) ** 2))
+    found = _tilt_scan(gb, size, light_all, shape, tilt, np.zeros(shape[0] * shape[1]),
+                       total - _explained(gb, light, facing, size), limit,
+                       free_curvature=True)
+    if found is None:
+        return None
+    found["phase"] = _phase_at(gf, size, light_all, found["offsets"], width)
+    return found
+
+
+def _phase_at(gf: np.ndarray, size: int, light_all: np.ndarray, offsets: np.ndarray,
+              width: float) -> float | None:
+    """:func:`_phase_of` the per-pixel round trips ``offsets`` (None: the linear split)."""
+    group, values, _ = _grouped(light_all, offsets, slice(None))
+    linear = float(np.sum(np.abs(gf) ** 2)) - _explained(gf, group, values, size)
+    return _phase_of(gf, group, values, size, width, linear)[0]
 
 
 def _maybe_tilted(tilt: dict[str, Any]) -> None:
@@ -505,6 +550,7 @@ def _tilt_geometry(found: dict[str, Any], fov_deg: float | None) -> dict[str, An
            if fov_deg is not None else "a tilted wall, its round trips fitted")
     return {"model": "plane", "fov_deg": fov_deg, "spread_bins": round(spread, 4),
             "z": round(found["z"], 3), "tilt_bins": [a, b], "offsets": offsets,
+            "phase_bins": found.get("phase"),
             "reason": f"{how}: its round trip changes by {a:+.3g} bins from the axis to the "
                       f"right edge and {b:+.3g} to the bottom ({found['z']:.3g} deviations "
                       f"below a facing wall's residual), its pixels over {spread:.3g} bins"}
@@ -579,15 +625,15 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     gf = np.fft.rfft(g, axis=1)
     total = float(np.sum(np.abs(gf) ** 2))
     if fov_deg is not None:
+        group, values, _ = _grouped(light_all, offsets, slice(None))
+        given = total - _explained(gf, group, values, size)
+        phase = _phase_of(gf, group, values, size, pulse_width, given)[0]
         if tilt is not None:
-            given = total - _fit(gf, light_all, offsets, size)
             found = _tilt_scan(gf, size, light_all, shape, tilt, offsets, given, limit)
-            if found is not None:
+            if found is not None:  # its pulse's place in its bin (as without --fov, below)
+                found["phase"] = _phase_at(gf, size, light_all, found["offsets"], pulse_width)
                 return _tilt_geometry(found, fov_deg)
             _maybe_tilted(tilt)
-        group, values, _ = _grouped(light_all, offsets, slice(None))
-        phase = _phase_of(gf, group, values, size, pulse_width,
-                          total - _explained(gf, group, values, size))[0]
         return {"model": "plane", "fov_deg": float(fov_deg), "spread_bins": round(spread, 4),
                 "z": None, "phase_bins": phase, "offsets": offsets,
                 "reason": f"a wall facing the lidar through the {fov_deg:g} degree field of "
@@ -628,9 +674,9 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     # linear split fitted a 1-bin spread for 6, its delay 0.5-0.8 bin late: audits of
     # 2026-11-29): the spreads again with the pulse at each of PHASES in its bin, kept where
     # they fit Z_PLANE deviations better than the linear split's best
-    found = _phase_scan(gf, light, offs, size, pulse_width)
-    if found is not None:
-        r, i, ph = found
+    phased = _phase_scan(gf, light, offs, size, pulse_width)
+    if phased is not None:
+        r, i, ph = phased
         sigma2 = r / dof
         if sigma2 > 0 and (best - r) / (sigma2 * np.sqrt(2.0 * n_f)) >= Z_PLANE:
             best, j, phase = r, i, ph
@@ -639,6 +685,11 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     if tilt is not None:  # step 3: a tilted wall, which no facing wall's rings fit
         found = _tilt_scan(gf, size, light_all, shape, tilt, np.zeros(n * n), best,
                            limit, free_curvature=True)
+        if found is None and phased is not None:
+            found = _sharp_tilt(gf, size, light, offs[j], light_all, shape, tilt, limit,
+                                pulse_width)
+        elif found is not None:  # its pulse's place in its bin, where that fits better
+            found["phase"] = _phase_at(gf, size, light_all, found["offsets"], pulse_width)
         if found is not None:
             return _tilt_geometry(found, None)
         _maybe_tilted(tilt)
