@@ -324,14 +324,39 @@ def test_a_sharp_walls_phase_is_scanned_where_the_linear_split_finds_a_plane(tmp
     assert cal["irf_fwhm_bins"] < 2.0
 
 
-def test_a_plane_the_data_barely_tell_is_said_to_be_uncertain(tmp_path, capsys):
+def test_a_delay_the_data_cannot_pin_down_is_said(tmp_path, capsys):
     """A 10-bin IRF's wall at 25 m (seed 1) is fitted at 1.2 deviations with a spread of 8
-    bins for 11.9 and its delay 1.1 bins late: that was said nowhere (an audit); under
-    Z_PLANE_SURE deviations it is said, with the way out."""
+    bins for 11.9 and its delay 1.1 bins late: that was said nowhere (an audit). The spreads
+    within one deviation of the best (1.5-11 bins) are read for the delay too, which moves
+    by 2.4 bins over them (3.31-3.66 ns against 3.41 fitted): said, with the way out, and
+    kept in the JSON."""
     cal = _sharp_wall(tmp_path, 25.0, 3.30e-9, irf="gaussian:1e-9", seed=1)
-    assert cal["target"]["model"] == "plane" and cal["target"]["z"] < 3
+    lo, hi = cal["target"]["spread_band_bins"]
+    assert lo < cal["target"]["spread_bins"] < hi
+    band = [d for d in cal["target"]["delay_band_s"] if d is not None]
+    assert max(abs(d - cal["delay_s"]) for d in band) > 0.25e-10  # a quarter of a bin
     err = capsys.readouterr().err
-    assert "barely tell the wall's spread" in err and "the delay with it" in err
+    assert "cannot tell the wall's spread" in err and "--fov" in err
+
+
+def test_a_delay_the_data_pin_down_is_not_doubted(tmp_path, capsys):
+    """A sharp wall at 7 m (7 degrees, 0.1 photons per pulse) fitted at 2.4 deviations has its
+    delay within 0.01 bin: the warning by deviations alone doubted it (a review); read by
+    the delay over the spreads the data allow, nothing is said."""
+    np.save(tmp_path / "w.npy", plane_ranges((16, 16), 7.0, 7.0))
+    inst = ["--size", "16", "--code-length", "1023", "--signal", "0.1", "--noise", "0.02",
+            "--compression", "0.5", "--system-delay", "3.3625e-9"]
+    assert main(["run", "--scene", str(tmp_path / "w.npy"), *inst, "--range-gate", "5", "10",
+                 "--save-ptu", str(tmp_path / "w.ptu"), "--out", str(tmp_path / "r"),
+                 "--no-figure"]) == 0
+    capsys.readouterr()
+    assert main(["calibrate", "--ptu", str(tmp_path / "w.ptu"),
+                 "--patterns", str(tmp_path / "w_patterns.npy"),
+                 "--code", str(tmp_path / "w_code.npy"), "--bit-rate", "10e9",
+                 "--distance", "7", "--out", str(tmp_path / "c.json")]) == 0
+    cal = json.loads((tmp_path / "c.json").read_text())
+    assert abs(cal["delay_s"] - 3.3625e-9) < 0.01e-9
+    assert "spread" not in capsys.readouterr().err
 
 
 def test_a_tilted_wall_seen_without_jitter_is_fitted(tmp_path):

@@ -213,12 +213,19 @@ def test_gpsr_continuation_cut_short_returns_its_best_and_says_so(monotone):
                    continuation=True, monotone=monotone)
     assert info.extra["continuation_stages_done"] == 5
     # and obj_rtol waits for the last stage: the kept best objective repeats in early ones
-    # (it stopped there at 3.5-6 times the optimum, a review); F within 2 % of a long solve
+    # (it stopped there at 3.5-6 times the optimum, a review). In the last stage the
+    # nonmonotone variant's rejected steps still stop it early, as StopRule says: seeds
+    # 0-5 ended 0.2-2.8 % above a long solve (the monotone one within 0.01 %)
     ref, _ = gpsr(MatrixOperator(a), y, L1(), lam, stop=StopRule(5000, rtol=0), debias=False)
     x, info = gpsr(MatrixOperator(a), y, L1(), lam, debias=False, continuation=True,
                    monotone=monotone, stop=StopRule(2000, rtol=1e-10, obj_rtol=1e-9))
     assert info.extra["continuation_stages_done"] == 5
-    assert _l1_obj(a, y, x, lam) <= 1.02 * _l1_obj(a, y, ref, lam)
+    assert _l1_obj(a, y, x, lam) <= (1.001 if monotone else 1.04) * _l1_obj(a, y, ref, lam)
+    # a target reached in an early stage is F at lam all the same, and stops it there
+    f_ref = _l1_obj(a, y, ref, lam)
+    _, info = gpsr(MatrixOperator(a), y, L1(), lam, debias=False, continuation=True,
+                   monotone=monotone, stop=StopRule(3000, rtol=0, target=1.5 * f_ref))
+    assert info.stop_reason == "target" and info.objective[-1] <= 1.5 * f_ref
 
 
 def test_gpsr_batched_equals_separate():

@@ -559,6 +559,7 @@ def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     phase = geo.get("phase_bins")
     response = range_free_response(hists, patterns, code, offsets, phase=phase,
                                    width=pulse_width)
+    band = geo.pop("spread_band", None)
     if target == "auto" and geo.get("z") is not None and geo.get("model") == "plane":
         plane, one = (_standing(hists, code, bin_width, distance, r, p)
                       for r, p in ((response, phase), (None, None)))
@@ -581,7 +582,54 @@ def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
                    f"a response {plane:.3g} deviations high, one range's {one:.3g}")
             return {"model": "range", "fov_deg": geo.get("fov_deg"), "spread_bins": 0.0,
                     "z": z, "phase_bins": None, "reason": why}, None
+    if band is not None:
+        _delay_band(hists, patterns, code, bin_width, distance, pulse_width, response, band,
+                    geo)
     return geo, response
+
+
+#: a delay that moves by more than this many bins over the spreads a calibration cannot tell
+#: apart is said (:func:`_delay_band`)
+DELAY_BAND_BINS = 0.25
+
+
+def _delay_band(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray, bin_width: float,
+                distance: float, pulse_width: float, response: np.ndarray, band: tuple,
+                geo: dict[str, Any]) -> None:
+    """Read the delay through the two ends of the spreads the data cannot tell from the
+    fitted one (``band``: ``(spread, fov, offsets)`` twice, from
+    :func:`~spslidar.pipeline.target.measure_geometry`), keep them in ``geo``
+    (``spread_band_bins``, ``delay_band_s``) and warn where the delay moves by more than
+    :data:`DELAY_BAND_BINS` over them: how far the fitted spread's uncertainty reaches the
+    delay, which the fit's deviations alone do not tell (a 10-bin IRF's 25 m wall at 1.2
+    deviations read 1.1 bins late, one at 3.4 deviations 0.7 bin early, and a sharp wall at
+    2.4 deviations right; outside audits and a review of 2026-11-29)."""
+    from .target import range_free_response
+
+    def delay(resp: np.ndarray) -> float:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                return float(measure_response(hists.astype(np.float64).sum(axis=0), code,
+                                              bin_width, distance, pulse_width,
+                                              response=resp)["delay_bins"])
+            except ConfigError:
+                return float("nan")
+
+    fitted = delay(response)
+    ends = [delay(range_free_response(hists, patterns, code, off, width=pulse_width))
+            for _, _, off in band]
+    (lo, fov_lo, _), (hi, fov_hi, _) = band
+    geo["spread_band_bins"] = [round(float(lo), 4), round(float(hi), 4)]
+    geo["delay_band_s"] = [round(d * bin_width, 15) if np.isfinite(d) else None for d in ends]
+    moved = max((abs(d - fitted) for d in ends if np.isfinite(d)), default=0.0)
+    if moved > DELAY_BAND_BINS:
+        reads = " and ".join(f"{d * bin_width * 1e9:.4g} ns" for d in ends if np.isfinite(d))
+        warnings.warn(f"the calibration's data cannot tell the wall's spread between {lo:g} and "
+                      f"{hi:g} bins of round trip (fields of view {fov_lo:.3g}-{fov_hi:.3g} "
+                      f"degrees), over which its delay reads {reads} against "
+                      f"{fitted * bin_width * 1e9:.4g} ns fitted ({moved:.2g} bins apart): give "
+                      f"your optics' field of view with --fov", RuntimeWarning, stacklevel=4)
 
 
 def _standing(hists: np.ndarray, code: np.ndarray, bin_width: float, distance: float,

@@ -42,9 +42,11 @@ convolved with a kernel ``k_m`` that the patterns and the geometry give. Two ste
    range with its delay 4.7 bins off at 13.70 ns and right at 13.74 ns, and at 16 x 16 and
    10 m fitted a 1-bin spread for 4.5 with delays 0.6-0.8 bin late at five of eight sub-bin
    delays (audits of 2026-11-29); now 13.695 and 13.738 ns, and all eight within 0.01 bin.
-   The scan takes about three times as long (3 s at 32 x 32). A plane fitted under
-   :data:`Z_PLANE_SURE` deviations is said to be uncertain (a 10-bin IRF's 25 m wall at
-   1.2-2.2: its delay 0.7-1.1 bins off). A tilted wall seen so (step 3) is scanned on the
+   The scan takes about three times as long (3 s at 32 x 32). The spreads the data cannot
+   tell from the best (residuals within one deviation of it, ``spread_band`` in the
+   geometry) are read for the delay too, and a delay that moves over them by more than a
+   quarter of a bin is said (a 10-bin IRF's 25 m wall fitted at 1.2-2.2 deviations had its
+   delay 0.7-1.1 bins off, unsaid). A tilted wall seen so (step 3) is scanned on the
    responses smoothed over :data:`SHARP_BLUR_BINS` (:func:`_sharp_tilt`; a 5 degree tilt
    without jitter was read as one range, 1.9-2.0 bins early; now within 0.06 bin on three
    of four seeds and delays, 0.39 bin on the fourth). Tried first and dropped: the
@@ -109,7 +111,7 @@ from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
 
 __all__ = ["MAX_SPREAD_BINS", "MIN_SPREAD_BINS", "PHASES", "PLANE_REG", "SCAN_PATTERNS",
-           "TARGETS", "Z_HINT", "Z_PLANE", "Z_PLANE_SURE", "Z_TILT", "Z_TILT_LOOK",
+           "TARGETS", "Z_HINT", "Z_PLANE", "Z_TILT", "Z_TILT_LOOK",
            "measure_geometry", "plane_offsets", "plane_ranges", "range_free_response",
            "tilt_of_target", "wall_offsets"]
 
@@ -121,8 +123,6 @@ MIN_SPREAD_BINS = 1.0
 #: with each pixel's pulse split between the two bins it falls in from there
 #: (:func:`_kernels`), kept where it fits better than the linear split
 PHASES = np.arange(8) / 8.0
-#: a plane fitted less than this many deviations below one range's is said to be uncertain
-Z_PLANE_SURE = 3.0
 #: ``auto`` keeps the plane where its residual stands this many deviations below one range's
 Z_PLANE = 1.0
 #: ... and says (a warning) that the target may be a flat wall from this many
@@ -708,19 +708,29 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
                           f"with --target plane --fov (your optics' field of view)",
                           RuntimeWarning, stacklevel=3)
         return out
-    out.update(model="plane", phase_bins=phase,
-               offsets=plane_offsets(shape, distance, fov, bin_width)
-               if fov > 0 else np.zeros(n * n),
+    def wall(spread: float) -> np.ndarray:
+        f = _fov_of_spread(spread, tau_d, n)
+        return plane_offsets(shape, distance, f, bin_width) if f > 0 else np.zeros(n * n)
+
+    out.update(model="plane", phase_bins=phase, offsets=wall(spreads[j]),
                reason=f"a wall facing the lidar, fitted: its pixels over {spreads[j]:g} bins "
                       f"of round trip (a {fov:.3g} degree field of view), {z:.2g} deviations "
                       f"below one range's residual")
-    if z < Z_PLANE_SURE:
-        # (at 1-2.3 deviations a 10-bin IRF's wall at 25 m was fitted 1.5-4 degrees off and
-        # its delay 0.7-1.1 bins off, without a word: an audit of 2026-11-29)
+    if phase is None:
+        # the spreads whose residual lies within one deviation of the best: the data cannot
+        # tell them apart, and the caller reads the delay at both ends (at 1-2.3 deviations
+        # a 10-bin IRF's wall at 25 m was fitted 1.5-4 degrees off and its delay 0.7-1.1
+        # bins off, without a word: an audit of 2026-11-29)
+        unit = best / dof * np.sqrt(2.0 * n_f)
+        near = np.flatnonzero(res <= best + unit)
+        lo, hi = spreads[int(near.min())], spreads[int(near.max())]
+        if hi - lo >= MIN_SPREAD_BINS:
+            out["spread_band"] = ((lo, _fov_of_spread(lo, tau_d, n), wall(lo)),
+                                  (hi, _fov_of_spread(hi, tau_d, n), wall(hi)))
+    if z < Z_PLANE:
         warnings.warn(f"the calibration's data barely tell the wall's spread ({z:.2g} "
-                      f"deviations): the field of view fitted, {fov:.3g} degrees, is uncertain, "
-                      f"and the delay with it (by up to half the spread's error); give your "
-                      f"optics' with --fov", RuntimeWarning, stacklevel=3)
+                      f"deviations): the field of view fitted, {fov:.3g} degrees, is uncertain; "
+                      f"give your optics' with --fov", RuntimeWarning, stacklevel=3)
     return out
 
 

@@ -126,9 +126,10 @@ class Monitor:
         given. ``step``, when given, is ``x - x_old`` already formed by the solver, and
         ``step_norm`` its norm (each saves a pass over the iterate). ``final`` False (a
         continuation stage before the last, whose objective is not yet the one minimised)
-        records the objective without the ``obj_rtol`` and ``target`` tests (GPSR's kept
-        best objective repeats in early stages, which ``obj_rtol`` read as converged: it
-        stopped at 3.5-6 times the optimum, a review).
+        records the objective without the ``obj_rtol`` test (GPSR's kept best objective
+        repeats in early stages, which ``obj_rtol`` read as converged: it stopped at 3.5-6
+        times the optimum, a review); ``target`` still applies, the objective being ``F``
+        at the final weight in every stage.
         """
         info, stop = self.info, self.stop
         info.iterations = it
@@ -137,7 +138,7 @@ class Monitor:
             info.objective.append(float(obj))
             if not np.isfinite(obj):
                 return "diverged"
-            if final and stop.target is not None and obj <= stop.target:
+            if stop.target is not None and obj <= stop.target:
                 return "target"
             if final and stop.obj_rtol is not None and prev is not None and it > 1:
                 if abs(prev - obj) <= stop.obj_rtol * max(abs(obj), 1e-300):
