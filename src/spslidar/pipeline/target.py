@@ -111,7 +111,7 @@ from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
 
 __all__ = ["MAX_SPREAD_BINS", "MIN_SPREAD_BINS", "PHASES", "PLANE_REG", "SCAN_PATTERNS",
-           "TARGETS", "Z_HINT", "Z_PLANE", "Z_TILT", "Z_TILT_LOOK",
+           "SHARP_BLUR_BINS", "TARGETS", "Z_HINT", "Z_PLANE", "Z_TILT", "Z_TILT_LOOK",
            "measure_geometry", "plane_offsets", "plane_ranges", "range_free_response",
            "tilt_of_target", "wall_offsets"]
 
