@@ -498,7 +498,7 @@ class _OneLineWarnings:
         self.first: dict[tuple, str] = {}
 
     def __call__(self, message, category, filename, lineno, file=None, line=None):
-        if library_notice(category, filename):  # a library's deprecation: not the run's
+        if library_notice(category):  # a library's deprecation: not the run's
             return
         text = " ".join(str(message).split())
         key = (category, filename, lineno, numbers_blanked(text))

@@ -31,7 +31,7 @@ def numbers_blanked(text: str) -> str:
 NOTICES = (DeprecationWarning, PendingDeprecationWarning, FutureWarning)
 
 
-def library_notice(category: type, filename: str = "") -> bool:
+def library_notice(category: type) -> bool:
     """Whether a warning is a library's notice of its own future (a deprecation or a
     ``FutureWarning``): nothing a user of spslidar can act on, so the command line drops it
     and ``metrics.json`` leaves it out, while the Python API issues it again for Python's
@@ -39,7 +39,7 @@ def library_notice(category: type, filename: str = "") -> bool:
     deprecated argument failed 7 tests that count the command line's lines; an audit of
     2026-11-29). Told by its category alone: spslidar raises none of its own, and a library
     raises its notices with ``stacklevel=2``, naming spslidar's calling line as the origin
-    (a review). ``filename`` is not read."""
+    (a review)."""
     return issubclass(category, NOTICES)
 
 

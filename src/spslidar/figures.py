@@ -371,15 +371,17 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
     # verdict off the title, and a fifth panel's legend its last item: an audit)
     measure = ImageDraw.Draw(Image.new("RGB", (1, 1)))
     title_lines = _wrap(measure, _title(result), width - 20)
+    # each legend item's place (x, row), laid out once: it sets the figure's height
     legend = _legend_items(result, outside, beyond, outside2)
-    rows, x = 1, 10
+    places, x, row = [], 10, 0
     for _, text in legend:
         w = 28 + measure.textlength(text) + 8
         if x > 10 and x + w > width:
-            rows, x = rows + 1, 10
+            x, row = 10, row + 1
+        places.append((x, row))
         x += w
     y0 = 8 + 12 * len(title_lines)
-    height = y0 + side + 50 + 18 * rows + 12
+    height = y0 + side + 50 + 18 * (row + 1) + 12
     fig = Image.new("RGB", (width, height), (255, 255, 255))
     draw = ImageDraw.Draw(fig)
     for k, line in enumerate(title_lines):
@@ -405,14 +407,10 @@ def depth_figure(result, path: str | Path, engine: str = "pil") -> Path:
                 else:
                     draw.line((cx - h, cy - h, cx + h, cy + h), fill=colour, width=2)
                     draw.line((cx - h, cy + h, cx + h, cy - h), fill=colour, width=2)
-    x, y = 10, y0 + side + 50
-    for colour, text in legend:
-        w = 28 + draw.textlength(text) + 8
-        if x > 10 and x + w > width:
-            x, y = 10, y + 18
+    for (colour, text), (x, row) in zip(legend, places, strict=True):
+        y = y0 + side + 50 + 18 * row
         draw.rectangle((x, y, x + 14, y + 12), fill=colour, outline=(80, 80, 80))
         draw.text((x + 20, y + 1), text, fill=(0, 0, 0))
-        x += w
     path = Path(path)
     fig.save(path, format="PNG", compress_level=1)
     return path

@@ -169,33 +169,30 @@ def _walk_header(path: PathLike) -> None:
     words, whatever ``ptufile``'s messages say from one release to the next (the tests read
     the words of its parser's errors and log: an audit of 2026-11-29). A header that passes
     is left to ``ptufile``; a legacy or other PicoQuant file to :func:`_legacy_format`."""
-    where = os.fspath(path)
+    bad = f"{os.fspath(path)!r} has a truncated or corrupt PTU tag header"
     size = os.path.getsize(path)
+    cut = f"{bad} (the file ends after {size} bytes, inside its tag header)"
     with open(path, "rb") as fh:
         head = fh.read(16)
-        if head[:8] != _MAGIC[:len(head[:8])] or not head:
+        if not head or not _MAGIC.startswith(head[:8]):
             return  # not PTU: ptufile and _legacy_format name it
         if len(head) < 16:
-            raise ConfigError(f"{where!r} has a truncated or corrupt PTU tag header (the file "
-                              f"ends after {size} bytes, inside its tag header)")
+            raise ConfigError(cut)
         while True:
             tag = fh.read(48)
             if len(tag) < 48:
-                raise ConfigError(f"{where!r} has a truncated or corrupt PTU tag header (the "
-                                  f"file ends after {size} bytes, inside its tag header)")
+                raise ConfigError(cut)
             ident = tag[:32].split(b"\0")[0].decode("latin-1", "replace")
             typ, value = struct.unpack("<I", tag[36:40])[0], struct.unpack("<q", tag[40:48])[0]
             if ident == "Header_End":
                 return
             if typ in _TY_SIZED:
                 if value < 0 or fh.tell() + value > size:
-                    raise ConfigError(f"{where!r} has a truncated or corrupt PTU tag header "
-                                      f"(tag {ident!r} says {value} bytes of data, past the "
-                                      f"file's end)")
+                    raise ConfigError(f"{bad} (tag {ident!r} says {value} bytes of data, past "
+                                      f"the file's end)")
                 fh.seek(value, os.SEEK_CUR)
             elif typ not in _TY_FIXED:
-                raise ConfigError(f"{where!r} has a truncated or corrupt PTU tag header "
-                                  f"(invalid tag type at tag {ident!r})")
+                raise ConfigError(f"{bad} (invalid tag type at tag {ident!r})")
 
 
 def _open_ptu(path: PathLike):

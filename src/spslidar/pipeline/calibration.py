@@ -560,9 +560,16 @@ def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     response = range_free_response(hists, patterns, code, offsets, phase=phase,
                                    width=pulse_width)
     band = geo.pop("spread_band", None)
-    if target == "auto" and geo.get("z") is not None and geo.get("model") == "plane":
-        plane, one = (_standing(hists, code, bin_width, distance, r, p)
-                      for r, p in ((response, phase), (None, None)))
+    total = hists.astype(np.float64).sum(axis=0)
+
+    def read(resp: np.ndarray | None, ph: float | None = None) -> dict[str, Any] | None:
+        return _quiet_response(total, code, bin_width, distance, pulse_width, resp, ph)
+
+    guard = target == "auto" and geo.get("z") is not None
+    fitted = read(response, phase) if guard or band is not None else None
+    if guard:
+        one = read(None)
+        plane, one = (0.0 if r is None else r["peak_to_noise"] for r in (fitted, one))
         if plane < WEAK_RESPONSE <= one:
             # a plane fitted where the data barely tell it, whose range-free response is read
             # through the noise while one range's stands clear, is not kept: 8 x 8 walls at
@@ -582,9 +589,12 @@ def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
                    f"a response {plane:.3g} deviations high, one range's {one:.3g}")
             return {"model": "range", "fov_deg": geo.get("fov_deg"), "spread_bins": 0.0,
                     "z": z, "phase_bins": None, "reason": why}, None
-    if band is not None:
-        _delay_band(hists, patterns, code, bin_width, distance, pulse_width, response, band,
-                    geo)
+    if band is not None and fitted is not None:
+        ends = [read(range_free_response(hists, patterns, code, off, width=pulse_width))
+                for _, _, off in band]
+        _delay_band(fitted["delay_bins"],
+                    [float("nan") if e is None else e["delay_bins"] for e in ends], band,
+                    bin_width, geo)
     return geo, response
 
 
@@ -593,32 +603,17 @@ def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
 DELAY_BAND_BINS = 0.25
 
 
-def _delay_band(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray, bin_width: float,
-                distance: float, pulse_width: float, response: np.ndarray, band: tuple,
+def _delay_band(fitted: float, ends: list[float], band: tuple, bin_width: float,
                 geo: dict[str, Any]) -> None:
-    """Read the delay through the two ends of the spreads the data cannot tell from the
-    fitted one (``band``: ``(spread, fov, offsets)`` twice, from
-    :func:`~spslidar.pipeline.target.measure_geometry`), keep them in ``geo``
-    (``spread_band_bins``, ``delay_band_s``) and warn where the delay moves by more than
-    :data:`DELAY_BAND_BINS` over them: how far the fitted spread's uncertainty reaches the
-    delay, which the fit's deviations alone do not tell (a 10-bin IRF's 25 m wall at 1.2
-    deviations read 1.1 bins late, one at 3.4 deviations 0.7 bin early, and a sharp wall at
-    2.4 deviations right; outside audits and a review of 2026-11-29)."""
-    from .target import range_free_response
-
-    def delay(resp: np.ndarray) -> float:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            try:
-                return float(measure_response(hists.astype(np.float64).sum(axis=0), code,
-                                              bin_width, distance, pulse_width,
-                                              response=resp)["delay_bins"])
-            except ConfigError:
-                return float("nan")
-
-    fitted = delay(response)
-    ends = [delay(range_free_response(hists, patterns, code, off, width=pulse_width))
-            for _, _, off in band]
+    """The delay ``fitted`` (bins) against ``ends``, the delays read through the two ends of
+    the spreads the data cannot tell from the fitted one (``band``: ``(spread, fov,
+    offsets)`` twice, from :func:`~spslidar.pipeline.target.measure_geometry`; NaN where
+    none was read): kept in ``geo`` (``spread_band_bins``, ``delay_band_s``), and said where
+    the delay moves by more than :data:`DELAY_BAND_BINS` over them: how far the fitted
+    spread's uncertainty reaches the delay, which the fit's deviations alone do not tell (a
+    10-bin IRF's 25 m wall at 1.2 deviations read 1.1 bins late, one at 3.4 deviations 0.7
+    bin early, and a sharp wall at 2.4 deviations right; outside audits and a review of
+    2026-11-29)."""
     (lo, fov_lo, _), (hi, fov_hi, _) = band
     geo["spread_band_bins"] = [round(float(lo), 4), round(float(hi), 4)]
     geo["delay_band_s"] = [round(d * bin_width, 15) if np.isfinite(d) else None for d in ends]
@@ -632,19 +627,19 @@ def _delay_band(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray, bin_w
                       f"your optics' field of view with --fov", RuntimeWarning, stacklevel=4)
 
 
-def _standing(hists: np.ndarray, code: np.ndarray, bin_width: float, distance: float,
-              response: np.ndarray | None, phase: float | None = None) -> float:
-    """How many noise deviations the calibration's response stands high (the
-    ``peak_to_noise`` of :func:`measure_response`, its warnings kept quiet): of the patterns'
-    sum (``response`` None) or of a range-free ``response``; 0 where none stands out."""
-    total = hists.astype(np.float64).sum(axis=0)
+def _quiet_response(total: np.ndarray, code: np.ndarray, bin_width: float, distance: float,
+                    pulse_width: float, response: np.ndarray | None,
+                    phase: float | None = None) -> dict[str, Any] | None:
+    """:func:`measure_response` of the patterns' summed histogram ``total`` (``response``
+    None) or of a range-free ``response``, its warnings kept quiet: what the plane's checks
+    compare; None where no response stands out."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            return float(measure_response(total, code, bin_width, distance,
-                                          response=response, phase=phase)["peak_to_noise"])
+            return measure_response(total, code, bin_width, distance, pulse_width,
+                                    response=response, phase=phase)
         except ConfigError:
-            return 0.0
+            return None
 
 
 class CalibratedFilter(NamedTuple):

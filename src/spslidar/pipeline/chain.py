@@ -94,7 +94,7 @@ def keeping_warnings(fn):
             raise
         kept: dict[str, list] = {}
         for w in caught:  # (a library's with where it came from, as the command line says it)
-            if library_notice(w.category, w.filename):  # (said as Python says it, not kept)
+            if library_notice(w.category):  # (said as Python says it, not kept)
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
                 continue
             text = (" ".join(str(w.message).split())

@@ -352,6 +352,21 @@ def _explained(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int
                                   where=den > 0)))
 
 
+def _deviation(best: float, patterns: int, n_f: int) -> float:
+    """One deviation of the scans' residual ``best``: a chi-square of about ``(patterns - 1)
+    n_f`` complex terms of variance ``sigma^2``, which a change of model moves by about
+    ``sigma^2 sqrt(2 n_f)`` (0 for a residual of 0). A model stands ``(reference - best) /
+    deviation`` deviations below another's residual ``reference``."""
+    return best / max((patterns - 1) * n_f, 1) * np.sqrt(2.0 * n_f)
+
+
+def _deviations(reference: float, best: float, patterns: int, n_f: int) -> float:
+    """How many :func:`_deviation` of ``best`` it stands below ``reference`` (0 where the
+    deviation is 0)."""
+    unit = _deviation(best, patterns, n_f)
+    return float((reference - best) / unit) if unit > 0 else 0.0
+
+
 #: the phase scan's coarse pass takes every PHASE_STEP-th spread and every other phase, then
 #: refines every phase within PHASE_STEP spreads of the best (a third of a full scan's time)
 PHASE_STEP = 2
@@ -381,14 +396,12 @@ def _phase_of(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int,
     for these round trips, where it stands :data:`Z_PLANE` deviations below the linear
     split's residual ``linear`` (a response narrower than a bin); else None."""
     best, phase = linear, None
+    total = float(np.sum(np.abs(gf) ** 2))
     for ph in PHASES:
-        r = float(np.sum(np.abs(gf) ** 2)) - _explained(gf, light, offsets, size, float(ph),
-                                                       width)
+        r = total - _explained(gf, light, offsets, size, float(ph), width)
         if r < best:
             best, phase = r, float(ph)
-    n_f = gf.shape[1]
-    sigma2 = best / max((light.shape[0] - 1) * n_f, 1)
-    if phase is None or not sigma2 > 0 or (linear - best) / (sigma2 * np.sqrt(2.0 * n_f)) < Z_PLANE:
+    if phase is None or _deviations(linear, best, light.shape[0], gf.shape[1]) < Z_PLANE:
         return None, linear
     return phase, best
 
@@ -475,9 +488,7 @@ def _tilt_scan(gf: np.ndarray, size: int, light: np.ndarray, shape: tuple[int, i
         best("c", np.arange(max(0.0, state["c"] - 3.0), state["c"] + 3.25, SPREAD_STEP))
     best("t", state["t"] + np.radians(np.arange(-9.0, 9.5, 1.5)))
     res = best("k", np.arange(max(0.0, state["k"] - 2.0), state["k"] + 2.25, SPREAD_STEP))
-    n_f = gf.shape[1]
-    sigma2 = res / max((light.shape[0] - 1) * n_f, 1)
-    z = float((reference - res) / (sigma2 * np.sqrt(2.0 * n_f))) if sigma2 > 0 else 0.0
+    z = _deviations(reference, res, light.shape[0], gf.shape[1])
     if not (z >= Z_TILT and 2.0 * state["k"] >= MIN_SPREAD_BINS):
         return None
     return {"k": state["k"], "z": z, "offsets": offsets(state["k"], state["t"], state["c"]),
@@ -508,16 +519,17 @@ def _sharp_tilt(gf: np.ndarray, size: int, light: np.ndarray, facing: np.ndarray
                        free_curvature=True)
     if found is None:
         return None
-    found["phase"] = _phase_at(gf, size, light_all, found["offsets"], width)
+    found["phase"] = _phase_at(gf, size, light_all, found["offsets"], width)[0]
     return found
 
 
 def _phase_at(gf: np.ndarray, size: int, light_all: np.ndarray, offsets: np.ndarray,
-              width: float) -> float | None:
-    """:func:`_phase_of` the per-pixel round trips ``offsets`` (None: the linear split)."""
+              width: float) -> tuple[float | None, float]:
+    """:func:`_phase_of` the per-pixel round trips ``offsets`` (None: the linear split), and
+    the linear split's residual."""
     group, values, _ = _grouped(light_all, offsets, slice(None))
     linear = float(np.sum(np.abs(gf) ** 2)) - _explained(gf, group, values, size)
-    return _phase_of(gf, group, values, size, width, linear)[0]
+    return _phase_of(gf, group, values, size, width, linear)[0], linear
 
 
 def _maybe_tilted(tilt: dict[str, Any]) -> None:
@@ -625,13 +637,12 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     gf = np.fft.rfft(g, axis=1)
     total = float(np.sum(np.abs(gf) ** 2))
     if fov_deg is not None:
-        group, values, _ = _grouped(light_all, offsets, slice(None))
-        given = total - _explained(gf, group, values, size)
-        phase = _phase_of(gf, group, values, size, pulse_width, given)[0]
+        phase, given = _phase_at(gf, size, light_all, offsets, pulse_width)
         if tilt is not None:
             found = _tilt_scan(gf, size, light_all, shape, tilt, offsets, given, limit)
             if found is not None:  # its pulse's place in its bin (as without --fov, below)
-                found["phase"] = _phase_at(gf, size, light_all, found["offsets"], pulse_width)
+                found["phase"] = _phase_at(gf, size, light_all, found["offsets"],
+                                           pulse_width)[0]
                 return _tilt_geometry(found, fov_deg)
             _maybe_tilted(tilt)
         return {"model": "plane", "fov_deg": float(fov_deg), "spread_bins": round(spread, 4),
@@ -657,15 +668,7 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
         residuals.append(total - _explained(gf, light, off, size))
     res = np.asarray(residuals)
     j = int(np.argmin(res))
-    n_f = gf.shape[1]
-    dof = max((light.shape[0] - 1) * n_f, 1)
-
-    def deviations(best: float) -> float:
-        # the residual's noise: a chi-square of about (M - 1) F complex terms of variance
-        # sigma^2, which a change of model moves by about sigma^2 sqrt(2 F)
-        sigma2 = best / dof
-        return float((res[0] - best) / (sigma2 * np.sqrt(2.0 * n_f))) if sigma2 > 0 else 0.0
-
+    m_rows, n_f = light.shape[0], gf.shape[1]
     best, phase = float(res[j]), None
     # a response narrower than a bin: each pixel's pulse falls in one bin or two by where it
     # starts in its bin, which the linear split averages away (an ideal instrument's 10
@@ -677,10 +680,9 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     phased = _phase_scan(gf, light, offs, size, pulse_width)
     if phased is not None:
         r, i, ph = phased
-        sigma2 = r / dof
-        if sigma2 > 0 and (best - r) / (sigma2 * np.sqrt(2.0 * n_f)) >= Z_PLANE:
+        if _deviations(best, r, m_rows, n_f) >= Z_PLANE:
             best, j, phase = r, i, ph
-    z = deviations(best)
+    z = _deviations(float(res[0]), best, m_rows, n_f)
     fov = _fov_of_spread(spreads[j], tau_d, n)
     if tilt is not None:  # step 3: a tilted wall, which no facing wall's rings fit
         found = _tilt_scan(gf, size, light_all, shape, tilt, np.zeros(n * n), best,
@@ -689,7 +691,7 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
             found = _sharp_tilt(gf, size, light, offs[j], light_all, shape, tilt, limit,
                                 pulse_width)
         elif found is not None:  # its pulse's place in its bin, where that fits better
-            found["phase"] = _phase_at(gf, size, light_all, found["offsets"], pulse_width)
+            found["phase"] = _phase_at(gf, size, light_all, found["offsets"], pulse_width)[0]
         if found is not None:
             return _tilt_geometry(found, None)
         _maybe_tilted(tilt)
@@ -721,8 +723,7 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
         # tell them apart, and the caller reads the delay at both ends (at 1-2.3 deviations
         # a 10-bin IRF's wall at 25 m was fitted 1.5-4 degrees off and its delay 0.7-1.1
         # bins off, without a word: an audit of 2026-11-29)
-        unit = best / dof * np.sqrt(2.0 * n_f)
-        near = np.flatnonzero(res <= best + unit)
+        near = np.flatnonzero(res <= best + _deviation(best, m_rows, n_f))
         lo, hi = spreads[int(near.min())], spreads[int(near.max())]
         if hi - lo >= MIN_SPREAD_BINS:
             out["spread_band"] = ((lo, _fov_of_spread(lo, tau_d, n), wall(lo)),
