@@ -81,6 +81,16 @@ def test_reconstruct_ptu_recovers_depth(tmp_path):
     assert res.metrics["ptu"]["periods_per_pattern"] == [PERIODS] * M
     assert res.depth_rmse < 0.03  # two bins
     assert res.metrics["ptu"]["background_per_bin_per_period"] == pytest.approx(0.01, rel=0.5)
+    from spslidar.figures import _panels
+
+    # the truth panel is named by the truth's file where one was read, "given" for an array
+    assert res.metrics["ptu"]["truth_file"] is None
+    assert _panels(res)[0][:2] == ("truth", "ground truth: given")
+    np.save(tmp_path / "my_truth.npy", truth)
+    by_file = reconstruct_ptu(ptu, pats.reshape(M, -1), code.astype(np.uint8), BIT_RATE,
+                              (3.5, 4.8), truth=tmp_path / "my_truth.npy", depth="argmax")
+    np.testing.assert_array_equal(by_file.depth, res.depth)
+    assert _panels(by_file)[0][1] == "ground truth: my_truth.npy"
 
 
 def test_cli_reconstruct_writes_and_refuses(tmp_path, capsys):
@@ -93,6 +103,7 @@ def test_cli_reconstruct_writes_and_refuses(tmp_path, capsys):
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["depth_rmse_m"] < 0.03
     assert {"depth.npy", "metrics.json", "depth.png"} <= {p.name for p in out.iterdir()}
+    assert metrics["ptu"]["truth_file"] == str(tmp_path / "truth.npy")
     capsys.readouterr()
     # wrong bit rate: the file's resolution disagrees -> one line, exit 2, nothing written
     bad_out = tmp_path / "bad"

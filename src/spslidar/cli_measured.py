@@ -88,18 +88,17 @@ def cmd_reconstruct(args) -> int:
     """Run ``spslidar reconstruct``; return the exit status."""
     from .cli import _WRITTEN, _written
     from .outdir import check_output
-    from .pipeline.real import _load_npy, load_code, load_patterns, reconstruct_ptu
+    from .pipeline.real import load_code, load_patterns, reconstruct_ptu
 
     check_output(args.out, args.overwrite)  # refuse before any work
     from .pipeline.measurement import processing_keys
 
     # (with the options the solvers and estimators declare: a plugin's had no flag)
     processing = {k: getattr(args, k) for k in processing_keys() if hasattr(args, k)}
-    truth = _load_npy(args.truth, "truth") if args.truth else None
     result = reconstruct_ptu(args.ptu, load_patterns(args.patterns),
                              load_code(args.code, args.code_length), args.bit_rate,
                              tuple(args.range_gate), marker=args.marker, channel=args.channel,
-                             allow_binning=args.allow_binning, truth=truth,
+                             allow_binning=args.allow_binning, truth=args.truth,
                              calibration=args.calibration, marker_edge=args.marker_edge,
                              **processing)
     for w in result.warnings:

@@ -305,7 +305,9 @@ def _panels(result):
                  f"{_percent(low.mean())} low-confidence")
     panels = []
     if getattr(result, "has_truth", True):
-        name = "--truth" if "ptu" in m else result.scene.name  # (a PTU scene is the file)
+        # (a PTU scene is the file: its truth is named by its own file, where one was read)
+        name = (result.scene.name if "ptu" not in m else
+                Path(m["ptu"].get("truth_file") or "").name or "given")
         panels.append(("truth", f"ground truth: {name}", result.truth, lo, hi, _VIRIDIS, "m"))
     panels.append(("estimate", est_title, result.depth, lo, hi, _VIRIDIS, "m"))
     if getattr(result, "has_truth", True):

@@ -369,7 +369,8 @@ def calibrated_lam_scale(solver: str, spread: float) -> float:
 @keeping_warnings
 def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray,
                     bit_rate: float, range_gate: tuple[float, float], *, marker: int = 1,
-                    channel: int | None = None, truth: np.ndarray | None = None,
+                    channel: int | None = None,
+                    truth: np.ndarray | str | os.PathLike | None = None,
                     calibration: str | os.PathLike | dict | None = None,
                     allow_binning: bool = False, marker_edge: str = "start",
                     **processing: Any) -> Result:
@@ -390,8 +391,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         Depths to reconstruct, metres.
     marker, channel : int
         Marker input (1..4) and detector channel (default all).
-    truth : ndarray, shape (N, N), optional
-        Ground-truth depth (metres; NaN where unknown): the RMSE goes into the metrics.
+    truth : ndarray, shape (N, N), or path of a ``.npy``, optional
+        Ground-truth depth (metres; NaN where unknown): the RMSE goes into the metrics; a
+        file's name is kept in ``metrics['ptu']['truth_file']`` and names the truth panel.
     calibration : path or dict, optional
         A calibration of this instrument (``spslidar calibrate``,
         :mod:`spslidar.pipeline.calibration`): the system delay is removed (the range gate is
@@ -446,7 +448,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     cfg = Config.from_dict({"size": n, "bit_rate": float(bit_rate), "code": "random",
                             "code_length": period, "range_gate": list(range_gate),
                             "compression": m / q if m <= q else 1.0, **processing})
-    truth_note = None
+    truth_note = truth_file = None
+    if isinstance(truth, (str, os.PathLike)):
+        truth_file, truth = os.fspath(truth), _load_npy(truth, "truth")
     if truth is not None:
         truth = _check_truth(truth, n)
         truth_note = truth_outside_gate(truth, cfg.range_gate)
@@ -580,7 +584,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         "n_dropped_after_last_pattern": data.n_dropped_after_last_pattern,
         "n_patterns_solved": int(m), "n_out_of_range": data.n_out_of_range,
         "marker_edge": marker_edge,
-        "record_type": data.header.get("record_type")}
+        "record_type": data.header.get("record_type"), "truth_file": truth_file}
     result.metrics["calibration"] = None if cal is None else {
         "file": cal.get("file"), "sha256": cal.get("file_sha256"), "delay_s": cal["delay_s"],
         "lag_shift": cal["lag_shift"], "lag_fraction": frac, "spread": spread,
