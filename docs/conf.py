@@ -255,7 +255,8 @@ API_SECTIONS: list[tuple[str, str, str, list[str]]] = [
      "Where the numeric core runs (NumPy, array-API libraries, GPU).",
      ["spslidar.backends", "spslidar.backends.*"]),
     ("io", "Input and output",
-     "Real time-tag data: PicoQuant PTU files read into per-pattern histograms, and written.",
+     "Real time-tag data: PicoQuant PTU files read into per-pattern histograms, and written; "
+     "another vendor's timestamps turned into T3 events.",
      ["spslidar.io", "spslidar.io.*"]),
     ("experiments", "Experiments",
      "Parameter sweeps and the reproduction of the paper's experiments.",

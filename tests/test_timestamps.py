@@ -1,0 +1,159 @@
+"""Another vendor's time tags: absolute timestamps on sync, marker and detector channels ->
+T3 events and a PTU file that ``reconstruct`` reads as it reads a PicoHarp's."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from spslidar.codes.sequences import make_code
+from spslidar.constants import SPEED_OF_LIGHT
+from spslidar.errors import ConfigError
+from spslidar.io import (
+    read_ptu_histograms,
+    t3_from_timestamps,
+    write_ptu_from_timestamps,
+    write_ptu_t3,
+)
+from spslidar.pipeline.real import reconstruct_ptu
+
+N, M, L, PERIODS = 8, 48, 127, 200
+SYNC, MARK, DET_A, DET_B = 0, 3, 1, -2  # a Swabian tagger's numbering: -2 a falling edge
+
+
+def _events(seed=0):
+    """T3 events of a two-plane 8x8 scene (4.0 / 4.3 m): 48 binary patterns of 200 periods of
+    a 127-bit m-sequence each, Poisson photons split over two detector channels; a marker at
+    the first sync of every pattern."""
+    rng = np.random.default_rng(seed)
+    code = make_code("mseq", L, 0.5).astype(np.float64)
+    truth = np.full((N, N), 4.0)
+    truth[:, N // 2:] = 4.3
+    delay = np.round(truth / (SPEED_OF_LIGHT / 10e9 / 2)).astype(int).ravel()
+    pats = (rng.random((M, N, N)) < 0.5).astype(np.float32)
+    lam = np.zeros((M, L))
+    for j, d in enumerate(delay):
+        lam += 0.02 * pats.reshape(M, -1)[:, j : j + 1] * np.roll(code, d)[None]
+    counts = rng.poisson((lam + 0.01) * PERIODS)
+    nsync, dtime, chan, mark = [], [], [], []
+    for k in range(M):
+        bins = np.repeat(np.arange(L), counts[k])
+        per = rng.integers(0, PERIODS, bins.size) + k * PERIODS
+        order = np.argsort(per, kind="stable")
+        nsync += [np.array([k * PERIODS]), per[order]]
+        dtime += [np.array([0]), bins[order]]
+        chan += [np.array([0]), rng.integers(0, 2, bins.size)]
+        mark += [np.array([1]), np.zeros(bins.size, int)]
+    ev = [np.concatenate(a) for a in (nsync, dtime, chan, mark)]
+    return ev, pats, code, truth
+
+
+def _stream(ev, res_ps, rng):
+    """The same events as a time tagger streams them: picosecond timestamps of every sync
+    (jittered by a few ps), of each marker just after its sync, and of each photon somewhere
+    inside its TDC bin; channels in the tagger's numbering; merged in time order."""
+    nsync, dtime, chan, mark = ev
+    period_ps = L * res_ps
+    t0 = 1_234_567  # the tagger's clock does not start at a sync
+    n_periods = int(nsync[-1]) + 1
+    sync_t = t0 + np.round(np.arange(n_periods) * period_ps).astype(np.int64) \
+        + rng.integers(-3, 4, n_periods)
+    photon = mark == 0
+    # (never within 9.6 ps of a bin's edge: the syncs' jitter moves the next sync by up to 6)
+    inside = rng.uniform(0.1, 0.9, nsync.size)
+    t = sync_t[nsync] + np.where(photon, np.floor((dtime + inside) * res_ps), 7).astype(np.int64)
+    c = np.where(photon, np.where(chan == 0, DET_A, DET_B), MARK)
+    t = np.concatenate([sync_t, t])
+    c = np.concatenate([np.full(n_periods, SYNC), c])
+    order = np.argsort(t, kind="stable")
+    return t[order], c[order]
+
+
+@pytest.mark.parametrize("bit_rate", [10e9, 10.3125e9])
+def test_timestamps_give_the_same_histograms_and_depth(tmp_path, bit_rate):
+    """The converted stream's PTU holds, per pattern, exactly the histograms of the same
+    events written as T3 records directly, on an integer (100 ps) and a fractional
+    (96.97 ps) bin; and reconstructs to the same depth map, right to one bin."""
+    rng = np.random.default_rng(1)
+    ev, pats, code, truth = _events()
+    res = 1 / bit_rate
+    direct = tmp_path / "direct.ptu"
+    write_ptu_t3(direct, nsync=ev[0], dtime=ev[1], channel=ev[2], marker=ev[3],
+                 resolution_s=res, sync_rate_hz=bit_rate / L)
+    times, channels = _stream(ev, res * 1e12, rng)
+    conv = tmp_path / "conv.ptu"
+    out = write_ptu_from_timestamps(conv, times, channels, time_unit_s=1e-12, sync_channel=SYNC,
+                                    marker_channel=MARK, resolution_s=res)
+    assert out.photon_channels == (DET_B, DET_A)  # increasing order: -2 is channel 0
+    assert out.n_photons == int(np.count_nonzero(ev[3] == 0)) and out.n_markers == M
+    assert out.n_before_first_sync == 0 and out.n_after_last_period == 0
+    # (the median of syncs jittered by +-3 ps: the period within 3 ps of 127 bins)
+    assert out.sync_period_s == pytest.approx(L * res, abs=3e-12)
+    a = read_ptu_histograms(direct, L, bin_width=res, n_patterns=M)
+    b = read_ptu_histograms(conv, L, bin_width=res, n_patterns=M)
+    np.testing.assert_array_equal(b.histograms, a.histograms)
+    np.testing.assert_array_equal(b.periods_per_pattern, a.periods_per_pattern)
+    # channel 1 is the tagger's DET_A, the events' channel 0
+    one = read_ptu_histograms(conv, L, bin_width=res, n_patterns=M, channel=1)
+    assert one.n_photons == int(np.count_nonzero((ev[3] == 0) & (ev[2] == 0)))
+    if bit_rate == 10e9:  # (the scene's delays are whole 100 ps bins)
+        flat = pats.reshape(M, -1)
+        d1 = reconstruct_ptu(direct, flat, code.astype(np.uint8), bit_rate, (3.5, 4.8),
+                             depth="argmax").depth
+        d2 = reconstruct_ptu(conv, flat, code.astype(np.uint8), bit_rate, (3.5, 4.8),
+                             depth="argmax").depth
+        np.testing.assert_array_equal(d2, d1)
+        assert np.nanmedian(np.abs(d2 - truth)) <= 0.015
+
+
+def test_events_outside_the_syncs_are_left_out_and_counted():
+    """A photon before the first sync and one more than a period after the last are left
+    out and counted; the rest keep their bins."""
+    t = np.array([5, 10, 12, 110, 150, 210, 215, 400])
+    c = np.array([1, 0, 2, 0, 1, 0, 1, 1])
+    ev = t3_from_timestamps(t, c, time_unit_s=1e-12, sync_channel=0, marker_channel=2,
+                            resolution_s=10e-12)
+    assert ev.n_before_first_sync == 1 and ev.n_after_last_period == 1
+    np.testing.assert_array_equal(ev.nsync, [0, 1, 2])  # marker, photon, photon
+    np.testing.assert_array_equal(ev.marker, [1, 0, 0])
+    np.testing.assert_array_equal(ev.dtime, [0, 4, 0])  # 150 - 110 = 40 ps: bin 4
+
+
+@pytest.mark.parametrize("change, match", [
+    (dict(times=np.array([0, 10, 5, 20])), "non-decreasing"),
+    (dict(times=np.array([0.0, 1.0, 2.0, 3.0])), "integers"),
+    (dict(channels=np.array([0, 1, 2])), "same length"),
+    (dict(channels=np.array([1, 0, 2, 1])), "1 event.*sync_channel"),
+    (dict(times=np.array([0, 100, 150, 230]), channels=np.array([0, 0, 1, 0])), "not periodic"),
+    (dict(channels=np.array([0, 1, 0, 0])), "no event on marker_channel"),
+    (dict(channels=np.array([0, 2, 0, 2])), "no photon events"),
+    (dict(marker_channel=0), "both 0"),
+    (dict(photon_channels=[1, 2]), "distinct channels"),
+    (dict(time_unit_s=0.0), "time_unit_s"),
+    (dict(marker_input=5), "marker"),
+])
+def test_bad_streams_are_one_line(change, match):
+    kw = dict(times=np.array([0, 10, 100, 200]), channels=np.array([0, 1, 0, 2]),
+              time_unit_s=1e-12, sync_channel=0, marker_channel=2, resolution_s=10e-12)
+    kw.update(change)
+    with pytest.raises(ConfigError, match=match):
+        t3_from_timestamps(kw.pop("times"), kw.pop("channels"), **kw)
+
+
+def test_inputs_are_not_changed():
+    t = np.array([0, 10, 100, 150, 200], np.int64)
+    c = np.array([0, 2, 0, 1, 0])
+    t0, c0 = t.copy(), c.copy()
+    t3_from_timestamps(t, c, time_unit_s=1e-12, sync_channel=0, marker_channel=2,
+                       resolution_s=10e-12)
+    np.testing.assert_array_equal(t, t0)
+    np.testing.assert_array_equal(c, c0)
+
+
+def test_a_delay_on_a_bin_edge_reads_that_bin():
+    """Timestamps in ns and 2.7 ns bins: 81 ns after the sync is bin 30 (81 / (2.7e-9 /
+    1e-9) is 29.999999999999996 in floating point; the half-ulp guard reads it right)."""
+    ev = t3_from_timestamps(np.array([0, 1, 81, 200]), np.array([0, 2, 1, 0]),
+                            time_unit_s=1e-9, sync_channel=0, marker_channel=2,
+                            resolution_s=2.7e-9)
+    np.testing.assert_array_equal(ev.dtime, [0, 30])
