@@ -86,7 +86,7 @@ def test_timestamps_give_the_same_histograms_and_depth(tmp_path, bit_rate):
                                     marker_channel=MARK, resolution_s=res)
     assert out.photon_channels == (DET_B, DET_A)  # increasing order: -2 is channel 0
     assert out.n_photons == int(np.count_nonzero(ev[3] == 0)) and out.n_markers == M
-    assert out.n_before_first_sync == 0 and out.n_after_last_period == 0
+    assert out.n_before_first_sync == 0 and out.n_missing_syncs == 0
     # (the median of syncs jittered by +-3 ps: the period within 3 ps of 127 bins)
     assert out.sync_period_s == pytest.approx(L * res, abs=3e-12)
     a = read_ptu_histograms(direct, L, bin_width=res, n_patterns=M)
@@ -106,25 +106,77 @@ def test_timestamps_give_the_same_histograms_and_depth(tmp_path, bit_rate):
         assert np.nanmedian(np.abs(d2 - truth)) <= 0.015
 
 
-def test_events_outside_the_syncs_are_left_out_and_counted():
-    """A photon before the first sync and one more than a period after the last are left
-    out and counted; the rest keep their bins."""
+def test_events_before_the_first_sync_are_left_out_and_counted():
+    """A photon before the first sync is left out and counted; one after the last sync is
+    placed in its period from it (the stream ends between syncs)."""
     t = np.array([5, 10, 12, 110, 150, 210, 215, 400])
     c = np.array([1, 0, 2, 0, 1, 0, 1, 1])
     ev = t3_from_timestamps(t, c, time_unit_s=1e-12, sync_channel=0, marker_channel=2,
                             resolution_s=10e-12)
-    assert ev.n_before_first_sync == 1 and ev.n_after_last_period == 1
-    np.testing.assert_array_equal(ev.nsync, [0, 1, 2])  # marker, photon, photon
-    np.testing.assert_array_equal(ev.marker, [1, 0, 0])
-    np.testing.assert_array_equal(ev.dtime, [0, 4, 0])  # 150 - 110 = 40 ps: bin 4
+    assert ev.n_before_first_sync == 1 and ev.n_missing_syncs == 0
+    np.testing.assert_array_equal(ev.nsync, [0, 1, 2, 3])  # marker, photons
+    np.testing.assert_array_equal(ev.marker, [1, 0, 0, 0])
+    np.testing.assert_array_equal(ev.dtime, [0, 4, 0, 9])  # 150 - 110 = 40 ps: bin 4
+
+
+def test_syncs_left_out_by_a_conditional_filter(tmp_path):
+    """A tagger's conditional filter passes only the sync after a photon (the periods
+    without a photon keep no sync): the events are placed from the nearest sync held, and
+    the histograms equal those of the full stream, with and without the period given."""
+    rng = np.random.default_rng(2)
+    ev, _, _, _ = _events()
+    res = 1e-10
+    times, channels = _stream(ev, 100.0, rng)
+    # one photon in 50 kept (about one a period): many periods hold none
+    thin = (channels == SYNC) | (channels == MARK) | (rng.random(times.size) < 0.02)
+    times, channels = times[thin], channels[thin]
+    full = t3_from_timestamps(times, channels, time_unit_s=1e-12, sync_channel=SYNC,
+                              marker_channel=MARK, resolution_s=res)
+    sync = channels == SYNC
+    after_photon = np.zeros(times.size, bool)  # the first sync after each photon or marker
+    other = np.flatnonzero(~sync)
+    nxt = np.searchsorted(np.flatnonzero(sync), other, side="right")
+    keep_sync = np.unique(np.flatnonzero(sync)[nxt[nxt < sync.sum()]])
+    after_photon[keep_sync] = True
+    after_photon[np.flatnonzero(sync)[0]] = True  # (the stream's first period is its zero)
+    kept = ~sync | after_photon
+    assert (sync & ~kept).sum() > 2000  # of 9600 periods
+    for period in (None, L * res):
+        got = t3_from_timestamps(times[kept], channels[kept], time_unit_s=1e-12,
+                                 sync_channel=SYNC, marker_channel=MARK, resolution_s=res,
+                                 sync_period_s=period)
+        # (periods from the first sync held to the last, less those held)
+        last = int(np.searchsorted(np.flatnonzero(sync), np.flatnonzero(kept & sync)[-1]))
+        assert got.n_missing_syncs == last + 1 - int((kept & sync).sum())
+        for name in ("nsync", "dtime", "channel", "marker"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(full, name), name)
+        assert got.sync_period_s == pytest.approx(full.sync_period_s, rel=1e-6)
+
+
+def test_every_other_sync_needs_the_period():
+    """With every other sync left out the stream cannot tell the period from twice it: given
+    ``sync_period_s`` the events are placed as from the full stream; without it the period
+    read is twice the code's (which ``reconstruct``'s sync-period check then refuses)."""
+    t = np.array([0, 30, 250, 400, 530, 800, 820])  # syncs every 200 ps, held at 0, 400, 800
+    c = np.array([0, 2, 1, 0, 1, 0, 1])
+    kw = dict(time_unit_s=1e-12, sync_channel=0, marker_channel=2, resolution_s=10e-12)
+    ev = t3_from_timestamps(t, c, sync_period_s=200e-12, **kw)
+    assert ev.sync_period_s == pytest.approx(200e-12) and ev.n_missing_syncs == 2
+    np.testing.assert_array_equal(ev.nsync, [0, 1, 2, 4])
+    np.testing.assert_array_equal(ev.dtime, [0, 5, 13, 2])
+    assert t3_from_timestamps(t, c, **kw).sync_period_s == pytest.approx(400e-12)
 
 
 @pytest.mark.parametrize("change, match", [
+    (dict(sync_period_s=300e-12), "not on one period's grid"),
+    (dict(times=np.array([0, 10, 100, 100, 200]), channels=np.array([0, 1, 0, 0, 2])),
+     "same time"),
     (dict(times=np.array([0, 10, 5, 20])), "non-decreasing"),
     (dict(times=np.array([0.0, 1.0, 2.0, 3.0])), "integers"),
     (dict(channels=np.array([0, 1, 2])), "same length"),
     (dict(channels=np.array([1, 0, 2, 1])), "1 event.*sync_channel"),
-    (dict(times=np.array([0, 100, 150, 230]), channels=np.array([0, 0, 1, 0])), "not periodic"),
+    (dict(times=np.array([0, 100, 150, 230]), channels=np.array([0, 0, 1, 0])),
+     "not on one period's grid"),
     (dict(channels=np.array([0, 1, 0, 0])), "no event on marker_channel"),
     (dict(channels=np.array([0, 2, 0, 2])), "no photon events"),
     (dict(marker_channel=0), "both 0"),

@@ -4,8 +4,8 @@ Time taggers that are not PicoQuant's (Swabian Instruments' Time Tagger, qutools
 Quantique's ID900/ID1000, an FPGA TDC) give a stream of absolute timestamps, each with the
 input channel it arrived on: the code generator's period start on one channel, the DMD's
 pattern marker on another, the detector's photons on the rest. A T3 record holds the same
-information relative to the last sync: the sync's index (``nsync``) and the delay after it
-(``dtime``). :func:`t3_from_timestamps` converts one into the other and
+information relative to the code's period: the period's index (``nsync``) and the delay
+after its start (``dtime``). :func:`t3_from_timestamps` converts one into the other and
 :func:`write_ptu_from_timestamps` writes the result with :func:`~spslidar.io.write_ptu_t3`, so
 ``spslidar calibrate`` and ``spslidar reconstruct`` read it as they read a PicoHarp's file.
 
@@ -29,8 +29,9 @@ if TYPE_CHECKING:
 
 __all__ = ["T3Events", "t3_from_timestamps", "write_ptu_from_timestamps"]
 
-#: the largest relative spread of the sync intervals accepted: a code generator's period start
-#: is periodic; a missed or extra sync edge moves every later photon's delay by a period
+#: the largest distance, as a share of the period, of a sync interval from a whole number of
+#: periods: a code generator's period start is periodic (syncs left out by a tagger's filter
+#: or dead time leave whole periods; an extra edge or a drifting clock does not)
 SYNC_TOL = 0.01
 
 
@@ -42,16 +43,19 @@ class T3Events:
     Attributes
     ----------
     nsync, dtime, channel, marker : numpy.ndarray
-        ``(n,)`` int64: the sync index of each event, its delay after that sync in units of
-        ``resolution_s`` (0 for markers), the photon's channel numbered from 0 in the order of
-        ``photon_channels`` (0 for markers), and the marker bits (0 for photons).
+        ``(n,)`` int64: the code period of each event (counted from the stream's first
+        sync), its delay after that period's start in units of ``resolution_s`` (0 for
+        markers), the photon's channel numbered from 0 in the order of ``photon_channels`` (0
+        for markers), and the marker bits (0 for photons).
     resolution_s, sync_period_s : float
-        The delay unit, and the median interval between syncs, seconds.
+        The delay unit, and the code period read from the syncs, seconds.
     photon_channels : tuple of int
         The tagger's channels whose events are photons, in the order of their new numbers.
-    n_before_first_sync, n_after_last_period : int
-        Events left out: before the first sync (no period start is known), and after the
-        last sync by more than one period (the stream ended without the next sync).
+    n_before_first_sync : int
+        Events before the first sync, left out (the stream's start is no period's).
+    n_missing_syncs : int
+        Periods whose sync the stream does not hold (a tagger's conditional filter, a dead
+        time on the sync input): their events are placed from the nearest sync held.
     """
 
     nsync: np.ndarray
@@ -62,7 +66,7 @@ class T3Events:
     sync_period_s: float
     photon_channels: tuple[int, ...]
     n_before_first_sync: int = 0
-    n_after_last_period: int = 0
+    n_missing_syncs: int = 0
 
     @property
     def n_photons(self) -> int:
@@ -89,9 +93,10 @@ def _int_array(values: Any, what: str) -> np.ndarray:
 
 def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: float,
                        sync_channel: int, marker_channel: int, resolution_s: float,
-                       photon_channels: ArrayLike | None = None,
-                       marker_input: int = 1) -> T3Events:
-    """T3 events (sync index, delay after the sync) from a time tagger's absolute timestamps.
+                       photon_channels: ArrayLike | None = None, marker_input: int = 1,
+                       sync_period_s: float | None = None) -> T3Events:
+    """T3 events (code period, delay after its start) from a time tagger's absolute
+    timestamps.
 
     Parameters
     ----------
@@ -117,6 +122,10 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
     marker_input : int
         The marker input (1..4) the pattern changes are written on (``reconstruct
         --marker``).
+    sync_period_s : float, optional
+        The code period, ``L / bit_rate``; default: read from the syncs (the shortest
+        intervals' median, refined over the whole stream). Give it where the stream may hold
+        no two syncs of adjacent periods.
 
     Returns
     -------
@@ -124,16 +133,20 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
 
     Notes
     -----
-    Each event belongs to the last sync at or before it (``nsync``, counted from the
-    stream's first sync), and a photon's delay is ``floor((t - t_sync) * time_unit_s /
-    resolution_s)``, the TDC bin it fell in. Events before the first sync are left out (no
-    period start is known), and so are events more than one period after the last sync.
-    The syncs must be periodic within :data:`SYNC_TOL` of their median interval: a missed
-    sync edge (a tagger's dead time on that input) would read a whole period's photons a
-    period late, so it is refused with the first gap's position. Memory is about 100 bytes
-    per event (the stream is held whole; convert a long acquisition in pieces of whole
-    patterns, each written as its own file, or through :func:`~spslidar.io.write_ptu_t3_stream`
-    with ``nsync`` carried on).
+    The syncs give the period ``P``, refined as the span of the syncs over the periods it
+    holds, and each sync's period number (a sync interval is a whole number of periods: a
+    tagger's conditional filter, which passes only the syncs that follow a photon, and a
+    dead time on the sync input leave syncs out, which is allowed). Each event is placed
+    from its own period's sync or, where that one is missing, from the nearest sync held,
+    before or after: its period ``k_sync + floor((t - t_sync) / P)`` and its delay
+    ``floor(((t - t_sync) mod P) * time_unit_s / resolution_s)``, the TDC bin it fell in.
+    Events before the first sync are left out. A sync interval more than :data:`SYNC_TOL`
+    of a period off a whole number of periods (an extra edge, a sync that wanders; a steady
+    difference between the tagger's clock and the generator's is the refined ``P``'s) is
+    refused with its position. Memory is about 100 bytes per event
+    (the stream is held whole; convert a long acquisition in pieces of whole patterns, each
+    written as its own file, or through :func:`~spslidar.io.write_ptu_t3_stream` with
+    ``nsync`` carried on).
 
     Raises
     ------
@@ -170,22 +183,12 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
             raise ConfigError(f"photon_channels {list(photons)} must be distinct channels, "
                               f"neither the sync's ({sync_channel}) nor the marker's "
                               f"({marker_channel})")
-    is_sync = ch == sync_channel
-    syncs = t[is_sync]
+    syncs = t[ch == sync_channel]
     if syncs.size < 2:
         raise ConfigError(f"{syncs.size} event(s) on sync_channel {sync_channel}: the code's "
-                          f"period start is needed at every period (channels present: "
+                          f"period start is needed (channels present: "
                           f"{', '.join(map(str, present)) or 'none'})")
-    gaps = np.diff(syncs)
-    period = float(np.median(gaps))
-    off = np.abs(gaps - period) > SYNC_TOL * period
-    if period <= 0 or off.any():
-        k = int(np.flatnonzero(off)[0]) if off.any() else 0
-        raise ConfigError(
-            f"the syncs on channel {sync_channel} are not periodic: {int(off.sum())} of "
-            f"{gaps.size} intervals differ from the median {period * unit:.6g} s by more than "
-            f"{100 * SYNC_TOL:g} % (the first after sync {k}: {gaps[k] * unit:.6g} s); a missed "
-            f"sync edge would read a period's photons a period late")
+    syncs, index, period, missing = _sync_grid(syncs, sync_channel, unit, sync_period_s)
     is_photon = np.isin(ch, photons) if photons else np.zeros(t.size, bool)
     is_marker = ch == marker_channel
     if not is_marker.any():
@@ -196,17 +199,24 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
                           f"present: {', '.join(map(str, present))})")
     events = np.flatnonzero(is_photon | is_marker)
     te = t[events]
-    nsync = np.searchsorted(syncs, te, side="right") - 1
-    before = nsync < 0
-    offset = te - syncs[np.maximum(nsync, 0)]
-    after = ~before & (nsync == syncs.size - 1) & (offset >= period)
-    keep = ~before & ~after
-    events, nsync, offset = events[keep], nsync[keep], offset[keep]
+    before = te < syncs[0]
+    events, te = events[~before], te[~before]
+    # each event from its own period's sync; where that one is missing, from the nearest one
+    # held, before or after (the shortest reach over periods without a sync)
+    prev = np.searchsorted(syncs, te, side="right") - 1
+    nxt = np.minimum(prev + 1, syncs.size - 1)
+    ref = np.where((te - syncs[prev] < period) | (te - syncs[prev] <= syncs[nxt] - te), prev,
+                   nxt)
+    since = (te - syncs[ref]).astype(np.float64)
+    steps = np.floor(since / period + 1e-12)
+    nsync = index[ref] + steps.astype(np.int64)
+    offset = since - steps * period  # in [0, period): the time units after the period's start
+    if np.any(np.diff(nsync) < 0):  # (syncs' jitter at a period's edge: order by period)
+        order = np.argsort(nsync, kind="stable")
+        events, nsync, offset = events[order], nsync[order], offset[order]
     ratio = res / unit  # time units per delay unit
-    if abs(ratio - round(ratio)) < 1e-9 * ratio and round(ratio) >= 1:
-        dtime = offset // int(round(ratio))  # exact in integers (ps timestamps, 100 ps bins)
-    else:  # (the guard: 81 ns in 2.7 ns bins read 29.999999999999996)
-        dtime = np.floor(offset / ratio + 1e-9).astype(np.int64)
+    # (the guard: 81 ns in 2.7 ns bins read 29.999999999999996)
+    dtime = np.floor(offset / ratio + 1e-9).astype(np.int64)
     photon = is_photon[events]
     channel = np.zeros(events.size, np.int64)
     if photon.any():  # each photon's channel by its place in photon_channels
@@ -216,28 +226,58 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
     return T3Events(nsync=nsync.astype(np.int64), dtime=np.where(photon, dtime, 0),
                     channel=channel, marker=np.where(photon, 0, bits).astype(np.int64),
                     resolution_s=res, sync_period_s=period * unit, photon_channels=photons,
-                    n_before_first_sync=int(before.sum()), n_after_last_period=int(after.sum()))
+                    n_before_first_sync=int(before.sum()), n_missing_syncs=missing)
+
+
+def _sync_grid(syncs: np.ndarray, sync_channel: int, unit: float,
+               sync_period_s: float | None) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """The syncs, their period numbers, the period (time units) and the periods without a
+    sync, or one line (:func:`t3_from_timestamps`)."""
+    gaps = np.diff(syncs)
+    if np.any(gaps <= 0):
+        k = int(np.flatnonzero(gaps <= 0)[0])
+        raise ConfigError(f"two syncs on channel {sync_channel} at the same time (syncs {k} and "
+                          f"{k + 1}): one edge was recorded twice")
+    if sync_period_s is None:  # the intervals of one period: the shortest ones
+        short = gaps[gaps < 1.5 * gaps.min()]
+        guess = float(np.median(short))
+    else:
+        guess = _finite_number(sync_period_s, "sync_period_s", positive=True) / unit
+    whole = np.round(gaps / guess)
+    off = (whole < 1) | (np.abs(gaps - whole * guess) > SYNC_TOL * guess)
+    if off.any():
+        k = int(np.flatnonzero(off)[0])
+        raise ConfigError(
+            f"the syncs on channel {sync_channel} are not on one period's grid: {int(off.sum())} "
+            f"of {gaps.size} intervals are more than {100 * SYNC_TOL:g} % of the period "
+            f"{guess * unit:.6g} s off a whole number of periods (the first after sync {k}: "
+            f"{gaps[k] * unit:.6g} s): an extra sync edge, or a sync that wanders"
+            + ("" if sync_period_s is not None else "; sync_period_s gives the period where no "
+               "two syncs of adjacent periods are recorded"))
+    index = np.concatenate([[0], np.cumsum(whole)]).astype(np.int64)
+    period = float(syncs[-1] - syncs[0]) / float(index[-1])  # (the tagger's clock's period)
+    return syncs, index, period, int(index[-1] + 1 - syncs.size)
 
 
 def write_ptu_from_timestamps(path: PathLike, times: ArrayLike, channels: ArrayLike, *,
                               time_unit_s: float, sync_channel: int, marker_channel: int,
                               resolution_s: float, photon_channels: ArrayLike | None = None,
-                              marker_input: int = 1, record_type: str = "GenericT3",
-                              comment: str = "") -> T3Events:
+                              marker_input: int = 1, sync_period_s: float | None = None,
+                              record_type: str = "GenericT3", comment: str = "") -> T3Events:
     """Write a time tagger's absolute timestamps as a T3 PTU file that ``spslidar calibrate``
     and ``spslidar reconstruct`` read.
 
     The events are :func:`t3_from_timestamps`'s (the parameters of the same names are its);
-    the file is :func:`~spslidar.io.write_ptu_t3`'s, its sync rate the syncs' median
-    interval, ``record_type`` (default ``"GenericT3"``: delays below 32768 units, 64
-    channels) and ``comment`` as there. Returns the events, with the counts left out.
+    the file is :func:`~spslidar.io.write_ptu_t3`'s, its sync period the one read from the
+    syncs, ``record_type`` (default ``"GenericT3"``: delays below 32768 units, 64 channels)
+    and ``comment`` as there. Returns the events, with the counts left out.
     """
     from .ptu_write import write_ptu_t3
 
     ev = t3_from_timestamps(times, channels, time_unit_s=time_unit_s,
                             sync_channel=sync_channel, marker_channel=marker_channel,
                             resolution_s=resolution_s, photon_channels=photon_channels,
-                            marker_input=marker_input)
+                            marker_input=marker_input, sync_period_s=sync_period_s)
     write_ptu_t3(path, nsync=ev.nsync, dtime=ev.dtime, channel=ev.channel, marker=ev.marker,
                  resolution_s=ev.resolution_s, sync_rate_hz=1.0 / ev.sync_period_s,
                  record_type=record_type, comment=comment)
