@@ -3,6 +3,8 @@ T3 events and a PTU file that ``reconstruct`` reads as it reads a PicoHarp's."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -209,3 +211,52 @@ def test_a_delay_on_a_bin_edge_reads_that_bin():
                             time_unit_s=1e-9, sync_channel=0, marker_channel=2,
                             resolution_s=2.7e-9)
     np.testing.assert_array_equal(ev.dtime, [0, 30])
+
+
+REAL = Path(__file__).resolve().parents[1].parent / "shared" / "realdata"
+
+
+@pytest.mark.skipif(not REAL.is_dir(), reason="../shared/realdata is absent")
+@pytest.mark.parametrize("name, n_bins, marker", [
+    ("tttrlib_MT200_HH400_beads.ptu", 1563, 3),  # HydraHarp, 16 ps, 25.000025 ns sync
+    ("hazelnut_z1.ptu", 132, 1),  # PicoHarp, 96.97 ps, 132.18 bins a sync
+])
+def test_real_files_as_a_filtered_tagger_stream(tmp_path, name, n_bins, marker):
+    """A real acquisition's events as a tagger with a conditional filter streams them (a
+    sync only in the periods that hold an event: 0.02-0.1 % of them), in integer
+    picoseconds: converted back, the histograms per pattern equal the file's. (Two things
+    differ by construction, not by the conversion: a PicoHarp records a few photons up to a
+    bin past its sync period, which in absolute time lie after the next sync and are placed
+    in its first bin, which gains them; and the last
+    pattern's dwell ends at the file's last event, a marker on another input that the stream
+    leaves out.)"""
+    import ptufile
+
+    with ptufile.PtuFile(REAL / name) as f:
+        dec = f.decode_records(f.read_records())
+        period, res = f.global_resolution, f.tags["MeasDesc_Resolution"]
+    sync = dec["time"].astype(np.int64)
+    chan, mark = dec["channel"].astype(np.int64), dec["marker"].astype(np.int64)
+    photon = chan >= 0
+    keep = photon | ((mark & (1 << (marker - 1))) != 0)
+    sync, chan, dtime, photon = sync[keep], chan[keep], dec["dtime"][keep], photon[keep]
+    at = np.round(sync * period * 1e12 + np.where(photon, (dtime + 0.5) * res * 1e12, 0.0))
+    held = np.unique(sync)
+    times = np.concatenate([np.round(held * period * 1e12), at]).astype(np.int64)
+    channels = np.concatenate([np.full(held.size, 5), np.where(photon, chan + 10, 9)])
+    order = np.argsort(times, kind="stable")  # (a sync before the events of its period)
+    ev = write_ptu_from_timestamps(tmp_path / "conv.ptu", times[order], channels[order],
+                                   time_unit_s=1e-12, sync_channel=5, marker_channel=9,
+                                   resolution_s=res, sync_period_s=period,
+                                   marker_input=marker)
+    assert ev.n_missing_syncs > 1000 * held.size
+    a = read_ptu_histograms(REAL / name, n_bins, marker=marker, check_sync_period=False)
+    b = read_ptu_histograms(tmp_path / "conv.ptu", n_bins, marker=marker,
+                            check_sync_period=False)
+    inside = int(np.floor(period / res))  # the bins wholly within a sync period
+    np.testing.assert_array_equal(b.histograms[:, 1:inside], a.histograms[:, 1:inside])
+    # (past the period: hazelnut_z1's 1 photon at dtime 132, beyond its 132 bins; beads none)
+    past = int(a.histograms[:, inside:].sum()) + a.n_out_of_range
+    assert past <= 2 and b.histograms[:, inside:].sum() == 0 and b.n_out_of_range == 0
+    assert b.histograms[:, 0].sum() == a.histograms[:, 0].sum() + past
+    np.testing.assert_array_equal(b.periods_per_pattern[:-1], a.periods_per_pattern[:-1])
