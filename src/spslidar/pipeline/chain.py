@@ -31,6 +31,7 @@ from ..patterns import build_patterns
 from ..qcr import MeanEliminated, plain_problem, qcr_problem
 from ..scenes import load_scene
 from ..solvers.entries import TV_REGULARISERS
+from .capture import captured_warnings
 from .gate import AUTO_GATE_MIN_SLICES, AUTO_GATE_SIGMAS, gate_text, occupied_lags, with_reference
 from .measurement import (
     PROCESSING_KEYS,
@@ -84,9 +85,8 @@ def keeping_warnings(fn):
     def wrapper(*args, **kwargs):
         caught: list = []
         try:
-            # (the caller's filters hold: what they ignore stays ignored; entering resets
-            # the once-per-place registries, so a second run's warnings are kept too)
-            with warnings.catch_warnings(record=True) as caught:
+            # (this thread's own: runs in a thread pool each keep theirs)
+            with captured_warnings() as caught:
                 result = fn(*args, **kwargs)
         except BaseException:
             for w in caught:
