@@ -78,10 +78,15 @@ def unchanged_keys(config: Config, keys: dict[str, Any]) -> dict[str, Any]:
     return same
 
 
-@dataclass
+@dataclass(eq=False)
 class Measurement:
     """A simulated acquisition: the matched-filter outputs of every pattern over the gate,
-    and everything needed to reconstruct them (see :func:`measure`, :func:`reconstruct`)."""
+    and everything needed to reconstruct them (see :func:`measure`, :func:`reconstruct`).
+
+    Its delays (``lags``, ``ulags``, ``inverse``) are read-only: every result reconstructed
+    from it shares them (``result.lags``), and a notebook's ``r.lags -= r.lags[0]`` had made
+    the next reconstruction's RMSE 19.9 m for 0.26 (an audit of 2026-11-29). Equality is
+    identity; the repr is a summary."""
 
     config: Config
     scene: Any
@@ -95,6 +100,33 @@ class Measurement:
     probe_seed: np.random.SeedSequence
     warnings: list[str]
     timing: dict[str, float]
+
+    def __post_init__(self) -> None:
+        for name in _DELAYS:
+            setattr(self, name, _frozen(getattr(self, name)))
+
+    def __setstate__(self, state: dict) -> None:  # (pickle gives arrays back writable)
+        self.__dict__.update(state)
+        for name in _DELAYS:
+            setattr(self, name, _frozen(getattr(self, name)))
+
+    def __repr__(self) -> str:
+        c = self.config
+        return (f"Measurement({c.scene!r}, {c.size}x{c.size}, {self.patterns.shape[0]} "
+                f"{c.patterns} patterns, gate {self.gate[0]:g}-{self.gate[1]:g} m, "
+                f"{int(np.size(self.lags))} lags, seed {c.seed})")
+
+
+_DELAYS = ("lags", "ulags", "inverse")
+
+
+def _frozen(arr):
+    """``arr`` read-only (a NumPy array; another backend's is left as it is): a view, so the
+    caller's own array stays writable."""
+    if isinstance(arr, np.ndarray):
+        arr = arr.view()
+        arr.flags.writeable = False
+    return arr
 
 
 def _resolve(config, overrides) -> Config:

@@ -18,9 +18,11 @@ from ..metrics import returns_phrase
 from ..outdir import write_result_dir
 
 
-@dataclass
+@dataclass(eq=False)
 class Result:
-    """Everything one run produced. ``metrics`` is what ``metrics.json`` holds."""
+    """Everything one run produced. ``metrics`` is what ``metrics.json`` holds. Equality is
+    identity (its fields are arrays); the repr is a summary (the dataclass's ran to 28 000
+    characters in a notebook cell)."""
 
     config: Config
     scene: Any
@@ -62,6 +64,13 @@ class Result:
     @property
     def depth_rmse(self) -> float:
         return self.metrics["depth_rmse_m"]
+
+    def __repr__(self) -> str:
+        rmse = self.metrics.get("depth_rmse_m")
+        score = "no truth" if rmse is None else f"depth RMSE {rmse:.4g} m"
+        return (f"Result({self.scene.name!r}, {self.config.size}x{self.config.size}, "
+                f"{self.config.solver} + {self.config.depth}, {score}, "
+                f"{len(self.warnings)} warning(s))")
 
     def summary(self) -> str:
         """Two lines: what was run and what came out."""

@@ -25,7 +25,7 @@ _IMAGE_WINDOW = (20.0, 20.8)
 # Share of valid source pixels an output pixel needs to stay valid after resizing.
 _MASK_VALID_SHARE = 0.999
 
-@dataclass
+@dataclass(eq=False)
 class Scene:
     """A scene seen by the lidar.
 
@@ -78,7 +78,12 @@ class Scene:
     def __post_init__(self) -> None:
         self.depth = _read_only(self.depth, np.float64)
         self.reflectivity = _read_only(self.reflectivity, np.float64)
-        self.valid = _read_only(self.valid, bool)
+        valid = np.asarray(self.valid)
+        if valid.dtype != np.bool_ and valid.size and not np.isin(valid, (0, 1)).all():
+            # (0.3 everywhere was read as all valid, an audit of 2026-11-29)
+            raise SceneError(f"scene {self.name!r}: the valid mask must hold booleans or 0/1, "
+                             f"got values such as {valid[~np.isin(valid, (0, 1))].flat[0]!r}")
+        self.valid = _read_only(valid, bool)
         d = self.depth
         if d.ndim != 2 or d.shape[0] != d.shape[1]:
             raise SceneError(
@@ -98,6 +103,18 @@ class Scene:
             raise SceneError(f"scene {self.name!r}: {bad} reflectivity values lie outside [0, 1]")
         if self.has_truth and not self.valid.any():
             raise SceneError(f"scene {self.name!r}: no pixel has a valid ground-truth depth")
+
+    def __setstate__(self, state: dict) -> None:
+        # (pickle and deepcopy give arrays back writable: a scene through joblib or a deepcopy
+        # let a result's scene be written into, changing the next result's score, an audit)
+        self.__dict__.update(state)
+        for name in ("depth", "reflectivity", "valid"):
+            getattr(self, name).flags.writeable = False
+
+    def __repr__(self) -> str:
+        return (f"Scene({self.name!r}, {self.size}x{self.size}, depth "
+                f"{float(self.depth.min()):.4g}-{float(self.depth.max()):.4g} m"
+                + ("" if self.has_truth else ", no truth") + ")")
 
     @property
     def size(self) -> int:
