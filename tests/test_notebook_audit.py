@@ -84,3 +84,40 @@ def test_a_valid_mask_of_other_numbers_is_refused():
     with pytest.raises(SceneError, match="valid mask must hold booleans or 0/1"):
         Scene("s", np.full((4, 4), 5.0), np.ones((4, 4)), np.full((4, 4), 0.3))
     Scene("s", np.full((4, 4), 5.0), np.ones((4, 4)), np.eye(4))  # 0/1 is a mask
+
+
+def test_a_matrix_edited_after_it_is_wrapped_leaves_the_operator_as_it_was():
+    """The transpose was a snapshot and the matrix a live reference: after the owner's edit
+    the products and the adjoint were of two matrices (dottest failed)."""
+    from spslidar.operators import MatrixOperator, dottest
+    from spslidar.patterns import as_patterns
+
+    a = np.random.default_rng(0).random((3, 4))
+    a0 = a.copy()
+    op, pats = MatrixOperator(a), as_patterns(a)
+    a[0, 0] += 100
+    dottest(op)
+    np.testing.assert_array_equal(op.todense(), a0)
+    np.testing.assert_array_equal(pats.todense(), a0)
+    np.testing.assert_allclose(pats.rmatvec(np.ones((3, 1)))[:, 0], a0.T @ np.ones(3))
+
+
+@pytest.mark.parametrize("bad, match", [
+    (dict(A=np.eye(3) + 1j), "must be real"),
+    (dict(A=np.eye(3), dtype=int), "real floating type"),
+])
+def test_a_matrix_operator_is_real(bad, match):
+    from spslidar.operators import MatrixOperator
+
+    with pytest.raises(ValueError, match=match):
+        MatrixOperator(**bad)
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf])
+def test_patterns_with_a_nan_or_an_infinity_are_refused(value):
+    from spslidar.patterns import as_patterns
+
+    p = np.ones((4, 9))
+    p[1, 2] = value
+    with pytest.raises(ValueError, match="finite real transmittances"):
+        as_patterns(p)

@@ -54,7 +54,7 @@ class CovarianceOperator(LinearOperator):
     def __init__(self, patterns, dtype=np.float32):
         from .patterns import as_patterns
 
-        phi = as_patterns(patterns)
+        phi = as_patterns(patterns, copy=False)
         self.m = phi.shape[0]
         self._phi = phi.centred(1.0, dtype=dtype)
         q = phi.shape[1]
@@ -79,7 +79,7 @@ def qcr_problem(patterns: np.ndarray, corr: np.ndarray, form: str = "centred",
     """
     from .patterns import as_patterns
 
-    phi = as_patterns(patterns)
+    phi = as_patterns(patterns, copy=False)
     m = phi.shape[0]
     if form == "centred":
         return phi.centred(np.sqrt(m), dtype=dtype), (centre(corr) / np.sqrt(m)).astype(dtype)

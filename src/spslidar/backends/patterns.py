@@ -216,4 +216,4 @@ def host_patterns(patterns: Any) -> Any:
         return patterns
     if patterns.host is not None:
         return patterns.host
-    return as_patterns(patterns.backend.to_numpy(patterns.matrix))
+    return as_patterns(patterns.backend.to_numpy(patterns.matrix), copy=False)

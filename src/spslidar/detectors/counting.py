@@ -111,7 +111,7 @@ class NoiseModel:
             from ..patterns import as_patterns
 
             a = np.asarray(reflectivity, dtype=np.float64).ravel()
-            modulation = as_patterns(patterns).apply_rows(slice(0, m), a[:, None])[:, 0]
+            modulation = as_patterns(patterns, copy=False).apply_rows(slice(0, m), a[:, None])[:, 0]
         return base + self.m_n * f1 * modulation
 
 

@@ -187,7 +187,12 @@ class MatrixOperator(LinearOperator):
     ----------
     A : ndarray, shape (m, n)
     dtype : numpy dtype, optional
-        Cast ``A`` to this precision (float32 halves the cost of the products).
+        Cast ``A`` to this precision (float32 halves the cost of the products); a real
+        floating type.
+    copy : bool
+        Take a copy of ``A`` where it is the caller's array (default), so that the products
+        and the adjoint keep to the matrix given; False shares it (the caller must then not
+        change it).
 
     Notes
     -----
@@ -196,10 +201,21 @@ class MatrixOperator(LinearOperator):
     single-threaded BLAS call per thread; outside it, one BLAS call.
     """
 
-    def __init__(self, A: np.ndarray, dtype=None):
+    def __init__(self, A: np.ndarray, dtype=None, *, copy: bool = True):
+        given = A
+        if dtype is not None and np.dtype(dtype).kind != "f":
+            # (an integer dtype truncated every product: [0, 0, 0], an audit of 2026-11-29)
+            raise ValueError(f"dtype must be a real floating type, got {np.dtype(dtype)}")
         A = float_matrix(A, "A") if dtype is None else np.asarray(A).astype(dtype, copy=False)
+        if np.iscomplexobj(A):  # (.H was the plain transpose, and dottest passed on reals)
+            raise ValueError("A must be real: a MatrixOperator is a real linear map, whose "
+                             "adjoint is its transpose")
         if A.ndim != 2:
             raise ValueError(f"A must be an (M, N) matrix, got shape {A.shape}")
+        if copy and isinstance(given, np.ndarray) and np.may_share_memory(A, given):
+            # (the transpose is a snapshot: a matrix edited by its owner afterwards gave
+            # products and adjoints of two different matrices, an audit of 2026-11-29)
+            A = A.copy()
         super().__init__(A.shape, A.dtype)
         self.A = A
         self._AT = np.ascontiguousarray(A.T)

@@ -100,12 +100,22 @@ class DensePatterns(PatternOperator):
         Mirror transmittances in [0, 1].
     kind : str
         The pattern kind that made it.
+    copy : bool
+        Take a copy of ``matrix`` where it is the caller's array (default), so that the
+        products and the adjoint keep to the patterns given; False shares it.
     """
 
-    def __init__(self, matrix: np.ndarray, kind: str = "dense"):
+    def __init__(self, matrix: np.ndarray, kind: str = "dense", *, copy: bool = True):
+        given = matrix
         matrix = float_matrix(matrix, "patterns")  # (a 0/1 uint8 matrix: uint8 products)
         if matrix.ndim != 2:
             raise ValueError(f"patterns must be an (M, Q) array, got shape {matrix.shape}")
+        if np.iscomplexobj(matrix) or not np.isfinite(matrix).all():
+            # (a NaN pattern gave TVAL3 an all-NaN answer, GPSR a partly-NaN one, an audit)
+            raise ValueError("patterns must hold finite real transmittances (a NaN, an "
+                             "infinity or a complex number is none)")
+        if copy and isinstance(given, np.ndarray) and np.may_share_memory(matrix, given):
+            matrix = matrix.copy()  # (the transpose is taken later: it must be of these)
         super().__init__(matrix.shape, matrix.dtype)
         self.matrix = matrix
         self.kind = kind
@@ -131,12 +141,13 @@ class DensePatterns(PatternOperator):
     def centred(self, norm: float = 1.0, dtype=np.float32):
         from ..operators import MatrixOperator
 
-        return MatrixOperator(centred_patterns(self.matrix, norm, dtype=dtype), dtype=dtype)
+        return MatrixOperator(centred_patterns(self.matrix, norm, dtype=dtype), dtype=dtype,
+                              copy=False)
 
     def as_dtype(self, dtype):
         from ..operators import MatrixOperator
 
-        return MatrixOperator(self.matrix, dtype=dtype)
+        return MatrixOperator(self.matrix, dtype=dtype, copy=False)  # (the patterns' own)
 
     @property
     def nbytes(self) -> int:
@@ -148,7 +159,7 @@ def dense_patterns(kind: str, n_patterns: int, n_side: int, rng: np.random.Gener
                    **_: object) -> DensePatterns:
     """The registry's factory for ``gaussian`` and ``bernoulli`` pattern sets."""
     return DensePatterns(make_patterns(kind, n_patterns, n_side * n_side, rng, sigma=sigma,
-                                       on_fraction=on_fraction, dtype=dtype), kind)
+                                       on_fraction=on_fraction, dtype=dtype), kind, copy=False)
 
 
 #: rows per block in :func:`centred_patterns` (a float64 block of 4096 pixels stays in cache)
@@ -184,9 +195,11 @@ def centred_patterns(patterns: np.ndarray, norm: float = 1.0, dtype=np.float32) 
     return out
 
 
-def as_patterns(patterns) -> PatternOperator:
+def as_patterns(patterns, *, copy: bool = True) -> PatternOperator:
     """A :class:`~spslidar.patterns.base.PatternOperator` from an operator or an ``(M, Q)``
-    array (wrapped as :class:`DensePatterns`)."""
+    array (wrapped as :class:`DensePatterns`, a copy of the caller's array unless ``copy``
+    is False: for a use within one call, where the array cannot change meanwhile)."""
     if isinstance(patterns, PatternOperator):
         return patterns
-    return DensePatterns(np.asarray(patterns))
+    return DensePatterns(patterns if isinstance(patterns, np.ndarray) else np.asarray(patterns),
+                         copy=copy)

@@ -546,7 +546,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         valid = np.isfinite(truth)
         scene = Scene(str(ptu), np.where(valid, truth, 0.0), np.ones((n, n)), valid)
     meas = Measurement(cfg, scene, acq, tuple(cfg.range_gate), lags, ulags, inverse,
-                       as_patterns(patterns), sim, np.random.SeedSequence(cfg.seed), [],
+                       as_patterns(patterns, copy=False), sim, np.random.SeedSequence(cfg.seed), [],
                        {"simulate": 0.0})
     meas.warnings.extend(dwell_warning)
     if lags.size > period:  # as run's plan: the gate is longer than the code's period

@@ -118,7 +118,7 @@ def simulate_correlations(
     """
     if method not in SIMULATE_METHODS:
         raise ConfigError(f"unknown simulation method {method!r}; choose fast or reference")
-    patterns = as_patterns(patterns)
+    patterns = as_patterns(patterns, copy=False)
     m = patterns.shape[0]
     lags = np.asarray(lags, dtype=np.int64)
     refl = scene.reflectivity.ravel()

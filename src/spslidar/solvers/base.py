@@ -316,7 +316,7 @@ class Solver:
         if isinstance(A, np.ndarray):  # (a matrix: an AttributeError on 'rmatvec', an audit)
             from ..operators import MatrixOperator
 
-            A = MatrixOperator(A)
+            A = MatrixOperator(A, copy=False)  # (for this solve only)
         yb, self._was_1d = as_block(y)
         if not np.isfinite(yb).all():  # (an all-NaN estimate came back, an audit)
             raise ValueError("the data y hold a NaN or an infinity")

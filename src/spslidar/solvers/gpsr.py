@@ -37,7 +37,7 @@ class _Synthesis:
         self.W, self.dt = W, dt
         if W is not None and isinstance(A, MatrixOperator):
             at = np.ascontiguousarray(A.A.T, dtype=dt)  # (n, m)
-            A = MatrixOperator(np.ascontiguousarray(W.matvec(at).T), dtype=dt)
+            A = MatrixOperator(np.ascontiguousarray(W.matvec(at).T), dtype=dt, copy=False)
             self.composed = False
         else:
             self.composed = W is not None
