@@ -121,3 +121,55 @@ def test_patterns_with_a_nan_or_an_infinity_are_refused(value):
     p[1, 2] = value
     with pytest.raises(ValueError, match="finite real transmittances"):
         as_patterns(p)
+
+
+def test_a_plugin_cell_can_be_run_again_and_taken_back():
+    """Registering a plugin again with another default replaces it (it was refused, with no
+    way back but a new kernel); ``remove`` takes it back, and gives back a built-in it
+    replaced; a built-in itself stays."""
+    from spslidar.depth import ESTIMATORS
+    from spslidar.depth.argmax import ArgmaxDepth
+    from spslidar.errors import ConfigError
+    from spslidar.registry import Option
+
+    class Mine(ArgmaxDepth):
+        name = "mine"
+
+    argmax = ESTIMATORS.get("argmax")
+    try:
+        ESTIMATORS.add("mine", Mine, "Mine", "t", options=(Option("mine_hw", 1, "hw", kind=int),))
+        with pytest.warns(RuntimeWarning, match="replaced"):
+            ESTIMATORS.add("mine", ArgmaxDepth, "Mine", "t",
+                           options=(Option("mine_hw", 2, "hw", kind=int),))
+        assert ESTIMATORS.get("mine").options[0].default == 2
+        with pytest.warns(RuntimeWarning, match="replaced"):
+            ESTIMATORS.add("argmax", Mine, "mine as argmax")
+    finally:
+        removed = [ESTIMATORS.remove(n) for n in ("mine", "argmax")]
+    assert "mine" in ESTIMATORS  # the first registration, which the second replaced
+    ESTIMATORS.remove("mine")
+    assert "mine" not in ESTIMATORS and removed[1].target is Mine
+    assert ESTIMATORS.get("argmax") is argmax
+    with pytest.raises(ConfigError, match="built in"):
+        ESTIMATORS.remove("argmax")
+
+
+def test_the_wavelet_regulariser_pickles():
+    from spslidar.solvers.regularisers import make_wavelet_l1
+
+    reg = make_wavelet_l1((16, 16))
+    x = np.random.default_rng(0).random((256, 2))
+    for other in (pickle.loads(pickle.dumps(reg)), copy.deepcopy(reg)):
+        np.testing.assert_array_equal(other.prox(x, 0.1), reg.prox(x, 0.1))
+
+
+@pytest.mark.parametrize("key, near", [("pattern_sigma", "sigma"), ("hadamard_order", "order"),
+                                       ("sigmaa", "sigma")])
+def test_build_patterns_refuses_an_option_no_kind_takes(key, near):
+    from spslidar.errors import ConfigError
+    from spslidar.patterns import build_patterns
+
+    with pytest.raises(ConfigError, match=f"no option '{key}': did you mean '{near}'"):
+        build_patterns("gaussian", 8, 4, 0, **{key: 0.05})
+    a = build_patterns("gaussian", 8, 4, 0, sigma=0.05).todense()  # its own: taken
+    assert not np.array_equal(a, build_patterns("gaussian", 8, 4, 0).todense())

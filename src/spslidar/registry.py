@@ -190,6 +190,7 @@ class Registry:
         self.kind = kind
         self.option = option
         self._entries: dict[str, Entry] = {}
+        self._replaced: dict[str, list[Entry]] = {}  # what add() replaced, for remove()
 
     def add(self, name: str, target: Any, display: str = "", help: str = "",
             validate: Callable[[Any], None] | None = None,
@@ -201,7 +202,9 @@ class Registry:
         if not name or not isinstance(name, str):
             raise ValueError(f"a {self.kind} needs a non-empty name")
         for opt in options:
-            for other in self._entries.values():
+            # (not the entry this one replaces: a notebook cell re-run with another default
+            # was refused, with no way back but a new kernel, an audit of 2026-11-29)
+            for other in (e for e in self._entries.values() if e.name != name):
                 for o in other.options:
                     if o.name == opt.name and (o.default, o.kind, o.lo, o.hi) != (
                             opt.default, opt.kind, opt.lo, opt.hi):
@@ -224,7 +227,24 @@ class Registry:
 
             warnings.warn(f"the {self.kind} {name!r} ({old.target!r}) is replaced by "
                           f"{entry.target!r}", RuntimeWarning, stacklevel=2)
+        if old is not None:
+            self._replaced.setdefault(name, []).append(old)
         self._entries[name] = entry
+        return entry
+
+    def remove(self, name: str) -> Entry:
+        """Take back what :meth:`add` registered under ``name``: the entry it replaced comes
+        back (a built-in stage a plugin had replaced), or the name goes. A built-in stage
+        itself is not removed (the defaults name them). Returns the entry removed."""
+        entry = self.get(name)
+        replaced = self._replaced.get(name)
+        if not replaced and entry.origin.startswith("spslidar"):
+            raise ConfigError(f"the {self.kind} {name!r} is built in and cannot be removed "
+                              f"(register another under its name to replace it)")
+        if replaced:
+            self._entries[name] = replaced.pop()
+        else:
+            del self._entries[name]
         return entry
 
     def register(self, name: str, display: str = "", help: str = "",

@@ -116,13 +116,12 @@ class Wavelet2D(LinearOperator):
         self.image_shape = (ny, nx)
         self.wavelet = wavelet
         self.level = level
-        self._pywt = pywt
         coeffs = pywt.wavedec2(np.zeros((ny, nx)), wavelet, mode="periodization", level=level)
         _, self._slices = pywt.coeffs_to_array(coeffs)
         super().__init__((ny * nx, ny * nx), dtype)
 
     def _matvec(self, x):
-        pywt = self._pywt
+        import pywt  # (not kept on the operator: a module does not pickle)
         ny, nx = self.image_shape
         k = x.shape[1]
         if self.level == 0:
@@ -135,7 +134,7 @@ class Wavelet2D(LinearOperator):
         return arr.reshape(ny * nx, k)
 
     def _rmatvec(self, y):
-        pywt = self._pywt
+        import pywt  # (not kept on the operator: a module does not pickle)
         ny, nx = self.image_shape
         k = y.shape[1]
         if self.level == 0:

@@ -15,6 +15,7 @@ if TYPE_CHECKING:
     from .base import PatternOperator
 
 __all__ = ["HADAMARD_KINDS", "HADAMARD_ORDERS", "HADAMARD_REALISATIONS", "PATTERNS",
+           "PATTERN_OPTIONS",
            "PATTERN_KINDS", "CentredPatterns", "DensePatterns", "PatternOperator",
            "as_patterns", "build_patterns", "make_patterns", "n_patterns_for"]
 
@@ -67,7 +68,12 @@ def build_patterns(kind: str, n_patterns: int, n_side: int, rng: Any,
     ``np.dtype("float32")``): the same seed gives the same patterns for each (the string, this
     function's default, drew other patterns than the pipeline's ``np.float32``).
     ``n_patterns`` and ``n_side`` must be integers (a ``ConfigError`` otherwise).
+    ``options`` are the factories' keywords (:data:`PATTERN_OPTIONS`, and those a kind
+    declares); a kind ignores the ones that are not its own (the pipeline gives each kind
+    every one), but a keyword no kind takes is refused (``pattern_sigma=``, the config's key
+    for ``sigma=``, and typos were dropped without a word: an audit of 2026-11-29).
     """
+    import difflib
     import operator
 
     import numpy as np
@@ -81,5 +87,20 @@ def build_patterns(kind: str, n_patterns: int, n_side: int, rng: Any,
             raise ConfigError(f"{name} must be an integer, got {value!r}") from None
         if isinstance(value, bool):
             raise ConfigError(f"{name} must be an integer, got {value!r}")
+    known = set(PATTERN_OPTIONS) | set(PATTERNS.options())
+    for key in options:
+        if key not in known:
+            config_key = {f"pattern_{k}": k for k in PATTERN_OPTIONS} | {
+                f"hadamard_{k}": k for k in PATTERN_OPTIONS}
+            near = config_key.get(key) or next(iter(difflib.get_close_matches(key, known, 1)),
+                                               None)
+            raise ConfigError(f"build_patterns() takes no option {key!r}"
+                              + (f": did you mean {near!r}?" if near else "")
+                              + f" (it takes {', '.join(sorted(known))})")
     return PATTERNS.load(kind)(kind, int(n_patterns), int(n_side), rng, dtype=np.dtype(dtype),
                                **options)
+
+
+#: the keywords of the built-in pattern factories: ``sigma`` (Gaussian grey levels' spread),
+#: ``on_fraction`` (Bernoulli), ``order`` and ``realisation`` (Hadamard)
+PATTERN_OPTIONS = ("sigma", "on_fraction", "order", "realisation")
