@@ -173,3 +173,79 @@ def test_build_patterns_refuses_an_option_no_kind_takes(key, near):
         build_patterns("gaussian", 8, 4, 0, **{key: 0.05})
     a = build_patterns("gaussian", 8, 4, 0, sigma=0.05).todense()  # its own: taken
     assert not np.array_equal(a, build_patterns("gaussian", 8, 4, 0).todense())
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda: __import__("spslidar.operators", fromlist=["x"]).MatrixOperator(np.eye(3))
+     .matvec(np.ma.masked_array(np.ones(3), mask=[1, 0, 0])), "masked array"),
+    (lambda: __import__("spslidar.operators", fromlist=["x"]).MatrixOperator(np.eye(3))
+     .rmatvec(np.ones(3) + 1j), "complex"),
+])
+def test_operators_refuse_masks_and_complex_inputs(call, match):
+    with pytest.raises(ValueError, match=match):
+        call()
+
+
+def test_the_matched_filter_refuses_fractional_lags_and_a_bank_of_other_lags():
+    from spslidar.correlate import matched_filter, replica_matrix
+
+    rng = np.random.default_rng(0)
+    hist, rep = rng.random((2, 16)), rng.random(16)
+    lags = np.arange(10)
+    with pytest.raises(ValueError, match="whole bins"):
+        matched_filter(hist, rep, lags + 0.7)
+    with pytest.raises(ValueError, match="whole bins"):
+        matched_filter(hist, rep, np.array([1.0, np.nan]))
+    with pytest.raises(ValueError, match="bank of shape"):
+        matched_filter(hist, rep, lags, bank=replica_matrix(rep, lags[:3]))
+    np.testing.assert_allclose(matched_filter(hist, rep, lags.astype(float)),
+                               matched_filter(hist, rep, lags))  # whole floats: taken
+
+
+@pytest.mark.parametrize("width", [0, -1e-10, "1e-10", None])
+def test_a_bin_width_that_is_no_width_is_one_line(width):
+    from spslidar.correlate import gate_lags
+    from spslidar.depth import DepthContext
+    from spslidar.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="bin_width must be a positive number"):
+        gate_lags((1.0, 2.0), width)
+    with pytest.raises(ConfigError, match="bin_width must be a positive number"):
+        DepthContext((4, 4), np.arange(3), width, 0.5)
+
+
+def test_every_random_stream_takes_a_seed_and_refuses_what_is_none():
+    from spslidar.codes.sequences import make_code
+    from spslidar.detectors import build_detector
+    from spslidar.errors import ConfigError
+
+    lam = np.full((2, 8), 0.001)  # (a flux a GMAPD works at)
+    for name in ("linear", "gmapd"):
+        det = build_detector(name)
+        a, _ = det.detect(lam, 0)
+        np.testing.assert_array_equal(a, det.detect(lam, np.random.default_rng(0))[0])
+        det.detect(lam, None)
+        with pytest.raises(ConfigError, match="rng must be"):
+            det.detect(lam, 1.5)
+    with pytest.raises(ValueError, match="lam must be"):
+        build_detector("linear").detect(lam[0], 0)
+    with pytest.raises(ValueError, match="n_periods"):
+        build_detector("gmapd").detect(lam, 0, n_periods=0)
+    for bad in (1.5, -1):
+        with pytest.raises(ConfigError, match="rng must be"):
+            make_code("random", 31, 0.5, rng=bad)
+
+
+def test_return_amplitudes_take_a_pattern_operator_and_refuse_bad_delays():
+    from spslidar.forward import return_amplitudes
+    from spslidar.patterns import build_patterns
+
+    pats = build_patterns("bernoulli", 6, 4, 0)
+    refl, delay = np.ones(16), np.linspace(3.0, 9.0, 16)
+    shifts, amp = return_amplitudes(pats, refl, delay, 0.5, 64)
+    np.testing.assert_allclose(amp, return_amplitudes(pats.todense(), refl, delay, 0.5, 64)[1])
+    for period in (0, 1.5):
+        with pytest.raises(ValueError, match="period must be a whole number"):
+            return_amplitudes(pats.todense(), refl, delay, 0.5, period)
+    with pytest.raises(ValueError, match="NaN"):
+        return_amplitudes(pats.todense(), refl, np.where(delay > 5, np.nan, delay), 0.5, 64)

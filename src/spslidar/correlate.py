@@ -111,6 +111,10 @@ def gate_lags(gate: tuple[float, float], bin_width: float) -> np.ndarray:
     d0, d1 = float(gate[0]), float(gate[1])
     if not (np.isfinite(d0) and np.isfinite(d1)) or d0 < 0 or d1 <= d0:
         raise ConfigError(f"range gate must satisfy 0 <= min < max, got {d0} {d1}")
+    if not (isinstance(bin_width, (int, float, np.floating, np.integer)) and
+            not isinstance(bin_width, bool) and np.isfinite(bin_width) and bin_width > 0):
+        # (0 was a ZeroDivisionError, a negative width no lags at all: an audit)
+        raise ConfigError(f"bin_width must be a positive number of seconds, got {bin_width!r}")
     to_bins = 2.0 / (SPEED_OF_LIGHT * bin_width)
     lo, hi = int(np.floor(d0 * to_bins)), int(np.ceil(d1 * to_bins))
     if hi - lo + 1 > MAX_GATE_BINS:  # counted before any array exists
@@ -206,7 +210,17 @@ def matched_filter(
     period = hist.shape[1]
     if np.ndim(replica) != 1 or np.size(replica) != period:
         raise ValueError(f"replica of shape {np.shape(replica)} for histograms of {period} bins")
-    lags = np.mod(np.asarray(lags, dtype=np.int64), period)
+    given = np.asarray(lags)
+    if given.dtype.kind not in "iu" and not (given.dtype.kind == "f" and np.isfinite(given).all()
+                                             and np.array_equal(given, np.round(given))):
+        # (0.7 bin read as 0, a NaN as an arbitrary lag, an audit of 2026-11-29)
+        raise ValueError(f"lags must be whole bins, got dtype {given.dtype} "
+                         f"{'with fractions or NaN' if given.dtype.kind == 'f' else ''}".strip())
+    lags = np.mod(given.astype(np.int64), period)
+    if bank is not None and np.shape(bank) != (period, lags.size):
+        # (a bank built for other lags was used as it was: 3 columns for 10 lags)
+        raise ValueError(f"bank of shape {np.shape(bank)} for {lags.size} lags of a {period}-bin "
+                         f"period: build it with replica_matrix(replica, lags)")
     if bank is not None or lags.size <= FFT_LAGS:
         wide = np.dtype(out_dtype) == np.float64
         calc = np.float64 if wide else np.float32

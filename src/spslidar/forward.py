@@ -81,6 +81,12 @@ def return_weights(
     W : ndarray, shape (Q, S)
         float64; dense (S, the number of occupied depth bins, is small).
     """
+    if isinstance(period, bool) or not float(period).is_integer() or period < 1:
+        # (0 put every return in bin 0, 1.5 gave fractional shifts: an audit of 2026-11-29)
+        raise ValueError(f"period must be a whole number of bins >= 1, got {period!r}")
+    if not np.isfinite(np.asarray(delay, dtype=np.float64)).all():
+        raise ValueError("delay holds a NaN or an infinity (round-trip delays in bins)")
+    period = int(period)
     bins, weights = pulse_overlaps(delay, pulse_width)
     q = bins.shape[0]
     circ = np.mod(bins, period)
@@ -113,6 +119,8 @@ def return_amplitudes(
     amp : ndarray, shape (M, S)
     """
     shifts, w = return_weights(reflectivity, delay, pulse_width, period)
+    if hasattr(patterns, "apply_rows"):  # a pattern operator (build_patterns' own result)
+        return shifts, np.asarray(patterns.apply_rows(slice(0, patterns.shape[0]), w))
     amp = np.asarray(patterns, dtype=np.float64) @ w
     return shifts, amp
 

@@ -408,7 +408,9 @@ def make_code(
     if kind == "random":
         if index != 0:
             raise ConfigError(f"code index {index} is not valid for random codes: use 0")
-        gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        from ..randomness import as_generator
+
+        gen = as_generator(rng)
         code = (gen.random(length) < ratio).astype(np.uint8)
         if not code.any():
             code[gen.integers(length)] = 1

@@ -48,12 +48,13 @@ class DepthContext:
     def __post_init__(self) -> None:
         """Refuse what no estimator can read: a bin width of 0 or NaN gave every depth 0 or
         NaN, decreasing lags an argmax read against the wrong delays."""
-        if not (np.isfinite(self.bin_width) and self.bin_width > 0):
-            raise ConfigError(f"bin_width must be a positive number of seconds, got "
-                              f"{self.bin_width!r}")
-        if not (np.isfinite(self.pulse_width) and self.pulse_width > 0):
-            raise ConfigError(f"pulse_width must be a positive number of bins, got "
-                              f"{self.pulse_width!r}")
+        for name, unit in (("bin_width", "seconds"), ("pulse_width", "bins")):
+            value = getattr(self, name)
+            # (a string or None was a ufunc TypeError from isfinite, an audit of 2026-11-29)
+            if isinstance(value, (bool, str, bytes)) or not isinstance(
+                    value, (int, float, np.integer, np.floating)) or not (
+                    np.isfinite(value) and value > 0):
+                raise ConfigError(f"{name} must be a positive number of {unit}, got {value!r}")
         lags = np.asarray(self.lags)
         if lags.ndim != 1 or lags.dtype.kind not in "iuf" or not np.isfinite(lags).all():
             # (a calibrated instrument's lags hold the delay's part of a bin: not integers)

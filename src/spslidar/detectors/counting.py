@@ -211,7 +211,9 @@ def poisson_counts(lam: np.ndarray, rng: np.random.Generator | int | None,
 
     Returns float32 counts (exact integers up to 2^24 per bin; a bin with more raises).
     """
-    rng = np.random.default_rng(rng)
+    from ..randomness import as_generator
+
+    rng = as_generator(rng)
     lam = np.asarray(lam, dtype=np.float64)
     check_means(lam)
     out = np.empty(lam.shape, dtype=np.float32)

@@ -296,6 +296,13 @@ class GMAPD(DetectorModel):
             float32 unless ``out`` says otherwise.
         totals : ndarray of float64, shape (B,)
         """
+        from ..randomness import as_generator
+
+        rng = as_generator(rng)
+        if isinstance(n_periods, bool) or not float(n_periods).is_integer() or n_periods < 1:
+            # (0 was a ZeroDivisionError, an audit of 2026-11-29)
+            raise ValueError(f"n_periods must be a whole number of code periods >= 1, got "
+                             f"{n_periods!r}")
         lam = np.atleast_2d(np.asarray(lam, dtype=np.float64))
         check_rates(lam)
         q, mu, subs = self._model(lam, n_periods)

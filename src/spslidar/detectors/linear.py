@@ -28,6 +28,12 @@ class LinearDetector(PhotonCountingDetector, DetectorModel):
     linear = True
 
     def detect(self, lam, rng, n_periods=1, out=None):
+        from ..randomness import as_generator
+
+        rng = as_generator(rng)
+        if np.ndim(lam) != 2:  # (an AxisError from deep inside, an audit)
+            raise ValueError(f"lam must be (B, L) means, one row per pattern, got shape "
+                             f"{np.shape(lam)}")
         lam = self.detected_means(lam)
         if out is None:  # (the counts were written over the caller's means, an audit)
             out = np.empty(np.shape(lam), dtype=np.result_type(np.asarray(lam).dtype,

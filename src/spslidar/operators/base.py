@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..randomness import as_generator
 from . import parallel as _parallel
 
 
@@ -56,7 +57,7 @@ class LinearOperator:
     # -- public --------------------------------------------------------------------------
     def matvec(self, x: np.ndarray) -> np.ndarray:
         """Apply the operator to ``x`` of shape ``(n,)`` or ``(n, K)``."""
-        x = np.asarray(x)
+        x = _real_input(x, "x")
         if x.ndim not in (1, 2) or x.shape[0] != self.shape[1]:
             raise ValueError(f"operator of shape {self.shape} applied to array of shape "
                              f"{x.shape} (it takes ({self.shape[1]},) or ({self.shape[1]}, K))")
@@ -66,7 +67,7 @@ class LinearOperator:
 
     def rmatvec(self, y: np.ndarray) -> np.ndarray:
         """Apply the adjoint to ``y`` of shape ``(m,)`` or ``(m, K)``."""
-        y = np.asarray(y)
+        y = _real_input(y, "y")
         if y.ndim not in (1, 2) or y.shape[0] != self.shape[0]:
             raise ValueError(f"adjoint of shape {self.shape[::-1]} applied to array {y.shape} "
                              f"(it takes ({self.shape[0]},) or ({self.shape[0]}, K))")
@@ -231,6 +232,20 @@ class MatrixOperator(LinearOperator):
         return self.A.copy()
 
 
+def _real_input(a, what: str) -> np.ndarray:
+    """``a`` as an array for a product, or one line: a masked array (its mask was dropped
+    without a word) or complex numbers (cast to their real part with a library warning: the
+    operators are real linear maps), an audit of 2026-11-29."""
+    if isinstance(a, np.ma.MaskedArray):
+        raise ValueError(f"{what} is a masked array: an operator applies to every entry (fill "
+                         f"the masked ones first, e.g. x.filled(0))")
+    a = np.asarray(a)
+    if np.iscomplexobj(a):
+        raise ValueError(f"{what} holds complex numbers: the operators are real linear maps "
+                         f"(apply them to the real and imaginary parts apart)")
+    return a
+
+
 def float_matrix(a, what: str = "matrix") -> np.ndarray:
     """``a`` as an array of a floating (or complex) type: integers and booleans as float64,
     float16 as float32. An operator computes in its matrix's dtype, so a 0/1 ``uint8`` or
@@ -295,7 +310,7 @@ def dottest(
     float
         The relative mismatch ``|<Ax,y> - <x,A^H y>| / max(|<Ax,y>|, |<x,A^H y>|)``.
     """
-    rng = np.random.default_rng(rng)
+    rng = as_generator(rng)
     m, n = op.shape
     shape_x = (n,) if n_cols == 1 else (n, n_cols)
     shape_y = (m,) if n_cols == 1 else (m, n_cols)
@@ -327,7 +342,7 @@ def power_norm(
     patterns at 25 %, with QCR or the mean eliminated, whose two largest singular values are
     0.993 apart; Hadamard patterns) it returned 1.0055-1.01 x the norm from a dense SVD.
     """
-    rng = np.random.default_rng(rng)
+    rng = as_generator(rng)
     x = rng.standard_normal(op.shape[1])
     x /= np.linalg.norm(x)
     s_old = 0.0

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..operators.base import _product, float_matrix
+from ..randomness import as_generator
 from .base import PatternOperator
 
 PATTERN_KINDS = ("gaussian", "bernoulli")
@@ -66,7 +67,7 @@ def make_patterns(
     Phi in eq. (7) and (11)-(17). The paper assumes zero-mean Gaussian entries (RIP argument);
     non-negative patterns carry a large common (DC) component, which QCR removes (eq. 11).
     """
-    rng = np.random.default_rng(rng)
+    rng = as_generator(rng)
     dtype = np.dtype(dtype)  # a string "float32" drew float64 normals: other patterns
     if not np.issubdtype(dtype, np.floating):  # (int: gaussian patterns of all zeros, an audit)
         raise ConfigError(f"patterns are mirror states in [0, 1]: dtype {dtype} holds none but "

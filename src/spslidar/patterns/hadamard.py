@@ -48,6 +48,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..operators.base import LinearOperator
 from ..operators.hadamard import fwht, is_power_of_two
+from ..randomness import as_generator
 from . import HADAMARD_ORDERS, HADAMARD_REALISATIONS
 from .base import PatternOperator
 
@@ -110,7 +111,7 @@ def hadamard_order(order: str, n_side: int, rng: np.random.Generator | None = No
     if order == "natural":
         return np.arange(q, dtype=np.int64)
     if order == "random":
-        return np.random.default_rng(rng).permutation(q).astype(np.int64)
+        return as_generator(rng).permutation(q).astype(np.int64)
     seq = walsh_sequency(n_side)
     r = np.arange(q, dtype=np.int64)
     sy, sx = seq[r // n_side], seq[r % n_side]
@@ -372,7 +373,7 @@ def hadamard_patterns(kind: str, n_patterns: int, n_side: int, rng: np.random.Ge
     q = n_side * n_side
     if not 1 <= n_patterns <= q:
         raise ConfigError(f"need between 1 and {q} Hadamard patterns, got {n_patterns}")
-    rng = np.random.default_rng(rng)
+    rng = as_generator(rng)
     signs = perm = None
     if kind == "scrambled-hadamard":
         rows = np.sort(rng.permutation(q)[:n_patterns])

@@ -382,7 +382,6 @@ def snr_simulated(
     trials and 89 % for 20 (4000 repetitions each, m-sequence of 1023 bits), so use ``trials``
     of 100 or more, or ``interval='bootstrap'``, when the interval matters.
     """
-    import numpy as np
 
     kind = code_family(code)
     m_s = _positive(signal, "--signal", math.inf)
@@ -404,7 +403,9 @@ def snr_simulated(
         raise config_error(f"code length {code_length} is more than the {MAX_SIM_CODE_LENGTH} "
                            f"bits a simulation takes (as run's --code-length); eq. (10) itself "
                            f"(spslidar.snr.snr_theory) has no such limit")
-    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    from ..randomness import as_generator
+
+    gen = as_generator(rng)
     code_index = default_code_index(kind, code_index)
     bits = make_code_checked(kind, code_length, ones_ratio, gen, code_index)
     period = int(bits.size)

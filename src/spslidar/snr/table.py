@@ -76,12 +76,12 @@ def snr_table(
     Each row compares eq. (10) with its simulation; with the photon numbers fixed the theory is
     proportional to ``T R_a``, a straight line of slope 1 on log-log axes.
     """
-    import numpy as np
 
     from ..errors import ConfigError
+    from ..randomness import as_generator
     from .theory import code_family
 
-    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    gen = as_generator(rng)
     rows: list[dict[str, Any]] = []
     ratios = _as_list(ones_ratios)
     if not ratios:
