@@ -249,3 +249,21 @@ def test_return_amplitudes_take_a_pattern_operator_and_refuse_bad_delays():
             return_amplitudes(pats.todense(), refl, delay, 0.5, period)
     with pytest.raises(ValueError, match="NaN"):
         return_amplitudes(pats.todense(), refl, np.where(delay > 5, np.nan, delay), 0.5, 64)
+
+
+def test_qcr_takes_lists_and_refuses_a_measurement_of_other_rows():
+    from spslidar.qcr import plain_problem, qcr_delta, qcr_problem
+
+    rng = np.random.default_rng(0)
+    p, c = rng.random((6, 9)), rng.random((6, 2))
+    np.testing.assert_allclose(qcr_delta(p.tolist(), c), qcr_delta(p, c))
+    for fn in (qcr_delta, qcr_problem, plain_problem):
+        with pytest.raises(ValueError, match="corr has 5 rows for 6 patterns"):
+            fn(p, c[:5])
+
+
+def test_a_matrix_with_a_nan_is_refused():
+    from spslidar.operators import MatrixOperator
+
+    with pytest.raises(ValueError, match="NaN or an infinity"):
+        MatrixOperator(np.array([[1.0, np.nan]]))

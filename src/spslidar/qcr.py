@@ -37,10 +37,22 @@ def centre(a: np.ndarray) -> np.ndarray:
     return a - a.mean(axis=0, keepdims=True)
 
 
+def _check_rows(patterns, corr) -> None:
+    """One measurement row per pattern, or one line (a ``corr`` of other rows was taken, and
+    broadcast or failed deep inside: an audit of 2026-11-29)."""
+    rows = np.shape(corr)[0] if np.ndim(corr) else None
+    if rows != patterns.shape[0]:
+        raise ValueError(f"corr has {rows} rows for {patterns.shape[0]} patterns: one row of "
+                         f"correlations per pattern")
+
+
 def qcr_delta(patterns, corr: np.ndarray) -> np.ndarray:
     """``Delta = Phi_c^T C_c / M`` (eq. 11, 16): the covariance of the measurements with each
     pixel's pattern values, shape ``(Q, K)``. ``patterns``: an ``(M, Q)`` array or a
     :class:`~spslidar.patterns.PatternOperator`."""
+    if not isinstance(patterns, np.ndarray) and not hasattr(patterns, "rmatvec"):
+        patterns = np.asarray(patterns, dtype=np.float64)  # (a list had no 'rmatvec')
+    _check_rows(patterns, corr)
     if isinstance(patterns, np.ndarray):
         return centre(patterns).T @ centre(corr) / patterns.shape[0]
     # Phi_c^T C_c = Phi^T C_c: the centred data sum to zero over the patterns
@@ -80,6 +92,7 @@ def qcr_problem(patterns: np.ndarray, corr: np.ndarray, form: str = "centred",
     from .patterns import as_patterns
 
     phi = as_patterns(patterns, copy=False)
+    _check_rows(phi, corr)
     m = phi.shape[0]
     if form == "centred":
         return phi.centred(np.sqrt(m), dtype=dtype), (centre(corr) / np.sqrt(m)).astype(dtype)
@@ -93,7 +106,9 @@ def plain_problem(patterns: np.ndarray, corr: np.ndarray,
     """Eq. (7) without QCR: ``C = Phi p``."""
     from .patterns import as_patterns
 
-    return as_patterns(patterns).as_dtype(dtype), np.asarray(corr, dtype=dtype)
+    phi = as_patterns(patterns)
+    _check_rows(phi, corr)
+    return phi.as_dtype(dtype), np.asarray(corr, dtype=dtype)
 
 
 class MeanEliminated(LinearOperator):

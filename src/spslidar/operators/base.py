@@ -213,6 +213,8 @@ class MatrixOperator(LinearOperator):
                              "adjoint is its transpose")
         if A.ndim != 2:
             raise ValueError(f"A must be an (M, N) matrix, got shape {A.shape}")
+        if not np.isfinite(A).all():  # (FISTA then said "Lipschitz constant ... nan")
+            raise ValueError("A holds a NaN or an infinity")
         if copy and isinstance(given, np.ndarray) and np.may_share_memory(A, given):
             # (the transpose is a snapshot: a matrix edited by its owner afterwards gave
             # products and adjoints of two different matrices, an audit of 2026-11-29)

@@ -611,7 +611,12 @@ class TV(Regulariser):
 
 # -- factories of the registry entries (spslidar.solvers.REGULARISERS) -------------------------
 def make_tv(shape: tuple[int, int], nonneg: bool = False, max_inner: int = 3) -> TV:
-    """The isotropic TV of eq. (18) on ``shape`` images (``--regulariser tv``)."""
+    """The isotropic TV of eq. (18) on ``shape`` images (``--regulariser tv``).
+
+    ``nonneg`` is False here, as the bare regulariser; the pipeline's is non-negative
+    (:func:`spslidar.pipeline.build_regulariser`, range slices are photon counts). A chain
+    built by hand with ``make_tv(shape)`` differed from ``reconstruct`` by up to 0.78 m (an
+    audit of 2026-11-29): pass ``nonneg=True``, or take ``build_regulariser(cfg, shape)``."""
     return TV(shape, nonneg=nonneg, max_inner=max_inner)
 
 
