@@ -98,7 +98,7 @@ def markdown(results: dict, sweeps: dict) -> str:
                 lines.append(f"| {wl} | {name} | " + " | ".join("" for _ in STAGES)
                              + f" | {res['error']} | | |")
                 continue
-            ratio = f"{base / res['wall']:.0f}x" if base else ""
+            ratio = f"{base / res['wall']:.2g}x" if base else ""  # (0.59 read "1x")
             st = " | ".join(f"{res['stages'][s]:.3f}" for s in STAGES)
             lines.append(f"| {wl} | {name} | {st} | {res['wall']:.3f} | {ratio} | "
                          f"{res['rmse']:.4f} |")
@@ -107,7 +107,7 @@ def markdown(results: dict, sweeps: dict) -> str:
                   "| --- | --- | --- | --- |"]
         base = sweeps.get("numpy:cpu", {}).get("runs_per_s")
         for name, s in sweeps.items():
-            ratio = f"{s['runs_per_s'] / base:.0f}x" if base else ""
+            ratio = f"{s['runs_per_s'] / base:.2g}x" if base else ""
             lines.append(f"| {name} ({s['n']} runs) | {s['runs_per_s']:.1f} | {ratio} | "
                          f"{s['rmse_mean']:.4f} +- {s['rmse_sd']:.4f} |")
     return "\n".join(lines)

@@ -6,7 +6,10 @@ defaults otherwise, the measurement's seed the scene's seed for ``procedural:SEE
 estimator then runs on the same reconstructed slices ``result.slices``, so the table compares
 the depth stage alone (``--draw K`` measures the procedural scenes again under seed + 1000 K,
 to see which losses are the noise draw's). ``--cache DIR`` keeps each case's slices
-(``.npz``), so a second run with other estimators reconstructs nothing.
+(``.npz``, inside DIR whatever the scene's path; a scene file's content is in the key), so a
+second run with other estimators reconstructs nothing; slices cached by other spslidar code
+are used, as the estimators' research wants, and said once (delete DIR to compute them
+again).
 
 Per case: RMSE (eq. 19), median absolute error, the share of valid pixels off by more than
 5 cm, the low-confidence and missing shares, and the estimator's time. The summary gives, per
@@ -38,6 +41,8 @@ from spslidar.metrics import depth_errors
 
 #: a pixel is "off" when its error exceeds this (metres)
 OFF_M = 0.05
+#: the first cached case found from other code (said once)
+_OTHER_CODE: list = []
 
 
 def score(depth: np.ndarray, truth: np.ndarray, valid: np.ndarray) -> dict[str, float]:
@@ -58,13 +63,31 @@ def case_data(scene: str, noise: float, ratio: float, size: int, seed: int,
     """The reconstructed slices of one measurement with what the estimators and the scoring
     need (from ``cache`` when there); ``lam_scale``: the solve's weight factor (default the
     solver's)."""
+    import hashlib
+
+    import spslidar
+    from spslidar.plugins import code_fingerprint
+
     weight = "" if lam_scale is None else f"_ls{lam_scale:g}"
-    name = f"{scene.replace(':', '-')}_mn{noise:g}_c{ratio:g}_n{size}_s{seed}{weight}.npz"
+    # (an absolute scene path was joined onto the folder and replaced it, writing beside the
+    # scene; a scene file rewritten gave its old slices: an audit of 2026-11-29)
+    label = Path(scene).name if Path(scene).suffix else scene
+    label = "".join(ch if ch.isalnum() or ch in "-_." else "-" for ch in label)
+    key = scene
+    if Path(scene).is_file():
+        key = f"{Path(scene).resolve()}:{hashlib.sha256(Path(scene).read_bytes()).hexdigest()}"
+    key = hashlib.sha256(key.encode()).hexdigest()[:10]
+    name = f"{label}_{key}_mn{noise:g}_c{ratio:g}_n{size}_s{seed}{weight}.npz"
     path = cache / name if cache is not None else None
     if path is not None and path.exists():
         with np.load(path) as f:
-            return {k: f[k] for k in f.files}
-    import spslidar
+            data = {k: f[k] for k in f.files}
+        if str(data.get("code", "")) != code_fingerprint() and not _OTHER_CODE:
+            _OTHER_CODE.append(path)
+            print(f"depth_quality.py: note: {path.name} (and maybe more) holds slices from "
+                  f"other spslidar code; delete {cache} to compute them again",
+                  file=sys.stderr)
+        return data
 
     t0 = time.perf_counter()
     meas = spslidar.measure(scene=scene, size=size, noise=noise, compression=ratio, seed=seed,
@@ -74,7 +97,7 @@ def case_data(scene: str, noise: float, ratio: float, size: int, seed: int,
             "bin_width": np.float64(meas.acq.bin_width),
             "pulse_width": np.float64(r.config.pulse_width),
             "truth": r.scene.depth, "valid": r.scene.valid,
-            "chain_s": np.float64(time.perf_counter() - t0)}
+            "chain_s": np.float64(time.perf_counter() - t0), "code": np.str_(code_fingerprint())}
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp.npz")
@@ -180,7 +203,7 @@ def main(argv=None) -> int:
     ap.add_argument("--estimators", nargs="+", default=list(ESTIMATORS.names()),
                     help=f"depth estimators (default: all, {' '.join(ESTIMATORS.names())}); "
                          "argmax is always added")
-    ap.add_argument("--seed", type=_cli.int_list, default="0",
+    ap.add_argument("--seed", type=_cli.int_list, default=None,
                     help="measurement seed(s) of --scenes, e.g. 0 or 8-15 (as --procedural; "
                          "default 0)")
     ap.add_argument("--draw", type=_cli.nonneg_int, default=0,
@@ -200,9 +223,15 @@ def main(argv=None) -> int:
                          "processes first (each about 150 MB at 64x64; 2 on a 2-core machine; "
                          "default 1)")
     args = ap.parse_args(argv)
+    # (each was ignored without a word, an audit of 2026-11-29)
+    if args.draw and not args.procedural:
+        ap.error("--draw draws --procedural scenes again: give --procedural")
+    if args.seed is not None and args.procedural and not args.scenes:
+        ap.error("--seed is the measurement seed of --scenes; a --procedural scene's is its "
+                 "own seed (--draw K measures it again under seed + 1000 K)")
     if args.cache is not None:
         args.cache = Path(args.cache)
-    seeds = args.seed
+    seeds = args.seed if args.seed is not None else [0]
     cases = [(s, seed) for s in (args.scenes or []) for seed in seeds]
     if not cases and not args.procedural:
         cases = [("camera", seed) for seed in seeds]

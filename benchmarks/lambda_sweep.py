@@ -56,6 +56,8 @@ def main(argv=None):
             for s in scales:
                 r = spslidar.reconstruct(meas, lam_scale=float(s))
                 mark = "  <- default" if s == default else ""
+                if r.metrics.get("lam_floored"):  # (its lam_scale was not what applied)
+                    mark += "  (at the weight's floor)"
                 print(f"{s:10.4g} {r.metrics['lam']:10.4g} {r.depth_rmse:10.5f} "
                       f"{r.metrics['missing_fraction']:8.3f} {r.timing['solve']:9.2f}{mark}")
                 rows.append((scene, noise, s, r.depth_rmse))

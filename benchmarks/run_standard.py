@@ -20,7 +20,8 @@ loader and SciPy's m-sequence, so that both see the same scene and code):
 * FISTA with step ``1 / ||A||^2`` (power iteration) and a TV prox by Chambolle's projection
   (Beck & Teboulle's non-accelerated dual gradient projection, non-negative, fixed inner
   iterations, no warm start);
-* depth: argmax over the slices.
+* depth: argmax over the slices (the paper's estimator; spslidar's side runs its default,
+  ``mrf``, so the RMSE row and the depth stage's time compare two estimators, not one).
 
 The table gives seconds per stage (medians over ``--repeat`` runs), the ratio plain / spslidar
 and both depth RMSEs. A last line times the default run as a user sees it, the whole process

@@ -304,6 +304,8 @@ def main(argv=None) -> int:
                     help="image side of the Table I runs (default 64; quick 32)")
     args = ap.parse_args(argv)
     size = args.size or (32 if args.quick else 64)
+    if not args.no_table1:  # (checked after the whole peer benchmark, an audit of 2026-11-29)
+        _cli.check_runs(["motorcycle"], args.table1_size or (32 if args.quick else 64), [{}])
     cap = args.cap if args.cap is not None else (10.0 if args.quick else 40.0)
     repeats = args.repeats or (1 if args.quick else 2)
     _PEER_TV_NITER[0] = args.peer_tv_niter
@@ -380,7 +382,10 @@ def main(argv=None) -> int:
         print(f"{'noise':>6s} {'solver':8s} {'run [s]':>8s} {'solve [s]':>9s} {'RMSE [m]':>9s}")
         for noise, s, t_run, t_solve, rmse in t1_rows:
             print(f"{noise:6g} {s:8s} {t_run:8.2f} {t_solve:9.2f} {rmse:9.4f}")
-        print(f"Table I total: {total:.1f} s (target: < 30 s on 2 cores)")
+        every = set(args.solvers) >= {"fista", "twist", "tval3", "gpsr"}
+        print(f"Table I total: {total:.1f} s" + (" (target: < 30 s on 2 cores)" if every else
+                                                 f" for {len(args.solvers)} solvers (the "
+                                                 f"target, < 30 s on 2 cores, is the four's)"))
     print(f"\nbenchmark time {time.perf_counter() - t_start:.0f} s")
     return 0
 

@@ -115,8 +115,21 @@ def test_non_finite_or_fractional_codes_and_operators_are_refused():
         periodic_xcorr([np.nan, 1, 0], [1, 0, 1], bipolar=False)
     with pytest.raises(ConfigError, match="non-finite or fractional"):
         periodic_xcorr([0.4, 0.4, 0.4], [1, 1, 1], bipolar=False)
+    with pytest.raises(ValueError, match="NaN or an infinity"):  # (refused where wrapped)
+        MatrixOperator([[np.nan, 1.0], [1.0, 1.0]])
+    from spslidar.operators.base import LinearOperator
+
+    class Nan(LinearOperator):  # an operator of one's own that gives NaN
+        def __init__(self):
+            super().__init__((2, 2), np.float64)
+
+        def _matvec(self, x):
+            return np.full_like(x, np.nan)
+
+        _rmatvec = _matvec
+
     with pytest.raises(AssertionError, match="dot test failed"):
-        dottest(MatrixOperator([[np.nan, 1.0], [1.0, 1.0]]), rng=0)
+        dottest(Nan(), rng=0)
 
 
 def test_solvers_refuse_non_finite_data_and_take_a_matrix():

@@ -27,6 +27,10 @@ BENCH = Path(__file__).resolve().parent.parent / "benchmarks"
     ("backends.py", ["--repeat", "0"], "--repeat"),
     ("scale.py", ["--sizes", "100", "--kinds", "hadamard"], "power of two"),
     ("scale.py", ["--compressions", "2"], "--compressions"),
+    # (each was ignored, or found after the whole benchmark: an audit of 2026-11-29)
+    ("depth_quality.py", ["--draw", "1"], "--draw"),
+    ("depth_quality.py", ["--procedural", "3", "--seed", "5"], "--seed"),
+    ("solvers.py", ["--quick", "--table1-size", "3"], "size 3"),
 ])
 def test_a_bad_value_is_one_line_and_exit_2(script, args, said, tmp_path):
     if not BENCH.is_dir():
@@ -37,3 +41,30 @@ def test_a_bad_value_is_one_line_and_exit_2(script, args, said, tmp_path):
     assert done.returncode == 2, done.stderr
     assert len(err) == 1 and err[0].startswith(f"{script}: error: ") and said in err[0], err
     assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+def test_depth_quality_caches_inside_its_folder_by_the_scenes_content(tmp_path):
+    """An absolute scene path wrote its cache beside the scene, and a scene file rewritten
+    gave its old slices (an audit of 2026-11-29)."""
+    if not BENCH.is_dir():
+        pytest.skip("the benchmarks are not in this checkout")
+    import numpy as np
+
+    scene, cache = tmp_path / "scene" / "plane.npy", tmp_path / "cache"
+    scene.parent.mkdir()
+    import re
+
+    def argmax_rmse(*extra):
+        done = subprocess.run(
+            [sys.executable, str(BENCH / "depth_quality.py"), "--size", "8", "--scenes",
+             str(scene), "--noise", "1", "--compression", "0.5", "--estimators", "argmax",
+             *extra], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr
+        return re.search(r"argmax (\d+\.\d+)", done.stderr).group(1)
+
+    np.save(scene, np.linspace(10, 11, 64).reshape(8, 8))
+    argmax_rmse("--cache", str(cache))
+    np.save(scene, np.full((8, 8), 10.0))
+    assert argmax_rmse("--cache", str(cache)) == argmax_rmse()  # the new content's, not cached
+    assert sorted(p.name for p in scene.parent.iterdir()) == ["plane.npy"]
+    assert len(list(cache.iterdir())) == 2  # one case per content

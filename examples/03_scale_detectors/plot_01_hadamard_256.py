@@ -48,5 +48,5 @@ plt.show()
 
 # %%
 # ``benchmarks/scale.py`` in the repository measures the kinds from 64x64 to 512x512: at
-# 256x256 and 10 %, cake-cutting Hadamard takes 17 s and 0.5 GB against 82 s and 5.6 GB for
-# dense Gaussian patterns, at a lower error.
+# 256x256 and 10 %, cake-cutting Hadamard takes 30 s and 0.55 GB against 82 s and 5.6 GB
+# for dense Gaussian patterns, at a lower error (``benchmarks/scale.md``, a 2-core machine).

@@ -380,7 +380,7 @@ def _add_sweep_options(p: argparse.ArgumentParser, trials: bool) -> None:
     if trials:
         p.add_argument("--trials", type=int, metavar="K",
                        help="Monte-Carlo trials per setting (default: 5 for fig3, 3 for fig4, "
-                            "else 1)")
+                            "fig5 (fig4's runs) and pileup, else 1; 1 with --quick)")
     p.add_argument("--jobs", type=int, default=1, metavar="J",
                    help="local worker processes (-1: all cores; default 1)")
     p.add_argument("--scheduler", metavar="ADDR",
