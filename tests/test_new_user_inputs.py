@@ -239,7 +239,7 @@ _CHANGES = {
     ("code 2-D", "1-D array of 0/1 bits"),
     ("gate a number", "range_gate must be two numbers"),
     ("gate a string", "range_gate must be two numbers"),
-    ("truth a string", "depth map in metres"),
+    ("truth a string", "truth file not found"),  # (a string is the path of a .npy)
     ("calibration empty", "calibration is incomplete or damaged (KeyError: 'irf_offsets')"),
     ("a simulation key", "takes processing keys only"),
     ("size", "takes processing keys only"),

@@ -123,13 +123,15 @@ def test_patterns_with_a_nan_or_an_infinity_are_refused(value):
         as_patterns(p)
 
 
-def test_a_plugin_cell_can_be_run_again_and_taken_back():
+def test_a_plugin_cell_can_be_run_again_and_taken_back(tmp_path):
     """Registering a plugin again with another default replaces it (it was refused, with no
-    way back but a new kernel); ``remove`` takes it back, and gives back a built-in it
-    replaced; a built-in itself stays."""
+    way back but a new kernel); ``remove`` takes it back, leaving nothing of a cell run
+    twice, and gives back a built-in it replaced; a built-in itself stays; a plugin loaded
+    from a file is not taken for a built-in (a review of 2026-11-29)."""
     from spslidar.depth import ESTIMATORS
     from spslidar.depth.argmax import ArgmaxDepth
     from spslidar.errors import ConfigError
+    from spslidar.plugins import load_plugins
     from spslidar.registry import Option
 
     class Mine(ArgmaxDepth):
@@ -146,12 +148,19 @@ def test_a_plugin_cell_can_be_run_again_and_taken_back():
             ESTIMATORS.add("argmax", Mine, "mine as argmax")
     finally:
         removed = [ESTIMATORS.remove(n) for n in ("mine", "argmax")]
-    assert "mine" in ESTIMATORS  # the first registration, which the second replaced
-    ESTIMATORS.remove("mine")
     assert "mine" not in ESTIMATORS and removed[1].target is Mine
     assert ESTIMATORS.get("argmax") is argmax
     with pytest.raises(ConfigError, match="built in"):
         ESTIMATORS.remove("argmax")
+    plug = tmp_path / "mystages.py"
+    plug.write_text("from spslidar.depth import ESTIMATORS\n"
+                    "from spslidar.depth.argmax import ArgmaxDepth\n"
+                    "ESTIMATORS.add('fromfile', ArgmaxDepth, 'From a file')\n")
+    try:
+        load_plugins([str(plug)])
+    finally:
+        ESTIMATORS.remove("fromfile")
+    assert "fromfile" not in ESTIMATORS
 
 
 def test_the_wavelet_regulariser_pickles():
@@ -267,3 +276,69 @@ def test_a_matrix_with_a_nan_is_refused():
 
     with pytest.raises(ValueError, match="NaN or an infinity"):
         MatrixOperator(np.array([[1.0, np.nan]]))
+
+
+def test_a_callers_catch_warnings_around_a_threaded_run_leaves_warnings_working():
+    """A notebook's own ``catch_warnings`` entered while a run was active in a thread and
+    left after it had made every later warning a RecursionError (a review of 2026-11-29)."""
+    import time
+    import warnings
+
+    with ThreadPoolExecutor(1) as pool:
+        fut = pool.submit(spslidar.run, **SMALL)
+        time.sleep(0.2)
+        with warnings.catch_warnings():
+            fut.result()
+        fut = pool.submit(spslidar.run, **SMALL)
+        time.sleep(0.2)
+        warnings.warn("main thread", UserWarning, stacklevel=1)  # (it raised before)
+        assert fut.result().depth is not None
+    warnings.warn("no run", UserWarning, stacklevel=1)
+
+
+def test_a_warning_in_a_runs_worker_thread_reaches_its_result(monkeypatch):
+    """The simulation's pool raised warnings where no run was known: they left
+    ``metrics.json`` (a review of 2026-11-29)."""
+    import threading
+    import warnings
+
+    from spslidar.pipeline import simulate
+
+    real = simulate.matched_filter
+    seen = []
+
+    def filtered(*args, **kwargs):
+        if threading.current_thread() is not threading.main_thread():
+            seen.append(1)
+            warnings.warn("raised in a simulation worker", RuntimeWarning, stacklevel=1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(simulate, "matched_filter", filtered)
+    r = spslidar.run(scene="camera", size=32, code_length=255, iterations=5)
+    assert seen, "the simulation ran no worker thread: the test tests nothing"
+    assert any("simulation worker" in w for w in r.warnings)
+
+
+def test_a_plugin_pattern_kinds_own_option_reaches_it():
+    """A pattern kind's declared ``Option(param=...)`` was refused by ``build_patterns``'s
+    check of the option names (a review of 2026-11-29)."""
+    from spslidar.patterns import PATTERNS, DensePatterns
+    from spslidar.registry import Option
+
+    def sparse(kind, m, n, rng, dtype=np.float32, density=0.5, **_):
+        return DensePatterns((rng.random((m, n * n)) < density).astype(dtype), kind)
+
+    PATTERNS.add("sparse", sparse, options=(Option("sparse_density", 0.5, lo=0, hi=1,
+                                                   param="density"),))
+    try:
+        r = spslidar.run(**dict(SMALL, iterations=5), patterns="sparse", sparse_density=0.3)
+        assert r.metrics["config"]["sparse_density"] == 0.3
+    finally:
+        PATTERNS.remove("sparse")
+
+
+def test_a_complex_matrix_is_refused_whatever_its_dtype():
+    from spslidar.operators import MatrixOperator
+
+    with pytest.raises(ValueError, match="must be real"):
+        MatrixOperator(np.eye(3) + 1j, dtype=np.float32)

@@ -108,17 +108,19 @@ def test_timestamps_give_the_same_histograms_and_depth(tmp_path, bit_rate):
         assert np.nanmedian(np.abs(d2 - truth)) <= 0.015
 
 
-def test_events_before_the_first_sync_are_left_out_and_counted():
-    """A photon before the first sync is left out and counted; one after the last sync is
-    placed in its period from it (the stream ends between syncs)."""
+def test_events_outside_the_syncs_are_placed_on_their_grid():
+    """A photon before the first sync is placed back from it (counted), one after the last
+    sync forward from it (the stream ends between syncs); periods count from the first
+    event's."""
     t = np.array([5, 10, 12, 110, 150, 210, 215, 400])
     c = np.array([1, 0, 2, 0, 1, 0, 1, 1])
     ev = t3_from_timestamps(t, c, time_unit_s=1e-12, sync_channel=0, marker_channel=2,
                             resolution_s=10e-12)
     assert ev.n_before_first_sync == 1 and ev.n_missing_syncs == 0
-    np.testing.assert_array_equal(ev.nsync, [0, 1, 2, 3])  # marker, photons
-    np.testing.assert_array_equal(ev.marker, [1, 0, 0, 0])
-    np.testing.assert_array_equal(ev.dtime, [0, 4, 0, 9])  # 150 - 110 = 40 ps: bin 4
+    np.testing.assert_array_equal(ev.nsync, [0, 1, 2, 3, 4])  # photon, marker, photons
+    np.testing.assert_array_equal(ev.marker, [0, 1, 0, 0, 0])
+    # 5 ps is 95 ps into the period before the sync at 10; 150 - 110 = 40 ps: bin 4
+    np.testing.assert_array_equal(ev.dtime, [9, 0, 4, 0, 9])
 
 
 def test_syncs_left_out_by_a_conditional_filter(tmp_path):
@@ -139,8 +141,7 @@ def test_syncs_left_out_by_a_conditional_filter(tmp_path):
     other = np.flatnonzero(~sync)
     nxt = np.searchsorted(np.flatnonzero(sync), other, side="right")
     keep_sync = np.unique(np.flatnonzero(sync)[nxt[nxt < sync.sum()]])
-    after_photon[keep_sync] = True
-    after_photon[np.flatnonzero(sync)[0]] = True  # (the stream's first period is its zero)
+    after_photon[keep_sync] = True  # (never the first period's: its events come back)
     kept = ~sync | after_photon
     assert (sync & ~kept).sum() > 2000  # of 9600 periods
     for period in (None, L * res):
@@ -148,8 +149,9 @@ def test_syncs_left_out_by_a_conditional_filter(tmp_path):
                                  sync_channel=SYNC, marker_channel=MARK, resolution_s=res,
                                  sync_period_s=period)
         # (periods from the first sync held to the last, less those held)
-        last = int(np.searchsorted(np.flatnonzero(sync), np.flatnonzero(kept & sync)[-1]))
-        assert got.n_missing_syncs == last + 1 - int((kept & sync).sum())
+        first, last = np.searchsorted(np.flatnonzero(sync), np.flatnonzero(kept & sync)[[0, -1]])
+        assert got.n_missing_syncs == int(last - first) + 1 - int((kept & sync).sum())
+        assert got.n_before_first_sync > 0 and got.n_markers == M
         for name in ("nsync", "dtime", "channel", "marker"):
             np.testing.assert_array_equal(getattr(got, name), getattr(full, name), name)
         assert got.sync_period_s == pytest.approx(full.sync_period_s, rel=1e-6)
@@ -260,3 +262,29 @@ def test_real_files_as_a_filtered_tagger_stream(tmp_path, name, n_bins, marker):
     assert past <= 2 and b.histograms[:, inside:].sum() == 0 and b.n_out_of_range == 0
     assert b.histograms[:, 0].sum() == a.histograms[:, 0].sum() + past
     np.testing.assert_array_equal(b.periods_per_pattern[:-1], a.periods_per_pattern[:-1])
+
+
+@pytest.mark.parametrize("given", [False, True])
+@pytest.mark.parametrize("clock", [0.0, 2e-5, -5e-5])
+def test_sparse_syncs_on_a_fractional_period_and_a_clock_off_by_ppm(given, clock):
+    """Syncs held once in 1000-3000 periods (one adjacent pair), a period of 12817.3 ps (not
+    whole picoseconds), a tagger's clock 0-50 ppm off the generator's: the grid is read (it
+    was refused beyond 250 periods, and at 20 ppm off a given period; a review of
+    2026-11-29), each photon in its own period and bin."""
+    period = 12817.3 * (1 + clock)  # the generator's period on the tagger's clock
+    ks = np.array([0, 1, 1001, 3001, 4001, 7001])
+    syncs = np.round(ks * period).astype(np.int64)
+    bins = np.array([3, 50, 100, 131, 7])
+    photons = np.round((ks[:-1] + 1 + (bins + 0.5) / 132.18) * period).astype(np.int64)
+    t = np.concatenate([syncs, photons, [syncs[0] + 5]])
+    c = np.concatenate([np.zeros(ks.size, int), np.ones(bins.size, int), [2]])
+    o = np.argsort(t, kind="stable")
+    ev = t3_from_timestamps(t[o], c[o], time_unit_s=1e-12, sync_channel=0, marker_channel=2,
+                            resolution_s=12817.3e-12 / 132.18,
+                            sync_period_s=12817.3e-12 if given else None)
+    photon = ev.marker == 0
+    np.testing.assert_array_equal(ev.nsync[photon], ks[:-1] + 1)
+    # (the bins are of the generator's period as the tagger reads it: refined from the syncs)
+    np.testing.assert_array_equal(ev.dtime[photon], np.round(bins * (1 + clock)).astype(int))
+    assert ev.sync_period_s == pytest.approx(period * 1e-12, rel=1e-8)
+    assert ev.n_missing_syncs == 7001 + 1 - ks.size

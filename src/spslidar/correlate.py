@@ -111,8 +111,11 @@ def gate_lags(gate: tuple[float, float], bin_width: float) -> np.ndarray:
     d0, d1 = float(gate[0]), float(gate[1])
     if not (np.isfinite(d0) and np.isfinite(d1)) or d0 < 0 or d1 <= d0:
         raise ConfigError(f"range gate must satisfy 0 <= min < max, got {d0} {d1}")
-    if not (isinstance(bin_width, (int, float, np.floating, np.integer)) and
-            not isinstance(bin_width, bool) and np.isfinite(bin_width) and bin_width > 0):
+    width = None
+    if not isinstance(bin_width, (bool, str, bytes)) and bin_width is not None and \
+            np.ndim(bin_width) == 0 and not np.iscomplexobj(bin_width):
+        width = float(bin_width)  # (a 0-d array is a number)
+    if width is None or not (np.isfinite(width) and width > 0):
         # (0 was a ZeroDivisionError, a negative width no lags at all: an audit)
         raise ConfigError(f"bin_width must be a positive number of seconds, got {bin_width!r}")
     to_bins = 2.0 / (SPEED_OF_LIGHT * bin_width)

@@ -175,6 +175,12 @@ class Entry:
             self.validate(cfg)
 
 
+def _built_in(entry: Entry) -> bool:
+    """Whether spslidar itself registered ``entry`` (a plugin loaded from a file is a module
+    named ``spslidar_plugin_<stem>``: not spslidar's, a review of 2026-11-29)."""
+    return entry.origin == "spslidar" or entry.origin.startswith("spslidar.")
+
+
 class Registry:
     """An ordered name -> :class:`Entry` map for one kind of stage.
 
@@ -190,7 +196,7 @@ class Registry:
         self.kind = kind
         self.option = option
         self._entries: dict[str, Entry] = {}
-        self._replaced: dict[str, list[Entry]] = {}  # what add() replaced, for remove()
+        self._replaced: dict[str, Entry] = {}  # the built-in entries add() replaced
 
     def add(self, name: str, target: Any, display: str = "", help: str = "",
             validate: Callable[[Any], None] | None = None,
@@ -227,22 +233,22 @@ class Registry:
 
             warnings.warn(f"the {self.kind} {name!r} ({old.target!r}) is replaced by "
                           f"{entry.target!r}", RuntimeWarning, stacklevel=2)
-        if old is not None:
-            self._replaced.setdefault(name, []).append(old)
+        if old is not None and _built_in(old) and name not in self._replaced:
+            self._replaced[name] = old  # (a plugin's own earlier versions are not kept)
         self._entries[name] = entry
         return entry
 
     def remove(self, name: str) -> Entry:
-        """Take back what :meth:`add` registered under ``name``: the entry it replaced comes
-        back (a built-in stage a plugin had replaced), or the name goes. A built-in stage
-        itself is not removed (the defaults name them). Returns the entry removed."""
+        """Take back what :meth:`add` registered under ``name``: a built-in stage it replaced
+        comes back, or the name goes (a notebook cell run twice, then taken back, leaves
+        nothing of it). A built-in stage itself is not removed (the defaults name them).
+        Returns the entry removed."""
         entry = self.get(name)
-        replaced = self._replaced.get(name)
-        if not replaced and entry.origin.startswith("spslidar"):
+        if name in self._replaced:
+            self._entries[name] = self._replaced.pop(name)
+        elif _built_in(entry):
             raise ConfigError(f"the {self.kind} {name!r} is built in and cannot be removed "
                               f"(register another under its name to replace it)")
-        if replaced:
-            self._entries[name] = replaced.pop()
         else:
             del self._entries[name]
         return entry

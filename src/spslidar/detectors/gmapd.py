@@ -299,9 +299,10 @@ class GMAPD(DetectorModel):
         from ..randomness import as_generator
 
         rng = as_generator(rng)
-        if isinstance(n_periods, bool) or not float(n_periods).is_integer() or n_periods < 1:
-            # (0 was a ZeroDivisionError, an audit of 2026-11-29)
-            raise ValueError(f"n_periods must be a whole number of code periods >= 1, got "
+        if isinstance(n_periods, bool) or not (np.isfinite(n_periods) and n_periods > 0):
+            # (0 was a ZeroDivisionError, an audit of 2026-11-29; half a period is a
+            # differential frame's, without dead time)
+            raise ValueError(f"n_periods must be a positive number of code periods, got "
                              f"{n_periods!r}")
         lam = np.atleast_2d(np.asarray(lam, dtype=np.float64))
         check_rates(lam)

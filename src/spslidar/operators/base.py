@@ -207,10 +207,10 @@ class MatrixOperator(LinearOperator):
         if dtype is not None and np.dtype(dtype).kind != "f":
             # (an integer dtype truncated every product: [0, 0, 0], an audit of 2026-11-29)
             raise ValueError(f"dtype must be a real floating type, got {np.dtype(dtype)}")
-        A = float_matrix(A, "A") if dtype is None else np.asarray(A).astype(dtype, copy=False)
         if np.iscomplexobj(A):  # (.H was the plain transpose, and dottest passed on reals)
             raise ValueError("A must be real: a MatrixOperator is a real linear map, whose "
                              "adjoint is its transpose")
+        A = float_matrix(A, "A") if dtype is None else np.asarray(A).astype(dtype, copy=False)
         if A.ndim != 2:
             raise ValueError(f"A must be an (M, N) matrix, got shape {A.shape}")
         if not np.isfinite(A).all():  # (FISTA then said "Lipschitz constant ... nan")

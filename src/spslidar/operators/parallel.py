@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from ..capture import carried
+
 __all__ = [
     "ParallelContext", "available_cpus", "banded_matmul", "current", "one_blas_thread",
     "parallel", "row_bands",
@@ -99,7 +101,8 @@ def banded_matmul(M: np.ndarray, x: np.ndarray,
             np.matmul(M[a:b], x, out=out[a:b])
 
     step = 1 if ctx is None else max(1, min(ctx.threads, len(bands)))
-    futures = [ctx.pool.submit(work, j, step) for j in range(1, step)] if ctx else []
+    futures = ([ctx.pool.submit(carried(work), j, step) for j in range(1, step)] if ctx
+               else [])
     try:
         work(0, step)
     finally:
@@ -129,7 +132,7 @@ def run_parts(fn, n_parts: int) -> list:
     ctx = current()
     if ctx is None or n_parts < 2:
         return [fn(i) for i in range(n_parts)]
-    futures = [ctx.pool.submit(fn, i) for i in range(1, n_parts)]
+    futures = [ctx.pool.submit(carried(fn), i) for i in range(1, n_parts)]
     try:
         first = fn(0)
     finally:

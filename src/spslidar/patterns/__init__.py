@@ -87,7 +87,19 @@ def build_patterns(kind: str, n_patterns: int, n_side: int, rng: Any,
             raise ConfigError(f"{name} must be an integer, got {value!r}") from None
         if isinstance(value, bool):
             raise ConfigError(f"{name} must be an integer, got {value!r}")
-    known = set(PATTERN_OPTIONS) | set(PATTERNS.options())
+    factory = PATTERNS.load(kind)
+    # the built-in keywords, every declared option's config key and keyword (a plugin's
+    # Option(param=...) was refused, a review of 2026-11-29) and the factory's own keywords
+    known = set(PATTERN_OPTIONS) | {n for o in PATTERNS.options().values()
+                                    for n in (o.name, o.param or o.name)}
+    try:
+        import inspect
+
+        known |= {p.name for p in inspect.signature(factory).parameters.values()
+                  if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+    except (TypeError, ValueError):  # pragma: no cover - a factory without a signature
+        pass
+    known -= {"kind", "n_patterns", "n_side", "rng", "dtype"}
     for key in options:
         if key not in known:
             config_key = {f"pattern_{k}": k for k in PATTERN_OPTIONS} | {
@@ -97,8 +109,7 @@ def build_patterns(kind: str, n_patterns: int, n_side: int, rng: Any,
             raise ConfigError(f"build_patterns() takes no option {key!r}"
                               + (f": did you mean {near!r}?" if near else "")
                               + f" (it takes {', '.join(sorted(known))})")
-    return PATTERNS.load(kind)(kind, int(n_patterns), int(n_side), rng, dtype=np.dtype(dtype),
-                               **options)
+    return factory(kind, int(n_patterns), int(n_side), rng, dtype=np.dtype(dtype), **options)
 
 
 #: the keywords of the built-in pattern factories: ``sigma`` (Gaussian grey levels' spread),

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..backends.device import reconstructs_on_device, simulates_on_device
 from ..backends.patterns import host_patterns
+from ..capture import captured_warnings
 from ..config import Config, chosen_stage_options
 from ..correlate import PLATEAU_SHARE, remove_plateau, replica_plateau
 from ..depth import ESTIMATORS, DepthContext
@@ -31,7 +32,6 @@ from ..patterns import build_patterns
 from ..qcr import MeanEliminated, plain_problem, qcr_problem
 from ..scenes import load_scene
 from ..solvers.entries import TV_REGULARISERS
-from .capture import captured_warnings
 from .gate import AUTO_GATE_MIN_SLICES, AUTO_GATE_SIGMAS, gate_text, occupied_lags, with_reference
 from .measurement import (
     PROCESSING_KEYS,

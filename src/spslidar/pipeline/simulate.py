@@ -8,6 +8,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from ..capture import carried
 from ..correlate import (
     FFT_LAGS,
     check_noise_scale,
@@ -290,7 +291,7 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
             block(b)
     else:
         with blas_limit, ThreadPoolExecutor(workers) as pool:
-            list(pool.map(block, todo))
+            list(pool.map(carried(block), todo))
     return corr, totals, noise_tot, amp_sum, incident
 
 

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ..capture import carried
 from ..operators import parallel as _parallel
 from ..operators.base import LinearOperator
 from ..operators.image import Gradient2D, forward_differences_into
@@ -504,7 +505,7 @@ class TV(Regulariser):
                 barrier.abort()
 
         if pool is not None:
-            helpers = [pool.submit(run, i) for i in range(1, len(groups))]
+            helpers = [pool.submit(carried(run), i) for i in range(1, len(groups))]
             run(0)
             for f in helpers:
                 f.result()

@@ -1,0 +1,102 @@
+"""The warnings a run raises, kept for its own result, also where runs share a process's
+threads (:func:`captured_warnings`), and from the run's own worker threads (:func:`carried`).
+
+Python's :class:`warnings.catch_warnings` is process-wide: two runs in a thread pool, each
+inside its own, restored each other's state, and one run's warning landed in the other's
+``Result.warnings`` (an audit of 2026-11-29: a GPSR run's odd-side wavelet warning in a TV
+run's). Here the first run to enter replaces :func:`warnings.showwarning` (public API) with a
+dispatcher, and the last to leave puts back what it found. A warning goes to the innermost
+run of the thread that raised it; a worker thread of a run's own pool (the simulation's
+blocks, the solver's bands) carries its run (:func:`carried`); a thread in no run gives it
+to the one run active, if there is exactly one, as the process-wide capture did; otherwise
+it is shown as Python shows it. No ``catch_warnings`` is entered: a caller's own, entered
+while a run was active and left after it, restored the dispatcher as the process's for good,
+and the next run then called itself (a RecursionError, a review of 2026-11-29).
+"""
+
+from __future__ import annotations
+
+import functools
+import threading
+import warnings
+from contextlib import contextmanager
+from typing import Any
+
+__all__ = ["captured_warnings", "carried"]
+
+_LOCK = threading.Lock()
+_STATE: dict[str, Any] = {"depth": 0, "shown": None, "active": []}
+_LOCAL = threading.local()
+#: what Python shows a warning with, before any run replaced it
+_ORIGINAL = warnings.showwarning
+#: a filter that matches no warning (a message starting with NUL): adding it is the public way
+#: to reset Python's once-per-place registries, as entering ``catch_warnings`` does
+_RESET = ("default", "\x00")
+
+
+def _shown() -> Any:
+    show = _STATE["shown"]
+    return _ORIGINAL if show is None or show is _dispatch else show
+
+
+def _dispatch(message, category, filename, lineno, file=None, line=None) -> None:
+    logs = getattr(_LOCAL, "logs", None)
+    with _LOCK:
+        active = list(_STATE["active"])
+    target = logs[-1] if logs else (active[0] if len(active) == 1 else None)
+    if target is not None:
+        target.append(warnings.WarningMessage(message, category, filename, lineno, file, line))
+    else:  # no run, or several and none of this thread's: as Python shows it
+        _shown()(message, category, filename, lineno, file, line)
+
+
+@contextmanager
+def captured_warnings():
+    """Yield the list that receives, as :class:`warnings.WarningMessage`, the warnings raised
+    inside by this thread and by the worker threads it hands work to through
+    :func:`carried` (the caller's filters hold: what they ignore stays ignored, an ``error``
+    filter raises; the once-per-place registries are reset on entry, so a second run's
+    warnings are kept too)."""
+    log: list = []
+    with _LOCK:
+        if _STATE["depth"] == 0 and warnings.showwarning is not _dispatch:
+            _STATE["shown"] = warnings.showwarning
+        warnings.showwarning = _dispatch
+        warnings.filterwarnings(*_RESET, append=True)  # (added once; the registries reset)
+        _STATE["depth"] += 1
+        _STATE["active"].append(log)
+    logs = getattr(_LOCAL, "logs", None)
+    if logs is None:
+        logs = _LOCAL.logs = []
+    logs.append(log)
+    try:
+        yield log
+    finally:
+        logs.pop()
+        with _LOCK:
+            _STATE["depth"] -= 1
+            _STATE["active"].remove(log)
+            if _STATE["depth"] == 0:
+                if warnings.showwarning is _dispatch:
+                    warnings.showwarning = _shown()
+                _STATE["shown"] = None
+
+
+def carried(fn):
+    """``fn`` to run in a worker thread as part of the calling thread's run: the warnings it
+    raises go to that run (the simulation's pool raised the dead-time model's warnings where
+    no run was known, and they left ``metrics.json``, a review of 2026-11-29)."""
+    logs = list(getattr(_LOCAL, "logs", None) or [])
+    if not logs:
+        return fn
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        before = getattr(_LOCAL, "logs", None)
+        _LOCAL.logs = logs
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            _LOCAL.logs = before
+
+    return wrapper
