@@ -167,3 +167,54 @@ def test_replaced_result_marker_lists_the_new_files(tmp_path):
     second = json.loads((out / ".spslidar-output.json").read_text())
     assert second["id"] != first["id"] and second["kind"] == "result"
     assert set(second["files"]) == {p.name for p in out.iterdir()} - {".spslidar-output.json"}
+
+
+def _writer_meanwhile(folder, write):
+    """A thread that holds the output's lock, as another command's swap does, writes into
+    ``folder`` after a moment, then lets go; returns a fill that waits until it holds it."""
+    import threading
+    import time
+
+    from spslidar.outlock import folder_lock
+
+    holding = threading.Event()
+
+    def other():
+        with folder_lock(folder.parent):
+            holding.set()
+            time.sleep(0.3)
+            write()
+
+    thread = threading.Thread(target=other)
+
+    def fill(tmp):
+        (tmp / "depth.npy").write_bytes(b"x")
+        thread.start()
+        holding.wait(5)
+
+    return fill, thread
+
+
+def test_a_swap_waits_for_another_writers_and_checks_what_it_left(tmp_path):
+    """Two runs into one folder interleaved between the last check and the swap (an outside
+    audit of 2026-11-29: one run's files under the other's marker, refused as edited ever
+    after). The second writer now waits for the first and finds its files: into a folder
+    that was empty, it says another command wrote there; over a result it replaces it only
+    with --overwrite, cleanly."""
+    out = tmp_path / "out"
+    out.mkdir()
+    fill, thread = _writer_meanwhile(out, lambda: (out / "theirs.txt").write_text("x"))
+    with pytest.raises(SpslidarError, match="another command wrote into this folder"):
+        write_result_dir(out, fill)
+    thread.join()
+    assert sorted(p.name for p in out.iterdir()) == ["theirs.txt"]
+
+    prev = tmp_path / "prev"
+    write_result_dir(prev, lambda tmp: (tmp / "depth.npy").write_bytes(b"old"))
+
+    def fill_while_another_replaces(tmp):
+        (tmp / "depth.npy").write_bytes(b"x")
+        write_result_dir(prev, lambda t: (t / "depth.npy").write_bytes(b"b"), overwrite=True)
+
+    write_result_dir(prev, fill_while_another_replaces, overwrite=True)
+    assert (prev / "depth.npy").read_bytes() == b"x" and is_result(prev)

@@ -761,3 +761,28 @@ def test_a_sweep_of_small_runs_counts_what_each_run_costs_anyway(tmp_path, capsy
     with pytest.raises(SpslidarError, match="would take"):
         sweep_main(config, tmp_path / "o", progress=False, max_time=0.5)
     assert not (tmp_path / "o").exists()
+
+
+def test_a_sweep_does_not_replace_another_sweeps_table_written_meanwhile(tmp_path):
+    """Two sweeps into one folder at once: both said "results in" and the table held the
+    second's points (an outside audit of 2026-11-29). The one that finishes second finds
+    the other's table and says so; its runs stay cached."""
+    from spslidar.errors import SpslidarError
+    from spslidar.experiments.sweep.command import sweep_main
+
+    out = tmp_path / "out"
+    for name, values in (("a", "[1, 2]"), ("b", "[3, 4]")):
+        (tmp_path / f"{name}.toml").write_text(f"seed = 1\n[grid]\nx = {values}\n")
+    calls = []
+
+    def point(params):
+        if not calls:  # the other sweep runs and writes its table while this one works
+            calls.append(1)
+            assert sweep_main(tmp_path / "b.toml", out, progress=False,
+                              func=lambda p: {"y": p["x"]}) == 0
+        return {"y": params["x"]}
+
+    with pytest.raises(SpslidarError, match="another sweep .* while this sweep ran"):
+        sweep_main(tmp_path / "a.toml", out, progress=False, func=point)
+    with open(out / "results.csv") as f:
+        assert sorted(r["x"] for r in csv.DictReader(f)) == ["3", "4"]

@@ -1,10 +1,10 @@
 """The warnings a run raises, kept for its own result, also where runs share a process's
 threads (:func:`captured_warnings`), and from the run's own worker threads (:func:`carried`).
 
-Python's :class:`warnings.catch_warnings` is process-wide: two runs in a thread pool, each
+Python's ``warnings.catch_warnings`` is process-wide: two runs in a thread pool, each
 inside its own, restored each other's state, and one run's warning landed in the other's
 ``Result.warnings`` (an audit of 2026-11-29: a GPSR run's odd-side wavelet warning in a TV
-run's). Here the first run to enter replaces :func:`warnings.showwarning` (public API) with a
+run's). Here the first run to enter replaces ``warnings.showwarning`` (public API) with a
 dispatcher, and the last to leave puts back what it found. A warning goes to the innermost
 run of the thread that raised it; a worker thread of a run's own pool (the simulation's
 blocks, the solver's bands) carries its run (:func:`carried`); a thread in no run gives it
@@ -52,7 +52,7 @@ def _dispatch(message, category, filename, lineno, file=None, line=None) -> None
 
 @contextmanager
 def captured_warnings():
-    """Yield the list that receives, as :class:`warnings.WarningMessage`, the warnings raised
+    """Yield the list that receives, as ``warnings.WarningMessage``, the warnings raised
     inside by this thread and by the worker threads it hands work to through
     :func:`carried` (the caller's filters hold: what they ignore stays ignored, an ``error``
     filter raises; the once-per-place registries are reset on entry, so a second run's

@@ -370,6 +370,7 @@ def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
     path = check_output(out, overwrite, option, replace)
     existed = path.exists()
     target = _target(path)
+    was_empty = existed and not _entries(target)
     if existed:
         tmp = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=target))
     else:
@@ -384,18 +385,23 @@ def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
             raise RuntimeError(f"Result.save wrote {sorted(unknown)}, not named in "
                                f"spslidar.outdir.RESULT_FILES: add them there")
         sums = {name: sha256_file(tmp / name) for name in written}
-        if not existed and not path.exists() and not path.is_symlink():
-            atomic_write_text(tmp / MARKER, _marker_text("result", written, None, sums))
-            os.replace(tmp, target)
-            return path
-        if not existed:  # another command wrote it meanwhile (two runs on one new folder)
-            raise SpslidarError(
-                f"{out}: another command wrote into this folder while this run was working "
-                f"(it was new when the run started); this run's result was not saved "
-                f"(run it again into a new folder)")
-        path = check_output(out, overwrite, option, replace)  # nothing appeared meanwhile
-        previous = set((read_marker(target) or {"files": []})["files"])
-        _swap_in(target, tmp, written, previous, sums, "result")
+        from .outlock import folder_lock
+
+        with folder_lock(target.parent):  # (one writer from the last check to the swap)
+            if not existed and not path.exists() and not path.is_symlink():
+                atomic_write_text(tmp / MARKER, _marker_text("result", written, None, sums))
+                os.replace(tmp, target)
+                return path
+            if not existed or was_empty and _entries(target) - {tmp.name}:
+                # another command wrote it meanwhile (two runs on one new or empty folder)
+                raise SpslidarError(
+                    f"{out}: another command wrote into this folder while this run was "
+                    f"working (it was {'new' if not existed else 'empty'} when the run "
+                    f"started); this run's result was not saved (run it again into a new "
+                    f"folder)")
+            path = check_output(out, overwrite, option, replace)  # nothing appeared meanwhile
+            previous = set((read_marker(target) or {"files": []})["files"])
+            _swap_in(target, tmp, written, previous, sums, "result")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return path

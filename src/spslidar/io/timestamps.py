@@ -27,7 +27,8 @@ from .ptu_format import PathLike, _finite_number, _marker_input
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
-__all__ = ["T3Events", "t3_from_timestamps", "write_ptu_from_timestamps"]
+__all__ = ["SYNC_CLOCK_TOL", "SYNC_TOL", "T3Events", "t3_from_timestamps",
+           "write_ptu_from_timestamps"]
 
 #: the largest distance, as a share of the period, of a sync interval from a whole number of
 #: periods: a code generator's period start is periodic (syncs left out by a tagger's filter

@@ -268,9 +268,7 @@ def sweep_main(
                   file=sys.stderr)
     from spslidar.outdir import (
         claim_folder,
-        foreign_outputs,
         journal,
-        read_marker,
         record_outputs,
         release_folder,
     )
@@ -280,27 +278,17 @@ def sweep_main(
         engine._probe_scheduler(scheduler)  # before the folder is made
     existed = Path(out_dir).exists()
     folder = claim_folder(out_dir, "sweep")  # new, empty or an earlier sweep's: never a user's
-    if foreign_outputs(folder, [RESULTS_CSV]):  # a user's edit was replaced without a word
-        raise SpslidarError(
-            f"--out {out_dir}: {RESULTS_CSV} was not written by spslidar sweep (or changed "
-            f"since); refusing to replace it (move it away, or choose another folder)")
     # the sweep's identity: its points with their seeds, as the TOML gives them (a second
     # sweep of another grid replaced the first one's table without a word, an audit of
     # 2026-11-29; an edited scene or IRF file is the same sweep, run again)
     hashes = (SCENE_HASH_KEY, IRF_HASH_KEY)
-    identity = sha256_hex(canonical_json(
-        {"seed": spec.seed,
-         "points": [{k: v for k, v in p.items() if k not in hashes} for p in points]},
-        "points"))
-    before = (read_marker(folder) or {}).get("sweep_points")
-    if ((folder / RESULTS_CSV).is_file() and isinstance(before, str) and before != identity
-            and not overwrite):
-        raise SpslidarError(
-            f"--out {out_dir}: holds the {RESULTS_CSV} of another sweep (other points); pass "
-            f"--overwrite to replace it (its finished runs stay cached), or choose another "
-            f"folder")
     counts: dict[str, int] = {}
-    try:
+    try:  # (from the claim on: an interrupt left a folder of a marker, "nothing written")
+        identity = sha256_hex(canonical_json(
+            {"seed": spec.seed,
+             "points": [{k: v for k, v in p.items() if k not in hashes} for p in points]},
+            "points"))
+        _check_replaceable(folder, out_dir, identity, overwrite)
         rows = engine.run_sweep(
             functools.partial(_run_opened, None if spec.path is None else str(spec.path.parent),
                               run_point if func is None else func),
@@ -320,7 +308,35 @@ def sweep_main(
     except KeyboardInterrupt:  # before any run finished: no folder of nothing but a marker
         release_folder(folder, existed)
         raise
-    with journal(folder, [RESULTS_CSV]):  # its SHA-256 in the marker before it is in place
-        csv_path = write_csv(rows, Path(out_dir) / RESULTS_CSV)
-    record_outputs(folder, [RESULTS_CSV], extra={"sweep_points": identity})
+    from spslidar.outlock import folder_lock
+
+    with folder_lock(folder):  # (two sweeps into one folder: checked again as it is written)
+        _check_replaceable(folder, out_dir, identity, overwrite, after=True)
+        with journal(folder, [RESULTS_CSV]):  # its SHA-256 in the marker before it is in place
+            csv_path = write_csv(rows, Path(out_dir) / RESULTS_CSV)
+        record_outputs(folder, [RESULTS_CSV], extra={"sweep_points": identity})
     return say_outcome(rows, [*spec.grid, TRIAL_KEY], csv_path, counts)
+
+
+def _check_replaceable(folder: Path, out_dir, identity: str, overwrite: bool,
+                       after: bool = False) -> None:
+    """Refuse, in one line, to replace a ``results.csv`` a user wrote or edited, or another
+    sweep's without ``overwrite``; ``after``: checked again once the runs are done, where
+    another command may have written there meanwhile (two sweeps into one folder: both said
+    "results in", and the file held the second's points only, an outside audit of
+    2026-11-29)."""
+    from spslidar.outdir import foreign_outputs, read_marker
+
+    late = (" while this sweep ran; its rows were not written (its runs are cached: run it "
+            "again into another folder)") if after else ""
+    if foreign_outputs(folder, [RESULTS_CSV]):  # a user's edit was replaced without a word
+        raise SpslidarError(
+            f"--out {out_dir}: {RESULTS_CSV} was not written by spslidar sweep (or changed "
+            f"since){late or '; refusing to replace it (move it away, or choose another folder)'}")
+    before = (read_marker(folder) or {}).get("sweep_points")
+    if ((folder / RESULTS_CSV).is_file() and isinstance(before, str) and before != identity
+            and not overwrite):
+        raise SpslidarError(
+            f"--out {out_dir}: holds the {RESULTS_CSV} of another sweep (other points)"
+            + (late or "; pass --overwrite to replace it (its finished runs stay cached), or "
+                       "choose another folder"))
