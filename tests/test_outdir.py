@@ -218,3 +218,48 @@ def test_a_swap_waits_for_another_writers_and_checks_what_it_left(tmp_path):
 
     write_result_dir(prev, fill_while_another_replaces, overwrite=True)
     assert (prev / "depth.npy").read_bytes() == b"x" and is_result(prev)
+
+
+def test_an_interrupt_as_the_files_marker_is_written_leaves_the_folder_as_it_was(tmp_path,
+                                                                                 monkeypatch):
+    """``--save-ptu``'s marker was written before the clean-up's reach: an interrupt just
+    after it left a marker listing files that do not exist (an outside audit, 2026-11-29)."""
+    from spslidar import outfiles
+
+    def write(tmps):
+        for t in tmps:
+            t.write_bytes(b"x")
+
+    real = outfiles.atomic_write_text
+
+    def cut(path, text):
+        real(path, text)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(outfiles, "atomic_write_text", cut)
+    with pytest.raises(KeyboardInterrupt):
+        outfiles.write_files([tmp_path / "a.ptu"], write)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_name_too_long_for_its_temporary_name_is_refused_before_the_work(tmp_path, capsys):
+    long = tmp_path / ("a" * 245)
+    assert main(["run", "--size", "8", "--code-length", "127", "--out", str(long)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "at most 241 bytes" in err[-1]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_signal_while_the_plugins_load_is_one_line(tmp_path):
+    """Before the command's own handlers (plugins, the parser) a signal was a traceback or
+    an exit without a word (an outside audit of 2026-11-29)."""
+    import subprocess
+    import sys
+
+    plug = tmp_path / "slow.py"
+    plug.write_text("import os, signal\nos.kill(os.getpid(), signal.SIGINT)\n")
+    done = subprocess.run([sys.executable, "-c", "import sys; from spslidar.cli import main; "
+                           "sys.exit(main())", "--plugin", str(plug), "run", "--size", "8"],
+                          capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert done.returncode == 130
+    assert done.stderr.strip().splitlines() == ["spslidar: interrupted; nothing was written"]

@@ -552,17 +552,29 @@ def main(argv: list[str] | None = None) -> int:
     from .errors import SpslidarError as _Bad
 
     own = argv is None  # a process of its own, not a call inside a Python session
+    from .interrupts import EXIT_INTERRUPTED, Stopper, Terminated
+
+    # (a signal while the plugins load and the parser is built, before the command's own
+    # handlers, was a KeyboardInterrupt traceback or an exit without a word, an audit)
+    early = Stopper(lambda terminated: f"spslidar: {'terminated' if terminated else 'interrupted'}"
+                                       f"; nothing was written", None)
+    if own:
+        early.install()
     try:
-        # (a plugin's replacement of a built-in stage was said as a raw two-line Python
-        # warning, its source line included, an audit of 2026-11-29)
-        with warnings.catch_warnings():
-            warnings.showwarning = _OneLineWarnings("--plugin").__call__
-            argv = _load_plugins(sys.argv[1:] if argv is None else list(argv))
-    except _Bad as exc:
-        print(f"spslidar: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    parser = build_parser()
-    args, extra = parser.parse_known_args(argv)
+        try:
+            # (a plugin's replacement of a built-in stage was said as a raw two-line Python
+            # warning, its source line included, an audit of 2026-11-29)
+            with warnings.catch_warnings():
+                warnings.showwarning = _OneLineWarnings("--plugin").__call__
+                argv = _load_plugins(sys.argv[1:] if argv is None else list(argv))
+        except _Bad as exc:
+            print(f"spslidar: error: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        parser = build_parser()
+        args, extra = parser.parse_known_args(argv)
+    except KeyboardInterrupt as exc:
+        early.say(isinstance(exc, Terminated))
+        return exc.status if isinstance(exc, Terminated) else EXIT_INTERRUPTED
     if extra:  # said by the command's own parser ("spslidar: error:" named no command)
         commands = next((a.choices for a in parser._actions
                          if isinstance(a, argparse._SubParsersAction)), {})
@@ -623,8 +635,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"spslidar {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as exc:
-        print(f"spslidar {args.command}: error: {exc.strerror or exc}: "
-              f"{exc.filename or ''}".rstrip(": "), file=sys.stderr)
+        where = exc.filename or ""
+        out = getattr(args, "out", None)
+        if not where and out:  # (a full disk said "File too large" and nothing more, an audit)
+            where = (f"while writing --out {out} (written under a temporary name: what was "
+                     f"there before is as it was)")
+        print(f"spslidar {args.command}: error: {exc.strerror or exc}: {where}".rstrip(": "),
+              file=sys.stderr)
         return EXIT_BAD_INPUT
     except MemoryError as exc:
         # (an allocation past what the machine had free was a NumPy traceback, exit 1: an

@@ -191,6 +191,8 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
     if out is None or str(out).strip() == "":
         raise SpslidarError(f"{option} must name an output folder")
     path = Path(os.path.abspath(os.fspath(out)))
+    if not (path.exists() or path.is_symlink()):
+        check_name_fits(path, f"{option} {out}")
     if path.exists() or path.is_symlink():
         if not path.is_dir():
             raise SpslidarError(f"{option} {out}: exists and is not a folder")
@@ -239,6 +241,30 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
         raise SpslidarError(f"{option} {out}: {parent} is not a folder")
     _check_writable(path.parent, f"{option} {out}", make_parents=True)
     return path
+
+
+#: what spslidar's temporary names add to a name (``.NAME.tmp-XXXXXXXX``,
+#: ``.NAME.XXXXXXXX.tmp``, ``.NAME.old-XXXXXXXX``)
+TMP_NAME_EXTRA = 14
+
+
+def check_name_fits(path: Path, what: str, extra: int = TMP_NAME_EXTRA) -> None:
+    """Refuse, before any work, a name that fits the filesystem but not with the ``extra``
+    bytes of the temporary name it is written under (a 245-character ``--out`` was refused
+    after the whole run, naming a temporary folder: an outside audit of 2026-11-29)."""
+    base = Path(os.path.abspath(path)).parent
+    while not base.exists() and base != base.parent:
+        base = base.parent
+    try:
+        limit = int(os.pathconf(base, "PC_NAME_MAX"))
+    except (OSError, ValueError, AttributeError):  # pragma: no cover - no pathconf
+        limit = 255
+    size = len(os.fsencode(path.name))
+    if size + extra > limit:
+        raise SpslidarError(f"{what}: its name is {size} bytes long, and spslidar writes it "
+                            f"under a temporary name {extra} bytes longer, beyond this "
+                            f"filesystem's {limit}: choose a name of at most "
+                            f"{limit - extra} bytes")
 
 
 def _check_writable(folder: Path, what: str, make_parents: bool) -> None:

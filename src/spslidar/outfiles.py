@@ -77,6 +77,12 @@ def check_files(paths, overwrite: bool = False, option: str = "--save-ptu",
                                     f"save it beside the result folder")
     for folder in dict.fromkeys(Path(os.path.abspath(p)).parent for p in paths):
         _check_writable(folder, f"{option} {paths[0]}", make_parents=False)
+    from .outdir import TMP_NAME_EXTRA, check_name_fits
+
+    for p in paths:
+        check_name_fits(p, f"{option} {paths[0]}")
+    # (the marker, .NAME.spslidar.json, is written under a temporary name too)
+    check_name_fits(_files_marker(paths[0]), f"{option} {paths[0]}", TMP_NAME_EXTRA)
     marker = _files_marker(paths[0])
     sums = _files_sums(marker)
     if sums is None and (marker.exists() or marker.is_symlink()):
@@ -123,10 +129,11 @@ def write_files(paths, write: Callable[[list[Path]], None], overwrite: bool = Fa
             old_marker = None
         # the marker first knows both (a kill during the moves leaves files it accepts)...
         meta = {"kind": "files", "version": __version__, "sha256": sums}
-        atomic_write_text(marker, json.dumps({**meta, "previous_sha256": old}, indent=1) + "\n")
         asides = [p.with_name(f".{p.name}.old-{uuid.uuid4().hex[:8]}") for p in paths]
         done = False
-        try:
+        try:  # (the marker inside: an interrupt just after it left it rewritten, an audit)
+            atomic_write_text(marker,
+                              json.dumps({**meta, "previous_sha256": old}, indent=1) + "\n")
             for p, t, a in zip(paths, tmps, asides, strict=True):
                 if p.name in old:
                     os.replace(p, a)

@@ -74,6 +74,9 @@ def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Pa
     # nearest one that exists must be a folder one can write in (nothing is made yet, so a
     # refusal or a failed calibration leaves no empty folders behind)
     _check_writable(path.parent, f"--out {out}", make_parents=True)
+    from ..outdir import check_name_fits
+
+    check_name_fits(path, f"--out {out}")
     return path
 
 
