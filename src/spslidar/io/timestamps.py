@@ -9,9 +9,10 @@ after its start (``dtime``). :func:`t3_from_timestamps` converts one into the ot
 :func:`write_ptu_from_timestamps` writes the result with :func:`~spslidar.io.write_ptu_t3`, so
 ``spslidar calibrate`` and ``spslidar reconstruct`` read it as they read a PicoHarp's file.
 
-Written here: no library converts a time tagger's absolute stream to PicoQuant's T3 layout
-(``ptufile`` only reads, ``tttrlib`` reads vendors' files, not an array in memory), and the
-conversion is two sorted searches.
+Written here: the conversion is a few sorted searches on NumPy arrays, with the grid a
+conditionally filtered sync needs; ``ptufile`` reads PicoQuant's files and writes none, and
+``tttrlib``, which reads several vendors' files, is a compiled package this project does not
+depend on for so little.
 """
 
 from __future__ import annotations
