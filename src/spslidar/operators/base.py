@@ -203,22 +203,7 @@ class MatrixOperator(LinearOperator):
     """
 
     def __init__(self, A: np.ndarray, dtype=None, *, copy: bool = True):
-        given = A
-        if dtype is not None and np.dtype(dtype).kind != "f":
-            # (an integer dtype truncated every product: [0, 0, 0], an audit of 2026-11-29)
-            raise ValueError(f"dtype must be a real floating type, got {np.dtype(dtype)}")
-        if np.iscomplexobj(A):  # (.H was the plain transpose, and dottest passed on reals)
-            raise ValueError("A must be real: a MatrixOperator is a real linear map, whose "
-                             "adjoint is its transpose")
-        A = float_matrix(A, "A") if dtype is None else np.asarray(A).astype(dtype, copy=False)
-        if A.ndim != 2:
-            raise ValueError(f"A must be an (M, N) matrix, got shape {A.shape}")
-        if not np.isfinite(A).all():  # (FISTA then said "Lipschitz constant ... nan")
-            raise ValueError("A holds a NaN or an infinity")
-        if copy and isinstance(given, np.ndarray) and np.may_share_memory(A, given):
-            # (the transpose is a snapshot: a matrix edited by its owner afterwards gave
-            # products and adjoints of two different matrices, an audit of 2026-11-29)
-            A = A.copy()
+        A = float_matrix(A, "A", "entries", dtype, copy)
         super().__init__(A.shape, A.dtype)
         self.A = A
         self._AT = np.ascontiguousarray(A.T)
@@ -248,18 +233,43 @@ def _real_input(a, what: str) -> np.ndarray:
     return a
 
 
-def float_matrix(a, what: str = "matrix") -> np.ndarray:
-    """``a`` as an array of a floating (or complex) type: integers and booleans as float64,
-    float16 as float32. An operator computes in its matrix's dtype, so a 0/1 ``uint8`` or
-    ``bool`` matrix gave products cast back to it (``[0.9, 1.2]`` read ``[0, 0]`` or
-    ``[True, True]``, an audit of 2026-11-29)."""
+def float_matrix(a, what: str = "matrix", values: str = "entries", dtype=None,
+                 copy: bool = True) -> np.ndarray:
+    """``a`` as the real, finite ``(M, N)`` floating matrix an operator keeps, or one line
+    naming ``what`` (its ``values``: "entries", "transmittances").
+
+    Cast to ``dtype`` (a real floating type) where given, else integers and booleans to
+    float64 and float16 to float32: an operator computes in its matrix's dtype, so a 0/1
+    ``uint8`` or ``bool`` matrix gave products cast back to it (``[0.9, 1.2]`` read ``[0, 0]``
+    or ``[True, True]``), and an integer ``dtype`` truncated every product to 0. A complex
+    matrix is refused (the adjoint of these real maps is the plain transpose; ``.H`` was
+    wrong and dottest passed on reals), and so is a NaN or an infinity (TVAL3 then answered
+    all NaN, GPSR part NaN, FISTA "Lipschitz constant ... nan"). With ``copy``, a caller's
+    array is copied (a transpose kept beside it is a snapshot: a matrix edited by its owner
+    afterwards gave products and adjoints of two matrices); without, it is shared. All
+    audits of 2026-11-29."""
+    given = a
+    if dtype is not None and np.dtype(dtype).kind != "f":
+        raise ValueError(f"dtype must be a real floating type, got {np.dtype(dtype)}")
+    if np.iscomplexobj(a):
+        raise ValueError(f"{what} must be real: the operators are real linear maps, whose "
+                         f"adjoint is their transpose")
     a = np.asarray(a)
-    if a.dtype == np.float16:
-        return a.astype(np.float32)
-    if a.dtype == bool or np.issubdtype(a.dtype, np.integer):
-        return a.astype(np.float64)
-    if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.complexfloating)):
+    if dtype is not None:
+        a = a.astype(dtype, copy=False)
+    elif a.dtype == np.float16:
+        a = a.astype(np.float32)
+    elif a.dtype == bool or np.issubdtype(a.dtype, np.integer):
+        a = a.astype(np.float64)
+    elif not np.issubdtype(a.dtype, np.floating):
         raise ValueError(f"{what} must hold numbers, got dtype {a.dtype}")
+    if a.ndim != 2:
+        raise ValueError(f"{what} must be an (M, N) matrix, got shape {a.shape}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"{what} holds a NaN or an infinity: it must hold finite real "
+                         f"{values}")
+    if copy and isinstance(given, np.ndarray) and np.may_share_memory(a, given):
+        a = a.copy()
     return a
 
 

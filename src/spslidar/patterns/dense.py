@@ -107,16 +107,7 @@ class DensePatterns(PatternOperator):
     """
 
     def __init__(self, matrix: np.ndarray, kind: str = "dense", *, copy: bool = True):
-        given = matrix
-        matrix = float_matrix(matrix, "patterns")  # (a 0/1 uint8 matrix: uint8 products)
-        if matrix.ndim != 2:
-            raise ValueError(f"patterns must be an (M, Q) array, got shape {matrix.shape}")
-        if np.iscomplexobj(matrix) or not np.isfinite(matrix).all():
-            # (a NaN pattern gave TVAL3 an all-NaN answer, GPSR a partly-NaN one, an audit)
-            raise ValueError("patterns must hold finite real transmittances (a NaN, an "
-                             "infinity or a complex number is none)")
-        if copy and isinstance(given, np.ndarray) and np.may_share_memory(matrix, given):
-            matrix = matrix.copy()  # (the transpose is taken later: it must be of these)
+        matrix = float_matrix(matrix, "patterns", "transmittances", copy=copy)
         super().__init__(matrix.shape, matrix.dtype)
         self.matrix = matrix
         self.kind = kind
