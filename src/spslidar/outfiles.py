@@ -77,13 +77,11 @@ def check_files(paths, overwrite: bool = False, option: str = "--save-ptu",
                                     f"save it beside the result folder")
     for folder in dict.fromkeys(Path(os.path.abspath(p)).parent for p in paths):
         _check_writable(folder, f"{option} {paths[0]}", make_parents=False)
-    from .outdir import TMP_NAME_EXTRA, check_name_fits
+    from .outdir import check_name_fits
 
-    for p in paths:
-        check_name_fits(p, f"{option} {paths[0]}")
-    # (the marker, .NAME.spslidar.json, is written under a temporary name too)
-    check_name_fits(_files_marker(paths[0]), f"{option} {paths[0]}", TMP_NAME_EXTRA)
     marker = _files_marker(paths[0])
+    for p in [*paths, marker]:  # (the marker, .NAME.spslidar.json, has a temporary name too)
+        check_name_fits(p, f"{option} {paths[0]}")
     sums = _files_sums(marker)
     if sums is None and (marker.exists() or marker.is_symlink()):
         raise SpslidarError(f"{option}: {marker} exists and is not a marker spslidar wrote "

@@ -165,14 +165,18 @@ def single_threaded_blas():
     Returns
     -------
     context manager or None
-        ``threadpoolctl.threadpool_limits(1, user_api='blas')``; the previous limits come back
-        on exit.
+        The process-wide one-thread BLAS of :mod:`spslidar.operators.parallel`, whose limit
+        the last thread inside gives back (this function set and restored its own, as that
+        module did before its limits were shared: runs in a thread pool then left BLAS on one
+        thread, an audit of 2026-11-29).
     """
     try:
-        from threadpoolctl import threadpool_limits
+        import threadpoolctl  # noqa: F401 - only whether it is there
     except ImportError:  # pragma: no cover - threadpoolctl is optional
         return None
-    return threadpool_limits(limits=1, user_api="blas")
+    from ..operators.parallel import _blas_held
+
+    return _blas_held()
 
 
 def simulation_threads(threads: int | None = None) -> int:
