@@ -75,7 +75,9 @@ def captured_warnings():
         logs.pop()
         with _LOCK:
             _STATE["depth"] -= 1
-            _STATE["active"].remove(log)
+            # (by identity: list.remove compares by ==, and two runs' logs equal while both
+            # empty, so one run took the other's log out and then failed to find its own)
+            _STATE["active"] = [other for other in _STATE["active"] if other is not log]
             if _STATE["depth"] == 0:
                 if warnings.showwarning is _dispatch:
                     warnings.showwarning = _shown()
