@@ -82,7 +82,7 @@ def case_data(scene: str, noise: float, ratio: float, size: int, seed: int,
     if path is not None and path.exists():
         with np.load(path) as f:
             data = {k: f[k] for k in f.files}
-        if str(data.get("code", "")) != code_fingerprint() and not _OTHER_CODE:
+        if not _OTHER_CODE and str(data.get("code", "")) != code_fingerprint():
             _OTHER_CODE.append(path)
             print(f"depth_quality.py: note: {path.name} (and maybe more) holds slices from "
                   f"other spslidar code; delete {cache} to compute them again",

@@ -107,8 +107,7 @@ class Measurement:
 
     def __setstate__(self, state: dict) -> None:  # (pickle gives arrays back writable)
         self.__dict__.update(state)
-        for name in _DELAYS:
-            setattr(self, name, _frozen(getattr(self, name)))
+        self.__post_init__()
 
     def __repr__(self) -> str:
         c = self.config
