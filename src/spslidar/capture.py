@@ -25,7 +25,7 @@ from typing import Any
 __all__ = ["captured_warnings", "carried"]
 
 _LOCK = threading.Lock()
-_STATE: dict[str, Any] = {"depth": 0, "shown": None, "active": []}
+_STATE: dict[str, Any] = {"shown": None, "active": []}  # the runs inside, by their logs
 _LOCAL = threading.local()
 #: what Python shows a warning with, before any run replaced it
 _ORIGINAL = warnings.showwarning
@@ -59,11 +59,10 @@ def captured_warnings():
     warnings are kept too)."""
     log: list = []
     with _LOCK:
-        if _STATE["depth"] == 0 and warnings.showwarning is not _dispatch:
+        if not _STATE["active"] and warnings.showwarning is not _dispatch:
             _STATE["shown"] = warnings.showwarning
         warnings.showwarning = _dispatch
         warnings.filterwarnings(*_RESET, append=True)  # (added once; the registries reset)
-        _STATE["depth"] += 1
         _STATE["active"].append(log)
     logs = getattr(_LOCAL, "logs", None)
     if logs is None:
@@ -74,11 +73,10 @@ def captured_warnings():
     finally:
         logs.pop()
         with _LOCK:
-            _STATE["depth"] -= 1
             # (by identity: list.remove compares by ==, and two runs' logs equal while both
             # empty, so one run took the other's log out and then failed to find its own)
             _STATE["active"] = [other for other in _STATE["active"] if other is not log]
-            if _STATE["depth"] == 0:
+            if not _STATE["active"]:
                 if warnings.showwarning is _dispatch:
                     warnings.showwarning = _shown()
                 _STATE["shown"] = None
