@@ -69,9 +69,10 @@ _TY_EMPTY8, _TY_INT8, _TY_FLOAT8 = 0xFFFF0008, 0x10000008, 0x20000008
 _TY_TDATETIME, _TY_ANSISTRING = 0x21000008, 0x4001FFFF
 #: PicoQuant's tag types (PTU's published header layout): fixed 8-byte values, and those whose
 #: value is the byte length of data that follows the tag
-_TY_FIXED = frozenset({0xFFFF0008, 0x00000008, 0x10000008, 0x11000008, 0x12000008,
-                       0x20000008, 0x21000008})
-_TY_SIZED = frozenset({0x2001FFFF, 0x4001FFFF, 0x4002FFFF, 0xFFFFFFFF})
+#: (beside the five above: Bool8, BitSet64, Color8; Float8Array, WideString, BinaryBlob)
+_TY_FIXED = frozenset({_TY_EMPTY8, 0x00000008, _TY_INT8, 0x11000008, 0x12000008, _TY_FLOAT8,
+                       _TY_TDATETIME})
+_TY_SIZED = frozenset({0x2001FFFF, _TY_ANSISTRING, 0x4002FFFF, 0xFFFFFFFF})
 
 
 
