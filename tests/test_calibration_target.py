@@ -264,7 +264,7 @@ def test_geometry_fits_a_wall_tilted_about_both_axes_and_survives_a_dark_frame()
 def test_the_centroids_leave_out_a_dark_frame():
     """A dark frame whose response noise passes the mass test put 0/0 in the centroids'
     design and calibrate ended in LAPACK's traceback (a review: 93 of 200 seeds at 8x8)."""
-    from spslidar.pipeline.target import tilt_of_target
+    from spslidar.pipeline.target_tilt import tilt_of_target
 
     rng = np.random.default_rng(0)
     phi = rng.random((40, 64))

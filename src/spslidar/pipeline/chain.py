@@ -472,7 +472,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         slices = _host(be, slices)
         seen = slices
         if sim.get("delay_response") is not None:  # a calibrated instrument's spread returns
-            from .calibration import delay_filter, refine_depth
+            from .calibrated import delay_filter, refine_depth
 
             seen = delay_filter(slices, lags, sim["delay_response"])
         estimator = ESTIMATORS.load(cfg.depth)(**chosen_stage_options(cfg, "depth"))

@@ -331,12 +331,12 @@ FILTER_LAM_CAP = 1.0
 
 def calibrated_lam_scale(solver: str, spread: float) -> float:
     """The default weight factor of a calibrated instrument: ``FILTER_LAM_SCALE`` (0.3) times
-    the calibrated filter's ``spread`` (:class:`~.calibration.CalibratedFilter`), never below
+    the calibrated filter's ``spread`` (:class:`~.calibrated.CalibratedFilter`), never below
     the solver's own ``lam_scale``.
 
     The matched filter for a measured IRF spreads each return over ``spread`` times the lags
     an ideal instrument's does, and ``reconstruct`` then averages each profile over that
-    response (:func:`~.calibration.delay_filter`): the slices are best solved with the
+    response (:func:`~.calibrated.delay_filter`): the slices are best solved with the
     weight scaled by the same factor. Measured with ``benchmarks/instrument.py`` (a 1.5-bin
     IRF with a 4-bin tail, ``spread`` 1.67, so 0.3 -> 0.50; chosen on seeds 0-2 among
     ``lam_scale`` 0.2, 0.3, 0.5, 0.7 and 1.0, reported on seeds 3-5): on seeds 3-5 the RMSE
@@ -498,7 +498,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     cal, shift, signal_code, frac, scale, spread = None, 0, code, 0.0, 1.0, 1.0
     response, half_width = None, 0
     if calibration is not None:
-        from .calibration import calibrated_filter
+        from .calibrated import calibrated_filter
         from .calibration_file import (
             check_calibration,
             code_note,

@@ -65,35 +65,35 @@ convolved with a kernel ``k_m`` that the patterns and the geometry give. Two ste
    ``tests/test_independent_ptu.py`` (walls at 5, 10 and 20 degrees, two seeds each) by the
    IRF's distance from the one a wall at one range gives (L1 0.20-0.31; delays within 9 ps).
 
-3. **A tilted wall** (:func:`tilt_of_target`, :func:`_tilt_scan`). A wall turned about a
-   vertical or horizontal axis puts one side of the field farther than the other, which the
-   rings of step 1 cannot fit: an audit's wall tilted by 5 degrees at 25 m (16 x 16) was
-   read as one range, its IRF 16 bins wide for 1.7 and its delay 1.8 cm short, and a scan
-   reconstructed through it came out 30 cm too far (RMSE 0.48 m), with no word
-   (2026-11-29). Each pattern's response centroid is the light-weighted mean of its pixels'
-   round trips, so regressed on each pattern's light-weighted mean of ``x``, ``y`` and
-   ``x^2 + y^2`` (image coordinates in ``[-1, 1]``) it gives the tilt's direction and a
-   facing wall's curvature (a tilt's own square, under 0.1 bin at 5 degrees through 10, is
-   left out). Where a linear term stands :data:`Z_TILT_LOOK` standard errors out, the
+3. **A tilted wall** (:func:`~spslidar.pipeline.target_tilt.tilt_of_target`,
+   :func:`_tilt_scan`). A wall turned about a vertical or horizontal axis puts one side of the
+   field farther than the other, which the rings of step 1 cannot fit: an audit's wall tilted
+   by 5 degrees at 25 m (16 x 16) was read as one range, its IRF 16 bins wide for 1.7 and its
+   delay 1.8 cm short, and a scan reconstructed through it came out 30 cm too far (RMSE 0.48
+   m), with no word (2026-11-29). Each pattern's response centroid is the light-weighted mean
+   of its pixels' round trips, so regressed on each pattern's light-weighted mean of ``x``,
+   ``y`` and ``x^2 + y^2`` (image coordinates in ``[-1, 1]``) it gives the tilt's direction
+   and a facing wall's curvature (a tilt's own square, under 0.1 bin at 5 degrees through 10,
+   is left out). Where a linear term stands :data:`Z_TILT_LOOK` standard errors out, the
    residual of step 1's fit is scanned (:func:`_tilt_scan`): the tilt's size with a facing
    wall's curvature on a coarse grid, then each of size, curvature and direction in turn,
-   twice (on the facing wall of a ``--fov`` given, the curvature is that wall's); the tilt
-   is kept where it stands :data:`Z_TILT` deviations below the best facing wall's and spans
+   twice (on the facing wall of a ``--fov`` given, the curvature is that wall's); the tilt is
+   kept where it stands :data:`Z_TILT` deviations below the best facing wall's and spans
    :data:`MIN_SPREAD_BINS`; where it does not, the tilt is said (:func:`_maybe_tilted`).
-   Measured on ``run``'s 16 x 16 walls (the README's instrument; 5 degrees about the
-   vertical axis on seeds 0, 1, 2, 6, 3 degrees about the horizontal one on seeds 0-1, 5
-   degrees about both on seeds 1 and 4): delays 13.695-13.748 ns for 13.74 and IRFs
-   1.82-2.47 bins wide (a facing wall's: 13.746 ns, 2.00 bins); before the review's mends
-   (one scan along the centroids' direction) seeds 4 and 6 gave IRFs of 3-5 bins. The scan
-   finds a tilt where the centroids' direction is within about 10-20 degrees of it (a
-   review forced it 20 degrees or more off and found none; natural runs were 0-9 off). On
-   the independent instrument's 32 x 32 walls a 3 degree tilt is fitted (13.681 ns, 2.2
-   bins) and a 5 degree one is only said (its centroids stand 3.9
-   errors out; a tilt fitting better than a facing wall exists but the scans do not reach
-   it). On facing walls and walls at one range the centroids' linear terms stood up to 2.7
-   errors out (Hadamard patterns), under :data:`Z_TILT_LOOK`, and no tilt was accepted even
-   with the scan forced (a review's 163 walls); a facing wall of uneven reflectivity can
-   raise the centroids past it (2 of 18 seeds), which is then said, not fitted.
+   Measured on ``run``'s 16 x 16 walls (the README's instrument; 5 degrees about the vertical
+   axis on seeds 0, 1, 2, 6, 3 degrees about the horizontal one on seeds 0-1, 5 degrees about
+   both on seeds 1 and 4): delays 13.695-13.748 ns for 13.74 and IRFs 1.82-2.47 bins wide (a
+   facing wall's: 13.746 ns, 2.00 bins); before the review's mends (one scan along the
+   centroids' direction) seeds 4 and 6 gave IRFs of 3-5 bins. The scan finds a tilt where the
+   centroids' direction is within about 10-20 degrees of it (a review forced it 20 degrees or
+   more off and found none; natural runs were 0-9 off). On the independent instrument's 32 x
+   32 walls a 3 degree tilt is fitted (13.681 ns, 2.2 bins) and a 5 degree one is only said
+   (its centroids stand 3.9 errors out; a tilt fitting better than a facing wall exists but
+   the scans do not reach it). On facing walls and walls at one range the centroids' linear
+   terms stood up to 2.7 errors out (Hadamard patterns), under :data:`Z_TILT_LOOK`, and no
+   tilt was accepted even with the scan forced (a review's 163 walls); a facing wall of uneven
+   reflectivity can raise the centroids past it (2 of 18 seeds), which is then said, not
+   fitted.
 
 Written by hand: the deconvolutions of scikit-image, SciPy or PyLops take one kernel, not a
 different known kernel per observation with one shared unknown. Not modelled: a wall of
@@ -109,11 +109,12 @@ import numpy as np
 
 from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
+from .target_tilt import _coordinates, tilt_of_target
 
 __all__ = ["MAX_SPREAD_BINS", "MIN_SPREAD_BINS", "PHASES", "PLANE_REG", "SCAN_PATTERNS",
            "SHARP_BLUR_BINS", "TARGETS", "Z_HINT", "Z_PLANE", "Z_TILT", "Z_TILT_LOOK",
            "measure_geometry", "plane_offsets", "plane_ranges", "range_free_response",
-           "tilt_of_target", "wall_offsets"]
+           "wall_offsets"]
 
 #: what ``--target`` takes: ``auto`` keeps the plane where the data ask for one
 TARGETS = ("auto", "plane", "range")
@@ -127,8 +128,8 @@ PHASES = np.arange(8) / 8.0
 Z_PLANE = 1.0
 #: ... and says (a warning) that the target may be a flat wall from this many
 Z_HINT = 0.3
-#: the centroids' tilt (:func:`tilt_of_target`) is scanned where a linear term stands this
-#: many standard errors from 0
+#: the centroids' tilt (:func:`~.target_tilt.tilt_of_target`) is scanned where a linear term
+#: stands this many standard errors from 0
 Z_TILT_LOOK = 3.0
 #: ... and a tilt kept where its residual stands this many deviations below a facing wall's
 Z_TILT = 3.0
@@ -257,86 +258,6 @@ def _fov_of_spread(spread: float, tau_d: float, n: int) -> float:
         return 180.0
     t = np.sqrt(((1.0 + spread / tau_d) ** 2 - 1.0) / 2.0) / (1.0 - 1.0 / n)
     return float(np.degrees(2.0 * np.arctan(t)))
-
-
-def _coordinates(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """Each pixel's image coordinates ``x`` (right) and ``y`` (down) in ``[-1, 1]``,
-    flattened row-major."""
-    rows, cols = (int(n) for n in shape)
-    y, x = np.meshgrid(2.0 * (np.arange(rows) + 0.5) / rows - 1.0,
-                       2.0 * (np.arange(cols) + 0.5) / cols - 1.0, indexing="ij")
-    return x.ravel(), y.ravel()
-
-
-def tilt_of_target(g: np.ndarray, patterns: np.ndarray, shape: tuple[int, int]
-                   ) -> dict[str, Any] | None:
-    """The target's round trips from each pattern's response centroid (module docstring,
-    step 3).
-
-    Parameters
-    ----------
-    g : ndarray, shape (M, W)
-        Each pattern's response with the code removed and its background subtracted, on a
-        window of the period that holds the whole return (:func:`_code_removed`).
-    patterns : ndarray, shape (M, Q)
-    shape : (int, int)
-
-    Returns
-    -------
-    dict or None
-        ``tilt_bins`` (the round trip's change from the axis to the image's right and lower
-        edge, bins), ``tilt_z`` (each over its standard error) and ``curvature_bins`` (a
-        facing wall's: the change from the axis to ``x^2 + y^2 = 1``); None where the
-        centroids cannot be read (too few patterns, a response without a peak).
-    """
-    m = g.shape[0]
-    total = g.sum(axis=0)
-    if m < 12 or not total.max() > 0:
-        return None
-    # the return's support: the contiguous run about the peak above 5 % of it, and 2 bins
-    # (the window rolled to put the peak in its middle: a period's response wraps)
-    shift = total.size // 2 - int(np.argmax(total))
-    g, total = np.roll(g, shift, axis=1), np.roll(total, shift)
-    peak = int(np.argmax(total))
-    above = total > 0.05 * total[peak]
-    lo = peak
-    while lo > 0 and above[lo - 1]:
-        lo -= 1
-    hi = peak
-    while hi < total.size - 1 and above[hi + 1]:
-        hi += 1
-    lo, hi = max(0, lo - 2), min(total.size - 1, hi + 2)
-    win = g[:, lo:hi + 1]
-    mass = win.sum(axis=1)
-    pats = np.asarray(patterns, dtype=np.float64)
-    lit = pats.sum(axis=1)
-    ok = mass > 0.05 * np.median(mass[mass > 0]) if np.any(mass > 0) else mass > 0
-    ok &= lit > 0  # (a dark frame's light-weighted means are 0/0: calibrate crashed in
-    # LAPACK where its noise passed the mass test, a review of 2026-11-29)
-    if ok.sum() < 12:
-        return None
-    t = np.arange(lo, hi + 1, dtype=np.float64)
-    mu = (win[ok] @ t) / mass[ok]
-    x, y = _coordinates(shape)
-    # (x^2, y^2 and xy apart, as a tilt's square adds them, fitted the noise: a 5 degree
-    # tilt's delay 0.35 ns off and its IRF 3.6 bins wide against 0.08 ns and 2.1 bins)
-    terms = np.stack([x, y, x * x + y * y], axis=1)  # (Q, 3)
-    design = np.column_stack([np.ones(int(ok.sum())),
-                              (pats[ok] @ terms) / lit[ok, None]])
-    if not np.all(np.isfinite(design)) or not np.all(np.isfinite(mu)):
-        return None
-    try:
-        coef, *_ = np.linalg.lstsq(design, mu, rcond=None)
-        resid = mu - design @ coef
-        dof = max(design.shape[0] - design.shape[1], 1)
-        cov = float(resid @ resid) / dof * np.linalg.inv(design.T @ design)
-    except np.linalg.LinAlgError:  # patterns that do not vary their light's position
-        return None
-    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    z = np.divide(coef, se, out=np.zeros_like(coef), where=se > 0)
-    return {"tilt_bins": [float(coef[1]), float(coef[2])],
-            "tilt_z": [float(z[1]), float(z[2])], "curvature_bins": float(coef[3]),
-            "curvature_z": float(z[3])}
 
 
 def _explained(gf: np.ndarray, light: np.ndarray, offsets: np.ndarray, size: int,
