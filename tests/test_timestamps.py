@@ -85,8 +85,9 @@ def test_timestamps_give_the_same_histograms_and_depth(tmp_path, bit_rate):
     times, channels = _stream(ev, res * 1e12, rng)
     conv = tmp_path / "conv.ptu"
     out = write_ptu_from_timestamps(conv, times, channels, time_unit_s=1e-12, sync_channel=SYNC,
-                                    marker_channel=MARK, resolution_s=res)
-    assert out.photon_channels == (DET_B, DET_A)  # increasing order: -2 is channel 0
+                                    marker_channel=MARK, resolution_s=res,
+                                    photon_channels=(DET_B, DET_A))
+    assert out.photon_channels == (DET_B, DET_A)  # in the order given: -2 is channel 0
     assert out.n_photons == int(np.count_nonzero(ev[3] == 0)) and out.n_markers == M
     assert out.n_before_first_sync == 0 and out.n_missing_syncs == 0
     # (the median of syncs jittered by +-3 ps: the period within 3 ps of 127 bins)
@@ -134,8 +135,9 @@ def test_syncs_left_out_by_a_conditional_filter(tmp_path):
     # one photon in 50 kept (about one a period): many periods hold none
     thin = (channels == SYNC) | (channels == MARK) | (rng.random(times.size) < 0.02)
     times, channels = times[thin], channels[thin]
-    full = t3_from_timestamps(times, channels, time_unit_s=1e-12, sync_channel=SYNC,
-                              marker_channel=MARK, resolution_s=res)
+    kw = dict(time_unit_s=1e-12, sync_channel=SYNC, marker_channel=MARK, resolution_s=res,
+              photon_channels=(DET_B, DET_A))
+    full = t3_from_timestamps(times, channels, **kw)
     sync = channels == SYNC
     after_photon = np.zeros(times.size, bool)  # the first sync after each photon or marker
     other = np.flatnonzero(~sync)
@@ -145,9 +147,7 @@ def test_syncs_left_out_by_a_conditional_filter(tmp_path):
     kept = ~sync | after_photon
     assert (sync & ~kept).sum() > 2000  # of 9600 periods
     for period in (None, L * res):
-        got = t3_from_timestamps(times[kept], channels[kept], time_unit_s=1e-12,
-                                 sync_channel=SYNC, marker_channel=MARK, resolution_s=res,
-                                 sync_period_s=period)
+        got = t3_from_timestamps(times[kept], channels[kept], sync_period_s=period, **kw)
         # (periods from the first sync held to the last, less those held)
         first, last = np.searchsorted(np.flatnonzero(sync), np.flatnonzero(kept & sync)[[0, -1]])
         assert got.n_missing_syncs == int(last - first) + 1 - int((kept & sync).sum())
@@ -209,9 +209,10 @@ def test_inputs_are_not_changed():
 def test_a_delay_on_a_bin_edge_reads_that_bin():
     """Timestamps in ns and 2.7 ns bins: 81 ns after the sync is bin 30 (81 / (2.7e-9 /
     1e-9) is 29.999999999999996 in floating point; the half-ulp guard reads it right)."""
-    ev = t3_from_timestamps(np.array([0, 1, 81, 200]), np.array([0, 2, 1, 0]),
-                            time_unit_s=1e-9, sync_channel=0, marker_channel=2,
-                            resolution_s=2.7e-9)
+    with pytest.warns(UserWarning, match="2 or 3 of them.*50 %"):  # (unequal bins: said)
+        ev = t3_from_timestamps(np.array([0, 1, 81, 200]), np.array([0, 2, 1, 0]),
+                                time_unit_s=1e-9, sync_channel=0, marker_channel=2,
+                                resolution_s=2.7e-9)
     np.testing.assert_array_equal(ev.dtime, [0, 30])
 
 
@@ -250,7 +251,8 @@ def test_real_files_as_a_filtered_tagger_stream(tmp_path, name, n_bins, marker):
     ev = write_ptu_from_timestamps(tmp_path / "conv.ptu", times[order], channels[order],
                                    time_unit_s=1e-12, sync_channel=5, marker_channel=9,
                                    resolution_s=res, sync_period_s=period,
-                                   marker_input=marker)
+                                   marker_input=marker,
+                                   photon_channels=np.unique(chan[photon]) + 10)
     assert ev.n_missing_syncs > 1000 * held.size
     a = read_ptu_histograms(REAL / name, n_bins, marker=marker, check_sync_period=False)
     b = read_ptu_histograms(tmp_path / "conv.ptu", n_bins, marker=marker,
@@ -288,3 +290,137 @@ def test_sparse_syncs_on_a_fractional_period_and_a_clock_off_by_ppm(given, clock
     np.testing.assert_array_equal(ev.dtime[photon], np.round(bins * (1 + clock)).astype(int))
     assert ev.sync_period_s == pytest.approx(period * 1e-12, rel=1e-8)
     assert ev.n_missing_syncs == 7001 + 1 - ks.size
+
+
+def _swabian(seed=3):
+    """The test scene's stream as a Swabian tagger gives it (int64 ps, int32 channels), its
+    event types all time tags."""
+    ev, _, _, _ = _events()
+    times, channels = _stream(ev, 100.0, np.random.default_rng(seed))
+    return times, channels.astype(np.int32), np.zeros(times.size, np.uint8)
+
+
+KW = dict(time_unit_s=1e-12, sync_channel=SYNC, marker_channel=MARK, resolution_s=1e-10,
+          photon_channels=(DET_B, DET_A))
+
+
+def test_a_tagger_overflow_is_refused_not_read_as_photons():
+    """A Swabian tagger's overflow marks (OverflowBegin / OverflowEnd on its unused channel)
+    and missed-events tags, given their event types, are refused in one line: without the
+    check an audit's overflow tags became photons on channel 0 and its missed-events tag one
+    photon more, the lost periods taken for filtered syncs. All time tags: the same events
+    as without the types."""
+    times, channels, types = _swabian()
+    plain = t3_from_timestamps(times, channels, **KW)
+    same = t3_from_timestamps(times, channels, event_types=types, **KW)
+    np.testing.assert_array_equal(same.nsync, plain.nsync)
+    np.testing.assert_array_equal(same.dtime, plain.dtime)
+    # an overflow over the 1200th-1450th syncs: the tags there lost, its begin and end kept
+    sync_t = times[channels == SYNC]
+    lost = (times >= sync_t[1200]) & (times < sync_t[1450])
+    unused = np.int32(-134217728)
+    t = np.concatenate([times[~lost], [sync_t[1200], sync_t[1450] - 1]])
+    c = np.concatenate([channels[~lost], [unused, unused]])
+    k = np.concatenate([types[~lost], [2, 3]]).astype(np.uint8)
+    o = np.argsort(t, kind="stable")
+    with pytest.raises(ConfigError, match=r"2 event\(s\) are not time tags \(overflow begin, "
+                                          r"overflow end; the first is event"):
+        t3_from_timestamps(t[o], c[o], event_types=k[o], **KW)
+    k[o[5]] = 4  # a missed-events tag too
+    with pytest.raises(ConfigError, match="missed events, overflow begin"):
+        t3_from_timestamps(t[o], c[o], event_types=k[o], **KW)
+    with pytest.raises(ConfigError, match="one entry per event"):
+        t3_from_timestamps(times, channels, event_types=types[:-1], **KW)
+
+
+def test_a_gap_in_a_complete_sync_stream_is_refused():
+    """A stream that holds every sync (no conditional filter), given ``syncs_complete``,
+    refuses a stretch without syncs (a buffer overrun: the pattern there kept its full dwell
+    with half its photons, an audit's) and converts the complete stream as before."""
+    times, channels, _ = _swabian()
+    whole = t3_from_timestamps(times, channels, syncs_complete=True, **KW)
+    assert whole.n_missing_syncs == 0
+    sync_t = times[channels == SYNC]
+    lost = (times >= sync_t[1200]) & (times < sync_t[1450])
+    gap = t3_from_timestamps(times[~lost], channels[~lost], **KW)  # (a filter, as far as
+    assert gap.n_missing_syncs == 250  # the stream can tell)
+    with pytest.raises(ConfigError, match=r"250 period\(s\) without a sync on channel 0, the "
+                                          r"first after sync 1199.*syncs_complete"):
+        t3_from_timestamps(times[~lost], channels[~lost], syncs_complete=True, **KW)
+
+
+def test_other_channels_are_not_taken_for_photons_unasked():
+    """With photon_channels left out, one channel besides the sync's and the marker's is the
+    detector's; with more (a falling edge of the sync, a quTAG's 1 ms tick on 104, a second
+    detector) they are to be named: an audit's sync falling edges were read as 2 000 photons
+    at one delay, a strong return in every pixel."""
+    times, channels, _ = _swabian()
+    one = np.where(channels == DET_B, DET_A, channels)
+    ev = t3_from_timestamps(times, one, **{**KW, "photon_channels": None})
+    assert ev.photon_channels == (DET_A,) and ev.n_photons == int((one == DET_A).sum())
+    falling = np.concatenate([times, times[channels == SYNC] + 3000])
+    c = np.concatenate([one, np.full(int((channels == SYNC).sum()), -1 - SYNC - 1)])
+    o = np.argsort(falling, kind="stable")
+    with pytest.raises(ConfigError, match=r"2 channels besides the sync's and the marker's "
+                                          r"\(-2, 1\): give photon_channels"):
+        t3_from_timestamps(falling[o], c[o], **{**KW, "photon_channels": None})
+
+
+def test_timestamps_coarser_than_the_bins():
+    """A timestamp unit coarser than the delay bin is refused (bins between its ticks stay
+    empty: an audit's 1 ns counter in 100 ps bins left 920 of 1 023 empty); one that is not a
+    whole fraction of the bin is said (81 ps units in 100 ps bins: 1 or 2 units a bin)."""
+    kw = dict(sync_channel=0, marker_channel=2, photon_channels=[1])
+    t, c = np.array([0, 1, 5, 20, 40]), np.array([0, 2, 1, 0, 0])
+    with pytest.raises(ConfigError, match="coarser than resolution_s"):
+        t3_from_timestamps(t, c, time_unit_s=1e-9, resolution_s=1e-10, **kw)
+    with pytest.warns(UserWarning, match=r"1\.235 of the timestamps' units.*1 or 2 of them"):
+        t3_from_timestamps(t, c, time_unit_s=81e-12, resolution_s=1e-10, **kw)
+
+
+def test_a_long_stream_converted_in_pieces_is_one_file(tmp_path):
+    """The pieces of a stream converted one by one, each given the first's ``time_origin``,
+    and written through ``write_ptu_t3_stream`` give the file of the whole stream: the same
+    histograms and dwells (numbered from each piece's first event, the audit's split lost 44
+    empty periods of the pattern it cut). A time origin off the period's grid, or after a
+    piece's events, is refused."""
+    from spslidar.io import write_ptu_t3_stream
+
+    times, channels, _ = _swabian()
+    whole = t3_from_timestamps(times, channels, **KW)
+    cut = np.flatnonzero(channels == MARK)[5] - 3  # (just before the 6th marker)
+    one = t3_from_timestamps(times[:cut], channels[:cut], **KW)
+    two = t3_from_timestamps(times[cut:], channels[cut:], time_origin=one.time_origin, **KW)
+    assert one.time_origin == whole.time_origin
+    np.testing.assert_array_equal(np.concatenate([one.nsync, two.nsync]), whole.nsync)
+    files = {}
+    for name, parts in (("whole", [whole]), ("pieces", [one, two])):
+        files[name] = tmp_path / f"{name}.ptu"
+        write_ptu_t3_stream(files[name], ((e.nsync, e.dtime, e.channel, e.marker) for e in parts),
+                            resolution_s=1e-10, sync_rate_hz=1 / whole.sync_period_s,
+                            record_type="GenericT3")
+    a, b = (read_ptu_histograms(files[k], L, bin_width=1e-10, n_patterns=M)
+            for k in ("whole", "pieces"))
+    np.testing.assert_array_equal(b.histograms, a.histograms)
+    np.testing.assert_array_equal(b.periods_per_pattern, a.periods_per_pattern)
+    with pytest.raises(ConfigError, match="not the start of a period"):
+        t3_from_timestamps(times[cut:], channels[cut:], time_origin=one.time_origin + 6000,
+                           **KW)
+    early = dict(time_unit_s=1e-12, sync_channel=0, marker_channel=2, resolution_s=10e-12)
+    t, c = np.array([5, 10, 12, 110, 150, 210]), np.array([1, 0, 2, 0, 1, 0])
+    assert t3_from_timestamps(t, c, **early).time_origin == -90  # (the photon's period)
+    with pytest.raises(ConfigError, match="events before time_origin 10"):
+        t3_from_timestamps(t, c, time_origin=10, **early)
+
+
+def test_a_period_too_long_for_the_records_names_the_resolution(tmp_path):
+    """A 10 us code period in 100 ps bins is 100 000 delays, beyond a GenericT3 record's
+    32 768: refused naming the resolution (it was the writer's bare "dtime out of range")."""
+    t = np.array([0, 5, 15_000_000, 10_000_000, 20_000_000])
+    c = np.array([0, 2, 1, 0, 0])
+    o = np.argsort(t)
+    with pytest.raises(ConfigError, match="100000 delay units of resolution_s 1e-10 s, more "
+                                          "than GenericT3 records hold"):
+        write_ptu_from_timestamps(tmp_path / "x.ptu", t[o], c[o], time_unit_s=1e-12,
+                                  sync_channel=0, marker_channel=2, resolution_s=1e-10)
+    assert not (tmp_path / "x.ptu").exists()

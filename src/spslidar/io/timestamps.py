@@ -1,9 +1,12 @@
 """Another vendor's time tags as T3 events (and a PTU file), so `reconstruct` reads them.
 
-Time taggers that are not PicoQuant's (Swabian Instruments' Time Tagger, qutools' quTAG, ID
-Quantique's ID900/ID1000, an FPGA TDC) give a stream of absolute timestamps, each with the
-input channel it arrived on: the code generator's period start on one channel, the DMD's
-pattern marker on another, the detector's photons on the rest. A T3 record holds the same
+Time taggers that are not PicoQuant's (Swabian Instruments' Time Tagger, qutools' quTAG, an
+FPGA TDC) give a stream of absolute timestamps, each with the input channel it arrived on:
+the code generator's period start on one channel, the DMD's pattern marker on another, the
+detector's photons on the rest. (A quTAG's start input is not streamed, or resets its clock:
+the sync goes on a stop input. ID Quantique's time controllers give each channel's times
+apart, relative to a reference input: with no reference, merged in time order with a channel
+array, they are such a stream.) A T3 record holds the same
 information relative to the code's period: the period's index (``nsync``) and the delay
 after its start (``dtime``). :func:`t3_from_timestamps` converts one into the other and
 :func:`write_ptu_from_timestamps` writes the result with :func:`~spslidar.io.write_ptu_t3`, so
@@ -17,19 +20,20 @@ depend on for so little.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..errors import ConfigError
-from .ptu_format import PathLike, _finite_number, _marker_input
+from .ptu_format import _FAMILY, PathLike, _finite_number, _marker_input
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
-__all__ = ["SYNC_CLOCK_TOL", "SYNC_TOL", "T3Events", "t3_from_timestamps",
-           "write_ptu_from_timestamps"]
+__all__ = ["EVENT_TYPE_NAMES", "SYNC_CLOCK_TOL", "SYNC_TOL", "T3Events", "UNEVEN_BINS_RATIO",
+           "t3_from_timestamps", "write_ptu_from_timestamps"]
 
 #: the largest distance, as a share of the period, of a sync interval from a whole number of
 #: periods: a code generator's period start is periodic (syncs left out by a tagger's filter
@@ -38,6 +42,16 @@ SYNC_TOL = 0.01
 #: how far a tagger's clock may run from the code generator's, relatively, where the period
 #: is given (``sync_period_s``): crystals agree to 20-50 ppm; the syncs refine it from there
 SYNC_CLOCK_TOL = 1e-4
+#: ``event_types`` of a Swabian Time Tagger's ``TimeTagStream.getData().getEventTypes()``:
+#: 0 is a time tag; 1 an error, 2 and 3 an overflow's begin and end, 4 missed events (the
+#: tagger lost tags there)
+EVENT_TYPE_NAMES = {0: "time tag", 1: "error", 2: "overflow begin", 3: "overflow end",
+                    4: "missed events"}
+#: below this many time units per delay unit (``resolution_s / time_unit_s``), a ratio that
+#: is not a whole number is said: the delay bins hold unequal numbers of the timestamps'
+#: units, a comb on a flat background of up to ``1 / floor(ratio)`` of its level (5 % here;
+#: 1 ps timestamps in 96.97 ps bins comb it by 1 %, under the Poisson noise of 10^4 counts)
+UNEVEN_BINS_RATIO = 20.0
 
 
 @dataclass
@@ -62,6 +76,9 @@ class T3Events:
     n_missing_syncs : int
         Periods whose sync the stream does not hold (a tagger's conditional filter, a dead
         time on the sync input): their events are placed from the nearest sync held.
+    time_origin : int
+        The start of period 0 (``nsync`` 0), in the stream's time units: give it as the next
+        piece's ``time_origin`` to number a long acquisition's pieces as one stream.
     """
 
     nsync: np.ndarray
@@ -73,6 +90,7 @@ class T3Events:
     photon_channels: tuple[int, ...]
     n_before_first_sync: int = 0
     n_missing_syncs: int = 0
+    time_origin: int = 0
 
     @property
     def n_photons(self) -> int:
@@ -100,7 +118,9 @@ def _int_array(values: Any, what: str) -> np.ndarray:
 def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: float,
                        sync_channel: int, marker_channel: int, resolution_s: float,
                        photon_channels: ArrayLike | None = None, marker_input: int = 1,
-                       sync_period_s: float | None = None) -> T3Events:
+                       sync_period_s: float | None = None, event_types: ArrayLike | None = None,
+                       syncs_complete: bool = False, time_origin: int | None = None
+                       ) -> T3Events:
     """T3 events (code period, delay after its start) from a time tagger's absolute
     timestamps.
 
@@ -108,12 +128,15 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
     ----------
     times : array_like of int, shape (n,)
         Every event's timestamp in units of ``time_unit_s`` (picoseconds: ``1e-12``),
-        non-decreasing, as a time tagger streams them.
+        non-decreasing, as a time tagger streams them. A counter that wraps (an FPGA TDC's
+        coarse counter, a file format's) is unwrapped first, e.g. ``np.unwrap(times,
+        period=2**40)``.
     channels : array_like of int, shape (n,)
         Each event's input channel, in the tagger's numbering (negative numbers, a Swabian
         tagger's falling edges, are channels too).
     time_unit_s : float
-        Seconds per unit of ``times``.
+        Seconds per unit of ``times``; no coarser than ``resolution_s`` (a delay bin
+        narrower than a timestamp's unit would stay empty).
     sync_channel : int
         The channel of the code generator's period start (each code period begins at one).
     marker_channel : int
@@ -123,8 +146,10 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
         so that ``reconstruct --bit-rate`` reads one bin per delay unit.
     photon_channels : array_like of int, optional
         The detector's channels, numbered 0, 1, ... in this order in the result (as
-        ``reconstruct --channel`` counts them); default every channel that is neither the
-        sync's nor the marker's, in increasing order.
+        ``reconstruct --channel`` counts them). Default: the one channel that is neither the
+        sync's nor the marker's; where the stream holds more (a second detector, a Swabian
+        tagger's falling edges as negative channels, a quTAG's 1 ms tick on 104), they are
+        to be named, since every event on them would be read as a photon.
     marker_input : int
         The marker input (1..4) the pattern changes are written on (``reconstruct
         --marker``).
@@ -133,6 +158,21 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
         intervals' median, refined over the whole stream). Give it where the stream may hold
         no two syncs of adjacent periods; the tagger's clock may then run up to
         :data:`SYNC_CLOCK_TOL` off the generator's, refined from the syncs.
+    event_types : array_like of int, shape (n,), optional
+        Each event's type where the tagger gives one (a Swabian ``TimeTagStream``'s
+        ``getEventTypes()``, :data:`EVENT_TYPE_NAMES`): a stream with any event other than a
+        time tag (0) is refused, since the tagger lost events there and the patterns'
+        photon counts would be short without a word.
+    syncs_complete : bool
+        The stream holds every sync (no conditional filter on the sync input): a period
+        without one is then refused, where it would otherwise be taken for a filtered sync
+        (a tagger's overflow or a buffer overrun leaves a gap that looks the same, and the
+        pattern keeps its full dwell with part of its photons).
+    time_origin : int, optional
+        The start of period 0 in the units of ``times`` (:attr:`T3Events.time_origin` of the
+        stream's previous piece); default: the period of the stream's first event. Periods
+        are then counted from there, so that the pieces of a long acquisition converted one
+        by one join into one file (:func:`~spslidar.io.write_ptu_t3_stream`).
 
     Returns
     -------
@@ -151,16 +191,18 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
     the earliest event's. A sync interval more than :data:`SYNC_TOL`
     of a period off a whole number of periods (an extra edge, a sync that wanders; a steady
     difference between the tagger's clock and the generator's is the refined ``P``'s) is
-    refused with its position. Memory is about 100 bytes per event
-    (the stream is held whole; convert a long acquisition in pieces of whole patterns, each
-    written as its own file, or through :func:`~spslidar.io.write_ptu_t3_stream` with
-    ``nsync`` carried on).
+    refused with its position. Memory is about 100 bytes per event (the stream is held whole;
+    convert a long acquisition in pieces, each given the first piece's
+    :attr:`T3Events.time_origin`, and write them through
+    :func:`~spslidar.io.write_ptu_t3_stream`).
 
     Raises
     ------
     ConfigError
         Arrays of other lengths or not of integers, times not in order, fewer than two syncs,
-        irregular syncs, no marker or no photon events, or bad scalars.
+        irregular syncs, no marker or no photon events, events other than time tags, periods
+        without a sync where ``syncs_complete``, several candidate photon channels with none
+        named, or bad scalars.
     """
     t = _int_array(times, "times")
     ch = _int_array(channels, "channels")
@@ -169,6 +211,19 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
                           f"{ch.size}")
     unit = _finite_number(time_unit_s, "time_unit_s", positive=True)
     res = _finite_number(resolution_s, "resolution_s", positive=True)
+    if event_types is not None:
+        _check_event_types(event_types, t.size)
+    if unit > res:
+        raise ConfigError(f"time_unit_s {unit:g} s is coarser than resolution_s {res:g} s: delay "
+                          f"bins narrower than the timestamps' unit would stay empty (a "
+                          f"coarser resolution_s, or the tagger's fine timestamps)")
+    ratio = res / unit  # time units per delay unit
+    if ratio < UNEVEN_BINS_RATIO and abs(ratio - round(ratio)) > 1e-6 * ratio:
+        warnings.warn(f"resolution_s {res:g} s holds {ratio:.4g} of the timestamps' units of "
+                      f"{unit:g} s, not a whole number: the delay bins hold "
+                      f"{int(np.floor(ratio))} or {int(np.ceil(ratio))} of them, so a flat "
+                      f"background comes out combed by up to {100 / np.floor(ratio):.2g} %",
+                      stacklevel=2)
     bits = 1 << (_marker_input(marker_input) - 1)
     for name, value in (("sync_channel", sync_channel), ("marker_channel", marker_channel)):
         if isinstance(value, bool) or not isinstance(value, int | np.integer):
@@ -180,10 +235,15 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
         first = int(np.flatnonzero(np.diff(t) < 0)[0]) + 1
         raise ConfigError(f"times must be non-decreasing, as a time tagger streams them: event "
                           f"{first} is earlier than the one before it (merge the channels' "
-                          f"streams in time order first)")
+                          f"streams in time order, or unwrap a counter that wrapped, first)")
     present = np.unique(ch)
     if photon_channels is None:
         photons = tuple(int(c) for c in present if c not in (sync_channel, marker_channel))
+        if len(photons) > 1:
+            raise ConfigError(f"the stream holds {len(photons)} channels besides the sync's and "
+                              f"the marker's ({', '.join(map(str, photons))}): give "
+                              f"photon_channels, the detector's (every event on a channel "
+                              f"named would be read as a photon)")
     else:
         photons = tuple(int(c) for c in _int_array(np.atleast_1d(photon_channels),
                                                    "photon_channels"))
@@ -197,6 +257,12 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
                           f"period start is needed (channels present: "
                           f"{', '.join(map(str, present)) or 'none'})")
     syncs, index, period, missing = _sync_grid(syncs, sync_channel, unit, sync_period_s)
+    if syncs_complete and missing:
+        gap = int(np.flatnonzero(np.diff(index) > 1)[0])
+        raise ConfigError(f"{missing} period(s) without a sync on channel {sync_channel}, the "
+                          f"first after sync {gap} (at {syncs[gap] * unit:.9g} s), though "
+                          f"syncs_complete: the tagger lost events there (an overflow, a "
+                          f"buffer overrun), so those patterns' photons are short")
     is_photon = np.isin(ch, photons) if photons else np.zeros(t.size, bool)
     is_marker = ch == marker_channel
     if not is_marker.any():
@@ -219,12 +285,27 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
     steps = np.floor(since / period + 1e-12)
     nsync = index[ref] + steps.astype(np.int64)
     offset = since - steps * period  # in [0, period): the time units after the period's start
-    if nsync.size and nsync.min() < 0:  # (the periods before the first sync: from 0 on)
-        nsync = nsync - nsync.min()
+    first = 0  # the period of the first sync held, counted from period 0
+    if time_origin is not None:
+        if isinstance(time_origin, bool) or not isinstance(time_origin, int | np.integer):
+            raise ConfigError(f"time_origin must be an integer time, got {time_origin!r}")
+        whole = (float(syncs[0]) - float(time_origin)) / period
+        if round(whole) < 0 or abs(whole - round(whole)) > SYNC_TOL:
+            raise ConfigError(f"time_origin {int(time_origin)} is not the start of a period "
+                              f"at or before the stream's first sync ({int(syncs[0])}, "
+                              f"{whole:.4g} periods after it): the previous piece's "
+                              f"T3Events.time_origin")
+        first = int(round(whole))
+        nsync = nsync + first
+        if nsync.size and nsync.min() < 0:
+            raise ConfigError(f"events before time_origin {int(time_origin)}: a piece is given "
+                              f"the time origin of the piece before it")
+    elif nsync.size and nsync.min() < 0:  # (the periods before the first sync: from 0 on)
+        first = -int(nsync.min())
+        nsync = nsync + first
     if np.any(np.diff(nsync) < 0):  # (syncs' jitter at a period's edge: order by period)
         order = np.argsort(nsync, kind="stable")
         events, nsync, offset = events[order], nsync[order], offset[order]
-    ratio = res / unit  # time units per delay unit
     # (the guard: 81 ns in 2.7 ns bins read 29.999999999999996)
     dtime = np.floor(offset / ratio + 1e-9).astype(np.int64)
     photon = is_photon[events]
@@ -236,7 +317,23 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
     return T3Events(nsync=nsync.astype(np.int64), dtime=np.where(photon, dtime, 0),
                     channel=channel, marker=np.where(photon, 0, bits).astype(np.int64),
                     resolution_s=res, sync_period_s=period * unit, photon_channels=photons,
-                    n_before_first_sync=int(before.sum()), n_missing_syncs=missing)
+                    n_before_first_sync=int(before.sum()), n_missing_syncs=missing,
+                    time_origin=int(syncs[0]) - int(round(first * period)))
+
+
+def _check_event_types(event_types: ArrayLike, n: int) -> None:
+    """Refuse a stream with events other than time tags (:data:`EVENT_TYPE_NAMES`)."""
+    kinds = _int_array(event_types, "event_types")
+    if kinds.size != n:
+        raise ConfigError(f"event_types must have one entry per event, got {kinds.size} for {n}")
+    other = np.flatnonzero(kinds != 0)
+    if other.size:
+        k = int(other[0])
+        names = sorted({EVENT_TYPE_NAMES.get(int(v), f"type {int(v)}") for v in kinds[other]})
+        raise ConfigError(f"{other.size} event(s) are not time tags ({', '.join(names)}; the "
+                          f"first is event {k}): the tagger lost events there, so the "
+                          f"patterns' photon counts would be short; record at a lower rate "
+                          f"(or convert the stream's part before the first)")
 
 
 def _sync_grid(syncs: np.ndarray, sync_channel: int, unit: float,
@@ -304,21 +401,32 @@ def write_ptu_from_timestamps(path: PathLike, times: ArrayLike, channels: ArrayL
                               time_unit_s: float, sync_channel: int, marker_channel: int,
                               resolution_s: float, photon_channels: ArrayLike | None = None,
                               marker_input: int = 1, sync_period_s: float | None = None,
-                              record_type: str = "GenericT3", comment: str = "") -> T3Events:
+                              event_types: ArrayLike | None = None, syncs_complete: bool = False,
+                              time_origin: int | None = None, record_type: str = "GenericT3",
+                              comment: str = "") -> T3Events:
     """Write a time tagger's absolute timestamps as a T3 PTU file that ``spslidar calibrate``
     and ``spslidar reconstruct`` read.
 
     The events are :func:`t3_from_timestamps`'s (the parameters of the same names are its);
     the file is :func:`~spslidar.io.write_ptu_t3`'s, its sync period the one read from the
     syncs, ``record_type`` (default ``"GenericT3"``: delays below 32768 units, 64 channels)
-    and ``comment`` as there. Returns the events, with the counts left out.
+    and ``comment`` as there. Returns the events written (:class:`T3Events`).
     """
-    from .ptu_write import write_ptu_t3
+    from .ptu_write import _record_type, write_ptu_t3
 
+    # (the record type first: a typo is refused before the conversion's work)
+    dtime_max = _FAMILY[_record_type(record_type)[2]][1]
     ev = t3_from_timestamps(times, channels, time_unit_s=time_unit_s,
                             sync_channel=sync_channel, marker_channel=marker_channel,
                             resolution_s=resolution_s, photon_channels=photon_channels,
-                            marker_input=marker_input, sync_period_s=sync_period_s)
+                            marker_input=marker_input, sync_period_s=sync_period_s,
+                            event_types=event_types, syncs_complete=syncs_complete,
+                            time_origin=time_origin)
+    if ev.dtime.size and int(ev.dtime.max()) >= dtime_max:
+        raise ConfigError(f"the code period of {ev.sync_period_s:.6g} s holds "
+                          f"{ev.sync_period_s / ev.resolution_s:.6g} delay units of "
+                          f"resolution_s {ev.resolution_s:g} s, more than {record_type} records "
+                          f"hold ({dtime_max}): a coarser resolution_s")
     write_ptu_t3(path, nsync=ev.nsync, dtime=ev.dtime, channel=ev.channel, marker=ev.marker,
                  resolution_s=ev.resolution_s, sync_rate_hz=1.0 / ev.sync_period_s,
                  record_type=record_type, comment=comment)
