@@ -562,12 +562,14 @@ def test_the_calibrated_weight_is_capped_for_wide_responses():
 
 def test_the_filter_names_are_still_found_where_they_were():
     """The filter that applies a calibration moved to ``spslidar.pipeline.calibrated`` (the
-    calibration module had grown past 800 lines); code that imported it from
+    calibration module had grown past 800 lines, and the simulation's chain reached the
+    measured-data path back through it); code that imported it from
     ``spslidar.pipeline.calibration`` gets the same objects, and a misspelt name still fails."""
     from spslidar.pipeline import calibrated, calibration
 
     for name in ("CalibratedFilter", "calibrated_filter", "delay_filter", "refine_depth",
-                 "WIENER_REG", "RESPONSE_HALF", "HALF_WIDTH_SHARE"):
+                 "code_response", "WIENER_REG", "RESPONSE_HALF", "HALF_WIDTH_SHARE",
+                 "WEAK_RESPONSE", "IRF_BEFORE", "IRF_AFTER"):
         assert getattr(calibration, name) is getattr(calibrated, name)
     with pytest.raises(AttributeError, match="delay_filtre"):
         calibration.delay_filtre  # noqa: B018

@@ -37,7 +37,7 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
 
 def add_reconstruct_parser(sub) -> None:
     """``spslidar reconstruct``: a measured T3 PTU acquisition -> depth map."""
-    from .cli import (
+    from .cli_common import (
         _add_fov_option,
         _add_regulariser_option,
         _add_stage_options,
@@ -86,7 +86,7 @@ def add_reconstruct_parser(sub) -> None:
 
 def cmd_reconstruct(args) -> int:
     """Run ``spslidar reconstruct``; return the exit status."""
-    from .cli import _WRITTEN, _written
+    from .cli_common import _WRITTEN, _written
     from .outdir import check_output
     from .pipeline.real import load_code, load_patterns, reconstruct_ptu
 
@@ -125,7 +125,7 @@ def cmd_reconstruct(args) -> int:
 
 def add_calibrate_parser(sub) -> None:
     """``spslidar calibrate``: a flat target at a known distance -> system delay and IRF."""
-    from .cli import _fov
+    from .cli_common import _fov
 
     p = sub.add_parser(
         "calibrate", help="measure the system delay and IRF from a flat target",
@@ -152,7 +152,7 @@ def add_calibrate_parser(sub) -> None:
 
 def cmd_calibrate(args) -> int:
     """Run ``spslidar calibrate``; return the exit status."""
-    from .cli import _WRITTEN
+    from .cli_common import _WRITTEN
     from .pipeline.calibration import calibrate_ptu
     from .pipeline.calibration_file import check_calibration_out, write_calibration
     from .pipeline.real import load_code, load_patterns

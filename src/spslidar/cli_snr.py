@@ -10,7 +10,7 @@ __all__ = ["add_snr_parser", "cmd_snr"]
 
 
 def _duration(text: str) -> float:
-    from .cli import _duration as parse
+    from .cli_common import _duration as parse
 
     return parse(text)
 

@@ -243,7 +243,8 @@ def matched_filter(
 
 
 def correlation_noise_sigma(hist: np.ndarray, replica: np.ndarray, gain: float = 1.0) -> np.ndarray:
-    """Standard deviation of each pattern's matched-filter output, estimated from its counts.
+    """Standard deviation of each pattern's matched-filter output, estimated from its counts
+    (the noise of eq. 9, read from the measurement).
 
     For Poisson counts ``Var C_i(tau) = sum_t lambda_i(t) f(t - tau)^2 / G^2``; replacing the
     mean by the observed counts gives an unbiased estimate from the measurements alone (for the

@@ -207,7 +207,8 @@ def poisson_rows(lam: np.ndarray, rng: np.random.Generator, out: np.ndarray) -> 
 
 def poisson_counts(lam: np.ndarray, rng: np.random.Generator | int | None,
                    parallel: bool = True) -> np.ndarray:
-    """Draw Poisson counts with means ``lam`` (any shape, rows split in fixed blocks).
+    """Draw Poisson counts with means ``lam`` (any shape, rows split in fixed blocks): the
+    photon counts of the detected rate of eq. (4).
 
     Returns float32 counts (exact integers up to 2^24 per bin; a bin with more raises).
     """

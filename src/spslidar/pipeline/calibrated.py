@@ -1,5 +1,6 @@
 """Applying a calibration in ``reconstruct``: the filter of a calibrated instrument and the
-depth read from its profiles.
+depth read from its profiles (imported by the simulation's chain and by the calibration
+alike, so it imports nothing of the pipeline's).
 
 ``spslidar reconstruct --calibration CAL.json`` (:func:`calibrated_filter`) correlates each
 histogram with the replica convolved with the measured IRF (the matched filter of eq. 5-6 for
@@ -16,9 +17,15 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .calibration import IRF_AFTER, IRF_BEFORE, _vertex
+__all__ = ["CalibratedFilter", "calibrated_filter", "code_response", "delay_filter",
+           "refine_depth"]
 
-__all__ = ["CalibratedFilter", "calibrated_filter", "delay_filter", "refine_depth"]
+#: a calibration response below this many noise deviations is said to be read through the
+#: noise (refused below 5; an audit found 5.1-5.6 garbage, 34 close to the truth)
+WEAK_RESPONSE = 20.0
+
+#: bins of the IRF kept before and after its peak (a diffusion tail of a few bins fits)
+IRF_BEFORE, IRF_AFTER = 8, 40
 
 #: Wiener regularisation of the IRF's inverse in ``reconstruct``, relative to its peak power:
 #: ``inf`` is the matched filter (measured best: a finite one trades depth outliers for
@@ -28,6 +35,27 @@ WIENER_REG = float("inf")
 #: pixel's profile with (:func:`delay_filter`): +-4 lags hold 97 % of its energy for an IRF of
 #: 1.5 bins FWHM with a 4-bin tail
 RESPONSE_HALF = 4
+
+
+def _vertex(y0, y1, y2):
+    """Offset from the middle sample of the vertex of the parabola through three equally
+    spaced samples ``y0, y1, y2``; 0 where the parabola is not concave (no maximum)."""
+    y0, y1, y2 = (np.asarray(v, dtype=np.float64) for v in (y0, y1, y2))
+    den = y0 - 2.0 * y1 + y2
+    concave = den < 0
+    return np.where(concave, 0.5 * (y0 - y2) / np.where(concave, den, -1.0), 0.0)
+
+
+def code_response(hist: np.ndarray, code: np.ndarray) -> np.ndarray:
+    """The histogram(s) with the code deconvolved along the last axis: Wiener, in the Fourier
+    domain of one code period (exact for an m-sequence, whose spectrum is flat; regularised
+    at ``1e-3`` of the median power for a random code's weak frequencies)."""
+    c = np.asarray(code, dtype=np.float64)
+    spec_c = np.fft.rfft(c)
+    power = np.abs(spec_c) ** 2
+    eps = 1e-3 * float(np.median(power))
+    return np.fft.irfft(np.fft.rfft(np.asarray(hist, dtype=np.float64), axis=-1)
+                        * np.conj(spec_c) / (power + eps), c.size, axis=-1)
 
 
 class CalibratedFilter(NamedTuple):

@@ -46,6 +46,20 @@ import numpy as np
 from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
 from ..outdir import sha256_file  # one file hasher for the project
+from .calibrated import (  # noqa: F401  (re-exported: they were here until 0.2)
+    HALF_WIDTH_SHARE,
+    IRF_AFTER,
+    IRF_BEFORE,
+    RESPONSE_HALF,
+    WEAK_RESPONSE,
+    WIENER_REG,
+    CalibratedFilter,
+    _vertex,
+    calibrated_filter,
+    code_response,
+    delay_filter,
+    refine_depth,
+)
 from .calibration_file import (  # noqa: F401  (re-exported: the calibration's file)
     CAL_KIND,
     check_calibration,
@@ -58,10 +72,8 @@ from .calibration_file import (  # noqa: F401  (re-exported: the calibration's f
     write_calibration,
 )
 
-__all__ = ["calibrate_ptu", "code_response", "measure_response"]
+__all__ = ["calibrate_ptu", "measure_response"]
 
-#: bins of the IRF kept before and after its peak (a diffusion tail of a few bins fits)
-IRF_BEFORE, IRF_AFTER = 8, 40
 #: bins past the IRF's window that its noise is read over (and that :func:`_tail_end` checks
 #: hold no response)
 NOISE_AFTER = 3 * IRF_BEFORE - 1
@@ -116,27 +128,6 @@ def _top(g: np.ndarray) -> tuple[int, np.ndarray]:
     smooth = np.fft.irfft(np.fft.rfft(g) * np.exp(-2.0 * (np.pi * sigma * f) ** 2), period)
     near = (p0 + np.arange(-width, width + 1)) % period
     return int(near[np.argmax(smooth[near])]), smooth
-
-
-def _vertex(y0, y1, y2):
-    """Offset from the middle sample of the vertex of the parabola through three equally
-    spaced samples ``y0, y1, y2``; 0 where the parabola is not concave (no maximum)."""
-    y0, y1, y2 = (np.asarray(v, dtype=np.float64) for v in (y0, y1, y2))
-    den = y0 - 2.0 * y1 + y2
-    concave = den < 0
-    return np.where(concave, 0.5 * (y0 - y2) / np.where(concave, den, -1.0), 0.0)
-
-
-def code_response(hist: np.ndarray, code: np.ndarray) -> np.ndarray:
-    """The histogram(s) with the code deconvolved along the last axis: Wiener, in the Fourier
-    domain of one code period (exact for an m-sequence, whose spectrum is flat; regularised
-    at ``1e-3`` of the median power for a random code's weak frequencies)."""
-    c = np.asarray(code, dtype=np.float64)
-    spec_c = np.fft.rfft(c)
-    power = np.abs(spec_c) ** 2
-    eps = 1e-3 * float(np.median(power))
-    return np.fft.irfft(np.fft.rfft(np.asarray(hist, dtype=np.float64), axis=-1)
-                        * np.conj(spec_c) / (power + eps), c.size, axis=-1)
 
 
 #: the farthest calibration target taken, metres (1000 km: no lidar's, yet a number)
@@ -343,10 +334,6 @@ def _tail_end(g: np.ndarray, p0: int, start: int = IRF_BEFORE) -> tuple[int, boo
 
     return _grow(IRF_AFTER, stands, period // 4)
 
-
-#: a calibration response below this many noise deviations is said to be read through the
-#: noise (refused below 5; an audit found 5.1-5.6 garbage, 34 close to the truth)
-WEAK_RESPONSE = 20.0
 
 #: a measured response with at most UNRESOLVED_BINS bins above UNRESOLVED_SHARE of its peak
 #: is narrower than a bin (unresolved; noise passes the 3-sigma floor at ~0.4 % of the peak,
@@ -632,18 +619,3 @@ def _quiet_response(total: np.ndarray, code: np.ndarray, bin_width: float, dista
                                     response=response, phase=phase)
         except ConfigError:
             return None
-
-
-_MOVED = ("CalibratedFilter", "calibrated_filter", "delay_filter", "refine_depth", "WIENER_REG",
-          "RESPONSE_HALF", "HALF_WIDTH_SHARE")
-
-
-def __getattr__(name: str):
-    """The filter that applies a calibration lives in :mod:`spslidar.pipeline.calibrated`;
-    its names are still found here, where they were until 0.2 (imported on first use, since
-    that module imports this one)."""
-    if name in _MOVED:
-        from . import calibrated
-
-        return getattr(calibrated, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

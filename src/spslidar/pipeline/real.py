@@ -644,9 +644,9 @@ def inverted_code_note(corr: np.ndarray, sigma: np.ndarray) -> str | None:
 
 def calibration_warnings(cal: dict[str, Any]) -> list[str]:
     """What ``reconstruct`` says of the calibration it applies: a response read through the
-    noise (under :data:`~.calibration.WEAK_RESPONSE` deviations; ``calibrate`` said so, but
+    noise (under :data:`~.calibrated.WEAK_RESPONSE` deviations; ``calibrate`` said so, but
     only once, and an audit's map was 25 times worse through it without a word here)."""
-    from .calibration import WEAK_RESPONSE
+    from .calibrated import WEAK_RESPONSE
 
     ptn = cal.get("peak_to_noise")
     if isinstance(ptn, (int, float)) and not isinstance(ptn, bool) and ptn < WEAK_RESPONSE:

@@ -109,6 +109,7 @@ import numpy as np
 
 from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
+from .calibrated import IRF_AFTER, IRF_BEFORE, code_response
 from .target_tilt import _coordinates, tilt_of_target
 
 __all__ = ["MAX_SPREAD_BINS", "MIN_SPREAD_BINS", "PHASES", "PLANE_REG", "SCAN_PATTERNS",
@@ -195,9 +196,7 @@ def wall_offsets(shape: tuple[int, int], distance: float, fov_deg: float, bin_wi
 
 def _code_removed(hists: np.ndarray, code: np.ndarray) -> np.ndarray:
     """Each row's response with the code deconvolved and its constant background removed
-    (:func:`~spslidar.pipeline.calibration.code_response`)."""
-    from .calibration import code_response
-
+    (:func:`~spslidar.pipeline.calibrated.code_response`)."""
     g = code_response(np.asarray(hists, dtype=np.float64), code)
     g -= np.median(g, axis=-1, keepdims=True)
     return g
@@ -535,8 +534,6 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
                 "offsets": None, "reason": "one range: a target at distance 0"}
     m = patterns.shape[0]
     pick = np.unique(np.linspace(0, m - 1, min(m, SCAN_PATTERNS)).round().astype(int))
-    from .calibration import IRF_AFTER, IRF_BEFORE
-
     period = int(np.asarray(code).size)
     if fov_deg is not None:  # (refused before the file is read where it spreads too far)
         offsets, spread = wall_offsets(shape, distance, fov_deg, bin_width, period)
@@ -678,7 +675,7 @@ def range_free_response(hists: np.ndarray, patterns: np.ndarray, code: np.ndarra
     Returns
     -------
     ndarray, shape (L,)
-        The code-free response (as :func:`~spslidar.pipeline.calibration.code_response`
+        The code-free response (as :func:`~spslidar.pipeline.calibrated.code_response`
         gives for one range), background removed.
     """
     period = int(np.asarray(code).size)

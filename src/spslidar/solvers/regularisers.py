@@ -623,7 +623,7 @@ def make_tv(shape: tuple[int, int], nonneg: bool = False, max_inner: int = 3) ->
 
 def make_tv_aniso(shape: tuple[int, int], nonneg: bool = False, max_inner: int = 3) -> TV:
     """The anisotropic TV ``sum_q |(D_y x)_q| + |(D_x x)_q|`` on ``shape`` images
-    (``--regulariser tv-aniso``).
+    (``--regulariser tv-aniso``): a choice of the regulariser kappa of eq. (18).
 
     Its cost of an edge grows with its length in the l1 metric, so axis-aligned edges and
     corners (walls, boxes, poles, table legs) cost less than under the isotropic TV, and a

@@ -22,7 +22,7 @@ import sys
 
 import numpy as np
 
-__all__ = ["digest", "fresh_digest", "output_digest"]
+__all__ = ["digest", "fresh_digest"]
 
 #: seconds a fresh interpreter may take to import spslidar, the plugins and make the output
 TIMEOUT_S = 120
@@ -36,22 +36,6 @@ def digest(arrays) -> str:
     for a in arrays:
         h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()
-
-
-def output_digest(kind: str, name: str) -> str:
-    """:func:`digest` of the probe output of stage ``name`` (``kind`` ``code`` or
-    ``scene``), as the conformance checks build it."""
-    from . import stages
-
-    if kind == "code":
-        make, index = stages.probe_code(name)
-        return digest((make(index),))
-    if kind == "scene":
-        from ..scenes import load_scene
-
-        scene = load_scene(stages.scene_spec(name), stages.scene_size(name))
-        return digest((scene.depth, scene.reflectivity, scene.valid))
-    raise ValueError(f"no fresh-process digest for stage kind {kind!r}")
 
 
 def _importable(entry) -> list[str] | None:
@@ -68,9 +52,10 @@ def _importable(entry) -> list[str] | None:
 
 
 def fresh_digest(kind: str, name: str) -> list[str] | None:
-    """:func:`output_digest` computed in two new interpreters, under ``PYTHONHASHSEED`` 1 and 2
-    (two, so that a hash-seeded stage fails whatever this process's seed happens to be), or
-    ``None`` where the stage cannot be built there (see the module docstring).
+    """:func:`~spslidar.testing.stages.output_digest` computed in two new interpreters, under
+    ``PYTHONHASHSEED`` 1 and 2 (two, so that a hash-seeded stage fails whatever this
+    process's seed happens to be), or ``None`` where the stage cannot be built there (see
+    the module docstring).
 
     Raises
     ------
@@ -83,7 +68,7 @@ def fresh_digest(kind: str, name: str) -> list[str] | None:
     if specs is None:
         return None
     code = ("import sys\nfrom spslidar.plugins import load_plugins\nload_plugins()\n"
-            "from spslidar.testing.process import output_digest\n"
+            "from spslidar.testing.stages import output_digest\n"
             "print(output_digest(sys.argv[1], sys.argv[2]))\n")
     from pathlib import Path
 

@@ -40,7 +40,7 @@ from ..errors import ConfigError
 from . import config_for
 
 __all__ = ["check_code_family", "check_depth_estimator", "check_detector",
-           "check_pattern_kind", "check_scene_kind"]
+           "check_pattern_kind", "check_scene_kind", "output_digest"]
 
 #: candidate code lengths; the first one a family accepts is used
 CODE_LENGTHS = (127, 255, 511, 1023, 128)
@@ -135,6 +135,23 @@ def probe_code(name: str):
                                        index=index, **options))
 
     return make, entry.defaults.get("index", 0)
+
+
+def output_digest(kind: str, name: str) -> str:
+    """:func:`~spslidar.testing.process.digest` of the probe output of stage ``name``
+    (``kind`` ``code`` or ``scene``), as the conformance checks build it: what
+    :func:`~spslidar.testing.process.fresh_digest` has new interpreters print."""
+    from .process import digest
+
+    if kind == "code":
+        make, index = probe_code(name)
+        return digest((make(index),))
+    if kind == "scene":
+        from ..scenes import load_scene
+
+        scene = load_scene(scene_spec(name), scene_size(name))
+        return digest((scene.depth, scene.reflectivity, scene.valid))
+    raise ValueError(f"no fresh-process digest for stage kind {kind!r}")
 
 
 def _same_in_a_fresh_process(kind: str, name: str, what: str, arrays) -> list[str]:

@@ -1,0 +1,106 @@
+"""What the sub-commands' parsers share (``cli``, ``cli_measured``, ``cli_snr``): the stage
+choices and option flags read from the registries, the value types of ``--max-time``,
+``--max-memory`` and ``--fov``, and the list of files a command has written (which the
+interrupted line names). Its own module, so that the sub-commands' modules import it and
+``cli`` imports them, with no import back.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+#: what this command wrote so far (the interrupted line says it)
+_WRITTEN: list[str] = []
+
+
+def _choices(option: str):
+    """The registered names and their one-line help for a stage option."""
+    from .config import registries
+
+    reg = registries()[option]
+    return reg.names(), reg.help_text()
+
+
+def _stage_name(option: str):
+    """An argparse ``type`` that reads a stage's name in any case (``--solver FISTA``), before
+    argparse checks it against the registered names."""
+    from .config import registries
+
+    return registries()[option].canonical
+
+
+def _add_regulariser_option(g) -> None:
+    """``--regulariser``, its choices and help from the registry (run's and reconstruct's)."""
+    from .solvers import REGULARISERS
+
+    g.add_argument("--regulariser", choices=("auto", *REGULARISERS.names()),
+                   default=argparse.SUPPRESS,
+                   help=f"auto: the solver's default; {REGULARISERS.help_text()}")
+
+
+def _add_stage_options(g, option: str) -> None:
+    """The flags of the options that the stages of one registry declare
+    (:class:`~spslidar.registry.Option`): type, help, unit and default from the declaration,
+    the stages that take each named in its help (every registry's: only the detectors' had
+    flags, so a plugin solver's or estimator's option had none, an audit)."""
+    from .config import registries
+
+    reg = registries()[option]
+    for name, opt in reg.options().items():
+        owners = ", ".join(reg.owners(name))
+        kind = {"float": float, "int": int}.get(opt.kind.__name__)
+        extra = ({"choices": ("on", "off")} if opt.kind is bool else
+                 {"choices": opt.choices} if opt.choices else
+                 {"type": kind, "metavar": opt.unit.upper() or "X"} if kind else {})
+        g.add_argument(opt.flag, default=argparse.SUPPRESS, **extra,
+                       help=f"{owners}: {opt.describe()}")
+
+
+def _duration(text: str) -> float:
+    """``--max-time``: seconds, or a number with a unit (``90s``, ``10min``, ``2h``, ``1d``)."""
+    from .machine import parse_duration
+
+    try:
+        return parse_duration(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).replace("--max-time must be", "must be")) \
+            from None
+
+
+def _memory(text: str) -> float:
+    """``--max-memory`` in gigabytes: a number (GB), or one with a unit (``500MB``, ``2GB``,
+    ``1.5GiB``; ``2GB`` was an invalid float while ``--max-time`` took units)."""
+    from .errors import ConfigError
+    from .machine import parse_memory
+
+    try:
+        return parse_memory(text)
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc).replace("--max-memory: ", "")) from None
+
+
+def _fov(text: str) -> float:
+    """``--fov`` in degrees, in (0, 180)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0.0 < value < 180.0:
+        raise argparse.ArgumentTypeError(f"must lie in (0, 180) degrees, got {text}")
+    return value
+
+
+def _add_fov_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--fov", type=_fov, default=None, metavar="DEG",
+                   help="full field of view across the image, degrees, for points.ply (default "
+                        "10; the paper gives no optics)")
+
+
+def _written(out) -> list[str]:
+    """The result files in ``out``, in a fixed order, for the closing line."""
+    from pathlib import Path
+
+    order = ("metrics.json", "depth.npy", "reflectivity.npy", "confidence.npy", "depth2.npy",
+             "points.ply", "truth.npy", "valid.npy", "depth.png")
+    have = {p.name for p in Path(out).iterdir()}
+    return [name for name in order if name in have]
