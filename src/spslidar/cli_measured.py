@@ -17,9 +17,14 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
     p.add_argument("--ptu", required=True, metavar=ptu_metavar, help=ptu_help)
     p.add_argument("--patterns", required=True, metavar="PATTERNS.npy",
                    help="(M, N, N) mirror states shown, in marker order (0/1 or grey in [0, 1])")
-    p.add_argument("--code", required=True, metavar="CODE.npy|mseq",
-                   help="unipolar bits of one code period (.npy), or mseq with --code-length")
-    p.add_argument("--code-length", type=int, metavar="L", help="m-sequence length (2^n - 1)")
+    p.add_argument("--code", required=True, metavar="CODE.npy|FAMILY",
+                   help="unipolar bits of one code period (.npy), or a code family's name "
+                        "(mseq, gold) with --code-length, as run makes it")
+    p.add_argument("--code-length", type=int, metavar="L",
+                   help="bits per code period of a named family (2^n - 1 for mseq/gold)")
+    p.add_argument("--code-index", type=int, metavar="I",
+                   help="member of the named family (gold: default 2) / cyclic shift of the "
+                        "m-sequence (default 0), as run --code-index")
     p.add_argument("--bit-rate", type=float, required=True, metavar="HZ",
                    help="bits (TDC bins) per second; must match the file's resolution")
     p.add_argument("--marker", type=int, default=1, metavar="K",
@@ -96,7 +101,7 @@ def cmd_reconstruct(args) -> int:
     # (with the options the solvers and estimators declare: a plugin's had no flag)
     processing = {k: getattr(args, k) for k in processing_keys() if hasattr(args, k)}
     result = reconstruct_ptu(args.ptu, load_patterns(args.patterns),
-                             load_code(args.code, args.code_length), args.bit_rate,
+                             load_code(args.code, args.code_length, args.code_index), args.bit_rate,
                              tuple(args.range_gate), marker=args.marker, channel=args.channel,
                              allow_binning=args.allow_binning, truth=args.truth,
                              calibration=args.calibration, marker_edge=args.marker_edge,
@@ -159,7 +164,8 @@ def cmd_calibrate(args) -> int:
 
     check_calibration_out(args.out, args.overwrite)  # refuse before any work
     cal = calibrate_ptu(args.ptu, load_patterns(args.patterns, distinct=False),
-                        load_code(args.code, args.code_length), args.bit_rate, args.distance,
+                        load_code(args.code, args.code_length, args.code_index),
+                        args.bit_rate, args.distance,
                         marker=args.marker, channel=args.channel,
                         allow_binning=args.allow_binning, target=args.target,
                         fov_deg=args.fov, marker_edge=args.marker_edge)

@@ -196,15 +196,35 @@ def _check_truth(truth: Any, n: int) -> np.ndarray:
     return arr
 
 
-def load_code(code: str | os.PathLike, code_length: int | None = None) -> np.ndarray:
-    """The unipolar code of one period: a ``.npy`` of 0/1 bits, or ``'mseq'`` with
-    ``code_length`` (the m-sequence ``spslidar run`` uses, shift 0)."""
-    if str(code).lower() == "mseq" and not Path(code).exists():  # (as run reads MSEQ)
-        from ..codes.sequences import make_code
+def load_code(code: str | os.PathLike, code_length: int | None = None,
+              code_index: int | None = None) -> np.ndarray:
+    """The unipolar code of one period: a ``.npy`` of 0/1 bits, or the name of a registered
+    code family (:data:`spslidar.codes.CODES`: ``mseq``, ``gold``, a plugin's) with
+    ``code_length`` and, optionally, ``code_index`` (the family's member or shift, as
+    ``spslidar run --code-index``; default the family's, as ``run``'s). A family that draws
+    its bits from a seed (``random``) is refused: its bits are the ``.npy`` that ``run
+    --save-ptu`` writes beside its file."""
+    from ..codes import CODES
 
+    name = str(code)
+    if not Path(code).exists() and name.lower() in {n.lower() for n in CODES.names()}:
+        name = CODES.canonical(name)
         if code_length is None:
-            raise ConfigError("--code mseq needs --code-length L (2^n - 1)")
-        return np.asarray(make_code("mseq", int(code_length), 0.5), dtype=np.uint8)
+            raise ConfigError(f"--code {name} needs --code-length L")
+        entry = CODES.get(name)
+        index = entry.defaults.get("index", 0) if code_index is None else code_index
+        if isinstance(index, bool) or not isinstance(index, int | np.integer) or index < 0:
+            raise ConfigError(f"--code-index must be a whole number >= 0, got {index!r}")
+        make = entry.load()
+        bits = [np.asarray(make(name, int(code_length), 0.5, rng=np.random.default_rng(seed),
+                                index=int(index)), dtype=np.uint8) for seed in (0, 1)]
+        if not np.array_equal(*bits):
+            raise ConfigError(f"--code {name} draws its bits from a seed: give them as a .npy "
+                              f"of 0/1 bits (run --save-ptu writes <stem>_code.npy)")
+        return check_code(bits[0], code_length, f"--code {name}")
+    if code_index is not None:
+        raise ConfigError(f"--code-index is for a code family's name (mseq, gold), not a "
+                          f"file: {name}")
     return check_code(_load_npy(code, "code"), code_length, f"--code {code}")
 
 
@@ -222,7 +242,7 @@ def check_code(code: Any, code_length: int | None = None, what: str = "code") ->
                           f"{int(bad.sum())} other values (first: {arr[bad][0].item()!r})")
     if code_length is not None and int(code_length) != arr.size:
         raise ConfigError(f"--code-length {code_length} disagrees with {what}, which holds "
-                          f"{arr.size} bits (--code-length is for --code mseq)")
+                          f"{arr.size} bits (--code-length is for a named code family)")
     ones = int(arr.sum())
     if ones in (0, arr.size):  # no modulation: nothing to correlate with
         raise ConfigError(f"{what}: all {arr.size} bits are {int(ones > 0)}; a code needs "
