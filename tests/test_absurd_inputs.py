@@ -139,3 +139,19 @@ def test_no_scheduler_listening_is_said_within_seconds(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cannot connect" in err[0]
     assert not (tmp_path / "o").exists()
+
+
+def test_python_m_spslidar_is_the_command():
+    """``python -m spslidar`` runs the ``spslidar`` command (it was "No module named
+    spslidar.__main__": an outside audit), with its exit status."""
+    import subprocess
+    import sys
+
+    from spslidar.version import __version__
+
+    ok = subprocess.run([sys.executable, "-m", "spslidar", "--version"], capture_output=True,
+                        text=True, timeout=120)
+    assert ok.returncode == 0 and ok.stdout.strip() == f"spslidar {__version__}"
+    bad = subprocess.run([sys.executable, "-m", "spslidar", "run", "--size", "0"],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
