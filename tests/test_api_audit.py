@@ -242,3 +242,26 @@ def test_pattern_files_other_tools_write_are_said_plainly(tmp_path):
         load_patterns(tif)
     assert "magic" not in str(info.value)
     assert check_patterns(p).shape == (4, 16)  # 0/1 uint8 as before
+
+
+def test_a_regulariser_declaring_an_option_is_refused_at_registration():
+    """A regulariser is built as ``make(shape, nonneg=..., max_inner=...)``, with nothing of
+    the config's: a plugin's declared option was a key no config could set ("unknown config
+    key", its default used always; an architecture audit). Refused where it is registered;
+    without options it registers as before, and other registries still take options."""
+    from spslidar.registry import Option, Registry
+    from spslidar.solvers import REGULARISERS
+    from spslidar.solvers.regularisers import make_l1
+
+    with pytest.raises(ValueError, match="a regulariser declares no options.*'weighted'.*"
+                                         "weight"):
+        REGULARISERS.add("weighted", make_l1, options=(Option("weight", 1.0, "a weight"),))
+    assert "weighted" not in REGULARISERS
+    REGULARISERS.add("weighted", make_l1, "weighted l1", "l1 by another name")
+    try:
+        assert REGULARISERS.load("weighted") is make_l1
+    finally:
+        REGULARISERS.remove("weighted")
+    other = Registry("thing", "thing")
+    other.add("a", make_l1, options=(Option("weight", 1.0),))
+    assert list(other.options()) == ["weight"]

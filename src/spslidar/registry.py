@@ -190,11 +190,16 @@ class Registry:
         What the entries are, for messages (``"solver"``, ``"code family"``...).
     option : str
         The config key / CLI option that selects an entry (``"solver"``, ``"code"``...).
+    takes_options : bool
+        Whether its entries may declare options (:class:`Option`): a registry whose stages
+        are built without the config's options (the regularisers) refuses them at
+        registration, where an option declared would be a key no config could set.
     """
 
-    def __init__(self, kind: str, option: str):
+    def __init__(self, kind: str, option: str, takes_options: bool = True):
         self.kind = kind
         self.option = option
+        self.takes_options = takes_options
         self._entries: dict[str, Entry] = {}
         self._replaced: dict[str, Entry] = {}  # the built-in entries add() replaced
 
@@ -207,6 +212,10 @@ class Registry:
         declared alike (same default, kind and bounds): it is one config key."""
         if not name or not isinstance(name, str):
             raise ValueError(f"a {self.kind} needs a non-empty name")
+        if options and not self.takes_options:
+            raise ValueError(f"a {self.kind} declares no options (no config key or flag would "
+                             f"reach {name!r}'s {', '.join(o.name for o in options)}): give "
+                             f"its factory fixed values, or register one entry per setting")
         for opt in options:
             # (not the entry this one replaces: a notebook cell re-run with another default
             # was refused, with no way back but a new kernel, an audit of 2026-11-29)

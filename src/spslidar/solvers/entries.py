@@ -62,8 +62,10 @@ SOLVERS.add("gpsr", "spslidar.solvers.gpsr:GPSR", "GPSR",
             iterations=120, lam_scale=0.3, regulariser="wavelet", pattern_copies=2)
 
 #: the regularisers of eq. (18), by name (``--regulariser``; ``auto`` is the solver's default);
-#: each target is a factory ``make(shape, nonneg=..., max_inner=...)`` -> Regulariser
-REGULARISERS = Registry("regulariser", "regulariser")
+#: each target is a factory ``make(shape, nonneg=..., max_inner=...)`` -> Regulariser, built
+#: with nothing else, so an entry declares no options (refused: a plugin's was a key no
+#: config could set, an architecture audit of 2026-11-29)
+REGULARISERS = Registry("regulariser", "regulariser", takes_options=False)
 REGULARISERS.add("tv", "spslidar.solvers.regularisers:make_tv", "TV",
                  "isotropic total variation of each range slice (default of fista, twist, tval3)")
 REGULARISERS.add("tv-aniso", "spslidar.solvers.regularisers:make_tv_aniso", "anisotropic TV",
