@@ -221,6 +221,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``spslidar`` parser with every sub-command (their options and choices read from
+    the registries, a plugin's stages included once loaded)."""
     from .version import __version__
 
     parser = _Parser(

@@ -262,6 +262,11 @@ class Config:
 
     # -- validation ---------------------------------------------------------------------
     def validate(self) -> None:  # noqa: C901 - a flat list of checks
+        """Check and normalise every field (run by ``__post_init__`` and on assignment):
+        NumPy scalars as Python's, stage names in any case as registered, each stage's
+        declared options bounded, numbers in their ranges, the range gate, the memory and
+        time limits and the backend; each failure one :class:`ConfigError` line naming the
+        flag."""
         for f in dataclasses.fields(self):  # NumPy scalars (np.int64(8), np.bool_) as Python's
             v = getattr(self, f.name)
             if type(v).__module__ == "numpy" and getattr(v, "ndim", None) == 0:

@@ -53,6 +53,8 @@ class IRF:
     path: str | None = None
 
     def describe(self) -> str:
+        """The response as ``--irf`` takes it (``gaussian:FWHM[,tail:TAU[,weight:W]]`` or
+        ``file PATH``), for messages and ``metrics.json``."""
         if self.path is not None:
             return f"file {self.path}"
         text = f"gaussian:{self.fwhm:g}"

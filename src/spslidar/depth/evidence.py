@@ -141,6 +141,11 @@ class EvidenceDepth(GuardedDepth):
 
     def guard(self, x: np.ndarray, z: np.ndarray, smooth: np.ndarray,
               shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, dict]:
+        """Each pixel's own slice (the reconstruction's argmax) and where it is kept against
+        the MRF's label ``smooth`` (:meth:`GuardedDepth.guard`'s contract): where it differs
+        and stands ``strong`` noise maxima high, lies on a line of ``line`` noise maxima of
+        evidence, or is an occluder in front that ``share`` of its neighbours also see in
+        front at ``occluder`` noise maxima; ``info`` holds the noise maximum."""
         q = z.shape[0]
         if q == 0:
             return smooth, np.zeros(0, bool), {"noise_max": 0.0}

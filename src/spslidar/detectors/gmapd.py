@@ -369,6 +369,8 @@ class GMAPD(DetectorModel):
         return np.where(c > 0, var, 0.0).sum(axis=1)
 
     def notes(self) -> list[str]:
+        """What to say of this detector's settings before it counts (a GMAPD without a
+        dead time counts linearly)."""
         if self.dead_time == 0:
             return ["--dead-time 0: this GMAPD never goes dead, so it counts linearly (no "
                     "pile-up to correct); its jitter and afterpulses still apply"]

@@ -74,6 +74,8 @@ class Budget:
     parts: dict[str, float] = field(default_factory=dict)
 
     def describe(self) -> str:
+        """The estimate in words: memory with its largest part, and time where it is
+        estimated (the refusals' and announcements' sentence)."""
         big = max(self.parts, key=self.parts.get) if self.parts else "total"
         time = f" and ~{_secs(self.seconds)}" if self.seconds > 0 else ""
         return (f"~{_gb(self.bytes)} of memory (largest part: {big}, "

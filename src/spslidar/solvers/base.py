@@ -87,6 +87,7 @@ class SolveInfo:
     extra: dict[str, Any] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
+        """The record as plain JSON values (what ``metrics.json`` holds under ``solver``)."""
         return {
             "solver": self.solver,
             "iterations": self.iterations,
