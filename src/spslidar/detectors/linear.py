@@ -27,7 +27,11 @@ class LinearDetector(PhotonCountingDetector, DetectorModel):
     name = "linear"
     linear = True
 
-    def detect(self, lam, rng, n_periods=1, out=None):
+    def detect(self, lam: np.ndarray, rng: np.random.Generator | int | None,
+               n_periods: int = 1, out: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """Poisson counts of the detected means, with each row's total
+        (:meth:`~spslidar.detectors.base.DetectorModel.detect`)."""
         from ..randomness import as_generator
 
         rng = as_generator(rng)
@@ -41,7 +45,9 @@ class LinearDetector(PhotonCountingDetector, DetectorModel):
         totals = poisson_rows(lam, rng, out)
         return out, totals
 
-    def expected(self, lam, n_periods=1):
+    def expected(self, lam: np.ndarray, n_periods: int = 1) -> np.ndarray:
+        """The detected means, ``efficiency * lam``
+        (:meth:`~spslidar.detectors.base.DetectorModel.expected`)."""
         return self.detected_means(lam)
 
     def report(self, counts_per_period: float, period_s: float,

@@ -22,11 +22,15 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
 from ..operators.parallel import parallel
+
+if TYPE_CHECKING:
+    from ..operators import LinearOperator
+    from .regularisers import Regulariser
 
 
 @dataclass
@@ -296,7 +300,8 @@ class Solver:
         self._threads_used = 1
 
     # -- the step-wise interface -----------------------------------------------------------
-    def setup(self, A, y, reg, lam: float, x0: np.ndarray | None = None) -> None:
+    def setup(self, A: LinearOperator, y: np.ndarray, reg: Regulariser, lam: float,
+              x0: np.ndarray | None = None) -> None:
         """Check the problem, reset ``reg``'s state and initialise the iteration.
 
         Parameters
@@ -388,8 +393,10 @@ class Solver:
         info.extra["threads"] = self._threads_used
         return (x[:, 0] if self._was_1d else x), info
 
-    def solve(self, A, y, reg, lam: float, x0: np.ndarray | None = None,
-              callback: Callback | Sequence[Callback] | None = None):
+    def solve(self, A: LinearOperator, y: np.ndarray, reg: Regulariser, lam: float,
+              x0: np.ndarray | None = None,
+              callback: Callback | Sequence[Callback] | None = None
+              ) -> tuple[np.ndarray, SolveInfo]:
         """Minimise the solver's objective; return ``(x, info)``, ``x`` shaped like ``A.H @ y``.
 
         :meth:`setup`, :meth:`run` (with ``callback``) and :meth:`finish` in one parallel
@@ -534,8 +541,10 @@ def get_solver(name: str) -> type[Solver]:
     return _registry().load(name)
 
 
-def solve(A, y, reg, lam: float, method: str = "fista", x0=None, stop: StopRule | None = None,
-          callback: Callback | Sequence[Callback] | None = None, **options):
+def solve(A: LinearOperator, y: np.ndarray, reg: Regulariser, lam: float,
+          method: str = "fista", x0: np.ndarray | None = None, stop: StopRule | None = None,
+          callback: Callback | Sequence[Callback] | None = None, **options
+          ) -> tuple[np.ndarray, SolveInfo]:
     """Solve eq. (18) with the named method: ``x, info = solve(A, y, reg, lam, 'fista')``."""
     return get_solver(method)(stop=stop, **options).solve(A, y, reg, lam, x0=x0,
                                                           callback=callback)
