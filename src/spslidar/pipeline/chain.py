@@ -32,7 +32,14 @@ from ..patterns import build_patterns
 from ..qcr import MeanEliminated, plain_problem, qcr_problem
 from ..scenes import load_scene
 from ..solvers.entries import TV_REGULARISERS
-from .gate import AUTO_GATE_MIN_SLICES, AUTO_GATE_SIGMAS, gate_text, occupied_lags, with_reference
+from .gate import (
+    AUTO_GATE_MIN_SLICES,
+    AUTO_GATE_SIGMAS,
+    code_sidelobes,
+    gate_text,
+    occupied_lags,
+    with_reference,
+)
 from .measurement import (
     PROCESSING_KEYS,
     Measurement,
@@ -289,8 +296,14 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     if be is not None and not device:  # stages without a device kernel: on the host
         corr, patterns = _host(be, corr), host_patterns(patterns)
     auto = cfg.auto_gate if cfg.auto_gate is not None else ulags.size > AUTO_GATE_MIN_SLICES
-    keep = (occupied_lags(_host(be, corr), sim["sigma"]) if auto
-            else np.ones(ulags.size, dtype=bool))
+    if auto:
+        from ..correlate import make_replica
+
+        keep = occupied_lags(_host(be, corr), sim["sigma"], lags=ulags,
+                             sidelobes=code_sidelobes(acq.code,
+                                                      make_replica(acq.code, acq.replica)))
+    else:
+        keep = np.ones(ulags.size, dtype=bool)
     occupied = keep
     if auto:
         if not keep.any():

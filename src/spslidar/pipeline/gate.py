@@ -28,24 +28,92 @@ AUTO_GATE_DILATE = 2
 
 
 def occupied_lags(corr: np.ndarray, sigma: np.ndarray, n_sigmas: float = AUTO_GATE_SIGMAS,
-                  dilate: int = AUTO_GATE_DILATE) -> np.ndarray:
+                  dilate: int = AUTO_GATE_DILATE, lags: np.ndarray | None = None,
+                  sidelobes: np.ndarray | None = None) -> np.ndarray:
     """Automatic range gate: which delays hold a return, found before any reconstruction.
 
     The matched-filter output averaged over the patterns is ``mean_i C_i(tau) =
     sum_j mean(Phi_j) alpha_j w_j(tau)``: the scene's reflectivity-weighted depth histogram
-    (plus a constant background). Delays where it rises more than ``n_sigmas`` standard
-    deviations (of that mean, ``sqrt(mean sigma_i^2 / M)``) above its median are occupied; each
-    is widened by ``dilate`` bins. Returns a boolean mask over the columns of ``corr``, all
-    False where no delay rises (:func:`with_reference` adds the noise's sample).
+    (plus a constant background), each return seen through the code's correlation with the
+    replica. Delays where it rises more than ``n_sigmas`` standard deviations (of that mean,
+    ``sqrt(mean sigma_i^2 / M)``) above its median are occupied; each is widened by
+    ``dilate`` bins. Returns a boolean mask over the columns of ``corr``, all False where no
+    delay rises (:func:`with_reference` adds the noise's sample).
+
+    With ``sidelobes`` (:func:`code_sidelobes`, a code whose correlation has them: a Gold or
+    random code) and the columns' ``lags``, the delays are taken one at a time, the highest
+    first, each one's sidelobes removed from the rest before the next is tested (CLEAN, as
+    radio astronomy deconvolves a beam): a strong return's sidelobes, 6 % of its peak for a
+    1023-bit Gold code, stood above the threshold at every delay, so an audit's wall at 50 m
+    in a 40-60 m gate kept 385 of 669 delays and read 0.28 m RMSE (0.014 m through an
+    m-sequence, whose correlation with its bipolar replica has none).
     """
     profile = np.asarray(corr, dtype=np.float64).mean(axis=0)
     noise = float(np.sqrt(np.mean(np.asarray(sigma) ** 2) / corr.shape[0]))
     base = float(np.median(profile))
-    hit = profile - base > n_sigmas * max(noise, 1e-300)
+    threshold = n_sigmas * max(noise, 1e-300)
+    if sidelobes is None or lags is None:
+        hit = profile - base > threshold
+    else:
+        hit = _clean(profile, threshold, np.asarray(lags, dtype=np.int64),
+                     np.asarray(sidelobes, dtype=np.float64))
     # (none may rise: the gate then holds nothing this acquisition tells from the background.
     # The noisiest delay was kept instead, and its profiles, zero everywhere else, read as
     # returns at full confidence: a black scene came out a wall, said nowhere, an audit)
     return _dilated(hit, dilate)
+
+
+#: a code's correlation counts as holding sidelobes where one stands above this share of its
+#: peak (:func:`code_sidelobes`; an m-sequence against its bipolar or unipolar replica has
+#: none: a constant, which the gate's median removes)
+SIDELOBE_SHARE = 1e-3
+#: steps :func:`_clean` takes at most (each costs one pass over the gate's delays); the
+#: delays still above the threshold are then taken as they stand
+CLEAN_MAX = 4096
+
+
+def code_sidelobes(code: np.ndarray, replica: np.ndarray) -> np.ndarray | None:
+    """The matched filter's response to one return at lag 0 (eq. 5-6 on the code itself):
+    ``R(x) = sum_t code(t) f(t - x)`` over the period, less its median, over its peak's
+    height above it (1 at lag 0); None where no other lag stands above
+    :data:`SIDELOBE_SHARE` of the peak, or where it has no peak."""
+    c = np.fft.rfft(np.asarray(code, dtype=np.float64))
+    f = np.fft.rfft(np.asarray(replica, dtype=np.float64))
+    r = np.fft.irfft(c * np.conj(f), n=np.size(code))
+    r -= np.median(r)
+    if not r[0] > 0:
+        return None
+    r /= r[0]
+    return r if np.max(np.abs(r[1:])) > SIDELOBE_SHARE else None
+
+
+def _clean(profile: np.ndarray, threshold: float, lags: np.ndarray,
+           sidelobes: np.ndarray) -> np.ndarray:
+    """The delays whose rise above the background stands above ``threshold`` once the
+    sidelobes of every higher one are removed (:func:`occupied_lags`). Written here: a greedy
+    CLEAN on one profile of the gate's delays, a few lines; no library's deconvolution takes a
+    response known only at the differences of an irregular set of delays."""
+    period = sidelobes.size
+    model = np.zeros_like(profile)
+    hit = np.zeros(profile.size, dtype=bool)
+    resid = profile - np.median(profile)
+    # (a delay taken may be taken again, either way: its first amplitude held the sidelobes of
+    # returns not yet removed, 82 noise deviations of a wall's second bin through a 1023-bit
+    # Gold code, whose own sidelobes then stood 5-8 deviations high at delays without a
+    # return; corrected, the error shrinks by the sidelobes' share each time: matching
+    # pursuit. The background is the median of the delays not taken, read again each step:
+    # the whole profile's median stood 160 deviations above it where the returns fill a
+    # third of the gate, and hid a random code's weaker returns under it)
+    for _ in range(CLEAN_MAX):
+        score = np.where(hit, np.abs(resid), resid)
+        k = int(np.argmax(score))
+        if not score[k] > threshold:
+            return hit
+        hit[k] = True
+        model += resid[k] * sidelobes[(lags - lags[k]) % period]
+        rest = profile - model
+        resid = rest - np.median(rest[~hit] if not hit.all() else rest)
+    return hit | (resid > threshold)
 
 
 def _dilated(mask: np.ndarray, d: int) -> np.ndarray:
