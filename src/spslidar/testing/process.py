@@ -22,7 +22,7 @@ import sys
 
 import numpy as np
 
-__all__ = ["digest", "fresh_digest"]
+__all__ = ["digest", "fresh_digest", "output_digest"]
 
 #: seconds a fresh interpreter may take to import spslidar, the plugins and make the output
 TIMEOUT_S = 120
@@ -51,8 +51,25 @@ def _importable(entry) -> list[str] | None:
     return list(plugins._LOADED)  # all of them, in order: one may import another's stages
 
 
+def output_digest(kind: str, name: str) -> str:
+    """:func:`digest` of the probe output of stage ``name``
+    (``kind`` ``code`` or ``scene``), as the conformance checks build it: what
+    :func:`fresh_digest` has new interpreters print."""
+    from .probes import probe_code, scene_size, scene_spec
+
+    if kind == "code":
+        make, index = probe_code(name)
+        return digest((make(index),))
+    if kind == "scene":
+        from ..scenes import load_scene
+
+        scene = load_scene(scene_spec(name), scene_size(name))
+        return digest((scene.depth, scene.reflectivity, scene.valid))
+    raise ValueError(f"no fresh-process digest for stage kind {kind!r}")
+
+
 def fresh_digest(kind: str, name: str) -> list[str] | None:
-    """:func:`~spslidar.testing.stages.output_digest` computed in two new interpreters, under
+    """:func:`output_digest` computed in two new interpreters, under
     ``PYTHONHASHSEED`` 1 and 2 (two, so that a hash-seeded stage fails whatever this
     process's seed happens to be), or ``None`` where the stage cannot be built there (see
     the module docstring).
@@ -68,7 +85,7 @@ def fresh_digest(kind: str, name: str) -> list[str] | None:
     if specs is None:
         return None
     code = ("import sys\nfrom spslidar.plugins import load_plugins\nload_plugins()\n"
-            "from spslidar.testing.stages import output_digest\n"
+            "from spslidar.testing.process import output_digest\n"
             "print(output_digest(sys.argv[1], sys.argv[2]))\n")
     from pathlib import Path
 

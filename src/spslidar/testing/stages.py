@@ -34,46 +34,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..config import Config, chosen_stage_options
+from ..config import chosen_stage_options
 from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
 from . import config_for
+from .probes import _fail, _probe, probe_code, scene_size, scene_spec
 
 __all__ = ["check_code_family", "check_depth_estimator", "check_detector",
-           "check_pattern_kind", "check_scene_kind", "output_digest"]
-
-#: candidate code lengths; the first one a family accepts is used
-CODE_LENGTHS = (127, 255, 511, 1023, 128)
-
-
-def _fail(what: str, why: str) -> AssertionError:
-    return AssertionError(f"{what}: {why}")
-
-
-def _probe(option: str, name: str) -> dict:
-    """The config overrides an entry declares for its checks (``check={"size": 16}``): a
-    stage that needs other sizes than the probe's says so where it is registered."""
-    from . import registry_of
-
-    probe = registry_of(option).get(name).defaults.get("check", {})
-    if not isinstance(probe, dict):
-        raise AssertionError(f"{option} {name!r}: its entry's check= must be a dict of config "
-                             f"keys, got {probe!r}")
-    return dict(probe)
-
-
-def _code_config(name: str) -> Config:
-    probe = _probe("code", name)
-    if "code_length" in probe:
-        return config_for("code", name, **probe)
-    for length in CODE_LENGTHS:
-        try:
-            return config_for("code", name, code_length=length)
-        except ConfigError:
-            continue
-    raise _fail(f"code family {name!r}", f"accepts none of the probe's lengths "
-                                         f"{CODE_LENGTHS}; declare one it accepts with "
-                                         f"check={{'code_length': L}} where it is registered")
+           "check_pattern_kind", "check_scene_kind"]
 
 
 def check_code_family(name: str) -> list[str]:
@@ -118,40 +86,6 @@ def check_code_family(name: str) -> list[str]:
                           f"an index the family does not have (ConfigError), or honour it")
     return ["length", "bits", "reproducible", "balanced", "single correlation peak",
             "index selects", *_same_in_a_fresh_process("code", name, what, (code,))]
-
-
-def probe_code(name: str):
-    """``(make, index)``: the probe's maker of family ``name``'s code, ``make(index)``, and the
-    entry's default index, as :func:`check_code_family` builds them."""
-    from ..codes import CODES
-
-    cfg = _code_config(name)
-    entry = CODES.get(name)
-    options = chosen_stage_options(cfg, "code")
-    length = cfg.code_length
-
-    def make(index):
-        return np.asarray(entry.load()(name, length, 0.5, rng=np.random.default_rng(1),
-                                       index=index, **options))
-
-    return make, entry.defaults.get("index", 0)
-
-
-def output_digest(kind: str, name: str) -> str:
-    """:func:`~spslidar.testing.process.digest` of the probe output of stage ``name``
-    (``kind`` ``code`` or ``scene``), as the conformance checks build it: what
-    :func:`~spslidar.testing.process.fresh_digest` has new interpreters print."""
-    from .process import digest
-
-    if kind == "code":
-        make, index = probe_code(name)
-        return digest((make(index),))
-    if kind == "scene":
-        from ..scenes import load_scene
-
-        scene = load_scene(scene_spec(name), scene_size(name))
-        return digest((scene.depth, scene.reflectivity, scene.valid))
-    raise ValueError(f"no fresh-process digest for stage kind {kind!r}")
 
 
 def _same_in_a_fresh_process(kind: str, name: str, what: str, arrays) -> list[str]:
@@ -418,21 +352,6 @@ def _check_subbin(name: str, options: dict, ctx, what: str) -> None:
         raise _fail(what, f"with subbin on, a return shared {1 - share[k]:.2f} / "
                           f"{share[k]:.2f} between bins {t} and {t + 1} reads at bin "
                           f"{got[k]:.3f}, more than half a bin from {want[k]:.3f}")
-
-
-def scene_spec(name: str) -> str:
-    """A loadable spec of scene kind ``name`` (``kind:EXAMPLE`` where it takes an argument)."""
-    from ..scenes import SCENES
-
-    entry = SCENES.get(name)
-    if entry.defaults.get("argument"):
-        return f"{name}:{entry.defaults.get('example', '0')}"
-    return name
-
-
-def scene_size(name: str) -> int:
-    """The probe's side for scene kind ``name`` (16, or its entry's ``check={"size": N}``)."""
-    return int(_probe("scene", name).get("size", 16))
 
 
 def check_scene_kind(name: str) -> list[str]:
