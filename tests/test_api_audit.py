@@ -253,9 +253,11 @@ def test_a_regulariser_declaring_an_option_is_refused_at_registration():
     from spslidar.solvers import REGULARISERS
     from spslidar.solvers.regularisers import make_l1
 
-    with pytest.raises(ValueError, match="a regulariser declares no options.*'weighted'.*"
-                                         "weight"):
+    with pytest.raises(ValueError, match="a regulariser declares no options or defaults.*"
+                                         "weight of 'weighted'"):
         REGULARISERS.add("weighted", make_l1, options=(Option("weight", 1.0, "a weight"),))
+    with pytest.raises(ValueError, match="eps of 'weighted'"):  # (a default: never used)
+        REGULARISERS.add("weighted", make_l1, eps=5.0)
     assert "weighted" not in REGULARISERS
     REGULARISERS.add("weighted", make_l1, "weighted l1", "l1 by another name")
     try:

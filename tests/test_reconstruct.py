@@ -242,6 +242,25 @@ def test_a_code_family_by_name_is_the_code_run_makes(tmp_path):
     assert not np.array_equal(load_code("gold", 127, 5), load_code("gold", 127, 6))
     np.save(tmp_path / "c.npy", load_code("gold", 127, 5))
     np.testing.assert_array_equal(load_code(tmp_path / "c.npy"), load_code("gold", 127, 5))
+    from spslidar.codes import CODES
+    from spslidar.registry import Option
+
+    def stride(kind, length, ones_ratio, rng=None, index=0, stride=2):
+        return (np.arange(length) % stride == 0).astype(np.uint8)
+
+    def ratio(kind, length, ones_ratio, rng=None, index=0):
+        return (np.arange(length) < round(ones_ratio * length)).astype(np.uint8)
+
+    CODES.add("strided", stride, options=(Option("stride", 3, "every stride-th bit"),))
+    CODES.add("fraction", ratio)
+    try:  # (a review: the code run makes, with --stride or --ones-ratio, was not rebuilt)
+        for name, match in (("strided", "takes options \\(--stride\\)"),
+                            ("fraction", "depend on its ones ratio")):
+            with pytest.raises(ConfigError, match=match):
+                load_code(name, 31)
+    finally:
+        CODES.remove("strided")
+        CODES.remove("fraction")
     for args, match in ((("random", 127), "draws its bits from a seed"),
                         ((tmp_path / "c.npy", None, 3), "--code-index is for a code family"),
                         (("gold", 127, -1), "--code-index must be a whole number"),

@@ -379,20 +379,19 @@ def test_timestamps_coarser_than_the_bins():
 
 
 def test_a_long_stream_converted_in_pieces_is_one_file(tmp_path):
-    """The pieces of a stream converted one by one, each given the first's ``time_origin``,
+    """The pieces of a stream converted one by one, each given the one before as ``after``,
     and written through ``write_ptu_t3_stream`` give the file of the whole stream: the same
-    histograms and dwells (numbered from each piece's first event, the audit's split lost 44
-    empty periods of the pattern it cut). A time origin off the period's grid, or after a
-    piece's events, is refused."""
+    histograms and dwells (numbered from each piece's first event, an audit's split lost 44
+    empty periods of the pattern it cut). Pieces out of order or overlapping are refused."""
     from spslidar.io import write_ptu_t3_stream
 
     times, channels, _ = _swabian()
     whole = t3_from_timestamps(times, channels, **KW)
     cut = np.flatnonzero(channels == MARK)[5] - 3  # (just before the 6th marker)
     one = t3_from_timestamps(times[:cut], channels[:cut], **KW)
-    two = t3_from_timestamps(times[cut:], channels[cut:], time_origin=one.time_origin, **KW)
-    assert one.time_origin == whole.time_origin
+    two = t3_from_timestamps(times[cut:], channels[cut:], after=one, **KW)
     np.testing.assert_array_equal(np.concatenate([one.nsync, two.nsync]), whole.nsync)
+    assert two.last_sync_period == whole.last_sync_period
     files = {}
     for name, parts in (("whole", [whole]), ("pieces", [one, two])):
         files[name] = tmp_path / f"{name}.ptu"
@@ -403,14 +402,45 @@ def test_a_long_stream_converted_in_pieces_is_one_file(tmp_path):
             for k in ("whole", "pieces"))
     np.testing.assert_array_equal(b.histograms, a.histograms)
     np.testing.assert_array_equal(b.periods_per_pattern, a.periods_per_pattern)
-    with pytest.raises(ConfigError, match="not the start of a period"):
-        t3_from_timestamps(times[cut:], channels[cut:], time_origin=one.time_origin + 6000,
-                           **KW)
-    early = dict(time_unit_s=1e-12, sync_channel=0, marker_channel=2, resolution_s=10e-12)
-    t, c = np.array([5, 10, 12, 110, 150, 210]), np.array([1, 0, 2, 0, 1, 0])
-    assert t3_from_timestamps(t, c, **early).time_origin == -90  # (the photon's period)
-    with pytest.raises(ConfigError, match="events before time_origin 10"):
-        t3_from_timestamps(t, c, time_origin=10, **early)
+    with pytest.raises(ConfigError, match="the pieces of one stream, in order"):
+        t3_from_timestamps(times, channels, after=one, **KW)  # (again from its start)
+    late = np.r_[np.flatnonzero(channels[cut - 40:cut] != SYNC) + cut - 40,
+                 np.arange(cut, times.size)]  # (photons of one's last periods, no sync)
+    with pytest.raises(ConfigError, match="before the previous piece's last"):
+        t3_from_timestamps(times[late], channels[late], after=one, **KW)
+    with pytest.raises(ConfigError, match="not a whole number of periods after it"):
+        t3_from_timestamps(times[cut:] + 6350, channels[cut:], after=one, **KW)  # (half)
+    with pytest.raises(ConfigError, match="after must be the previous piece's T3Events"):
+        t3_from_timestamps(times, channels, after=10, **KW)
+
+
+def test_many_pieces_of_a_jittered_filtered_stream_keep_their_periods():
+    """400 000 periods of 12.7 ns, syncs jittered by +-10 ps and held only after a photon (a
+    conditional filter), in 20 pieces each numbered on from the one before (the period given,
+    as a piece seldom holds syncs of adjacent periods): every event in the period the whole
+    stream gives it. (A first design, each piece given the first
+    piece's time origin, extrapolated each piece's period back over the whole stream and
+    refused the 9th-32nd piece: a review.)"""
+    rng = np.random.default_rng(4)
+    n, period = 400_000, 12_700.0
+    sync = np.round(np.arange(n) * period + rng.uniform(-10, 10, n)).astype(np.int64)
+    hot = np.sort(rng.choice(n - 1, 4000, replace=False))
+    photon = sync[hot] + rng.integers(0, 12_600, hot.size)
+    marker = sync[::20_000] + 5
+    keep = np.unique(np.r_[hot + 1, np.arange(0, n, 20_000), [0, 1]])  # (after a photon)
+    t = np.concatenate([sync[keep], photon, marker])
+    c = np.concatenate([np.zeros(keep.size, int), np.ones(photon.size, int),
+                        np.full(marker.size, 2)])
+    o = np.argsort(t, kind="stable")
+    t, c = t[o], c[o]
+    kw = dict(time_unit_s=1e-12, sync_channel=0, marker_channel=2, resolution_s=1e-10,
+              sync_period_s=12.7e-9)  # (a piece's syncs are rarely of adjacent periods)
+    whole = t3_from_timestamps(t, c, **kw)
+    pieces, prev = [], None
+    for part in np.array_split(np.arange(t.size), 20):
+        prev = t3_from_timestamps(t[part], c[part], after=prev, **kw)
+        pieces.append(prev.nsync)
+    np.testing.assert_array_equal(np.concatenate(pieces), whole.nsync)
 
 
 def test_a_period_too_long_for_the_records_names_the_resolution(tmp_path):
@@ -424,3 +454,26 @@ def test_a_period_too_long_for_the_records_names_the_resolution(tmp_path):
         write_ptu_from_timestamps(tmp_path / "x.ptu", t[o], c[o], time_unit_s=1e-12,
                                   sync_channel=0, marker_channel=2, resolution_s=1e-10)
     assert not (tmp_path / "x.ptu").exists()
+
+
+def test_review_edges_of_the_new_parameters(tmp_path):
+    """A review's cases: the records' delay range is checked on the period, not on where the
+    photons fell (a 500 ns period in 100 ps bins went into PicoHarp records when the photons
+    were early); the message names the record type as registered; ``syncs_complete`` must be
+    a bool, and refuses events more than a period beyond the syncs held; a time unit equal
+    to the bin but for rounding is not "coarser"."""
+    t = np.array([0, 5, 100, 500_000, 1_000_000])  # (a photon 100 ps after the first sync)
+    c = np.array([0, 2, 1, 0, 0])
+    kw = dict(time_unit_s=1e-12, sync_channel=0, marker_channel=2, resolution_s=1e-10)
+    with pytest.raises(ConfigError, match="5000 delay units .* more than PicoHarpT3 records"):
+        write_ptu_from_timestamps(tmp_path / "x.ptu", t, c, record_type="picoharpt3", **kw)
+    assert not (tmp_path / "x.ptu").exists()
+    with pytest.raises(ConfigError, match="syncs_complete must be True or False"):
+        t3_from_timestamps(t, c, syncs_complete="no", **kw)
+    far = np.array([0, 5, 100, 500_000, 1_000_000, 2_600_000])
+    with pytest.raises(ConfigError, match="1 event.* more than a period .* syncs_complete"):
+        t3_from_timestamps(far, np.r_[c, 1], syncs_complete=True, **kw)
+    assert t3_from_timestamps(far, np.r_[c, 1], **kw).n_photons == 2
+    same = t3_from_timestamps(t, c, time_unit_s=1e-9, sync_channel=0, marker_channel=2,
+                              resolution_s=1e-9 * (1 - 1e-12))
+    assert same.n_photons == 1

@@ -19,7 +19,8 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                    help="(M, N, N) mirror states shown, in marker order (0/1 or grey in [0, 1])")
     p.add_argument("--code", required=True, metavar="CODE.npy|FAMILY",
                    help="unipolar bits of one code period (.npy), or a code family's name "
-                        "(mseq, gold) with --code-length, as run makes it")
+                        "(e.g. mseq, gold: one whose bits a name, length and index fix) with "
+                        "--code-length, as run makes it")
     p.add_argument("--code-length", type=int, metavar="L",
                    help="bits per code period of a named family (2^n - 1 for mseq/gold)")
     p.add_argument("--code-index", type=int, metavar="I",

@@ -212,10 +212,11 @@ class Registry:
         declared alike (same default, kind and bounds): it is one config key."""
         if not name or not isinstance(name, str):
             raise ValueError(f"a {self.kind} needs a non-empty name")
-        if options and not self.takes_options:
-            raise ValueError(f"a {self.kind} declares no options (no config key or flag would "
-                             f"reach {name!r}'s {', '.join(o.name for o in options)}): give "
-                             f"its factory fixed values, or register one entry per setting")
+        if (options or defaults) and not self.takes_options:
+            given = ", ".join([o.name for o in options] + list(defaults))
+            raise ValueError(f"a {self.kind} declares no options or defaults (no config key or "
+                             f"flag would reach them: {given} of {name!r}): give its factory "
+                             f"fixed values, or register one entry per setting")
         for opt in options:
             # (not the entry this one replaces: a notebook cell re-run with another default
             # was refused, with no way back but a new kernel, an audit of 2026-11-29)

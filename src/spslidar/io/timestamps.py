@@ -76,9 +76,11 @@ class T3Events:
     n_missing_syncs : int
         Periods whose sync the stream does not hold (a tagger's conditional filter, a dead
         time on the sync input): their events are placed from the nearest sync held.
-    time_origin : int
-        The start of period 0 (``nsync`` 0), in the stream's time units: give it as the next
-        piece's ``time_origin`` to number a long acquisition's pieces as one stream.
+    last_sync_time, last_sync_period : int
+        The last sync held (time units) and its period: where the next piece of a long
+        stream is numbered on from (``after=``).
+    last_event_period : int
+        The period of the last event kept (a next piece's events come after it).
     """
 
     nsync: np.ndarray
@@ -90,7 +92,9 @@ class T3Events:
     photon_channels: tuple[int, ...]
     n_before_first_sync: int = 0
     n_missing_syncs: int = 0
-    time_origin: int = 0
+    last_sync_time: int = 0
+    last_sync_period: int = 0
+    last_event_period: int = 0
 
     @property
     def n_photons(self) -> int:
@@ -119,7 +123,7 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
                        sync_channel: int, marker_channel: int, resolution_s: float,
                        photon_channels: ArrayLike | None = None, marker_input: int = 1,
                        sync_period_s: float | None = None, event_types: ArrayLike | None = None,
-                       syncs_complete: bool = False, time_origin: int | None = None
+                       syncs_complete: bool = False, after: T3Events | None = None
                        ) -> T3Events:
     """T3 events (code period, delay after its start) from a time tagger's absolute
     timestamps.
@@ -168,11 +172,12 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
         without one is then refused, where it would otherwise be taken for a filtered sync
         (a tagger's overflow or a buffer overrun leaves a gap that looks the same, and the
         pattern keeps its full dwell with part of its photons).
-    time_origin : int, optional
-        The start of period 0 in the units of ``times`` (:attr:`T3Events.time_origin` of the
-        stream's previous piece); default: the period of the stream's first event. Periods
-        are then counted from there, so that the pieces of a long acquisition converted one
-        by one join into one file (:func:`~spslidar.io.write_ptu_t3_stream`).
+    after : T3Events, optional
+        The events of the stream's previous piece: this piece's periods are numbered on
+        from its last sync (only the gap between the pieces is read from this piece's
+        period), so that the pieces of a long acquisition converted one by one join into one
+        file (:func:`~spslidar.io.write_ptu_t3_stream`). Default: periods from the stream's
+        first event's.
 
     Returns
     -------
@@ -192,9 +197,8 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
     of a period off a whole number of periods (an extra edge, a sync that wanders; a steady
     difference between the tagger's clock and the generator's is the refined ``P``'s) is
     refused with its position. Memory is about 100 bytes per event (the stream is held whole;
-    convert a long acquisition in pieces, each given the first piece's
-    :attr:`T3Events.time_origin`, and write them through
-    :func:`~spslidar.io.write_ptu_t3_stream`).
+    convert a long acquisition in pieces, each given the one before as ``after``, and write
+    them through :func:`~spslidar.io.write_ptu_t3_stream`).
 
     Raises
     ------
@@ -213,7 +217,9 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
     res = _finite_number(resolution_s, "resolution_s", positive=True)
     if event_types is not None:
         _check_event_types(event_types, t.size)
-    if unit > res:
+    if not isinstance(syncs_complete, bool | np.bool_):
+        raise ConfigError(f"syncs_complete must be True or False, got {syncs_complete!r}")
+    if unit > res * (1 + 1e-9):
         raise ConfigError(f"time_unit_s {unit:g} s is coarser than resolution_s {res:g} s: delay "
                           f"bins narrower than the timestamps' unit would stay empty (a "
                           f"coarser resolution_s, or the tagger's fine timestamps)")
@@ -257,6 +263,13 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
                           f"period start is needed (channels present: "
                           f"{', '.join(map(str, present)) or 'none'})")
     syncs, index, period, missing = _sync_grid(syncs, sync_channel, unit, sync_period_s)
+    reach = period * (1 + SYNC_TOL)  # (a period before the first sync, after the last)
+    if syncs_complete and not missing and np.any((t < syncs[0] - reach)
+                                                 | (t >= syncs[-1] + reach)):
+        out = int(np.count_nonzero((t < syncs[0] - reach) | (t >= syncs[-1] + reach)))
+        raise ConfigError(f"{out} event(s) more than a period before the first sync or after "
+                          f"the last on channel {sync_channel}, though syncs_complete: the "
+                          f"tagger lost the syncs there")
     if syncs_complete and missing:
         gap = int(np.flatnonzero(np.diff(index) > 1)[0])
         raise ConfigError(f"{missing} period(s) without a sync on channel {sync_channel}, the "
@@ -265,10 +278,12 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
                           f"buffer overrun), so those patterns' photons are short")
     is_photon = np.isin(ch, photons) if photons else np.zeros(t.size, bool)
     is_marker = ch == marker_channel
-    if not is_marker.any():
+    # (a piece after another may lie within one pattern, or hold no photon: its stream's
+    # markers and photons are the pieces' together)
+    if not is_marker.any() and after is None:
         raise ConfigError(f"no event on marker_channel {marker_channel} (channels present: "
                           f"{', '.join(map(str, present))})")
-    if not is_photon.any():
+    if not is_photon.any() and after is None:
         raise ConfigError(f"no photon events: every event is a sync or a marker (channels "
                           f"present: {', '.join(map(str, present))})")
     events = np.flatnonzero(is_photon | is_marker)
@@ -285,21 +300,14 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
     steps = np.floor(since / period + 1e-12)
     nsync = index[ref] + steps.astype(np.int64)
     offset = since - steps * period  # in [0, period): the time units after the period's start
-    first = 0  # the period of the first sync held, counted from period 0
-    if time_origin is not None:
-        if isinstance(time_origin, bool) or not isinstance(time_origin, int | np.integer):
-            raise ConfigError(f"time_origin must be an integer time, got {time_origin!r}")
-        whole = (float(syncs[0]) - float(time_origin)) / period
-        if round(whole) < 0 or abs(whole - round(whole)) > SYNC_TOL:
-            raise ConfigError(f"time_origin {int(time_origin)} is not the start of a period "
-                              f"at or before the stream's first sync ({int(syncs[0])}, "
-                              f"{whole:.4g} periods after it): the previous piece's "
-                              f"T3Events.time_origin")
-        first = int(round(whole))
+    first = 0  # the period of the first sync held
+    if after is not None:
+        first = _period_after(after, int(syncs[0]), period, unit)
         nsync = nsync + first
-        if nsync.size and nsync.min() < 0:
-            raise ConfigError(f"events before time_origin {int(time_origin)}: a piece is given "
-                              f"the time origin of the piece before it")
+        if nsync.size and nsync.min() < after.last_event_period:
+            raise ConfigError(f"this piece has events in period {int(nsync.min())}, before the "
+                              f"previous piece's last ({after.last_event_period}): the pieces of "
+                              f"one stream, in order, without overlap")
     elif nsync.size and nsync.min() < 0:  # (the periods before the first sync: from 0 on)
         first = -int(nsync.min())
         nsync = nsync + first
@@ -318,7 +326,24 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
                     channel=channel, marker=np.where(photon, 0, bits).astype(np.int64),
                     resolution_s=res, sync_period_s=period * unit, photon_channels=photons,
                     n_before_first_sync=int(before.sum()), n_missing_syncs=missing,
-                    time_origin=int(syncs[0]) - int(round(first * period)))
+                    last_sync_time=int(syncs[-1]), last_sync_period=int(index[-1]) + first,
+                    last_event_period=int(nsync.max()) if nsync.size else first)
+
+
+def _period_after(after: Any, first_sync: int, period: float, unit: float) -> int:
+    """The period of a piece's first sync, numbered on from the previous piece ``after``'s
+    last sync across the gap between them, or one line."""
+    if not isinstance(after, T3Events):
+        raise ConfigError(f"after must be the previous piece's T3Events, got "
+                          f"{type(after).__name__}")
+    gap = (float(first_sync) - float(after.last_sync_time)) / period
+    whole = round(gap)
+    if whole < 1 or abs(gap - whole) > SYNC_TOL:
+        raise ConfigError(f"this piece's first sync lies {gap:.6g} periods after the previous "
+                          f"piece's last ({(first_sync - after.last_sync_time) * unit:.9g} s), "
+                          f"not a whole number of periods after it: the pieces of one stream, "
+                          f"in order, each given the one before as after=")
+    return int(after.last_sync_period) + int(whole)
 
 
 def _check_event_types(event_types: ArrayLike, n: int) -> None:
@@ -402,7 +427,7 @@ def write_ptu_from_timestamps(path: PathLike, times: ArrayLike, channels: ArrayL
                               resolution_s: float, photon_channels: ArrayLike | None = None,
                               marker_input: int = 1, sync_period_s: float | None = None,
                               event_types: ArrayLike | None = None, syncs_complete: bool = False,
-                              time_origin: int | None = None, record_type: str = "GenericT3",
+                              after: T3Events | None = None, record_type: str = "GenericT3",
                               comment: str = "") -> T3Events:
     """Write a time tagger's absolute timestamps as a T3 PTU file that ``spslidar calibrate``
     and ``spslidar reconstruct`` read.
@@ -415,17 +440,20 @@ def write_ptu_from_timestamps(path: PathLike, times: ArrayLike, channels: ArrayL
     from .ptu_write import _record_type, write_ptu_t3
 
     # (the record type first: a typo is refused before the conversion's work)
-    dtime_max = _FAMILY[_record_type(record_type)[2]][1]
+    kind, _, family, _ = _record_type(record_type)
+    dtime_max = _FAMILY[family][1]
     ev = t3_from_timestamps(times, channels, time_unit_s=time_unit_s,
                             sync_channel=sync_channel, marker_channel=marker_channel,
                             resolution_s=resolution_s, photon_channels=photon_channels,
                             marker_input=marker_input, sync_period_s=sync_period_s,
                             event_types=event_types, syncs_complete=syncs_complete,
-                            time_origin=time_origin)
-    if ev.dtime.size and int(ev.dtime.max()) >= dtime_max:
+                            after=after)
+    bins = int(np.ceil(ev.sync_period_s / ev.resolution_s - 1e-9))  # (the period's, not only
+    # those the photons happened to reach: a late photon decided it, a review)
+    if bins > dtime_max:
         raise ConfigError(f"the code period of {ev.sync_period_s:.6g} s holds "
                           f"{ev.sync_period_s / ev.resolution_s:.6g} delay units of "
-                          f"resolution_s {ev.resolution_s:g} s, more than {record_type} records "
+                          f"resolution_s {ev.resolution_s:g} s, more than {kind} records "
                           f"hold ({dtime_max}): a coarser resolution_s")
     write_ptu_t3(path, nsync=ev.nsync, dtime=ev.dtime, channel=ev.channel, marker=ev.marker,
                  resolution_s=ev.resolution_s, sync_rate_hz=1.0 / ev.sync_period_s,

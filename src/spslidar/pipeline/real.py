@@ -215,12 +215,18 @@ def load_code(code: str | os.PathLike, code_length: int | None = None,
         index = entry.defaults.get("index", 0) if code_index is None else code_index
         if isinstance(index, bool) or not isinstance(index, int | np.integer) or index < 0:
             raise ConfigError(f"--code-index must be a whole number >= 0, got {index!r}")
+        file = "give its bits as a .npy of 0/1 bits (run --save-ptu writes <stem>_code.npy)"
+        if entry.options:  # (reconstruct has no flag for them: the code run made may differ)
+            raise ConfigError(f"--code {name} takes options ("
+                              f"{', '.join(o.flag for o in entry.options)}): {file}")
         make = entry.load()
-        bits = [np.asarray(make(name, int(code_length), 0.5, rng=np.random.default_rng(seed),
-                                index=int(index)), dtype=np.uint8) for seed in (0, 1)]
-        if not np.array_equal(*bits):
-            raise ConfigError(f"--code {name} draws its bits from a seed: give them as a .npy "
-                              f"of 0/1 bits (run --save-ptu writes <stem>_code.npy)")
+        bits = [np.asarray(make(name, int(code_length), ratio, rng=np.random.default_rng(seed),
+                                index=int(index)), dtype=np.uint8)
+                for seed, ratio in ((0, 0.5), (1, 0.5), (0, 0.3))]
+        if not np.array_equal(bits[0], bits[1]):
+            raise ConfigError(f"--code {name} draws its bits from a seed: {file}")
+        if not np.array_equal(bits[0], bits[2]):  # (run --ones-ratio: no flag here either)
+            raise ConfigError(f"--code {name}'s bits depend on its ones ratio: {file}")
         return check_code(bits[0], code_length, f"--code {name}")
     if code_index is not None:
         raise ConfigError(f"--code-index is for a code family's name (mseq, gold), not a "
