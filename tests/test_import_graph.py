@@ -25,9 +25,12 @@ def _graph() -> dict[str, set[str]]:
     graph = {}
     for name, (f, package) in files.items():
         tree = ast.parse(f.read_text(encoding="utf-8"))
+        # (the body of ``if TYPE_CHECKING:`` only: its ``else:`` runs, and so does
+        # ``if not TYPE_CHECKING:``, a review)
         typing_only = {id(n) for node in ast.walk(tree)
-                       if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
-                       for n in ast.walk(node)}
+                       if isinstance(node, ast.If)
+                       and ast.unparse(node.test) in ("TYPE_CHECKING", "typing.TYPE_CHECKING")
+                       for part in node.body for n in ast.walk(part)}
         out = set()
         for node in ast.walk(tree):
             if id(node) in typing_only:
@@ -40,7 +43,14 @@ def _graph() -> dict[str, set[str]]:
                     out.add(sub if sub in files else mod)
             elif isinstance(node, ast.Import):
                 out.update(alias.name for alias in node.names)
-        graph[name] = {m for m in out if m in files and m != name}
+        # importing ``a.b.c`` runs the packages ``a`` and ``a.b`` first (their __init__): an
+        # edge to each that is not the importer's own (a circle closed only through a
+        # package's __init__ was missed, a review)
+        ancestors = {".".join(name.split(".")[:i]) for i in range(1, name.count(".") + 1)}
+        for target in list(out):
+            parts = target.split(".")
+            out.update(".".join(parts[:i]) for i in range(1, len(parts)))
+        graph[name] = {m for m in out if m in files and m != name and m not in ancestors}
     return graph
 
 

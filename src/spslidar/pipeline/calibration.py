@@ -185,7 +185,8 @@ def measure_response(hist: np.ndarray, code: np.ndarray, bin_width: float, dista
     pulse_width : float
         Laser pulse width, bins.
     response : ndarray, shape (L,), optional
-        The code-free response itself (:func:`code_response` of ``hist``), where it was
+        The code-free response itself
+        (:func:`~spslidar.pipeline.calibrated.code_response` of ``hist``), where it was
         found otherwise: a flat wall's, with its range spread removed
         (:func:`spslidar.pipeline.target.range_free_response`).
     phase : float, optional
