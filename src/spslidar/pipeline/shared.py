@@ -77,17 +77,33 @@ def clear_shared() -> None:
         _shared.clear()
 
 
+#: the settings :func:`run_metrics` writes beside the metrics where a sweep's point leaves
+#: them at their defaults (the weight factor ``lam_scale`` too, resolved for the solver)
+SWEEP_SETTINGS = ("scene", "size", "signal", "noise", "compression", "lidar", "code",
+                  "code_length", "bit_rate", "patterns", "detector", "solver", "depth")
+
+
 def run_metrics(params: dict) -> dict:
     """``run`` for sweeps (through :func:`run_shared`): a flat dict of the main metrics (no
     arrays)."""
     r = run_shared(params)
     m = r.metrics
+    # the settings a result depends on that the point left at their defaults (a curve over
+    # the signal said nothing of the m_n = 10 it was run at, nor of the solver's weight
+    # factor that made one solver look worse than another: an audit)
+    from .weights import solver_default
+
+    cfg = r.config
+    out = {k: getattr(cfg, k) for k in SWEEP_SETTINGS if k not in params}
+    if "lam_scale" not in params:
+        out["lam_scale"] = (cfg.lam_scale if cfg.lam_scale is not None
+                            else solver_default(cfg.solver, "lam_scale"))
     # the RMSE with the share of pixels it is over and what run would have said of the map
     # (a pure-noise point or a gate without the scene looked like an ordinary result)
     keep = ("depth_rmse_m", "depth_mae_m", "depth_bias_m", "missing_fraction", "coverage",
             "edge_correlation", "low_confidence_fraction", "peak_to_noise_p90",
             "peak_to_noise_floor", "n_patterns", "n_slices", "lam", "noise_level")
-    out = {k: m[k] for k in keep}
+    out.update({k: m[k] for k in keep})
     out["time_total_s"] = r.timing["total"]
     out["time_solve_s"] = r.timing["solve"]
     out["iterations"] = m["solver_info"]["iterations"]

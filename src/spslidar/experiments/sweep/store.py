@@ -13,6 +13,7 @@ import csv
 import io
 import json
 import os
+import re
 import sys
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -152,6 +153,10 @@ def write_csv(rows: Iterable[Mapping[str, Any]], path: str | os.PathLike[str]) -
     return path
 
 
+#: kinds of warning :func:`say_outcome` says, and the points it names for each
+SAID_KINDS, SAID_POINTS = 5, 4
+
+
 def say_outcome(rows: list[dict[str, Any]], names: list[str], csv_path: Path,
                 counts: dict[str, int] | None = None) -> int:
     """Say on stderr how a sweep's runs went: how many were read from the cache and how many
@@ -175,15 +180,22 @@ def say_outcome(rows: list[dict[str, Any]], names: list[str], csv_path: Path,
     # what run would have said of a point (a gate past the unambiguous range, a map of noise)
     # was kept in the workers' results and never shown
     warned = [row for row in rows if row.get("n_warnings")]
-    said: dict[str, tuple[dict[str, Any], int]] = {}
-    for row in warned:  # each warning once, where it was first given and how often
+    # each kind of warning once (its text with the numbers left out: a map of noise is said
+    # with its own numbers in every run, so each run's was a kind of its own and the first
+    # two named 2 of an audit's 12 warned runs), with how many runs gave it and where
+    kinds: dict[str, list[tuple[dict[str, Any], str]]] = {}
+    for row in warned:
         for text in str(row["warnings"]).split(" | "):
-            first, count = said.get(text, (row, 0))
-            said[text] = (first, count + 1)
-    for text, (row, count) in list(said.items())[:2]:
-        where = ", ".join(f"{name}={row.get(name)!r}" for name in names)
-        print(f"sweep: warning ({where}{f', and {count - 1} more runs' if count > 1 else ''})"
-              f": {text}", file=sys.stderr)
+            kinds.setdefault(re.sub(r"\d+(\.\d+)?([eE][-+]?\d+)?", "#", text), []).append(
+                (row, text))
+    for hits in list(kinds.values())[:SAID_KINDS]:
+        points = "; ".join(", ".join(f"{name}={row.get(name)!r}" for name in names)
+                           for row, _ in hits[:SAID_POINTS])
+        more = f"; and {len(hits) - SAID_POINTS} more" if len(hits) > SAID_POINTS else ""
+        print(f"sweep: warning in {len(hits)} run{'s' if len(hits) > 1 else ''} ({points}{more})"
+              f", the first: {hits[0][1]}", file=sys.stderr)
+    if len(kinds) > SAID_KINDS:
+        print(f"sweep: ... and {len(kinds) - SAID_KINDS} more kinds of warning", file=sys.stderr)
     if warned:
         print(f"sweep: {len(warned)} of {len(rows)} runs warned (the warnings column of "
               f"results.csv)", file=sys.stderr)
