@@ -222,3 +222,35 @@ def test_an_empty_noiseless_gate_says_no_second_surface_consistently(tmp_path):
     assert m["two_surface_fraction"] == 0.0
     assert m["depth_info"]["two_surface_fraction"] == 0.0
     assert np.isnan(np.load(out / "depth2.npy")).all()
+
+
+def test_the_rmse_of_random_depths_in_the_gate_is_said_beside_a_map_of_noise(tmp_path, capsys):
+    """``chance_rmse_m``: the RMSE of depths drawn uniformly over the gate, against the
+    truth, checked against draws (a million per pixel, so within 0.2 %), NaN without a valid
+    pixel. A map of noise (a wall at 50 m, m_s = 0.001) scores about it, and the summary says
+    so (an audit's curve of RMSE against the signal flattened at the gate's 0.17 m, read as
+    the instrument's); a map with returns is not given it."""
+    from spslidar.metrics import chance_rmse
+
+    rng = np.random.default_rng(0)
+    truth = np.array([[10.0, 10.4], [np.nan, 11.0]])
+    draws = rng.uniform(9.8, 11.2, (1_000_000, 1))
+    want = np.sqrt(np.mean((draws - truth.ravel()[[0, 1, 3]]) ** 2))
+    assert chance_rmse(truth, (9.8, 11.2)) == pytest.approx(want, rel=2e-3)
+    assert chance_rmse(truth, (9.8, 11.2), valid=np.array([[1, 0], [0, 0]])) == \
+        pytest.approx(np.sqrt(1.4 ** 2 / 12 + 0.5 ** 2))
+    assert np.isnan(chance_rmse(np.full((2, 2), np.nan), (0, 1)))
+    np.save(tmp_path / "wall.npy", np.full((16, 16), 50.0))
+    for signal, said in (("0.001", True), ("5", False)):
+        out = tmp_path / signal
+        assert main(["run", "--scene", str(tmp_path / "wall.npy"), "--size", "16",
+                     "--code-length", "1023", "--signal", signal, "--noise", "10",
+                     "--no-figure", "--out", str(out)]) == 0
+        m = json.loads((out / "metrics.json").read_text())
+        lo, hi = m["range_gate_m"]
+        assert m["chance_rmse_m"] == pytest.approx(np.sqrt((hi - lo) ** 2 / 12
+                                                           + ((lo + hi) / 2 - 50.0) ** 2))
+        text = capsys.readouterr().out
+        assert ("depths drawn at random in the gate score" in text) is said, text
+        if said:
+            assert 0.7 < m["depth_rmse_m"] / m["chance_rmse_m"] < 1.3

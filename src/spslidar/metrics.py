@@ -72,6 +72,22 @@ def depth_errors(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | No
     }
 
 
+def chance_rmse(truth: np.ndarray, gate: tuple[float, float],
+                valid: np.ndarray | None = None) -> float:
+    """The RMSE (eq. 19) of depths drawn at random, uniformly over the range gate
+    ``(lo, hi)`` metres, against ``truth``: ``sqrt(mean((hi - lo)^2 / 12 + ((lo + hi) / 2 -
+    d)^2))`` over the valid pixels, the score of a map that holds nothing but the gate. A
+    map of noise scores about this: a curve of RMSE against the signal flattens here, set by
+    the gate's width, not by the instrument (an audit's sweep read 0.15-0.17 m on a wall
+    where this is 0.17 m). NaN without a valid pixel."""
+    lo, hi = (float(v) for v in gate)
+    tru = np.asarray(truth, dtype=np.float64).ravel()
+    ok = np.isfinite(tru) if valid is None else (_mask(valid, tru.size) & np.isfinite(tru))
+    if not ok.any():
+        return float("nan")
+    return float(np.sqrt(np.mean((hi - lo) ** 2 / 12.0 + ((lo + hi) / 2.0 - tru[ok]) ** 2)))
+
+
 def rmse(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None) -> float:
     """Depth RMSE in metres (eq. 19)."""
     return depth_errors(estimate, truth, valid)["depth_rmse_m"]

@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 
 from ..config import Config
+from ..metrics import mostly_noise, returns_phrase
 from ..metrics import percent as _percent
-from ..metrics import returns_phrase
 from ..outdir import write_result_dir
 
 
@@ -89,8 +89,14 @@ class Result:
             score = (f"no depth to score: none of the {m['n_valid']} pixels with a truth "
                      f"holds a return, ")
         else:
+            chance = m.get("chance_rmse_m")
+            # (a map of noise scores about what random depths in the gate score: said beside
+            # its RMSE, which otherwise read as an instrument's, an audit)
+            noise = (f" (mostly noise: depths drawn at random in the gate score {chance:.4f} "
+                     f"m)" if mostly_noise(m) and chance is not None and math.isfinite(chance)
+                     else "")
             score = (f"depth RMSE {m['depth_rmse_m']:.4f} m "
-                     f"({m['depth_rmse_m'] / m['bin_depth_m']:.2f} bins) over "
+                     f"({m['depth_rmse_m'] / m['bin_depth_m']:.2f} bins){noise} over "
                      f"{_percent(m['coverage'])} of pixels, "
                      f"{_percent(m['missing_fraction'])} without return, ")
         out = (score +

@@ -17,7 +17,13 @@ from ..depth.profile import (
     NOISE_ONLY_MIN_SLICES,
     verdict_and_room,
 )
-from ..metrics import depth_errors, edge_agreement, sobel_edges, truth_edge_mask
+from ..metrics import (
+    chance_rmse,
+    depth_errors,
+    edge_agreement,
+    sobel_edges,
+    truth_edge_mask,
+)
 from ..products import reflectivity_image
 from ..solvers.entries import TV_REGULARISERS
 from ..version import __version__
@@ -67,12 +73,13 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
                      f"that the gate holds the scene")
     if getattr(scene, "has_truth", True):
         err = depth_errors(depth, scene.depth, scene.valid)
+        err["chance_rmse_m"] = chance_rmse(scene.depth, meas.gate, scene.valid)
         edge_corr = edge_agreement(sobel_edges(depth), sobel_edges(scene.depth),
                                    truth_edge_mask(scene.valid))
     else:  # a measured acquisition: only what needs no truth
         found = np.isfinite(depth)
         err = {key: None for key in ("depth_rmse_m", "depth_mae_m", "depth_bias_m",
-                                     "depth_max_abs_error_m")}
+                                     "depth_max_abs_error_m", "chance_rmse_m")}
         err.update(n_valid=0, missing_fraction=float(1.0 - found.mean()),
                    coverage=float(found.mean()))
         edge_corr = None

@@ -100,7 +100,8 @@ def run_metrics(params: dict) -> dict:
                             else solver_default(cfg.solver, "lam_scale"))
     # the RMSE with the share of pixels it is over and what run would have said of the map
     # (a pure-noise point or a gate without the scene looked like an ordinary result)
-    keep = ("depth_rmse_m", "depth_mae_m", "depth_bias_m", "missing_fraction", "coverage",
+    keep = ("depth_rmse_m", "chance_rmse_m", "depth_mae_m", "depth_bias_m", "missing_fraction",
+            "coverage",
             "edge_correlation", "low_confidence_fraction", "peak_to_noise_p90",
             "peak_to_noise_floor", "n_patterns", "n_slices", "lam", "noise_level")
     out.update({k: m[k] for k in keep})
