@@ -22,15 +22,12 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import Any, TextIO
 
 import numpy as np
 
+from ..operators.base import LinearOperator
 from ..operators.parallel import parallel
-
-if TYPE_CHECKING:
-    from ..operators import LinearOperator
-    from .regularisers import Regulariser
 
 
 @dataclass
@@ -300,7 +297,7 @@ class Solver:
         self._threads_used = 1
 
     # -- the step-wise interface -----------------------------------------------------------
-    def setup(self, A: LinearOperator, y: np.ndarray, reg: Regulariser, lam: float,
+    def setup(self, A: LinearOperator, y: np.ndarray, reg, lam: float,
               x0: np.ndarray | None = None) -> None:
         """Check the problem, reset ``reg``'s state and initialise the iteration.
 
@@ -393,7 +390,7 @@ class Solver:
         info.extra["threads"] = self._threads_used
         return (x[:, 0] if self._was_1d else x), info
 
-    def solve(self, A: LinearOperator, y: np.ndarray, reg: Regulariser, lam: float,
+    def solve(self, A: LinearOperator, y: np.ndarray, reg, lam: float,
               x0: np.ndarray | None = None,
               callback: Callback | Sequence[Callback] | None = None
               ) -> tuple[np.ndarray, SolveInfo]:
@@ -541,7 +538,7 @@ def get_solver(name: str) -> type[Solver]:
     return _registry().load(name)
 
 
-def solve(A: LinearOperator, y: np.ndarray, reg: Regulariser, lam: float,
+def solve(A: LinearOperator, y: np.ndarray, reg, lam: float,
           method: str = "fista", x0: np.ndarray | None = None, stop: StopRule | None = None,
           callback: Callback | Sequence[Callback] | None = None, **options
           ) -> tuple[np.ndarray, SolveInfo]:
