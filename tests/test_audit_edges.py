@@ -170,12 +170,23 @@ def test_a_gate_beyond_the_unambiguous_range_is_said(tmp_path):
         assert main(["reconstruct", *files, "--range-gate", *gate,
                      "--out", str(tmp_path / out)]) == 0
     far = json.loads((tmp_path / "far" / "metrics.json").read_text())
-    said = [w for w in far["warnings"] if "beyond the 255-bit code's 3.822 m unambiguous" in w]
+    said = [w for w in far["warnings"] if "beyond the 3.822 m unambiguous range of the "
+            "255-bit code" in w]
     assert len(said) == 1 and "reads what lies at 0.7776-1.778 m, 3.822 m farther" in said[0]
     assert np.nanmedian(np.load(tmp_path / "far" / "depth.npy")) == pytest.approx(
         1.3 + 3.822, abs=0.02)
     near = json.loads((tmp_path / "near" / "metrics.json").read_text())
     assert not any("unambiguous" in w for w in near["warnings"])
+    # run says it too, of a gate it is given there (a new researcher's audit: a wall at 50 m
+    # read through a 40-60 m gate and a 30.67 m code without a word); not of its own
+    assert main(["run", "--scene", str(tmp_path / "wall.npy"), "--size", "8", "--no-figure",
+                 "--code-length", "255", "--range-gate", "4.6", "5.6",
+                 "--out", str(tmp_path / "run_far")]) == 0
+    run_far = json.loads((tmp_path / "run_far" / "metrics.json").read_text())["warnings"]
+    said = [w for w in run_far if "beyond the 3.822 m unambiguous range of the m-seq" in w]
+    assert len(said) == 1 and "reads what lies at 0.7776-1.778 m, 3.822 m farther" in said[0]
+    assert not any("beyond" in w for w in json.loads(
+        (tmp_path / "r" / "metrics.json").read_text())["warnings"])
 
 
 def test_reconstruct_prices_its_depth_stage_before_the_file():

@@ -58,6 +58,11 @@ def timeline(cfg: Config, scene, warns: list[str]):
                                         acq.description))
     if cfg.range_gate is None and lags[-1] >= acq.period:
         warns.append(default_gate_beyond_warning(scene, gate, acq))
+    elif (cfg.range_gate is not None and lags.size <= acq.period
+          and gate[0] >= acq.unambiguous_range):
+        # (a given gate at 40-60 m through a 30.67 m code read the wall at 50 m, said by
+        # reconstruct and not by run: an audit)
+        warns.append(gate_beyond_warning(gate, acq.unambiguous_range, acq.description))
     warns.extend(rep_rate_warnings(cfg, acq))
     outside = (scene.depth < gate[0]) | (scene.depth > gate[1])
     if np.any(outside & scene.valid):
@@ -352,6 +357,19 @@ def detector_options(cfg: Config) -> dict[str, Any]:
 
     out.update(chosen_stage_options(cfg, "detector"))
     return out
+
+
+def gate_beyond_warning(gate, unambiguous: float, description: str) -> str:
+    """The warning for a given range gate that lies wholly beyond the code's unambiguous range
+    (``run`` and ``reconstruct``): it reads what lies there only if the target is known to
+    be in it."""
+    lo, hi = (float(v) for v in gate)
+    ru = float(unambiguous)
+    return (f"the range gate {gate_text((lo, hi))} m lies beyond the {ru:.4g} m unambiguous "
+            f"range of the {description}: a return is known only modulo {ru:.4g} m (this "
+            f"gate reads what lies at {lo % ru:.4g}-{lo % ru + hi - lo:.4g} m, {ru:.4g} m "
+            f"farther, ...), so its depths are right only if the target is known to be in "
+            f"the gate")
 
 
 def gate_alias_warning(gate, n_lags: int, period: int, unambiguous: float,

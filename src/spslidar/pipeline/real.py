@@ -584,13 +584,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     elif cfg.range_gate[0] >= acq.unambiguous_range:
         # (a gate at 100-101 m read depths there from a 3.75 m code without a word, an audit:
         # right only where the instrument knows the target is in the gate)
-        ru = acq.unambiguous_range
-        lo, hi = cfg.range_gate
-        meas.warnings.append(
-            f"the range gate {gate_text((lo, hi))} m lies beyond the {period}-bit code's "
-            f"{ru:.4g} m unambiguous range: a return is known only modulo {ru:.4g} m (this "
-            f"gate reads what lies at {lo % ru:.4g}-{lo % ru + hi - lo:.4g} m, {ru:.4g} m "
-            f"farther, ...), so its depths are right only if the target is known to be in the gate")
+        from .plan import gate_beyond_warning
+
+        meas.warnings.append(gate_beyond_warning(cfg.range_gate, acq.unambiguous_range,
+                                                 f"{period}-bit code"))
     result = reconstruct(meas)
     # only what applied: the simulation's keys (scene "camera", signal 5, noise 10, gaussian
     # patterns...) were written as if they had been measured
