@@ -300,3 +300,21 @@ def test_a_wall_far_in_a_wide_gate_through_a_gold_code(tmp_path):
         assert m["n_slices_solved"] <= 45
         rmse[code] = m["depth_rmse_m"]
     assert rmse["gold"] < 1.5 * rmse["mseq"] + 0.005
+
+
+def test_sidelobes_of_a_return_beyond_the_gate_fall_back_to_the_plain_gate():
+    """A bright return beyond the gate leaves its sidelobes across it with no peak in it to
+    explain them: taking them one at a time cascaded over every delay (a review: 1 336 of
+    1 336, and 1.5 s on a 24 000-delay gate); the plain threshold's delays are kept instead,
+    in bounded time."""
+    import time
+
+    from spslidar.pipeline.gate import occupied_lags
+
+    corr, sigma, lags, sl = _profile_of("gold", {100: 5000.0, 640: 300.0})
+    plain = occupied_lags(corr, sigma, dilate=0)
+    t0 = time.perf_counter()
+    kept = occupied_lags(corr, sigma, dilate=0, lags=lags, sidelobes=sl)
+    assert time.perf_counter() - t0 < 5.0  # (1024 steps of 600 delays at most; ~0.05 s)
+    np.testing.assert_array_equal(kept, plain)
+    assert kept[lags == 640].all()

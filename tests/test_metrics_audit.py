@@ -254,3 +254,28 @@ def test_the_rmse_of_random_depths_in_the_gate_is_said_beside_a_map_of_noise(tmp
         assert ("depths drawn at random in the gate score" in text) is said, text
         if said:
             assert 0.7 < m["depth_rmse_m"] / m["chance_rmse_m"] < 1.3
+
+
+def test_review_mends_of_the_sweep_columns_and_the_chance_score(tmp_path, capsys):
+    """A review's cases: a run that gives one kind of warning twice is one run; a point's
+    hyphenated key (``code-length``) is not written again as ``code_length``, and no
+    ``lam_scale`` is claimed where the weight itself was given; the chance score of a gate
+    longer than the code's unambiguous range is over its first range (where a map can put
+    its depths: a correct map read worse than "chance" through a 30-70 m gate)."""
+    from spslidar.experiments.sweep.store import say_outcome
+    from spslidar.pipeline.shared import run_metrics
+
+    rows = [{"signal": 1, "n_warnings": 2, "warnings": "odd 1.5 here | odd 2.5 here"}]
+    say_outcome(rows, ["signal"], tmp_path / "r.csv")
+    err = capsys.readouterr().err
+    assert "warning in 1 run (signal=1), the first: odd 1.5 here" in err
+    out = run_metrics({"size": 8, "code-length": 127, "lam": 0.01, "noiseless": True})
+    assert "code_length" not in out and out["lam_scale"] is None and out["noise"] == 10.0
+    np.save(tmp_path / "wall.npy", np.full((8, 8), 50.0))
+    run = tmp_path / "far"
+    assert main(["run", "--scene", str(tmp_path / "wall.npy"), "--size", "8", "--code-length",
+                 "1023", "--bit-rate", "5e9", "--range-gate", "30", "70", "--no-figure",
+                 "--out", str(run)]) == 0
+    m = json.loads((run / "metrics.json").read_text())
+    ru = 1023 * 299792458.0 / 5e9 / 2
+    assert m["chance_rmse_m"] == pytest.approx(np.sqrt(ru ** 2 / 12 + (30 + ru / 2 - 50) ** 2))

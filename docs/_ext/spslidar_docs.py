@@ -270,10 +270,10 @@ METRICS: dict[str, str] = {
     "depth_bias_m": "Mean signed depth error (estimate minus truth), metres.",
     "depth_max_abs_error_m": "Largest absolute depth error, metres.",
     "depth_rmse_bins": "The RMSE in TDC bins (``bin_depth_m``).",
-    "chance_rmse_m": "The RMSE of depths drawn at random, uniformly over the range gate, "
-                     "against the same truth: what a map of noise scores (a curve of RMSE "
-                     "against the signal flattens here, set by the gate's width); null "
-                     "without a truth.",
+    "chance_rmse_m": "The RMSE of depths drawn at random, uniformly over the range gate (its "
+                     "first unambiguous range where it is longer), on the pixels the RMSE is "
+                     "over: about what a map of noise scores (a curve of RMSE against the "
+                     "signal flattens here, set by the gate's width); null without a truth.",
     "n_valid": "Pixels with a known truth (``valid.npy``).",
     "missing_fraction": "Share of the valid pixels without a detected return (without a "
                         "ground truth: of all pixels).",

@@ -52,11 +52,14 @@ def occupied_lags(corr: np.ndarray, sigma: np.ndarray, n_sigmas: float = AUTO_GA
     noise = float(np.sqrt(np.mean(np.asarray(sigma) ** 2) / corr.shape[0]))
     base = float(np.median(profile))
     threshold = n_sigmas * max(noise, 1e-300)
-    if sidelobes is None or lags is None:
-        hit = profile - base > threshold
-    else:
-        hit = _clean(profile, threshold, np.asarray(lags, dtype=np.int64),
-                     np.asarray(sidelobes, dtype=np.float64))
+    hit = profile - base > threshold
+    if sidelobes is not None and lags is not None:
+        clean = _clean(profile, threshold, np.asarray(lags, dtype=np.int64),
+                       np.asarray(sidelobes, dtype=np.float64), int(hit.sum()))
+        # (more than the plain threshold keeps: sidelobes with no peak in the gate to explain
+        # them, a bright return beyond it, whose removal cascaded over every delay: a review)
+        if clean is not None:
+            hit = clean
     # (none may rise: the gate then holds nothing this acquisition tells from the background.
     # The noisiest delay was kept instead, and its profiles, zero everywhere else, read as
     # returns at full confidence: a black scene came out a wall, said nowhere, an audit)
@@ -67,9 +70,9 @@ def occupied_lags(corr: np.ndarray, sigma: np.ndarray, n_sigmas: float = AUTO_GA
 #: peak (:func:`code_sidelobes`; an m-sequence against its bipolar or unipolar replica has
 #: none: a constant, which the gate's median removes)
 SIDELOBE_SHARE = 1e-3
-#: steps :func:`_clean` takes at most (each costs one pass over the gate's delays); the
-#: delays still above the threshold are then taken as they stand
-CLEAN_MAX = 4096
+#: steps :func:`_clean` takes at most (each costs one pass over the gate's delays); past
+#: them, or past as many delays as the plain threshold keeps, the plain threshold is used
+CLEAN_MAX = 1024
 
 
 def code_sidelobes(code: np.ndarray, replica: np.ndarray) -> np.ndarray | None:
@@ -88,11 +91,14 @@ def code_sidelobes(code: np.ndarray, replica: np.ndarray) -> np.ndarray | None:
 
 
 def _clean(profile: np.ndarray, threshold: float, lags: np.ndarray,
-           sidelobes: np.ndarray) -> np.ndarray:
+           sidelobes: np.ndarray, plain: int) -> np.ndarray | None:
     """The delays whose rise above the background stands above ``threshold`` once the
-    sidelobes of every higher one are removed (:func:`occupied_lags`). Written here: a greedy
-    CLEAN on one profile of the gate's delays, a few lines; no library's deconvolution takes a
-    response known only at the differences of an irregular set of delays."""
+    sidelobes of every higher one are removed (:func:`occupied_lags`); None where that takes
+    more than :data:`CLEAN_MAX` steps or keeps more delays than the plain threshold does
+    (``plain``): sidelobes of returns beyond the gate, which nothing in it explains. Written
+    here: a greedy CLEAN on one profile of the gate's delays, a few lines; no library's
+    deconvolution takes a response known only at the differences of an irregular set of
+    delays."""
     period = sidelobes.size
     model = np.zeros_like(profile)
     hit = np.zeros(profile.size, dtype=bool)
@@ -110,10 +116,12 @@ def _clean(profile: np.ndarray, threshold: float, lags: np.ndarray,
         if not score[k] > threshold:
             return hit
         hit[k] = True
+        if hit.sum() > plain:
+            return None
         model += resid[k] * sidelobes[(lags - lags[k]) % period]
         rest = profile - model
         resid = rest - np.median(rest[~hit] if not hit.all() else rest)
-    return hit | (resid > threshold)
+    return None
 
 
 def _dilated(mask: np.ndarray, d: int) -> np.ndarray:

@@ -73,7 +73,12 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
                      f"that the gate holds the scene")
     if getattr(scene, "has_truth", True):
         err = depth_errors(depth, scene.depth, scene.valid)
-        err["chance_rmse_m"] = chance_rmse(scene.depth, meas.gate, scene.valid)
+        # (random depths where a map can put them: a gate longer than the code's unambiguous
+        # range holds its first range only, and over the pixels the RMSE is over: a review)
+        lo, hi = (float(v) for v in meas.gate)
+        err["chance_rmse_m"] = chance_rmse(
+            scene.depth, (lo, lo + min(hi - lo, acq.unambiguous_range)),
+            np.asarray(scene.valid, dtype=bool) & np.isfinite(depth))
         edge_corr = edge_agreement(sobel_edges(depth), sobel_edges(scene.depth),
                                    truth_edge_mask(scene.valid))
     else:  # a measured acquisition: only what needs no truth

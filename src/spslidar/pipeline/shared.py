@@ -94,9 +94,11 @@ def run_metrics(params: dict) -> dict:
     from .weights import solver_default
 
     cfg = r.config
-    out = {k: getattr(cfg, k) for k in SWEEP_SETTINGS if k not in params}
-    if "lam_scale" not in params:
-        out["lam_scale"] = (cfg.lam_scale if cfg.lam_scale is not None
+    given = {str(k).replace("-", "_") for k in params}  # (code-length is code_length)
+    out = {k: getattr(cfg, k) for k in SWEEP_SETTINGS if k not in given}
+    if "lam_scale" not in given:  # (none where the weight itself is given: not used)
+        out["lam_scale"] = (None if cfg.lam is not None else cfg.lam_scale
+                            if cfg.lam_scale is not None
                             else solver_default(cfg.solver, "lam_scale"))
     # the RMSE with the share of pixels it is over and what run would have said of the map
     # (a pure-noise point or a gate without the scene looked like an ordinary result)

@@ -186,8 +186,9 @@ def say_outcome(rows: list[dict[str, Any]], names: list[str], csv_path: Path,
     kinds: dict[str, list[tuple[dict[str, Any], str]]] = {}
     for row in warned:
         for text in str(row["warnings"]).split(" | "):
-            kinds.setdefault(re.sub(r"\d+(\.\d+)?([eE][-+]?\d+)?", "#", text), []).append(
-                (row, text))
+            hits = kinds.setdefault(re.sub(r"\d+(\.\d+)?([eE][-+]?\d+)?", "#", text), [])
+            if not hits or hits[-1][0] is not row:  # (runs, not warnings: a review)
+                hits.append((row, text))
     for hits in list(kinds.values())[:SAID_KINDS]:
         points = "; ".join(", ".join(f"{name}={row.get(name)!r}" for name in names)
                            for row, _ in hits[:SAID_POINTS])
