@@ -197,8 +197,8 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
     of a period off a whole number of periods (an extra edge, a sync that wanders; a steady
     difference between the tagger's clock and the generator's is the refined ``P``'s) is
     refused with its position. Memory is about 100 bytes per event (the stream is held whole;
-    convert a long acquisition in pieces, each given the one before as ``after``, and write
-    them through :func:`~spslidar.io.write_ptu_t3_stream`).
+    convert a long acquisition in pieces of two syncs or more, each given the one before as
+    ``after``, and write them through :func:`~spslidar.io.write_ptu_t3_stream`).
 
     Raises
     ------
