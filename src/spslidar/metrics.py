@@ -20,6 +20,16 @@ def _mask(valid, size: int) -> np.ndarray:
     return v
 
 
+def _known(truth: np.ndarray, valid: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """The truth, flat in float64, and where it is known: finite and (with ``valid``, which
+    must lie on the truth's grid) valid."""
+    tru = np.asarray(truth, dtype=np.float64).ravel()
+    if valid is not None and not _same_grid(np.shape(valid), np.shape(truth)):
+        raise ValueError(f"valid {np.shape(valid)} and truth {np.shape(truth)} differ")
+    ok = np.isfinite(tru) if valid is None else (_mask(valid, tru.size) & np.isfinite(tru))
+    return tru, ok
+
+
 def _same_grid(a: tuple, b: tuple) -> bool:
     """Two shapes of one pixel grid: equal, or one of them the other's pixels flattened."""
     return a == b or len(a) == 1 or len(b) == 1
@@ -50,13 +60,10 @@ def depth_errors(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | No
     Eq. (19) calls it MSE but takes a square root: it is the RMSE, in metres.
     """
     est = np.asarray(estimate, dtype=np.float64).ravel()
-    tru = np.asarray(truth, dtype=np.float64).ravel()
-    if est.shape != tru.shape or not _same_grid(np.shape(estimate), np.shape(truth)):
+    if est.size != np.size(truth) or not _same_grid(np.shape(estimate), np.shape(truth)):
         # ((2, 8) against (8, 2) scored 0.0, an audit: a map and its flat pixels still agree)
         raise ValueError(f"estimate {np.shape(estimate)} and truth {np.shape(truth)} differ")
-    if valid is not None and not _same_grid(np.shape(valid), np.shape(truth)):
-        raise ValueError(f"valid {np.shape(valid)} and truth {np.shape(truth)} differ")
-    ok = np.isfinite(tru) if valid is None else (_mask(valid, tru.size) & np.isfinite(tru))
+    tru, ok = _known(truth, valid)
     have = ok & np.isfinite(est)
     n_valid = int(ok.sum())
     err = est[have] - tru[have]
@@ -81,8 +88,7 @@ def chance_rmse(truth: np.ndarray, gate: tuple[float, float],
     the gate's width, not by the instrument (an audit's sweep read 0.15-0.17 m on a wall
     where this is 0.17 m). NaN without a valid pixel."""
     lo, hi = (float(v) for v in gate)
-    tru = np.asarray(truth, dtype=np.float64).ravel()
-    ok = np.isfinite(tru) if valid is None else (_mask(valid, tru.size) & np.isfinite(tru))
+    tru, ok = _known(truth, valid)
     if not ok.any():
         return float("nan")
     return float(np.sqrt(np.mean((hi - lo) ** 2 / 12.0 + ((lo + hi) / 2.0 - tru[ok]) ** 2)))

@@ -263,19 +263,8 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
                           f"period start is needed (channels present: "
                           f"{', '.join(map(str, present)) or 'none'})")
     syncs, index, period, missing = _sync_grid(syncs, sync_channel, unit, sync_period_s)
-    reach = period * (1 + SYNC_TOL)  # (a period before the first sync, after the last)
-    if syncs_complete and not missing and np.any((t < syncs[0] - reach)
-                                                 | (t >= syncs[-1] + reach)):
-        out = int(np.count_nonzero((t < syncs[0] - reach) | (t >= syncs[-1] + reach)))
-        raise ConfigError(f"{out} event(s) more than a period before the first sync or after "
-                          f"the last on channel {sync_channel}, though syncs_complete: the "
-                          f"tagger lost the syncs there")
-    if syncs_complete and missing:
-        gap = int(np.flatnonzero(np.diff(index) > 1)[0])
-        raise ConfigError(f"{missing} period(s) without a sync on channel {sync_channel}, the "
-                          f"first after sync {gap} (at {syncs[gap] * unit:.9g} s), though "
-                          f"syncs_complete: the tagger lost events there (an overflow, a "
-                          f"buffer overrun), so those patterns' photons are short")
+    if syncs_complete:
+        _check_complete(t, syncs, index, period, missing, sync_channel, unit)
     is_photon = np.isin(ch, photons) if photons else np.zeros(t.size, bool)
     is_marker = ch == marker_channel
     # (a piece after another may lie within one pattern, or hold no photon: its stream's
@@ -328,6 +317,25 @@ def t3_from_timestamps(times: ArrayLike, channels: ArrayLike, *, time_unit_s: fl
                     n_before_first_sync=int(before.sum()), n_missing_syncs=missing,
                     last_sync_time=int(syncs[-1]), last_sync_period=int(index[-1]) + first,
                     last_event_period=int(nsync.max()) if nsync.size else first)
+
+
+def _check_complete(t: np.ndarray, syncs: np.ndarray, index: np.ndarray, period: float,
+                    missing: int, sync_channel: int, unit: float) -> None:
+    """Refuse, in one line, a stream said to hold every sync (``syncs_complete``) that lacks
+    one: a period between two syncs held, or events more than a period before the first or
+    after the last."""
+    if missing:
+        gap = int(np.flatnonzero(np.diff(index) > 1)[0])
+        raise ConfigError(f"{missing} period(s) without a sync on channel {sync_channel}, the "
+                          f"first after sync {gap} (at {syncs[gap] * unit:.9g} s), though "
+                          f"syncs_complete: the tagger lost events there (an overflow, a "
+                          f"buffer overrun), so those patterns' photons are short")
+    reach = period * (1 + SYNC_TOL)  # (a period before the first sync, after the last)
+    out = int(np.count_nonzero((t < syncs[0] - reach) | (t >= syncs[-1] + reach)))
+    if out:
+        raise ConfigError(f"{out} event(s) more than a period before the first sync or after "
+                          f"the last on channel {sync_channel}, though syncs_complete: the "
+                          f"tagger lost the syncs there")
 
 
 def _period_after(after: Any, first_sync: int, period: float, unit: float) -> int:

@@ -22,7 +22,7 @@ from ..backends.device import reconstructs_on_device, simulates_on_device
 from ..backends.patterns import host_patterns
 from ..capture import captured_warnings
 from ..config import Config, chosen_stage_options
-from ..correlate import PLATEAU_SHARE, remove_plateau, replica_plateau
+from ..correlate import PLATEAU_SHARE, make_replica, remove_plateau, replica_plateau
 from ..depth import ESTIMATORS, DepthContext
 from ..detectors import build_detector
 from ..detectors.counting import NoiseModel
@@ -297,8 +297,6 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         corr, patterns = _host(be, corr), host_patterns(patterns)
     auto = cfg.auto_gate if cfg.auto_gate is not None else ulags.size > AUTO_GATE_MIN_SLICES
     if auto:
-        from ..correlate import make_replica
-
         keep = occupied_lags(_host(be, corr), sim["sigma"], lags=ulags,
                              sidelobes=code_sidelobes(acq.code,
                                                       make_replica(acq.code, acq.replica)))

@@ -91,15 +91,10 @@ def run_metrics(params: dict) -> dict:
     # the settings a result depends on that the point left at their defaults (a curve over
     # the signal said nothing of the m_n = 10 it was run at, nor of the solver's weight
     # factor that made one solver look worse than another: an audit)
-    from .weights import solver_default
-
-    cfg = r.config
     given = {str(k).replace("-", "_") for k in params}  # (code-length is code_length)
-    out = {k: getattr(cfg, k) for k in SWEEP_SETTINGS if k not in given}
-    if "lam_scale" not in given:  # (none where the weight itself is given: not used)
-        out["lam_scale"] = (None if cfg.lam is not None else cfg.lam_scale
-                            if cfg.lam_scale is not None
-                            else solver_default(cfg.solver, "lam_scale"))
+    out = {k: getattr(r.config, k) for k in SWEEP_SETTINGS if k not in given}
+    if "lam_scale" not in given:  # (as the run resolved it; none where --lam was given)
+        out["lam_scale"] = m["lam_scale"]
     # the RMSE with the share of pixels it is over and what run would have said of the map
     # (a pure-noise point or a gate without the scene looked like an ordinary result)
     keep = ("depth_rmse_m", "chance_rmse_m", "depth_mae_m", "depth_bias_m", "missing_fraction",
