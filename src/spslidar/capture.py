@@ -34,6 +34,19 @@ _ORIGINAL = warnings.showwarning
 _RESET = ("default", "\x00")
 
 
+def _reset_registries() -> None:
+    """Reset Python's once-per-place registries (adding a filter does), leaving the caller's
+    filters as they were: the added one stayed in ``warnings.filters`` for good (an audit of
+    the Python API, 2026-11-29). Taking it out again is a plain list edit, which does not
+    count as a change of the filters: the reset stands."""
+    warnings.filterwarnings(*_RESET, append=True)
+    filters = getattr(warnings, "filters", None)
+    if isinstance(filters, list):
+        for f in [f for f in filters if f[0] == _RESET[0] and getattr(f[1], "pattern", None)
+                  == _RESET[1]]:
+            filters.remove(f)
+
+
 def _shown() -> Any:
     show = _STATE["shown"]
     return _ORIGINAL if show is None or show is _dispatch else show
@@ -62,7 +75,7 @@ def captured_warnings():
         if not _STATE["active"] and warnings.showwarning is not _dispatch:
             _STATE["shown"] = warnings.showwarning
         warnings.showwarning = _dispatch
-        warnings.filterwarnings(*_RESET, append=True)  # (added once; the registries reset)
+        _reset_registries()
         _STATE["active"].append(log)
     logs = getattr(_LOCAL, "logs", None)
     if logs is None:

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from .arrays import positive_number, real_array, whole_numbers
 from .constants import MAX_GATE_BINS, SPEED_OF_LIGHT
 from .errors import ConfigError
 
@@ -33,7 +34,9 @@ REPLICAS = ("bipolar", "zero-mean", "unipolar")
 def make_replica(code: np.ndarray, kind: str = "bipolar") -> np.ndarray:
     """The receiver's code replica ``f`` (float64): ``bipolar`` ``2s - 1``, ``zero-mean``
     ``s - mean(s)`` or ``unipolar`` ``s``."""
-    s = np.asarray(code, dtype=np.float64)
+    s = real_array(code, "code", ndim=1, finite=True).astype(np.float64)
+    if not s.size:
+        raise ValueError("code is empty: a replica needs one bit or more")
     if kind == "bipolar":
         return 2.0 * s - 1.0
     if kind == "zero-mean":
@@ -55,7 +58,9 @@ def auto_replica(code: np.ndarray) -> str:
     code's off-peak correlation is zero on average; for an m-sequence ``2s - 1`` is exact
     (off-peak sum 0) where ``s - mean(s)`` leaves ``-(T + 1) / 4T``.
     """
-    s = np.asarray(code)
+    s = real_array(code, "code", ndim=1, finite=True)
+    if not s.size:
+        raise ValueError("code is empty: a replica needs one bit or more")
     return "bipolar" if abs(2 * int(np.count_nonzero(s)) - s.size) <= 1 else "zero-mean"
 
 
@@ -95,15 +100,21 @@ def remove_plateau(slices: np.ndarray, share: float) -> np.ndarray:
     if not 0.0 <= share < 1.0:
         raise ValueError(f"a plateau share must be in [0, 1), got {share!r} (a code of all "
                          f"ones correlates flat: no delay can be read)")
-    x = np.asarray(slices, dtype=np.float64)
+    # (an integer or boolean profile came back truncated to its dtype: an audit of 2026-11-29)
+    given = real_array(slices, "slices", ndim=2, floating=True)
+    x = given.astype(np.float64, copy=False)
     k = x.shape[1]
     plateau = share * x.sum(axis=1, keepdims=True) / (1.0 - share + share * k)
-    return ((x - plateau) / (1.0 - share)).astype(np.asarray(slices).dtype, copy=False)
+    return ((x - plateau) / (1.0 - share)).astype(given.dtype, copy=False)
 
 
 def correlation_gain(code: np.ndarray, replica: np.ndarray) -> float:
     """Peak of the code/replica correlation, ``G = sum_t s(t) f(t)``."""
-    return float(np.dot(np.asarray(code, dtype=np.float64), replica))
+    s = real_array(code, "code", ndim=1).astype(np.float64)
+    f = real_array(replica, "replica", ndim=1)
+    if f.size != s.size:
+        raise ValueError(f"replica of {f.size} bins for a code of {s.size} bits")
+    return float(np.dot(s, f))
 
 
 def gate_lags(gate: tuple[float, float], bin_width: float) -> np.ndarray:
@@ -133,8 +144,8 @@ def replica_matrix(replica: np.ndarray, lags: np.ndarray, dtype=np.float32) -> n
     ``hist @ F`` is the matched filter at those lags; build it once and pass it to
     :func:`matched_filter` when filtering many blocks of patterns.
     """
-    f = np.asarray(replica, dtype=dtype)
-    lags = np.mod(np.asarray(lags, dtype=np.int64).ravel(), f.size)
+    f = real_array(replica, "replica", ndim=1).astype(dtype)
+    lags = np.mod(whole_numbers(lags, "lags"), f.size)
     if not lags.size:
         return np.empty((f.size, 0), dtype=dtype)
     # one np.roll per lag (row k of the stack is f delayed by lags[k]), then a single transpose
@@ -206,20 +217,19 @@ def matched_filter(
     float32 sums of counts of 1e7 per bin were 8 counts off); for many lags it goes through
     the FFT in float64.
     """
-    hist = np.asarray(hist)
+    hist = real_array(hist, "hist")
+    replica = real_array(replica, "replica")
     if hist.ndim != 2:
         raise ValueError(f"hist must be (M, L) histograms, one row per pattern, got shape "
                          f"{hist.shape}")
     period = hist.shape[1]
     if np.ndim(replica) != 1 or np.size(replica) != period:
         raise ValueError(f"replica of shape {np.shape(replica)} for histograms of {period} bins")
-    given = np.asarray(lags)
-    if given.dtype.kind not in "iu" and not (given.dtype.kind == "f" and np.isfinite(given).all()
-                                             and np.array_equal(given, np.round(given))):
-        # (0.7 bin read as 0, a NaN as an arbitrary lag, an audit of 2026-11-29)
-        raise ValueError(f"lags must be whole bins, got dtype {given.dtype} "
-                         f"{'with fractions or NaN' if given.dtype.kind == 'f' else ''}".strip())
-    lags = np.mod(given.astype(np.int64), period)
+    if np.ndim(lags) > 1:
+        raise ValueError(f"lags must be one list of delays, got shape {np.shape(lags)}")
+    # (0.7 bin read as 0, a NaN as an arbitrary lag, an audit of 2026-11-29)
+    lags = np.mod(whole_numbers(lags, "lags"), period)
+    gain = positive_number(gain, "gain")
     if bank is not None and np.shape(bank) != (period, lags.size):
         # (a bank built for other lags was used as it was: 3 columns for 10 lags)
         raise ValueError(f"bank of shape {np.shape(bank)} for {lags.size} lags of a {period}-bin "
@@ -257,8 +267,8 @@ def correlation_noise_sigma(hist: np.ndarray, replica: np.ndarray, gain: float =
     pulse, 3.2 against 0.94 for a random code), and by about 8 % in the camera scene, whose
     returns spread over many lags.
     """
-    return noise_sigma_from_totals(np.asarray(hist).sum(axis=1, dtype=np.float64), replica,
-                                   gain)
+    hist = real_array(hist, "hist", ndim=2)
+    return noise_sigma_from_totals(hist.sum(axis=1, dtype=np.float64), replica, gain)
 
 
 def noise_sigma_from_totals(totals: np.ndarray, replica: np.ndarray,
@@ -278,8 +288,11 @@ def noise_sigma_from_totals(totals: np.ndarray, replica: np.ndarray,
     ndarray, shape (M,)
         ``sqrt(totals * mean(f^2)) / gain`` (``mean(f^2) = 1`` for the bipolar replica).
     """
-    f2 = np.asarray(replica, dtype=np.float64) ** 2
-    var = np.asarray(totals, dtype=np.float64)
+    f2 = real_array(replica, "replica", ndim=1).astype(np.float64) ** 2
+    var = real_array(totals, "totals").astype(np.float64)
+    gain = positive_number(gain, "gain")
+    if (var < 0).any():
+        raise ValueError("totals holds a negative count")
     if not np.allclose(f2, 1.0):
         # average over tau of sum_t h(t) f(t - tau)^2 = sum_t h(t) * mean(f^2)
         var = var * f2.mean()

@@ -18,17 +18,20 @@ from __future__ import annotations
 
 import numpy as np
 
+from .arrays import positive_number, real_array, same_length, whole_numbers
 from .constants import SPEED_OF_LIGHT
 
 
 def depth_to_delay(depth, bin_width: float) -> np.ndarray:
     """Round-trip delay in (fractional) TDC bins: ``tau = 2 d / c`` (eq. 3 inverted)."""
-    return 2.0 * np.asarray(depth, dtype=np.float64) / (SPEED_OF_LIGHT * bin_width)
+    width = positive_number(bin_width, "bin_width", unit="seconds")
+    return 2.0 * real_array(depth, "depth").astype(np.float64) / (SPEED_OF_LIGHT * width)
 
 
 def delay_to_depth(delay_bins, bin_width: float) -> np.ndarray:
     """Depth in metres of a delay in TDC bins: ``d = tau c / 2`` (eq. 3)."""
-    return np.asarray(delay_bins, dtype=np.float64) * bin_width * SPEED_OF_LIGHT / 2.0
+    width = positive_number(bin_width, "bin_width", unit="seconds")
+    return real_array(delay_bins, "delay_bins").astype(np.float64) * width * SPEED_OF_LIGHT / 2.0
 
 
 def pulse_overlaps(delay: np.ndarray, pulse_width: float) -> tuple[np.ndarray, np.ndarray]:
@@ -43,7 +46,8 @@ def pulse_overlaps(delay: np.ndarray, pulse_width: float) -> tuple[np.ndarray, n
     """
     if not 0.0 < pulse_width <= 1.0:
         raise ValueError("pulse_width must be in (0, 1] bins")
-    delay = np.asarray(delay, dtype=np.float64).ravel()
+    # (a NaN became bin -2^63 with a NaN weight: an audit of 2026-11-29)
+    delay = real_array(delay, "delay", finite=True).astype(np.float64).ravel()
     start = np.floor(delay).astype(np.int64)
     n_touch = 2
     bins = start[:, None] + np.arange(n_touch)[None, :]
@@ -84,11 +88,13 @@ def return_weights(
     if isinstance(period, bool) or not float(period).is_integer() or period < 1:
         # (0 put every return in bin 0, 1.5 gave fractional shifts: an audit of 2026-11-29)
         raise ValueError(f"period must be a whole number of bins >= 1, got {period!r}")
-    if not np.isfinite(np.asarray(delay, dtype=np.float64)).all():
+    if not np.isfinite(real_array(delay, "delay").astype(np.float64)).all():
         raise ValueError("delay holds a NaN or an infinity (round-trip delays in bins)")
     period = int(period)
     bins, weights = pulse_overlaps(delay, pulse_width)
     q = bins.shape[0]
+    same_length(np.ravel(real_array(reflectivity, "reflectivity")), q, "reflectivity",
+                "delays")
     circ = np.mod(bins, period)
     shifts, inverse = np.unique(circ, return_inverse=True)
     inverse = inverse.reshape(circ.shape)
@@ -121,8 +127,11 @@ def return_amplitudes(
     shifts, w = return_weights(reflectivity, delay, pulse_width, period)
     if hasattr(patterns, "apply_rows"):  # a pattern operator (build_patterns' own result)
         return shifts, np.asarray(patterns.apply_rows(slice(0, patterns.shape[0]), w))
-    amp = np.asarray(patterns, dtype=np.float64) @ w
-    return shifts, amp
+    phi = real_array(patterns, "patterns", ndim=2)
+    if phi.shape[1] != w.shape[0]:
+        raise ValueError(f"patterns of shape {phi.shape} for {w.shape[0]} pixels: one column "
+                         f"per pixel")
+    return shifts, phi.astype(np.float64) @ w
 
 
 def shifted_codes(code: np.ndarray, shifts: np.ndarray, dtype=np.float32) -> np.ndarray:
@@ -131,8 +140,8 @@ def shifted_codes(code: np.ndarray, shifts: np.ndarray, dtype=np.float32) -> np.
     Float32 by default: the bits are exact, and the expected counts it produces are accurate to
     ~1e-7 relative, far below the Poisson fluctuations they feed.
     """
-    code = np.asarray(code, dtype=dtype).ravel()
-    shifts = np.mod(np.asarray(shifts, dtype=np.int64).ravel(), code.size)
+    code = real_array(code, "code").astype(dtype).ravel()
+    shifts = np.mod(whole_numbers(shifts, "shifts"), code.size)
     if not shifts.size:
         return np.empty((0, code.size), dtype=code.dtype)
     return np.stack([np.roll(code, int(s)) for s in shifts])
@@ -178,8 +187,19 @@ def expected_counts(
     Eq. (4) in expectation, with ``P_R`` expressed as ``m_s`` photons per pulse (eq. 8).
     """
     s = code_matrix if code_matrix is not None else shifted_codes(code, shifts, np.float64)
-    lam = (signal * np.asarray(amp, dtype=s.dtype)) @ s
-    lam += np.asarray(noise_per_bin, dtype=s.dtype).reshape(-1, 1)
+    amp = real_array(amp, "amp", ndim=2)
+    if amp.shape[1] != s.shape[0]:
+        raise ValueError(f"amp of shape {amp.shape} for {s.shape[0]} shifts: one column each")
+    periods = positive_number(n_periods, "n_periods")
+    if not np.isfinite(signal) or signal < 0:
+        raise ValueError(f"signal must be a finite number >= 0, got {signal!r}")
+    noise = real_array(noise_per_bin, "noise_per_bin").astype(s.dtype, copy=False)
+    if noise.ndim > 1 or noise.size not in (1, amp.shape[0]):
+        raise ValueError(f"noise_per_bin of shape {noise.shape} for {amp.shape[0]} patterns: "
+                         f"one number, or one per pattern")
+    lam = (signal * amp.astype(s.dtype, copy=False)) @ s
+    lam += noise.reshape(-1, 1)
+    n_periods = periods
     if n_periods != 1:
         lam *= n_periods
     return lam

@@ -6,16 +6,18 @@ import math
 
 import numpy as np
 
+from .arrays import real_array
 
-def _mask(valid, size: int) -> np.ndarray:
+
+def _mask(valid, size: int, what: str = "valid") -> np.ndarray:
     """``valid`` as a flat boolean mask of ``size`` pixels: booleans, or integers / floats that
     are all 0 or 1 (a 0/1 integer array indexed as such would pick pixels by number)."""
     v = np.asarray(valid).ravel()
     if v.size != size:
-        raise ValueError(f"valid has {v.size} entries for {size} pixels")
+        raise ValueError(f"{what} has {v.size} entries for {size} pixels")
     if v.dtype != bool:
         if v.dtype.kind not in "iuf" or not np.isin(v, (0, 1)).all():
-            raise ValueError("valid must be a boolean mask (or 0/1 values)")
+            raise ValueError(f"{what} must be a boolean mask (or 0/1 values)")
         v = v.astype(bool)
     return v
 
@@ -23,7 +25,7 @@ def _mask(valid, size: int) -> np.ndarray:
 def _known(truth: np.ndarray, valid: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """The truth, flat in float64, and where it is known: finite and (with ``valid``, which
     must lie on the truth's grid) valid."""
-    tru = np.asarray(truth, dtype=np.float64).ravel()
+    tru = real_array(truth, "truth").astype(np.float64).ravel()
     if valid is not None and not _same_grid(np.shape(valid), np.shape(truth)):
         raise ValueError(f"valid {np.shape(valid)} and truth {np.shape(truth)} differ")
     ok = np.isfinite(tru) if valid is None else (_mask(valid, tru.size) & np.isfinite(tru))
@@ -59,7 +61,7 @@ def depth_errors(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | No
     -----
     Eq. (19) calls it MSE but takes a square root: it is the RMSE, in metres.
     """
-    est = np.asarray(estimate, dtype=np.float64).ravel()
+    est = real_array(estimate, "estimate").astype(np.float64).ravel()
     if est.size != np.size(truth) or not _same_grid(np.shape(estimate), np.shape(truth)):
         # ((2, 8) against (8, 2) scored 0.0, an audit: a map and its flat pixels still agree)
         raise ValueError(f"estimate {np.shape(estimate)} and truth {np.shape(truth)} differ")
@@ -87,7 +89,12 @@ def chance_rmse(truth: np.ndarray, gate: tuple[float, float],
     map of noise scores about this: a curve of RMSE against the signal flattens here, set by
     the gate's width, not by the instrument (an audit's sweep read 0.15-0.17 m on a wall
     where this is 0.17 m). NaN without a valid pixel."""
+    if np.ndim(gate) != 1 or np.size(gate) != 2:
+        raise ValueError(f"gate must be (lo, hi) in metres, got {gate!r}")
     lo, hi = (float(v) for v in gate)
+    if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
+        # (a reversed gate was read as a valid one, a NaN end gave NaN: an audit)
+        raise ValueError(f"gate must be (lo, hi) metres with lo < hi, got {gate!r}")
     tru, ok = _known(truth, valid)
     if not ok.any():
         return float("nan")
@@ -108,7 +115,7 @@ def sobel_edges(depth: np.ndarray) -> np.ndarray:
     run's only use of scikit-image, whose import costs about 0.2 s of a 3 s run. It agrees with
     scikit-image to round-off (``tests/test_metrics.py``).
     """
-    d = np.array(depth, dtype=np.float64)
+    d = real_array(depth, "depth").astype(np.float64, copy=True)
     if d.ndim != 2:  # (a (2, 3, 3) stack came back (2, 3, 5), an audit)
         raise ValueError(f"depth must be a 2-D map, got shape {d.shape}")
     bad = ~np.isfinite(d)
@@ -134,7 +141,10 @@ def truth_edge_mask(valid: np.ndarray) -> np.ndarray | None:
     not of the scene: scored over every pixel, ``run`` gave 0.970 on the 32x32 motorcycle
     where the files it wrote give 0.48 over the known pixels.
     """
-    v = np.asarray(valid, dtype=bool)
+    if np.ndim(valid) != 2:  # (a flat mask failed on unpacking, or passed when all True)
+        raise ValueError(f"valid must be a 2-D mask of the image, got shape {np.shape(valid)}")
+    # (0.5 everywhere was read as True: "every pixel known", an audit of 2026-11-29)
+    v = _mask(valid, np.size(valid)).reshape(np.shape(valid))
     if v.all():
         return None
     p = np.pad(v, 1, mode="symmetric")
@@ -153,15 +163,15 @@ def edge_agreement(est_edges: np.ndarray, true_edges: np.ndarray,
     is known); NaN where either map has no edge there (a flat wall: undefined, where 0.0 read
     as "no agreement" for an estimate within 2 mm of a flat truth; metrics.json writes it as
     null) or fewer than two pixels are scored."""
-    a = np.asarray(est_edges, dtype=np.float64)
-    b = np.asarray(true_edges, dtype=np.float64)
+    a = real_array(est_edges, "est_edges").astype(np.float64)
+    b = real_array(true_edges, "true_edges").astype(np.float64)
     if a.shape != b.shape or (mask is not None and np.shape(mask) != a.shape):
         # ((4, 4) against (3, 3): NaN or NumPy's concatenation error, an audit)
         raise ValueError(f"edge maps {a.shape} and {b.shape}"
                          + ("" if mask is None else f" and mask {np.shape(mask)}")
                          + " differ")
     if mask is not None:
-        m = np.asarray(mask, dtype=bool)
+        m = _mask(mask, a.size, "mask").reshape(a.shape)  # (0.3 and NaN read as True: an audit)
         a, b = a[m], b[m]
     a, b = a.ravel(), b.ravel()
     if a.size < 2 or a.std() == 0 or b.std() == 0:

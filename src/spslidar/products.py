@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from .arrays import positive_number, real_array
 from .errors import ConfigError
 
 __all__ = ["DEFAULT_FOV_DEG", "pixel_rays", "point_cloud", "read_ply", "reflectivity_image",
@@ -66,12 +67,25 @@ def reflectivity_image(slices: np.ndarray, depth: np.ndarray, lags: np.ndarray,
     """
     from .forward import depth_to_delay
 
-    slices = np.asarray(slices, dtype=np.float64)
+    slices = real_array(slices, "slices", ndim=2).astype(np.float64)
     shape = np.shape(depth)
-    d = np.asarray(depth, dtype=np.float64).ravel()
+    d = real_array(depth, "depth").astype(np.float64).ravel()
     if slices.shape[0] != d.size:
         raise ValueError(f"slices have {slices.shape[0]} pixels, depth has {d.size}")
-    lags = np.asarray(lags)
+    # (lags shorter than the slices summed the wrong slices, longer ones an IndexError,
+    # decreasing ones other numbers, all without a word: an audit of 2026-11-29)
+    # (a calibrated acquisition's lags hold the system delay's part of a bin)
+    lags = real_array(lags, "lags", ndim=1, finite=True)
+    if lags.size != slices.shape[1]:
+        raise ValueError(f"{lags.size} lags for slices of {slices.shape[1]} delays: one each")
+    if lags.size > 1 and not np.allclose(np.diff(lags.astype(np.float64)), 1.0):
+        raise ValueError("lags must be consecutive delay bins, increasing (as a gate's)")
+    if isinstance(half_window, (bool, np.bool_)) or not float(half_window).is_integer() \
+            or half_window < 0:
+        raise ValueError(f"half_window must be a whole number of bins >= 0, got "
+                         f"{half_window!r}")
+    half_window = int(half_window)
+    positive_number(bin_width, "bin_width", unit="seconds")
     out = np.full(d.size, np.nan)
     have = np.isfinite(d)
     if lags.size == 0 or not have.any():
@@ -137,7 +151,7 @@ def point_cloud(depth: np.ndarray, fov_deg: float = DEFAULT_FOV_DEG,
     values : ndarray, shape (P,)
         The intensity of each point (zeros if none given).
     """
-    d = np.asarray(depth, dtype=np.float64)
+    d = real_array(depth, "depth").astype(np.float64)
     if d.ndim != 2:
         raise ValueError(f"depth must be a 2-D image, got shape {d.shape}")
     u, v = pixel_rays(d.shape, fov_deg)
@@ -148,7 +162,12 @@ def point_cloud(depth: np.ndarray, fov_deg: float = DEFAULT_FOV_DEG,
     if intensity is None:
         values = np.zeros(points.shape[0])
     else:
-        values = np.nan_to_num(np.asarray(intensity, dtype=np.float64)[have], nan=0.0)
+        inten = real_array(intensity, "intensity").astype(np.float64)
+        if inten.size != d.size or inten.ndim not in (1, 2) or (inten.ndim == 2
+                                                               and inten.shape != d.shape):
+            raise ValueError(f"intensity of shape {inten.shape} for a depth of shape "
+                             f"{d.shape}: one value per pixel")
+        values = np.nan_to_num(inten.reshape(d.shape)[have], nan=0.0)
     return points, values
 
 
@@ -167,15 +186,19 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, values: np.ndarray,
     PDAL and ``plyfile`` (each extra property a scalar field). Written by hand: the format
     is a short header and a packed array, and no dependency the project has writes it.
     """
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    vals = np.asarray(values, dtype=np.float64).ravel()
+    pts = real_array(points, "points").astype(np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        # (reshape(-1, 3) wrote a (3, N) array as scrambled points: an audit of 2026-11-29)
+        raise ValueError(f"points must be (P, 3), one x y z row per point, got shape "
+                         f"{pts.shape}")
+    vals = real_array(values, "values").astype(np.float64).ravel()
     n = pts.shape[0]
     if vals.size != n:
         raise ValueError(f"{n} points but {vals.size} intensity values")
     columns = {"x": pts[:, 0], "y": pts[:, 1], "z": pts[:, 2], "intensity": vals}
     kinds = dict.fromkeys(columns, "float")
     for name, arr in fields.items():
-        a = np.asarray(arr).ravel()
+        a = real_array(arr, name).ravel()
         if not name.isidentifier() or name in columns:
             raise ValueError(f"bad PLY property name {name!r}")
         if a.size != n:

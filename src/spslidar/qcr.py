@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .arrays import real_array
 from .errors import ConfigError
 from .operators import LinearOperator
 from .patterns.dense import centred_patterns  # noqa: F401 - re-exported (eq. 11's Phi_c)
@@ -37,22 +38,24 @@ def centre(a: np.ndarray) -> np.ndarray:
     return a - a.mean(axis=0, keepdims=True)
 
 
-def _check_rows(patterns, corr) -> None:
-    """One measurement row per pattern, or one line (a ``corr`` of other rows was taken, and
-    broadcast or failed deep inside: an audit of 2026-11-29)."""
-    rows = np.shape(corr)[0] if np.ndim(corr) else None
-    if rows != patterns.shape[0]:
-        raise ValueError(f"corr has {rows} rows for {patterns.shape[0]} patterns: one row of "
-                         f"correlations per pattern")
+def _check_rows(patterns, corr) -> np.ndarray:
+    """``corr`` as a real ``(M, K)`` array, one measurement row per pattern, or one line (a
+    ``corr`` of other rows was taken, and broadcast or failed deep inside; a 3-D one gave a
+    3-D ``y``, a complex one a complex ``Delta``: audits of 2026-11-29)."""
+    corr = real_array(corr, "corr", ndim=2)
+    if corr.shape[0] != patterns.shape[0]:
+        raise ValueError(f"corr has {corr.shape[0]} rows for {patterns.shape[0]} patterns: "
+                         f"one row of correlations per pattern")
+    return corr
 
 
 def qcr_delta(patterns, corr: np.ndarray) -> np.ndarray:
     """``Delta = Phi_c^T C_c / M`` (eq. 11, 16): the covariance of the measurements with each
     pixel's pattern values, shape ``(Q, K)``. ``patterns``: an ``(M, Q)`` array or a
     :class:`~spslidar.patterns.PatternOperator`."""
-    if not isinstance(patterns, np.ndarray) and not hasattr(patterns, "rmatvec"):
-        patterns = np.asarray(patterns, dtype=np.float64)  # (a list had no 'rmatvec')
-    _check_rows(patterns, corr)
+    if not hasattr(patterns, "rmatvec"):  # (a list had no 'rmatvec')
+        patterns = real_array(patterns, "patterns", ndim=2, floating=True)
+    corr = _check_rows(patterns, corr)
     if isinstance(patterns, np.ndarray):
         return centre(patterns).T @ centre(corr) / patterns.shape[0]
     # Phi_c^T C_c = Phi^T C_c: the centred data sum to zero over the patterns
@@ -92,7 +95,7 @@ def qcr_problem(patterns: np.ndarray, corr: np.ndarray, form: str = "centred",
     from .patterns import as_patterns
 
     phi = as_patterns(patterns, copy=False)
-    _check_rows(phi, corr)
+    corr = _check_rows(phi, corr)
     m = phi.shape[0]
     if form == "centred":
         return phi.centred(np.sqrt(m), dtype=dtype), (centre(corr) / np.sqrt(m)).astype(dtype)
@@ -107,8 +110,8 @@ def plain_problem(patterns: np.ndarray, corr: np.ndarray,
     from .patterns import as_patterns
 
     phi = as_patterns(patterns)
-    _check_rows(phi, corr)
-    return phi.as_dtype(dtype), np.asarray(corr, dtype=dtype)
+    corr = _check_rows(phi, corr)
+    return phi.as_dtype(dtype), corr.astype(dtype)
 
 
 class MeanEliminated(LinearOperator):
@@ -153,12 +156,24 @@ class MeanEliminated(LinearOperator):
 
     def data(self, corr: np.ndarray) -> np.ndarray:
         """The reduced data ``(I - v v^T) C``."""
-        return self._project(corr).astype(self.dtype, copy=False)
+        return self._project(self._corr(corr)).astype(self.dtype, copy=False)
+
+    def _corr(self, corr: np.ndarray) -> np.ndarray:
+        corr = real_array(corr, "corr", ndim=2)
+        if corr.shape[0] != self.shape[0]:  # (a broadcast error named neither: an audit)
+            raise ValueError(f"corr has {corr.shape[0]} rows for an operator of "
+                             f"{self.shape[0]}: one row per pattern")
+        return corr
 
     def recover(self, z: np.ndarray, corr: np.ndarray) -> np.ndarray:
         """``p = z + c(z) 1`` with each column's best constant ``c(z)`` (the optimum of eq. 18
         when ``z`` minimises the reduced problem)."""
-        z64 = np.asarray(z, dtype=np.float64)
-        resid = np.asarray(corr, np.float64) - np.asarray(self.op.matvec(z), np.float64)
+        corr = self._corr(corr)
+        z = real_array(z, "z", ndim=2)
+        if z.shape != (self.shape[1], corr.shape[1]):
+            raise ValueError(f"z of shape {z.shape} for {self.shape[1]} pixels and "
+                             f"{corr.shape[1]} columns of corr")
+        z64 = z.astype(np.float64)
+        resid = corr.astype(np.float64) - np.asarray(self.op.matvec(z), np.float64)
         c = (self.v @ resid) / self.norm_a1
         return (z64 + c[None, :]).astype(np.asarray(z).dtype, copy=False)

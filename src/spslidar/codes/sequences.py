@@ -472,6 +472,8 @@ def periodic_xcorr(a: np.ndarray, b: np.ndarray, bipolar: bool = True) -> np.nda
     """
     a = np.asarray(a)
     b = np.asarray(b)
+    if np.iscomplexobj(a) or np.iscomplexobj(b):  # (cast to their real part: an audit)
+        raise ConfigError("periodic_xcorr correlates real codes: got complex numbers")
     if a.ndim != 1 or b.ndim != 1 or a.size != b.size or a.size == 0:
         raise ConfigError(
             f"periodic_xcorr needs two 1-D codes of the same length, got shapes {a.shape} and "
@@ -485,6 +487,10 @@ def periodic_xcorr(a: np.ndarray, b: np.ndarray, bipolar: bool = True) -> np.nda
         raise ConfigError("periodic_xcorr correlates bits or whole counts: its inputs hold a "
                           "non-finite or fractional value")
     if bipolar:
+        if not (np.isin(x, (0.0, 1.0)).all() and np.isin(y, (0.0, 1.0)).all()):
+            # (3s and 0s read as +5 and -1: an audit of 2026-11-29)
+            raise ConfigError("periodic_xcorr with bipolar=True maps 0/1 bits to -1/+1: its "
+                              "inputs hold other values (use bipolar=False for counts)")
         x = 2.0 * x - 1.0
         y = 2.0 * y - 1.0
     period = x.size

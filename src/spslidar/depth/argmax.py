@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..arrays import positive_number, real_array
 from ..forward import delay_to_depth
-from .base import DepthContext, DepthEstimate, DepthEstimator
+from .base import DepthContext, DepthEstimate, DepthEstimator, check_delays
 from .profile import no_return
 
 
@@ -56,7 +57,7 @@ def ml_depth(
     code period (identical slices repeat) the earliest alias wins, as the paper's "first
     tallest correlation peak".
     """
-    x = np.asarray(slices, dtype=np.float64)
+    x = real_array(slices, "slices").astype(np.float64)
     # (an audit of 2026-11-29: a NaN slice was each pixel's argmax, 10 lags for 6 slices and
     # a negative bin width were taken; the registered estimators checked, this did not)
     if x.ndim != 2 or x.shape[1] == 0:
@@ -64,8 +65,8 @@ def ml_depth(
     if np.shape(lags) != (x.shape[1],):
         raise ValueError(f"lags must hold one delay per slice ({x.shape[1]}), got shape "
                          f"{np.shape(lags)}")
-    if not (np.isfinite(bin_width) and bin_width > 0):
-        raise ValueError(f"bin_width must be a positive number of seconds, got {bin_width}")
+    check_delays(lags)
+    positive_number(bin_width, "bin_width", unit="seconds")
     missing = np.isnan(x)
     if missing.any():  # a NaN slice is no evidence: never the tallest
         x = np.where(missing, -np.inf, x)

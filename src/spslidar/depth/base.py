@@ -55,12 +55,20 @@ class DepthContext:
                     value, (int, float, np.integer, np.floating)) or not (
                     np.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive number of {unit}, got {value!r}")
-        lags = np.asarray(self.lags)
-        if lags.ndim != 1 or lags.dtype.kind not in "iuf" or not np.isfinite(lags).all():
-            # (a calibrated instrument's lags hold the delay's part of a bin: not integers)
-            raise ConfigError("lags must be a 1-D array of finite delays (TDC bins)")
-        if lags.size > 1 and not (np.diff(lags) > 0).all():
-            raise ConfigError("lags must be increasing")
+        check_delays(self.lags)
+
+
+def check_delays(lags) -> np.ndarray:
+    """The slices' delays as an array, or one line: they must be finite and increasing (a
+    calibrated instrument's hold the delay's part of a bin: not integers). Shared by
+    :class:`DepthContext` and :func:`~spslidar.depth.argmax.ml_depth` (which read decreasing
+    or NaN lags as they were: an audit of 2026-11-29)."""
+    lags = np.asarray(lags)
+    if lags.ndim != 1 or lags.dtype.kind not in "iuf" or not np.isfinite(lags).all():
+        raise ConfigError("lags must be a 1-D array of finite delays (TDC bins)")
+    if lags.size > 1 and not (np.diff(lags) > 0).all():
+        raise ConfigError("lags must be increasing")
+    return lags
 
 
 @dataclass

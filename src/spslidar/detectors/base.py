@@ -15,7 +15,19 @@ from typing import Any
 
 import numpy as np
 
+from ..arrays import real_array
+
 __all__ = ["DetectorModel"]
+
+
+def means_block(lam: Any) -> np.ndarray:
+    """``lam`` as the real ``(B, L)`` means a model's :meth:`DetectorModel.detect` draws
+    from, or one line: a 1-D row was taken by one model and refused by the other, a complex
+    one crashed in numpy's cast (an audit of 2026-11-29)."""
+    if np.ndim(lam) != 2:
+        raise ValueError(f"lam must be (B, L) means, one row per pattern, got shape "
+                         f"{np.shape(lam)}")
+    return real_array(lam, "lam")
 
 
 class DetectorModel:

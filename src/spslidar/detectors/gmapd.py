@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from .base import DetectorModel
+from .base import DetectorModel, means_block
 from .counting import check_rates
 from .jitter import convolve_periodic, jitter_kernel
 from .pileup import auto_oversample, coates_correction, renewal_detection
@@ -304,7 +304,7 @@ class GMAPD(DetectorModel):
             # differential frame's, without dead time)
             raise ValueError(f"n_periods must be a positive number of code periods, got "
                              f"{n_periods!r}")
-        lam = np.atleast_2d(np.asarray(lam, dtype=np.float64))
+        lam = means_block(lam).astype(np.float64, copy=False)
         check_rates(lam)
         q, mu, subs = self._model(lam, n_periods)
         if self.dead_bins == 0:

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from .base import DetectorModel
+from .base import DetectorModel, means_block
 from .counting import PhotonCountingDetector, poisson_rows
 
 __all__ = ["LinearDetector"]
@@ -35,10 +35,7 @@ class LinearDetector(PhotonCountingDetector, DetectorModel):
         from ..randomness import as_generator
 
         rng = as_generator(rng)
-        if np.ndim(lam) != 2:  # (an AxisError from deep inside, an audit)
-            raise ValueError(f"lam must be (B, L) means, one row per pattern, got shape "
-                             f"{np.shape(lam)}")
-        lam = self.detected_means(lam)
+        lam = self.detected_means(means_block(lam))  # (an AxisError deep inside, an audit)
         if out is None:  # (the counts were written over the caller's means, an audit)
             out = np.empty(np.shape(lam), dtype=np.result_type(np.asarray(lam).dtype,
                                                               np.float32))

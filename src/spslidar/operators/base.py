@@ -220,9 +220,10 @@ class MatrixOperator(LinearOperator):
 
 
 def _real_input(a, what: str) -> np.ndarray:
-    """``a`` as an array for a product, or one line: a masked array (its mask was dropped
-    without a word) or complex numbers (cast to their real part with a library warning: the
-    operators are real linear maps), an audit of 2026-11-29."""
+    """``a`` as a floating array for a product, or one line: a masked array (its mask was
+    dropped without a word) or complex numbers (cast to their real part with a library
+    warning: the operators are real linear maps), an audit of 2026-11-29. Integers and
+    booleans come as float64, float16 as float32, as :func:`float_matrix` casts a matrix."""
     if isinstance(a, np.ma.MaskedArray):
         raise ValueError(f"{what} is a masked array: an operator applies to every entry (fill "
                          f"the masked ones first, e.g. x.filled(0))")
@@ -230,6 +231,12 @@ def _real_input(a, what: str) -> np.ndarray:
     if np.iscomplexobj(a):
         raise ValueError(f"{what} holds complex numbers: the operators are real linear maps "
                          f"(apply them to the real and imaginary parts apart)")
+    if a.dtype.kind in "biu":  # (Identity gave int or bool back, Gradient2D failed on bool)
+        return a.astype(np.float64)
+    if a.dtype == np.float16:  # (Wavelet2D answered in float16: audits of 2026-11-29)
+        return a.astype(np.float32)
+    if a.dtype.kind != "f":
+        raise ValueError(f"{what} must hold numbers, got dtype {a.dtype}")
     return a
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..arrays import positive_number, real_array, whole_numbers
+
 
 def gate_text(gate) -> str:
     """A range gate in metres as the messages say it, ``19.955-20.845``: 6 significant
@@ -48,8 +50,17 @@ def occupied_lags(corr: np.ndarray, sigma: np.ndarray, n_sigmas: float = AUTO_GA
     in a 40-60 m gate kept 385 of 669 delays and read 0.28 m RMSE (0.014 m through an
     m-sequence, whose correlation with its bipolar replica has none).
     """
-    profile = np.asarray(corr, dtype=np.float64).mean(axis=0)
-    noise = float(np.sqrt(np.mean(np.asarray(sigma) ** 2) / corr.shape[0]))
+    corr = real_array(corr, "corr", ndim=2)
+    sigma = real_array(sigma, "sigma").ravel()
+    if sigma.size not in (1, corr.shape[0]):  # (a wrong length was averaged as it was)
+        raise ValueError(f"sigma of {sigma.size} values for {corr.shape[0]} patterns: one "
+                         f"each (or one for all)")
+    if lags is not None:
+        lags = whole_numbers(lags, "lags")
+        if lags.size != corr.shape[1]:
+            raise ValueError(f"{lags.size} lags for {corr.shape[1]} columns of corr")
+    profile = corr.astype(np.float64).mean(axis=0)
+    noise = float(np.sqrt(np.mean(sigma.astype(np.float64) ** 2) / corr.shape[0]))
     base = float(np.median(profile))
     threshold = n_sigmas * max(noise, 1e-300)
     hit = profile - base > threshold
@@ -157,5 +168,7 @@ def with_reference(keep: np.ndarray, n: int = AUTO_GATE_REFERENCE,
 
 def unique_lags(lags: np.ndarray, period: int) -> tuple[np.ndarray, np.ndarray]:
     """Distinct delays modulo the code period, and the map back to the gate's lags."""
-    u, inv = np.unique(np.mod(lags, period), return_inverse=True)
+    # (1.5 bins gave "distinct" fractional delays, a period of 0 a divide warning: an audit)
+    period = positive_number(period, "period", integer=True)
+    u, inv = np.unique(np.mod(whole_numbers(lags, "lags"), period), return_inverse=True)
     return u, inv

@@ -320,7 +320,16 @@ class Solver:
             from ..operators import MatrixOperator
 
             A = MatrixOperator(A, copy=False)  # (for this solve only)
+        if not callable(getattr(reg, "prox", None)):
+            # (None: "'NoneType' object has no attribute 'values'", an audit of 2026-11-29)
+            raise ValueError(f"reg must be a regulariser (with a prox: "
+                             f"spslidar.solvers.regularisers' TV, L1, Zero...), got {reg!r}")
         yb, self._was_1d = as_block(y)
+        if np.iscomplexobj(yb) or yb.dtype.kind not in "biuf":
+            # (complex data were cast to their real part with numpy's warning: an audit)
+            raise ValueError(f"the data y must be real numbers, got dtype {yb.dtype}")
+        if not yb.size:  # (a reshape or index error inside the iteration: an audit)
+            raise ValueError(f"the data y are empty (shape {np.shape(y)}): nothing to solve")
         if not np.isfinite(yb).all():  # (an all-NaN estimate came back, an audit)
             raise ValueError("the data y hold a NaN or an infinity")
         if yb.shape[0] != A.shape[0]:
