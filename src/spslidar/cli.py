@@ -286,7 +286,12 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Run every point of the grid in CONFIG.toml (a [grid] table "
                                    "of lists of run keys, optional [base] table, seed, trials) "
                                    "and write DIR/results.csv (one row per run). Finished runs "
-                                   "are cached in DIR/runs, so an interrupted sweep resumes.")
+                                   "are cached in DIR/runs, so an interrupted sweep resumes.",
+                       epilog="Exit status: 0 when every run succeeded; 1 when the work did "
+                              "not complete (some runs failed: results.csv has their error "
+                              "column; or a worker process was killed: run the same command "
+                              "again to resume); 2 on bad input (nothing runs); 130 after "
+                              "Ctrl-C, 143 after SIGTERM.")
     w.add_argument("config", metavar="CONFIG.toml", help="sweep definition")
     w.add_argument("--out", required=True, metavar="DIR", help="output folder")
     w.add_argument("--overwrite", action="store_true",
@@ -302,7 +307,8 @@ def _add_sweep_options(p: argparse.ArgumentParser, trials: bool) -> None:
                        help="Monte-Carlo trials per setting (default: 5 for fig3, 3 for fig4, "
                             "fig5 (fig4's runs) and pileup, else 1; 1 with --quick)")
     p.add_argument("--jobs", type=int, default=1, metavar="J",
-                   help="local worker processes (-1: all cores; default 1)")
+                   help="local worker processes (-1: all cores; default 1; at most the "
+                        "cores; ignored with --scheduler)")
     p.add_argument("--scheduler", metavar="ADDR",
                    help="Dask scheduler address (tcp://HOST:PORT) instead of local processes")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -394,11 +400,19 @@ def _cmd_reproduce(args) -> int:
 
 
 def _cmd_sweep(args) -> int:
+    """``spslidar sweep``: exit status 0 when every run succeeded, 1 when the work did not
+    complete (some runs failed, or a worker process was killed), 2 on bad input."""
     from .experiments.sweep import sweep_main
+    from .experiments.sweep.engine import WorkerLost
 
-    return 1 if sweep_main(args.config, args.out, jobs=args.jobs, scheduler=args.scheduler,
-                           progress=not args.no_progress, max_time=args.max_time,
-                           overwrite=args.overwrite) else 0
+    try:
+        return 1 if sweep_main(args.config, args.out, jobs=args.jobs, scheduler=args.scheduler,
+                               progress=not args.no_progress, max_time=args.max_time,
+                               overwrite=args.overwrite) else 0
+    except WorkerLost as exc:  # (a killed worker was joblib's 30-line traceback: an audit
+        # of 2026-11-29) one line; the work did not complete, as where runs failed
+        print(f"spslidar sweep: {exc}", file=sys.stderr)
+        return 1
 
 
 COMMANDS = {"run": _cmd_run, "reconstruct": cmd_reconstruct, "calibrate": cmd_calibrate,

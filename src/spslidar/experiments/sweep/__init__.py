@@ -12,7 +12,9 @@ The engine
 * caches every finished point in ``out_dir/runs/<key>.json`` (written atomically, by the
   calling process, as points finish), so an interrupted sweep resumes where it stopped;
 * records a point whose function raises as a row with an ``error`` column and carries on
-  (failed points are not cached: a rerun retries them).
+  (failed points are not cached: a rerun retries them), a ``SystemExit`` included;
+* raises :class:`WorkerLost`, one line naming the runs cached, where a local worker process
+  is killed under it (a Dask cluster runs a lost worker's points again).
 
 Sweep configurations are TOML files (:func:`load_sweep_config`)::
 
@@ -45,7 +47,7 @@ changing ``func``, use a fresh ``out_dir`` or pass ``code``).
 """
 
 from spslidar.experiments.sweep.command import run_point, sweep_main
-from spslidar.experiments.sweep.engine import run_sweep
+from spslidar.experiments.sweep.engine import WorkerLost, run_sweep
 from spslidar.experiments.sweep.grid import (
     ERROR_KEY,
     KEY_LENGTH,
@@ -67,6 +69,7 @@ __all__ = [
     "SEED_KEY",
     "TRIAL_KEY",
     "SweepSpec",
+    "WorkerLost",
     "atomic_write_bytes",
     "atomic_write_text",
     "derive_seed",

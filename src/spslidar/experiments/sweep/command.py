@@ -27,9 +27,11 @@ from spslidar.experiments.sweep.grid import (
     resolve_point_files,
     same_value,
     sha256_hex,
+    text_key,
     with_scene_hashes,
+    with_seed,
 )
-from spslidar.experiments.sweep.store import say_outcome, write_csv
+from spslidar.experiments.sweep.store import load_cached, say_outcome, write_csv
 
 __all__ = ["run_point", "sweep_main"]
 
@@ -123,7 +125,8 @@ def _seeded(points: Sequence[Mapping[str, Any]], ignored: list[dict[str, str]],
 def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
                          ignored: list[dict[str, str]] | None = None,
                          unpriced: dict[str, int] | None = None,
-                         memory: list[tuple[float, float | None]] | None = None) -> float:
+                         memory: list[tuple[float, float | None]] | None = None,
+                         costs: list[float] | None = None) -> float:
     """Check every point's run config before anything runs: a bad grid is bad input (one
     ConfigError naming the file), not a sweep of failed runs. Returns the estimated total
     time of the runs (seconds, from each configuration's budget); ``ignored`` receives each
@@ -131,7 +134,8 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
     (:func:`~spslidar.pipeline.plan.ignored_keys`), ``unpriced`` the number of points per
     detector model whose cost depends on the flux (not ``linear``: the GMAPD's dead-time
     model, which a run prices from its first block of patterns as it runs, not before),
-    ``memory`` each point's estimated bytes with its ``max_memory`` (GB, or None)."""
+    ``memory`` each point's estimated bytes with its ``max_memory`` (GB, or None), ``costs``
+    each point's estimated seconds."""
     from spslidar.config import Config
     from spslidar.detectors import DETECTORS
     from spslidar.pipeline import preflight
@@ -156,6 +160,8 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
                 budget = preflight(cfg)
                 seconds[key], peak[key] = budget.seconds, budget.bytes
             total += seconds[key]
+            if costs is not None:
+                costs.append(seconds[key])
             if memory is not None:
                 memory.append((peak[key], cfg.max_memory))
             if unpriced is not None and not getattr(DETECTORS.load(cfg.detector), "linear",
@@ -164,6 +170,17 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
         except (ConfigError, SpslidarError) as exc:
             raise ConfigError(f"{where}: {exc}") from None
     return total
+
+
+def _cluster_threads(scheduler: Any) -> int:
+    """The threads of a Dask cluster's workers (``distributed.Client.nthreads``), at least 1
+    (a cluster whose workers have not joined yet: they run the points as they come)."""
+    client, owned = engine._dask_client(scheduler)
+    try:
+        return max(1, sum(client.nthreads().values()))
+    finally:
+        if owned:
+            client.close()
 
 
 def _jobs_that_fit(memory: list[tuple[float, float | None]], workers: int) -> int:
@@ -209,16 +226,19 @@ def sweep_main(
         Output folder: ``runs/`` (cache, filled as points finish) and ``results.csv``
         (written atomically once every point has been attempted).
     jobs : int, default 1
-        Local worker processes (see :func:`run_sweep`).
+        Local worker processes (see :func:`run_sweep`), at most the cores (a clamp is said on
+        stderr); ignored, and said, with ``scheduler``.
     scheduler : str, distributed.Client or cluster, optional
-        Dask scheduler (see :func:`run_sweep`).
+        Dask scheduler (see :func:`run_sweep`); the estimate is shared among its workers'
+        threads.
     progress : bool, default True
         Show a progress bar on stderr.
     func : Callable, optional
         The function of a point; default :func:`run_point`.
     max_time : float, optional
-        Refuse a sweep whose estimated total time (the sum of its runs' estimates, before
-        any runs) exceeds this many seconds; one over 30 s says its estimate first.
+        Refuse a sweep whose estimated total time (the sum of the estimates of its runs not
+        yet cached, before any runs, shared among the workers) exceeds this many seconds;
+        one over 30 s says its estimate first.
     overwrite : bool, default False
         Replace the ``results.csv`` of another sweep (other points) in ``out_dir``; without
         it that is refused, while the same sweep again resumes (its points are recorded in
@@ -229,7 +249,18 @@ def sweep_main(
     int
         The number of failed points (0 when all succeeded). A one-line summary, and the first
         few errors, are printed on stderr.
+
+    Raises
+    ------
+    ConfigError
+        On bad input (a bad point, a folder that is not a sweep's, an estimate over
+        ``max_time``...), before any run.
+    WorkerLost
+        Where a local worker process was killed under the sweep: the finished runs are
+        cached, and the same call again resumes.
     """
+    from spslidar.plugins import code_fingerprint
+
     spec = load_sweep_config(config_path)
     points = spec.points()  # files named as the TOML names them: seeds and keys follow those
     jobs = engine._check_jobs(jobs)  # before the estimate and the folder
@@ -241,7 +272,8 @@ def sweep_main(
         opened = [spec.resolve(point) for point in points]
         unpriced: dict[str, int] = {}
         memory: list[tuple[float, float | None]] = []
-        total = _validate_run_points(opened, config_path, ignored, unpriced, memory)
+        costs: list[float] = []
+        _validate_run_points(opened, config_path, ignored, unpriced, memory, costs)
         points = [{**point, **{k: hashed[k] for k in (SCENE_HASH_KEY, IRF_HASH_KEY)
                                if k in hashed}}
                   for point, hashed in zip(points, with_scene_hashes(opened), strict=True)]
@@ -252,13 +284,46 @@ def sweep_main(
         points = _seeded(points, ignored, ignore, spec.seed)
         from spslidar.pipeline.budget import check_time
 
-        # local workers are at most the cores (--jobs 1000 divided a 9 h sweep into 31 s)
-        workers = jobs if scheduler is not None else (
-            engine._cores() if jobs == -1 else min(jobs, engine._cores()))
-        if scheduler is None and workers > 1:
-            jobs = workers = _jobs_that_fit(memory, workers)
-        check_time(total / max(1, min(len(points), workers)), max_time,
-                   f"this sweep of {len(points)} runs")
+        # only the runs not cached are priced (a complete 40-run sweep run again under
+        # --max-time 1s was refused as "would take ~14 s", so a 90 %-done 6 h sweep could not
+        # be resumed under the default 1 h: an audit of 2026-11-29)
+        code = code_fingerprint()
+        total, cached, keys = 0.0, 0, set()
+        for point, cost in zip(points, costs, strict=True):
+            text = canonical_json(with_seed(point, spec.seed, ignore))
+            key = text_key(text)
+            if key in keys:  # (run once, and cached once)
+                continue
+            keys.add(key)
+            if load_cached(Path(out_dir) / "runs" / f"{key}.json", text, code) is not None:
+                cached += 1
+            else:
+                total += cost
+        to_run = len(keys) - cached
+        if scheduler is not None:
+            # the cluster's threads run the points (the estimate was divided by --jobs, 1 by
+            # default, and --jobs 64 on a 2-worker cluster divided it by 64: an audit of
+            # 2026-11-29); --jobs is the local processes' and is ignored here, as run_sweep
+            # ignores it
+            workers = _cluster_threads(scheduler)
+            if jobs != 1:
+                print(f"sweep: note: --jobs {jobs} is ignored with --scheduler: the cluster's "
+                      f"{workers} thread{'s' if workers != 1 else ''} run the points",
+                      file=sys.stderr)
+        else:
+            # local workers are at most the cores (--jobs 1000 divided a 9 h sweep into 31 s),
+            # said as run_sweep says it (--jobs 8 on 2 cores was clamped to 2 without a word
+            # here: an audit of 2026-11-29)
+            workers = engine.clamp_jobs(jobs, to_run) if to_run else 1
+            if workers > 1:
+                workers = _jobs_that_fit(memory, workers)
+            if to_run:
+                jobs = workers
+        what = f"this sweep of {len(points)} runs"
+        if cached:
+            what = (f"this sweep of {len(points)} runs ({cached} cached, not counted; "
+                    f"{to_run} to run)")
+        check_time(total / max(1, min(max(to_run, 1), workers)), max_time, what)
         if unpriced:  # (a 3-point GMAPD sweep ran 70 s with nothing said, an audit)
             said = ", ".join(f"the {n} point{'s' if n > 1 else ''} through --detector {name}"
                              for name, n in unpriced.items())
@@ -272,7 +337,8 @@ def sweep_main(
         record_outputs,
         release_folder,
     )
-    from spslidar.plugins import code_fingerprint
+    if func is not None:
+        code = code_fingerprint()
 
     if isinstance(scheduler, str):
         engine._probe_scheduler(scheduler)  # before the folder is made
@@ -299,13 +365,14 @@ def sweep_main(
             scheduler=scheduler,
             progress=progress,
             seed_ignore=ignore,
-            code=code_fingerprint(),  # an edited plugin or spslidar: its points run again
+            code=code,  # an edited plugin or spslidar: its points run again
             counts=counts,
         )
     except SpslidarError:  # refused before any point ran: leave no folder behind
         release_folder(folder, existed)
         raise
-    except KeyboardInterrupt:  # before any run finished: no folder of nothing but a marker
+    except (KeyboardInterrupt, engine.WorkerLost):  # before any run finished: no folder of
+        # nothing but a marker (a killed worker's line named a cache of no run)
         release_folder(folder, existed)
         raise
     from spslidar.outlock import folder_lock

@@ -15,6 +15,7 @@ import os
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
+from concurrent.futures.process import BrokenProcessPool  # loky's are subclasses
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +34,14 @@ from spslidar.experiments.sweep.store import load_cached, store_run
 #: the table a sweep writes into its folder (known by its SHA-256 in the folder's marker)
 RESULTS_CSV = "results.csv"
 
-__all__ = ["run_sweep"]
+__all__ = ["WorkerLost", "run_sweep"]
+
+
+class WorkerLost(RuntimeError):
+    """A local worker process ended under the sweep (killed by the OS, its memory guard or a
+    user): the runs that finished are cached, the others were not run. Its message is one line
+    that says so (:func:`run_sweep` adds how many are cached and where); the command line
+    gives it with exit status 1, the work did not complete."""
 
 # --------------------------------------------------------------------------------------------
 # Running the points
@@ -64,7 +72,12 @@ def _call(func: Callable[[dict[str, Any]], Any], params: dict[str, Any],
             load_plugins(list(plugins))
         # (a copy: a function that changed its params changed the row's, an audit)
         result = func(copy.deepcopy(params))
-    except Exception as exc:
+    except KeyboardInterrupt:  # Ctrl-C, SIGTERM, SIGHUP (Terminated): the command stops
+        raise
+    except BaseException as exc:  # noqa: BLE001 - a point's SystemExit is the point's failure
+        # (a plugin stage's SystemExit("bad boom") at one point ended the sweep with "bad
+        # boom", exit 1, no results.csv and the other points never run: an audit of
+        # 2026-11-29)
         return "error", _error_message(exc), time.perf_counter() - start
     return "ok", result, time.perf_counter() - start
 
@@ -111,7 +124,12 @@ def _run_local(
         parallel = Parallel(n_jobs=jobs)
         batch = 4 * max(1, parallel.n_jobs if parallel.n_jobs > 0 else os.cpu_count() or 1)
         for start in range(0, len(tasks), batch):
-            yield from parallel(calls(tasks[start : start + batch]))
+            try:
+                done = parallel(calls(tasks[start : start + batch]))
+            except BrokenProcessPool as exc:
+                _stop_workers()
+                raise WorkerLost(_worker_lost(exc)) from None
+            yield from done
         return
     try:
         outputs = parallel(calls(tasks))
@@ -123,6 +141,12 @@ def _run_local(
         raise
     try:
         yield from outputs
+    except BrokenProcessPool as exc:
+        # (a worker killed by the OS, kill -KILL, ended the sweep in a 30-line traceback of
+        # joblib's TerminatedWorkerError, exit 1, no word of the runs cached: an audit of
+        # 2026-11-29)
+        _stop_workers()
+        raise WorkerLost(_worker_lost(exc)) from None
     except BaseException:
         _stop_workers()
         raise
@@ -130,6 +154,23 @@ def _run_local(
         close = getattr(outputs, "close", None)
         if close is not None:
             close()
+
+
+def _worker_lost(exc: BaseException) -> str:
+    """What ended a pool worker, from loky's message: ``"a worker process was killed (signal 9:
+    out of memory?)"``, or its exit code where it exited."""
+    import re
+
+    text = str(exc)
+    signal_match = re.search(r"SIG\w*\((-?\d+)\)", text)
+    if signal_match:
+        number = abs(int(signal_match.group(1)))
+        why = ": out of memory?" if number == 9 else ""
+        return f"a worker process was killed (signal {number}{why})"
+    exit_match = re.search(r"EXIT\((-?\d+)\)", text)
+    if exit_match:
+        return f"a worker process ended (exit status {exit_match.group(1)})"
+    return f"the worker pool broke ({_error_message(exc)})"
 
 
 def _out_of_processes(exc: BaseException) -> bool:
@@ -411,6 +452,9 @@ def run_sweep(
     ConfigError
         On invalid arguments, non-JSON-like params, an out_dir that is not a folder, or a
         missing dask installation when ``scheduler`` is given.
+    WorkerLost
+        Where a local worker process is killed under the sweep (the OS out of memory, a
+        user): the message says how many finished runs are cached, and where.
     """
     seed = check_int(seed, "seed")
     jobs = _check_jobs(jobs)
@@ -442,6 +486,7 @@ def run_sweep(
     tasks: list[tuple[int, dict[str, Any]]] = []
     task_keys: list[str] = []
     seen: set[str] = set()
+    stale = 0
     for i, key in enumerate(keys):
         if key in seen:
             continue
@@ -452,10 +497,18 @@ def run_sweep(
         else:
             tasks.append((len(tasks), full_params[i]))
             task_keys.append(key)
+            if code is not None and load_cached(runs_dir / f"{key}.json", params_json[key]):
+                stale += 1
 
     n_unique = len(results) + len(tasks)
     if counts is not None:
-        counts.update(cached=len(results), run=len(tasks))
+        counts.update(cached=len(results), run=len(tasks), stale=stale)
+    if stale:
+        # (a plugin loaded but used by no point changed the fingerprint, and every cached run
+        # was run again without a word: an audit of 2026-11-29)
+        print(f"spslidar: note: {stale} cached run{'s were' if stale > 1 else ' was'} made by "
+              f"other code (spslidar or its plugins changed) and {'are' if stale > 1 else 'is'} "
+              f"run again", file=sys.stderr)
     from tqdm import tqdm
 
     bar = tqdm(
@@ -506,6 +559,13 @@ def run_sweep(
                     print(f"sweep: {done}/{n_unique} runs done"
                           + (f" ({len(errors)} failed)" if errors else "")
                           + f", {now - t_start:.0f} s", file=sys.stderr, flush=True)
+    except WorkerLost as exc:
+        n = len(results)
+        if not n:
+            raise WorkerLost(f"{exc} before any run finished: run the same command again (with "
+                             f"fewer --jobs where memory ran out)") from None
+        raise WorkerLost(f"{exc}; {n} finished run{' is' if n == 1 else 's are'} cached in "
+                         f"{runs_dir}: run the same command again to resume") from None
     finally:
         bar.close()
 
