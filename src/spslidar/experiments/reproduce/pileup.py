@@ -261,7 +261,8 @@ def exp_pileup(ctx: Context) -> tuple[str, list[Claim]]:
             pulse = (f" (at {top:g} photons per dead time {conv[MODELS[1][2]][top]:.3g} m "
                      f"uncorrected, {conv[MODELS[2][2]][top]:.3g} m corrected)")
         findings.append(
-            f"Where a GMAPD works (best of corrected and uncorrected within {USABLE_M:g} m): "
+            f"Where a GMAPD works (the better of corrected and uncorrected reaches a depth RMSE "
+            f"of at most {USABLE_M:g} m): "
             f"PSST from {p0:g} to {p1:g} photons per dead time, conventional from {c0:g} to "
             f"{c1:g}. The PSST code spreads a period's photons over its "
             f"8192 pulses, so no bin saturates and pile-up distorts the histogram by a "

@@ -139,7 +139,7 @@ def _interrupted(out: Path, existed: bool, experiment: str, names, done: list[st
           flush=True)
     if (out / "report.md").is_file():
         with journal(out, _REPORT):
-            build_report(out, EXPERIMENT_REGISTRY.names(), note=note)
+            build_report(out, EXPERIMENT_REGISTRY.names(), note=report_note(note))
         from spslidar.outdir import record_outputs
 
         record_outputs(out, list(_REPORT))
@@ -153,6 +153,7 @@ def _run_all(ctx: Context, out: Path, existed: bool, experiment: str, names,
 
     status = 0
     t_all = time.perf_counter()
+    failures: list[str] = []  # "NAME failed: reason", for the report's banner
     for name in names:
         t0 = time.perf_counter()
         before, failed_before = n_cached(ctx), ctx.failed
@@ -168,15 +169,21 @@ def _run_all(ctx: Context, out: Path, existed: bool, experiment: str, names,
                 raise
             except Exception as exc:  # an experiment's bug must not lose the others' results
                 traceback.print_exc(file=sys.stderr)
-                print(f"reproduce {name}: failed: {type(exc).__name__}: {exc}",
-                      file=sys.stderr)
+                reason = f"{type(exc).__name__}: {exc}"
+                print(f"reproduce {name}: failed: {reason}", file=sys.stderr)
                 status = 1
+                failures.append(f"{name} failed: {_one_line(reason)}")
+                # say so in the report (it said nothing: the section and its summary rows
+                # were simply absent, where an interrupted run got a banner)
+                build_report(out, EXPERIMENT_REGISTRY.names(),
+                             note=report_note(_failed_note(failures, out)))
                 continue
             if trials is not None and not ctx.trials_read:
                 print(f"spslidar: warning: --trials {trials} is ignored by {name}: it runs no "
                       f"repeated trials", file=sys.stderr)
             write_section(out, name, text, claims)
-            build_report(out, EXPERIMENT_REGISTRY.names())
+            build_report(out, EXPERIMENT_REGISTRY.names(),
+                         note=report_note(_failed_note(failures, out)))
         _record_written(out, name)
         done.append(name)
         failed = ctx.failed - failed_before
@@ -189,11 +196,46 @@ def _run_all(ctx: Context, out: Path, existed: bool, experiment: str, names,
             flush=True,
         )
     print(
-        f"reproduce {experiment}: {time.perf_counter() - t_all:.1f} s in all; report: "
+        f"reproduce {experiment}: {time.perf_counter() - t_all:.1f} s in all"
+        f"{f', {len(failures)} failed ({_names(failures)})' if failures else ''}; report: "
         f"{out / 'report.md'}, {out / 'report.html'}",
         flush=True,
     )
     return status
+
+
+def report_note(note: str = "") -> str:
+    """The paragraph(s) after the report's header: a banner (``note``) on what did not run
+    or failed, then the rule every verdict follows (said once, in the preamble)."""
+    from spslidar.experiments.reproduce.stats import VERDICT_RULE
+
+    return (note.rstrip() + "\n\n" if note else "") + VERDICT_RULE
+
+
+def _one_line(text: str, limit: int = 200) -> str:
+    """``text`` on one line, at most ``limit`` characters."""
+    flat = " ".join(str(text).split())
+    return flat if len(flat) <= limit else flat[: limit - 3] + "..."
+
+
+def _names(failures: list[str]) -> str:
+    """The experiment names of ``failures`` ("NAME failed: ...")."""
+    return ", ".join(f.split(" ", 1)[0] for f in failures)
+
+
+def _failed_note(failures: list[str], out: Path) -> str:
+    """The report's banner for experiments that raised: ``**Incomplete:** fig4 failed:
+    <reason>`` (and whether an earlier run's section is shown in its place)."""
+    if not failures:
+        return ""
+    lines = []
+    for f in failures:
+        name = f.split(" ", 1)[0]
+        earlier = (out / name / SECTION_FILE).is_file()
+        lines.append(f"**Incomplete:** {f}"
+                     + (" (its section below is from an earlier run)." if earlier else
+                        " (its section and summary rows are missing)."))
+    return "\n\n".join(lines)
 
 
 #: what an experiment ``NAME`` writes into ``DIR/NAME/`` (and every experiment into ``DIR``)
