@@ -387,3 +387,47 @@ def test_a_failed_experiment_gets_a_banner(tmp_path, fake, monkeypatch, capsys):
     assert "## Fig. 2" in report
     last = capsys.readouterr().out.strip().splitlines()[-1]
     assert "1 failed (fig3)" in last
+
+
+def test_a_killed_worker_in_an_experiment_is_its_line_without_a_traceback(
+        tmp_path, fake, monkeypatch, capsys):
+    # (the sweep engine's WorkerLost says what happened and what is cached: a traceback
+    # before it, as for an experiment's bug, buried it; an audit of 2026-11-29)
+    from spslidar.experiments.sweep.engine import WorkerLost
+
+    real = reproduce.EXPERIMENT_REGISTRY.load
+
+    def load(name):
+        if name == "fig3":
+            def lost(ctx):
+                raise WorkerLost("a worker process was killed (signal 9: out of memory?)")
+            return lost
+        return real(name)
+
+    monkeypatch.setattr(reproduce_runner.EXPERIMENT_REGISTRY, "load", load)
+    monkeypatch.setattr(reproduce_runner, "in_all_names", lambda: ("fig2", "fig3"))
+    assert reproduce.reproduce_main("all", tmp_path, quick=True, progress=False) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "reproduce fig3: failed: WorkerLost: a worker process was killed" in err
+    assert "**Incomplete:** fig3 failed: WorkerLost" in (tmp_path / "report.md").read_text()
+
+
+def test_a_batch_on_a_cluster_is_priced_over_its_threads(tmp_path, monkeypatch):
+    # (its estimate was divided by --jobs, 1 by default, which a scheduler ignores: an audit
+    # of 2026-11-29)
+    from types import SimpleNamespace
+
+    from spslidar.experiments.reproduce import context as rc
+    from spslidar.experiments.sweep import engine
+
+    monkeypatch.setattr(engine, "cluster_threads", lambda scheduler: 4)
+    points = [{"scene": "steps", "size": 8, "noise": 1.0, "trial": t} for t in range(4)]
+    spent = {}
+    for scheduler in (None, "tcp://127.0.0.1:1"):
+        ctx = SimpleNamespace(seed=0, cache=tmp_path, code="x", max_time=None, estimated_s=0.0,
+                              jobs=1, scheduler=scheduler)
+        rc._check_batch_time(ctx, points)
+        spent[scheduler] = ctx.estimated_s
+    assert spent[None] > 0
+    assert spent["tcp://127.0.0.1:1"] == pytest.approx(spent[None] / 4)

@@ -370,7 +370,12 @@ def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
         if key not in seconds:
             seconds[key] = preflight(cfg).seconds
         total += seconds[key]
-    workers = max(1, min(len(points), ctx.jobs if ctx.jobs > 0 else 2))
+    if ctx.scheduler is not None:  # the cluster's threads (--jobs, ignored there, divided it)
+        from spslidar.experiments.sweep.engine import cluster_threads
+
+        workers = max(1, min(len(points), cluster_threads(ctx.scheduler)))
+    else:
+        workers = max(1, min(len(points), ctx.jobs if ctx.jobs > 0 else 2))
     # the whole command's estimate, not each batch's (--max-time 10 ran 30 s of batches)
     check_time(ctx.estimated_s + total / workers, ctx.max_time,
                f"this reproduction (its earlier batches and this one of {len(points)} runs)",

@@ -14,6 +14,7 @@ from spslidar.errors import ConfigError, SpslidarError
 from spslidar.experiments.report import SECTION_FILE, build_report, write_section
 from spslidar.experiments.reproduce import ALL, EXPERIMENT_REGISTRY, in_all_names
 from spslidar.experiments.reproduce.context import Context, n_cached
+from spslidar.experiments.sweep.engine import WorkerLost
 
 __all__ = ["reproduce_main"]
 
@@ -168,7 +169,8 @@ def _run_all(ctx: Context, out: Path, existed: bool, experiment: str, names,
                 release_folder(out, existed)  # nothing written yet: leave no folder behind
                 raise
             except Exception as exc:  # an experiment's bug must not lose the others' results
-                traceback.print_exc(file=sys.stderr)
+                if not isinstance(exc, WorkerLost):  # (its line says it all: no traceback)
+                    traceback.print_exc(file=sys.stderr)
                 reason = f"{type(exc).__name__}: {exc}"
                 print(f"reproduce {name}: failed: {reason}", file=sys.stderr)
                 status = 1

@@ -172,17 +172,6 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
     return total
 
 
-def _cluster_threads(scheduler: Any) -> int:
-    """The threads of a Dask cluster's workers (``distributed.Client.nthreads``), at least 1
-    (a cluster whose workers have not joined yet: they run the points as they come)."""
-    client, owned = engine._dask_client(scheduler)
-    try:
-        return max(1, sum(client.nthreads().values()))
-    finally:
-        if owned:
-            client.close()
-
-
 def _jobs_that_fit(memory: list[tuple[float, float | None]], workers: int) -> int:
     """The local workers whose runs fit at once: ``max_memory`` (or, where no point sets it,
     the memory available) holds each point's limit alone, so ``workers`` of the largest
@@ -305,7 +294,7 @@ def sweep_main(
             # default, and --jobs 64 on a 2-worker cluster divided it by 64: an audit of
             # 2026-11-29); --jobs is the local processes' and is ignored here, as run_sweep
             # ignores it
-            workers = _cluster_threads(scheduler)
+            workers = engine.cluster_threads(scheduler)
             if jobs != 1:
                 print(f"sweep: note: --jobs {jobs} is ignored with --scheduler: the cluster's "
                       f"{workers} thread{'s' if workers != 1 else ''} run the points",

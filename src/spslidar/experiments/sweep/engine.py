@@ -156,6 +156,18 @@ def _run_local(
             close()
 
 
+def cluster_threads(scheduler: Any) -> int:
+    """The threads of a Dask cluster's workers (``distributed.Client.nthreads``), at least 1
+    (a cluster whose workers have not joined yet: they run the points as they come); what a
+    sweep's or a reproduction's time estimate is shared among with a scheduler."""
+    client, owned = _dask_client(scheduler)
+    try:
+        return max(1, sum(client.nthreads().values()))
+    finally:
+        if owned:
+            client.close()
+
+
 def _worker_lost(exc: BaseException) -> str:
     """What ended a pool worker, from loky's message: ``"a worker process was killed (signal 9:
     out of memory?)"``, or its exit code where it exited."""
