@@ -233,3 +233,22 @@ def test_a_second_capture_still_sees_a_warning_shown_once_per_place():
                 warn_here()
             logs.append([str(w.message) for w in log])
     assert logs == [["once per place"], ["once per place"]]
+
+
+@pytest.mark.parametrize("kind", ["dense", "hadamard"])
+def test_apply_rows_takes_its_contracts_arguments_only(kind):
+    # (a 1-D x or an integer rows was taken by some kinds and failed deep in others; an x of
+    # other pixels was numpy's matmul error)
+    from spslidar.patterns import build_patterns
+
+    op = build_patterns("gaussian" if kind == "dense" else "hadamard", 5, 4,
+                        np.random.default_rng(0))
+    x = np.random.default_rng(1).random((16, 2))
+    want = np.asarray(op.matvec(np.eye(16)), dtype=np.float64) @ x  # the rows, shown
+    # (the shown rows are float32 mirror states: the two products agree to its precision)
+    np.testing.assert_allclose(op.apply_rows(slice(0, 5), x), want, rtol=1e-6)
+    for rows, arg, why in ((slice(0, 3), np.ones((15, 2)), "16 pixels"),
+                           (slice(0, 3), np.ones(16), "2 dimensions"),
+                           (2, x, "rows must be a slice")):
+        with pytest.raises(ValueError, match=why):
+            op.apply_rows(rows, arg)

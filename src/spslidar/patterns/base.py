@@ -10,6 +10,8 @@ sets (:mod:`.dense`) keep their matrix; implicit ones (a fast Hadamard transform
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..operators import LinearOperator
@@ -50,8 +52,24 @@ class PatternOperator(LinearOperator):
         The default computes the whole product once and keeps it for the next blocks of the
         same ``x`` (the simulation asks for consecutive row blocks of one product).
         """
+        rows, x = self._rows_block(rows, x)
         return self._full_product(x, lambda v: np.asarray(
             self.matvec(np.asarray(v, dtype=self.dtype)), dtype=np.float64))[rows]
+
+    def _rows_block(self, rows: slice, x: Any) -> tuple[slice, np.ndarray]:
+        """:meth:`apply_rows`' arguments as its contract has them, or one line: a 1-D ``x``
+        or an integer ``rows`` was taken by some kinds and failed deep in others, an ``x``
+        of other pixels was numpy's matmul error (an audit of the Python API, 2026-11-29)."""
+        from ..arrays import real_array
+
+        if not isinstance(rows, slice):
+            raise ValueError(f"rows must be a slice of the patterns (e.g. slice(0, 64)), got "
+                             f"{rows!r}")
+        x = real_array(x, "x", ndim=2)
+        if x.shape[0] != self.shape[1]:
+            raise ValueError(f"x of shape {x.shape} for patterns of {self.shape[1]} pixels: "
+                             f"(Q, S), one row per pixel")
+        return rows, x
 
     def _full_product(self, x: np.ndarray, product) -> np.ndarray:
         """``product(x)``, kept with a copy of ``x`` for the next row blocks of the same values.

@@ -128,6 +128,7 @@ class DensePatterns(PatternOperator):
         return self.matrix.mean(axis=0, dtype=np.float64)
 
     def apply_rows(self, rows: slice, x: np.ndarray) -> np.ndarray:
+        rows, x = self._rows_block(rows, x)
         return np.asarray(self.matrix[rows], dtype=np.float64) @ x
 
     def centred(self, norm: float = 1.0, dtype=np.float32):

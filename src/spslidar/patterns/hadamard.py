@@ -242,6 +242,7 @@ class HadamardPatterns(PatternOperator):
 
     def apply_rows(self, rows: slice, x: np.ndarray) -> np.ndarray:
         """``Phi[rows] @ x`` in float64; one transform of ``x`` serves all its row blocks."""
+        rows, x = self._rows_block(rows, x)
         with _ROWS_LOCK:  # the simulation's threads ask for their blocks at the same time
             full = self._full_product(
                 x, lambda v: self._apply(np.asarray(v, dtype=np.float64)))
