@@ -252,3 +252,24 @@ def test_apply_rows_takes_its_contracts_arguments_only(kind):
                            (2, x, "rows must be a slice")):
         with pytest.raises(ValueError, match=why):
             op.apply_rows(rows, arg)
+
+
+def test_differential_scrambled_hadamard_on_another_backend_counts_its_matrix():
+    # (the device path builds every differential Hadamard kind as a matrix; scrambled-hadamard
+    # was left out of the estimate: 0.32 GB said, 0.49 GB at its peak, an audit of 2026-11-29)
+    from spslidar.pipeline import preflight
+
+    base = dict(size=128, compression=0.1, hadamard_realisation="differential", periods=2,
+                backend="array-api-strict")
+    plain = preflight(patterns="hadamard", **base)
+    scrambled = preflight(patterns="scrambled-hadamard", **base)
+    assert "patterns" in scrambled.parts
+    assert scrambled.parts["patterns"] == pytest.approx(plain.parts["patterns"], rel=1e-12)
+
+
+def test_fwht_refuses_complex_input():
+    from spslidar.operators.hadamard import fwht
+
+    np.testing.assert_allclose(fwht(np.ones(4)), [4.0, 0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="real arrays"):
+        fwht(np.ones(4, complex))

@@ -105,6 +105,9 @@ def fwht(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         If ``Q`` is not a power of two.
     """
     x = np.asarray(x)
+    if np.iscomplexobj(x):  # (its imaginary part was dropped with numpy's warning: an audit)
+        raise ValueError("fwht transforms real arrays: apply it to the real and imaginary "
+                         "parts apart")
     if not np.issubdtype(x.dtype, np.floating):
         x = x.astype(np.float64)
     q = x.shape[0]
