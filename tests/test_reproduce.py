@@ -322,8 +322,10 @@ def test_full_mode_layouts_with_fake_runs(tmp_path, monkeypatch):
     lengths = {int(r["code_length"]) for r in rows if r["lidar"] == "psst"}
     assert lengths == {1023, 2047, 4095, 8191, 16383, 32767}
     # trials x (lengths x QCR + conventional x QCR), plus no-QCR solved to convergence at the
-    # shortest and the 16383-bit code on trial 0's measurements (same seed)
-    assert len(rows) == 2 * (6 * 2 + 2) + 2
+    # shortest and the 16383-bit code on trial 0's measurements (same seed), plus the
+    # conventional lidar at equal average power (each trial)
+    assert len(rows) == 2 * (6 * 2 + 2) + 2 + 2
+    assert sum(r.get("fairness") == "power" for r in rows) == 2
     from collections import Counter
 
     twins = Counter((r["code_length"], r["seed"]) for r in rows

@@ -251,11 +251,11 @@ def test_pattern_kinds_is_priced_against_max_time(tmp_path, capsys):
 
 from spslidar.experiments.reproduce import runner as reproduce_runner  # noqa: E402
 from spslidar.experiments.reproduce.stats import (  # noqa: E402
-    FAIRNESS_LABEL,
     VERDICT_RULE,
     factor_level_verdict,
     fairness_clause,
     noise_clause,
+    power_label,
     pulses,
 )
 
@@ -288,7 +288,15 @@ def test_one_rule_factor_and_level_each_said():
     assert factor_level_verdict(50.0, 5.0, [(1.0, 0.1)])[0] == "consistent in direction only"
     # a matching level on a map that is mostly noise is no evidence
     v, why = factor_level_verdict(10.0, 10.0, [(0.2047, 0.201), (0.02, 0.02)], noise=(0,))
-    assert v == "partly consistent" and "1.0x (within, but no evidence: mostly noise)" in why
+    assert "1.0x (within, but no evidence: mostly noise)" in why
+    # ... nor a factor computed from that map (Fig. 6's x9.5 over a conventional map of noise
+    # read "partly consistent": a review)
+    assert v == "consistent in direction only" and "from a map that is mostly noise" in why
+    v, why = factor_level_verdict(9.5, 5.0, [(0.9447, 0.176), (0.0999, 0.035)], noise=(0,))
+    assert v == "consistent in direction only"
+    # a level this run did not measure is said and left out, not counted against it
+    v, why = factor_level_verdict(3.0, 3.0, [(0.1, 0.1), (float("nan"), 0.033)])
+    assert v == "consistent" and "— (not measured)" in why
     assert "factor" in VERDICT_RULE and "level" in VERDICT_RULE
 
 
@@ -298,12 +306,21 @@ def test_fairness_photon_ratio_from_the_rows():
     conv = {"lidar": "conventional", "code": "mseq", "code_length": 16383,
             "code_description": "single pulse at 7.18 MHz x 11 shots"}
     assert pulses(psst) == 8192 and pulses(conv) == 11
-    ratio, text = fairness_clause(psst, conv, "camera")
+    power = Stat(0.0048, 0.0003, 3)
+    no_qcr, with_qcr = Stat(0.0103, 0.0004, 3), Stat(0.0054, 0.0005, 3)
+    ratio, text = fairness_clause(psst, conv, power, [("without QCR", no_qcr),
+                                                      ("with QCR", with_qcr)])
     assert math.isclose(ratio, 8192 / 11)
-    assert "x745" in text and "reverses" in text and "0.0048" in text and "2026-11-29" in text
+    # the equal-power number is this run's (it was an outside review's, typed in)
+    assert "x745" in text and "run here: 3 trial(s)" in text and "0.0048" in text
+    assert "without QCR 0.0103 m (reverses at equal power)" in text
+    assert "with QCR 0.0054 m (unresolved at equal power)" in text  # 11 %, within scatter
     ratio, _ = fairness_clause(psst, {**conv, "code_description": "single pulse x 51 shots"},
-                               "motorcycle")
+                               Stat(float("nan"), 0.0, 0))
     assert round(ratio) == 161
+    assert power_label(Stat(0.3, 0.0, 1), Stat(0.1, 0.0, 1)) == (
+        "at equal pulse energy; holds at equal power")  # one trial each, x3 apart
+    assert power_label(Stat(float("nan"), 0.0, 0), no_qcr).endswith("(not run at equal power)")
 
 
 def test_conventional_map_mostly_noise_is_said():
@@ -312,6 +329,11 @@ def test_conventional_map_mostly_noise_is_said():
     noisy, text = noise_clause(rows, 0.2047, lidar="conventional", qcr=False)
     assert noisy and "mostly noise" in text and "0.3559" in text and "no evidence" in text
     assert noise_clause([], 0.2) == (False, "")  # rows without the columns: nothing said
+    # the flags alone still say it where the chance RMSE is missing (a review)
+    flagged = [{"lidar": "conventional", "qcr": False, "depth_rmse_m": 0.2,
+                "chance_rmse_m": None, "mostly_noise": True}] * 2
+    noisy, text = noise_clause(flagged, 0.2, lidar="conventional", qcr=False)
+    assert noisy and "flagged" in text
 
 
 def test_fig4_fig6_conventional_verdicts_say_the_fairness(tmp_path, monkeypatch):
@@ -319,14 +341,15 @@ def test_fig4_fig6_conventional_verdicts_say_the_fairness(tmp_path, monkeypatch)
     for name in ("fig4", "fig6"):
         assert reproduce.reproduce_main(name, tmp_path, quick=True, progress=False) == 0
     c4 = _claims(tmp_path, "fig4")
-    assert c4["conventional vs PSST + QCR (16384 bits)"].endswith(FAIRNESS_LABEL)
+    assert "at equal pulse energy; " in c4["conventional vs PSST + QCR (16384 bits)"]
+    assert "equal power" in c4["conventional vs PSST + QCR (16384 bits)"]
     s4 = _section(tmp_path, "fig4")
     assert "Fairness:" in s4 and "equal average power" in s4
     assert "Panel letters" in s4 and "= paper (i)" in s4 and "= paper (j)" in s4
     assert "paper's own estimator (the ML argmax depth)" in s4
     c6 = _claims(tmp_path, "fig6")
-    assert c6["conventional vs PSST without QCR (m_n = 10)"].endswith(FAIRNESS_LABEL)
-    assert c6["PSST with QCR, m_n = 5-10"].endswith(FAIRNESS_LABEL)
+    for claim in ("conventional vs PSST without QCR (m_n = 10)", "PSST with QCR, m_n = 5-10"):
+        assert "at equal pulse energy; " in c6[claim] and "equal power" in c6[claim]
     assert c6["mean error reduction by QCR, m_n = 5-10"].startswith("MRF: ")
     s6 = _section(tmp_path, "fig6")
     assert "about 0.018 m" in s6 and "paper's argmax depth" in s6

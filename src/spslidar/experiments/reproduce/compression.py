@@ -69,8 +69,8 @@ def exp_fig2(ctx: Context) -> tuple[str, list[Claim]]:
         ctx,
         name,
         fig,
-        f"Fig. 2: camera {ctx.size}x{ctx.size}, PSST random code 2048 bits R_a=0.1, m_s=5, "
-        f"m_n=10, QCR, FISTA",
+        f"Fig. 2: camera {ctx.size}x{ctx.size}, PSST random code {FIG2_CODE['code_length']} bits "
+        f"R_a={FIG2_CODE['ones_ratio']:g}, m_s=5, m_n=10, QCR, FISTA",
     )
 
     table_rows = []
@@ -184,9 +184,9 @@ def exp_fig2(ctx: Context) -> tuple[str, list[Claim]]:
         ),
     ]
     what = (
-        f"{common_text(ctx)}, PSST Bernoulli random code of 2048 bits with ones ratio R_a = 0.1 "
-        f"(the paper's Sec. III; zero-mean replica, the default for a code with fewer ones "
-        f"than zeros), m_n = 10 (the "
+        f"{common_text(ctx)}, PSST Bernoulli random code of {FIG2_CODE['code_length']} bits with "
+        f"ones ratio R_a = {FIG2_CODE['ones_ratio']:g} (the paper's Sec. III; zero-mean "
+        f"replica, the default for a code with fewer ones than zeros), m_n = 10 (the "
         f"paper does not give m_n for Fig. 2; this is the default of Fig. 4), QCR, FISTA with "
         f"default settings; compression M/Q = {', '.join(f'{100 * c:g}' for c in comps)} %; "
         f"{ctx.n_trials()} trial(s) per setting."

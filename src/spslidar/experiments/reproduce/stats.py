@@ -16,17 +16,17 @@ from spslidar.experiments.reproduce.context import BIN_DEPTH_M
 from spslidar.experiments.sweep import ERROR_KEY, TRIAL_KEY
 
 __all__ = [
-    "FAIRNESS_LABEL",
     "LEVEL_FACTOR",
     "MARGIN",
-    "POWER_FAIRNESS_MEASURED",
     "VERDICT_RULE",
     "factor_level_verdict",
     "fairness_clause",
     "noise_clause",
     "noise_share",
     "off_by",
+    "power_label",
     "pulses",
+    "told_apart",
     "TIME_FACTOR",
     "TVAL3_NOTE",
     "Stat",
@@ -397,22 +397,30 @@ def factor_level_verdict(ours: float, paper: float,
     Returns the verdict and a clause that says each part ("factor x9.5 against the paper's
     x5.0: within x2; levels 5.4x (no), 2.9x (no) off the paper's"). The levels whose index
     is in ``noise`` are of maps that are mostly noise: a match there is no evidence and does
-    not count.
+    not count, nor does a factor computed from such a map (a review of 2026-11-29: Fig. 6's
+    "partly consistent" rested on x9.5 over a conventional map of noise). A level this run
+    did not measure (NaN, or not positive) is said and left out.
     """
     if not math.isfinite(ours):
         return "n/a", ""
     f_ok = paper / LEVEL_FACTOR <= ours <= paper * LEVEL_FACTOR
-    f_txt = (f"factor x{ours:.1f} against the paper's x{paper:.1f}: "
-             f"{'within' if f_ok else 'not within'} x{LEVEL_FACTOR:g}")
-    l_ok, parts = True, []
+    f_tag = "within" if f_ok else "not within"
+    if f_ok and noise:
+        f_ok, f_tag = False, "within, but no evidence: from a map that is mostly noise"
+    f_txt = f"factor x{ours:.1f} against the paper's x{paper:.1f}: {f_tag} x{LEVEL_FACTOR:g}"
+    l_ok, parts, measured = True, [], 0
     for i, (a, b) in enumerate(levels):
         o = off_by(a, b)
-        ok = math.isfinite(o) and o <= LEVEL_FACTOR
+        if not math.isfinite(o):
+            parts.append("— (not measured)")
+            continue
+        measured += 1
+        ok = o <= LEVEL_FACTOR
         tag = "within" if ok else "not within"
         if ok and i in noise:
             ok, tag = False, "within, but no evidence: mostly noise"
         l_ok = l_ok and ok
-        parts.append(f"{'—' if not math.isfinite(o) else f'{o:.1f}x'} ({tag})")
+        parts.append(f"{o:.1f}x ({tag})")
     l_txt = ""
     if levels:
         l_txt = (f"; level{'s' if len(levels) > 1 else ''} {', '.join(parts)} off the "
@@ -420,20 +428,13 @@ def factor_level_verdict(ours: float, paper: float,
     clause = f" ({f_txt}{l_txt})"
     if ours <= 1.0:
         return "not consistent", clause
-    n_ok = f_ok + (l_ok if levels else f_ok)
+    n_ok = f_ok + (l_ok if measured else f_ok)
     if n_ok == 2:
         return "consistent", clause
     if n_ok == 1:
         return "partly consistent", clause
     return "consistent in direction only", clause
 
-
-#: the outside review's measurement of the conventional comparison at equal average power
-#: (``--fairness power``), 2026-11-29: scene -> (conventional at equal pulse energy, at
-#: equal average power, PSST), RMSE in metres; 64x64, m_s = 5, m_n = 10, 25 % patterns,
-#: 16383 bits, no QCR (both lidars), seed 1
-POWER_FAIRNESS_MEASURED = {"camera": (0.224, 0.0048, 0.0103),
-                           "motorcycle": (0.821, 0.0202, 0.0999)}
 
 _SHOTS = re.compile(r"x\s*(\d+)\s*shots?")
 
@@ -456,31 +457,48 @@ def pulses(row: dict[str, Any] | None) -> float:
     return float(t) * float(r) if isinstance(r, (int, float)) else math.nan
 
 
+def told_apart(a: Stat, b: Stat) -> bool:
+    """Whether ``a`` and ``b`` differ by the report's rule (:func:`resolved`) or, with one
+    trial, by more than a factor 2 (beyond any trial-to-trial scatter these runs show)."""
+    r = safe_ratio(a.mean, b.mean)
+    return resolved(a, b) or (math.isfinite(r) and (r > 2.0 or r < 0.5))
+
+
+def power_label(power: Stat, psst: Stat) -> str:
+    """What a conventional-against-PSST verdict rests on: equal pulse energy (the default
+    rule), and what this run's conventional lidar at equal average power (``power``) shows
+    against the same PSST setting (``psst``): "reverses", "holds" or "unresolved" (the
+    equal-power number was typed in from an outside review's single trial without QCR, and
+    attached to the comparisons with QCR too: a review of 2026-11-29)."""
+    if not (math.isfinite(power.mean) and math.isfinite(psst.mean)):
+        return "at equal pulse energy (not run at equal power)"
+    if not told_apart(power, psst):
+        return "at equal pulse energy; unresolved at equal power"
+    return "at equal pulse energy; " + ("reverses at equal power" if power.mean < psst.mean
+                                        else "holds at equal power")
+
+
 def fairness_clause(psst_row: dict[str, Any] | None, conv_row: dict[str, Any] | None,
-                    scene: str) -> tuple[float, str]:
+                    power: Stat, against: Sequence[tuple[str, Stat]] = ()) -> tuple[float, str]:
     """The photon ratio the default fairness rule (equal energy per pulse) gives the PSST
     lidar over the conventional one (their pulses per pattern, from the rows), and a
-    sentence that says it and that the verdict reverses at equal average power (the outside
-    review's measurement, :data:`POWER_FAIRNESS_MEASURED`)."""
+    sentence that says it and what this run's conventional lidar at equal average power
+    (``power``, ``--fairness power``) reads against each PSST setting in ``against``
+    (``(label, Stat)``), with :func:`power_label`'s word for each."""
     ratio = safe_ratio(pulses(psst_row), pulses(conv_row))
     text = (f" Fairness: at the same energy per pulse (`fairness = \"energy\"`, the default) "
             f"the PSST lidar fires {num(pulses(psst_row), 0)} pulses per pattern against the "
             f"conventional lidar's {num(pulses(conv_row), 0)}, so it collects "
             f"x{num(ratio, 0)} the signal photons; the comparison holds at equal pulse energy "
             f"only.")
-    meas = POWER_FAIRNESS_MEASURED.get(scene)
-    if meas is not None:
-        e, p, q = meas
-        text += (f" At equal average power (`--fairness power`) it reverses: an outside "
-                 f"review measured (2026-11-29; 64x64, m_s = 5, m_n = 10, 25 % patterns, "
-                 f"16383 bits, no QCR, seed 1; not recomputed by this run) the "
-                 f"conventional lidar at {e:g} m with equal pulse energy and {p:g} m with "
-                 f"equal power, against {q:g} m for PSST; the pile-up section finds "
-                 f"the same at low flux.")
+    if math.isfinite(power.mean):
+        parts = [f"{label} {num(s.mean)} m ({power_label(power, s).split('; ')[-1]})"
+                 for label, s in against]
+        text += (f" At equal average power (`--fairness power`, run here: {power.n} "
+                 f"trial(s), no QCR) the conventional lidar reads {num(power.mean)} m, against "
+                 f"PSST {', '.join(parts)}; the pile-up section compares the two lidars at "
+                 f"equal power over the flux.")
     return ratio, text
-
-
-FAIRNESS_LABEL = "at equal pulse energy; reverses at equal power"
 
 
 def noise_share(rows: Sequence[dict[str, Any]], **kw: Any) -> tuple[float, float, float]:
@@ -501,8 +519,10 @@ def noise_clause(rows: Sequence[dict[str, Any]], rmse: float, **kw: Any) -> tupl
     chance, low, share = noise_share(rows, **kw)
     noisy = (math.isfinite(share) and share >= 0.5) or (
         math.isfinite(chance) and math.isfinite(rmse) and rmse >= 0.5 * chance)
-    if not math.isfinite(chance):
-        return False, ""
+    if not math.isfinite(chance):  # (the flags alone still count: a review)
+        return noisy, (" The conventional map is mostly noise: "
+                       f"{pct(share)} of its runs are flagged so, so a level that matches the "
+                       f"paper's is no evidence of agreement." if noisy else "")
     if not noisy:
         return False, (f" (Its RMSE {num(rmse)} m is well below the {num(chance)} m that "
                        f"depths drawn at random in the gate score.)")
