@@ -456,3 +456,13 @@ def test_a_batch_on_a_cluster_is_priced_over_its_threads(tmp_path, monkeypatch):
         spent[scheduler] = ctx.estimated_s
     assert spent[None] > 0
     assert spent["tcp://127.0.0.1:1"] == pytest.approx(spent[None] / 4)
+
+
+def test_a_factor_over_a_map_of_noise_counts_for_nothing_even_with_good_levels():
+    # (Fig. 6's PSST-with-QCR claim: its levels are PSST's own, its factor x11.8 is over the
+    # conventional map of noise, and it read "partly consistent" on that factor)
+    v, why = factor_level_verdict(11.8, 10.5, [(0.0254, 0.005), (0.0804, 0.017)],
+                                  factor_noise=True)
+    assert v == "consistent in direction only" and "from a map that is mostly noise" in why
+    assert factor_level_verdict(11.8, 10.5, [(0.0254, 0.005), (0.0804, 0.017)])[0] == (
+        "partly consistent")

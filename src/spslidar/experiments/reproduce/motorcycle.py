@@ -141,7 +141,7 @@ def exp_fig6(ctx: Context) -> tuple[str, list[Claim]]:
                      (no10, PAPER["fig6_noqcr_rmse_m"])], noise=(0,) if noisy else ())
     q5 = stat(rows, lidar="psst", noise=5.0, qcr=True).mean
     v_q, q_rule = factor_level_verdict(
-        f_q, PAPER["fig6_qcr_factor"], [(q5, lo_q), (q10, hi_q)])
+        f_q, PAPER["fig6_qcr_factor"], [(q5, lo_q), (q10, hi_q)], factor_noise=noisy)
     no10_st = stat(rows, lidar="psst", noise=10.0, qcr=False)
     q10_st = stat(rows, lidar="psst", noise=10.0, qcr=True)
     photons, fair_txt = fairness_clause(first_row(rows, lidar="psst", noise=10.0, qcr=True),

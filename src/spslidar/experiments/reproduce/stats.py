@@ -390,22 +390,26 @@ def off_by(ours: float, paper: float) -> float:
 
 def factor_level_verdict(ours: float, paper: float,
                          levels: Sequence[tuple[float, float]] = (),
-                         noise: Sequence[int] = ()) -> tuple[str, str]:
+                         noise: Sequence[int] = (),
+                         factor_noise: bool | None = None) -> tuple[str, str]:
     """The one rule (:data:`VERDICT_RULE`) for an improvement factor ``ours`` against the
     paper's ``paper`` and the levels (``(ours, paper)`` RMSE pairs) behind it.
 
     Returns the verdict and a clause that says each part ("factor x9.5 against the paper's
     x5.0: within x2; levels 5.4x (no), 2.9x (no) off the paper's"). The levels whose index
     is in ``noise`` are of maps that are mostly noise: a match there is no evidence and does
-    not count, nor does a factor computed from such a map (a review of 2026-11-29: Fig. 6's
-    "partly consistent" rested on x9.5 over a conventional map of noise). A level this run
+    not count, nor does a factor computed from such a map (``factor_noise``, by default
+    whether any level is: a review of 2026-11-29 found Fig. 6's "partly consistent" resting
+    on x9.5 over a conventional map of noise). A level this run
     did not measure (NaN, or not positive) is said and left out.
     """
     if not math.isfinite(ours):
         return "n/a", ""
     f_ok = paper / LEVEL_FACTOR <= ours <= paper * LEVEL_FACTOR
     f_tag = "within" if f_ok else "not within"
-    if f_ok and noise:
+    if factor_noise is None:
+        factor_noise = bool(noise)
+    if f_ok and factor_noise:
         f_ok, f_tag = False, "within, but no evidence: from a map that is mostly noise"
     f_txt = f"factor x{ours:.1f} against the paper's x{paper:.1f}: {f_tag} x{LEVEL_FACTOR:g}"
     l_ok, parts, measured = True, [], 0
