@@ -394,19 +394,24 @@ def test_fig2_fig3_snr_disclosures(tmp_path, fake):
     assert "no SNR figure" in s
 
 
-def test_a_failed_experiment_gets_a_banner(tmp_path, fake, monkeypatch, capsys):
+def _all_with_fig3_raising(tmp_path, monkeypatch, exc: BaseException) -> int:
+    """``reproduce all`` over fig2 and a fig3 that raises ``exc``: its exit status."""
     real = reproduce.EXPERIMENT_REGISTRY.load
 
     def load(name):
         if name == "fig3":
-            def boom(ctx):
-                raise RuntimeError("boom\nsecond line")
-            return boom
+            def failing(ctx):
+                raise exc
+            return failing
         return real(name)
 
     monkeypatch.setattr(reproduce_runner.EXPERIMENT_REGISTRY, "load", load)
     monkeypatch.setattr(reproduce_runner, "in_all_names", lambda: ("fig2", "fig3"))
-    assert reproduce.reproduce_main("all", tmp_path, quick=True, progress=False) == 1
+    return reproduce.reproduce_main("all", tmp_path, quick=True, progress=False)
+
+
+def test_a_failed_experiment_gets_a_banner(tmp_path, fake, monkeypatch, capsys):
+    assert _all_with_fig3_raising(tmp_path, monkeypatch, RuntimeError("boom\nsecond line")) == 1
     report = (tmp_path / "report.md").read_text()
     assert "**Incomplete:** fig3 failed: RuntimeError: boom second line" in report
     assert "## Fig. 2" in report
@@ -420,18 +425,8 @@ def test_a_killed_worker_in_an_experiment_is_its_line_without_a_traceback(
     # before it, as for an experiment's bug, buried it; an audit of 2026-11-29)
     from spslidar.experiments.sweep.engine import WorkerLost
 
-    real = reproduce.EXPERIMENT_REGISTRY.load
-
-    def load(name):
-        if name == "fig3":
-            def lost(ctx):
-                raise WorkerLost("a worker process was killed (signal 9: out of memory?)")
-            return lost
-        return real(name)
-
-    monkeypatch.setattr(reproduce_runner.EXPERIMENT_REGISTRY, "load", load)
-    monkeypatch.setattr(reproduce_runner, "in_all_names", lambda: ("fig2", "fig3"))
-    assert reproduce.reproduce_main("all", tmp_path, quick=True, progress=False) == 1
+    lost = WorkerLost("a worker process was killed (signal 9: out of memory?)")
+    assert _all_with_fig3_raising(tmp_path, monkeypatch, lost) == 1
     err = capsys.readouterr().err
     assert "Traceback" not in err
     assert "reproduce fig3: failed: WorkerLost: a worker process was killed" in err
