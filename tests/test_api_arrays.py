@@ -273,3 +273,33 @@ def test_fwht_refuses_complex_input():
     np.testing.assert_allclose(fwht(np.ones(4)), [4.0, 0.0, 0.0, 0.0])
     with pytest.raises(ValueError, match="real arrays"):
         fwht(np.ones(4, complex))
+
+
+def test_shapes_that_worked_before_the_checks_still_work():
+    # (a review of the checks found these refused: a 1-D corr, one slice, which the solvers
+    # take and answer 1-D; an (M, 1) noise column; one reflectivity for every pixel; a gain
+    # per pattern)
+    rng = np.random.default_rng(0)
+    phi = rng.random((40, 16))
+    x = np.zeros(16)
+    x[5] = 1.0
+    corr = phi @ x
+    A, y = Q.qcr_problem(phi, corr)
+    assert y.shape == (40,)
+    est, _ = solve(A, y, TV((4, 4)), 1e-3)
+    assert est.shape == (16,) and int(np.argmax(est)) == 5
+    A2, y2 = Q.qcr_problem(phi, corr[:, None])
+    np.testing.assert_allclose(y, y2[:, 0])
+    assert Q.qcr_delta(phi, corr).shape == (16,)
+    amp, code = np.ones((3, 1)), np.ones(7)
+    np.testing.assert_array_equal(
+        F.expected_counts(amp, [0], code, 1.0, np.full((3, 1), 0.5)),
+        F.expected_counts(amp, [0], code, 1.0, np.full(3, 0.5)))
+    shifts, w = F.return_weights(1.0, np.array([1.2, 3.4]), 1.0, 31)
+    np.testing.assert_array_equal(w, F.return_weights(np.ones(2), np.array([1.2, 3.4]), 1.0,
+                                                      31)[1])
+    totals = np.array([4.0, 9.0, 16.0, 25.0])
+    np.testing.assert_allclose(C.noise_sigma_from_totals(totals, np.ones(7), np.full(4, 2.0)),
+                               np.sqrt(totals) / 2.0)
+    with pytest.raises(ValueError, match="gain must be positive"):
+        C.noise_sigma_from_totals(totals, np.ones(7), np.array([1.0, 0.0, 1.0, 1.0]))

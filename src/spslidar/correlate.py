@@ -290,7 +290,9 @@ def noise_sigma_from_totals(totals: np.ndarray, replica: np.ndarray,
     """
     f2 = real_array(replica, "replica", ndim=1).astype(np.float64) ** 2
     var = real_array(totals, "totals").astype(np.float64)
-    gain = positive_number(gain, "gain")
+    gain = real_array(gain, "gain").astype(np.float64)  # (one per pattern, or one for all)
+    if not (np.isfinite(gain).all() and (gain > 0).all()):
+        raise ValueError(f"gain must be positive and finite, got {gain!r}")
     if (var < 0).any():
         raise ValueError("totals holds a negative count")
     if not np.allclose(f2, 1.0):

@@ -93,8 +93,9 @@ def return_weights(
     period = int(period)
     bins, weights = pulse_overlaps(delay, pulse_width)
     q = bins.shape[0]
-    same_length(np.ravel(real_array(reflectivity, "reflectivity")), q, "reflectivity",
-                "delays")
+    refl = np.ravel(real_array(reflectivity, "reflectivity"))
+    if refl.size != 1:  # (one value is every pixel's)
+        same_length(refl, q, "reflectivity", "delays")
     circ = np.mod(bins, period)
     shifts, inverse = np.unique(circ, return_inverse=True)
     inverse = inverse.reshape(circ.shape)
@@ -194,6 +195,8 @@ def expected_counts(
     if not np.isfinite(signal) or signal < 0:
         raise ValueError(f"signal must be a finite number >= 0, got {signal!r}")
     noise = real_array(noise_per_bin, "noise_per_bin").astype(s.dtype, copy=False)
+    if noise.ndim == 2 and noise.shape[1] == 1:  # (M, 1), one column: unambiguous
+        noise = noise[:, 0]
     if noise.ndim > 1 or noise.size not in (1, amp.shape[0]):
         raise ValueError(f"noise_per_bin of shape {noise.shape} for {amp.shape[0]} patterns: "
                          f"one number, or one per pattern")

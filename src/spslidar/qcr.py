@@ -39,10 +39,14 @@ def centre(a: np.ndarray) -> np.ndarray:
 
 
 def _check_rows(patterns, corr) -> np.ndarray:
-    """``corr`` as a real ``(M, K)`` array, one measurement row per pattern, or one line (a
+    """``corr`` as a real ``(M, K)`` array (or ``(M,)``, one slice: the solvers take a 1-D
+    ``y`` and give a 1-D ``x`` back), one measurement row per pattern, or one line (a
     ``corr`` of other rows was taken, and broadcast or failed deep inside; a 3-D one gave a
     3-D ``y``, a complex one a complex ``Delta``: audits of 2026-11-29)."""
-    corr = real_array(corr, "corr", ndim=2)
+    corr = real_array(corr, "corr")
+    if corr.ndim not in (1, 2):
+        raise ValueError(f"corr must be (M, K) correlations, or (M,) for one slice, got shape "
+                         f"{corr.shape}")
     if corr.shape[0] != patterns.shape[0]:
         raise ValueError(f"corr has {corr.shape[0]} rows for {patterns.shape[0]} patterns: "
                          f"one row of correlations per pattern")
