@@ -31,12 +31,19 @@ from .errors import ConfigError
 REPLICAS = ("bipolar", "zero-mean", "unipolar")
 
 
+def _code_bits(code: Any) -> np.ndarray:
+    """``code`` as a real, finite, non-empty 1-D array, or one line (an empty code leaked
+    "Mean of empty slice", a NaN one was called balanced: an audit of 2026-11-29)."""
+    s = real_array(code, "code", ndim=1, finite=True)
+    if not s.size:
+        raise ValueError("code is empty: a replica needs one bit or more")
+    return s
+
+
 def make_replica(code: np.ndarray, kind: str = "bipolar") -> np.ndarray:
     """The receiver's code replica ``f`` (float64): ``bipolar`` ``2s - 1``, ``zero-mean``
     ``s - mean(s)`` or ``unipolar`` ``s``."""
-    s = real_array(code, "code", ndim=1, finite=True).astype(np.float64)
-    if not s.size:
-        raise ValueError("code is empty: a replica needs one bit or more")
+    s = _code_bits(code).astype(np.float64)
     if kind == "bipolar":
         return 2.0 * s - 1.0
     if kind == "zero-mean":
@@ -58,9 +65,7 @@ def auto_replica(code: np.ndarray) -> str:
     code's off-peak correlation is zero on average; for an m-sequence ``2s - 1`` is exact
     (off-peak sum 0) where ``s - mean(s)`` leaves ``-(T + 1) / 4T``.
     """
-    s = real_array(code, "code", ndim=1, finite=True)
-    if not s.size:
-        raise ValueError("code is empty: a replica needs one bit or more")
+    s = _code_bits(code)
     return "bipolar" if abs(2 * int(np.count_nonzero(s)) - s.size) <= 1 else "zero-mean"
 
 

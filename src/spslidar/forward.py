@@ -88,10 +88,8 @@ def return_weights(
     if isinstance(period, bool) or not float(period).is_integer() or period < 1:
         # (0 put every return in bin 0, 1.5 gave fractional shifts: an audit of 2026-11-29)
         raise ValueError(f"period must be a whole number of bins >= 1, got {period!r}")
-    if not np.isfinite(real_array(delay, "delay").astype(np.float64)).all():
-        raise ValueError("delay holds a NaN or an infinity (round-trip delays in bins)")
     period = int(period)
-    bins, weights = pulse_overlaps(delay, pulse_width)
+    bins, weights = pulse_overlaps(delay, pulse_width)  # (a NaN or infinite delay refused)
     q = bins.shape[0]
     refl = np.ravel(real_array(reflectivity, "reflectivity"))
     if refl.size != 1:  # (one value is every pixel's)
@@ -191,7 +189,7 @@ def expected_counts(
     amp = real_array(amp, "amp", ndim=2)
     if amp.shape[1] != s.shape[0]:
         raise ValueError(f"amp of shape {amp.shape} for {s.shape[0]} shifts: one column each")
-    periods = positive_number(n_periods, "n_periods")
+    n_periods = positive_number(n_periods, "n_periods")
     if not np.isfinite(signal) or signal < 0:
         raise ValueError(f"signal must be a finite number >= 0, got {signal!r}")
     noise = real_array(noise_per_bin, "noise_per_bin").astype(s.dtype, copy=False)
@@ -202,7 +200,6 @@ def expected_counts(
                          f"one number, or one per pattern")
     lam = (signal * amp.astype(s.dtype, copy=False)) @ s
     lam += noise.reshape(-1, 1)
-    n_periods = periods
     if n_periods != 1:
         lam *= n_periods
     return lam

@@ -163,10 +163,9 @@ class MeanEliminated(LinearOperator):
         return self._project(self._corr(corr)).astype(self.dtype, copy=False)
 
     def _corr(self, corr: np.ndarray) -> np.ndarray:
-        corr = real_array(corr, "corr", ndim=2)
-        if corr.shape[0] != self.shape[0]:  # (a broadcast error named neither: an audit)
-            raise ValueError(f"corr has {corr.shape[0]} rows for an operator of "
-                             f"{self.shape[0]}: one row per pattern")
+        corr = _check_rows(self, corr)  # (a broadcast error named neither: an audit)
+        if corr.ndim != 2:  # (its projection is of (M, K) blocks)
+            raise ValueError(f"corr must be (M, K) correlations, got shape {corr.shape}")
         return corr
 
     def recover(self, z: np.ndarray, corr: np.ndarray) -> np.ndarray:

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from ..arrays import real_array
 from ..operators import LinearOperator
 
 __all__ = ["CentredPatterns", "PatternOperator"]
@@ -60,8 +61,6 @@ class PatternOperator(LinearOperator):
         """:meth:`apply_rows`' arguments as its contract has them, or one line: a 1-D ``x``
         or an integer ``rows`` was taken by some kinds and failed deep in others, an ``x``
         of other pixels was numpy's matmul error (an audit of the Python API, 2026-11-29)."""
-        from ..arrays import real_array
-
         if not isinstance(rows, slice):
             raise ValueError(f"rows must be a slice of the patterns (e.g. slice(0, 64)), got "
                              f"{rows!r}")

@@ -65,8 +65,8 @@ def occupied_lags(corr: np.ndarray, sigma: np.ndarray, n_sigmas: float = AUTO_GA
     threshold = n_sigmas * max(noise, 1e-300)
     hit = profile - base > threshold
     if sidelobes is not None and lags is not None:
-        clean = _clean(profile, threshold, np.asarray(lags, dtype=np.int64),
-                       np.asarray(sidelobes, dtype=np.float64), int(hit.sum()))
+        clean = _clean(profile, threshold, lags, np.asarray(sidelobes, dtype=np.float64),
+                       int(hit.sum()))
         # (more than the plain threshold keeps: sidelobes with no peak in the gate to explain
         # them, a bright return beyond it, whose removal cascaded over every delay: a review)
         if clean is not None:

@@ -352,8 +352,8 @@ def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
     :func:`spslidar.pipeline.preflight`, times its runs, over the workers), added to the
     batches' before it in this command, exceeds ``ctx.max_time``; one over 30 s says its
     estimate first. The experiments finished before a refusal keep their report sections."""
-    from spslidar.experiments.sweep.grid import TRIAL_KEY, canonical_json, text_key, with_seed
-    from spslidar.experiments.sweep.store import load_cached
+    from spslidar.experiments.sweep.grid import TRIAL_KEY
+    from spslidar.experiments.sweep.store import cached_point
     from spslidar.pipeline import PROCESSING_KEYS, preflight
     from spslidar.pipeline.budget import check_time
 
@@ -361,9 +361,8 @@ def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
     total = 0.0
     for params in points:
         # its cache record, as run_sweep names and reads it: a cached run costs nothing
-        text = canonical_json(with_seed(params, ctx.seed, PROCESSING_KEYS))
-        path = ctx.cache / "runs" / f"{text_key(text)}.json"
-        if load_cached(path, text, ctx.code) is not None:
+        if cached_point(ctx.cache / "runs", params, ctx.seed, PROCESSING_KEYS,
+                        ctx.code)[1] is not None:
             continue  # (a resumed fig2 was refused for the run it had cached)
         cfg = {k: v for k, v in params.items() if k != TRIAL_KEY and k not in PROCESSING_KEYS}
         key = repr(sorted(cfg.items()))

@@ -27,11 +27,9 @@ from spslidar.experiments.sweep.grid import (
     resolve_point_files,
     same_value,
     sha256_hex,
-    text_key,
     with_scene_hashes,
-    with_seed,
 )
-from spslidar.experiments.sweep.store import load_cached, say_outcome, write_csv
+from spslidar.experiments.sweep.store import cached_point, say_outcome, write_csv
 
 __all__ = ["run_point", "sweep_main"]
 
@@ -279,12 +277,11 @@ def sweep_main(
         code = code_fingerprint()
         total, cached, keys = 0.0, 0, set()
         for point, cost in zip(points, costs, strict=True):
-            text = canonical_json(with_seed(point, spec.seed, ignore))
-            key = text_key(text)
+            key, result = cached_point(Path(out_dir) / "runs", point, spec.seed, ignore, code)
             if key in keys:  # (run once, and cached once)
                 continue
             keys.add(key)
-            if load_cached(Path(out_dir) / "runs" / f"{key}.json", text, code) is not None:
+            if result is not None:
                 cached += 1
             else:
                 total += cost

@@ -20,13 +20,20 @@ from pathlib import Path
 from typing import Any
 
 from spslidar.errors import ConfigError
-from spslidar.experiments.sweep.grid import ERROR_KEY, canonical, canonical_json
+from spslidar.experiments.sweep.grid import (
+    ERROR_KEY,
+    canonical,
+    canonical_json,
+    text_key,
+    with_seed,
+)
 from spslidar.outdir import atomic_write_bytes, atomic_write_text
 
 __all__ = [
     "CACHE_FORMAT",
     "atomic_write_bytes",
     "atomic_write_text",
+    "cached_point",
     "load_cached",
     "store_run",
     "write_csv",
@@ -59,6 +66,17 @@ def load_cached(path: Path, params_json: str, code: str | None = None) -> dict[s
     except ConfigError:
         return None
     return record["result"]
+
+
+def cached_point(runs_dir: Path, point: Mapping[str, Any], seed: int,
+                 ignore: Iterable[str], code: str | None) -> tuple[str, dict[str, Any] | None]:
+    """A point's cache key and its cached result under ``code`` (None where it has none): the
+    record :func:`~spslidar.experiments.sweep.engine.run_sweep` names and reads, for the
+    estimates that price only the runs not cached (``sweep --max-time`` and each batch of
+    ``reproduce``, which had each written the key's derivation out again)."""
+    text = canonical_json(with_seed(point, seed, frozenset(ignore)))
+    key = text_key(text)
+    return key, load_cached(Path(runs_dir) / f"{key}.json", text, code)
 
 
 def store_run(path: Path, key: str, params: Any, result: dict[str, Any], elapsed: float,
