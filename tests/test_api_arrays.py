@@ -303,3 +303,27 @@ def test_shapes_that_worked_before_the_checks_still_work():
                                np.sqrt(totals) / 2.0)
     with pytest.raises(ValueError, match="gain must be positive"):
         C.noise_sigma_from_totals(totals, np.ones(7), np.array([1.0, 0.0, 1.0, 1.0]))
+
+
+def test_dense_patterns_refuse_transmittances_outside_0_1():
+    """A DMD shows transmittances in [0, 1]: `reconstruct --patterns` refused others, the
+    Python class took them (an audit of 2026-11-29); grey levels and the edges pass."""
+    from spslidar.patterns import DensePatterns
+
+    DensePatterns(np.array([[0.0, 0.25, 1.0], [1.0, 0.5, 0.0]]))
+    for bad, says in ((np.array([[0.0, 1.5]]), "from 0 to 1.5"),
+                      (np.array([[-1.0, 1.0]]), "from -1 to 1"),
+                      (np.array([[0, 255]], dtype=np.uint8), "from 0 to 255")):
+        with pytest.raises(ValueError, match=f"transmittances in \\[0, 1\\], got values {says}"):
+            DensePatterns(bad)
+
+
+@pytest.mark.parametrize("shape", [(0, 4), (3, 0), (0, 0)])
+def test_matrix_operator_refuses_an_empty_matrix(shape):
+    from spslidar.operators import MatrixOperator
+    from spslidar.patterns import DensePatterns
+
+    with pytest.raises(ValueError, match="at least one row and one column"):
+        MatrixOperator(np.zeros(shape))
+    with pytest.raises(ValueError, match="at least one row and one column"):
+        DensePatterns(np.zeros(shape))

@@ -1,6 +1,7 @@
 """The command-line tool, driven through ``main([...])``."""
 
 import json
+import re
 import subprocess
 import sys
 
@@ -32,6 +33,36 @@ def test_config_file_and_override(tmp_path):
     assert main(["run", "--config", str(cfg), "--noise", "3", "--out", str(out)]) == 0
     m = json.loads((out / "metrics.json").read_text())
     assert m["config"]["noise"] == 3.0 and m["config"]["solver"] == "twist"
+
+
+@pytest.mark.parametrize("line,flag,says", [
+    ("size = 16.5", ["--size", "8"], "--size must be an integer, got 16.5"),
+    ("noise = -1", ["--noise", "2"], r"--noise must be in \[0, inf\), got -1"),
+    ('solver = "nope"', ["--solver", "fista"], "unknown solver 'nope'"),
+    ('detector = "gmapd"\ndead_time = "abc"', ["--dead-time", "5e-8"],
+     "--dead-time must be a number, got 'abc'")])
+def test_config_file_value_overridden_is_still_checked(tmp_path, capsys, line, flag, says):
+    """A file's invalid value is refused though the command line overrides it (``size =
+    16.5`` with ``--size 8`` ran: an audit of 2026-11-29), naming the file; a value that only
+    conflicts with another the command line changes is not (next test)."""
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(f"{line}\n")
+    out = tmp_path / "r"
+    assert main(["run", "--config", str(cfg), *FAST, *flag, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"config file {cfg}: " in err and "overrides it" in err
+    assert re.search(says, err), err
+    assert not out.exists()
+
+
+def test_config_file_value_valid_alone_with_an_override(tmp_path):
+    """``compression = 0.02`` gives one pattern at the file's 8x8 (refused there) but is valid
+    on its own and at the command line's 16x16 (5 patterns)."""
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("size = 8\ncompression = 0.02\ncode-length = 1023\n")
+    out = tmp_path / "r"
+    assert main(["run", "--config", str(cfg), "--size", "16", "--out", str(out)]) == 0
+    assert json.loads((out / "metrics.json").read_text())["config"]["size"] == 16
 
 
 def _bad(tmp_path):

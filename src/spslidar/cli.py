@@ -321,7 +321,7 @@ def _add_sweep_options(p: argparse.ArgumentParser, trials: bool) -> None:
 
 def _cmd_run(args) -> int:
 
-    from .config import Config, read_toml
+    from .config import Config, check_overridden, read_toml
     from .outdir import check_output
     from .pipeline import run
 
@@ -343,6 +343,7 @@ def _cmd_run(args) -> int:
         check_files(ptu_files, args.overwrite, outside=args.out)  # refuse before any work
     check_output(args.out, args.overwrite)  # refuse before any work
     base = read_toml(args.config) if args.config else {}
+    check_overridden(base, opts, args.config)
     cfg = Config.from_dict(base, **opts)  # (a TOML's code-length, overridden by --code-length)
     if save_ptu and "hadamard" in cfg.patterns and cfg.hadamard_realisation == "differential":
         from .errors import ConfigError

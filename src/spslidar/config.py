@@ -550,6 +550,40 @@ def registries() -> dict:
 MAX_CONFIG_BYTES = 16 * 2**20
 
 
+def check_overridden(base: dict[str, Any], overrides: dict[str, Any], source: str) -> None:
+    """Refuse, in one line, a config file's value that the command line overrides but that is
+    invalid in itself (not a number, out of its range, an unknown name): ``size = 16.5``
+    with ``--size 8`` ran, and the same file without the flag was refused (an audit of
+    2026-11-29). Each such value is checked on its own, beside the defaults (a stage's option
+    by its declaration), so a value that only conflicts with another the command line also
+    changes is not refused.
+
+    Parameters
+    ----------
+    base : dict
+        The file's keys (dashed or not) and values.
+    overrides : dict
+        The command line's, ``None`` where a flag was not given.
+    source : str
+        The file, as the message names it.
+    """
+    declared = stage_options()
+    given = {str(k).replace("-", "_"): v for k, v in overrides.items() if v is not None}
+    for k, v in base.items():
+        key = str(k).replace("-", "_")
+        if key not in given:
+            continue
+        try:
+            if key in declared:
+                declared[key][1].check(v)
+            else:
+                Config.from_dict({key: v})
+        except ConfigError as err:
+            raise ConfigError(f"config file {source}: {err} (--{key.replace('_', '-')} on "
+                              f"the command line overrides it, but the file must hold valid "
+                              f"values)") from None
+
+
 def read_config_bytes(path: Path, what: str = "config file") -> bytes:
     """The bytes of a config file, or of a stream such as bash's ``<(...)`` (it was "not
     found"), read to at most :data:`MAX_CONFIG_BYTES` (``/dev/zero`` ran out of memory, an

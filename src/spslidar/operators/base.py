@@ -272,6 +272,11 @@ def float_matrix(a, what: str = "matrix", values: str = "entries", dtype=None,
         raise ValueError(f"{what} must hold numbers, got dtype {a.dtype}")
     if a.ndim != 2:
         raise ValueError(f"{what} must be an (M, N) matrix, got shape {a.shape}")
+    if a.size == 0:
+        # (an empty matrix made an operator whose products were empty arrays and whose
+        # solvers failed deep inside: an audit of 2026-11-29)
+        raise ValueError(f"{what} must have at least one row and one column, got shape "
+                         f"{a.shape}")
     if not np.isfinite(a).all():
         raise ValueError(f"{what} holds a NaN or an infinity: it must hold finite real "
                          f"{values}")

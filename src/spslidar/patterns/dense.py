@@ -108,6 +108,13 @@ class DensePatterns(PatternOperator):
 
     def __init__(self, matrix: np.ndarray, kind: str = "dense", *, copy: bool = True):
         matrix = float_matrix(matrix, "patterns", "transmittances", copy=copy)
+        low, high = float(matrix.min()), float(matrix.max())
+        if low < 0 or high > 1:
+            # (a DMD shows transmittances in [0, 1]; values outside were taken from Python,
+            # where `reconstruct --patterns` refused them: an audit of 2026-11-29. Centred or
+            # differential (+1/-1) patterns are operators of their own: ``centred``)
+            raise ValueError(f"patterns must hold mirror transmittances in [0, 1], got values "
+                             f"from {low:g} to {high:g}")
         super().__init__(matrix.shape, matrix.dtype)
         self.matrix = matrix
         self.kind = kind
