@@ -279,11 +279,12 @@ def _has_hadamard() -> bool:
 
 @pytest.mark.skipif(not _has_hadamard(), reason="no hadamard pattern kind")
 @pytest.mark.parametrize("kind", ["hadamard", "scrambled-hadamard"])
-def test_device_hadamard_matches_the_host_operator(be, kind):
+@pytest.mark.parametrize("realisation", ["shifted", "complementary"])
+def test_device_hadamard_matches_the_host_operator(be, kind, realisation):
     from spslidar.backends.patterns import DeviceHadamard
     from spslidar.patterns import build_patterns
 
-    host = build_patterns(kind, 40, 8, np.random.default_rng(1))
+    host = build_patterns(kind, 40, 8, np.random.default_rng(1), realisation=realisation)
     dev = DeviceHadamard(host, be)
     x, y = _rand((64, 3), 2), _rand((40, 3), 3)
     np.testing.assert_allclose(be.to_numpy(dev.apply(be.asarray(x))), host.matvec(x),
@@ -329,8 +330,9 @@ def test_every_stage_choice_runs_on_strict_with_the_numpy_answer(choice):
 
 
 @pytest.mark.skipif(not _has_hadamard(), reason="no hadamard pattern kind")
-def test_strict_hadamard_run_gives_the_numpy_depth_map():
-    kw = {**SMALL, "patterns": "hadamard"}
+@pytest.mark.parametrize("realisation", ["shifted", "complementary"])
+def test_strict_hadamard_run_gives_the_numpy_depth_map(realisation):
+    kw = {**SMALL, "patterns": "hadamard", "hadamard_realisation": realisation}
     r0, r1 = run(**kw), run(**kw, backend="array-api-strict")
     np.testing.assert_array_equal(r1.corr, r0.corr)
     np.testing.assert_array_equal(r1.depth, r0.depth)

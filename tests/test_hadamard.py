@@ -52,7 +52,7 @@ def test_fwht_refuses_other_lengths():
 def _sets(n=8, m=20, dtype=np.float64):
     out = {}
     for kind in ("hadamard", "scrambled-hadamard"):
-        for real in ("shifted", "differential"):
+        for real in ("shifted", "differential", "complementary"):
             p = hadamard_patterns(kind, m, n, np.random.default_rng(3), dtype=dtype,
                                   realisation=real)
             out[f"{kind}-{real}"] = p
@@ -82,6 +82,8 @@ def test_patterns_match_their_dense_rows(name):
     rows = h[op.rows]
     if op.signs is not None:
         rows = (rows * op.signs[None, :])[:, np.argsort(op.perm)]
+    if op.flips is not None:
+        rows = rows * op.flips[:, None]
     expected = {"shifted": (1 + rows) / 2, "bipolar": rows}.get(op.mode)
     if op.mode == "pairs":
         expected = np.empty((2 * rows.shape[0], n * n))
@@ -237,7 +239,8 @@ def test_hadamard_runs_are_reproducible_and_scrambling_uses_the_seed():
 
 
 @pytest.mark.parametrize("name", ["hadamard-shifted", "scrambled-hadamard-differential",
-                                  "hadamard-differential-frames"])
+                                  "hadamard-differential-frames", "hadamard-complementary",
+                                  "scrambled-hadamard-complementary"])
 def test_centred_operator_matches_the_dense_centred_patterns(name):
     op = _sets()[name]
     dense = op.todense()
@@ -285,3 +288,52 @@ def test_pattern_kind_experiment_points_are_valid_configs(quick, tmp_path):
         assert cfg.patterns != "gaussian" or cfg.size == min(sizes)  # dense only where it fits
     assert {p["patterns"] for p in points if p["size"] == max(sizes)} == {
         "hadamard", "scrambled-hadamard"}
+
+
+@pytest.mark.parametrize("kind", ["hadamard", "scrambled-hadamard"])
+@pytest.mark.parametrize("order", HADAMARD_ORDERS)
+@pytest.mark.parametrize("share", [1.0, 0.25])
+def test_complementary_rows_leave_no_pixel_unseen(kind, order, share):
+    """The constant column of the Sylvester matrix is +1 in every shown row of ``shifted``
+    (and more columns are in some orders' subsets), so QCR's centring by the mean pattern
+    zeroes it and that pixel is never measured; with a random half of the rows shown as
+    complements no column of the centred patterns is zero. Everything but the signs is
+    ``shifted``'s (the signs are drawn last), no frame is dark, and half the rows flip."""
+    n = 16
+    m = int(share * n * n)
+    got = {r: hadamard_patterns(kind, m, n, np.random.default_rng(5), dtype=np.float64,
+                                order=order, realisation=r)
+           for r in ("shifted", "complementary")}
+    unseen = {r: int(np.sum(np.abs(_centre(p.todense())).max(axis=0) < 1e-12))
+              for r, p in got.items()}
+    assert unseen["shifted"] >= 1 and unseen["complementary"] == 0, unseen
+    a, b = got["shifted"], got["complementary"]
+    np.testing.assert_array_equal(a.rows, b.rows)
+    for key in ("signs", "perm"):
+        np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
+    assert a.flips is None and int(np.sum(b.flips == -1)) == m // 2
+    dense = b.todense()
+    assert dense.max(axis=1).min() == 1.0  # no dark frame (the constant row is never flipped)
+    np.testing.assert_array_equal(np.where(b.flips[:, None] < 0, 1 - dense, dense),
+                                  a.todense())
+
+
+def test_complementary_rows_read_the_pixel_shifted_rows_never_see(tmp_path):
+    """A 0.3 m step on pixel 0 alone, noiseless, every pattern: the shifted rows read it as
+    its neighbours' 10 m (the TV's fill), the complementary rows read 10.3 m (within a bin)."""
+    from spslidar.cli import main
+
+    d = np.full((16, 16), 10.0)
+    d[0, 0] = 10.3
+    np.save(tmp_path / "step.npy", d)
+    read = {}
+    for real in ("shifted", "complementary"):
+        out = tmp_path / real
+        assert main(["run", "--scene", str(tmp_path / "step.npy"), "--size", "16",
+                     "--patterns", "hadamard", "--hadamard-realisation", real,
+                     "--compression", "1", "--noiseless", "--code-length", "1023",
+                     "--out", str(out), "--no-figure"]) == 0
+        read[real] = float(np.load(out / "depth.npy")[0, 0])
+    bin_m = 299792458.0 / 2 / 10e9
+    assert abs(read["shifted"] - 10.0) < bin_m
+    assert abs(read["complementary"] - 10.3) < bin_m

@@ -126,7 +126,9 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                         "pieces first, default), sequency, random or natural")
     g.add_argument("--hadamard-realisation", choices=HADAMARD_REALISATIONS, default=S,
                    help="+-1 Hadamard rows on a 0/1 DMD: shifted ((1+h)/2, DC removed by QCR "
-                        "centring; default) or differential (two frames, half the time each)")
+                        "centring; default), differential (two frames, half the time each) or "
+                        "complementary (shifted, a random half of the rows shown as (1-h)/2, "
+                        "so that QCR's centring leaves no pixel unseen)")
     g.add_argument("--compression", type=float, default=S, metavar="F",
                    help="M/Q: patterns per pixel, in (0, 1] (default 0.25)")
     g = p.add_argument_group("photons")

@@ -72,8 +72,9 @@ def fwht(xp: Any, x: Any, h: Any) -> Any:
 
 class DeviceHadamard:
     """``M`` rows of a (scrambled) Walsh-Hadamard matrix shown as ``(1 + h)/2`` on the DMD
-    (the ``shifted`` realisation of :class:`spslidar.patterns.hadamard.HadamardPatterns`),
-    applied on the device.
+    (the ``shifted`` and ``complementary`` realisations of
+    :class:`spslidar.patterns.hadamard.HadamardPatterns`; the latter's row signs are part of
+    ``h``), applied on the device.
 
     Parameters
     ----------
@@ -95,6 +96,9 @@ class DeviceHadamard:
         self.scatter = backend.asarray(pos)
         self.signs = (None if host.signs is None
                       else backend.asarray(np.asarray(host.signs, np.float64).reshape(-1, 1)))
+        flips = getattr(host, "flips", None)
+        self.flips = (None if flips is None
+                      else backend.asarray(np.asarray(flips, np.float64).reshape(-1, 1)))
         self.perm = self.inv_perm = None
         if host.perm is not None:
             inv = np.empty(q, dtype=np.int64)
@@ -109,7 +113,7 @@ class DeviceHadamard:
     @property
     def nbytes(self) -> int:
         """Bytes of the index and sign tables (on the device)."""
-        return int(8 * (self.shape[0] + 3 * self.shape[1]))
+        return int(8 * (self.shape[0] * (1 + (self.flips is not None)) + 3 * self.shape[1]))
 
     def _hmat(self, dtype: Any) -> Any:
         key = str(dtype)
@@ -123,12 +127,15 @@ class DeviceHadamard:
         z = x if self.perm is None else xp.take(x, self.perm, axis=0)
         if self.signs is not None:
             z = z * xp.astype(self.signs, z.dtype)
-        return xp.take(fwht(xp, z, self._hmat(z.dtype)), self.rows, axis=0)
+        z = xp.take(fwht(xp, z, self._hmat(z.dtype)), self.rows, axis=0)
+        return z if self.flips is None else z * xp.astype(self.flips, z.dtype)
 
     def ht(self, y: Any) -> Any:
         """``P^T D H S^T y`` for ``y`` of shape ``(M, K)``."""
         xp = self.backend.xp
         zero = xp.zeros((1, y.shape[1]), dtype=y.dtype, device=y.device)
+        if self.flips is not None:
+            y = y * xp.astype(self.flips, y.dtype)
         z = xp.take(xp.concat([y, zero], axis=0), self.scatter, axis=0)
         z = fwht(xp, z, self._hmat(z.dtype))
         if self.signs is not None:

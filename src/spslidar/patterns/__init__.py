@@ -29,7 +29,7 @@ __getattr__ = lazy_exports(__name__, {
 #: row orderings of ``hadamard`` patterns (``hadamard_order`` / ``--hadamard-order``)
 HADAMARD_ORDERS = ("sequency", "cake-cutting", "random", "natural")
 #: how +-1 Hadamard patterns are shown on a 0/1 DMD (``--hadamard-realisation``)
-HADAMARD_REALISATIONS = ("shifted", "differential")
+HADAMARD_REALISATIONS = ("shifted", "differential", "complementary")
 #: the pattern kinds whose rows ``--hadamard-realisation`` shows (both are +-1 Hadamard rows)
 HADAMARD_KINDS = ("hadamard", "scrambled-hadamard")
 

@@ -36,6 +36,15 @@ Realisation on a DMD (mirrors 0/1), the ``hadamard_realisation`` key:
   their matched-filter outputs are subtracted (their noise variances added) and the operator
   of the reconstruction is ``h`` itself (+-1). Background common to both frames cancels in the
   difference, so it also works without QCR. Twice the DMD frames and simulation work.
+* ``complementary``: as ``shifted``, one exposure per pattern, but a random half of the rows
+  is shown as its complement ``(1 - h)/2`` (the row ``h`` times a sign ``f_i``; the constant
+  row, where it is shown, never). In the two realisations above the Sylvester matrix's
+  constant column (pixel 0, or a random pixel of ``scrambled-hadamard``) is ``+1`` in every
+  row, so QCR's centring by the mean pattern removes it and that pixel is never seen (the TV
+  fills it from its neighbours); below full sampling an ordering's subset can leave a few
+  more such columns. With the signs ``f`` no column of the centred operator is constant, so
+  every pixel is measured (the standard remedy; an outside audit prototyped it on
+  2026-11-29). It costs nothing: the signs multiply the transform's rows.
 """
 
 from __future__ import annotations
@@ -150,6 +159,10 @@ class HadamardPatterns(PatternOperator):
         ``(1 + h)/2`` (M rows, on a DMD), ``h`` (M rows, +-1: the operator of differential
         measurements) or the differential frames ``(1 + h)/2, (1 - h)/2`` interleaved
         (2M rows, on a DMD).
+    flips : ndarray of +-1, shape (M,), optional
+        A sign per shown row (the ``complementary`` realisation): row ``i`` of ``h`` is
+        ``f_i`` times the Hadamard row, so ``(1 + h)/2`` shows its complement where
+        ``f_i = -1``.
     dtype : numpy dtype
     kind : str
         The registered pattern kind.
@@ -165,7 +178,8 @@ class HadamardPatterns(PatternOperator):
 
     def __init__(self, n_side: int, rows: np.ndarray, signs: np.ndarray | None = None,
                  perm: np.ndarray | None = None, mode: str = "shifted", dtype=np.float32,
-                 kind: str = "hadamard", time_share: float = 1.0):
+                 kind: str = "hadamard", time_share: float = 1.0,
+                 flips: np.ndarray | None = None):
         check_side(n_side)
         if mode not in MODES:
             raise ConfigError(f"unknown Hadamard pattern mode {mode!r}; choose one of "
@@ -180,6 +194,13 @@ class HadamardPatterns(PatternOperator):
         self.signs = None if signs is None else np.asarray(signs, dtype=np.int8)
         self.perm = None if perm is None else np.asarray(perm, dtype=np.int64)
         self.time_share = float(time_share)
+        self.flips = None
+        if flips is not None:
+            flips = np.asarray(flips)
+            if flips.shape != rows.shape or not np.all(np.abs(flips) == 1):
+                raise ConfigError(f"flips must be one +-1 sign per row ({rows.size}), got "
+                                  f"shape {flips.shape}")
+            self.flips = flips.astype(np.int8)
 
     # -- the transform -------------------------------------------------------------------
     def _h(self, x: np.ndarray) -> np.ndarray:
@@ -188,12 +209,15 @@ class HadamardPatterns(PatternOperator):
         if self.signs is not None:
             z *= self.signs[:, None]
         fwht(z, out=z)
-        return z[self.rows]
+        z = z[self.rows]
+        if self.flips is not None:
+            z *= self.flips[:, None]
+        return z
 
     def _ht(self, y: np.ndarray) -> np.ndarray:
         """``P^T D H S^T y`` for ``y`` of shape (M_rows, K)."""
         z = np.zeros((self.shape[1], y.shape[1]), dtype=y.dtype)
-        z[self.rows] = y
+        z[self.rows] = y if self.flips is None else y * self.flips[:, None]
         fwht(z, out=z)
         if self.signs is not None:
             z *= self.signs[:, None]
@@ -260,11 +284,12 @@ class HadamardPatterns(PatternOperator):
         if np.dtype(dtype) == self.dtype:
             return self
         return HadamardPatterns(self.n_side, self.rows, self.signs, self.perm, self.mode, dtype,
-                                self.kind, self.time_share)
+                                self.kind, self.time_share, self.flips)
 
     @property
     def nbytes(self) -> int:
-        return int(sum(a.nbytes for a in (self.rows, self.signs, self.perm) if a is not None))
+        return int(sum(a.nbytes for a in (self.rows, self.signs, self.perm, self.flips)
+                       if a is not None))
 
     # -- differential pairs --------------------------------------------------------------
     @property
@@ -285,7 +310,7 @@ class HadamardPatterns(PatternOperator):
         if self.mode != "bipolar":
             return self, 1.0
         return HadamardPatterns(self.n_side, self.rows, self.signs, self.perm, "pairs",
-                                self.dtype, self.kind, 0.5), 0.5
+                                self.dtype, self.kind, 0.5, self.flips), 0.5
 
     def combine(self, sim: dict[str, Any]) -> dict[str, Any]:
         """Turn the simulated outputs of the frames of :meth:`exposures` into one output per
@@ -328,7 +353,7 @@ class CentredHadamard(LinearOperator):
     def __init__(self, phi: HadamardPatterns, norm: float = 1.0, dtype=np.float32):
         super().__init__(phi.shape, dtype)
         self.h = HadamardPatterns(phi.n_side, phi.rows, phi.signs, phi.perm, "bipolar", dtype,
-                                  phi.kind)
+                                  phi.kind, flips=phi.flips)
         self.scale = (0.5 if phi.mode == "shifted" else 1.0) / float(norm)
         self.hbar = self.h.mean_pattern().astype(dtype)
 
@@ -364,8 +389,10 @@ def hadamard_patterns(kind: str, n_patterns: int, n_side: int, rng: np.random.Ge
     dtype : numpy dtype
     order : str
         Row ordering of ``hadamard`` (ignored by ``scrambled-hadamard``, whose rows are random).
-    realisation : {'shifted', 'differential'}
-        How the DMD shows the +-1 patterns (module docstring).
+    realisation : {'shifted', 'differential', 'complementary'}
+        How the DMD shows the +-1 patterns (module docstring). ``complementary`` draws its
+        row signs from ``rng`` after everything else, so its rows, signs and permutation are
+        ``shifted``'s.
     """
     check_side(n_side)
     if realisation not in HADAMARD_REALISATIONS:
@@ -385,4 +412,11 @@ def hadamard_patterns(kind: str, n_patterns: int, n_side: int, rng: np.random.Ge
     else:
         raise ConfigError(f"unknown Hadamard pattern kind {kind!r}")
     mode = "bipolar" if realisation == "differential" else "shifted"
-    return HadamardPatterns(n_side, rows, signs, perm, mode, dtype, kind)
+    flips = None
+    if realisation == "complementary":
+        # a random half of the rows shown as complements; never the constant row (natural
+        # row 0 of the plain kind), whose complement would be a dark frame
+        free = np.flatnonzero(rows != 0) if kind == "hadamard" else np.arange(rows.size)
+        flips = np.ones(rows.size, dtype=np.int8)
+        flips[rng.permutation(free)[: rows.size // 2]] = -1
+    return HadamardPatterns(n_side, rows, signs, perm, mode, dtype, kind, flips=flips)
