@@ -271,7 +271,14 @@ def test_simulation_rejects_means_beyond_float32_counts(method):
     with pytest.raises(ValueError, match="a count holds exactly"):
         pipeline.measure(scene="steps", size=8, code_length=127, signal=1e7)
     meas = _small_measurement()
-    meas.patterns = meas.patterns.todense() - 50.0  # negative transmittances: negative means
+    meas.patterns = meas.patterns.todense() - 50.0  # negative transmittances: refused as such
+    with pytest.raises(ValueError, match=r"transmittances in \[0, 1\], got values from -50"):
+        _simulate(meas, 0, method=method)
+    from spslidar.patterns import DensePatterns
+
+    neg = DensePatterns(meas.patterns + 50.0)
+    neg.matrix = neg.matrix - 50.0  # past the patterns' own check: the means' check remains
+    meas.patterns = neg
     with pytest.raises(ValueError, match="must be finite and non-negative"):
         _simulate(meas, 0, method=method)
 
