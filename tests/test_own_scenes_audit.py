@@ -108,6 +108,33 @@ def test_the_reflectivity_is_resized_with_the_depth_it_belongs_to(tmp_path):
     np.testing.assert_array_equal(s.reflectivity, np.where(s.depth == 10.0, 0.1, 0.9))
 
 
+@pytest.mark.parametrize("size", [16, 13, 8])
+def test_a_pixel_collects_its_footprints_mean_reflectivity_on_its_surface(tmp_path, size):
+    """A 0.2 / 1.0 striped texture on a flat wall halved in size read 1.0 everywhere and its
+    mirror image 0.2 (the median's one source pixel, the same place in every footprint: an
+    audit of 2026-11-30); a pixel collects its footprint's mean, and a mirrored file gives the
+    mirrored scene. Where the footprint spans two surfaces only the one taken counts."""
+    stripes = np.where(np.arange(32) % 2 == 0, 0.2, 1.0) * np.ones((32, 1))
+    flat = np.full((32, 32), 20.0)
+    np.savez(tmp_path / "s.npz", depth=flat, reflectivity=stripes)
+    np.savez(tmp_path / "m.npz", depth=flat, reflectivity=stripes[:, ::-1])
+    a = load_scene(str(tmp_path / "s.npz"), size).reflectivity
+    b = load_scene(str(tmp_path / "m.npz"), size).reflectivity
+    np.testing.assert_allclose(b, a[:, ::-1], atol=1e-12)
+    assert a.mean() == pytest.approx(0.6, abs=0.02)  # (odd footprints: 0.47-0.73 each)
+    if 32 % size == 0:
+        np.testing.assert_allclose(a, 0.6, atol=1e-12)
+    # two surfaces 2 m apart in each 4x4 footprint: the nearer 8 pixels of 0.3 and 0.5
+    # (mean 0.4) are the surface taken; the far ones' 0.9 is not mixed in
+    y, x = np.mgrid[0:32, 0:32]
+    depth = np.where(y % 4 < 2, 10.0, 12.0)
+    refl = np.where(y % 4 < 2, np.where(x % 2 == 0, 0.3, 0.5), 0.9)
+    np.savez(tmp_path / "two.npz", depth=depth, reflectivity=refl)
+    s = load_scene(str(tmp_path / "two.npz"), 8)
+    np.testing.assert_allclose(s.depth, 10.0)
+    np.testing.assert_allclose(s.reflectivity, 0.4, atol=1e-12)
+
+
 def test_a_scene_at_the_lidar_gets_a_gate_of_sixteen_slices(tmp_path):
     """The near end cannot go below 0 m: what it lost is added at the far end (a scene 3 cm
     away had 13 slices, under the 16 the docs promise)."""

@@ -231,14 +231,23 @@ def _resize(img: np.ndarray, size: int) -> np.ndarray:
     )
 
 
+#: depths (m) of a footprint that :func:`_resize_surfaces` takes as one surface when it
+#: averages the reflectivity: a third of a 10 GHz bin (15 mm), so a surface is one return
+SURFACE_TOL = 0.005
+
+
 def _resize_surfaces(img: np.ndarray, size: int, companion: np.ndarray | None = None):
     """Resize a square depth map so that every output pixel holds a depth its footprint holds:
     the lower median of the source pixels it covers (:func:`footprints`; one source pixel when
     up-sampling, the nearer of two where a footprint straddles them). With ``companion`` (the
-    reflectivity, same shape), also its value at that same source pixel: ``(depth,
-    companion)``. (The reflectivity was resized bilinearly beside it: a 0/1 texture
-    up-sampled to greys of 0.25-0.75 that are in no file, and a pixel given a dark surface's
-    depth took a bright neighbour's light, an audit.)
+    reflectivity, same shape), also its mean over the footprint's pixels on that surface
+    (depths within :data:`SURFACE_TOL` of the one taken): ``(depth, companion)``. (The
+    reflectivity was resized bilinearly beside it: a 0/1 texture up-sampled to greys of
+    0.25-0.75 that are in no file, and a pixel given a dark surface's depth took a bright
+    neighbour's light, an audit. It was then read at the one source pixel the median picked,
+    which on a flat surface is the same place in every footprint: a 0.2 / 1.0 striped
+    texture halved in size read 1.0 everywhere and its mirror image 0.2, where a pixel
+    collects its footprint's mean, 0.6: an audit of 2026-11-30.)
 
     The simulation gives each pixel one return. A bilinear, anti-aliased resize averaged the
     depths across edges: a one-pixel pole at 8 m in front of a 10 m wall became a surface at
@@ -274,7 +283,8 @@ def _resize_surfaces(img: np.ndarray, size: int, companion: np.ndarray | None = 
         out[r] = np.take_along_axis(vals, pick, axis=2)[..., 0]
         if out2 is not None:
             comp = other[at].reshape(block.shape[0], size, k * k)
-            out2[r] = np.take_along_axis(comp, pick, axis=2)[..., 0]
+            same = np.abs(vals - out[r][..., None]) <= SURFACE_TOL  # (outside: inf, never)
+            out2[r] = (comp * same).sum(axis=2) / same.sum(axis=2)
     return out if out2 is None else (out, out2)
 
 
