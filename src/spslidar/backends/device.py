@@ -50,10 +50,14 @@ def simulates_on_device(cfg: Any, patterns: Any) -> bool:
 
 def reconstructs_on_device(cfg: Any) -> bool:
     """Whether the QCR problem and the solve have device kernels for this configuration
-    (:data:`spslidar.backends.DEVICE_KERNELS`): the centred QCR form and FISTA with a TV."""
+    (:data:`spslidar.backends.DEVICE_KERNELS`): the centred QCR form and plain FISTA with a TV
+    (``--restart`` and ``--monotone`` are solved on the host)."""
+    from ..config import chosen_stage_options
+
     k = DEVICE_KERNELS
     return (bool(cfg.qcr) and cfg.qcr_form in k["qcr_form"] and cfg.solver in k["solver"]
-            and cfg.regulariser in k["regulariser"])
+            and cfg.regulariser in k["regulariser"]
+            and not any(chosen_stage_options(cfg, "solver").values()))
 
 
 def noise_per_bin(be: Any, noise: Any, patterns: Any, refl: np.ndarray,
