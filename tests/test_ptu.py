@@ -140,7 +140,11 @@ def test_pattern_starts_match_ptufile_full_decode(tmp_path):
         d = f.decode_records()
     np.testing.assert_array_equal(acq.pattern_start_sync, d["time"][d["marker"] == 4])
     photons = d["time"][d["channel"] >= 0]
-    assert acq.last_sync == int(photons[-1])
+    # the last event: the last photon, or where the last period holds none, the writer's
+    # closing marker (input 4 here, the blocks' being 3) at the dwell's last sync
+    last = int(photons[-1]) if photons[-1] == 9 * 1500 - 1 else 9 * 1500 - 1
+    assert acq.last_sync == last
+    assert set(np.unique(d["marker"][d["marker"] > 0])) <= {4, 8}
 
 
 # --- files spslidar did not write ------------------------------------------------------------
@@ -574,8 +578,8 @@ def test_a_generator_of_patterns_is_read_one_at_a_time(tmp_path):
         pw._dump = saved
     assert seen == [1, 2, 3, 4, 5]  # pattern k written when k + 1 had been drawn
     acq = read_ptu_histograms(tmp_path / "g.ptu", 64, bin_width=BW)
-    # (the last pattern's dwell is read to its last photon: no marker ends it)
-    assert acq.n_patterns == 5 and list(acq.periods_per_pattern[:4]) == [3] * 4
+    # (the last pattern's dwell reads in full: the writer closes an empty last period)
+    assert acq.n_patterns == 5 and list(acq.periods_per_pattern) == [3] * 5
     assert [int(np.argmax(h)) for h in acq.histograms] == [1, 3, 5, 7, 9]
 
 

@@ -64,18 +64,20 @@ def whole_numbers(a: Any, what: str, unit: str = "bins") -> np.ndarray:
 
 
 def positive_number(v: Any, what: str, *, integer: bool = False,
-                    unit: str = "") -> float | int:
-    """``v`` as a finite positive number (a whole one with ``integer``), or one line: a
-    zero bin width gave infinite delays with a warning, a negative one negative delays, a
-    negative count of periods negative means."""
+                    unit: str = "", zero: bool = False) -> float | int:
+    """``v`` as a finite positive number (a whole one with ``integer``; ``zero``: 0 too), or
+    one line: a zero bin width gave infinite delays with a warning, a negative one negative
+    delays, a negative count of periods negative means."""
     ok = (not isinstance(v, (bool, np.bool_, str, bytes)) and np.ndim(v) == 0
           and not np.iscomplexobj(v))
     try:
         x = float(v) if ok else float("nan")
     except (TypeError, ValueError):
         x = float("nan")
-    if not (np.isfinite(x) and x > 0 and (not integer or x.is_integer())):
-        kind = "a whole number >= 1" if integer else "a positive number"
+    if not (np.isfinite(x) and (x >= 0 if zero else x > 0)
+            and (not integer or x.is_integer())):
+        kind = (f"a whole number >= {0 if zero else 1}" if integer
+                else "a number >= 0" if zero else "a positive number")
         kind += f" of {unit}" if unit else ""
         raise SpslidarError(f"{what} must be {kind}, got {v!r}")
     return int(x) if integer else x

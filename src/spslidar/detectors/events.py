@@ -29,6 +29,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..arrays import positive_number
+
 if TYPE_CHECKING:  # pragma: no cover
     from .gmapd import GMAPD
 
@@ -92,14 +94,15 @@ def simulate_events(lam_row: np.ndarray, n_periods: int, model: GMAPD,
         periods (the :class:`~spslidar.detectors.base.DetectorModel` convention:
         ``lam_row / n_periods`` per period).
     n_periods : int
-        Code periods acquired (after the warm-up).
+        Code periods acquired (after the warm-up), a whole number >= 1.
     model : GMAPD
         Detector parameters (dead time, bin width, jitter, afterpulsing, dark counts,
         efficiency).
     rng : numpy.random.Generator
     warmup_periods : int
-        Periods simulated first and discarded (the detector is free-running before the
-        pattern starts; its steady state is reached within a few dead times).
+        Periods (a whole number >= 0) simulated first and discarded (the detector is
+        free-running before the pattern starts; its steady state is reached within a few
+        dead times).
     max_events : float
         Refuse to simulate more avalanches than this (memory: ~40 bytes each).
 
@@ -113,12 +116,14 @@ def simulate_events(lam_row: np.ndarray, n_periods: int, model: GMAPD,
     """
     lam = np.asarray(lam_row, dtype=np.float64).ravel()
     period = lam.size
-    n_periods = int(n_periods)
-    if n_periods < 1 or warmup_periods < 0:
-        raise ValueError("n_periods must be >= 1 and warmup_periods >= 0")
+    # (3.9 periods were simulated as 3 with lam_row spread over 3, and a warm-up of 1.5 was
+    # simulated as 1 but 1.5 periods discarded: an audit of 2026-11-30)
+    n_periods = positive_number(n_periods, "n_periods", integer=True, unit="code periods")
+    warmup_periods = positive_number(warmup_periods, "warmup_periods", integer=True,
+                                     unit="code periods", zero=True)
     if not (np.all(np.isfinite(lam)) and np.all(lam >= 0)):
         raise ValueError("lam_row must be finite and non-negative")
-    total = n_periods + int(warmup_periods)
+    total = n_periods + warmup_periods
     span = float(total * period)
     dark_mean = model.dark_count_rate * model.bin_width * span
     mean_events = float(model.efficiency * lam.sum() * total / n_periods) + dark_mean

@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..arrays import positive_number, real_array, whole_numbers
+from ..errors import ConfigError, SpslidarError
 from ..version import __version__
 from .ptu_format import (
     _FAMILY,
@@ -34,6 +35,9 @@ from .ptu_format import (
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
+
+#: PTU's tyBool8 (a bool in an 8-byte integer; the reader's ``_TY_FIXED`` holds it)
+_TY_BOOL8 = 0x00000008
 
 __all__ = ["write_acquisition_ptu", "write_ptu_t3", "write_ptu_t3_stream"]
 
@@ -56,7 +60,10 @@ def _encode_tag(ident: str, value: Any) -> bytes:
             value = value.astimezone().replace(tzinfo=None)
         days = (value - datetime(1899, 12, 30)).total_seconds() / 86400.0
         return _tag(ident, _TY_TDATETIME, struct.pack("<d", days))
-    if isinstance(value, bool | int | np.integer):
+    if isinstance(value, bool | np.bool_):
+        # (True and False were written as tyInt8, read back as 1 and 0: an audit of 2026-11-30)
+        return _tag(ident, _TY_BOOL8, struct.pack("<q", int(bool(value))))
+    if isinstance(value, int | np.integer):
         if not -2**63 <= int(value) < 2**63:
             raise ConfigError(f"PTU tag {ident}={value} does not fit a 64-bit integer")
         return _tag(ident, _TY_INT8, struct.pack("<q", int(value)))
@@ -321,6 +328,27 @@ def _dump(fh: Any, header: bytes, records: np.ndarray) -> None:
     fh.write(memoryview(np.ascontiguousarray(records.astype("<u4", copy=False))).cast("B"))
 
 
+def _dwells(value: Any, m: int) -> list[int]:
+    """One dwell per pattern, whole code periods >= 1, or one ConfigError line (fractions
+    were truncated: 2.9 periods written and read back as 2, an audit of 2026-11-30)."""
+    what = "periods_per_pattern"
+    try:
+        arr = real_array(value, what)
+        if arr.dtype.kind == "b":
+            raise ConfigError(f"{what} must be whole numbers of code periods, got booleans")
+        if arr.shape != (m,):
+            raise ConfigError(f"{what} must be a whole number >= 1 or {m} of them (one per "
+                              f"pattern), got shape {arr.shape}")
+        arr = whole_numbers(arr, what, unit="code periods")
+    except SpslidarError as err:
+        raise ConfigError(str(err)) from None
+    bad = np.flatnonzero(arr < 1)
+    if bad.size:
+        raise ConfigError(f"{what}[{bad[0]}] must be a whole number >= 1 of code periods, got "
+                          f"{arr[bad[0]]}")
+    return arr.tolist()
+
+
 def write_acquisition_ptu(
     path: PathLike,
     pattern_events: Iterable[ArrayLike],
@@ -342,10 +370,11 @@ def write_acquisition_ptu(
     at ``nsync = start_k + p``, ``dtime = b``. The sync rate is ``1 / (period_bins *
     bin_width_s)`` and the resolution ``bin_width_s``, so
     ``read_ptu_histograms(path, period_bins, bin_width=bin_width_s, marker=marker)``
-    returns exactly the per-pattern histograms of the events, and each pattern's ``P_k`` but
-    the last's: nothing is written after the last photon (as a time tagger stopped at the
-    end of the last pattern would leave it), so its dwell reads to that photon's period
-    (written 40, read 39 at nine photons per pattern: an audit).
+    returns exactly the per-pattern histograms of the events, and each pattern's ``P_k``:
+    where a pattern's last code period holds none of its photons, a marker record on
+    another input (4, or 3 where ``marker`` is 4) is written at sync ``start_k + P_k - 1``,
+    which the reader counts as an event (so the last pattern's dwell reads to its end) and
+    not as a block (so it adds no pattern).
 
     Parameters
     ----------
@@ -362,8 +391,8 @@ def write_acquisition_ptu(
     bin_width_s : float
         Bin width in seconds.
     periods_per_pattern : int or sequence of int, optional
-        Code periods per pattern ``P_k`` (scalar or one per pattern); default: the largest
-        period index of each pattern plus one.
+        Code periods per pattern ``P_k``, whole numbers >= 1 (scalar or one per pattern);
+        default: the largest period index of each pattern plus one.
     marker : int
         Marker input (1..4) written at each pattern start.
     channel, record_type, comment, created
@@ -375,7 +404,12 @@ def write_acquisition_ptu(
         Number of records written.
     """
     period_bins = _positive_int(period_bins, "period_bins")
-    bit = 1 << (_marker_input(marker) - 1)
+    marker = _marker_input(marker)
+    bit = 1 << (marker - 1)
+    # (nothing was written after the last photon, so the reader, which measures the last
+    # block to the file's last event, read the last dwell short: written 40, read 38 at 20
+    # photons per pattern, and reconstruct scaled that row up 5 %: an audit of 2026-11-30)
+    end_bit = 1 << (3 if marker != 4 else 2)  # input 4 (3): read as an event, not a block
     if not bin_width_s > 0:
         raise ConfigError(f"bin_width_s must be > 0, got {bin_width_s!r}")
 
@@ -395,21 +429,21 @@ def write_acquisition_ptu(
     if periods_per_pattern is not None and np.ndim(periods_per_pattern) == 0:
         # one dwell for all: each pattern is checked, encoded and written as it comes (a
         # generator of patterns is never held whole)
-        if isinstance(periods_per_pattern, bool) or int(periods_per_pattern) < 1:
-            raise ConfigError("periods_per_pattern must be a positive int or one per pattern")
+        # (2.9 periods were written, and read back, as 2: an audit of 2026-11-30)
+        try:
+            dwell = positive_number(periods_per_pattern, "periods_per_pattern", integer=True,
+                                    unit="code periods")
+        except SpslidarError as err:
+            raise ConfigError(str(err)) from None
         items: Iterable[np.ndarray] = (checked(k, e) for k, e in enumerate(pattern_events))
-        periods: Iterable[int] = itertools.repeat(int(periods_per_pattern))
+        periods: Iterable[int] = itertools.repeat(int(dwell))
     else:
         events = [checked(k, e) for k, e in enumerate(pattern_events)]
         m = len(events)
         if periods_per_pattern is None:
             periods = [int(e[:, 0].max()) + 1 if len(e) else 1 for e in events]
         else:
-            arr = np.asarray(periods_per_pattern, np.int64)
-            if arr.shape != (m,) or np.any(arr < 1):
-                raise ConfigError(f"periods_per_pattern must be a positive int or {m} positive "
-                                  f"ints")
-            periods = arr.tolist()
+            periods = _dwells(periods_per_pattern, m)
         items = events
 
     def chunks():
@@ -419,10 +453,15 @@ def write_acquisition_ptu(
                 raise ConfigError(f"pattern_events[{k}] has a period index >= "
                                   f"periods_per_pattern ({dwell})")
             e = e[np.lexsort((e[:, 1], e[:, 0]))]  # time order
-            mark = np.zeros(len(e) + 1, np.int64)
+            close = int((e[-1, 0] if len(e) else 0) < dwell - 1)  # its last period empty
+            nsync = np.full(len(e) + 1 + close, start + dwell - 1, np.int64)
+            nsync[: len(e) + 1] = np.concatenate([[start], start + e[:, 0]])
+            dtime = np.zeros(nsync.size, np.int64)
+            dtime[1 : len(e) + 1] = e[:, 1]
+            mark = np.zeros(nsync.size, np.int64)
             mark[0] = bit  # the pattern's marker, at its first sync, before its photons
-            yield (np.concatenate([[start], start + e[:, 0]]),
-                   np.concatenate([[0], e[:, 1]]), channel, mark)
+            mark[len(e) + 1 :] = end_bit  # and at its last sync, where no photon is
+            yield nsync, dtime, channel, mark
             start += dwell
 
     return write_ptu_t3_stream(

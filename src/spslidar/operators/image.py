@@ -85,9 +85,10 @@ class Wavelet2D(LinearOperator):
     wavelet : str
         Any orthogonal PyWavelets family (``'haar'``, ``'db2'``, ``'db4'``, ``'sym4'``...).
     level : int, optional
-        Decomposition depth; default: as deep as the image sides allow periodized levels (at
-        most 4), but no deeper than PyWavelets' ``dwtn_max_level`` for the filter's length
-        (a 16 x 16 image: 4 levels of ``haar``, 2 of ``db2``, 1 of ``db8``).
+        Decomposition depth, a whole number >= 0 (0: the identity); default: as deep as the
+        image sides allow periodized levels (at most 4), but no deeper than PyWavelets'
+        ``dwtn_max_level`` for the filter's length (a 16 x 16 image: 4 levels of ``haar``, 2
+        of ``db2``, 1 of ``db8``).
 
     Notes
     -----
@@ -102,7 +103,16 @@ class Wavelet2D(LinearOperator):
                  dtype=np.float64):
         import pywt
 
-        ny, nx = int(shape[0]), int(shape[1])
+        from .base import _shape2
+
+        # (a shape of (8.9, 8.9) was taken as 8 x 8, where Gradient2D refused it; level=1.7
+        # was a raw TypeError and level=-1 pywt's own error: an audit of 2026-11-30)
+        ny, nx = _shape2(shape, "Wavelet2D's image shape", 1)
+        if level is not None:
+            from ..arrays import positive_number
+
+            level = positive_number(level, "Wavelet2D's level", integer=True, unit="levels",
+                                    zero=True)
         w = pywt.Wavelet(wavelet)
         if not w.orthogonal:
             raise ValueError(f"wavelet {wavelet!r} is not orthogonal")

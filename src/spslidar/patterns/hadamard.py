@@ -184,15 +184,52 @@ class HadamardPatterns(PatternOperator):
         if mode not in MODES:
             raise ConfigError(f"unknown Hadamard pattern mode {mode!r}; choose one of "
                               f"{', '.join(MODES)}")
+        from ..arrays import real_array, whole_numbers
+        from ..errors import SpslidarError
+
         q = n_side * n_side
-        rows = np.asarray(rows, dtype=np.int64)
-        if rows.ndim != 1 or rows.size < 1 or rows.size > q:
-            raise ConfigError(f"need between 1 and {q} Hadamard rows, got {rows.size}")
+        # (rows 1.7 were shown as row 1, -1 as the last row and Q as a raw IndexError later;
+        # signs 0.5 cast to 0, dropping that pixel's term; perm never checked to be a
+        # permutation: an audit of 2026-11-30)
+        try:
+            rows = real_array(rows, "rows")
+            if rows.dtype.kind == "b" or rows.ndim != 1 or not 1 <= rows.size <= q:
+                raise ConfigError(f"need between 1 and {q} Hadamard rows (row numbers, shape "
+                                  f"(M,)), got shape {rows.shape} dtype {rows.dtype}")
+            rows = whole_numbers(rows, "rows", unit="row numbers")
+            if signs is not None:
+                signs = real_array(signs, "signs")
+                if signs.shape != (q,) or signs.dtype.kind == "b":
+                    raise ConfigError(f"signs must be {q} signs, each +1 or -1, got shape "
+                                      f"{signs.shape} dtype {signs.dtype}")
+                bad = np.flatnonzero((signs != 1) & (signs != -1))
+                if bad.size:
+                    raise ConfigError(f"signs must be {q} signs, each +1 or -1, got "
+                                      f"{float(signs[bad[0]]):g} at pixel {bad[0]}")
+                signs = signs.astype(np.int8)
+            if perm is not None:
+                perm = real_array(perm, "perm")
+                if perm.shape != (q,) or perm.dtype.kind == "b":
+                    raise ConfigError(f"perm must be a permutation of 0..{q - 1}, got shape "
+                                      f"{perm.shape} dtype {perm.dtype}")
+                perm = whole_numbers(perm, "perm", unit="pixel numbers")
+        except SpslidarError as err:
+            raise ConfigError(str(err)) from None
+        if rows.min() < 0 or rows.max() >= q:
+            raise ConfigError(f"rows must be Hadamard row numbers in 0..{q - 1}, got "
+                              f"{int(rows.min() if rows.min() < 0 else rows.max())}")
+        u, n = np.unique(rows, return_counts=True)
+        if u.size != rows.size:
+            raise ConfigError(f"rows must be distinct, got row {int(u[n > 1][0])} "
+                              f"{int(n.max())} times")
+        if perm is not None and not np.array_equal(np.sort(perm), np.arange(q)):
+            missing = np.setdiff1d(np.arange(q), perm)
+            raise ConfigError(f"perm must be a permutation of 0..{q - 1} (each pixel once), "
+                              f"got one without pixel {int(missing[0])}")
         m = rows.size * (2 if mode == "pairs" else 1)
         super().__init__((m, q), dtype)
         self.n_side, self.rows, self.mode, self.kind = n_side, rows, mode, kind
-        self.signs = None if signs is None else np.asarray(signs, dtype=np.int8)
-        self.perm = None if perm is None else np.asarray(perm, dtype=np.int64)
+        self.signs, self.perm = signs, perm
         self.time_share = float(time_share)
         self.flips = None
         if flips is not None:

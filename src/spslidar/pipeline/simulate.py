@@ -8,6 +8,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from ..arrays import whole_numbers
 from ..capture import carried
 from ..correlate import (
     FFT_LAGS,
@@ -61,7 +62,7 @@ def simulate_correlations(
         Depth and reflectivity per pixel.
     acq : Acquisition
     lags : ndarray of int, shape (K,)
-        Delays (bins) at which the matched filter is evaluated.
+        Delays (whole bins) at which the matched filter is evaluated.
     noise : NoiseModel
     detector : DetectorModel
         Turns each block's expected photons per bin into detected counts (the stage's
@@ -121,7 +122,9 @@ def simulate_correlations(
         raise ConfigError(f"unknown simulation method {method!r}; choose fast or reference")
     patterns = as_patterns(patterns, copy=False)
     m = patterns.shape[0]
-    lags = np.asarray(lags, dtype=np.int64)
+    # (fractional lags were cast to the bin below without a word, where matched_filter and
+    # the gate refused them: an audit of 2026-11-30)
+    lags = whole_numbers(lags, "lags")
     refl = scene.reflectivity.ravel()
     # the return amplitudes of pattern block b are patterns[b] @ weights (eq. 4 without the
     # code), as the instrument records them (system delay and IRF; spslidar.instrument)
