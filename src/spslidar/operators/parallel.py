@@ -146,12 +146,52 @@ def sum_parts(parts: list) -> list:
     return [sum(p[j] for p in parts) for j in range(len(parts[0]))]
 
 
+#: the one thread that sets and restores BLAS's limit (see :func:`_single_threaded_blas`)
+_SETTER: list[ThreadPoolExecutor] = []
+#: whether the "BLAS not held" warning was given in this process
+_WARNED: list[bool] = []
+
+
+def _on_setter(fn):
+    """``fn()`` run on the module's own setter thread (started on first use)."""
+    if not _SETTER:
+        _SETTER.append(ThreadPoolExecutor(1, thread_name_prefix="spslidar-blas"))
+    return _SETTER[0].submit(fn).result()
+
+
 def _single_threaded_blas() -> Any:
+    """BLAS's limit set to one thread, from the module's own setter thread, or ``None``
+    without ``threadpoolctl``.
+
+    OpenBLAS (pthreads) ignores ``openblas_set_num_threads`` called from any other thread
+    once the main thread has called it: a run in a worker thread after one in the main
+    thread had BLAS on every core, and gave other numbers than the same run alone (24 of 24
+    configurations' slices, 9 of 24 depth maps, up to 3 m on 8 pixels), and concurrent runs
+    left BLAS on one thread for good in 3 of 5 processes (an outside audit of 2026-11-30;
+    threadpoolctl's issue #205). Set and restored from one thread of ours, never the
+    caller's, the limit holds whichever thread runs. Where it still does not (the main thread
+    set it through threadpoolctl itself), one warning says so."""
     try:
-        from threadpoolctl import threadpool_limits
+        from threadpoolctl import threadpool_info, threadpool_limits
     except ImportError:  # pragma: no cover - threadpoolctl is optional
         return None
-    return threadpool_limits(limits=1, user_api="blas")
+
+    def limit():
+        lim = threadpool_limits(limits=1, user_api="blas")
+        held = all(i["num_threads"] == 1 for i in threadpool_info() if i["user_api"] == "blas")
+        return lim, held
+
+    lim, held = _on_setter(limit)
+    if not held and not _WARNED:
+        import warnings
+
+        _WARNED.append(True)
+        warnings.warn("BLAS could not be held to one thread (OpenBLAS ignores a limit set "
+                      "from another thread once the main thread has set one, e.g. through "
+                      "threadpoolctl): products may round differently from a run alone; set "
+                      "OPENBLAS_NUM_THREADS=1 before importing numpy to make them equal",
+                      RuntimeWarning, stacklevel=1)
+    return lim
 
 
 _BLAS_LOCK = threading.Lock()
@@ -177,7 +217,7 @@ def _blas_held():
         with _BLAS_LOCK:
             _BLAS["depth"] -= 1
             if _BLAS["depth"] == 0 and _BLAS["limits"] is not None:
-                _BLAS["limits"].restore_original_limits()
+                _on_setter(_BLAS["limits"].restore_original_limits)
                 _BLAS["limits"] = None
 
 
