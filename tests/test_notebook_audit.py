@@ -481,3 +481,93 @@ def test_blas_that_cannot_be_held_to_one_thread_is_said_once():
     got = json.loads(out.strip().splitlines()[-1])
     held = all(set(h) == {1} for h in got["seen"])
     assert got["seen"] and got["warned"] == (0 if held else 1), got
+
+
+def test_a_results_config_and_detector_report_are_its_own():
+    """A result's config was the measurement's own object and its ``metrics["detector"]``
+    the measurement's dict: ``r.config.solver = "twist"`` made the next ``reconstruct(m)``
+    a TwIST solve, and an edited detector report was every later result's (an audit of
+    2026-11-30)."""
+    m = spslidar.measure(**SMALL, seed=1)
+    r1 = spslidar.reconstruct(m)
+    assert r1.config is not m.config
+    r1.config.solver = "twist"
+    r1.metrics["detector"]["model"] = "EDITED"
+    r2 = spslidar.reconstruct(m)
+    assert r2.metrics["config"]["solver"] == "fista" and m.config.solver == "fista"
+    assert r2.metrics["detector"]["model"] == "linear"
+    np.testing.assert_array_equal(r2.depth, r1.depth)
+
+
+@pytest.mark.parametrize("kind", ["hadamard", "scrambled-hadamard", "gaussian"])
+def test_a_row_block_handed_out_is_a_copy(kind):
+    """``apply_rows`` handed out a view of the product it keeps for the next blocks: a caller
+    that zeroed its block zeroed the next call's (Hadamard kinds; an audit of 2026-11-30)."""
+    from spslidar.patterns import build_patterns
+
+    pats = build_patterns(kind, 64, 16, np.random.default_rng(0))
+    x = np.random.default_rng(1).random((256, 3))
+    want = pats.todense()[:4].astype(np.float64) @ x
+    block = pats.apply_rows(slice(0, 4), x)
+    block[:] = 0
+    np.testing.assert_allclose(pats.apply_rows(slice(0, 4), x), want, rtol=1e-6)
+
+
+def test_a_registry_read_while_another_thread_adds_and_removes_a_plugin():
+    """Reading the options while a plugin was added and removed in another thread raised
+    "dictionary changed size during iteration" (3 of 2 000 ``Config(...)`` calls, an audit of
+    2026-11-30): the reads take a snapshot."""
+    import sys
+    import threading
+
+    from spslidar.depth import ESTIMATORS
+    from spslidar.registry import Option
+
+    stop = threading.Event()
+    errors = []
+
+    def churn():
+        k = 0
+        while not stop.is_set():
+            name = f"churn{k % 7}"
+            ESTIMATORS.add(name, "spslidar.depth.argmax:ArgmaxDepth",
+                           options=(Option(f"churn_opt{k % 7}", 1, kind=int),))
+            ESTIMATORS.remove(name)
+            k += 1
+
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)
+    t = threading.Thread(target=churn)
+    t.start()
+    try:
+        for _ in range(30000):
+            try:
+                ESTIMATORS.options()
+                ESTIMATORS.owners("half_width")
+                list(ESTIMATORS)
+                ESTIMATORS.help_text()
+            except RuntimeError as err:
+                errors.append(str(err))
+    finally:
+        stop.set()
+        t.join()
+        sys.setswitchinterval(old)
+    assert not errors, errors[:1]
+    assert not any(n.startswith("churn") for n in ESTIMATORS.names())
+
+
+def test_a_sweep_leaves_no_warning_filter_behind(tmp_path):
+    """A sweep on two workers added an "ignore" filter for loky's restarted-worker warning to
+    the process for good (an audit of 2026-11-30)."""
+    import warnings
+
+    from spslidar.experiments.sweep import engine
+
+    before = list(warnings.filters)
+    out = list(engine._run_local(_square, [(0, {"x": 2}), (1, {"x": 3})], 2))
+    assert sorted(o[1][1] for o in out) == [4, 9]
+    assert warnings.filters == before
+
+
+def _square(params):
+    return params["x"] ** 2

@@ -51,11 +51,12 @@ class PatternOperator(LinearOperator):
         """``Phi[rows] @ x`` in float64 for a float64 block ``x`` of shape ``(Q, S)``.
 
         The default computes the whole product once and keeps it for the next blocks of the
-        same ``x`` (the simulation asks for consecutive row blocks of one product).
+        same ``x`` (the simulation asks for consecutive row blocks of one product); each block
+        is a copy, so a caller's edit of it leaves the kept product as it was.
         """
         rows, x = self._rows_block(rows, x)
         return self._full_product(x, lambda v: np.asarray(
-            self.matvec(np.asarray(v, dtype=self.dtype)), dtype=np.float64))[rows]
+            self.matvec(np.asarray(v, dtype=self.dtype)), dtype=np.float64))[rows].copy()
 
     def _rows_block(self, rows: slice, x: Any) -> tuple[slice, np.ndarray]:
         """:meth:`apply_rows`' arguments as its contract has them, or one line: a 1-D ``x``
@@ -71,7 +72,9 @@ class PatternOperator(LinearOperator):
         return rows, x
 
     def _full_product(self, x: np.ndarray, product) -> np.ndarray:
-        """``product(x)``, kept with a copy of ``x`` for the next row blocks of the same values.
+        """``product(x)``, kept with a copy of ``x`` for the next row blocks of the same values
+        (callers hand out copies of its rows: a block handed out as a view and zeroed by its
+        caller zeroed the next call's, an audit of 2026-11-30).
 
         Keyed by content as well as identity: an ``x`` changed in place between two calls (a
         notebook reusing its buffer) got the old product back. The CRC-32 of its bytes

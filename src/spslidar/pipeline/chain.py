@@ -279,7 +279,9 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     processing = {k: v for k, v in processing.items() if k not in same}
     check_processing_keys(processing, "reconstruct()",
                           "reconstruct() cannot change {keys}: simulate again with measure()")
-    cfg = meas.config.replace(**processing) if processing else meas.config
+    # (a copy even without changes: the result's config was the measurement's own object, so
+    # `r.config.solver = "twist"` changed every later reconstruct(meas): an audit of 2026-11-30)
+    cfg = meas.config.replace(**processing)
     timing = dict(meas.timing)
     warns = list(meas.warnings)
     acq, sim, patterns = meas.acq, meas.sim, meas.patterns

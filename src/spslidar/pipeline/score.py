@@ -5,6 +5,7 @@ step of every backend's reconstruction.
 
 from __future__ import annotations
 
+import copy
 import time
 from typing import Any
 
@@ -203,7 +204,9 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         "lam_floored": bool(lam_floored),
         "noise_level": sigma_eff,
         "solver_info": dict(info.as_dict()),
-        "detector": sim["pileup"],
+        # (a copy: the measurement's dict was every result's, so editing one result's
+        # metrics["detector"] edited the next's: an audit of 2026-11-30)
+        "detector": copy.deepcopy(sim["pileup"]),
         # the configuration's estimate; with ``time_s_at_floor`` where the weight met its
         # floor and the solve ran the floored cap (priced again then)
         "estimate": {**sim.get("estimate", {}), **(estimate or {})},
