@@ -358,3 +358,43 @@ def test_a_librarys_notice_of_its_future_is_not_the_runs_warning(tmp_path, capsy
     assert not any("deprecated" in w or "will go" in w for w in kept)
     assert "overflow in a library (RuntimeWarning in mod.py:12)" in err
     assert any("overflow in a library" in w for w in kept)
+
+
+def _cli_process(args, tmp_path, shell_tail="", env=None):
+    """The CLI as its own process (the streams are real descriptors), with ``shell_tail``
+    (redirections, a pipe) after it; returns (status of the spslidar process, stderr)."""
+    import os
+    import shlex
+    import subprocess
+    import sys
+
+    cmd = " ".join(shlex.quote(a) for a in [sys.executable, "-m", "spslidar", *args])
+    script = f"{cmd} {shell_tail}; echo \"status=${{PIPESTATUS[0]}}\" >&3"
+    proc = subprocess.run(["bash", "-c", f"exec 3>{shlex.quote(str(tmp_path / 'status'))}; "
+                           + script], capture_output=True, text=True, timeout=300,
+                          env={**os.environ, **(env or {})}, cwd=tmp_path)
+    status = int((tmp_path / "status").read_text().strip().split("=")[1])
+    return status, proc.stderr
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
+@pytest.mark.parametrize("tail,env", [
+    ("2>/dev/full", {"PYTHONUNBUFFERED": ""}),  # a log on a full disk: the warnings fail
+    ("2>/dev/full", {"PYTHONUNBUFFERED": "1"}),
+    (">/dev/full", {"PYTHONUNBUFFERED": ""}),  # stdout on a full disk
+    (">/dev/full", {"PYTHONUNBUFFERED": "1"}),
+    ("| head -c 1 >/dev/null", {"PYTHONUNBUFFERED": "1"}),  # a pipe closed early
+    ("", {"PYTHONIOENCODING": "ascii"}),  # a path the stream cannot encode
+])
+def test_streams_that_refuse_writes_leave_the_result_written(tmp_path, tail, env):
+    """A warning written to a full disk threw the finished run away (exit 1 or 120, no output,
+    no word), stdout on a full disk or a closed pipe after the outputs were written said
+    "error: ... while writing --out" (they were complete), and an ASCII stdout a traceback
+    (an outside audit of 2026-11-30): the result is written and the status is 0."""
+    out = "r\u00e9s"
+    status, err = _cli_process(["run", "--size", "16", "--code-length", "1023", "--no-figure",
+                                "--out", out], tmp_path, tail, env)
+    assert status == 0, err
+    assert "Traceback" not in err and "Exception ignored" not in err and "error" not in err
+    assert {p.name for p in (tmp_path / out).iterdir()} >= {"depth.npy", "metrics.json",
+                                                            "points.ply"}

@@ -3,6 +3,8 @@
 import json
 import os
 import stat
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -263,3 +265,32 @@ def test_a_signal_while_the_plugins_load_is_one_line(tmp_path):
                           capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert done.returncode == 130
     assert done.stderr.strip().splitlines() == ["spslidar: interrupted; nothing was written"]
+
+
+def test_a_lock_held_on_the_outputs_folder_by_another_tool_does_not_hold_the_run(tmp_path):
+    """``flock DIR spslidar run --out DIR/a`` (the way flock(1) serialises jobs) held the
+    folder's own lock in the parent process, and the run waited for it forever after its work
+    (an audit of 2026-11-30): spslidar locks a file of its own, named by the folder, in the
+    temporary folder; nothing is written beside the output."""
+    import fcntl
+    import threading
+
+    from spslidar.outlock import lock_file
+
+    parent = tmp_path / "jobs"
+    parent.mkdir()
+    fd = os.open(parent, os.O_RDONLY)
+    fcntl.flock(fd, fcntl.LOCK_EX)  # another tool's lock on the folder itself
+    done = []
+    try:
+        t = threading.Thread(target=lambda: done.append(write_result_dir(
+            parent / "a", lambda tmp: (tmp / "depth.npy").write_bytes(b"x"))), daemon=True)
+        t.start()
+        t.join(30)
+    finally:
+        os.close(fd)
+    assert done, "the write waited for the folder's own lock"
+    assert sorted(p.name for p in parent.iterdir()) == ["a"]
+    lock = lock_file(parent)
+    assert lock.exists() and lock.parent.parent == Path(tempfile.gettempdir())
+    assert lock_file(str(parent) + "/") == lock  # one lock per folder, however it is written

@@ -461,3 +461,19 @@ def test_a_factor_over_a_map_of_noise_counts_for_nothing_even_with_good_levels()
     assert v == "consistent in direction only" and "from a map that is mostly noise" in why
     assert factor_level_verdict(11.8, 10.5, [(0.0254, 0.005), (0.0804, 0.017)])[0] == (
         "partly consistent")
+
+
+@pytest.mark.parametrize("exc,says", [
+    (OSError(28, "No space left on device", "fig3/fig3.png"),
+     "No space left on device: fig3/fig3.png"),
+    (PermissionError(13, "Permission denied", "fig3/fig3.csv"),
+     "Permission denied: fig3/fig3.csv")])
+def test_a_full_disk_or_a_folders_permissions_in_an_experiment_is_one_line(
+        tmp_path, fake, monkeypatch, capsys, exc, says):
+    """A full disk or a read-only experiment folder was 40 lines of traceback before the
+    experiment's line (an audit of 2026-11-30): the line alone, exit 1, the others' kept."""
+    assert _all_with_fig3_raising(tmp_path, monkeypatch, exc) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert f"reproduce fig3: failed: {says}" in err
+    assert "## Fig. 2" in (tmp_path / "report.md").read_text()

@@ -215,3 +215,19 @@ def test_a_clamp_of_jobs_is_said(tmp_path, capsys, monkeypatch):
     assert main(["sweep", str(toml), "--out", str(tmp_path / "o"), "--jobs", "8",
                  "--no-progress"]) == 0
     assert "spslidar: --jobs 8 clamped to 1 (1 runs to do, 2 cores)" in capsys.readouterr().err
+
+
+def test_a_garbled_loky_cpu_count_is_one_line_and_leaves_no_folder(tmp_path, monkeypatch,
+                                                                   capsys):
+    """``LOKY_MAX_CPU_COUNT=garbage`` was joblib's int() traceback, and left a folder holding
+    nothing but a marker (an audit of 2026-11-30)."""
+    from spslidar.cli import main
+
+    toml = tmp_path / "s.toml"
+    toml.write_text("[base]\nsize = 16\ncode_length = 1023\n[grid]\nseed = [0, 1]\n")
+    monkeypatch.setenv("LOKY_MAX_CPU_COUNT", "garbage")
+    out = tmp_path / "sw"
+    assert main(["sweep", str(toml), "--jobs", "2", "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "LOKY_MAX_CPU_COUNT='garbage'" in err and "Traceback" not in err
+    assert not out.exists()

@@ -7,6 +7,7 @@ imported inside each sub-command. Bad input prints one line on stderr and exits 
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 import warnings
@@ -484,8 +485,71 @@ def _load_plugins(argv: list[str]) -> list[str]:
     return rest
 
 
+class _Tolerant:
+    """``sys.stdout`` or ``sys.stderr`` while a command runs: a write that the stream refuses
+    (a full disk, a closed pipe: ``| head -1``, ``2>/dev/full``) is dropped, and so is every
+    later one, and a character its encoding lacks is escaped. A warning written to a full
+    disk's log threw the finished run away (exit 1 or 120, no output, no word anywhere), a
+    closed pipe after the outputs were written was "error: Broken pipe: while writing --out"
+    (they were complete), and ``PYTHONIOENCODING=ascii`` a traceback after them (an outside
+    audit of 2026-11-30). In a process of its own the stream's descriptor is pointed at
+    ``os.devnull`` once it fails, so that Python's last flush does not fail again (its
+    "Exception ignored" lines and exit 120)."""
+
+    def __init__(self, stream, own: bool):
+        self._stream, self._own, self.failed = stream, own, False
+
+    def write(self, text: str) -> int:
+        if self.failed:
+            return len(text)
+        try:
+            return self._stream.write(text)
+        except UnicodeEncodeError:
+            enc = getattr(self._stream, "encoding", None) or "ascii"
+            return self.write(text.encode(enc, "backslashreplace").decode(enc))
+        except (OSError, ValueError):  # (ValueError: a closed file)
+            self._fail()
+            return len(text)
+
+    def flush(self) -> None:
+        if not self.failed:
+            try:
+                self._stream.flush()
+            except (OSError, ValueError):
+                self._fail()
+
+    def _fail(self) -> None:
+        self.failed = True
+        if not self._own:
+            return
+        try:
+            null = os.open(os.devnull, os.O_WRONLY)
+            try:
+                os.dup2(null, self._stream.fileno())
+            finally:
+                os.close(null)
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 success, 2 bad input)."""
+    out, err = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = _Tolerant(out, argv is None), _Tolerant(err, argv is None)
+    try:
+        status = _main(argv)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        return status
+    finally:
+        sys.stdout, sys.stderr = out, err
+
+
+def _main(argv: list[str] | None = None) -> int:
+    """:func:`main` with its streams in place."""
     from .errors import SpslidarError as _Bad
 
     own = argv is None  # a process of its own, not a call inside a Python session

@@ -169,9 +169,13 @@ def _run_all(ctx: Context, out: Path, existed: bool, experiment: str, names,
                 release_folder(out, existed)  # nothing written yet: leave no folder behind
                 raise
             except Exception as exc:  # an experiment's bug must not lose the others' results
-                if not isinstance(exc, WorkerLost):  # (its line says it all: no traceback)
+                # (a killed worker's line says it all, and so does a full disk's or a
+                # folder's permissions: they were 40 lines of traceback, an audit of
+                # 2026-11-30)
+                if not isinstance(exc, (WorkerLost, OSError)):
                     traceback.print_exc(file=sys.stderr)
-                reason = f"{type(exc).__name__}: {exc}"
+                reason = (f"{exc.strerror}: {exc.filename}" if isinstance(exc, OSError)
+                          and exc.strerror and exc.filename else f"{type(exc).__name__}: {exc}")
                 print(f"reproduce {name}: failed: {reason}", file=sys.stderr)
                 status = 1
                 failures.append(f"{name} failed: {_one_line(reason)}")

@@ -354,7 +354,9 @@ def sweep_main(
             code=code,  # an edited plugin or spslidar: its points run again
             counts=counts,
         )
-    except SpslidarError:  # refused before any point ran: leave no folder behind
+    except Exception:  # refused before any point ran: leave no folder behind (a folder of
+        # nothing but a marker was left by a pool that could not start: an audit of
+        # 2026-11-30; where runs are cached, they stay)
         release_folder(folder, existed)
         raise
     except (KeyboardInterrupt, engine.WorkerLost):  # before any run finished: no folder of

@@ -126,6 +126,15 @@ def _run_pool(func: Callable[[dict[str, Any]], Any], tasks: list[tuple[int, dict
     """:func:`_run_local`'s joblib pool (``jobs`` workers, the ``plugins`` loaded in each)."""
     from joblib import Parallel, delayed
 
+    cpus = os.environ.get("LOKY_MAX_CPU_COUNT")
+    if cpus is not None:
+        try:
+            int(cpus)
+        except ValueError:  # (joblib's int() traceback, an audit of 2026-11-30)
+            raise ConfigError(f"LOKY_MAX_CPU_COUNT={cpus!r} in the environment is not a "
+                              f"number of CPUs, which joblib's workers read: unset it or give "
+                              f"a whole number") from None
+
     def calls(chunk: list[tuple[int, dict[str, Any]]]) -> Iterator[Any]:
         return (delayed(_call_indexed)(func, index, params, plugins) for index, params in chunk)
 
