@@ -191,11 +191,20 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
     if out is None or str(out).strip() == "":
         raise SpslidarError(f"{option} must name an output folder")
     path = Path(os.path.abspath(os.fspath(out)))
+    # (an --out through a symlink loop, loopA/sub, ran the whole work and then ended in a
+    # RuntimeError traceback where its folder was resolved; and an --out of 4070 bytes ran,
+    # then failed naming a temporary path too long for the filesystem: an audit of
+    # 2026-11-30) the folder that receives the files, links resolved, is known here, and so
+    # is the longest path written under it
     if not (path.exists() or path.is_symlink()):
-        check_name_fits(path, f"{option} {out}")
+        real = _resolve(path.parent, f"{option} {out}") / path.name
+        check_name_fits(real, f"{option} {out}", inside=INSIDE_EXTRA)
     if path.exists() or path.is_symlink():
         if not path.is_dir():
             raise SpslidarError(f"{option} {out}: exists and is not a folder")
+        # its temporary folder is made inside it (.spslidar-tmp-XXXXXXXX/...)
+        _check_path_fits(_resolve(path, f"{option} {out}"), len(TMP_PREFIX) + TMP_RANDOM + 2
+                         + INSIDE_EXTRA, f"{option} {out}")
         try:
             empty = not _entries(path)
         except OSError as exc:
@@ -239,19 +248,70 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
     parent = path.parent
     if parent.exists() and not parent.is_dir():
         raise SpslidarError(f"{option} {out}: {parent} is not a folder")
-    _check_writable(path.parent, f"{option} {out}", make_parents=True)
+    # (where its missing folders are made: through a dangling link, at the link's target)
+    _check_writable(real.parent, f"{option} {out}", make_parents=True)
     return path
+
+
+def _resolve(path: Path, what: str) -> Path:
+    """``path`` with its links resolved (where files written there really go); a path that
+    cannot be followed (a loop of symbolic links: Python's ``RuntimeError`` or ``OSError``
+    ``ELOOP``) refused in one line."""
+    try:
+        return path.resolve()
+    except (RuntimeError, OSError) as exc:
+        loop = isinstance(exc, RuntimeError) or getattr(exc, "errno", None) == errno.ELOOP
+        why = ("it leads through a loop of symbolic links" if loop else
+               f"it cannot be followed ({getattr(exc, 'strerror', None) or exc})")
+        raise SpslidarError(f"{what}: {path}: {why}; choose another path") from None
 
 
 #: what spslidar's temporary names add to a name (``.NAME.tmp-XXXXXXXX``,
 #: ``.NAME.XXXXXXXX.tmp``, ``.NAME.old-XXXXXXXX``)
 TMP_NAME_EXTRA = 14
+#: the random part of a temporary name (``tempfile``'s, and spslidar's own)
+TMP_RANDOM = 8
+#: the folder, inside a result's temporary folder, that a replaced result's files are moved
+#: aside into while the new ones are moved in
+ASIDE = ".previous"
+#: the longest path a result's temporary folder holds: the marker's temporary name
+#: (``.spslidar-output.json.XXXXXXXX.tmp``), or a previous result's file moved aside
+INSIDE_EXTRA = max(len(MARKER) + TMP_NAME_EXTRA, len(ASIDE) + 1 + max(map(len, RESULT_FILES)))
 
 
-def check_name_fits(path: Path, what: str, extra: int = TMP_NAME_EXTRA) -> None:
+def _path_max(base: Path) -> int:
+    """``PC_PATH_MAX`` of the filesystem of ``base`` (or of its nearest existing ancestor),
+    the terminating NUL included: 4096 where ``os.pathconf`` cannot tell."""
+    while not base.exists() and base != base.parent:
+        base = base.parent
+    try:
+        limit = int(os.pathconf(base, "PC_PATH_MAX"))
+    except (OSError, ValueError, AttributeError):  # pragma: no cover - no pathconf
+        limit = 4096
+    return limit if limit > 0 else 4096
+
+
+def _check_path_fits(path: Path, more: int, what: str) -> None:
+    """Refuse, before any work, an absolute ``path`` under which spslidar writes paths
+    ``more`` bytes longer than the filesystem's ``PC_PATH_MAX`` allows."""
+    size = len(os.fsencode(path))
+    most = _path_max(path.parent) - 1  # (PATH_MAX counts the terminating NUL)
+    if size + more > most:
+        raise SpslidarError(f"{what}: its path is {size} bytes long (absolute), and "
+                            f"spslidar writes paths up to {more} bytes longer under it "
+                            f"(its temporary names), beyond this filesystem's "
+                            f"limit of {most} bytes for a path: choose a path of at most "
+                            f"{most - more} bytes")
+
+
+def check_name_fits(path: Path, what: str, extra: int = TMP_NAME_EXTRA,
+                    inside: int = 0) -> None:
     """Refuse, before any work, a name that fits the filesystem but not with the ``extra``
     bytes of the temporary name it is written under (a 245-character ``--out`` was refused
-    after the whole run, naming a temporary folder: an outside audit of 2026-11-29)."""
+    after the whole run, naming a temporary folder: an outside audit of 2026-11-29), and an
+    absolute path that does not fit ``PC_PATH_MAX`` with them and, for a folder written under
+    a temporary name, with ``/`` and the ``inside`` bytes of the longest path written into it
+    (an ``--out`` of 4070 bytes was refused after the whole run: an audit of 2026-11-30)."""
     base = Path(os.path.abspath(path)).parent
     while not base.exists() and base != base.parent:
         base = base.parent
@@ -265,6 +325,7 @@ def check_name_fits(path: Path, what: str, extra: int = TMP_NAME_EXTRA) -> None:
                             f"under a temporary name {extra} bytes longer, beyond this "
                             f"filesystem's {limit}: choose a name of at most "
                             f"{limit - extra} bytes")
+    _check_path_fits(Path(os.path.abspath(path)), extra + (1 + inside if inside else 0), what)
 
 
 def _check_writable(folder: Path, what: str, make_parents: bool) -> None:
@@ -287,12 +348,12 @@ def _check_writable(folder: Path, what: str, make_parents: bool) -> None:
                             f"({exc.strerror or type(exc).__name__})") from None
 
 
-def _target(path: Path) -> Path:
+def _target(path: Path, what: str) -> Path:
     """Where ``path``'s files really go: links resolved (a link to a folder on another
-    filesystem is written through on that filesystem)."""
+    filesystem is written through on that filesystem); a loop refused in one line."""
     if path.exists():
-        return path.resolve()
-    return path.parent.resolve() / path.name
+        return _resolve(path, what)
+    return _resolve(path.parent, what) / path.name
 
 
 def _move(src: Path, dst: Path) -> None:
@@ -337,8 +398,9 @@ def _swap_in(target: Path, tmp: Path, written: set[str], previous: set[str],
                 if (target / name).is_file() and not (target / name).is_symlink()}
     meta = json.loads(_marker_text(kind, set(written) | set(old_sums), None, new_sums))
     meta["previous_sha256"] = old_sums
-    aside = tmp / ".previous"
+    aside = tmp / ASIDE
     aside.mkdir()
+    os.chmod(aside, 0o700)  # (mkdir's mode less a umask of 0222 refused the moves aside)
     done = False
     try:
         atomic_write_text(marker, json.dumps(meta, indent=1) + "\n")
@@ -392,30 +454,55 @@ def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
     included) the temporary folder is removed and ``out`` is untouched, or put back as it
     was when the files were being moved in. Replacing a previous result removes only the
     files its marker lists.
+
+    The temporary folder stays writable by its owner (``0700``) while it is filled; a new
+    folder is given the umask's mode (:func:`umask_mode`) last, once its files and marker
+    are in it, just before it is moved into place, and the files keep the mode they were
+    created with (``0o666`` less the umask), so that a umask of ``0222`` gives a complete,
+    read-only result.
     """
     path = check_output(out, overwrite, option, replace)
     existed = path.exists()
-    target = _target(path)
+    target = _target(path, f"{option} {out}")
     was_empty = existed and not _entries(target)
     if existed:
         tmp = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=target))
     else:
-        target.parent.mkdir(parents=True, exist_ok=True)
+        # (under umask 0222 the first missing folder was made read-only and the next one
+        # could not be made in it, after the work: an audit of 2026-11-30) made as mkdir -p
+        # makes them, writable and searchable by their owner whatever the umask
+        for folder in reversed([p for p in (target.parent, *target.parent.parents)
+                                if not p.exists()]):
+            try:
+                folder.mkdir()
+            except FileExistsError:
+                continue
+            os.chmod(folder, umask_mode() | 0o300)
         tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=target.parent))
+    # (the umask's mode was given to the folder before fill wrote into it: as non-root,
+    # umask 0222 failed after the work, and 0777 also left a .NAME.tmp-* folder of mode 000
+    # behind that could not be removed: an audit of 2026-11-30) 0700 while it is filled
+    # (mkdtemp's 0700 less the umask: 0500 under 0222), the umask's mode last
+    file_mode = umask_mode(0o666)
     try:
-        os.chmod(tmp, umask_mode())
+        os.chmod(tmp, 0o700)
         fill(tmp)
         written = {p.name for p in tmp.iterdir()}
         unknown = written - RESULT_FILES
         if unknown:  # pragma: no cover - a programming error, not user input
             raise RuntimeError(f"Result.save wrote {sorted(unknown)}, not named in "
                                f"spslidar.outdir.RESULT_FILES: add them there")
+        for name in written:  # readable by their owner while their SHA-256 is taken
+            os.chmod(tmp / name, file_mode | 0o600)
         sums = {name: sha256_file(tmp / name) for name in written}
         from .outlock import folder_lock
 
         with folder_lock(target.parent):  # (one writer from the last check to the swap)
             if not existed and not path.exists() and not path.is_symlink():
                 atomic_write_text(tmp / MARKER, _marker_text("result", written, None, sums))
+                for name in written:
+                    os.chmod(tmp / name, file_mode)
+                os.chmod(tmp, umask_mode())
                 os.replace(tmp, target)
                 return path
             if not existed or was_empty and _entries(target) - {tmp.name}:
@@ -428,7 +515,11 @@ def write_result_dir(out: str | os.PathLike, fill: Callable[[Path], None],
             path = check_output(out, overwrite, option, replace)  # nothing appeared meanwhile
             previous = set((read_marker(target) or {"files": []})["files"])
             _swap_in(target, tmp, written, previous, sums, "result")
+            for name in written:  # (the folder itself stays as it is)
+                os.chmod(target / name, file_mode)
     finally:
+        with contextlib.suppress(OSError):  # (given the umask's mode, then not moved)
+            os.chmod(tmp, 0o700)
         shutil.rmtree(tmp, ignore_errors=True)
     return path
 

@@ -40,6 +40,8 @@ def lock_file(folder: str | os.PathLike) -> Path:
     uid = os.getuid() if hasattr(os, "getuid") else "user"
     base = Path(tempfile.gettempdir()) / f"spslidar-locks-{uid}"
     base.mkdir(mode=0o700, exist_ok=True)
+    if base.stat().st_mode & 0o700 != 0o700:  # (a umask of 0222 made it 0500: every lock
+        os.chmod(base, 0o700)                  # then failed without a word, a review)
     return base / f"{hashlib.sha256(key).hexdigest()[:32]}.lock"
 
 

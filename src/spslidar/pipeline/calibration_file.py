@@ -7,6 +7,7 @@ calibration measures is :mod:`spslidar.pipeline.calibration`."""
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import json
 import os
@@ -36,9 +37,16 @@ def _file_of_a_calibration(path: Path) -> bool:
 def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Path:
     """Refuse (one line) to write ``CAL.json`` over anything but a calibration spslidar
     wrote, and that only with ``overwrite``, or where it cannot be written (a file in its
-    folder's place, the nearest existing folder not writable): checked before the work and
-    again at the end. Missing folders are not made here (:func:`write_calibration` makes
-    them)."""
+    folder's place, the nearest existing folder not writable, a path through a loop of
+    symbolic links or a link to nowhere, a path too long with its temporary name): checked
+    before the work and again at the end. Missing folders are not made here
+    (:func:`write_calibration` makes them).
+
+    A symbolic link is never replaced nor written through, even with ``overwrite`` and even
+    where it leads to a calibration spslidar wrote: it is refused, naming where it leads, as
+    ``run --save-ptu`` refuses a link to a PTU it wrote under another name (name the file
+    itself to replace it). A link among the folders of the path (``--out linkdir/CAL.json``)
+    is followed."""
     from ..errors import SpslidarError
 
     if out is None or not str(out).strip():
@@ -46,6 +54,25 @@ def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Pa
     path = Path(out)
     if path.is_dir():
         raise SpslidarError(f"--out {out} is a folder; name the calibration file (CAL.json)")
+    if path.is_symlink():
+        # (exists() follows links: a dangling link or a loop was replaced by a file without
+        # --overwrite, and with it a link to a calibration became a file, its target left as
+        # it was: an audit of 2026-11-30)
+        leads = os.readlink(path)
+        where = (f"to {leads}" if path.exists() else
+                 f"to {leads}, a loop of symbolic links" if _loops(path) else
+                 f"to {leads}, which does not exist")
+        raise SpslidarError(f"--out {out} is a symbolic link {where}; spslidar does not "
+                            f"replace a link, nor write through it, even with --overwrite: "
+                            f"name the file itself, or another one")
+    # (--out loopA/CAL.json, or through a dangling link, calibrated, then could not make
+    # its folder: an audit of 2026-11-30) the folders of its path must lead somewhere
+    for folder in (path.parent, *path.parent.parents):
+        if folder.is_symlink() and not folder.exists():
+            why = ("a loop of symbolic links" if _loops(folder) else
+                   f"{os.readlink(folder)}, which does not exist")
+            raise SpslidarError(f"--out {out}: {folder} is a symbolic link to {why}; choose "
+                                f"another path")
     if path.exists():
         if not overwrite:
             raise SpslidarError(f"--out {out} exists; use --overwrite to replace it")
@@ -78,6 +105,16 @@ def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Pa
 
     check_name_fits(path, f"--out {out}")
     return path
+
+
+def _loops(link: Path) -> bool:
+    """Whether following ``link`` ends in a loop of symbolic links (False: it ends at a path
+    that does not exist, or does)."""
+    try:
+        os.stat(link)
+    except OSError as exc:
+        return exc.errno == errno.ELOOP
+    return False
 
 
 def write_calibration(cal: dict[str, Any], out: str | os.PathLike, overwrite: bool = False):
