@@ -65,6 +65,23 @@ def test_config_file_value_valid_alone_with_an_override(tmp_path):
     assert json.loads((out / "metrics.json").read_text())["config"]["size"] == 16
 
 
+@pytest.mark.parametrize("lines,flags", [
+    # valid with the file's own size (one pattern only at the default 64x64)
+    ("size = 128\ncompression = 0.0002", ["--compression", "0.25", "--size", "16"]),
+    # a GPU config run here with the command line's backend (this machine may lack PyTorch)
+    ('backend = "torch"\ndevice = "cuda"\nsize = 16', ["--backend", "numpy", "--device",
+                                                       "cpu"]),
+])
+def test_config_file_values_valid_in_their_own_context_are_not_refused(tmp_path, lines, flags):
+    """A review of 2026-11-30: the overridden values were checked beside the defaults alone
+    (and against this machine's backends), refusing files that are valid."""
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(lines + "\n")
+    out = tmp_path / "r"
+    assert main(["run", "--config", str(cfg), "--code-length", "1023", "--no-figure", *flags,
+                 "--out", str(out)]) == 0
+
+
 def _bad(tmp_path):
     nan = tmp_path / "nan.npy"
     np.save(nan, np.full((8, 8), np.nan))

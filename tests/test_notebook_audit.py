@@ -571,3 +571,35 @@ def test_a_sweep_leaves_no_warning_filter_behind(tmp_path):
 
 def _square(params):
     return params["x"] ** 2
+
+
+_FORK_AFTER_A_RUN = r"""
+import os, sys, time
+import spslidar
+spslidar.run(scene="camera", size=16, code_length=1023, seed=0)
+pid = os.fork()
+if pid == 0:
+    r = spslidar.run(scene="camera", size=16, code_length=1023, seed=1)
+    os._exit(0 if r.depth.shape == (16, 16) else 3)
+deadline = time.time() + 120
+while time.time() < deadline:
+    done, status = os.waitpid(pid, os.WNOHANG)
+    if done:
+        print("child", os.waitstatus_to_exitcode(status))
+        sys.exit(0)
+    time.sleep(0.2)
+os.kill(pid, 9)
+print("child hung")
+"""
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs os.fork")
+def test_a_forked_child_runs_after_its_parent_ran():
+    """The setter thread of BLAS's limit does not survive a fork: a child forked after a run
+    (multiprocessing's fork pools) waited for it forever (a review of 2026-11-30)."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _FORK_AFTER_A_RUN], capture_output=True,
+                         text=True, timeout=300).stdout
+    assert out.strip().splitlines()[-1] == "child 0", out

@@ -292,3 +292,26 @@ def test_wavelet2d_takes_whole_levels():
     np.testing.assert_array_equal(Wavelet2D((8.0, 8), level=2.0) @ x,
                                   Wavelet2D((8, 8), level=2) @ x)
     np.testing.assert_array_equal(Wavelet2D((8, 8), level=0) @ x, x)
+
+
+def test_hadamard_patterns_say_which_row_repeats_how_often_and_which_flip_is_wrong():
+    """"got row 1 3 times" for a row given twice (the largest count was said), and flips of
+    the right shape but wrong values were said to be of the wrong shape (a review of
+    2026-11-30)."""
+    from spslidar.errors import ConfigError
+    from spslidar.patterns.hadamard import HadamardPatterns
+
+    with pytest.raises(ConfigError, match=r"got row 1 2 times$"):
+        HadamardPatterns(4, rows=[1, 1, 2, 2, 2])
+    with pytest.raises(ConfigError, match=r"flips must be \+1 or -1, got np.int64\(0\) at row 1$"
+                       r"|flips must be \+1 or -1, got 0 at row 1$"):
+        HadamardPatterns(4, rows=[0, 1, 2], flips=[1, 0, 1])
+
+
+def test_the_closing_line_of_a_folder_that_cannot_be_listed(tmp_path):
+    """Under a umask of 0777 the written folder cannot be listed (non-root), and the closing
+    line's listing made the written run exit 2 (a review of 2026-11-30)."""
+    from spslidar.cli_common import _written
+
+    assert _written(tmp_path / "unlistable") == [
+        "(the folder's mode, from the umask, forbids listing it)"]

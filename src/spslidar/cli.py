@@ -346,8 +346,8 @@ def _cmd_run(args) -> int:
         check_files(ptu_files, args.overwrite, outside=args.out)  # refuse before any work
     check_output(args.out, args.overwrite)  # refuse before any work
     base = read_toml(args.config) if args.config else {}
-    check_overridden(base, opts, args.config)
     cfg = Config.from_dict(base, **opts)  # (a TOML's code-length, overridden by --code-length)
+    check_overridden(base, opts, args.config)  # (after: the run's own errors said as such)
     if save_ptu and "hadamard" in cfg.patterns and cfg.hadamard_realisation == "differential":
         from .errors import ConfigError
 
@@ -492,9 +492,9 @@ class _Tolerant:
     disk's log threw the finished run away (exit 1 or 120, no output, no word anywhere), a
     closed pipe after the outputs were written was "error: Broken pipe: while writing --out"
     (they were complete), and ``PYTHONIOENCODING=ascii`` a traceback after them (an outside
-    audit of 2026-11-30). In a process of its own the stream's descriptor is pointed at
-    ``os.devnull`` once it fails, so that Python's last flush does not fail again (its
-    "Exception ignored" lines and exit 120)."""
+    audit of 2026-11-30). Only in a process of its own (``main()`` without ``argv``), whose
+    stream's descriptor is pointed at ``os.devnull`` once it fails, so that Python's last
+    flush does not fail again (its "Exception ignored" lines and exit 120)."""
 
     def __init__(self, stream, own: bool):
         self._stream, self._own, self.failed = stream, own, False
@@ -537,12 +537,19 @@ class _Tolerant:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 success, 2 bad input)."""
+    if argv is not None:
+        # a call inside a Python session: its streams are the session's (swapping the
+        # process's streams from two threads' calls left one swapped for good, and a None
+        # stream, pythonw's, was an AttributeError: a review of 2026-11-30)
+        return _main(argv)
     out, err = sys.stdout, sys.stderr
-    sys.stdout, sys.stderr = _Tolerant(out, argv is None), _Tolerant(err, argv is None)
+    sys.stdout = _Tolerant(out, True) if out is not None else out
+    sys.stderr = _Tolerant(err, True) if err is not None else err
     try:
         status = _main(argv)
-        sys.stdout.flush()
-        sys.stderr.flush()
+        for stream in (sys.stdout, sys.stderr):
+            if stream is not None:
+                stream.flush()
         return status
     finally:
         sys.stdout, sys.stderr = out, err

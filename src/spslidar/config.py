@@ -7,6 +7,7 @@ Keys are the long option names of ``spslidar run`` with ``-`` or ``_`` (``code-l
 
 from __future__ import annotations
 
+import contextvars
 import dataclasses
 import functools
 import math
@@ -437,7 +438,8 @@ class Config:
             reg.get(getattr(self, reg.option)).check(self)
         from .backends import check_backend
 
-        check_backend(self.backend, self.device)
+        if _ENVIRONMENT.get():  # (not while a file's overridden values are checked alone)
+            check_backend(self.backend, self.device)
 
 
     def _validate_stage_options(self) -> None:
@@ -548,15 +550,24 @@ def registries() -> dict:
 
 #: a TOML config is a few kilobytes: a file or stream past this is not one
 MAX_CONFIG_BYTES = 16 * 2**20
+#: whether validation checks what this machine has (the backend): not for a config file's
+#: values that the command line overrides (:func:`check_overridden`)
+_ENVIRONMENT: contextvars.ContextVar[bool] = contextvars.ContextVar("spslidar_environment",
+                                                                     default=True)
 
 
 def check_overridden(base: dict[str, Any], overrides: dict[str, Any], source: str) -> None:
     """Refuse, in one line, a config file's value that the command line overrides but that is
     invalid in itself (not a number, out of its range, an unknown name): ``size = 16.5``
     with ``--size 8`` ran, and the same file without the flag was refused (an audit of
-    2026-11-29). Each such value is checked on its own, beside the defaults (a stage's option
-    by its declaration), so a value that only conflicts with another the command line also
-    changes is not refused.
+    2026-11-29).
+
+    A value counts as invalid only where it is refused beside the defaults, beside the
+    file's own other values and beside the run's (the file's and the command line's), and
+    what this machine has (the backend) is not asked: a file's ``compression = 0.0002``
+    beside its own ``size = 128`` (one pattern at the default 64x64) and a GPU file's
+    ``backend = "torch"`` overridden by ``--backend numpy`` on a machine without PyTorch are
+    not refused (a review of 2026-11-30). A stage's option is checked by its declaration.
 
     Parameters
     ----------
@@ -569,19 +580,34 @@ def check_overridden(base: dict[str, Any], overrides: dict[str, Any], source: st
     """
     declared = stage_options()
     given = {str(k).replace("-", "_"): v for k, v in overrides.items() if v is not None}
-    for k, v in base.items():
-        key = str(k).replace("-", "_")
-        if key not in given:
-            continue
-        try:
-            if key in declared:
-                declared[key][1].check(v)
-            else:
-                Config.from_dict({key: v})
-        except ConfigError as err:
-            raise ConfigError(f"config file {source}: {err} (--{key.replace('_', '-')} on "
-                              f"the command line overrides it, but the file must hold valid "
-                              f"values)") from None
+    own = {str(k).replace("-", "_"): v for k, v in base.items()}
+    merged = {**own, **given}
+    token = _ENVIRONMENT.set(False)
+    try:
+        for k, v in base.items():
+            key = str(k).replace("-", "_")
+            if key not in given:
+                continue
+            try:
+                if key in declared:
+                    declared[key][1].check(v)
+                else:
+                    first = None
+                    for context in ({}, own, merged):
+                        try:
+                            Config.from_dict({**context, key: v})
+                            first = None
+                            break
+                        except ConfigError as err:
+                            first = first or err
+                    if first is not None:
+                        raise first
+            except ConfigError as err:
+                raise ConfigError(f"config file {source}: {err} (--{key.replace('_', '-')} "
+                                  f"on the command line overrides it, but the file must hold "
+                                  f"valid values)") from None
+    finally:
+        _ENVIRONMENT.reset(token)
 
 
 def read_config_bytes(path: Path, what: str = "config file") -> bytes:

@@ -196,10 +196,12 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
     # then failed naming a temporary path too long for the filesystem: an audit of
     # 2026-11-30) the folder that receives the files, links resolved, is known here, and so
     # is the longest path written under it
-    if not (path.exists() or path.is_symlink()):
+    exists = path.exists() or path.is_symlink()  # (tested once: a folder removed between two
+    # tests left the name below unbound, a review of 2026-11-30)
+    if not exists:
         real = _resolve(path.parent, f"{option} {out}") / path.name
         check_name_fits(real, f"{option} {out}", inside=INSIDE_EXTRA)
-    if path.exists() or path.is_symlink():
+    if exists:
         if not path.is_dir():
             raise SpslidarError(f"{option} {out}: exists and is not a folder")
         # its temporary folder is made inside it (.spslidar-tmp-XXXXXXXX/...)

@@ -198,6 +198,21 @@ _BLAS_LOCK = threading.Lock()
 _BLAS: dict[str, Any] = {"depth": 0, "limits": None}
 
 
+def _after_fork_in_child() -> None:
+    """A forked child has none of its parent's threads: the setter thread's executor
+    believed it had one idle and a child's first run waited for it forever (``fork`` pools
+    of multiprocessing, Linux's default before Python 3.14: a review of 2026-11-30); the
+    child starts its own, with nothing held."""
+    global _BLAS_LOCK
+    _SETTER.clear()
+    _BLAS_LOCK = threading.Lock()
+    _BLAS.update(depth=0, limits=None)
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
 @contextmanager
 def _blas_held():
     """BLAS held to one thread while any thread of this process is inside (yields whether it

@@ -221,7 +221,7 @@ class HadamardPatterns(PatternOperator):
         u, n = np.unique(rows, return_counts=True)
         if u.size != rows.size:
             raise ConfigError(f"rows must be distinct, got row {int(u[n > 1][0])} "
-                              f"{int(n.max())} times")
+                              f"{int(n[n > 1][0])} times")
         if perm is not None and not np.array_equal(np.sort(perm), np.arange(q)):
             missing = np.setdiff1d(np.arange(q), perm)
             raise ConfigError(f"perm must be a permutation of 0..{q - 1} (each pixel once), "
@@ -234,9 +234,13 @@ class HadamardPatterns(PatternOperator):
         self.flips = None
         if flips is not None:
             flips = np.asarray(flips)
-            if flips.shape != rows.shape or not np.all(np.abs(flips) == 1):
+            if flips.shape != rows.shape:
                 raise ConfigError(f"flips must be one +-1 sign per row ({rows.size}), got "
                                   f"shape {flips.shape}")
+            bad = np.flatnonzero(np.abs(flips) != 1)
+            if bad.size:  # (said as a shape where the values were wrong: a review)
+                raise ConfigError(f"flips must be +1 or -1, got {flips[bad[0]]!r} at row "
+                                  f"{bad[0]}")
             self.flips = flips.astype(np.int8)
 
     # -- the transform -------------------------------------------------------------------
