@@ -373,17 +373,8 @@ def test_two_runs_logs_are_told_apart_while_both_are_empty():
     assert got["a"] == ["a's own"] and log_b == []
 
 
-_THREAD_AFTER_MAIN = r"""
-import json, sys
-from concurrent.futures import ThreadPoolExecutor
-import numpy as np
-from threadpoolctl import threadpool_info
-import spslidar
-from spslidar.operators import parallel
-
-def blas():
-    return sorted(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
-
+#: a stand-in for spslidar's BLAS hold that records BLAS's threads inside it (``seen``)
+_SPY = r"""
 seen = []
 real = parallel._blas_held
 
@@ -397,7 +388,19 @@ def spy():
         def __exit__(self, *exc):
             return ctx.__exit__(*exc)
     return Spy()
+"""
 
+_THREAD_AFTER_MAIN = r"""
+import json, sys
+from concurrent.futures import ThreadPoolExecutor
+import numpy as np
+from threadpoolctl import threadpool_info
+import spslidar
+from spslidar.operators import parallel
+
+def blas():
+    return sorted(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
+""" + _SPY + r"""
 A = dict(scene="procedural:4", size=16, code_length=1023, seed=5, solver="gpsr")
 main = spslidar.run(**A)
 before = blas()
@@ -441,21 +444,7 @@ from spslidar.operators import parallel
 
 def blas():
     return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
-
-seen = []
-real = parallel._blas_held
-
-def spy():
-    ctx = real()
-    class Spy:
-        def __enter__(self):
-            held = ctx.__enter__()
-            seen.append(blas())
-            return held
-        def __exit__(self, *exc):
-            return ctx.__exit__(*exc)
-    return Spy()
-
+""" + _SPY + r"""
 threadpool_limits(limits=2, user_api="blas")  # the main thread sets a limit itself
 parallel._blas_held = spy
 with warnings.catch_warnings(record=True) as caught:

@@ -281,16 +281,22 @@ ASIDE = ".previous"
 INSIDE_EXTRA = max(len(MARKER) + TMP_NAME_EXTRA, len(ASIDE) + 1 + max(map(len, RESULT_FILES)))
 
 
-def _path_max(base: Path) -> int:
-    """``PC_PATH_MAX`` of the filesystem of ``base`` (or of its nearest existing ancestor),
-    the terminating NUL included: 4096 where ``os.pathconf`` cannot tell."""
+def _pathconf(base: Path, name: str, default: int) -> int:
+    """``os.pathconf(name)`` of the filesystem of ``base`` (or of its nearest existing
+    ancestor), ``default`` where it cannot tell."""
     while not base.exists() and base != base.parent:
         base = base.parent
     try:
-        limit = int(os.pathconf(base, "PC_PATH_MAX"))
+        limit = int(os.pathconf(base, name))
     except (OSError, ValueError, AttributeError):  # pragma: no cover - no pathconf
-        limit = 4096
-    return limit if limit > 0 else 4096
+        return default
+    return limit if limit > 0 else default
+
+
+def _path_max(base: Path) -> int:
+    """``PC_PATH_MAX`` of the filesystem of ``base``, the terminating NUL included: 4096
+    where ``os.pathconf`` cannot tell."""
+    return _pathconf(base, "PC_PATH_MAX", 4096)
 
 
 def _check_path_fits(path: Path, more: int, what: str) -> None:
@@ -314,13 +320,7 @@ def check_name_fits(path: Path, what: str, extra: int = TMP_NAME_EXTRA,
     absolute path that does not fit ``PC_PATH_MAX`` with them and, for a folder written under
     a temporary name, with ``/`` and the ``inside`` bytes of the longest path written into it
     (an ``--out`` of 4070 bytes was refused after the whole run: an audit of 2026-11-30)."""
-    base = Path(os.path.abspath(path)).parent
-    while not base.exists() and base != base.parent:
-        base = base.parent
-    try:
-        limit = int(os.pathconf(base, "PC_NAME_MAX"))
-    except (OSError, ValueError, AttributeError):  # pragma: no cover - no pathconf
-        limit = 255
+    limit = _pathconf(Path(os.path.abspath(path)).parent, "PC_NAME_MAX", 255)
     size = len(os.fsencode(path.name))
     if size + extra > limit:
         raise SpslidarError(f"{what}: its name is {size} bytes long, and spslidar writes it "
