@@ -25,10 +25,20 @@ def _value(params: dict[str, Any]) -> dict[str, Any]:
     return {"value": params["x"] * 2}
 
 
-def _killed_in_a_worker(params: dict[str, Any], *, parent: int) -> dict[str, Any]:
+def _killed_in_a_worker(params: dict[str, Any], *, parent: int,
+                        cache: str | None = None) -> dict[str, Any]:
     """Killed (SIGKILL, as the OS kills for memory) at x == 2 in a pool worker; never in the
-    test's own process."""
+    test's own process. With ``cache``, only once a finished run is cached there (on a loaded
+    machine the kill came before x == 1 had finished, and the line rightly said no run was
+    cached: the test failed on CI's clean clone, 2026-11-30)."""
     if params["x"] == 2 and os.getpid() != parent:
+        import time
+        from pathlib import Path
+
+        deadline = time.monotonic() + 60
+        while cache and time.monotonic() < deadline and not any(
+                p.is_file() for p in Path(cache).rglob("*")):
+            time.sleep(0.05)
         os.kill(os.getpid(), signal.SIGKILL)
     return _value(params)
 
@@ -76,7 +86,8 @@ def stage_plugin(tmp_path, monkeypatch):
 def test_a_killed_worker_is_one_line_naming_the_cache(tmp_path):
     if engine.clamp_jobs(2, 3) < 2:
         pytest.skip("no room for a pool of 2 workers here")
-    func = functools.partial(_killed_in_a_worker, parent=os.getpid())
+    func = functools.partial(_killed_in_a_worker, parent=os.getpid(),
+                             cache=str(tmp_path / "runs"))
     points = [{"x": 1}, {"x": 2}, {"x": 3}]
     with pytest.raises(WorkerLost) as info:
         run_sweep(func, points, tmp_path, jobs=2, progress=False)
