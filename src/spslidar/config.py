@@ -592,16 +592,15 @@ def check_overridden(base: dict[str, Any], overrides: dict[str, Any], source: st
                 if key in declared:
                     declared[key][1].check(v)
                 else:
-                    first = None
+                    refusals = []
                     for context in ({}, own, merged):
                         try:
                             Config.from_dict({**context, key: v})
-                            first = None
                             break
                         except ConfigError as err:
-                            first = first or err
-                    if first is not None:
-                        raise first
+                            refusals.append(err)
+                    else:  # refused in every context: the first one's reason
+                        raise refusals[0]
             except ConfigError as err:
                 raise ConfigError(f"config file {source}: {err} (--{key.replace('_', '-')} "
                                   f"on the command line overrides it, but the file must hold "

@@ -55,8 +55,8 @@ class PatternOperator(LinearOperator):
         is a copy, so a caller's edit of it leaves the kept product as it was.
         """
         rows, x = self._rows_block(rows, x)
-        return self._full_product(x, lambda v: np.asarray(
-            self.matvec(np.asarray(v, dtype=self.dtype)), dtype=np.float64))[rows].copy()
+        return self._product_rows(x, rows, lambda v: np.asarray(
+            self.matvec(np.asarray(v, dtype=self.dtype)), dtype=np.float64))
 
     def _rows_block(self, rows: slice, x: Any) -> tuple[slice, np.ndarray]:
         """:meth:`apply_rows`' arguments as its contract has them, or one line: a 1-D ``x``
@@ -71,10 +71,10 @@ class PatternOperator(LinearOperator):
                              f"(Q, S), one row per pixel")
         return rows, x
 
-    def _full_product(self, x: np.ndarray, product) -> np.ndarray:
-        """``product(x)``, kept with a copy of ``x`` for the next row blocks of the same values
-        (callers hand out copies of its rows: a block handed out as a view and zeroed by its
-        caller zeroed the next call's, an audit of 2026-11-30).
+    def _product_rows(self, x: np.ndarray, rows: slice, product) -> np.ndarray:
+        """A copy of rows ``rows`` of ``product(x)``, the product kept for the next row blocks
+        of the same ``x`` (a block handed out as a view and zeroed by its caller zeroed the
+        next call's, an audit of 2026-11-30).
 
         Keyed by content as well as identity: an ``x`` changed in place between two calls (a
         notebook reusing its buffer) got the old product back. The CRC-32 of its bytes
@@ -88,7 +88,7 @@ class PatternOperator(LinearOperator):
         if cache is None or cache[0] != key:
             cache = (key, product(x))
             self._rows_cache = cache
-        return cache[1]
+        return cache[1][rows].copy()
 
     def centred(self, norm: float = 1.0, dtype=np.float32) -> LinearOperator:
         """``(Phi - 1 mu^T) / norm`` in ``dtype``: the operator of the centred QCR data term."""

@@ -309,9 +309,8 @@ class HadamardPatterns(PatternOperator):
         """``Phi[rows] @ x`` in float64; one transform of ``x`` serves all its row blocks."""
         rows, x = self._rows_block(rows, x)
         with _ROWS_LOCK:  # the simulation's threads ask for their blocks at the same time
-            full = self._full_product(
-                x, lambda v: self._apply(np.asarray(v, dtype=np.float64)))
-        return full[rows].copy()  # (a view: the caller's edit changed the kept product)
+            return self._product_rows(
+                x, rows, lambda v: self._apply(np.asarray(v, dtype=np.float64)))
 
     def centred(self, norm: float = 1.0, dtype=np.float32) -> LinearOperator:
         """``(Phi - 1 mu^T) / norm`` (eq. 11), fused into one transform per product in the
