@@ -337,3 +337,18 @@ def test_complementary_rows_read_the_pixel_shifted_rows_never_see(tmp_path):
     bin_m = 299792458.0 / 2 / 10e9
     assert abs(read["shifted"] - 10.0) < bin_m
     assert abs(read["complementary"] - 10.3) < bin_m
+
+
+@pytest.mark.parametrize("realisation,says", [("shifted", "(25%)"),
+                                              ("complementary", "(25%, complementary)"),
+                                              ("differential", "(25%, differential)")])
+def test_the_summary_and_the_figure_title_say_how_the_rows_are_shown(realisation, says):
+    """Both named the pattern kind alone, so a shifted and a complementary run of the same
+    rows read alike (found looking at the figure, 2026-11-30)."""
+    from spslidar import run
+    from spslidar.figures import _title
+
+    r = run(size=16, code_length=1023, patterns="hadamard", hadamard_realisation=realisation,
+            periods=2)
+    assert f"hadamard patterns {says}" in r.summary()
+    assert f"hadamard patterns {says}" in _title(r)

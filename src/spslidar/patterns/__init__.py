@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from .base import PatternOperator
 
 __all__ = ["HADAMARD_KINDS", "HADAMARD_ORDERS", "HADAMARD_REALISATIONS", "PATTERNS",
-           "PATTERN_OPTIONS",
+           "PATTERN_OPTIONS", "realisation_note",
            "PATTERN_KINDS", "CentredPatterns", "DensePatterns", "PatternOperator",
            "as_patterns", "build_patterns", "make_patterns", "n_patterns_for"]
 
@@ -32,6 +32,15 @@ HADAMARD_ORDERS = ("sequency", "cake-cutting", "random", "natural")
 HADAMARD_REALISATIONS = ("shifted", "differential", "complementary")
 #: the pattern kinds whose rows ``--hadamard-realisation`` shows (both are +-1 Hadamard rows)
 HADAMARD_KINDS = ("hadamard", "scrambled-hadamard")
+
+
+def realisation_note(cfg) -> str:
+    """``", complementary"`` (or ``", differential"``) where a run's Hadamard rows are not
+    shown ``shifted``, else ``""``: for the summary line and the figure's title, which named
+    the pattern kind alone, so that two runs of the same rows shown two ways read alike."""
+    real = getattr(cfg, "hadamard_realisation", "shifted")
+    return f", {real}" if cfg.patterns in HADAMARD_KINDS and real != "shifted" else ""
+
 
 #: pattern kinds by name (the ``patterns`` config key / ``--patterns`` option)
 PATTERNS = Registry("pattern kind", "patterns")
