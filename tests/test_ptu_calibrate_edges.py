@@ -263,7 +263,7 @@ def test_calibrate_makes_no_folder_when_it_fails(wall, tmp_path, capsys):
 
 
 def test_a_failed_write_removes_the_folders_it_made(tmp_path, monkeypatch):
-    import spslidar.outdir as outdir
+    import spslidar.outwrite as outdir
     from spslidar.pipeline.calibration_file import write_calibration
 
     def full(path, text):

@@ -231,7 +231,7 @@ def write_ptu_t3_stream(
         value_at[key] = sum(map(len, parts)) + _TAG.size
         parts.append(_encode_tag(key, value))
     parts.append(_encode_tag("Header_End", None))
-    from ..outdir import atomic_file
+    from ..outwrite import atomic_file
 
     where = Path(os.fspath(path))
     if where.is_dir():

@@ -45,7 +45,7 @@ import numpy as np
 
 from ..constants import SPEED_OF_LIGHT
 from ..errors import ConfigError
-from ..outdir import sha256_file  # one file hasher for the project
+from ..outwrite import sha256_file  # one file hasher for the project
 from .calibrated import (  # noqa: F401  (re-exported: they were here until 0.2)
     HALF_WIDTH_SHARE,
     IRF_AFTER,

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from ..outdir import sha256_file
+from ..outwrite import sha256_file
 
 __all__ = ["CAL_KIND", "check_calibration", "check_calibration_out", "code_bits", "code_note",
            "code_sha256", "content_sha256", "edited", "load_calibration", "write_calibration"]
@@ -122,7 +122,7 @@ def write_calibration(cal: dict[str, Any], out: str | os.PathLike, overwrite: bo
     never a user's other file (all or nothing, under a temporary name). Missing folders of
     its path are made."""
     from ..errors import SpslidarError
-    from ..outdir import atomic_write_text
+    from ..outwrite import atomic_write_text
 
     path = check_calibration_out(out, overwrite)
     made = [p for p in (path.parent, *path.parent.parents) if not p.exists()]

@@ -119,7 +119,7 @@ def write_measurement_arrays(meas, ptu_path, paths=None) -> tuple[str, str]:
         pats[:, start:start + eye.shape[1]] = patterns.apply_rows(
             slice(0, patterns.shape[0]), eye)
     p_path, c_path = ptu_companions(ptu_path) if paths is None else (str(p) for p in paths)
-    from ..outdir import atomic_file
+    from ..outwrite import atomic_file
 
     with atomic_file(p_path) as fh:  # a failed write leaves no partial file
         np.save(fh, pats.reshape(-1, n, n))

@@ -198,7 +198,7 @@ def plot_snr(rows: Sequence[dict[str, Any]], path: str | Path) -> Path:
         f"{rows[0]['trials']} periods per point, unipolar replica",
         fontsize="medium",
     )
-    from ..outdir import atomic_path
+    from ..outwrite import atomic_path
 
     path = Path(path)
     with atomic_path(path) as tmp:  # (an interrupt leaves no partial PNG over a user's)

@@ -46,7 +46,7 @@ def exp_snr(ctx: Context) -> tuple[str, list[Claim]]:
     csv = write_rows(ctx, name, rows)
     png = ctx.folder(name) / f"{name}.png"
     if ok:
-        from spslidar.outdir import atomic_path
+        from spslidar.outwrite import atomic_path
 
         with atomic_path(png) as tmp:  # all or nothing (Ctrl-C left a truncated PNG)
             plot_snr(ok, tmp)

@@ -77,7 +77,7 @@ def save_png(fig, path: Path, dpi: int = 100) -> Path:
     """Save ``fig`` at ``dpi`` (100) as ``path``, all or nothing: written under a temporary
     name in its folder and moved into place once complete (Ctrl-C while matplotlib writes
     left a truncated PNG)."""
-    from spslidar.outdir import atomic_path
+    from spslidar.outwrite import atomic_path
 
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, format=Path(path).suffix.lstrip(".") or "png")

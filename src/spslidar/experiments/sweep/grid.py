@@ -278,7 +278,7 @@ def with_scene_hashes(points: Sequence[Mapping[str, Any]]) -> list[dict[str, Any
     (``irf_sha256``): the cache key (and ``results.csv``) then follow the file's content (an
     edited scene or IRF file was given the earlier file's cached results). Each file is read
     once."""
-    from spslidar.outdir import sha256_file
+    from spslidar.outwrite import sha256_file
     from spslidar.scenes import SCENE_FILE_SUFFIXES
 
     sums: dict[str, str] = {}

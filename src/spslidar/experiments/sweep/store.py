@@ -1,10 +1,11 @@
 """What a sweep writes: atomic files, the run cache records and the tidy CSV table.
 
-Every file of a sweep or a reproduction report goes through :func:`atomic_write_text` or
-:func:`atomic_write_bytes` (temporary file in the same folder, fsync, ``os.replace``), so an
-interrupted run never leaves a half-written file, and the files get the permissions of the
-user's umask like every other output of spslidar (:func:`spslidar.outdir.umask_mode`;
-``tempfile.mkstemp`` alone would leave them ``0600``).
+Every file of a sweep or a reproduction report goes through
+:func:`~spslidar.outwrite.atomic_write_text` or :func:`~spslidar.outwrite.atomic_write_bytes`
+(temporary file in the same folder, fsync, ``os.replace``), so an interrupted run never leaves
+a half-written file, and the files get the permissions of the user's umask like every other
+output of spslidar (:func:`spslidar.outwrite.umask_mode`; ``tempfile.mkstemp`` alone would
+leave them ``0600``).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from spslidar.experiments.sweep.grid import (
     text_key,
     with_seed,
 )
-from spslidar.outdir import atomic_write_bytes, atomic_write_text
+from spslidar.outwrite import atomic_write_bytes, atomic_write_text
 
 __all__ = [
     "CACHE_FORMAT",
