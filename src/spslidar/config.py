@@ -45,6 +45,19 @@ class Config:
     validated (and its values normalised) once, when it is made; the choices of ``code``,
     ``patterns``, ``detector``, ``solver`` and ``depth`` come from the stages' registries
     (:func:`registries`), each entry checking the config with its own rules.
+
+    Examples
+    --------
+    >>> from spslidar import Config
+    >>> cfg = Config(scene="camera", size=16, code_length=2047)
+    >>> cfg.replace(noise=5).noise, cfg.noise  # a validated copy; the original is unchanged
+    (5.0, 10.0)
+    >>> Config.from_dict({"code-length": 1023}).code_length  # command-line spelling too
+    1023
+    >>> Config(noise=-1)
+    Traceback (most recent call last):
+    ...
+    spslidar.errors.ConfigError: --noise must be in [0, inf), got -1
     """
 
     # scene

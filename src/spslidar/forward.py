@@ -184,6 +184,22 @@ def expected_counts(
     Notes
     -----
     Eq. (4) in expectation, with ``P_R`` expressed as ``m_s`` photons per pulse (eq. 8).
+
+    Examples
+    --------
+    A 2x2 wall at 3 m seen through one all-on pattern, a 127-bit code at 10 GHz:
+
+    >>> import numpy as np
+    >>> from spslidar.codes import make_code
+    >>> from spslidar.forward import depth_to_delay, expected_counts, return_amplitudes
+    >>> code = make_code("mseq", 127)
+    >>> delay = depth_to_delay(np.full((2, 2), 3.0), bin_width=1e-10)  # 200.14 bins
+    >>> shifts, amp = return_amplitudes(np.ones((1, 4)), np.ones((2, 2)), delay, 0.5, code.size)
+    >>> int(shifts[0])  # the return's bin, modulo the code period: 200 - 127
+    73
+    >>> lam = expected_counts(amp, shifts, code, signal=5.0, noise_per_bin=0.1)
+    >>> lam.shape, round(float(lam.sum()), 2)  # 4 pixels x 5 photons x 64 pulses + 12.7 noise
+    ((1, 127), 1292.7)
     """
     s = code_matrix if code_matrix is not None else shifted_codes(code, shifts, np.float64)
     amp = real_array(amp, "amp", ndim=2)

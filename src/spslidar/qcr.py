@@ -95,6 +95,20 @@ def qcr_problem(patterns: np.ndarray, corr: np.ndarray, form: str = "centred",
         ``Phi_c / sqrt(M)`` (centred) or ``H`` (covariance).
     y : ndarray
         ``C_c / sqrt(M)`` (centred) or ``Delta`` (covariance).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from spslidar.qcr import qcr_problem
+    >>> rng = np.random.default_rng(0)
+    >>> phi = rng.random((32, 64))  # 32 patterns over 8x8 mirrors
+    >>> p = rng.random((64, 3))  # 3 range slices
+    >>> corr = phi @ p + 7.0  # plus a background common to every pattern
+    >>> A, y = qcr_problem(phi, corr, dtype=np.float64)
+    >>> A.shape, y.shape
+    ((32, 64), (32, 3))
+    >>> np.allclose(A @ p, y)  # the background has dropped out
+    True
     """
     from .patterns import as_patterns
 

@@ -209,7 +209,29 @@ class Registry:
         """Register ``target`` under ``name`` (replacing an entry of that name).
 
         An option declared by several entries (``dead_time`` of every detector) must be
-        declared alike (same default, kind and bounds): it is one config key."""
+        declared alike (same default, kind and bounds): it is one config key.
+
+        Examples
+        --------
+        A depth estimator of your own (here the paper's argmax under a new name), held to
+        its contract, used by a run and taken back:
+
+        >>> import spslidar
+        >>> from spslidar.depth import ESTIMATORS
+        >>> from spslidar.depth.argmax import ArgmaxDepth
+        >>> from spslidar.testing import check_stage
+        >>> class MyArgmax(ArgmaxDepth):
+        ...     name = "my-argmax"
+        >>> _ = ESTIMATORS.add("my-argmax", MyArgmax, "My argmax", "the paper's ML depth")
+        >>> bool(check_stage("depth", "my-argmax"))  # raises AssertionError on a breach
+        True
+        >>> r = spslidar.run(scene="camera", size=16, code_length=2047, depth="my-argmax")
+        >>> r.config.depth, r.depth.shape
+        ('my-argmax', (16, 16))
+        >>> _ = ESTIMATORS.remove("my-argmax")
+        >>> "my-argmax" in ESTIMATORS
+        False
+        """
         if not name or not isinstance(name, str):
             raise ValueError(f"a {self.kind} needs a non-empty name")
         if (options or defaults) and not self.takes_options:

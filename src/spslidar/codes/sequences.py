@@ -322,6 +322,15 @@ def gold_family(n: int) -> np.ndarray:
     References
     ----------
     .. [1] R. Gold, IEEE Trans. Inf. Theory 13(4), 619-621 (1967).
+
+    Examples
+    --------
+    >>> from spslidar.codes import gold_bound, gold_family, periodic_xcorr
+    >>> family = gold_family(5)  # T = 31 bits: the preferred pair and 31 Gold codes
+    >>> family.shape
+    (33, 31)
+    >>> sorted(set(periodic_xcorr(family[2], family[3]).tolist())), gold_bound(5)
+    ([-9, -1, 7], 9)
     """
     n = _check_gold_degree(n)
     if n > _GOLD_FAMILY_MAX_N:
@@ -391,6 +400,20 @@ def make_code(
     7-bit draw at ``R_a = 0.99`` made the zero-mean replica zero and the weight NaN).
     m-sequences are those of :func:`scipy.signal.max_len_seq` with its default taps from
     the all-ones register state (generated bitwise identically by :func:`lfsr_sequence`).
+
+    Examples
+    --------
+    A 255-bit m-sequence: (T + 1) / 2 ones, and a two-valued periodic autocorrelation
+
+    >>> from spslidar.codes import make_code, periodic_xcorr
+    >>> code = make_code("mseq", 255)
+    >>> code.size, code.dtype, int(code.sum())
+    (255, dtype('uint8'), 128)
+    >>> r = periodic_xcorr(code, code)  # bipolar: T at zero delay, -1 at every other
+    >>> int(r[0]), sorted(set(r[1:].tolist()))
+    (255, [-1])
+    >>> make_code("random", 255, ones_ratio=0.1, rng=0).size  # seeded Bernoulli bits
+    255
     """
     kind = canonical_kind(kind)
     length = _as_int(length, "code length")

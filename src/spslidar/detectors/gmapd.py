@@ -99,6 +99,24 @@ class GMAPD(DetectorModel):
     correction : bool
         Correct each histogram for pile-up before the matched filter (:meth:`correct`;
         ``--pileup-correction``); without it the distorted counts go on as measured.
+
+    Examples
+    --------
+    A 1 ns (10-bin) dead time under 0.5 photon per bin and period, over 100 periods:
+    the detector fires about once per 10 + 2 bins, far below the 50 photons per bin.
+
+    >>> import numpy as np
+    >>> from spslidar.detectors.gmapd import GMAPD
+    >>> det = GMAPD(dead_time=1e-9, bin_width=100e-12)
+    >>> lam = np.full((4, 127), 50.0)  # photons per bin over the 100 periods
+    >>> counts, totals = det.detect(lam, np.random.default_rng(0), n_periods=100)
+    >>> counts.shape, counts.dtype
+    ((4, 127), dtype('float32'))
+    >>> expected = det.expected(lam, n_periods=100)
+    >>> round(float(expected.mean()), 2)  # 100 periods / 12 bins
+    8.33
+    >>> bool(abs(counts.mean() / expected.mean() - 1) < 0.05)
+    True
     """
 
     dead_time: float = 50e-9

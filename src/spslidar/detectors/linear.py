@@ -22,6 +22,20 @@ class LinearDetector(PhotonCountingDetector, DetectorModel):
     place, and each row's exact total comes with them
     (:func:`spslidar.detectors.counting.poisson_rows`).
     ``dead_time`` only feeds :meth:`report`'s pile-up flag.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from spslidar.detectors.linear import LinearDetector
+    >>> det = LinearDetector(efficiency=1.0)
+    >>> lam = np.full((4, 1000), 2.0)  # 4 patterns x 1000 TDC bins, 2 photons per bin
+    >>> counts, totals = det.detect(lam, np.random.default_rng(0))
+    >>> counts.shape, totals.shape
+    ((4, 1000), (4,))
+    >>> bool(abs(counts.mean() - det.expected(lam).mean()) < 0.15)  # Poisson around 2
+    True
+    >>> bool(np.array_equal(totals, counts.sum(axis=1)))
+    True
     """
 
     name = "linear"

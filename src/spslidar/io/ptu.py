@@ -123,7 +123,9 @@ def ptu_info(path: PathLike) -> dict[str, Any]:
     Returns a dict: ``record_type`` (e.g. ``'HydraHarp2T3'``), ``measurement_mode``
     (``'T2'``/``'T3'``), ``n_records`` (header) and ``n_records_in_file`` (whole records after
     the header), ``resolution_s``, ``sync_period_s`` and ``bins_per_period`` (None for a T2
-    file, whose ``time_unit_s`` is its global resolution), ``sync_rate_hz``,
+    file, whose ``time_unit_s`` is its global resolution; a float, the period over the
+    resolution as the header gives them, not rounded: a real instrument's is rarely whole,
+    and a file written with 127 bins may read 127.00000000000001), ``sync_rate_hz``,
     ``acquisition_time_s`` (None where the header gives none, or 0), ``hardware``,
     ``sync_divider`` (``HWSync_Divider``), ``creator``, ``comment``, ``created``, ``version``,
     ``path``. Raises
@@ -396,6 +398,25 @@ def read_ptu_histograms(
         resolution or sync period disagreeing with ``bin_width`` / ``n_bins``; no markers on
         input ``marker``; fewer blocks than ``n_patterns``; no photons on ``channel``;
         histograms too large for the memory available; bad arguments.
+
+    Examples
+    --------
+    Write 3 patterns' photons (10 periods of a 127-bin code each) and read them back:
+
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> from spslidar.io import read_ptu_histograms, write_acquisition_ptu
+    >>> rng = np.random.default_rng(0)
+    >>> events = [np.column_stack([rng.integers(0, 10, 50), rng.integers(0, 127, 50)])
+    ...           for _ in range(3)]  # per pattern: (period, bin) of 50 photons
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "scan.ptu")
+    ...     _ = write_acquisition_ptu(path, events, 127, 1e-10, periods_per_pattern=10)
+    ...     acq = read_ptu_histograms(path, 127, bin_width=1e-10)
+    >>> acq.histograms.shape, acq.counts_per_pattern.tolist(), acq.periods_per_pattern.tolist()
+    ((3, 127), [50, 50, 50], [10, 10, 10])
+    >>> np.array_equal(acq.histograms[0], np.bincount(events[0][:, 1], minlength=127))
+    True
     """
     n_bins = _positive_int(n_bins, "n_bins")
     chunk_records = _positive_int(chunk_records, "chunk_records")

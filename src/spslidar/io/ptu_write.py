@@ -402,6 +402,24 @@ def write_acquisition_ptu(
     -------
     int
         Number of records written.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> from spslidar.io import ptu_info, write_acquisition_ptu
+    >>> rng = np.random.default_rng(0)
+    >>> events = [np.column_stack([rng.integers(0, 10, 50), rng.integers(0, 127, 50)])
+    ...           for _ in range(3)]  # per pattern: (period, bin) of 50 photons
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "scan.ptu")
+    ...     n = write_acquisition_ptu(path, events, period_bins=127, bin_width_s=1e-10,
+    ...                               periods_per_pattern=10)
+    ...     info = ptu_info(path)
+    >>> n  # 150 photons and a marker per pattern
+    153
+    >>> info["record_type"], round(info["bins_per_period"], 2)  # sync period / resolution
+    ('HydraHarp2T3', 127.0)
     """
     period_bins = _positive_int(period_bins, "period_bins")
     marker = _marker_input(marker)

@@ -41,6 +41,26 @@ class LinearOperator:
         ``(m, n)``: output and input sizes.
     dtype : numpy dtype, optional
         Working precision of the operator.
+
+    Examples
+    --------
+    A subclass implements ``_matvec`` and ``_rmatvec`` on column blocks; ``@``, ``.H``,
+    sums, products and :func:`~spslidar.operators.dottest` come with it:
+
+    >>> import numpy as np
+    >>> from spslidar.operators import LinearOperator, dottest
+    >>> class Diff(LinearOperator):  # forward differences, R^n -> R^(n-1)
+    ...     def __init__(self, n):
+    ...         super().__init__((n - 1, n))
+    ...     def _matvec(self, x):
+    ...         return x[1:] - x[:-1]
+    ...     def _rmatvec(self, y):
+    ...         return np.concatenate([-y[:1], y[:-1] - y[1:], y[-1:]])
+    >>> D = Diff(5)
+    >>> (D @ np.arange(5.0)).tolist(), (D.H @ D).shape
+    ([1.0, 1.0, 1.0, 1.0], (5, 5))
+    >>> dottest(D, n_cols=3) < 1e-10  # <D x, y> == <x, D^H y>
+    True
     """
 
     def __init__(self, shape: tuple[int, int], dtype=np.float64):
@@ -333,6 +353,16 @@ def dottest(
     -------
     float
         The relative mismatch ``|<Ax,y> - <x,A^H y>| / max(|<Ax,y>|, |<x,A^H y>|)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from spslidar.operators import MatrixOperator, dottest
+    >>> A = MatrixOperator(np.random.default_rng(0).standard_normal((6, 4)))
+    >>> dottest(A) < 1e-10
+    True
+    >>> dottest(A.H @ A, n_cols=2) < 1e-10  # the batched path too
+    True
     """
     rng = as_generator(rng)
     m, n = op.shape

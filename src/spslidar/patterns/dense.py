@@ -104,6 +104,21 @@ class DensePatterns(PatternOperator):
     copy : bool
         Take a copy of ``matrix`` where it is the caller's array (default), so that the
         products and the adjoint keep to the patterns given; False shares it.
+
+    Examples
+    --------
+    16 Gaussian grey-level patterns over 8x8 mirrors, as an operator on flattened images:
+
+    >>> import numpy as np
+    >>> from spslidar.patterns.dense import DensePatterns, make_patterns
+    >>> phi = DensePatterns(make_patterns("gaussian", 16, 64, rng=0), "gaussian")
+    >>> phi.shape, phi.dtype
+    ((16, 64), dtype('float32'))
+    >>> x = np.random.default_rng(0).random(64)  # an 8x8 image, flattened
+    >>> (phi @ x).shape, (phi.H @ np.ones(16)).shape
+    ((16,), (64,))
+    >>> np.allclose(phi @ x, phi.todense() @ x)
+    True
     """
 
     def __init__(self, matrix: np.ndarray, kind: str = "dense", *, copy: bool = True):

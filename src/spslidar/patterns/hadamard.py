@@ -174,6 +174,21 @@ class HadamardPatterns(PatternOperator):
     With ``h = S H D P`` the rows: ``Phi x = (1^T x + h x)/2`` and
     ``Phi^T y = (1 (1^T y) + h^T y)/2`` in ``shifted`` mode; ``h x`` is one FWHT of ``D P x``
     with the rows ``S`` picked out, ``h^T y`` one FWHT of ``y`` scattered onto the rows.
+
+    Examples
+    --------
+    The first 16 rows (cake-cutting order) of the 64x64 Hadamard matrix, shown on 8x8 mirrors:
+
+    >>> import numpy as np
+    >>> from spslidar.patterns.hadamard import hadamard_patterns
+    >>> phi = hadamard_patterns("hadamard", 16, 8, np.random.default_rng(0))
+    >>> phi.shape, phi.mode
+    ((16, 64), 'shifted')
+    >>> sorted(np.unique(phi.todense()).tolist())  # (1 + h) / 2: mirrors off or on
+    [0.0, 1.0]
+    >>> x = np.random.default_rng(1).random(64)
+    >>> np.allclose(phi @ x, phi.todense() @ x, atol=1e-5)  # the fast transform
+    True
     """
 
     def __init__(self, n_side: int, rows: np.ndarray, signs: np.ndarray | None = None,

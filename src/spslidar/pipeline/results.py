@@ -23,7 +23,26 @@ from ..patterns import realisation_note
 class Result:
     """Everything one run produced. ``metrics`` is what ``metrics.json`` holds. Equality is
     identity (its fields are arrays); the repr is a summary (the dataclass's ran to 28 000
-    characters in a notebook cell)."""
+    characters in a notebook cell).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import spslidar
+    >>> r = spslidar.run(scene="camera", size=16, code_length=2047, noise=1)
+    >>> r.depth.shape, r.truth.shape, r.confidence.shape
+    ((16, 16), (16, 16), (16, 16))
+    >>> points, intensity = r.points(fov_deg=10)  # one point per pixel with a return
+    >>> points.shape, intensity.shape
+    ((256, 3), (256,))
+    >>> points, intensity, fields = r.cloud()  # what points.ply holds
+    >>> sorted(fields)
+    ['confidence', 'return_number']
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     out = r.save(os.path.join(tmp, "run"), figure=False)
+    ...     print(sorted(f.name for f in out.glob("*.npy")))
+    ['confidence.npy', 'depth.npy', 'reflectivity.npy', 'truth.npy', 'valid.npy']
+    """
 
     config: Config
     scene: Any
