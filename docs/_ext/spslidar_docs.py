@@ -305,8 +305,14 @@ METRICS: dict[str, str] = {
     "acquisition_time_per_pattern_s": "Dwell time per DMD pattern, seconds.",
     "signal_per_pulse": "m_s, signal photons per pulse per pixel (mirror on, reflectivity 1).",
     "replica": "Matched-filter replica used: bipolar or unipolar.",
-    "mean_signal_counts_per_pattern": "Mean signal counts per pattern (all bins).",
-    "mean_noise_counts_per_pattern": "Mean noise counts per pattern (all bins).",
+    "mean_signal_counts_per_pattern": "Mean signal counts per pattern over its dwell: the "
+                                      "simulation's own (``run``); for a measured file "
+                                      "(``reconstruct``) the returns inside the range gate, "
+                                      "read off the correlations "
+                                      "(:func:`spslidar.correlate.split_counts`).",
+    "mean_noise_counts_per_pattern": "Mean noise (background) counts per pattern over its "
+                                     "dwell: the simulation's own; for a measured file the "
+                                     "counts that are not signal in the gate.",
     "correlation_noise_sigma": "Standard deviation of the matched-filter output's noise "
                                "(with ``--noiseless``, what the same run with Poisson noise "
                                "would have).",

@@ -26,6 +26,7 @@ from ..correlate import (
     make_replica,
     matched_filter,
     noise_sigma_from_totals,
+    split_counts,
 )
 from ..errors import ConfigError
 from .acquisition import Acquisition
@@ -554,8 +555,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     inverted = inverted_code_note(corr, sigma)
     if inverted:
         dwell_warning.append(inverted)
-    # (a calibrated filter spreads a return over several lags: counted once)
-    signal = np.asarray(corr, np.float64).sum(axis=1) * n_mean * code.sum() / spread
+    # (a calibrated instrument's return is its code through the response: signal_code)
+    signal, _ = split_counts(corr, sigma, totals, ulags, signal_code, replica, gain)
     background = np.maximum(totals - signal, 0.0) / period
     sim = {"corr": corr, "sigma": sigma,
            "counts": totals, "signal_counts": signal, "noise_per_bin": background / n_mean,
