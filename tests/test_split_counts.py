@@ -10,6 +10,7 @@ where the acquisition held 65 635 and 20 966.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from spslidar.correlate import (
     make_replica,
     matched_filter,
     noise_sigma_from_totals,
+    returns_outside,
     split_counts,
 )
 
@@ -62,11 +64,11 @@ def test_the_split_does_not_depend_on_the_gate(family, replica_kind, gate):
     corr = matched_filter(hist, replica, ulags, gain, out_dtype=np.float64)
     totals = hist.sum(axis=1)
     sigma = noise_sigma_from_totals(totals, replica, gain)
-    signal, support = split_counts(corr, sigma, totals, ulags, code, replica, gain)
+    signal, returns = split_counts(corr, sigma, totals, ulags, code, replica, gain)
     assert signal.mean() == pytest.approx(true_signal.mean(), rel=0.02)
     assert (totals - signal).mean() == pytest.approx(true_background, rel=0.02)
     # the returns' delays and few others: a return's neighbour either side, and chance
-    held = ulags[support]
+    held = ulags[returns > 0]
     assert set(range(300, 340)) <= set(held.tolist())
     assert held.size <= 40 + 2 + 0.01 * ulags.size
 
@@ -79,14 +81,32 @@ def test_no_return_in_the_gate_is_all_background():
     corr = matched_filter(hist, replica, ulags, gain, out_dtype=np.float64)
     totals = hist.sum(axis=1)
     sigma = noise_sigma_from_totals(totals, replica, gain)
-    signal, support = split_counts(corr, sigma, totals, ulags, code, replica, gain)
-    assert support.sum() <= 3  # chance alone
+    signal, returns = split_counts(corr, sigma, totals, ulags, code, replica, gain)
+    assert (returns > 0).sum() <= 3  # chance alone
     assert signal.mean() < 0.01 * totals.mean()
 
 
-def test_reconstruct_reads_the_run_s_counts_whatever_the_gate(tmp_path):
+@pytest.mark.parametrize("family", ["mseq", "random"])
+def test_returns_outside_the_gate_are_found(family):
+    """The returns at delays 300-339 seen from a gate of 290-319 lie half outside it, at
+    320-339 (a return's neighbour delay counts as inside); from 290-350, none."""
+    rng = np.random.default_rng(5)
+    code = make_code(family, 1023, rng=np.random.default_rng(1))
+    kind = "bipolar" if family == "mseq" else "zero-mean"
+    hist, replica, gain, _, _ = _acquisition(code, kind, rng)
+    counts = hist.sum(axis=0)
+    share, outside = returns_outside(counts, replica, gain, code, np.arange(290, 320))
+    assert share == pytest.approx(0.5, abs=0.08)  # 19 of the 40 delays, random strengths
+    assert set(outside.tolist()) == set(range(321, 340))
+    share, outside = returns_outside(counts, replica, gain, code, np.arange(290, 351))
+    assert share == 0.0 and outside.size == 0
+
+
+def test_reconstruct_reads_the_run_s_counts_whatever_the_gate(tmp_path, capsys):
     """End to end: a run's PTU file reconstructed with a tight gate and with the code's whole
-    period reads the run's own signal and background counts within 3 %."""
+    period reads the run's own signal and background counts within 3 %; through a gate that
+    holds part of the scene (5.0-5.4 m of 5.0-5.8 m: 174 of 256 pixels beyond it) it says
+    that about two thirds of the returns lie outside, and where."""
     run = tmp_path / "run"
     ptu = tmp_path / "c.ptu"
     assert main(["run", "--scene", "camera", "--size", "16", "--code-length", "4095",
@@ -103,3 +123,12 @@ def test_reconstruct_reads_the_run_s_counts_whatever_the_gate(tmp_path):
         got = json.loads((out / "metrics.json").read_text())
         for key in ("mean_signal_counts_per_pattern", "mean_noise_counts_per_pattern"):
             assert got[key] == pytest.approx(truth[key], rel=0.03), (gate, key)
+        assert "outside the range gate" not in capsys.readouterr().err
+    assert main(["reconstruct", "--ptu", str(ptu), "--patterns",
+                 str(tmp_path / "c_patterns.npy"), "--code", str(tmp_path / "c_code.npy"),
+                 "--bit-rate", "10e9", "--range-gate", "5.0", "5.4", "--out",
+                 str(tmp_path / "cut"), "--no-figure"]) == 0
+    err = capsys.readouterr().err
+    # (68 % measured; the share is of the returns' correlation, the pixels' is 174 / 256)
+    assert re.search(r"about (6[3-9]|7[0-3])% of the returns lie outside the range gate "
+                     r"5-5\.4 m, at 5\.4\d*-5\.[78]\d* m", err), err

@@ -172,3 +172,34 @@ def unique_lags(lags: np.ndarray, period: int) -> tuple[np.ndarray, np.ndarray]:
     period = positive_number(period, "period", integer=True)
     u, inv = np.unique(np.mod(whole_numbers(lags, "lags"), period), return_inverse=True)
     return u, inv
+
+
+#: a measured acquisition warns where more than this share of its returns lies outside the
+#: range gate (:func:`outside_note`)
+OUTSIDE_SHARE = 0.05
+
+
+def outside_note(counts: np.ndarray, replica: np.ndarray, gain: float,
+                 signal_code: np.ndarray, ulags: np.ndarray, shift: int, lags: np.ndarray,
+                 bin_width: float, gate) -> list[str]:
+    """A warning, where more than :data:`OUTSIDE_SHARE` of a measured acquisition's returns
+    lie outside its range gate (:func:`spslidar.correlate.returns_outside`), naming where
+    they are: the pixels whose return lies beyond the gate are given depths inside it, which
+    are noise. ``ulags``: the delays correlated (the returns' arrival, ``shift`` bins after
+    their time of flight for a calibrated instrument); ``lags``: the gate's own delays."""
+    from ..constants import SPEED_OF_LIGHT
+    from ..correlate import returns_outside
+
+    share, outside = returns_outside(counts, replica, gain, signal_code, ulags)
+    if share <= OUTSIDE_SHARE:
+        return []
+    period = np.size(counts)
+    centre = float(np.mean(lags))
+    flight = outside - int(shift)  # each in the period nearest the gate
+    flight = flight + period * np.round((centre - flight) / period)
+    metres = flight * bin_width * SPEED_OF_LIGHT / 2.0
+    ambiguity = period * bin_width * SPEED_OF_LIGHT / 2.0
+    return [f"about {share:.0%} of the returns lie outside the range gate {gate_text(gate)} m, "
+            f"at {gate_text((metres.min(), metres.max()))} m (modulo the code's "
+            f"{ambiguity:.4g} m): their pixels are given depths inside the gate, which are "
+            f"noise; widen --range-gate"]

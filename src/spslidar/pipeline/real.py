@@ -31,7 +31,7 @@ from ..correlate import (
 from ..errors import ConfigError
 from .acquisition import Acquisition
 from .chain import Measurement, keeping_warnings, reconstruct
-from .gate import gate_text, unique_lags
+from .gate import gate_text, outside_note, unique_lags
 from .results import Result
 
 __all__ = ["FILTER_LAM_SCALE", "calibrated_lam_scale", "check_code", "check_gate", "check_patterns",
@@ -557,6 +557,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         dwell_warning.append(inverted)
     # (a calibrated instrument's return is its code through the response: signal_code)
     signal, _ = split_counts(corr, sigma, totals, ulags, signal_code, replica, gain)
+    dwell_warning += outside_note(hist.sum(axis=0), replica, gain, signal_code, ulags, shift,
+                                  lags, bin_width, cfg.range_gate)
     background = np.maximum(totals - signal, 0.0) / period
     sim = {"corr": corr, "sigma": sigma,
            "counts": totals, "signal_counts": signal, "noise_per_bin": background / n_mean,
