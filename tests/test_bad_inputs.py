@@ -228,3 +228,24 @@ def test_a_sweep_follows_its_irf_files_content(tmp_path, monkeypatch):
     assert sweep_main(sub / "s.toml", tmp_path / "o", progress=False) == 0
     second = (tmp_path / "o" / "results.csv").read_text()
     assert "irf_sha256" in first and first != second
+
+
+@pytest.mark.parametrize("encoding", ["utf-8-sig", "utf-16"])
+@pytest.mark.parametrize("kind", ["config", "sweep"])
+def test_a_toml_with_a_byte_order_mark_says_so(tmp_path, capsys, encoding, kind):
+    """Windows editors write UTF-8 with a BOM and PowerShell 5's '>' UTF-16: a sweep's TOML
+    read "invalid TOML: Invalid statement (at line 1, column 1)" and a UTF-16 config "'utf-8'
+    codec can't decode byte 0xff" (a portability audit); both now say what the file is."""
+    path = tmp_path / "c.toml"
+    if kind == "config":
+        path.write_text("size = 8\n", encoding=encoding)
+        argv = ["run", "--config", str(path), "--out", str(tmp_path / "o")]
+    else:
+        path.write_text("seed = 1\n[base]\nsize = 8\n[grid]\nnoise = [1]\n", encoding=encoding)
+        argv = ["sweep", str(path), "--out", str(tmp_path / "o")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err
+    assert ("byte-order mark" if encoding == "utf-8-sig" else "is UTF-16") in err, err
+    assert "save it as UTF-8 without BOM" in err
+    assert not (tmp_path / "o").exists()

@@ -77,6 +77,29 @@ def test_available_memory_respects_rlimit(monkeypatch):
     assert available_memory.__module__ == "spslidar.machine"
 
 
+def test_available_memory_without_proc_reads_psutil(monkeypatch):
+    """Where there is no ``/proc/meminfo`` (macOS, Windows) the available memory is
+    psutil's; Windows has no ``os.sysconf`` either, and every run was let through to fail in
+    its allocation (a portability audit)."""
+    import builtins
+    import os
+    import resource
+
+    psutil = pytest.importorskip("psutil")
+    real_open = builtins.open
+
+    def no_proc(path, *args, **kwargs):
+        if str(path).startswith("/proc"):
+            raise FileNotFoundError(path)
+        return real_open(path, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "open", no_proc)
+    monkeypatch.delattr(os, "sysconf")
+    monkeypatch.setattr(resource, "getrlimit", lambda which: (-1, -1))
+    monkeypatch.setattr(psutil, "virtual_memory", lambda: type("V", (), {"available": 5e9}))
+    assert available_memory() == pytest.approx(5e9)
+
+
 def test_estimate_covers_what_numpy_allocates():
     """The traced peak of a real run (NumPy's arrays, without the interpreter) stays below the
     estimate without its interpreter share: the model does not under-count the big arrays."""

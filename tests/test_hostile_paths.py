@@ -5,6 +5,7 @@ written as the user's umask asks."""
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import stat
@@ -117,6 +118,37 @@ def test_out_through_a_symlink_loop_is_refused_first(calibrated_wall, tmp_path, 
     argv = ["run", *R, "--out", str(out)] if command == "run" else _rec_args(calibrated_wall,
                                                                              out)
     assert main(argv) == 2
+    captured = _one_line(capsys, f"--out {out}", "loop")
+    assert "RMSE" not in captured.out and "wrote" not in captured.out
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["loopA", "loopB"]
+
+
+def _resolve_as_python_3_13(monkeypatch):
+    """Python 3.13's non-strict ``Path.resolve``: a loop handed back unresolved, no error."""
+    import pathlib
+
+    real = pathlib.Path.resolve
+
+    def resolve(self, strict=False):
+        try:
+            return real(self, strict=strict)
+        except (RuntimeError, OSError) as exc:
+            if strict or not (isinstance(exc, RuntimeError) or exc.errno == errno.ELOOP):
+                raise
+            return pathlib.Path(os.path.abspath(self))
+
+    monkeypatch.setattr(pathlib.Path, "resolve", resolve)
+
+
+@pytest.mark.parametrize("nested", [True, False])
+def test_out_through_a_symlink_loop_is_refused_first_on_python_3_13(tmp_path, capsys,
+                                                                    monkeypatch, nested):
+    """From Python 3.13 a non-strict resolve does not raise on a loop: the run did its work
+    and then failed on its temporary folder's name (a portability audit). The deepest part
+    that exists is resolved strictly first, in every Python."""
+    _resolve_as_python_3_13(monkeypatch)
+    out = _loop(tmp_path) / "sub" if nested else _loop(tmp_path)
+    assert main(["run", *R, "--out", str(out)]) == 2
     captured = _one_line(capsys, f"--out {out}", "loop")
     assert "RMSE" not in captured.out and "wrote" not in captured.out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["loopA", "loopB"]

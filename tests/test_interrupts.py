@@ -237,3 +237,30 @@ def test_kill_pool_kills_a_worker_the_pool_no_longer_lists():
         for p in (worker, other):
             p.kill()
             p.wait()
+
+
+def test_kill_pool_where_the_system_has_no_sigkill(monkeypatch):
+    """Windows has no ``signal.SIGKILL``: killing the pool's workers raised AttributeError
+    on the interrupt path (a portability audit); a worker already gone raises OSError
+    there, not ProcessLookupError. The workers are ended with SIGTERM instead."""
+    import signal
+    import subprocess
+    import sys as _sys
+    from types import SimpleNamespace
+
+    from spslidar import interrupts
+
+    child = subprocess.Popen([_sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        gone = subprocess.Popen([_sys.executable, "-c", "pass"])
+        gone.wait()
+        pool = SimpleNamespace(_processes={0: SimpleNamespace(pid=child.pid),
+                                           1: SimpleNamespace(pid=gone.pid)})
+        monkeypatch.setattr(interrupts, "_executor", lambda: pool)
+        monkeypatch.setattr(interrupts, "_worker_children", lambda: [])
+        monkeypatch.delattr(signal, "SIGKILL")
+        interrupts.kill_pool()
+        assert child.wait(timeout=10) == -signal.SIGTERM
+    finally:
+        if child.poll() is None:
+            child.kill()

@@ -641,6 +641,18 @@ def read_config_bytes(path: Path, what: str = "config file") -> bytes:
     return raw
 
 
+def check_toml_bytes(raw: bytes, path: Path, what: str = "config file") -> None:
+    """Refuse, in one line, a TOML file that starts with a byte-order mark: UTF-8's (Windows
+    editors write it; invisible, and TOML refuses it at 1:1) or UTF-16's (PowerShell 5's
+    ``>`` writes it; it read as "'utf-8' codec can't decode byte 0xff")."""
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raise ConfigError(f"{what} {path} starts with a UTF-8 byte-order mark, which TOML "
+                          f"does not allow: save it as UTF-8 without BOM")
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise ConfigError(f"{what} {path} is UTF-16 (PowerShell 5's '>' writes it), and TOML "
+                          f"is UTF-8: save it as UTF-8 without BOM")
+
+
 def read_toml(path: str | Path) -> dict[str, Any]:
     """Read a TOML config file into a flat dict (a ``[run]`` table is also accepted)."""
     if sys.version_info >= (3, 11):
@@ -649,10 +661,8 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         import tomli as tomllib
     p = Path(path)
     raw = read_config_bytes(p)
+    check_toml_bytes(raw, p)
     try:
-        if raw.startswith(b"\xef\xbb\xbf"):  # invisible, and TOML refuses it at 1:1
-            raise ConfigError(f"config file {p} starts with a UTF-8 byte-order mark, which TOML "
-                              f"does not allow: save it as UTF-8 without BOM")
         data = tomllib.loads(raw.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ConfigError(f"cannot parse config file {p}: {exc}") from None

@@ -145,10 +145,12 @@ def kill_pool() -> None:
     except RuntimeError:  # the dict changed under us (the watchdog's thread): none listed
         processes = []
     pids = {getattr(p, "pid", None) for p in processes} | set(_worker_children())
+    # (Windows has no SIGKILL: os.kill with SIGTERM ends a process there, TerminateProcess)
+    kill = getattr(signal, "SIGKILL", signal.SIGTERM)
     for pid in pids:
         try:  # (loky's process handle has no kill())
-            os.kill(pid, signal.SIGKILL)
-        except (ProcessLookupError, TypeError):  # gone already, or never started
+            os.kill(pid, kill)
+        except (OSError, TypeError):  # gone already (Windows: an OSError), or never started
             pass
 
 

@@ -25,7 +25,7 @@ def resident_memory() -> float:
     """Bytes this process holds now (its resident set, ``/proc/self/statm``; 0 where the
     system does not say)."""
     try:
-        with open("/proc/self/statm") as fh:
+        with open("/proc/self/statm", encoding="ascii") as fh:
             return float(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
     except (OSError, ValueError, IndexError, AttributeError):  # pragma: no cover - not Linux
         return 0.0
@@ -33,20 +33,30 @@ def resident_memory() -> float:
 
 def available_memory() -> float:
     """Bytes of memory this process may still use: ``MemAvailable`` of ``/proc/meminfo``
-    (falling back to the physical memory), capped by ``RLIMIT_AS`` when one is set."""
+    (elsewhere psutil's available memory where it is installed, then the physical memory),
+    capped by ``RLIMIT_AS`` when one is set. On Windows without psutil there is neither, and
+    no run is refused for its memory before it starts (a portability audit)."""
     avail = None
     try:
-        with open("/proc/meminfo") as fh:
+        with open("/proc/meminfo", encoding="ascii") as fh:
             for line in fh:
                 if line.startswith("MemAvailable:"):
                     avail = float(line.split()[1]) * 1024
                     break
     except OSError:
         pass
+    if avail is None:  # (macOS, Windows: psutil where installed, which both have)
+        try:
+            import psutil
+
+            avail = float(psutil.virtual_memory().available)
+        except Exception:  # noqa: BLE001 - not installed, or it cannot tell: the next way
+            pass
     if avail is None:
         try:
             avail = float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
         except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
+            # (Windows without psutil: no estimate, so no run is refused before it starts)
             avail = float("inf")
     try:
         import resource

@@ -230,12 +230,39 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
 def _resolve(path: Path, what: str) -> Path:
     """``path`` with its links resolved (where files written there really go); a path that
     cannot be followed (a loop of symbolic links: Python's ``RuntimeError`` or ``OSError``
-    ``ELOOP``) refused in one line."""
+    ``ELOOP``) refused in one line.
+
+    The deepest part of ``path`` that exists is resolved strictly first: from Python 3.13 a
+    non-strict ``Path.resolve`` hands a loop back unresolved instead of raising, and the
+    loop was met only after the work, in a temporary folder's name (a portability audit of
+    2026-11-30)."""
+
+    def is_loop(exc: BaseException) -> bool:
+        return isinstance(exc, RuntimeError) or getattr(exc, "errno", None) == errno.ELOOP
+
+    part, loop = path, False
+    while True:  # (lstat follows every component but the last: a loop above it raises)
+        try:
+            os.lstat(part)
+            break
+        except FileNotFoundError:
+            if part.parent == part:
+                break
+            part = part.parent
+        except OSError as exc:  # (another error, an unreadable folder: resolved as before)
+            loop = is_loop(exc)
+            break
+    if not loop:
+        try:
+            part.resolve(strict=True)
+        except (RuntimeError, OSError) as exc:  # (a dangling link: followed as far as it goes)
+            loop = is_loop(exc)
     try:
+        if loop:
+            raise RuntimeError("a loop of symbolic links")
         return path.resolve()
     except (RuntimeError, OSError) as exc:
-        loop = isinstance(exc, RuntimeError) or getattr(exc, "errno", None) == errno.ELOOP
-        why = ("it leads through a loop of symbolic links" if loop else
+        why = ("it leads through a loop of symbolic links" if is_loop(exc) else
                f"it cannot be followed ({getattr(exc, 'strerror', None) or exc})")
         raise SpslidarError(f"{what}: {path}: {why}; choose another path") from None
 

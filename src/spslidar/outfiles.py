@@ -41,7 +41,7 @@ def _files_sums(marker: Path) -> dict[str, set[str]] | None:
     try:
         if marker.is_symlink() or not marker.is_file():
             return None
-        with open(marker) as fh:
+        with open(marker, encoding="utf-8") as fh:
             meta = json.load(fh)
     except (OSError, ValueError):
         return None

@@ -45,7 +45,7 @@ def read_marker(folder: str | os.PathLike) -> dict | None:
     """The marker of an output folder spslidar wrote (``kind``, ``id``, ``version``,
     ``files``), or None."""
     try:
-        with open(Path(folder) / MARKER) as fh:
+        with open(Path(folder) / MARKER, encoding="utf-8") as fh:
             meta = json.load(fh)
     except (OSError, ValueError):
         return None

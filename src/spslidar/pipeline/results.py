@@ -218,7 +218,7 @@ class Result:
 
                 depth_figure(self, tmp / "depth.png")
             metrics["timing_s"] = {**self.timing, "write": time.perf_counter() - t0}
-            with open(tmp / "metrics.json", "w") as fh:
+            with open(tmp / "metrics.json", "w", encoding="utf-8") as fh:
                 json.dump(_jsonable(metrics), fh, indent=2, allow_nan=False)
 
         return write_result_dir(out_dir, fill, overwrite=overwrite, option=option,

@@ -431,11 +431,13 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
         If the file is missing or unreadable, is not valid TOML (the message names the file and
         line), has unknown top-level keys or tables, or holds invalid values.
     """
-    from spslidar.config import read_config_bytes
+    from spslidar.config import check_toml_bytes, read_config_bytes
 
     path = Path(path)
+    raw = read_config_bytes(path, "sweep config")
+    check_toml_bytes(raw, path, "sweep config")  # (a BOM read "Invalid statement" at 1:1)
     try:
-        text = read_config_bytes(path, "sweep config").decode("utf-8")
+        text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise ConfigError(f"cannot read sweep config {path}: {one_line(exc)}") from None
     try:
