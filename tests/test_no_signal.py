@@ -355,3 +355,23 @@ def test_the_device_path_says_the_noiseless_rounding_too(tmp_path, capsys):
                  "--noise", "1000", "--signal", "0.001", "--backend", "array-api-strict",
                  "--no-figure", "--out", str(tmp_path / "o")]) == 0
     assert "rounding of its background" in capsys.readouterr().err
+
+
+def test_a_measured_map_of_noise_prints_no_mean_reflectivity(tmp_path, capsys):
+    """A map of noise has no reflectivity to speak of: ``reconstruct`` printed its mean
+    beside the warning (37 photons per pulse for a true 1 at m_s = 0.01, an audit); a map
+    with returns still prints it."""
+    ptu = tmp_path / "a.ptu"
+    common = ["--size", "16", "--code-length", "1023", "--noise", "0.02", "--no-figure",
+              "--save-ptu", str(ptu)]
+    rec = ["reconstruct", "--ptu", str(ptu), "--patterns", str(tmp_path / "a_patterns.npy"),
+           "--code", str(tmp_path / "a_code.npy"), "--bit-rate", "10e9", "--range-gate",
+           "19.9", "20.9", "--no-figure"]
+    for signal, noisy in (("0.003", True), ("1", False)):
+        assert main(["run", *common, "--signal", signal, "--out", str(tmp_path / f"r{signal}"),
+                     "--overwrite"]) == 0
+        capsys.readouterr()
+        assert main([*rec, "--out", str(tmp_path / f"q{signal}")]) == 0
+        out, err = capsys.readouterr()
+        assert (WARNING in err) is noisy
+        assert ("mean reflectivity" in out) is not noisy, out

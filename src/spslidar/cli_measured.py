@@ -116,13 +116,15 @@ def cmd_reconstruct(args) -> int:
     rmse = m.get("depth_rmse_m")
     import numpy as np
 
+    from .metrics import mostly_noise, returns_phrase
     from .metrics import percent as _percent
-    from .metrics import returns_phrase
 
-    # returns among all pixels (coverage is the share with a truth and a return)
+    # returns among all pixels (coverage is the share with a truth and a return); a map of
+    # noise has no reflectivity to speak of (its mean read 37 for a true 1, an audit)
+    bright = ("" if mostly_noise(m) else f", mean reflectivity "
+              f"{m.get('mean_reflectivity') or 0.0:.3g} photons per pulse")
     print(f"{m['n_patterns']} patterns, {int(sum(m['ptu']['counts_per_pattern']))} photons; "
-          f"{returns_phrase(m, float(np.isfinite(result.depth).mean()))}, mean "
-          f"reflectivity {m.get('mean_reflectivity') or 0.0:.3g} photons per pulse; "
+          f"{returns_phrase(m, float(np.isfinite(result.depth).mean()))}{bright}; "
           + (f"depth RMSE {rmse:.4f} m over the {_percent(m['coverage'])} of pixels with a "
              f"truth and a return" if rmse is not None else "no ground truth (--truth)"))
     print(f"wrote {out}/: {' '.join(_written(out))}")

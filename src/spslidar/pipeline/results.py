@@ -104,8 +104,9 @@ class Result:
         t = self.timing
         rmse = m.get("depth_rmse_m")
         if not m.get("has_truth", True):
-            score = (f"no ground truth: {returns_phrase(m, m['coverage'])}, "
-                     f"mean reflectivity {m.get('mean_reflectivity') or 0.0:.3g}, ")
+            bright = ("" if mostly_noise(m) else  # (noise's mean read 37 for 1: an audit)
+                      f"mean reflectivity {m.get('mean_reflectivity') or 0.0:.3g}, ")
+            score = f"no ground truth: {returns_phrase(m, m['coverage'])}, {bright}"
         elif rmse is None or not math.isfinite(rmse):  # (was "depth RMSE nan m (nan bins)")
             score = (f"no depth to score: none of the {m['n_valid']} pixels with a truth "
                      f"holds a return, ")
