@@ -44,33 +44,57 @@ def _acquisition(code, replica_kind, rng, n_patterns=48, periods=200):
     return hist, replica, gain, true_signal, periods * background * period
 
 
-@pytest.mark.parametrize(("family", "replica_kind"), [("mseq", "bipolar"),
-                                                      ("mseq", "zero-mean"),
-                                                      ("gold", "bipolar"),
-                                                      ("random", "zero-mean"),
-                                                      ("random", "bipolar")])
+@pytest.mark.parametrize(("family", "ones", "replica_kind"), [
+    ("mseq", 0.5, "bipolar"), ("mseq", 0.5, "zero-mean"), ("mseq", 0.5, "unipolar"),
+    ("gold", 0.5, "bipolar"), ("random", 0.5, "zero-mean"), ("random", 0.45, "bipolar"),
+    ("random", 0.05, "bipolar"), ("random", 0.5, "unipolar")])
 @pytest.mark.parametrize("gate", [(290, 350), (0, None), (100, 900)])
-def test_the_split_does_not_depend_on_the_gate(family, replica_kind, gate):
+def test_the_split_does_not_depend_on_the_gate(family, ones, replica_kind, gate):
     """A tight gate, one as long as the period and one in between give the true signal and
-    background within 2 % (the Poisson draw: about 0.5 % here; measured 0.3-0.6 %). Summing
-    over the gate, as before, read 0 background at the whole period; reading the delays
-    above the noise without taking out a code's sidelobes read a random code's 40 returns
-    as 250 delays, 1.2-2.1 times the signal in the longer gates."""
-    rng = np.random.default_rng(3)
-    code = make_code(family, 1023, rng=np.random.default_rng(1))
-    hist, replica, gain, true_signal, true_background = _acquisition(code, replica_kind, rng)
-    lo, hi = gate
-    ulags = np.arange(lo, code.size if hi is None else hi)
+    background within 4 % (the Poisson draw and the noise the unipolar replica's weak
+    contrast amplifies: 2.3 % at most measured over these and code seeds 0-2), for every
+    replica and a balanced, an unbalanced and a sparse code. Summing over the gate, as
+    before, read 0 background at the whole period; reading the delays above the noise
+    without taking out a code's sidelobes read a random code's 40 returns as 250 delays,
+    1.2-2.1 times the signal; a CLEAN beam without the background's share read the unipolar
+    replica's 2.3 times and an unbalanced code's bipolar replica's as NaN (a review)."""
+    for code_seed in (1, 2):
+        rng = np.random.default_rng(3)
+        code = make_code(family, 1023, ones_ratio=ones, rng=np.random.default_rng(code_seed))
+        hist, replica, gain, true_signal, true_background = _acquisition(code, replica_kind,
+                                                                         rng)
+        lo, hi = gate
+        ulags = np.arange(lo, code.size if hi is None else hi)
+        corr = matched_filter(hist, replica, ulags, gain, out_dtype=np.float64)
+        totals = hist.sum(axis=1)
+        sigma = noise_sigma_from_totals(totals, replica, gain)
+        signal, returns = split_counts(corr, sigma, totals, ulags, code, replica, gain)
+        assert signal.mean() == pytest.approx(true_signal.mean(), rel=0.04)
+        assert (totals - signal).mean() == pytest.approx(true_background, rel=0.04)
+        # the returns' delays and few others: a return's neighbour either side, and chance
+        held = ulags[returns > 0]
+        assert len(set(range(300, 340)) - set(held.tolist())) <= 6, held  # (weak ones)
+        assert held.size <= 40 + 2 + 0.01 * ulags.size
+
+
+def test_returns_over_most_of_the_period_give_no_split():
+    """A return at 150 of a 255-bit code's delays: they and a flat background look alike
+    (the profile's flat part is no beam's), so no split is given (NaN) rather than one
+    that read 0.2-1.2 times the signal."""
+    code = make_code("mseq", 255)
+    rng = np.random.default_rng(0)
+    lags = np.arange(10, 160)
+    strength = rng.uniform(0.0, 0.02, (48, lags.size))
+    hist = rng.poisson(200 * (strength @ np.stack([np.roll(code, lag) for lag in lags])
+                              + 0.3)).astype(np.float64)
+    replica = make_replica(code, "bipolar")
+    gain = correlation_gain(code, replica) * 200
+    ulags = np.arange(255)
     corr = matched_filter(hist, replica, ulags, gain, out_dtype=np.float64)
     totals = hist.sum(axis=1)
-    sigma = noise_sigma_from_totals(totals, replica, gain)
-    signal, returns = split_counts(corr, sigma, totals, ulags, code, replica, gain)
-    assert signal.mean() == pytest.approx(true_signal.mean(), rel=0.02)
-    assert (totals - signal).mean() == pytest.approx(true_background, rel=0.02)
-    # the returns' delays and few others: a return's neighbour either side, and chance
-    held = ulags[returns > 0]
-    assert set(range(300, 340)) <= set(held.tolist())
-    assert held.size <= 40 + 2 + 0.01 * ulags.size
+    signal, returns = split_counts(corr, noise_sigma_from_totals(totals, replica, gain),
+                                   totals, ulags, code, replica, gain)
+    assert np.isnan(signal).all() and (returns > 0).sum() > 100  # (with their neighbours: 128+)
 
 
 def test_no_return_in_the_gate_is_all_background():
@@ -131,4 +155,12 @@ def test_reconstruct_reads_the_run_s_counts_whatever_the_gate(tmp_path, capsys):
     err = capsys.readouterr().err
     # (68 % measured; the share is of the returns' correlation, the pixels' is 174 / 256)
     assert re.search(r"about (6[3-9]|7[0-3])% of the returns lie outside the range gate "
-                     r"5-5\.4 m, at 5\.4\d*-5\.[78]\d* m", err), err
+                     r"5-5\.4 m, at 5\.4\d*-5\.[78]\d* m \(", err), err
+    # returns on both sides: two spans, neither holding the gate
+    assert main(["reconstruct", "--ptu", str(ptu), "--patterns",
+                 str(tmp_path / "c_patterns.npy"), "--code", str(tmp_path / "c_code.npy"),
+                 "--bit-rate", "10e9", "--range-gate", "5.2", "5.4", "--out",
+                 str(tmp_path / "mid"), "--no-figure"]) == 0
+    err = capsys.readouterr().err
+    assert re.search(r"outside the range gate 5\.2-5\.4 m, at 4\.9\d*-5\.[12]\d* m and "
+                     r"5\.4\d*-5\.[78]\d* m \(", err), err

@@ -350,6 +350,10 @@ def noiseless_roundoff(noise_bin: np.ndarray, amp_sum: np.ndarray, acq: Any, q: 
 #: a delay holds a return where the patterns' mean correlation stands this many of its own
 #: noise levels above the background's floor (:func:`split_counts`)
 SUPPORT_SIGMAS = 3.0
+#: :func:`split_counts` gives no split (NaN) where the returns' delays cover more than this
+#: share of the code period: weaker returns than the mean sink under the profile's floor
+#: (returns of random strengths over 120 of 255 delays: within 3 %)
+SPLIT_SHARE = 0.5
 
 
 def split_counts(corr: np.ndarray, sigma: np.ndarray, totals: np.ndarray, lags: np.ndarray,
@@ -377,13 +381,17 @@ def split_counts(corr: np.ndarray, sigma: np.ndarray, totals: np.ndarray, lags: 
     gain : float
         The matched filter's normalisation.
     sigmas : float
-        A return is seen where it stands this many noise levels above the background.
+        A return is seen where it stands this many noise levels above the background (or
+        ``sqrt(2 ln K)``, which the tallest of K delays of noise about reaches, if more).
 
     Returns
     -------
     signal : ndarray, shape (M,)
         The counts of the returns inside the gate; the rest of ``totals`` is background
-        (and any return outside the gate).
+        (and any return outside the gate). NaN where the returns found cover more than
+        :data:`SPLIT_SHARE` of the period, where they and a flat background cannot be told
+        apart (many weak returns over most of the period read low: 200 returns over 255
+        delays read 0.05-0.09 of their counts).
     returns : ndarray, shape (K,)
         The patterns' mean correlation that the returns at each delay account for, the
         code's sidelobes taken out (:func:`_clean` down to ``sigmas`` of its noise
@@ -399,7 +407,10 @@ def split_counts(corr: np.ndarray, sigma: np.ndarray, totals: np.ndarray, lags: 
     a return, the sum of a pattern's correlations is then ``signal * G + (totals - signal)
     * |S| * sum(f) / (L * gain)``, ``G`` the mean over the returns' delays (weighted by the
     patterns' mean correlation there) of ``sum_{l in S} g(l - tau)``, which counts the
-    code's sidelobes: one linear equation per pattern, solved for ``signal``.
+    code's sidelobes: one linear equation per pattern, solved for ``signal``. The returns'
+    delays are read off the patterns' mean correlation with every count taken for
+    background, where a return of ``c`` counts leaves ``c * (g - sum(f) / (L * gain))``
+    exactly (the beam :func:`_clean` takes out).
     Summing the correlations over the whole gate, as this estimate did before, counted the
     background's share once per gated delay as signal: a gate as long as the code's period
     read every count as signal (a 16x16 acquisition of 65 635 signal and 20 966 background
@@ -416,31 +427,41 @@ def split_counts(corr: np.ndarray, sigma: np.ndarray, totals: np.ndarray, lags: 
     per_lag = float(f.sum()) / (period * gain)  # one background count's share of a delay
     m = max(corr.shape[0], 1)
     level = float(np.sqrt(np.mean(sigma ** 2)) / np.sqrt(m)) if sigma.size else 0.0
-    floor = totals * per_lag  # every count taken for background (an upper bound)
-    mean = (corr - floor[:, None]).mean(axis=0) if corr.shape[0] else np.zeros(corr.shape[1])
     lags = np.asarray(lags) % period
-    if code.sum() <= 0:
-        return np.zeros_like(totals), np.zeros(mean.shape)
+    if code.sum() <= 0 or not corr.shape[0]:
+        return np.zeros_like(totals), np.zeros(corr.shape[1])
     # g(d) = sum_u code(u) f(u - d) per count; G(tau) = sum_{l in S} g(l - tau)
     g = np.fft.irfft(np.fft.rfft(code) * np.conj(np.fft.rfft(f)), period) / (code.sum()
                                                                             * gain)
-    weight = _clean(mean, g / g[0], lags, sigmas * level)
+    # (no fewer sigmas than the largest of K noise delays reaches: at 3, a 4095-delay gate
+    # held about 5 of noise, each read at 3 sigmas as signal, +1.3 %)
+    sigmas = max(float(sigmas), float(np.sqrt(2.0 * np.log(max(lags.size, 2)))))
+    # Every count taken for background, a return of c counts at tau leaves c * (g(l - tau) -
+    # per_lag) in the profile, exactly: CLEAN with that beam (with g alone, the unipolar
+    # replica's and an unbalanced code's bipolar one read 2.3 times the signal or NaN, and
+    # a floor read from the signal of a pass before diverged for them: a review). A flat
+    # spread of returns over the whole period is no beam's: it and the background look
+    # alike, and returns over more than SPLIT_SHARE of the period are given no split.
+    beam = g - per_lag
+    if not beam[0] > 0:
+        return np.full_like(totals, np.nan), np.zeros(corr.shape[1])
+    profile = (corr - (totals * per_lag)[:, None]).mean(axis=0)
+    weight = _clean(profile, beam / beam[0], lags, sigmas * level)
     core = weight > 0
+    if not core.any():
+        return np.zeros_like(totals), weight
     support = core.copy()  # and one delay either side: a return read over two
     support[:-1] |= core[1:]
     support[1:] |= core[:-1]
-    if not core.any():
-        return np.zeros_like(totals), weight
     held = np.zeros(period)
     held[lags[support]] = 1.0
     big_g = np.fft.irfft(np.fft.rfft(held) * np.conj(np.fft.rfft(g)), period)
     per_count = float(weight @ big_g[lags] / weight.sum())
     floor_share = int(support.sum()) * per_lag
+    if support.sum() > SPLIT_SHARE * period or not per_count > floor_share:
+        return np.full_like(totals, np.nan), weight
     inside = corr[:, support].sum(axis=1)
-    if per_count - floor_share <= 0.5 * per_count:  # (no floor left to read it against)
-        signal = inside / per_count
-    else:
-        signal = (inside - totals * floor_share) / (per_count - floor_share)
+    signal = (inside - totals * floor_share) / (per_count - floor_share)
     return np.clip(signal, 0.0, totals), weight
 
 

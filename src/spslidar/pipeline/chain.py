@@ -142,8 +142,8 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
         The scene, acquisition (code, bin width, periods), range gate and lags, the patterns
         and the simulation record: per pattern the matched-filter outputs at the distinct
         gated delays modulo the code period (``sim["corr"]``, one column per ``ulags``, eq.
-        5-6; ``lags`` = ``ulags[inverse]``, longer where the gate is longer than the
-        unambiguous range), their noise levels and the photon counts.
+        5-6; ``lags % L == ulags[inverse]``, L the code period: more lags than ulags where the
+        gate is longer than the unambiguous range), their noise levels and the photon counts.
 
     Raises
     ------

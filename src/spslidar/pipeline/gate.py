@@ -199,7 +199,12 @@ def outside_note(counts: np.ndarray, replica: np.ndarray, gain: float,
     flight = flight + period * np.round((centre - flight) / period)
     metres = flight * bin_width * SPEED_OF_LIGHT / 2.0
     ambiguity = period * bin_width * SPEED_OF_LIGHT / 2.0
+    # (before the gate and after it apart: one span of both named one that held the gate,
+    # "at 4.79668-5.80098 m" for a gate of 5.2-5.4 m, a review)
+    centre_m = centre * bin_width * SPEED_OF_LIGHT / 2.0
+    spans = [f"{side.min():.4g}-{side.max():.4g} m" if side.max() > side.min()
+             else f"{side.min():.4g} m"
+             for side in (metres[metres < centre_m], metres[metres >= centre_m]) if side.size]
     return [f"about {share:.0%} of the returns lie outside the range gate {gate_text(gate)} m, "
-            f"at {gate_text((metres.min(), metres.max()))} m (modulo the code's "
-            f"{ambiguity:.4g} m): their pixels are given depths inside the gate, which are "
-            f"noise; widen --range-gate"]
+            f"at {' and '.join(spans)} (modulo the code's {ambiguity:.4g} m): their pixels "
+            f"are given depths inside the gate, which are noise; widen --range-gate"]

@@ -370,7 +370,7 @@ def _process_headroom() -> tuple[int, int] | None:
         return None
     for pid in pids:
         try:
-            with open(f"/proc/{pid}/status") as fh:
+            with open(f"/proc/{pid}/status", encoding="utf-8", errors="replace") as fh:
                 fields = dict(line.split(":", 1) for line in fh if ":" in line)
             if int(fields["Uid"].split()[0]) == uid:
                 used += int(fields.get("Threads", "1"))
