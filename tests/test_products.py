@@ -188,3 +188,13 @@ def test_result_save_leaves_the_result_as_it_was(tmp_path):
     for m in (written, again):
         m["timing_s"].pop("write")
     assert again == written
+
+
+def test_ply_keeps_far_points_to_the_bin(tmp_path):
+    """Coordinates are doubles: as float32 a point 1 000 km away sat 3.1 cm (two 1.5 cm bins)
+    off its depth (an audit of 2026-11-30); intensity stays float32."""
+    pts = np.array([[1.0e6 + 0.0123, -2.5e5 + 0.0071, 3.0e5 + 0.0049], [0.1, 0.2, 0.3]])
+    write_ply(tmp_path / "p.ply", pts, np.array([0.5, 1.0]))
+    back, inten = read_ply(tmp_path / "p.ply")
+    np.testing.assert_array_equal(back, pts)  # exact: float64 in, float64 out
+    assert (tmp_path / "p.ply").read_bytes().count(b"property double") == 3

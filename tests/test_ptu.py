@@ -77,6 +77,27 @@ def _hh(special: int, ch: int, dt: int, ns: int) -> int:  # HydraHarp T3: 1 | 6 
 # --- round trip ------------------------------------------------------------------------------
 
 
+def test_counts_widen_before_an_int32_bin_could_wrap(tmp_path, monkeypatch):
+    """Past 2^31 - 1 photons a bin's int32 count could wrap to -2^31 (an audit showed the
+    accumulator doing it); the counts go to int64 from there. Here the switch is brought
+    down to 10 photons: the histograms equal the int32 read's, as float32."""
+    import spslidar.io.ptu as ptu_mod
+
+    events, hist = _random_acquisition(1)
+    path = tmp_path / "acq.ptu"
+    write_acquisition_ptu(path, events, L, BW, periods_per_pattern=700)
+    plain = read_ptu_histograms(path, L, n_patterns=6, chunk_records=97)
+    monkeypatch.setattr(ptu_mod, "WIDEN_AFTER", 10)
+    seen, real = [], ptu_mod._to_float32
+    monkeypatch.setattr(ptu_mod, "_to_float32", lambda h: (seen.append(h.dtype), real(h))[1])
+    wide = read_ptu_histograms(path, L, n_patterns=6, chunk_records=97)
+    assert seen == [np.dtype(np.int64)] and wide.histograms.dtype == np.float32
+    np.testing.assert_array_equal(wide.histograms, plain.histograms)
+    np.testing.assert_array_equal(wide.histograms, hist)
+    np.testing.assert_array_equal(wide.counts_per_pattern, hist.sum(1))
+
+
+
 @pytest.mark.parametrize("record_type", ["HydraHarp2T3", "HydraHarpT3", "PicoHarpT3", "generic"])
 def test_round_trip_exact_histograms(tmp_path, record_type):
     events, hist = _random_acquisition(1)

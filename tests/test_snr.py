@@ -391,3 +391,18 @@ def test_the_delta_interval_at_few_trials_uses_students_quantile():
         assert t == pytest.approx(stats.t.ppf(0.975, k - 1), rel=1e-9)
     r = snr_simulated("mseq", 16383, 0.5, 5.0, 10.0, 64, 0.5, 1.0, 2, 0)
     assert r["ci_low"] <= r["theory"] <= r["ci_high"]
+
+
+@pytest.mark.parametrize("signal", ["6e7", "5.9e9"])
+def test_the_sum_path_at_huge_counts_matches_eq_10(signal, capsys):
+    """NumPy's Poisson sampler gets the variance wrong at means of 1e13 and more: the
+    simulated SNR read 1.12 (mean 1e15) and 0.60 (1e17, 44 sigmas) of eq. (10) with no
+    word (an audit of 2026-11-30). Above 1e12 the Gaussian limit is drawn: within 5 %
+    (20 000 trials: one sigma of the ratio is about 1 %)."""
+    import json as _json
+
+    from spslidar.cli import main
+
+    assert main(["snr", "--signal", signal, "--trials", "20000", "--seed", "2", "--json"]) == 0
+    ratio = _json.loads(capsys.readouterr().out)["ratio"]
+    assert abs(ratio - 1.0) < 0.05, ratio

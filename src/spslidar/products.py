@@ -171,7 +171,7 @@ def point_cloud(depth: np.ndarray, fov_deg: float = DEFAULT_FOV_DEG,
     return points, values
 
 
-_PLY_TYPES = {"float": "<f4", "uchar": "u1"}
+_PLY_TYPES = {"double": "<f8", "float": "<f4", "uchar": "u1"}
 
 
 def write_ply(path: str | os.PathLike, points: np.ndarray, values: np.ndarray,
@@ -179,11 +179,13 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, values: np.ndarray,
     """Write points, their intensity and any further per-point scalars as a binary
     little-endian PLY file.
 
-    The vertex element has ``float x, y, z, intensity`` (float32), then one property per
-    keyword in the order given: ``float`` for a float array (NaN where unknown),
-    ``uchar`` for an integer one (0-255; ``return_number``: 1 for a pixel's first surface,
-    2 for its second, as LAS numbers returns). Readable by CloudCompare, MeshLab, Open3D,
-    PDAL and ``plyfile`` (each extra property a scalar field). Written by hand: the format
+    The vertex element has ``double x, y, z`` (float64: as float32 a point at 1 000 km sat
+    3.1 cm, two bins, off its depth; an audit of 2026-11-30) and ``float intensity``
+    (float32), then one property per keyword in the order given: ``float`` for a float
+    array (NaN where unknown), ``uchar`` for an integer one (0-255; ``return_number``: 1
+    for a pixel's first surface, 2 for its second, as LAS numbers returns). Readable by
+    CloudCompare, MeshLab, Open3D, PDAL and ``plyfile`` (each extra property a scalar
+    field). Written by hand: the format
     is a short header and a packed array, and no dependency the project has writes it.
     """
     pts = real_array(points, "points").astype(np.float64)
@@ -196,7 +198,7 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, values: np.ndarray,
     if vals.size != n:
         raise ValueError(f"{n} points but {vals.size} intensity values")
     columns = {"x": pts[:, 0], "y": pts[:, 1], "z": pts[:, 2], "intensity": vals}
-    kinds = dict.fromkeys(columns, "float")
+    kinds = {"x": "double", "y": "double", "z": "double", "intensity": "float"}
     for name, arr in fields.items():
         a = real_array(arr, name).ravel()
         if not name.isidentifier() or name in columns:

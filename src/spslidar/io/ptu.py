@@ -276,8 +276,16 @@ def _accumulate(hist: np.ndarray, blocks: np.ndarray, bins: np.ndarray) -> None:
         hist.reshape(-1)[b0 * n_bins + cells] += counts.astype(hist.dtype)
 
 
+#: photons read after which the histograms are counted in int64 (no bin of an int32 can
+#: wrap before: it holds at most every photon)
+WIDEN_AFTER = 2**31 - 1
+
+
 def _to_float32(hist: np.ndarray) -> np.ndarray:
-    """The int32 counts as float32 in the same memory (block by block: no full copy)."""
+    """The int32 counts as float32 in the same memory (block by block: no full copy); int64
+    counts (a file of more than 2^31 - 1 photons) as a new float32 array."""
+    if hist.dtype != np.int32:
+        return hist.astype(np.float32)
     out = hist.view(np.float32)
     step = max(1, (1 << 22) // max(1, hist.shape[1]))
     for r in range(0, hist.shape[0], step):
@@ -468,7 +476,7 @@ def read_ptu_histograms(
             if len(marks) == 2:  # as long as pattern 1 (time before it was pattern 0's, and
                 # its histogram was scaled down by that dwell: a review)
                 first_sync = max(0, 2 * marks[0] + 1 - marks[1])
-        hist = np.zeros((rows, n_bins), np.int32)  # counts per bin: < 2^31
+        hist = np.zeros((rows, n_bins), np.int32)  # (int64 past 2^31 - 1 photons in all)
         starts = np.zeros(rows + 1, np.int64)  # marker syncs, and the next block's if any
         seen_channels = np.zeros(128, bool)  # ptufile's channel is an int8
         n_markers = n_photons = n_ofl = carry = n_before = n_after = n_out = bits_seen = 0
@@ -508,6 +516,9 @@ def read_ptu_histograms(
                 n_out += int(np.count_nonzero(keep & (bins >= n_bins)))
                 keep &= bins < n_bins
                 if keep.any():
+                    if n_photons >= WIDEN_AFTER and hist.dtype == np.int32:
+                        # (past 2^31 - 1 photons one bin could wrap to -2^31: an audit)
+                        hist = hist.astype(np.int64)
                     _accumulate(hist, block[keep], bins[keep])
             n_markers += k
             k_ofl, k_wraps = _overflows(raw, family)
