@@ -233,24 +233,6 @@ def test_run_sweep_jobs_1_and_2_give_identical_rows(tmp_path):
     assert shuffled[::-1] == serial
 
 
-def test_run_sweep_old_joblib_without_generators(tmp_path, monkeypatch):
-    import joblib
-
-    real = joblib.Parallel
-    used = []
-
-    def old_parallel(*args, **kwargs):
-        if "return_as" in kwargs:
-            raise TypeError("unexpected keyword argument 'return_as'")
-        used.append(kwargs)
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(joblib, "Parallel", old_parallel)
-    rows = run_sweep(toy, POINTS, tmp_path / "old", seed=11, jobs=2, progress=False)
-    assert used == [{"n_jobs": 2}]
-    assert rows == run_sweep(toy, POINTS, tmp_path / "new", seed=11, progress=False)
-
-
 def test_run_sweep_explicit_seed_is_kept(tmp_path):
     points = expand_grid({}, {"x": [1], "seed": [5, 6]})
     rows = run_sweep(toy, points, tmp_path, seed=0, progress=False)
