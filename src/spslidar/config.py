@@ -641,6 +641,14 @@ def read_config_bytes(path: Path, what: str = "config file") -> bytes:
     return raw
 
 
+def _decodes(raw: bytes, encoding: str) -> bool:
+    try:
+        raw.decode(encoding)
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
 def check_toml_bytes(raw: bytes, path: Path, what: str = "config file") -> None:
     """Refuse, in one line, a TOML file that starts with a byte-order mark: UTF-8's (Windows
     editors write it; invisible, and TOML refuses it at 1:1) or UTF-16's (PowerShell 5's
@@ -648,7 +656,7 @@ def check_toml_bytes(raw: bytes, path: Path, what: str = "config file") -> None:
     if raw.startswith(b"\xef\xbb\xbf"):
         raise ConfigError(f"{what} {path} starts with a UTF-8 byte-order mark, which TOML "
                           f"does not allow: save it as UTF-8 without BOM")
-    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")) and _decodes(raw, "utf-16"):
         raise ConfigError(f"{what} {path} is UTF-16 (PowerShell 5's '>' writes it), and TOML "
                           f"is UTF-8: save it as UTF-8 without BOM")
 
