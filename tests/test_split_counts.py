@@ -146,18 +146,23 @@ def test_reconstruct_reads_the_run_s_counts_whatever_the_gate(tmp_path, capsys):
                      str(tmp_path / "c_patterns.npy"), "--code", str(tmp_path / "c_code.npy"),
                      "--bit-rate", "10e9", "--range-gate", lo, hi, "--out", str(out),
                      "--no-figure"]) == 0
-        return json.loads((out / "metrics.json").read_text()), capsys.readouterr().err
+        return json.loads((out / "metrics.json").read_text()), capsys.readouterr()
 
     for gate in (("4.9", "5.9"), ("0.05", "61.3")):
-        got, err = reconstruct(*gate)
+        got, (out, err) = reconstruct(*gate)
         for key in ("mean_signal_counts_per_pattern", "mean_noise_counts_per_pattern"):
             assert got[key] == pytest.approx(truth[key], rel=0.03), (gate, key)
-        assert "outside the range gate" not in err
-    _, err = reconstruct("5.0", "5.4")
+        assert "outside the range gate" not in err + out and "returns in 100% of pixels" in out
+        assert got["returns_outside_gate_fraction"] < 0.01
+    got, (out, err) = reconstruct("5.0", "5.4")
+    # the summary line and the metrics say it too (it read "returns in 99% of pixels")
+    assert 0.63 < got["returns_outside_gate_fraction"] < 0.74
+    assert re.search(r"a depth in 99% of pixels, \d+% of the returns outside the range gate",
+                     out), out
     # (68 % measured; the share is of the returns' correlation, the pixels' is 174 / 256)
     assert re.search(r"about (6[3-9]|7[0-3])% of the returns lie outside the range gate "
                      r"5-5\.4 m, at 5\.4\d*-5\.[78]\d* m \(", err), err
     # returns on both sides: two spans, neither holding the gate
-    _, err = reconstruct("5.2", "5.4")
+    _, (_, err) = reconstruct("5.2", "5.4")
     assert re.search(r"outside the range gate 5\.2-5\.4 m, at 4\.9\d*-5\.[12]\d* m and "
                      r"5\.4\d*-5\.[78]\d* m \(", err), err

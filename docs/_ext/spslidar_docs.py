@@ -310,6 +310,11 @@ METRICS: dict[str, str] = {
                                       "(``reconstruct``) the returns inside the range gate, "
                                       "read off the correlations "
                                       "(:func:`spslidar.correlate.split_counts`).",
+    "returns_outside_gate_fraction": "For a measured file (``reconstruct``), the share of "
+                                     "its returns that lie outside the range gate, read over "
+                                     "the code's whole period "
+                                     "(:func:`spslidar.correlate.returns_outside`; a warning "
+                                     "above 5 %); None for a simulation.",
     "mean_noise_counts_per_pattern": "Mean noise (background) counts per pattern over its "
                                      "dwell: the simulation's own; for a measured file the "
                                      "counts that are not signal in the gate.",

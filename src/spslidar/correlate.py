@@ -474,6 +474,11 @@ def split_counts(corr: np.ndarray, sigma: np.ndarray, totals: np.ndarray, lags: 
 OUTSIDE_SIGMAS = 5.0
 
 
+#: a measured acquisition warns where more than this share of its returns lies outside the
+#: range gate (:func:`returns_outside`, :func:`spslidar.pipeline.gate.outside_note`)
+OUTSIDE_SHARE = 0.05
+
+
 def returns_outside(counts: np.ndarray, replica: np.ndarray, gain: float,
                     signal_code: np.ndarray, delays: np.ndarray) -> tuple[float, np.ndarray]:
     """Which share of an acquisition's returns lies outside the delays it was correlated at

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from .arrays import real_array
+from .correlate import OUTSIDE_SHARE
 
 
 def _mask(valid, size: int, what: str = "valid") -> np.ndarray:
@@ -192,6 +193,11 @@ def returns_phrase(metrics: dict, share: float) -> str:
     right after the warning that the map is noise, an audit)."""
     if mostly_noise(metrics):
         return f"a depth in {percent(share)} of pixels, mostly noise (see the warning)"
+    outside = metrics.get("returns_outside_gate_fraction")
+    if outside is not None and outside > OUTSIDE_SHARE:
+        # (the pixels whose return lies beyond the gate are given depths in it: not returns)
+        return (f"a depth in {percent(share)} of pixels, {outside:.0%} of the returns outside "
+                f"the range gate (see the warning)")
     return f"returns in {percent(share)} of pixels"
 
 

@@ -174,25 +174,21 @@ def unique_lags(lags: np.ndarray, period: int) -> tuple[np.ndarray, np.ndarray]:
     return u, inv
 
 
-#: a measured acquisition warns where more than this share of its returns lies outside the
-#: range gate (:func:`outside_note`)
-OUTSIDE_SHARE = 0.05
-
-
 def outside_note(counts: np.ndarray, replica: np.ndarray, gain: float,
                  signal_code: np.ndarray, ulags: np.ndarray, shift: int, lags: np.ndarray,
-                 bin_width: float, gate) -> list[str]:
-    """A warning, where more than :data:`OUTSIDE_SHARE` of a measured acquisition's returns
-    lie outside its range gate (:func:`spslidar.correlate.returns_outside`), naming where
-    they are: the pixels whose return lies beyond the gate are given depths inside it, which
-    are noise. ``ulags``: the delays correlated (the returns' arrival, ``shift`` bins after
-    their time of flight for a calibrated instrument); ``lags``: the gate's own delays."""
+                 bin_width: float, gate) -> tuple[float, list[str]]:
+    """The share of a measured acquisition's returns outside its range gate, and a warning
+    where it is more than :data:`~spslidar.correlate.OUTSIDE_SHARE` of them
+    (:func:`spslidar.correlate.returns_outside`), naming where they are: the pixels whose
+    return lies beyond the gate are given depths inside it, which are noise. ``ulags``: the
+    delays correlated (the returns' arrival, ``shift`` bins after their time of flight for a
+    calibrated instrument); ``lags``: the gate's own delays."""
     from ..constants import SPEED_OF_LIGHT
-    from ..correlate import returns_outside
+    from ..correlate import OUTSIDE_SHARE, returns_outside
 
     share, outside = returns_outside(counts, replica, gain, signal_code, ulags)
     if share <= OUTSIDE_SHARE:
-        return []
+        return share, []
     period = np.size(counts)
     centre = float(np.mean(lags))
     flight = outside - int(shift)  # each in the period nearest the gate
@@ -205,6 +201,7 @@ def outside_note(counts: np.ndarray, replica: np.ndarray, gain: float,
     spans = [f"{side.min():.4g}-{side.max():.4g} m" if side.max() > side.min()
              else f"{side.min():.4g} m"
              for side in (metres[metres < centre_m], metres[metres >= centre_m]) if side.size]
-    return [f"about {share:.0%} of the returns lie outside the range gate {gate_text(gate)} m, "
-            f"at {' and '.join(spans)} (modulo the code's {ambiguity:.4g} m): their pixels "
-            f"are given depths inside the gate, which are noise; widen --range-gate"]
+    return share, [
+        f"about {share:.0%} of the returns lie outside the range gate {gate_text(gate)} m, at "
+        f"{' and '.join(spans)} (modulo the code's {ambiguity:.4g} m): their pixels are given "
+        f"depths inside the gate, which are noise; widen --range-gate"]

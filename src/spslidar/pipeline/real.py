@@ -557,14 +557,16 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         dwell_warning.append(inverted)
     # (a calibrated instrument's return is its code through the response: signal_code)
     signal, _ = split_counts(corr, sigma, totals, ulags, signal_code, replica, gain)
-    dwell_warning += outside_note(hist.sum(axis=0), replica, gain, signal_code, ulags, shift,
+    outside, notes = outside_note(hist.sum(axis=0), replica, gain, signal_code, ulags, shift,
                                   lags, bin_width, cfg.range_gate)
+    dwell_warning += notes
     background = np.maximum(totals - signal, 0.0) / period
     sim = {"corr": corr, "sigma": sigma,
            "counts": totals, "signal_counts": signal, "noise_per_bin": background / n_mean,
            "pileup": {"model": "measured", "count_rate_hz": float(totals.mean() / n_mean
                                                                   / (period * bin_width))},
-           "estimate": {}, "delay_response": response, "response_half_width": half_width}
+           "estimate": {}, "delay_response": response, "response_half_width": half_width,
+           "outside_share": outside}
     acq = Acquisition("psst", code, bin_width, max(1, int(round(n_mean))), 1.0,
                       replica_kind,
                       f"measured code of {period} bits", 0)

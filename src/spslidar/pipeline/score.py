@@ -183,6 +183,9 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         "mean_noise_counts_per_pattern": float(np.mean(sim["noise_per_bin"]) * acq.period
                                                * acq.n_periods),
         "correlation_noise_sigma": float(np.sqrt(np.mean(sim["sigma"] ** 2))),
+        # a measured file's share of its returns outside the range gate (None: simulated, or
+        # the scene's truth says it: run's own warning)
+        "returns_outside_gate_fraction": sim.get("outside_share"),
         "depth_estimator": cfg.depth,
         "low_confidence_fraction": float(np.mean(low_confidence)),
         # the estimator's confidence below which a depth is flagged (its class's
