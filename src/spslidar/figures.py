@@ -15,8 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .correlate import OUTSIDE_SHARE
-from .metrics import mostly_noise
+from .metrics import mostly_noise, outside_gate
 from .metrics import percent as _percent
 from .patterns import realisation_note
 
@@ -246,9 +245,8 @@ def _title(result) -> str:
     noise = ""
     if mostly_noise(m):
         noise = "; MOSTLY NOISE: at most a tenth of the pixels hold a return (see the warnings)"
-    elif (m.get("returns_outside_gate_fraction") or 0.0) > OUTSIDE_SHARE:
-        noise = (f"; {m['returns_outside_gate_fraction']:.0%} of the returns outside the range "
-                 f"gate (see the warnings)")
+    elif outside_gate(m) is not None:
+        noise = f"; {outside_gate(m):.0%} of the returns outside the range gate (see the warnings)"
     if m.get("depth_rmse_m") is None:
         # (not "returns in 97% of pixels" beside MOSTLY NOISE, as the summary line says it)
         found = "a depth" if noise else "returns"

@@ -187,14 +187,21 @@ def mostly_noise(metrics: dict) -> bool:
     return p90 is not None and floor is not None and p90 < floor
 
 
+def outside_gate(metrics: dict) -> float | None:
+    """The share of a measured file's returns outside its range gate where it is more than
+    :data:`~spslidar.correlate.OUTSIDE_SHARE` (the run warned of it), else None."""
+    share = metrics.get("returns_outside_gate_fraction")
+    return share if share is not None and share > OUTSIDE_SHARE else None
+
+
 def returns_phrase(metrics: dict, share: float) -> str:
     """``returns in 97% of pixels``, or, where the map is mostly noise (:func:`mostly_noise`),
     ``a depth in 97% of pixels, mostly noise`` (the summary said "returns in 100% of pixels"
     right after the warning that the map is noise, an audit)."""
     if mostly_noise(metrics):
         return f"a depth in {percent(share)} of pixels, mostly noise (see the warning)"
-    outside = metrics.get("returns_outside_gate_fraction")
-    if outside is not None and outside > OUTSIDE_SHARE:
+    outside = outside_gate(metrics)
+    if outside is not None:
         # (the pixels whose return lies beyond the gate are given depths in it: not returns)
         return (f"a depth in {percent(share)} of pixels, {outside:.0%} of the returns outside "
                 f"the range gate (see the warning)")

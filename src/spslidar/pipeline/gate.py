@@ -183,8 +183,8 @@ def outside_note(counts: np.ndarray, replica: np.ndarray, gain: float,
     return lies beyond the gate are given depths inside it, which are noise. ``ulags``: the
     delays correlated (the returns' arrival, ``shift`` bins after their time of flight for a
     calibrated instrument); ``lags``: the gate's own delays."""
-    from ..constants import SPEED_OF_LIGHT
     from ..correlate import OUTSIDE_SHARE, returns_outside
+    from ..forward import delay_to_depth
 
     share, outside = returns_outside(counts, replica, gain, signal_code, ulags)
     if share <= OUTSIDE_SHARE:
@@ -193,14 +193,13 @@ def outside_note(counts: np.ndarray, replica: np.ndarray, gain: float,
     centre = float(np.mean(lags))
     flight = outside - int(shift)  # each in the period nearest the gate
     flight = flight + period * np.round((centre - flight) / period)
-    metres = flight * bin_width * SPEED_OF_LIGHT / 2.0
-    ambiguity = period * bin_width * SPEED_OF_LIGHT / 2.0
+    ambiguity = float(delay_to_depth(period, bin_width))
     # (before the gate and after it apart: one span of both named one that held the gate,
     # "at 4.79668-5.80098 m" for a gate of 5.2-5.4 m, a review)
-    centre_m = centre * bin_width * SPEED_OF_LIGHT / 2.0
+    sides = (delay_to_depth(flight[flight < centre], bin_width),
+             delay_to_depth(flight[flight >= centre], bin_width))
     spans = [f"{side.min():.4g}-{side.max():.4g} m" if side.max() > side.min()
-             else f"{side.min():.4g} m"
-             for side in (metres[metres < centre_m], metres[metres >= centre_m]) if side.size]
+             else f"{side.min():.4g} m" for side in sides if side.size]
     return share, [
         f"about {share:.0%} of the returns lie outside the range gate {gate_text(gate)} m, at "
         f"{' and '.join(spans)} (modulo the code's {ambiguity:.4g} m): their pixels are given "
