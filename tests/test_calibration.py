@@ -346,6 +346,25 @@ def test_refine_depth_finds_a_symmetric_profile_below_a_lag():
     assert np.isnan(got[5])
 
 
+def test_refine_depth_does_not_add_its_shift_to_a_depth_already_below_a_lag():
+    """With --subbin on a calibrated instrument the estimator's depth was already moved below
+    a lag and the parabola's shift was added on top of it (+0.092 bin for a 1.5-bin Gaussian
+    peaked at 1010.4, an outside audit): a depth anywhere within half a bin of a lag now gives
+    what the lag itself gives."""
+    from spslidar.forward import delay_to_depth
+    from spslidar.pipeline.calibrated import refine_depth
+
+    dt, pulse = 1e-10, 0.5
+    lags = np.arange(1000, 1020)
+    seen = np.exp(-0.5 * ((lags[None, :] - 1010.4) / 1.5) ** 2)
+    bin_m = delay_to_depth(1.0, dt)
+    on_grid = delay_to_depth(np.array([1010.0]) + 0.5 - pulse / 2, dt)
+    ref = refine_depth(on_grid, seen, lags, dt, pulse)
+    for moved in (0.2, 0.4, -0.3):
+        got = refine_depth(on_grid + moved * bin_m, seen, lags, dt, pulse)
+        assert got[0] == pytest.approx(ref[0], abs=1e-9)
+
+
 def test_figure_title_names_the_calibration(acquisitions):
     """depth.png of a calibrated reconstruction says which calibration corrected it."""
     from spslidar.figures import _title

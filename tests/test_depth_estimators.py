@@ -87,6 +87,12 @@ def test_subbin_refinement_recovers_fractional_delays(name):
     err = np.abs(est.depth.reshape(n, n) - depth)
     assert err.max() < 0.3 * BIN_M
     assert np.mean(err) < np.mean(np.abs(coarse.depth.reshape(n, n) - depth))
+    # what the counts hold (the pulse's shape, profile.subbin_offset): a return straddling
+    # two bins exactly, one inside its bin at the middle of where it could be (the centroid
+    # missed both by up to a quarter bin)
+    frac = depth_to_delay(depth, BW) % 1.0
+    limit = np.where(frac <= 1 - PW, (1 - PW) / 2 - frac, 0.0) * BIN_M
+    np.testing.assert_allclose(est.depth.reshape(n, n) - depth, limit, atol=0.01 * BIN_M)
 
 
 def test_noisy_scene_is_meaningful():

@@ -46,6 +46,69 @@ def test_subbin_centroid_recovers_fractional_delay():
     assert d0[0] == pytest.approx(delay_to_depth(20.0, BW))
 
 
+def _box_profiles(frac, width=0.5, k=16, b=7):
+    """Exact profiles of a box pulse of ``width`` bins whose leading edge is at ``b + frac``."""
+    from spslidar.depth.profile import _box_shares
+
+    x = np.zeros((np.size(frac), k))
+    x[:, b - 1:b + 2] = _box_shares(np.asarray(frac, float), width)
+    return x
+
+
+def test_subbin_inverts_a_straddling_half_bit_pulse_and_centres_one_in_its_bin():
+    """A half-bit pulse (the simulator's default) wholly inside bin b leaves the counts
+    blind to where (the integer reading, b + 1/4, is the middle of those positions); one that
+    straddles two bins is placed by their split, exactly up to the posterior grid's spacing
+    (0.00625 bin). The three-bin centroid erred by up to a quarter bin in both regions."""
+    frac = np.linspace(0.0, 0.99, 34)
+    lags = np.arange(100, 116)
+    truth = delay_to_depth(107 + frac, BW)
+    bin_m = delay_to_depth(1.0, BW)
+    d, _ = ml_depth(_box_profiles(frac), lags, BW, pulse_width=0.5, subbin=True)
+    err = (d - truth) / bin_m
+    inside, straddle = frac <= 0.5, frac > 0.5 + 1e-9
+    np.testing.assert_allclose(err[inside], 0.25 - frac[inside], atol=0.004)
+    assert np.abs(err[straddle]).max() < 0.004
+
+
+def test_subbin_beats_the_centroid_under_white_noise():
+    """Seeded white noise on exact profiles of uniformly placed pulses of random amplitude:
+    the posterior's RMS error is lower than the three-bin centroid's (measured, in bins:
+    0.105 against 0.144 noiseless, the floor the blind positions set is 0.102; 0.138 against
+    0.157 at 2 % noise). The centroid is read from the same peaks by the one-bin path,
+    shifted to the half-bit pulse's leading edge."""
+    from spslidar.depth.argmax import depth_from_peaks
+
+    rng = np.random.default_rng(0)
+    n, lags = 4000, np.arange(100, 116)
+    frac = rng.uniform(0, 1, n)
+    truth = delay_to_depth(107 + frac, BW)
+    bin_m = delay_to_depth(1.0, BW)
+    for noise, ratio in ((0.0, 0.8), (0.02, 0.95)):
+        x = _box_profiles(frac) * rng.uniform(0.2, 1.0, (n, 1))
+        x += noise * rng.standard_normal(x.shape)
+        d, _ = ml_depth(x, lags, BW, pulse_width=0.5, subbin=True)
+        idx = np.argmax(x, axis=1)
+        rows = np.arange(n)
+        c = depth_from_peaks(idx, x[rows, idx], x[rows, idx - 1], x[rows, idx + 1], lags, 16,
+                             BW, pulse_width=1.0, subbin=True) + delay_to_depth(0.25, BW)
+        post, cent = (float(np.sqrt(np.nanmean((e - truth) ** 2))) / bin_m for e in (d, c))
+        assert post < ratio * cent, (noise, post, cent)
+
+
+def test_subbin_leaves_out_a_neighbour_that_is_not_the_adjacent_delay():
+    """An automatic gate's columns can jump: a column beside the peak that is three delays
+    away holds another return, not a share of this one (the centroid moved the depth by the
+    jump's length times its weight)."""
+    x = np.zeros((1, 6))
+    x[0, 2], x[0, 3] = 1.0, 0.8
+    lags = np.array([10, 11, 12, 15, 16, 17])
+    for width in (0.5, 1.0):
+        d, _ = ml_depth(x, lags, BW, pulse_width=width, subbin=True)
+        plain, _ = ml_depth(x, lags, BW, pulse_width=width)
+        assert d[0] == pytest.approx(plain[0], abs=1e-12)
+
+
 def test_rmse_eq19_and_missing():
     truth = np.array([[1.0, 2.0], [3.0, 4.0]])
     est = np.array([[1.1, 2.0], [np.nan, 3.8]])

@@ -199,8 +199,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help=f"depth estimator: {depths_help}")
     _add_stage_options(g, "depth")
     g.add_argument("--subbin", action=argparse.BooleanOptionalAction, default=S,
-                   help="refine the ML peak by a three-bin centroid (--no-subbin undoes a "
-                        "config file's)")
+                   help="place each return below a bin from its peak and the two beside it, "
+                        "with the pulse's shape (--no-subbin undoes a config file's)")
     g.add_argument("--dtype", choices=("float32", "float64"), default=S,
                    help="precision of the solve (default float32); the simulated counts and their "
                         "correlations are float32 whatever it says")

@@ -173,7 +173,7 @@ class Config:
     iterations: int | None = None
     #: relative-change stopping tolerance of the solver
     tol: float = 1e-4
-    #: refine the ML depth peak by a three-bin centroid
+    #: place each return below a bin from its peak and two neighbours (depth.profile.subbin_offset)
     subbin: bool = False
     #: constrain the reconstructed return strengths to be non-negative (photon returns cannot be
     #: negative)

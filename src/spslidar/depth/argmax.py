@@ -4,8 +4,10 @@ The reconstruction gives, for each pixel, a profile over the gated delays (the c
 ``(Q, K)`` solution). The ML delay is the first tallest peak (eq. 2), converted to depth by
 ``d = tau c / 2`` (eq. 3). The bin index is mapped to the delay of the pulse's leading edge
 by ``tau = b + 1/2 - w/2`` (the centre of bin ``b`` minus half the pulse width ``w``), which
-makes the integer estimate unbiased; with ``subbin=True`` the peak position is refined by the
-centroid of the peak bin and its two neighbours.
+makes the integer estimate unbiased; with ``subbin=True`` the peak position is refined from the
+peak bin and its two neighbours with the pulse's known shape
+(:func:`~spslidar.depth.profile.subbin_offset`; a three-bin centroid for a pulse of a bin or
+more).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy as np
 from ..arrays import positive_number, real_array
 from ..forward import delay_to_depth
 from .base import DepthContext, DepthEstimate, DepthEstimator, check_delays
-from .profile import no_return
+from .profile import no_return, subbin_offset
 
 
 def ml_depth(
@@ -39,7 +41,8 @@ def ml_depth(
     pulse_width : float
         Return pulse width in bins (see :mod:`spslidar.forward`).
     subbin : bool
-        Refine the peak by a three-bin centroid.
+        Refine the peak below a bin from it and its two neighbours
+        (:func:`~spslidar.depth.profile.refine_subbin`).
     min_peak_fraction : float
         A pixel whose peak is not positive, or is below this fraction of the 99th percentile of
         all pixels' peaks, has no detected return and gets NaN.
@@ -113,15 +116,21 @@ def depth_from_peaks(idx: np.ndarray, peak: np.ndarray, below: np.ndarray | None
     if subbin and n_slices >= 3:
         lo = np.clip(idx - 1, 0, n_slices - 1)
         hi = np.clip(idx + 1, 0, n_slices - 1)
-        w_lo = np.clip(np.asarray(below, np.float64), 0, None) * (lo != idx)
-        w_hi = np.clip(np.asarray(above, np.float64), 0, None) * (hi != idx)
-        w_c = np.clip(peak, 0, None)
-        tot = w_lo + w_c + w_hi
-        ok = tot > 0
-        shift = np.zeros_like(pos)
-        num = w_hi * (lags[hi] - pos) + w_lo * (lags[lo] - pos)
-        shift[ok] = num[ok] / tot[ok]
-        pos = pos + shift
+        # a neighbour counts where it is the adjacent delay (an automatic gate's columns may
+        # jump; the centroid weighted such a column by its distance, an audit)
+        has_lo = (lo != idx) & (lags[lo] == pos - 1)
+        has_hi = (hi != idx) & (lags[hi] == pos + 1)
+        if 0 < pulse_width < 1:
+            values = np.stack([np.asarray(below, np.float64), peak,
+                               np.asarray(above, np.float64)], axis=1)
+            present = np.stack([has_lo, np.ones_like(has_lo), has_hi], axis=1)
+            pos = pos + subbin_offset(values, present, pulse_width)
+        else:
+            w_lo = np.clip(np.asarray(below, np.float64), 0, None) * has_lo
+            w_hi = np.clip(np.asarray(above, np.float64), 0, None) * has_hi
+            tot = w_lo + np.clip(peak, 0, None) + w_hi
+            shift = np.divide(w_hi - w_lo, tot, out=np.zeros_like(pos), where=tot > 0)
+            pos = pos + shift
     depth = delay_to_depth(pos + 0.5 - pulse_width / 2.0, bin_width)
     depth[no_return(peak, min_peak_fraction)] = np.nan
     return depth

@@ -200,7 +200,8 @@ class CensorDepth(DepthEstimator):
         conf = (np.clip(self._gap(z, label) / (2 * self.gap), 0.0, 1.0)
                 * np.exp(-road / (2 * self.road_tol)))
         subbin = ctx.subbin if self.subbin is None else self.subbin
-        index = refine_subbin(x, label) if subbin and k >= 3 else label.astype(np.float64)
+        index = (refine_subbin(x, label, pulse_width=ctx.pulse_width, lags=ctx.lags)
+                 if subbin and k >= 3 else label.astype(np.float64))
         depth = index_to_depth(index, ctx)
         missing = no_return(x.max(axis=1).astype(np.float64))
         depth[missing] = np.nan

@@ -190,14 +190,17 @@ class GuardedDepth(MRFDepth):
         conf = _pseudo_marginal(belief, label)
         guarded = keep & (own != smooth)
         subbin = ctx.subbin if self.subbin is None else self.subbin
-        index = refine_subbin(x, label) if subbin and k >= 3 else label.astype(np.float64)
+        sub = dict(pulse_width=ctx.pulse_width, lags=ctx.lags)
+        index = (refine_subbin(x, label, **sub) if subbin and k >= 3
+                 else label.astype(np.float64))
         depth = index_to_depth(index, ctx)
         second = second_surface(z, label, None, self.gap, self.ratio, self.quantile)
         if self.support > 0:
             second = neighbour_support(label, second, (n1, n2), need=self.support)
         two = second >= 0
-        index2 = (refine_subbin(x, np.where(two, second, 0)) if subbin and k >= 3
-                  else second.astype(np.float64))
+        index2 = second.astype(np.float64)
+        if subbin and k >= 3 and two.any():  # (the noise read off the second returns alone)
+            index2[two] = refine_subbin(x[two], second[two], **sub)
         depth2 = np.where(two, index_to_depth(np.where(two, index2, 0.0), ctx), np.nan)
         missing = no_return(peak)
         depth[missing] = np.nan

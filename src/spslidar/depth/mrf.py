@@ -332,7 +332,8 @@ class MRFDepth(DepthEstimator):
         label, belief, found = self.labelling(x, z, (n1, n2))
         conf = _pseudo_marginal(belief, label)
         subbin = ctx.subbin if self.subbin is None else self.subbin
-        index = refine_subbin(x, label) if subbin and k >= 3 else label.astype(np.float64)
+        index = (refine_subbin(x, label, pulse_width=ctx.pulse_width, lags=ctx.lags)
+                 if subbin and k >= 3 else label.astype(np.float64))
         depth = index_to_depth(index, ctx)
         missing = no_return(peak)
         depth[missing] = np.nan

@@ -17,9 +17,11 @@ from ..forward import delay_to_depth
 from .base import DepthContext
 
 __all__ = ["NOISE_BESIDE_MIN", "NOISE_ONLY_MARGIN", "NOISE_ONLY_MIN_SLICES",
-           "NOISE_VERDICT_PIXELS", "effective_slices", "grid_shape", "index_to_depth",
-           "no_return", "noise_maxima", "noise_only_ratio", "noise_scale", "noise_verdict",
-           "peak_to_noise", "pulse_filter", "refine_subbin", "shift2d", "verdict_and_room"]
+           "NOISE_VERDICT_PIXELS", "SUBBIN_CLEAR", "SUBBIN_QUANTILE",
+           "effective_slices", "grid_shape",
+           "index_to_depth", "no_return", "noise_maxima", "noise_only_ratio", "noise_scale",
+           "noise_verdict", "peak_to_noise", "pulse_filter", "refine_subbin", "shift2d",
+           "subbin_noise", "subbin_offset", "verdict_and_room"]
 
 #: An image is said to be noise where the 90th percentile of :func:`peak_to_noise` is below
 #: this many times what non-negative white noise gives at as many effective slices
@@ -122,12 +124,138 @@ def index_to_depth(index: np.ndarray, ctx: DepthContext) -> np.ndarray:
     return delay_to_depth(pos + 0.5 - ctx.pulse_width / 2.0, ctx.bin_width)
 
 
-def refine_subbin(slices: np.ndarray, label: np.ndarray, half: int = 1) -> np.ndarray:
+#: points of the grid of the pulse's leading edge over which :func:`subbin_offset` takes its
+#: posterior mean (its spacing, 1.5 / 240 of a bin at the default half-bit pulse, bounds the
+#: noiseless error at 0.003 bin, 0.05 mm at 10 GHz)
+SUBBIN_GRID = 241
+#: pixels whose peak reaches this share of the 99th percentile of the peaks give
+#: :func:`subbin_noise` its sample (a noise peak's neighbours are as high as itself)
+SUBBIN_CLEAR = 0.25
+#: the percentile of the lower neighbour's share of the peak that :func:`subbin_noise` takes
+SUBBIN_QUANTILE = 95.0
+
+
+def _box_shares(delta: np.ndarray, width: float) -> np.ndarray:
+    """Shares of a pulse ``[delta, delta + width)`` in the bins ``-1, 0, 1`` (``(G, 3)``)."""
+    j = np.arange(-1, 2, dtype=np.float64)
+    d = np.asarray(delta, np.float64)[:, None]
+    return np.clip(np.minimum(d + width, j + 1) - np.maximum(d, j), 0.0, None) / width
+
+
+def subbin_noise(values: np.ndarray, present: np.ndarray) -> np.ndarray:
+    """The noise on each peak's neighbours, read off the lower of the two.
+
+    Whether a return lies in one bin or straddles two, the lower of its bin's two neighbours
+    holds no share of it: what it holds is the noise beside a return, with the
+    reconstruction's leaks from surfaces nearby. Taken relative to the peak (its 95th
+    percentile over the pixels with a clear return, :data:`SUBBIN_CLEAR`: the leaks are
+    heavy-tailed, and where the scale read a neighbour's leak as a straddle the pixel moved
+    by a quarter bin) and scaled by each pixel's own peak, it covers both the
+    reconstruction's residual, which grows with the return (beside a ramp's one-bin returns
+    at m_n 1-3, 5-8 % of the peak against an RMS of 2-2.7 % away from the peaks), and white
+    noise on exact correlations. Chosen on 32x32 ramps (m_n 0 / 1 / 3), steps and the
+    camera (seed 3) and single profiles under white noise, against the ratio's RMS, its
+    75th and 90th percentiles and 1 or 3 times :func:`noise_scale`.
+
+    Parameters
+    ----------
+    values, present : ndarray, shape (Q, 3)
+        As :func:`subbin_offset`'s.
+
+    Returns
+    -------
+    ndarray, shape (Q,)
+        Positive: never below ``1e-6`` of the largest value (a noiseless block).
+    """
+    y = np.where(present, np.asarray(values, np.float64), np.nan)
+    peak = np.clip(y[:, 1], 0.0, None)
+    floor = 1e-6 * float(np.nanmax(np.abs(y))) if np.isfinite(y).any() else 1.0
+    floor = floor if floor > 0 else 1.0
+    low = np.fmin(y[:, 0], y[:, 2])  # NaN only where neither neighbour is there
+    ok = np.isfinite(low) & (peak > 0)
+    if ok.any():
+        clear = ok & (peak >= SUBBIN_CLEAR * np.percentile(peak[ok], 99))
+        rel = float(np.percentile(np.abs(low[clear]) / peak[clear], SUBBIN_QUANTILE))
+    else:
+        rel = 0.0
+    return np.maximum(rel * peak, floor)
+
+
+def subbin_offset(values: np.ndarray, present: np.ndarray, pulse_width: float,
+                  sigma: np.ndarray | float | None = None, block: int = 16384) -> np.ndarray:
+    """Sub-bin offset of each return from its bin's integer reading, from the bin and its two
+    neighbours, with the pulse's known shape.
+
+    A pulse of width ``w < 1`` bin whose leading edge lies in ``[b, b + 1 - w]`` falls wholly
+    in bin ``b``: the counts cannot tell where (the integer reading, the middle of that
+    interval, is then the best guess); beyond it the pulse straddles two bins and their split
+    fixes its position exactly (``delta = b + 1 - w + w r``, ``r`` the later bin's share). This
+    is the posterior mean of the leading edge, uniform over every position that reaches bin
+    ``b``, under Gaussian noise of scale ``sigma`` on the three values, the amplitude fitted
+    (non-negative): the split where the neighbour stands clear of the noise, the middle where
+    it does not, and a blend between. Written here: no library fits a binned box pulse; a
+    three-bin centroid assumes a one-bin pulse and errs by up to a quarter bin at the default
+    half-bit pulse in either region (an outside audit, 2026-11-30: +-0.25 bin, efficiency
+    0.02-0.06 of the Cramer-Rao bound at 5 120 photons).
+
+    Parameters
+    ----------
+    values : ndarray, shape (Q, 3)
+        Each pixel's profile at the chosen bin's predecessor, itself and successor.
+    present : ndarray of bool, shape (Q, 3)
+        Which of them exist (a gate's edge, or a neighbour column that is not the adjacent
+        delay, is left out, and so are the positions that would put a share there). The
+        middle one must be.
+    pulse_width : float
+        ``w`` in bins, ``0 < w < 1``.
+    sigma : float, ndarray of shape (Q,), or None
+        The noise's scale on the three values (``None``: :func:`subbin_noise`).
+    block : int
+        Pixels per step (memory ``block * SUBBIN_GRID`` doubles, four arrays).
+
+    Returns
+    -------
+    ndarray, shape (Q,)
+        Offset in bins: the fractional slice index is the chosen one plus this (0 for a
+        return wholly in its bin, up to ``+- (1 + w) / 2`` at the ends).
+    """
+    w = float(pulse_width)
+    delta = np.linspace(-w, 1.0, SUBBIN_GRID)
+    h = _box_shares(delta, w)
+    present = np.asarray(present, dtype=bool)
+    sig = subbin_noise(values, present) if sigma is None else sigma
+    sig = np.broadcast_to(np.asarray(sig, np.float64), (present.shape[0],))
+    y = np.where(present, np.asarray(values, np.float64), 0.0)
+    m = present.astype(np.float64)
+    q = y.shape[0]
+    out = np.empty(q)
+    for s in range(0, q, block):
+        yb, mb = y[s:s + block], m[s:s + block]
+        yh = yb @ h.T
+        hh = mb @ (h * h).T
+        a = np.clip(np.divide(yh, hh, out=np.zeros_like(yh), where=hh > 0), 0.0, None)
+        inv = 1.0 / (2.0 * sig[s:s + block, None] ** 2)
+        ll = (2.0 * a * yh - a * a * hh) * inv  # less the residual's constant ||y||^2
+        # a position that puts a share in a neighbour not there is left out (any amplitude
+        # fits the rest: a return at the gate's edge would be read as straddling it)
+        ll[((1.0 - mb) @ (h > 0).T) > 0] = -np.inf
+        ll -= ll.max(axis=1, keepdims=True)
+        p = np.exp(ll)
+        out[s:s + block] = (p @ delta) / p.sum(axis=1)
+    return out - (1.0 - w) / 2.0
+
+
+def refine_subbin(slices: np.ndarray, label: np.ndarray, half: int = 1,
+                  pulse_width: float | None = None, sigma: float | None = None,
+                  lags: np.ndarray | None = None) -> np.ndarray:
     """Sub-bin position of each pixel's return around its chosen slice.
 
-    The intensity-weighted mean delay over the ``2 half + 1`` slices centred on ``label``:
-    Howland et al.'s depth-weighted-intensity over intensity ratio, taken locally around the
-    chosen return so that noise elsewhere in the profile does not bias it.
+    With ``pulse_width`` below one bin (the simulator's default is half a bit), the posterior
+    mean of :func:`subbin_offset` from the chosen slice and its two neighbours. Otherwise
+    (and with ``pulse_width=None``) the intensity-weighted mean delay over the ``2 half + 1``
+    slices centred on ``label``: Howland et al.'s depth-weighted-intensity over intensity
+    ratio, taken locally around the chosen return so that noise elsewhere in the profile does
+    not bias it; exact for a one-bin pulse, whose two bins' split is linear in its delay.
 
     Parameters
     ----------
@@ -135,7 +263,14 @@ def refine_subbin(slices: np.ndarray, label: np.ndarray, half: int = 1) -> np.nd
     label : ndarray of int, shape (Q,)
         Chosen slice per pixel.
     half : int
-        Half width of the window in slices.
+        Half width of the centroid's window in slices.
+    pulse_width : float or None
+        The return pulse's width in bins (:class:`~spslidar.depth.base.DepthContext`).
+    sigma : float, ndarray of shape (Q,), or None
+        The noise's scale on each return's bins (``None``: :func:`subbin_noise`).
+    lags : ndarray of int, shape (K,), or None
+        The slices' delays (``None``: consecutive); a neighbour that is not the adjacent delay
+        is left out.
 
     Returns
     -------
@@ -152,6 +287,15 @@ def refine_subbin(slices: np.ndarray, label: np.ndarray, half: int = 1) -> np.nd
     x = np.asarray(slices, dtype=np.float64)
     q, k = x.shape
     label = np.asarray(label, dtype=np.int64)
+    if pulse_width is not None and 0 < pulse_width < 1:
+        cols = label[:, None] + np.arange(-1, 2)[None, :]
+        present = (cols >= 0) & (cols < k)
+        cc = np.clip(cols, 0, k - 1)
+        if lags is not None:
+            lg = np.asarray(lags, dtype=np.int64)
+            present &= (lg[cc] - lg[label][:, None]) == np.arange(-1, 2)[None, :]
+        values = x[np.arange(q)[:, None], cc]
+        return label + subbin_offset(values, present, pulse_width, sigma)
     offs = np.arange(-half, half + 1)
     cols = label[:, None] + offs[None, :]
     inside = (cols >= 0) & (cols < k)

@@ -207,7 +207,7 @@ def refine_depth(depth: np.ndarray, seen: np.ndarray, lags: np.ndarray, bin_widt
     Parameters
     ----------
     depth : ndarray, shape (Q,)
-        Metres, on the lags' grid (NaN: no return, left alone).
+        Metres (NaN: no return, left alone); each is taken to its nearest lag first.
     seen : ndarray, shape (Q, K)
         The filtered profiles.
     lags : ndarray, shape (K,)
@@ -235,4 +235,7 @@ def refine_depth(depth: np.ndarray, seen: np.ndarray, lags: np.ndarray, bin_widt
     y0, y1, y2 = (np.asarray(seen[rows, k + o], np.float64) for o in (-1, 0, 1))
     peak = ok & (y1 >= y0) & (y1 >= y2)  # a local maximum only
     frac = np.where(peak, _vertex(y0, y1, y2), 0.0)
-    return depth + np.clip(frac, -0.5, 0.5) * delay_to_depth(1.0, bin_width)
+    # (from the lag's own depth: a depth the estimator had already moved below a lag took
+    # both shifts, +1.4 mm on a 1.5-bin response, an audit of 2026-11-30)
+    moved = grid[k] + np.clip(frac, -0.5, 0.5) * delay_to_depth(1.0, bin_width)
+    return np.where(peak, moved, depth)

@@ -518,7 +518,8 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         estimator = ESTIMATORS.load(cfg.depth)(**chosen_stage_options(cfg, "depth"))
         threshold = estimator.low_confidence
         est = estimator.estimate(
-            seen, DepthContext(lags, bin_width, cfg.pulse_width, shape, cfg.subbin))
+            seen, DepthContext(lags, bin_width, cfg.pulse_width, shape,
+                               cfg.subbin and seen is slices))  # (calibrated: refine_depth)
         depth, confidence, low = est.depth, est.confidence, est.low_confidence
         depth_info, depth2 = est.info, est.depth2
         if seen is not slices:
