@@ -250,7 +250,7 @@ API_SECTIONS: list[tuple[str, str, str, list[str]]] = [
      "One acquisition and reconstruction end to end, measured acquisitions (PTU) and "
      "calibration, and the result folder.",
      ["spslidar.pipeline", "spslidar.pipeline.*", "spslidar.outdir", "spslidar.outwrite",
-      "spslidar.outfiles", "spslidar.machine"]),
+      "spslidar.outfiles", "spslidar.machine", "spslidar.npyfile"]),
     ("backends", "Backends",
      "Where the numeric core runs (NumPy, array-API libraries, GPU).",
      ["spslidar.backends", "spslidar.backends.*"]),

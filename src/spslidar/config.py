@@ -674,6 +674,9 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         data = tomllib.loads(raw.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ConfigError(f"cannot parse config file {p}: {exc}") from None
+    except RecursionError:  # (a list nested 5000 deep: 3000 lines of traceback, an audit)
+        raise ConfigError(f"cannot parse config file {p}: its arrays or tables are nested too "
+                          f"deeply") from None
     if "run" in data and isinstance(data["run"], dict):
         rest = {k: v for k, v in data.items() if k != "run"}
         both = sorted({k.replace("-", "_") for k in rest}

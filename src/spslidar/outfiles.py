@@ -26,6 +26,7 @@ from .outdir import (
     sha256_file,
     umask_mode,
 )
+from .outwrite import read_json_record
 
 __all__ = ["check_files", "write_files"]
 
@@ -38,13 +39,9 @@ def _files_sums(marker: Path) -> dict[str, set[str]] | None:
     """The SHA-256 per file that a marker of :func:`write_files` counts as spslidar's (the
     files it wrote and, while they were being moved in, the ones they replaced), or None
     when ``marker`` is not such a marker (a user's file of that name)."""
-    try:
-        if marker.is_symlink() or not marker.is_file():
-            return None
-        with open(marker, encoding="utf-8") as fh:
-            meta = json.load(fh)
-    except (OSError, ValueError):
+    if marker.is_symlink():
         return None
+    meta = read_json_record(marker)
     if not (isinstance(meta, dict) and meta.get("kind") == "files"
             and isinstance(meta.get("sha256"), dict)):
         return None

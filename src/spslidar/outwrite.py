@@ -28,8 +28,8 @@ from pathlib import Path
 from typing import BinaryIO
 
 __all__ = ["MARKER", "atomic_file", "atomic_path", "atomic_write_bytes", "atomic_write_text",
-           "changed_files", "foreign_outputs", "journal", "owned_sums", "read_marker",
-           "record_outputs", "sha256_file", "umask_mode"]
+           "changed_files", "foreign_outputs", "journal", "owned_sums", "read_json_record",
+           "read_marker", "record_outputs", "sha256_file", "umask_mode"]
 
 #: the marker file spslidar writes into every output folder it owns
 MARKER = ".spslidar-output.json"
@@ -41,14 +41,30 @@ def umask_mode(base: int = 0o777) -> int:
     return base & ~mask
 
 
+#: the largest record of spslidar's own (a marker, a sidecar, a sweep's cached run) read back:
+#: theirs are kilobytes
+MAX_RECORD_BYTES = 16 * 2**20
+
+
+def read_json_record(path: str | os.PathLike) -> object:
+    """A JSON record spslidar wrote (a marker, a sidecar, a cached run), or None where
+    ``path`` is not one: not a regular file, larger than :data:`MAX_RECORD_BYTES`, not JSON,
+    or nested too deeply to parse. A FIFO of that name hung the command, a 3 GB sparse file
+    took 3.2 GB and a 100 000-deep nesting gave a traceback (an outside audit, 2026-11-30)."""
+    p = Path(path)
+    try:
+        if not p.is_file() or p.stat().st_size > MAX_RECORD_BYTES:
+            return None
+        with open(p, encoding="utf-8") as fh:
+            return json.load(fh)
+    except (OSError, ValueError, RecursionError):
+        return None
+
+
 def read_marker(folder: str | os.PathLike) -> dict | None:
     """The marker of an output folder spslidar wrote (``kind``, ``id``, ``version``,
     ``files``), or None."""
-    try:
-        with open(Path(folder) / MARKER, encoding="utf-8") as fh:
-            meta = json.load(fh)
-    except (OSError, ValueError):
-        return None
+    meta = read_json_record(Path(folder) / MARKER)
     if not (isinstance(meta, dict) and isinstance(meta.get("files"), list)
             and isinstance(meta.get("kind"), str)):
         return None

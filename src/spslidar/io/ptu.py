@@ -149,6 +149,10 @@ def _overflows(raw: np.ndarray, family: str) -> tuple[int, int]:
     return n, int(np.where(count == 0, 1, count).sum())
 
 
+#: the most dtime units one bin can merge: a T3 record's dtime field has 15 bits at most
+DTIME_MAX_BINNING = 2**15
+
+
 def _check_resolution(res: float, bin_width: float | None, rtol: float, allow_binning: bool,
                       path: str) -> int:
     """dtime units per bin; raise if the file's resolution disagrees with ``bin_width``."""
@@ -159,6 +163,11 @@ def _check_resolution(res: float, bin_width: float | None, rtol: float, allow_bi
     if not bin_width > 0:
         raise ConfigError(f"bin_width must be > 0 seconds, got {bin_width!r}")
     ratio = bin_width / res
+    if not ratio <= DTIME_MAX_BINNING:  # (a 1e-300 s resolution: 1e290 units a bin, an audit)
+        raise ConfigError(f"{path!r}: dtime resolution {res:.6g} s is {ratio:.3g} times finer "
+                          f"than the bin width {bin_width:.6g} s (1 / --bit-rate), more than a "
+                          f"T3 record's dtime field ({DTIME_MAX_BINNING} units) spans: a "
+                          f"corrupt header or the wrong bit rate")
     k = max(1, round(ratio))
     close = abs(ratio - k) <= rtol * ratio
     if close and (k == 1 or allow_binning):
@@ -177,6 +186,8 @@ def _fitting_codes(bins: float, width: float, tol: float) -> str:
     import math
 
     head = f"the file's sync period is {bins:.2f} bins at {1e-9 / width:.6g} GHz"
+    if not bins < 2.0**53:  # (an infinite or absurd period has no bits to fit: an audit)
+        return f"the file's sync period is {bins:.3g} bins: check the header and the bit rate"
     lo, hi = max(1, math.ceil(bins - tol)), math.floor(bins + tol)
     if hi - lo >= 3:  # (a tolerance of several bins)
         return f"{head}: codes of {lo} to {hi} bits fit it (or check the bit rate)"
@@ -232,7 +243,11 @@ def _chunks(f, n_records: int, chunk_records: int, path: str):
     fh.seek(f.record_offset)
     for done in range(0, n_records, chunk_records):
         raw = np.empty(min(chunk_records, n_records - done), "<u4")
-        got = fh.readinto(memoryview(raw).cast("B")) or 0
+        try:
+            got = fh.readinto(memoryview(raw).cast("B")) or 0
+        except OSError as exc:  # (said as "while writing --out", an audit of 2026-11-30)
+            raise ConfigError(f"cannot read the records of {path!r}: "
+                              f"{exc.strerror or exc}") from None
         if got != raw.nbytes:
             raise ConfigError(f"{path!r} is truncated: read {done + got // 4} of "
                               f"{n_records} records")

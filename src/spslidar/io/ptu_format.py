@@ -163,6 +163,10 @@ def _legacy_format(path: PathLike) -> str | None:
             f"PTU (.ptu) with a PTU-capable instrument")
 
 
+#: the most data one header tag may hold (a comment, a blob): ptufile reads each whole
+MAX_TAG_BYTES = 64 * 2**20
+
+
 def _walk_header(path: PathLike) -> None:
     """Check a PTU file's tag header as PicoQuant publishes it (the magic, then 48-byte tags
     up to ``Header_End``, a sized tag's data after it) before ``ptufile`` reads it, so that
@@ -191,6 +195,10 @@ def _walk_header(path: PathLike) -> None:
                 if value < 0 or fh.tell() + value > size:
                     raise ConfigError(f"{bad} (tag {ident!r} says {value} bytes of data, past "
                                       f"the file's end)")
+                if value > MAX_TAG_BYTES:  # (a sparse file's 3.5 GB comment: 3.4 GB read)
+                    raise ConfigError(f"{bad} (tag {ident!r} says {value} bytes of data, "
+                                      f"more than a header tag holds: at most "
+                                      f"{MAX_TAG_BYTES // 2**20} MiB are read)")
                 fh.seek(value, os.SEEK_CUR)
             elif typ not in _TY_FIXED:
                 raise ConfigError(f"{bad} (invalid tag type at tag {ident!r})")
@@ -233,20 +241,42 @@ def _open_ptu(path: PathLike):
     return f
 
 
+def _tag_number(tags: dict, name: str, path: PathLike, integer: bool = False
+                ) -> int | float | None:
+    """A numeric header tag's value: None where absent, one line where it is not a finite
+    number (a tag retyped as a string, a date or NaN was read by ``int()`` / ``float()`` and
+    gave a traceback: an outside audit of 2026-11-30, fuzzed headers)."""
+    import math
+
+    v = tags.get(name)
+    if v is None:
+        return None
+    fine = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+    try:
+        fine = fine and math.isfinite(float(v)) and (not integer or float(v).is_integer())
+    except OverflowError:
+        fine = False
+    if not fine:
+        raise ConfigError(f"{os.fspath(path)!r}: header tag {name} must be a finite "
+                          f"{'whole ' if integer else ''}number, got {str(v)[:40]!r} (a "
+                          f"corrupt header)")
+    return int(v) if integer else float(v)
+
+
 def _header_summary(f, path: PathLike) -> dict[str, Any]:
     tags = f.tags
-    code = tags.get("TTResultFormat_TTTRRecType")
+    code = _tag_number(tags, "TTResultFormat_TTTRRecType", path, integer=True)
     if code in _T3_BY_CODE:
         rtype = _T3_BY_CODE[code][0]
     elif code in T2_RECORD_TYPES:
         rtype = T2_RECORD_TYPES[code]
     else:
-        rtype = None if code is None else f"unknown(0x{int(code):08x})"
-    mode = tags.get("Measurement_Mode")
-    glob = float(tags.get("MeasDesc_GlobalResolution", 0.0) or 0.0)
-    res = float(tags.get("MeasDesc_Resolution", 0.0) or 0.0)
+        rtype = None if code is None else f"unknown(0x{code & 0xFFFFFFFF:08x})"
+    mode = _tag_number(tags, "Measurement_Mode", path, integer=True)
+    glob = _tag_number(tags, "MeasDesc_GlobalResolution", path) or 0.0
+    res = _tag_number(tags, "MeasDesc_Resolution", path) or 0.0
     created = tags.get("File_CreatingTime")
-    acq_ms = tags.get("MeasDesc_AcquisitionTime")
+    acq_ms = _tag_number(tags, "MeasDesc_AcquisitionTime", path)
     data_bytes = max(0, os.path.getsize(path) - f.record_offset)
     # T2 files have no sync period: their global resolution is the time tag's unit (it was
     # given as a sync period of 1 ps, 0.125 bins; a header's acquisition time of 0 is
@@ -256,16 +286,16 @@ def _header_summary(f, path: PathLike) -> dict[str, Any]:
         "path": os.fspath(path),
         "version": f.version,
         "record_type": rtype,
-        "record_type_code": None if code is None else int(code),
+        "record_type_code": code,
         "measurement_mode": {2: "T2", 3: "T3"}.get(mode, mode),
-        "n_records": int(tags.get("TTResult_NumberOfRecords", 0) or 0),
+        "n_records": _tag_number(tags, "TTResult_NumberOfRecords", path, integer=True) or 0,
         "n_records_in_file": data_bytes // 4,
         "resolution_s": res,
         "sync_period_s": None if t2 else glob,
         "time_unit_s": glob if t2 else None,
         "sync_rate_hz": tags.get("TTResult_SyncRate"),
         "bins_per_period": glob / res if res > 0 and not t2 else None,
-        "acquisition_time_s": float(acq_ms) * 1e-3 if acq_ms else None,
+        "acquisition_time_s": acq_ms * 1e-3 if acq_ms else None,
         "hardware": tags.get("HW_Type"),
         "sync_divider": tags.get("HWSync_Divider"),
         "creator": tags.get("CreatorSW_Name"),
@@ -308,7 +338,12 @@ def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
         raise ConfigError(f"{path!r}: its header says T2 mode (Measurement_Mode 2) but "
                           f"{header['record_type']} records: the header contradicts itself")
     if code not in _T3_BY_CODE:
-        raise ConfigError(f"{path!r}: unsupported TTTR record type 0x{code:08x}")
+        raise ConfigError(f"{path!r}: unsupported TTTR record type 0x{code & 0xFFFFFFFF:08x}")
+    if header["measurement_mode"] != "T3":  # (ptufile decodes as T2 unless it is 3)
+        said = ("no Measurement_Mode tag" if header["measurement_mode"] is None else
+                f"Measurement_Mode {header['measurement_mode']}, neither T2 (2) nor T3 (3)")
+        raise ConfigError(f"{path!r}: its header has {said} beside {header['record_type']} "
+                          f"records (a corrupt header)")
     bits = f.tags.get("TTResultFormat_BitsPerRecord", 32)
     if bits not in (0, 32):
         raise ConfigError(f"{path!r}: {bits} bits per record, expected 32")

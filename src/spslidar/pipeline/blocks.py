@@ -237,5 +237,16 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
     elif data.n_patterns > m:
         data, note = _drop_extra_block(data, m, marker)
         notes += [note] if note else []
+    if not int(np.sum(data.counts_per_pattern)):
+        # (exit 0 with an all-NaN map and "pass --marker-edge end" said of a file of markers
+        # alone, while calibrate refused it: an outside audit of 2026-11-30)
+        total = int(data.n_photons)
+        why = ("the file holds no photons on the channel" if not total else
+               f"none of the file's {total} photons on the channel lies in a pattern's block "
+               f"within the code period ({int(data.n_dropped_before_first_marker)} before the "
+               f"first marker, {int(data.n_dropped_after_last_pattern)} after the last "
+               f"pattern, {int(data.n_out_of_range)} past the code period of {n_bins} bins)")
+        raise ConfigError(f"{os.fspath(ptu)!r}: {why}: no pattern's histogram holds any (check "
+                          f"--channel, --marker and --bit-rate)")
     edge = _edge_note(data, marker, marker_edge)
     return data, notes + ([edge] if edge else []) + _lost_notes(data, marker, n_bins)

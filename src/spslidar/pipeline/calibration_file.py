@@ -28,6 +28,11 @@ CAL_KIND = "spslidar-calibration"
 MAX_CAL_BYTES = 64 * 2**20
 
 
+#: the largest system delay a calibration may hold: cables and electronics give nanoseconds,
+#: a kilometre of fibre 5 microseconds
+MAX_DELAY_S = 1e-3
+
+
 def _file_of_a_calibration(path: Path) -> bool:
     """Whether ``path`` can be a calibration to read whole: a regular file of at most
     ``MAX_CAL_BYTES`` (a FIFO hung the command, ``/dev/zero`` ran out of memory)."""
@@ -313,11 +318,14 @@ def _check_consistent(cal: dict, offsets: np.ndarray, values: np.ndarray, number
         raise ConfigError(f"{what}: lag_fraction {numbers[3]:g} is outside [-0.5, 0.5] bins "
                           f"(the rest of the delay is lag_shift); calibrate again")
     period = whole[0]
+    if not abs(numbers[1]) <= MAX_DELAY_S:  # (10**30 bins overflowed the lags: an audit)
+        raise ConfigError(f"{what}: delay_s {numbers[1]:g} s is beyond any instrument's "
+                          f"system delay (at most {MAX_DELAY_S:g} s); calibrate again")
     delay_bins = numbers[1] * numbers[0]  # delay_s x bit rate
     miss = (delay_bins - (whole[1] - numbers[3]) + period / 2) % period - period / 2
     # the sub-bin peak lies within 1 + 1/64 bins of the lag's (not NaN: a delay_s of 1e300
     # overflowed to inf and passed, an audit of 2026-11-29)
-    if not abs(miss) <= 1.5:
+    if not (abs(miss) <= 1.5 and abs(whole[1]) <= abs(delay_bins) + 2 * period):
         raise ConfigError(f"{what}: lag_shift {whole[1]} and lag_fraction {numbers[3]:g} "
                           f"disagree with delay_s ({delay_bins:.4g} bins) by {miss:.3g} "
                           f"bins; calibrate again")

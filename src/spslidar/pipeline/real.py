@@ -29,6 +29,7 @@ from ..correlate import (
     split_counts,
 )
 from ..errors import ConfigError
+from ..npyfile import load_npy as _load_npy
 from .acquisition import Acquisition
 from .chain import Measurement, keeping_warnings, reconstruct
 from .gate import gate_text, outside_note, unique_lags
@@ -41,59 +42,6 @@ __all__ = ["FILTER_LAM_SCALE", "calibrated_lam_scale", "check_code", "check_gate
 # (a simulated acquisition written as a lab's files, ``run --save-ptu``: re-exported here, its
 # public home since it was written)
 from .export import write_measurement_ptu  # noqa: E402
-
-
-def _load_npy(path: str | os.PathLike, what: str) -> np.ndarray:
-    """A ``.npy`` array, its header checked first: a shape the file's body cannot hold, Python
-    objects, or an array too large for this machine are refused in one line before anything
-    is allocated."""
-    import numpy.lib.format as npformat
-
-    from ..machine import _gb, available_memory
-
-    p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"{what} file not found: {p}" if not p.exists() else
-                          f"{what} {p} is not a file (a folder or a device)")
-    try:
-        with open(p, "rb") as fh:
-            version = npformat.read_magic(fh)
-            read_header = {(1, 0): npformat.read_array_header_1_0,
-                           (2, 0): npformat.read_array_header_2_0}.get(version)
-            if read_header is not None:  # (version 3.0: np.load below checks the same)
-                shape, _fortran, dtype = read_header(fh)
-                body = p.stat().st_size - fh.tell()
-                if dtype.hasobject:
-                    raise ConfigError(f"cannot read {what} {p}: it holds Python objects, "
-                                      "not numbers")
-                size = float(np.prod(shape, dtype=np.float64)) * dtype.itemsize
-                if size > body:
-                    amount = _gb(size) if size >= 1e6 else f"{size:.0f} bytes"
-                    raise ConfigError(
-                        f"cannot read {what} {p}: its header declares an array of shape "
-                        f"{tuple(shape)} ({dtype}, {amount}) but only {body} bytes follow it "
-                        f"(a truncated or corrupt .npy file)")
-        head = np.load(p, allow_pickle=False, mmap_mode="r")  # a memory map reads no data
-    except ConfigError:
-        raise
-    except (ValueError, OSError, EOFError) as exc:
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        try:
-            with open(p, "rb") as fh:
-                zipped = fh.read(4) == b"PK\x03\x04"
-        except OSError:  # (unreadable: the first error says so)
-            zipped = False
-        if zipped:  # (said as NumPy's "the magic string is not correct ... got b'PK...'")
-            msg = "it is an .npz archive (np.savez); save the one array with np.save"
-        elif "magic string" in msg:  # (a TIFF, .mat, PNG or text file: NumPy's bytes, an audit)
-            msg = ("it is not a .npy file (spslidar reads arrays saved with numpy.save; "
-                   "load a TIFF, .mat, image or text file in Python and np.save it)")
-        raise ConfigError(f"cannot read {what} {p} as a .npy array: {msg}") from None
-    need = float(head.size) * 8 * 2  # float64 copies while checking
-    if need > 0.8 * available_memory():
-        raise ConfigError(f"{what} {p} holds an array of shape {head.shape}: {_gb(need)} to "
-                          f"check, more than the memory available")
-    return np.array(head)
 
 
 def load_patterns(path: str | os.PathLike, distinct: bool = True) -> np.ndarray:

@@ -72,18 +72,20 @@ def _check_magic(path: Path, label: str, magic: bytes, kind: str) -> None:
 
 
 def _load_npy(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    from ..npyfile import load_npy
+
     _check_magic(path, label, b"\x93NUMPY", "NumPy .npy")
-    try:
-        depth = np.load(path, allow_pickle=False)
-    except Exception as exc:
-        raise SceneError(f"cannot read scene file {label} as .npy: {_reason(exc)}") from None
+    depth = load_npy(path, "scene file", error=SceneError)  # (its header checked first)
     depth = _as_2d(label, depth, "depth").astype(np.float64)
     _check_depth_values(label, depth)
     return depth, np.ones_like(depth), np.ones(depth.shape, dtype=bool), []
 
 
 def _load_npz(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    from ..npyfile import check_npz_sizes
+
     _check_magic(path, label, b"PK", "NumPy .npz (zip)")
+    check_npz_sizes(path, f"scene file {label}", error=SceneError)  # (a deflated bomb)
     try:
         with np.load(path, allow_pickle=False) as npz:
             keys = set(npz.files)

@@ -444,6 +444,9 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: invalid TOML: {one_line(exc)}") from None
+    except RecursionError:  # (a [grid] list nested 5000 deep: a traceback, an audit)
+        raise ConfigError(f"{path}: invalid TOML: its arrays or tables are nested too "
+                          f"deeply") from None
 
     unknown = [key for key in data if key not in _TOP_LEVEL_KEYS]
     if unknown:

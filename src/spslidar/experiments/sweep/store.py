@@ -52,11 +52,9 @@ CACHE_FORMAT = 1
 def load_cached(path: Path, params_json: str, code: str | None = None) -> dict[str, Any] | None:
     """Return the cached result at ``path`` if it exists and was computed for these params
     (and, with ``code``, by that code: :func:`spslidar.plugins.code_fingerprint`)."""
-    try:
-        with open(path, encoding="utf-8") as fh:
-            record = json.load(fh)
-    except (OSError, ValueError):
-        return None
+    from ...outwrite import read_json_record
+
+    record = read_json_record(path)  # (None for a FIFO, a huge or a too deeply nested file)
     if not isinstance(record, dict) or not isinstance(record.get("result"), dict):
         return None
     if code is not None and record.get("code") != code:
