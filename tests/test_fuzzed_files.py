@@ -214,3 +214,11 @@ def test_a_calibration_with_an_absurd_delay_is_refused(calibrated_wall, tmp_path
     code = np.load(calibrated_wall / "a_code.npy")
     with pytest.raises(ConfigError, match="beyond any instrument's system delay"):
         load_calibration(tmp_path / "cal.json", 10e9, code)
+
+
+@pytest.mark.skipif(not __import__("os").path.exists("/proc/self/mem"),
+                    reason="needs Linux's /proc/self/mem (a file whose reads fail)")
+def test_a_ptu_that_cannot_be_read_is_named_not_the_output(inputs, capsys):
+    """A read error on --ptu was said as "Input/output error: while writing --out"."""
+    line = _one_line(capsys, _reconstruct(inputs, "/proc/self/mem"), "/proc/self/mem")
+    assert "--out" not in line

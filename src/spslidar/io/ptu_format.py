@@ -212,7 +212,10 @@ def _open_ptu(path: PathLike):
     if not os.path.isfile(path):
         raise ConfigError(f"{os.fspath(path)!r} is not a PTU file (a folder or a device, not a "
                           f"regular file)")
-    _walk_header(path)
+    try:
+        _walk_header(path)
+    except OSError as exc:  # (/proc/self/mem: "while writing --out", an audit of 2026-11-30)
+        raise ConfigError(f"cannot read {os.fspath(path)!r}: {exc.strerror or exc}") from None
     try:
         with _ptufile_log() as logged:
             f = ptufile.PtuFile(path)
