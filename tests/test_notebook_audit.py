@@ -592,3 +592,15 @@ def test_a_forked_child_runs_after_its_parent_ran():
     out = subprocess.run([sys.executable, "-c", _FORK_AFTER_A_RUN], capture_output=True,
                          text=True, timeout=300).stdout
     assert out.strip().splitlines()[-1] == "child 0", out
+
+
+def test_no_thread_of_spslidar_outlives_a_run():
+    """The thread that holds BLAS to one thread stayed after every run, so the process was
+    multi-threaded for good and Python 3.12+ warned at each ``os.fork()`` after a run (an
+    audit of 2026-11-30): it ends with the last hold."""
+    import threading
+
+    from spslidar import run
+
+    run(size=8, code_length=127, compression=0.5, seed=0)
+    assert not [t.name for t in threading.enumerate() if t.name.startswith("spslidar-blas")]

@@ -234,6 +234,10 @@ def _blas_held():
             if _BLAS["depth"] == 0 and _BLAS["limits"] is not None:
                 _on_setter(_BLAS["limits"].restore_original_limits)
                 _BLAS["limits"] = None
+                # (the idle setter thread kept the process multi-threaded between runs, and
+                # Python 3.12+ warns at every fork() after one: an audit of 2026-11-30; the
+                # next hold starts its own, on which it both sets and restores)
+                _SETTER.pop().shutdown(wait=True)
 
 
 def one_blas_thread(fn):
