@@ -484,3 +484,14 @@ def test_estimator_options_refuse_a_numpy_bool():
     with pytest.raises(ConfigError, match="iterations"):
         MRFDepth(iterations=np.bool_(True))
     assert MRFDepth(iterations=np.int64(5)).iterations == 5
+
+
+@pytest.mark.parametrize("width", [0.5, 1.0])
+def test_refine_subbin_leaves_out_a_column_that_is_not_the_adjacent_delay(width):
+    """The centroid (a pulse of a bin or more) read a neighbour column three delays away as a
+    share of the return (0.44 of a slice across the jump: a review)."""
+    x = np.zeros((1, 6))
+    x[0, 2], x[0, 3] = 1.0, 0.8
+    lags = np.array([10, 11, 12, 15, 16, 17])
+    got = profile.refine_subbin(x, np.array([2]), pulse_width=width, lags=lags)
+    assert got[0] == pytest.approx(2.0, abs=1e-12)

@@ -8,6 +8,7 @@ from spslidar.forward import delay_to_depth
 from spslidar.metrics import depth_errors, edge_agreement, rmse, sobel_edges
 
 BW = 1e-10
+BIN_M = delay_to_depth(1.0, BW)
 
 
 def test_argmax_picks_the_peak_bin_and_marks_missing():
@@ -107,6 +108,40 @@ def test_subbin_leaves_out_a_neighbour_that_is_not_the_adjacent_delay():
         d, _ = ml_depth(x, lags, BW, pulse_width=width, subbin=True)
         plain, _ = ml_depth(x, lags, BW, pulse_width=width)
         assert d[0] == pytest.approx(plain[0], abs=1e-12)
+
+
+def test_subbin_is_the_same_at_any_scale_and_beside_values_that_are_not_finite():
+    """A NaN or inf slice beside one pixel's peak took every pixel's refinement (the noise's
+    scale became infinite) or raised, and profiles scaled by 1e-300 or 1e300 came back NaN (a
+    review): the step reads each pixel in units of its own peak and leaves out what is not
+    finite."""
+    frac = np.array([0.1, 0.6, 0.8, 0.3])
+    lags = np.arange(100, 116)
+    x = _box_profiles(frac)
+    ref, _ = ml_depth(x, lags, BW, pulse_width=0.5, subbin=True)
+    assert np.all(np.isfinite(ref))
+    for scale in (1e-300, 1e300):
+        d, _ = ml_depth(x * scale, lags, BW, pulse_width=0.5, subbin=True)
+        np.testing.assert_allclose(d, ref, rtol=0, atol=1e-9)
+    for bad in (np.nan, np.inf):
+        y = x.copy()
+        y[0, 8] = bad  # pixel 0's later neighbour (its pulse lies in bin 7)
+        with np.errstate(invalid="ignore"):  # (no_return's percentile of an infinite peak)
+            d, _ = ml_depth(y, lags, BW, pulse_width=0.5, subbin=True)
+        np.testing.assert_allclose(d[1:], ref[1:], rtol=0, atol=1e-9)
+        if bad != np.inf:  # (an infinite slice is that pixel's peak)
+            assert np.isfinite(d[0])
+
+
+def test_subbin_reads_fractional_lags_as_adjacent():
+    """A calibrated instrument's lags hold the delay's part of a bin; compared exactly, some
+    adjacent pairs (-16.9 and -15.9) were not, and their straddling returns kept their bin."""
+    lags = np.arange(-20, 20) + 0.1
+    x = np.zeros((1, lags.size))
+    assert lags[3] + 1 != lags[4]  # (-16.9 + 1 is not -15.9 in floating point)
+    x[0, 3:5] = _box_profiles([0.6], k=3, b=1)[0, 1:3]  # peak 0.8 at lag -16.9, 0.2 after it
+    d, _ = ml_depth(x, lags, BW, pulse_width=0.5, subbin=True)
+    assert d[0] == pytest.approx(delay_to_depth(lags[3] + 0.6, BW), abs=0.004 * BIN_M)
 
 
 def test_rmse_eq19_and_missing():

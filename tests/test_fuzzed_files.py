@@ -222,3 +222,20 @@ def test_a_ptu_that_cannot_be_read_is_named_not_the_output(inputs, capsys):
     """A read error on --ptu was said as "Input/output error: while writing --out"."""
     line = _one_line(capsys, _reconstruct(inputs, "/proc/self/mem"), "/proc/self/mem")
     assert "--out" not in line
+
+
+def test_the_reproductions_cache_reads_runs_as_the_sweeps_does(tmp_path):
+    """``reproduce`` read its cached runs with a bare json.loads: a file nested 100 000 deep
+    was a RecursionError (a FIFO would have hung), where the sweep's reader now passes over
+    them (a review)."""
+    from types import SimpleNamespace
+
+    from spslidar.experiments.reproduce.context import cached_runs
+
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    (runs / "a.json").write_text('{"a":' * 100_000 + "1" + "}" * 100_000)
+    (runs / "b.json").write_text(json.dumps({"code": "x", "params": {"noise": 1},
+                                             "result": {"rmse": 0.1}}))
+    assert cached_runs(SimpleNamespace(cache=tmp_path, code="x")) == [{"noise": 1,
+                                                                        "rmse": 0.1}]

@@ -156,7 +156,7 @@ def _edited(calibrated_wall, tmp_path, **change):
 
 @pytest.mark.parametrize("change,why", [
     ({"irf_offsets": [-10**20, 0]}, "incomplete or damaged (OverflowError"),
-    ({"delay_s": 1e300}, "disagree with delay_s"),
+    ({"delay_s": 1e300}, "beyond any instrument"),
 ])
 def test_calibration_numbers_past_any_range_are_refused(calibrated_wall, tmp_path, change, why):
     """An offset of 21 digits was an OverflowError traceback; a delay of 1e300 s overflowed
@@ -166,6 +166,18 @@ def test_calibration_numbers_past_any_range_are_refused(calibrated_wall, tmp_pat
     code = np.load(calibrated_wall / "a_code.npy")
     with pytest.raises(ConfigError, match=why.replace("(", r"\(")):
         load_calibration(_edited(calibrated_wall, tmp_path, **change), 10e9, code)
+
+
+def test_a_lag_shift_periods_away_from_its_delay_is_named(calibrated_wall, tmp_path):
+    """A lag_shift ten code periods off its delay agrees with it modulo the period; it is
+    refused, and said as such (not as 'disagree with delay_s ... by 0 bins': a review)."""
+    from spslidar.pipeline.calibration_file import load_calibration
+
+    cal = json.loads((calibrated_wall / "cal.json").read_text())
+    code = np.load(calibrated_wall / "a_code.npy")
+    path = _edited(calibrated_wall, tmp_path, lag_shift=cal["lag_shift"] + 10 * code.size)
+    with pytest.raises(ConfigError, match="more than two code periods from delay_s"):
+        load_calibration(path, 10e9, code)
 
 
 def test_calibration_files_that_are_no_files(calibrated_wall, tmp_path):

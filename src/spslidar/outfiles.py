@@ -39,7 +39,10 @@ def _files_sums(marker: Path) -> dict[str, set[str]] | None:
     """The SHA-256 per file that a marker of :func:`write_files` counts as spslidar's (the
     files it wrote and, while they were being moved in, the ones they replaced), or None
     when ``marker`` is not such a marker (a user's file of that name)."""
-    if marker.is_symlink():
+    try:
+        if marker.is_symlink():
+            return None
+    except OSError:  # (an unreadable folder: no marker of spslidar's)
         return None
     meta = read_json_record(marker)
     if not (isinstance(meta, dict) and meta.get("kind") == "files"

@@ -17,7 +17,7 @@ import numpy as np
 from ..arrays import positive_number, real_array
 from ..forward import delay_to_depth
 from .base import DepthContext, DepthEstimate, DepthEstimator, check_delays
-from .profile import no_return, subbin_offset
+from .profile import ADJACENT_TOL, no_return, subbin_offset
 
 
 def ml_depth(
@@ -42,7 +42,8 @@ def ml_depth(
         Return pulse width in bins (see :mod:`spslidar.forward`).
     subbin : bool
         Refine the peak below a bin from it and its two neighbours
-        (:func:`~spslidar.depth.profile.refine_subbin`).
+        (:func:`~spslidar.depth.profile.subbin_offset`; a three-bin centroid for a pulse of a
+        bin or more).
     min_peak_fraction : float
         A pixel whose peak is not positive, or is below this fraction of the 99th percentile of
         all pixels' peaks, has no detected return and gets NaN.
@@ -118,8 +119,8 @@ def depth_from_peaks(idx: np.ndarray, peak: np.ndarray, below: np.ndarray | None
         hi = np.clip(idx + 1, 0, n_slices - 1)
         # a neighbour counts where it is the adjacent delay (an automatic gate's columns may
         # jump; the centroid weighted such a column by its distance, an audit)
-        has_lo = (lo != idx) & (lags[lo] == pos - 1)
-        has_hi = (hi != idx) & (lags[hi] == pos + 1)
+        has_lo = (lo != idx) & (np.abs(lags[lo] - pos + 1) < ADJACENT_TOL)
+        has_hi = (hi != idx) & (np.abs(lags[hi] - pos - 1) < ADJACENT_TOL)
         if 0 < pulse_width < 1:
             values = np.stack([np.asarray(below, np.float64), peak,
                                np.asarray(above, np.float64)], axis=1)

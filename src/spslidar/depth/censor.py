@@ -128,7 +128,8 @@ class CensorDepth(DepthEstimator):
         Censor / recover rounds; pixels recovered in one round serve as neighbours in the
         next.
     subbin : bool or None
-        Refine the chosen slice by the local centroid (``None``: follow ``ctx.subbin``).
+        Place the return below the chosen slice (:func:`~.profile.refine_subbin`; ``None``:
+        follow ``ctx.subbin``).
     low_confidence : float
         Confidence below which a pixel is flagged.
 

@@ -165,7 +165,8 @@ class MRFDepth(DepthEstimator):
         Cap on the BP sweeps; BP stops earlier once the labels are stable for 2 sweeps
         (8-12 sweeps on the built-in scenes).
     subbin : bool or None
-        Refine the chosen slice by the local centroid (``None``: follow ``ctx.subbin``).
+        Place the return below the chosen slice (:func:`~.profile.refine_subbin`; ``None``:
+        follow ``ctx.subbin``).
     lines : bool
         Keep the argmax of pixels that line up in front of the MRF's surface (a pole, a wire,
         a leg the smoothness would give the wall behind), then of those that continue a

@@ -16,12 +16,11 @@ from ..errors import ConfigError
 from ..forward import delay_to_depth
 from .base import DepthContext
 
-__all__ = ["NOISE_BESIDE_MIN", "NOISE_ONLY_MARGIN", "NOISE_ONLY_MIN_SLICES",
-           "NOISE_VERDICT_PIXELS", "SUBBIN_CLEAR", "SUBBIN_QUANTILE",
-           "effective_slices", "grid_shape",
-           "index_to_depth", "no_return", "noise_maxima", "noise_only_ratio", "noise_scale",
-           "noise_verdict", "peak_to_noise", "pulse_filter", "refine_subbin", "shift2d",
-           "subbin_noise", "subbin_offset", "verdict_and_room"]
+__all__ = ["ADJACENT_TOL", "NOISE_BESIDE_MIN", "NOISE_ONLY_MARGIN", "NOISE_ONLY_MIN_SLICES",
+           "NOISE_VERDICT_PIXELS", "SUBBIN_CLEAR", "SUBBIN_FLOOR", "SUBBIN_QUANTILE",
+           "effective_slices", "grid_shape", "index_to_depth", "no_return", "noise_maxima",
+           "noise_only_ratio", "noise_scale", "noise_verdict", "peak_to_noise", "pulse_filter",
+           "refine_subbin", "shift2d", "subbin_noise", "subbin_offset", "verdict_and_room"]
 
 #: An image is said to be noise where the 90th percentile of :func:`peak_to_noise` is below
 #: this many times what non-negative white noise gives at as many effective slices
@@ -133,6 +132,10 @@ SUBBIN_GRID = 241
 SUBBIN_CLEAR = 0.25
 #: the percentile of the lower neighbour's share of the peak that :func:`subbin_noise` takes
 SUBBIN_QUANTILE = 95.0
+#: the least noise :func:`subbin_offset` takes, as a share of the peak (a noiseless block)
+SUBBIN_FLOOR = 1e-6
+#: two delays (in bins) are adjacent where they differ by one to within this
+ADJACENT_TOL = 1e-6
 
 
 def _box_shares(delta: np.ndarray, width: float) -> np.ndarray:
@@ -164,21 +167,19 @@ def subbin_noise(values: np.ndarray, present: np.ndarray) -> np.ndarray:
 
     Returns
     -------
-    ndarray, shape (Q,)
-        Positive: never below ``1e-6`` of the largest value (a noiseless block).
+    float
+        The noise's scale as a share of each pixel's peak (0 where no pixel has a positive
+        peak and a neighbour; :func:`subbin_offset` floors it at :data:`SUBBIN_FLOOR`).
     """
-    y = np.where(present, np.asarray(values, np.float64), np.nan)
-    peak = np.clip(y[:, 1], 0.0, None)
-    floor = 1e-6 * float(np.nanmax(np.abs(y))) if np.isfinite(y).any() else 1.0
-    floor = floor if floor > 0 else 1.0
+    y = np.asarray(values, np.float64)
+    y = np.where(np.asarray(present, bool) & np.isfinite(y), y, np.nan)
+    peak = y[:, 1]
     low = np.fmin(y[:, 0], y[:, 2])  # NaN only where neither neighbour is there
-    ok = np.isfinite(low) & (peak > 0)
-    if ok.any():
-        clear = ok & (peak >= SUBBIN_CLEAR * np.percentile(peak[ok], 99))
-        rel = float(np.percentile(np.abs(low[clear]) / peak[clear], SUBBIN_QUANTILE))
-    else:
-        rel = 0.0
-    return np.maximum(rel * peak, floor)
+    ok = np.isfinite(low) & (peak > 0)  # (a NaN peak is not > 0)
+    if not ok.any():
+        return 0.0
+    clear = ok & (peak >= SUBBIN_CLEAR * np.percentile(peak[ok], 99))
+    return float(np.percentile(np.abs(low[clear]) / peak[clear], SUBBIN_QUANTILE))
 
 
 def subbin_offset(values: np.ndarray, present: np.ndarray, pulse_width: float,
@@ -204,12 +205,14 @@ def subbin_offset(values: np.ndarray, present: np.ndarray, pulse_width: float,
         Each pixel's profile at the chosen bin's predecessor, itself and successor.
     present : ndarray of bool, shape (Q, 3)
         Which of them exist (a gate's edge, or a neighbour column that is not the adjacent
-        delay, is left out, and so are the positions that would put a share there). The
-        middle one must be.
+        delay, is left out, and so are the positions that would put a share there; so is a
+        value that is not finite). A pixel whose middle value is missing or not positive
+        keeps its bin (offset 0).
     pulse_width : float
         ``w`` in bins, ``0 < w < 1``.
     sigma : float, ndarray of shape (Q,), or None
-        The noise's scale on the three values (``None``: :func:`subbin_noise`).
+        The noise's scale on the three values (``None``: :func:`subbin_noise`'s share of
+        each pixel's peak). Never below :data:`SUBBIN_FLOOR` of the peak.
     block : int
         Pixels per step (memory ``block * SUBBIN_GRID`` doubles, four arrays).
 
@@ -222,10 +225,17 @@ def subbin_offset(values: np.ndarray, present: np.ndarray, pulse_width: float,
     w = float(pulse_width)
     delta = np.linspace(-w, 1.0, SUBBIN_GRID)
     h = _box_shares(delta, w)
-    present = np.asarray(present, dtype=bool)
-    sig = subbin_noise(values, present) if sigma is None else sigma
-    sig = np.broadcast_to(np.asarray(sig, np.float64), (present.shape[0],))
-    y = np.where(present, np.asarray(values, np.float64), 0.0)
+    v = np.asarray(values, np.float64)
+    present = np.asarray(present, dtype=bool) & np.isfinite(v)  # (NaN, inf: no evidence)
+    peak = v[:, 1]
+    good = present[:, 1] & (peak > 0)
+    scale = np.where(good, peak, 1.0)[:, None]
+    # in units of each pixel's peak, so that no scale of the data overflows (1e-300 and
+    # 1e300 gave NaN: a review)
+    rel = subbin_noise(v, present) if sigma is None else np.asarray(sigma, np.float64)
+    sig = np.broadcast_to(rel, peak.shape) / (1.0 if sigma is None else scale[:, 0])
+    sig = np.maximum(np.where(np.isfinite(sig), sig, 1.0), SUBBIN_FLOOR)
+    y = np.where(present, v, 0.0) / scale
     m = present.astype(np.float64)
     q = y.shape[0]
     out = np.empty(q)
@@ -242,7 +252,8 @@ def subbin_offset(values: np.ndarray, present: np.ndarray, pulse_width: float,
         ll -= ll.max(axis=1, keepdims=True)
         p = np.exp(ll)
         out[s:s + block] = (p @ delta) / p.sum(axis=1)
-    return out - (1.0 - w) / 2.0
+    out = out - (1.0 - w) / 2.0
+    return np.where(good & np.isfinite(out), out, 0.0)  # (no positive peak: its own bin)
 
 
 def refine_subbin(slices: np.ndarray, label: np.ndarray, half: int = 1,
@@ -268,9 +279,9 @@ def refine_subbin(slices: np.ndarray, label: np.ndarray, half: int = 1,
         The return pulse's width in bins (:class:`~spslidar.depth.base.DepthContext`).
     sigma : float, ndarray of shape (Q,), or None
         The noise's scale on each return's bins (``None``: :func:`subbin_noise`).
-    lags : ndarray of int, shape (K,), or None
-        The slices' delays (``None``: consecutive); a neighbour that is not the adjacent delay
-        is left out.
+    lags : ndarray, shape (K,), or None
+        The slices' delays in bins (``None``: consecutive); a neighbour that is not the
+        adjacent delay is left out, by either method.
 
     Returns
     -------
@@ -287,20 +298,18 @@ def refine_subbin(slices: np.ndarray, label: np.ndarray, half: int = 1,
     x = np.asarray(slices, dtype=np.float64)
     q, k = x.shape
     label = np.asarray(label, dtype=np.int64)
-    if pulse_width is not None and 0 < pulse_width < 1:
-        cols = label[:, None] + np.arange(-1, 2)[None, :]
-        present = (cols >= 0) & (cols < k)
-        cc = np.clip(cols, 0, k - 1)
-        if lags is not None:
-            lg = np.asarray(lags, dtype=np.int64)
-            present &= (lg[cc] - lg[label][:, None]) == np.arange(-1, 2)[None, :]
-        values = x[np.arange(q)[:, None], cc]
-        return label + subbin_offset(values, present, pulse_width, sigma)
-    offs = np.arange(-half, half + 1)
+    wide = 1 if pulse_width is not None and 0 < pulse_width < 1 else half
+    offs = np.arange(-wide, wide + 1)
     cols = label[:, None] + offs[None, :]
-    inside = (cols >= 0) & (cols < k)
-    w = np.where(inside, np.clip(x[np.arange(q)[:, None], np.clip(cols, 0, k - 1)], 0, None),
-                 0.0)
+    present = (cols >= 0) & (cols < k)
+    cc = np.clip(cols, 0, k - 1)
+    if lags is not None:  # (fractional lags, a calibrated instrument's, compared as reals)
+        lg = np.asarray(lags, dtype=np.float64)
+        present &= np.abs(lg[cc] - lg[label][:, None] - offs[None, :]) < ADJACENT_TOL
+    values = x[np.arange(q)[:, None], cc]
+    if wide == 1 and pulse_width is not None and 0 < pulse_width < 1:
+        return label + subbin_offset(values, present, pulse_width, sigma)
+    w = np.where(present & np.isfinite(values), np.clip(values, 0, None), 0.0)
     tot = w.sum(axis=1)
     shift = np.divide(w @ offs.astype(np.float64), tot, out=np.zeros(q), where=tot > 0)
     return label + shift

@@ -151,11 +151,12 @@ def read_claims(out: str | os.PathLike[str], name: str) -> list[Claim]:
     -------
     list of Claim
     """
-    path = Path(out) / name / CLAIMS_FILE
+    from ..outwrite import read_json_record
+
+    data = read_json_record(Path(out) / name / CLAIMS_FILE)  # (None: a FIFO, huge, deep)
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
         return [Claim(**item) for item in data]
-    except (OSError, ValueError, TypeError):
+    except (ValueError, TypeError):  # (None, or not a list of claims)
         return []
 
 

@@ -325,7 +325,10 @@ def _check_consistent(cal: dict, offsets: np.ndarray, values: np.ndarray, number
     miss = (delay_bins - (whole[1] - numbers[3]) + period / 2) % period - period / 2
     # the sub-bin peak lies within 1 + 1/64 bins of the lag's (not NaN: a delay_s of 1e300
     # overflowed to inf and passed, an audit of 2026-11-29)
-    if not (abs(miss) <= 1.5 and abs(whole[1]) <= abs(delay_bins) + 2 * period):
+    if not abs(whole[1]) <= abs(delay_bins) + 2 * period:  # (calibrate: within a period)
+        raise ConfigError(f"{what}: lag_shift {whole[1]} is more than two code periods from "
+                          f"delay_s ({delay_bins:.4g} bins); calibrate again")
+    if not abs(miss) <= 1.5:
         raise ConfigError(f"{what}: lag_shift {whole[1]} and lag_fraction {numbers[3]:g} "
                           f"disagree with delay_s ({delay_bins:.4g} bins) by {miss:.3g} "
                           f"bins; calibrate again")

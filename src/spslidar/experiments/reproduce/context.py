@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import functools
 import io
-import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -523,10 +522,13 @@ def cached_runs(ctx: Context, params: dict[str, Any] | None = None) -> list[dict
     list of dict
         In the order of the cache keys.
     """
+    from ...outwrite import read_json_record
+
     out = []
     for path in sorted((ctx.cache / "runs").glob("*.json")):
         try:
-            rec = json.loads(path.read_text(encoding="utf-8"))
+            # (a FIFO, a huge or a too deeply nested file is no run: as the sweep's cache)
+            rec = read_json_record(path)
             if rec.get("code") != ctx.code:
                 continue
             config = {k: v for k, v in rec["params"].items() if k not in (SEED_KEY, TRIAL_KEY)}
