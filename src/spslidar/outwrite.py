@@ -27,9 +27,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import BinaryIO
 
-__all__ = ["MARKER", "atomic_file", "atomic_path", "atomic_write_bytes", "atomic_write_text",
-           "changed_files", "foreign_outputs", "journal", "owned_sums", "read_json_record",
-           "read_marker", "record_outputs", "sha256_file", "umask_mode"]
+__all__ = ["MARKER", "MAX_RECORD_BYTES", "atomic_file", "atomic_path", "atomic_write_bytes",
+           "atomic_write_text", "changed_files", "foreign_outputs", "journal", "owned_sums",
+           "read_json_record", "read_marker", "record_outputs", "sha256_file", "umask_mode"]
 
 #: the marker file spslidar writes into every output folder it owns
 MARKER = ".spslidar-output.json"
