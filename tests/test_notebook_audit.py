@@ -558,6 +558,23 @@ def test_a_sweep_leaves_no_warning_filter_behind(tmp_path):
     assert warnings.filters == before
 
 
+def test_a_sweep_takes_out_only_its_own_warning_filter(tmp_path, monkeypatch):
+    """Where the sweep's filter does not go to the front of the global list (Python 3.14's
+    context-local filters), the filter that is there is someone else's: left in place (the
+    first global filter was taken out for good). Emulated by a filterwarnings that keeps the
+    filter elsewhere."""
+    import warnings
+
+    from spslidar.experiments.sweep import engine
+
+    warnings.filterwarnings("ignore", message="a caller's own filter")
+    before = list(warnings.filters)
+    monkeypatch.setattr(warnings, "filterwarnings", lambda *a, **k: None)
+    out = list(engine._run_local(_square, [(0, {"x": 2}), (1, {"x": 3})], 2))
+    assert sorted(o[1][1] for o in out) == [4, 9]
+    assert warnings.filters == before
+
+
 def _square(params):
     return params["x"] ** 2
 
