@@ -480,7 +480,9 @@ OUTSIDE_SHARE = 0.05
 
 
 def returns_outside(counts: np.ndarray, replica: np.ndarray, gain: float,
-                    signal_code: np.ndarray, delays: np.ndarray) -> tuple[float, np.ndarray]:
+                    signal_code: np.ndarray, delays: np.ndarray,
+                    response: tuple[np.ndarray, np.ndarray] | None = None
+                    ) -> tuple[float, np.ndarray]:
     """Which share of an acquisition's returns lies outside the delays it was correlated at
     (a range gate that cuts part of the scene), read over the code's whole period.
 
@@ -492,6 +494,15 @@ def returns_outside(counts: np.ndarray, replica: np.ndarray, gain: float,
         As for :func:`split_counts`.
     delays : ndarray of int
         The gate's delays (modulo L).
+    response : (offsets, values) or None
+        A calibrated instrument's response (bins from the return, shares summing to 1).
+        ``replica`` and ``signal_code`` are then the plain code's: CLEAN reads every
+        return through any response exactly as a few of the plain code's, and the
+        components are deconvolved by the response (Richardson-Lucy) into the returns'
+        arrivals (the response's own beam left a Gold code's sidelobes standing 11-31 %
+        high where the scene's sub-bin positions differ from the calibration wall's, and
+        widening the gate by the response's 40-bin tail hid a real 75 %: an audit of
+        2026-11-30).
 
     Returns
     -------
@@ -518,11 +529,43 @@ def returns_outside(counts: np.ndarray, replica: np.ndarray, gain: float,
                               every, signal_code, replica, gain, OUTSIDE_SIGMAS)
     if not returns.sum() > 0:
         return 0.0, np.zeros(0, int)
+    if response is not None:
+        returns = _deconvolve(returns, *response)
+        returns[returns < OUTSIDE_FLOOR * returns.max()] = 0.0  # (its slow convergence)
     near = np.zeros(period, bool)
     near[np.asarray(delays) % period] = True
     near |= np.roll(near, 1) | np.roll(near, -1)  # a return read over two delays
     out = (returns > 0) & ~near
     return float(returns[out].sum() / returns.sum()), np.flatnonzero(out)
+
+
+#: a deconvolved return under this share of the largest is the deconvolution's residue
+OUTSIDE_FLOOR = 1e-3
+
+
+def _deconvolve(components: np.ndarray, offsets: np.ndarray, values: np.ndarray,
+                iterations: int = 200) -> np.ndarray:
+    """Non-negative returns whose periodic convolution with the response ``(offsets,
+    values)`` is ``components`` (Richardson-Lucy; the total is kept). Written here: a few
+    FFT lines on a periodic vector, where scikit-image's ``richardson_lucy`` pads and clips
+    an image."""
+    c = np.clip(np.asarray(components, np.float64), 0.0, None)
+    period = c.size
+    kern = np.zeros(period)
+    np.add.at(kern, np.mod(np.asarray(offsets, int), period), np.asarray(values, float))
+    kern = np.clip(kern, 0.0, None)
+    kern /= kern.sum()
+    k = np.fft.rfft(kern)
+
+    def conv(x, f):
+        return np.fft.irfft(np.fft.rfft(x) * f, period)
+
+    a = np.full(period, c.sum() / period)
+    for _ in range(iterations):
+        model = conv(a, k)
+        ratio = np.divide(c, model, out=np.zeros(period), where=model > 1e-12 * c.max())
+        a = np.clip(a * conv(ratio, np.conj(k)), 0.0, None)
+    return a
 
 
 def _clean(profile: np.ndarray, beam: np.ndarray, lags: np.ndarray, floor: float,

@@ -176,17 +176,19 @@ def unique_lags(lags: np.ndarray, period: int) -> tuple[np.ndarray, np.ndarray]:
 
 def outside_note(counts: np.ndarray, replica: np.ndarray, gain: float,
                  signal_code: np.ndarray, ulags: np.ndarray, shift: int, lags: np.ndarray,
-                 bin_width: float, gate) -> tuple[float, list[str]]:
+                 bin_width: float, gate, response=None) -> tuple[float, list[str]]:
     """The share of a measured acquisition's returns outside its range gate, and a warning
     where it is more than :data:`~spslidar.correlate.OUTSIDE_SHARE` of them
     (:func:`spslidar.correlate.returns_outside`), naming where they are: the pixels whose
     return lies beyond the gate are given depths inside it, which are noise. ``ulags``: the
     delays correlated (the returns' arrival, ``shift`` bins after their time of flight for a
-    calibrated instrument); ``lags``: the gate's own delays."""
+    calibrated instrument); ``lags``: the gate's own delays; ``response``: a calibrated
+    instrument's ``(offsets, values)``, read with the plain code and replica
+    (:func:`~spslidar.correlate.returns_outside`)."""
     from ..correlate import OUTSIDE_SHARE, returns_outside
     from ..forward import delay_to_depth
 
-    share, outside = returns_outside(counts, replica, gain, signal_code, ulags)
+    share, outside = returns_outside(counts, replica, gain, signal_code, ulags, response)
     if share <= OUTSIDE_SHARE:
         return share, []
     period = np.size(counts)

@@ -468,7 +468,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
             f"or markers missed?); their histograms are scaled up to the mean dwell")
     hist *= (n_mean / n_k)[:, None]
     replica_kind = auto_replica(code) if cfg.replica == "auto" else cfg.replica
-    replica = make_replica(code, replica_kind)
+    replica = plain = make_replica(code, replica_kind)
     lags = gate_lags(cfg.range_gate, bin_width)
     cal, shift, signal_code, frac, scale, spread = None, 0, code, 0.0, 1.0, 1.0
     response, half_width = None, 0
@@ -505,8 +505,13 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         dwell_warning.append(inverted)
     # (a calibrated instrument's return is its code through the response: signal_code)
     signal, _ = split_counts(corr, sigma, totals, ulags, signal_code, replica, gain)
-    outside, notes = outside_note(hist.sum(axis=0), replica, gain, signal_code, ulags, shift,
-                                  lags, bin_width, cfg.range_gate)
+    # (with the plain code and replica, then the response taken out: a return through any
+    # response is exactly a few of the plain code's)
+    irf = ((np.asarray(cal["irf_offsets"], int), np.asarray(cal["irf_values"], float))
+           if cal is not None else None)
+    outside, notes = outside_note(hist.sum(axis=0), plain,
+                                  correlation_gain(code, plain) * n_mean, code, ulags, shift,
+                                  lags, bin_width, cfg.range_gate, irf)
     dwell_warning += notes
     background = np.maximum(totals - signal, 0.0) / period
     sim = {"corr": corr, "sigma": sigma,
