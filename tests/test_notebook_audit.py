@@ -621,3 +621,40 @@ def test_no_thread_of_spslidar_outlives_a_run():
 
     run(size=8, code_length=127, compression=0.5, seed=0)
     assert not [t.name for t in threading.enumerate() if t.name.startswith("spslidar-blas")]
+
+
+def test_a_figure_that_fails_to_save_leaves_no_figure_open(tmp_path):
+    """depth_figure's matplotlib engine left its figure in pyplot when savefig raised (a
+    missing folder, a full disk, a Ctrl-C): 6.7 MB a call in a session (an audit of
+    2026-11-30)."""
+    import matplotlib.pyplot as plt
+
+    from spslidar import run
+    from spslidar.figures import depth_figure
+
+    r = run(size=8, code_length=127, compression=0.5, seed=0)
+    before = len(plt.get_fignums())
+    for _ in range(3):
+        with pytest.raises(OSError):
+            depth_figure(r, tmp_path / "missing" / "d.png", engine="matplotlib")
+    assert len(plt.get_fignums()) == before
+
+
+def test_an_interrupted_command_in_a_session_leaves_no_warning_filter(monkeypatch, capsys,
+                                                                      tmp_path):
+    """main([...]) interrupted in a session added an 'ignore' filter for joblib's cancelled
+    tasks that stayed, and hid the user's own joblib's warning (an audit of 2026-11-30); a
+    process of its own (main() from the command line) still adds it, as it ends."""
+    import warnings
+
+    import spslidar.cli as cli
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    from spslidar.interrupts import EXIT_INTERRUPTED
+
+    monkeypatch.setitem(cli.COMMANDS, "run", interrupted)
+    before = list(warnings.filters)
+    assert cli.main(["run", "--size", "8", "--out", str(tmp_path / "o")]) == EXIT_INTERRUPTED
+    assert warnings.filters == before

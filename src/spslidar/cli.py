@@ -677,9 +677,13 @@ def _main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as exc:
         # a sweep's result generator, held by this exception's traceback, is closed when the
         # exception goes; joblib then warns of the tasks it cancelled, after this command's
-        # one line and with its source line: the line below says it
-        warnings.filterwarnings("ignore", message=r".*tasks .*(cancelled|not used)\. You could",
-                                category=UserWarning)
+        # one line and with its source line: the line below says it (in a process of its
+        # own only: in a session the filter stayed, and hid the user's own joblib's: an
+        # audit of 2026-11-30)
+        if own:
+            warnings.filterwarnings("ignore",
+                                    message=r".*tasks .*(cancelled|not used)\. You could",
+                                    category=UserWarning)
         terminated = isinstance(exc, Terminated)
         if own:
             kill_pool()

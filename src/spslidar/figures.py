@@ -441,35 +441,37 @@ def _depth_figure_mpl(result, path: str | Path) -> Path:
 
     fig, axes = plt.subplots(1, len(panels), figsize=(4.4 * len(panels), 4.6),
                              constrained_layout=True, squeeze=False)
-    for ax, (kind, title, values, vlo, vhi, _table, unit) in zip(axes[0], panels,
-                                                                  strict=True):
-        cmap = plt.get_cmap("RdBu_r" if kind == "error" else "viridis")
-        shown = np.ma.masked_invalid(np.asarray(values, dtype=np.float64))
-        if kind in ("truth", "error"):
-            shown = np.ma.masked_where(no_truth | shown.mask, shown)
-        im = ax.imshow(shown, cmap=cmap, vmin=vlo, vmax=vhi)
-        if kind in ("truth", "error"):
-            paint(ax, no_truth, NO_TRUTH)
-        if kind == "depth2":
-            paint(ax, ~np.isfinite(np.asarray(values, dtype=np.float64)) & ~no_return,
-                  ONE_SURFACE)
-        if kind in ("estimate", "error", "depth2", "confidence"):
-            paint(ax, ~no_truth & no_return if kind == "error" else no_return, NO_RETURN)
-        for mask, colour, marker in _marks(kind, low, outside, beyond, outside2):
-            if mask.any():
-                yy, xx = np.nonzero(mask)
-                ax.scatter(xx, yy, s=max(1.0, 400.0 / mask.shape[0]), marker=marker,
-                           color=np.asarray(colour) / 255, linewidths=1)
-        ax.set_title(title)
-        label = {"m": "depth [m]", "": "confidence"}.get(unit, unit)
-        _colorbar(fig, ax, im, "depth error [m]" if kind == "error" else label)
-        ax.set_xticks([])
-        ax.set_yticks([])
-    fig.legend(handles=[Patch(facecolor=np.asarray(c) / 255, edgecolor="0.3", label=t)
-                        for c, t in _legend_items(result, outside, beyond, outside2)],
-               loc="outside lower center", ncol=4, frameon=False)
-    fig.suptitle(_title(result))
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:  # (a savefig that raised, or a Ctrl-C, left the figure in pyplot: 6.7 MB a call)
+        for ax, (kind, title, values, vlo, vhi, _table, unit) in zip(axes[0], panels,
+                                                                      strict=True):
+            cmap = plt.get_cmap("RdBu_r" if kind == "error" else "viridis")
+            shown = np.ma.masked_invalid(np.asarray(values, dtype=np.float64))
+            if kind in ("truth", "error"):
+                shown = np.ma.masked_where(no_truth | shown.mask, shown)
+            im = ax.imshow(shown, cmap=cmap, vmin=vlo, vmax=vhi)
+            if kind in ("truth", "error"):
+                paint(ax, no_truth, NO_TRUTH)
+            if kind == "depth2":
+                paint(ax, ~np.isfinite(np.asarray(values, dtype=np.float64)) & ~no_return,
+                      ONE_SURFACE)
+            if kind in ("estimate", "error", "depth2", "confidence"):
+                paint(ax, ~no_truth & no_return if kind == "error" else no_return, NO_RETURN)
+            for mask, colour, marker in _marks(kind, low, outside, beyond, outside2):
+                if mask.any():
+                    yy, xx = np.nonzero(mask)
+                    ax.scatter(xx, yy, s=max(1.0, 400.0 / mask.shape[0]), marker=marker,
+                               color=np.asarray(colour) / 255, linewidths=1)
+            ax.set_title(title)
+            label = {"m": "depth [m]", "": "confidence"}.get(unit, unit)
+            _colorbar(fig, ax, im, "depth error [m]" if kind == "error" else label)
+            ax.set_xticks([])
+            ax.set_yticks([])
+        fig.legend(handles=[Patch(facecolor=np.asarray(c) / 255, edgecolor="0.3", label=t)
+                            for c, t in _legend_items(result, outside, beyond, outside2)],
+                   loc="outside lower center", ncol=4, frameon=False)
+        fig.suptitle(_title(result))
+        path = Path(path)
+        fig.savefig(path, dpi=110)
+    finally:
+        plt.close(fig)
     return path

@@ -114,8 +114,10 @@ def _figure(rows: Sequence[dict[str, Any]], sizes: Sequence[int], path: Path) ->
         readable_log_ticks(ax)
     from spslidar.experiments.reproduce.plotting import save_png
 
-    save_png(fig, path, dpi=110)  # (all or nothing: an interrupt leaves no partial PNG)
-    plt.close(fig)
+    try:
+        save_png(fig, path, dpi=110)  # (all or nothing: an interrupt leaves no partial PNG)
+    finally:  # (a write that failed left the figure in pyplot, one a call: an audit)
+        plt.close(fig)
     return path
 
 
