@@ -77,8 +77,11 @@ def make_patterns(
     if kind == "gaussian":
         if not sigma > 0:
             raise ConfigError(f"pattern sigma must be positive, got {sigma}")
-        phi = rng.standard_normal((n_patterns, n_pixels), dtype=np.float32 if dtype == np.float32
-                                  else np.float64)
+        # drawn in float32 whatever the dtype, so that --dtype (the solve's precision) does not
+        # change the acquisition: float64 draws gave other patterns, 0.3 % more photons and
+        # RMSE 0.028 against 0.044 m (an outside audit, options paired; a DMD's grey levels
+        # are 8-bit, far coarser than float32's)
+        phi = rng.standard_normal((n_patterns, n_pixels), dtype=np.float32).astype(dtype)
         # (1e308 overflowed the float32 cast, with NumPy's warning: past 1e30 every value
         # but an exact zero clips to 0 or 1 alike, so the product is taken there)
         phi *= min(float(sigma), 1e30)
