@@ -634,3 +634,21 @@ def test_a_gold_coded_calibrated_scan_is_said_outside_its_gate_only_where_it_is(
         "returns_outside_gate_fraction"]
     assert said == outside
     assert (share > 0.5) if outside else (share < 0.05), share
+
+
+def test_reconstruct_takes_subbin_and_says_what_a_calibration_does(calibrated_wall):
+    """reconstruct had no --subbin (an uncalibrated measurement could not be read below a
+    bin), and a calibrated one's metrics said subbin false while its depths were refined (an
+    outside audit, options paired)."""
+    d = calibrated_wall
+    args = ["reconstruct", "--ptu", str(d / "a.ptu"), "--patterns", str(d / "a_patterns.npy"),
+            "--code", str(d / "a_code.npy"), "--bit-rate", "10e9", "--range-gate", "4", "6",
+            "--no-figure"]
+    assert main([*args, "--out", str(d / "plain")]) == 0
+    assert main([*args, "--subbin", "--out", str(d / "sub")]) == 0
+    plain, sub = (np.load(d / k / "depth.npy") for k in ("plain", "sub"))
+    assert json.loads((d / "sub" / "metrics.json").read_text())["config"]["subbin"] is True
+    assert not np.array_equal(plain, sub)  # (below a bin: not the lags' grid)
+    assert main([*args, "--calibration", str(d / "cal.json"), "--out", str(d / "cal")]) == 0
+    cal = json.loads((d / "cal" / "metrics.json").read_text())["calibration"]
+    assert "parabola" in cal["sub_bin"]

@@ -373,6 +373,11 @@ def _cmd_run(args) -> int:
                 f"--save-ptu draws the file's photons by linear Poisson counting from the "
                 f"expected counts: --detector {cfg.detector}'s dead time, jitter and "
                 f"afterpulses are in run's own depth map, not in {save_ptu}")
+        if cfg.noiseless:  # (the file's photons are drawn: a reconstruct read 0.044 m for
+            # run's noiseless 0.0015 m without a word, an outside audit of 2026-11-30)
+            result.warnings.append(
+                f"--save-ptu draws the file's photons (Poisson counts from the expected "
+                f"ones): --noiseless is in run's own depth map, not in {save_ptu}")
         info: dict = {}
 
         def write(tmps) -> None:  # under temporary names, moved into place all together

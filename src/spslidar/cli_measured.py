@@ -81,6 +81,10 @@ def add_reconstruct_parser(sub) -> None:
     p.add_argument("--lam-scale", type=float, default=S, metavar="K")
     p.add_argument("--iterations", type=int, default=S, metavar="K")
     p.add_argument("--qcr", action=argparse.BooleanOptionalAction, default=S)
+    p.add_argument("--subbin", action=argparse.BooleanOptionalAction, default=S,
+                   help="place each return below a bin from its peak and the two beside it, "
+                        "with the pulse's shape (with --calibration the calibrated "
+                        "response's own sub-bin step applies, whatever this says)")
     p.add_argument("--max-time", type=_duration, default=S, metavar="TIME",
                    help="refuse a reconstruction whose estimated solve time exceeds this: "
                         "seconds, or with a unit (90s, 10min, 2h; default 1h)")

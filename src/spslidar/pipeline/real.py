@@ -569,6 +569,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     result.metrics["calibration"] = None if cal is None else {
         "file": cal.get("file"), "sha256": cal.get("file_sha256"), "delay_s": cal["delay_s"],
         "lag_shift": cal["lag_shift"], "lag_fraction": frac, "spread": spread,
+        # (the config's subbin says false while the depths were refined: an outside audit)
+        "sub_bin": "the vertex of the filtered response's parabola (whatever subbin says)",
         "irf_fwhm_bins": cal["irf_fwhm_bins"], "distance_m": cal.get("distance_m"),
         "target": cal.get("target"), "peak_to_noise": cal.get("peak_to_noise"),
         "warnings": cal.get("warnings"),
