@@ -255,8 +255,6 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
                        warns, timing)
 
 
-@keeping_warnings
-@one_blas_thread
 def _plateau_notes(acq, plateau: float, unipolar: bool, reg_kind: str) -> list[str]:
     """What a replica's plateau (:func:`~spslidar.correlate.replica_plateau`) does that no
     step undoes, in one line each: a pedestal below zero, which the non-negative solve
@@ -280,6 +278,8 @@ def _plateau_notes(acq, plateau: float, unipolar: bool, reg_kind: str) -> list[s
     return notes
 
 
+@keeping_warnings
+@one_blas_thread
 def reconstruct(meas: Measurement, **processing) -> Result:
     """Range gate, QCR, compressive reconstruction, ML depth and metrics of a measurement.
 
