@@ -575,6 +575,22 @@ def test_a_sweep_takes_out_only_its_own_warning_filter(tmp_path, monkeypatch):
     assert warnings.filters == before
 
 
+def test_a_sweep_leaves_a_callers_own_identical_filter(monkeypatch):
+    """A caller who had set the very filter the sweep sets lost it for good: the sweep's
+    filterwarnings moved it to the front, and the sweep took it out as its own (a review)."""
+    import warnings
+
+    from spslidar.experiments.sweep import engine
+
+    said = "A worker stopped while some jobs were given to the executor"
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=said, category=UserWarning)
+        before = list(warnings.filters)
+        out = list(engine._run_local(_square, [(0, {"x": 2}), (1, {"x": 3})], 2))
+        assert sorted(o[1][1] for o in out) == [4, 9]
+        assert warnings.filters == before
+
+
 def _square(params):
     return params["x"] ** 2
 

@@ -313,8 +313,9 @@ def test_run_shared_reuses_the_measurement_and_equals_run(monkeypatch):
 
 
 @pytest.mark.parametrize("kw, said, fix", [
-    ({"lidar": "conventional", "periods": 16, "replica": "bipolar"}, "pedestal of -1.00",
-     {"replica": "auto"}),
+    ({"lidar": "conventional", "periods": 16, "replica": "bipolar"},
+     "pedestal of -1.00 times its return, which the solve's non-negativity clips: depths can "
+     "be lost or wrong; --replica auto takes the unipolar replica", {"replica": "auto"}),
     ({"code": "random", "ones_ratio": 0.1, "replica": "bipolar"}, "pedestal of -0.7",
      {"replica": "auto"}),
     ({"regulariser": "l1", "replica": "unipolar"}, "the l1 prior shrinks",

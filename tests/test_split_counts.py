@@ -166,3 +166,25 @@ def test_reconstruct_reads_the_run_s_counts_whatever_the_gate(tmp_path, capsys):
     _, (_, err) = reconstruct("5.2", "5.4")
     assert re.search(r"outside the range gate 5\.2-5\.4 m, at 4\.9\d*-5\.[12]\d* m and "
                      r"5\.4\d*-5\.[78]\d* m \(", err), err
+
+
+def test_deconvolve_inverts_a_response_and_refuses_one_that_is_no_response():
+    """The outside-gate share's deconvolution (Richardson-Lucy on the periodic delays): a
+    one-bin response moved by an offset is undone exactly, a spread one (negative offsets, a
+    zero among its values) to within its slow convergence; values that sum to 0 or hold
+    NaN are refused (they gave a NaN share: a review)."""
+    from spslidar.correlate import _deconvolve
+
+    rng = np.random.default_rng(0)
+    truth = np.zeros(127)
+    truth[[10, 50, 51]] = [3.0, 1.0, 2.0]
+    shifted = np.roll(truth, 4)
+    np.testing.assert_allclose(_deconvolve(shifted, [4], [1.0]), truth, atol=1e-9)
+    offsets, values = np.array([-2, -1, 0, 1, 2, 3]), np.array([0.1, 0.0, 0.5, 0.2, 0.1, 0.1])
+    blurred = sum(v * np.roll(truth, o) for o, v in zip(offsets, values, strict=True))
+    got = _deconvolve(blurred + 1e-12 * rng.random(127), offsets, values, iterations=2000)
+    assert abs(got.sum() - truth.sum()) < 1e-6 * truth.sum()  # (the total is kept)
+    assert got[[10, 50, 51]].sum() > 0.95 * truth.sum()
+    for bad in ([0.0, 0.0], [np.nan, 1.0], [-0.5, 1.5]):
+        with pytest.raises(ValueError, match="finite, non-negative"):
+            _deconvolve(blurred, [0, 1], bad)

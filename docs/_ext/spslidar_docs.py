@@ -379,7 +379,8 @@ METRICS: dict[str, str] = {
     "ptu": "``reconstruct`` only: the PTU file read and its photons per pattern.",
     "calibration": "``reconstruct`` only: the calibration applied (``--calibration``: its file "
                    "and SHA-256, delay, lag shift and fraction, IRF width, the filter's "
-                   "``spread``, the factor on the default ``lam_scale``, the target's geometry "
+                   "``spread``, the factor on the default ``lam_scale``, how the depths were read "
+                   "below a bin (``sub_bin``), the target's geometry "
                    "(``target``: one range or a flat wall's spread), the response's "
                    "``peak_to_noise`` and the calibration's warnings, ``same_code``: whether "
                    "the code bits were the calibration's), or null.",

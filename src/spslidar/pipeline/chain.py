@@ -264,17 +264,20 @@ def _plateau_notes(acq, plateau: float, unipolar: bool, reg_kind: str) -> list[s
     2026-11-30, options paired)."""
     notes = []
     if plateau <= -PLATEAU_SHARE:
+        from ..correlate import auto_replica
+
         code = np.asarray(acq.code)
         ones = f"{int(np.count_nonzero(code > 0))} of its {code.size} bits ones"
         notes.append(f"the {acq.replica} replica of this code ({ones}) leaves every "
                      f"profile on a pedestal of {plateau:+.2f} times its return, which the "
                      f"solve's non-negativity clips: depths can be lost or wrong; --replica "
-                     f"auto takes the zero-mean replica for such a code")
+                     f"auto takes the {auto_replica(code)} replica for such a code")
     if unipolar and reg_kind not in TV_REGULARISERS:
         notes.append(f"the unipolar replica leaves {plateau:.2f} times each return at every "
                      f"delay, which the {reg_kind} prior shrinks as it would noise before "
-                     f"it is taken out: depths can be lost or wrong; use --regulariser tv or "
-                     f"another --replica")
+                     f"it is taken out: depths can be lost or wrong; use --regulariser tv "
+                     f"(with a solver that takes it: fista, twist, tval3) or another "
+                     f"--replica")
     return notes
 
 

@@ -13,6 +13,7 @@ import json
 import math
 import os
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures.process import BrokenProcessPool  # loky's are subclasses
@@ -110,22 +111,35 @@ def _run_local(
     # queued jobs on the new one, saying so as a UserWarning: every `reproduce all` printed it
     # (stop 52's code too), with every result in place
     said = "A worker stopped while some jobs were given to the executor"
-    warnings.filterwarnings("ignore", message=said, category=UserWarning)
-    # (ours only: where filters are kept per context, as Python 3.14's free-threaded build
-    # does, the global list's first filter is someone else's, which was taken out for good:
-    # an audit of 2026-11-30)
-    first = warnings.filters[0] if isinstance(getattr(warnings, "filters", None), list) and (
-        warnings.filters) else None
-    ours = (first is not None and first[0] == "ignore" and first[2] is UserWarning
-            and getattr(first[1], "pattern", None) == said)
-    added = first if ours else None
+    with _FILTER_LOCK:  # (one filter for the sweeps running at once, taken out by the last)
+        if not _FILTER["users"]:
+            before = list(getattr(warnings, "filters", None) or [])
+            warnings.filterwarnings("ignore", message=said, category=UserWarning)
+            # (ours only: where filters are kept per context, as Python 3.14's free-threaded
+            # build does, the global list's first filter is someone else's, and one the
+            # caller had already set is the caller's: both were taken out for good, an audit
+            # and a review of 2026-11-30)
+            filters = getattr(warnings, "filters", None)
+            first = filters[0] if isinstance(filters, list) and filters else None
+            ours = (first is not None and first[0] == "ignore" and first[2] is UserWarning
+                    and getattr(first[1], "pattern", None) == said and first not in before)
+            _FILTER["added"] = first if ours else None
+        _FILTER["users"] += 1
     try:
         yield from _run_pool(func, tasks, jobs, tuple(plugin_specs()))
     finally:
         # (the filter stayed in the process for good after a sweep: an audit of 2026-11-30;
         # taken out as a plain list edit, as spslidar.capture takes out its own)
-        if added is not None and added in warnings.filters:
-            warnings.filters.remove(added)
+        with _FILTER_LOCK:
+            _FILTER["users"] -= 1
+            added = _FILTER["added"]
+            if not _FILTER["users"] and added is not None and added in warnings.filters:
+                warnings.filters.remove(added)
+
+
+#: the loky-restart filter the sweeps running in this process share
+_FILTER_LOCK = threading.Lock()
+_FILTER: dict[str, Any] = {"users": 0, "added": None}
 
 
 def _run_pool(func: Callable[[dict[str, Any]], Any], tasks: list[tuple[int, dict[str, Any]]],
