@@ -268,10 +268,11 @@ def _plateau_notes(acq, plateau: float, unipolar: bool, reg_kind: str) -> list[s
 
         code = np.asarray(acq.code)
         ones = f"{int(np.count_nonzero(code > 0))} of its {code.size} bits ones"
+        auto = "unipolar" if acq.lidar == "conventional" else auto_replica(code)
         notes.append(f"the {acq.replica} replica of this code ({ones}) leaves every "
                      f"profile on a pedestal of {plateau:+.2f} times its return, which the "
                      f"solve's non-negativity clips: depths can be lost or wrong; --replica "
-                     f"auto takes the {auto_replica(code)} replica for such a code")
+                     f"auto takes the {auto} replica for such a code")
     if unipolar and reg_kind not in TV_REGULARISERS:
         notes.append(f"the unipolar replica leaves {plateau:.2f} times each return at every "
                      f"delay, which the {reg_kind} prior shrinks as it would noise before "
