@@ -17,7 +17,7 @@ import numpy as np
 from ..arrays import positive_number, real_array
 from ..forward import delay_to_depth
 from .base import DepthContext, DepthEstimate, DepthEstimator, check_delays
-from .profile import ADJACENT_TOL, no_return, subbin_offset
+from .profile import ADJACENT_TOL, no_return, subbin_shift
 
 
 def ml_depth(
@@ -121,17 +121,10 @@ def depth_from_peaks(idx: np.ndarray, peak: np.ndarray, below: np.ndarray | None
         # jump; the centroid weighted such a column by its distance, an audit)
         has_lo = (lo != idx) & (np.abs(lags[lo] - pos + 1) < ADJACENT_TOL)
         has_hi = (hi != idx) & (np.abs(lags[hi] - pos - 1) < ADJACENT_TOL)
-        if 0 < pulse_width < 1:
-            values = np.stack([np.asarray(below, np.float64), peak,
-                               np.asarray(above, np.float64)], axis=1)
-            present = np.stack([has_lo, np.ones_like(has_lo), has_hi], axis=1)
-            pos = pos + subbin_offset(values, present, pulse_width)
-        else:
-            w_lo = np.clip(np.asarray(below, np.float64), 0, None) * has_lo
-            w_hi = np.clip(np.asarray(above, np.float64), 0, None) * has_hi
-            tot = w_lo + np.clip(peak, 0, None) + w_hi
-            shift = np.divide(w_hi - w_lo, tot, out=np.zeros_like(pos), where=tot > 0)
-            pos = pos + shift
+        values = np.stack([np.asarray(below, np.float64), peak,
+                           np.asarray(above, np.float64)], axis=1)
+        present = np.stack([has_lo, np.ones_like(has_lo), has_hi], axis=1)
+        pos = pos + subbin_shift(values, present, pulse_width)
     depth = delay_to_depth(pos + 0.5 - pulse_width / 2.0, bin_width)
     depth[no_return(peak, min_peak_fraction)] = np.nan
     return depth

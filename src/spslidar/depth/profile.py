@@ -20,7 +20,8 @@ __all__ = ["ADJACENT_TOL", "NOISE_BESIDE_MIN", "NOISE_ONLY_MARGIN", "NOISE_ONLY_
            "NOISE_VERDICT_PIXELS", "SUBBIN_CLEAR", "SUBBIN_FLOOR", "SUBBIN_QUANTILE",
            "effective_slices", "grid_shape", "index_to_depth", "no_return", "noise_maxima",
            "noise_only_ratio", "noise_scale", "noise_verdict", "peak_to_noise", "pulse_filter",
-           "refine_subbin", "shift2d", "subbin_noise", "subbin_offset", "verdict_and_room"]
+           "refine_subbin", "shift2d", "subbin_noise", "subbin_offset", "subbin_shift",
+           "verdict_and_room"]
 
 #: An image is said to be noise where the 90th percentile of :func:`peak_to_noise` is below
 #: this many times what non-negative white noise gives at as many effective slices
@@ -145,7 +146,7 @@ def _box_shares(delta: np.ndarray, width: float) -> np.ndarray:
     return np.clip(np.minimum(d + width, j + 1) - np.maximum(d, j), 0.0, None) / width
 
 
-def subbin_noise(values: np.ndarray, present: np.ndarray) -> np.ndarray:
+def subbin_noise(values: np.ndarray, present: np.ndarray) -> float:
     """The noise on each peak's neighbours, read off the lower of the two.
 
     Whether a return lies in one bin or straddles two, the lower of its bin's two neighbours
@@ -256,6 +257,24 @@ def subbin_offset(values: np.ndarray, present: np.ndarray, pulse_width: float,
     return np.where(good & np.isfinite(out), out, 0.0)  # (no positive peak: its own bin)
 
 
+def subbin_shift(values: np.ndarray, present: np.ndarray, pulse_width: float | None = None,
+                 sigma: np.ndarray | float | None = None) -> np.ndarray:
+    """Each return's shift below a bin from its chosen slice and the ``h`` on each side
+    (``values``, ``present``: ``(Q, 2 h + 1)``, centred on the chosen slice): with a pulse
+    under one bin and ``h = 1``, :func:`subbin_offset`; otherwise the intensity-weighted
+    mean offset of the slices present (a three-bin centroid at ``h = 1``; a value that is
+    not finite weighs nothing). The one step of :func:`refine_subbin` and of the argmax's
+    peaks (:func:`~spslidar.depth.argmax.depth_from_peaks`)."""
+    v = np.asarray(values, np.float64)
+    half = v.shape[1] // 2
+    if pulse_width is not None and 0 < pulse_width < 1 and half == 1:
+        return subbin_offset(v, present, pulse_width, sigma)
+    offs = np.arange(-half, half + 1, dtype=np.float64)
+    w = np.where(np.asarray(present, bool) & np.isfinite(v), np.clip(v, 0, None), 0.0)
+    tot = w.sum(axis=1)
+    return np.divide(w @ offs, tot, out=np.zeros(v.shape[0]), where=tot > 0)
+
+
 def refine_subbin(slices: np.ndarray, label: np.ndarray, half: int = 1,
                   pulse_width: float | None = None, sigma: float | None = None,
                   lags: np.ndarray | None = None) -> np.ndarray:
@@ -306,13 +325,7 @@ def refine_subbin(slices: np.ndarray, label: np.ndarray, half: int = 1,
     if lags is not None:  # (fractional lags, a calibrated instrument's, compared as reals)
         lg = np.asarray(lags, dtype=np.float64)
         present &= np.abs(lg[cc] - lg[label][:, None] - offs[None, :]) < ADJACENT_TOL
-    values = x[np.arange(q)[:, None], cc]
-    if wide == 1 and pulse_width is not None and 0 < pulse_width < 1:
-        return label + subbin_offset(values, present, pulse_width, sigma)
-    w = np.where(present & np.isfinite(values), np.clip(values, 0, None), 0.0)
-    tot = w.sum(axis=1)
-    shift = np.divide(w @ offs.astype(np.float64), tot, out=np.zeros(q), where=tot > 0)
-    return label + shift
+    return label + subbin_shift(x[np.arange(q)[:, None], cc], present, pulse_width, sigma)
 
 
 def shift2d(img: np.ndarray, dy: int, dx: int, fill: float = np.nan) -> np.ndarray:
