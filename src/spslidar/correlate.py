@@ -563,21 +563,28 @@ def _deconvolve(components: np.ndarray, offsets: np.ndarray, values: np.ndarray,
     v = np.asarray(values, float)
     if not (np.all(np.isfinite(v)) and v.min() >= 0 and v.sum() > 0):
         raise ValueError("a response's values must be finite, non-negative and not all 0")
-    kern = np.zeros(period)
-    np.add.at(kern, np.mod(np.asarray(offsets, int), period), np.asarray(values, float))
-    kern = np.clip(kern, 0.0, None)
-    kern /= kern.sum()
-    k = np.fft.rfft(kern)
-
-    def conv(x, f):
-        return np.fft.irfft(np.fft.rfft(x) * f, period)
-
+    k = response_spectrum(offsets, v / v.sum(), period)
     a = np.full(period, c.sum() / period)
     for _ in range(iterations):
-        model = conv(a, k)
+        model = periodic_filter(a, k, period)
         ratio = np.divide(c, model, out=np.zeros(period), where=model > 1e-12 * c.max())
-        a = np.clip(a * conv(ratio, np.conj(k)), 0.0, None)
+        a = np.clip(a * periodic_filter(ratio, np.conj(k), period), 0.0, None)
     return a
+
+
+def response_spectrum(offsets: np.ndarray, values: np.ndarray, period: int) -> np.ndarray:
+    """The real FFT of an instrument's response (``values`` at bin ``offsets`` from the
+    return) laid on the code's period, the offsets taken modulo it: what
+    :func:`periodic_filter` applies (the calibrated filter and the outside-gate
+    deconvolution)."""
+    kern = np.zeros(period)
+    np.add.at(kern, np.mod(np.asarray(offsets, int), period), np.asarray(values, float))
+    return np.fft.rfft(kern)
+
+
+def periodic_filter(x: np.ndarray, spectrum: np.ndarray, period: int) -> np.ndarray:
+    """``x`` (one code period) filtered periodically by ``spectrum`` (a real FFT)."""
+    return np.fft.irfft(np.fft.rfft(np.asarray(x, np.float64)) * spectrum, period)
 
 
 def _clean(profile: np.ndarray, beam: np.ndarray, lags: np.ndarray, floor: float,

@@ -104,19 +104,14 @@ def calibrated_filter(code: np.ndarray, replica: np.ndarray, cal: dict[str, Any]
     -------
     CalibratedFilter
     """
+    from ..correlate import periodic_filter, response_spectrum
+
     period = int(np.asarray(code).size)
-    kern = np.zeros(period)
-    np.add.at(kern, np.mod(np.asarray(cal["irf_offsets"], int), period),
-              np.asarray(cal["irf_values"], float))
-    spec = np.fft.rfft(kern)
+    spec = response_spectrum(cal["irf_offsets"], cal["irf_values"], period)
     reg = WIENER_REG if regularisation is None else float(regularisation)
     power = np.abs(spec) ** 2
     filt = spec if not np.isfinite(reg) else spec / (power + reg * float(power.max()))
-
-    def conv(x, f):
-        return np.fft.irfft(np.fft.rfft(np.asarray(x, np.float64)) * f, period)
-
-    rep, sig = conv(replica, filt), conv(code, spec)
+    rep, sig = periodic_filter(replica, filt, period), periodic_filter(code, spec, period)
     # a unit return's response over the lags, peak 1 (the matched filter's normalisation)
     resp = np.fft.irfft(np.fft.rfft(sig) * np.conj(np.fft.rfft(rep)), period)
     resp /= resp[0]
