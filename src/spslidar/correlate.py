@@ -477,6 +477,10 @@ OUTSIDE_SIGMAS = 5.0
 #: a measured acquisition warns where more than this share of its returns lies outside the
 #: range gate (:func:`returns_outside`, :func:`spslidar.pipeline.gate.outside_note`)
 OUTSIDE_SHARE = 0.05
+#: a deconvolved return under this share of the largest is the deconvolution's residue
+OUTSIDE_FLOOR = 1e-3
+#: the share of the returns outside a gate whose delays name where they are
+OUTSIDE_SPAN = 0.99
 
 
 def returns_outside(counts: np.ndarray, replica: np.ndarray, gain: float,
@@ -544,12 +548,6 @@ def returns_outside(counts: np.ndarray, replica: np.ndarray, gain: float,
     order = np.argsort(mass)[::-1]
     keep = order[: int(np.searchsorted(np.cumsum(mass[order]), OUTSIDE_SPAN * mass.sum())) + 1]
     return share, np.sort(idx[keep])
-
-
-#: a deconvolved return under this share of the largest is the deconvolution's residue
-OUTSIDE_FLOOR = 1e-3
-#: the share of the returns outside a gate whose delays name where they are
-OUTSIDE_SPAN = 0.99
 
 
 def _deconvolve(components: np.ndarray, offsets: np.ndarray, values: np.ndarray,

@@ -29,11 +29,10 @@ def load_npy(path: str | os.PathLike, what: str, error: type = ConfigError) -> n
 
     from .machine import _gb, available_memory
 
-
     p = Path(path)
     if not p.is_file():
         raise error(f"{what} file not found: {p}" if not p.exists() else
-                          f"{what} {p} is not a file (a folder or a device)")
+                    f"{what} {p} is not a file (a folder or a device)")
     try:
         with open(p, "rb") as fh:
             version = npformat.read_magic(fh)
@@ -44,10 +43,10 @@ def load_npy(path: str | os.PathLike, what: str, error: type = ConfigError) -> n
                 body = p.stat().st_size - fh.tell()
                 if any(int(d) < 0 for d in shape):  # (np.load's memory map: OverflowError)
                     raise error(f"cannot read {what} {p}: its header declares the shape "
-                                      f"{tuple(shape)} (a corrupt .npy file)")
+                                f"{tuple(shape)} (a corrupt .npy file)")
                 if dtype.hasobject:
                     raise error(f"cannot read {what} {p}: it holds Python objects, "
-                                      "not numbers")
+                                "not numbers")
                 size = float(np.prod(shape, dtype=np.float64)) * dtype.itemsize
                 if size > body:
                     amount = _gb(size) if size >= 1e6 else f"{size:.0f} bytes"
@@ -77,7 +76,7 @@ def load_npy(path: str | os.PathLike, what: str, error: type = ConfigError) -> n
     need = float(head.size) * 8 * 2  # float64 copies while checking
     if need > 0.8 * available_memory():
         raise error(f"{what} {p} holds an array of shape {head.shape}: {_gb(need)} to "
-                          f"check, more than the memory available")
+                    f"check, more than the memory available")
     return np.array(head)
 
 

@@ -185,8 +185,8 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, values: np.ndarray,
     array (NaN where unknown), ``uchar`` for an integer one (0-255; ``return_number``: 1
     for a pixel's first surface, 2 for its second, as LAS numbers returns). Readable by
     CloudCompare, MeshLab, Open3D, PDAL and ``plyfile`` (each extra property a scalar
-    field). Written by hand: the format
-    is a short header and a packed array, and no dependency the project has writes it.
+    field). Written by hand: the format is a short header and a packed array, and no
+    dependency the project has writes it.
     """
     pts = real_array(points, "points").astype(np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3:
