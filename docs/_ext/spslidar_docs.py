@@ -357,8 +357,13 @@ METRICS: dict[str, str] = {
                 "where a real GMAPD would saturate (the linear counter's); the GMAPD "
                 "reports ``dead_fraction`` and ``incident_per_dead_time`` (the photons that "
                 "reached it, the simulation's own) instead, and for the conventional lidar "
-                "``incident_per_pulse`` and ``detections_per_pulse``; ``reconstruct`` writes "
-                "``model: measured`` and the measured ``count_rate_hz``.",
+                "``incident_per_pulse`` and ``detections_per_pulse``; ``reconstruct`` (and a "
+                "calibration file's ``detector``) writes ``model: measured``, the measured "
+                "``count_rate_hz``, the ``dead_time_s`` given (``null``: none) and whether "
+                "the histograms were ``corrected`` for it, and with a dead time the "
+                "GMAPD's ``counts_per_dead_time``, ``dead_fraction`` and "
+                "``incident_per_dead_time`` read from the counts, ``afterpulse_prob`` and "
+                "``afterpulse_delay_s``.",
     "estimate": "The memory (GB) and time (s) estimated before a simulated run "
                 "(``time_s_at_floor`` where the weight met its floor and the run was priced "
                 "again with the floored iteration cap); empty for ``reconstruct``, whose "

@@ -368,7 +368,8 @@ def _cmd_run(args) -> int:
         meas = measure(cfg)
         check_ptu_photons(meas)  # before the solve
         result = reconstruct(meas)
-        if cfg.detector != "linear":  # (its dead time and jitter were silently left out)
+        if cfg.detector not in ("linear", "gmapd"):  # (its dead time and jitter were
+            # silently left out; the GMAPD's detections are drawn event by event)
             result.warnings.append(
                 f"--save-ptu draws the file's photons by linear Poisson counting from the "
                 f"expected counts: --detector {cfg.detector}'s dead time, jitter and "

@@ -39,6 +39,24 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
     p.add_argument("--allow-binning", action="store_true",
                    help="merge k dtime units into one bin where the file's resolution is "
                         "1/k of 1/--bit-rate (a TDC finer than the code's bits)")
+    p.add_argument("--dead-time", type=float, metavar="S",
+                   help="the detector's (and TCSPC's) non-paralysable dead time, seconds: each "
+                        "pattern's histogram is corrected for pile-up before the matched "
+                        "filter (0: it has none; default: counts taken as they are, with a "
+                        "warning where the count rate says pile-up matters)")
+    p.add_argument("--afterpulse-prob", type=float, default=0.0, metavar="P",
+                   help="the detector's afterpulse probability per avalanche, taken out with "
+                        "--dead-time")
+    p.add_argument("--afterpulse-delay", type=float, default=0.0, metavar="S",
+                   help="mean afterpulse delay after re-arming, seconds (with "
+                        "--afterpulse-prob)")
+
+
+def _detector_args(args) -> dict:
+    """The detector's dead time and afterpulsing as the measured paths take them."""
+    from .pipeline.deadtime import DEAD_TIME_KEYS
+
+    return {k: getattr(args, k) for k in DEAD_TIME_KEYS}
 
 
 def add_reconstruct_parser(sub) -> None:
@@ -110,7 +128,7 @@ def cmd_reconstruct(args) -> int:
                              tuple(args.range_gate), marker=args.marker, channel=args.channel,
                              allow_binning=args.allow_binning, truth=args.truth,
                              calibration=args.calibration, marker_edge=args.marker_edge,
-                             **processing)
+                             **_detector_args(args), **processing)
     for w in result.warnings:
         print(f"spslidar: warning: {w}", file=sys.stderr)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
@@ -175,7 +193,8 @@ def cmd_calibrate(args) -> int:
                         args.bit_rate, args.distance,
                         marker=args.marker, channel=args.channel,
                         allow_binning=args.allow_binning, target=args.target,
-                        fov_deg=args.fov, marker_edge=args.marker_edge)
+                        fov_deg=args.fov, marker_edge=args.marker_edge,
+                        **_detector_args(args))
     path = write_calibration(cal, args.out, args.overwrite)
     _WRITTEN.append(str(path))
     period_ns = cal["code_length"] / args.bit_rate * 1e9

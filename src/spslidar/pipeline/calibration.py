@@ -427,10 +427,15 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                   bit_rate: float, distance: float, *, marker: int = 1,
                   channel: int | None = None, pulse_width: float = 0.5,
                   allow_binning: bool = False, target: str = "auto",
-                  fov_deg: float | None = None, marker_edge: str = "start") -> dict[str, Any]:
+                  fov_deg: float | None = None, marker_edge: str = "start",
+                  dead_time: float | None = None, afterpulse_prob: float = 0.0,
+                  afterpulse_delay: float = 0.0) -> dict[str, Any]:
     """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target,
     with what it was measured from (file, hash, photons, patterns, bit rate, code);
-    ``allow_binning`` and ``marker_edge`` as :func:`~spslidar.pipeline.real.reconstruct_ptu`.
+    ``allow_binning``, ``marker_edge`` and the detector's ``dead_time`` and afterpulsing (each
+    block's histogram corrected for pile-up before the response is read: uncorrected, a
+    bright wall's response is read through the detector's dead time; the JSON's ``detector``
+    says which) as :func:`~spslidar.pipeline.real.reconstruct_ptu`.
 
     ``target`` says what the target's pixels see (:mod:`spslidar.pipeline.target`):
     ``range``, one range (the patterns' sum is read as it is); ``plane``, a flat wall at
@@ -445,6 +450,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     :class:`~spslidar.errors.ConfigError`."""
     from ..version import __version__
     from .blocks import read_blocks
+    from .deadtime import correct_blocks, dead_time_model, pileup_report
     from .real import (
         check_code,
         check_patterns,
@@ -465,6 +471,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
         raise ConfigError(f"allow_binning must be True or False, got {allow_binning!r}")
     fov = _check_target(target, fov_deg)
     bin_width = 1.0 / float(bit_rate)
+    detector = dead_time_model(bin_width, dead_time, afterpulse_prob, afterpulse_delay)
     if fov is not None:  # a wall wider than the code's period: refused before the read too
         from .target import wall_offsets
 
@@ -473,9 +480,14 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     data, notes = read_blocks(ptu, int(patterns.shape[0]), int(code.size), bin_width=bin_width,
                               marker=marker, channel=channel, allow_binning=allow_binning,
                               marker_edge=marker_edge)
-    for note in notes:
+    periods = np.maximum(data.periods_per_pattern, 1)
+    pile, pile_notes = pileup_report(data.counts_per_pattern, periods,
+                                     code.size * bin_width, detector, channel)
+    for note in notes + pile_notes:
         warnings.warn(note, stacklevel=2)
     hists = data.histograms
+    if pile["corrected"]:
+        hists = correct_blocks(hists, periods, detector)[0]
     total = hists.astype(np.float64).sum(axis=0)
     with warnings.catch_warnings(record=True) as said:  # kept in the file, and said again
         warnings.simplefilter("always")
@@ -494,6 +506,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
             "bit_rate_hz": float(bit_rate), "code_length": int(code.size),
             "code_sha256": code_sha256(code), "code_bits": code_bits(code),
             "pulse_width": float(pulse_width), "distance_m": float(distance),
+            "detector": pile,
             "measured_from": {"ptu": path.name, "bytes": path.stat().st_size,
                               "sha256": sha256_file(path),
                               "photons": int(data.counts_per_pattern.sum()),

@@ -43,6 +43,10 @@ def write_measurement_ptu(meas: Measurement, path: str | os.PathLike, *,
     uniformly drawn code period of the pattern's dwell, and written with a marker per pattern
     (:func:`spslidar.io.write_acquisition_ptu`). So the file is another realisation of the same
     acquisition: ``reconstruct`` on it gives ``run``'s depth map to within the photon noise.
+    With ``--detector gmapd`` the file holds what that detector records, detection by
+    detection (:func:`spslidar.detectors.events.simulate_events`: its dead time, jitter and
+    afterpulses, free-running through each pattern's dwell), which ``reconstruct
+    --dead-time`` corrects as ``run`` does its own histograms.
 
     Raises
     ------
@@ -67,6 +71,20 @@ def write_measurement_ptu(meas: Measurement, path: str | os.PathLike, *,
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0x505455]))
     m = patterns.shape[0]
     photons = 0
+    detector = None
+    if cfg.detector == "gmapd":  # (photon by photon, as the detector records them)
+        from ..detectors import build_detector
+        from ..detectors.events import simulate_events
+        from .plan import detector_options
+
+        detector = build_detector(cfg.detector, **detector_options(cfg))
+
+    def detected(lam_row: np.ndarray) -> np.ndarray:
+        """One pattern's ``(period, bin)`` detections by the GMAPD."""
+        _, times = simulate_events(lam_row, acq.n_periods, detector, rng)
+        at = np.minimum(np.floor(times / acq.bin_width).astype(np.int64),
+                        acq.n_periods * acq.period - 1)
+        return np.stack([at // acq.period, at % acq.period], axis=1)
 
     def events():  # pattern by pattern, drawn as the file is written (memory: 64 patterns')
         nonlocal photons
@@ -75,6 +93,12 @@ def write_measurement_ptu(meas: Measurement, path: str | os.PathLike, *,
             amp = np.asarray(patterns.apply_rows(rows, weights), np.float64)
             lam = expected_counts(amp, shifts, acq.code, acq.signal_per_pulse, noise_bin[rows],
                                   acq.n_periods)
+            if detector is not None:
+                for row in np.asarray(lam, np.float64):
+                    events_k = detected(row)
+                    photons += len(events_k)
+                    yield events_k
+                continue
             counts = rng.poisson(np.asarray(lam, np.float64))
             for row in counts:
                 bins = np.repeat(np.arange(acq.period), row)

@@ -1,0 +1,240 @@
+"""The dead time of a measured acquisition's detector: each marker block's histogram corrected
+for pile-up before the matched filter (``reconstruct --dead-time``, ``calibrate
+--dead-time``), and a word where the count rate says a dead time would matter and none was
+given.
+
+A real single-photon detector and its TCSPC electronics go dead after each detection (SPADs
+and PicoQuant's HydraHarp and PicoHarp: 20-100 ns; non-paralysable), so the photons of a
+strong return are counted less than those of a weak one, and each pattern's count is
+compressed as ``n / (1 + n)`` of its photons per dead time: the contrast between patterns that
+the reconstruction reads falls with it (README, "How to operate a PSST lidar with a GMAPD").
+``run --detector gmapd`` simulates such a detector and corrects its histograms; this module
+applies the same correction (:meth:`spslidar.detectors.gmapd.GMAPD.correct`, the generalised
+Coates estimate of Rapp et al. 2019 for a free-running detector) to the histograms a file
+holds, block by block with each block's own number of code periods (its dwell), and gives
+the matched filter the corrected counts' variance
+(:meth:`~spslidar.detectors.gmapd.GMAPD.noise_totals`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+
+__all__ = ["DEAD_TIME_KEYS", "calibration_note", "correct_blocks", "dead_time_model",
+           "pileup_report"]
+
+#: the keyword arguments of the measured paths (``reconstruct_ptu``, ``calibrate_ptu``)
+DEAD_TIME_KEYS = ("dead_time", "afterpulse_prob", "afterpulse_delay")
+#: dead times of the detectors and TCSPC electronics a PSST lidar is built with (SPADs,
+#: HydraHarp / PicoHarp), for the word said where no --dead-time is given
+TYPICAL_DEAD_TIMES_S = (20e-9, 100e-9)
+#: the share of photons the longer typical dead time must lose for that word (the 5 % rule of
+#: TCSPC practice: below it pile-up is negligible)
+LOSS_TO_WARN = 0.05
+#: counts per second past which no single detector counts (a simulation's linear counter, or
+#: many channels merged): nothing is said of a dead time there
+MAX_DETECTOR_RATE_HZ = 1e9
+#: the longest dead time taken (as ``run --dead-time``): a millisecond is a unit mistake
+MAX_DEAD_TIME_S = 1e-3
+
+
+def _time(value: Any, flag: str) -> float:
+    """A non-negative time in seconds of at most ``MAX_DEAD_TIME_S``, or one line."""
+    try:
+        t = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{flag} must be a time in seconds, got {value!r}") from None
+    if not (math.isfinite(t) and 0.0 <= t <= MAX_DEAD_TIME_S):
+        raise ConfigError(f"{flag} must be a time in seconds from 0 to {MAX_DEAD_TIME_S:g} "
+                          f"(detectors go dead for 10 ns to 10 us), got {value!r}")
+    return t
+
+
+def dead_time_model(bin_width: float, dead_time: Any = None, afterpulse_prob: Any = 0.0,
+                    afterpulse_delay: Any = 0.0):
+    """The detector model whose pile-up a measured acquisition is corrected for, or ``None``
+    where no dead time is given (the counts are taken as they are).
+
+    Parameters
+    ----------
+    bin_width : float
+        The TDC bin, seconds.
+    dead_time : float or None
+        Non-paralysable dead time of the detector and its electronics, seconds: 0 (it has
+        none: nothing is corrected, and nothing is said of the count rate) or at least one
+        bin; ``None``: not given.
+    afterpulse_prob, afterpulse_delay : float
+        The detector's afterpulsing (probability per avalanche, mean delay after re-arming
+        in seconds), taken out with the dead time.
+
+    Returns
+    -------
+    GMAPD or None
+
+    Raises
+    ------
+    ConfigError
+        One line for a value that is not a time or probability, a dead time under one bin,
+        or afterpulsing without its delay or without a dead time given.
+    """
+    prob = afterpulse_prob if afterpulse_prob is not None else 0.0
+    delay = afterpulse_delay if afterpulse_delay is not None else 0.0
+    try:
+        p = float(prob)
+    except (TypeError, ValueError):
+        p = math.nan
+    if not (math.isfinite(p) and 0.0 <= p < 1.0):
+        raise ConfigError(f"--afterpulse-prob must be a probability in [0, 1), got {prob!r}")
+    delay = _time(delay, "--afterpulse-delay")
+    if dead_time is None:
+        if p or delay:  # (they would do nothing: said, as run says it)
+            raise ConfigError("--afterpulse-prob and --afterpulse-delay are corrected with the "
+                              "detector's dead time: give --dead-time too (0 if it has none)")
+        return None
+    dead = _time(dead_time, "--dead-time")
+    if 0.0 < dead < bin_width * (1 - 1e-9):
+        raise ConfigError(f"--dead-time ({dead:g} s) must be 0 or at least one TDC bin "
+                          f"(1 / --bit-rate = {bin_width:g} s)")
+    if p > 0 and not delay > 0:
+        raise ConfigError("--afterpulse-delay must be positive when --afterpulse-prob > 0")
+    if delay > 0 and not p > 0:
+        raise ConfigError("--afterpulse-delay does nothing without --afterpulse-prob (the "
+                          "probability of an afterpulse) above 0")
+    from ..detectors import build_detector
+
+    # (the bin-level inverse in closed form: a code spreads a period's photons over hundreds
+    # of pulses, so no bin's flux needs the sub-binned refinement, which near saturation ran
+    # for 28 s per 64 patterns and read no closer: 30 photons per dead time, 2.2 against
+    # 1.9 times the photons from one draw of the counts, both exact on expected counts)
+    return build_detector("gmapd", dead_time=dead, bin_width=float(bin_width),
+                          afterpulse_prob=p, afterpulse_delay=delay, oversample=1)
+
+
+def correct_blocks(hist: np.ndarray, periods: np.ndarray, detector
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Each block's histogram corrected for pile-up, with its own dwell.
+
+    Parameters
+    ----------
+    hist : ndarray, shape (M, L)
+        Detected counts per block (pattern) and TDC bin.
+    periods : ndarray, shape (M,)
+        Code periods each block lasted (whole numbers >= 1).
+    detector : GMAPD
+        From :func:`dead_time_model`.
+
+    Returns
+    -------
+    corrected : ndarray, shape (M, L)
+        The photons per bin a detector without dead time would have counted
+        (:meth:`~spslidar.detectors.gmapd.GMAPD.correct`).
+    noise_totals : ndarray, shape (M,)
+        Per block, the corrected counts' variance summed over the bins, for the matched
+        filter's noise level (:meth:`~spslidar.detectors.gmapd.GMAPD.noise_totals`).
+    """
+    h = np.asarray(hist, dtype=np.float64)
+    n = np.maximum(np.round(np.asarray(periods, dtype=np.float64)), 1).astype(np.int64)
+    fixed = np.empty_like(h)
+    noise = np.empty(h.shape[0])
+    for value in np.unique(n):  # (blocks of one dwell together: usually all of them)
+        rows = np.flatnonzero(n == value)
+        fixed[rows] = detector.correct(h[rows], int(value))
+        noise[rows] = detector.noise_totals(h[rows], h[rows].sum(axis=1), int(value),
+                                            corrected=fixed[rows])
+    return fixed, noise
+
+
+def _check_recordable(counts: np.ndarray, periods: np.ndarray, period_s: float, dead: float,
+                      channel: Any) -> None:
+    """Refuse (one line) a dead time no block's counts could have been recorded through: a
+    non-paralysable detector records at most one detection per dead time, ``T / D + 1`` over
+    a block of ``T`` seconds (the Coates inverse of such counts has no solution, and its
+    sub-binned refinement ran for many minutes on a linear counter's file)."""
+    span = periods * period_s
+    over = counts > span / dead + 1.0
+    if not over.any():
+        return
+    k = int(np.argmax(counts * dead / span))
+    merged = "" if channel is not None else ", or several channels are merged (--channel)"
+    raise ConfigError(
+        f"--dead-time {dead:g}: marker block {k} holds {counts[k]:.0f} detections in "
+        f"{span[k]:.4g} s, {counts[k] * dead / span[k]:.3g} per dead time, where a detector "
+        f"with that dead time records at most one: the dead time is too long for this "
+        f"file{merged}")
+
+
+def pileup_report(counts: np.ndarray, periods: np.ndarray, period_s: float, detector,
+                  channel: Any = None) -> tuple[dict[str, Any], list[str]]:
+    """What ``metrics.json``'s ``detector`` says of a measured acquisition's count rate and
+    dead time, and the warnings to give.
+
+    Without a dead time given (``detector`` ``None``) a warning says what the longer
+    :data:`TYPICAL_DEAD_TIMES_S` would lose at this rate where that is at least
+    :data:`LOSS_TO_WARN` of the photons and the rate is one a single detector can count
+    (below :data:`MAX_DETECTOR_RATE_HZ`): the non-paralysable loss is ``r D`` of the photons
+    at a detected rate ``r``. With one, the GMAPD's own report (detections and incident
+    photons per dead time) and its word on saturation.
+    """
+    counts = np.asarray(counts, dtype=np.float64)
+    dwell = float(np.maximum(np.asarray(periods, dtype=np.float64), 1).sum())
+    rate = float(counts.sum()) / (dwell * period_s)
+    if detector is None:
+        out: dict[str, Any] = {"model": "measured", "count_rate_hz": rate,
+                               "dead_time_s": None, "corrected": False}
+        lo, hi = (rate * d for d in TYPICAL_DEAD_TIMES_S)
+        if hi < LOSS_TO_WARN or rate >= MAX_DETECTOR_RATE_HZ:
+            return out, []
+        per = rate * period_s
+        where = " on this channel" if channel is not None else ""
+        shares = "; ".join(f"{d * 1e9:g} ns: {rate * d * 100:.2g} %" if rate * d < 1 else
+                           f"{d * 1e9:g} ns: more than it can record" for d in
+                           TYPICAL_DEAD_TIMES_S)
+        note = (f"the detector recorded {rate / 1e6:.3g} M photons/s{where} ({per:.3g} per "
+                f"code period): a non-paralysable dead time loses this rate times the dead "
+                f"time of the photons ({shares}; SPADs and TCSPC electronics go dead for "
+                f"20-100 ns), the strongest returns most (pile-up), which flattens the "
+                f"contrast between patterns that the reconstruction reads; give the "
+                f"detector's --dead-time (and --afterpulse-prob, --afterpulse-delay) to "
+                f"correct it, or --dead-time 0 if it has none")
+        return out, [note]
+    if detector.dead_time > 0:  # (a saturated inverse ran for many minutes: refused first)
+        _check_recordable(counts, np.maximum(np.asarray(periods, np.float64), 1), period_s,
+                          float(detector.dead_time), channel)
+    out = detector.report(rate * period_s, period_s)
+    out.update({"model": "measured", "dead_time_s": float(detector.dead_time),
+                "afterpulse_prob": float(detector.afterpulse_prob),
+                "afterpulse_delay_s": float(detector.afterpulse_delay),
+                "corrected": bool(detector.dead_time > 0 or detector.afterpulse_prob > 0)})
+    notes = [n.replace("lower --signal and --noise (and raise --periods)",
+                       "record with less light (the detector cannot count more)")
+             for n in detector.notes_after(out)]
+    return out, notes
+
+
+def _dead_time_of(detector) -> float:
+    return 0.0 if detector is None else float(detector.dead_time)
+
+
+def calibration_note(cal: dict[str, Any], detector) -> str | None:
+    """A warning where a calibration's response was read with another dead-time correction
+    than the reconstruction's (``None`` where they agree, or where the calibration predates
+    the ``detector`` record): its response is then not the one these histograms show."""
+    record = cal.get("detector")
+    if not isinstance(record, dict) or "dead_time_s" not in record:
+        return None
+    then = record.get("dead_time_s")
+    then = float(then) if isinstance(then, (int, float)) and not isinstance(then, bool) else 0.0
+    now = _dead_time_of(detector)
+    if math.isclose(then, now, rel_tol=1e-9, abs_tol=0.0):
+        return None
+
+    def said(d: float) -> str:
+        return f"--dead-time {d:g} corrected" if d > 0 else "no dead time corrected"
+
+    return (f"the calibration's response was read with {said(then)}, this reconstruction "
+            f"has {said(now)}: give both the detector's same --dead-time")
