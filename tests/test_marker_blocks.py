@@ -296,3 +296,65 @@ def test_a_recording_started_early_keeps_its_edge_at_short_and_long_dwells(tmp_p
     data, notes = read_blocks(f, M, L, bin_width=RES)
     assert _peaks(data) == list(range(M))
     assert not any("--marker-edge" in n for n in notes), notes
+
+
+@pytest.mark.parametrize("bounces", [[(3, 0)], [(2, 1)], [(1, 2), (4, 0)]])
+def test_a_bouncing_marker_is_merged_into_its_pattern(tmp_path, bounces):
+    """A marker repeated 0, 1 or 2 syncs after its pattern's (a DMD trigger's bounce; one or
+    two of them): the short block's photons are the pattern's, and every row keeps its own
+    pattern. Before, the last block was dropped as "a row missing from --patterns?" and
+    every pattern after the bounce was paired with its neighbour's photons, or the bounce
+    block was scaled up as a pattern of its own."""
+    rng = np.random.default_rng(7)
+    starts = [DWELL * k for k in range(M)]
+    marks = starts + [DWELL * k + gap for k, gap in bounces]
+    f = _write(tmp_path / "b.ptu", *_events(rng, starts, sorted(marks)))
+    data, notes = read_blocks(f, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M))
+    np.testing.assert_array_equal(data.periods_per_pattern[:-1], DWELL)
+    assert data.counts_per_pattern.sum() == M * PER  # none lost
+    assert len(notes) == 1 and "a marker repeated (a DMD trigger's bounce?)" in notes[0]
+    # (the short block is the one from the pattern's marker to its bounce: block k, after
+    # the earlier bounces' blocks)
+    said = ", ".join(str(k + i) for i, (k, _) in enumerate(sorted(bounces)))
+    assert f"(block {said})" in notes[0]
+
+
+def test_patterns_of_a_period_each_are_no_bounce(tmp_path):
+    """Patterns lasting a sync or two are not told from bounces: an extra block there is the
+    end-of-acquisition marker's, as before."""
+    rng = np.random.default_rng(8)
+    dwell = 2
+    starts = [dwell * k for k in range(M)]
+    ev = []
+    for k, s0 in enumerate(starts):
+        ev += [(int(s), 1, k + 3, 0) for s in rng.integers(s0, s0 + dwell, 50)]
+    ev += [(int(s), 0, 0, 1) for s in starts + [dwell * M]]
+    ev.sort()
+    a = np.array(ev)
+    f = _write(tmp_path / "p.ptu", a[:, 0], a[:, 2], a[:, 3])
+    data, notes = read_blocks(f, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M)) and not any("bounce" in n for n in notes)
+
+
+@pytest.mark.parametrize("stray,said", [(200, True), (10, False)])
+def test_photons_on_a_second_channel_are_said_when_they_matter(tmp_path, stray, said):
+    """A second channel (a laser monitor) merged without --channel is said where it holds 1 %
+    of the photons or more (200 of 2 600 here), not for a few stray counts (10)."""
+    rng = np.random.default_rng(9)
+    starts = [DWELL * k for k in range(M)]
+    nsync, dtime, marker = _events(rng, starts, starts)
+    extra = np.sort(rng.integers(0, DWELL * M, stray))
+    ns = np.concatenate([nsync, extra])
+    order = np.argsort(ns, kind="stable")
+    ch = np.concatenate([np.zeros(nsync.size, int), np.ones(stray, int)])[order]
+    dt = np.concatenate([dtime, np.full(stray, 20)])[order]
+    mk = np.concatenate([marker, np.zeros(stray, int)])[order]
+    f = tmp_path / "c.ptu"
+    write_ptu_t3(f, nsync=ns[order], dtime=dt, channel=ch, marker=mk, resolution_s=RES,
+                 sync_rate_hz=1 / (L * RES))
+    data, notes = read_blocks(f, M, L, bin_width=RES)
+    assert data.photons_per_channel == {0: M * PER, 1: stray}
+    assert any("merged into one histogram" in n for n in notes) == said
+    _, notes = read_blocks(f, M, L, bin_width=RES, channel=0)
+    assert not any("merged" in n for n in notes)

@@ -193,6 +193,29 @@ def test_readme_counts_of_the_files():
     assert int(((rec >> 31 == 0) & ((rec >> 25) & 0x3F == 0)).sum()) == 305_565
 
 
+@pytest.mark.parametrize("name,n_bins,photons", [
+    ("hazelnut_z10.ptu", 132, {0: 726_942}),
+    ("tttrlib_MT200_HH400_beads.ptu", 1563, {0: 52_833, 1: 20_954}),
+])
+def test_photons_per_channel_and_the_word_on_merged_channels(name, n_bins, photons):
+    """The reader's photons per channel are the README's (decoded independently); read
+    without --channel, a file with photons on two channels says they are merged, and one
+    channel chosen says nothing of it."""
+    from spslidar.pipeline.blocks import read_blocks
+
+    got = read_ptu_histograms(REAL / name, n_bins, marker=3, check_sync_period=False)
+    assert got.photons_per_channel == photons
+    width = got.bin_width_s
+    _, notes = read_blocks(REAL / name, got.n_patterns, n_bins, bin_width=width, marker=3)
+    merged = [n for n in notes if "merged into one histogram" in n]
+    assert len(merged) == (len(photons) > 1)
+    if merged:
+        assert "channels 0 (71.6 %), 1 (28.4 %)" in merged[0]
+        _, notes = read_blocks(REAL / name, got.n_patterns, n_bins, bin_width=width,
+                               marker=3, channel=1)
+        assert not any("merged into one histogram" in n for n in notes)
+
+
 def _with_record_count(tmp_path, count: int) -> tuple[Path, bytes]:
     """The beads file, copied to ``tmp_path`` with its header's TTResult_NumberOfRecords set
     to ``count`` (an int64 tag: its value follows the tag's 40 bytes); and its bytes."""

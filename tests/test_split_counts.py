@@ -188,3 +188,25 @@ def test_deconvolve_inverts_a_response_and_refuses_one_that_is_no_response():
     for bad in ([0.0, 0.0], [np.nan, 1.0], [-0.5, 1.5]):
         with pytest.raises(ValueError, match="finite, non-negative"):
             _deconvolve(blurred, [0, 1], bad)
+
+
+def test_returns_outside_a_gate_near_the_lidar_are_never_named_before_it():
+    """A return 13.5 m away read through a 4.8-6.4 m gate of a 1023-bit code (15.3 m
+    unambiguous) was named at -1.84 m, the period 'nearest' the gate; it is at 13.5 m."""
+    from spslidar.codes import make_code
+    from spslidar.correlate import correlation_gain, make_replica
+    from spslidar.forward import delay_to_depth
+    from spslidar.pipeline.gate import outside_note
+    from spslidar.pipeline.plan import gate_lags
+
+    code = make_code("mseq", 1023).astype(np.float64)
+    bw = 1e-10
+    far = int(round(13.5 / float(delay_to_depth(1, bw))))
+    near = int(round(5.6 / float(delay_to_depth(1, bw))))
+    counts = 200.0 * np.roll(code, far) + 100.0 * np.roll(code, near) + 5.0
+    replica = make_replica(code, "bipolar")
+    lags = gate_lags((4.8, 6.4), bw)
+    share, notes = outside_note(counts, replica, correlation_gain(code, replica), code,
+                                lags, 0, lags, bw, (4.8, 6.4))
+    assert share == pytest.approx(2 / 3, abs=0.05) and len(notes) == 1
+    assert re.search(r"at 13\.[45]\d* m \(modulo", notes[0]) and not re.search(r"\s-\d", notes[0])

@@ -83,6 +83,9 @@ class PtuAcquisition:
     warnings : list of str
         What the caller should know but that is no error (a trailing block without photons
         and of at most one code period, see :func:`read_ptu_histograms`).
+    photons_per_channel : dict of int to int
+        Photon records per detector channel in the whole file (0-based, every channel, the
+        selected or not; channels without photons left out).
     """
 
     histograms: np.ndarray
@@ -103,6 +106,7 @@ class PtuAcquisition:
     header: dict[str, Any] = field(default_factory=dict)
     periods_per_pattern: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     warnings: list[str] = field(default_factory=list)
+    photons_per_channel: dict[int, int] = field(default_factory=dict)
 
     @property
     def n_patterns(self) -> int:
@@ -493,7 +497,7 @@ def read_ptu_histograms(
                 first_sync = max(0, 2 * marks[0] + 1 - marks[1])
         hist = np.zeros((rows, n_bins), np.int32)  # (int64 past 2^31 - 1 photons in all)
         starts = np.zeros(rows + 1, np.int64)  # marker syncs, and the next block's if any
-        seen_channels = np.zeros(128, bool)  # ptufile's channel is an int8
+        per_channel = np.zeros(128, np.int64)  # ptufile's channel is an int8
         n_markers = n_photons = n_ofl = carry = n_before = n_after = n_out = bits_seen = 0
         last_sync = -1
         for raw, dec in _chunks(f, n_records, chunk_records, spath):
@@ -512,7 +516,7 @@ def read_ptu_histograms(
 
             photon = ~special
             if photon.any():
-                seen_channels[np.unique(ch[photon]).astype(np.int64)] = True
+                per_channel += np.bincount(ch[photon].astype(np.int64), minlength=128)[:128]
             if channels is not None:
                 photon &= np.isin(ch, channels)
             n_sel = int(np.count_nonzero(photon))
@@ -552,6 +556,7 @@ def read_ptu_histograms(
     if n_markers < rows:  # the extra blocks the file does not hold
         n_after += int(hist[n_markers:].sum(dtype=np.int64))  # ("end": after the last marker)
         rows, hist = n_markers, hist[:n_markers]
+    seen_channels = per_channel > 0
     if channels is not None and not seen_channels[channels].all():
         # (every listed channel: [0, 2] on a file without photons on 2 was taken)
         have = ", ".join(map(str, np.flatnonzero(seen_channels))) or "no channel"
@@ -573,7 +578,8 @@ def read_ptu_histograms(
         sync_period_s=period, resolution_s=res, bin_width_s=width, binning=binning,
         n_records=n_records, n_photons=n_photons, n_markers=n_markers, n_overflows=n_ofl,
         n_dropped_before_first_marker=n_before, n_dropped_after_last_pattern=n_after,
-        n_out_of_range=n_out, header=header, periods_per_pattern=dwell)
+        n_out_of_range=n_out, header=header, periods_per_pattern=dwell,
+        photons_per_channel={int(c): int(per_channel[c]) for c in np.flatnonzero(per_channel)})
     if marker_edge == "start" and n_markers == rows and acq.ends_in_empty_block:
         acq.warnings.append(f"the last of the {rows} marker blocks holds no photons and lasts "
                             f"{int(dwell[-1])} code period(s) (an end-of-acquisition marker?): "

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["DROPPED_SHARE", "SHORT_BLOCK", "check_blocks", "read_blocks"]
+__all__ = ["BOUNCE_PERIODS", "DROPPED_SHARE", "SHORT_BLOCK", "check_blocks", "read_blocks"]
 
 #: photons left out (before the first marker, or past the code period) beyond this share of
 #: the file's are said (they are always left out: no pattern, or no bin, is known for them)
@@ -34,6 +34,15 @@ SHORT_BLOCK = 0.5
 #: at the other end
 EDGE_SPAN = 0.1
 EDGE_BLOCK_PERIODS = 2
+#: a block between two others of at most this many code periods (or this share of the median
+#: dwell, where that is more), where the patterns last at least ``BOUNCE_MIN_DWELL`` periods,
+#: is a marker repeated (a DMD trigger's bounce): its photons are the next block's pattern's
+BOUNCE_PERIODS = 2
+BOUNCE_SHARE = 0.01
+BOUNCE_MIN_DWELL = 50
+#: a second detector channel holding at least this share of the file's photons, read
+#: without --channel, is said (its photons are merged into the histograms)
+CHANNEL_SHARE = 0.01
 
 
 def check_blocks(data, m: int, ptu) -> None:
@@ -129,6 +138,49 @@ def _drop_extra_block(data, m: int, marker: int) -> tuple[Any, str | None]:
     return _rows(data, slice(0, m), after=int(c[-1])), note
 
 
+def _merge_bounces(data, m: int, marker: int) -> tuple[Any, list[str]]:
+    """Of more blocks than the ``m`` patterns, each inner block of a code period or two (a
+    marker repeated within a few periods of its pattern's: a DMD trigger's bounce) merged into
+    the next, at most as many as the blocks in excess, the shortest first. Left as they were,
+    such a block took a pattern row and every later pattern was paired with its neighbour's
+    photons, or was scaled up 2 500 times as a pattern of its own, while the warnings blamed
+    the file's last block or the range gate (an outside audit of 2026-11-30: median errors of
+    3-21 cm and 1 m, against 0.4 mm)."""
+    n = data.n_patterns
+    d = data.periods_per_pattern.astype(np.float64)
+    if n <= m or n < 3:
+        return data, []
+    typ = float(np.median(d[1:-1]))
+    if typ < BOUNCE_MIN_DWELL:  # (patterns a period or two long: no bounce can be told)
+        return data, []
+    inner = np.arange(1, n - 1)
+    short = inner[d[inner] <= max(BOUNCE_PERIODS, BOUNCE_SHARE * typ)]
+    short = np.sort(short[np.argsort(d[short], kind="stable")][: n - m])
+    if not short.size:
+        return data, []
+    keep = np.ones(n, bool)
+    keep[short] = False
+    moved = int(data.counts_per_pattern[short].sum())
+    hist = data.histograms.copy()
+    counts = data.counts_per_pattern.copy()
+    periods = data.periods_per_pattern.copy()
+    start = data.pattern_start_sync.copy()
+    for k in short[::-1]:  # into the next block kept, which starts where the bounce did
+        j = k + 1 + int(np.argmax(keep[k + 1:]))
+        hist[j] += hist[k]
+        counts[j] += counts[k]
+        periods[j] += periods[k]
+        start[j] = start[k]
+    data = dataclasses.replace(data, histograms=hist[keep], counts_per_pattern=counts[keep],
+                               pattern_start_sync=start[keep], periods_per_pattern=periods[keep])
+    where = ", ".join(str(int(k)) for k in short[:5]) + (", ..." if short.size > 5 else "")
+    return data, [f"{short.size} of the file's {n} marker-delimited blocks on input {marker} "
+                  f"(block {where}) last at most {int(d[short].max())} code period(s) between "
+                  f"two patterns' ({typ:.0f} periods typical): a marker repeated (a DMD "
+                  f"trigger's bounce?); each is merged, with {moved} photons in all, into the "
+                  f"next block, the same pattern's"]
+
+
 def _edge_note(data, marker: int, edge: str) -> str | None:
     """The signature of a marker read at the wrong edge of its pattern: about one pattern's
     photons and periods outside the first (``start``) or last (``end``) block, and a short
@@ -163,6 +215,22 @@ def _edge_note(data, marker: int, edge: str) -> str | None:
             f"marker {'ends' if edge == 'start' else 'starts'} each pattern gives this, and "
             f"read as {'starting' if edge == 'start' else 'ending'} them every pattern is paired "
             f"with its neighbour's photons; if so, pass --marker-edge {fix}")
+
+
+def _channel_note(data) -> str | None:
+    """Photons on more than one detector channel, read without ``--channel``: merged into one
+    histogram, which is right for detectors that see the same returns and wrong for a laser
+    monitor or a reference (an outside audit of 2026-11-30: a monitor channel at half a count
+    per period was read as returns outside the range gate, without a word of it)."""
+    per = {c: n for c, n in data.photons_per_channel.items()
+           if n >= CHANNEL_SHARE * max(sum(data.photons_per_channel.values()), 1)}
+    if len(per) < 2:
+        return None
+    total = sum(per.values())
+    listed = ", ".join(f"{c} ({100 * n / total:.3g} %)" for c, n in sorted(per.items()))
+    return (f"the file holds photons on detector channels {listed}, merged into one histogram "
+            f"per pattern: right for detectors that see the same returns, wrong for a laser "
+            f"monitor or a reference channel; --channel C reads one (numbered from 0)")
 
 
 def _lost_notes(data, marker: int, n_bins: int) -> list[str]:
@@ -230,7 +298,7 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
                                channel=channel, n_patterns=m, extra_blocks=2,
                                marker_edge=marker_edge, allow_binning=allow_binning)
     check_blocks(data, m, ptu)
-    notes: list[str] = []
+    data, notes = _merge_bounces(data, m, marker)
     if data.n_patterns == m + 2:
         data, note = _drop_both_ends(data, m, marker, ptu)
         notes.append(note)
@@ -249,4 +317,6 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
         raise ConfigError(f"{os.fspath(ptu)!r}: {why}: no pattern's histogram holds any (check "
                           f"--channel, --marker and --bit-rate)")
     edge = _edge_note(data, marker, marker_edge)
-    return data, notes + ([edge] if edge else []) + _lost_notes(data, marker, n_bins)
+    mixed = _channel_note(data) if channel is None else None
+    return (data, notes + ([edge] if edge else []) + ([mixed] if mixed else [])
+            + _lost_notes(data, marker, n_bins))

@@ -195,6 +195,9 @@ def outside_note(counts: np.ndarray, replica: np.ndarray, gain: float,
     centre = float(np.mean(lags))
     flight = outside - int(shift)  # each in the period nearest the gate
     flight = flight + period * np.round((centre - flight) / period)
+    # (never before the lidar: a return "nearest" a gate near the lidar from below was named
+    # at -2.0 m, an outside audit of 2026-11-30; it is a period farther)
+    flight = np.where(flight < 0, flight + period, flight)
     ambiguity = float(delay_to_depth(period, bin_width))
     # (before the gate and after it apart: one span of both named one that held the gate,
     # "at 4.79668-5.80098 m" for a gate of 5.2-5.4 m, a review)
