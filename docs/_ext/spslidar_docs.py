@@ -381,7 +381,10 @@ METRICS: dict[str, str] = {
     "version": "spslidar version that wrote the file.",
     "point_cloud": ("``points.ply``: file name, field of view (degrees), number of points "
                     "and of second-surface points among them, the per-point fields."),
-    "ptu": "``reconstruct`` only: the PTU file read and its photons per pattern.",
+    "ptu": "``reconstruct`` only: the PTU file read, its photons and code periods per "
+           "pattern, the background, the blocks left out, and ``timing_drift_bins`` (with "
+           "``timing_drift_se_bins``): how much later the returns arrive at the last pattern "
+           "than at the first (null with fewer than 16 patterns).",
     "calibration": "``reconstruct`` only: the calibration applied (``--calibration``: its file "
                    "and SHA-256, delay, lag shift and fraction, IRF width, the filter's "
                    "``spread``, the factor on the default ``lam_scale``, how the depths were read "

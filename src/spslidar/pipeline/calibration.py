@@ -488,6 +488,12 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     hists = data.histograms
     if pile["corrected"]:
         hists = correct_blocks(hists, periods, detector)[0]
+    from .drift import drift_note, timing_drift
+
+    drift = timing_drift(hists, code)
+    note = drift_note(drift, bin_width)
+    if note:  # (a drift over the wall's acquisition widens the response it reads)
+        warnings.warn(note, stacklevel=2)
     total = hists.astype(np.float64).sum(axis=0)
     with warnings.catch_warnings(record=True) as said:  # kept in the file, and said again
         warnings.simplefilter("always")
@@ -507,6 +513,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
             "code_sha256": code_sha256(code), "code_bits": code_bits(code),
             "pulse_width": float(pulse_width), "distance_m": float(distance),
             "detector": pile,
+            "timing_drift_bins": None if drift is None else drift[0],
             "measured_from": {"ptu": path.name, "bytes": path.stat().st_size,
                               "sha256": sha256_file(path),
                               "photons": int(data.counts_per_pattern.sum()),

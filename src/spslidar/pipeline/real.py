@@ -475,6 +475,11 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     noise_totals = None
     if pile["corrected"]:  # (before the dwells are evened out: each block with its own)
         hist, noise_totals = correct_blocks(hist, n_k, detector)
+    from .drift import drift_note, timing_drift
+
+    drift = timing_drift(hist, code)
+    note = drift_note(drift, bin_width)
+    dwell_warning += [note] if note else []
     n_mean = float(n_k.mean())
     short = np.flatnonzero(n_k < 0.5 * np.median(n_k))
     if short.size:
@@ -587,6 +592,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         "n_dropped_after_last_pattern": data.n_dropped_after_last_pattern,
         "n_patterns_solved": int(m), "n_out_of_range": data.n_out_of_range,
         "marker_edge": marker_edge,
+        "timing_drift_bins": None if drift is None else drift[0],
+        "timing_drift_se_bins": None if drift is None else drift[1],
         "record_type": data.header.get("record_type"), "truth_file": truth_file}
     result.metrics["calibration"] = None if cal is None else {
         "file": cal.get("file"), "sha256": cal.get("file_sha256"), "delay_s": cal["delay_s"],
