@@ -5,6 +5,11 @@ Solvers compared: FISTA, TwIST, TVAL3, GPSR
 All range slices are reconstructed at once by a compressive-sensing solver (eq. 18 of the
 paper). :mod:`spslidar.solvers` offers the four the paper names. One measurement is simulated
 once and reconstructed by each, so the comparison is paired: same photons, same patterns.
+
+The 1023-bit code keeps the example quick; its unambiguous range, 15.33 m, falls short of the
+scene at 20 m, so the run warns that the range gate lies beyond it. The depths are right
+because the gate is known to hold the scene (a 4095-bit code, 61.4 m, reaches it without a
+warning, as the first example's does).
 """
 
 import matplotlib.pyplot as plt
