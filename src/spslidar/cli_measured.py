@@ -38,7 +38,10 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                         "(default all; a channel without photons is refused)")
     p.add_argument("--allow-binning", action="store_true",
                    help="merge k dtime units into one bin where the file's resolution is "
-                        "1/k of 1/--bit-rate (a TDC finer than the code's bits)")
+                        "1/k of 1/--bit-rate (a TDC finer than the code's bits), or split "
+                        "each TDC bin between the bits it overlaps where it is no whole "
+                        "fraction of one (an 80 ps TDC under 100 ps bits, a code clock off "
+                        "the TDC's)")
     p.add_argument("--dead-time", type=float, metavar="S",
                    help="the detector's (and TCSPC's) non-paralysable dead time, seconds: each "
                         "pattern's histogram is corrected for pile-up before the matched "
