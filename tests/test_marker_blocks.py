@@ -358,3 +358,27 @@ def test_photons_on_a_second_channel_are_said_when_they_matter(tmp_path, stray, 
     assert any("merged into one histogram" in n for n in notes) == said
     _, notes = read_blocks(f, M, L, bin_width=RES, channel=0)
     assert not any("merged" in n for n in notes)
+
+
+def test_a_sync_divider_folds_each_sync_into_code_periods(tmp_path):
+    """A sync divider of 2 (the header's HWSync_Divider; PicoQuant's sync period is the
+    divided one): each sync spans two code periods, whose photons are folded into one, and
+    the dwell counts code periods. It was refused ("a 62-bit code fits it"), and a code given
+    twice over read a third of its returns as outside the gate."""
+    rng = np.random.default_rng(10)
+    starts = [DWELL * k for k in range(M)]
+    nsync, dtime, marker = _events(rng, starts, starts)
+    second = rng.random(dtime.size) < 0.5  # half the photons in the sync's second period
+    dtime = np.where((marker == 0) & second, dtime + L, dtime)
+    args = dict(nsync=nsync, dtime=dtime, marker=marker, resolution_s=RES,
+                sync_rate_hz=1 / (2 * L * RES))
+    f = tmp_path / "div2.ptu"
+    write_ptu_t3(f, **args, extra_tags={"HWSync_Divider": 2})
+    data, notes = read_blocks(f, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M)) and data.counts_per_pattern.sum() == M * PER
+    assert data.periods_per_sync == 2 and data.n_out_of_range == 0
+    np.testing.assert_array_equal(data.periods_per_pattern[:-1], 2 * DWELL)
+    g = tmp_path / "nodiv.ptu"  # the same period without the header's word: no fold
+    write_ptu_t3(g, **args)
+    with pytest.raises(ConfigError, match="sync period"):
+        read_blocks(g, M, L, bin_width=RES)

@@ -89,6 +89,10 @@ class PtuAcquisition:
     photons_per_channel : dict of int to int
         Photon records per detector channel in the whole file (0-based, every channel, the
         selected or not; channels without photons left out).
+    periods_per_sync : int
+        Code periods per sync record: the header's sync divider where the file's sync period
+        is that many code periods (each photon's TDC time is then folded into one code
+        period, and ``periods_per_pattern`` counts code periods), else 1.
     """
 
     histograms: np.ndarray
@@ -110,6 +114,7 @@ class PtuAcquisition:
     periods_per_pattern: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     warnings: list[str] = field(default_factory=list)
     photons_per_channel: dict[int, int] = field(default_factory=dict)
+    periods_per_sync: int = 1
 
     @property
     def n_patterns(self) -> int:
@@ -528,7 +533,17 @@ def read_ptu_histograms(
             raise ConfigError(f"{spath!r}: header has no sync period (MeasDesc_GlobalResolution)"
                               ", so the code's period cannot be checked against the file (in "
                               "Python, check_sync_period=False reads it unchecked)")
-        if check_sync_period and abs(period - n_bins * width) > period_tol_bins * width:
+        # a sync divider D (the header's HWSync_Divider): each sync record spans D code periods
+        # (PicoQuant's sync period is the divided one), and the TDC times are folded into one
+        # (a divider of 2 was refused with "a 2046-bit code fits it", and a code given twice
+        # read a third of its returns as outside the gate: an outside audit of 2026-11-30)
+        divider = header.get("sync_divider")
+        fold = 1
+        if (check_sync_period and rebin is None and isinstance(divider, int | np.integer)
+                and not isinstance(divider, bool) and divider > 1
+                and abs(period - divider * n_bins * width) <= period_tol_bins * width):
+            fold = int(divider)
+        if check_sync_period and abs(period - fold * n_bins * width) > period_tol_bins * width:
             raise ConfigError(
                 f"{spath!r}: sync period {period:.6g} s != code period n_bins * bin_width = "
                 f"{n_bins} * {width:.6g} s = {n_bins * width:.6g} s "
@@ -584,6 +599,8 @@ def read_ptu_histograms(
                 block = (np.cumsum(is_mark, dtype=np.int64)
                          + (n_markers - (marker_edge == "start")))[photon]
                 bins = dec["dtime"][photon].astype(np.int64) // binning
+                if fold > 1:  # (one code period; past the D periods: out of range)
+                    bins = np.where(bins < fold * n_bins, bins % n_bins, n_mid)
                 keep = block >= 0
                 if first_sync:  # ("end": before pattern 0's start, no pattern is known)
                     keep &= (block > 0) | (time[photon].astype(np.int64) + carry >= first_sync)
@@ -631,6 +648,7 @@ def read_ptu_histograms(
     else:
         end = starts[rows] if n_markers > rows else last_sync + 1
         dwell = np.diff(np.append(starts[:rows], end))
+    dwell = dwell * fold  # (in code periods)
     acq = PtuAcquisition(
         histograms=_to_float32(hist) if rebin is None else _rebin(hist, rebin, n_bins),
         counts_per_pattern=counts,
@@ -639,6 +657,7 @@ def read_ptu_histograms(
         n_records=n_records, n_photons=n_photons, n_markers=n_markers, n_overflows=n_ofl,
         n_dropped_before_first_marker=n_before, n_dropped_after_last_pattern=n_after,
         n_out_of_range=n_out, header=header, periods_per_pattern=dwell,
+        periods_per_sync=fold,
         photons_per_channel={int(c): int(per_channel[c]) for c in np.flatnonzero(per_channel)})
     if marker_edge == "start" and n_markers == rows and acq.ends_in_empty_block:
         acq.warnings.append(f"the last of the {rows} marker blocks holds no photons and lasts "

@@ -592,6 +592,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         "n_dropped_after_last_pattern": data.n_dropped_after_last_pattern,
         "n_patterns_solved": int(m), "n_out_of_range": data.n_out_of_range,
         "marker_edge": marker_edge,
+        "code_periods_per_sync": int(data.periods_per_sync),
         "timing_drift_bins": None if drift is None else drift[0],
         "timing_drift_se_bins": None if drift is None else drift[1],
         "record_type": data.header.get("record_type"), "truth_file": truth_file}
