@@ -20,6 +20,7 @@ from spslidar.pipeline.deadtime import (
     correct_blocks,
     dead_time_model,
     pileup_report,
+    rate_note,
 )
 from spslidar.pipeline.export import write_measurement_arrays, write_measurement_ptu
 from spslidar.pipeline.real import reconstruct_ptu
@@ -136,6 +137,18 @@ def test_calibration_and_reconstruction_with_other_dead_times_are_said():
     assert calibration_note({"detector": {"dead_time_s": None}}, dead_time_model(BIN, 0)) is None
 
 
+def test_a_scan_at_another_count_rate_than_its_calibration_is_said():
+    """A detector's timing walks with its count rate: ten times the calibration's rate, or a
+    tenth of it, is said; a calibration without a rate (or a damaged one) says nothing."""
+    cal = {"detector": {"count_rate_hz": 1e6}}
+    assert "20 times the calibration's (1 M/s)" in rate_note(cal, 2e7)
+    assert rate_note(cal, 5e6) is None and rate_note(cal, 2e5) is None
+    assert "0.05 times" in rate_note(cal, 5e4)
+    for bad in ({}, {"detector": None}, {"detector": {"count_rate_hz": "1e6"}},
+                {"detector": {"count_rate_hz": float("nan")}}, {"detector": {"count_rate_hz": 0}}):
+        assert rate_note(bad, 2e7) is None
+
+
 @pytest.fixture(scope="module")
 def gmapd_file(tmp_path_factory):
     """A GMAPD acquisition written by ``--save-ptu`` (detection by detection) and its run."""
@@ -242,5 +255,11 @@ def test_calibrate_records_the_dead_time_and_reconstruct_compares(gmapd_file, ca
     assert "the calibration's response was read with --dead-time 5e-08 corrected" in (
         capsys.readouterr().err)
     assert main([*base, "--dead-time", "50e-9", "--out", str(d / "rc1")]) == 0
-    assert "the calibration's response" not in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "the calibration's response" not in err and "times the calibration's" not in err
+    # the same calibration as if measured at a hundredth of the scan's count rate
+    cal["detector"]["count_rate_hz"] /= 100
+    r = reconstruct_ptu(path, np.load(p_path), np.load(c_path), 10e9, (24.0, 26.0),
+                        calibration=cal, dead_time=50e-9)
+    assert any("times the calibration's" in w and "timing walks" in w for w in r.warnings)
 

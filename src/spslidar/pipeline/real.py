@@ -512,10 +512,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         if cfg.lam is None and cfg.lam_scale is None:
             cfg = cfg.replace(lam_scale=calibrated_lam_scale(cfg.solver, spread))
         dwell_warning.extend(calibration_warnings(cal))
-        from .deadtime import calibration_note
+        from .deadtime import calibration_note, rate_note
 
-        note = calibration_note(cal, detector)
-        dwell_warning += [note] if note else []
+        for note in (calibration_note(cal, detector), rate_note(cal, pile["count_rate_hz"])):
+            dwell_warning += [note] if note else []
         note = code_note(cal, code, bit_rate)
         dwell_warning += [note] if note else []
     gain = correlation_gain(signal_code, replica) * n_mean * scale
