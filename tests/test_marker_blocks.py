@@ -382,3 +382,14 @@ def test_a_sync_divider_folds_each_sync_into_code_periods(tmp_path):
     write_ptu_t3(g, **args)
     with pytest.raises(ConfigError, match="sync period"):
         read_blocks(g, M, L, bin_width=RES)
+
+
+def test_a_missed_marker_is_refused_naming_the_long_block(tmp_path):
+    """One marker missed: refused (as before), now naming the block that lasts two
+    patterns' dwell."""
+    rng = np.random.default_rng(11)
+    starts = [DWELL * k for k in range(M)]
+    f = _write(tmp_path / "miss.ptu", *_events(rng, starts, starts[:3] + starts[4:]))
+    with pytest.raises(ConfigError, match=r"fewer than the 6 patterns \(block 2 lasts about "
+                                          r"twice the 200 code periods of the others"):
+        read_blocks(f, M, L, bin_width=RES)
