@@ -40,6 +40,10 @@ GMAPD_RUN = {"scene": "steps", "depth_min": 24.5, "depth_max": 25.5, "size": 16,
     ({"dead_time": -1e-9}, "--dead-time must be a time in seconds from 0"),
     ({"dead_time": float("nan")}, "--dead-time must be a time"),
     ({"dead_time": "50ns"}, "--dead-time must be a time in seconds, got '50ns'"),
+    ({"dead_time": "1e-7"}, "--dead-time must be a time in seconds, got '1e-7'"),
+    ({"dead_time": False}, "--dead-time must be a time in seconds, got False"),
+    ({"dead_time": 5e-8, "afterpulse_prob": "0.05", "afterpulse_delay": 1e-9},
+     "--afterpulse-prob must be a probability"),
     ({"dead_time": 2e-3}, "a millisecond|from 0 to 0.001"),
     ({"dead_time": 50e-12}, "--dead-time \\(5e-11 s\\) must be 0 or at least one TDC bin"),
     ({"afterpulse_prob": 0.1, "afterpulse_delay": 1e-9}, "give --dead-time too"),
@@ -149,6 +153,33 @@ def test_a_scan_at_another_count_rate_than_its_calibration_is_said():
         assert rate_note(bad, 2e7) is None
 
 
+def test_a_dead_time_the_gaps_contradict_is_refused():
+    """A detector's dead time lets no two of its detections come closer: more than 1 % of a
+    channel's gaps under 97 % of the dead time given refuses it, naming the shortest gap;
+    photons of two channels read together refuse any dead time; a channel whose rate would
+    have made many shorter gaps shows its own."""
+    from spslidar.io.ptu import GAP_BIN_S, GAP_MAX_S
+    from spslidar.pipeline.deadtime import apparent_dead_time
+
+    n_bins = int(round(GAP_MAX_S / GAP_BIN_S))
+    counts = np.zeros(n_bins)
+    counts[100:200] = 10.0  # 1 000 gaps of 50-100 ns
+    gap = {0: {"shortest_s": 50e-9, "n": int(counts.sum()), "counts": counts}}
+    det = dead_time_model(BIN, 50e-9)
+    pileup_report(np.array([100.0]), np.array([1000]), 1e-7, det, gaps=gap)
+    det75 = dead_time_model(BIN, 75e-9)
+    with pytest.raises(ConfigError, match=r"% of the detections on channel 0 follow the one "
+                                          r"before by less \(the shortest gap is 50 ns\)"):
+        pileup_report(np.array([100.0]), np.array([1000]), 1e-7, det75, gaps=gap)
+    two = {0: gap[0], 1: gap[0]}
+    with pytest.raises(ConfigError, match="channels 0, 1 are read together"):
+        pileup_report(np.array([100.0]), np.array([1000]), 1e-7, det, gaps=two)
+    # 1 000 gaps in a millisecond: 49 would be under 50 ns without a dead time; in 1e6 s none
+    assert apparent_dead_time(gap, 1e-3) == 50e-9
+    assert apparent_dead_time(gap, 1e6) is None
+    assert apparent_dead_time(two, 1e-3) is None
+
+
 @pytest.fixture(scope="module")
 def gmapd_file(tmp_path_factory):
     """A GMAPD acquisition written by ``--save-ptu`` (detection by detection) and its run."""
@@ -161,22 +192,17 @@ def gmapd_file(tmp_path_factory):
 
 
 def test_save_ptu_writes_what_a_gmapd_records(gmapd_file):
-    """Within each pattern's block no two detections are closer than the dead time (a linear
-    counter's photons, which the file held before, are: 2.7 photons per dead time), and the
-    file's detections are the model's count."""
+    """No two detections are closer than the dead time, within a pattern's block or across a
+    pattern change (a linear counter's photons, which the file held before, are: 2.7 photons
+    per dead time; and a detector reset at each pattern change left 137 of 930 698 gaps
+    shorter, all across a marker), and the file's detections are the model's count."""
     _, path, meas, _, _ = gmapd_file
     with ptufile.PtuFile(path) as f:
         rec = f.decode_records()
     photon = rec["channel"] >= 0
-    block = np.cumsum(rec["marker"] == 1)  # (marker 1 starts each pattern)
-    t = rec["time"].astype(np.int64) * 1023 + rec["dtime"].astype(np.int64)
-    closest = np.inf
-    for k in np.unique(block[photon]):
-        tk = np.sort(t[photon & (block == k)])
-        if tk.size > 1:
-            closest = min(closest, int(np.diff(tk).min()))
+    t = np.sort(rec["time"][photon].astype(np.int64) * 1023 + rec["dtime"][photon])
     # (times are whole bins, floor of the detection time: a gap of D bins can read D - 1)
-    assert closest >= 500 - 1
+    assert int(np.diff(t).min()) >= 500 - 1
     expected = float(np.mean(meas.sim["counts"]))  # the run's own detections per pattern
     assert np.count_nonzero(photon) / meas.acq.n_periods == pytest.approx(
         expected * meas.patterns.shape[0] / meas.acq.n_periods, rel=0.02)
@@ -194,6 +220,10 @@ def test_reconstruct_corrects_the_files_pile_up(gmapd_file):
     fixed = reconstruct_ptu(path, patterns, code, 10e9, (24.0, 26.0), dead_time=50e-9,
                             **common)
     assert any("M photons/s" in w and "--dead-time" in w for w in raw.warnings)
+    # the dead time the file's own gaps show, named where none is given
+    assert any("never closer than 50 ns" in w and "--dead-time 5e-08" in w
+               for w in raw.warnings)
+    assert raw.metrics["detector"]["apparent_dead_time_s"] == pytest.approx(50e-9, rel=1e-6)
     assert not any("M photons/s" in w for w in fixed.warnings)
     said = fixed.metrics["detector"]
     assert said["corrected"] is True and said["dead_time_s"] == 50e-9
@@ -213,10 +243,11 @@ def test_the_cli_takes_the_dead_time_and_refuses_a_bad_one(gmapd_file, capsys):
     assert "at least one TDC bin" in err and "Traceback" not in err and len(
         err.strip().splitlines()) == 1
     assert not (d / "bad").exists()
-    assert main([*base, "--dead-time", "1e-6", "--out", str(d / "long")]) == 2
-    err = capsys.readouterr().err
-    assert "the dead time is too long for this file" in err and len(err.splitlines()) == 1
-    assert not (d / "long").exists()
+    for dead in ("75e-9", "1e-6"):  # (the file's detections come 50 ns apart)
+        assert main([*base, "--dead-time", dead, "--out", str(d / "long")]) == 2
+        err = capsys.readouterr().err
+        assert "follow the one before by less (the shortest gap is 50 ns)" in err
+        assert len(err.splitlines()) == 1 and not (d / "long").exists()
     assert main([*base, "--dead-time", "50e-9", "--out", str(d / "ok")]) == 0
     m = json.loads((d / "ok" / "metrics.json").read_text())
     assert m["detector"]["corrected"] is True and m["detector"]["dead_time_s"] == 50e-9

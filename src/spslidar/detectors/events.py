@@ -84,7 +84,8 @@ def _dead_time_pass(x: np.ndarray, dead: float, prob: float, delay: float, span:
 
 def simulate_events(lam_row: np.ndarray, n_periods: int, model: GMAPD,
                     rng: np.random.Generator, warmup_periods: int = 1,
-                    max_events: float = 5e7) -> tuple[np.ndarray, np.ndarray]:
+                    max_events: float = 5e7, armed_at: float | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """Simulate one DMD pattern's acquisition photon by photon.
 
     Parameters
@@ -105,6 +106,12 @@ def simulate_events(lam_row: np.ndarray, n_periods: int, model: GMAPD,
         dead times).
     max_events : float
         Refuse to simulate more avalanches than this (memory: ~40 bytes each).
+    armed_at : float, optional
+        Seconds from the start of the first period at which the detector re-arms after the
+        previous pattern's last detection (its time plus the dead time, less the previous
+        pattern's span): the acquisition goes on through a pattern change as the detector
+        does, without a warm-up (avalanches before it are lost; an afterpulse due from
+        before the change is not carried). Default: the warm-up.
 
     Returns
     -------
@@ -123,6 +130,11 @@ def simulate_events(lam_row: np.ndarray, n_periods: int, model: GMAPD,
                                      unit="code periods", zero=True)
     if not (np.all(np.isfinite(lam)) and np.all(lam >= 0)):
         raise ValueError("lam_row must be finite and non-negative")
+    if armed_at is not None:
+        armed_at = float(armed_at)
+        if not np.isfinite(armed_at):
+            raise ValueError(f"armed_at must be a finite time in seconds, got {armed_at}")
+        warmup_periods = 0
     total = n_periods + warmup_periods
     span = float(total * period)
     dark_mean = model.dark_count_rate * model.bin_width * span
@@ -142,6 +154,8 @@ def simulate_events(lam_row: np.ndarray, n_periods: int, model: GMAPD,
         x[in_tail] += rng.exponential(tail, int(in_tail.sum()))
     dark = rng.random(rng.poisson(dark_mean)) * span
     x = np.sort(np.concatenate((np.mod(x, span), dark)))
+    if armed_at is not None:  # (still dead from the pattern before)
+        x = x[x >= armed_at / model.bin_width]
     det = _dead_time_pass(x, model.dead_bins, model.afterpulse_prob,
                           model.afterpulse_delay / model.bin_width, span, rng)
     det = det[det >= warmup_periods * period] - warmup_periods * period

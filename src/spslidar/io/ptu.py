@@ -89,6 +89,11 @@ class PtuAcquisition:
     photons_per_channel : dict of int to int
         Photon records per detector channel in the whole file (0-based, every channel, the
         selected or not; channels without photons left out).
+    detection_gaps : dict
+        Per selected channel, the time between each detection and the one before on that
+        channel: ``{"shortest_s": float, "n": int, "counts": ndarray}``, ``counts`` a
+        histogram of the gaps under :data:`GAP_MAX_S` in bins of :data:`GAP_BIN_S` (a
+        detector's dead time is the shortest gap it lets through).
     periods_per_sync : int
         Code periods per sync record: the header's sync divider where the file's sync period
         is that many code periods (each photon's TDC time is then folded into one code
@@ -115,6 +120,7 @@ class PtuAcquisition:
     warnings: list[str] = field(default_factory=list)
     photons_per_channel: dict[int, int] = field(default_factory=dict)
     periods_per_sync: int = 1
+    detection_gaps: dict[int, Any] = field(default_factory=dict)
 
     @property
     def n_patterns(self) -> int:
@@ -326,6 +332,49 @@ def _accumulate(hist: np.ndarray, blocks: np.ndarray, bins: np.ndarray) -> None:
 #: photons read after which the histograms are counted in int64 (no bin of an int32 can
 #: wrap before: it holds at most every photon)
 WIDEN_AFTER = 2**31 - 1
+
+
+#: the histogram of the gaps between a channel's detections: bins and span (dead times of
+#: detectors and TCSPC electronics are 0.5 ns to a few microseconds)
+GAP_BIN_S = 0.5e-9
+GAP_MAX_S = 4e-6
+
+
+class _Gaps:
+    """The gaps between consecutive detections on each channel, chunk by chunk (records are
+    in arrival order); written here: a running difference no time-tag library keeps."""
+
+    def __init__(self, period: float, res: float):
+        self.period, self.res = float(period), float(res)
+        self.last: dict[int, float] = {}
+        self.shortest: dict[int, float] = {}
+        self.n: dict[int, int] = {}
+        self.counts: dict[int, np.ndarray] = {}
+
+    def add(self, syncs: np.ndarray, dtime: np.ndarray, ch: np.ndarray) -> None:
+        if not self.period > 0:
+            return
+        t = syncs.astype(np.float64) * self.period + dtime.astype(np.float64) * self.res
+        n_bins = int(round(GAP_MAX_S / GAP_BIN_S))
+        for c in np.unique(ch):
+            c = int(c)
+            tc = t[ch == c]
+            if c in self.last:
+                tc = np.concatenate(([self.last[c]], tc))
+            self.last[c] = float(tc[-1])
+            d = np.diff(tc)
+            if not d.size:
+                continue
+            self.n[c] = self.n.get(c, 0) + d.size
+            self.shortest[c] = min(self.shortest.get(c, np.inf), float(d.min()))
+            short = d[d < GAP_MAX_S]
+            h = np.bincount(np.maximum(short / GAP_BIN_S, 0).astype(np.int64),
+                            minlength=n_bins)[:n_bins]
+            self.counts[c] = self.counts.get(c, 0) + h
+
+    def result(self) -> dict[int, Any]:
+        return {c: {"shortest_s": self.shortest[c], "n": self.n[c],
+                    "counts": np.asarray(self.counts[c])} for c in self.n}
 
 
 def _missed_note(starts: np.ndarray, last_sync: int) -> str:
@@ -589,6 +638,7 @@ def read_ptu_histograms(
         hist = np.zeros((rows, n_mid), np.int32)  # (int64 past 2^31 - 1 photons in all)
         starts = np.zeros(rows + 1, np.int64)  # marker syncs, and the next block's if any
         per_channel = np.zeros(128, np.int64)  # ptufile's channel is an int8
+        gaps = _Gaps(period, res)
         n_markers = n_photons = n_ofl = carry = n_before = n_after = n_out = bits_seen = 0
         last_sync = -1
         for raw, dec in _chunks(f, n_records, chunk_records, spath):
@@ -613,6 +663,8 @@ def read_ptu_histograms(
             n_sel = int(np.count_nonzero(photon))
             n_photons += n_sel
             if n_sel:
+                gaps.add(time[photon].astype(np.int64) + carry, dec["dtime"][photon],
+                         ch[photon])
                 block = (np.cumsum(is_mark, dtype=np.int64)
                          + (n_markers - (marker_edge == "start")))[photon]
                 bins = dec["dtime"][photon].astype(np.int64) // binning
@@ -675,7 +727,7 @@ def read_ptu_histograms(
         n_records=n_records, n_photons=n_photons, n_markers=n_markers, n_overflows=n_ofl,
         n_dropped_before_first_marker=n_before, n_dropped_after_last_pattern=n_after,
         n_out_of_range=n_out, header=header, periods_per_pattern=dwell,
-        periods_per_sync=fold,
+        periods_per_sync=fold, detection_gaps=gaps.result(),
         photons_per_channel={int(c): int(per_channel[c]) for c in np.flatnonzero(per_channel)})
     if marker_edge == "start" and n_markers == rows and acq.ends_in_empty_block:
         acq.warnings.append(f"the last of the {rows} marker blocks holds no photons and lasts "

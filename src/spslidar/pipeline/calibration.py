@@ -482,7 +482,8 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                               marker_edge=marker_edge)
     periods = np.maximum(data.periods_per_pattern, 1)
     pile, pile_notes = pileup_report(data.counts_per_pattern, periods,
-                                     code.size * bin_width, detector, channel)
+                                     code.size * bin_width, detector, channel,
+                                     data.detection_gaps)
     for note in notes + pile_notes:
         warnings.warn(note, stacklevel=2)
     hists = data.histograms

@@ -470,7 +470,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         keep = np.setdiff1d(np.arange(m), empty)
         m, n_k, hist, patterns = keep.size, n_k[keep], hist[keep], patterns[keep]
     pile, pile_notes = pileup_report(hist.sum(axis=1), n_k, period * bin_width, detector,
-                                     channel)
+                                     channel, data.detection_gaps)
     dwell_warning += pile_notes
     noise_totals = None
     if pile["corrected"]:  # (before the dwells are evened out: each block with its own)
