@@ -102,10 +102,15 @@ def test_one_block_after_the_patterns_is_left_out(tmp_path):
     data, notes = read_blocks(g, M, L, bin_width=RES)
     assert _peaks(data) == list(range(M)) and data.n_dropped_after_last_pattern == PER
     assert len(notes) == 1 and "is a row missing from --patterns?" in notes[0]
+    # an end marker that bounced twice (refused before bounces were merged)
     h = _write(tmp_path / "many.ptu",
                *_events(rng, starts, [*starts, DWELL * M, DWELL * M + 1, DWELL * M + 2]))
+    data, notes = read_blocks(h, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M)) and any("bounce" in n for n in notes)
+    far = _write(tmp_path / "far.ptu", *_events(rng, starts, [*starts, DWELL * M,
+                                                              DWELL * M + 60, DWELL * M + 90]))
     with pytest.raises(ConfigError, match="9 marker-delimited blocks but --patterns has 6"):
-        read_blocks(h, M, L, bin_width=RES)
+        read_blocks(far, M, L, bin_width=RES)
     # M + 2 blocks: an arming and an end marker are both left out (they were refused); two
     # blocks as long as patterns are a mismatch
     both = [5 + DWELL * k for k in range(M)]
@@ -393,3 +398,39 @@ def test_a_missed_marker_is_refused_naming_the_long_block(tmp_path):
     with pytest.raises(ConfigError, match=r"fewer than the 6 patterns \(block 2 lasts about "
                                           r"twice the 200 code periods of the others"):
         read_blocks(f, M, L, bin_width=RES)
+
+
+def test_many_bounces_and_a_late_one_are_merged(tmp_path):
+    """Four bounces (more than the two extra blocks an arming and an end marker take) with an
+    arming and an end marker, and a bounce 15 syncs late, under 10 us: all merged, every row
+    its own pattern. Three bounces were refused as a file that does not match the patterns,
+    and one three periods late took a pattern row."""
+    rng = np.random.default_rng(12)
+    m = 12
+    starts = [DWELL * k + 5 for k in range(m)]
+    bounces = [DWELL * k + 5 + g for k, g in ((1, 1), (3, 0), (5, 2), (7, 1), (9, 15))]
+    marks = sorted(starts + bounces + [0, DWELL * m + 5])  # arming and end markers
+    ev = []
+    for k, s0 in enumerate(starts):
+        ev += [(int(s), 1, k + 3, 0) for s in np.sort(rng.integers(s0, s0 + DWELL, PER))]
+    ev += [(int(s), 0, 0, 1) for s in marks]
+    ev.sort()
+    a = np.array(ev)
+    f = _write(tmp_path / "many.ptu", a[:, 0], a[:, 2], a[:, 3])
+    # (15 syncs of 3.1 ns: 47 ns, a bounce in time and within a tenth of the dwell)
+    data, notes = read_blocks(f, m, L, bin_width=RES)
+    assert _peaks(data) == list(range(m)) and data.counts_per_pattern.sum() == m * PER
+    assert any("5 of the file's" in n and "bounce" in n for n in notes)
+
+
+def test_a_block_twice_as_long_as_the_others_is_said(tmp_path):
+    """A marker missed and an extra one elsewhere: the count matches, so nothing is refused,
+    but the block that lasts two patterns' dwell is named."""
+    rng = np.random.default_rng(13)
+    starts = [DWELL * k for k in range(M)]
+    marks = [s for k, s in enumerate(starts) if k != 3] + [DWELL * M - 50]  # an extra, late
+    f = _write(tmp_path / "dbl.ptu", *_events(rng, starts, sorted(marks)))
+    _, notes = read_blocks(f, M, L, bin_width=RES)
+    assert any("pattern block 2 lasts about twice the 200 code periods" in n for n in notes)
+    g = _write(tmp_path / "ok.ptu", *_events(rng, starts, starts))
+    assert not any("twice" in n for n in read_blocks(g, M, L, bin_width=RES)[1])

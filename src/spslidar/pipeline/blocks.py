@@ -40,19 +40,31 @@ EDGE_BLOCK_PERIODS = 2
 BOUNCE_PERIODS = 2
 BOUNCE_SHARE = 0.01
 BOUNCE_MIN_DWELL = 50
+#: a marker repeated within this time of its pattern's is a bounce too (a trigger's ringing),
+#: where that is at most ``BOUNCE_MAX_SHARE`` of the typical dwell (a short code's periods
+#: are tens of nanoseconds: a bounce three 255 ns periods late was taken as a pattern and the
+#: last pattern dropped, an outside audit of 2026-11-30)
+BOUNCE_TIME_S = 10e-6
+BOUNCE_MAX_SHARE = 0.1
+#: bounces a file may hold beyond its arming and end markers (read as extra blocks, then
+#: merged): at least this many, or one pattern in ``BOUNCE_ROWS``
+BOUNCE_EXTRA = 4
+BOUNCE_ROWS = 16
 #: a second detector channel holding at least this share of the file's photons, read
 #: without --channel, is said (its photons are merged into the histograms)
 CHANNEL_SHARE = 0.01
 
 
-def check_blocks(data, m: int, ptu) -> None:
+def check_blocks(data, m: int, ptu, merged: int = 0) -> None:
     """The file's marker-delimited blocks against the ``m`` pattern rows: more blocks than
-    rows (an arming and an end-of-acquisition marker aside) is a mismatch, refused in one
-    line (``calibrate`` used the first rows' blocks of such a file and said nothing)."""
-    if data.n_markers > m + 2:  # an end-of-acquisition or arming marker is common
-        raise ConfigError(f"{os.fspath(ptu)!r} has {data.n_markers} marker-delimited blocks "
-                          f"but --patterns has {m} rows: the patterns shown do not match the "
-                          f"file (or --marker names the wrong input)")
+    rows (an arming and an end-of-acquisition marker aside, and ``merged`` bounces) is a
+    mismatch, refused in one line (``calibrate`` used the first rows' blocks of such a file
+    and said nothing)."""
+    if data.n_markers - merged > m + 2:  # an end-of-acquisition or arming marker is common
+        bounced = f" ({merged} of them a marker's bounce, merged)" if merged else ""
+        raise ConfigError(f"{os.fspath(ptu)!r} has {data.n_markers} marker-delimited blocks"
+                          f"{bounced} but --patterns has {m} rows: the patterns shown do not "
+                          f"match the file (or --marker names the wrong input)")
 
 
 def _typical(data) -> tuple[np.ndarray, np.ndarray, float, float]:
@@ -153,8 +165,11 @@ def _merge_bounces(data, m: int, marker: int) -> tuple[Any, list[str]]:
     typ = float(np.median(d[1:-1]))
     if typ < BOUNCE_MIN_DWELL:  # (patterns a period or two long: no bounce can be told)
         return data, []
+    period_s = data.sync_period_s / max(int(getattr(data, "periods_per_sync", 1)), 1)
+    in_time = BOUNCE_TIME_S / period_s if period_s > 0 else 0.0
+    limit = min(max(BOUNCE_PERIODS, BOUNCE_SHARE * typ, in_time), BOUNCE_MAX_SHARE * typ)
     inner = np.arange(1, n - 1)
-    short = inner[d[inner] <= max(BOUNCE_PERIODS, BOUNCE_SHARE * typ)]
+    short = inner[d[inner] <= max(limit, BOUNCE_PERIODS)]
     short = np.sort(short[np.argsort(d[short], kind="stable")][: n - m])
     if not short.size:
         return data, []
@@ -215,6 +230,26 @@ def _edge_note(data, marker: int, edge: str) -> str | None:
             f"marker {'ends' if edge == 'start' else 'starts'} each pattern gives this, and "
             f"read as {'starting' if edge == 'start' else 'ending'} them every pattern is paired "
             f"with its neighbour's photons; if so, pass --marker-edge {fix}")
+
+
+def _double_note(data) -> str | None:
+    """Inner blocks lasting about twice the others: a marker missed there, which, where the
+    block count still matches the patterns (an extra marker elsewhere, an end marker), pairs
+    every later pattern with its neighbour's photons (an outside audit of 2026-11-30: a
+    missed marker and a bounce gave a median error of 0.9 m with only the short block
+    said)."""
+    d = data.periods_per_pattern.astype(np.float64)
+    if d.size < 4:
+        return None
+    typ = float(np.median(d))
+    inner = np.arange(1, d.size - 1)
+    long = inner[(d[inner] > 1.7 * typ) & (d[inner] < 2.3 * typ)]
+    if not typ > 0 or not long.size:
+        return None
+    where = ", ".join(str(int(k)) for k in long[:5]) + (", ..." if long.size > 5 else "")
+    return (f"pattern block {where} last{'s' if long.size == 1 else ''} about twice the "
+            f"{typ:.0f} code periods of the others: a marker missed there? if so, every "
+            f"pattern after it is paired with its neighbour's photons")
 
 
 def _channel_note(data) -> str | None:
@@ -295,10 +330,12 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
     from ..io import read_ptu_histograms
 
     data = read_ptu_histograms(ptu, n_bins, bin_width=bin_width, marker=marker,
-                               channel=channel, n_patterns=m, extra_blocks=2,
+                               channel=channel, n_patterns=m,
+                               extra_blocks=2 + max(BOUNCE_EXTRA, m // BOUNCE_ROWS),
                                marker_edge=marker_edge, allow_binning=allow_binning)
-    check_blocks(data, m, ptu)
+    n_read = data.n_patterns
     data, notes = _merge_bounces(data, m, marker)
+    check_blocks(data, m, ptu, merged=n_read - data.n_patterns)
     if data.n_patterns == m + 2:
         data, note = _drop_both_ends(data, m, marker, ptu)
         notes.append(note)
@@ -318,5 +355,6 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
                           f"--channel, --marker and --bit-rate)")
     edge = _edge_note(data, marker, marker_edge)
     mixed = _channel_note(data) if channel is None else None
+    double = _double_note(data)
     return (data, notes + ([edge] if edge else []) + ([mixed] if mixed else [])
-            + _lost_notes(data, marker, n_bins))
+            + ([double] if double else []) + _lost_notes(data, marker, n_bins))
