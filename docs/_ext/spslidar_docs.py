@@ -384,7 +384,9 @@ METRICS: dict[str, str] = {
     "ptu": "``reconstruct`` only: the PTU file read, its photons and code periods per "
            "pattern, the background, the blocks left out, and ``timing_drift_bins`` (with "
            "``timing_drift_se_bins``): how much later the returns arrive at the last pattern "
-           "than at the first (null with fewer than 16 patterns).",
+           "than at the first, and ``timing_drift_span_bins``, how far apart the eight "
+           "groups of patterns read (null with fewer than 16 patterns or no return to "
+           "time), and ``code_periods_per_sync`` (a sync divider folded).",
     "calibration": "``reconstruct`` only: the calibration applied (``--calibration``: its file "
                    "and SHA-256, delay, lag shift and fraction, IRF width, the filter's "
                    "``spread``, the factor on the default ``lam_scale``, how the depths were read "

@@ -514,7 +514,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
             "code_sha256": code_sha256(code), "code_bits": code_bits(code),
             "pulse_width": float(pulse_width), "distance_m": float(distance),
             "detector": pile,
-            "timing_drift_bins": None if drift is None else drift[0],
+            "timing_drift_bins": None if drift is None else drift.bins,
             "measured_from": {"ptu": path.name, "bytes": path.stat().st_size,
                               "sha256": sha256_file(path),
                               "photons": int(data.counts_per_pattern.sum()),

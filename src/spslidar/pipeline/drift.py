@@ -18,9 +18,11 @@ simulated files without drift, 0.001-0.018 bin; with a drift of 1 bin, 0.81-0.87
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-__all__ = ["DRIFT_BINS", "GROUPS", "drift_note", "timing_drift"]
+__all__ = ["DRIFT_BINS", "GROUPS", "Drift", "drift_note", "timing_drift"]
 
 #: consecutive groups of patterns whose returns' delays are compared
 GROUPS = 8
@@ -28,8 +30,25 @@ GROUPS = 8
 #: harmful drift was half a bin; on a 16x16 steps scene a quarter bin cost 0.20 -> 0.36 m of
 #: RMSE on one seed and 0.18 -> 0.28 m on another, a tenth 0.20 -> 0.24 and nothing)
 DRIFT_BINS = 0.15
-#: and only where it stands this many standard errors above the groups' scatter
-DRIFT_SIGMAS = 4.0
+#: and only where it stands this many standard errors above the photon noise (a faint file's
+#: shifts jump now and then: at 4, one of six faint files without a drift was said; at 5, one
+#: of 200 others, the faintest, while 6-10 of 10 quarter-bin drifts were)
+DRIFT_SIGMAS = 5.0
+#: interleaved subsets of each group whose shifts' scatter gives the noise (two, the even and
+#: odd patterns, missed the occasional jump of a faint file's shift: 2 of 24 said a drift)
+SUBSETS = 4
+#: the acquisition's matched filter (its groups aligned) must peak this many robust standard
+#: deviations above its median for its returns to be timed (a file of background alone peaks
+#: at about 4; its groups' shifts are noise's peaks, which spanned 0.6 bins and were said as
+#: a drift)
+RETURN_SIGMAS = 8.0
+#: a drift that is no line (a warm-up, an oscillation): the groups' shifts spanning this many
+#: bins, at least ``SPAN_SIGMAS`` of one group's standard error (eight groups of Gaussian
+#: noise span about 2.8 of them, and 5.4 once in a thousand; a faint file's shifts jump now
+#: and then, and at 6 one of 60 faint files without a drift was said, at 7 none of 120 other
+#: ones, while 8 to 10 of 10 half-bin warm-ups and bumps were)
+SPAN_BINS = 0.3
+SPAN_SIGMAS = 7.0
 
 
 def _shift(cross: np.ndarray, prod: np.ndarray) -> float:
@@ -48,7 +67,27 @@ def _shift(cross: np.ndarray, prod: np.ndarray) -> float:
     return float(whole - (np.sum(w * f * phase) / den if den > 0 else 0.0))
 
 
-def timing_drift(hist: np.ndarray, code: np.ndarray) -> tuple[float, float, np.ndarray] | None:
+class Drift(NamedTuple):
+    """:func:`timing_drift`'s reading, in bins."""
+
+    #: the fitted shift from the first pattern to the last (positive: later, farther)
+    bins: float
+    #: its standard error, from each group's photon noise
+    se: float
+    #: the largest difference between two groups' shifts (a drift that is not a line: a
+    #: warm-up, an oscillation)
+    span: float
+    #: one group's shift's standard error (from ``SUBSETS`` interleaved subsets of each
+    #: group's patterns, which see the same drift: their scatter is the noise)
+    sigma: float
+    #: each group's shift from the whole acquisition's returns
+    shifts: np.ndarray
+    #: how far the acquisition's strongest return stands above its matched filter's noise
+    #: (robust standard deviations)
+    peak_sigmas: float
+
+
+def timing_drift(hist: np.ndarray, code: np.ndarray) -> Drift | None:
     """The returns' drift over an acquisition, in bins.
 
     Parameters
@@ -60,52 +99,69 @@ def timing_drift(hist: np.ndarray, code: np.ndarray) -> tuple[float, float, np.n
 
     Returns
     -------
-    (drift, standard_error, shifts) or None
-        The fitted shift from the first pattern to the last (positive: later, farther), its
-        standard error from the groups' scatter about the line, and each group's shift from
-        the whole acquisition's returns; ``None`` with fewer than ``2 * GROUPS`` patterns or
-        no photon.
+    Drift or None
+        ``None`` with fewer than ``2 * GROUPS`` patterns, no photon, or no return standing
+        :data:`RETURN_SIGMAS` above the matched filter's noise. The standard errors
+        come from each group's own photon noise, not from the groups' scatter about the
+        line, which a warm-up's curve inflated until it hid itself (an outside audit of
+        2026-11-30: a 1-bin exponential warm-up read 0.47 +- 0.19 bins and was not said).
     """
     h = np.asarray(hist, dtype=np.float64)
     m, n = h.shape
     if m < 2 * GROUPS or not h.any():
         return None
     edges = np.linspace(0, m, GROUPS + 1).astype(int)
-    groups = np.add.reduceat(h, edges[:-1], axis=0)
-    replica = 2.0 * (np.asarray(code, np.float64) > 0) - 1.0
-    spec = np.fft.rfft(groups, axis=1) * np.conj(np.fft.rfft(replica))
+    replica = np.conj(np.fft.rfft(2.0 * (np.asarray(code, np.float64) > 0) - 1.0))
+    spec = np.fft.rfft(np.add.reduceat(h, edges[:-1], axis=0), axis=1) * replica
     whole = spec.sum(axis=0)
     # each group's matched-filter output against the whole's: their cross-correlation is
     # the product of the spectra, one FFT each
     x = (edges[:-1] + edges[1:] - 1) / 2.0  # each group's middle pattern
     freq = np.arange(whole.size) / n
+
+    def shifts_of(sp: np.ndarray) -> np.ndarray:
+        prod = sp * np.conj(whole)
+        cross = np.fft.irfft(prod, n=n, axis=1)
+        return np.array([_shift(c, p) for c, p in zip(cross, prod, strict=True)])
+
     for _ in range(2):  # (again against the whole with the first line's drift taken out:
         # summed through a drift of 8 bins the whole was blurred, and one group's whole-bin
         # peak jumped, -6.6 +- 2.2 read for -8)
-        prod = spec * np.conj(whole)
-        cross = np.fft.irfft(prod, n=n, axis=1)
-        shifts = np.array([_shift(c, p) for c, p in zip(cross, prod, strict=True)])
+        shifts = shifts_of(spec)
         slope, icpt = np.polyfit(x, shifts, 1)
         line = slope * x + icpt
         whole = (spec * np.exp(2j * np.pi * freq * line[:, None])).sum(axis=0)
-    resid = shifts - (slope * x + icpt)
-    se = float(np.sqrt(resid @ resid / (GROUPS - 2) / np.sum((x - x.mean()) ** 2)))
-    return float(slope * (m - 1)), se * (m - 1), shifts
+    total = np.fft.irfft(whole, n=n)  # (the groups aligned: a drift's own blur taken out)
+    spread = 1.4826 * float(np.median(np.abs(total - np.median(total))))
+    peak = float(total.max() - np.median(total)) / spread if spread > 0 else np.inf
+    if not peak >= RETURN_SIGMAS:
+        return None  # (no return stands out to be timed: noise's peaks read as drift)
+    parts = np.array([shifts_of(np.fft.rfft(np.array(
+        [h[a:b][q::SUBSETS].sum(axis=0) for a, b in zip(edges[:-1], edges[1:], strict=True)]),
+        axis=1) * replica) for q in range(SUBSETS)])
+    # (each subset holds 1 / SUBSETS of its group's photons: SUBSETS times the variance)
+    sigma = float(np.sqrt(np.mean(np.var(parts, axis=0, ddof=1)) / SUBSETS))
+    se = sigma / float(np.sqrt(np.sum((x - x.mean()) ** 2)))
+    return Drift(float(slope * (m - 1)), se * (m - 1), float(np.ptp(shifts)), sigma, shifts,
+                 peak)
 
 
-def drift_note(drift, bin_width: float) -> str | None:
-    """A warning where :func:`timing_drift`'s drift is at least :data:`DRIFT_BINS` and
-    :data:`DRIFT_SIGMAS` standard errors; ``None`` otherwise."""
+def drift_note(drift: Drift | None, bin_width: float) -> str | None:
+    """A warning where :func:`timing_drift`'s line is at least :data:`DRIFT_BINS` and
+    :data:`DRIFT_SIGMAS` standard errors, or its groups' span at least :data:`SPAN_BINS` and
+    :data:`SPAN_SIGMAS` of one group's standard errors; ``None`` otherwise."""
     if drift is None:
         return None
-    bins, se, _ = drift
-    if abs(bins) < DRIFT_BINS or abs(bins) < DRIFT_SIGMAS * se:
+    line = abs(drift.bins) >= DRIFT_BINS and abs(drift.bins) >= DRIFT_SIGMAS * drift.se
+    curve = drift.span >= SPAN_BINS and drift.span >= SPAN_SIGMAS * drift.sigma
+    if not (line or curve):
         return None
-    mm = abs(bins) * bin_width * 299792458.0 / 2.0 * 1e3
-    way = "later" if bins > 0 else "earlier"
-    return (f"the returns arrive {abs(bins):.2g} bins ({mm:.3g} mm of range) {way} at the "
-            f"last pattern than at the first (+-{se:.2g} bins): a timing drift over the "
-            f"acquisition (laser or detector warm-up, a cable's temperature, a sync clocked "
-            f"apart from the code), which the solve takes as one delay per return and which "
-            f"blurs the depths (half a bin cost an audit's 16x16 scene 0.4 -> 15 mm of median "
-            f"error); let the instrument settle, or acquire shorter")
+    mm = drift.span * bin_width * 299792458.0 / 2.0 * 1e3
+    way = "later" if drift.bins > 0 else "earlier"
+    return (f"the returns' delay moves by up to {drift.span:.2g} bins ({mm:.3g} mm of range) "
+            f"between groups of patterns over the acquisition (from the first pattern to the "
+            f"last, {abs(drift.bins):.2g} bins {way}, +-{drift.se:.2g}): a timing drift "
+            f"(laser or detector warm-up, a cable's temperature, a sync clocked apart from "
+            f"the code), which the solve takes as one delay per return and which blurs the "
+            f"depths (half a bin cost an audit's 16x16 scene 0.4 -> 15 mm of median error); "
+            f"let the instrument settle, or acquire shorter")

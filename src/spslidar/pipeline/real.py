@@ -593,8 +593,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         "n_patterns_solved": int(m), "n_out_of_range": data.n_out_of_range,
         "marker_edge": marker_edge,
         "code_periods_per_sync": int(data.periods_per_sync),
-        "timing_drift_bins": None if drift is None else drift[0],
-        "timing_drift_se_bins": None if drift is None else drift[1],
+        "timing_drift_bins": None if drift is None else drift.bins,
+        "timing_drift_se_bins": None if drift is None else drift.se,
+        "timing_drift_span_bins": None if drift is None else drift.span,
         "record_type": data.header.get("record_type"), "truth_file": truth_file}
     result.metrics["calibration"] = None if cal is None else {
         "file": cal.get("file"), "sha256": cal.get("file_sha256"), "delay_s": cal["delay_s"],
