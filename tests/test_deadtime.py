@@ -158,13 +158,14 @@ def test_a_dead_time_the_gaps_contradict_is_refused():
     channel's gaps under 97 % of the dead time given refuses it, naming the shortest gap;
     photons of two channels read together refuse any dead time; a channel whose rate would
     have made many shorter gaps shows its own."""
-    from spslidar.io.ptu import GAP_BIN_S, GAP_MAX_S
+    from spslidar.io.ptu import GAP_EDGES_S
     from spslidar.pipeline.deadtime import apparent_dead_time
 
-    n_bins = int(round(GAP_MAX_S / GAP_BIN_S))
-    counts = np.zeros(n_bins)
-    counts[100:200] = 10.0  # 1 000 gaps of 50-100 ns
-    gap = {0: {"shortest_s": 50e-9, "n": int(counts.sum()), "counts": counts}}
+    def gaps_of(d):
+        return {"shortest_s": float(d.min()), "n": d.size, "counts": np.bincount(
+            np.searchsorted(GAP_EDGES_S, d, side="right"), minlength=GAP_EDGES_S.size + 1)}
+
+    gap = {0: gaps_of(np.linspace(50e-9, 100e-9, 1000))}  # 1 000 gaps of 50-100 ns
     det = dead_time_model(BIN, 50e-9)
     pileup_report(np.array([100.0]), np.array([1000]), 1e-7, det, gaps=gap)
     det75 = dead_time_model(BIN, 75e-9)
@@ -178,6 +179,13 @@ def test_a_dead_time_the_gaps_contradict_is_refused():
     assert apparent_dead_time(gap, 1e-3) == 50e-9
     assert apparent_dead_time(gap, 1e6) is None
     assert apparent_dead_time(two, 1e-3) is None
+    # a dead time of microseconds is checked too (a linear grid stopped at 4 us)
+    slow = {0: gaps_of(5e-6 + np.random.default_rng(0).exponential(20e-6, 1000))}
+    pileup_report(np.array([100.0]), np.array([1000]), 1e-3, dead_time_model(BIN, 4e-6),
+                  gaps=slow)
+    with pytest.raises(ConfigError, match="shortest gap is 5"):
+        pileup_report(np.array([100.0]), np.array([1000]), 1e-3, dead_time_model(BIN, 15e-6),
+                      gaps=slow)
 
 
 @pytest.fixture(scope="module")

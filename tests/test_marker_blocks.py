@@ -434,3 +434,40 @@ def test_a_block_twice_as_long_as_the_others_is_said(tmp_path):
     assert any("pattern block 2 lasts about twice the 200 code periods" in n for n in notes)
     g = _write(tmp_path / "ok.ptu", *_events(rng, starts, starts))
     assert not any("twice" in n for n in read_blocks(g, M, L, bin_width=RES)[1])
+
+
+def test_marker_edge_end_with_a_bounce_on_the_first_marker(tmp_path):
+    """Pattern 0 lasts as long as pattern 1, measured from the next marker that is no bounce
+    of the first (a bounce 3 syncs after it made pattern 0 three periods long and dropped
+    the rest of its photons as before the first marker: a review)."""
+    rng = np.random.default_rng(14)
+    starts = [1000 + DWELL * k for k in range(M)]
+    ends = [s + DWELL - 1 for s in starts]
+    nsync, dtime, marker = _events(rng, starts, sorted(ends + [ends[0] + 3]))
+    order = np.lexsort((marker, nsync))
+    f = _write(tmp_path / "endb.ptu", nsync[order], dtime[order], marker[order])
+    data, notes = read_blocks(f, M, L, bin_width=RES, marker_edge="end")
+    assert _peaks(data) == list(range(M)) and data.counts_per_pattern[0] == PER
+
+
+@pytest.mark.parametrize("m", [8, 32])
+def test_every_marker_bouncing_is_merged(tmp_path, m):
+    """Every marker after the first bouncing 3 syncs later (a consistent trigger ringing):
+    all merged. The reader had kept too few blocks, so the last pattern lost all but its
+    bounce's photons, and at 32 patterns the file was refused (a review)."""
+    rng = np.random.default_rng(15)
+    starts = [DWELL * k for k in range(m)]
+    marks = sorted(starts + [s + 3 for s in starts[1:]])
+    ev = []
+    for k, s0 in enumerate(starts):
+        ev += [(int(s), 1, k % (L - 4) + 3, 0) for s in np.sort(rng.integers(s0, s0 + DWELL, PER))]
+    ev += [(int(s), 0, 0, 1) for s in marks]
+    ev.sort()
+    a = np.array(ev)
+    f = _write(tmp_path / "ring.ptu", a[:, 0], a[:, 2], a[:, 3])
+    data, notes = read_blocks(f, m, L, bin_width=RES)
+    assert data.n_patterns == m and data.counts_per_pattern.sum() == m * PER
+    assert list(np.argmax(data.histograms, axis=1) - 3) == [k % (L - 4) for k in range(m)]
+    np.testing.assert_array_equal(data.periods_per_pattern[:-1], DWELL)
+    assert any(f"{m - 1} of the file's {2 * m - 1} marker-delimited blocks" in n and
+               f"({DWELL - 3} periods typical)" in n for n in notes)

@@ -385,7 +385,7 @@ METRICS: dict[str, str] = {
            "pattern, the background, the blocks left out, and ``timing_drift_bins`` (with "
            "``timing_drift_se_bins``): how much later the returns arrive at the last pattern "
            "than at the first, and ``timing_drift_span_bins``, how far apart the eight "
-           "groups of patterns read (null with fewer than 16 patterns or no return to "
+           "groups of patterns read (null with fewer than 64 patterns or no return to "
            "time), and ``code_periods_per_sync`` (a sync divider folded).",
     "calibration": "``reconstruct`` only: the calibration applied (``--calibration``: its file "
                    "and SHA-256, delay, lag shift and fraction, IRF width, the filter's "

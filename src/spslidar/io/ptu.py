@@ -92,8 +92,9 @@ class PtuAcquisition:
     detection_gaps : dict
         Per selected channel, the time between each detection and the one before on that
         channel: ``{"shortest_s": float, "n": int, "counts": ndarray}``, ``counts`` a
-        histogram of the gaps under :data:`GAP_MAX_S` in bins of :data:`GAP_BIN_S` (a
-        detector's dead time is the shortest gap it lets through).
+        histogram of the gaps over :data:`GAP_EDGES_S` (``counts[i]`` holds the gaps from
+        edge ``i - 1`` to edge ``i``; the first, those under 0.1 ns; the last, those over
+        1 ms): a detector's dead time is the shortest gap it lets through.
     periods_per_sync : int
         Code periods per sync record: the header's sync divider where the file's sync period
         is that many code periods (each photon's TDC time is then folded into one code
@@ -334,10 +335,13 @@ def _accumulate(hist: np.ndarray, blocks: np.ndarray, bins: np.ndarray) -> None:
 WIDEN_AFTER = 2**31 - 1
 
 
-#: the histogram of the gaps between a channel's detections: bins and span (dead times of
-#: detectors and TCSPC electronics are 0.5 ns to a few microseconds)
-GAP_BIN_S = 0.5e-9
-GAP_MAX_S = 4e-6
+#: the histogram of the gaps between a channel's detections: edges spaced 1.2 % apart from
+#: 0.1 ns to 1 ms, the dead times a detector may be given (a linear 0.5 ns grid stopped at
+#: 4 us, and longer dead times went unchecked: a review)
+GAP_EDGES_S = np.logspace(-10, -3, 1401)
+#: a marker repeated within this time of another is a bounce (as in
+#: :mod:`spslidar.pipeline.blocks`)
+BOUNCE_TIME_S = 10e-6
 
 
 class _Gaps:
@@ -355,7 +359,6 @@ class _Gaps:
         if not self.period > 0:
             return
         t = syncs.astype(np.float64) * self.period + dtime.astype(np.float64) * self.res
-        n_bins = int(round(GAP_MAX_S / GAP_BIN_S))
         for c in np.unique(ch):
             c = int(c)
             tc = t[ch == c]
@@ -367,9 +370,8 @@ class _Gaps:
                 continue
             self.n[c] = self.n.get(c, 0) + d.size
             self.shortest[c] = min(self.shortest.get(c, np.inf), float(d.min()))
-            short = d[d < GAP_MAX_S]
-            h = np.bincount(np.maximum(short / GAP_BIN_S, 0).astype(np.int64),
-                            minlength=n_bins)[:n_bins]
+            h = np.bincount(np.searchsorted(GAP_EDGES_S, d, side="right"),
+                            minlength=GAP_EDGES_S.size + 1)
             self.counts[c] = self.counts.get(c, 0) + h
 
     def result(self) -> dict[int, Any]:
@@ -377,17 +379,20 @@ class _Gaps:
                     "counts": np.asarray(self.counts[c])} for c in self.n}
 
 
-def _missed_note(starts: np.ndarray, last_sync: int) -> str:
+def _missed_note(starts: np.ndarray, last_sync: int, edge: str = "start", fold: int = 1) -> str:
     """Where blocks last about twice the others' dwell, the words naming them (a marker
     missed there); empty where none does (a missing marker was refused without saying where:
-    an outside audit of 2026-11-30)."""
+    an outside audit of 2026-11-30). ``starts``: the markers' syncs; with markers at the
+    patterns' ends (``edge="end"``) the span from marker k to k + 1 is block k + 1; ``fold``
+    code periods a sync."""
     if starts.size < 3:
         return ""
-    dwell = np.diff(np.append(starts, last_sync + 1)).astype(np.float64)
+    dwell = fold * np.diff(np.append(starts, last_sync + 1)).astype(np.float64)
     typ = float(np.median(dwell[:-1]))
     long = np.flatnonzero((dwell[:-1] > 1.7 * typ) & (dwell[:-1] < 2.3 * typ))
     if not typ > 0 or not long.size:
         return ""
+    long = long + (edge == "end")
     where = ", ".join(str(int(k)) for k in long[:5]) + (", ..." if long.size > 5 else "")
     return (f" (block {where} last{'s' if long.size == 1 else ''} about twice the "
             f"{typ:.0f} code periods of the others: a marker missed there?)")
@@ -483,8 +488,9 @@ def read_ptu_histograms(
     ``allow_binning``, ``bin_width`` must be an integer multiple ``k`` of it (within ``rtol``)
     and bin = ``dtime // k``; where it is no whole number of units (a MultiHarp's 80 ps TDC
     under a 10 GHz code's 100 ps bits, or a code clock a little off the TDC's), ``allow_binning``
-    counts photons in bins of ``k = floor(ratio / 4)`` units (at most a quarter bin) and
-    splits each between the two bins it overlaps, in proportion (the histograms are then no
+    counts photons in bins of ``k = max(1, floor(ratio / 4))`` units (at most a quarter bin
+    where the ratio is 4 or more; under it, the TDC's own bins) and splits each between the
+    two bins it overlaps, in proportion (the histograms are then no
     longer whole counts; the sync period is checked against ``n_bins * bin_width``). Photons
     past the code period are dropped (``n_out_of_range``).
 
@@ -605,9 +611,15 @@ def read_ptu_histograms(
         # read a third of its returns as outside the gate: an outside audit of 2026-11-30)
         divider = header.get("sync_divider")
         fold = 1
-        if (check_sync_period and rebin is None and isinstance(divider, int | np.integer)
-                and not isinstance(divider, bool) and divider > 1
+        divided = (isinstance(divider, int | np.integer) and not isinstance(divider, bool)
+                   and divider > 1)
+        if (check_sync_period and divided
                 and abs(period - divider * n_bins * width) <= period_tol_bins * width):
+            if rebin is not None:  # (the fold is of whole bins: a review found a code's two
+                # periods squeezed into one through the split, correlation -0.19 with the code)
+                raise ConfigError(f"{spath!r}: a sync divider ({divider}) with a TDC bin split "
+                                  f"between the code's bits is not read: record with a sync "
+                                  f"divider of 1, or a TDC bin that divides the code's bit")
             fold = int(divider)
         if check_sync_period and abs(period - fold * n_bins * width) > period_tol_bins * width:
             raise ConfigError(
@@ -615,7 +627,7 @@ def read_ptu_histograms(
                 f"{n_bins} * {width:.6g} s = {n_bins * width:.6g} s "
                 f"({(period - n_bins * width) / width:+.3g} bins, tolerance {period_tol_bins:g})"
                 f"; {_fitting_codes(period / width, width, period_tol_bins)}"
-                + ("" if rebin is not None or not 0 < n_bins / period < 1 / res else
+                + ("" if rebin is not None or divided or not 0 < n_bins / period < 1 / res else
                    f"; or, if the code has {n_bins} bits, its bits come at {n_bins / period:.7g} "
                    f"Hz (a code clock off the TDC's): --bit-rate {n_bins / period:.7g} "
                    f"--allow-binning splits the TDC's bins between them"))
@@ -631,10 +643,17 @@ def read_ptu_histograms(
         wrap = _FAMILY[family][0]
         first_sync = 0  # ("end": pattern 0 from its own start, not the measurement's)
         if marker_edge == "end":
-            marks = _first_marker_syncs(f, n_records, chunk_records, mask, family, spath)
-            if len(marks) == 2:  # as long as pattern 1 (time before it was pattern 0's, and
-                # its histogram was scaled down by that dwell: a review)
-                first_sync = max(0, 2 * marks[0] + 1 - marks[1])
+            marks = _first_marker_syncs(f, n_records, chunk_records, mask, family, spath,
+                                        count=8)
+            # (the next marker that is no bounce of the first: a bounce 3 syncs after it made
+            # pattern 0 three periods long and dropped the rest of its photons, a review)
+            close = max(2, int(BOUNCE_TIME_S / period)) if period > 0 else 2
+            if len(marks) > 2:  # (at most a tenth of the markers' typical spacing, as a bounce)
+                close = min(close, max(2, int(0.1 * np.median(np.diff(marks)))))
+            later = [s for s in marks[1:] if s - marks[0] > close]
+            if later:  # as long as pattern 1 (time before it was pattern 0's, and its
+                # histogram was scaled down by that dwell: a review)
+                first_sync = max(0, 2 * marks[0] + 1 - later[0])
         hist = np.zeros((rows, n_mid), np.int32)  # (int64 past 2^31 - 1 photons in all)
         starts = np.zeros(rows + 1, np.int64)  # marker syncs, and the next block's if any
         per_channel = np.zeros(128, np.int64)  # ptufile's channel is an int8
@@ -698,7 +717,7 @@ def read_ptu_histograms(
     if n_markers < rows - (0 if limit is None else extra_blocks):
         raise ConfigError(f"{spath!r} has {n_markers} marker-delimited blocks on marker input "
                           f"{marker}, fewer than the {rows - extra_blocks} patterns"
-                          + _missed_note(starts[:n_markers], last_sync))
+                          + _missed_note(starts[:n_markers], last_sync, marker_edge, fold))
     if n_markers < rows:  # the extra blocks the file does not hold
         n_after += int(hist[n_markers:].sum(dtype=np.int64))  # ("end": after the last marker)
         rows, hist = n_markers, hist[:n_markers]

@@ -162,7 +162,10 @@ def _merge_bounces(data, m: int, marker: int) -> tuple[Any, list[str]]:
     d = data.periods_per_pattern.astype(np.float64)
     if n <= m or n < 3:
         return data, []
-    typ = float(np.median(d[1:-1]))
+    # the patterns' dwell: the median of the longer half of the inner blocks (every marker
+    # may have bounced, and the median of all of them was a bounce's: a review)
+    inner_d = np.sort(d[1:-1])
+    typ = float(np.median(inner_d[inner_d.size // 2:]))
     if typ < BOUNCE_MIN_DWELL:  # (patterns a period or two long: no bounce can be told)
         return data, []
     period_s = data.sync_period_s / max(int(getattr(data, "periods_per_sync", 1)), 1)
@@ -189,7 +192,8 @@ def _merge_bounces(data, m: int, marker: int) -> tuple[Any, list[str]]:
     data = dataclasses.replace(data, histograms=hist[keep], counts_per_pattern=counts[keep],
                                pattern_start_sync=start[keep], periods_per_pattern=periods[keep])
     where = ", ".join(str(int(k)) for k in short[:5]) + (", ..." if short.size > 5 else "")
-    return data, [f"{short.size} of the file's {n} marker-delimited blocks on input {marker} "
+    return data, [f"{short.size} of the file's {data.n_markers} marker-delimited blocks on "
+                  f"input {marker} "
                   f"(block {where}) last at most {int(d[short].max())} code period(s) between "
                   f"two patterns' ({typ:.0f} periods typical): a marker repeated (a DMD "
                   f"trigger's bounce?); each is merged, with {moved} photons in all, into the "
@@ -329,10 +333,16 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
     """
     from ..io import read_ptu_histograms
 
-    data = read_ptu_histograms(ptu, n_bins, bin_width=bin_width, marker=marker,
-                               channel=channel, n_patterns=m,
-                               extra_blocks=2 + max(BOUNCE_EXTRA, m // BOUNCE_ROWS),
-                               marker_edge=marker_edge, allow_binning=allow_binning)
+    def read(extra: int):
+        return read_ptu_histograms(ptu, n_bins, bin_width=bin_width, marker=marker,
+                                   channel=channel, n_patterns=m, extra_blocks=extra,
+                                   marker_edge=marker_edge, allow_binning=allow_binning)
+
+    data = read(2 + max(BOUNCE_EXTRA, m // BOUNCE_ROWS))
+    if data.n_patterns < data.n_markers <= 2 * m + 2:  # (more markers than that, up to two
+        # a pattern and the arming and end markers': every marker may have bounced, so read
+        # them all; the last pattern lost all but its bounce's photons, a review)
+        data = read(data.n_markers - m)
     n_read = data.n_patterns
     data, notes = _merge_bounces(data, m, marker)
     check_blocks(data, m, ptu, merged=n_read - data.n_patterns)

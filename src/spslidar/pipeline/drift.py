@@ -100,19 +100,23 @@ def timing_drift(hist: np.ndarray, code: np.ndarray) -> Drift | None:
     Returns
     -------
     Drift or None
-        ``None`` with fewer than ``2 * GROUPS`` patterns, no photon, or no return standing
+        ``None`` with fewer than ``2 * GROUPS * SUBSETS`` (64) patterns, no photon, or no
+        return standing
         :data:`RETURN_SIGMAS` above the matched filter's noise. The standard errors
         come from each group's own photon noise, not from the groups' scatter about the
         line, which a warm-up's curve inflated until it hid itself (an outside audit of
         2026-11-30: a 1-bin exponential warm-up read 0.47 +- 0.19 bins and was not said).
     """
-    h = np.asarray(hist, dtype=np.float64)
+    h = np.asarray(hist)  # (summed in float64 group by group: no copy of the whole)
     m, n = h.shape
-    if m < 2 * GROUPS or not h.any():
+    if m < 2 * GROUPS * SUBSETS or not h.any():  # (in fewer, a subset of a group could be
+        # empty, and its shift of 0 shrank the noise: 9 of 40 files of 16 patterns without a
+        # drift were said to drift, a review)
         return None
     edges = np.linspace(0, m, GROUPS + 1).astype(int)
     replica = np.conj(np.fft.rfft(2.0 * (np.asarray(code, np.float64) > 0) - 1.0))
-    spec = np.fft.rfft(np.add.reduceat(h, edges[:-1], axis=0), axis=1) * replica
+    spec = np.fft.rfft(np.add.reduceat(h, edges[:-1], axis=0, dtype=np.float64),
+                       axis=1) * replica
     whole = spec.sum(axis=0)
     # each group's matched-filter output against the whole's: their cross-correlation is
     # the product of the spectra, one FFT each
@@ -137,7 +141,8 @@ def timing_drift(hist: np.ndarray, code: np.ndarray) -> Drift | None:
     if not peak >= RETURN_SIGMAS:
         return None  # (no return stands out to be timed: noise's peaks read as drift)
     parts = np.array([shifts_of(np.fft.rfft(np.array(
-        [h[a:b][q::SUBSETS].sum(axis=0) for a, b in zip(edges[:-1], edges[1:], strict=True)]),
+        [h[a:b][q::SUBSETS].sum(axis=0, dtype=np.float64)
+         for a, b in zip(edges[:-1], edges[1:], strict=True)]),
         axis=1) * replica) for q in range(SUBSETS)])
     # (each subset holds 1 / SUBSETS of its group's photons: SUBSETS times the variance)
     sigma = float(np.sqrt(np.mean(np.var(parts, axis=0, ddof=1)) / SUBSETS))
