@@ -38,7 +38,7 @@ from .ptu_format import (
     _positive_int,
 )
 
-__all__ = ["PtuAcquisition", "ptu_info", "read_ptu_histograms"]
+__all__ = ["GAP_EDGES_S", "PtuAcquisition", "ptu_info", "read_ptu_histograms"]
 
 
 # --------------------------------------------------------------------------------------------

@@ -25,8 +25,9 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["DEAD_TIME_KEYS", "apparent_dead_time", "calibration_note", "correct_blocks",
-           "dead_time_model", "pileup_report", "rate_note"]
+__all__ = ["DEAD_TIME_KEYS", "GAP_EVIDENCE", "LOSS_TO_WARN", "MAX_DETECTOR_RATE_HZ",
+           "RATE_RATIO", "TYPICAL_DEAD_TIMES_S", "apparent_dead_time", "calibration_note",
+           "correct_blocks", "dead_time_model", "pileup_report", "rate_note"]
 
 #: the keyword arguments of the measured paths (``reconstruct_ptu``, ``calibrate_ptu``)
 DEAD_TIME_KEYS = ("dead_time", "afterpulse_prob", "afterpulse_delay")

@@ -22,7 +22,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["DRIFT_BINS", "GROUPS", "Drift", "drift_note", "timing_drift"]
+__all__ = ["DRIFT_BINS", "DRIFT_SIGMAS", "GROUPS", "RETURN_SIGMAS", "SPAN_BINS", "SPAN_SIGMAS",
+           "SUBSETS", "Drift", "drift_note", "timing_drift"]
 
 #: consecutive groups of patterns whose returns' delays are compared
 GROUPS = 8
@@ -48,6 +49,7 @@ RETURN_SIGMAS = 8.0
 #: and then, and at 6 one of 60 faint files without a drift was said, at 7 none of 120 other
 #: ones, while 8 to 10 of 10 half-bin warm-ups and bumps were)
 SPAN_BINS = 0.3
+#: the standard errors of one group's shift the span must reach (see ``SPAN_BINS``)
 SPAN_SIGMAS = 7.0
 
 
