@@ -240,6 +240,10 @@ def test_reconstruct_corrects_the_files_pile_up(gmapd_file):
     assert said["incident_per_dead_time"] == pytest.approx(
         meas.sim["pileup"]["incident_per_dead_time"], rel=0.02)
     assert fixed.metrics["depth_rmse_m"] < 0.8 * raw.metrics["depth_rmse_m"]
+    from spslidar.figures import _title  # (depth.png says which dead time was corrected)
+
+    assert "pile-up corrected (dead time 50 ns)" in _title(fixed)
+    assert "pile-up" not in _title(raw)
 
 
 def test_the_cli_takes_the_dead_time_and_refuses_a_bad_one(gmapd_file, capsys):

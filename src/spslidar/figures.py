@@ -229,6 +229,9 @@ def _title(result) -> str:
             fwhm = float(cal["irf_fwhm_bins"])
             what += (f", calibrated ({name}delay {1e9 * cal['delay_s']:.3f} ns, IRF FWHM "
                      f"{fwhm:.2f} bin{'' if fwhm == 1 else 's'})")
+        det = m.get("detector") or {}
+        if det.get("corrected"):  # (which dead time the counts were corrected for)
+            what += f", pile-up corrected (dead time {1e9 * float(det['dead_time_s']):g} ns)"
     else:
         # (a noiseless run was titled with the m_n of a noisy one: an audit)
         light = (f"m_s={c.signal:g}, noiseless" if getattr(c, "noiseless", False)
