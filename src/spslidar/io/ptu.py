@@ -38,7 +38,8 @@ from .ptu_format import (
     _positive_int,
 )
 
-__all__ = ["GAP_EDGES_S", "PtuAcquisition", "ptu_info", "read_ptu_histograms"]
+__all__ = ["BOUNCE_TIME_S", "GAP_EDGES_S", "PtuAcquisition", "block_list", "ptu_info",
+           "read_ptu_histograms", "twice_as_long"]
 
 
 # --------------------------------------------------------------------------------------------
@@ -339,8 +340,11 @@ WIDEN_AFTER = 2**31 - 1
 #: 0.1 ns to 1 ms, the dead times a detector may be given (a linear 0.5 ns grid stopped at
 #: 4 us, and longer dead times went unchecked: a review)
 GAP_EDGES_S = np.logspace(-10, -3, 1401)
-#: a marker repeated within this time of another is a bounce (as in
-#: :mod:`spslidar.pipeline.blocks`)
+#: a marker repeated within this time of its pattern's is a bounce (a DMD trigger's ringing;
+#: :mod:`spslidar.pipeline.blocks` merges such blocks, where the time is at most a tenth of
+#: the typical dwell: a short code's periods are tens of nanoseconds, and a bounce three
+#: 255 ns periods late was taken as a pattern and the last pattern dropped, an outside audit
+#: of 2026-11-30)
 BOUNCE_TIME_S = 10e-6
 
 
@@ -379,22 +383,36 @@ class _Gaps:
                     "counts": np.asarray(self.counts[c])} for c in self.n}
 
 
+def block_list(blocks: np.ndarray) -> str:
+    """Block numbers for a message: the first five, then "..."."""
+    return (", ".join(str(int(k)) for k in blocks[:5]) + (", ..." if len(blocks) > 5 else ""))
+
+
+def twice_as_long(dwell: np.ndarray) -> tuple[np.ndarray, float]:
+    """The blocks lasting about twice (1.7 to 2.3 times) the median ``dwell``, a marker missed
+    between two patterns, and that median (the reader's refusal of too few blocks and
+    :mod:`spslidar.pipeline.blocks`' word where the count still matches)."""
+    d = np.asarray(dwell, dtype=np.float64)
+    typ = float(np.median(d))
+    if not typ > 0:
+        return np.zeros(0, np.int64), typ
+    return np.flatnonzero((d > 1.7 * typ) & (d < 2.3 * typ)), typ
+
+
 def _missed_note(starts: np.ndarray, last_sync: int, edge: str = "start", fold: int = 1) -> str:
     """Where blocks last about twice the others' dwell, the words naming them (a marker
     missed there); empty where none does (a missing marker was refused without saying where:
     an outside audit of 2026-11-30). ``starts``: the markers' syncs; with markers at the
     patterns' ends (``edge="end"``) the span from marker k to k + 1 is block k + 1; ``fold``
-    code periods a sync."""
+    code periods a sync. The last block, whose end the file does not record, is left out."""
     if starts.size < 3:
         return ""
     dwell = fold * np.diff(np.append(starts, last_sync + 1)).astype(np.float64)
-    typ = float(np.median(dwell[:-1]))
-    long = np.flatnonzero((dwell[:-1] > 1.7 * typ) & (dwell[:-1] < 2.3 * typ))
-    if not typ > 0 or not long.size:
+    long, typ = twice_as_long(dwell[:-1])
+    if not long.size:
         return ""
     long = long + (edge == "end")
-    where = ", ".join(str(int(k)) for k in long[:5]) + (", ..." if long.size > 5 else "")
-    return (f" (block {where} last{'s' if long.size == 1 else ''} about twice the "
+    return (f" (block {block_list(long)} last{'s' if long.size == 1 else ''} about twice the "
             f"{typ:.0f} code periods of the others: a marker missed there?)")
 
 

@@ -21,7 +21,8 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["BOUNCE_PERIODS", "DROPPED_SHARE", "SHORT_BLOCK", "check_blocks", "read_blocks"]
+__all__ = ["BOUNCE_PERIODS", "CHANNEL_SHARE", "DROPPED_SHARE", "SHORT_BLOCK", "channels_holding",
+           "check_blocks", "read_blocks"]
 
 #: photons left out (before the first marker, or past the code period) beyond this share of
 #: the file's are said (they are always left out: no pattern, or no bin, is known for them)
@@ -40,11 +41,8 @@ EDGE_BLOCK_PERIODS = 2
 BOUNCE_PERIODS = 2
 BOUNCE_SHARE = 0.01
 BOUNCE_MIN_DWELL = 50
-#: a marker repeated within this time of its pattern's is a bounce too (a trigger's ringing),
-#: where that is at most ``BOUNCE_MAX_SHARE`` of the typical dwell (a short code's periods
-#: are tens of nanoseconds: a bounce three 255 ns periods late was taken as a pattern and the
-#: last pattern dropped, an outside audit of 2026-11-30)
-BOUNCE_TIME_S = 10e-6
+#: a marker repeated within :data:`spslidar.io.ptu.BOUNCE_TIME_S` of its pattern's is a
+#: bounce too, where that is at most this share of the typical dwell
 BOUNCE_MAX_SHARE = 0.1
 #: bounces a file may hold beyond its arming and end markers (read as extra blocks, then
 #: merged): at least this many, or one pattern in ``BOUNCE_ROWS``
@@ -168,6 +166,8 @@ def _merge_bounces(data, m: int, marker: int) -> tuple[Any, list[str]]:
     typ = float(np.median(inner_d[inner_d.size // 2:]))
     if typ < BOUNCE_MIN_DWELL:  # (patterns a period or two long: no bounce can be told)
         return data, []
+    from ..io.ptu import BOUNCE_TIME_S
+
     period_s = data.sync_period_s / max(int(getattr(data, "periods_per_sync", 1)), 1)
     in_time = BOUNCE_TIME_S / period_s if period_s > 0 else 0.0
     limit = min(max(BOUNCE_PERIODS, BOUNCE_SHARE * typ, in_time), BOUNCE_MAX_SHARE * typ)
@@ -191,13 +191,14 @@ def _merge_bounces(data, m: int, marker: int) -> tuple[Any, list[str]]:
         start[j] = start[k]
     data = dataclasses.replace(data, histograms=hist[keep], counts_per_pattern=counts[keep],
                                pattern_start_sync=start[keep], periods_per_pattern=periods[keep])
-    where = ", ".join(str(int(k)) for k in short[:5]) + (", ..." if short.size > 5 else "")
+    from ..io.ptu import block_list
+
     return data, [f"{short.size} of the file's {data.n_markers} marker-delimited blocks on "
-                  f"input {marker} "
-                  f"(block {where}) last at most {int(d[short].max())} code period(s) between "
-                  f"two patterns' ({typ:.0f} periods typical): a marker repeated (a DMD "
-                  f"trigger's bounce?); each is merged, with {moved} photons in all, into the "
-                  f"next block, the same pattern's"]
+                  f"input {marker} (block {block_list(short)}) last at most "
+                  f"{int(d[short].max())} code period(s) between two patterns' ({typ:.0f} "
+                  f"periods typical): a marker repeated (a DMD trigger's bounce?); each is "
+                  f"merged, with {moved} photons in all, into the next block, the same "
+                  f"pattern's"]
 
 
 def _edge_note(data, marker: int, edge: str) -> str | None:
@@ -242,18 +243,25 @@ def _double_note(data) -> str | None:
     every later pattern with its neighbour's photons (an outside audit of 2026-11-30: a
     missed marker and a bounce gave a median error of 0.9 m with only the short block
     said)."""
-    d = data.periods_per_pattern.astype(np.float64)
+    from ..io.ptu import block_list, twice_as_long
+
+    d = data.periods_per_pattern
     if d.size < 4:
         return None
-    typ = float(np.median(d))
-    inner = np.arange(1, d.size - 1)
-    long = inner[(d[inner] > 1.7 * typ) & (d[inner] < 2.3 * typ)]
-    if not typ > 0 or not long.size:
+    long, typ = twice_as_long(d)
+    long = long[(long > 0) & (long < d.size - 1)]  # (the inner blocks)
+    if not long.size:
         return None
-    where = ", ".join(str(int(k)) for k in long[:5]) + (", ..." if long.size > 5 else "")
-    return (f"pattern block {where} last{'s' if long.size == 1 else ''} about twice the "
+    return (f"pattern block {block_list(long)} last{'s' if long.size == 1 else ''} about twice the "
             f"{typ:.0f} code periods of the others: a marker missed there? if so, every "
             f"pattern after it is paired with its neighbour's photons")
+
+
+def channels_holding(counts: dict[int, int]) -> dict[int, int]:
+    """Of photons (or detections) per channel, the channels holding at least
+    :data:`CHANNEL_SHARE` of them all: each another detector."""
+    total = max(sum(counts.values()), 1)
+    return {c: n for c, n in counts.items() if n >= CHANNEL_SHARE * total}
 
 
 def _channel_note(data) -> str | None:
@@ -261,8 +269,7 @@ def _channel_note(data) -> str | None:
     histogram, which is right for detectors that see the same returns and wrong for a laser
     monitor or a reference (an outside audit of 2026-11-30: a monitor channel at half a count
     per period was read as returns outside the range gate, without a word of it)."""
-    per = {c: n for c, n in data.photons_per_channel.items()
-           if n >= CHANNEL_SHARE * max(sum(data.photons_per_channel.values()), 1)}
+    per = channels_holding(data.photons_per_channel)
     if len(per) < 2:
         return None
     total = sum(per.values())

@@ -450,7 +450,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     :class:`~spslidar.errors.ConfigError`."""
     from ..version import __version__
     from .blocks import read_blocks
-    from .deadtime import correct_blocks, dead_time_model, pileup_report
+    from .deadtime import apply_dead_time, dead_time_model
     from .real import (
         check_code,
         check_patterns,
@@ -480,15 +480,11 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     data, notes = read_blocks(ptu, int(patterns.shape[0]), int(code.size), bin_width=bin_width,
                               marker=marker, channel=channel, allow_binning=allow_binning,
                               marker_edge=marker_edge)
-    periods = np.maximum(data.periods_per_pattern, 1)
-    pile, pile_notes = pileup_report(data.counts_per_pattern, periods,
-                                     code.size * bin_width, detector, channel,
-                                     data.detection_gaps)
+    hists, _, pile, pile_notes = apply_dead_time(
+        data.histograms, data.counts_per_pattern, np.maximum(data.periods_per_pattern, 1),
+        code.size * bin_width, detector, channel, data.detection_gaps)
     for note in notes + pile_notes:
         warnings.warn(note, stacklevel=2)
-    hists = data.histograms
-    if pile["corrected"]:
-        hists = correct_blocks(hists, periods, detector)[0]
     from .drift import drift_note, timing_drift
 
     drift = timing_drift(hists, code)

@@ -26,8 +26,9 @@ import numpy as np
 from ..errors import ConfigError
 
 __all__ = ["DEAD_TIME_KEYS", "GAP_EVIDENCE", "LOSS_TO_WARN", "MAX_DETECTOR_RATE_HZ",
-           "RATE_RATIO", "TYPICAL_DEAD_TIMES_S", "apparent_dead_time", "calibration_note",
-           "correct_blocks", "dead_time_model", "pileup_report", "rate_note"]
+           "RATE_RATIO", "TYPICAL_DEAD_TIMES_S", "apparent_dead_time", "apply_dead_time",
+           "calibration_note", "correct_blocks", "dead_time_model", "pileup_report",
+           "rate_note"]
 
 #: the keyword arguments of the measured paths (``reconstruct_ptu``, ``calibrate_ptu``)
 DEAD_TIME_KEYS = ("dead_time", "afterpulse_prob", "afterpulse_delay")
@@ -192,10 +193,9 @@ GAP_SHARE = 0.01
 GAP_EVIDENCE = 20.0
 def _read_channels(gaps: dict) -> list[int]:
     """The channels read that hold a share of the photons (another detector each)."""
-    from .blocks import CHANNEL_SHARE
+    from .blocks import channels_holding
 
-    total = sum(g["n"] for g in gaps.values()) or 1
-    return sorted(c for c, g in gaps.items() if g["n"] >= CHANNEL_SHARE * total)
+    return sorted(channels_holding({c: g["n"] for c, g in gaps.items()}))
 
 
 def _check_gaps(gaps: dict, dead: float) -> None:
@@ -297,6 +297,26 @@ def pileup_report(counts: np.ndarray, periods: np.ndarray, period_s: float, dete
                        "record with less light (the detector cannot count more)")
              for n in detector.notes_after(out)]
     return out, notes
+
+
+def apply_dead_time(hist: np.ndarray, counts: np.ndarray, periods: np.ndarray,
+                    period_s: float, detector, channel: Any = None, gaps: dict | None = None
+                    ) -> tuple[np.ndarray, np.ndarray | None, dict[str, Any], list[str]]:
+    """A measured acquisition's blocks through its detector's dead time, as ``reconstruct``
+    and ``calibrate`` take them: :func:`pileup_report` of the ``counts``, then, where a dead
+    time or afterpulsing was given, each block's histogram corrected
+    (:func:`correct_blocks`).
+
+    Returns
+    -------
+    (histograms, noise_totals, report, notes)
+        ``hist`` itself and ``None`` where nothing is corrected.
+    """
+    report, notes = pileup_report(counts, periods, period_s, detector, channel, gaps)
+    if not report["corrected"]:
+        return hist, None, report, notes
+    fixed, noise = correct_blocks(hist, periods, detector)
+    return fixed, noise, report, notes
 
 
 def _dead_time_of(detector) -> float:

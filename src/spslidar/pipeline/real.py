@@ -437,7 +437,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     if truth is not None:
         truth = _check_truth(truth, n)
         truth_note = truth_outside_gate(truth, cfg.range_gate)
-    from .deadtime import correct_blocks, dead_time_model, pileup_report
+    from .deadtime import apply_dead_time, dead_time_model
 
     detector = dead_time_model(bin_width, dead_time, afterpulse_prob, afterpulse_delay)
     _check_solve_time(cfg, m, q, int(gate_lags(cfg.range_gate, bin_width).size), period)
@@ -470,12 +470,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
             f"the solve")
         keep = np.setdiff1d(np.arange(m), empty)
         m, n_k, hist, patterns = keep.size, n_k[keep], hist[keep], patterns[keep]
-    pile, pile_notes = pileup_report(hist.sum(axis=1), n_k, period * bin_width, detector,
-                                     channel, data.detection_gaps)
+    # (before the dwells are evened out: each block with its own)
+    hist, noise_totals, pile, pile_notes = apply_dead_time(
+        hist, hist.sum(axis=1), n_k, period * bin_width, detector, channel, data.detection_gaps)
     dwell_warning += pile_notes
-    noise_totals = None
-    if pile["corrected"]:  # (before the dwells are evened out: each block with its own)
-        hist, noise_totals = correct_blocks(hist, n_k, detector)
     from .drift import drift_note, timing_drift
 
     drift = timing_drift(hist, code)
