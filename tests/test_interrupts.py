@@ -172,6 +172,26 @@ def test_handlers_are_put_back_without_a_signal():
     assert stopper.timer is None and not stopper.said
 
 
+
+def test_a_handler_installed_outside_python_is_put_back_as_the_default(monkeypatch):
+    """``signal.signal`` returns None for a handler an embedding host installed in C; putting
+    None back was a TypeError from ``restore`` that hid the command's result (an audit of
+    2026-11-30): the default goes back instead, and the other handlers still do."""
+    from spslidar.interrupts import Stopper
+
+    sig = signal.SIGTERM
+    before, before_sig = signal.getsignal(signal.SIGINT), signal.getsignal(sig)
+    stopper = Stopper(lambda t: "x")
+    stopper.install()
+    stopper._previous[sig] = None  # what signal.signal returned under such a host
+    try:
+        stopper.restore()
+        assert signal.getsignal(sig) == signal.SIG_DFL
+        assert signal.getsignal(signal.SIGINT) == before
+        assert stopper._previous == {}
+    finally:
+        signal.signal(sig, before_sig)
+
 def test_a_signal_while_exit_hooks_hang_arms_the_watchdog_without_a_traceback():
     """After the command returned (``exiting``), a Ctrl-C during an exit hook that hangs (a
     pool's thread joined forever) raises nothing there and the watchdog ends the process."""

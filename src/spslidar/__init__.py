@@ -43,3 +43,8 @@ def _plugins_of_the_environment() -> None:
 
 
 _plugins_of_the_environment()
+
+
+def __dir__() -> list[str]:
+    # the lazy names too, so dir() and a REPL's completion list them (an audit of 2026-11-30)
+    return sorted(set(globals()) | set(__all__))

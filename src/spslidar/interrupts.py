@@ -83,9 +83,14 @@ class Stopper:
 
     def restore(self) -> None:
         """Put back the handlers :meth:`install` replaced (the watchdog, if armed, stays)."""
-        for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
-        self._previous.clear()
+        try:
+            for sig, handler in self._previous.items():
+                # None: the handler before was installed outside Python (an embedding host),
+                # which signal.signal cannot put back; the default is the nearest (a TypeError
+                # here hid the command's result, an audit of 2026-11-30)
+                signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+        finally:
+            self._previous.clear()
 
     def say(self, terminated: bool) -> None:
         """Print the command's one line (once)."""

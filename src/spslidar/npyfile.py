@@ -19,7 +19,8 @@ from .errors import ConfigError
 __all__ = ["check_npz_sizes", "load_npy"]
 
 
-def load_npy(path: str | os.PathLike, what: str, error: type = ConfigError) -> np.ndarray:
+def load_npy(path: str | os.PathLike, what: str,
+             error: type[Exception] = ConfigError) -> np.ndarray:
     """A ``.npy`` array, its header checked first: a shape the file's body cannot hold (or a
     negative one), a header that does not parse, Python objects, or an array too large for
     this machine are refused in one line (``error``) before anything is allocated."""
@@ -80,7 +81,8 @@ def load_npy(path: str | os.PathLike, what: str, error: type = ConfigError) -> n
     return np.array(head)
 
 
-def check_npz_sizes(path: str | os.PathLike, what: str, error: type = ConfigError) -> None:
+def check_npz_sizes(path: str | os.PathLike, what: str,
+                    error: type[Exception] = ConfigError) -> None:
     """Refuse (one line, ``error``, naming ``what``) an ``.npz`` archive whose members would
     inflate past the memory available: a 2.2 MB archive of a deflated 14000x14000 float64
     depth took 3.4 GB before its refusal."""

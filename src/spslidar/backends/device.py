@@ -79,9 +79,26 @@ def simulate(be: Any, patterns: Any, acq: Any, ulags: np.ndarray, noise: Any, de
 
     Parameters
     ----------
+    be : Backend
+        The array backend the stage runs on.
+    patterns : DevicePatterns
+        The DMD patterns, on the device.
+    acq : Acquisition
+        The code, the bin width and the periods per pattern.
+    ulags : ndarray of int
+        The gated lags (whole bins) at which the matched filter is evaluated.
+    noise, detector : NoiseModel, DetectorModel
+        The background model and the detector (the linear counter on this path).
     shifts, weights : ndarray
         Each pixel's returns per occupied delay (:func:`spslidar.instrument.
         instrument_weights`, host-side).
+    refl : ndarray, shape (Q,)
+        The scene's reflectivity per pixel.
+    seq_counts : numpy.random.SeedSequence
+        The counts' seed, read through a :class:`~spslidar.backends.rng.Stream` (the NumPy
+        path's blocks and streams on a host stream).
+    noiseless : bool
+        Use the expected counts themselves (no Poisson draw).
     block_rows : int
         Patterns per block on a host stream (the NumPy path's ``BLOCK``, so the streams are
         split as it splits them).

@@ -28,6 +28,8 @@ class DevicePatterns:
     matrix : array, shape (M, Q)
     backend : Backend
     kind : str
+    host : PatternOperator, optional
+        The host operator the matrix was copied from (None: drawn on the device).
     """
 
     def __init__(self, matrix: Any, backend: Any, kind: str, host: Any = None):

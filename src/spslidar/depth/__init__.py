@@ -52,3 +52,8 @@ ESTIMATORS.add("mrf", "spslidar.depth.mrf:MRFDepth", "MRF (loopy BP)",
                "regions (spslidar.depth.halo); best or tied on 17 of the 18 built-in cases "
                "of benchmarks/depth_quality.py",
                slice_bytes=70, slice_seconds=4.5e-7)
+
+
+def __dir__() -> list[str]:
+    # the lazy names too, so dir() and a REPL's completion list them (an audit of 2026-11-30)
+    return sorted(set(globals()) | set(__all__))

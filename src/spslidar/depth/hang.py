@@ -179,6 +179,8 @@ def walk_on(z: np.ndarray, label: np.ndarray, walked: np.ndarray, nu: float,
         The block's typical noise maximum.
     shape : (int, int)
         The image grid.
+    own, fill, least : float
+        :data:`HANG_OWN`, :data:`HANG_FILL` and ``spslidar.depth.lines.LO`` (the tests above).
 
     Returns
     -------

@@ -81,3 +81,8 @@ DETECTORS.add("gmapd", "spslidar.detectors.gmapd:GMAPD", "GMAPD",
 def build_detector(name: str, **options) -> DetectorModel:
     """The detector model registered under ``name``, built with ``options``."""
     return DETECTORS.load(name)(**options)
+
+
+def __dir__() -> list[str]:
+    # the lazy names too, so dir() and a REPL's completion list them (an audit of 2026-11-30)
+    return sorted(set(globals()) | set(__all__))

@@ -89,6 +89,8 @@ class Wavelet2D(LinearOperator):
         image sides allow periodized levels (at most 4), but no deeper than PyWavelets'
         ``dwtn_max_level`` for the filter's length (a 16 x 16 image: 4 levels of ``haar``, 2
         of ``db2``, 1 of ``db8``).
+    dtype : numpy dtype
+        The operator's dtype (default float64).
 
     Notes
     -----

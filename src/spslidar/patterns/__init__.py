@@ -124,3 +124,8 @@ def build_patterns(kind: str, n_patterns: int, n_side: int, rng: Any,
 #: the keywords of the built-in pattern factories: ``sigma`` (Gaussian grey levels' spread),
 #: ``on_fraction`` (Bernoulli), ``order`` and ``realisation`` (Hadamard)
 PATTERN_OPTIONS = ("sigma", "on_fraction", "order", "realisation")
+
+
+def __dir__() -> list[str]:
+    # the lazy names too, so dir() and a REPL's completion list them (an audit of 2026-11-30)
+    return sorted(set(globals()) | set(__all__))

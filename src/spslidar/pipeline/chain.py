@@ -291,9 +291,12 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     ----------
     meas : Measurement
     **processing
-        Processing keys to change from the measurement's config (``solver``, ``lam``,
+        Processing keys to change from the measurement's config: those of
+        :func:`~spslidar.pipeline.measurement.processing_keys` (``solver``, ``lam``,
         ``lam_scale``, ``qcr``, ``qcr_form``, ``regulariser``, ``iterations``, ``tol``,
-        ``subbin``, ``nonneg``, ``auto_gate``). Any other key is taken only at the value the
+        ``subbin``, ``nonneg``, ``auto_gate``, ``depth``, ``max_memory``, ``max_time``, and
+        the options the registered solvers and depth estimators declare, such as FISTA's
+        ``monotone`` and ``restart``). Any other key is taken only at the value the
         measurement used (``noise=5`` after ``measure(noise=5)``); another value would need a
         new simulation and is an error.
 

@@ -108,7 +108,9 @@ def simulate_correlations(
     -------
     dict with ``corr`` (M, K) normalised matched-filter outputs at ``lags``, ``sigma`` (M,)
     their estimated noise standard deviations, ``counts`` (M,) total counts per pattern,
-    ``signal_counts`` (M,) expected signal counts per pattern and ``noise_per_bin`` (M,).
+    ``signal_counts`` (M,) expected signal counts per pattern, ``noise_per_bin`` (M,) and
+    ``incident_counts`` (M,) the expected photons reaching the detector per pattern (signal
+    and background, before the detector; the detector's report reads them).
 
     Notes
     -----

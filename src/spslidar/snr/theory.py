@@ -171,8 +171,9 @@ def mirrors_on(on_fraction: float, size: int) -> int:
     return max(1, int(round(f * n * n)))
 
 
-def eq10(ones: int, m2: int, a: float, m_s: float, n: int, m_n: float) -> float:
-    """Eq. (10) with ``R_a T`` given as the number of '1' bits ``ones``."""
+def eq10(ones: float, m2: int, a: float, m_s: float, n: int, m_n: float) -> float:
+    """Eq. (10) with ``R_a T`` given as the number of '1' bits ``ones`` (a random code's
+    expected number, ``r T``, need not be whole)."""
     sig = m2 * a * m_s  # signal photons per '1' bit of the code
     noise = n * n * m_n  # noise counts per TDC bin
     if sig + noise <= 0.0:
@@ -316,3 +317,8 @@ def snr_theory(
             c = make_code_checked(kind, code_length, ones_ratio, None, code_index)
             ones = int(c.sum())
     return float(eq10(ones, m2, a, m_s, n, m_n))
+
+
+def __dir__() -> list[str]:
+    # the lazy names too, so dir() and a REPL's completion list them (an audit of 2026-11-30)
+    return sorted(set(globals()) | set(__all__))

@@ -135,3 +135,8 @@ __getattr__ = lazy_exports(__name__, {
     "exp_pileup": "pileup",
     "reproduce_main": "runner",
 })
+
+
+def __dir__() -> list[str]:
+    # the lazy names too, so dir() and a REPL's completion list them (an audit of 2026-11-30)
+    return sorted(set(globals()) | set(__all__))
