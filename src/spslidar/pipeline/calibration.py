@@ -480,10 +480,16 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     data, notes = read_blocks(ptu, int(patterns.shape[0]), int(code.size), bin_width=bin_width,
                               marker=marker, channel=channel, allow_binning=allow_binning,
                               marker_edge=marker_edge)
+    from .screen import screen_blocks
+
+    n_k = np.maximum(data.periods_per_pattern, 1)
+    # (a dropout's blocks left out, a gated detector said: as reconstruct does)
+    keep, screen_notes, _ = screen_blocks(data.histograms, n_k, patterns, code, data)
+    patterns = patterns[keep]
     hists, _, pile, pile_notes = apply_dead_time(
-        data.histograms, data.counts_per_pattern, np.maximum(data.periods_per_pattern, 1),
+        data.histograms[keep], data.counts_per_pattern[keep], n_k[keep],
         code.size * bin_width, detector, channel, data.detection_gaps)
-    for note in notes + pile_notes:
+    for note in notes + screen_notes + pile_notes:
         warnings.warn(note, stacklevel=2)
     from .drift import drift_note, timing_drift
 
@@ -513,7 +519,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
             "timing_drift_bins": None if drift is None else drift.bins,
             "measured_from": {"ptu": path.name, "bytes": path.stat().st_size,
                               "sha256": sha256_file(path),
-                              "photons": int(data.counts_per_pattern.sum()),
+                              "photons": int(data.counts_per_pattern[keep].sum()),
                               "photons_in_file": int(data.n_photons),
                               "patterns": int(patterns.shape[0])}}
 

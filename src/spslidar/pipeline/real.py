@@ -450,13 +450,14 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     # extra block's periods too: twice its dwell, its histogram halved)
     n_k = np.maximum(data.periods_per_pattern, 1).astype(np.float64)
     hist = data.histograms.astype(np.float64)
+    rows = np.arange(m)  # the blocks kept, for the metrics (the rest are named in warnings)
     if m > 1 and data.ends_in_empty_block:
         # an end-of-acquisition marker read as a pattern: a row of zeros is no measurement
         dwell_warning.append(
             f"the last of the {m} marker blocks holds no photons and lasts {int(n_k[-1])} code "
             f"period(s) (an end-of-acquisition marker?): its pattern row is left out of the "
             f"solve (leave it out of --patterns to say so)")
-        m, n_k, hist, patterns = m - 1, n_k[:-1], hist[:-1], patterns[:-1]
+        m, n_k, hist, patterns, rows = m - 1, n_k[:-1], hist[:-1], patterns[:-1], rows[:-1]
     # any other row of zeros over less than half the median dwell is no measurement either:
     # scaled up to the mean dwell it stays 0 (an empty one-period first block under
     # --marker-edge end was kept and 'scaled up', and leaving it out moved 32 of 64 depths by
@@ -469,7 +470,15 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
             f"marker, or a marker read at the wrong edge?): their pattern rows are left out of "
             f"the solve")
         keep = np.setdiff1d(np.arange(m), empty)
-        m, n_k, hist, patterns = keep.size, n_k[keep], hist[keep], patterns[keep]
+        m, n_k, hist, patterns, rows = keep.size, n_k[keep], hist[keep], patterns[keep], rows[keep]
+    from .screen import screen_blocks
+
+    # a dropout or a stall left out; a part of the period never recorded said, and then no
+    # share of returns outside the gate is read
+    keep, notes, partial = screen_blocks(hist, n_k, patterns, code, data, rows)
+    dwell_warning += notes
+    if keep.size < m:
+        m, n_k, hist, patterns, rows = keep.size, n_k[keep], hist[keep], patterns[keep], rows[keep]
     # (before the dwells are evened out: each block with its own)
     hist, noise_totals, pile, pile_notes = apply_dead_time(
         hist, hist.sum(axis=1), n_k, period * bin_width, detector, channel, data.detection_gaps)
@@ -537,7 +546,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     irf = ((np.asarray(cal["irf_offsets"], int), np.asarray(cal["irf_values"], float))
            if cal is not None else None)
     outside, notes = None, []
-    if math.isclose(data.bin_width_s, data.resolution_s * data.binning, rel_tol=1e-6):
+    if (math.isclose(data.bin_width_s, data.resolution_s * data.binning, rel_tol=1e-6)
+            and not partial):
         # (a TDC bin split between the code's bits leaks each return into its neighbour bit
         # by a share that beats with the two grids: its correlation with the code reads as
         # returns at every delay, 76 % "outside" a gate that held the whole scene; not read)
@@ -588,7 +598,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     if truth is None:
         result.metrics["n_valid"] = None
     result.metrics["ptu"] = {
-        "file": os.fspath(ptu), "counts_per_pattern": data.counts_per_pattern[:m].tolist(),
+        "file": os.fspath(ptu), "counts_per_pattern": data.counts_per_pattern[rows].tolist(),
+        "blocks_left_out": np.setdiff1d(np.arange(data.n_patterns), rows).tolist(),
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":
         float(background.mean() / n_mean), "background_per_pattern": background.tolist(),
         "n_records": data.n_records, "n_photons": data.n_photons, "n_markers": data.n_markers,

@@ -1,0 +1,244 @@
+"""Marker blocks in which the instrument was not measuring (a detector or laser dropout, a
+stall) and histograms that cover part of the code period (a gated detector, a TDC range
+shorter than the period): ``spslidar.pipeline.screen``, on files written here by the
+independent PicoHarp writer of ``test_independent_ptu`` (an outside TCSPC audit of
+2026-11-30 found each read as a measurement, or as returns outside the gate, without a word).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from test_independent_ptu import write_picoharp_t3  # (tests/ is on sys.path under pytest)
+
+from spslidar.cli import main
+from spslidar.pipeline.screen import (
+    dropouts,
+    empty_window,
+    tdc_range_note,
+)
+
+C = 299_792_458.0
+BIT_RATE = 10e9
+N, M, L, DWELL = 16, 192, 511, 2000
+
+
+def _scene():
+    depth = np.full((N, N), 3.6)
+    refl = np.full((N, N), 0.8)
+    depth[:, :6] = np.linspace(3.0, 3.4, N)[:, None]  # a slanted panel
+    refl[:, :6] = 0.5
+    depth[6:12, 8:14] = 3.2  # a box
+    refl[6:12, 8:14] = 1.0
+    return depth, refl
+
+
+def _acquire(path, case="ok", seed=0, wall=False):
+    """A 16x16 acquisition of random binary patterns and a balanced random code (about 1 100
+    photons per pattern, 200 of them background), ``case``: ``dropout`` (blocks 60-79 hold
+    no photon over their dwell), ``stall`` (block 60 lasts 10**7 code periods, its photons in
+    its first 2 000), ``gated`` (no photon outside bins 150-349), ``tdcrange`` (a 6.25 ps TDC
+    step whose 4096 steps cover half the period); ``wall``: a flat wall at 3.6 m. Returns
+    the truth."""
+    rng = np.random.default_rng(seed)
+    depth, refl = _scene()
+    if wall:
+        depth[:], refl[:] = 3.6, 0.8
+    code = np.zeros(L)
+    code[rng.permutation(L)[: L // 2 + 1]] = 1.0
+    pats = (rng.random((M, N, N)) < 0.5).astype(np.float32)
+    delay = np.rint(2 * depth.ravel() / (C / BIT_RATE)).astype(int)
+    amp = np.zeros((M, L))
+    w = pats.reshape(M, -1) * refl.ravel()[None, :]
+    for d in np.unique(delay):
+        amp[:, d % L] += w[:, delay == d].sum(axis=1)
+    spectrum = np.fft.ifft(np.fft.fft(amp, axis=1) * np.fft.fft(code)[None, :], axis=1).real
+    counts = rng.poisson(np.clip(DWELL * (6e-5 * spectrum + 2e-4), 0, None))
+    dwell = np.full(M, DWELL, np.int64)
+    if case == "dropout":
+        counts[60:80] = 0
+    elif case == "stall":
+        dwell[60] = 10**7
+    elif case == "gated":
+        counts[:, :150] = 0
+        counts[:, 350:] = 0
+    binning = 16 if case == "tdcrange" else 1
+    syncs, dtimes, markers, start = [], [], [], 0
+    for k in range(M):
+        t = np.repeat(np.arange(L), counts[k])
+        s = start + rng.integers(0, DWELL, t.size)
+        if binning > 1:  # each photon at a random step of its bin; past the TDC's range: lost
+            t = t * binning + rng.integers(0, binning, t.size)
+            s, t = s[t < 4096], t[t < 4096]
+        order = np.argsort(s, kind="stable")
+        syncs += [np.array([start]), s[order]]
+        dtimes += [np.zeros(1, int), t[order]]
+        markers += [np.ones(1, bool), np.zeros(t.size, bool)]
+        start += int(dwell[k])
+    write_picoharp_t3(path / "scan.ptu", np.concatenate(syncs), np.concatenate(dtimes),
+                      np.concatenate(markers), 1 / (BIT_RATE * binning), BIT_RATE / L)
+    np.save(path / "patterns.npy", pats)
+    np.save(path / "code.npy", code.astype(np.uint8))
+    return depth
+
+
+def _reconstruct(path, capsys, *extra):
+    out = path / "rec"
+    assert main(["reconstruct", "--ptu", str(path / "scan.ptu"), "--patterns",
+                 str(path / "patterns.npy"), "--code", str(path / "code.npy"), "--bit-rate",
+                 "10e9", "--range-gate", "2.5", "4", "--out", str(out), "--no-figure",
+                 *extra]) == 0
+    err = capsys.readouterr().err
+    return json.loads((out / "metrics.json").read_text()), np.load(out / "depth.npy"), err
+
+
+def _rmse(est, truth):
+    return float(np.sqrt(np.nanmean((est - truth) ** 2)))
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The same acquisition without a dropout: its depth RMSE (about 4 cm)."""
+    path = tmp_path_factory.mktemp("ok")
+    truth = _acquire(path)
+    out = path / "rec"
+    assert main(["reconstruct", "--ptu", str(path / "scan.ptu"), "--patterns",
+                 str(path / "patterns.npy"), "--code", str(path / "code.npy"), "--bit-rate",
+                 "10e9", "--range-gate", "2.5", "4", "--out", str(out), "--no-figure"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["ptu"]["blocks_left_out"] == []
+    return _rmse(np.load(out / "depth.npy"), truth)
+
+
+def test_blocks_without_photons_over_their_dwell_are_left_out_and_said(tmp_path, capsys,
+                                                                          reference):
+    """20 blocks of 192 without a photon (a detector's overload shutdown): read as patterns
+    that saw nothing they made this map 5 times worse (22 cm against 4 cm, measured on three
+    seeds of the audit's 16x16 scene); left out, the map is within a tenth of the one
+    without the dropout (the solve has 172 patterns instead of 192: a little worse is fair)."""
+    truth = _acquire(tmp_path, "dropout")
+    m, est, err = _reconstruct(tmp_path, capsys)
+    assert "20 marker block(s) (60, 61, 62, 63, 64, ...) hold almost no photons" in err
+    assert m["ptu"]["blocks_left_out"] == list(range(60, 80))
+    assert m["ptu"]["n_patterns_solved"] == M - 20
+    assert len(m["ptu"]["counts_per_pattern"]) == M - 20
+    assert _rmse(est, truth) <= 1.5 * reference
+
+
+def test_a_stalled_block_is_left_out_and_the_others_keep_their_scale(tmp_path, capsys,
+                                                                      reference):
+    """A TCSPC running on for 10**7 code periods while the DMD waited: that block's photons
+    scaled to the mean dwell were nothing, and every other block was scaled up by the stall's
+    share of the mean (a map 1.7 times worse); left out, the map is the reference's."""
+    truth = _acquire(tmp_path, "stall")
+    m, est, err = _reconstruct(tmp_path, capsys)
+    assert "1 marker block(s) (60) hold almost no photons" in err
+    assert "over 10000000 code periods" in err
+    assert m["ptu"]["blocks_left_out"] == [60]
+    assert m["n_periods"] == DWELL  # (the mean dwell without the stall)
+    assert _rmse(est, truth) <= 1.2 * reference
+
+
+def test_a_gated_detector_is_said_and_not_read_as_returns_outside_the_gate(tmp_path, capsys):
+    """No photon in 61 % of the period: the partial period's sidelobes read as 77 % of the
+    returns outside a gate that held the whole scene ("widen --range-gate", which did not
+    help); now the empty part is named and the outside share is not read."""
+    _acquire(tmp_path, "gated")
+    m, _, err = _reconstruct(tmp_path, capsys)
+    assert "the histograms hold no photon in bins 350-149 of the 511-bin code period" in err
+    assert "lie outside the range gate" not in err
+    assert m["ptu"]["blocks_left_out"] == []
+
+
+def test_a_tdc_range_shorter_than_the_period_is_said(tmp_path, capsys):
+    """A PicoHarp's 4096 steps of 6.25 ps cover 25.6 ns of a 51.1 ns period: the photons of
+    the other half are never recorded (the file cannot hold them), which the header says."""
+    _acquire(tmp_path, "tdcrange")
+    _, _, err = _reconstruct(tmp_path, capsys, "--allow-binning")
+    assert "the TDC records delays up to 25.6 ns (4096 steps of 6.25 ps" in err
+    assert "of the 51.1 ns sync period: 50% of the period is never recorded" in err
+    assert "lie outside the range gate" not in err
+
+
+def test_calibrate_leaves_a_dropout_out_and_names_a_gated_detector(tmp_path, capsys):
+    """``calibrate`` screens its wall's blocks as ``reconstruct`` does: the dropout's blocks
+    are said and their photons are not the calibration's; a gated detector is named (it
+    said "acquire the target longer", which would not help)."""
+    _acquire(tmp_path, "dropout", wall=True)
+    cal = tmp_path / "cal.json"
+    args = ["calibrate", "--ptu", str(tmp_path / "scan.ptu"), "--patterns",
+            str(tmp_path / "patterns.npy"), "--code", str(tmp_path / "code.npy"),
+            "--bit-rate", "10e9", "--distance", "3.6", "--target", "range"]
+    assert main([*args, "--out", str(cal)]) == 0
+    assert "20 marker block(s) (60, 61, 62, 63, 64, ...) hold almost no photons" in \
+        capsys.readouterr().err
+    assert abs(json.loads(cal.read_text())["delay_bins"]) < 0.5
+    _acquire(tmp_path, "gated", wall=True)
+    assert main([*args, "--out", str(tmp_path / "cal2.json")]) == 0
+    assert "the histograms hold no photon in bins" in capsys.readouterr().err
+
+
+def test_dropouts_reads_the_background_not_the_patterns():
+    """Blocks of Poisson photons at any pattern's light over a background are never flagged
+    (1 000 acquisitions, the dimmest pattern a tenth of the brightest); an empty block is,
+    where its dwell gives DROPOUT_EXPECTED background photons or more; a dark frame (a
+    pattern without light) and an acquisition without background are not screened."""
+    rng = np.random.default_rng(0)
+    for _ in range(1000):
+        m = int(rng.integers(3, 60))
+        light = rng.uniform(0.1, 1.0, m)
+        n = rng.integers(500, 5000, m)
+        total = rng.poisson(n.sum() * (0.02 + 0.05 * rng.random(64)))  # per-bin floor
+        counts = rng.poisson(n * (64 * 0.02 + 200 * light))
+        assert dropouts(counts, n, light[:, None], total).size == 0
+    n = np.full(8, 1000)
+    total = np.full(64, 8 * 1000 * 0.01)  # 0.64 background photons per period: 640 a block
+    counts = np.full(8, 5000)
+    counts[3] = 0
+    patterns = np.ones((8, 4))
+    assert dropouts(counts, n, patterns, total).tolist() == [3]
+    counts[3] = 6  # (under 1 % of 640)
+    assert dropouts(counts, n, patterns, total).tolist() == [3]
+    counts[3] = 7
+    assert dropouts(counts, n, patterns, total).size == 0
+    dark = patterns.copy()
+    dark[3] = 0.0
+    counts[3] = 0
+    assert dropouts(counts, n, dark, total).size == 0
+    # too short a dwell for its few photons to say anything
+    short = n.copy()
+    short[3] = 40  # (29 background photons: 40 periods of 80 / 7040 photons in 64 bins)
+    assert dropouts(counts, short, patterns, total).size == 0
+    # no background at all: a pattern lighting nothing bright may rightly hold nothing
+    assert dropouts(counts, n, patterns, np.zeros(64)).size == 0
+
+
+def test_empty_window_is_no_run_of_the_codes_own_zeros():
+    """A flat target without background leaves the code's zeros empty: the longest such run
+    (and one bin more, for a return between two bins) is no gated window; a run past twice
+    it is, where the rest holds photons enough to say so."""
+    rng = np.random.default_rng(1)
+    code = (rng.random(511) < 0.5).astype(float)
+    flat = 100.0 * np.roll(code, 37)
+    assert empty_window(flat, code) is None
+    gated = 100.0 + 50.0 * np.roll(code, 37)
+    gated[150:350] = 0.0
+    assert empty_window(gated, code) == (150, 200)
+    wraps = 100.0 + 0.0 * code
+    wraps[:10] = wraps[-30:] = 0.0  # one run across the period's end
+    assert empty_window(wraps, code) == (481, 40)
+    assert empty_window(0.1 * gated, code) is None  # (10 photons a bin: too few)
+
+
+def test_tdc_range_note_reads_the_record_type():
+    """The range is the record type's delay field (PicoHarp 12 bits, HydraHarp 15) times the
+    resolution; an unknown record type says nothing."""
+    picoharp = {"record_type_code": 0x00010303}
+    assert tdc_range_note(picoharp, 4e-12, 51.1e-9) is not None
+    assert tdc_range_note(picoharp, 16e-12, 51.1e-9) is None  # (4096 x 16 ps = 65.5 ns)
+    hydraharp = {"record_type_code": 0x01010304}  # (32768 steps)
+    assert "up to 32.77 ns (32768 steps of 1 ps" in tdc_range_note(hydraharp, 1e-12, 51.1e-9)
+    assert tdc_range_note(hydraharp, 2e-12, 51.1e-9) is None  # (65.5 ns)
+    assert tdc_range_note({"record_type_code": None}, 1e-12, 51.1e-9) is None
