@@ -158,7 +158,7 @@ def test_a_dead_time_the_gaps_contradict_is_refused():
     channel's gaps under 97 % of the dead time given refuses it, naming the shortest gap;
     photons of two channels read together refuse any dead time; a channel whose rate would
     have made many shorter gaps shows its own."""
-    from spslidar.io.ptu import GAP_EDGES_S
+    from spslidar.io.ptu_blocks import GAP_EDGES_S
     from spslidar.pipeline.deadtime import apparent_dead_time
 
     def gaps_of(d):

@@ -41,7 +41,7 @@ EDGE_BLOCK_PERIODS = 2
 BOUNCE_PERIODS = 2
 BOUNCE_SHARE = 0.01
 BOUNCE_MIN_DWELL = 50
-#: a marker repeated within :data:`spslidar.io.ptu.BOUNCE_TIME_S` of its pattern's is a
+#: a marker repeated within :data:`spslidar.io.ptu_blocks.BOUNCE_TIME_S` of its pattern's is a
 #: bounce too, where that is at most this share of the typical dwell
 BOUNCE_MAX_SHARE = 0.1
 #: bounces a file may hold beyond its arming and end markers (read as extra blocks, then
@@ -166,7 +166,7 @@ def _merge_bounces(data, m: int, marker: int) -> tuple[Any, list[str]]:
     typ = float(np.median(inner_d[inner_d.size // 2:]))
     if typ < BOUNCE_MIN_DWELL:  # (patterns a period or two long: no bounce can be told)
         return data, []
-    from ..io.ptu import BOUNCE_TIME_S
+    from ..io.ptu_blocks import BOUNCE_TIME_S
 
     period_s = data.sync_period_s / max(int(getattr(data, "periods_per_sync", 1)), 1)
     in_time = BOUNCE_TIME_S / period_s if period_s > 0 else 0.0
@@ -191,7 +191,7 @@ def _merge_bounces(data, m: int, marker: int) -> tuple[Any, list[str]]:
         start[j] = start[k]
     data = dataclasses.replace(data, histograms=hist[keep], counts_per_pattern=counts[keep],
                                pattern_start_sync=start[keep], periods_per_pattern=periods[keep])
-    from ..io.ptu import block_list
+    from ..io.ptu_blocks import block_list
 
     return data, [f"{short.size} of the file's {data.n_markers} marker-delimited blocks on "
                   f"input {marker} (block {block_list(short)}) last at most "
@@ -243,7 +243,7 @@ def _double_note(data) -> str | None:
     every later pattern with its neighbour's photons (an outside audit of 2026-11-30: a
     missed marker and a bounce gave a median error of 0.9 m with only the short block
     said)."""
-    from ..io.ptu import block_list, twice_as_long
+    from ..io.ptu_blocks import block_list, twice_as_long
 
     d = data.periods_per_pattern
     if d.size < 4:

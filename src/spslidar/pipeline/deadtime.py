@@ -204,7 +204,7 @@ def _check_gaps(gaps: dict, dead: float) -> None:
     outside audit of 2026-11-30: 75 ns given for a 50 ns detector made a 0.21 m map 1.58 m,
     and 50 ns given for an ideal detector 0.38 -> 1.75 m, without a word); or one given for
     photons of several detectors merged, which one detector's correction does not model."""
-    from ..io.ptu import GAP_EDGES_S
+    from ..io.ptu_blocks import GAP_EDGES_S
 
     used = _read_channels(gaps)
     if len(used) > 1:

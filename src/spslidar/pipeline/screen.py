@@ -107,7 +107,7 @@ def dropout_note(flagged: np.ndarray, counts: Any, periods: Any,
     """One line naming the blocks :func:`dropouts` flagged (``flagged``, indices into
     ``counts`` and ``periods``; ``names``: each row's block number in the file, default the
     index) and why they are left out."""
-    from ..io.ptu import block_list
+    from ..io.ptu_blocks import block_list
 
     c = np.asarray(counts, dtype=np.float64)
     n = np.asarray(periods, dtype=np.float64)
