@@ -42,6 +42,10 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                         "each TDC bin between the bits it overlaps where it is no whole "
                         "fraction of one (an 80 ps TDC under 100 ps bits, a code clock off "
                         "the TDC's)")
+    p.add_argument("--settle", type=float, default=0.0, metavar="S",
+                   help="seconds at the start of each pattern whose photons are dropped (the "
+                        "DMD's mirrors settling after its marker, or a marker early against "
+                        "them); each pattern's dwell is shortened by as much (default 0)")
     p.add_argument("--dead-time", type=float, metavar="S",
                    help="the detector's (and TCSPC's) non-paralysable dead time, seconds: each "
                         "pattern's histogram is corrected for pile-up before the matched "
@@ -131,7 +135,7 @@ def cmd_reconstruct(args) -> int:
                              tuple(args.range_gate), marker=args.marker, channel=args.channel,
                              allow_binning=args.allow_binning, truth=args.truth,
                              calibration=args.calibration, marker_edge=args.marker_edge,
-                             **_detector_args(args), **processing)
+                             settle=args.settle, **_detector_args(args), **processing)
     for w in result.warnings:
         print(f"spslidar: warning: {w}", file=sys.stderr)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
@@ -197,7 +201,7 @@ def cmd_calibrate(args) -> int:
                         marker=args.marker, channel=args.channel,
                         allow_binning=args.allow_binning, target=args.target,
                         fov_deg=args.fov, marker_edge=args.marker_edge,
-                        **_detector_args(args))
+                        settle=args.settle, **_detector_args(args))
     path = write_calibration(cal, args.out, args.overwrite)
     _WRITTEN.append(str(path))
     period_ns = cal["code_length"] / args.bit_rate * 1e9

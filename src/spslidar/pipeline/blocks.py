@@ -14,6 +14,7 @@ the wrong edge (``--marker-edge``).
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from typing import Any
 
@@ -310,7 +311,7 @@ def _lost_notes(data, marker: int, n_bins: int) -> list[str]:
 
 def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
                 channel: Any = None, allow_binning: bool = False,
-                marker_edge: str = "start") -> tuple[Any, list[str]]:
+                marker_edge: str = "start", settle: float = 0.0) -> tuple[Any, list[str]]:
     """The ``m`` pattern blocks of a measured T3 file, and what to say about them.
 
     Parameters
@@ -327,6 +328,8 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
         As :func:`spslidar.io.read_ptu_histograms`.
     marker_edge : {"start", "end"}
         Whether a marker starts (default) or ends its pattern.
+    settle : float
+        Seconds of each block's start whose photons are dropped (the reader's ``settle_s``).
 
     Returns
     -------
@@ -340,10 +343,16 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
     """
     from ..io import read_ptu_histograms
 
+    if (isinstance(settle, bool | np.bool_) or not isinstance(settle, int | float | np.integer
+                                                               | np.floating)
+            or not (math.isfinite(settle) and settle >= 0)):
+        raise ConfigError(f"--settle must be a number of seconds >= 0, got {settle!r}")
+
     def read(extra: int):
         return read_ptu_histograms(ptu, n_bins, bin_width=bin_width, marker=marker,
                                    channel=channel, n_patterns=m, extra_blocks=extra,
-                                   marker_edge=marker_edge, allow_binning=allow_binning)
+                                   marker_edge=marker_edge, allow_binning=allow_binning,
+                                   settle_s=settle)
 
     data = read(2 + max(BOUNCE_EXTRA, m // BOUNCE_ROWS))
     if data.n_patterns < data.n_markers <= 2 * m + 2:  # (more markers than that, up to two

@@ -428,14 +428,15 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                   channel: int | None = None, pulse_width: float = 0.5,
                   allow_binning: bool = False, target: str = "auto",
                   fov_deg: float | None = None, marker_edge: str = "start",
-                  dead_time: float | None = None, afterpulse_prob: float = 0.0,
+                  settle: float = 0.0, dead_time: float | None = None,
+                  afterpulse_prob: float = 0.0,
                   afterpulse_delay: float = 0.0) -> dict[str, Any]:
     """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target,
     with what it was measured from (file, hash, photons, patterns, bit rate, code);
-    ``allow_binning``, ``marker_edge`` and the detector's ``dead_time`` and afterpulsing (each
-    block's histogram corrected for pile-up before the response is read: uncorrected, a
-    bright wall's response is read through the detector's dead time; the JSON's ``detector``
-    says which) as :func:`~spslidar.pipeline.real.reconstruct_ptu`.
+    ``allow_binning``, ``marker_edge``, ``settle`` and the detector's ``dead_time`` and
+    afterpulsing (each block's histogram corrected for pile-up before the response is read:
+    uncorrected, a bright wall's response is read through the detector's dead time; the
+    JSON's ``detector`` says which) as :func:`~spslidar.pipeline.real.reconstruct_ptu`.
 
     ``target`` says what the target's pixels see (:mod:`spslidar.pipeline.target`):
     ``range``, one range (the patterns' sum is read as it is); ``plane``, a flat wall at
@@ -479,7 +480,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
         wall_offsets((side, side), distance, fov, bin_width, int(code.size))
     data, notes = read_blocks(ptu, int(patterns.shape[0]), int(code.size), bin_width=bin_width,
                               marker=marker, channel=channel, allow_binning=allow_binning,
-                              marker_edge=marker_edge)
+                              marker_edge=marker_edge, settle=settle)
     from .screen import screen_blocks
 
     n_k = np.maximum(data.periods_per_pattern, 1)

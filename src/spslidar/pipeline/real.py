@@ -349,8 +349,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                     truth: np.ndarray | str | os.PathLike | None = None,
                     calibration: str | os.PathLike | dict | None = None,
                     allow_binning: bool = False, marker_edge: str = "start",
-                    dead_time: float | None = None, afterpulse_prob: float = 0.0,
-                    afterpulse_delay: float = 0.0, **processing: Any) -> Result:
+                    settle: float = 0.0, dead_time: float | None = None,
+                    afterpulse_prob: float = 0.0, afterpulse_delay: float = 0.0,
+                    **processing: Any) -> Result:
     """Depth map from a measured T3 PTU acquisition.
 
     Parameters
@@ -383,6 +384,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         Whether the DMD's marker starts (default) or ends each pattern
         (:func:`~spslidar.pipeline.blocks.read_blocks`: one block beyond the patterns, an
         arming or end-of-acquisition marker's, is left out and said).
+    settle : float
+        Seconds at the start of each block whose photons are dropped, the block's dwell
+        shortened by as much: the DMD's mirrors settling after the marker
+        (:func:`~spslidar.io.read_ptu_histograms`' ``settle_s``; default 0).
     dead_time, afterpulse_prob, afterpulse_delay : float
         The detector's non-paralysable dead time (seconds: 0, or at least one bin) and
         afterpulsing: each block's histogram is corrected for pile-up with its own dwell
@@ -443,7 +448,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     _check_solve_time(cfg, m, q, int(gate_lags(cfg.range_gate, bin_width).size), period)
     data, dwell_warning = read_blocks(ptu, m, period, bin_width=bin_width, marker=marker,
                                       channel=channel, allow_binning=allow_binning,
-                                      marker_edge=marker_edge)
+                                      marker_edge=marker_edge, settle=settle)
     dwell_warning += [truth_note] if truth_note else []
     # the reader's dwell: to the next block's marker, also where that block is not a pattern
     # (the file's ends, recomputed here, gave the last of m rows in an (m + 1)-block file the
@@ -606,7 +611,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         "n_dropped_before_first_marker": data.n_dropped_before_first_marker,
         "n_dropped_after_last_pattern": data.n_dropped_after_last_pattern,
         "n_patterns_solved": int(m), "n_out_of_range": data.n_out_of_range,
-        "marker_edge": marker_edge,
+        "marker_edge": marker_edge, "settle_s": float(settle),
+        "n_dropped_settling": int(data.n_dropped_settling),
         "code_periods_per_sync": int(data.periods_per_sync),
         "timing_drift_bins": None if drift is None else drift.bins,
         "timing_drift_se_bins": None if drift is None else drift.se,
