@@ -323,3 +323,24 @@ def test_settle_gives_back_the_map_of_a_late_dmd(tmp_path, capsys):
     _, settled, err = _reconstruct(tmp_path, capsys, "--settle", "2.1e-5", "--overwrite")
     assert _rmse(settled, truth) <= 0.3 * _rmse(late, truth)
     assert _rmse(settled, truth) <= 0.01
+
+
+def test_a_marker_a_frame_of_patterns_is_named(tmp_path):
+    """A DLP's trigger once a frame of 8 patterns: 32 markers for 256 patterns was refused as
+    too few blocks with nothing of why; the refusal now names the whole ratio."""
+    from spslidar.errors import ConfigError
+    from spslidar.io import read_ptu_histograms, write_ptu_t3
+
+    marks = np.arange(4) * 100
+    photons = np.arange(4)[:, None] * 100 + np.arange(1, 99, 7)[None, :]
+    nsync = np.concatenate([marks, photons.ravel()])
+    marker = np.concatenate([np.ones(4, int), np.zeros(photons.size, int)])
+    order = np.lexsort((-marker, nsync))
+    path = tmp_path / "f.ptu"
+    write_ptu_t3(path, nsync=nsync[order], dtime=np.full(nsync.size, 3), marker=marker[order],
+                 resolution_s=1e-10, sync_rate_hz=1e10 / 31)
+    with pytest.raises(ConfigError, match="the 8 patterns are 2 times the 4 blocks: a marker a "
+                                          "frame of 2 patterns"):
+        read_ptu_histograms(path, 31, bin_width=1e-10, n_patterns=8)
+    with pytest.raises(ConfigError, match="fewer than the 7 patterns$"):
+        read_ptu_histograms(path, 31, bin_width=1e-10, n_patterns=7)

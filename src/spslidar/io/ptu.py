@@ -651,9 +651,16 @@ def read_ptu_histograms(
             " into patterns); "
             + (f"markers present on inputs {seen}" if seen else "the file has no markers at all"))
     if n_markers < rows - (0 if limit is None else extra_blocks):
+        want = rows - extra_blocks
+        # (a DLP's trigger once a frame of several patterns read as missed markers: an audit)
+        frame = (f" (the {want} patterns are {want // n_markers} times the {n_markers} blocks: "
+                 f"a marker a frame of {want // n_markers} patterns? reconstruct needs one a "
+                 f"pattern: set the DMD's trigger output to each pattern)"
+                 if n_markers > 1 and want % n_markers == 0 else "")
         raise ConfigError(f"{spath!r} has {n_markers} marker-delimited blocks on marker input "
-                          f"{marker}, fewer than the {rows - extra_blocks} patterns"
-                          + _missed_note(starts[:n_markers], last_sync, marker_edge, fold))
+                          f"{marker}, fewer than the {want} patterns"
+                          + (frame or _missed_note(starts[:n_markers], last_sync, marker_edge,
+                                                   fold)))
     if n_markers < rows:  # the extra blocks the file does not hold
         n_after += int(hist[n_markers:].sum(dtype=np.int64))  # ("end": after the last marker)
         rows, hist = n_markers, hist[:n_markers]
