@@ -122,3 +122,73 @@ def test_the_builtin_detectors_pass_the_check():
     for detector, flux in (("linear", low), ("linear", {}), ("linear", {"noiseless": True}),
                            ("gmapd", low)):
         assert spslidar.run(**SMALL, detector=detector, **flux).depth.shape == (8, 8)
+
+
+# -- 2. a scene kind's depth window -------------------------------------------------------
+
+def _fixed(size, depth_min=None, depth_max=None):
+    """A plugin's slanted wall at 5-6 m, whatever the window."""
+    from spslidar.scenes import Scene
+
+    depth = np.linspace(5.0, 6.0, size * size).reshape(size, size)
+    return Scene("fixed", depth, np.full((size, size), 0.7), np.ones((size, size), bool))
+
+
+def _float32_wall(size, depth_min=None, depth_max=None):
+    """A wall that fills its window by a remap computed in float32 (its round-off, 6e-8 of
+    the depth, is no fault)."""
+    from spslidar.scenes import Scene
+
+    lo, hi = (5.0 if depth_min is None else depth_min), (6.0 if depth_max is None else depth_max)
+    t = np.linspace(0, 1, size * size, dtype=np.float32).reshape(size, size)
+    depth = (np.float32(lo) + t * np.float32(hi - lo)).astype(np.float32) * np.float32(1.0000001)
+    return Scene("f32", depth, np.full((size, size), 0.7), np.ones((size, size), bool))
+
+
+@pytest.fixture
+def scenes():
+    from spslidar.scenes import SCENES
+
+    SCENES.add("fixed", _fixed, "fixed", "5-6 m, whatever the window")
+    SCENES.add("f32", _float32_wall, "f32", "a float32 remap")
+    try:
+        yield
+    finally:
+        SCENES._entries.pop("fixed", None)
+        SCENES._entries.pop("f32", None)
+
+
+def test_a_scene_kind_that_ignores_the_window_is_refused(scenes, capsys, tmp_path):
+    """``--depth-min 3 --depth-max 4`` ran a plugin's 5-6 m scene without a word, and
+    metrics.json recorded the window."""
+    from spslidar.errors import SceneError
+    from spslidar.scenes import load_scene
+
+    with pytest.raises(SceneError, match=r"scene kind 'fixed' ignores the depth window: asked "
+                                         r"for \[3, 4\] m, its depths span \[5, 6\] m"):
+        spslidar.run(**{**SMALL, "scene": "fixed", "depth_min": 3.0, "depth_max": 4.0,
+                        "range_gate": None})
+    with pytest.raises(SceneError, match=r"asked for depths from 5.5 m"):
+        load_scene("fixed", 8, 5.5)  # one end given: that end is held
+    with pytest.raises(SceneError, match=r"asked for depths to 5.5 m"):
+        load_scene("fixed", 8, None, 5.5)
+    _one_line_refusal(capsys, ["run", "--size", "8", "--code-length", "127", "--scene", "fixed",
+                               "--depth-min", "3", "--depth-max", "4", "--no-figure"],
+                      tmp_path / "o", r"^spslidar run: error: scene kind 'fixed' ignores")
+    assert load_scene("fixed", 8).depth.max() == 6.0  # no window asked for: its own
+    assert load_scene("fixed", 8, 4.0, 7.0).depth.min() == 5.0  # inside the window
+    load_scene("f32", 8, 3.0, 4.0)  # float32 round-off of the window's ends
+
+
+def test_the_builtin_scenes_fill_their_window():
+    """What the check holds a plugin to, every built-in kind holds, valid pixel or not (a
+    linear remap in float64), in windows of either end or both."""
+    from spslidar.scenes import SCENES, load_scene
+
+    for entry in SCENES:
+        name = entry.name + (":3" if entry.defaults.get("argument") else "")
+        for window in ((3.0, 4.0), (20.0, 20.0000001), (0.5, None), (None, 300.0)):
+            depth = load_scene(name, 16, *window).depth
+            lo, hi = window
+            assert lo is None or depth.min() >= lo, (name, window)
+            assert hi is None or depth.max() <= hi, (name, window)

@@ -95,6 +95,7 @@ def load_scene(
             if shape != (size, size):  # (a plugin's 15x15 at size 16 ended in a traceback)
                 raise SceneError(f"scene kind {kind!r} made a depth map of shape {shape} for "
                                  f"size {size}: a scene kind makes (size, size) arrays")
+            _check_window(made, kind, lo, hi)
             return made
         if kind in SCENES and not Path(scene).exists():
             spec = SCENES.get(kind).defaults.get("argument")
@@ -131,3 +132,29 @@ def scene_spec(scene):
         return f"{kind}:{int(arg)}"
     return f"{kind}{sep}{arg}"
 
+
+
+def _check_window(made, kind: str, lo: float | None, hi: float | None) -> None:
+    """A scene kind's depths inside the window it was given, or a one-line SceneError: a
+    plugin's scene fixed at 5-6 m ran under ``--depth-min 3 --depth-max 4`` without a word,
+    while ``metrics.json`` recorded the window (an outside audit of 2026-11-30). The built-ins
+    fill the window exactly (a linear remap in float64; a flat scene at its own depth or the
+    window's nearer end), every pixel's depth, valid or not. The tolerance, 1e-6 of the
+    window's far end (at least 1 um), admits a remap done in float32 (round-off 6e-8 of the
+    depth) and is far below a TDC bin (1.5 cm at 100 ps)."""
+    if lo is None and hi is None:
+        return
+    import numpy as np
+
+    depth = np.asarray(made.depth, dtype=np.float64)
+    depth = depth[np.isfinite(depth)]
+    if not depth.size:
+        return
+    tol = 1e-6 * max(abs(lo or 0.0), abs(hi or 0.0), 1.0)
+    near, far = float(depth.min()), float(depth.max())
+    if (lo is not None and near < lo - tol) or (hi is not None and far > hi + tol):
+        window = (f"[{lo:g}, {hi:g}] m" if lo is not None and hi is not None else
+                  f"depths from {lo:g} m" if lo is not None else f"depths to {hi:g} m")
+        raise SceneError(f"scene kind {kind!r} ignores the depth window: asked for {window}, "
+                         f"its depths span [{near:.9g}, {far:.9g}] m (a scene kind fills "
+                         f"the window it is given: docs/architecture.md)")
