@@ -192,3 +192,90 @@ def test_the_builtin_scenes_fill_their_window():
             lo, hi = window
             assert lo is None or depth.min() >= lo, (name, window)
             assert hi is None or depth.max() <= hi, (name, window)
+
+
+# -- 3. a pattern kind's shape, mirror states and adjoint ---------------------------------
+
+def _pattern_operator(matrix, adjoint_scale=1.0):
+    """A plugin's own operator (not a :class:`DensePatterns`, whose constructor reads its
+    matrix) with a given matrix, its adjoint scaled by ``adjoint_scale``."""
+    from spslidar.patterns.base import PatternOperator
+
+    class Mine(PatternOperator):
+        def __init__(self):
+            super().__init__(matrix.shape, matrix.dtype)
+
+        def _matvec(self, x):
+            return matrix @ x.astype(self.dtype)
+
+        def _rmatvec(self, y):
+            return (adjoint_scale * (matrix.T @ y.astype(self.dtype))).astype(self.dtype)
+
+    return Mine()
+
+
+def _fewrows(kind, m, n, rng, dtype, **_):
+    from spslidar.patterns.dense import DensePatterns
+
+    return DensePatterns((rng.random((m // 2, n * n)) < 0.5).astype(dtype), kind)
+
+
+def _negative(kind, m, n, rng, dtype, **_):
+    return _pattern_operator(-np.clip(0.5 + 0.25 * rng.standard_normal((m, n * n)), 0, 1)
+                             .astype(dtype))
+
+
+def _wrong_adjoint(kind, m, n, rng, dtype, **_):
+    return _pattern_operator((rng.random((m, n * n)) < 0.5).astype(dtype), 1.1)
+
+
+def _own(kind, m, n, rng, dtype, **_):
+    return _pattern_operator((rng.random((m, n * n)) < 0.5).astype(dtype))
+
+
+@pytest.fixture
+def pattern_kinds():
+    from spslidar.patterns import PATTERNS
+
+    kinds = {"fewrows": _fewrows, "negative": _negative, "wrong-adjoint": _wrong_adjoint,
+             "own": _own}
+    for name, factory in kinds.items():
+        PATTERNS.add(name, factory, name, "a plugin's", dense=True)
+    try:
+        yield
+    finally:
+        for name in kinds:
+            PATTERNS._entries.pop(name, None)
+
+
+@pytest.mark.parametrize("kind,match", [
+    ("fewrows", r"the pattern kind 'fewrows' made patterns of shape \(8, 64\) for 16 patterns "
+                r"over 8 x 8 mirrors"),
+    ("negative", r"the pattern kind 'negative' made mirror states in \[-1, 0\] .* not \[0, 1\]"),
+    ("wrong-adjoint", r"the pattern kind 'wrong-adjoint': its adjoint is not its transpose")])
+def test_a_pattern_kinds_output_is_checked(pattern_kinds, kind, match):
+    """A factory of M // 2 rows ran ("32 fewrows patterns"), mirror states in [-1, 0] ran
+    with mean_signal_counts_per_pattern -1029, an adjoint 1.1 times the transpose ran."""
+    with pytest.raises(ConfigError, match=match):
+        spslidar.run(**SMALL, patterns=kind)
+
+
+def test_a_pattern_kinds_fault_is_one_line(pattern_kinds, capsys, tmp_path):
+    _one_line_refusal(capsys, ["run", *SMALL_ARGS, "--patterns", "negative"], tmp_path / "o",
+                      r"^spslidar run: error: the pattern kind 'negative' made mirror states")
+    assert spslidar.run(**SMALL, patterns="own").depth.shape == (8, 8)  # a sound one runs
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_builtin_pattern_kinds_pass_the_check(dtype):
+    """Every built-in kind, each Hadamard realisation (differential: a +-1 operator, whose
+    two DMD frames are what is read), at a few sizes and compressions."""
+    from spslidar.patterns import HADAMARD_REALISATIONS, PATTERNS, build_patterns
+    from spslidar.patterns.dense import check_pattern_set
+
+    for kind in PATTERNS.names():
+        for n, m in ((4, 2), (8, 16), (32, 256), (64, 1024)):
+            for realisation in HADAMARD_REALISATIONS:
+                op = build_patterns(kind, m, n, np.random.default_rng(n), dtype=dtype,
+                                    realisation=realisation)
+                check_pattern_set(op, kind, m, n)

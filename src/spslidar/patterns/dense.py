@@ -221,3 +221,75 @@ def as_patterns(patterns, *, copy: bool = True) -> PatternOperator:
         return patterns
     return DensePatterns(patterns if isinstance(patterns, np.ndarray) else np.asarray(patterns),
                          copy=copy)
+
+
+#: the columns :func:`check_pattern_set` reads the mirror states of
+_PROBE_COLUMNS = 16
+
+
+def check_pattern_set(op: object, kind: str, n_patterns: int, n_side: int) -> None:
+    """A run's pattern set as the chain takes it, or a one-line ConfigError naming the kind:
+    a plugin's factory of ``M // 2`` rows ran ("32 fewrows patterns"), one of mirror states
+    in [-1, 0] ran with a negative signal, one whose adjoint was 1.1 times the operator's
+    transpose ran (an outside audit of 2026-11-30; the kit, ``spslidar check``, finds them,
+    runs did not). Cheap, beside drawing the patterns: one product with a few columns and one
+    dot test.
+
+    * the shape ``(M, N * N)``, and that of its products;
+    * the mirror states the DMD shows (of :meth:`exposures` where a set has it: differential
+      Hadamard patterns are the +-1 operator of two frames in {0, 1}; every built-in kind's
+      frames are in [0, 1]) in [0, 1], read in ``_PROBE_COLUMNS`` columns of a fixed-seed
+      sample (a set wrong in a few entries only is the kit's to find; a dense set's
+      constructor reads them all, and its columns are read from its matrix). Tolerance
+      1e-5: float32 round-off of a transform's sums, far below a DMD's grey step (1/255);
+    * the adjoint: ``<A x, y>`` against ``<x, A^T y>`` for fixed-seed Gaussian ``x`` and
+      ``y``, within 1e-3 of ``||A x|| ||y|| / sqrt(M)`` (the size ``<A x, y>`` has): float32
+      round-off of products over 4 million pixels is about 1e-4 of it (``eps sqrt(Q)``), an
+      adjoint 10 % off misses it only where ``|<A x, y>|`` falls below a hundredth of its
+      size (a chance of 1 in 100 for a seed). Not for a dense set of :class:`DensePatterns`'
+      own products: its adjoint is its matrix's transpose, whose copy (``_rmatvec``'s)
+      would cost 4 GB at 256 x 256 and 0.5 s at 128 x 128.
+    """
+    q = n_side * n_side
+    what = f"the pattern kind {kind!r}"
+    shape = tuple(getattr(op, "shape", ()))
+    if shape != (n_patterns, q):
+        raise ConfigError(f"{what} made patterns of shape {shape} for {n_patterns} patterns "
+                          f"over {n_side} x {n_side} mirrors: a pattern kind makes "
+                          f"({n_patterns}, {q}) (M, N * N)")
+    dtype = np.dtype(getattr(op, "dtype", np.float64))
+    rng = np.random.default_rng(0)
+    shown = op.exposures()[0] if hasattr(op, "exposures") else op
+    cols = np.sort(rng.choice(q, size=min(q, _PROBE_COLUMNS), replace=False))
+    # a dense set's products are its matrix's, unless a subclass says otherwise
+    own = isinstance(op, DensePatterns) and type(op)._matvec is DensePatterns._matvec
+    if own:
+        states = np.asarray(op.matrix[:, cols], dtype=np.float64)
+    else:
+        probe = np.zeros((q, cols.size), dtype=dtype)
+        probe[cols, np.arange(cols.size)] = 1
+        states = np.asarray(shown.matvec(probe), dtype=np.float64)
+    if states.shape != (shown.shape[0], cols.size):
+        raise ConfigError(f"{what}: its matvec gave shape {states.shape} for {cols.size} "
+                          f"columns of ({q},): ({shown.shape[0]}, {cols.size}) expected")
+    low, high = (float(states.min()), float(states.max())) if states.size else (0.0, 0.0)
+    if not (np.isfinite(low) and np.isfinite(high)) or low < -1e-5 or high > 1 + 1e-5:
+        raise ConfigError(f"{what} made mirror states in [{low:g}, {high:g}] (in {cols.size} "
+                          f"of its columns), not [0, 1]: a DMD shows each mirror between off "
+                          f"(0) and on (1)")
+    if own and type(op)._rmatvec is DensePatterns._rmatvec:
+        return  # its adjoint is its matrix's transpose (a dot test would copy the matrix)
+    x = rng.standard_normal((q, 1)).astype(dtype)
+    y = rng.standard_normal((n_patterns, 1)).astype(dtype)
+    ax = np.asarray(op.matvec(x), dtype=np.float64)
+    aty = np.asarray(op.rmatvec(y), dtype=np.float64)
+    if ax.shape != (n_patterns, 1) or aty.shape != (q, 1):
+        raise ConfigError(f"{what}: its products gave shapes {ax.shape} and {aty.shape} "
+                          f"(matvec, rmatvec of one column): ({n_patterns}, 1) and ({q}, 1) "
+                          f"expected")
+    lhs = float(np.vdot(ax, y.astype(np.float64)))
+    rhs = float(np.vdot(x.astype(np.float64), aty))
+    size = float(np.linalg.norm(ax) * np.linalg.norm(y)) / np.sqrt(n_patterns)
+    if not abs(lhs - rhs) <= 1e-3 * size:  # (NaN fails too)
+        raise ConfigError(f"{what}: its adjoint is not its transpose: <A x, y> = {lhs:.8g}, "
+                          f"<x, A^T y> = {rhs:.8g} (a dot test with fixed-seed Gaussian x, y)")

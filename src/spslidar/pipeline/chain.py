@@ -29,6 +29,7 @@ from ..detectors.counting import NoiseModel
 from ..errors import ConfigError, library_notice, numbers_blanked, warning_origin
 from ..operators.parallel import one_blas_thread
 from ..patterns import build_patterns
+from ..patterns.dense import check_pattern_set
 from ..qcr import MeanEliminated, plain_problem, qcr_problem
 from ..scenes import load_scene
 from ..solvers.entries import TV_REGULARISERS
@@ -190,6 +191,7 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
                                   order=cfg.hadamard_order,
                                   realisation=cfg.hadamard_realisation,
                                   **chosen_stage_options(cfg, "patterns"))
+        check_pattern_set(patterns, cfg.patterns, m, cfg.size)  # (a plugin's: an audit)
     else:
         from ..backends.patterns import device_patterns
         from ..backends.rng import Stream
