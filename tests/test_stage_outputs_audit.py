@@ -279,3 +279,55 @@ def test_the_builtin_pattern_kinds_pass_the_check(dtype):
                 op = build_patterns(kind, m, n, np.random.default_rng(n), dtype=dtype,
                                     realisation=realisation)
                 check_pattern_set(op, kind, m, n)
+
+
+# -- 4. what ran: plugins, the code's fingerprint, a replaced built-in --------------------
+
+REPLACING = '''
+from spslidar.depth import ESTIMATORS
+from spslidar.depth.censor import CensorDepth
+
+
+class Other(CensorDepth):
+    name = "argmax"
+
+
+ESTIMATORS.add("argmax", Other, "argmax", "censor under argmax's name")
+'''
+
+
+def test_a_replaced_builtin_and_the_plugins_are_recorded(tmp_path, capsys):
+    """``--plugin`` re-registering ``argmax`` as another estimator warned at load, but
+    metrics.json said ``depth: "argmax"`` with no warning, and named neither the plugins
+    nor the code's fingerprint."""
+    import json
+
+    from spslidar.depth import ESTIMATORS
+    from spslidar.plugins import code_fingerprint
+
+    plugin = tmp_path / "replacing.py"
+    plugin.write_text(REPLACING)
+    out = tmp_path / "o"
+    try:
+        assert main(["--plugin", str(plugin), "run", *SMALL_ARGS, "--depth", "argmax",
+                     "--out", str(out)]) == 0
+        err = capsys.readouterr().err
+        m = json.loads((out / "metrics.json").read_text())
+        fingerprint = code_fingerprint()  # (the plugin's file is in it)
+    finally:
+        ESTIMATORS.remove("argmax")  # the built-in comes back
+    said = ("the depth estimator 'argmax' ('spslidar.depth.argmax:ArgmaxDepth') is replaced "
+            "by <class 'spslidar_plugin_replacing.Other'>")
+    assert said in m["warnings"]
+    assert m["plugins"] == [str(plugin.resolve())]
+    assert m["code_fingerprint"] == fingerprint and len(fingerprint) == 16
+    assert err.count(said) == 1, err  # said at the load, not again by the run
+
+
+def test_a_run_without_a_replaced_stage_says_none():
+    from spslidar.plugins import code_fingerprint, load_plugins
+
+    r = spslidar.run(**SMALL, depth="argmax")
+    assert r.metrics["plugins"] == load_plugins([])  # (none, unless the session loaded some)
+    assert r.metrics["code_fingerprint"] == code_fingerprint()
+    assert not any("is replaced by" in w for w in r.metrics["warnings"])

@@ -16,6 +16,7 @@ from pathlib import Path
 from .cli_check import add_check_parser, cmd_check
 from .cli_common import (  # noqa: F401  (_memory: spslidar.cli._memory, as before)
     _WRITTEN,
+    SAID_AT_LOAD,
     _add_fov_option,
     _add_regulariser_option,
     _add_stage_options,
@@ -25,6 +26,7 @@ from .cli_common import (  # noqa: F401  (_memory: spslidar.cli._memory, as befo
     _memory,
     _stage_name,
     _written,
+    say_warnings,
 )
 from .cli_measured import (
     add_calibrate_parser,
@@ -391,8 +393,7 @@ def _cmd_run(args) -> int:
               f"the patterns shown and the code in {ptu_files[1]} and {ptu_files[2]}")
     else:
         result = run(cfg)
-    for w in result.warnings:
-        print(f"spslidar: warning: {w}", file=sys.stderr)
+    say_warnings(result.warnings)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
                       fov_deg=args.fov, option="--out", replace="--overwrite")
     _WRITTEN.append(f"{out}/")
@@ -579,8 +580,10 @@ def _main(argv: list[str] | None = None) -> int:
             # (a plugin's replacement of a built-in stage was said as a raw two-line Python
             # warning, its source line included, an audit of 2026-11-29)
             with warnings.catch_warnings():
-                warnings.showwarning = _OneLineWarnings("--plugin").__call__
+                warnings.showwarning = said = _OneLineWarnings("--plugin")
                 argv = _load_plugins(sys.argv[1:] if argv is None else list(argv))
+            SAID_AT_LOAD.clear()
+            SAID_AT_LOAD.update(said.first.values())
         except _Bad as exc:
             print(f"spslidar: error: {exc}", file=sys.stderr)
             return EXIT_BAD_INPUT

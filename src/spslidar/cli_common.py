@@ -11,6 +11,18 @@ import argparse
 
 #: what this command wrote so far (the interrupted line says it)
 _WRITTEN: list[str] = []
+#: the warnings said while the plugins loaded: a replaced built-in stage, which the run's
+#: own warnings repeat for metrics.json, is said once on stderr
+SAID_AT_LOAD: set[str] = set()
+
+
+def say_warnings(warns: list[str]) -> None:
+    """A result's warnings on stderr, one line each, but those said at the plugins' load."""
+    import sys
+
+    for w in warns:
+        if w not in SAID_AT_LOAD:
+            print(f"spslidar: warning: {w}", file=sys.stderr)
 
 
 def _choices(option: str):

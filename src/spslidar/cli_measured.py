@@ -6,7 +6,6 @@ sub-commands' parsers and commands, as :mod:`spslidar.cli` registers them (moved
 from __future__ import annotations
 
 import argparse
-import sys
 
 __all__ = ["add_calibrate_parser", "add_reconstruct_parser", "cmd_calibrate",
            "cmd_reconstruct"]
@@ -121,7 +120,7 @@ def add_reconstruct_parser(sub) -> None:
 
 def cmd_reconstruct(args) -> int:
     """Run ``spslidar reconstruct``; return the exit status."""
-    from .cli_common import _WRITTEN, _written
+    from .cli_common import _WRITTEN, _written, say_warnings
     from .outdir import check_output
     from .pipeline.real import load_code, load_patterns, reconstruct_ptu
 
@@ -136,8 +135,7 @@ def cmd_reconstruct(args) -> int:
                              allow_binning=args.allow_binning, truth=args.truth,
                              calibration=args.calibration, marker_edge=args.marker_edge,
                              settle=args.settle, **_detector_args(args), **processing)
-    for w in result.warnings:
-        print(f"spslidar: warning: {w}", file=sys.stderr)
+    say_warnings(result.warnings)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
                       fov_deg=args.fov, option="--out", replace="--overwrite")
     _WRITTEN.append(f"{out}/")
