@@ -353,17 +353,21 @@ def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
     estimate first. The experiments finished before a refusal keep their report sections."""
     from spslidar.experiments.sweep.grid import TRIAL_KEY
     from spslidar.experiments.sweep.store import cached_point
-    from spslidar.pipeline import PROCESSING_KEYS, preflight
+    from spslidar.pipeline import preflight
     from spslidar.pipeline.budget import check_time
+    from spslidar.pipeline.measurement import processing_keys
 
     seconds: dict[str, float] = {}
     total = 0.0
+    # (a plugin estimator's option is processing too: the static keys kept --window beside
+    # the default depth, refused, an audit of plugins)
+    processing = processing_keys()
     for params in points:
         # its cache record, as run_sweep names and reads it: a cached run costs nothing
-        if cached_point(ctx.cache / "runs", params, ctx.seed, PROCESSING_KEYS,
+        if cached_point(ctx.cache / "runs", params, ctx.seed, processing,
                         ctx.code)[1] is not None:
             continue  # (a resumed fig2 was refused for the run it had cached)
-        cfg = {k: v for k, v in params.items() if k != TRIAL_KEY and k not in PROCESSING_KEYS}
+        cfg = {k: v for k, v in params.items() if k != TRIAL_KEY and k not in processing}
         key = repr(sorted(cfg.items()))
         if key not in seconds:
             seconds[key] = preflight(cfg).seconds
@@ -420,11 +424,13 @@ def run_points(
         ctx.failed += sum(ERROR_KEY in row for row in rows)
         return rows
     ctx.maps.mkdir(parents=True, exist_ok=True)
-    from spslidar.pipeline import PROCESSING_KEYS
+    from spslidar.pipeline.measurement import processing_keys
 
     func = functools.partial(reproduce_point, maps_dir=str(ctx.maps))
     points = list(points)
-    # paired comparisons: points that differ only in processing share their measurement
+    # paired comparisons: points that differ only in processing share their measurement (a
+    # plugin solver's or estimator's options too, as sweep reads them)
+    processing = processing_keys()
     rows = run_sweep(
         func,
         points,
@@ -433,7 +439,7 @@ def run_points(
         jobs=ctx.jobs,
         scheduler=ctx.scheduler,
         progress=ctx.progress,
-        seed_ignore=PROCESSING_KEYS,
+        seed_ignore=processing,
         code=ctx.code,
     )
     # A cached run whose map is gone (deleted, or written on a remote worker's disk) or cannot
@@ -453,7 +459,7 @@ def run_points(
             ctx.cache,
             seed=ctx.seed,
             progress=ctx.progress,
-            seed_ignore=PROCESSING_KEYS,
+            seed_ignore=processing,
             code=ctx.code,
         )
         for i, row in zip(missing, again, strict=True):
