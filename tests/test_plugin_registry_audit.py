@@ -7,6 +7,7 @@ import pytest
 
 from spslidar.depth import ESTIMATORS
 from spslidar.depth.argmax import ArgmaxDepth
+from spslidar.errors import ConfigError
 from spslidar.registry import Option
 
 WINDOW = Option("window", 1, "median window", kind=int, lo=1, hi=15)
@@ -64,3 +65,51 @@ def test_reproduce_reads_a_plugin_estimators_option_as_processing(medargmax, tmp
                           max_time=max_time) == 0
     assert len(_ROWS) == 2 and not any(ERROR_KEY in row for row in _ROWS)
     assert _ROWS[0]["seed"] == _ROWS[1]["seed"]  # one measurement, two processings
+
+
+# -- 2. a declared numeric option takes numbers only (the CLI's text is read by argparse) ---
+
+
+@pytest.mark.parametrize("keys", [
+    {"depth": "medargmax", "window": True},
+    {"depth": "medargmax", "window": "3"},
+    {"detector": "gmapd", "jitter_tail": 1e-10, "jitter_tail_weight": True},
+    {"detector": "gmapd", "dead_time": "5e-8"},
+])
+def test_a_numeric_option_refuses_booleans_and_text(medargmax, keys):
+    """``window = true`` in a TOML ran with 1, ``window = "3"`` with 3, and the built-in
+    ``jitter_tail_weight=True`` with 1.0, where ``iterations = true`` is refused."""
+    from spslidar import Config
+
+    with pytest.raises(ConfigError, match=r"must be a number, got (True|'3'|'5e-8')") as err:
+        Config(size=16, **keys)
+    assert "\n" not in str(err.value)
+
+
+def test_a_toml_options_boolean_is_refused_and_the_cli_still_reads_numbers(medargmax,
+                                                                         tmp_path):
+    import numpy as np
+
+    from spslidar import Config
+    from spslidar.cli import main
+
+    toml = tmp_path / "run.toml"
+    toml.write_text('depth = "medargmax"\nwindow = true\nsize = 16\n')
+    with pytest.raises(ConfigError, match="--window must be a number, got True"):
+        Config.from_toml(toml)
+    toml.write_text('depth = "medargmax"\nwindow = "3"\nsize = 16\n')
+    with pytest.raises(ConfigError, match=r"--window must be a number, got '3' \(in TOML"):
+        Config.from_toml(toml)
+    # NumPy's numbers are numbers (an int option's np.int64, a float option's np.float32)
+    cfg = Config(size=16, depth="medargmax", window=np.int64(3), detector="gmapd",
+                 dead_time=np.float32(2e-8))
+    assert cfg.window == 3 and type(cfg.window) is int and type(cfg.dead_time) is float
+    # the command line's text is a number once argparse has read it
+    out = tmp_path / "run"
+    assert main(["run", "--size", "16", "--code-length", "255", "--compression", "0.1",
+                 "--depth", "medargmax", "--window", "3",
+                 "--dead-time", "2e-8", "--out", str(out), "--no-figure"]) == 0
+    import json
+
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert json.dumps(metrics).count('"window": 3') >= 1

@@ -16,6 +16,7 @@ from spslidar.cli import build_parser, main
 from spslidar.config import Config
 from spslidar.detectors import DETECTORS
 from spslidar.detectors.linear import LinearDetector
+from spslidar.errors import ConfigError
 from spslidar.registry import Option
 
 
@@ -46,7 +47,9 @@ def test_a_new_detector_option_reaches_config_cli_stage_and_metrics(dim_detector
                                                                      capsys):
     cfg = Config(detector="dim", qe=0.5)
     assert cfg.qe == 0.5 and cfg.to_dict()["qe"] == 0.5
-    assert Config.from_dict({"detector": "dim", "qe": "0.25"}).qe == 0.25
+    # text is not a number (TOML's qe = "0.25"; the command line's is read by argparse)
+    with pytest.raises(ConfigError, match="--qe must be a number, got '0.25'"):
+        Config.from_dict({"detector": "dim", "qe": "0.25"})
     help_text = build_parser()._subparsers._group_actions[0].choices["run"].format_help()
     assert "--qe" in help_text and "share of the photons detected" in help_text
     out = tmp_path / "r"

@@ -97,7 +97,15 @@ class Option:
                 raise ConfigError(f"{self.flag} must be one of {', '.join(self.choices)}, "
                                   f"got {value!r}")
             return str(value)
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if getattr(value, "ndim", None) == 0 and hasattr(value, "item"):
+            value = value.item()  # a NumPy scalar, as Python's (np.bool_ as bool)
+        if isinstance(value, (bool, str, bytes)):
+            # (TOML's window = true ran with 1 and window = "3" with 3, where Config's own
+            # iterations = true is refused, an audit of plugins; the command line's text is
+            # a number already, read by its flag's argparse type)
+            quoted = " (in TOML: a number without quotes)" if isinstance(value, str) else ""
+            raise ConfigError(f"{self.flag} must be a number, got {value!r}{quoted}")
+        if not isinstance(value, (int, float)):
             try:
                 value = float(value)
             except (TypeError, ValueError):
