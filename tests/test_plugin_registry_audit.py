@@ -113,3 +113,42 @@ def test_a_toml_options_boolean_is_refused_and_the_cli_still_reads_numbers(medar
 
     metrics = json.loads((out / "metrics.json").read_text())
     assert json.dumps(metrics).count('"window": 3') >= 1
+
+
+# -- 3. and 4. an option's declaration is checked where it is registered --------------------
+
+
+@pytest.mark.parametrize("option,says", [
+    (Option("win_b", 20, kind=int, lo=1, hi=15), r"default 20 .*--win-b must be in \[1, 15\]"),
+    (Option("win_c", 3.5, kind=int), "default 3.5 .*must be an integer"),
+    (Option("win_f", True, kind=float), "default True .*must be a number"),
+    (Option("win_s", "fast", kind=str, choices=("slow",)), "default 'fast' .*one of slow"),
+    (Option("win-d", 3, kind=int), "'win-d'.*identifier"),
+    (Option("win_k", 3, kind=complex), "kind.*float, int, bool or str"),
+])
+def test_an_options_declaration_is_checked_where_it_is_registered(option, says):
+    """``Option("win_b", 20, lo=1, hi=15)`` was accepted, then every run failed, those of
+    other estimators too; ``win-d`` was "unknown config key 'win_d' (did you mean win-d)".
+    Refused at registration."""
+    from spslidar import Config
+
+    with pytest.raises(ValueError, match=f"{says}") as err:
+        ESTIMATORS.add("bad-window", MedArgmax, options=(option,))
+    assert "bad-window" not in ESTIMATORS and "\n" not in str(err.value)
+    assert Config(size=16).depth == "mrf"  # the other runs are untouched
+
+
+def test_a_scene_kind_refuses_options_and_keeps_its_defaults():
+    """``SCENES.add(..., options=(Option("tilt", 0.0),))`` was accepted, and ``--tilt`` was
+    unknown: a scene is built from its spec (``kind:ARG``), not from options."""
+    from spslidar.scenes import SCENES
+    from spslidar.scenes.builtin import _ramp
+
+    with pytest.raises(ValueError, match="a scene declares no options.*tilt of 'tilted'"):
+        SCENES.add("tilted", _ramp, options=(Option("tilt", 0.0),))
+    assert "tilted" not in SCENES
+    SCENES.add("tilted", _ramp, "tilted", "a ramp", argument="DEG", example="5")
+    try:
+        assert SCENES.get("tilted").defaults == {"argument": "DEG", "example": "5"}
+    finally:
+        SCENES.remove("tilted")

@@ -183,6 +183,24 @@ class Entry:
             self.validate(cfg)
 
 
+def _declaration_fault(opt: Any) -> str:
+    """What is wrong with an option's declaration ('' where nothing is): checked where it is
+    registered, as a default outside its own bounds failed every run later, those of other
+    stages too (an audit of plugins)."""
+    if not isinstance(opt, Option):
+        return f"{opt!r} is not an Option"
+    if not isinstance(opt.name, str) or not opt.name.isidentifier():
+        return (f"its name must be a Python identifier (snake_case: the flag --a-b is made "
+                f"from the key a_b), got {opt.name!r}")
+    if opt.kind not in (float, int, bool, str):
+        return f"its kind must be float, int, bool or str, got {opt.kind!r}"
+    try:
+        opt.check(opt.default)
+    except ConfigError as err:
+        return f"its default {opt.default!r} is refused by its own declaration: {err}"
+    return ""
+
+
 def _built_in(entry: Entry) -> bool:
     """Whether spslidar itself registered ``entry`` (a plugin loaded from a file is a module
     named ``spslidar_plugin_<stem>``: not spslidar's, a review of 2026-11-29)."""
@@ -200,14 +218,19 @@ class Registry:
         The config key / CLI option that selects an entry (``"solver"``, ``"code"``...).
     takes_options : bool
         Whether its entries may declare options (:class:`Option`): a registry whose stages
-        are built without the config's options (the regularisers) refuses them at
-        registration, where an option declared would be a key no config could set.
+        are built without the config's options (the regularisers, the scenes) refuses them
+        at registration, where an option declared would be a key no config could set.
+    takes_defaults : bool, optional
+        Whether its entries may declare defaults (default: as ``takes_options``; the scenes
+        take ``argument=`` and ``example=`` but no options).
     """
 
-    def __init__(self, kind: str, option: str, takes_options: bool = True):
+    def __init__(self, kind: str, option: str, takes_options: bool = True,
+                 takes_defaults: bool | None = None):
         self.kind = kind
         self.option = option
         self.takes_options = takes_options
+        self.takes_defaults = takes_options if takes_defaults is None else takes_defaults
         self._entries: dict[str, Entry] = {}
         self._replaced: dict[str, Entry] = {}  # the built-in entries add() replaced
 
@@ -242,12 +265,18 @@ class Registry:
         """
         if not name or not isinstance(name, str):
             raise ValueError(f"a {self.kind} needs a non-empty name")
-        if (options or defaults) and not self.takes_options:
-            given = ", ".join([o.name for o in options] + list(defaults))
-            raise ValueError(f"a {self.kind} declares no options or defaults (no config key or "
-                             f"flag would reach them: {given} of {name!r}): give its factory "
-                             f"fixed values, or register one entry per setting")
+        refused = ([getattr(o, "name", o) for o in options] if not self.takes_options
+                   else []) + (list(defaults) if not self.takes_defaults else [])
+        if refused:
+            what = "options" if self.takes_defaults else "options or defaults"
+            raise ValueError(f"a {self.kind} declares no {what} (no config key or flag would "
+                             f"reach them: {', '.join(map(str, refused))} of {name!r}): give "
+                             f"its factory fixed values, or register one entry per setting")
         for opt in options:
+            fault = _declaration_fault(opt)
+            if fault:
+                raise ValueError(f"option {getattr(opt, 'name', opt)!r} of {self.kind} "
+                                 f"{name!r}: {fault}")
             # (not the entry this one replaces: a notebook cell re-run with another default
             # was refused, with no way back but a new kernel, an audit of 2026-11-29)
             for other in (e for e in self._snapshot() if e.name != name):

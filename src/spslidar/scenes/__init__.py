@@ -54,7 +54,7 @@ __getattr__ = lazy_exports(__name__, {
     "scene_spec": "load"})
 
 #: the built-in scene kinds (the ``scene`` config key / ``--scene``), by name
-SCENES = Registry("scene", "scene")
+SCENES = Registry("scene", "scene", takes_options=False, takes_defaults=True)
 SCENES.add("camera", "spslidar.scenes.builtin:_camera", "camera",
            "skimage's camera image as depth, 20-20.8 m (the paper's 'airplane'; default)")
 SCENES.add("motorcycle", "spslidar.scenes.builtin:_motorcycle", "motorcycle",
