@@ -119,6 +119,8 @@ def test_a_toml_options_boolean_is_refused_and_the_cli_still_reads_numbers(medar
 
 
 @pytest.mark.parametrize("option,says", [
+    (Option("noise", 1.0, "a clash"), "'noise'.*spslidar's own config keys or flags"),
+    (Option("out", 1.0, "a clash with run --out"), "'out'.*spslidar's own"),
     (Option("win_b", 20, kind=int, lo=1, hi=15), r"default 20 .*--win-b must be in \[1, 15\]"),
     (Option("win_c", 3.5, kind=int), "default 3.5 .*must be an integer"),
     (Option("win_f", True, kind=float), "default True .*must be a number"),
@@ -128,8 +130,9 @@ def test_a_toml_options_boolean_is_refused_and_the_cli_still_reads_numbers(medar
 ])
 def test_an_options_declaration_is_checked_where_it_is_registered(option, says):
     """``Option("win_b", 20, lo=1, hi=15)`` was accepted, then every run failed, those of
-    other estimators too; ``win-d`` was "unknown config key 'win_d' (did you mean win-d)".
-    Refused at registration."""
+    other estimators too; ``win-d`` was "unknown config key 'win_d' (did you mean win-d)";
+    an option named as a config key (``noise``) crashed ``spslidar --plugin collide run``
+    with argparse's "conflicting option string" traceback. Refused at registration."""
     from spslidar import Config
 
     with pytest.raises(ValueError, match=f"{says}") as err:
@@ -152,3 +155,70 @@ def test_a_scene_kind_refuses_options_and_keeps_its_defaults():
         assert SCENES.get("tilted").defaults == {"argument": "DEG", "example": "5"}
     finally:
         SCENES.remove("tilted")
+
+
+def test_a_plugin_whose_option_clashes_is_one_line_at_the_command_line(tmp_path, capsys,
+                                                                      monkeypatch):
+    """``spslidar --plugin collide run ...`` ended in argparse's traceback (exit 1)."""
+    from spslidar.cli import main
+    from spslidar.detectors import DETECTORS
+
+    plugin = tmp_path / "collide.py"
+    plugin.write_text("from spslidar.detectors import DETECTORS\n"
+                      "from spslidar.detectors.linear import LinearDetector\n"
+                      "from spslidar.registry import Option\n"
+                      "DETECTORS.add('collide', LinearDetector, 'collide', 'a clash',\n"
+                      "              options=(Option('noise', 1.0, 'a clash'),))\n")
+    monkeypatch.delenv("SPSLIDAR_PLUGINS", raising=False)
+    try:
+        assert main(["--plugin", str(plugin), "run", "--size", "16", "--out",
+                     str(tmp_path / "r")]) == 2
+    finally:
+        DETECTORS._entries.pop("collide", None)
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "collide.py:4" in err and "'noise'" in err
+
+
+def test_an_option_two_stages_of_two_kinds_declare_is_one_line_at_the_command_line(
+        medargmax, capsys):
+    """A detector's ``window`` beside the estimator's ``window``, declared alike, made
+    ``spslidar run`` (every command, ``check`` too) argparse's traceback: a flag each."""
+    from spslidar.cli import main
+    from spslidar.detectors import DETECTORS
+    from spslidar.detectors.linear import LinearDetector
+
+    DETECTORS.add("windowed", LinearDetector, options=(WINDOW,))
+    try:
+        assert main(["run", "--help"]) == 2
+    finally:
+        DETECTORS.remove("windowed")
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--window" in err and "windowed" in err, err
+
+
+def test_an_option_named_as_a_commands_own_flag_is_one_line(capsys):
+    """``reconstruct --truth`` is its own flag: an estimator's ``truth`` took argparse's
+    traceback too."""
+    from spslidar.cli import main
+
+    ESTIMATORS.add("truthful", MedArgmax, options=(Option("truth", 1.0),))
+    try:
+        assert main(["reconstruct", "--help"]) == 2
+    finally:
+        ESTIMATORS.remove("truthful")
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--truth" in err and "command's own" in err, err
+
+
+def test_the_reserved_names_are_the_configs_keys_and_runs_flags():
+    """The registry cannot import the config (which imports it): its list of the names an
+    option cannot take is written out, and must follow ``Config``."""
+    from spslidar.cli import build_parser
+    from spslidar.config import CLI_ONLY_KEYS, _config_fields, stage_options
+    from spslidar.registry import RESERVED_NAMES
+
+    run = build_parser()._subparsers._group_actions[0].choices["run"]
+    flags = {s[2:].replace("-", "_") for a in run._actions for s in a.option_strings
+             if s.startswith("--")} - set(stage_options())
+    assert _config_fields() | CLI_ONLY_KEYS | {"extra"} <= RESERVED_NAMES
+    assert flags <= RESERVED_NAMES

@@ -584,10 +584,10 @@ def _main(argv: list[str] | None = None) -> int:
                 argv = _load_plugins(sys.argv[1:] if argv is None else list(argv))
             SAID_AT_LOAD.clear()
             SAID_AT_LOAD.update(said.first.values())
+            parser = build_parser()  # (a plugin's option whose flag is taken: one line)
         except _Bad as exc:
             print(f"spslidar: error: {exc}", file=sys.stderr)
             return EXIT_BAD_INPUT
-        parser = build_parser()
         args, extra = parser.parse_known_args(argv)
     except KeyboardInterrupt as exc:
         early.say(isinstance(exc, Terminated))

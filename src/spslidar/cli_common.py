@@ -64,8 +64,18 @@ def _add_stage_options(g, option: str) -> None:
         extra = ({"choices": ("on", "off")} if opt.kind is bool else
                  {"choices": opt.choices} if opt.choices else
                  {"type": kind, "metavar": opt.unit.upper() or "X"} if kind else {})
-        g.add_argument(opt.flag, default=argparse.SUPPRESS, **extra,
-                       help=f"{owners}: {opt.describe()}")
+        try:
+            g.add_argument(opt.flag, default=argparse.SUPPRESS, **extra,
+                           help=f"{owners}: {opt.describe()}")
+        except argparse.ArgumentError:  # (argparse's traceback, exit 1, an audit of plugins)
+            from .errors import ConfigError
+
+            other = [f"--{r.option} {', '.join(r.owners(name))}"
+                     for r in registries().values() if r is not reg and r.owners(name)]
+            whose = f"an option of {other[0]}" if other else "the command's own"
+            raise ConfigError(f"{opt.flag}, an option of --{option} {owners}, is already a "
+                              f"flag of this command ({whose}): the stage must name it "
+                              f"otherwise") from None
 
 
 def _duration(text: str) -> float:

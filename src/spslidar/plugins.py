@@ -80,8 +80,10 @@ def where(exc: BaseException) -> str:
     import traceback
 
     # (not the import machinery's own frames: "(<frozen importlib._bootstrap>:1140)" for a
-    # module that is not there)
-    machinery = (str(Path(importlib.__file__).parent), __file__)
+    # module that is not there; nor the registry's, whose refusal of a declaration is the
+    # caller's line)
+    machinery = (str(Path(importlib.__file__).parent), __file__,
+                 str(Path(__file__).with_name("registry.py")))
     frames = [f for f in traceback.extract_tb(exc.__traceback__)
               if not (f.filename.startswith("<") or f.filename.startswith(machinery))]
     return _place(frames[-1]) if frames else ""

@@ -183,6 +183,22 @@ class Entry:
             self.validate(cfg)
 
 
+#: names no stage's option may take: :class:`~spslidar.config.Config`'s own keys and the
+#: other options of ``spslidar run`` (``--noise`` of a plugin's detector crashed the command
+#: line with argparse's "conflicting option string", an audit of plugins). Written out, as
+#: the config imports this module; a test holds it to ``Config``'s fields.
+RESERVED_NAMES = frozenset({
+    "ambient", "auto_gate", "backend", "background_rate", "bit_rate", "code", "code_index",
+    "code_length", "compression", "dark_count_rate", "depth", "depth_max", "depth_min",
+    "detector", "device", "dtype", "fairness", "hadamard_order", "hadamard_realisation", "irf",
+    "iterations", "lam", "lam_scale", "lidar", "max_memory", "max_time", "noise",
+    "noise_split", "noiseless", "nonneg", "ones_ratio", "pattern_sigma", "patterns", "periods",
+    "pulse_width", "qcr", "qcr_form", "range_gate", "regulariser", "rep_rate", "replica",
+    "scene", "seed", "signal", "size", "solver", "subbin", "system_delay", "tol",
+    "extra", "config", "fov", "no_figure", "out", "overwrite", "save_ptu", "help",
+    "no_auto_gate", "no_noiseless", "no_nonneg", "no_qcr", "no_subbin"})
+
+
 def _declaration_fault(opt: Any) -> str:
     """What is wrong with an option's declaration ('' where nothing is): checked where it is
     registered, as a default outside its own bounds failed every run later, those of other
@@ -192,6 +208,8 @@ def _declaration_fault(opt: Any) -> str:
     if not isinstance(opt.name, str) or not opt.name.isidentifier():
         return (f"its name must be a Python identifier (snake_case: the flag --a-b is made "
                 f"from the key a_b), got {opt.name!r}")
+    if opt.name in RESERVED_NAMES:
+        return "the name is one of spslidar's own config keys or flags: name it otherwise"
     if opt.kind not in (float, int, bool, str):
         return f"its kind must be float, int, bool or str, got {opt.kind!r}"
     try:
