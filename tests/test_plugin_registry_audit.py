@@ -222,3 +222,21 @@ def test_the_reserved_names_are_the_configs_keys_and_runs_flags():
              if s.startswith("--")} - set(stage_options())
     assert _config_fields() | CLI_ONLY_KEYS | {"extra"} <= RESERVED_NAMES
     assert flags <= RESERVED_NAMES
+
+
+# -- 5. the conformance kit (spslidar check) -----------------------------------------------
+
+
+def test_a_code_one_bit_short_fails_the_length_contract():
+    """The length contract compared ``code.size`` with itself: a family returning ``length
+    - 1`` bits passed."""
+    from spslidar.codes import CODES, make_code
+    from spslidar.testing import check_stage
+
+    CODES.add("short-code", lambda kind, length, ratio, rng=None, index=0, **_: make_code(
+        "mseq", length, index=index)[:-1], "short", "one bit short")
+    try:
+        with pytest.raises(AssertionError, match=r"126 bits, not the 127 asked for"):
+            check_stage("code", "short-code")
+    finally:
+        CODES.remove("short-code")

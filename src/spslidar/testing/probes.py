@@ -49,8 +49,9 @@ def _code_config(name: str) -> Config:
 
 
 def probe_code(name: str):
-    """``(make, index)``: the probe's maker of family ``name``'s code, ``make(index)``, and the
-    entry's default index, as :func:`check_code_family` builds them."""
+    """``(make, index, length)``: the probe's maker of family ``name``'s code,
+    ``make(index)``, the entry's default index and the length it asks for, as
+    :func:`check_code_family` builds them."""
     from ..codes import CODES
 
     cfg = _code_config(name)
@@ -62,7 +63,7 @@ def probe_code(name: str):
         return np.asarray(entry.load()(name, length, 0.5, rng=np.random.default_rng(1),
                                        index=index, **options))
 
-    return make, entry.defaults.get("index", 0)
+    return make, entry.defaults.get("index", 0), length
 
 
 def scene_spec(name: str) -> str:

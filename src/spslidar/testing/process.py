@@ -58,7 +58,7 @@ def output_digest(kind: str, name: str) -> str:
     from .probes import probe_code, scene_size, scene_spec
 
     if kind == "code":
-        make, index = probe_code(name)
+        make, index, _ = probe_code(name)
         return digest((make(index),))
     if kind == "scene":
         from ..scenes import load_scene

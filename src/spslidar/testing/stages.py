@@ -57,12 +57,11 @@ def check_code_family(name: str) -> list[str]:
     list of str
         The contracts checked.
     """
-    make, index = probe_code(name)
+    make, index, length = probe_code(name)
     code, again = make(index), make(index)
-    length = code.size
     what = f"code family {name!r} at {length} bits"
-    if code.shape != (length,):
-        raise _fail(what, f"shape {code.shape}, not ({length},)")
+    if code.shape != (length,):  # (against the length asked for: code.size passed any)
+        raise _fail(what, f"shape {code.shape}: {code.size} bits, not the {length} asked for")
     if not set(np.unique(code).tolist()) <= {0, 1}:
         raise _fail(what, "bits other than 0 and 1")
     if not np.array_equal(code, again):
