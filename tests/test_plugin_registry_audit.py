@@ -240,3 +240,31 @@ def test_a_code_one_bit_short_fails_the_length_contract():
             check_stage("code", "short-code")
     finally:
         CODES.remove("short-code")
+
+
+def test_a_detector_with_negative_counts_fails():
+    """A detector returning ``poisson(mean) - 1`` (its ``expected`` alike) passed the three
+    detector contracts."""
+    import numpy as np
+
+    from spslidar.detectors import DETECTORS
+    from spslidar.detectors.linear import LinearDetector
+    from spslidar.testing import check_stage
+
+    class MinusOne(LinearDetector):
+        name = "minus-one"
+
+        def detect(self, lam, rng, n_periods=1, out=None):
+            counts, _ = super().detect(lam, rng, n_periods)
+            counts = np.asarray(counts, np.float64) - 1.0
+            return counts, counts.sum(axis=-1)
+
+        def expected(self, lam, n_periods=1):
+            return np.asarray(super().expected(lam, n_periods), np.float64) - 1.0
+
+    DETECTORS.add("minus-one", MinusOne, "minus one", "poisson(mean) - 1")
+    try:
+        with pytest.raises(AssertionError, match="negative or non-finite counts"):
+            check_stage("detector", "minus-one")
+    finally:
+        DETECTORS.remove("minus-one")
