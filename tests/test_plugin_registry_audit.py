@@ -226,6 +226,76 @@ def test_the_reserved_names_are_the_configs_keys_and_runs_flags():
 
 # -- 5. the conformance kit (spslidar check) -----------------------------------------------
 
+HASHED_CODES = '''
+import numpy as np
+from spslidar.codes import CODES
+
+
+def hashed(name, length, ratio, rng=None, index=0, **_):
+    from spslidar.codes import make_code
+
+    return np.roll(make_code("mseq", length, index=index), hash("x") % length)
+
+
+CODES.add("hashpkg-hashed", hashed, "hashed", "an m-sequence shifted by hash()")
+'''
+
+
+@pytest.fixture
+def hashpkg(tmp_path, monkeypatch):
+    """A plugin package whose stage is registered in a submodule it imports."""
+    import sys
+
+    import spslidar.plugins as plugins
+    from spslidar.codes import CODES
+
+    (tmp_path / "hashpkg").mkdir()
+    (tmp_path / "hashpkg" / "__init__.py").write_text("from . import codes  # noqa: F401\n")
+    (tmp_path / "hashpkg" / "codes.py").write_text(HASHED_CODES)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv(plugins.ENV, "")
+    try:
+        yield "hashpkg"
+    finally:
+        CODES._entries.pop("hashpkg-hashed", None)
+        plugins._LOADED.pop("hashpkg", None)
+        for name in ("hashpkg", "hashpkg.codes"):
+            sys.modules.pop(name, None)
+
+
+def test_a_stage_a_plugin_packages_submodule_registers_is_checked_afresh(hashpkg, capsys):
+    """``hashpkg/__init__.py`` importing ``codes.py``, which registers a code seeded from
+    ``hash("x")``: ``spslidar --plugin hashpkg check`` said ok (the fresh-process check needs
+    the stage's module to be a plugin's own name), ``--plugin hashpkg.codes`` FAILed."""
+    from spslidar.cli import main
+
+    assert main(["--plugin", hashpkg, "check", "--plugins-only"]) == 1
+    out = capsys.readouterr().out
+    assert "FAIL  code hashpkg-hashed" in out and "another output in a fresh process" in out
+
+
+def test_a_stage_no_new_interpreter_can_import_is_skipped_not_passed(capsys):
+    """A stage registered in this process only (a notebook's cell, a test): that contract
+    cannot run, and ``check`` says so rather than counting it passed."""
+    from spslidar.cli import main
+    from spslidar.codes import CODES, make_code
+    from spslidar.testing import check_stage, check_stages
+
+    CODES.add("cell-code", lambda kind, length, ratio, rng=None, index=0, **_: make_code(
+        "mseq", length, index=index), "cell", "an m-sequence, registered in a cell")
+    try:
+        got = check_stage("code", "cell-code")
+        assert "the same in a fresh process" not in got
+        assert any(c.startswith("skipped: the same in a fresh process") for c in got), got
+        (res,) = check_stages(["code"], ["cell-code"])
+        assert res.ok and res.skipped and not any("fresh" in c for c in res.passed)
+        assert main(["check", "code:cell-code"]) == 0
+    finally:
+        CODES.remove("cell-code")
+    out = capsys.readouterr().out
+    assert "skipped: the same in a fresh process" in out, out
+
 
 def test_a_code_one_bit_short_fails_the_length_contract():
     """The length contract compared ``code.size`` with itself: a family returning ``length

@@ -72,8 +72,10 @@ def cmd_check(args: argparse.Namespace) -> int:
 
     def say(r) -> None:
         if r.ok:
-            print(f"ok    {r.kind} {r.name} ({len(r.passed)} contracts, {r.seconds:.1f} s)",
-                  flush=True)
+            # (a contract that could not run is said, not counted passed, an audit of plugins)
+            skipped = "".join(f"; skipped: {c}" for c in r.skipped)
+            print(f"ok    {r.kind} {r.name} ({len(r.passed)} contracts, {r.seconds:.1f} s"
+                  f"{skipped})", flush=True)
         else:
             print(f"FAIL  {r.kind} {r.name}: {r.error}", flush=True)
 

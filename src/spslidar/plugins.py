@@ -31,6 +31,8 @@ __all__ = ["ENV", "code_fingerprint", "load_plugins", "plugin_specs", "raised_in
 ENV = "SPSLIDAR_PLUGINS"
 
 _LOADED: dict[str, object] = {}
+#: the plugins being imported now, innermost last (their keys in ``_LOADED``)
+_IMPORTING: list[str] = []
 #: the errors of the environment's plugins that failed to import with ``import spslidar``
 FAILED: list[str] = []
 
@@ -67,6 +69,14 @@ def _import(spec: str):
             raise
         return module
     return importlib.import_module(spec)
+
+
+def importing() -> str:
+    """The plugin being imported now ('' outside one), as :func:`load_plugins` names it: the
+    registry records it in each entry, so that a stage a plugin package's submodule
+    registers is known to be that plugin's (a fresh process's check was skipped for it
+    without a word, an audit of plugins)."""
+    return _IMPORTING[-1] if _IMPORTING else ""
 
 
 def _place(frame) -> str:
@@ -144,6 +154,7 @@ def load_plugins(specs: list[str] | None = None, export: bool = False) -> list[s
             continue
         if not spec.endswith(".py") and "" not in sys.path and os.getcwd() not in sys.path:
             sys.path.append(os.getcwd())  # (a module beside the data, as python -m finds it)
+        _IMPORTING.append(key)
         try:
             _LOADED[key] = _import(key if spec.endswith(".py") else spec)
         except ConfigError:
@@ -152,6 +163,8 @@ def load_plugins(specs: list[str] | None = None, export: bool = False) -> list[s
             raise ConfigError(f"plugin {spec} failed to import: {type(exc).__name__}: "
                               f"{str(exc).splitlines()[0] if str(exc) else ''}"
                               f"{where(exc)}") from None
+        finally:
+            _IMPORTING.pop()
     if export and specs:
         keys = [str(Path(s).expanduser().resolve()) if s.endswith(".py") else s for s in specs]
         os.environ[ENV] = ",".join(plugin_specs(",".join([*plugin_specs(), *keys])))

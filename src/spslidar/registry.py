@@ -156,6 +156,9 @@ class Entry:
     origin : str
         The module that registered it (``spslidar.*`` for the built-in stages; a plugin's
         own module otherwise, also where it registers a built-in class under a new name).
+    plugin : str
+        The plugin (``--plugin``, ``SPSLIDAR_PLUGINS``) whose import registered it, also
+        from a module that plugin imports; ``''`` outside a plugin's import.
     """
 
     name: str
@@ -166,6 +169,7 @@ class Entry:
     validate: Callable[[Any], None] | None = None
     options: tuple[Option, ...] = ()
     origin: str = ""
+    plugin: str = ""
 
     def load(self) -> Any:
         """The implementation (imported on first use)."""
@@ -310,8 +314,10 @@ class Registry:
         while frame is not None and frame.f_globals.get("__name__") == __name__:
             frame = frame.f_back
         origin = "" if frame is None else str(frame.f_globals.get("__name__", ""))
+        from .plugins import importing
+
         entry = Entry(name, target, display or name, help, dict(defaults), validate,
-                      tuple(options), origin)
+                      tuple(options), origin, importing())
         old = self._entries.get(name)
         if old is not None and old.target != entry.target:
             # (a plugin's "fista" replaced the built-in without a word, and metrics.json still

@@ -27,7 +27,12 @@ import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-__all__ = ["STAGE_KINDS", "CheckResult", "check_stage", "check_stages", "registry_of"]
+__all__ = ["SKIPPED", "STAGE_KINDS", "CheckResult", "check_stage", "check_stages",
+           "registry_of"]
+
+#: how a check function names a contract it could not check here (not a pass: the fresh
+#: process's check of a stage no new interpreter can import was left out without a word)
+SKIPPED = "skipped: "
 
 #: the stage kinds, by the config key that chooses among them, and their check functions
 STAGE_KINDS: dict[str, str] = {
@@ -86,7 +91,8 @@ def check_stage(kind: str, name: str) -> list[str]:
     Returns
     -------
     list of str
-        The contracts it passed.
+        The contracts it passed, and those it could not check here, each as
+        ``"skipped: CONTRACT (why)"`` (:data:`SKIPPED`).
 
     Raises
     ------
@@ -104,13 +110,15 @@ def check_stage(kind: str, name: str) -> list[str]:
 
 @dataclass(frozen=True)
 class CheckResult:
-    """One stage's check: ``error`` is ``None`` where it passed (``passed``: the contracts)."""
+    """One stage's check: ``error`` is ``None`` where it passed (``passed``: the contracts;
+    ``skipped``: those it could not check here, each with why)."""
 
     kind: str
     name: str
     passed: tuple[str, ...]
     error: str | None
     seconds: float
+    skipped: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -155,8 +163,11 @@ def check_stages(kinds: Iterable[str] | None = None, names: Iterable[str] | None
                     plugins_only and not is_plugin(entry)):
                 continue
             t0 = time.perf_counter()
+            skipped: tuple[str, ...] = ()
             try:
-                passed, error = tuple(check_stage(kind, entry.name)), None
+                got, error = check_stage(kind, entry.name), None
+                passed = tuple(c for c in got if not c.startswith(SKIPPED))
+                skipped = tuple(c[len(SKIPPED):] for c in got if c.startswith(SKIPPED))
             except AssertionError as err:
                 passed, error = (), str(err) or "an assertion failed"
             except Exception as err:  # a stage that raises is a failed contract too
@@ -164,7 +175,8 @@ def check_stages(kinds: Iterable[str] | None = None, names: Iterable[str] | None
 
                 passed, error = (), (f"{kind} {entry.name!r} raised {type(err).__name__}: "
                                      f"{err}{where(err)}")
-            res = CheckResult(kind, entry.name, passed, error, time.perf_counter() - t0)
+            res = CheckResult(kind, entry.name, passed, error, time.perf_counter() - t0,
+                              skipped)
             out.append(res)
             if on_result is not None:
                 on_result(res)

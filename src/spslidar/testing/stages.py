@@ -88,13 +88,16 @@ def check_code_family(name: str) -> list[str]:
 
 
 def _same_in_a_fresh_process(kind: str, name: str, what: str, arrays) -> list[str]:
-    """The contract of :mod:`.process` (none where the stage cannot be built afresh), on the
-    probe output ``arrays`` this process built."""
+    """The contract of :mod:`.process` (said skipped where the stage cannot be built
+    afresh), on the probe output ``arrays`` this process built."""
+    from . import SKIPPED, registry_of
     from .process import digest, fresh_digest
 
     there = fresh_digest(kind, name)
     if there is None:
-        return []
+        origin = registry_of(kind).get(name).origin or "this process"
+        return [f"{SKIPPED}the same in a fresh process (registered by {origin}, which a new "
+                f"interpreter does not import: load it with --plugin or SPSLIDAR_PLUGINS)"]
     if set(there) != {digest(arrays)}:
         raise _fail(what, "another output in a fresh process (another PYTHONHASHSEED): a "
                           "sweep's workers would each get their own; draw from the rng given "
