@@ -189,8 +189,9 @@ class Entry:
 
 #: names no stage's option may take: :class:`~spslidar.config.Config`'s own keys and the
 #: other options of ``spslidar run`` (``--noise`` of a plugin's detector crashed the command
-#: line with argparse's "conflicting option string", an audit of plugins). Written out, as
-#: the config imports this module; a test holds it to ``Config``'s fields.
+#: line with argparse's "conflicting option string", an audit of plugins). Written out: the
+#: config imports the stages' packages, which import this module (an import of the config
+#: here would close a circle); a test holds it to ``Config``'s fields and ``run``'s flags.
 RESERVED_NAMES = frozenset({
     "ambient", "auto_gate", "backend", "background_rate", "bit_rate", "code", "code_index",
     "code_length", "compression", "dark_count_rate", "depth", "depth_max", "depth_min",
@@ -262,7 +263,10 @@ class Registry:
         """Register ``target`` under ``name`` (replacing an entry of that name).
 
         An option declared by several entries (``dead_time`` of every detector) must be
-        declared alike (same default, kind and bounds): it is one config key.
+        declared alike (same default, kind and bounds): it is one config key. Each
+        declaration is checked here (a ``ValueError`` line): a name that is a Python
+        identifier and not one of spslidar's own keys (:data:`RESERVED_NAMES`), a kind of
+        ``float``, ``int``, ``bool`` or ``str``, and a default its own bounds admit.
 
         Examples
         --------
