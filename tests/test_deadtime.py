@@ -126,7 +126,8 @@ def test_a_dead_time_the_counts_could_not_pass_through_is_refused():
     span = 1000 * period_s
     ok = np.array([span / 50e-9, 10.0])  # at most T / D + 1
     pileup_report(ok, np.array([1000, 1000]), period_s, det)
-    with pytest.raises(ConfigError, match="marker block 1 holds .* per dead time.*--channel"):
+    with pytest.raises(ConfigError,
+                       match="the block of pattern 1 holds .* per dead time.*--channel"):
         pileup_report(np.array([10.0, span / 50e-9 + 2]), np.array([1000, 1000]), period_s,
                       det)
 

@@ -75,6 +75,12 @@ def test_a_marker_that_ends_its_pattern_is_said_and_read_with_marker_edge_end(tm
     g = _write(tmp_path / "s.ptu", *_events(rng, starts, starts))
     _, notes = read_blocks(g, M, L, bin_width=RES, marker_edge="end")
     assert any("--marker-edge start" in n for n in notes), notes
+    # with a settling time too: the checks read the markers' spacing, not the exposure
+    # (a --settle of 5 periods hid both words: a review of 2026-11-30)
+    _, notes = read_blocks(f, M, L, bin_width=RES, settle=5.5 * L * RES)
+    assert any("--marker-edge end" in n for n in notes), notes
+    _, notes = read_blocks(g, M, L, bin_width=RES, marker_edge="end", settle=5.5 * L * RES)
+    assert any("--marker-edge start" in n for n in notes), notes
 
 
 def test_an_arming_marker_before_the_first_pattern_is_left_out(tmp_path):

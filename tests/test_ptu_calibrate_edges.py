@@ -112,7 +112,7 @@ def test_a_sync_period_mismatch_names_the_code_length_that_fits(tmp_path):
 
 
 def test_the_fitting_code_lengths_in_words():
-    from spslidar.io.ptu import _fitting_codes
+    from spslidar.io.ptu_blocks import _fitting_codes
 
     assert _fitting_codes(1562.5, 16e-12, 0.5).endswith(
         "1562.50 bins at 62.5 GHz: a 1562- or 1563-bit code fits it (or check the bit rate)")

@@ -127,7 +127,7 @@ def test_blocks_without_photons_over_their_dwell_are_left_out_and_said(tmp_path,
     without the dropout (the solve has 172 patterns instead of 192: a little worse is fair)."""
     truth = _acquire(tmp_path, "dropout")
     m, est, err = _reconstruct(tmp_path, capsys)
-    assert "20 marker block(s) (60, 61, 62, 63, 64, ...) hold almost no photons" in err
+    assert "the blocks of 20 pattern(s) (60, 61, 62, 63, 64, ...) hold almost no photons" in err
     assert m["ptu"]["blocks_left_out"] == list(range(60, 80))
     assert m["ptu"]["n_patterns_solved"] == M - 20
     assert len(m["ptu"]["counts_per_pattern"]) == M - 20
@@ -141,7 +141,7 @@ def test_a_stalled_block_is_left_out_and_the_others_keep_their_scale(tmp_path, c
     share of the mean (a map 1.7 times worse); left out, the map is the reference's."""
     truth = _acquire(tmp_path, "stall")
     m, est, err = _reconstruct(tmp_path, capsys)
-    assert "1 marker block(s) (60) hold almost no photons" in err
+    assert "the blocks of 1 pattern(s) (60) hold almost no photons" in err
     assert "over 10000000 code periods" in err
     assert m["ptu"]["blocks_left_out"] == [60]
     assert m["n_periods"] == DWELL  # (the mean dwell without the stall)
@@ -178,10 +178,11 @@ def test_calibrate_leaves_a_dropout_out_and_names_a_gated_detector(tmp_path, cap
     args = ["calibrate", "--ptu", str(tmp_path / "scan.ptu"), "--patterns",
             str(tmp_path / "patterns.npy"), "--code", str(tmp_path / "code.npy"),
             "--bit-rate", "10e9", "--distance", "3.6", "--target", "range"]
-    assert main([*args, "--out", str(cal)]) == 0
-    assert "20 marker block(s) (60, 61, 62, 63, 64, ...) hold almost no photons" in \
+    assert main([*args, "--settle", "1e-6", "--out", str(cal)]) == 0
+    assert "the blocks of 20 pattern(s) (60, 61, 62, 63, 64, ...) hold almost no photons" in \
         capsys.readouterr().err
     assert abs(json.loads(cal.read_text())["delay_bins"]) < 0.5
+    assert json.loads(cal.read_text())["measured_from"]["settle_s"] == 1e-6  # (recorded)
     _acquire(tmp_path, "gated", wall=True)
     assert main([*args, "--out", str(tmp_path / "cal2.json")]) == 0
     assert "the histograms hold no photon in bins" in capsys.readouterr().err
@@ -218,6 +219,8 @@ def test_dropouts_reads_the_background_not_the_patterns():
     short = n.copy()
     short[3] = 40  # (29 background photons: 40 periods of 80 / 7040 photons in 64 bins)
     assert dropouts(counts, short, patterns, total).size == 0
+    # every block flagged is no dropout but a wrong floor: none is left out
+    assert dropouts(np.zeros(8), n, patterns, total).size == 0
     # no background at all: a pattern lighting nothing bright may rightly hold nothing
     assert dropouts(counts, n, patterns, np.zeros(64)).size == 0
 
@@ -254,7 +257,7 @@ def test_tdc_range_note_reads_the_record_type():
 @pytest.mark.parametrize("edge", ["start", "end"])
 def test_settle_drops_each_blocks_first_syncs_and_shortens_its_dwell(tmp_path, edge):
     """``settle_s`` of 7 code periods (rounded up from 6.5): each block's photons in its first
-    7 syncs are dropped and counted, every dwell is 7 shorter, the rest of the histogram is
+    7 syncs are dropped and counted, every exposure is 7 shorter, the rest of the histogram is
     the photons' own (each photon's bin is its sync's distance from its block's start); with
     markers at the patterns' ends, a block starts after the marker before it."""
     from spslidar.io import read_ptu_histograms, write_ptu_t3
@@ -279,7 +282,10 @@ def test_settle_drops_each_blocks_first_syncs_and_shortens_its_dwell(tmp_path, e
     settled = read_ptu_histograms(path, bins, bin_width=res, marker_edge=edge,
                                   settle_s=6.5 * bins * res)
     assert settled.n_dropped_settling == int(np.sum(dtime[marker == 0] < 7)) > 0
-    assert settled.periods_per_pattern.tolist() == (plain.periods_per_pattern - 7).tolist()
+    # (the markers' spacing stays what the block checks read; the exposure is 7 shorter)
+    assert settled.periods_per_pattern.tolist() == plain.periods_per_pattern.tolist()
+    assert settled.exposure_periods.tolist() == (plain.periods_per_pattern - 7).tolist()
+    assert plain.exposure_periods is plain.periods_per_pattern
     assert np.array_equal(settled.histograms[:, 7:], plain.histograms[:, 7:])
     assert not settled.histograms[:, :7].any()
 
@@ -340,7 +346,46 @@ def test_a_marker_a_frame_of_patterns_is_named(tmp_path):
     write_ptu_t3(path, nsync=nsync[order], dtime=np.full(nsync.size, 3), marker=marker[order],
                  resolution_s=1e-10, sync_rate_hz=1e10 / 31)
     with pytest.raises(ConfigError, match="the 8 patterns are 2 times the 4 blocks: a marker a "
-                                          "frame of 2 patterns"):
+                                          "frame of 2 patterns, or an acquisition stopped"):
         read_ptu_histograms(path, 31, bin_width=1e-10, n_patterns=8)
     with pytest.raises(ConfigError, match="fewer than the 7 patterns$"):
         read_ptu_histograms(path, 31, bin_width=1e-10, n_patterns=7)
+    one = tmp_path / "one.ptu"  # (one block is no frame of patterns)
+    write_ptu_t3(one, nsync=np.array([0, 5, 9]), dtime=np.array([0, 3, 3]),
+                 marker=np.array([1, 0, 0]), resolution_s=1e-10, sync_rate_hz=1e10 / 31)
+    with pytest.raises(ConfigError, match="fewer than the 2 patterns$"):
+        read_ptu_histograms(one, 31, bin_width=1e-10, n_patterns=2)
+
+
+@pytest.mark.parametrize("background", [0.0, 1e-8, 3e-8, 1e-7])
+def test_a_dark_nights_blocks_that_light_nothing_are_kept(background):
+    """A 4x4 object alone in range, 0/1 Hadamard patterns (the all-ones row among them), a
+    100 counts/s dark rate at 10 Gb/s (1e-8 per bin and period) or less: the patterns that
+    light none of the object rightly hold (almost) nothing. The floor read from the occupied
+    bins alone was the signal's, and all eight such blocks were left out as dropouts (a
+    review of 2026-11-30)."""
+    from scipy.linalg import hadamard
+
+    rng = np.random.default_rng(5)
+    pats = (hadamard(256) > 0).astype(np.float32)
+    obj = np.zeros((16, 16), bool)
+    obj[6:10, 6:10] = True
+    lit = pats[:, obj.ravel()].sum(axis=1)
+    code = (rng.random(L) < 0.5).astype(float)
+    dwell = np.full(256, 2000)
+    lam = dwell[:, None] * (1e-3 * lit[:, None] * np.roll(code, 40)[None, :] + background)
+    hist = rng.poisson(lam)
+    assert (lit == 0).sum() == 8
+    assert dropouts(hist.sum(axis=1), dwell, pats, hist.sum(axis=0), code).size == 0
+
+
+def test_the_counts_per_pattern_are_the_solved_rows(tmp_path, capsys):
+    """After blocks are left out, ``ptu.counts_per_pattern`` holds the counts of the rows
+    solved (it held the first rows' of the file), in their order."""
+    from spslidar.io import read_ptu_histograms
+
+    _acquire(tmp_path, "dropout")
+    m, _, _ = _reconstruct(tmp_path, capsys)
+    read = read_ptu_histograms(tmp_path / "scan.ptu", L, bin_width=1 / BIT_RATE)
+    kept = np.setdiff1d(np.arange(M), np.arange(60, 80))
+    assert m["ptu"]["counts_per_pattern"] == read.counts_per_pattern[kept].tolist()

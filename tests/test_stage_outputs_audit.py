@@ -260,6 +260,14 @@ def test_a_pattern_kinds_output_is_checked(pattern_kinds, kind, match):
         spslidar.run(**SMALL, patterns=kind)
 
 
+@pytest.mark.parametrize("kind", ["fewrows", "negative"])
+def test_a_pattern_kinds_output_is_checked_on_another_backend(pattern_kinds, kind):
+    """The device path builds a plugin's set on the host and copies it: it ran under
+    ``array-api-strict`` with half its rows or negative mirror states (a review)."""
+    with pytest.raises(ConfigError, match=f"the pattern kind '{kind}' made"):
+        spslidar.run(**SMALL, patterns=kind, backend="array-api-strict")
+
+
 def test_a_pattern_kinds_fault_is_one_line(pattern_kinds, capsys, tmp_path):
     _one_line_refusal(capsys, ["run", *SMALL_ARGS, "--patterns", "negative"], tmp_path / "o",
                       r"^spslidar run: error: the pattern kind 'negative' made mirror states")
@@ -319,7 +327,9 @@ def test_a_replaced_builtin_and_the_plugins_are_recorded(tmp_path, capsys):
     said = ("the depth estimator 'argmax' ('spslidar.depth.argmax:ArgmaxDepth') is replaced "
             "by <class 'spslidar_plugin_replacing.Other'>")
     assert said in m["warnings"]
-    assert m["plugins"] == [str(plugin.resolve())]
+    # (the last loaded: the plugins other tests loaded in this process stay loaded, as they
+    # would in a notebook; a fresh command's list is its own --plugin's)
+    assert m["plugins"][-1] == str(plugin.resolve())
     assert m["code_fingerprint"] == fingerprint and len(fingerprint) == 16
     assert err.count(said) == 1, err  # said at the load, not again by the run
 

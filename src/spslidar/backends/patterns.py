@@ -208,6 +208,11 @@ def device_patterns(be: Any, stream: Any, cfg: Any, m: int) -> Any:
             options[key.split("_", 1)[1]] = getattr(cfg, key)
     host = build_patterns(cfg.patterns, m, cfg.size, stream.host_generator(),
                           dtype=np.float32 if cfg.dtype == "float32" else np.float64, **options)
+    from ..patterns.dense import check_pattern_set
+
+    # (a plugin's set, checked on the host path only, ran on array-api-strict with negative
+    # mirror states and half its rows: a review of 2026-11-30)
+    check_pattern_set(host, cfg.patterns, m, cfg.size)
     if hasattr(host, "matrix"):
         return DevicePatterns(be.asarray(host.matrix), be, cfg.patterns, host)
     if hasattr(host, "rows") and getattr(host, "mode", "shifted") == "shifted":

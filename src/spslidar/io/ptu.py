@@ -27,7 +27,15 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from .ptu_blocks import BOUNCE_TIME_S, _Gaps, _missed_note, _rebin, _to_float32
+from .ptu_blocks import (
+    BOUNCE_TIME_S,
+    _check_resolution,
+    _fitting_codes,
+    _Gaps,
+    _missed_note,
+    _rebin,
+    _to_float32,
+)
 from .ptu_format import (
     _FAMILY,
     PathLike,
@@ -78,6 +86,11 @@ class PtuAcquisition:
         with bin ``dtime // binning >= n_bins``.
     n_dropped_settling : int
         Selected photons dropped within ``settle_s`` of their block's start.
+    settled_periods : numpy.ndarray
+        ``(M,)`` int64 code periods at each block's start whose photons were dropped
+        (``settle_s``; empty without it): the block's exposure is ``periods_per_pattern``
+        less these (:attr:`exposure_periods`), while ``periods_per_pattern`` stays the
+        markers' spacing that the block checks read.
     header : dict
         Header summary, as returned by :func:`ptu_info`.
     periods_per_pattern : numpy.ndarray
@@ -127,6 +140,14 @@ class PtuAcquisition:
     periods_per_sync: int = 1
     detection_gaps: dict[int, Any] = field(default_factory=dict)
     n_dropped_settling: int = 0
+    settled_periods: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+    @property
+    def exposure_periods(self) -> np.ndarray:
+        """Each block's dwell in code periods less its settling (:attr:`settled_periods`)."""
+        if not self.settled_periods.size:
+            return self.periods_per_pattern
+        return self.periods_per_pattern - self.settled_periods
 
     @property
     def n_patterns(self) -> int:
@@ -171,77 +192,6 @@ def _overflows(raw: np.ndarray, family: str) -> tuple[int, int]:
         return n, n
     count = (raw[ofl] & 0x3FF).astype(np.int64)
     return n, int(np.where(count == 0, 1, count).sum())
-
-
-#: the most dtime units one bin can merge: a T3 record's dtime field has 15 bits at most
-DTIME_MAX_BINNING = 2**15
-
-
-#: a bin width within this relative distance of a whole number of dtime units is that number
-#: (a header's resolution is a double: 1e-10 / 4e-12 is 25.000000000000004)
-WHOLE_RTOL = 1e-6
-#: with a fractional ratio, dtime units are first merged into bins of at most a quarter bin
-#: (this many per code bit), which are then split between the code's bits
-REBIN_SUB = 4
-
-
-def _check_resolution(res: float, bin_width: float | None, rtol: float, allow_binning: bool,
-                      path: str) -> tuple[int, float | None]:
-    """dtime units per (intermediate) bin, and with ``allow_binning`` where ``bin_width`` is
-    no whole number of dtime units, the code bit's width in those bins (else ``None``); raise
-    if the file's resolution disagrees with ``bin_width``."""
-    if not res > 0:
-        raise ConfigError(f"{path!r}: header has no dtime resolution (MeasDesc_Resolution)")
-    if bin_width is None:
-        return 1, None
-    if not bin_width > 0:
-        raise ConfigError(f"bin_width must be > 0 seconds, got {bin_width!r}")
-    ratio = bin_width / res
-    if not ratio <= DTIME_MAX_BINNING:  # (a 1e-300 s resolution: 1e290 units a bin, an audit)
-        raise ConfigError(f"{path!r}: dtime resolution {res:.6g} s is {ratio:.3g} times finer "
-                          f"than the bin width {bin_width:.6g} s (1 / --bit-rate), more than a "
-                          f"T3 record's dtime field ({DTIME_MAX_BINNING} units) spans: a "
-                          f"corrupt header or the wrong bit rate")
-    k = max(1, round(ratio))
-    close = abs(ratio - k) <= rtol * ratio
-    if allow_binning and ratio > 1.0 and abs(ratio - k) > WHOLE_RTOL * ratio:
-        # (a TDC of 80 ps under 100 ps bits, MultiHarp 150's, or a code clock 600 ppm off
-        # the TDC's, were refused with advice that led to a second refusal: an outside audit
-        # of 2026-11-30)
-        pre = max(1, int(ratio // REBIN_SUB))
-        return pre, ratio / pre
-    if close and (k == 1 or allow_binning):
-        return k, None
-    hint = (f" (it is {k} dtime units: merge them with --allow-binning, allow_binning=True in "
-            f"Python)" if close else
-            f" (a bin of {res:.6g} s is a bit rate of {1 / res:.6g} Hz: --bit-rate {1 / res:.6g}; "
-            f"or, where the code's bits are 1 / --bit-rate, --allow-binning splits its "
-            f"{res:.6g} s bins between them)" if ratio > 1 else
-            f" (a TDC bin wider than the code's bit cannot be split: a bin of {res:.6g} s is a "
-            f"bit rate of {1 / res:.6g} Hz: --bit-rate {1 / res:.6g})")
-    raise ConfigError(f"{path!r}: dtime resolution {res:.6g} s does not match the bin width "
-                      f"{bin_width:.6g} s (1 / --bit-rate; within {100 * rtol:g} %){hint}")
-
-
-def _fitting_codes(bins: float, width: float, tol: float) -> str:
-    """What code lengths the file's sync period of ``bins`` bins (of ``width`` seconds) fits
-    within ``tol`` bins, in words: the half of the sync period mismatch's message that says
-    what to do."""
-    import math
-
-    head = f"the file's sync period is {bins:.2f} bins at {1e-9 / width:.6g} GHz"
-    if not bins < 2.0**53:  # (an infinite or absurd period has no bits to fit: an audit)
-        return f"the file's sync period is {bins:.3g} bins: check the header and the bit rate"
-    lo, hi = max(1, math.ceil(bins - tol)), math.floor(bins + tol)
-    if hi - lo >= 3:  # (a tolerance of several bins)
-        return f"{head}: codes of {lo} to {hi} bits fit it (or check the bit rate)"
-    if hi >= lo:
-        fit = [f"{n}-" for n in range(lo, hi + 1)]
-        said = fit[0] if len(fit) == 1 else f"{', '.join(fit[:-1])} or {fit[-1]}"
-        return f"{head}: a {said}bit code fits it (or check the bit rate)"
-    near = max(1, round(bins))
-    return (f"{head}: no whole number of bits fits it within {tol:g} bins (the nearest, {near}, "
-            f"is {bins - near:+.3g} bins off); check the bit rate")
 
 
 #: bytes of working memory per record of a chunk (raw word, ptufile's 12-byte decoded record,
@@ -654,13 +604,12 @@ def read_ptu_histograms(
         want = rows - extra_blocks
         # (a DLP's trigger once a frame of several patterns read as missed markers: an audit)
         frame = (f" (the {want} patterns are {want // n_markers} times the {n_markers} blocks: "
-                 f"a marker a frame of {want // n_markers} patterns? reconstruct needs one a "
-                 f"pattern: set the DMD's trigger output to each pattern)"
+                 f"a marker a frame of {want // n_markers} patterns, or an acquisition stopped "
+                 f"early? reconstruct needs a marker a pattern)"
                  if n_markers > 1 and want % n_markers == 0 else "")
         raise ConfigError(f"{spath!r} has {n_markers} marker-delimited blocks on marker input "
-                          f"{marker}, fewer than the {want} patterns"
-                          + (frame or _missed_note(starts[:n_markers], last_sync, marker_edge,
-                                                   fold)))
+                          f"{marker}, fewer than the {want} patterns" + frame
+                          + _missed_note(starts[:n_markers], last_sync, marker_edge, fold))
     if n_markers < rows:  # the extra blocks the file does not hold
         n_after += int(hist[n_markers:].sum(dtype=np.int64))  # ("end": after the last marker)
         rows, hist = n_markers, hist[:n_markers]
@@ -680,12 +629,13 @@ def read_ptu_histograms(
     else:
         end = starts[rows] if n_markers > rows else last_sync + 1
         dwell = np.diff(np.append(starts[:rows], end))
+    settled = np.zeros(0, np.int64)
     if settle:
         if np.median(dwell) <= settle:
             raise ConfigError(f"{spath!r}: the settling time {settle_s:g} s ({settle} syncs) "
                               f"is as long as the blocks' median dwell of "
                               f"{float(np.median(dwell)):.4g} syncs: no photon would be left")
-        dwell = np.maximum(dwell - settle, 0)
+        settled = np.minimum(dwell, settle) * fold
     dwell = dwell * fold  # (in code periods)
     acq = PtuAcquisition(
         histograms=_to_float32(hist) if rebin is None else _rebin(hist, rebin, n_bins),
@@ -694,7 +644,8 @@ def read_ptu_histograms(
         sync_period_s=period, resolution_s=res, bin_width_s=width, binning=binning,
         n_records=n_records, n_photons=n_photons, n_markers=n_markers, n_overflows=n_ofl,
         n_dropped_before_first_marker=n_before, n_dropped_after_last_pattern=n_after,
-        n_out_of_range=n_out, n_dropped_settling=n_settling, header=header,
+        n_out_of_range=n_out, n_dropped_settling=n_settling, settled_periods=settled,
+        header=header,
         periods_per_pattern=dwell,
         periods_per_sync=fold, detection_gaps=gaps.result(),
         photons_per_channel={int(c): int(per_channel[c]) for c in np.flatnonzero(per_channel)})

@@ -100,6 +100,8 @@ def _rows(data, keep: slice, before: int = 0, after: int = 0):
         data, histograms=data.histograms[keep], counts_per_pattern=data.counts_per_pattern[keep],
         pattern_start_sync=data.pattern_start_sync[keep],
         periods_per_pattern=data.periods_per_pattern[keep],
+        settled_periods=data.settled_periods[keep] if data.settled_periods.size
+        else data.settled_periods,
         n_dropped_before_first_marker=data.n_dropped_before_first_marker + before,
         n_dropped_after_last_pattern=data.n_dropped_after_last_pattern + after,
         warnings=said)
@@ -183,15 +185,19 @@ def _merge_bounces(data, m: int, marker: int) -> tuple[Any, list[str]]:
     hist = data.histograms.copy()
     counts = data.counts_per_pattern.copy()
     periods = data.periods_per_pattern.copy()
+    settled = data.settled_periods.copy()  # (each marker's settling: the bounce's too)
     start = data.pattern_start_sync.copy()
     for k in short[::-1]:  # into the next block kept, which starts where the bounce did
         j = k + 1 + int(np.argmax(keep[k + 1:]))
         hist[j] += hist[k]
         counts[j] += counts[k]
         periods[j] += periods[k]
+        if settled.size:
+            settled[j] += settled[k]
         start[j] = start[k]
     data = dataclasses.replace(data, histograms=hist[keep], counts_per_pattern=counts[keep],
-                               pattern_start_sync=start[keep], periods_per_pattern=periods[keep])
+                               pattern_start_sync=start[keep], periods_per_pattern=periods[keep],
+                               settled_periods=settled[keep] if settled.size else settled)
     from ..io.ptu_blocks import block_list
 
     return data, [f"{short.size} of the file's {data.n_markers} marker-delimited blocks on "

@@ -483,7 +483,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                               marker_edge=marker_edge, settle=settle)
     from .screen import screen_blocks
 
-    n_k = np.maximum(data.periods_per_pattern, 1)
+    n_k = np.maximum(data.exposure_periods, 1)  # (less any --settle)
     # (a dropout's blocks left out, a gated detector said: as reconstruct does)
     keep, screen_notes, _ = screen_blocks(data.histograms, n_k, patterns, code, data)
     patterns = patterns[keep]
@@ -522,7 +522,8 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                               "sha256": sha256_file(path),
                               "photons": int(data.counts_per_pattern[keep].sum()),
                               "photons_in_file": int(data.n_photons),
-                              "patterns": int(patterns.shape[0])}}
+                              "patterns": int(patterns.shape[0]),
+                              "settle_s": float(settle)}}
 
 
 def _check_target(target: Any, fov_deg: Any) -> float | None:

@@ -164,7 +164,7 @@ def correct_blocks(hist: np.ndarray, periods: np.ndarray, detector
 
 
 def _check_recordable(counts: np.ndarray, periods: np.ndarray, period_s: float, dead: float,
-                      channel: Any) -> None:
+                      channel: Any, names: Any = None) -> None:
     """Refuse (one line) a dead time no block's counts could have been recorded through: a
     non-paralysable detector records at most one detection per dead time, ``T / D + 1`` over
     a block of ``T`` seconds (the Coates inverse of such counts has no solution, and its
@@ -176,7 +176,8 @@ def _check_recordable(counts: np.ndarray, periods: np.ndarray, period_s: float, 
     k = int(np.argmax(counts * dead / span))
     merged = "" if channel is not None else ", or several channels are merged (--channel)"
     raise ConfigError(
-        f"--dead-time {dead:g}: marker block {k} holds {counts[k]:.0f} detections in "
+        f"--dead-time {dead:g}: the block of pattern "
+        f"{k if names is None else int(np.asarray(names)[k])} holds {counts[k]:.0f} detections in "
         f"{span[k]:.4g} s, {counts[k] * dead / span[k]:.3g} per dead time, where a detector "
         f"with that dead time records at most one: the dead time is too long for this "
         f"file{merged}")
@@ -239,7 +240,7 @@ def apparent_dead_time(gaps: dict, span_s: float) -> float | None:
 
 
 def pileup_report(counts: np.ndarray, periods: np.ndarray, period_s: float, detector,
-                  channel: Any = None, gaps: dict | None = None
+                  channel: Any = None, gaps: dict | None = None, names: Any = None
                   ) -> tuple[dict[str, Any], list[str]]:
     """What ``metrics.json``'s ``detector`` says of a measured acquisition's count rate and
     dead time, and the warnings to give.
@@ -252,7 +253,8 @@ def pileup_report(counts: np.ndarray, periods: np.ndarray, period_s: float, dete
     (:func:`apparent_dead_time`) where they show one. With one, the GMAPD's own report
     (detections and incident photons per dead time) and its word on saturation, after the
     file's gaps between detections (``gaps``, the reader's ``detection_gaps``) are checked
-    against it.
+    against it. ``names``: each row's pattern number, for a refusal's words (default the
+    row).
     """
     counts = np.asarray(counts, dtype=np.float64)
     dwell = float(np.maximum(np.asarray(periods, dtype=np.float64), 1).sum())
@@ -286,7 +288,7 @@ def pileup_report(counts: np.ndarray, periods: np.ndarray, period_s: float, dete
     if detector.dead_time > 0:  # (a saturated inverse ran for many minutes: refused first)
         _check_gaps(gaps, float(detector.dead_time))
         _check_recordable(counts, np.maximum(np.asarray(periods, np.float64), 1), period_s,
-                          float(detector.dead_time), channel)
+                          float(detector.dead_time), channel, names)
     out = detector.report(rate * period_s, period_s)
     out.update({"model": "measured", "dead_time_s": float(detector.dead_time),
                 "afterpulse_prob": float(detector.afterpulse_prob),
@@ -300,7 +302,8 @@ def pileup_report(counts: np.ndarray, periods: np.ndarray, period_s: float, dete
 
 
 def apply_dead_time(hist: np.ndarray, counts: np.ndarray, periods: np.ndarray,
-                    period_s: float, detector, channel: Any = None, gaps: dict | None = None
+                    period_s: float, detector, channel: Any = None, gaps: dict | None = None,
+                    names: Any = None
                     ) -> tuple[np.ndarray, np.ndarray | None, dict[str, Any], list[str]]:
     """A measured acquisition's blocks through its detector's dead time, as ``reconstruct``
     and ``calibrate`` take them: :func:`pileup_report` of the ``counts``, then, where a dead
@@ -312,7 +315,7 @@ def apply_dead_time(hist: np.ndarray, counts: np.ndarray, periods: np.ndarray,
     (histograms, noise_totals, report, notes)
         ``hist`` itself and ``None`` where nothing is corrected.
     """
-    report, notes = pileup_report(counts, periods, period_s, detector, channel, gaps)
+    report, notes = pileup_report(counts, periods, period_s, detector, channel, gaps, names)
     if not report["corrected"]:
         return hist, None, report, notes
     fixed, noise = correct_blocks(hist, periods, detector)

@@ -453,7 +453,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     # the reader's dwell: to the next block's marker, also where that block is not a pattern
     # (the file's ends, recomputed here, gave the last of m rows in an (m + 1)-block file the
     # extra block's periods too: twice its dwell, its histogram halved)
-    n_k = np.maximum(data.periods_per_pattern, 1).astype(np.float64)
+    n_k = np.maximum(data.exposure_periods, 1).astype(np.float64)  # (less any --settle)
     hist = data.histograms.astype(np.float64)
     rows = np.arange(m)  # the blocks kept, for the metrics (the rest are named in warnings)
     if m > 1 and data.ends_in_empty_block:
@@ -486,7 +486,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         m, n_k, hist, patterns, rows = keep.size, n_k[keep], hist[keep], patterns[keep], rows[keep]
     # (before the dwells are evened out: each block with its own)
     hist, noise_totals, pile, pile_notes = apply_dead_time(
-        hist, hist.sum(axis=1), n_k, period * bin_width, detector, channel, data.detection_gaps)
+        hist, hist.sum(axis=1), n_k, period * bin_width, detector, channel, data.detection_gaps,
+        rows)
     dwell_warning += pile_notes
     from .drift import drift_note, timing_drift
 
@@ -497,9 +498,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     short = np.flatnonzero(n_k < 0.5 * np.median(n_k))
     if short.size:
         dwell_warning.append(
-            f"{short.size} pattern(s) (first: {int(short[0])}) have less than half the median "
-            f"dwell of {np.median(n_k):.0f} code periods (the last block of a cut acquisition, "
-            f"or markers missed?); their histograms are scaled up to the mean dwell")
+            f"{short.size} pattern(s) (first: {int(rows[short[0]])}) have less than half the "
+            f"median dwell of {np.median(n_k):.0f} code periods (the last block of a cut "
+            f"acquisition, or markers missed?); their histograms are scaled up to the mean "
+            f"dwell")
     hist *= (n_mean / n_k)[:, None]
     if noise_totals is not None:  # (the counts' own totals, scaled as they are below)
         noise_totals = noise_totals * (n_mean / n_k)

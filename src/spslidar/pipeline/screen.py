@@ -62,7 +62,8 @@ EMPTY_MIN_BINS = 8
 EMPTY_MIN_MEAN = 20.0
 
 
-def dropouts(counts: Any, periods: Any, patterns: Any, total: Any) -> np.ndarray:
+def dropouts(counts: Any, periods: Any, patterns: Any, total: Any,
+             code: Any = None) -> np.ndarray:
     """The blocks whose photons are too few for their dwell: a dropout or a stall.
 
     Parameters
@@ -75,6 +76,9 @@ def dropouts(counts: Any, periods: Any, patterns: Any, total: Any) -> np.ndarray
         The pattern shown in each block (its light: the sum of its mirrors' values).
     total : array_like, shape (L,)
         The acquisition's histogram over the code period (all blocks summed).
+    code : array_like, shape (L,), optional
+        The code, for :func:`empty_window` (a part of the period never recorded is left out
+        of the background's floor); None: every bin is recorded.
 
     Returns
     -------
@@ -83,20 +87,27 @@ def dropouts(counts: Any, periods: Any, patterns: Any, total: Any) -> np.ndarray
         photons the background alone gives over their dwell, where that is
         :data:`DROPOUT_EXPECTED` or more and the block's pattern shows at least
         :data:`DARK_PATTERN` of the median pattern's light. The background per bin and
-        period is the :data:`FLOOR_QUANTILE` quantile of ``total``'s occupied bins over the
-        blocks' dwells (each at most twice the median: a stall's periods hold nothing), over
-        the occupied bins only (a gated detector's other bins record nothing).
+        period is the :data:`FLOOR_QUANTILE` quantile of ``total``'s recorded bins over the
+        blocks' dwells (each at most twice the median: a stall's periods hold nothing): with
+        little background most of the code's zeros hold no photon and the floor is 0 (the
+        quantile of the occupied bins alone was the signal's, and a dark night's blocks that
+        lit nothing were flagged: a review of 2026-11-30).
     """
     c = np.asarray(counts, dtype=np.float64)
     n = np.maximum(np.asarray(periods, dtype=np.float64), 1.0)
     h = np.asarray(total, dtype=np.float64)
-    occupied = h > 0
-    if c.size < 3 or not occupied.any():
+    recorded = np.ones(h.size, bool)
+    window = None if code is None else empty_window(h, code)
+    if window is not None:
+        recorded[(window[0] + np.arange(window[1])) % h.size] = False
+    if c.size < 3 or not (h[recorded] > 0).any():
         return np.zeros(0, np.int64)
-    floor = float(np.quantile(h[occupied], FLOOR_QUANTILE))
+    floor = float(np.quantile(h[recorded], FLOOR_QUANTILE))
     per_bin = floor / float(np.minimum(n, 2.0 * np.median(n)).sum())
-    expected = n * per_bin * int(occupied.sum())  # background photons over each dwell
-    light = np.clip(np.asarray(patterns, dtype=np.float64), 0.0, None).sum(axis=1)
+    expected = n * per_bin * int(recorded.sum())  # background photons over each dwell
+    # (mirror states in [0, 1], checked by the callers; summed in float64 without a copy of
+    # the whole set: a clipped float64 copy peaked at 1 GB for 4096 patterns of 128 x 128)
+    light = np.asarray(patterns).sum(axis=1, dtype=np.float64)
     lit = light >= DARK_PATTERN * np.median(light)
     flagged = lit & (expected >= DROPOUT_EXPECTED) & (c < DROPOUT_SHARE * expected)
     return np.flatnonzero(flagged) if flagged.sum() < c.size else np.zeros(0, np.int64)
@@ -105,8 +116,8 @@ def dropouts(counts: Any, periods: Any, patterns: Any, total: Any) -> np.ndarray
 def dropout_note(flagged: np.ndarray, counts: Any, periods: Any,
                  names: Any = None) -> str:
     """One line naming the blocks :func:`dropouts` flagged (``flagged``, indices into
-    ``counts`` and ``periods``; ``names``: each row's block number in the file, default the
-    index) and why they are left out."""
+    ``counts`` and ``periods``; ``names``: each row's pattern number, default the index) and
+    why they are left out."""
     from ..io.ptu_blocks import block_list
 
     c = np.asarray(counts, dtype=np.float64)
@@ -115,9 +126,9 @@ def dropout_note(flagged: np.ndarray, counts: Any, periods: Any,
     keep = np.setdiff1d(np.arange(c.size), flagged)
     typical = float(np.median(c[keep] / np.maximum(n[keep], 1.0)))
     worst = int(flagged[int(np.argmax(n[flagged]))])
-    return (f"{flagged.size} marker block(s) ({block_list(names[flagged])}) hold almost no "
-            f"photons for their dwell: {int(c[worst])} over {int(n[worst])} code periods "
-            f"(block {int(names[worst])}), where the other blocks count {typical:.3g} per "
+    return (f"the blocks of {flagged.size} pattern(s) ({block_list(names[flagged])}) hold "
+            f"almost no photons for their dwell: {int(c[worst])} over {int(n[worst])} code periods "
+            f"(pattern {int(names[worst])}), where the other blocks count {typical:.3g} per "
             f"period (the detector or the laser off: an overload shutdown, an interlock, a "
             f"shutter; or a TCSPC running on while the DMD or the laser waited): their pattern "
             f"rows are left out of the solve")
@@ -221,7 +232,7 @@ def screen_blocks(hist: np.ndarray, periods: np.ndarray, patterns: Any, code: An
     data : spslidar.io.PtuAcquisition
         The file read (its header, resolution and sync period).
     names : array_like, optional
-        Each row's block number in the file (default the row).
+        Each row's pattern number (its row in ``--patterns``; default the row).
 
     Returns
     -------
@@ -235,7 +246,7 @@ def screen_blocks(hist: np.ndarray, periods: np.ndarray, patterns: Any, code: An
     """
     notes = []
     counts = hist.sum(axis=1)
-    gone = dropouts(counts, periods, patterns, hist.sum(axis=0))
+    gone = dropouts(counts, periods, patterns, hist.sum(axis=0), code)
     if gone.size:
         notes.append(dropout_note(gone, counts, periods, names))
     keep = np.setdiff1d(np.arange(hist.shape[0]), gone)
