@@ -379,10 +379,17 @@ METRICS: dict[str, str] = {
               "options measured (a simulation's scene, photons and patterns did not apply).",
     "seed": "The random seed.",
     "version": "spslidar version that wrote the file.",
+    "plugins": "The plugins loaded in the process that wrote the file (``--plugin``, "
+               "``SPSLIDAR_PLUGINS``), by module or path; empty without any.",
+    "code_fingerprint": "A hash of spslidar's source and the plugins' "
+                        "(``spslidar.plugins.code_fingerprint``): two files with the same "
+                        "one were written by the same code.",
     "point_cloud": ("``points.ply``: file name, field of view (degrees), number of points "
                     "and of second-surface points among them, the per-point fields."),
     "ptu": "``reconstruct`` only: the PTU file read, its photons and code periods per "
-           "pattern, the background, the blocks left out, and ``timing_drift_bins`` (with "
+           "pattern, the background, the blocks left out (``blocks_left_out``: a dropout or "
+           "a stall, ``spslidar.pipeline.screen``), ``settle_s`` and "
+           "``n_dropped_settling`` (``--settle``), and ``timing_drift_bins`` (with "
            "``timing_drift_se_bins``): how much later the returns arrive at the last pattern "
            "than at the first, and ``timing_drift_span_bins``, how far apart the eight "
            "groups of patterns read (null with fewer than 64 patterns or no return to "

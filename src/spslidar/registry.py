@@ -25,7 +25,7 @@ from typing import Any
 
 from .errors import ConfigError
 
-__all__ = ["Entry", "Option", "Registry", "lazy_exports"]
+__all__ = ["RESERVED_NAMES", "Entry", "Option", "Registry", "lazy_exports"]
 
 
 @dataclass(frozen=True)

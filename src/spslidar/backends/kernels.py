@@ -191,7 +191,7 @@ class TVProx:
         FGP stops when ``||p_k - p_{k-1}|| <= inner_tol ||p_k||``.
     be : Backend
         The backend that brings the stopping test's scalars to the host, one transfer each
-        (:func:`scalars`); every caller passes it.
+        (``scalars``); every caller passes it.
     """
 
     def __init__(self, xp: Any, image_shape: tuple[int, int], nonneg: bool = True,

@@ -40,15 +40,12 @@ from __future__ import annotations
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
 from ..constants import MAX_COUNT_MEAN
 from ..errors import ConfigError
-
-if TYPE_CHECKING:
-    from ..patterns.base import PatternOperator
 
 AMBIENT_MODELS = ("paper", "modulated")
 #: row blocks for the Poisson draws (fixed, so results do not depend on the thread count)
@@ -94,11 +91,11 @@ class NoiseModel:
         if self.background_rate < 0 or self.dark_count_rate < 0:
             raise ConfigError("background and dark count rates must be non-negative")
 
-    def per_bin(self, patterns: PatternOperator | np.ndarray, reflectivity: np.ndarray,
+    def per_bin(self, patterns: Any, reflectivity: np.ndarray,
                 bin_width: float, modulation: np.ndarray | None = None) -> np.ndarray:
         """Noise counts per TDC bin for each pattern (one code period), shape ``(M,)``.
 
-        ``modulation``: the patterns' products with the reflectivity, ``Phi alpha`` (``(M,)``),
+        ``patterns``: the ``(M, Q)`` pattern operator or matrix. ``modulation``: the patterns' products with the reflectivity, ``Phi alpha`` (``(M,)``),
         where the caller computes them (patterns on a device); default computed here. Only
         the ``modulated`` ambient light uses them.
 
