@@ -23,3 +23,26 @@ def calibrated_wall(tmp_path_factory):
                  str(d / "a_patterns.npy"), "--code", str(d / "a_code.npy"), "--bit-rate",
                  "10e9", "--distance", "5", "--out", str(d / "cal.json")]) == 0
     return d
+
+
+@pytest.fixture
+def plugin_state(monkeypatch, tmp_path_factory):
+    """The plugins a test loads are left behind it: ``--plugin`` records the file in
+    ``spslidar.plugins._LOADED``, puts its folder on ``sys.path`` and imports it (and its
+    siblings) into ``sys.modules``, which later tests' code fingerprints and tracebacks read
+    (two tests leaked them: an audit of the tests). Test files of plugins use it autouse."""
+    import sys
+
+    import spslidar.plugins as plugins
+
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    loaded = dict(plugins._LOADED)
+    before = set(sys.modules)
+    yield
+    plugins._LOADED.clear()
+    plugins._LOADED.update(loaded)
+    base = str(tmp_path_factory.getbasetemp())
+    for name in set(sys.modules) - before:
+        if (name.startswith("spslidar_plugin")
+                or str(getattr(sys.modules[name], "__file__", "") or "").startswith(base)):
+            del sys.modules[name]

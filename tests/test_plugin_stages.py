@@ -165,26 +165,8 @@ ESTIMATORS.add("centroid", Centroid, "centroid", "argmax with --half-width",
 
 
 @pytest.fixture(autouse=True)
-def _plugin_state(monkeypatch, tmp_path_factory):
-    """Every test leaves the plugins it loaded behind it: ``--plugin`` records the file in
-    ``spslidar.plugins._LOADED``, puts its folder on ``sys.path`` and imports it (and its
-    siblings) into ``sys.modules``, which later tests' code fingerprints and tracebacks read
-    (two tests here leaked them: an audit of the tests)."""
-    import sys
-
-    import spslidar.plugins as plugins
-
-    monkeypatch.setattr(sys, "path", list(sys.path))
-    loaded = dict(plugins._LOADED)
-    before = set(sys.modules)
-    yield
-    plugins._LOADED.clear()
-    plugins._LOADED.update(loaded)
-    base = str(tmp_path_factory.getbasetemp())
-    for name in set(sys.modules) - before:
-        if (name.startswith("spslidar_plugin")
-                or str(getattr(sys.modules[name], "__file__", "") or "").startswith(base)):
-            del sys.modules[name]
+def _plugin_state(plugin_state):
+    """Every test leaves the plugins it loaded behind it (``conftest.plugin_state``)."""
 
 
 @pytest.fixture

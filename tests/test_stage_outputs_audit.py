@@ -24,26 +24,12 @@ SMALL_ARGS = ["--size", "8", "--code-length", "127", "--scene", "steps", "--dept
 
 
 @pytest.fixture(autouse=True)
-def _plugin_state(monkeypatch, tmp_path_factory):
-    """Each test leaves the plugins it loaded behind it (``--plugin`` records the file in
-    ``spslidar.plugins._LOADED``, puts its folder on ``sys.path`` and sets the environment),
-    as ``tests/test_plugin_stages.py`` does."""
-    import sys
-
+def _plugin_state(plugin_state, monkeypatch):
+    """Each test leaves the plugins it loaded behind it (``conftest.plugin_state``), and the
+    environment's plugins out."""
     import spslidar.plugins as plugins
 
-    monkeypatch.setattr(sys, "path", list(sys.path))
     monkeypatch.setenv(plugins.ENV, "")
-    loaded = dict(plugins._LOADED)
-    before = set(sys.modules)
-    yield
-    plugins._LOADED.clear()
-    plugins._LOADED.update(loaded)
-    base = str(tmp_path_factory.getbasetemp())
-    for name in set(sys.modules) - before:
-        if (name.startswith("spslidar_plugin")
-                or str(getattr(sys.modules[name], "__file__", "") or "").startswith(base)):
-            del sys.modules[name]
 
 
 def _one_line_refusal(capsys, args, out, match):
