@@ -95,9 +95,10 @@ class NoiseModel:
                 bin_width: float, modulation: np.ndarray | None = None) -> np.ndarray:
         """Noise counts per TDC bin for each pattern (one code period), shape ``(M,)``.
 
-        ``patterns``: the ``(M, Q)`` pattern operator or matrix. ``modulation``: the patterns' products with the reflectivity, ``Phi alpha`` (``(M,)``),
-        where the caller computes them (patterns on a device); default computed here. Only
-        the ``modulated`` ambient light uses them.
+        ``patterns``: the ``(M, Q)`` pattern operator or matrix. ``modulation``: the
+        patterns' products with the reflectivity, ``Phi alpha`` (``(M,)``), where the caller
+        computes them (patterns on a device); default computed here. Only the ``modulated``
+        ambient light uses them.
 
         Notes
         -----
