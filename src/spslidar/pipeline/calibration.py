@@ -451,7 +451,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     :class:`~spslidar.errors.ConfigError`."""
     from ..version import __version__
     from .blocks import read_blocks
-    from .deadtime import apply_dead_time, dead_time_model
+    from .deadtime import dead_time_model
     from .real import (
         check_code,
         check_patterns,
@@ -481,22 +481,16 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     data, notes = read_blocks(ptu, int(patterns.shape[0]), int(code.size), bin_width=bin_width,
                               marker=marker, channel=channel, allow_binning=allow_binning,
                               marker_edge=marker_edge, settle=settle)
-    from .screen import screen_blocks
+    from .screen import measured_blocks
 
-    n_k = np.maximum(data.exposure_periods, 1)  # (less any --settle)
-    # (a dropout's blocks left out, a gated detector said: as reconstruct does)
-    keep, screen_notes, _ = screen_blocks(data.histograms, n_k, patterns, code, data)
+    # (a dropout's blocks left out, a gated detector said, pile-up corrected, the drift
+    # read, which widens the response a wall's acquisition reads: as reconstruct does)
+    blocks = measured_blocks(data.histograms, data.counts_per_pattern,
+                             np.maximum(data.exposure_periods, 1), patterns, code, data,
+                             detector, channel, bin_width)
+    keep, hists, pile, drift = blocks.keep, blocks.hist, blocks.pile, blocks.drift
     patterns = patterns[keep]
-    hists, _, pile, pile_notes = apply_dead_time(
-        data.histograms[keep], data.counts_per_pattern[keep], n_k[keep],
-        code.size * bin_width, detector, channel, data.detection_gaps)
-    for note in notes + screen_notes + pile_notes:
-        warnings.warn(note, stacklevel=2)
-    from .drift import drift_note, timing_drift
-
-    drift = timing_drift(hists, code)
-    note = drift_note(drift, bin_width)
-    if note:  # (a drift over the wall's acquisition widens the response it reads)
+    for note in notes + blocks.notes:
         warnings.warn(note, stacklevel=2)
     total = hists.astype(np.float64).sum(axis=0)
     with warnings.catch_warnings(record=True) as said:  # kept in the file, and said again

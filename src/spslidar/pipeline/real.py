@@ -442,7 +442,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     if truth is not None:
         truth = _check_truth(truth, n)
         truth_note = truth_outside_gate(truth, cfg.range_gate)
-    from .deadtime import apply_dead_time, dead_time_model
+    from .deadtime import dead_time_model
 
     detector = dead_time_model(bin_width, dead_time, afterpulse_prob, afterpulse_delay)
     _check_solve_time(cfg, m, q, int(gate_lags(cfg.range_gate, bin_width).size), period)
@@ -476,24 +476,17 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
             f"the solve")
         keep = np.setdiff1d(np.arange(m), empty)
         m, n_k, hist, patterns, rows = keep.size, n_k[keep], hist[keep], patterns[keep], rows[keep]
-    from .screen import screen_blocks
+    from .screen import measured_blocks
 
-    # a dropout or a stall left out; a part of the period never recorded said, and then no
-    # share of returns outside the gate is read
-    keep, notes, partial = screen_blocks(hist, n_k, patterns, code, data, rows)
-    dwell_warning += notes
+    # a dropout or a stall left out; a part of the period never recorded said (and then no
+    # share of returns outside the gate is read); pile-up corrected; the drift read
+    blocks = measured_blocks(hist, hist.sum(axis=1), n_k, patterns, code, data, detector,
+                             channel, bin_width, rows)
+    keep, partial, pile, drift = blocks.keep, blocks.partial, blocks.pile, blocks.drift
     if keep.size < m:
-        m, n_k, hist, patterns, rows = keep.size, n_k[keep], hist[keep], patterns[keep], rows[keep]
-    # (before the dwells are evened out: each block with its own)
-    hist, noise_totals, pile, pile_notes = apply_dead_time(
-        hist, hist.sum(axis=1), n_k, period * bin_width, detector, channel, data.detection_gaps,
-        rows)
-    dwell_warning += pile_notes
-    from .drift import drift_note, timing_drift
-
-    drift = timing_drift(hist, code)
-    note = drift_note(drift, bin_width)
-    dwell_warning += [note] if note else []
+        m, n_k, patterns, rows = keep.size, n_k[keep], patterns[keep], rows[keep]
+    hist, noise_totals = blocks.hist, blocks.noise_totals
+    dwell_warning += blocks.notes
     n_mean = float(n_k.mean())
     short = np.flatnonzero(n_k < 0.5 * np.median(n_k))
     if short.size:

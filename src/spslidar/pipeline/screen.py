@@ -31,13 +31,14 @@ screening of a marker-split time-tag file.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 __all__ = ["DARK_PATTERN", "DROPOUT_EXPECTED", "DROPOUT_SHARE", "EMPTY_MIN_BINS",
            "EMPTY_MIN_MEAN", "FLOOR_QUANTILE", "dropout_note", "dropouts", "empty_window",
-           "empty_window_note", "screen_blocks", "tdc_range_note"]
+           "empty_window_note", "MeasuredBlocks", "measured_blocks", "screen_blocks",
+           "tdc_range_note"]
 
 #: a block holding fewer than this share of the photons its dwell gives at the acquisition's
 #: background rate alone is no measurement (the background reaches the detector whatever
@@ -63,7 +64,7 @@ EMPTY_MIN_MEAN = 20.0
 
 
 def dropouts(counts: Any, periods: Any, patterns: Any, total: Any,
-             code: Any = None) -> np.ndarray:
+             code: Any = None, window: tuple[int, int] | None = None) -> np.ndarray:
     """The blocks whose photons are too few for their dwell: a dropout or a stall.
 
     Parameters
@@ -79,6 +80,9 @@ def dropouts(counts: Any, periods: Any, patterns: Any, total: Any,
     code : array_like, shape (L,), optional
         The code, for :func:`empty_window` (a part of the period never recorded is left out
         of the background's floor); None: every bin is recorded.
+    window : (int, int), optional
+        :func:`empty_window` of ``total`` where the caller has it (``code`` is then not
+        read).
 
     Returns
     -------
@@ -97,7 +101,8 @@ def dropouts(counts: Any, periods: Any, patterns: Any, total: Any,
     n = np.maximum(np.asarray(periods, dtype=np.float64), 1.0)
     h = np.asarray(total, dtype=np.float64)
     recorded = np.ones(h.size, bool)
-    window = None if code is None else empty_window(h, code)
+    if window is None and code is not None:
+        window = empty_window(h, code)
     if window is not None:
         recorded[(window[0] + np.arange(window[1])) % h.size] = False
     if c.size < 3 or not (h[recorded] > 0).any():
@@ -246,13 +251,57 @@ def screen_blocks(hist: np.ndarray, periods: np.ndarray, patterns: Any, code: An
     """
     notes = []
     counts = hist.sum(axis=1)
-    gone = dropouts(counts, periods, patterns, hist.sum(axis=0), code)
+    total = hist.sum(axis=0)
+    window = empty_window(total, code)
+    gone = dropouts(counts, periods, patterns, total, window=window)
+    keep = np.setdiff1d(np.arange(hist.shape[0]), gone)
     if gone.size:
         notes.append(dropout_note(gone, counts, periods, names))
-    keep = np.setdiff1d(np.arange(hist.shape[0]), gone)
+        total = hist[keep].sum(axis=0)  # (the kept blocks' own, as solved)
+        window = empty_window(total, code)
     note = tdc_range_note(data.header, data.resolution_s, data.sync_period_s)
-    if note is None:
-        window = empty_window(hist[keep].sum(axis=0), code)
-        note = None if window is None else empty_window_note(window, hist[keep].sum(axis=0))
+    if note is None and window is not None:
+        note = empty_window_note(window, total)
     notes += [note] if note else []
     return keep, notes, note is not None
+
+
+class MeasuredBlocks(NamedTuple):
+    """What :func:`measured_blocks` gives: ``keep`` (the rows solved), ``hist`` (their
+    histograms, corrected for pile-up where a dead time was given), ``noise_totals`` (the
+    corrected counts' noise totals, or None), ``pile`` (``metrics.json``'s ``detector``),
+    ``drift`` (:func:`~spslidar.pipeline.drift.timing_drift`), ``notes`` (the warnings, in
+    order) and ``partial`` (a part of the period never recorded)."""
+
+    keep: np.ndarray
+    hist: np.ndarray
+    noise_totals: np.ndarray | None
+    pile: dict
+    drift: Any
+    notes: list[str]
+    partial: bool
+
+
+def measured_blocks(hist: np.ndarray, counts: Any, periods: Any, patterns: Any, code: Any,
+                    data: Any, detector: Any, channel: Any, bin_width: float,
+                    names: Any = None) -> MeasuredBlocks:
+    """A measured file's blocks as ``reconstruct`` and ``calibrate`` both take them:
+    screened (:func:`screen_blocks`), the kept ones through the detector's dead time
+    (:func:`~spslidar.pipeline.deadtime.apply_dead_time`, each with its own dwell, before the
+    dwells are evened out), and their timing drift read
+    (:func:`~spslidar.pipeline.drift.timing_drift`). ``counts``: each row's photons;
+    ``periods``: each row's exposure in code periods; ``names``: each row's pattern number
+    (default the row), for the warnings; ``bin_width``: seconds a bin."""
+    from .deadtime import apply_dead_time
+    from .drift import drift_note, timing_drift
+
+    keep, notes, partial = screen_blocks(hist, periods, patterns, code, data, names)
+    rows = slice(None) if keep.size == hist.shape[0] else keep  # (no copy where all stay)
+    names = np.arange(hist.shape[0]) if names is None else np.asarray(names)
+    fixed, noise_totals, pile, pile_notes = apply_dead_time(
+        hist[rows], np.asarray(counts)[rows], np.asarray(periods)[rows],
+        np.size(code) * bin_width, detector, channel, data.detection_gaps, names[rows])
+    drift = timing_drift(fixed, code)
+    note = drift_note(drift, bin_width)
+    return MeasuredBlocks(keep, fixed, noise_totals, pile, drift,
+                          notes + pile_notes + ([note] if note else []), partial)
