@@ -83,6 +83,17 @@ def positive_number(v: Any, what: str, *, integer: bool = False,
     return int(x) if integer else x
 
 
+def real_number(value: Any) -> float | None:
+    """``value`` as a float where it is a real number (not a bool, text or bytes, which
+    ``float()`` takes: ``dead_time=False`` read as 0 and ``'1e-7'`` was taken, an outside
+    audit of 2026-11-30), else ``None``: the caller says what it wanted, in its own words
+    (``--dead-time``, ``--settle``)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, int | float | np.integer
+                                                              | np.floating):
+        return None
+    return float(value)
+
+
 def same_length(a: np.ndarray, n: int, what: str, of: str) -> None:
     """Refuse (one line) ``a`` whose length is not ``n``, the length of ``of``: numpy's
     broadcast and matmul errors named neither argument."""

@@ -347,18 +347,18 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
         One line each: the block left out, a marker edge that looks wrong, photons left out
         beyond :data:`DROPPED_SHARE`.
     """
+    from ..arrays import real_number
     from ..io import read_ptu_histograms
 
-    if (isinstance(settle, bool | np.bool_) or not isinstance(settle, int | float | np.integer
-                                                               | np.floating)
-            or not (math.isfinite(settle) and settle >= 0)):
+    seconds = real_number(settle)  # (not a bool or text: as --dead-time is judged)
+    if seconds is None or not (math.isfinite(seconds) and seconds >= 0):
         raise ConfigError(f"--settle must be a number of seconds >= 0, got {settle!r}")
 
     def read(extra: int):
         return read_ptu_histograms(ptu, n_bins, bin_width=bin_width, marker=marker,
                                    channel=channel, n_patterns=m, extra_blocks=extra,
                                    marker_edge=marker_edge, allow_binning=allow_binning,
-                                   settle_s=settle)
+                                   settle_s=seconds)
 
     data = read(2 + max(BOUNCE_EXTRA, m // BOUNCE_ROWS))
     if data.n_patterns < data.n_markers <= 2 * m + 2:  # (more markers than that, up to two

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ..arrays import real_number
 from ..errors import ConfigError
 
 __all__ = ["DEAD_TIME_KEYS", "GAP_EVIDENCE", "LOSS_TO_WARN", "MAX_DETECTOR_RATE_HZ",
@@ -47,19 +48,9 @@ MAX_DEAD_TIME_S = 1e-3
 CORRECT_ROWS = 64
 
 
-def _real(value: Any) -> float | None:
-    """``value`` as a float where it is a real number (not a bool, text or bytes, which
-    ``float()`` takes: ``dead_time=False`` read as 0 and ``'1e-7'`` was taken, an outside
-    audit of 2026-11-30), else ``None``."""
-    if isinstance(value, bool | np.bool_) or not isinstance(value, int | float | np.integer
-                                                              | np.floating):
-        return None
-    return float(value)
-
-
 def _time(value: Any, flag: str) -> float:
     """A non-negative time in seconds of at most ``MAX_DEAD_TIME_S``, or one line."""
-    t = _real(value)
+    t = real_number(value)
     if t is None:
         raise ConfigError(f"{flag} must be a time in seconds, got {value!r}")
     if not (math.isfinite(t) and 0.0 <= t <= MAX_DEAD_TIME_S):
@@ -97,7 +88,7 @@ def dead_time_model(bin_width: float, dead_time: Any = None, afterpulse_prob: An
     """
     prob = afterpulse_prob if afterpulse_prob is not None else 0.0
     delay = afterpulse_delay if afterpulse_delay is not None else 0.0
-    p = _real(prob)
+    p = real_number(prob)
     if p is None or not (math.isfinite(p) and 0.0 <= p < 1.0):
         raise ConfigError(f"--afterpulse-prob must be a probability in [0, 1), got {prob!r}")
     delay = _time(delay, "--afterpulse-delay")
