@@ -340,6 +340,11 @@ class Registry:
         self._entries[name] = entry
         return entry
 
+    def replaced(self, name: str) -> Entry | None:
+        """The built-in entry that :meth:`add` replaced under ``name`` (None where none was),
+        for a run's record of what it used."""
+        return self._replaced.get(name)
+
     def remove(self, name: str) -> Entry:
         """Take back what :meth:`add` registered under ``name``: a built-in stage it replaced
         comes back, or the name goes (a notebook cell run twice, then taken back, leaves

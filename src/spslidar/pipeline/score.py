@@ -249,7 +249,7 @@ def replaced_stages(cfg: Config) -> list[str]:
               (ESTIMATORS, cfg.depth), (SCENES, str(cfg.scene).strip().partition(":")[0]))
     out = []
     for reg, name in chosen:
-        old = getattr(reg, "_replaced", {}).get(name)  # (the built-in entry add() replaced)
+        old = reg.replaced(name)
         if old is not None and name in reg and reg.get(name).target != old.target:
             out.append(f"the {reg.kind} {name!r} ({old.target!r}) is replaced by "
                        f"{reg.get(name).target!r}")
