@@ -388,7 +388,9 @@ METRICS: dict[str, str] = {
                     "and of second-surface points among them, the per-point fields."),
     "ptu": "``reconstruct`` only: the PTU file read, its photons and code periods per "
            "pattern, the background, the blocks left out (``blocks_left_out``: a dropout or "
-           "a stall, ``spslidar.pipeline.screen``), ``settle_s`` and "
+           "a stall, ``spslidar.pipeline.screen``; numbered through the repeats, block "
+           "``r M + i`` showing pattern ``i``), ``repeats`` (``--repeats``: each pattern's "
+           "blocks summed), ``settle_s`` and "
            "``n_dropped_settling`` (``--settle``), and ``timing_drift_bins`` (with "
            "``timing_drift_se_bins``): how much later the returns arrive at the last pattern "
            "than at the first, and ``timing_drift_span_bins``, how far apart the eight "

@@ -45,6 +45,10 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                    help="seconds at the start of each pattern whose photons are dropped (the "
                         "DMD's mirrors settling after its marker, or a marker early against "
                         "them); each pattern's dwell is shortened by as much (default 0)")
+    p.add_argument("--repeats", type=int, default=1, metavar="K",
+                   help="times the pattern sequence was shown in a row: the file holds K x M "
+                        "marker blocks, block r M + i showing pattern i; each pattern's blocks "
+                        "are summed (default 1)")
     p.add_argument("--dead-time", type=float, metavar="S",
                    help="the detector's (and TCSPC's) non-paralysable dead time, seconds: each "
                         "pattern's histogram is corrected for pile-up before the matched "
@@ -134,7 +138,8 @@ def cmd_reconstruct(args) -> int:
                              tuple(args.range_gate), marker=args.marker, channel=args.channel,
                              allow_binning=args.allow_binning, truth=args.truth,
                              calibration=args.calibration, marker_edge=args.marker_edge,
-                             settle=args.settle, **_detector_args(args), **processing)
+                             settle=args.settle, repeats=args.repeats,
+                             **_detector_args(args), **processing)
     say_warnings(result.warnings)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
                       fov_deg=args.fov, option="--out", replace="--overwrite")
@@ -199,7 +204,8 @@ def cmd_calibrate(args) -> int:
                         marker=args.marker, channel=args.channel,
                         allow_binning=args.allow_binning, target=args.target,
                         fov_deg=args.fov, marker_edge=args.marker_edge,
-                        settle=args.settle, **_detector_args(args))
+                        settle=args.settle, repeats=args.repeats,
+                        **_detector_args(args))
     path = write_calibration(cal, args.out, args.overwrite)
     _WRITTEN.append(str(path))
     period_ns = cal["code_length"] / args.bit_rate * 1e9

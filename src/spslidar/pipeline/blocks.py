@@ -23,7 +23,7 @@ import numpy as np
 from ..errors import ConfigError
 
 __all__ = ["BOUNCE_PERIODS", "CHANNEL_SHARE", "DROPPED_SHARE", "SHORT_BLOCK", "channels_holding",
-           "check_blocks", "read_blocks"]
+           "check_blocks", "check_repeats", "fold_repeats", "read_blocks"]
 
 #: photons left out (before the first marker, or past the code period) beyond this share of
 #: the file's are said (they are always left out: no pattern, or no bin, is known for them)
@@ -63,7 +63,65 @@ def check_blocks(data, m: int, ptu, merged: int = 0) -> None:
         bounced = f" ({merged} of them a marker's bounce, merged)" if merged else ""
         raise ConfigError(f"{os.fspath(ptu)!r} has {data.n_markers} marker-delimited blocks"
                           f"{bounced} but --patterns has {m} rows: the patterns shown do not "
-                          f"match the file (or --marker names the wrong input)")
+                          f"match the file (or --marker names the wrong input)"
+                          f"{_repeats_hint(data.n_markers - merged, m)}")
+
+
+def _repeats_hint(blocks: int, m: int) -> str:
+    """Where ``blocks`` is a whole number of times ``m`` (to an arming and an end marker):
+    the sequence shown that many times, and the flag that says so."""
+    for extra in range(3):
+        k, rest = divmod(blocks - extra, m)
+        if k >= 2 and rest == 0:
+            return f"; or the sequence shown {k} times in a row? pass --repeats {k}"
+    return ""
+
+
+def check_repeats(repeats: Any) -> int:
+    """``--repeats`` (times the pattern sequence was shown in a row) as a whole number >= 1,
+    or one line (:class:`ConfigError`): not a bool, text or a fraction."""
+    from ..arrays import real_number
+
+    value = real_number(repeats)
+    if value is None or not (math.isfinite(value) and value >= 1 and value == int(value)):
+        raise ConfigError(f"--repeats must be a whole number of times the pattern sequence "
+                          f"was shown, 1 or more, got {repeats!r}")
+    return int(value)
+
+
+def fold_repeats(pattern: np.ndarray, hist: np.ndarray, periods: np.ndarray,
+                 noise_totals: np.ndarray | None, counts: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+    """The blocks of a sequence shown several times (``--repeats``), summed per pattern.
+
+    Parameters
+    ----------
+    pattern : ndarray of int, shape (B,)
+        The pattern each kept block showed.
+    hist : ndarray, shape (B, L)
+        Each block's histogram (corrected for its own pile-up).
+    periods : ndarray, shape (B,)
+        Each block's exposure, code periods.
+    noise_totals : ndarray, shape (B,), or None
+        Each block's noise total (a pile-up correction's), if any.
+    counts : ndarray, shape (B,)
+        Each block's photons as recorded.
+
+    Returns
+    -------
+    patterns, hist, periods, noise_totals, counts
+        One row per pattern with a kept block, increasing: its blocks' sums (a pattern's
+        Poisson counts over several dwells are its counts over their sum).
+    """
+    shown, row = np.unique(np.asarray(pattern), return_inverse=True)
+
+    def total(values):
+        out = np.zeros((shown.size,) + np.shape(values)[1:], dtype=np.result_type(values))
+        np.add.at(out, row, values)
+        return out
+
+    return (shown, total(np.asarray(hist, dtype=np.float64)), total(periods),
+            None if noise_totals is None else total(noise_totals), total(counts))
 
 
 def _typical(data) -> tuple[np.ndarray, np.ndarray, float, float]:

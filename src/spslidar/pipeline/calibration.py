@@ -430,10 +430,10 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                   fov_deg: float | None = None, marker_edge: str = "start",
                   settle: float = 0.0, dead_time: float | None = None,
                   afterpulse_prob: float = 0.0,
-                  afterpulse_delay: float = 0.0) -> dict[str, Any]:
+                  afterpulse_delay: float = 0.0, repeats: int = 1) -> dict[str, Any]:
     """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target,
     with what it was measured from (file, hash, photons, patterns, bit rate, code);
-    ``allow_binning``, ``marker_edge``, ``settle`` and the detector's ``dead_time`` and
+    ``allow_binning``, ``marker_edge``, ``settle``, ``repeats`` and the detector's ``dead_time`` and
     afterpulsing (each block's histogram corrected for pile-up before the response is read:
     uncorrected, a bright wall's response is read through the detector's dead time; the
     JSON's ``detector`` says which) as :func:`~spslidar.pipeline.real.reconstruct_ptu`.
@@ -450,7 +450,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     ``(0, 180)`` degrees (or with ``target='range'``) raise a one-line
     :class:`~spslidar.errors.ConfigError`."""
     from ..version import __version__
-    from .blocks import read_blocks
+    from .blocks import check_repeats, read_blocks
     from .deadtime import dead_time_model
     from .real import (
         check_code,
@@ -461,6 +461,9 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
 
     check_ptu_path(ptu)
     patterns = check_patterns(patterns, False, "patterns")
+    repeats = check_repeats(repeats)
+    if repeats > 1:  # (every block is read for the response: the sequence's rows, repeated)
+        patterns = np.tile(patterns, (repeats, 1))
     code = check_code(code, None, "code")
     check_real_inputs(bit_rate, (0.0, 1.0), int(patterns.shape[1]), int(patterns.shape[0]),
                       int(code.size))
@@ -517,7 +520,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                               "photons": int(data.counts_per_pattern[keep].sum()),
                               "photons_in_file": int(data.n_photons),
                               "patterns": int(patterns.shape[0]),
-                              "settle_s": float(settle)}}
+                              "repeats": repeats, "settle_s": float(settle)}}
 
 
 def _check_target(target: Any, fov_deg: Any) -> float | None:

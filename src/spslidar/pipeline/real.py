@@ -235,11 +235,12 @@ _MEASURED_KEYS = frozenset({"size", "bit_rate", "code_length", "range_gate", "co
 
 
 def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: int,
-                      period: int) -> None:
+                      period: int, repeats: int = 1) -> None:
     """Refuse, in one line and before the file is read, what no real acquisition can be: a
     bit rate outside [1e6, 1e13] (as ``run``), per-pattern histograms that would not fit in
-    memory (``n_patterns x period`` bins: the reader's float32 counts, their rescaled float64
-    copy and a float32 one for the matched filter), and a range gate whose slices would not
+    memory (``n_patterns x repeats x period`` bins, one row a marker block: the reader's
+    float32 counts, their rescaled float64 copy and a float32 one for the matched filter),
+    and a range gate whose slices would not
     fit (``--range-gate 0 100000`` reached 6.9 GB, then a MemoryError)."""
     import math
 
@@ -256,10 +257,13 @@ def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: in
                           f"{bit_rate!r}")
     lo, hi = check_gate(range_gate)
     n_lags = (hi - lo) * 2.0 * rate / 299792458.0 + 2
-    hists = float(n_patterns) * period * 24 + float(n_patterns) * min(n_lags, period) * 8
+    # (the reader's histograms are a block's each: the sequence's repeats times the patterns)
+    hists = (float(n_patterns) * repeats * period * 24
+             + float(n_patterns) * min(n_lags, period) * 8)
     if hists > 0.8 * available_memory():
-        raise ConfigError(f"{n_patterns} patterns of {period} bins (the code length) need "
-                          f"{_gb(hists)} of histograms, more than the memory available")
+        shown = f" shown {repeats} times" if repeats > 1 else ""
+        raise ConfigError(f"{n_patterns} patterns{shown} of {period} bins (the code length) "
+                          f"need {_gb(hists)} of histograms, more than the memory available")
     # the (M, Q) patterns as the chain holds them (float32: the matrix, its centred copy,
     # their float64 blocks while centring; a 128x128 file's 268 MB of patterns peaked at
     # 1.51 GB, which these checks did not count: an audit), before the gate's share
@@ -351,7 +355,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                     allow_binning: bool = False, marker_edge: str = "start",
                     settle: float = 0.0, dead_time: float | None = None,
                     afterpulse_prob: float = 0.0, afterpulse_delay: float = 0.0,
-                    **processing: Any) -> Result:
+                    repeats: int = 1, **processing: Any) -> Result:
     """Depth map from a measured T3 PTU acquisition.
 
     Parameters
@@ -394,6 +398,13 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         before the matched filter (:mod:`spslidar.pipeline.deadtime`). ``dead_time=None``
         (default): the counts are taken as they are, with a warning where the count rate
         says a dead time of 20-100 ns would lose 5 % of the photons or more.
+    repeats : int
+        Times the pattern sequence was shown in a row (default 1): the file holds
+        ``repeats x M`` marker blocks, block ``r M + i`` showing pattern ``i``
+        (:func:`~spslidar.pipeline.blocks.check_repeats`). Each block is screened and
+        corrected for pile-up with its own dwell, then each pattern's kept blocks are summed
+        (histograms and dwells), so the solve has ``M`` rows; ``metrics['ptu']`` numbers the
+        blocks left out through the repeats.
     **processing
         Config keys of the processing (``solver``, ``qcr``, ``depth``, ``lam_scale``...).
 
@@ -413,7 +424,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     """
     from ..patterns import as_patterns
     from ..scenes import Scene
-    from .blocks import read_blocks
+    from .blocks import check_repeats, fold_repeats, read_blocks
     from .measurement import check_processing_keys, processing_keys
 
     if {"backend", "device"} & set(processing):  # (it was told the acquisition sets them)
@@ -422,6 +433,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                           "solves on one)")
     check_ptu_path(ptu)
     patterns = check_patterns(patterns, True, "patterns")
+    repeats = check_repeats(repeats)
     code = check_code(code, None, "code")
     range_gate = check_gate(range_gate)
     check_processing_keys(processing, "reconstruct_ptu()",
@@ -430,7 +442,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                           f"the acquisition sets the rest")
     m, q = patterns.shape
     n = int(round(np.sqrt(q)))
-    check_real_inputs(bit_rate, range_gate, q, m, int(code.size))
+    check_real_inputs(bit_rate, range_gate, q, m, int(code.size), repeats)
     bin_width = 1.0 / float(bit_rate)
     period = int(code.size)
     cfg = Config.from_dict({"size": n, "bit_rate": float(bit_rate), "code": "random",
@@ -446,6 +458,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
 
     detector = dead_time_model(bin_width, dead_time, afterpulse_prob, afterpulse_delay)
     _check_solve_time(cfg, m, q, int(gate_lags(cfg.range_gate, bin_width).size), period)
+    shown = patterns
+    if repeats > 1:  # the blocks' own rows: each one's light alone, as the screening reads it
+        m, patterns = m * repeats, np.tile(shown.sum(axis=1, dtype=np.float64), repeats)[:, None]
     data, dwell_warning = read_blocks(ptu, m, period, bin_width=bin_width, marker=marker,
                                       channel=channel, allow_binning=allow_binning,
                                       marker_edge=marker_edge, settle=settle)
@@ -487,6 +502,11 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         m, n_k, patterns, rows = keep.size, n_k[keep], patterns[keep], rows[keep]
     hist, noise_totals = blocks.hist, blocks.noise_totals
     dwell_warning += blocks.notes
+    blocks_kept, counts_kept = rows, data.counts_per_pattern[rows]
+    if repeats > 1:  # each pattern's kept blocks summed: the solve has one row a pattern
+        rows, hist, n_k, noise_totals, counts_kept = fold_repeats(
+            rows % shown.shape[0], hist, n_k, noise_totals, counts_kept)
+        m, patterns = rows.size, shown[rows]
     n_mean = float(n_k.mean())
     short = np.flatnonzero(n_k < 0.5 * np.median(n_k))
     if short.size:
@@ -598,8 +618,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     if truth is None:
         result.metrics["n_valid"] = None
     result.metrics["ptu"] = {
-        "file": os.fspath(ptu), "counts_per_pattern": data.counts_per_pattern[rows].tolist(),
-        "blocks_left_out": np.setdiff1d(np.arange(data.n_patterns), rows).tolist(),
+        "file": os.fspath(ptu), "counts_per_pattern": counts_kept.tolist(),
+        "blocks_left_out": np.setdiff1d(np.arange(data.n_patterns), blocks_kept).tolist(),
+        "repeats": repeats,
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":
         float(background.mean() / n_mean), "background_per_pattern": background.tolist(),
         "n_records": data.n_records, "n_photons": data.n_photons, "n_markers": data.n_markers,

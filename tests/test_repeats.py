@@ -1,0 +1,189 @@
+"""A pattern sequence shown several times in a row (``--repeats K``): a lab repeats its
+sequence to gather photons, and the file then holds K x M marker blocks for M pattern rows.
+Before ``--repeats`` such a file was refused as not matching the patterns, and a user's way
+round it (the patterns given K times) solved K times the rows. Files written here by the
+independent PicoHarp writer of ``test_independent_ptu``.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from test_independent_ptu import write_picoharp_t3  # (tests/ is on sys.path under pytest)
+from test_screen_blocks import BIT_RATE, L, N, _scene
+
+from spslidar.cli import main
+from spslidar.pipeline.blocks import check_repeats, fold_repeats
+from spslidar.pipeline.real import reconstruct_ptu
+
+C = 299_792_458.0
+M, K, DWELL = 96, 3, 800
+
+
+def _counts(seed, signal=2e-4, background=2e-4):
+    """Photon counts per repeat, pattern and bin (K, M, L), the patterns, code and truth of
+    the 16x16 scene of ``test_screen_blocks`` (random binary patterns, a balanced code)."""
+    rng = np.random.default_rng(seed)
+    depth, refl = _scene()
+    code = np.zeros(L)
+    code[rng.permutation(L)[: L // 2 + 1]] = 1.0
+    pats = (rng.random((M, N, N)) < 0.5).astype(np.float32)
+    delay = np.rint(2 * depth.ravel() / (C / BIT_RATE)).astype(int)
+    amp = np.zeros((M, L))
+    w = pats.reshape(M, -1) * refl.ravel()[None, :]
+    for d in np.unique(delay):
+        amp[:, d % L] += w[:, delay == d].sum(axis=1)
+    spectrum = np.fft.ifft(np.fft.fft(amp, axis=1) * np.fft.fft(code)[None, :], axis=1).real
+    lam = np.clip(DWELL * (signal * spectrum + background), 0, None)
+    return rng.poisson(np.broadcast_to(lam, (K, M, L))), pats, code, depth, rng
+
+
+def _write(path, counts, pats, code, rng, order="repeated"):
+    """``repeated``: K x M blocks, block r M + i showing pattern i over DWELL periods;
+    ``merged``: M blocks of K x DWELL periods, each holding its pattern's K repeats' photons
+    (the same photons, the same histograms); K is ``counts``' first axis."""
+    syncs, dtimes, marks = [], [], []
+    k = counts.shape[0]
+    for r in range(k):
+        for i in range(M):
+            start = (r * M + i) * DWELL if order == "repeated" else (i * k + r) * DWELL
+            t = np.repeat(np.arange(L), counts[r, i])
+            s = start + rng.integers(0, DWELL, t.size)
+            if order == "repeated" or r == 0:
+                syncs.append(np.array([start]))
+                dtimes.append(np.zeros(1, int))
+                marks.append(np.ones(1, bool))
+            syncs.append(s)
+            dtimes.append(t)
+            marks.append(np.zeros(t.size, bool))
+    sync, dtime, mark = (np.concatenate(a) for a in (syncs, dtimes, marks))
+    order_ = np.lexsort((~mark, sync))  # time order, a block's marker before its photons
+    write_picoharp_t3(path / f"{order}.ptu", sync[order_], dtime[order_], mark[order_],
+                      1 / BIT_RATE, BIT_RATE / L)
+    np.save(path / "patterns.npy", pats)
+    np.save(path / "code.npy", code.astype(np.uint8))
+
+
+def _reconstruct(path, name, capsys, *extra, out=None):
+    out = path / f"rec_{name}" if out is None else out
+    rc = main(["reconstruct", "--ptu", str(path / f"{name}.ptu"), "--patterns",
+               str(path / "patterns.npy"), "--code", str(path / "code.npy"), "--bit-rate",
+               "10e9", "--range-gate", "2.5", "4", "--out", str(out), "--no-figure", *extra])
+    err = capsys.readouterr().err
+    if rc:
+        return rc, None, None, err
+    return rc, json.loads((out / "metrics.json").read_text()), np.load(out / "depth.npy"), err
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    path = tmp_path_factory.mktemp("repeats")
+    counts, pats, code, depth, rng = _counts(0)
+    _write(path, counts, pats, code, rng, "repeated")
+    _write(path, counts, pats, code, rng, "merged")
+    _write(path, counts[:1], pats, code, rng, "once")
+    return path, depth
+
+
+def test_a_repeated_sequence_is_refused_without_repeats_and_named(files, capsys):
+    """K x M blocks for M rows: refused in one line that names the repeats and the flag."""
+    path, _ = files
+    rc, _, _, err = _reconstruct(path, "repeated", capsys)
+    assert rc == 2
+    assert f"has {K * M} marker-delimited blocks but --patterns has {M} rows" in err
+    assert f"the sequence shown {K} times in a row? pass --repeats {K}" in err
+    assert "Traceback" not in err
+
+
+def test_repeats_sums_each_patterns_blocks(files, capsys):
+    """The repeated file with --repeats K reconstructs exactly as the same photons written as
+    one block per pattern of K times the dwell: the summed histograms and dwells are the same
+    integers (exact in float64), so the depth maps are equal, not merely close."""
+    path, truth = files
+    rc, rep, depth_rep, err = _reconstruct(path, "repeated", capsys, "--repeats", str(K))
+    assert rc == 0, err
+    rc, one, depth_one, _ = _reconstruct(path, "merged", capsys)
+    assert rc == 0
+    assert rep["ptu"]["repeats"] == K and one["ptu"]["repeats"] == 1
+    assert rep["ptu"]["n_patterns_solved"] == M
+    assert rep["ptu"]["counts_per_pattern"] == one["ptu"]["counts_per_pattern"]
+    assert rep["ptu"]["periods_per_pattern"] == one["ptu"]["periods_per_pattern"]
+    assert rep["ptu"]["blocks_left_out"] == []
+    np.testing.assert_array_equal(depth_rep, depth_one)
+    # and the repeats' photons count: the map beats the first repeat's alone
+    rc, _, depth_once, _ = _reconstruct(path, "once", capsys)
+    assert rc == 0
+    rmse = [float(np.sqrt(np.nanmean((d - truth) ** 2))) for d in (depth_rep, depth_once)]
+    assert rmse[0] < 0.8 * rmse[1]
+
+
+def test_a_dropout_in_one_repeat_leaves_that_block_out_only(tmp_path, capsys):
+    """A detector shutdown over 20 blocks of the second repeat: those blocks are left out
+    (numbered through the repeats) and their patterns keep their other repeats' photons and
+    dwells, so every pattern is still solved."""
+    counts, pats, code, truth, rng = _counts(1)
+    counts[1, 30:50] = 0
+    _write(tmp_path, counts, pats, code, rng, "repeated")
+    rc, m, depth, err = _reconstruct(tmp_path, "repeated", capsys, "--repeats", str(K))
+    assert rc == 0, err
+    assert m["ptu"]["blocks_left_out"] == list(range(M + 30, M + 50))
+    assert m["ptu"]["n_patterns_solved"] == M
+    periods = np.array(m["ptu"]["periods_per_pattern"])
+    assert np.all(periods[30:50] == (K - 1) * DWELL)
+    assert np.all(np.delete(periods, np.arange(30, 50)) == K * DWELL)
+    assert m["ptu"]["counts_per_pattern"][30:50] == counts[[0, 2], 30:50].sum(axis=(0, 2)).tolist()
+    assert float(np.sqrt(np.nanmean((depth - truth) ** 2))) < 0.15
+
+
+@pytest.mark.parametrize("value", [0, -2, 1.5, True, "3", float("nan")])
+def test_check_repeats_refuses_what_is_no_count(value):
+    with pytest.raises(Exception, match="--repeats must be a whole number"):
+        check_repeats(value)
+    assert check_repeats(3) == 3 and check_repeats(np.int64(2)) == 2 and check_repeats(4.0) == 4
+
+
+def test_bad_repeats_on_the_command_line_is_one_line(files, capsys, tmp_path):
+    path, _ = files
+    out = tmp_path / "rec"
+    rc, _, _, err = _reconstruct(path, "repeated", capsys, "--repeats", "0", out=out)
+    assert rc == 2 and "--repeats must be a whole number" in err and "Traceback" not in err
+    assert not out.exists()  # (nothing written)
+    # more repeats than the file holds: the reader's refusal, one line
+    rc, _, _, err = _reconstruct(path, "repeated", capsys, "--repeats", str(K + 1), out=out)
+    assert rc == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()
+
+
+def test_fold_repeats_sums_per_pattern():
+    pattern = np.array([0, 1, 2, 0, 2])
+    hist = np.arange(10.0).reshape(5, 2)
+    shown, h, p, nt, c = fold_repeats(pattern, hist, np.array([5, 5, 5, 4, 5]), None,
+                                      np.array([1, 2, 3, 4, 5]))
+    assert shown.tolist() == [0, 1, 2] and nt is None
+    assert h.tolist() == [[6.0, 8.0], [2.0, 3.0], [12.0, 14.0]]
+    assert p.tolist() == [9, 5, 10] and c.tolist() == [5, 2, 8]
+
+
+def test_calibrate_takes_repeats(files, capsys, tmp_path):
+    """calibrate reads every block of a repeated file (its response from all the photons)."""
+    path, _ = files
+    out = tmp_path / "cal.json"
+    args = ["calibrate", "--ptu", str(path / "repeated.ptu"), "--patterns",
+            str(path / "patterns.npy"), "--code", str(path / "code.npy"), "--bit-rate", "10e9",
+            "--distance", "3.6", "--out", str(out)]
+    assert main(args) == 2
+    assert f"pass --repeats {K}" in capsys.readouterr().err
+    assert main([*args, "--repeats", str(K)]) == 0
+    cal = json.loads(out.read_text())
+    assert cal["measured_from"]["repeats"] == K
+    assert cal["measured_from"]["patterns"] == K * M
+
+
+def test_reconstruct_ptu_api_takes_repeats(files):
+    path, _ = files
+    r = reconstruct_ptu(path / "repeated.ptu", np.load(path / "patterns.npy"),
+                        np.load(path / "code.npy"), 10e9, (2.5, 4.0), repeats=K)
+    assert r.metrics["ptu"]["repeats"] == K
+    assert r.metrics["ptu"]["n_patterns_solved"] == M
