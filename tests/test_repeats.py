@@ -153,6 +153,8 @@ def test_bad_repeats_on_the_command_line_is_one_line(files, capsys, tmp_path):
     # more repeats than the file holds: the reader's refusal, one line
     rc, _, _, err = _reconstruct(path, "repeated", capsys, "--repeats", str(K + 1), out=out)
     assert rc == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert f"fewer than the {(K + 1) * M} patterns (--repeats {K + 1}: {M} pattern rows " \
+           f"shown {K + 1} times)" in err
     assert not out.exists()
 
 

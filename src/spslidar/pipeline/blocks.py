@@ -375,7 +375,8 @@ def _lost_notes(data, marker: int, n_bins: int) -> list[str]:
 
 def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
                 channel: Any = None, allow_binning: bool = False,
-                marker_edge: str = "start", settle: float = 0.0) -> tuple[Any, list[str]]:
+                marker_edge: str = "start", settle: float = 0.0,
+                repeats: int = 1) -> tuple[Any, list[str]]:
     """The ``m`` pattern blocks of a measured T3 file, and what to say about them.
 
     Parameters
@@ -394,6 +395,8 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
         Whether a marker starts (default) or ends its pattern.
     settle : float
         Seconds of each block's start whose photons are dropped (the reader's ``settle_s``).
+    repeats : int
+        Times the sequence was shown (``m`` is then its rows times this): named in a refusal.
 
     Returns
     -------
@@ -413,10 +416,16 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
         raise ConfigError(f"--settle must be a number of seconds >= 0, got {settle!r}")
 
     def read(extra: int):
-        return read_ptu_histograms(ptu, n_bins, bin_width=bin_width, marker=marker,
-                                   channel=channel, n_patterns=m, extra_blocks=extra,
-                                   marker_edge=marker_edge, allow_binning=allow_binning,
-                                   settle_s=seconds)
+        try:
+            return read_ptu_histograms(ptu, n_bins, bin_width=bin_width, marker=marker,
+                                       channel=channel, n_patterns=m, extra_blocks=extra,
+                                       marker_edge=marker_edge, allow_binning=allow_binning,
+                                       settle_s=seconds)
+        except ConfigError as err:  # ("fewer than the 384 patterns" of 96 rows: say why)
+            if repeats > 1:
+                raise ConfigError(f"{err} (--repeats {repeats}: {m // repeats} pattern rows "
+                                  f"shown {repeats} times)") from None
+            raise
 
     data = read(2 + max(BOUNCE_EXTRA, m // BOUNCE_ROWS))
     if data.n_patterns < data.n_markers <= 2 * m + 2:  # (more markers than that, up to two

@@ -483,7 +483,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
         wall_offsets((side, side), distance, fov, bin_width, int(code.size))
     data, notes = read_blocks(ptu, int(patterns.shape[0]), int(code.size), bin_width=bin_width,
                               marker=marker, channel=channel, allow_binning=allow_binning,
-                              marker_edge=marker_edge, settle=settle)
+                              marker_edge=marker_edge, settle=settle, repeats=repeats)
     from .screen import measured_blocks
 
     # (a dropout's blocks left out, a gated detector said, pile-up corrected, the drift

@@ -463,7 +463,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         m, patterns = m * repeats, np.tile(shown.sum(axis=1, dtype=np.float64), repeats)[:, None]
     data, dwell_warning = read_blocks(ptu, m, period, bin_width=bin_width, marker=marker,
                                       channel=channel, allow_binning=allow_binning,
-                                      marker_edge=marker_edge, settle=settle)
+                                      marker_edge=marker_edge, settle=settle,
+                                      repeats=repeats)
     dwell_warning += [truth_note] if truth_note else []
     # the reader's dwell: to the next block's marker, also where that block is not a pattern
     # (the file's ends, recomputed here, gave the last of m rows in an (m + 1)-block file the
