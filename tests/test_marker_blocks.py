@@ -113,6 +113,10 @@ def test_one_block_after_the_patterns_is_left_out(tmp_path):
                *_events(rng, starts, [*starts, DWELL * M, DWELL * M + 1, DWELL * M + 2]))
     data, notes = read_blocks(h, M, L, bin_width=RES)
     assert _peaks(data) == list(range(M)) and any("bounce" in n for n in notes)
+    # (said as markers after the last pattern, not as a bounce merged into "the same
+    # pattern's" block, which an outside audit of 2026-11-30 found)
+    assert len(notes) == 1 and "(block 6, 7) come after the last pattern" in notes[0]
+    assert "the same pattern's" not in notes[0]
     far = _write(tmp_path / "far.ptu", *_events(rng, starts, [*starts, DWELL * M,
                                                               DWELL * M + 60, DWELL * M + 90]))
     with pytest.raises(ConfigError, match="9 marker-delimited blocks but --patterns has 6"):
@@ -477,3 +481,50 @@ def test_every_marker_bouncing_is_merged(tmp_path, m):
     np.testing.assert_array_equal(data.periods_per_pattern[:-1], DWELL)
     assert any(f"{m - 1} of the file's {2 * m - 1} marker-delimited blocks" in n and
                f"({DWELL - 3} periods typical)" in n for n in notes)
+
+
+def test_syncs_that_stop_leave_their_blocks_out_and_say_why(tmp_path, capsys):
+    """The sync signal lost after pattern 3: the DMD's markers and the photons go on at one
+    sync. Those blocks last no code period: they were read as patterns of one period, scaled
+    up 200 times without a word (or named an arming marker's); now they are left out, with
+    the cause, and a file whose every block is at one sync is refused in one line."""
+    from spslidar.pipeline.blocks import drop_frozen
+
+    rng = np.random.default_rng(5)
+    starts = [DWELL * k for k in range(M)]
+    nsync, dtime, marker = _events(rng, starts, starts)
+    f = _write(tmp_path / "frozen.ptu", np.minimum(nsync, 4 * DWELL), dtime, marker)
+    data, _ = read_blocks(f, M, L, bin_width=RES)
+    kept, n, note = drop_frozen(data, f)
+    assert n == 2 and kept.n_patterns == 4 and _peaks(kept) == [0, 1, 2, 3]
+    assert kept.n_dropped_after_last_pattern == data.n_dropped_after_last_pattern + 2 * PER
+    assert f"the file's syncs stop at sync {4 * DWELL}: its last 2 marker blocks (from " \
+           f"pattern 4 on) start there and hold {2 * PER} photons" in note
+    # a file whose syncs go on, or a bounce at one sync mid-file, keeps every block
+    g = _write(tmp_path / "ok.ptu", *_events(rng, starts, starts))
+    ok, _ = read_blocks(g, M, L, bin_width=RES)
+    assert drop_frozen(ok, g)[1] == 0
+    # through reconstruct: the rows are left out and said; the map is still made
+    pats = (rng.random((M, 4, 4)) < 0.5).astype(np.float32)
+    np.save(tmp_path / "p.npy", pats)
+    code = np.zeros(L, np.uint8)
+    code[rng.permutation(L)[: L // 2 + 1]] = 1
+    np.save(tmp_path / "c.npy", code)
+    args = ["reconstruct", "--ptu", str(f), "--patterns", str(tmp_path / "p.npy"), "--code",
+            str(tmp_path / "c.npy"), "--bit-rate", f"{1 / RES:g}", "--range-gate", "0.1", "1",
+            "--no-figure"]
+    assert main([*args, "--out", str(tmp_path / "r")]) == 0
+    err = capsys.readouterr().err
+    assert "the sync signal lost?" in err and "scaled up" not in err
+    import json
+
+    metrics = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert metrics["ptu"]["blocks_left_out"] == [4, 5]
+    assert metrics["ptu"]["n_patterns_solved"] == 4
+    # every block at one sync: refused, nothing written
+    nsync0, dtime0, marker0 = _events(rng, [0] * M, [0] * M)
+    z = _write(tmp_path / "zero.ptu", nsync0 * 0, dtime0, marker0)
+    assert main([*args[:2], str(z), *args[3:], "--out", str(tmp_path / "z")]) == 2
+    err = capsys.readouterr().err
+    assert "where the file's syncs stop (the sync signal missing or lost?)" in err
+    assert not (tmp_path / "z").exists()

@@ -23,7 +23,7 @@ import numpy as np
 from ..errors import ConfigError
 
 __all__ = ["BOUNCE_PERIODS", "CHANNEL_SHARE", "DROPPED_SHARE", "SHORT_BLOCK", "channels_holding",
-           "check_blocks", "check_repeats", "fold_repeats", "read_blocks"]
+           "check_blocks", "check_repeats", "drop_frozen", "fold_repeats", "read_blocks"]
 
 #: photons left out (before the first marker, or past the code period) beyond this share of
 #: the file's are said (they are always left out: no pattern, or no bin, is known for them)
@@ -122,6 +122,39 @@ def fold_repeats(pattern: np.ndarray, hist: np.ndarray, periods: np.ndarray,
 
     return (shown, total(np.asarray(hist, dtype=np.float64)), total(periods),
             None if noise_totals is None else total(noise_totals), total(counts))
+
+
+def drop_frozen(data, ptu) -> tuple[Any, int, str | None]:
+    """The file's last blocks where its syncs stop: two or more markers at the file's last
+    sync, every event after them at that sync too (the sync signal lost, while the DMD's
+    markers and the detector's photons went on). Such blocks last no code period, so no
+    dwell scales them (each was read as a pattern of one period, scaled up to the mean
+    dwell, or as an arming marker's block).
+
+    Returns
+    -------
+    data : spslidar.io.PtuAcquisition
+        Without those blocks (their photons counted as dropped after the last pattern).
+    n : int
+        How many were left out (0: none).
+    note : str or None
+        One line on them. Every block at one sync is refused (:class:`ConfigError`).
+    """
+    start = np.asarray(data.pattern_start_sync)
+    frozen = np.flatnonzero(start == int(data.last_sync))
+    if frozen.size < 2 or frozen[0] != start.size - frozen.size:
+        return data, 0, None
+    photons = int(data.counts_per_pattern[frozen].sum())
+    if frozen.size == start.size:
+        raise ConfigError(f"{os.fspath(ptu)!r}: every one of its {start.size} marker blocks "
+                          f"starts at sync {int(data.last_sync)}, where the file's syncs stop "
+                          f"(the sync signal missing or lost?): no block lasts a code period")
+    first = int(frozen[0])
+    return (_rows(data, slice(0, first), after=photons), int(frozen.size),
+            f"the file's syncs stop at sync {int(data.last_sync)}: its last {frozen.size} "
+            f"marker blocks (from pattern {first} on) start there and hold {photons} photons "
+            f"in no code period (the sync signal lost?): their pattern rows are left out of "
+            f"the solve")
 
 
 def _typical(data) -> tuple[np.ndarray, np.ndarray, float, float]:
@@ -239,7 +272,7 @@ def _merge_bounces(data, m: int, marker: int) -> tuple[Any, list[str]]:
         return data, []
     keep = np.ones(n, bool)
     keep[short] = False
-    moved = int(data.counts_per_pattern[short].sum())
+    photons = data.counts_per_pattern  # (each block's own, for the notes)
     hist = data.histograms.copy()
     counts = data.counts_per_pattern.copy()
     periods = data.periods_per_pattern.copy()
@@ -258,12 +291,30 @@ def _merge_bounces(data, m: int, marker: int) -> tuple[Any, list[str]]:
                                settled_periods=settled[keep] if settled.size else settled)
     from ..io.ptu_blocks import block_list
 
-    return data, [f"{short.size} of the file's {data.n_markers} marker-delimited blocks on "
-                  f"input {marker} (block {block_list(short)}) last at most "
-                  f"{int(d[short].max())} code period(s) between two patterns' ({typ:.0f} "
-                  f"periods typical): a marker repeated (a DMD trigger's bounce?); each is "
-                  f"merged, with {moved} photons in all, into the next block, the same "
-                  f"pattern's"]
+    # (short blocks after the last block a pattern long are no pattern's bounce: a burst of
+    # markers after the last pattern was said to be merged into "the same pattern's" block,
+    # an outside audit of 2026-11-30)
+    long = np.flatnonzero(d > max(limit, BOUNCE_PERIODS))
+    after = short[short > long.max()] if long.size else short[:0]
+    inner_short = np.setdiff1d(short, after)
+    notes = []
+    if inner_short.size:
+        notes.append(
+            f"{inner_short.size} of the file's {data.n_markers} marker-delimited blocks on "
+            f"input {marker} (block {block_list(inner_short)}) last at most "
+            f"{int(d[inner_short].max())} code period(s) between two patterns' ({typ:.0f} "
+            f"periods typical): a marker repeated (a DMD trigger's bounce?); each is merged, "
+            f"with {int(photons[inner_short].sum())} photons in all, into the "
+            f"next block, the same pattern's")
+    if after.size:
+        notes.append(
+            f"{after.size} of the file's {data.n_markers} marker-delimited blocks on input "
+            f"{marker} (block {block_list(after)}) come after the last pattern and last at "
+            f"most {int(d[after].max())} code period(s) each: markers after the acquisition's "
+            f"end (an end marker repeated, a bounce?); merged, with "
+            f"{int(photons[after].sum())} photons, into the block after the "
+            f"last pattern")
+    return data, notes
 
 
 def _edge_note(data, marker: int, edge: str) -> str | None:

@@ -450,7 +450,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     ``(0, 180)`` degrees (or with ``target='range'``) raise a one-line
     :class:`~spslidar.errors.ConfigError`."""
     from ..version import __version__
-    from .blocks import check_repeats, read_blocks
+    from .blocks import check_repeats, drop_frozen, read_blocks
     from .deadtime import dead_time_model
     from .real import (
         check_code,
@@ -484,6 +484,10 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     data, notes = read_blocks(ptu, int(patterns.shape[0]), int(code.size), bin_width=bin_width,
                               marker=marker, channel=channel, allow_binning=allow_binning,
                               marker_edge=marker_edge, settle=settle, repeats=repeats)
+    data, frozen, note = drop_frozen(data, ptu)
+    if frozen:  # (blocks without a dwell: the file's syncs lost)
+        patterns = patterns[: patterns.shape[0] - frozen]
+        notes.append(note)
     from .screen import measured_blocks
 
     # (a dropout's blocks left out, a gated detector said, pile-up corrected, the drift

@@ -424,7 +424,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     """
     from ..patterns import as_patterns
     from ..scenes import Scene
-    from .blocks import check_repeats, fold_repeats, read_blocks
+    from .blocks import check_repeats, drop_frozen, fold_repeats, read_blocks
     from .measurement import check_processing_keys, processing_keys
 
     if {"backend", "device"} & set(processing):  # (it was told the acquisition sets them)
@@ -465,6 +465,11 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                                       channel=channel, allow_binning=allow_binning,
                                       marker_edge=marker_edge, settle=settle,
                                       repeats=repeats)
+    n_blocks = data.n_patterns  # (the lost syncs' blocks too, for blocks_left_out)
+    data, frozen, note = drop_frozen(data, ptu)
+    if frozen:  # (the rows the file's lost syncs leave without a dwell)
+        m, patterns = m - frozen, patterns[: m - frozen]
+        dwell_warning.append(note)
     dwell_warning += [truth_note] if truth_note else []
     # the reader's dwell: to the next block's marker, also where that block is not a pattern
     # (the file's ends, recomputed here, gave the last of m rows in an (m + 1)-block file the
@@ -620,7 +625,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         result.metrics["n_valid"] = None
     result.metrics["ptu"] = {
         "file": os.fspath(ptu), "counts_per_pattern": counts_kept.tolist(),
-        "blocks_left_out": np.setdiff1d(np.arange(data.n_patterns), blocks_kept).tolist(),
+        "blocks_left_out": np.setdiff1d(np.arange(n_blocks), blocks_kept).tolist(),
         "repeats": repeats,
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":
         float(background.mean() / n_mean), "background_per_pattern": background.tolist(),
