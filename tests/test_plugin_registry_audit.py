@@ -185,16 +185,21 @@ def test_an_option_two_stages_of_two_kinds_declare_is_one_line_at_the_command_li
     """A detector's ``window`` beside the estimator's ``window``, declared alike, made
     ``spslidar run`` (every command, ``check`` too) argparse's traceback: a flag each."""
     from spslidar.cli import main
+    from spslidar.config import Config
     from spslidar.detectors import DETECTORS
     from spslidar.detectors.linear import LinearDetector
 
     DETECTORS.add("windowed", LinearDetector, options=(WINDOW,))
     try:
         assert main(["run", "--help"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "--window" in err and "windowed" in err, err
+        # and Config, as the command line: the one key fed both stages (an audit of stop 64)
+        with pytest.raises(ConfigError, match="--window is declared by .* and, alike, by "
+                                              "--(depth|detector) "):
+            Config(window=3)
     finally:
         DETECTORS.remove("windowed")
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "--window" in err and "windowed" in err, err
 
 
 @pytest.mark.parametrize("name", ["truth", "settle"])

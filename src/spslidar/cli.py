@@ -7,7 +7,6 @@ imported inside each sub-command. Bad input prints one line on stderr and exits 
 from __future__ import annotations
 
 import argparse
-import os
 import re
 import sys
 import warnings
@@ -24,7 +23,9 @@ from .cli_common import (  # noqa: F401  (_memory: spslidar.cli._memory, as befo
     _duration,
     _fov,
     _memory,
+    _OneLineWarnings,
     _stage_name,
+    _Tolerant,
     _written,
     say_warnings,
 )
@@ -35,7 +36,6 @@ from .cli_measured import (
     cmd_reconstruct,
 )
 from .cli_snr import add_snr_parser, cmd_snr  # noqa: F401  (re-exported: spslidar.cli.cmd_snr)
-from .errors import library_notice, numbers_blanked, warning_origin
 
 EXIT_BAD_INPUT = 2
 
@@ -431,44 +431,6 @@ COMMANDS = {"run": _cmd_run, "reconstruct": cmd_reconstruct, "calibrate": cmd_ca
             "reproduce": _cmd_reproduce, "sweep": _cmd_sweep}
 
 
-class _OneLineWarnings:
-    """``warnings.showwarning`` of the command line: ``spslidar CMD: warning: ...`` on stderr,
-    one line, without the warning's source line. A warning that comes again from the same
-    place with only its numbers changed (the GMAPD's fixed point, once per block of patterns)
-    is counted, not repeated: :meth:`close` says how many more came."""
-
-    def __init__(self, command: str):
-        self.command = command
-        self.repeats: dict[tuple, int] = {}
-        self.first: dict[tuple, str] = {}
-
-    def __call__(self, message, category, filename, lineno, file=None, line=None):
-        if library_notice(category):  # a library's deprecation: not the run's
-            return
-        text = " ".join(str(message).split())
-        key = (category, filename, lineno, numbers_blanked(text))
-        if key in self.repeats:
-            self.repeats[key] += 1
-            return
-        self.repeats[key] = 0
-        self.first[key] = text
-        print(f"spslidar {self.command}: warning: {text}"
-              f"{warning_origin(category, filename, lineno)}",
-              file=sys.stderr if file is None else file)
-
-    def close(self) -> None:
-        for key, n in self.repeats.items():
-            category, filename, lineno, _ = key
-            if n:
-                what = (f"the warning above (\"{' '.join(self.first[key].split()[:8])} ...\")"
-                        if not warning_origin(category, filename, lineno) else
-                        f"the {category.__name__} of {Path(filename).name}:{lineno} above")
-                print(f"spslidar {self.command}: warning: {what} came {n} more time"
-                      f"{'s' if n > 1 else ''} (its numbers changed)", file=sys.stderr)
-        self.repeats.clear()
-        self.first.clear()
-
-
 def _load_plugins(argv: list[str]) -> list[str]:
     """Import the plugins of ``--plugin MODULE`` (before the command, repeatable) and of
     ``SPSLIDAR_PLUGINS`` before the parser is built, so their stages are choices with flags;
@@ -490,56 +452,6 @@ def _load_plugins(argv: list[str]) -> list[str]:
     load_plugins()  # the environment's
     load_plugins(specs, export=True)  # and --plugin's, for worker processes too
     return rest
-
-
-class _Tolerant:
-    """``sys.stdout`` or ``sys.stderr`` while a command runs: a write that the stream refuses
-    (a full disk, a closed pipe: ``| head -1``, ``2>/dev/full``) is dropped, and so is every
-    later one, and a character its encoding lacks is escaped. A warning written to a full
-    disk's log threw the finished run away (exit 1 or 120, no output, no word anywhere), a
-    closed pipe after the outputs were written was "error: Broken pipe: while writing --out"
-    (they were complete), and ``PYTHONIOENCODING=ascii`` a traceback after them (an outside
-    audit of 2026-11-30). Only in a process of its own (``main()`` without ``argv``), whose
-    stream's descriptor is pointed at ``os.devnull`` once it fails, so that Python's last
-    flush does not fail again (its "Exception ignored" lines and exit 120)."""
-
-    def __init__(self, stream, own: bool):
-        self._stream, self._own, self.failed = stream, own, False
-
-    def write(self, text: str) -> int:
-        if self.failed:
-            return len(text)
-        try:
-            return self._stream.write(text)
-        except UnicodeEncodeError:
-            enc = getattr(self._stream, "encoding", None) or "ascii"
-            return self.write(text.encode(enc, "backslashreplace").decode(enc))
-        except (OSError, ValueError):  # (ValueError: a closed file)
-            self._fail()
-            return len(text)
-
-    def flush(self) -> None:
-        if not self.failed:
-            try:
-                self._stream.flush()
-            except (OSError, ValueError):
-                self._fail()
-
-    def _fail(self) -> None:
-        self.failed = True
-        if not self._own:
-            return
-        try:
-            null = os.open(os.devnull, os.O_WRONLY)
-            try:
-                os.dup2(null, self._stream.fileno())
-            finally:
-                os.close(null)
-        except (OSError, ValueError, AttributeError):
-            pass
-
-    def __getattr__(self, name: str):
-        return getattr(self._stream, name)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,13 +1,20 @@
 """What the sub-commands' parsers share (``cli``, ``cli_measured``, ``cli_snr``): the stage
 choices and option flags read from the registries, the value types of ``--max-time``,
-``--max-memory`` and ``--fov``, and the list of files a command has written (which the
-interrupted line names). Its own module, so that the sub-commands' modules import it and
-``cli`` imports them, with no import back.
+``--max-memory`` and ``--fov``, the list of files a command has written (which the
+interrupted line names), and the command line's streams: its one-line warnings and its
+tolerant stdout and stderr (moved out of ``cli``, which had grown past 700 lines). Its own
+module, so that the sub-commands' modules import it and ``cli`` imports them, with no import
+back.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
+from pathlib import Path
+
+from .errors import library_notice, numbers_blanked, warning_origin
 
 #: what this command wrote so far (the interrupted line says it)
 _WRITTEN: list[str] = []
@@ -18,8 +25,6 @@ SAID_AT_LOAD: set[str] = set()
 
 def say_warnings(warns: list[str]) -> None:
     """A result's warnings on stderr, one line each, but those said at the plugins' load."""
-    import sys
-
     for w in warns:
         if w not in SAID_AT_LOAD:
             print(f"spslidar: warning: {w}", file=sys.stderr)
@@ -130,3 +135,91 @@ def _written(out) -> list[str]:
         # the closing line's listing made a written run exit 2, a review of 2026-11-30)
         return ["(the folder's mode, from the umask, forbids listing it)"]
     return [name for name in order if name in have]
+
+
+class _OneLineWarnings:
+    """``warnings.showwarning`` of the command line: ``spslidar CMD: warning: ...`` on stderr,
+    one line, without the warning's source line. A warning that comes again from the same
+    place with only its numbers changed (the GMAPD's fixed point, once per block of patterns)
+    is counted, not repeated: :meth:`close` says how many more came."""
+
+    def __init__(self, command: str):
+        self.command = command
+        self.repeats: dict[tuple, int] = {}
+        self.first: dict[tuple, str] = {}
+
+    def __call__(self, message, category, filename, lineno, file=None, line=None):
+        if library_notice(category):  # a library's deprecation: not the run's
+            return
+        text = " ".join(str(message).split())
+        key = (category, filename, lineno, numbers_blanked(text))
+        if key in self.repeats:
+            self.repeats[key] += 1
+            return
+        self.repeats[key] = 0
+        self.first[key] = text
+        print(f"spslidar {self.command}: warning: {text}"
+              f"{warning_origin(category, filename, lineno)}",
+              file=sys.stderr if file is None else file)
+
+    def close(self) -> None:
+        for key, n in self.repeats.items():
+            category, filename, lineno, _ = key
+            if n:
+                what = (f"the warning above (\"{' '.join(self.first[key].split()[:8])} ...\")"
+                        if not warning_origin(category, filename, lineno) else
+                        f"the {category.__name__} of {Path(filename).name}:{lineno} above")
+                print(f"spslidar {self.command}: warning: {what} came {n} more time"
+                      f"{'s' if n > 1 else ''} (its numbers changed)", file=sys.stderr)
+        self.repeats.clear()
+        self.first.clear()
+
+
+class _Tolerant:
+    """``sys.stdout`` or ``sys.stderr`` while a command runs: a write that the stream refuses
+    (a full disk, a closed pipe: ``| head -1``, ``2>/dev/full``) is dropped, and so is every
+    later one, and a character its encoding lacks is escaped. A warning written to a full
+    disk's log threw the finished run away (exit 1 or 120, no output, no word anywhere), a
+    closed pipe after the outputs were written was "error: Broken pipe: while writing --out"
+    (they were complete), and ``PYTHONIOENCODING=ascii`` a traceback after them (an outside
+    audit of 2026-11-30). Only in a process of its own (``main()`` without ``argv``), whose
+    stream's descriptor is pointed at ``os.devnull`` once it fails, so that Python's last
+    flush does not fail again (its "Exception ignored" lines and exit 120)."""
+
+    def __init__(self, stream, own: bool):
+        self._stream, self._own, self.failed = stream, own, False
+
+    def write(self, text: str) -> int:
+        if self.failed:
+            return len(text)
+        try:
+            return self._stream.write(text)
+        except UnicodeEncodeError:
+            enc = getattr(self._stream, "encoding", None) or "ascii"
+            return self.write(text.encode(enc, "backslashreplace").decode(enc))
+        except (OSError, ValueError):  # (ValueError: a closed file)
+            self._fail()
+            return len(text)
+
+    def flush(self) -> None:
+        if not self.failed:
+            try:
+                self._stream.flush()
+            except (OSError, ValueError):
+                self._fail()
+
+    def _fail(self) -> None:
+        self.failed = True
+        if not self._own:
+            return
+        try:
+            null = os.open(os.devnull, os.O_WRONLY)
+            try:
+                os.dup2(null, self._stream.fileno())
+            finally:
+                os.close(null)
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)

@@ -11,12 +11,21 @@ import contextvars
 import dataclasses
 import functools
 import math
-import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .config_files import (  # noqa: F401  (re-exported: imported from here elsewhere)
+    CLI_ONLY_KEYS,
+    FILE_KEYS,
+    MAX_CONFIG_BYTES,
+    check_toml_bytes,
+    names_a_file,
+    read_config_bytes,
+    read_toml,
+    resolve_file_paths,
+)
 from .constants import MAX_COUNT_MEAN, MAX_DEPTH_M
 from .errors import ConfigError
 
@@ -505,10 +514,14 @@ Config.__init__ = _init
 def stage_options() -> dict:
     """Every option the stages declare (:class:`~spslidar.registry.Option`), by config key:
     ``{name: (registry, option)}``. An option named as one of :class:`Config`'s own keys, or
-    declared otherwise by another registry, is a one-line ConfigError naming it: a plugin
+    declared by another registry too, is a one-line ConfigError naming it: a plugin
     detector's ``signal`` took the key over (``Config(signal=7)`` was refused as "an option of
     --detector noisy", and its detector got the 7 while the physics kept 5), an estimator's
-    option of a detector option's name was taken for the detector's (an audit of plugins)."""
+    option of a detector option's name was taken for the detector's (an audit of plugins).
+    Declared alike by two registries, it was one key for both stages here while the command
+    line refused it (one flag per stage kind, an audit of stop 64): refused here too, as
+    the command line does; within one registry (``dead_time`` of every detector) a name
+    declared alike is one key."""
     own = _config_fields()
     out: dict = {}
     for reg in registries().values():
@@ -519,10 +532,12 @@ def stage_options() -> dict:
                                   f"spslidar's own config keys: the stage must name it "
                                   f"otherwise")
             other, first = out.get(name, (reg, opt))
-            if other is not reg and _declared(first) != _declared(opt):
-                raise ConfigError(f"{opt.flag} is declared by {owners} and, otherwise, by "
+            if other is not reg:
+                alike = "alike" if _declared(first) == _declared(opt) else "otherwise"
+                raise ConfigError(f"{opt.flag} is declared by {owners} and, {alike}, by "
                                   f"--{other.option} {', '.join(other.owners(name))}: one "
-                                  f"of them must name it otherwise")
+                                  f"of them must name it otherwise (one config key and "
+                                  f"flag is one stage kind's)")
             out.setdefault(name, (reg, opt))
     return out
 
@@ -561,8 +576,6 @@ def registries() -> dict:
     return {r.option: r for r in (CODES, PATTERNS, DETECTORS, SOLVERS, ESTIMATORS)}
 
 
-#: a TOML config is a few kilobytes: a file or stream past this is not one
-MAX_CONFIG_BYTES = 16 * 2**20
 #: whether validation checks what this machine has (the backend): not for a config file's
 #: values that the command line overrides (:func:`check_overridden`)
 _ENVIRONMENT: contextvars.ContextVar[bool] = contextvars.ContextVar("spslidar_environment",
@@ -620,101 +633,3 @@ def check_overridden(base: dict[str, Any], overrides: dict[str, Any], source: st
                                   f"valid values)") from None
     finally:
         _ENVIRONMENT.reset(token)
-
-
-def read_config_bytes(path: Path, what: str = "config file") -> bytes:
-    """The bytes of a config file, or of a stream such as bash's ``<(...)`` (it was "not
-    found"), read to at most :data:`MAX_CONFIG_BYTES` (``/dev/zero`` ran out of memory, an
-    audit of 2026-11-29); one line (:class:`ConfigError`) naming ``what`` otherwise."""
-    if path.is_dir():
-        raise ConfigError(f"{what} {path} is a directory, not a TOML file")
-    if not path.exists():
-        raise ConfigError(f"{what} not found: {path}")
-    try:
-        with open(path, "rb") as fh:
-            raw = fh.read(MAX_CONFIG_BYTES + 1)
-    except OSError as exc:
-        raise ConfigError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
-    if len(raw) > MAX_CONFIG_BYTES:
-        raise ConfigError(f"{what} {path} holds more than {MAX_CONFIG_BYTES // 2**20} MiB: "
-                          f"not a TOML config")
-    return raw
-
-
-def _decodes(raw: bytes, encoding: str) -> bool:
-    try:
-        raw.decode(encoding)
-    except UnicodeDecodeError:
-        return False
-    return True
-
-
-def check_toml_bytes(raw: bytes, path: Path, what: str = "config file") -> None:
-    """Refuse, in one line, a TOML file that starts with a byte-order mark: UTF-8's (Windows
-    editors write it; invisible, and TOML refuses it at 1:1) or UTF-16's (PowerShell 5's
-    ``>`` writes it; it read as "'utf-8' codec can't decode byte 0xff")."""
-    if raw.startswith(b"\xef\xbb\xbf"):
-        raise ConfigError(f"{what} {path} starts with a UTF-8 byte-order mark, which TOML "
-                          f"does not allow: save it as UTF-8 without BOM")
-    if raw.startswith((b"\xff\xfe", b"\xfe\xff")) and _decodes(raw, "utf-16"):
-        raise ConfigError(f"{what} {path} is UTF-16 (PowerShell 5's '>' writes it), and TOML "
-                          f"is UTF-8: save it as UTF-8 without BOM")
-
-
-def read_toml(path: str | Path) -> dict[str, Any]:
-    """Read a TOML config file into a flat dict (a ``[run]`` table is also accepted)."""
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover
-        import tomli as tomllib
-    p = Path(path)
-    raw = read_config_bytes(p)
-    check_toml_bytes(raw, p)
-    try:
-        data = tomllib.loads(raw.decode("utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot parse config file {p}: {exc}") from None
-    except RecursionError:  # (a list nested 5000 deep: 3000 lines of traceback, an audit)
-        raise ConfigError(f"cannot parse config file {p}: its arrays or tables are nested too "
-                          f"deeply") from None
-    if "run" in data and isinstance(data["run"], dict):
-        rest = {k: v for k, v in data.items() if k != "run"}
-        both = sorted({k.replace("-", "_") for k in rest}
-                      & {k.replace("-", "_") for k in data["run"]})
-        if both:  # (noise = 1 beside [run] noise = 7 took 7 without a word)
-            raise ConfigError(f"config file {p}: {', '.join(both)} given both at the top and "
-                              f"in [run]")
-        data = {**rest, **data["run"]}
-    unknown = sorted(k for k in data if k.replace("-", "_") in CLI_ONLY_KEYS)
-    if unknown:
-        what = "is a command-line option" if len(unknown) == 1 else "are command-line options"
-        raise ConfigError(f"config file {p}: {', '.join(unknown)} {what} (of the output, not "
-                          f"of the run): give it on the command line")
-    return resolve_file_paths(data, p.parent)
-
-
-#: keys of ``spslidar run`` that belong to the command, not to the run's configuration
-CLI_ONLY_KEYS = frozenset({"out", "overwrite", "save_ptu", "fov", "no_figure", "config"})
-
-#: config keys that may name a file: a relative one in a TOML file is read from its folder
-FILE_KEYS = ("scene", "irf")
-
-
-def resolve_file_paths(data: dict[str, Any], base: Path) -> dict[str, Any]:
-    """A relative scene or IRF *file* named in a config file is relative to that file's folder
-    (a built-in scene name or an IRF spec like ``gaussian:2`` is left alone), as a user writing
-    ``scene = "data/bike.npz"`` next to the TOML expects wherever the command is run from (a
-    relative ``irf = "irf.npy"`` was read from the current folder: the same TOML gave another
-    response in another folder)."""
-    out = dict(data)
-    for key, value in data.items():
-        if names_a_file(key, value) and not Path(value).is_absolute():
-            out[key] = str(base / value)
-    return out
-
-
-def names_a_file(key: str, value: Any) -> bool:
-    """Whether config key ``key`` (dashed or not) holds a *file* name: a scene or IRF given as
-    a path with a suffix, not a built-in scene name or an IRF spec like ``gaussian:2``."""
-    return (key.replace("-", "_") in FILE_KEYS and isinstance(value, str)
-            and bool(Path(value).suffix) and ":" not in value)
