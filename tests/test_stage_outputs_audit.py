@@ -48,7 +48,8 @@ def _one_line_refusal(capsys, args, out, match):
 @dataclass
 class _Faulty(LinearDetector):
     """The paper's counter, with one fault: ``minus-one`` (``poisson(mean) - 1``), ``short``
-    (a bin short), ``nan``, or ``totals`` (one total too few)."""
+    (a bin short), ``nan``, or ``totals`` (one total too few); in a noiseless run's
+    ``expected()``: ``expected-negative`` (the mean less one) or ``expected-short``."""
 
     fault: str = "minus-one"
     name = "faulty"
@@ -63,6 +64,14 @@ class _Faulty(LinearDetector):
         if self.fault == "nan":
             return counts * np.nan, totals
         return counts, totals[:-1]
+
+    def expected(self, lam, n_periods=1):
+        mean = super().expected(lam, n_periods)
+        if self.fault == "expected-negative":
+            return mean - 1.0  # (below zero where the flux is low)
+        if self.fault == "expected-short":
+            return mean[:, :-1]
+        return mean
 
 
 @pytest.fixture
@@ -91,6 +100,19 @@ def test_a_linear_detectors_counts_are_checked(faulty, fault, match):
     faulty(fault)
     with pytest.raises(ConfigError, match=match):
         spslidar.run(**SMALL, detector="faulty", noise=0.001, signal=0.01)
+
+
+@pytest.mark.parametrize("fault,match", [
+    ("expected-negative", r"'faulty' \(_Faulty\) returned negative counts \(down to -0\.99\d* "
+                          r"in a bin\) from its expected\(\)"),
+    ("expected-short", r"'faulty' \(_Faulty\) returned histograms of shape \(16, 126\) from "
+                       r"its expected\(\) for \(16, 127\)")])
+def test_a_noiseless_runs_expected_counts_are_checked(faulty, fault, match):
+    """A noiseless run takes the model's ``expected()`` instead of its draws: the same check
+    holds there (a review of stop 64 found that guard without a test of its own)."""
+    faulty(fault)
+    with pytest.raises(ConfigError, match=match):
+        spslidar.run(**SMALL, detector="faulty", noiseless=True, noise=1e-6, signal=1e-5)
 
 
 def test_a_detectors_negative_counts_are_one_line(faulty, capsys, tmp_path):
@@ -164,6 +186,31 @@ def test_a_scene_kind_that_ignores_the_window_is_refused(scenes, capsys, tmp_pat
     assert load_scene("fixed", 8).depth.max() == 6.0  # no window asked for: its own
     assert load_scene("fixed", 8, 4.0, 7.0).depth.min() == 5.0  # inside the window
     load_scene("f32", 8, 3.0, 4.0)  # float32 round-off of the window's ends
+
+
+
+@pytest.mark.parametrize("past,refused", [(5e-6, False), (1e-5, True), (1e-3, True)])
+def test_the_windows_tolerance_is_round_off_only(past, refused):
+    """1e-6 of the window's far end (6 um at 6 m): a scene 5 um past a [5, 6] m window's ends
+    is round-off, 10 um (a thousandth of a 1.5 cm bin) is refused, and so is 1 mm (a review
+    of stop 64 found the tolerance without a test of its bound)."""
+    from spslidar.errors import SceneError
+    from spslidar.scenes import SCENES, Scene, load_scene
+
+    def nudged(size, depth_min=None, depth_max=None):
+        depth = np.linspace(5.0, 6.0, size * size).reshape(size, size) + past
+        return Scene("nudged", depth, np.full((size, size), 0.7), np.ones((size, size), bool))
+
+    SCENES.add("nudged", nudged, "nudged", "5-6 m, nudged far")
+    try:
+        if refused:
+            with pytest.raises(SceneError, match=r"scene kind 'nudged' ignores the depth "
+                                                 r"window: asked for \[5, 6\] m"):
+                load_scene("nudged", 8, 5.0, 6.0)
+        else:
+            assert load_scene("nudged", 8, 5.0, 6.0).depth.max() == pytest.approx(6.0 + past)
+    finally:
+        SCENES._entries.pop("nudged", None)
 
 
 def test_the_builtin_scenes_fill_their_window():
