@@ -251,6 +251,8 @@ def test_bad_files_raise_config_error(tmp_path):
     t2 = tmp_path / "t2.ptu"
     t2.write_bytes(_ptu_bytes(_tags(0x01010204, 2, 1e-12, 1e-6, mode=2), [5, 6]))
     _raises("T2 records", t2, L)
+    # (and where a T2 file that recorded the code's sync can go: the time tags' converter)
+    _raises("convert its time tags with spslidar.io.write_ptu_from_timestamps", t2, L)
 
     good = tmp_path / "good.ptu"
     events, _ = _random_acquisition(4)

@@ -336,7 +336,10 @@ def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
         raise ConfigError(f"{path!r}: header has no TTResultFormat_TTTRRecType tag")
     if code in T2_RECORD_TYPES:
         raise ConfigError(f"{path!r} holds T2 records ({header['record_type']}): absolute time "
-                          "tags without a sync reference; record the lidar in T3 mode")
+                          "tags without a sync reference; record the lidar in T3 mode, or, "
+                          "where the code's sync went to one of its inputs, convert its time "
+                          "tags with spslidar.io.write_ptu_from_timestamps (README: \"Another "
+                          "vendor's time tagger\")")
     if header["measurement_mode"] == "T2":  # ("holds T2 records (PicoHarpT3)" contradicted)
         raise ConfigError(f"{path!r}: its header says T2 mode (Measurement_Mode 2) but "
                           f"{header['record_type']} records: the header contradicts itself")
