@@ -535,12 +535,11 @@ def returns_outside(counts: np.ndarray, replica: np.ndarray, gain: float,
     every = np.arange(period)
     total = np.array([counts.sum()])
     full = matched_filter(counts[None], replica, every, gain, out_dtype=np.float64)
-    # the noise: the counts' Poisson level, or the correlation's own robust spread over the
-    # period where that is more (a TDC's differential non-linearity of 15 % multiplies the
-    # background bin by bin, a floor far above the Poisson level at 10^5 counts a bin that
-    # read as 32-43 % of the returns outside a gate holding the whole scene: an outside
-    # audit of 2026-11-30; the returns hold few of the period's delays, so their median
-    # spread is the floor's)
+    # the noise: the counts' Poisson level, raised by the histogram's own excess over it
+    # where that is EXCESS_NOISE times or more (a TDC's differential non-linearity of 15 %
+    # multiplies the background bin by bin, a floor far above the Poisson level at 10^5
+    # counts a bin, which read as 32-43 % of the returns outside a gate holding the whole
+    # scene: an outside audit of 2026-11-30)
     sigma = noise_sigma_from_totals(total, replica, gain) * _excess_noise(counts, signal_code)
     _, returns = split_counts(full, sigma, total, every, signal_code, replica, gain,
                               OUTSIDE_SIGMAS)
