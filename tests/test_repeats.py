@@ -189,3 +189,4 @@ def test_reconstruct_ptu_api_takes_repeats(files):
                         np.load(path / "code.npy"), 10e9, (2.5, 4.0), repeats=K)
     assert r.metrics["ptu"]["repeats"] == K
     assert r.metrics["ptu"]["n_patterns_solved"] == M
+

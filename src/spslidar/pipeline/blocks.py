@@ -23,7 +23,8 @@ import numpy as np
 from ..errors import ConfigError
 
 __all__ = ["BOUNCE_PERIODS", "CHANNEL_SHARE", "DROPPED_SHARE", "SHORT_BLOCK", "channels_holding",
-           "check_blocks", "check_repeats", "drop_frozen", "fold_repeats", "read_blocks"]
+           "channel_note", "channels_read", "check_blocks", "check_repeats", "drop_frozen",
+           "fold_repeats", "read_blocks"]
 
 #: photons left out (before the first marker, or past the code period) beyond this share of
 #: the file's are said (they are always left out: no pattern, or no bin, is known for them)
@@ -378,6 +379,38 @@ def channels_holding(counts: dict[int, int]) -> dict[int, int]:
     :data:`CHANNEL_SHARE` of them all: each another detector."""
     total = max(sum(counts.values()), 1)
     return {c: n for c, n in counts.items() if n >= CHANNEL_SHARE * total}
+
+
+def channels_read(data, channel: Any) -> list[int]:
+    """The detector channels whose photons a read took: ``channel`` where one was given,
+    else those holding :data:`CHANNEL_SHARE` of the file's photons (merged)."""
+    if channel is not None:  # (an int, or in Python a list of them)
+        return sorted({int(c) for c in np.atleast_1d(np.asarray(channel))})
+    return sorted(int(c) for c in channels_holding(data.photons_per_channel))
+
+
+def channel_note(cal: dict, data, channel: Any) -> str | None:
+    """A word where a calibration was measured on other detector channels than an
+    acquisition is read on: each channel has its own cable and electronics delay, so a
+    channel's calibration moves another's depths by their difference (an outside audit of
+    2026-11-30: channel 0's calibration on channel 1, cabled 0.5-3 ns later, biased every
+    depth by 7.6-37.9 cm without a word). None where they agree, or where the calibration
+    does not say (one written before it recorded its channels)."""
+    measured = (cal.get("measured_from") or {}).get("channels")
+    if not isinstance(measured, list):
+        return None
+    read = channels_read(data, channel)
+    if sorted(int(c) for c in measured) == read:
+        return None
+
+    def name(chs) -> str:
+        return (f"channel {chs[0]}" if len(chs) == 1 else
+                f"channels {', '.join(map(str, chs))} merged")
+
+    return (f"the calibration was measured on detector {name(sorted(measured))}, and this "
+            f"acquisition is read on {name(read)}: each channel has its own cable and "
+            f"electronics delay (0.5 ns is 7.5 cm), so the depths may be off by their "
+            f"difference; calibrate the channels read here (--channel as in reconstruct)")
 
 
 def _channel_note(data) -> str | None:

@@ -450,7 +450,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     ``(0, 180)`` degrees (or with ``target='range'``) raise a one-line
     :class:`~spslidar.errors.ConfigError`."""
     from ..version import __version__
-    from .blocks import check_repeats, drop_frozen, read_blocks
+    from .blocks import channels_read, check_repeats, drop_frozen, read_blocks
     from .deadtime import dead_time_model
     from .real import (
         check_code,
@@ -524,7 +524,12 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                               "photons": int(data.counts_per_pattern[keep].sum()),
                               "photons_in_file": int(data.n_photons),
                               "patterns": int(patterns.shape[0]),
-                              "repeats": repeats, "settle_s": float(settle)}}
+                              "repeats": repeats, "settle_s": float(settle),
+                              # (the detector channels read: each has its own cable delay,
+                              # and a calibration applied to another went unsaid, an audit)
+                              "channel": None if channel is None else channels_read(data,
+                                                                                    channel),
+                              "channels": sorted(channels_read(data, channel))}}
 
 
 def _check_target(target: Any, fov_deg: Any) -> float | None:

@@ -424,7 +424,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     """
     from ..patterns import as_patterns
     from ..scenes import Scene
-    from .blocks import check_repeats, drop_frozen, fold_repeats, read_blocks
+    from .blocks import channels_read, check_repeats, drop_frozen, fold_repeats, read_blocks
     from .measurement import check_processing_keys, processing_keys
 
     if {"backend", "device"} & set(processing):  # (it was told the acquisition sets them)
@@ -552,6 +552,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
             dwell_warning += [note] if note else []
         note = code_note(cal, code, bit_rate)
         dwell_warning += [note] if note else []
+        from .blocks import channel_note
+
+        note = channel_note(cal, data, channel)
+        dwell_warning += [note] if note else []
     gain = correlation_gain(signal_code, replica) * n_mean * scale
     # a calibrated instrument's returns arrive lag_shift bins late: filter there, while the
     # depths stay those of the gated lags (true metres)
@@ -634,6 +638,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         "n_dropped_after_last_pattern": data.n_dropped_after_last_pattern,
         "n_patterns_solved": int(m), "n_out_of_range": data.n_out_of_range,
         "marker_edge": marker_edge, "settle_s": float(settle),
+        "channel": None if channel is None else channels_read(data, channel),
         "n_dropped_settling": int(data.n_dropped_settling),
         "code_periods_per_sync": int(data.periods_per_sync),
         "timing_drift_bins": None if drift is None else drift.bins,

@@ -1,0 +1,89 @@
+"""A calibration's detector channels: each channel has its own cable and electronics delay,
+and channel 0's calibration applied to channel 1 (cabled 0.5-3 ns later) biased every depth
+by 7.6-37.9 cm without a word (an outside lab audit of 2026-11-30). The calibration records
+the channels it read; ``reconstruct`` says where they are not the ones it reads. Files
+written with two channels seeing the same returns."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+from test_repeats import BIT_RATE, DWELL, C, L, M, N
+from test_screen_blocks import _scene
+
+from spslidar.cli import main
+
+
+def _two_channels(path, name, depth, skew, seed=3):
+    """A HydraHarp file of two detector channels seeing the same returns, channel 1 cabled
+    ``skew`` bins later; ``depth`` a map (a flat wall for a calibration)."""
+    from spslidar.io import write_ptu_t3
+
+    rng = np.random.default_rng(seed)
+    code = np.zeros(L)
+    code[np.random.default_rng(0).permutation(L)[: L // 2 + 1]] = 1.0
+    pats = (np.random.default_rng(1).random((M, N, N)) < 0.5).astype(np.float32)
+    delay = np.rint(2 * depth.ravel() / (C / BIT_RATE)).astype(int)
+    amp = np.zeros((M, L))
+    for d in np.unique(delay):
+        amp[:, d % L] += pats.reshape(M, -1)[:, delay == d].sum(axis=1) * 0.8
+    lam = DWELL * (3e-4 * np.fft.ifft(np.fft.fft(amp, axis=1)
+                                      * np.fft.fft(code)[None, :], axis=1).real + 2e-4)
+    ns, dt, ch, mk = [], [], [], []
+    for k in range(M):
+        ns.append([k * DWELL]), dt.append([0]), ch.append([0]), mk.append([1])
+        for c, shift in ((0, 0), (1, skew)):
+            counts = rng.poisson(np.clip(np.roll(lam[k], shift), 0, None))
+            t = np.repeat(np.arange(L), counts)
+            s = k * DWELL + rng.integers(0, DWELL, t.size)
+            ns.append(s), dt.append(t), ch.append(np.full(t.size, c)), mk.append(np.zeros(t.size))
+    ns, dt, ch, mk = (np.concatenate(a).astype(np.int64) for a in (ns, dt, ch, mk))
+    order = np.lexsort((-mk, ns))
+    write_ptu_t3(path / f"{name}.ptu", nsync=ns[order], dtime=dt[order], channel=ch[order],
+                 marker=mk[order], resolution_s=1 / BIT_RATE, sync_rate_hz=BIT_RATE / L)
+    np.save(path / "patterns.npy", pats)
+    np.save(path / "code.npy", code.astype(np.uint8))
+
+
+def test_a_calibration_on_other_channels_is_said(tmp_path, capsys):
+    """Channel 0's calibration applied to channel 1 (cabled 10 bins, 1 ns, later) biased
+    every depth by the cable's 15 cm without a word: the calibration now records the
+    channels it read, and reconstruct says where they are not the channels it reads."""
+    depth, _ = _scene()
+    _two_channels(tmp_path, "wall", np.full((N, N), 3.6), 10)
+    _two_channels(tmp_path, "scan", depth, 10, seed=4)
+    base = ["--patterns", str(tmp_path / "patterns.npy"), "--code", str(tmp_path / "code.npy"),
+            "--bit-rate", "10e9", "--dead-time", "0"]
+    for chan in ("0", "1"):
+        assert main(["calibrate", "--ptu", str(tmp_path / "wall.ptu"), *base, "--distance",
+                     "3.6", "--channel", chan, "--out", str(tmp_path / f"cal{chan}.json")]) == 0
+    assert main(["calibrate", "--ptu", str(tmp_path / "wall.ptu"), *base, "--distance", "3.6",
+                 "--out", str(tmp_path / "calall.json")]) == 0
+    cal = json.loads((tmp_path / "cal0.json").read_text())["measured_from"]
+    assert cal["channel"] == [0] and cal["channels"] == [0]
+    merged = json.loads((tmp_path / "calall.json").read_text())["measured_from"]
+    assert merged["channel"] is None and merged["channels"] == [0, 1]
+    capsys.readouterr()
+
+    def run(cal, *chan):
+        out = tmp_path / f"r_{cal}_{'-'.join(chan) or 'all'}"
+        assert main(["reconstruct", "--ptu", str(tmp_path / "scan.ptu"), *base,
+                     "--range-gate", "2.5", "4", "--calibration", str(tmp_path / f"{cal}.json"),
+                     "--out", str(out), "--no-figure", *(("--channel", *chan) if chan else ())
+                     ]) == 0
+        err = capsys.readouterr().err
+        m = json.loads((out / "metrics.json").read_text())
+        bias = float(np.nanmean(np.load(out / "depth.npy") - depth))
+        return err, m, bias
+
+    err, m, bias = run("cal0", "1")
+    assert ("the calibration was measured on detector channel 0, and this acquisition is read "
+            "on channel 1") in err
+    assert m["ptu"]["channel"] == [1] and bias > 0.1  # (the cable's 15 cm)
+    err, m, bias = run("cal1", "1")
+    assert "the calibration was measured on detector" not in err and abs(bias) < 0.03
+    err, _, _ = run("cal0")
+    assert "this acquisition is read on channels 0, 1 merged" in err
+    err, m, _ = run("calall")
+    assert "the calibration was measured on detector" not in err and m["ptu"]["channel"] is None
