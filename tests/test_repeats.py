@@ -22,14 +22,17 @@ C = 299_792_458.0
 M, K, DWELL = 96, 3, 800
 
 
-def _counts(seed, signal=2e-4, background=2e-4):
+def _counts(seed, signal=2e-4, background=2e-4, mask=None):
     """Photon counts per repeat, pattern and bin (K, M, L), the patterns, code and truth of
-    the 16x16 scene of ``test_screen_blocks`` (random binary patterns, a balanced code)."""
+    the 16x16 scene of ``test_screen_blocks`` (random binary patterns, a balanced code;
+    ``mask``: 0 where a mirror is never on)."""
     rng = np.random.default_rng(seed)
     depth, refl = _scene()
     code = np.zeros(L)
     code[rng.permutation(L)[: L // 2 + 1]] = 1.0
     pats = (rng.random((M, N, N)) < 0.5).astype(np.float32)
+    if mask is not None:  # (mirrors that never turn on: lit by no pattern)
+        pats *= mask
     delay = np.rint(2 * depth.ravel() / (C / BIT_RATE)).astype(int)
     amp = np.zeros((M, L))
     w = pats.reshape(M, -1) * refl.ravel()[None, :]
@@ -190,3 +193,25 @@ def test_reconstruct_ptu_api_takes_repeats(files):
     assert r.metrics["ptu"]["repeats"] == K
     assert r.metrics["ptu"]["n_patterns_solved"] == M
 
+
+
+def test_pixels_no_pattern_lights_have_no_depth(tmp_path, capsys):
+    """A DMD region padded to a square (or a round aperture): pixels whose mirror is 0 in
+    every pattern were measured by nothing, but the solve's prior filled them in and they got
+    confident depths, with "returns in 100% of pixels" (an outside lab audit of 2026-11-30).
+    Now they are NaN, with confidence 0 and no reflectivity, and said; the lit ones are as
+    good as before."""
+    mask = np.ones((N, N), np.float32)
+    mask[:, 12:] = 0.0  # four columns never lit
+    counts, pats, code, depth, rng = _counts(2, mask=mask)
+    _write(tmp_path, counts[:1], pats, code, rng, "once")
+    rc, m, est, err = _reconstruct(tmp_path, "once", capsys)
+    assert rc == 0, err
+    assert "64 of the 256 pixels are lit by no pattern" in err
+    assert np.isnan(est[:, 12:]).all() and np.isfinite(est[:, :12]).mean() > 0.9
+    conf = np.load(tmp_path / "rec_once" / "confidence.npy")
+    refl = np.load(tmp_path / "rec_once" / "reflectivity.npy")
+    assert (conf[:, 12:] == 0).all() and np.isnan(refl[:, 12:]).all()
+    assert m["coverage"] <= 0.75
+    # the lit pixels keep the map (the rule changes no solve): most within 5 cm
+    assert float(np.mean(np.abs(est[:, :12] - depth[:, :12]) < 0.05)) > 0.8

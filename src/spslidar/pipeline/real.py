@@ -590,6 +590,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
            "counts": totals, "signal_counts": signal, "noise_per_bin": background / n_mean,
            "pileup": pile,
            "estimate": {}, "delay_response": response, "response_half_width": half_width,
+           # (pixels whose mirror is 0 in every pattern solved: no depth is read for them)
+           "unlit_pixels": ~np.any(patterns != 0, axis=0),
            "outside_share": outside}
     acq = Acquisition("psst", code, bin_width, max(1, int(round(n_mean))), 1.0,
                       replica_kind,

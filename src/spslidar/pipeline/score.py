@@ -74,6 +74,25 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         warns.append(f"no pixel holds a return in the range gate {gate_text(meas.gate)} m "
                      f"(a noiseless run): the depth map is empty; check "
                      f"that the gate holds the scene")
+    unlit = sim.get("unlit_pixels")
+    if unlit is not None and bool(np.any(unlit)) and not empty:
+        # pixels no pattern lights were measured by none: the solve's prior fills them in,
+        # and they were given confident depths, 62 % of the lit pixels' reflectivity, with
+        # "returns in 100% of pixels" (an outside lab audit of 2026-11-30: a 16x32 DMD region
+        # padded to 32x32)
+        unlit = np.asarray(unlit, dtype=bool).ravel()
+
+        def cleared(arr, value):  # (each in its own shape: the confidence is flat)
+            return np.where(unlit.reshape(np.shape(arr)), value, arr)
+
+        depth = cleared(depth, np.nan)
+        confidence = cleared(confidence, 0.0)
+        low_confidence = cleared(low_confidence, False)
+        if depth2 is not None:
+            depth2 = cleared(depth2, np.nan)
+        warns.append(f"{int(unlit.sum())} of the {unlit.size} pixels are lit by no pattern "
+                     f"(their mirror is 0 in every one: a mask, or a padded region): nothing "
+                     f"measured them, so they have no depth (NaN) or reflectivity")
     if getattr(scene, "has_truth", True):
         err = depth_errors(depth, scene.depth, scene.valid)
         # (random depths where a map can put them: a gate longer than the code's unambiguous
