@@ -528,3 +528,42 @@ def test_syncs_that_stop_leave_their_blocks_out_and_say_why(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "where the file's syncs stop (the sync signal missing or lost?)" in err
     assert not (tmp_path / "z").exists()
+
+
+def test_files_joined_end_to_end_are_refused(tmp_path, capsys):
+    """Two PicoHarp files appended record by record, each counting its syncs from 0: the
+    block across the join was read as one code period and scaled up 2 100 times, the map
+    ruined under a warning of short dwells (an outside lab audit of 2026-11-30). No real
+    acquisition's sync count runs backwards: refused in one line, nothing written."""
+    import struct
+
+    from test_independent_ptu import write_picoharp_t3
+
+    rng = np.random.default_rng(9)
+    starts = [DWELL * k for k in range(M)]
+    parts = []
+    for half in (slice(0, M // 2), slice(M // 2, M)):
+        s = [x - starts[half.start] for x in starts[half]]
+        nsync, dtime, marker = _events(rng, s, s)
+        path = tmp_path / f"part{half.start}.ptu"
+        n = write_picoharp_t3(path, nsync, dtime, marker.astype(bool), RES, 1 / (L * RES))
+        raw = path.read_bytes()
+        parts.append((raw[: len(raw) - 4 * n], raw[len(raw) - 4 * n:], n))
+    header, first, n0 = parts[0]
+    _, second, n1 = parts[1]
+    at = header.index(b"TTResult_NumberOfRecords") + 40  # (32-byte name, index, type: value)
+    header = header[:at] + struct.pack("<q", n0 + n1) + header[at + 8:]
+    joined = tmp_path / "joined.ptu"
+    joined.write_bytes(header + first + second)
+    with pytest.raises(ConfigError, match=r"its sync count runs backwards \(sync \d+ after "
+                                          r"\d+\), which no acquisition records: files joined"):
+        read_blocks(joined, M, L, bin_width=RES)
+    pats = (rng.random((M, 4, 4)) < 0.5).astype(np.float32)
+    np.save(tmp_path / "p.npy", pats)
+    np.save(tmp_path / "c.npy", (rng.random(L) < 0.5).astype(np.uint8))
+    out = tmp_path / "r"
+    assert main(["reconstruct", "--ptu", str(joined), "--patterns", str(tmp_path / "p.npy"),
+                 "--code", str(tmp_path / "c.npy"), "--bit-rate", f"{1 / RES:g}",
+                 "--range-gate", "0.1", "1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "files joined end to end" in err[0] and not out.exists()
