@@ -395,8 +395,20 @@ def test_a_sync_divider_folds_each_sync_into_code_periods(tmp_path):
     np.testing.assert_array_equal(data.periods_per_pattern[:-1], 2 * DWELL)
     g = tmp_path / "nodiv.ptu"  # the same period without the header's word: no fold
     write_ptu_t3(g, **args)
-    with pytest.raises(ConfigError, match="sync period"):
+    with pytest.raises(ConfigError, match="sync period") as info:
         read_blocks(g, M, L, bin_width=RES)
+    # said first as what it is, a sync every 2 periods, and not as a slower code clock,
+    # whose advice read depths 1.5 m off (an outside lab audit of 2026-11-30)
+    said = str(info.value)
+    assert "it is 2 code periods: a sync every 2 of them" in said and "--sync-divider 2" in said
+    assert "--allow-binning" not in said
+    # --sync-divider 2 reads it as the header's divider would
+    given, _ = read_blocks(g, M, L, bin_width=RES, sync_divider=2)
+    np.testing.assert_array_equal(given.histograms, data.histograms)
+    np.testing.assert_array_equal(given.periods_per_pattern, data.periods_per_pattern)
+    for bad in (0, True, 1.5):
+        with pytest.raises(ConfigError, match="--sync-divider must be a whole number"):
+            read_blocks(g, M, L, bin_width=RES, sync_divider=bad)
 
 
 def test_a_missed_marker_is_refused_naming_the_long_block(tmp_path):

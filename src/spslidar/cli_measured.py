@@ -49,6 +49,10 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                    help="times the pattern sequence was shown in a row: the file holds K x M "
                         "marker blocks, block r M + i showing pattern i; each pattern's blocks "
                         "are summed (default 1)")
+    p.add_argument("--sync-divider", type=int, default=None, metavar="D",
+                   help="code periods per sync record, where the file's header does not say "
+                        "(a sync from the code generator every D periods; default: the "
+                        "header's HWSync_Divider, or 1)")
     p.add_argument("--dead-time", type=float, metavar="S",
                    help="the detector's (and TCSPC's) non-paralysable dead time, seconds: each "
                         "pattern's histogram is corrected for pile-up before the matched "
@@ -139,7 +143,8 @@ def cmd_reconstruct(args) -> int:
                              allow_binning=args.allow_binning, truth=args.truth,
                              calibration=args.calibration, marker_edge=args.marker_edge,
                              settle=args.settle, repeats=args.repeats,
-                             **_detector_args(args), **processing)
+                             sync_divider=args.sync_divider, **_detector_args(args),
+                             **processing)
     say_warnings(result.warnings)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
                       fov_deg=args.fov, option="--out", replace="--overwrite")
@@ -205,7 +210,7 @@ def cmd_calibrate(args) -> int:
                         allow_binning=args.allow_binning, target=args.target,
                         fov_deg=args.fov, marker_edge=args.marker_edge,
                         settle=args.settle, repeats=args.repeats,
-                        **_detector_args(args))
+                        sync_divider=args.sync_divider, **_detector_args(args))
     path = write_calibration(cal, args.out, args.overwrite)
     _WRITTEN.append(str(path))
     period_ns = cal["code_length"] / args.bit_rate * 1e9

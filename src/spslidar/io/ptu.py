@@ -321,6 +321,7 @@ def read_ptu_histograms(
     allow_binning: bool = False,
     check_sync_period: bool = True,
     settle_s: float = 0.0,
+    sync_divider: int | None = None,
 ) -> PtuAcquisition:
     """Read a T3 PTU file into per-pattern histograms over the code period.
 
@@ -419,6 +420,10 @@ def read_ptu_histograms(
         Check the sync period against ``n_bins * bin_width``.
     settle_s : float
         Seconds of each block's start whose photons are dropped (default 0; see above).
+    sync_divider : int, optional
+        Code periods per sync record where the header does not say (its ``HWSync_Divider``):
+        a sync from the code generator's frame output every D periods; given, it replaces
+        the header's.
 
     Returns
     -------
@@ -492,7 +497,11 @@ def read_ptu_histograms(
         # (PicoQuant's sync period is the divided one), and the TDC times are folded into one
         # (a divider of 2 was refused with "a 2046-bit code fits it", and a code given twice
         # read a third of its returns as outside the gate: an outside audit of 2026-11-30)
-        divider = header.get("sync_divider")
+        divider = header.get("sync_divider") if sync_divider is None else sync_divider
+        if sync_divider is not None and (isinstance(sync_divider, bool) or not isinstance(
+                sync_divider, int | np.integer) or sync_divider < 1):
+            raise ConfigError(f"--sync-divider must be a whole number of code periods per "
+                              f"sync, 1 or more, got {sync_divider!r}")
         fold = 1
         divided = (isinstance(divider, int | np.integer) and not isinstance(divider, bool)
                    and divider > 1)
@@ -505,12 +514,21 @@ def read_ptu_histograms(
                                   f"divider of 1, or a TDC bin that divides the code's bit")
             fold = int(divider)
         if check_sync_period and abs(period - fold * n_bins * width) > period_tol_bins * width:
+            # (a sync every D code periods from the generator's frame output, with no divider
+            # in the header, was told of a 2 n-bit code and a slower bit rate, which read
+            # depths 1.5 m off: an outside lab audit of 2026-11-30)
+            k = round(period / (n_bins * width)) if n_bins * width > 0 else 0
+            whole = (not divided and k >= 2
+                     and abs(period - k * n_bins * width) <= period_tol_bins * width)
             raise ConfigError(
                 f"{spath!r}: sync period {period:.6g} s != code period n_bins * bin_width = "
                 f"{n_bins} * {width:.6g} s = {n_bins * width:.6g} s "
                 f"({(period - n_bins * width) / width:+.3g} bins, tolerance {period_tol_bins:g})"
-                f"; {_fitting_codes(period / width, width, period_tol_bins)}"
-                + ("" if rebin is not None or divided or not 0 < n_bins / period < 1 / res else
+                + (f"; it is {k} code periods: a sync every {k} of them, which the header's "
+                   f"divider does not say? --sync-divider {k}" if whole else "")
+                + f"; {_fitting_codes(period / width, width, period_tol_bins)}"
+                + ("" if rebin is not None or divided or whole
+                   or not 0 < n_bins / period < 1 / res else
                    f"; or, if the code has {n_bins} bits, its bits come at {n_bins / period:.7g} "
                    f"Hz (a code clock off the TDC's): --bit-rate {n_bins / period:.7g} "
                    f"--allow-binning splits the TDC's bins between them"))

@@ -460,7 +460,7 @@ def _lost_notes(data, marker: int, n_bins: int) -> list[str]:
 def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
                 channel: Any = None, allow_binning: bool = False,
                 marker_edge: str = "start", settle: float = 0.0,
-                repeats: int = 1) -> tuple[Any, list[str]]:
+                repeats: int = 1, sync_divider: int | None = None) -> tuple[Any, list[str]]:
     """The ``m`` pattern blocks of a measured T3 file, and what to say about them.
 
     Parameters
@@ -481,6 +481,8 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
         Seconds of each block's start whose photons are dropped (the reader's ``settle_s``).
     repeats : int
         Times the sequence was shown (``m`` is then its rows times this): named in a refusal.
+    sync_divider : int, optional
+        Code periods per sync record where the header does not say (the reader's).
 
     Returns
     -------
@@ -504,7 +506,7 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
             return read_ptu_histograms(ptu, n_bins, bin_width=bin_width, marker=marker,
                                        channel=channel, n_patterns=m, extra_blocks=extra,
                                        marker_edge=marker_edge, allow_binning=allow_binning,
-                                       settle_s=seconds)
+                                       settle_s=seconds, sync_divider=sync_divider)
         except ConfigError as err:  # ("fewer than the 384 patterns" of 96 rows: say why)
             if repeats > 1:
                 raise ConfigError(f"{err} (--repeats {repeats}: {m // repeats} pattern rows "

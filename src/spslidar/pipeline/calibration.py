@@ -430,10 +430,12 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                   fov_deg: float | None = None, marker_edge: str = "start",
                   settle: float = 0.0, dead_time: float | None = None,
                   afterpulse_prob: float = 0.0,
-                  afterpulse_delay: float = 0.0, repeats: int = 1) -> dict[str, Any]:
+                  afterpulse_delay: float = 0.0, repeats: int = 1,
+                  sync_divider: int | None = None) -> dict[str, Any]:
     """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target,
     with what it was measured from (file, hash, photons, patterns, bit rate, code);
-    ``allow_binning``, ``marker_edge``, ``settle``, ``repeats`` and the detector's ``dead_time`` and
+    ``allow_binning``, ``marker_edge``, ``settle``, ``repeats``, ``sync_divider`` and the
+    detector's ``dead_time`` and
     afterpulsing (each block's histogram corrected for pile-up before the response is read:
     uncorrected, a bright wall's response is read through the detector's dead time; the
     JSON's ``detector`` says which) as :func:`~spslidar.pipeline.real.reconstruct_ptu`.
@@ -483,7 +485,8 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
         wall_offsets((side, side), distance, fov, bin_width, int(code.size))
     data, notes = read_blocks(ptu, int(patterns.shape[0]), int(code.size), bin_width=bin_width,
                               marker=marker, channel=channel, allow_binning=allow_binning,
-                              marker_edge=marker_edge, settle=settle, repeats=repeats)
+                              marker_edge=marker_edge, settle=settle, repeats=repeats,
+                              sync_divider=sync_divider)
     data, frozen, note = drop_frozen(data, ptu)
     if frozen:  # (blocks without a dwell: the file's syncs lost)
         patterns = patterns[: patterns.shape[0] - frozen]

@@ -355,7 +355,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                     allow_binning: bool = False, marker_edge: str = "start",
                     settle: float = 0.0, dead_time: float | None = None,
                     afterpulse_prob: float = 0.0, afterpulse_delay: float = 0.0,
-                    repeats: int = 1, **processing: Any) -> Result:
+                    repeats: int = 1, sync_divider: int | None = None,
+                    **processing: Any) -> Result:
     """Depth map from a measured T3 PTU acquisition.
 
     Parameters
@@ -405,6 +406,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         corrected for pile-up with its own dwell, then each pattern's kept blocks are summed
         (histograms and dwells), so the solve has ``M`` rows; ``metrics['ptu']`` numbers the
         blocks left out through the repeats.
+    sync_divider : int, optional
+        Code periods per sync record, where the file's header does not say (a sync from the
+        code generator's frame output every D periods; default: the header's
+        ``HWSync_Divider``, or 1).
     **processing
         Config keys of the processing (``solver``, ``qcr``, ``depth``, ``lam_scale``...).
 
@@ -464,7 +469,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     data, dwell_warning = read_blocks(ptu, m, period, bin_width=bin_width, marker=marker,
                                       channel=channel, allow_binning=allow_binning,
                                       marker_edge=marker_edge, settle=settle,
-                                      repeats=repeats)
+                                      repeats=repeats, sync_divider=sync_divider)
     n_blocks = data.n_patterns  # (the lost syncs' blocks too, for blocks_left_out)
     data, frozen, note = drop_frozen(data, ptu)
     if frozen:  # (the rows the file's lost syncs leave without a dwell)
