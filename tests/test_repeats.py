@@ -22,10 +22,11 @@ C = 299_792_458.0
 M, K, DWELL = 96, 3, 800
 
 
-def _counts(seed, signal=2e-4, background=2e-4, mask=None):
+def _counts(seed, signal=2e-4, background=2e-4, mask=None, move=0.0):
     """Photon counts per repeat, pattern and bin (K, M, L), the patterns, code and truth of
     the 16x16 scene of ``test_screen_blocks`` (random binary patterns, a balanced code;
-    ``mask``: 0 where a mirror is never on)."""
+    ``mask``: 0 where a mirror is never on; ``move``: metres the scene moves away each
+    repeat, the truth the first repeat's)."""
     rng = np.random.default_rng(seed)
     depth, refl = _scene()
     code = np.zeros(L)
@@ -33,14 +34,17 @@ def _counts(seed, signal=2e-4, background=2e-4, mask=None):
     pats = (rng.random((M, N, N)) < 0.5).astype(np.float32)
     if mask is not None:  # (mirrors that never turn on: lit by no pattern)
         pats *= mask
-    delay = np.rint(2 * depth.ravel() / (C / BIT_RATE)).astype(int)
-    amp = np.zeros((M, L))
     w = pats.reshape(M, -1) * refl.ravel()[None, :]
-    for d in np.unique(delay):
-        amp[:, d % L] += w[:, delay == d].sum(axis=1)
-    spectrum = np.fft.ifft(np.fft.fft(amp, axis=1) * np.fft.fft(code)[None, :], axis=1).real
-    lam = np.clip(DWELL * (signal * spectrum + background), 0, None)
-    return rng.poisson(np.broadcast_to(lam, (K, M, L))), pats, code, depth, rng
+    lam = []
+    for r in range(K):
+        delay = np.rint(2 * (depth.ravel() + r * move) / (C / BIT_RATE)).astype(int)
+        amp = np.zeros((M, L))
+        for d in np.unique(delay):
+            amp[:, d % L] += w[:, delay == d].sum(axis=1)
+        spectrum = np.fft.ifft(np.fft.fft(amp, axis=1) * np.fft.fft(code)[None, :],
+                               axis=1).real
+        lam.append(np.clip(DWELL * (signal * spectrum + background), 0, None))
+    return rng.poisson(np.array(lam)), pats, code, depth, rng
 
 
 def _write(path, counts, pats, code, rng, order="repeated"):
@@ -215,3 +219,40 @@ def test_pixels_no_pattern_lights_have_no_depth(tmp_path, capsys):
     assert m["coverage"] <= 0.75
     # the lit pixels keep the map (the rule changes no solve): most within 5 cm
     assert float(np.mean(np.abs(est[:, :12] - depth[:, :12]) < 0.05)) > 0.8
+
+
+def test_frame_reads_one_repeat_of_a_moving_scene(tmp_path, capsys):
+    """A video: the scene 10 cm farther at each of the K repeats. Summed, the map lies
+    between them; --frame I reads repeat I alone, the scene where it was then (an outside
+    lab audit of 2026-11-30: no way to get a frame but to split the file by hand)."""
+    counts, pats, code, depth, rng = _counts(5, signal=6e-4, move=0.1)
+    _write(tmp_path, counts, pats, code, rng, "repeated")
+    bias = {}
+    for frame in (None, 0, 2):
+        extra = () if frame is None else ("--frame", str(frame))
+        rc, m, est, err = _reconstruct(tmp_path, "repeated", capsys, "--repeats", str(K),
+                                       *extra, out=tmp_path / f"f{frame}")
+        assert rc == 0, err
+        assert m["ptu"]["frame"] == frame
+        bias[frame] = float(np.nanmedian(est - depth))
+        # (summed, the motion reads as a drift, and the warning names the frames)
+        assert ("a scene that moves between the repeats reads as the drift above; --frame I"
+                in err) == (frame is None)
+        if frame is not None:
+            assert m["ptu"]["n_patterns_solved"] == M and m["ptu"]["blocks_left_out"] == []
+            assert m["ptu"]["periods_per_pattern"] == [DWELL] * M
+    assert abs(bias[0]) < 0.02 and abs(bias[2] - 0.2) < 0.02  # (each frame's own scene)
+    assert 0.05 < bias[None] < 0.15  # (summed: in between)
+
+
+@pytest.mark.parametrize("args,says", [
+    (("--frame", "1"), "--frame reads one repeat of a sequence shown several times: give "
+                       "--repeats K"),
+    (("--repeats", "3", "--frame", "3"), "--frame must be a repeat of the sequence, 0 to 2"),
+    (("--repeats", "3", "--frame", "-1"), "--frame must be a repeat of the sequence, 0 to 2")])
+def test_a_frame_outside_the_repeats_is_one_line(files, capsys, tmp_path, args, says):
+    path, _ = files
+    out = tmp_path / "rec"
+    rc, _, _, err = _reconstruct(path, "repeated", capsys, *args, out=out)
+    assert rc == 2 and says in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()

@@ -390,7 +390,7 @@ METRICS: dict[str, str] = {
            "pattern, the background, the blocks left out (``blocks_left_out``: a dropout or "
            "a stall, ``spslidar.pipeline.screen``; numbered through the repeats, block "
            "``r M + i`` showing pattern ``i``), ``repeats`` (``--repeats``: each pattern's "
-           "blocks summed), ``channel`` (``--channel``: the detector channels read; null "
+           "blocks summed; ``frame``, ``--frame``: one repeat alone), ``channel`` (``--channel``: the detector channels read; null "
            "for all, merged), ``settle_s`` and "
            "``n_dropped_settling`` (``--settle``), and ``timing_drift_bins`` (with "
            "``timing_drift_se_bins``): how much later the returns arrive at the last pattern "

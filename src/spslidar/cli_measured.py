@@ -96,6 +96,9 @@ def add_reconstruct_parser(sub) -> None:
                     "depth.png (and depth2.npy from --depth guarded/evidence; truth.npy and "
                     "valid.npy with --truth) into --out (only when complete).")
     _add_acquisition_args(p, "FILE.ptu", "T3 PTU file")
+    p.add_argument("--frame", type=int, default=None, metavar="I",
+                   help="with --repeats: reconstruct repeat I of the sequence alone (from 0), a "
+                        "frame of a video (default: all repeats summed)")
     p.add_argument("--range-gate", type=float, nargs=2, required=True, metavar=("MIN", "MAX"),
                    help="depths to reconstruct, metres")
     p.add_argument("--calibration", metavar="CAL.json",
@@ -143,8 +146,8 @@ def cmd_reconstruct(args) -> int:
                              allow_binning=args.allow_binning, truth=args.truth,
                              calibration=args.calibration, marker_edge=args.marker_edge,
                              settle=args.settle, repeats=args.repeats,
-                             sync_divider=args.sync_divider, **_detector_args(args),
-                             **processing)
+                             sync_divider=args.sync_divider, frame=args.frame,
+                             **_detector_args(args), **processing)
     say_warnings(result.warnings)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
                       fov_deg=args.fov, option="--out", replace="--overwrite")

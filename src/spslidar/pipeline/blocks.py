@@ -23,7 +23,8 @@ import numpy as np
 from ..errors import ConfigError
 
 __all__ = ["BOUNCE_PERIODS", "CHANNEL_SHARE", "DROPPED_SHARE", "SHORT_BLOCK", "channels_holding",
-           "channel_note", "channels_read", "check_blocks", "check_repeats", "drop_frozen",
+           "channel_note", "channels_read", "check_blocks", "check_frame", "check_repeats",
+           "drop_frozen",
            "fold_repeats", "read_blocks"]
 
 #: photons left out (before the first marker, or past the code period) beyond this share of
@@ -87,6 +88,26 @@ def check_repeats(repeats: Any) -> int:
     if value is None or not (math.isfinite(value) and value >= 1 and value == int(value)):
         raise ConfigError(f"--repeats must be a whole number of times the pattern sequence "
                           f"was shown, 1 or more, got {repeats!r}")
+    return int(value)
+
+
+def check_frame(frame: Any, repeats: int) -> int | None:
+    """``--frame`` (one repeat of the sequence, from 0) as an int in ``[0, repeats)``, or
+    None; one line (:class:`ConfigError`) otherwise, or without ``--repeats`` of 2 or more."""
+    if frame is None:
+        return None
+    from ..arrays import real_number
+
+    value = real_number(frame)
+    if value is None or not (math.isfinite(value) and value == int(value)):
+        raise ConfigError(f"--frame must be a whole number, a repeat of the sequence from 0, "
+                          f"got {frame!r}")
+    if repeats < 2:
+        raise ConfigError("--frame reads one repeat of a sequence shown several times: give "
+                          "--repeats K (2 or more) too")
+    if not 0 <= value < repeats:
+        raise ConfigError(f"--frame must be a repeat of the sequence, 0 to {repeats - 1} of "
+                          f"--repeats {repeats}, got {int(value)}")
     return int(value)
 
 

@@ -356,7 +356,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                     settle: float = 0.0, dead_time: float | None = None,
                     afterpulse_prob: float = 0.0, afterpulse_delay: float = 0.0,
                     repeats: int = 1, sync_divider: int | None = None,
-                    **processing: Any) -> Result:
+                    frame: int | None = None, **processing: Any) -> Result:
     """Depth map from a measured T3 PTU acquisition.
 
     Parameters
@@ -410,6 +410,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         Code periods per sync record, where the file's header does not say (a sync from the
         code generator's frame output every D periods; default: the header's
         ``HWSync_Divider``, or 1).
+    frame : int, optional
+        With ``repeats``: reconstruct that repeat of the sequence alone (from 0), a frame of
+        a video whose scene moves between repeats (default: all repeats summed). Every
+        block is still read, screened and checked for drift.
     **processing
         Config keys of the processing (``solver``, ``qcr``, ``depth``, ``lam_scale``...).
 
@@ -429,7 +433,15 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     """
     from ..patterns import as_patterns
     from ..scenes import Scene
-    from .blocks import channels_read, check_repeats, drop_frozen, fold_repeats, read_blocks
+    from .blocks import (
+        channels_read,
+        check_frame,
+        check_repeats,
+        drop_frozen,
+        fold_repeats,
+        read_blocks,
+    )
+    from .drift import drift_note
     from .measurement import check_processing_keys, processing_keys
 
     if {"backend", "device"} & set(processing):  # (it was told the acquisition sets them)
@@ -439,6 +451,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     check_ptu_path(ptu)
     patterns = check_patterns(patterns, True, "patterns")
     repeats = check_repeats(repeats)
+    frame = check_frame(frame, repeats)
     code = check_code(code, None, "code")
     range_gate = check_gate(range_gate)
     check_processing_keys(processing, "reconstruct_ptu()",
@@ -513,6 +526,16 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         m, n_k, patterns, rows = keep.size, n_k[keep], patterns[keep], rows[keep]
     hist, noise_totals = blocks.hist, blocks.noise_totals
     dwell_warning += blocks.notes
+    if repeats > 1 and frame is None and drift_note(drift, bin_width):
+        # (a scene moving 3 cm a repeat was said only as a timing drift of 14 bins: an
+        # outside lab audit of 2026-11-30)
+        dwell_warning.append(
+            f"the sequence was shown {repeats} times, summed here: a scene that moves between "
+            f"the repeats reads as the drift above; --frame I reconstructs repeat I alone")
+    if frame is not None:  # one repeat's blocks alone (a frame of a video)
+        mine = rows // shown.shape[0] == frame
+        rows, hist, n_k = rows[mine], hist[mine], n_k[mine]
+        noise_totals = None if noise_totals is None else noise_totals[mine]
     blocks_kept, counts_kept = rows, data.counts_per_pattern[rows]
     if repeats > 1:  # each pattern's kept blocks summed: the solve has one row a pattern
         rows, hist, n_k, noise_totals, counts_kept = fold_repeats(
@@ -636,8 +659,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         result.metrics["n_valid"] = None
     result.metrics["ptu"] = {
         "file": os.fspath(ptu), "counts_per_pattern": counts_kept.tolist(),
-        "blocks_left_out": np.setdiff1d(np.arange(n_blocks), blocks_kept).tolist(),
-        "repeats": repeats,
+        "blocks_left_out": np.setdiff1d(
+            np.arange(n_blocks)[np.arange(n_blocks) // shown.shape[0] == frame]
+            if frame is not None else np.arange(n_blocks), blocks_kept).tolist(),
+        "repeats": repeats, "frame": frame,
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":
         float(background.mean() / n_mean), "background_per_pattern": background.tolist(),
         "n_records": data.n_records, "n_photons": data.n_photons, "n_markers": data.n_markers,
