@@ -509,6 +509,15 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                                               target, fov_deg, pulse_width)
         cal = measure_response(total, code, bin_width, distance, pulse_width,
                                response=response, phase=geometry.get("phase_bins"))
+        merged = channels_read(data, channel) if channel is None else []
+        if len(merged) > 1 and any("holds a second return" in str(w.message) for w in said):
+            # (two detectors cabled 1.5 ns apart were told of a second surface or the
+            # instrument's reflection, just after being told they were merged: an outside
+            # lab audit of 2026-11-30)
+            warnings.warn(f"the detector channels {', '.join(map(str, merged))} were merged "
+                          f"here: the second return may be their cables' difference in delay, "
+                          f"each channel's own return; calibrate each with --channel C and "
+                          f"reconstruct it with its own calibration", stacklevel=2)
     for w in said:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     path = Path(ptu)
