@@ -472,12 +472,6 @@ def split_counts(corr: np.ndarray, sigma: np.ndarray, totals: np.ndarray, lags: 
 #: noise levels above the background (at 3, a 4095-bit period held about 5 delays of noise
 #: above it)
 OUTSIDE_SIGMAS = 5.0
-#: the summed histogram's noise read as that many times its Poisson level or more
-#: (:func:`_excess_noise`) raises :func:`returns_outside`'s noise level to it: a TDC's
-#: differential non-linearity of 15 % read 4.6-6.4 on a 16x16 acquisition, where the
-#: returns outside a gate read 32-43 % of a scene the gate held whole; files without it
-#: 1.0-1.4 (a random code's sidelobes left by the regularised deconvolution), left as they are
-EXCESS_NOISE = 2.0
 
 
 #: a measured acquisition warns where more than this share of its returns lies outside the
@@ -535,14 +529,8 @@ def returns_outside(counts: np.ndarray, replica: np.ndarray, gain: float,
     every = np.arange(period)
     total = np.array([counts.sum()])
     full = matched_filter(counts[None], replica, every, gain, out_dtype=np.float64)
-    # the noise: the counts' Poisson level, raised by the histogram's own excess over it
-    # where that is EXCESS_NOISE times or more (a TDC's differential non-linearity of 15 %
-    # multiplies the background bin by bin, a floor far above the Poisson level at 10^5
-    # counts a bin, which read as 32-43 % of the returns outside a gate holding the whole
-    # scene: an outside audit of 2026-11-30)
-    sigma = noise_sigma_from_totals(total, replica, gain) * _excess_noise(counts, signal_code)
-    _, returns = split_counts(full, sigma, total, every, signal_code, replica, gain,
-                              OUTSIDE_SIGMAS)
+    _, returns = split_counts(full, noise_sigma_from_totals(total, replica, gain), total,
+                              every, signal_code, replica, gain, OUTSIDE_SIGMAS)
     if not returns.sum() > 0:
         return 0.0, np.zeros(0, int)
     if response is not None:
@@ -560,27 +548,6 @@ def returns_outside(counts: np.ndarray, replica: np.ndarray, gain: float,
     order = np.argsort(mass)[::-1]
     keep = order[: int(np.searchsorted(np.cumsum(mass[order]), OUTSIDE_SPAN * mass.sum())) + 1]
     return share, np.sort(idx[keep])
-
-
-def _excess_noise(counts: np.ndarray, code: np.ndarray) -> float:
-    """How far the summed histogram's noise stands above its Poisson level where that is
-    :data:`EXCESS_NOISE` or more, else 1: the
-    robust spread of the histogram with the code deconvolved (each return one delay, a random
-    code's sidelobes taken out, so that the few delays holding returns do not move the
-    median) against the spread Poisson counts give through the same filter (Parseval)."""
-    c = np.asarray(code, dtype=np.float64)
-    spec = np.fft.rfft(c)
-    power = np.abs(spec) ** 2
-    filt = np.conj(spec) / (power + 1e-3 * float(np.median(power)))
-    prof = np.fft.irfft(np.fft.rfft(counts) * filt, c.size)
-    spread = 1.4826 * float(np.median(np.abs(prof - np.median(prof))))
-    # (white noise of the counts' variance, bin by bin, through the filter: the mean of
-    # |filt|^2 over the full spectrum, its rfft half counted twice but DC and Nyquist)
-    w2 = np.abs(filt) ** 2
-    full = (w2[0] + 2.0 * w2[1:].sum() - (w2[-1] if c.size % 2 == 0 else 0.0)) / c.size
-    poisson = float(np.sqrt(max(counts.mean(), 0.0) * full))
-    ratio = spread / poisson if poisson > 0 else 1.0
-    return ratio if ratio >= EXCESS_NOISE else 1.0
 
 
 def _deconvolve(components: np.ndarray, offsets: np.ndarray, values: np.ndarray,
