@@ -94,3 +94,16 @@ def test_a_calibration_on_other_channels_is_said(tmp_path, capsys):
     assert "this acquisition is read on channels 0, 1 merged" in err
     err, m, _ = run("calall")
     assert "the calibration was measured on detector" not in err and m["ptu"]["channel"] is None
+
+
+def test_a_calibration_edited_by_hand_does_not_say_its_channels():
+    """``measured_from`` as text, or channels that are not numbers, was a traceback (a
+    review): such a calibration says nothing of its channels, so nothing is said."""
+    from spslidar.pipeline.blocks import channel_note
+
+    class Data:
+        photons_per_channel = {0: 100, 1: 100}
+
+    for source in ("lab A", {"channels": ["a"]}, {"channels": [True]}, {"channels": 0}, None):
+        assert channel_note({"measured_from": source}, Data(), 1) is None
+    assert "channel 0" in channel_note({"measured_from": {"channels": [0]}}, Data(), 1)

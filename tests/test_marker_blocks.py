@@ -511,7 +511,7 @@ def test_syncs_that_stop_leave_their_blocks_out_and_say_why(tmp_path, capsys):
     assert n == 2 and kept.n_patterns == 4 and _peaks(kept) == [0, 1, 2, 3]
     assert kept.n_dropped_after_last_pattern == data.n_dropped_after_last_pattern + 2 * PER
     assert f"the file's syncs stop at sync {4 * DWELL}: its last 2 marker blocks (from " \
-           f"pattern 4 on) start there and hold {2 * PER} photons" in note
+           f"block 4 on) start there and hold {2 * PER} photons" in note
     # a file whose syncs go on, or a bounce at one sync mid-file, keeps every block
     g = _write(tmp_path / "ok.ptu", *_events(rng, starts, starts))
     ok, _ = read_blocks(g, M, L, bin_width=RES)

@@ -256,3 +256,19 @@ def test_a_frame_outside_the_repeats_is_one_line(files, capsys, tmp_path, args, 
     rc, _, _, err = _reconstruct(path, "repeated", capsys, *args, out=out)
     assert rc == 2 and says in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_the_wrong_repeats_is_named_with_the_rows_given(files, capsys, tmp_path):
+    """A file of 3 repeats read with --repeats 2 was told of "192 rows" (the blocks) and to
+    pass --repeats 2, what it had passed (a review); and the repeats' word went onto every
+    refusal of the reader, a bad --sync-divider's too."""
+    path, _ = files
+    rc, _, _, err = _reconstruct(path, "repeated", capsys, "--repeats", "2",
+                                 out=tmp_path / "a")
+    assert rc == 2
+    assert (f"has {K * M} marker-delimited blocks but --patterns has {M} rows shown 2 times "
+            f"({2 * M} blocks)") in err and f"pass --repeats {K}" in err
+    rc, _, _, err = _reconstruct(path, "repeated", capsys, "--repeats", str(K),
+                                 "--sync-divider", "0", out=tmp_path / "b")
+    assert rc == 2 and "--sync-divider must be a whole number" in err
+    assert "pattern rows shown" not in err

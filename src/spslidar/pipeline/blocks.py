@@ -56,25 +56,28 @@ BOUNCE_ROWS = 16
 CHANNEL_SHARE = 0.01
 
 
-def check_blocks(data, m: int, ptu, merged: int = 0) -> None:
-    """The file's marker-delimited blocks against the ``m`` pattern rows: more blocks than
-    rows (an arming and an end-of-acquisition marker aside, and ``merged`` bounces) is a
-    mismatch, refused in one line (``calibrate`` used the first rows' blocks of such a file
-    and said nothing)."""
+def check_blocks(data, m: int, ptu, merged: int = 0, repeats: int = 1) -> None:
+    """The file's marker-delimited blocks against the ``m`` pattern blocks (``--patterns``'
+    rows times ``repeats``): more blocks than that (an arming and an end-of-acquisition
+    marker aside, and ``merged`` bounces) is a mismatch, refused in one line (``calibrate``
+    used the first rows' blocks of such a file and said nothing)."""
     if data.n_markers - merged > m + 2:  # an end-of-acquisition or arming marker is common
         bounced = f" ({merged} of them a marker's bounce, merged)" if merged else ""
+        rows = m // repeats
+        shown = f" shown {repeats} times ({m} blocks)" if repeats > 1 else ""
         raise ConfigError(f"{os.fspath(ptu)!r} has {data.n_markers} marker-delimited blocks"
-                          f"{bounced} but --patterns has {m} rows: the patterns shown do not "
-                          f"match the file (or --marker names the wrong input)"
-                          f"{_repeats_hint(data.n_markers - merged, m)}")
+                          f"{bounced} but --patterns has {rows} rows{shown}: the patterns "
+                          f"shown do not match the file (or --marker names the wrong input)"
+                          f"{_repeats_hint(data.n_markers - merged, rows, repeats)}")
 
 
-def _repeats_hint(blocks: int, m: int) -> str:
-    """Where ``blocks`` is a whole number of times ``m`` (to an arming and an end marker):
-    the sequence shown that many times, and the flag that says so."""
+def _repeats_hint(blocks: int, m: int, given: int = 1) -> str:
+    """Where ``blocks`` is a whole number of times the ``m`` pattern rows (to an arming and
+    an end marker), other than the ``given`` repeats: the sequence shown that many times,
+    and the flag that says so."""
     for extra in range(3):
         k, rest = divmod(blocks - extra, m)
-        if k >= 2 and rest == 0:
+        if k >= 2 and rest == 0 and k != given:
             return f"; or the sequence shown {k} times in a row? pass --repeats {k}"
     return ""
 
@@ -174,7 +177,7 @@ def drop_frozen(data, ptu) -> tuple[Any, int, str | None]:
     first = int(frozen[0])
     return (_rows(data, slice(0, first), after=photons), int(frozen.size),
             f"the file's syncs stop at sync {int(data.last_sync)}: its last {frozen.size} "
-            f"marker blocks (from pattern {first} on) start there and hold {photons} photons "
+            f"marker blocks (from block {first} on) start there and hold {photons} photons "
             f"in no code period (the sync signal lost?): their pattern rows are left out of "
             f"the solve")
 
@@ -417,8 +420,12 @@ def channel_note(cal: dict, data, channel: Any) -> str | None:
     2026-11-30: channel 0's calibration on channel 1, cabled 0.5-3 ns later, biased every
     depth by 7.6-37.9 cm without a word). None where they agree, or where the calibration
     does not say (one written before it recorded its channels)."""
-    measured = (cal.get("measured_from") or {}).get("channels")
-    if not isinstance(measured, list):
+    source = cal.get("measured_from")
+    measured = source.get("channels") if isinstance(source, dict) else None
+    # (a file edited by hand, "measured_from": "lab A" or "channels": ["a"], was a traceback:
+    # a review; such a calibration does not say its channels)
+    if not (isinstance(measured, list) and all(
+            isinstance(c, int) and not isinstance(c, bool) for c in measured)):
         return None
     read = channels_read(data, channel)
     if sorted(int(c) for c in measured) == read:
@@ -529,7 +536,7 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
                                        marker_edge=marker_edge, allow_binning=allow_binning,
                                        settle_s=seconds, sync_divider=sync_divider)
         except ConfigError as err:  # ("fewer than the 384 patterns" of 96 rows: say why)
-            if repeats > 1:
+            if repeats > 1 and "marker-delimited blocks" in str(err):
                 raise ConfigError(f"{err} (--repeats {repeats}: {m // repeats} pattern rows "
                                   f"shown {repeats} times)") from None
             raise
@@ -541,7 +548,7 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
         data = read(data.n_markers - m)
     n_read = data.n_patterns
     data, notes = _merge_bounces(data, m, marker)
-    check_blocks(data, m, ptu, merged=n_read - data.n_patterns)
+    check_blocks(data, m, ptu, merged=n_read - data.n_patterns, repeats=repeats)
     if data.n_patterns == m + 2:
         data, note = _drop_both_ends(data, m, marker, ptu)
         notes.append(note)
