@@ -406,9 +406,18 @@ def test_a_sync_divider_folds_each_sync_into_code_periods(tmp_path):
     given, _ = read_blocks(g, M, L, bin_width=RES, sync_divider=2)
     np.testing.assert_array_equal(given.histograms, data.histograms)
     np.testing.assert_array_equal(given.periods_per_pattern, data.periods_per_pattern)
-    for bad in (0, True, 1.5):
+    for bad in (0, True, 1.5, "2"):
         with pytest.raises(ConfigError, match="--sync-divider must be a whole number"):
             read_blocks(g, M, L, bin_width=RES, sync_divider=bad)
+    assert read_blocks(g, M, L, bin_width=RES, sync_divider=2.0)[0].periods_per_sync == 2
+    # a divider the file does not have is refused, not dropped (a review found it dropped)
+    with pytest.raises(ConfigError, match=r"is 2 code periods of 31 bins, not the 3 "
+                                          r"--sync-divider gives"):
+        read_blocks(g, M, L, bin_width=RES, sync_divider=3)
+    with pytest.raises(ConfigError, match=r"is 2 code periods of 31 bins, not the 1 "):
+        read_blocks(g, M, L, bin_width=RES, sync_divider=1)
+    with pytest.raises(ConfigError, match=r"is 2 code periods of 31 bins, not the 3 "):
+        read_blocks(f, M, L, bin_width=RES, sync_divider=3)  # (over the header's 2 too)
 
 
 def test_a_missed_marker_is_refused_naming_the_long_block(tmp_path):

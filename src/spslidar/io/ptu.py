@@ -497,14 +497,27 @@ def read_ptu_histograms(
         # (PicoQuant's sync period is the divided one), and the TDC times are folded into one
         # (a divider of 2 was refused with "a 2046-bit code fits it", and a code given twice
         # read a third of its returns as outside the gate: an outside audit of 2026-11-30)
-        divider = header.get("sync_divider") if sync_divider is None else sync_divider
-        if sync_divider is not None and (isinstance(sync_divider, bool) or not isinstance(
-                sync_divider, int | np.integer) or sync_divider < 1):
-            raise ConfigError(f"--sync-divider must be a whole number of code periods per "
-                              f"sync, 1 or more, got {sync_divider!r}")
+        divider = header.get("sync_divider")
+        if sync_divider is not None:  # (given: it replaces the header's, and must fit)
+            from ..arrays import real_number
+
+            given = real_number(sync_divider)
+            if given is None or not (math.isfinite(given) and given >= 1
+                                     and given == int(given)):
+                raise ConfigError(f"--sync-divider must be a whole number of code periods "
+                                  f"per sync, 1 or more, got {sync_divider!r}")
+            divider = int(given)
+            if check_sync_period and abs(period - divider * n_bins * width) > (
+                    period_tol_bins * width):  # (it was dropped without a word: a review)
+                raise ConfigError(
+                    f"{spath!r}: its sync period {period:.6g} s is "
+                    f"{period / (n_bins * width):.4g} code periods of {n_bins} bins, not the "
+                    f"{divider} --sync-divider gives")
         fold = 1
         divided = (isinstance(divider, int | np.integer) and not isinstance(divider, bool)
                    and divider > 1)
+        if not check_sync_period and divided and sync_divider is not None:
+            fold = int(divider)  # (unchecked: the caller's word)
         if (check_sync_period and divided
                 and abs(period - divider * n_bins * width) <= period_tol_bins * width):
             if rebin is not None:  # (the fold is of whole bins: a review found a code's two
