@@ -187,7 +187,7 @@ def test_calibrate_takes_repeats(files, capsys, tmp_path):
     assert main([*args, "--repeats", str(K)]) == 0
     cal = json.loads(out.read_text())
     assert cal["measured_from"]["repeats"] == K
-    assert cal["measured_from"]["patterns"] == K * M
+    assert cal["measured_from"]["patterns"] == M  # (each pattern's blocks summed)
 
 
 def test_reconstruct_ptu_api_takes_repeats(files):
@@ -235,9 +235,14 @@ def test_frame_reads_one_repeat_of_a_moving_scene(tmp_path, capsys):
         assert rc == 0, err
         assert m["ptu"]["frame"] == frame
         bias[frame] = float(np.nanmedian(est - depth))
-        # (summed, the motion reads as a drift, and the warning names the frames)
+        # (summed, the motion reads as a drift, and the warning names the frames; a frame's
+        # map is read with its own blocks' drift, none: a review found the repeats' motion
+        # said as a blur of the frame's map)
         assert ("a scene that moves between the repeats reads as the drift above; --frame I"
                 in err) == (frame is None)
+        assert ("a timing drift" in err) == (frame is None)
+        if frame is not None:
+            assert abs(m["ptu"]["timing_drift_bins"]) < 0.5
         if frame is not None:
             assert m["ptu"]["n_patterns_solved"] == M and m["ptu"]["blocks_left_out"] == []
             assert m["ptu"]["periods_per_pattern"] == [DWELL] * M
@@ -272,3 +277,19 @@ def test_the_wrong_repeats_is_named_with_the_rows_given(files, capsys, tmp_path)
                                  "--sync-divider", "0", out=tmp_path / "b")
     assert rc == 2 and "--sync-divider must be a whole number" in err
     assert "pattern rows shown" not in err
+
+
+def test_a_frame_whose_blocks_were_all_left_out_is_one_line(tmp_path, capsys):
+    """A repeat in which the detector was off throughout: --frame of it ended in "Mean of
+    empty slice" and "gain must be a positive number, got nan" (a review)."""
+    counts, pats, code, _, rng = _counts(6)
+    counts[1] = 0
+    _write(tmp_path, counts, pats, code, rng, "repeated")
+    rc, _, _, err = _reconstruct(tmp_path, "repeated", capsys, "--repeats", str(K), "--frame",
+                                 "1", out=tmp_path / "f1")
+    assert rc == 2 and "every block of --frame 1 was left out" in err
+    assert "Traceback" not in err and "Mean of empty slice" not in err
+    assert not (tmp_path / "f1").exists()
+    rc, m, _, err = _reconstruct(tmp_path, "repeated", capsys, "--repeats", str(K), "--frame",
+                                 "0", out=tmp_path / "f0")
+    assert rc == 0 and m["ptu"]["n_patterns_solved"] == M

@@ -18,6 +18,7 @@ __all__ = ["CLI_ONLY_KEYS", "FILE_KEYS", "MAX_CONFIG_BYTES", "check_toml_bytes",
 #: a TOML config is a few kilobytes: a file or stream past this is not one
 MAX_CONFIG_BYTES = 16 * 2**20
 
+
 def read_config_bytes(path: Path, what: str = "config file") -> bytes:
     """The bytes of a config file, or of a stream such as bash's ``<(...)`` (it was "not
     found"), read to at most :data:`MAX_CONFIG_BYTES` (``/dev/zero`` ran out of memory, an

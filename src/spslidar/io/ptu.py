@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import ConfigError
 from .ptu_blocks import (
     BOUNCE_TIME_S,
+    _check_forward,
     _check_resolution,
     _fitting_codes,
     _Gaps,
@@ -269,21 +270,6 @@ def _first_marker_syncs(f, n_records: int, chunk_records: int, mask: int, family
             break
         carry += _overflows(raw, family)[1] * wrap
     return found
-
-
-def _check_forward(syncs: np.ndarray, before: int, path: str) -> None:
-    """A file's events in time order, or one line: two files joined end to end, each counting
-    its syncs from 0, run backwards where the second starts, and the block across the join
-    was read as one code period long and scaled up 2 100 times, the map ruined under a
-    warning of short dwells (an outside lab audit of 2026-11-30)."""
-    back = np.flatnonzero(np.diff(np.concatenate([[before], syncs])) < 0)
-    if back.size:
-        i = int(back[0])
-        prev = before if i == 0 else int(syncs[i - 1])
-        raise ConfigError(f"{path!r}: its sync count runs backwards (sync {int(syncs[i])} "
-                          f"after {prev}), which no acquisition records: files joined end to "
-                          f"end, each counting its syncs from 0? Reconstruct each file with "
-                          f"its own patterns")
 
 
 def _accumulate(hist: np.ndarray, blocks: np.ndarray, bins: np.ndarray) -> None:

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["BOUNCE_TIME_S", "GAP_EDGES_S", "block_list", "twice_as_long"]
+__all__ = ["BACK_SYNCS", "BOUNCE_TIME_S", "GAP_EDGES_S", "block_list", "twice_as_long"]
 
 
 #: the histogram of the gaps between a channel's detections: edges spaced 1.2 % apart from
@@ -199,3 +199,24 @@ def _fitting_codes(bins: float, width: float, tol: float) -> str:
     near = max(1, round(bins))
     return (f"{head}: no whole number of bits fits it within {tol:g} bins (the nearest, {near}, "
             f"is {bins - near:+.3g} bins off); check the bit rate")
+
+
+#: the steps back of a file's sync count that :func:`_check_forward` lets through
+BACK_SYNCS = 2
+
+
+def _check_forward(syncs: np.ndarray, before: int, path: str) -> None:
+    """A file's events in time order, or one line: two files joined end to end, each counting
+    its syncs from 0, run backwards where the second starts, and the block across the join
+    was read as one code period long and scaled up 2 100 times, the map ruined under a
+    warning of short dwells (an outside lab audit of 2026-11-30)."""
+    # (a step back of a sync or two is let through: a marker a sync behind a photon, were any
+    # hardware to record one so; a join restarts its count far behind: a review)
+    back = np.flatnonzero(np.diff(np.concatenate([[before], syncs])) < -BACK_SYNCS)
+    if back.size:
+        i = int(back[0])
+        prev = before if i == 0 else int(syncs[i - 1])
+        raise ConfigError(f"{path!r}: its sync count runs backwards (sync {int(syncs[i])} "
+                          f"after {prev}), which no acquisition records: files joined end to "
+                          f"end, each counting its syncs from 0? Reconstruct each file with "
+                          f"its own patterns")

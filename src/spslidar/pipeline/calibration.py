@@ -464,11 +464,13 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     check_ptu_path(ptu)
     patterns = check_patterns(patterns, False, "patterns")
     repeats = check_repeats(repeats)
-    if repeats > 1:  # (every block is read for the response: the sequence's rows, repeated)
-        patterns = np.tile(patterns, (repeats, 1))
     code = check_code(code, None, "code")
     check_real_inputs(bit_rate, (0.0, 1.0), int(patterns.shape[1]), int(patterns.shape[0]),
-                      int(code.size))
+                      int(code.size), repeats)
+    shown = patterns
+    if repeats > 1:  # every block read: each one's light, as the screening reads it (a
+        # (K M, Q) copy of the patterns ran out of memory at K = 10^6: a review)
+        patterns = np.tile(shown.sum(axis=1, dtype=np.float64), repeats)[:, None]
     # every argument before the file is read, each in one line (a distance given as text
     # and a NaN pulse width were tracebacks, found by an audit)
     distance = _check_distance(distance)
@@ -497,9 +499,16 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     # read, which widens the response a wall's acquisition reads: as reconstruct does)
     blocks = measured_blocks(data.histograms, data.counts_per_pattern,
                              np.maximum(data.exposure_periods, 1), patterns, code, data,
-                             detector, channel, bin_width)
+                             detector, channel, bin_width,
+                             np.arange(data.n_patterns) % shown.shape[0])
     keep, hists, pile, drift = blocks.keep, blocks.hist, blocks.pile, blocks.drift
     patterns = patterns[keep]
+    if repeats > 1:  # each pattern's blocks summed, as reconstruct solves them
+        from .blocks import fold_repeats
+
+        rows, hists, _, _, _ = fold_repeats(keep % shown.shape[0], hists,
+                                            np.ones(keep.size), None, np.zeros(keep.size))
+        patterns = shown[rows]
     for note in notes + blocks.notes:
         warnings.warn(note, stacklevel=2)
     total = hists.astype(np.float64).sum(axis=0)

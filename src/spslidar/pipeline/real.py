@@ -433,15 +433,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     """
     from ..patterns import as_patterns
     from ..scenes import Scene
-    from .blocks import (
-        channels_read,
-        check_frame,
-        check_repeats,
-        drop_frozen,
-        fold_repeats,
-        read_blocks,
-    )
-    from .drift import drift_note
+    from .blocks import channels_read, check_frame, check_repeats
     from .measurement import check_processing_keys, processing_keys
 
     if {"backend", "device"} & set(processing):  # (it was told the acquisition sets them)
@@ -476,71 +468,17 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
 
     detector = dead_time_model(bin_width, dead_time, afterpulse_prob, afterpulse_delay)
     _check_solve_time(cfg, m, q, int(gate_lags(cfg.range_gate, bin_width).size), period)
-    shown = patterns
-    if repeats > 1:  # the blocks' own rows: each one's light alone, as the screening reads it
-        m, patterns = m * repeats, np.tile(shown.sum(axis=1, dtype=np.float64), repeats)[:, None]
-    data, dwell_warning = read_blocks(ptu, m, period, bin_width=bin_width, marker=marker,
-                                      channel=channel, allow_binning=allow_binning,
-                                      marker_edge=marker_edge, settle=settle,
-                                      repeats=repeats, sync_divider=sync_divider)
-    n_blocks = data.n_patterns  # (the lost syncs' blocks too, for blocks_left_out)
-    data, frozen, note = drop_frozen(data, ptu)
-    if frozen:  # (the rows the file's lost syncs leave without a dwell)
-        m, patterns = m - frozen, patterns[: m - frozen]
-        dwell_warning.append(note)
-    dwell_warning += [truth_note] if truth_note else []
-    # the reader's dwell: to the next block's marker, also where that block is not a pattern
-    # (the file's ends, recomputed here, gave the last of m rows in an (m + 1)-block file the
-    # extra block's periods too: twice its dwell, its histogram halved)
-    n_k = np.maximum(data.exposure_periods, 1).astype(np.float64)  # (less any --settle)
-    hist = data.histograms.astype(np.float64)
-    rows = np.arange(m)  # the blocks kept, for the metrics (the rest are named in warnings)
-    if m > 1 and data.ends_in_empty_block:
-        # an end-of-acquisition marker read as a pattern: a row of zeros is no measurement
-        dwell_warning.append(
-            f"the last of the {m} marker blocks holds no photons and lasts {int(n_k[-1])} code "
-            f"period(s) (an end-of-acquisition marker?): its pattern row is left out of the "
-            f"solve (leave it out of --patterns to say so)")
-        m, n_k, hist, patterns, rows = m - 1, n_k[:-1], hist[:-1], patterns[:-1], rows[:-1]
-    # any other row of zeros over less than half the median dwell is no measurement either:
-    # scaled up to the mean dwell it stays 0 (an empty one-period first block under
-    # --marker-edge end was kept and 'scaled up', and leaving it out moved 32 of 64 depths by
-    # up to 0.94 m: an audit of 2026-11-29)
-    empty = np.flatnonzero((hist.sum(axis=1) == 0) & (n_k < 0.5 * np.median(n_k)))
-    if m > 1 and 0 < empty.size < m:
-        dwell_warning.append(
-            f"{empty.size} marker block(s) (first: {int(empty[0])}) hold no photons over less "
-            f"than half the median dwell of {np.median(n_k):.0f} code periods (an arming "
-            f"marker, or a marker read at the wrong edge?): their pattern rows are left out of "
-            f"the solve")
-        keep = np.setdiff1d(np.arange(m), empty)
-        m, n_k, hist, patterns, rows = keep.size, n_k[keep], hist[keep], patterns[keep], rows[keep]
-    from .screen import measured_blocks
+    from .rows import solved_rows
 
-    # a dropout or a stall left out; a part of the period never recorded said (and then no
-    # share of returns outside the gate is read); pile-up corrected; the drift read
-    blocks = measured_blocks(hist, hist.sum(axis=1), n_k, patterns, code, data, detector,
-                             channel, bin_width, rows)
-    keep, partial, pile, drift = blocks.keep, blocks.partial, blocks.pile, blocks.drift
-    if keep.size < m:
-        m, n_k, patterns, rows = keep.size, n_k[keep], patterns[keep], rows[keep]
-    hist, noise_totals = blocks.hist, blocks.noise_totals
-    dwell_warning += blocks.notes
-    if repeats > 1 and frame is None and drift_note(drift, bin_width):
-        # (a scene moving 3 cm a repeat was said only as a timing drift of 14 bins: an
-        # outside lab audit of 2026-11-30)
-        dwell_warning.append(
-            f"the sequence was shown {repeats} times, summed here: a scene that moves between "
-            f"the repeats reads as the drift above; --frame I reconstructs repeat I alone")
-    if frame is not None:  # one repeat's blocks alone (a frame of a video)
-        mine = rows // shown.shape[0] == frame
-        rows, hist, n_k = rows[mine], hist[mine], n_k[mine]
-        noise_totals = None if noise_totals is None else noise_totals[mine]
-    blocks_kept, counts_kept = rows, data.counts_per_pattern[rows]
-    if repeats > 1:  # each pattern's kept blocks summed: the solve has one row a pattern
-        rows, hist, n_k, noise_totals, counts_kept = fold_repeats(
-            rows % shown.shape[0], hist, n_k, noise_totals, counts_kept)
-        m, patterns = rows.size, shown[rows]
+    solved = solved_rows(ptu, patterns, code, bin_width, detector=detector, marker=marker,
+                         channel=channel, allow_binning=allow_binning,
+                         marker_edge=marker_edge, settle=settle, repeats=repeats,
+                         sync_divider=sync_divider, frame=frame)
+    data, hist, n_k, noise_totals = solved.data, solved.hist, solved.periods, solved.noise_totals
+    shown, patterns, rows, partial, pile = (patterns, solved.patterns, solved.rows,
+                                            solved.partial, solved.pile)
+    m = rows.size
+    dwell_warning = solved.notes + ([truth_note] if truth_note else [])
     n_mean = float(n_k.mean())
     short = np.flatnonzero(n_k < 0.5 * np.median(n_k))
     if short.size:
@@ -658,10 +596,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     if truth is None:
         result.metrics["n_valid"] = None
     result.metrics["ptu"] = {
-        "file": os.fspath(ptu), "counts_per_pattern": counts_kept.tolist(),
+        "file": os.fspath(ptu), "counts_per_pattern": solved.counts_kept.tolist(),
         "blocks_left_out": np.setdiff1d(
-            np.arange(n_blocks)[np.arange(n_blocks) // shown.shape[0] == frame]
-            if frame is not None else np.arange(n_blocks), blocks_kept).tolist(),
+            np.arange(solved.n_blocks)[np.arange(solved.n_blocks) // shown.shape[0] == frame]
+            if frame is not None else np.arange(solved.n_blocks), solved.blocks_kept).tolist(),
         "repeats": repeats, "frame": frame,
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":
         float(background.mean() / n_mean), "background_per_pattern": background.tolist(),
@@ -673,9 +611,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         "channel": None if channel is None else channels_read(data, channel),
         "n_dropped_settling": int(data.n_dropped_settling),
         "code_periods_per_sync": int(data.periods_per_sync),
-        "timing_drift_bins": None if drift is None else drift.bins,
-        "timing_drift_se_bins": None if drift is None else drift.se,
-        "timing_drift_span_bins": None if drift is None else drift.span,
+        "timing_drift_bins": None if solved.drift is None else solved.drift.bins,
+        "timing_drift_se_bins": None if solved.drift is None else solved.drift.se,
+        "timing_drift_span_bins": None if solved.drift is None else solved.drift.span,
         "record_type": data.header.get("record_type"), "truth_file": truth_file}
     result.metrics["calibration"] = None if cal is None else {
         "file": cal.get("file"), "sha256": cal.get("file_sha256"), "delay_s": cal["delay_s"],

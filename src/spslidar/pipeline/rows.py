@@ -1,0 +1,158 @@
+"""A measured file's marker blocks to the rows ``reconstruct`` solves: the blocks read against
+the patterns (:func:`~spslidar.pipeline.blocks.read_blocks`), those without a dwell or a
+measurement left out (a lost sync's, an end marker's, an empty short one's, a dropout's or a
+stall's), each corrected for pile-up with its own dwell
+(:func:`~spslidar.pipeline.screen.measured_blocks`), and, for a sequence shown several
+times (``--repeats``), one repeat picked (``--frame``) or each pattern's blocks summed.
+
+Moved out of :mod:`spslidar.pipeline.real`, which had grown past 700 lines with the repeats;
+every step is one of those modules', in the order ``reconstruct`` takes them.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ..errors import ConfigError
+
+__all__ = ["SolvedRows", "solved_rows"]
+
+
+class SolvedRows(NamedTuple):
+    """What :func:`solved_rows` gives."""
+
+    #: the file read (:class:`~spslidar.io.PtuAcquisition`), without a lost sync's blocks
+    data: Any
+    #: one histogram a row solved (float64; pile-up corrected where a dead time was given),
+    #: shape (R, L)
+    hist: np.ndarray
+    #: each row's exposure, code periods (a pattern's blocks summed under repeats)
+    periods: np.ndarray
+    #: each row's noise total where a pile-up correction gives one, else None
+    noise_totals: np.ndarray | None
+    #: the pattern of each row, shape (R, Q)
+    patterns: np.ndarray
+    #: each row's pattern number (its row of ``--patterns``)
+    rows: np.ndarray
+    #: the blocks solved (numbered through the repeats), and each one's photons
+    blocks_kept: np.ndarray
+    counts_kept: np.ndarray
+    #: the blocks the file holds, a lost sync's among them
+    n_blocks: int
+    #: a part of the period never recorded (:func:`~spslidar.pipeline.screen.screen_blocks`)
+    partial: bool
+    #: the pile-up record (``metrics.json``'s ``detector``) and the timing drift read
+    pile: dict
+    drift: Any
+    #: the warnings, in order
+    notes: list[str]
+
+
+def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
+                detector: Any, marker: int, channel: Any, allow_binning: bool,
+                marker_edge: str, settle: float, repeats: int, sync_divider: Any,
+                frame: int | None) -> SolvedRows:
+    """The rows of a measured file that ``reconstruct`` solves (:class:`SolvedRows`).
+
+    Parameters
+    ----------
+    ptu : path
+        The T3 PTU file.
+    shown : ndarray, shape (M, Q)
+        The patterns shown (checked), in marker order.
+    code : ndarray, shape (L,)
+        The code's bits.
+    bin_width : float
+        Seconds a bin.
+    detector : object
+        The detector's dead-time model (:func:`~spslidar.pipeline.deadtime.dead_time_model`).
+    marker, channel, allow_binning, marker_edge, settle, repeats, sync_divider, frame
+        As :func:`~spslidar.pipeline.real.reconstruct_ptu` takes them (checked).
+    """
+    from .blocks import drop_frozen, fold_repeats, read_blocks
+    from .drift import drift_note, timing_drift
+    from .screen import measured_blocks
+
+    m_rows = int(shown.shape[0])
+    m = m_rows * repeats
+    # the blocks' own rows: the patterns, or under repeats each block's light alone, as the
+    # screening reads it (a (K M, Q) copy of the patterns would be K times their memory)
+    patterns = (shown if repeats == 1 else
+                np.tile(shown.sum(axis=1, dtype=np.float64), repeats)[:, None])
+    data, notes = read_blocks(ptu, m, int(np.size(code)), bin_width=bin_width, marker=marker,
+                              channel=channel, allow_binning=allow_binning,
+                              marker_edge=marker_edge, settle=settle, repeats=repeats,
+                              sync_divider=sync_divider)
+    n_blocks = data.n_patterns  # (the lost syncs' blocks too, for blocks_left_out)
+    data, frozen, note = drop_frozen(data, ptu)
+    if frozen:  # (the rows the file's lost syncs leave without a dwell)
+        m, patterns = m - frozen, patterns[: m - frozen]
+        notes.append(note)
+    # the reader's dwell: to the next block's marker, also where that block is not a pattern
+    # (the file's ends, recomputed here, gave the last of m rows in an (m + 1)-block file the
+    # extra block's periods too: twice its dwell, its histogram halved)
+    n_k = np.maximum(data.exposure_periods, 1).astype(np.float64)  # (less any --settle)
+    hist = data.histograms.astype(np.float64)
+    rows = np.arange(m)  # the blocks kept, for the metrics (the rest are named in warnings)
+    if m > 1 and data.ends_in_empty_block:
+        # an end-of-acquisition marker read as a pattern: a row of zeros is no measurement
+        notes.append(
+            f"the last of the {m} marker blocks holds no photons and lasts {int(n_k[-1])} code "
+            f"period(s) (an end-of-acquisition marker?): its pattern row is left out of the "
+            f"solve (leave it out of --patterns to say so)")
+        m, n_k, hist, patterns, rows = m - 1, n_k[:-1], hist[:-1], patterns[:-1], rows[:-1]
+    # any other row of zeros over less than half the median dwell is no measurement either:
+    # scaled up to the mean dwell it stays 0 (an empty one-period first block under
+    # --marker-edge end was kept and 'scaled up', and leaving it out moved 32 of 64 depths by
+    # up to 0.94 m: an audit of 2026-11-29)
+    empty = np.flatnonzero((hist.sum(axis=1) == 0) & (n_k < 0.5 * np.median(n_k)))
+    if m > 1 and 0 < empty.size < m:
+        notes.append(
+            f"{empty.size} marker block(s) (first: {int(empty[0])}) hold no photons over less "
+            f"than half the median dwell of {np.median(n_k):.0f} code periods (an arming "
+            f"marker, or a marker read at the wrong edge?): their pattern rows are left out of "
+            f"the solve")
+        keep = np.setdiff1d(np.arange(m), empty)
+        m, n_k, hist, patterns, rows = keep.size, n_k[keep], hist[keep], patterns[keep], rows[keep]
+    # a dropout or a stall left out; a part of the period never recorded said (and then no
+    # share of returns outside the gate is read); pile-up corrected; the drift read (the
+    # warnings name each block's pattern: under repeats, block r M + i is pattern i's)
+    blocks = measured_blocks(hist, hist.sum(axis=1), n_k, patterns, code, data, detector,
+                             channel, bin_width, rows % m_rows)
+    keep, drift = blocks.keep, blocks.drift
+    if keep.size < m:
+        n_k, rows = n_k[keep], rows[keep]
+    hist, noise_totals = blocks.hist, blocks.noise_totals
+    block_notes = blocks.notes
+    if frame is not None:  # one repeat's blocks alone (a frame of a video)
+        mine = rows // m_rows == frame
+        if not mine.any():  # (NaN gains and "Mean of empty slice": a review)
+            raise ConfigError(f"every block of --frame {frame} was left out (see the "
+                              f"warnings above): no pattern of that repeat was measured")
+        rows, hist, n_k = rows[mine], hist[mine], n_k[mine]
+        noise_totals = None if noise_totals is None else noise_totals[mine]
+        # the drift over this frame's blocks alone: the repeats' own motion is not this
+        # map's (it was said as a blur of the frame's map: a review)
+        said = drift_note(drift, bin_width)
+        drift = timing_drift(hist, code)
+        block_notes = [n for n in block_notes if n != said]
+        frame_note = drift_note(drift, bin_width)
+        block_notes += [frame_note] if frame_note else []
+    notes += block_notes
+    if repeats > 1 and frame is None and drift_note(drift, bin_width):
+        # (a scene moving 3 cm a repeat was said only as a timing drift of 14 bins: an
+        # outside lab audit of 2026-11-30)
+        notes.append(
+            f"the sequence was shown {repeats} times, summed here: a scene that moves between "
+            f"the repeats reads as the drift above; --frame I reconstructs repeat I alone")
+    blocks_kept, counts_kept = rows, data.counts_per_pattern[rows]
+    if repeats > 1:  # each pattern's kept blocks summed: the solve has one row a pattern
+        rows, hist, n_k, noise_totals, counts_kept = fold_repeats(
+            rows % m_rows, hist, n_k, noise_totals, counts_kept)
+    # (the patterns themselves where every row is solved: no copy of a large set)
+    every = rows.size == m_rows and np.array_equal(rows, np.arange(m_rows))
+    return SolvedRows(data, hist, n_k, noise_totals, shown if every else shown[rows], rows,
+                      blocks_kept, counts_kept, n_blocks, blocks.partial, blocks.pile, drift,
+                      notes)
