@@ -136,7 +136,7 @@ def test_a_dropout_in_one_repeat_leaves_that_block_out_only(tmp_path, capsys):
     rc, m, depth, err = _reconstruct(tmp_path, "repeated", capsys, "--repeats", str(K))
     assert rc == 0, err
     assert m["ptu"]["blocks_left_out"] == list(range(M + 30, M + 50))
-    assert m["ptu"]["n_patterns_solved"] == M
+    assert m["ptu"]["n_patterns_solved"] == M and m["ptu"]["patterns_solved"] == list(range(M))
     periods = np.array(m["ptu"]["periods_per_pattern"])
     assert np.all(periods[30:50] == (K - 1) * DWELL)
     assert np.all(np.delete(periods, np.arange(30, 50)) == K * DWELL)
