@@ -516,7 +516,9 @@ def read_ptu_histograms(
             # (a sync every D code periods from the generator's frame output, with no divider
             # in the header, was told of a 2 n-bit code and a slower bit rate, which read
             # depths 1.5 m off: an outside lab audit of 2026-11-30)
-            k = round(period / (n_bins * width)) if n_bins * width > 0 else 0
+            ratio = period / (n_bins * width) if n_bins * width > 0 else 0.0
+            # (an absurd header's 1e308 code periods overflowed the int back to float)
+            k = round(ratio) if math.isfinite(ratio) and ratio < 2**31 else 0
             whole = (not divided and k >= 2
                      and abs(period - k * n_bins * width) <= period_tol_bins * width)
             raise ConfigError(
