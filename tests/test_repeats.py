@@ -293,3 +293,51 @@ def test_a_frame_whose_blocks_were_all_left_out_is_one_line(tmp_path, capsys):
     rc, m, _, err = _reconstruct(tmp_path, "repeated", capsys, "--repeats", str(K), "--frame",
                                  "0", out=tmp_path / "f0")
     assert rc == 0 and m["ptu"]["n_patterns_solved"] == M
+
+
+def test_an_acquisition_saved_one_file_a_pass_is_read_as_one(files, tmp_path, capsys):
+    """A lab that saves each pass of the sequence to its own file: ``--ptu A B C`` sums them
+    as ``--repeats`` sums the passes of one file (the same integer histograms, so the same
+    map), ``--frame`` counts the passes through the files, and a repeated ``--ptu`` adds
+    its file (it kept the last alone, without a word: an outside lab audit of 2026-11-30)."""
+    path, _ = files
+    counts, pats, code, _, rng = _counts(0)  # (the module's repeated file's own counts)
+    names = []
+    for r in range(K):
+        d = tmp_path / f"pass{r}"
+        d.mkdir()
+        _write(d, counts[r:r + 1], pats, code, rng, "once")
+        names.append(str(d / "once.ptu"))
+    rc, one, depth_one, err = _reconstruct(path, "repeated", capsys, "--repeats", str(K),
+                                           out=tmp_path / "one")
+    assert rc == 0, err
+    base = ["reconstruct", "--patterns", str(path / "patterns.npy"), "--code",
+            str(path / "code.npy"), "--bit-rate", "10e9", "--range-gate", "2.5", "4",
+            "--no-figure"]
+    assert main([*base, "--ptu", *names, "--out", str(tmp_path / "many")]) == 0
+    capsys.readouterr()
+    many = json.loads((tmp_path / "many" / "metrics.json").read_text())
+    np.testing.assert_array_equal(np.load(tmp_path / "many" / "depth.npy"), depth_one)
+    assert many["ptu"]["file"] == names and many["ptu"]["n_photons"] == one["ptu"]["n_photons"]
+    assert many["ptu"]["counts_per_pattern"] == one["ptu"]["counts_per_pattern"]
+    # --frame 1 of the files is the second file alone; a repeated --ptu adds its file
+    assert main([*base, "--ptu", names[0], "--ptu", names[1], "--ptu", names[2], "--frame",
+                 "1", "--out", str(tmp_path / "f1")]) == 0
+    assert main([*base, "--ptu", names[1], "--out", str(tmp_path / "b")]) == 0
+    capsys.readouterr()
+    np.testing.assert_array_equal(np.load(tmp_path / "f1" / "depth.npy"),
+                                  np.load(tmp_path / "b" / "depth.npy"))
+    # calibrate reads one file: two are one line, nothing written
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", "--ptu", names[0], "--ptu", names[1], "--patterns",
+                 str(path / "patterns.npy"), "--code", str(path / "code.npy"), "--bit-rate",
+                 "10e9", "--distance", "3.6", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "calibrate reads one PTU file, got 2" in err[0]
+    assert not out.exists()
+
+
+def test_a_list_of_no_files_is_refused():
+    with pytest.raises(Exception, match=r"ptu must be the path of a PTU file \(or a list of "
+                                        r"them\), got an empty list"):
+        reconstruct_ptu([], np.ones((4, 4, 4)), np.ones(7), 10e9, (1.0, 2.0))

@@ -11,9 +11,13 @@ __all__ = ["add_calibrate_parser", "add_reconstruct_parser", "cmd_calibrate",
            "cmd_reconstruct"]
 
 
-def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help: str) -> None:
-    """The flags that describe a measured acquisition (reconstruct, calibrate)."""
-    p.add_argument("--ptu", required=True, metavar=ptu_metavar, help=ptu_help)
+def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help: str,
+                          many: bool = False) -> None:
+    """The flags that describe a measured acquisition (reconstruct, calibrate); ``many``:
+    ``--ptu`` takes several files (a repeated ``--ptu`` adds to them: it had kept the last
+    alone, without a word, an outside lab audit of 2026-11-30)."""
+    p.add_argument("--ptu", required=True, metavar=ptu_metavar, help=ptu_help,
+                   action="extend", nargs="+" if many else 1)
     p.add_argument("--patterns", required=True, metavar="PATTERNS.npy",
                    help="(M, N, N) mirror states shown, in marker order (0/1 or grey in [0, 1])")
     p.add_argument("--code", required=True, metavar="CODE.npy|FAMILY",
@@ -95,7 +99,9 @@ def add_reconstruct_parser(sub) -> None:
                     "metrics.json, depth.npy, reflectivity.npy, confidence.npy, points.ply, "
                     "depth.png (and depth2.npy from --depth guarded/evidence; truth.npy and "
                     "valid.npy with --truth) into --out (only when complete).")
-    _add_acquisition_args(p, "FILE.ptu", "T3 PTU file")
+    _add_acquisition_args(p, "FILE.ptu", "T3 PTU file; or several, an acquisition saved one "
+                                         "file per pass, each holding the sequence --repeats "
+                                         "times, read in the order given and summed", many=True)
     p.add_argument("--frame", type=int, default=None, metavar="I",
                    help="with --repeats: reconstruct repeat I of the sequence alone (from 0), a "
                         "frame of a video (default: all repeats summed)")
@@ -140,7 +146,8 @@ def cmd_reconstruct(args) -> int:
 
     # (with the options the solvers and estimators declare: a plugin's had no flag)
     processing = {k: getattr(args, k) for k in processing_keys() if hasattr(args, k)}
-    result = reconstruct_ptu(args.ptu, load_patterns(args.patterns),
+    ptu = args.ptu[0] if len(args.ptu) == 1 else args.ptu
+    result = reconstruct_ptu(ptu, load_patterns(args.patterns),
                              load_code(args.code, args.code_length, args.code_index), args.bit_rate,
                              tuple(args.range_gate), marker=args.marker, channel=args.channel,
                              allow_binning=args.allow_binning, truth=args.truth,
@@ -206,7 +213,12 @@ def cmd_calibrate(args) -> int:
     from .pipeline.real import load_code, load_patterns
 
     check_calibration_out(args.out, args.overwrite)  # refuse before any work
-    cal = calibrate_ptu(args.ptu, load_patterns(args.patterns, distinct=False),
+    if len(args.ptu) > 1:  # (a repeated --ptu kept the last alone, without a word)
+        from .errors import ConfigError
+
+        raise ConfigError(f"calibrate reads one PTU file, got {len(args.ptu)} (--ptu given "
+                          f"more than once?)")
+    cal = calibrate_ptu(args.ptu[0], load_patterns(args.patterns, distinct=False),
                         load_code(args.code, args.code_length, args.code_index),
                         args.bit_rate, args.distance,
                         marker=args.marker, channel=args.channel,

@@ -461,7 +461,9 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
         check_real_inputs,
     )
 
-    check_ptu_path(ptu)
+    if len(check_ptu_path(ptu)) > 1 or isinstance(ptu, (list, tuple)):
+        raise ConfigError("calibrate reads one PTU file: a calibration is one acquisition of "
+                          "the flat target")
     patterns = check_patterns(patterns, False, "patterns")
     repeats = check_repeats(repeats)
     code = check_code(code, None, "code")

@@ -206,11 +206,16 @@ def check_code(code: Any, code_length: int | None = None, what: str = "code") ->
     return arr.astype(np.uint8)
 
 
-def check_ptu_path(ptu: Any) -> None:
-    """A path (str or os.PathLike), or one line (the reader checks that it names a regular
-    file)."""
-    if not isinstance(ptu, (str, os.PathLike)):
-        raise ConfigError(f"ptu must be the path of a PTU file, got {type(ptu).__name__}")
+def check_ptu_path(ptu: Any) -> list:
+    """The PTU file(s): a path (str or os.PathLike), or a non-empty list or tuple of them
+    (an acquisition saved one file per pass), as a list; one line otherwise (the reader
+    checks that each names a regular file)."""
+    many = isinstance(ptu, (list, tuple))
+    files = list(ptu) if many else [ptu]
+    if not files or not all(isinstance(f, (str, os.PathLike)) for f in files):
+        got = "an empty list" if many and not files else type(ptu).__name__
+        raise ConfigError(f"ptu must be the path of a PTU file (or a list of them), got {got}")
+    return files
 
 
 def check_gate(range_gate: Any) -> tuple[float, float]:
@@ -361,9 +366,13 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
 
     Parameters
     ----------
-    ptu : path
+    ptu : path, or list of paths
         T3 PTU file: sync = code period start, ``dtime`` in TDC bins of ``1 / bit_rate``, one
-        marker record on input ``marker`` at every pattern change.
+        marker record on input ``marker`` at every pattern change. Or several such files, an
+        acquisition saved one file per pass, each holding the sequence ``repeats`` times:
+        their blocks are read in the order given and each pattern's summed over them (each
+        file screened and corrected on its own, its warnings named with it; ``frame``
+        counts the repeats through the files).
     patterns : ndarray, shape (M, Q)
         The mirror states shown, one row per marker-delimited block (:func:`load_patterns`).
     code : ndarray, shape (L,)
@@ -440,10 +449,11 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         raise ConfigError("reconstruct_ptu() runs on NumPy, the host: a measured acquisition "
                           "has no backend or device option (run's --backend simulates and "
                           "solves on one)")
-    check_ptu_path(ptu)
+    files = check_ptu_path(ptu)
+    ptu = files[0] if len(files) == 1 else files
     patterns = check_patterns(patterns, True, "patterns")
     repeats = check_repeats(repeats)
-    frame = check_frame(frame, repeats)
+    frame = check_frame(frame, repeats * len(files))
     code = check_code(code, None, "code")
     range_gate = check_gate(range_gate)
     check_processing_keys(processing, "reconstruct_ptu()",
@@ -452,7 +462,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                           f"the acquisition sets the rest")
     m, q = patterns.shape
     n = int(round(np.sqrt(q)))
-    check_real_inputs(bit_rate, range_gate, q, m, int(code.size), repeats)
+    check_real_inputs(bit_rate, range_gate, q, m, int(code.size), repeats * len(files))
     bin_width = 1.0 / float(bit_rate)
     period = int(code.size)
     cfg = Config.from_dict({"size": n, "bit_rate": float(bit_rate), "code": "random",
@@ -563,11 +573,11 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                       replica_kind,
                       f"measured code of {period} bits", 0)
     if truth is None:  # a real acquisition: no truth-based metric, nothing to validate
-        scene = Scene(str(ptu), np.zeros((n, n)), np.ones((n, n)), np.zeros((n, n), bool),
+        scene = Scene(str(files[0]), np.zeros((n, n)), np.ones((n, n)), np.zeros((n, n), bool),
                       has_truth=False)
     else:
         valid = np.isfinite(truth)
-        scene = Scene(str(ptu), np.where(valid, truth, 0.0), np.ones((n, n)), valid)
+        scene = Scene(str(files[0]), np.where(valid, truth, 0.0), np.ones((n, n)), valid)
     meas = Measurement(cfg, scene, acq, tuple(cfg.range_gate), lags, ulags, inverse,
                        as_patterns(patterns, copy=False), sim, np.random.SeedSequence(cfg.seed), [],
                        {"simulate": 0.0})
@@ -596,7 +606,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     if truth is None:
         result.metrics["n_valid"] = None
     result.metrics["ptu"] = {
-        "file": os.fspath(ptu), "counts_per_pattern": solved.counts_kept.tolist(),
+        "file": (os.fspath(files[0]) if len(files) == 1 else
+                 [os.fspath(f) for f in files]),
+        "counts_per_pattern": solved.counts_kept.tolist(),
         "blocks_left_out": np.setdiff1d(
             np.arange(solved.n_blocks)[np.arange(solved.n_blocks) // shown.shape[0] == frame]
             if frame is not None else np.arange(solved.n_blocks), solved.blocks_kept).tolist(),

@@ -1,9 +1,10 @@
-"""A measured file's marker blocks to the rows ``reconstruct`` solves: the blocks read against
-the patterns (:func:`~spslidar.pipeline.blocks.read_blocks`), those without a dwell or a
-measurement left out (a lost sync's, an end marker's, an empty short one's, a dropout's or a
-stall's), each corrected for pile-up with its own dwell
+"""A measured acquisition's marker blocks to the rows ``reconstruct`` solves: the blocks read
+against the patterns (:func:`~spslidar.pipeline.blocks.read_blocks`), those without a dwell
+or a measurement left out (a lost sync's, an end marker's, an empty short one's, a dropout's
+or a stall's), each corrected for pile-up with its own dwell
 (:func:`~spslidar.pipeline.screen.measured_blocks`), and, for a sequence shown several
-times (``--repeats``), one repeat picked (``--frame``) or each pattern's blocks summed.
+times (``--repeats``, or in several files, each holding it that many times), one repeat
+picked (``--frame``) or each pattern's blocks summed.
 
 Moved out of :mod:`spslidar.pipeline.real`, which had grown past 700 lines with the repeats;
 every step is one of those modules', in the order ``reconstruct`` takes them.
@@ -18,6 +19,21 @@ import numpy as np
 from ..errors import ConfigError
 
 __all__ = ["SolvedRows", "solved_rows"]
+
+
+class _FileBlocks(NamedTuple):
+    """One file's blocks as :func:`_file_blocks` reads them."""
+
+    data: Any
+    hist: np.ndarray
+    periods: np.ndarray
+    noise_totals: np.ndarray | None
+    rows: np.ndarray  # (the file's blocks kept)
+    n_blocks: int
+    partial: bool
+    pile: dict
+    drift: Any
+    notes: list[str]
 
 
 class SolvedRows(NamedTuple):
@@ -50,29 +66,12 @@ class SolvedRows(NamedTuple):
     notes: list[str]
 
 
-def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
-                detector: Any, marker: int, channel: Any, allow_binning: bool,
-                marker_edge: str, settle: float, repeats: int, sync_divider: Any,
-                frame: int | None) -> SolvedRows:
-    """The rows of a measured file that ``reconstruct`` solves (:class:`SolvedRows`).
-
-    Parameters
-    ----------
-    ptu : path
-        The T3 PTU file.
-    shown : ndarray, shape (M, Q)
-        The patterns shown (checked), in marker order.
-    code : ndarray, shape (L,)
-        The code's bits.
-    bin_width : float
-        Seconds a bin.
-    detector : object
-        The detector's dead-time model (:func:`~spslidar.pipeline.deadtime.dead_time_model`).
-    marker, channel, allow_binning, marker_edge, settle, repeats, sync_divider, frame
-        As :func:`~spslidar.pipeline.real.reconstruct_ptu` takes them (checked).
-    """
-    from .blocks import drop_frozen, fold_repeats, read_blocks
-    from .drift import drift_note, timing_drift
+def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
+                 detector: Any, marker: int, channel: Any, allow_binning: bool,
+                 marker_edge: str, settle: float, repeats: int,
+                 sync_divider: Any) -> _FileBlocks:
+    """One file's blocks, read, screened and corrected for pile-up (:func:`solved_rows`)."""
+    from .blocks import drop_frozen, read_blocks
     from .screen import measured_blocks
 
     m_rows = int(shown.shape[0])
@@ -121,11 +120,88 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
     # warnings name each block's pattern: under repeats, block r M + i is pattern i's)
     blocks = measured_blocks(hist, hist.sum(axis=1), n_k, patterns, code, data, detector,
                              channel, bin_width, rows % m_rows)
-    keep, drift = blocks.keep, blocks.drift
-    if keep.size < m:
-        n_k, rows = n_k[keep], rows[keep]
-    hist, noise_totals = blocks.hist, blocks.noise_totals
-    block_notes = blocks.notes
+    if blocks.keep.size < m:
+        n_k, rows = n_k[blocks.keep], rows[blocks.keep]
+    return _FileBlocks(data, blocks.hist, n_k, blocks.noise_totals, rows, n_blocks,
+                       blocks.partial, blocks.pile, blocks.drift, notes + blocks.notes)
+
+
+def _joined(parts: list[_FileBlocks], step: int) -> Any:
+    """The files' acquisitions as one (:class:`~spslidar.io.PtuAcquisition`): their blocks'
+    photons in file order, each file's ``step`` blocks numbered after the files' before it (a
+    lost sync's blocks, left out, count 0), their counts summed, the first file's header."""
+    import dataclasses
+
+    first = parts[0].data
+    blocks = np.zeros(step * len(parts), np.int64)
+    for i, part in enumerate(parts):
+        c = np.asarray(part.data.counts_per_pattern)
+        blocks[i * step: i * step + c.size] = c
+    per_channel: dict[int, int] = {}
+    for part in parts:
+        for c, n in part.data.photons_per_channel.items():
+            per_channel[c] = per_channel.get(c, 0) + int(n)
+    counts = ("n_records", "n_photons", "n_markers", "n_overflows",
+              "n_dropped_before_first_marker", "n_dropped_after_last_pattern",
+              "n_out_of_range", "n_dropped_settling")
+    return dataclasses.replace(
+        first, counts_per_pattern=blocks, photons_per_channel=per_channel,
+        **{k: sum(int(getattr(p.data, k)) for p in parts) for k in counts})
+
+
+def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
+                detector: Any, marker: int, channel: Any, allow_binning: bool,
+                marker_edge: str, settle: float, repeats: int, sync_divider: Any,
+                frame: int | None) -> SolvedRows:
+    """The rows of a measured acquisition that ``reconstruct`` solves (:class:`SolvedRows`).
+
+    Parameters
+    ----------
+    ptu : path, or list of paths
+        The T3 PTU file, or several: an acquisition saved one file per pass, each holding
+        the sequence ``repeats`` times, read in the order given (their blocks numbered
+        through the files; each file screened, corrected for pile-up and checked for drift
+        on its own, its warnings named with it).
+    shown : ndarray, shape (M, Q)
+        The patterns shown (checked), in marker order.
+    code : ndarray, shape (L,)
+        The code's bits.
+    bin_width : float
+        Seconds a bin.
+    detector : object
+        The detector's dead-time model (:func:`~spslidar.pipeline.deadtime.dead_time_model`).
+    marker, channel, allow_binning, marker_edge, settle, repeats, sync_divider, frame
+        As :func:`~spslidar.pipeline.real.reconstruct_ptu` takes them (checked; ``frame``
+        counts the repeats through the files).
+    """
+    from .blocks import fold_repeats
+    from .drift import drift_note, timing_drift
+
+    files = list(ptu) if isinstance(ptu, (list, tuple)) else [ptu]
+    m_rows = int(shown.shape[0])
+    options = dict(detector=detector, marker=marker, channel=channel,
+                   allow_binning=allow_binning, marker_edge=marker_edge, settle=settle,
+                   repeats=repeats, sync_divider=sync_divider)
+    parts = [_file_blocks(f, shown, code, bin_width, **options) for f in files]
+    if len(parts) == 1:
+        part = parts[0]
+        data, hist, n_k, noise_totals = part.data, part.hist, part.periods, part.noise_totals
+        rows, notes, drift, n_blocks = part.rows, part.notes, part.drift, part.n_blocks
+    else:  # (a file's blocks numbered after the files' before it: m_rows x repeats each)
+        import os
+
+        step = m_rows * repeats
+        data = _joined(parts, step)
+        hist = np.concatenate([p.hist for p in parts])
+        n_k = np.concatenate([p.periods for p in parts])
+        noise_totals = (None if any(p.noise_totals is None for p in parts) else
+                        np.concatenate([p.noise_totals for p in parts]))
+        rows = np.concatenate([p.rows + i * step for i, p in enumerate(parts)])
+        notes = [f"{os.path.basename(os.fspath(f))}: {n}" for f, p in zip(files, parts, strict=True)
+                 for n in p.notes]
+        drift = timing_drift(hist, code)  # (over the files, in the order given)
+        n_blocks = step * len(parts)
+    total_repeats = repeats * len(parts)
     if frame is not None:  # one repeat's blocks alone (a frame of a video)
         mine = rows // m_rows == frame
         if not mine.any():  # (NaN gains and "Mean of empty slice": a review)
@@ -137,22 +213,22 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
         # map's (it was said as a blur of the frame's map: a review)
         said = drift_note(drift, bin_width)
         drift = timing_drift(hist, code)
-        block_notes = [n for n in block_notes if n != said]
+        notes = [n for n in notes if not (said and n.endswith(said))]
         frame_note = drift_note(drift, bin_width)
-        block_notes += [frame_note] if frame_note else []
-    notes += block_notes
-    if repeats > 1 and frame is None and drift_note(drift, bin_width):
+        notes += [frame_note] if frame_note else []
+    elif total_repeats > 1 and drift_note(drift, bin_width):
         # (a scene moving 3 cm a repeat was said only as a timing drift of 14 bins: an
         # outside lab audit of 2026-11-30)
         notes.append(
-            f"the sequence was shown {repeats} times, summed here: a scene that moves between "
-            f"the repeats reads as the drift above; --frame I reconstructs repeat I alone")
+            f"the sequence was shown {total_repeats} times, summed here: a scene that moves "
+            f"between the repeats reads as the drift above; --frame I reconstructs repeat I "
+            f"alone")
     blocks_kept, counts_kept = rows, data.counts_per_pattern[rows]
-    if repeats > 1:  # each pattern's kept blocks summed: the solve has one row a pattern
+    if total_repeats > 1:  # each pattern's kept blocks summed: the solve has one row a pattern
         rows, hist, n_k, noise_totals, counts_kept = fold_repeats(
             rows % m_rows, hist, n_k, noise_totals, counts_kept)
     # (the patterns themselves where every row is solved: no copy of a large set)
     every = rows.size == m_rows and np.array_equal(rows, np.arange(m_rows))
     return SolvedRows(data, hist, n_k, noise_totals, shown if every else shown[rows], rows,
-                      blocks_kept, counts_kept, n_blocks, blocks.partial, blocks.pile, drift,
-                      notes)
+                      blocks_kept, counts_kept, n_blocks,
+                      any(p.partial for p in parts), parts[0].pile, drift, notes)
