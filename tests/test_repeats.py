@@ -253,8 +253,8 @@ def test_frame_reads_one_repeat_of_a_moving_scene(tmp_path, capsys):
 @pytest.mark.parametrize("args,says", [
     (("--frame", "1"), "--frame reads one repeat of a sequence shown several times: give "
                        "--repeats K"),
-    (("--repeats", "3", "--frame", "3"), "--frame must be a repeat of the sequence, 0 to 2"),
-    (("--repeats", "3", "--frame", "-1"), "--frame must be a repeat of the sequence, 0 to 2")])
+    (("--repeats", "3", "--frame", "3"), "--frame must be a repeat of the sequence read, 0 to 2"),
+    (("--repeats", "3", "--frame", "-1"), "--frame must be a repeat of the sequence read, 0 to 2")])
 def test_a_frame_outside_the_repeats_is_one_line(files, capsys, tmp_path, args, says):
     path, _ = files
     out = tmp_path / "rec"
@@ -341,3 +341,41 @@ def test_a_list_of_no_files_is_refused():
     with pytest.raises(Exception, match=r"ptu must be the path of a PTU file \(or a list of "
                                         r"them\), got an empty list"):
         reconstruct_ptu([], np.ones((4, 4, 4)), np.ones(7), 10e9, (1.0, 2.0))
+
+
+def test_a_file_given_twice_and_files_of_another_tdc_are_refused(files, tmp_path):
+    """The same pass twice was summed with itself without a word, and a second file's TDC
+    resolution taken for the first's (a review): both one line."""
+    path, _ = files
+    ptu = path / "repeated.ptu"
+    args = (np.load(path / "patterns.npy"), np.load(path / "code.npy"), 10e9, (2.5, 4.0))
+    with pytest.raises(Exception, match=r"is given twice \(as .* too\): each pass once"):
+        reconstruct_ptu([ptu, str(ptu)], *args, repeats=K)
+    with pytest.raises(Exception, match="calibrate reads one PTU file"):
+        from spslidar.pipeline.calibration import calibrate_ptu
+
+        calibrate_ptu([ptu], args[0], args[1], 10e9, 3.6)
+
+
+def test_a_drift_across_the_files_is_said_and_a_frame_is_read_without_it(tmp_path, capsys):
+    """A scene 10 cm farther at each pass, one file a pass: the drift across the files went
+    unsaid while the next warning pointed at "the drift above", and a frame kept the files'
+    own drift warnings (a review). Now the drift is read over the files and said; a frame
+    says none."""
+    counts, pats, code, _, rng = _counts(5, signal=6e-4, move=0.1)
+    names = []
+    for r in range(K):
+        d = tmp_path / f"pass{r}"
+        d.mkdir()
+        _write(d, counts[r:r + 1], pats, code, rng, "once")
+        names.append(str(d / "once.ptu"))
+    base = ["reconstruct", "--patterns", str(tmp_path / "pass0" / "patterns.npy"), "--code",
+            str(tmp_path / "pass0" / "code.npy"), "--bit-rate", "10e9", "--range-gate", "2.5",
+            "4", "--no-figure", "--ptu", *names]
+    assert main([*base, "--out", str(tmp_path / "all")]) == 0
+    err = capsys.readouterr().err
+    assert f"over the {K} files: the returns' delay moves by up to" in err
+    assert "a scene that moves between the repeats reads as the drift above" in err
+    assert main([*base, "--frame", "1", "--out", str(tmp_path / "f1")]) == 0
+    err = capsys.readouterr().err
+    assert "a timing drift" not in err and "moves between the repeats" not in err

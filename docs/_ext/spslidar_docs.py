@@ -386,9 +386,12 @@ METRICS: dict[str, str] = {
                         "one were written by the same code.",
     "point_cloud": ("``points.ply``: file name, field of view (degrees), number of points "
                     "and of second-surface points among them, the per-point fields."),
-    "ptu": "``reconstruct`` only: the PTU file read, its photons and code periods per "
-           "pattern solved (``patterns_solved``: their rows of ``--patterns``), the background, the blocks left out (``blocks_left_out``: a dropout or "
-           "a stall, ``spslidar.pipeline.screen``; numbered through the repeats, block "
+    "ptu": "``reconstruct`` only: the PTU file read (a list of them, read in that order, "
+           "where several were given: the counts are then summed over them), its photons "
+           "and code periods per pattern solved (``patterns_solved``: their rows of "
+           "``--patterns``), the background, the blocks left out (``blocks_left_out``: a "
+           "dropout or a stall, ``spslidar.pipeline.screen``; numbered through the repeats, "
+           "block "
            "``r M + i`` showing pattern ``i``), ``repeats`` (``--repeats``: each pattern's "
            "blocks summed; ``frame``, ``--frame``: one repeat alone), ``channel`` "
            "(``--channel``: the detector channels read; null for all, merged), ``settle_s`` "

@@ -103,8 +103,9 @@ def add_reconstruct_parser(sub) -> None:
                                          "file per pass, each holding the sequence --repeats "
                                          "times, read in the order given and summed", many=True)
     p.add_argument("--frame", type=int, default=None, metavar="I",
-                   help="with --repeats: reconstruct repeat I of the sequence alone (from 0), a "
-                        "frame of a video (default: all repeats summed)")
+                   help="with --repeats (or several --ptu files): reconstruct repeat I of the "
+                        "sequence alone (from 0, counted through the files), a frame of a "
+                        "video (default: all repeats summed)")
     p.add_argument("--range-gate", type=float, nargs=2, required=True, metavar=("MIN", "MAX"),
                    help="depths to reconstruct, metres")
     p.add_argument("--calibration", metavar="CAL.json",

@@ -488,7 +488,7 @@ def read_ptu_histograms(
             from ..arrays import real_number
 
             given = real_number(sync_divider)
-            if given is None or not (math.isfinite(given) and given >= 1
+            if given is None or not (math.isfinite(given) and 1 <= given <= 2**31
                                      and given == int(given)):
                 raise ConfigError(f"--sync-divider must be a whole number of code periods "
                                   f"per sync, 1 or more, got {sync_divider!r}")

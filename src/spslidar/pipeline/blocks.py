@@ -107,10 +107,10 @@ def check_frame(frame: Any, repeats: int) -> int | None:
                           f"got {frame!r}")
     if repeats < 2:
         raise ConfigError("--frame reads one repeat of a sequence shown several times: give "
-                          "--repeats K (2 or more) too")
+                          "--repeats K (2 or more), or several --ptu files, too")
     if not 0 <= value < repeats:
-        raise ConfigError(f"--frame must be a repeat of the sequence, 0 to {repeats - 1} of "
-                          f"--repeats {repeats}, got {int(value)}")
+        raise ConfigError(f"--frame must be a repeat of the sequence read, 0 to {repeats - 1} "
+                          f"(--repeats times the --ptu files: {repeats}), got {int(value)}")
     return int(value)
 
 

@@ -461,9 +461,10 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
         check_real_inputs,
     )
 
-    if len(check_ptu_path(ptu)) > 1 or isinstance(ptu, (list, tuple)):
+    if isinstance(ptu, (list, tuple)):  # (before the path check, which offers lists)
         raise ConfigError("calibrate reads one PTU file: a calibration is one acquisition of "
                           "the flat target")
+    check_ptu_path(ptu)
     patterns = check_patterns(patterns, False, "patterns")
     repeats = check_repeats(repeats)
     code = check_code(code, None, "code")

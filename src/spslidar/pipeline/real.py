@@ -215,6 +215,13 @@ def check_ptu_path(ptu: Any) -> list:
     if not files or not all(isinstance(f, (str, os.PathLike)) for f in files):
         got = "an empty list" if many and not files else type(ptu).__name__
         raise ConfigError(f"ptu must be the path of a PTU file (or a list of them), got {got}")
+    seen: dict[str, Any] = {}
+    for f in files:  # (a file given twice was summed with itself, without a word: a review)
+        key = os.path.realpath(os.fspath(f))
+        if key in seen:
+            raise ConfigError(f"the PTU file {os.fspath(f)!r} is given twice (as "
+                              f"{os.fspath(seen[key])!r} too): each pass once")
+        seen[key] = f
     return files
 
 
@@ -488,7 +495,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
     shown, patterns, rows, partial, pile = (patterns, solved.patterns, solved.rows,
                                             solved.partial, solved.pile)
     m = rows.size
-    dwell_warning = solved.notes + ([truth_note] if truth_note else [])
+    # (the truth's word after the reading's, before the screening's: where it was said)
+    dwell_warning = (solved.notes[:solved.n_read] + ([truth_note] if truth_note else [])
+                     + solved.notes[solved.n_read:])
     n_mean = float(n_k.mean())
     short = np.flatnonzero(n_k < 0.5 * np.median(n_k))
     if short.size:

@@ -34,6 +34,7 @@ class _FileBlocks(NamedTuple):
     pile: dict
     drift: Any
     notes: list[str]
+    n_read: int
 
 
 class SolvedRows(NamedTuple):
@@ -64,6 +65,8 @@ class SolvedRows(NamedTuple):
     drift: Any
     #: the warnings, in order
     notes: list[str]
+    #: how many of them the reading said (the rest come after: a caller's own go between)
+    n_read: int = 0
 
 
 def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
@@ -92,6 +95,7 @@ def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float
     # the reader's dwell: to the next block's marker, also where that block is not a pattern
     # (the file's ends, recomputed here, gave the last of m rows in an (m + 1)-block file the
     # extra block's periods too: twice its dwell, its histogram halved)
+    n_read = len(notes)
     n_k = np.maximum(data.exposure_periods, 1).astype(np.float64)  # (less any --settle)
     hist = data.histograms.astype(np.float64)
     rows = np.arange(m)  # the blocks kept, for the metrics (the rest are named in warnings)
@@ -123,7 +127,29 @@ def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float
     if blocks.keep.size < m:
         n_k, rows = n_k[blocks.keep], rows[blocks.keep]
     return _FileBlocks(data, blocks.hist, n_k, blocks.noise_totals, rows, n_blocks,
-                       blocks.partial, blocks.pile, blocks.drift, notes + blocks.notes)
+                       blocks.partial, blocks.pile, blocks.drift, notes + blocks.notes, n_read)
+
+
+def _read_each(files: list, shown: np.ndarray, code: np.ndarray, bin_width: float,
+               options: dict) -> list[_FileBlocks]:
+    """Each file's blocks (:func:`_file_blocks`); a refusal of one of several files names it
+    (a dead time its detections contradict was said without the file: a review)."""
+    import os
+
+    parts = []
+    for f in files:
+        try:
+            parts.append(_file_blocks(f, shown, code, bin_width, **options))
+        except ConfigError as err:
+            if len(files) > 1 and os.fspath(f) not in str(err):
+                raise ConfigError(f"{os.fspath(f)}: {err}") from None
+            raise
+    if len({(p.data.resolution_s, p.data.binning, p.data.periods_per_sync,
+             p.data.bin_width_s) for p in parts}) > 1:
+        # (the first file's were taken for all: a review)
+        raise ConfigError("the PTU files differ in their TDC resolution, binning or sync "
+                          "divider: reconstruct them apart")
+    return parts
 
 
 def _joined(parts: list[_FileBlocks], step: int) -> Any:
@@ -182,11 +208,12 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
     options = dict(detector=detector, marker=marker, channel=channel,
                    allow_binning=allow_binning, marker_edge=marker_edge, settle=settle,
                    repeats=repeats, sync_divider=sync_divider)
-    parts = [_file_blocks(f, shown, code, bin_width, **options) for f in files]
+    parts = _read_each(files, shown, code, bin_width, options)
     if len(parts) == 1:
         part = parts[0]
         data, hist, n_k, noise_totals = part.data, part.hist, part.periods, part.noise_totals
         rows, notes, drift, n_blocks = part.rows, part.notes, part.drift, part.n_blocks
+        n_read, pile = part.n_read, part.pile
     else:  # (a file's blocks numbered after the files' before it: m_rows x repeats each)
         import os
 
@@ -197,16 +224,24 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
         noise_totals = (None if any(p.noise_totals is None for p in parts) else
                         np.concatenate([p.noise_totals for p in parts]))
         rows = np.concatenate([p.rows + i * step for i, p in enumerate(parts)])
-        notes = [f"{os.path.basename(os.fspath(f))}: {n}" for f, p in zip(files, parts, strict=True)
-                 for n in p.notes]
-        drift = timing_drift(hist, code)  # (over the files, in the order given)
-        n_blocks = step * len(parts)
+        # each file's warnings named with its path as given (two runs' scan.ptu read alike
+        # by name alone: a review), but its own drift, read again over all the files in the
+        # order given (a drift across the files went unsaid: a review)
+        notes = [f"{os.fspath(f)}: {n}" for f, p in zip(files, parts, strict=True)
+                 for n in p.notes if n != drift_note(p.drift, bin_width)]
+        drift = timing_drift(hist, code)
+        across = drift_note(drift, bin_width)
+        notes += [f"over the {len(files)} files: {across}"] if across else []
+        n_blocks, n_read = step * len(parts), 0
+        # (the first file's pile-up record stood for all: the fastest count rate's now)
+        pile = max((p.pile for p in parts), key=lambda d: d.get("count_rate_hz") or 0.0)
     total_repeats = repeats * len(parts)
     if frame is not None:  # one repeat's blocks alone (a frame of a video)
         mine = rows // m_rows == frame
         if not mine.any():  # (NaN gains and "Mean of empty slice": a review)
-            raise ConfigError(f"every block of --frame {frame} was left out (see the "
-                              f"warnings above): no pattern of that repeat was measured")
+            raise ConfigError(f"every block of --frame {frame} was left out as no "
+                              f"measurement (no photons over its dwell: a dropout, a stall; "
+                              f"run without --frame for the warnings that name them)")
         rows, hist, n_k = rows[mine], hist[mine], n_k[mine]
         noise_totals = None if noise_totals is None else noise_totals[mine]
         # the drift over this frame's blocks alone: the repeats' own motion is not this
@@ -230,5 +265,5 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
     # (the patterns themselves where every row is solved: no copy of a large set)
     every = rows.size == m_rows and np.array_equal(rows, np.arange(m_rows))
     return SolvedRows(data, hist, n_k, noise_totals, shown if every else shown[rows], rows,
-                      blocks_kept, counts_kept, n_blocks,
-                      any(p.partial for p in parts), parts[0].pile, drift, notes)
+                      blocks_kept, counts_kept, n_blocks, any(p.partial for p in parts), pile,
+                      drift, notes, n_read)
