@@ -73,6 +73,18 @@ def _write(path, counts, pats, code, rng, order="repeated"):
     np.save(path / "code.npy", code.astype(np.uint8))
 
 
+def _passes(path, counts, pats, code, rng):
+    """Each repeat of ``counts`` written as a file of its own (``path/passR/once.ptu``, with
+    the patterns and code beside it): an acquisition saved one file a pass. Their paths."""
+    names = []
+    for r in range(counts.shape[0]):
+        d = path / f"pass{r}"
+        d.mkdir()
+        _write(d, counts[r:r + 1], pats, code, rng, "once")
+        names.append(str(d / "once.ptu"))
+    return names
+
+
 def _reconstruct(path, name, capsys, *extra, out=None):
     out = path / f"rec_{name}" if out is None else out
     rc = main(["reconstruct", "--ptu", str(path / f"{name}.ptu"), "--patterns",
@@ -302,12 +314,7 @@ def test_an_acquisition_saved_one_file_a_pass_is_read_as_one(files, tmp_path, ca
     its file (it kept the last alone, without a word: an outside lab audit of 2026-11-30)."""
     path, _ = files
     counts, pats, code, _, rng = _counts(0)  # (the module's repeated file's own counts)
-    names = []
-    for r in range(K):
-        d = tmp_path / f"pass{r}"
-        d.mkdir()
-        _write(d, counts[r:r + 1], pats, code, rng, "once")
-        names.append(str(d / "once.ptu"))
+    names = _passes(tmp_path, counts, pats, code, rng)
     rc, one, depth_one, err = _reconstruct(path, "repeated", capsys, "--repeats", str(K),
                                            out=tmp_path / "one")
     assert rc == 0, err
@@ -363,12 +370,7 @@ def test_a_drift_across_the_files_is_said_and_a_frame_is_read_without_it(tmp_pat
     own drift warnings (a review). Now the drift is read over the files and said; a frame
     says none."""
     counts, pats, code, _, rng = _counts(5, signal=6e-4, move=0.1)
-    names = []
-    for r in range(K):
-        d = tmp_path / f"pass{r}"
-        d.mkdir()
-        _write(d, counts[r:r + 1], pats, code, rng, "once")
-        names.append(str(d / "once.ptu"))
+    names = _passes(tmp_path, counts, pats, code, rng)
     base = ["reconstruct", "--patterns", str(tmp_path / "pass0" / "patterns.npy"), "--code",
             str(tmp_path / "pass0" / "code.npy"), "--bit-rate", "10e9", "--range-gate", "2.5",
             "4", "--no-figure", "--ptu", *names]
