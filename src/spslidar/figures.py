@@ -220,7 +220,10 @@ def _title(result) -> str:
     reg = m.get("config", {}).get("regulariser", c.regulariser)
     solve = f"{c.solver} + {reg}"
     if "ptu" in m:  # a measured acquisition: no simulated photon numbers to show
-        what = (f"measured {Path(m['ptu']['file']).name}: {m['n_patterns']} patterns, "
+        files = m["ptu"]["file"]  # (a list where several files were read as one)
+        name = (Path(files).name if not isinstance(files, list) else
+                f"{Path(files[0]).name} and {len(files) - 1} more file(s)")
+        what = (f"measured {name}: {m['n_patterns']} patterns, "
                 f"{int(sum(m['ptu']['counts_per_pattern']))} photons, "
                 f"{'QCR' if c.qcr else 'no QCR'}, {solve}, {c.depth} depth")
         cal = m.get("calibration")
