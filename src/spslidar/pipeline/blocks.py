@@ -23,9 +23,8 @@ import numpy as np
 from ..errors import ConfigError
 
 __all__ = ["BOUNCE_PERIODS", "CHANNEL_SHARE", "DROPPED_SHARE", "SHORT_BLOCK", "channels_holding",
-           "channel_note", "channels_read", "check_blocks", "check_frame", "check_repeats",
-           "drop_frozen",
-           "fold_repeats", "read_blocks"]
+           "block_patterns", "channel_note", "channels_read", "check_blocks", "check_frame",
+           "check_repeats", "drop_frozen", "fold_repeats", "read_blocks"]
 
 #: photons left out (before the first marker, or past the code period) beyond this share of
 #: the file's are said (they are always left out: no pattern, or no bin, is known for them)
@@ -94,6 +93,16 @@ def check_repeats(repeats: Any) -> int:
     return int(value)
 
 
+def block_patterns(shown: np.ndarray, repeats: int) -> np.ndarray:
+    """What the screening of a file's blocks reads of each block's pattern: the patterns
+    shown, or under ``repeats`` each block's light alone, a column (block ``r M + i`` showing
+    pattern ``i``; a ``(K M, Q)`` copy of the patterns would be K times their memory, and ran
+    out of it at K = 10^6: a review)."""
+    if repeats == 1:
+        return shown
+    return np.tile(shown.sum(axis=1, dtype=np.float64), repeats)[:, None]
+
+
 def check_frame(frame: Any, repeats: int) -> int | None:
     """``--frame`` (one repeat of the sequence, from 0) as an int in ``[0, repeats)``, or
     None; one line (:class:`ConfigError`) otherwise, or without ``--repeats`` of 2 or more."""
@@ -114,9 +123,9 @@ def check_frame(frame: Any, repeats: int) -> int | None:
     return int(value)
 
 
-def fold_repeats(pattern: np.ndarray, hist: np.ndarray, periods: np.ndarray,
-                 noise_totals: np.ndarray | None, counts: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+def fold_repeats(pattern: np.ndarray, hist: np.ndarray, periods: np.ndarray | None = None,
+                 noise_totals: np.ndarray | None = None, counts: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, Any, Any, Any]:
     """The blocks of a sequence shown several times (``--repeats``), summed per pattern.
 
     Parameters
@@ -125,28 +134,28 @@ def fold_repeats(pattern: np.ndarray, hist: np.ndarray, periods: np.ndarray,
         The pattern each kept block showed.
     hist : ndarray, shape (B, L)
         Each block's histogram (corrected for its own pile-up).
-    periods : ndarray, shape (B,)
-        Each block's exposure, code periods.
-    noise_totals : ndarray, shape (B,), or None
-        Each block's noise total (a pile-up correction's), if any.
-    counts : ndarray, shape (B,)
-        Each block's photons as recorded.
+    periods, noise_totals, counts : ndarray, shape (B,), optional
+        Each block's exposure (code periods), noise total (a pile-up correction's) and
+        photons as recorded, where the caller has them.
 
     Returns
     -------
     patterns, hist, periods, noise_totals, counts
         One row per pattern with a kept block, increasing: its blocks' sums (a pattern's
-        Poisson counts over several dwells are its counts over their sum).
+        Poisson counts over several dwells are its counts over their sum); None for each
+        optional input not given.
     """
     shown, row = np.unique(np.asarray(pattern), return_inverse=True)
 
     def total(values):
+        if values is None:
+            return None
         out = np.zeros((shown.size,) + np.shape(values)[1:], dtype=np.result_type(values))
         np.add.at(out, row, values)
         return out
 
     return (shown, total(np.asarray(hist, dtype=np.float64)), total(periods),
-            None if noise_totals is None else total(noise_totals), total(counts))
+            total(noise_totals), total(counts))
 
 
 def drop_frozen(data, ptu) -> tuple[Any, int, str | None]:

@@ -452,7 +452,14 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     ``(0, 180)`` degrees (or with ``target='range'``) raise a one-line
     :class:`~spslidar.errors.ConfigError`."""
     from ..version import __version__
-    from .blocks import channels_read, check_repeats, drop_frozen, read_blocks
+    from .blocks import (
+        block_patterns,
+        channels_read,
+        check_repeats,
+        drop_frozen,
+        fold_repeats,
+        read_blocks,
+    )
     from .deadtime import dead_time_model
     from .real import (
         check_code,
@@ -470,10 +477,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     code = check_code(code, None, "code")
     check_real_inputs(bit_rate, (0.0, 1.0), int(patterns.shape[1]), int(patterns.shape[0]),
                       int(code.size), repeats)
-    shown = patterns
-    if repeats > 1:  # every block read: each one's light, as the screening reads it (a
-        # (K M, Q) copy of the patterns ran out of memory at K = 10^6: a review)
-        patterns = np.tile(shown.sum(axis=1, dtype=np.float64), repeats)[:, None]
+    shown, patterns = patterns, block_patterns(patterns, repeats)
     # every argument before the file is read, each in one line (a distance given as text
     # and a NaN pulse width were tracebacks, found by an audit)
     distance = _check_distance(distance)
@@ -507,10 +511,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
     keep, hists, pile, drift = blocks.keep, blocks.hist, blocks.pile, blocks.drift
     patterns = patterns[keep]
     if repeats > 1:  # each pattern's blocks summed, as reconstruct solves them
-        from .blocks import fold_repeats
-
-        rows, hists, _, _, _ = fold_repeats(keep % shown.shape[0], hists,
-                                            np.ones(keep.size), None, np.zeros(keep.size))
+        rows, hists, *_ = fold_repeats(keep % shown.shape[0], hists)
         patterns = shown[rows]
     for note in notes + blocks.notes:
         warnings.warn(note, stacklevel=2)
@@ -553,7 +554,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                               # and a calibration applied to another went unsaid, an audit)
                               "channel": None if channel is None else channels_read(data,
                                                                                     channel),
-                              "channels": sorted(channels_read(data, channel))}}
+                              "channels": channels_read(data, channel)}}
 
 
 def _check_target(target: Any, fov_deg: Any) -> float | None:

@@ -492,8 +492,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                          marker_edge=marker_edge, settle=settle, repeats=repeats,
                          sync_divider=sync_divider, frame=frame)
     data, hist, n_k, noise_totals = solved.data, solved.hist, solved.periods, solved.noise_totals
-    shown, patterns, rows, partial, pile = (patterns, solved.patterns, solved.rows,
-                                            solved.partial, solved.pile)
+    patterns, rows, partial, pile = solved.patterns, solved.rows, solved.partial, solved.pile
     m = rows.size
     # (the truth's word after the reading's, before the screening's: where it was said)
     dwell_warning = (solved.notes[:solved.n_read] + ([truth_note] if truth_note else [])
@@ -618,9 +617,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         "file": (os.fspath(files[0]) if len(files) == 1 else
                  [os.fspath(f) for f in files]),
         "counts_per_pattern": solved.counts_kept.tolist(),
-        "blocks_left_out": np.setdiff1d(
-            np.arange(solved.n_blocks)[np.arange(solved.n_blocks) // shown.shape[0] == frame]
-            if frame is not None else np.arange(solved.n_blocks), solved.blocks_kept).tolist(),
+        "blocks_left_out": solved.blocks_left_out.tolist(),
         "repeats": repeats, "frame": frame,
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":
         float(background.mean() / n_mean), "background_per_pattern": background.tolist(),

@@ -53,11 +53,11 @@ class SolvedRows(NamedTuple):
     patterns: np.ndarray
     #: each row's pattern number (its row of ``--patterns``)
     rows: np.ndarray
-    #: the blocks solved (numbered through the repeats), and each one's photons
-    blocks_kept: np.ndarray
+    #: each row's photons as recorded (its blocks' sum under repeats)
     counts_kept: np.ndarray
-    #: the blocks the file holds, a lost sync's among them
-    n_blocks: int
+    #: the blocks left out (numbered through the repeats and the files; with ``frame``, of
+    #: that repeat's blocks alone), a lost sync's among them
+    blocks_left_out: np.ndarray
     #: a part of the period never recorded (:func:`~spslidar.pipeline.screen.screen_blocks`)
     partial: bool
     #: the pile-up record (``metrics.json``'s ``detector``) and the timing drift read
@@ -74,15 +74,12 @@ def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float
                  marker_edge: str, settle: float, repeats: int,
                  sync_divider: Any) -> _FileBlocks:
     """One file's blocks, read, screened and corrected for pile-up (:func:`solved_rows`)."""
-    from .blocks import drop_frozen, read_blocks
+    from .blocks import block_patterns, drop_frozen, read_blocks
     from .screen import measured_blocks
 
     m_rows = int(shown.shape[0])
     m = m_rows * repeats
-    # the blocks' own rows: the patterns, or under repeats each block's light alone, as the
-    # screening reads it (a (K M, Q) copy of the patterns would be K times their memory)
-    patterns = (shown if repeats == 1 else
-                np.tile(shown.sum(axis=1, dtype=np.float64), repeats)[:, None])
+    patterns = block_patterns(shown, repeats)  # (each block's, as the screening reads it)
     data, notes = read_blocks(ptu, m, int(np.size(code)), bin_width=bin_width, marker=marker,
                               channel=channel, allow_binning=allow_binning,
                               marker_edge=marker_edge, settle=settle, repeats=repeats,
@@ -258,12 +255,14 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
             f"the sequence was shown {total_repeats} times, summed here: a scene that moves "
             f"between the repeats reads as the drift above; --frame I reconstructs repeat I "
             f"alone")
-    blocks_kept, counts_kept = rows, data.counts_per_pattern[rows]
+    read = np.arange(n_blocks)  # (the blocks asked for: a frame's, or every one)
+    left_out = np.setdiff1d(read if frame is None else read[read // m_rows == frame], rows)
+    counts_kept = data.counts_per_pattern[rows]
     if total_repeats > 1:  # each pattern's kept blocks summed: the solve has one row a pattern
         rows, hist, n_k, noise_totals, counts_kept = fold_repeats(
             rows % m_rows, hist, n_k, noise_totals, counts_kept)
     # (the patterns themselves where every row is solved: no copy of a large set)
     every = rows.size == m_rows and np.array_equal(rows, np.arange(m_rows))
     return SolvedRows(data, hist, n_k, noise_totals, shown if every else shown[rows], rows,
-                      blocks_kept, counts_kept, n_blocks, any(p.partial for p in parts), pile,
-                      drift, notes, n_read)
+                      counts_kept, left_out, any(p.partial for p in parts), pile, drift, notes,
+                      n_read)
