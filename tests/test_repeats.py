@@ -247,6 +247,15 @@ def test_frame_reads_one_repeat_of_a_moving_scene(tmp_path, capsys):
         assert rc == 0, err
         assert m["ptu"]["frame"] == frame
         bias[frame] = float(np.nanmedian(est - depth))
+        # (the figure's title says which: a frame's read as the whole acquisition's)
+        from types import SimpleNamespace
+
+        from spslidar.config import Config
+        from spslidar.figures import _title
+
+        title = _title(SimpleNamespace(config=Config(), metrics=m))
+        assert (f"{M} patterns (shown {K} times, summed)" if frame is None else
+                f"{M} patterns (repeat {frame} of {K})") in title
         # (summed, the motion reads as a drift, and the warning names the frames; a frame's
         # map is read with its own blocks' drift, none: a review found the repeats' motion
         # said as a blur of the frame's map)

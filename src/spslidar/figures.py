@@ -223,7 +223,14 @@ def _title(result) -> str:
         files = m["ptu"]["file"]  # (a list where several files were read as one)
         name = (Path(files).name if not isinstance(files, list) else
                 f"{Path(files[0]).name} and {len(files) - 1} more file(s)")
-        what = (f"measured {name}: {m['n_patterns']} patterns, "
+        # the sequence's repeats (through the files), summed or one of them (--frame): a
+        # frame's figure read as the whole acquisition's
+        total = int(m["ptu"].get("repeats") or 1) * (len(files) if isinstance(files, list)
+                                                     else 1)
+        frame = m["ptu"].get("frame")
+        reps = (f" (repeat {frame} of {total})" if frame is not None else
+                f" (shown {total} times, summed)" if total > 1 else "")
+        what = (f"measured {name}: {m['n_patterns']} patterns{reps}, "
                 f"{int(sum(m['ptu']['counts_per_pattern']))} photons, "
                 f"{'QCR' if c.qcr else 'no QCR'}, {solve}, {c.depth} depth")
         cal = m.get("calibration")
