@@ -256,7 +256,8 @@ API_SECTIONS: list[tuple[str, str, str, list[str]]] = [
      ["spslidar.backends", "spslidar.backends.*"]),
     ("io", "Input and output",
      "Real time-tag data: PicoQuant PTU files read into per-pattern histograms, and written; "
-     "another vendor's timestamps turned into T3 events.",
+     "another vendor's timestamps turned into T3 events; a lab's pattern and code files "
+     "(images, TIFF, MATLAB, text).",
      ["spslidar.io", "spslidar.io.*"]),
     ("experiments", "Experiments",
      "Parameter sweeps and the reproduction of the paper's experiments.",

@@ -18,11 +18,16 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
     alone, without a word, an outside lab audit of 2026-11-30)."""
     p.add_argument("--ptu", required=True, metavar=ptu_metavar, help=ptu_help,
                    action="extend", nargs="+" if many else 1)
-    p.add_argument("--patterns", required=True, metavar="PATTERNS.npy",
-                   help="(M, N, N) mirror states shown, in marker order (0/1 or grey in [0, 1])")
-    p.add_argument("--code", required=True, metavar="CODE.npy|FAMILY",
-                   help="unipolar bits of one code period (.npy), or a code family's name "
-                        "(e.g. mseq, gold: one whose bits a name, length and index fix) with "
+    p.add_argument("--patterns", required=True, metavar="PATTERNS",
+                   help="the mirror states shown, in marker order (0/1 or grey in [0, 1]): an "
+                        "(M, N, N) .npy; a MATLAB .mat (N x N x M, or M x N^2 rows flattened "
+                        "column-major; FILE.mat:NAME picks one array); a multi-page TIFF; or "
+                        "a folder of images, one per pattern in the natural order of their "
+                        "names (8-bit levels / 255)")
+    p.add_argument("--code", required=True, metavar="CODE|FAMILY",
+                   help="bits of one code period: a .npy, a text file (0110... or numbers, "
+                        "0/1 or -1/+1), a .mat vector; or a code family's name (e.g. mseq, "
+                        "gold: one whose bits a name, length and index fix) with "
                         "--code-length, as run makes it")
     p.add_argument("--code-length", type=int, metavar="L",
                    help="bits per code period of a named family (2^n - 1 for mseq/gold)")
@@ -140,7 +145,7 @@ def cmd_reconstruct(args) -> int:
     """Run ``spslidar reconstruct``; return the exit status."""
     from .cli_common import _WRITTEN, _written, say_warnings
     from .outdir import check_output
-    from .pipeline.real import load_code, load_patterns, reconstruct_ptu
+    from .pipeline.real import load_code, reconstruct_ptu
 
     check_output(args.out, args.overwrite)  # refuse before any work
     from .pipeline.measurement import processing_keys
@@ -148,7 +153,7 @@ def cmd_reconstruct(args) -> int:
     # (with the options the solvers and estimators declare: a plugin's had no flag)
     processing = {k: getattr(args, k) for k in processing_keys() if hasattr(args, k)}
     ptu = args.ptu[0] if len(args.ptu) == 1 else args.ptu
-    result = reconstruct_ptu(ptu, load_patterns(args.patterns),
+    result = reconstruct_ptu(ptu, args.patterns,
                              load_code(args.code, args.code_length, args.code_index), args.bit_rate,
                              tuple(args.range_gate), marker=args.marker, channel=args.channel,
                              allow_binning=args.allow_binning, truth=args.truth,
@@ -211,7 +216,7 @@ def cmd_calibrate(args) -> int:
     from .cli_common import _WRITTEN
     from .pipeline.calibration import calibrate_ptu
     from .pipeline.calibration_file import check_calibration_out, write_calibration
-    from .pipeline.real import load_code, load_patterns
+    from .pipeline.real import load_code
 
     check_calibration_out(args.out, args.overwrite)  # refuse before any work
     if len(args.ptu) > 1:  # (a repeated --ptu kept the last alone, without a word)
@@ -219,7 +224,7 @@ def cmd_calibrate(args) -> int:
 
         raise ConfigError(f"calibrate reads one PTU file, got {len(args.ptu)} (--ptu given "
                           f"more than once?)")
-    cal = calibrate_ptu(args.ptu[0], load_patterns(args.patterns, distinct=False),
+    cal = calibrate_ptu(args.ptu[0], args.patterns,
                         load_code(args.code, args.code_length, args.code_index),
                         args.bit_rate, args.distance,
                         marker=args.marker, channel=args.channel,

@@ -423,8 +423,8 @@ def fwhm_bins(values: np.ndarray) -> float:
     return float(hi - lo)
 
 
-def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray,
-                  bit_rate: float, distance: float, *, marker: int = 1,
+def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLike,
+                  code: np.ndarray, bit_rate: float, distance: float, *, marker: int = 1,
                   channel: int | None = None, pulse_width: float = 0.5,
                   allow_binning: bool = False, target: str = "auto",
                   fov_deg: float | None = None, marker_edge: str = "start",
@@ -432,8 +432,10 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
                   afterpulse_prob: float = 0.0,
                   afterpulse_delay: float = 0.0, repeats: int = 1,
                   sync_divider: int | None = None) -> dict[str, Any]:
-    """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target,
-    with what it was measured from (file, hash, photons, patterns, bit rate, code);
+    """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target
+    (``patterns`` an array or the file or folder that holds them, as
+    :func:`~spslidar.pipeline.real.load_patterns` reads it), with what it was measured from
+    (file, hash, photons, patterns, bit rate, code);
     ``allow_binning``, ``marker_edge``, ``settle``, ``repeats``, ``sync_divider`` and the
     detector's ``dead_time`` and
     afterpulsing (each block's histogram corrected for pile-up before the response is read:
@@ -466,13 +468,16 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray
         check_patterns,
         check_ptu_path,
         check_real_inputs,
+        load_patterns,
     )
 
     if isinstance(ptu, (list, tuple)):  # (before the path check, which offers lists)
         raise ConfigError("calibrate reads one PTU file: a calibration is one acquisition of "
                           "the flat target")
     check_ptu_path(ptu)
-    patterns = check_patterns(patterns, False, "patterns")
+    patterns = (load_patterns(patterns, distinct=False)
+                if isinstance(patterns, (str, os.PathLike)) else
+                check_patterns(patterns, False, "patterns"))
     repeats = check_repeats(repeats)
     code = check_code(code, None, "code")
     check_real_inputs(bit_rate, (0.0, 1.0), int(patterns.shape[1]), int(patterns.shape[0]),

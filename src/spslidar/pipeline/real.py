@@ -13,13 +13,11 @@ from __future__ import annotations
 
 import math
 import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..config import Config
-from ..constants import MAX_DEPTH_M
 from ..correlate import (
     auto_replica,
     correlation_gain,
@@ -41,204 +39,17 @@ __all__ = ["FILTER_LAM_SCALE", "calibrated_lam_scale", "check_code", "check_gate
            "write_measurement_ptu"]
 
 # (a simulated acquisition written as a lab's files, ``run --save-ptu``: re-exported here, its
-# public home since it was written)
+# public home since it was written; and the inputs' checks, likewise)
 from .export import write_measurement_ptu  # noqa: E402
-
-
-def load_patterns(path: str | os.PathLike, distinct: bool = True) -> np.ndarray:
-    """``(M, N, N)`` mirror states (0/1 or grey levels in [0, 1]) as float32 ``(M, N*N)``,
-    checked by :func:`check_patterns`."""
-    return check_patterns(_load_npy(path, "patterns"), distinct, f"--patterns {path}")
-
-
-def check_patterns(patterns: Any, distinct: bool = True, what: str = "patterns") -> np.ndarray:
-    """Mirror states shown, ``(M, N, N)`` or ``(M, N*N)``, as float32 ``(M, N*N)``; refused in
-    one line (:class:`ConfigError`) where they cannot be (fewer than 2 patterns, fewer than
-    4 x 4 mirrors, not square, not real numbers in [0, 1]) or cannot form an image: every
-    mirror off, or (with ``distinct``, a scene's reconstruction) M copies of one pattern. A
-    calibration may show one pattern throughout (``distinct=False``)."""
-    arr = _as_array(patterns, what)
-    if arr.ndim == 2 and arr.shape[0] >= 2:
-        side = int(round(np.sqrt(arr.shape[1])))
-        if side * side == arr.shape[1]:
-            arr = arr.reshape(arr.shape[0], side, side)
-    if arr.ndim != 3 or arr.shape[1] != arr.shape[2] or arr.shape[0] < 2 or arr.shape[1] < 4:
-        raise ConfigError(f"{what} must be an (M, N, N) array (or (M, N*N)) with M >= 2 "
-                          f"patterns of N x N >= 4 x 4 mirrors, got shape {arr.shape}")
-    _real_numbers(arr, what)
-    arr = np.asarray(arr, dtype=np.float64)
-    if not np.all(np.isfinite(arr)):
-        bad = int(np.count_nonzero(~np.isfinite(arr)))
-        raise ConfigError(f"{what} holds {bad} NaN or infinite value(s): mirror states are "
-                          f"numbers in [0, 1] (0/1 or grey levels)")
-    if arr.min() < 0 or arr.max() > 1:
-        # (a DMD bitplane saved as 0/255 uint8 was told only "must hold ... [0, 1]": an audit)
-        hint = (": 8-bit levels 0-255? divide by 255" if arr.min() >= 0 and arr.max() <= 255
-                and np.all(arr == np.round(arr)) else
-                ": +1/-1 differences? give the two complementary patterns as rows of their own"
-                if arr.min() >= -1 and arr.max() <= 1 else "")
-        raise ConfigError(f"{what} must hold mirror states in [0, 1] (0/1 or grey levels), got "
-                          f"values from {arr.min():g} to {arr.max():g}{hint}")
-    flat = arr.reshape(arr.shape[0], -1)
-    if not flat.any():
-        raise ConfigError(f"{what}: every mirror of every pattern is off, so no light reaches "
-                          f"the scene")
-    if distinct and np.all(flat == flat[0]):
-        # the reconstruction (QCR, eq. 11-17) uses how the patterns differ from their mean:
-        # the same pattern M times measures one number per delay, not an image
-        raise ConfigError(f"{what}: all {arr.shape[0]} patterns are the same, so they hold no "
-                          f"spatial information (single-pixel imaging needs patterns that "
-                          f"differ)")
-    return flat.astype(np.float32)
-
-
-def _as_array(value: Any, what: str) -> np.ndarray:
-    """``value`` as a NumPy array (a list is fine), or one line."""
-    if isinstance(value, np.ndarray):
-        return value
-    try:
-        return np.asarray(value)
-    except (ValueError, TypeError) as exc:
-        raise ConfigError(f"{what} must be an array of numbers ({exc})") from None
-
-
-def _real_numbers(arr: np.ndarray, what: str) -> None:
-    """Refuse an array whose dtype is not real numbers (complex numbers, strings, objects);
-    booleans are taken as 0/1."""
-    if not (np.issubdtype(arr.dtype, np.number) or arr.dtype == np.bool_) or \
-            np.issubdtype(arr.dtype, np.complexfloating):
-        raise ConfigError(f"{what} must hold real numbers, got dtype {arr.dtype}")
-
-
-def _check_truth(truth: Any, n: int) -> np.ndarray:
-    """``truth`` as an ``(n, n)`` float64 depth map in metres, NaN where unknown; one line for
-    anything else: a complex, boolean or non-numeric array (a complex one was cast to its
-    real part with a library warning, a boolean mask scored as depths of 0 and 1 m), an
-    infinite, negative or zero depth (zero is "no data" in many datasets), or one beyond
-    :data:`~spslidar.constants.MAX_DEPTH_M`."""
-    arr = _as_array(truth, "--truth")
-    if arr.dtype == np.bool_:
-        raise ConfigError("--truth holds booleans (a mask?): a depth map in metres is expected, "
-                          "NaN where the depth is unknown")
-    if arr.dtype.kind not in "iuf":
-        raise ConfigError(f"--truth must be an ({n}, {n}) depth map in metres of real numbers, "
-                          f"got dtype {arr.dtype}")
-    arr = arr.astype(np.float64)
-    if arr.shape != (n, n):
-        raise ConfigError(f"--truth must be an ({n}, {n}) depth map, got {arr.shape}")
-    known = ~np.isnan(arr)
-    if not known.any():  # (refused after the file was read, naming the PTU as a "scene")
-        raise ConfigError("--truth holds no depth (every pixel is NaN): give the depths in "
-                          "metres where they are known, or leave --truth out")
-    bad = int(np.count_nonzero(known & (np.isinf(arr) | (arr < 0))))
-    if bad:
-        raise ConfigError(f"--truth has {bad} infinite or negative depths (depths are finite "
-                          f"metres >= 0; NaN marks a pixel without a truth)")
-    zeros = int(np.count_nonzero(known & (arr == 0)))
-    if zeros:  # (0 for "no data" was scored as a depth: a 16x16 plane read 9.29 m for 0.028)
-        raise ConfigError(f"--truth has {zeros} depths of 0 m, where a lidar measures no "
-                          f"distance: mark pixels without a truth NaN (0 is 'no data' in many "
-                          f"depth datasets)")
-    if known.any() and float(arr[known].max()) > MAX_DEPTH_M:
-        raise ConfigError(f"--truth holds depths up to {float(arr[known].max()):.3g} m, beyond "
-                          f"any lidar range (at most {MAX_DEPTH_M:.0e} m): are the values in "
-                          f"metres?")
-    return arr
-
-
-def load_code(code: str | os.PathLike, code_length: int | None = None,
-              code_index: int | None = None) -> np.ndarray:
-    """The unipolar code of one period: a ``.npy`` of 0/1 bits, or the name of a registered
-    code family (:data:`spslidar.codes.CODES`: ``mseq``, ``gold``, a plugin's) with
-    ``code_length`` and, optionally, ``code_index`` (the family's member or shift, as
-    ``spslidar run --code-index``; default the family's, as ``run``'s). A family that draws
-    its bits from a seed (``random``) is refused: its bits are the ``.npy`` that ``run
-    --save-ptu`` writes beside its file."""
-    from ..codes import CODES
-
-    name = str(code)
-    if not Path(code).exists() and name.lower() in {n.lower() for n in CODES.names()}:
-        name = CODES.canonical(name)
-        if code_length is None:
-            raise ConfigError(f"--code {name} needs --code-length L")
-        entry = CODES.get(name)
-        index = entry.defaults.get("index", 0) if code_index is None else code_index
-        if isinstance(index, bool) or not isinstance(index, int | np.integer) or index < 0:
-            raise ConfigError(f"--code-index must be a whole number >= 0, got {index!r}")
-        file = "give its bits as a .npy of 0/1 bits (run --save-ptu writes <stem>_code.npy)"
-        if entry.options:  # (reconstruct has no flag for them: the code run made may differ)
-            raise ConfigError(f"--code {name} takes options ("
-                              f"{', '.join(o.flag for o in entry.options)}): {file}")
-        make = entry.load()
-        bits = [np.asarray(make(name, int(code_length), ratio, rng=np.random.default_rng(seed),
-                                index=int(index)), dtype=np.uint8)
-                for seed, ratio in ((0, 0.5), (1, 0.5), (0, 0.3))]
-        if not np.array_equal(bits[0], bits[1]):
-            raise ConfigError(f"--code {name} draws its bits from a seed: {file}")
-        if not np.array_equal(bits[0], bits[2]):  # (run --ones-ratio: no flag here either)
-            raise ConfigError(f"--code {name}'s bits depend on its ones ratio: {file}")
-        return check_code(bits[0], code_length, f"--code {name}")
-    if code_index is not None:
-        raise ConfigError(f"--code-index is for a code family's name (mseq, gold), not a "
-                          f"file: {name}")
-    return check_code(_load_npy(code, "code"), code_length, f"--code {code}")
-
-
-def check_code(code: Any, code_length: int | None = None, what: str = "code") -> np.ndarray:
-    """The unipolar bits of one code period as uint8; refused in one line
-    (:class:`ConfigError`) unless a 1-D array of real 0/1 values with both present (and of
-    ``code_length`` bits where that is given)."""
-    arr = _as_array(code, what)
-    if arr.ndim != 1 or arr.size < 2:
-        raise ConfigError(f"{what} must be a 1-D array of 0/1 bits, got shape {arr.shape}")
-    _real_numbers(arr, what)
-    bad = ~((arr == 0) | (arr == 1))
-    if bad.any():
-        raise ConfigError(f"{what} must hold 0/1 bits (unipolar, one period), got "
-                          f"{int(bad.sum())} other values (first: {arr[bad][0].item()!r})")
-    if code_length is not None and int(code_length) != arr.size:
-        raise ConfigError(f"--code-length {code_length} disagrees with {what}, which holds "
-                          f"{arr.size} bits (--code-length is for a named code family)")
-    ones = int(arr.sum())
-    if ones in (0, arr.size):  # no modulation: nothing to correlate with
-        raise ConfigError(f"{what}: all {arr.size} bits are {int(ones > 0)}; a code needs "
-                          f"both 0 and 1 bits (the laser is modulated by them)")
-    return arr.astype(np.uint8)
-
-
-def check_ptu_path(ptu: Any) -> list:
-    """The PTU file(s): a path (str or os.PathLike), or a non-empty list or tuple of them
-    (an acquisition saved one file per pass), as a list; one line otherwise (the reader
-    checks that each names a regular file)."""
-    many = isinstance(ptu, (list, tuple))
-    files = list(ptu) if many else [ptu]
-    if not files or not all(isinstance(f, (str, os.PathLike)) for f in files):
-        got = "an empty list" if many and not files else type(ptu).__name__
-        raise ConfigError(f"ptu must be the path of a PTU file (or a list of them), got {got}")
-    seen: dict[str, Any] = {}
-    for f in files:  # (a file given twice was summed with itself, without a word: a review)
-        key = os.path.realpath(os.fspath(f))
-        if key in seen:
-            raise ConfigError(f"the PTU file {os.fspath(f)!r} is given twice (as "
-                              f"{os.fspath(seen[key])!r} too): each pass once")
-        seen[key] = f
-    return files
-
-
-def check_gate(range_gate: Any) -> tuple[float, float]:
-    """``(MIN, MAX)`` metres, two finite numbers with ``0 <= MIN < MAX``, or one line."""
-    import math
-
-    try:
-        lo, hi = (float(v) for v in range_gate)
-    except (TypeError, ValueError):
-        raise ConfigError(f"range_gate must be two numbers (MIN, MAX) in metres, got "
-                          f"{range_gate!r}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
-        raise ConfigError(f"--range-gate must be MIN MAX with 0 <= MIN < MAX metres, got "
-                          f"{lo:g} {hi:g}")
-    return lo, hi
-
+from .inputs import (  # noqa: E402
+    _check_truth,
+    check_code,
+    check_gate,
+    check_patterns,
+    check_ptu_path,
+    load_code,
+    load_patterns,
+)
 
 #: the configuration keys a measured acquisition sets (with the processing keys, what
 #: ``reconstruct`` writes in ``metrics['config']``)
@@ -359,7 +170,8 @@ def calibrated_lam_scale(solver: str, spread: float) -> float:
 
 
 @keeping_warnings
-def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarray,
+def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLike,
+                    code: np.ndarray,
                     bit_rate: float, range_gate: tuple[float, float], *, marker: int = 1,
                     channel: int | None = None,
                     truth: np.ndarray | str | os.PathLike | None = None,
@@ -380,8 +192,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
         their blocks are read in the order given and each pattern's summed over them (each
         file screened and corrected on its own, its warnings named with it; ``frame``
         counts the repeats through the files).
-    patterns : ndarray, shape (M, Q)
-        The mirror states shown, one row per marker-delimited block (:func:`load_patterns`).
+    patterns : ndarray, shape (M, Q), or path
+        The mirror states shown, one row per marker-delimited block, or the file (or folder
+        of images) that holds them, read by :func:`load_patterns`.
     code : ndarray, shape (L,)
         Unipolar code bits of one period (sets the histogram length and the matched filter).
     bit_rate : float
@@ -458,7 +271,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray, code: np.ndarr
                           "solves on one)")
     files = check_ptu_path(ptu)
     ptu = files[0] if len(files) == 1 else files
-    patterns = check_patterns(patterns, True, "patterns")
+    # (a file's reader warns, as of images read at their patterns' size: kept in metrics)
+    patterns = (load_patterns(patterns) if isinstance(patterns, (str, os.PathLike)) else
+                check_patterns(patterns, True, "patterns"))
     repeats = check_repeats(repeats)
     frame = check_frame(frame, repeats * len(files))
     code = check_code(code, None, "code")
