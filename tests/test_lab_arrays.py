@@ -62,13 +62,16 @@ def test_folder_of_one_bit_and_zero_one_images(tmp_path, mode, scale):
     np.testing.assert_array_equal(load_patterns(folder), pats.reshape(len(pats), -1))
 
 
-def test_grey_levels_and_rgb_grey(tmp_path):
-    """8-bit grey levels are divided by 255; an RGB image whose channels are equal is grey."""
+@pytest.mark.parametrize("mode", ["RGB", "LA", "RGBA", "P"])
+def test_grey_levels_and_rgb_grey(tmp_path, mode):
+    """8-bit grey levels are divided by 255; an RGB image whose channels are equal is grey,
+    and so is one with an alpha channel that is the same everywhere (grey + alpha, RGBA), or
+    a palette image."""
     levels = np.random.default_rng(1).integers(0, 256, (4, 8, 8)).astype(np.uint8)
     folder = tmp_path / "g"
     folder.mkdir()
     for i, p in enumerate(levels):
-        Image.fromarray(np.repeat(p[..., None], 3, axis=-1)).save(folder / f"{i}.png")
+        Image.fromarray(p).convert(mode).save(folder / f"{i}.png")
     np.testing.assert_allclose(load_patterns(folder), levels.reshape(4, -1) / 255,
                                rtol=0, atol=1e-7)  # (float32 of k/255)
 

@@ -197,15 +197,15 @@ def _mat_patterns(arr: np.ndarray, p: Path) -> np.ndarray:
 
 def _image_levels(img: np.ndarray, label: str) -> np.ndarray:
     """One image as a 2-D array of levels as stored (RGB with equal channels made grey)."""
-    if img.ndim == 3 and img.shape[-1] in (3, 4):
-        if img.shape[-1] == 4:
-            alpha = img[..., 3]
+    if img.ndim == 3 and img.shape[-1] in (2, 3, 4):
+        if img.shape[-1] in (2, 4):  # grey or RGB with an alpha channel
+            alpha = img[..., -1]
             if alpha.min() != alpha.max():
                 raise ConfigError(f"pattern image {label} has transparency that varies: give "
                                   f"the mirror states as grey levels")
-            img = img[..., :3]
-        if not (np.array_equal(img[..., 0], img[..., 1])
-                and np.array_equal(img[..., 0], img[..., 2])):
+            img = img[..., :-1]
+        if img.shape[-1] == 3 and not (np.array_equal(img[..., 0], img[..., 1])
+                                       and np.array_equal(img[..., 0], img[..., 2])):
             raise ConfigError(f"pattern image {label} is in colour (its red, green and blue "
                               f"differ): give one grey or 1-bit image per pattern (a DLP "
                               f"controller's 24 bit planes in one image are not unpacked)")
