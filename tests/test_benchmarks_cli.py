@@ -31,6 +31,8 @@ BENCH = Path(__file__).resolve().parent.parent / "benchmarks"
     ("depth_quality.py", ["--draw", "1"], "--draw"),
     ("depth_quality.py", ["--procedural", "3", "--seed", "5"], "--seed"),
     ("solvers.py", ["--quick", "--table1-size", "3"], "size 3"),
+    ("ptu_read.py", ["--records", "0"], "--records"),
+    ("ptu_read.py", ["--record-type", "PicoHarpT3", "--bins", "5000"], "below 4096"),
 ])
 def test_a_bad_value_is_one_line_and_exit_2(script, args, said, tmp_path):
     if not BENCH.is_dir():
@@ -68,3 +70,17 @@ def test_depth_quality_caches_inside_its_folder_by_the_scenes_content(tmp_path):
     assert argmax_rmse("--cache", str(cache)) == argmax_rmse()  # the new content's, not cached
     assert sorted(p.name for p in scene.parent.iterdir()) == ["plane.npy"]
     assert len(list(cache.iterdir())) == 2  # one case per content
+
+
+def test_ptu_read_benchmark_reads_what_the_peer_reads(tmp_path):
+    """The reader benchmark on a small file: both readers' histograms equal (the script
+    exits 1 with a line otherwise), and its table has both rows."""
+    if not BENCH.is_dir():
+        pytest.skip("the benchmarks are not in this checkout")
+    done = subprocess.run([sys.executable, str(BENCH / "ptu_read.py"), "--records", "20000",
+                           "--patterns", "8", "--bins", "127", "--repeat", "1"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "the histograms equal" in done.stdout
+    assert "| spslidar `read_ptu_histograms` |" in done.stdout
+    assert "| ptufile `decode_records` + NumPy |" in done.stdout
