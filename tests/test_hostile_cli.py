@@ -140,7 +140,8 @@ def test_config_streams_and_devices(tmp_path, capsys):
 def test_patterns_given_a_folder_is_said(tmp_path):
     from spslidar.pipeline.real import load_patterns
 
-    with pytest.raises(ConfigError, match="is not a file"):
+    # (a folder is read as one image per pattern since stop 66: this one holds none)
+    with pytest.raises(ConfigError, match="is a folder with no image in it"):
         load_patterns(tmp_path)
 
 

@@ -6,6 +6,8 @@ one line with exit 2."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from PIL import Image
@@ -77,20 +79,141 @@ def test_grey_levels_and_rgb_grey(tmp_path, mode):
 
 
 def test_images_at_the_dmds_resolution(tmp_path):
-    """8 x 8 patterns shown as 4 x 4 blocks of mirrors (32 x 32 images) are read as the 8 x 8
-    patterns, with a warning; a pattern whose blocks are 2 x 2 in one place (a finer
-    pattern among them) keeps every image's 2 x 2 blocks."""
+    """8 x 8 patterns shown as 4 x 4 blocks of mirrors (32 x 32 images) are read as they are,
+    the same map as their .npy, with a warning naming --pattern-size; with --pattern-size 8
+    they are the 8 x 8 patterns. A block holding two states, or a side that is no multiple
+    of the size, is refused."""
     pats = _pats(5)
     big = np.kron(pats, np.ones((4, 4), np.float32))
     _save_folder(tmp_path / "dmd", big)
-    with pytest.warns(UserWarning, match=r"4 x 4 blocks of mirrors at one state, so the "
-                                         r"patterns are 8 x 8 .*images are 32 x 32"):
+    with pytest.warns(UserWarning, match=r"4 x 4 blocks of mirrors at one state: "
+                                         r"--pattern-size 8 reads them"):
         got = load_patterns(tmp_path / "dmd")
-    np.testing.assert_array_equal(got, pats.reshape(5, -1))
+    np.testing.assert_array_equal(got, big.reshape(5, -1))
+    np.testing.assert_array_equal(load_patterns(tmp_path / "dmd", size=8), pats.reshape(5, -1))
+    np.save(tmp_path / "big.npy", big)  # (any format: the .npy alike)
+    np.testing.assert_array_equal(load_patterns(tmp_path / "big.npy", size=8),
+                                  pats.reshape(5, -1))
     big[2, 6:8, 10:12] = 1 - big[2, 6, 10]  # a 2 x 2 block changes inside a 4 x 4 one
     _save_folder(tmp_path / "fine", big)
-    with pytest.warns(UserWarning, match="2 x 2 blocks"):
-        assert load_patterns(tmp_path / "fine").shape == (5, 16 * 16)
+    with pytest.raises(ConfigError, match=r"block at row 1, column 2 \(4 x 4 mirrors\) holds "
+                                          r"two states"):
+        load_patterns(tmp_path / "fine", size=8)
+    with pytest.raises(ConfigError, match="is 32 x 32, not 5 x 5 blocks"):
+        load_patterns(tmp_path / "fine", size=5)
+    with pytest.raises(ConfigError, match="--pattern-size must be a whole number of 4"):
+        load_patterns(tmp_path / "fine", size=2)
+
+
+def test_low_sequency_patterns_keep_their_size(tmp_path):
+    """Patterns that are all blocks of 2 x 2 (the lowest Walsh sequencies of a compressive
+    sequence, an outside audit) are read at their own 16 x 16, as the .npy is, never reduced
+    without being asked."""
+    pats = np.kron(_pats(12), np.ones((2, 2), np.float32))
+    _save_folder(tmp_path / "w", pats)
+    with pytest.warns(UserWarning, match="--pattern-size 8"):
+        np.testing.assert_array_equal(load_patterns(tmp_path / "w"), pats.reshape(12, -1))
+
+
+def test_binary_images_at_any_depth(tmp_path):
+    """A sequence of binary images reads 0/1 whatever each image's depth (an outside audit:
+    1-bit beside 8-bit images read 1/255, 0/255 in 16 bits read 0.0039); a min-is-white TIFF
+    is read as displayed."""
+    import tifffile
+
+    pats = _pats(6)
+    mix = tmp_path / "mix"
+    mix.mkdir()
+    for i, p in enumerate(pats):
+        img = Image.fromarray((p * 255).astype(np.uint8))
+        (img.convert("1") if i % 2 else img).save(mix / f"p{i}.png")
+    np.testing.assert_array_equal(load_patterns(mix), pats.reshape(6, -1))
+    u16 = tmp_path / "u16"
+    u16.mkdir()
+    for i, p in enumerate(pats):
+        Image.fromarray((p * 4095).astype(np.uint16)).save(u16 / f"p{i}.png")
+    np.testing.assert_array_equal(load_patterns(u16), pats.reshape(6, -1))
+    tifffile.imwrite(tmp_path / "wiz.tif", (1 - pats).astype(bool), photometric="miniswhite")
+    np.testing.assert_array_equal(load_patterns(tmp_path / "wiz.tif"), pats.reshape(6, -1))
+    wiz = tmp_path / "wiz"
+    wiz.mkdir()
+    for i, p in enumerate(pats):
+        tifffile.imwrite(wiz / f"p{i}.tif", (255 - p * 255).astype(np.uint8),
+                         photometric="miniswhite")
+    np.testing.assert_array_equal(load_patterns(wiz), pats.reshape(6, -1))
+
+
+def test_level_warnings(tmp_path):
+    """Binary images of one type at two levels (0/1 beside a 0/255 frame) are each read as
+    off and on, and said; 16-bit grey levels up to 4095 (12 bits stored in 16) are read over
+    65535, and said."""
+    pats = _pats(4)
+    _save_folder(tmp_path / "two", pats[:3], scale=1)
+    Image.fromarray((pats[3] * 255).astype(np.uint8)).save(tmp_path / "two" / "pattern_003.png")
+    with pytest.warns(UserWarning, match=r"binary at different levels \(1, 255\)"):
+        np.testing.assert_array_equal(load_patterns(tmp_path / "two"), pats.reshape(4, -1))
+    grey = np.random.default_rng(2).integers(0, 4096, (4, 8, 8)).astype(np.uint16)
+    (tmp_path / "g16").mkdir()
+    for i, g in enumerate(grey):
+        Image.fromarray(g).save(tmp_path / "g16" / f"{i}.png")
+    with pytest.warns(UserWarning, match="16-bit grey levels up to 409"):
+        got = load_patterns(tmp_path / "g16")
+    np.testing.assert_allclose(got, grey.reshape(4, -1) / 65535, rtol=1e-6)
+
+
+def test_compressed_tiffs_without_imagecodecs(tmp_path):
+    """LZW and CCITT group 4, the usual compressions of 1-bit TIFFs, which tifffile decodes
+    only with imagecodecs (no dependency): read through Pillow."""
+    from PIL import Image as PILImage
+
+    pats = _pats(4)
+    frames = [PILImage.fromarray((p * 255).astype(np.uint8)).convert("1") for p in pats]
+    frames[0].save(tmp_path / "g4.tif", save_all=True, append_images=frames[1:],
+                   compression="group4")
+    np.testing.assert_array_equal(load_patterns(tmp_path / "g4.tif"), pats.reshape(4, -1))
+    grey = [PILImage.fromarray((p * 255).astype(np.uint8)) for p in pats]
+    grey[0].save(tmp_path / "lzw.tif", save_all=True, append_images=grey[1:],
+                 compression="tiff_lzw")
+    np.testing.assert_array_equal(load_patterns(tmp_path / "lzw.tif"), pats.reshape(4, -1))
+
+
+def test_names_in_order_and_refused_when_not(tmp_path):
+    """Zero-padded hexadecimal names in plain order (natural order read f_0a before f_1);
+    two files of one stem, two names of one number, and a broken link among the images are
+    refused (each shifted every pattern after it)."""
+    pats = _pats(20)
+    _save_folder(tmp_path / "hex", pats, names=[f"f_{i:02x}.png" for i in range(20)])
+    np.testing.assert_array_equal(load_patterns(tmp_path / "hex"), pats.reshape(20, -1))
+    _save_folder(tmp_path / "dup", pats[:4])
+    Image.fromarray((pats[5] * 255).astype(np.uint8)).save(tmp_path / "dup" /
+                                                          "pattern_002.bmp")
+    with pytest.raises(ConfigError, match="pattern_002.bmp and pattern_002.png are one pattern"
+                                          "|pattern_002.png and pattern_002.bmp are one"):
+        load_patterns(tmp_path / "dup")
+    _save_folder(tmp_path / "tie", pats[:3], names=["p5.png", "p05.png", "p6.png"])
+    with pytest.raises(ConfigError, match="have the same number"):
+        load_patterns(tmp_path / "tie")
+    _save_folder(tmp_path / "link", pats[:3])
+    (tmp_path / "link" / "pattern_010.png").symlink_to(tmp_path / "nowhere.png")
+    with pytest.raises(ConfigError, match="pattern_010.png is named as an image but is no "
+                                          "readable file"):
+        load_patterns(tmp_path / "link")
+
+
+def test_matlab_square_matrix_is_refused(tmp_path):
+    """A full basis as a square N^2 x N^2 matrix: rows or columns cannot be told (an outside
+    audit: columns read as rows gave 0.22 m for 0.006 m, exit 0); said with the reshape."""
+    pats = _pats(64)
+    sio.savemat(tmp_path / "full.mat", {"A": np.stack([p.ravel(order="F") for p in pats])})
+    with pytest.raises(ConfigError, match=r"square 64 x 64 matrix: its patterns may be its "
+                                          r"rows or its columns .*reshape\(A', 8, 8, \[\]\)"):
+        load_patterns(tmp_path / "full.mat")
+
+
+def test_matlab_struct_is_named(tmp_path):
+    sio.savemat(tmp_path / "s.mat", {"S": {"P": np.zeros((8, 8, 4))}})
+    with pytest.raises(ConfigError, match=r"S \(struct 1x1\).*save the array itself"):
+        load_patterns(tmp_path / "s.mat")
 
 
 def test_multipage_tiff(tmp_path):
@@ -155,12 +278,36 @@ def test_code_as_text(tmp_path, text):
     np.testing.assert_array_equal(load_code(f), [0, 1, 1, 0, 1, 0, 0])
 
 
+@pytest.mark.parametrize("text,encoding", [
+    ("0110100 % an m-sequence\n", "utf-8"), ("% made in MATLAB\n0 1 1 0 1 0 0\n", "utf-8"),
+    ("0110100\r\n", "utf-16"), ("0110 # first four\n100\n", "utf-8")])
+def test_code_text_comments_and_encodings(tmp_path, text, encoding):
+    """MATLAB's % comments, comments after the bits, and Notepad's UTF-16 "Unicode"."""
+    f = tmp_path / "code.txt"
+    f.write_bytes(text.encode(encoding))
+    np.testing.assert_array_equal(load_code(f), [0, 1, 1, 0, 1, 0, 0])
+
+
+@pytest.mark.parametrize("text,said", [
+    ("code\n0110100\n", "a header line? start it with #"),
+    ("01101002\n", "a run of bits holds '2' at character 8 of 8"),
+    ("".join(f"{b},{1 - b}\n" for b in [0, 1, 1, 0, 1, 0, 0, 1]), "2 columns on each of its 8"),
+])
+def test_code_text_refused_with_the_cause(tmp_path, text, said):
+    f = tmp_path / "code.txt"
+    f.write_text(text)
+    with pytest.raises(ConfigError, match=re.escape(said)):
+        load_code(f)
+
+
 def test_code_as_mat_and_bipolar_npy(tmp_path):
     bits = np.array([1, 0, 0, 1, 1, 1, 0], dtype=np.uint8)
     sio.savemat(tmp_path / "c.mat", {"code": bits[None, :].astype(np.float64)})  # 1 x L
     np.testing.assert_array_equal(load_code(tmp_path / "c.mat"), bits)
     np.save(tmp_path / "pm.npy", 2.0 * bits - 1)
     np.testing.assert_array_equal(load_code(tmp_path / "pm.npy"), bits)
+    np.save(tmp_path / "row.npy", bits[None, :])  # (1, L), as the .mat and .npz are read
+    np.testing.assert_array_equal(load_code(tmp_path / "row.npy"), bits)
 
 
 def test_reconstruct_from_lab_files_equals_npy(tmp_path):
@@ -172,15 +319,23 @@ def test_reconstruct_from_lab_files_equals_npy(tmp_path):
     sio.savemat(tmp_path / "seq.mat", {"P": np.moveaxis(pats, 0, -1),
                                         "code": 2 * code[None, :] - 1})
     common = ["--bit-rate", "10e9", "--range-gate", "3.5", "4.8", "--no-figure"]
-    runs = {"npy": ("patterns.npy", "code.npy"), "png": ("dmd", "code.txt"),
-            "mat": ("seq.mat:P", "seq.mat:code")}
+    _save_folder(tmp_path / "mirrors", np.kron(pats, np.ones((3, 3), np.float32)))
+    runs = {"npy": ("patterns.npy", "code.npy", []), "png": ("dmd", "code.txt", []),
+            "mat": ("seq.mat:P", "seq.mat:code", []),
+            "mirrors": ("mirrors", "code.npy", ["--pattern-size", "8"])}
     depth = {}
-    for key, (p, c) in runs.items():
+    for key, (p, c, extra) in runs.items():
         assert main(["reconstruct", "--ptu", str(ptu), "--patterns", str(tmp_path / p),
-                     "--code", str(tmp_path / c), "--out", str(tmp_path / key), *common]) == 0
-        depth[key] = np.load(tmp_path / key / "depth.npy")
-    np.testing.assert_array_equal(depth["png"], depth["npy"])
-    np.testing.assert_array_equal(depth["mat"], depth["npy"])
+                     "--code", str(tmp_path / c), "--out", str(tmp_path / f"out_{key}"), *common,
+                     *extra]) == 0
+        depth[key] = np.load(tmp_path / f"out_{key}" / "depth.npy")
+    for key in ("png", "mat", "mirrors"):
+        np.testing.assert_array_equal(depth[key], depth["npy"], err_msg=key)
+    # the API alike: an array given finer, pattern_size reading it as the patterns
+    from spslidar.pipeline.inputs import patterns_in
+
+    np.testing.assert_array_equal(
+        patterns_in(np.kron(pats, np.ones((2, 2), np.float32)), 8), pats.reshape(len(pats), -1))
 
 
 def _hdf5_mat(path):
@@ -226,7 +381,7 @@ def _refusals(tmp_path):
         ("jpeg", "jpg", ok_code, "lossy images (x.jpg)"),
         ("colour", "rgb", ok_code, "is in colour"),
         ("one image", "one.png", ok_code, "is one image: give the folder"),
-        ("frame", "frame", ok_code, "the images are 12 x 8 patterns, not square: crop them"),
+        ("frame", "frame", ok_code, "the images are 12 x 8, not square: crop them"),
         ("one page", "page.tif", ok_code, "a TIFF of one page"),
         ("unknown", "p.bin", ok_code, "spslidar reads patterns from .npy, .npz, .mat, a "
                                       "multi-page .tif or a folder of images"),

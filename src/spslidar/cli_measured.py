@@ -24,6 +24,10 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                         "column-major; FILE.mat:NAME picks one array); a multi-page TIFF; or "
                         "a folder of images, one per pattern in the natural order of their "
                         "names (8-bit levels / 255)")
+    p.add_argument("--pattern-size", type=int, default=None, metavar="N",
+                   help="the patterns' side where --patterns holds them finer (images at the "
+                        "DMD's resolution, each pattern pixel a block of mirrors): each is "
+                        "read as N x N blocks, every block checked to hold one state")
     p.add_argument("--code", required=True, metavar="CODE|FAMILY",
                    help="bits of one code period: a .npy, a text file (0110... or numbers, "
                         "0/1 or -1/+1), a .mat vector; or a code family's name (e.g. mseq, "
@@ -160,7 +164,8 @@ def cmd_reconstruct(args) -> int:
                              calibration=args.calibration, marker_edge=args.marker_edge,
                              settle=args.settle, repeats=args.repeats,
                              sync_divider=args.sync_divider, frame=args.frame,
-                             **_detector_args(args), **processing)
+                             pattern_size=args.pattern_size, **_detector_args(args),
+                             **processing)
     say_warnings(result.warnings)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
                       fov_deg=args.fov, option="--out", replace="--overwrite")
@@ -231,7 +236,8 @@ def cmd_calibrate(args) -> int:
                         allow_binning=args.allow_binning, target=args.target,
                         fov_deg=args.fov, marker_edge=args.marker_edge,
                         settle=args.settle, repeats=args.repeats,
-                        sync_divider=args.sync_divider, **_detector_args(args))
+                        sync_divider=args.sync_divider, pattern_size=args.pattern_size,
+                        **_detector_args(args))
     path = write_calibration(cal, args.out, args.overwrite)
     _WRITTEN.append(str(path))
     period_ns = cal["code_length"] / args.bit_rate * 1e9

@@ -10,35 +10,35 @@ then check as they check a ``.npy``.
 
 Conventions (the ones a file of that kind carries):
 
-* **A folder of images**: one pattern per image, in the natural order of the file names
-  (``p2.png`` before ``p10.png``), each image's row 0 at the top. 8-bit images are grey levels
-  0-255 (divided by 255), or 0/1 where no pixel of the sequence exceeds 1 (an array of 0/1
-  saved as 8-bit); 16-bit ones 0-65535; 1-bit images 0/1. A grey image stored as RGB (the
-  three channels equal) is read as grey; an image whose channels differ is refused (a DLP
-  controller's 24 bit planes packed in one RGB image are not unpacked here).
-* **A multi-page TIFF**: one pattern per page, the same levels.
-* **Images at the DMD's resolution**, each pattern pixel a K x K block of mirrors (a 64 x 64
-  pattern shown on 512 x 512 mirrors), are read at the patterns' size, with a warning: every
-  pattern shows one state inside a block, so no reconstruction tells its mirrors apart. An
-  image that is not square (the DMD's whole frame around the region the scene is imaged
-  through) is refused: crop it to that region.
+* **A folder of images, or a multi-page TIFF**: one pattern per image (page), in the order
+  of the names, each image as it is displayed (row 0 at the top, a min-is-white TIFF
+  inverted, a palette applied), binary images read as 0/1 whatever their bit depth, grey
+  levels over their type's full scale; :mod:`spslidar.io.lab_images` gives the rules, and
+  what it refuses (JPEGs, colour, two files of one pattern, images of two sizes).
+* **Images at the DMD's resolution**, each pattern pixel a block of mirrors (a 64 x 64
+  pattern shown on 512 x 512 mirrors), are read as they are (the same map as their
+  ``.npy``), with a warning naming ``--pattern-size N``, which reads any pattern file as
+  ``N x N`` blocks, each checked to hold one state. An image that is not square (the DMD's
+  whole frame around the region the scene is imaged through) is refused: crop it.
 * **A MATLAB file** (``.mat``, versions 4-7; a 7.3 file is HDF5 and is refused with the
   save option that avoids it): ``P(:,:,k)``, an ``N x N x M`` array with the pattern index
-  last, as MATLAB stacks images (``M x N x N`` is taken too), or a sensing matrix ``A``
-  whose row ``m`` is pattern ``m`` flattened by MATLAB's column-major ``P(:)'`` (``N^2 x M``
-  is taken where only its first axis is a square, or both are and it is the longer: fewer
-  patterns than pixels, as a compressive sequence has). Where the file holds several arrays,
-  ``FILE.mat:NAME`` names one.
-* **A code** as text (``.txt``, ``.csv``, ``.dat``, ``.tsv``): the bits as characters
-  ``0110...`` (whitespace, commas and line breaks between them or not), or numbers separated
-  by whitespace, commas or semicolons (0/1, or -1/+1, which
-  :func:`~spslidar.pipeline.real.check_code` takes as the bipolar form of the same code);
-  lines starting with ``#`` are comments. A ``.mat`` or ``.npz`` holding one vector works too.
+  last, as MATLAB stacks images (``M x N x N`` is taken too; ``N x N x N`` is refused), or a
+  sensing matrix ``A`` whose row ``m`` is pattern ``m`` flattened by MATLAB's column-major
+  ``P(:)'`` (``N^2 x M`` is taken where only its first axis is a square, or both are and it
+  is the longer: fewer patterns than pixels, as a compressive sequence has; a square
+  ``N^2 x N^2`` basis is refused, its rows and columns alike possible). Integer arrays
+  (``imread``'s uint8) are read as images are. Where the file holds several arrays,
+  ``FILE.mat:NAME`` names one; a struct or cell is named, not opened.
+* **A code** as text (``.txt``, ``.csv``, ``.dat``, ``.tsv``; UTF-8 or UTF-16): the bits as
+  characters ``0110...`` (whitespace, commas and line breaks between them or not), or
+  numbers separated by whitespace, commas or semicolons (0/1, or -1/+1, which
+  :func:`~spslidar.pipeline.inputs.check_code` takes as the bipolar form of the same code);
+  ``#`` and ``%`` start comments. A table of 2-4 columns is refused (bit and complement read
+  interleaved). A ``.npy``, ``.mat`` or ``.npz`` vector (``1 x L`` too) works alike.
 
-Written here: scikit-image (through imageio and tifffile) reads each image and SciPy reads
-MATLAB files; what is this project's is the conventions above (which axis is the pattern,
-the order of the files, what an 8-bit level means), and refusing in one line what they
-cannot settle.
+Written here: SciPy reads MATLAB files, Pillow and tifffile the images; what is this
+project's is the conventions above (which axis is the pattern, the order of the files, what
+a level means), and refusing in one line what they cannot settle.
 """
 
 from __future__ import annotations
@@ -54,14 +54,17 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..npyfile import check_npz_sizes, load_npy
+from .lab_images import (
+    IMAGE_SUFFIXES,
+    LOSSY_SUFFIXES,
+    block_reduce,
+    folder_patterns,
+    memory_check,
+    tiff_patterns,
+)
 
 __all__ = ["CODE_TEXT_SUFFIXES", "IMAGE_SUFFIXES", "read_code_file", "read_patterns_file"]
 
-#: image files a folder of patterns may hold (lossless formats: a JPEG's blocks blur each
-#: mirror's state, so it is refused by name)
-IMAGE_SUFFIXES = (".png", ".bmp", ".tif", ".tiff", ".pbm", ".pgm", ".gif")
-#: lossy image formats, refused in a folder of patterns
-_LOSSY_SUFFIXES = (".jpg", ".jpeg", ".jpe", ".webp")
 #: text files read as a code's bits
 CODE_TEXT_SUFFIXES = (".txt", ".csv", ".dat", ".tsv")
 #: the largest text file read as a code (a code of 2^24 bits written as "0, " is 50 MB)
@@ -80,19 +83,13 @@ def _split_name(path: str | os.PathLike) -> tuple[Path, str | None]:
     return p, None
 
 
-def _memory_check(n_values: float, what: str, p: Path) -> None:
-    from ..machine import _gb, available_memory
-
-    need = float(n_values) * 8 * 2  # float64 copies while checking
-    if need > 0.8 * available_memory():
-        raise ConfigError(f"{what} {p} holds {n_values:.3g} values: {_gb(need)} to check, "
-                          f"more than the memory available")
-
-
 def _pick(arrays: dict[str, Any], name: str | None, p: Path, what: str, fits) -> tuple[str, Any]:
     """The one array of ``arrays`` that ``fits`` (or the one named ``name``), or one line."""
-    shown = ", ".join(f"{k} {tuple(v)}" for k, v in
-                      ((k, getattr(a, "shape", a)) for k, a in arrays.items()))
+    shown = ", ".join([f"{k} {tuple(v)}" for k, v in
+                       ((k, getattr(a, "shape", a)) for k, a in arrays.items())]
+                      + getattr(arrays, "others", []))
+    if getattr(arrays, "others", None):
+        shown += ": only numeric arrays are read; save the array itself, not in a struct or cell"
     if name is not None:
         if name not in arrays:
             raise ConfigError(f"{what} {p} has no array named {name!r} (it holds: "
@@ -127,7 +124,19 @@ def _mat_arrays(p: Path, what: str) -> dict[str, tuple]:
                           ) from None
     numeric = {"double", "single", "logical", "int8", "uint8", "int16", "uint16", "int32",
                "uint32", "int64", "uint64"}
-    return {name: tuple(shape) for name, shape, cls in listed if cls in numeric}
+    others = [f"{name} ({cls} {'x'.join(map(str, shape))})" for name, shape, cls in listed
+              if cls not in numeric]
+    return _Listed({name: tuple(shape) for name, shape, cls in listed if cls in numeric},
+                   others)
+
+
+class _Listed(dict):
+    """A MATLAB file's numeric arrays (name -> shape), with its other variables named (a
+    struct, a cell, a char or sparse array: said as what the file holds, not as "none")."""
+
+    def __init__(self, arrays: dict, others: list[str]):
+        super().__init__(arrays)
+        self.others = others
 
 
 def _load_mat(p: Path, name: str, what: str) -> np.ndarray:
@@ -169,7 +178,7 @@ def _pattern_shape(shape: tuple) -> bool:
         and min(shape) >= 2
 
 
-def _mat_patterns(arr: np.ndarray, p: Path) -> np.ndarray:
+def _mat_patterns(arr: np.ndarray, p: Path, key: str) -> np.ndarray:
     """A MATLAB array as ``(M, N, N)``: ``N x N x M`` (the pattern index last, as MATLAB
     stacks images) or ``M x N x N``; a sensing matrix ``M x N^2`` (or ``N^2 x M``) whose rows
     are patterns flattened column-major."""
@@ -184,6 +193,15 @@ def _mat_patterns(arr: np.ndarray, p: Path) -> np.ndarray:
         return arr
     if arr.ndim == 2:
         rows, cols = arr.shape
+        if rows == cols and _is_square(rows):
+            # (a full basis, one pattern per row or per column, or one N x N pattern: a
+            # column-major basis read as rows gave 0.22 m for 0.006, exit 0, an audit)
+            n = math.isqrt(rows)
+            raise ConfigError(
+                f"--patterns {p}:{key} is a square {rows} x {rows} matrix: its patterns may be "
+                f"its rows or its columns (or it is one {rows} x {rows} pattern): save them as "
+                f"an N x N x M stack, P = reshape(A', {n}, {n}, []) for patterns in rows, "
+                f"reshape(A, {n}, {n}, []) for patterns in columns")
         # N^2 x M, one pattern per column: where only the first axis is a square, or both
         # are and it is the longer (a compressive sequence has fewer patterns than pixels)
         if _is_square(rows) and (not _is_square(cols) or rows > cols):
@@ -195,173 +213,21 @@ def _mat_patterns(arr: np.ndarray, p: Path) -> np.ndarray:
     return arr
 
 
-def _image_levels(img: np.ndarray, label: str) -> np.ndarray:
-    """One image as a 2-D array of levels as stored (RGB with equal channels made grey)."""
-    if img.ndim == 3 and img.shape[-1] in (2, 3, 4):
-        if img.shape[-1] in (2, 4):  # grey or RGB with an alpha channel
-            alpha = img[..., -1]
-            if alpha.min() != alpha.max():
-                raise ConfigError(f"pattern image {label} has transparency that varies: give "
-                                  f"the mirror states as grey levels")
-            img = img[..., :-1]
-        if img.shape[-1] == 3 and not (np.array_equal(img[..., 0], img[..., 1])
-                                       and np.array_equal(img[..., 0], img[..., 2])):
-            raise ConfigError(f"pattern image {label} is in colour (its red, green and blue "
-                              f"differ): give one grey or 1-bit image per pattern (a DLP "
-                              f"controller's 24 bit planes in one image are not unpacked)")
-        img = img[..., 0]
-    if img.ndim != 2:
-        raise ConfigError(f"pattern image {label} has shape {img.shape}: one 2-D image per "
-                          f"pattern is expected")
-    if np.iscomplexobj(img) or not (np.issubdtype(img.dtype, np.number) or img.dtype == bool):
-        raise ConfigError(f"pattern image {label} holds {img.dtype} values, not grey levels")
-    return img
-
-
-def _scale_levels(stack: np.ndarray) -> np.ndarray:
-    """Stored image levels -> mirror states in [0, 1]: 1-bit as 0/1, 8- and 16-bit integers
-    by their full scale unless no value exceeds 1 (0/1 saved as integers), floats as they
-    are (checked later)."""
-    if stack.dtype == bool:
-        return stack.astype(np.float64)
-    if np.issubdtype(stack.dtype, np.integer):
-        top = int(stack.max()) if stack.size else 0
-        if top <= 1:
-            return stack.astype(np.float64)
-        full = float(np.iinfo(stack.dtype).max) if stack.dtype.itemsize <= 2 else None
-        if full is not None and stack.min() >= 0:
-            return stack.astype(np.float64) / full
-    return stack.astype(np.float64)
-
-
-def _block_side(stack: np.ndarray) -> int:
-    """The side K of the square blocks of mirrors that every image of ``stack`` (M, H, W)
-    holds at one state (1 where none): the largest K dividing H and W such that no image
-    changes inside a K x K block."""
-    k = math.gcd(stack.shape[1], stack.shape[2])
-    for axis in (1, 2):
-        moved = np.moveaxis(stack, axis, 1)
-        change = np.flatnonzero(np.any(moved[:, 1:] != moved[:, :-1], axis=(0, 2))) + 1
-        for c in change:
-            k = math.gcd(k, int(c))
-            if k == 1:
-                return 1
-    return k
-
-
-def _dmd_images(stack: np.ndarray, where: Path) -> np.ndarray:
-    """Images as the DMD showed them, each pattern pixel a K x K block of mirrors, read as
-    the patterns (one value per block), said in a warning; the image itself otherwise.
-    Inside a block every pattern shows one state, so no reconstruction can tell its mirrors
-    apart: the map is made at the patterns' own size."""
-    if stack.ndim != 3 or stack.shape[1] < 2:
-        return stack
-    k = _block_side(stack)
-    if k > 1 and min(stack.shape[1:]) // k >= 2:
-        h, w = stack.shape[1] // k, stack.shape[2] // k
-        warnings.warn(f"--patterns {where}: every image is made of {k} x {k} blocks of "
-                      f"mirrors at one state, so the patterns are {w} x {h} (read as such; "
-                      f"the images are {stack.shape[2]} x {stack.shape[1]})", stacklevel=3)
-        stack = np.ascontiguousarray(stack[:, ::k, ::k])
-    if stack.shape[1] != stack.shape[2]:
-        raise ConfigError(f"--patterns {where}: the images are {stack.shape[2]} x "
-                          f"{stack.shape[1]} patterns, not square: crop them to the square "
-                          f"region the scene is imaged through (pad a region that is not "
-                          f"square with mirrors at 0)")
-    return stack
-
-
-def _natural_key(name: str) -> list:
-    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", name)]
-
-
-def _read_image(path: Path) -> np.ndarray:
-    import logging
-
-    from skimage import io as skio
-
-    quiet = logging.getLogger("tifffile")
-    level = quiet.level
-    quiet.setLevel(logging.CRITICAL)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            img = np.asarray(skio.imread(path))
-    except Exception as exc:
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise ConfigError(f"cannot read pattern image {path}: {reason[:120]}") from None
-    finally:
-        quiet.setLevel(level)
-    if img.size == 0:
-        raise ConfigError(f"pattern image {path} holds no image")
-    return img
-
-
-def _folder_patterns(folder: Path) -> np.ndarray:
-    """One pattern per image file of ``folder``, in the natural order of their names."""
-    entries = [e for e in folder.iterdir() if not e.name.startswith(".") and e.is_file()]
-    lossy = sorted(e.name for e in entries if e.suffix.lower() in _LOSSY_SUFFIXES)
-    if lossy:
-        raise ConfigError(f"--patterns {folder} holds lossy images ({lossy[0]}"
-                          f"{' ...' if len(lossy) > 1 else ''}): a JPEG's compression blurs "
-                          f"each mirror's state; give PNG, BMP or TIFF files")
-    files = sorted((e for e in entries if e.suffix.lower() in IMAGE_SUFFIXES),
-                   key=lambda e: _natural_key(e.name))
-    if not files:
-        raise ConfigError(f"--patterns {folder} is a folder with no image in it (one "
-                          f"{'/'.join(IMAGE_SUFFIXES)} file per pattern, in name order)")
-    first = _image_levels(_read_image(files[0]), files[0].name)
-    _memory_check(float(first.size) * len(files), "--patterns", folder)
-    stack = np.empty((len(files),) + first.shape, dtype=first.dtype)
-    stack[0] = first
-    for i, f in enumerate(files[1:], start=1):
-        img = _image_levels(_read_image(f), f.name)
-        if img.shape != first.shape:
-            raise ConfigError(f"--patterns {folder}: {f.name} is {img.shape[1]} x "
-                              f"{img.shape[0]} pixels, {files[0].name} "
-                              f"{first.shape[1]} x {first.shape[0]}: every pattern image must "
-                              f"have the same size")
-        if img.dtype != stack.dtype:
-            stack = stack.astype(np.result_type(stack.dtype, img.dtype))
-        stack[i] = img
-    return _scale_levels(_dmd_images(stack, folder))
-
-
-def _tiff_patterns(p: Path) -> np.ndarray:
-    import tifffile
-
-    try:
-        with tifffile.TiffFile(p) as tif:
-            n = len(tif.pages)
-            shape = tif.pages[0].shape if n else ()
-            _memory_check(float(np.prod(shape)) * n, "--patterns", p)
-            stack = tif.asarray(key=range(n)) if n > 1 else tif.asarray()
-    except ConfigError:
-        raise
-    except Exception as exc:
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise ConfigError(f"cannot read --patterns {p} as a TIFF: {reason[:120]}") from None
-    stack = np.asarray(stack)
-    if stack.ndim == 2 or (stack.ndim == 3 and stack.shape[-1] in (3, 4) and n == 1):
-        raise ConfigError(f"--patterns {p} is a TIFF of one page: give one page per pattern "
-                          f"(a multi-page TIFF) or a folder of images")
-    if stack.ndim == 4:
-        stack = np.stack([_image_levels(page, f"{p.name} page {i}")
-                          for i, page in enumerate(stack)])
-    return _scale_levels(_dmd_images(stack, p))
-
-
-def read_patterns_file(path: str | os.PathLike) -> np.ndarray:
+def read_patterns_file(path: str | os.PathLike, size: int | None = None) -> np.ndarray:
     """The mirror states a pattern file holds, as an array for
-    :func:`~spslidar.pipeline.real.check_patterns` (``(M, N, N)``, or ``(M, N*N)`` flattened
-    row-major).
+    :func:`~spslidar.pipeline.inputs.check_patterns` (``(M, N, N)``, or ``(M, N*N)``
+    flattened row-major).
 
     Parameters
     ----------
     path : str or os.PathLike
         A ``.npy``; an ``.npz`` or ``.mat`` (``FILE:NAME`` for one of several arrays); a
-        multi-page ``.tif``; or a folder of images, one per pattern in the natural order of
-        their names (the module's docstring gives each convention).
+        multi-page ``.tif``; or a folder of images, one per pattern (the module's docstring
+        gives each convention).
+    size : int, optional
+        The patterns' side ``N`` where the file holds them at a finer resolution (images at
+        the DMD's, each pattern pixel a block of mirrors): each pattern is read as ``N x N``
+        blocks, every block checked to hold one state (``--pattern-size``).
 
     Raises
     ------
@@ -370,50 +236,84 @@ def read_patterns_file(path: str | os.PathLike) -> np.ndarray:
     """
     p, name = _split_name(path)
     if p.is_dir():
-        return _folder_patterns(p)
+        return folder_patterns(p, size)
     suffix = p.suffix.lower()
     if not p.exists():
         raise ConfigError(f"patterns file not found: {p}")
+    if suffix in (".tif", ".tiff"):
+        return tiff_patterns(p, size)
+    if suffix in IMAGE_SUFFIXES or suffix in LOSSY_SUFFIXES:
+        raise ConfigError(f"--patterns {p} is one image: give the folder that holds one image "
+                          f"per pattern (or a multi-page TIFF)")
     if suffix == ".mat":
         shapes = _mat_arrays(p, "--patterns")
         key, shape = _pick(shapes, name, p, "--patterns", _pattern_shape)
-        _memory_check(float(np.prod(shape)), "--patterns", p)
-        return _mat_patterns(_load_mat(p, key, "--patterns"), p)
-    if suffix == ".npz":
+        memory_check(float(np.prod(shape)), "--patterns", p)
+        arr = _mat_patterns(_load_mat(p, key, "--patterns"), p, key)
+        if arr.ndim == 3 and arr.dtype != bool and np.issubdtype(arr.dtype, np.integer):
+            from .lab_images import _to_states  # (imread's levels: uint8 0/255 as images)
+
+            arr = _to_states(list(arr), f"{p}:{key}")
+    elif suffix == ".npz":
         arrays = _npz_arrays(p, "--patterns")
-        return np.asarray(_pick(arrays, name, p, "--patterns", _pattern_shape)[1])
-    if suffix in (".tif", ".tiff"):
-        return _tiff_patterns(p)
-    if suffix in IMAGE_SUFFIXES or suffix in _LOSSY_SUFFIXES:
-        raise ConfigError(f"--patterns {p} is one image: give the folder that holds one image "
-                          f"per pattern (or a multi-page TIFF)")
-    return _npy_or_say(p, "patterns", ".npy, .npz, .mat, a multi-page .tif or a folder of "
-                                      "images")
+        arr = np.asarray(_pick(arrays, name, p, "--patterns", _pattern_shape)[1])
+    else:
+        arr = _npy_or_say(p, "patterns", ".npy, .npz, .mat, a multi-page .tif or a folder "
+                                         "of images")
+    if size is not None:
+        if arr.ndim == 2 and arr.shape[0] >= 2 and _is_square(arr.shape[1]):
+            side = math.isqrt(arr.shape[1])
+            arr = arr.reshape(arr.shape[0], side, side)
+        if arr.ndim != 3:
+            raise ConfigError(f"--pattern-size {size}: --patterns {p} holds an array of shape "
+                              f"{arr.shape}, not (M, H, W) patterns")
+        arr = block_reduce(arr, size, f"--patterns {p}")
+    return arr
 
 
 def _text_bits(p: Path) -> np.ndarray:
+    """The bits of a text file: ``0110...`` characters (separators or none), or numbers (0/1
+    or -1/+1); ``#`` and ``%`` start comments (MATLAB's too); UTF-8 or UTF-16 (Notepad's
+    "Unicode")."""
     size = p.stat().st_size
     if size > _MAX_TEXT_BYTES:
         raise ConfigError(f"--code {p} is a text file of {size / 1e6:.0f} MB: more than a "
                           f"code's bits (save them as an .npy)")
     try:
-        text = p.read_text(encoding="utf-8-sig")
+        data = p.read_bytes()
+        utf16 = data[:2] in (b"\xff\xfe", b"\xfe\xff")
+        text = data.decode("utf-16" if utf16 else "utf-8-sig")
     except (UnicodeDecodeError, OSError) as exc:
-        raise ConfigError(f"cannot read --code {p} as text: {exc}") from None
-    body = "\n".join(line for line in text.splitlines() if not line.lstrip().startswith("#"))
+        reason = exc.strerror if isinstance(exc, OSError) else "not UTF-8 or UTF-16 text"
+        raise ConfigError(f"cannot read --code {p} as text: {reason}") from None
+    body = "\n".join(re.split(r"[#%]", line, maxsplit=1)[0] for line in text.splitlines())
     packed = re.sub(r"[\s,;]+", "", body)
     if not packed:
         raise ConfigError(f"--code {p} holds no bits")
+    lines = [ln for ln in body.splitlines() if ln.strip()]
+    fields = {len([t for t in re.split(r"[,;\t]+", ln.strip()) if t]) for ln in lines}
+    if len(lines) >= 8 and len(fields) == 1 and 2 <= min(fields) <= 4:
+        # (a table, bit and complement or index and bit, was read interleaved: an audit)
+        raise ConfigError(f"--code {p} holds {min(fields)} columns on each of its "
+                          f"{len(lines)} lines: give the code's bits alone, one column or "
+                          f"one row")
     if set(packed) <= {"0", "1"}:
         return np.frombuffer(packed.encode("ascii"), dtype=np.uint8) - ord("0")
     tokens = [t for t in re.split(r"[\s,;]+", body.strip()) if t]
-    try:
-        values = np.array([float(t) for t in tokens])
-    except ValueError:
-        bad = next(t for t in tokens if not re.fullmatch(r"[+-]?\d+(\.\d*)?([eE][+-]?\d+)?", t))
+    number = r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?"
+    bad = next((t for t in tokens if not re.fullmatch(number, t)), None)
+    if bad is not None:
+        header = tokens.index(bad) == 0 and re.search(r"[A-Za-z]", bad)
         raise ConfigError(f"--code {p}: {bad[:20]!r} is not a bit (a code file holds 0/1 or "
-                          f"-1/+1 values, or the bits as 0 and 1 characters)") from None
-    return values
+                          f"-1/+1 values, or the bits as 0 and 1 characters"
+                          + ("; a header line? start it with #" if header else "") + ")")
+    long = next((t for t in tokens if len(t) > 2 and set(t.lstrip("+-")) <= set("0123456789")
+                 and not set(t) <= {"0", "1"}), None)
+    if long is not None:  # (a string of bits with a typo: "0110...2" read as one number)
+        pos = next(i for i, ch in enumerate(long) if ch not in "01")
+        raise ConfigError(f"--code {p}: a run of bits holds {long[pos]!r} at character "
+                          f"{pos + 1} of {len(long)}: bits are 0 and 1")
+    return np.array([float(t) for t in tokens])
 
 
 def read_code_file(path: str | os.PathLike) -> np.ndarray:
@@ -452,7 +352,9 @@ def read_code_file(path: str | os.PathLike) -> np.ndarray:
     if suffix == ".npz":
         arr = np.asarray(_pick(_npz_arrays(p, "--code"), name, p, "--code", vector)[1])
         return arr.reshape(-1) if vector(arr.shape) else arr
-    return _npy_or_say(p, "code", f".npy, .mat, .npz or text ({', '.join(CODE_TEXT_SUFFIXES)})")
+    arr = _npy_or_say(p, "code", f".npy, .mat, .npz or text "
+                                 f"({', '.join(CODE_TEXT_SUFFIXES)})")
+    return arr.reshape(-1) if vector(arr.shape) else arr
 
 
 def _npy_or_say(p: Path, what: str, formats: str) -> np.ndarray:

@@ -431,10 +431,12 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
                   settle: float = 0.0, dead_time: float | None = None,
                   afterpulse_prob: float = 0.0,
                   afterpulse_delay: float = 0.0, repeats: int = 1,
-                  sync_divider: int | None = None) -> dict[str, Any]:
+                  sync_divider: int | None = None,
+                  pattern_size: int | None = None) -> dict[str, Any]:
     """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target
     (``patterns`` an array or the file or folder that holds them, as
-    :func:`~spslidar.pipeline.real.load_patterns` reads it), with what it was measured from
+    :func:`~spslidar.pipeline.real.load_patterns` reads it, ``pattern_size`` as
+    :func:`~spslidar.pipeline.real.reconstruct_ptu`'s), with what it was measured from
     (file, hash, photons, patterns, bit rate, code);
     ``allow_binning``, ``marker_edge``, ``settle``, ``repeats``, ``sync_divider`` and the
     detector's ``dead_time`` and
@@ -465,19 +467,16 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
     from .deadtime import dead_time_model
     from .real import (
         check_code,
-        check_patterns,
         check_ptu_path,
         check_real_inputs,
-        load_patterns,
+        patterns_in,
     )
 
     if isinstance(ptu, (list, tuple)):  # (before the path check, which offers lists)
         raise ConfigError("calibrate reads one PTU file: a calibration is one acquisition of "
                           "the flat target")
     check_ptu_path(ptu)
-    patterns = (load_patterns(patterns, distinct=False)
-                if isinstance(patterns, (str, os.PathLike)) else
-                check_patterns(patterns, False, "patterns"))
+    patterns = patterns_in(patterns, pattern_size, distinct=False)
     repeats = check_repeats(repeats)
     code = check_code(code, None, "code")
     check_real_inputs(bit_rate, (0.0, 1.0), int(patterns.shape[1]), int(patterns.shape[0]),

@@ -20,18 +20,56 @@ import numpy as np
 from ..constants import MAX_DEPTH_M
 from ..errors import ConfigError
 
-__all__ = ["check_code", "check_gate", "check_patterns", "check_ptu_path", "load_code",
-           "load_patterns"]
+__all__ = ["check_code", "check_gate", "check_pattern_size", "check_patterns", "check_ptu_path",
+           "load_code", "load_patterns", "patterns_in"]
 
 
-def load_patterns(path: str | os.PathLike, distinct: bool = True) -> np.ndarray:
+def load_patterns(path: str | os.PathLike, distinct: bool = True,
+                  size: int | None = None) -> np.ndarray:
     """``(M, N, N)`` mirror states (0/1 or grey levels in [0, 1]) as float32 ``(M, N*N)``,
     checked by :func:`check_patterns`: a ``.npy``, an ``.npz`` or MATLAB ``.mat`` file, a
     multi-page TIFF or a folder of images, one per pattern
-    (:func:`spslidar.io.lab_arrays.read_patterns_file` gives each file's conventions)."""
+    (:func:`spslidar.io.lab_arrays.read_patterns_file` gives each file's conventions);
+    ``size``: read each as ``size x size`` blocks of mirrors (``--pattern-size``)."""
     from ..io.lab_arrays import read_patterns_file
 
-    return check_patterns(read_patterns_file(path), distinct, f"--patterns {path}")
+    return check_patterns(read_patterns_file(path, check_pattern_size(size)), distinct,
+                          f"--patterns {path}")
+
+
+def patterns_in(patterns: Any, size: Any = None, distinct: bool = True) -> np.ndarray:
+    """The patterns a caller gives: a path read by :func:`load_patterns` (inside the caller's
+    kept warnings, so a reader's word reaches ``metrics.json``), or an array checked by
+    :func:`check_patterns`; ``size`` as :func:`load_patterns`'s."""
+    if isinstance(patterns, (str, os.PathLike)):
+        return load_patterns(patterns, distinct, size)
+    size = check_pattern_size(size)
+    if size is not None:
+        from ..io.lab_images import block_reduce
+
+        arr = _as_array(patterns, "patterns")
+        if arr.ndim == 2 and arr.shape[0] >= 2:
+            side = int(round(np.sqrt(arr.shape[1])))
+            arr = arr.reshape(arr.shape[0], side, side) if side * side == arr.shape[1] else arr
+        if arr.ndim != 3:
+            raise ConfigError(f"pattern_size {size}: the patterns have shape {arr.shape}, not "
+                              f"(M, H, W)")
+        patterns = block_reduce(arr, size, "patterns")
+    return check_patterns(patterns, distinct, "patterns")
+
+
+def check_pattern_size(size: Any) -> int | None:
+    """``--pattern-size`` as a whole number of 4 or more, or None; one line otherwise."""
+    if size is None:
+        return None
+    from ..arrays import real_number
+
+    value = real_number(size)
+    if value is None or not (value == value and abs(value) < 2**31 and value == int(value)
+                             and value >= 4):
+        raise ConfigError(f"--pattern-size must be a whole number of 4 or more (the patterns' "
+                          f"side N), got {size!r}")
+    return int(value)
 
 
 def check_patterns(patterns: Any, distinct: bool = True, what: str = "patterns") -> np.ndarray:

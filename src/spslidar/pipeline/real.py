@@ -49,6 +49,7 @@ from .inputs import (  # noqa: E402
     check_ptu_path,
     load_code,
     load_patterns,
+    patterns_in,
 )
 
 #: the configuration keys a measured acquisition sets (with the processing keys, what
@@ -180,7 +181,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
                     settle: float = 0.0, dead_time: float | None = None,
                     afterpulse_prob: float = 0.0, afterpulse_delay: float = 0.0,
                     repeats: int = 1, sync_divider: int | None = None,
-                    frame: int | None = None, **processing: Any) -> Result:
+                    frame: int | None = None, pattern_size: int | None = None,
+                    **processing: Any) -> Result:
     """Depth map from a measured T3 PTU acquisition.
 
     Parameters
@@ -243,6 +245,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         With ``repeats``: reconstruct that repeat of the sequence alone (from 0), a frame of
         a video whose scene moves between repeats (default: all repeats summed). Every
         block is still read, screened and checked for drift.
+    pattern_size : int, optional
+        The patterns' side ``N`` where they are given finer (images at the DMD's
+        resolution, each pattern pixel a block of mirrors): each is read as ``N x N`` blocks,
+        every block checked to hold one state (``--pattern-size``).
     **processing
         Config keys of the processing (``solver``, ``qcr``, ``depth``, ``lam_scale``...).
 
@@ -272,8 +278,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     files = check_ptu_path(ptu)
     ptu = files[0] if len(files) == 1 else files
     # (a file's reader warns, as of images read at their patterns' size: kept in metrics)
-    patterns = (load_patterns(patterns) if isinstance(patterns, (str, os.PathLike)) else
-                check_patterns(patterns, True, "patterns"))
+    patterns = patterns_in(patterns, pattern_size, distinct=True)
     repeats = check_repeats(repeats)
     frame = check_frame(frame, repeats * len(files))
     code = check_code(code, None, "code")
