@@ -269,8 +269,14 @@ def test_t2_without_a_sync_is_refused_in_one_line(wall, capsys):
     err = _one_line_refusal(capsys, d, "nosync.ptu", "--allow-binning")
     assert "holds T2 records (HydraHarp2T2) with no sync record" in err
     assert "record the lidar in T3 mode, or record the code generator's sync in T2" in err
+    assert main(["calibrate", "--ptu", str(d / "nosync.ptu"), "--patterns",
+                 str(d / "scan_patterns.npy"), "--code", str(d / "scan_code.npy"),
+                 "--bit-rate", "10e9", "--distance", "1.2", "--allow-binning", "--out",
+                 str(d / "nocal.json")]) == 2
+    said = capsys.readouterr().err.strip().splitlines()
+    assert len(said) == 1 and "with no sync record" in said[0], said
+    assert not (d / "nocal.json").exists()
     with pytest.raises(ConfigError, match="a single sync record"):
-        nsync, *_ = _t3_events(d / "scan.ptu")
         one = _encode(HH_T2_V2, np.array([0, 5]), np.array([_SYNC, _PHOT]), np.array([0, 0]))
         (d / "one.ptu").write_bytes(_header(HH_T2_V2, 2, BW, BW) + one.tobytes())
         read_ptu_histograms(d / "one.ptu", L, bin_width=BW)
