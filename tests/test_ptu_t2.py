@@ -209,6 +209,25 @@ def test_a_sync_divider_folds_t2_delays_as_t3(t3_file, tmp_path):
     np.testing.assert_array_equal(got.counts_per_pattern, ref.counts_per_pattern)
 
 
+def test_a_marker_tagged_periods_early_keeps_its_place(t3_file, tmp_path):
+    """A marker whose tag lies 5 code periods before the photons recorded ahead of it (a
+    marker's tag is coarser, and it may come late in the stream) is given their period: the
+    file is read, not refused as a sync count that runs backwards, and its blocks are the
+    T3 file's."""
+    t2 = tmp_path / "late.ptu"
+    t, kind, value = _as_t2(t3_file, t2, HH_T2_V2)
+    late = t.copy()
+    late[kind == _MARK] -= 5 * L  # (tags only: the records stay where they are)
+    rec = _encode(HH_T2_V2, np.maximum(late, 0), kind, value)
+    assert np.any(np.diff(np.maximum(late, 0)) < 0)
+    t2.write_bytes(_header(HH_T2_V2, rec.size, BW, BW) + rec.tobytes())
+    got, ref = read_ptu_histograms(t2, L, bin_width=BW), read_ptu_histograms(t3_file, L,
+                                                                              bin_width=BW)
+    np.testing.assert_array_equal(got.histograms, ref.histograms)
+    assert np.all(got.pattern_start_sync <= ref.pattern_start_sync)
+    assert np.all(got.pattern_start_sync >= ref.pattern_start_sync - 5)
+
+
 @pytest.fixture(scope="module")
 def wall(tmp_path_factory):
     """``run --save-ptu``'s T3 file of a wall at 1.2 m (8x8, 127-bit code at 10 GHz), its

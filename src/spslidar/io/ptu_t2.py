@@ -8,8 +8,8 @@ period the number of sync records before it: exactly what a T3 record's ``dtime`
 T3 reader (:func:`spslidar.io.read_ptu_histograms`) reads its records chunk by chunk as T3
 events, whatever the reader does with them (blocks, binning, sync divider, settling).
 
-Record layouts (32-bit little-endian words, PicoQuant's published T2 formats; checked against
-``libtcspc``'s and PicoQuant's demo readers):
+Record layouts (32-bit little-endian words, PicoQuant's published T2 formats, as
+``libtcspc``'s decoder and PicoQuant's own descriptions of T2 mode give them):
 
 =====================  ======================================================================
 ``PicoHarpT2``         channel 4 bits (31-28), time tag 28 bits (27-0). Channel 15 is special:
@@ -145,6 +145,7 @@ class _Decoder:
         self.n_syncs = 0  # sync records so far
         self.last: int | None = None  # the last sync's time tag
         self.latest = -1  # the latest photon or sync time tag (their order is checked)
+        self.period_so_far = 0  # the latest event's code period
 
     def __call__(self, raw: np.ndarray) -> dict[str, np.ndarray]:
         kind, t, value, self.base = _times(raw, self.family, self.base)
@@ -179,6 +180,12 @@ class _Decoder:
             steps = np.floor(since / self.period)
             nsync[before] = self.first_period + steps.astype(np.int64)
             dtime[before] = np.floor(since - steps * self.period + 1e-9).astype(np.int64)
+        # (a marker's tag, coarser and late in the stream, may lie periods before the photons
+        # recorded ahead of it: it is given at least their period, so that the count never
+        # runs backwards, which the reader refuses as files joined end to end)
+        if nsync.size:
+            nsync = np.maximum.accumulate(np.maximum(nsync, self.period_so_far))
+            self.period_so_far = int(nsync[-1])
         marker = kind[ev] == _MARKER
         if syncs.size:
             self.n_syncs += int(syncs.size)
