@@ -295,6 +295,9 @@ def test_t2_without_a_sync_is_refused_in_one_line(wall, capsys):
     said = capsys.readouterr().err.strip().splitlines()
     assert len(said) == 1 and "with no sync record" in said[0], said
     assert not (d / "nocal.json").exists()
+    (d / "empty.ptu").write_bytes(_header(HH_T2_V2, 0, BW, BW))  # (no record at all)
+    with pytest.raises(ConfigError, match="with no sync record"):
+        read_ptu_histograms(d / "empty.ptu", L, bin_width=BW)
     with pytest.raises(ConfigError, match="a single sync record"):
         one = _encode(HH_T2_V2, np.array([0, 5]), np.array([_SYNC, _PHOT]), np.array([0, 0]))
         (d / "one.ptu").write_bytes(_header(HH_T2_V2, 2, BW, BW) + one.tobytes())

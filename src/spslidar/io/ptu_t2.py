@@ -57,6 +57,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
+from .timestamps import SYNC_TOL
 
 __all__ = ["T2_WRAP", "T2Records", "open_t2", "t2_overflows"]
 
@@ -66,9 +67,6 @@ T2_WRAP = {"t2-picoharp": 210698240, "t2-hydraharp1": 33552000, "t2-hydraharp2":
 _PHOTON, _SYNC, _MARKER, _OTHER = 0, 1, 2, 3
 #: sync intervals read to measure the period (the chunks that hold them are read)
 _PERIOD_SYNCS = 4096
-#: the largest distance of a sync interval from a whole number of periods, as a share of
-#: the period, as for another tagger's syncs (:data:`spslidar.io.timestamps.SYNC_TOL`)
-_SYNC_TOL = 0.01
 
 
 def _fields(raw: np.ndarray, family: str) -> tuple[np.ndarray, ...]:
@@ -224,6 +222,7 @@ class T2Records:
 
 
 def _no_sync(header: dict[str, Any], path: str, family: str, n: int) -> ConfigError:
+    """The one line refusing a T2 file of ``n`` (0 or 1) sync records: what to record."""
     where = ("on its input 0 (channel 0 of its T2 records)" if family == "t2-picoharp" else
              "on its sync input (sync records)")
     said = "no sync record" if n == 0 else "a single sync record"
@@ -286,19 +285,19 @@ def open_t2(f: Any, header: dict[str, Any], family: str, n_records: int, chunk_r
         syncs.append(s[: _PERIOD_SYNCS + 1])
         if sum(x.size for x in syncs) > _PERIOD_SYNCS:
             break
-    s = np.concatenate(syncs)[: _PERIOD_SYNCS + 1]
+    s = np.concatenate(syncs)[: _PERIOD_SYNCS + 1] if syncs else np.zeros(0, np.int64)
     if s.size < 2:
         raise _no_sync(header, path, family, int(s.size))
     gaps = np.diff(s).astype(np.float64)
     median = float(np.median(gaps))
     whole = np.round(gaps / median) if median > 0 else np.zeros_like(gaps)
-    off = (whole < 1) | (np.abs(gaps - whole * median) > _SYNC_TOL * median)
+    off = (whole < 1) | (np.abs(gaps - whole * median) > SYNC_TOL * median)
     if off.any():
         k = int(np.flatnonzero(off)[0])
         what = ("its input 0, read as the sync, " if family == "t2-picoharp" else
                 "its sync records ")
         raise ConfigError(f"{path!r}: {what}are not periodic: {int(off.sum())} of the first "
-                          f"{gaps.size} intervals are more than {100 * _SYNC_TOL:g} % of the "
+                          f"{gaps.size} intervals are more than {100 * SYNC_TOL:g} % of the "
                           f"period ({median * unit:.6g} s) off a whole number of periods (the "
                           f"first after sync {k}: {gaps[k] * unit:.6g} s): not the code "
                           f"generator's sync (a detector on it?)")
