@@ -92,19 +92,24 @@ def _t3_events(path) -> tuple[np.ndarray, ...]:
 
 
 def _as_t2(t3, path, rectype: int = HH_T2_V2, k: int = 1, start: int = 5, seed: int = 0,
-           skip_first_sync: bool = False, syncs: bool = True):
+           skip_first_sync: bool = False, syncs: bool = True, extra: float = 0.0):
     """Write the T3 file ``t3``'s events as a T2 file at ``path`` with tags of ``BW / k``: a
     sync at every period's start ``start + n * L * k``, each marker at its period's sync and
     each photon at ``dtime * k`` after it plus a random part of the bin. Returns the
-    absolute tags of the syncs, photons and markers written, and their kinds."""
+    absolute tags of the syncs, photons and markers written, and their kinds. ``extra``
+    lengthens the sync period by that many tags (a code clock off the tagger's: the syncs
+    fall on ``round(start + n * (L * k + extra))``)."""
     nsync, dtime, channel, marker = _t3_events(t3)
     rng = np.random.default_rng(seed)
     period = L * k
     phot = marker == 0
     n = np.arange(int(nsync.max()) + 2)[1 if skip_first_sync else 0:]
-    times = [start + n * period if syncs else np.zeros(0, np.int64),
-             start + nsync * period + np.where(phot, dtime * k + rng.integers(0, k, nsync.size),
-                                               0)]
+
+    def at(i):  # the sync of period i
+        return np.round(start + i * (period + extra)).astype(np.int64)
+
+    times = [at(n) if syncs else np.zeros(0, np.int64),
+             at(nsync) + np.where(phot, dtime * k + rng.integers(0, k, nsync.size), 0)]
     kinds = [np.full(times[0].size, _SYNC), np.where(phot, _PHOT, _MARK)]
     values = [np.zeros(times[0].size, np.int64), np.where(phot, channel, marker)]
     t, kind, value = (np.concatenate(x) for x in (times, kinds, values))
@@ -177,6 +182,19 @@ def test_t2_reads_as_its_t3_file(t3_file, tmp_path, rectype, k, start):
                                   settle_s=2e-8, **binning),
               read_ptu_histograms(t3_file, L, bin_width=BW, marker_edge=edge, n_patterns=20,
                                   settle_s=2e-8))
+
+
+def test_a_sync_period_of_no_whole_number_of_tags(t3_file, tmp_path):
+    """Syncs 12700.37 tags apart (1 ps tags, a code clock 29 ppm slow against the tagger's):
+    each photon is read from its own sync, so the file reads as its T3 file, its period
+    measured to within a hundredth of a tag."""
+    t2 = tmp_path / "b.ptu"
+    _as_t2(t3_file, t2, HH_T2_V2, k=100, start=3, extra=0.37)
+    got = read_ptu_histograms(t2, L, bin_width=BW, allow_binning=True, chunk_records=4000)
+    ref = read_ptu_histograms(t3_file, L, bin_width=BW)
+    np.testing.assert_array_equal(got.histograms, ref.histograms)
+    np.testing.assert_array_equal(got.periods_per_pattern, ref.periods_per_pattern)
+    assert got.sync_period_s == pytest.approx(12700.37e-12, abs=0.01e-12)
 
 
 def test_events_before_the_first_sync_are_placed_back_from_it(t3_file, tmp_path):

@@ -59,7 +59,7 @@ __all__ = ["PtuAcquisition", "ptu_info", "read_ptu_histograms"]
 
 @dataclass
 class PtuAcquisition:
-    """Per-pattern histograms read from a T3 PTU file (see :func:`read_ptu_histograms`).
+    """Per-pattern histograms read from a PTU file, T3 or T2 (:func:`read_ptu_histograms`).
 
     Attributes
     ----------
