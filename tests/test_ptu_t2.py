@@ -92,18 +92,21 @@ def _t3_events(path) -> tuple[np.ndarray, ...]:
 
 
 def _as_t2(t3, path, rectype: int = HH_T2_V2, k: int = 1, start: int = 5, seed: int = 0,
-           skip_first_sync: bool = False, syncs: bool = True, extra: float = 0.0):
+           skip_first_sync: bool = False, syncs: bool = True, extra: float = 0.0,
+           drop: np.ndarray | None = None):
     """Write the T3 file ``t3``'s events as a T2 file at ``path`` with tags of ``BW / k``: a
     sync at every period's start ``start + n * L * k``, each marker at its period's sync and
     each photon at ``dtime * k`` after it plus a random part of the bin. Returns the
     absolute tags of the syncs, photons and markers written, and their kinds. ``extra``
     lengthens the sync period by that many tags (a code clock off the tagger's: the syncs
-    fall on ``round(start + n * (L * k + extra))``)."""
+    fall on ``round(start + n * (L * k + extra))``); the syncs of the periods ``drop`` are
+    not written."""
     nsync, dtime, channel, marker = _t3_events(t3)
     rng = np.random.default_rng(seed)
     period = L * k
     phot = marker == 0
     n = np.arange(int(nsync.max()) + 2)[1 if skip_first_sync else 0:]
+    n = n if drop is None else np.setdiff1d(n, drop)
 
     def at(i):  # the sync of period i
         return np.round(start + i * (period + extra)).astype(np.int64)
@@ -289,6 +292,21 @@ def test_reconstruct_and_calibrate_read_t2_as_t3(wall, capsys):
         cal[name] = json.loads(out.read_text())
     for key in ("delay_s", "lag_shift", "irf_offsets", "irf_values", "irf_fwhm_bins"):
         assert cal["t2.ptu"][key] == cal["scan.ptu"][key], key
+
+
+def test_photons_after_a_missing_sync_are_said(wall):
+    """A T2 file whose sync records miss a quarter of the periods (a sync input's trigger
+    level): those periods' photons come past the code period, are left out, and the warning
+    says that syncs are missing, not that the header's sync period is wrong."""
+    d = wall
+    _as_t2(d / "scan.ptu", d / "gaps.ptu", HH_T2_V2, k=1, drop=np.arange(3, 33, 4))
+    assert _reconstruct(d, "gaps.ptu", "rg") == 0
+    import json
+
+    said = [w for w in json.loads((d / "rg" / "metrics.json").read_text())["warnings"]
+            if "past the code period" in w]
+    assert len(said) == 1 and "the file lacks sync records there" in said[0], said
+    assert "header" not in said[0]
 
 
 def _one_line_refusal(capsys, d, ptu, *extra) -> str:
