@@ -209,6 +209,37 @@ def test_events_before_the_first_sync_are_placed_back_from_it(t3_file, tmp_path)
           read_ptu_histograms(t3_file, L, bin_width=BW))
 
 
+def test_a_photon_recorded_after_a_later_sync_is_read_by_its_time(tmp_path):
+    """A photon 2 tags before a sync but recorded after it (inputs merged in the hardware's
+    order) is read in the period before, at its last bin, in any chunking; one 3 periods
+    back is refused in one line as time running backwards."""
+    rng = np.random.default_rng(2)
+    n = 400
+    phot = np.sort(rng.integers(0, n * L, 3000))
+    t = np.concatenate([np.arange(n) * L, [0], phot])
+    kind = np.concatenate([np.full(n, _SYNC), [_MARK], np.full(phot.size, _PHOT)])
+    order = np.lexsort((kind, t))
+    t, kind = t[order], kind[order]
+    value = np.where(kind == _MARK, 1, 0)
+    late = np.flatnonzero((kind == _SYNC) & (t == 200 * L))[0]
+    t = np.insert(t, late + 1, 200 * L - 2)  # (after sync 200's record, before its time)
+    kind, value = np.insert(kind, late + 1, _PHOT), np.insert(value, late + 1, 0)
+    want = np.bincount(t[kind == _PHOT] % L, minlength=L)
+    assert want[L - 2] >= 1
+    for chunk in (2**20, late + 1, 97):
+        rec = _encode(HH_T2_V2, t, kind, value)
+        path = tmp_path / "order.ptu"
+        path.write_bytes(_header(HH_T2_V2, rec.size, BW, BW) + rec.tobytes())
+        got = read_ptu_histograms(path, L, bin_width=BW, chunk_records=chunk)
+        np.testing.assert_array_equal(got.histograms[0], want)
+    t[late + 1] = 197 * L
+    rec = _encode(HH_T2_V2, t, kind, value)
+    path.write_bytes(_header(HH_T2_V2, rec.size, BW, BW) + rec.tobytes())
+    with pytest.raises(ConfigError, match="its time tags run backwards") as info:
+        read_ptu_histograms(path, L, bin_width=BW)
+    assert "\n" not in str(info.value)
+
+
 def test_a_sync_divider_folds_t2_delays_as_t3(t3_file, tmp_path):
     """A sync every 2 code periods (the header's HWSync_Divider 2): each photon's delay from
     its sync is folded into one code period, as a T3 file's TDC times are."""

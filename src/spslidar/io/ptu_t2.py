@@ -42,7 +42,12 @@ median interval, refined over the intervals of one period in the first chunks re
 checked against the code period as a T3 file's header's is. A sync divider in the header
 (``HWSync_Divider``) divides the recorded syncs as it does in T3. Events before the file's
 first sync are placed on the period's grid back from it (as
-:func:`~spslidar.io.t3_from_timestamps` places them), so that no photon is lost.
+:func:`~spslidar.io.t3_from_timestamps` places them), so that no photon is lost. A photon is
+read by its time, also where it is recorded after a sync a little later than it (inputs
+merged in the hardware's order); a step back of more than ``BACK_SYNCS`` periods is refused
+(files joined end to end). A marker keeps its place in the record order, as in T3 (the
+photons after it are its pattern's), and is given at least the code period of the events
+recorded before it (its tag is coarser, and it may come late in the stream).
 
 A T2 file without any sync record is refused in one line: its photons have no code period to
 be read against (record in T3, or record the sync).
@@ -57,6 +62,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
+from .ptu_blocks import BACK_SYNCS
 from .timestamps import SYNC_TOL
 
 __all__ = ["T2_WRAP", "T2Records", "open_t2", "t2_overflows"]
@@ -67,6 +73,9 @@ T2_WRAP = {"t2-picoharp": 210698240, "t2-hydraharp1": 33552000, "t2-hydraharp2":
 _PHOTON, _SYNC, _MARKER, _OTHER = 0, 1, 2, 3
 #: sync intervals read to measure the period (the chunks that hold them are read)
 _PERIOD_SYNCS = 4096
+#: the last syncs carried from one chunk to the next (a photon recorded after a sync on
+#: another input may lie before it, by up to BACK_SYNCS periods)
+_CARRY = BACK_SYNCS + 2
 
 
 def _fields(raw: np.ndarray, family: str) -> tuple[np.ndarray, ...]:
@@ -141,30 +150,38 @@ class _Decoder:
         self.first_sync, self.first_period = first_sync, first_period
         self.base = 0  # time tags of the overflows so far
         self.n_syncs = 0  # sync records so far
-        self.last: int | None = None  # the last sync's time tag
+        self.recent = np.zeros(0, np.int64)  # the last syncs' time tags (at most _CARRY)
         self.latest = -1  # the latest photon or sync time tag (their order is checked)
         self.period_so_far = 0  # the latest event's code period
+
+    def _backwards(self) -> ConfigError:
+        return ConfigError(f"{self.path!r}: its time tags run backwards (a photon or sync "
+                           f"more than {BACK_SYNCS} sync periods earlier than one recorded "
+                           f"before it), which no acquisition records: files joined end to "
+                           f"end, or a corrupt file")
 
     def __call__(self, raw: np.ndarray) -> dict[str, np.ndarray]:
         kind, t, value, self.base = _times(raw, self.family, self.base)
         timed = (kind == _PHOTON) | (kind == _SYNC)  # (markers' tags are coarser: not checked)
         tt = t[timed]
-        if tt.size and (tt[0] < self.latest or np.any(np.diff(tt) < 0)):
-            raise ConfigError(f"{self.path!r}: its time tags run backwards (a photon or sync "
-                              f"earlier than the one before it), which no acquisition records: "
-                              f"files joined end to end, or a corrupt file")
+        # (a photon a little earlier than a sync or photon on another input recorded before
+        # it is read by its time; a step back of more than BACK_SYNCS periods is no
+        # acquisition's)
         if tt.size:
-            self.latest = int(tt[-1])
+            ahead = np.maximum.accumulate(np.concatenate([[self.latest], tt]))
+            if np.any(tt < ahead[:-1] - BACK_SYNCS * self.period):
+                raise self._backwards()
+            self.latest = int(ahead[-1])
         syncs = t[kind == _SYNC]
         ev = np.flatnonzero((kind == _PHOTON) | (kind == _MARKER))
         te = t[ev]
-        if self.last is None:
-            grid, first = syncs, self.n_syncs
-        else:
-            grid, first = np.concatenate([[self.last], syncs]), self.n_syncs - 1
+        grid = np.concatenate([self.recent, syncs])
+        first = self.n_syncs - self.recent.size  # the sync number of grid[0]
         i = np.searchsorted(grid, te, side="right") - 1
         before = i < 0
-        if self.last is not None:  # (a marker's coarse tag before the last sync: its period)
+        if self.n_syncs:  # (a marker's coarse tag before the syncs carried: the first's)
+            if np.any(before & (kind[ev] == _PHOTON)):
+                raise self._backwards()
             before[:] = False
             i = np.maximum(i, 0)
         nsync = np.empty(ev.size, np.int64)
@@ -185,9 +202,8 @@ class _Decoder:
             nsync = np.maximum.accumulate(np.maximum(nsync, self.period_so_far))
             self.period_so_far = int(nsync[-1])
         marker = kind[ev] == _MARKER
-        if syncs.size:
-            self.n_syncs += int(syncs.size)
-            self.last = int(syncs[-1])
+        self.n_syncs += int(syncs.size)
+        self.recent = grid[-_CARRY:]
         return {"time": nsync, "dtime": np.where(marker, 0, dtime),
                 "channel": np.where(marker, -1, value[ev]).astype(np.int8),
                 "marker": np.where(marker, value[ev], 0).astype(np.uint8)}
