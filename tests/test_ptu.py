@@ -250,9 +250,10 @@ def test_bad_files_raise_config_error(tmp_path):
 
     t2 = tmp_path / "t2.ptu"
     t2.write_bytes(_ptu_bytes(_tags(0x01010204, 2, 1e-12, 1e-6, mode=2), [5, 6]))
-    _raises("T2 records", t2, L)
-    # (and where a T2 file that recorded the code's sync can go: the time tags' converter)
-    _raises("convert its time tags with spslidar.io.write_ptu_from_timestamps", t2, L)
+    # (a T2 file that recorded the code's sync is read: tests/test_ptu_t2.py; one without
+    # a sync record is refused, with what to do)
+    _raises(r"holds T2 records \(HydraHarp2T2\) with no sync record", t2, L)
+    _raises("record the lidar in T3 mode, or record the code generator's sync in T2", t2, L)
 
     good = tmp_path / "good.ptu"
     events, _ = _random_acquisition(4)

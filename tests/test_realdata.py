@@ -16,7 +16,7 @@ Record layouts (32-bit little-endian words), from PicoQuant's PTU demo readers:
 * HydraHarp T3 v2 (``0x01010304``; TimeHarp 260 N/P ``0x00010305/6`` and generic T3
   ``0x00010307`` alike): as v1, but an overflow adds ``1024 * nsync`` syncs (0 counts as 1).
 * HydraHarp T2 v2 (``0x01010204``): bits 0-24 time tag, 25-30 channel, 31 special; only its
-  photon count is checked (the reader refuses T2).
+  photon count is checked (it has no sync record: the reader refuses it).
 """
 
 from __future__ import annotations
@@ -287,7 +287,7 @@ def test_channel_selection_and_a_channel_without_photons():
 
 @pytest.mark.parametrize("name,match", [
     ("feda_H2O_300s.ptu", "the file has no markers at all"),
-    ("libpicoquant_hh_v30_t2.ptu", "holds T2 records"),
+    ("libpicoquant_hh_v30_t2.ptu", r"holds T2 records \(HydraHarp2T2\) with no sync record"),
     # named (it was "not a readable PicoQuant PTU file (... magic=b'HydraHar')")
     ("libpicoquant_hh_v20.ht3", "is a legacy HydraHarp .ht3 file .* which spslidar does not "
                                 "read: convert it to PTU"),
@@ -300,7 +300,7 @@ def test_refusals_are_one_line(name, match):
 
 
 @pytest.mark.parametrize("name,match", [
-    ("libpicoquant_hh_v30_t2.ptu", "holds T2 records"),
+    ("libpicoquant_hh_v30_t2.ptu", "holds T2 records (HydraHarp2T2) with no sync record"),
     ("libpicoquant_hh_v20.ht3", "a legacy HydraHarp .ht3 file"),
     ("hazelnut_z1.ptu", "dtime resolution"),  # 96.97 ps bins are not --bit-rate 10e9's
 ])

@@ -2,7 +2,9 @@
 
 :mod:`spslidar.io.ptu` reads PicoQuant T3 PTU time-tag files into per-pattern histograms over
 the code period and writes simulated acquisitions as T3 PTU files. Reading decodes records with
-the ``ptufile`` package (a core dependency of spslidar); writing needs only NumPy.
+the ``ptufile`` package (a core dependency of spslidar); writing needs only NumPy. A T2 file
+that recorded the code's sync is read as its T3 file would be (:mod:`spslidar.io.ptu_t2`,
+which decodes T2 records itself).
 :mod:`spslidar.io.timestamps` turns another vendor's time tagger's absolute timestamps into
 T3 events and a PTU file.
 """

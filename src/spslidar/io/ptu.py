@@ -47,6 +47,7 @@ from .ptu_format import (
     _open_ptu,
     _positive_int,
 )
+from .ptu_t2 import T2Records, open_t2, t2_overflows
 
 __all__ = ["PtuAcquisition", "ptu_info", "read_ptu_histograms"]
 
@@ -58,7 +59,7 @@ __all__ = ["PtuAcquisition", "ptu_info", "read_ptu_histograms"]
 
 @dataclass
 class PtuAcquisition:
-    """Per-pattern histograms read from a T3 PTU file (see :func:`read_ptu_histograms`).
+    """Per-pattern histograms read from a PTU file, T3 or T2 (:func:`read_ptu_histograms`).
 
     Attributes
     ----------
@@ -183,6 +184,8 @@ def ptu_info(path: PathLike) -> dict[str, Any]:
 
 def _overflows(raw: np.ndarray, family: str) -> tuple[int, int]:
     """(overflow records, sync counter wraps) in a chunk of raw records."""
+    if family.startswith("t2"):  # (time tag wraps: its decoder counts the syncs)
+        return t2_overflows(raw, family), 0
     if family == "picoharp":
         ofl = ((raw >> 28) == 15) & (((raw >> 16) & 0xFFF) == 0)
         n = int(np.count_nonzero(ofl))
@@ -233,9 +236,11 @@ def _channels(channel: Any, family: str, record_type: str, path: str) -> np.ndar
 
 
 def _chunks(f, n_records: int, chunk_records: int, path: str):
-    """The file's records, ``chunk_records`` at a time: ``(raw words, ptufile decode)``."""
+    """The file's records, ``chunk_records`` at a time: ``(raw words, ptufile decode)``, or a
+    T2 file's (:class:`~spslidar.io.ptu_t2.T2Records`) as T3 events with global syncs."""
     fh = f.filehandle
     fh.seek(f.record_offset)
+    decode = f.decoder() if isinstance(f, T2Records) else f.decode_records
     for done in range(0, n_records, chunk_records):
         raw = np.empty(min(chunk_records, n_records - done), "<u4")
         try:
@@ -247,7 +252,7 @@ def _chunks(f, n_records: int, chunk_records: int, path: str):
             raise ConfigError(f"{path!r} is truncated: read {done + got // 4} of "
                               f"{n_records} records")
         raw = raw.astype(np.uint32, copy=False)
-        yield raw, f.decode_records(raw)  # times restart at 0 in every chunk
+        yield raw, decode(raw)  # (T3: times restart at 0 in every chunk)
 
 
 def _count_markers(f, n_records: int, chunk_records: int, mask: int, path: str) -> int:
@@ -309,7 +314,7 @@ def read_ptu_histograms(
     settle_s: float = 0.0,
     sync_divider: int | None = None,
 ) -> PtuAcquisition:
-    """Read a T3 PTU file into per-pattern histograms over the code period.
+    """Read a T3 PTU file, or a T2 one with sync records, into per-pattern histograms.
 
     Records are read and decoded (``ptufile.PtuFile.decode_records``) ``chunk_records`` at a
     time. Memory is the histograms (``M x n_bins`` 4-byte counts, turned into float32 in
@@ -379,7 +384,8 @@ def read_ptu_histograms(
     Parameters
     ----------
     path : str or os.PathLike
-        T3 PTU file (PicoHarp, HydraHarp v1/v2, TimeHarp 260 N/P or generic T3 records).
+        T3 PTU file (PicoHarp, HydraHarp v1/v2, TimeHarp 260 N/P or generic T3 records), or
+        T2 one that recorded the code's sync, read as T3 (:mod:`spslidar.io.ptu_t2`).
     n_bins : int
         Histogram bins per code period ``L``.
     bin_width : float, optional
@@ -424,7 +430,7 @@ def read_ptu_histograms(
     ------
     ConfigError
         Not a PTU file (PicoQuant's legacy ``.pt3``, ``.ht3``, ``.t3r`` files named as
-        such); a T2 file; unsupported record type;
+        such); a T2 file without sync records; unsupported record type;
         resolution or sync period disagreeing with ``bin_width`` / ``n_bins``; no markers on
         input ``marker``; fewer blocks than ``n_patterns``; no photons on ``channel``;
         histograms too large for the memory available; bad arguments.
@@ -469,6 +475,8 @@ def read_ptu_histograms(
     with _open_ptu(path) as f:
         header = _header_summary(f, path)
         family, n_records = _check_t3(f, header, spath)
+        if family.startswith("t2"):  # (read as T3 from its sync records: f is their reader)
+            f, header = open_t2(f, header, family, n_records, chunk_records, spath)
         channels = _channels(channel, family, header["record_type"], spath)
         res, period = header["resolution_s"], header["sync_period_s"]
         binning, rebin = _check_resolution(res, bin_width, rtol, allow_binning, spath)

@@ -58,9 +58,16 @@ T2_RECORD_TYPES: dict[int, str] = {
     0x00010205: "TimeHarp260NT2", 0x00010206: "TimeHarp260PT2", 0x00010207: "GenericT2",
 }
 _T3_BY_CODE = {code: (name, family) for name, (code, family, _) in T3_RECORD_TYPES.items()}
-#: per layout family: (sync counter wrap, dtime limit, photon channel limit)
+#: T2 record types' layout families (read where they recorded the sync: :mod:`.ptu_t2`)
+_T2_FAMILY = {code: ("t2-picoharp" if name == "PicoHarpT2" else
+                     "t2-hydraharp1" if name == "HydraHarpT2" else "t2-hydraharp2")
+              for code, name in T2_RECORD_TYPES.items()}
+#: per layout family: (sync counter wrap, dtime limit, photon channel limit); a T2 family's
+#: records carry no sync counter (0: their events' syncs are counted in :mod:`.ptu_t2`) and
+#: no dtime field
 _FAMILY = {"picoharp": (65536, 4096, 4), "hydraharp1": (1024, 32768, 64),
-           "hydraharp2": (1024, 32768, 64)}
+           "hydraharp2": (1024, 32768, 64), "t2-picoharp": (0, 0, 4),
+           "t2-hydraharp1": (0, 0, 64), "t2-hydraharp2": (0, 0, 64)}
 
 _MAGIC = b"PQTTTR\x00\x00"
 _TAG = struct.Struct("<32siI")  # ident, index, type; followed by an 8-byte value
@@ -330,26 +337,29 @@ def _finite_number(value, name: str, positive: bool = False,
 
 
 def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
-    """(layout family, number of records) of a T3 file; raise for T2, unknown or truncated."""
+    """(layout family, number of records) of a T3 file, or of a T2 file (a ``"t2-"`` family,
+    read through :mod:`spslidar.io.ptu_t2`, which refuses one without sync records); raise
+    for an unknown record type, a header that contradicts itself, or a truncated file."""
     code = header["record_type_code"]
     if code is None:
         raise ConfigError(f"{path!r}: header has no TTResultFormat_TTTRRecType tag")
-    if code in T2_RECORD_TYPES:
-        raise ConfigError(f"{path!r} holds T2 records ({header['record_type']}): absolute time "
-                          "tags without a sync reference; record the lidar in T3 mode, or, "
-                          "where the code's sync went to one of its inputs, convert its time "
-                          "tags with spslidar.io.write_ptu_from_timestamps (README: \"Another "
-                          "vendor's time tagger\")")
-    if header["measurement_mode"] == "T2":  # ("holds T2 records (PicoHarpT3)" contradicted)
+    if code in T2_RECORD_TYPES and header["measurement_mode"] == "T3":
+        raise ConfigError(f"{path!r}: its header says T3 mode (Measurement_Mode 3) but "
+                          f"{header['record_type']} records: the header contradicts itself")
+    if code in T2_RECORD_TYPES:  # (T2 records are decoded here, whatever ptufile's mode)
+        family = _T2_FAMILY[code]
+    elif header["measurement_mode"] == "T2":  # ("holds T2 records (PicoHarpT3)" contradicted)
         raise ConfigError(f"{path!r}: its header says T2 mode (Measurement_Mode 2) but "
                           f"{header['record_type']} records: the header contradicts itself")
-    if code not in _T3_BY_CODE:
+    elif code not in _T3_BY_CODE:
         raise ConfigError(f"{path!r}: unsupported TTTR record type 0x{code & 0xFFFFFFFF:08x}")
-    if header["measurement_mode"] != "T3":  # (ptufile decodes as T2 unless it is 3)
+    elif header["measurement_mode"] != "T3":  # (ptufile decodes as T2 unless it is 3)
         said = ("no Measurement_Mode tag" if header["measurement_mode"] is None else
                 f"Measurement_Mode {header['measurement_mode']}, neither T2 (2) nor T3 (3)")
         raise ConfigError(f"{path!r}: its header has {said} beside {header['record_type']} "
                           f"records (a corrupt header)")
+    else:
+        family = _T3_BY_CODE[code][1]
     bits = f.tags.get("TTResultFormat_BitsPerRecord", 32)
     if bits not in (0, 32):
         raise ConfigError(f"{path!r}: {bits} bits per record, expected 32")
@@ -389,4 +399,4 @@ def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
                       f"do; if the rest is part of the acquisition, the header's count is wrong "
                       f"(correct TTResult_NumberOfRecords to {whole})",
                       RuntimeWarning, stacklevel=3)
-    return _T3_BY_CODE[code][1], n_records
+    return family, n_records

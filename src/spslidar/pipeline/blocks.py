@@ -488,9 +488,14 @@ def _lost_notes(data, marker: int, n_bins: int) -> list[str]:
         why = (f"the photons' TDC times run past the sync period the header gives "
                f"(MeasDesc_GlobalResolution{named}): is it the period the hardware ran at, "
                f"and --bit-rate the TDC's bin rate?")
+        if data.header.get("measurement_mode") == "T2":  # (its period is the syncs' own)
+            why = ("their times since the last sync record run past it: the file lacks "
+                   "sync records there (the sync input's trigger level, or its dead time), "
+                   "or --bit-rate is not the code's")
         notes.append(f"{out} of the file's {total} photons on the channel "
-                     f"({100 * out / total:.3g} %) came at a TDC time past the code period "
-                     f"({n_bins} bins) and are left out: {why}")
+                     f"({100 * out / total:.3g} %) came at a "
+                     f"{'delay' if data.header.get('measurement_mode') == 'T2' else 'TDC time'}"
+                     f" past the code period ({n_bins} bins) and are left out: {why}")
     return notes
 
 

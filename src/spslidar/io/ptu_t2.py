@@ -1,0 +1,327 @@
+"""PicoQuant T2 files that recorded the code generator's sync, read as their T3 file would be.
+
+A T2 record holds an absolute time tag (in units of the header's
+``MeasDesc_GlobalResolution``), not a delay after the last sync. Where the sync was recorded
+too, every photon's delay is the time since the last sync record before it, and its code
+period the number of sync records before it: exactly what a T3 record's ``dtime`` and
+``nsync`` are. :func:`open_t2` wraps an open ``ptufile.PtuFile`` of such a file so that the
+T3 reader (:func:`spslidar.io.read_ptu_histograms`) reads its records chunk by chunk as T3
+events, whatever the reader does with them (blocks, binning, sync divider, settling).
+
+Record layouts (32-bit little-endian words, PicoQuant's published T2 formats, as
+``libtcspc``'s decoder and PicoQuant's own descriptions of T2 mode give them):
+
+=====================  ======================================================================
+``PicoHarpT2``         channel 4 bits (31-28), time tag 28 bits (27-0). Channel 15 is special:
+                       the tag's low 4 bits 0 an overflow (+210698240), else a marker bit mask
+                       (the marker's tag is the rest). Channels 0..4 are inputs: the
+                       PicoHarp 300's two inputs are alike in T2, and its input 0, the one
+                       its T3 mode reads the sync on, is read as the sync here; 1..4 are the
+                       detector's channels 0..3 (as its T3 records number them).
+``HydraHarpT2``        special 1 bit (31), channel 6 bits (30-25), time tag 25 bits (24-0).
+                       Special: channel 63 an overflow (+33552000), channel 0 a **sync**
+                       record, channels 1..15 a marker bit mask; photons on channels 0..63.
+``HydraHarp2T2``       as ``HydraHarpT2`` but an overflow adds ``33554432`` times its tag
+                       (a tag of 0 counts as 1); ``TimeHarp260NT2``, ``TimeHarp260PT2`` and
+                       ``GenericT2`` (MultiHarp, PicoHarp 330) use the same layout.
+=====================  ======================================================================
+
+``ptufile`` decodes a HydraHarp T2 sync record as a photon on channel 0 (found by encoding
+one), so the records are decoded here, with NumPy; ``ptufile`` still opens the file and reads
+its header.
+
+**The delay unit** is the time tag's, ``MeasDesc_GlobalResolution`` (1 ps on a HydraHarp,
+4 ps on a PicoHarp 300): a delay is a difference of two tags, a whole number of it. It stands
+where a T3 file's TDC resolution stands, under the same rules: ``--bit-rate`` must equal it,
+or, with ``--allow-binning``, be a whole number of tags (merged) or not (split by overlap).
+(``MeasDesc_Resolution``, the TDC's own bin, is kept as ``tdc_resolution_s`` in the header
+summary: binning 1 ps tags into 100 ps bits is exact, 8 ps ones into them would not be.)
+
+**The sync period** is measured from the file's sync records (a T2 header gives none): the
+median interval, refined over the intervals of one period in the first chunks read, and it is
+checked against the code period as a T3 file's header's is. A sync divider in the header
+(``HWSync_Divider``) divides the recorded syncs as it does in T3. Events before the file's
+first sync are placed on the period's grid back from it (as
+:func:`~spslidar.io.t3_from_timestamps` places them), so that no photon is lost. A photon is
+read by its time, also where it is recorded after a sync a little later than it (inputs
+merged in the hardware's order); a step back of more than ``BACK_SYNCS`` periods is refused
+(files joined end to end). A marker keeps its place in the record order, as in T3 (the
+photons after it are its pattern's), and is given at least the code period of the events
+recorded before it (its tag is coarser, and it may come late in the stream).
+
+A T2 file without any sync record is refused in one line: its photons have no code period to
+be read against (record in T3, or record the sync).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from .ptu_blocks import BACK_SYNCS
+from .timestamps import SYNC_TOL
+
+__all__ = ["T2_WRAP", "T2Records", "open_t2", "t2_overflows"]
+
+#: time tag units per overflow, per layout family (:data:`~spslidar.io.ptu_format._T2_FAMILY`)
+T2_WRAP = {"t2-picoharp": 210698240, "t2-hydraharp1": 33552000, "t2-hydraharp2": 33554432}
+#: a decoded record's kind
+_PHOTON, _SYNC, _MARKER, _OTHER = 0, 1, 2, 3
+#: sync intervals read to measure the period (the chunks that hold them are read)
+_PERIOD_SYNCS = 4096
+#: the last syncs carried from one chunk to the next (a photon recorded after a sync on
+#: another input may lie before it, by up to BACK_SYNCS periods)
+_CARRY = BACK_SYNCS + 2
+
+
+def _fields(raw: np.ndarray, family: str) -> tuple[np.ndarray, ...]:
+    """Per record: kind (:data:`_PHOTON`...), time tag (int64, before the overflows), channel
+    (0-based detector channel of a photon) or marker bits, and the overflows it adds."""
+    raw = raw.astype(np.uint32, copy=False)
+    if family == "t2-picoharp":
+        ch = (raw >> 28).astype(np.int64)
+        tag = (raw & 0x0FFFFFFF).astype(np.int64)
+        low = tag & 15
+        special = ch == 15
+        kind = np.where(special, np.where(low == 0, _OTHER, _MARKER),
+                        np.where(ch == 0, _SYNC, _PHOTON)).astype(np.int8)
+        tag = np.where(special, tag - low, tag)  # (a marker's tag without its bits)
+        value = np.where(special, low, ch - 1)
+        n_ofl = (special & (low == 0)).astype(np.int64)
+        return kind, tag, value, n_ofl
+    special = (raw >> 31) != 0
+    ch = ((raw >> 25) & 63).astype(np.int64)
+    tag = (raw & 0x1FFFFFF).astype(np.int64)
+    ofl = special & (ch == 63)
+    kind = np.where(~special, _PHOTON, np.where(ch == 0, _SYNC, np.where(
+        (ch >= 1) & (ch <= 15), _MARKER, _OTHER))).astype(np.int8)
+    if family == "t2-hydraharp1":
+        n_ofl = ofl.astype(np.int64)
+    else:
+        n_ofl = np.where(ofl, np.maximum(tag, 1), 0)
+    return kind, tag, ch, n_ofl
+
+
+def t2_overflows(raw: np.ndarray, family: str) -> int:
+    """Overflow (time tag wrap) records in a chunk of raw T2 records."""
+    raw = raw.astype(np.uint32, copy=False)
+    if family == "t2-picoharp":
+        return int(np.count_nonzero(((raw >> 28) == 15) & ((raw & 15) == 0)))
+    return int(np.count_nonzero((raw >> 25) == 0x7F))
+
+
+def _times(raw: np.ndarray, family: str, base: int) -> tuple[np.ndarray, ...]:
+    """(kind, absolute time tags, channel or marker bits, the overflow base after the chunk)."""
+    kind, tag, value, n_ofl = _fields(raw, family)
+    wraps = np.cumsum(n_ofl) * T2_WRAP[family]
+    t = base + wraps + tag
+    return kind, t, value, base + (int(wraps[-1]) if wraps.size else 0)
+
+
+def _raw_chunks(fh, offset: int, n_records: int, chunk_records: int, path: str):
+    """The file's raw records, ``chunk_records`` at a time."""
+    fh.seek(offset)
+    for done in range(0, n_records, chunk_records):
+        raw = np.empty(min(chunk_records, n_records - done), "<u4")
+        try:
+            got = fh.readinto(memoryview(raw).cast("B")) or 0
+        except OSError as exc:
+            raise ConfigError(f"cannot read the records of {path!r}: "
+                              f"{exc.strerror or exc}") from None
+        if got != raw.nbytes:
+            raise ConfigError(f"{path!r} is truncated: read {done + got // 4} of "
+                              f"{n_records} records")
+        yield raw
+
+
+class _Decoder:
+    """One pass over a T2 file's records as T3 events: each chunk's photons and markers with
+    their code period (``time``: the sync records before them, numbered from the file's
+    first period) and delay (``dtime``, time tag units since that period's sync), carrying
+    the overflows and the last sync from chunk to chunk."""
+
+    def __init__(self, family: str, period: float, first_sync: int, first_period: int,
+                 path: str):
+        self.family, self.period, self.path = family, period, path
+        self.first_sync, self.first_period = first_sync, first_period
+        self.base = 0  # time tags of the overflows so far
+        self.n_syncs = 0  # sync records so far
+        self.recent = np.zeros(0, np.int64)  # the last syncs' time tags (at most _CARRY)
+        self.latest = -1  # the latest photon or sync time tag (their order is checked)
+        self.period_so_far = 0  # the latest event's code period
+
+    def _backwards(self) -> ConfigError:
+        return ConfigError(f"{self.path!r}: its time tags run backwards (a photon or sync "
+                           f"more than {BACK_SYNCS} sync periods earlier than one recorded "
+                           f"before it), which no acquisition records: files joined end to "
+                           f"end, or a corrupt file")
+
+    def __call__(self, raw: np.ndarray) -> dict[str, np.ndarray]:
+        kind, t, value, self.base = _times(raw, self.family, self.base)
+        timed = (kind == _PHOTON) | (kind == _SYNC)  # (markers' tags are coarser: not checked)
+        tt = t[timed]
+        # (a photon a little earlier than a sync or photon on another input recorded before
+        # it is read by its time; a step back of more than BACK_SYNCS periods is no
+        # acquisition's)
+        if tt.size:
+            ahead = np.maximum.accumulate(np.concatenate([[self.latest], tt]))
+            if np.any(tt < ahead[:-1] - BACK_SYNCS * self.period):
+                raise self._backwards()
+            self.latest = int(ahead[-1])
+        syncs = t[kind == _SYNC]
+        ev = np.flatnonzero((kind == _PHOTON) | (kind == _MARKER))
+        te = t[ev]
+        grid = np.concatenate([self.recent, syncs])
+        first = self.n_syncs - self.recent.size  # the sync number of grid[0]
+        i = np.searchsorted(grid, te, side="right") - 1
+        before = i < 0
+        if self.n_syncs:  # (a marker's coarse tag before the syncs carried: the first's)
+            if np.any(before & (kind[ev] == _PHOTON)):
+                raise self._backwards()
+            before[:] = False
+            i = np.maximum(i, 0)
+        nsync = np.empty(ev.size, np.int64)
+        dtime = np.empty(ev.size, np.int64)
+        at = ~before
+        if at.any():
+            nsync[at] = self.first_period + first + i[at]
+            dtime[at] = te[at] - grid[i[at]]
+        if before.any():  # (before the file's first sync: on its period's grid back from it)
+            since = (te[before] - self.first_sync).astype(np.float64)
+            steps = np.floor(since / self.period)
+            nsync[before] = self.first_period + steps.astype(np.int64)
+            dtime[before] = np.floor(since - steps * self.period + 1e-9).astype(np.int64)
+        # (a marker's tag, coarser and late in the stream, may lie periods before the photons
+        # recorded ahead of it: it is given at least their period, so that the count never
+        # runs backwards, which the reader refuses as files joined end to end)
+        if nsync.size:
+            nsync = np.maximum.accumulate(np.maximum(nsync, self.period_so_far))
+            self.period_so_far = int(nsync[-1])
+        marker = kind[ev] == _MARKER
+        self.n_syncs += int(syncs.size)
+        self.recent = grid[-_CARRY:]
+        return {"time": nsync, "dtime": np.where(marker, 0, dtime),
+                "channel": np.where(marker, -1, value[ev]).astype(np.int8),
+                "marker": np.where(marker, value[ev], 0).astype(np.uint8)}
+
+
+class T2Records:
+    """An open T2 file that recorded the sync (:func:`open_t2`), as the T3 reader reads it:
+    ``filehandle`` and ``record_offset`` as ``ptufile.PtuFile``'s, and :meth:`decoder` for
+    one pass over its records."""
+
+    def __init__(self, f: Any, family: str, period: float, first_sync: int, first_period: int,
+                 path: str):
+        self.file, self.family, self.period = f, family, period
+        self.first_sync, self.first_period, self.path = first_sync, first_period, path
+
+    @property
+    def filehandle(self) -> Any:
+        """The file's handle (``ptufile``'s)."""
+        return self.file.filehandle
+
+    @property
+    def record_offset(self) -> int:
+        """The byte offset of the first record."""
+        return int(self.file.record_offset)
+
+    def decoder(self) -> _Decoder:
+        """A decoder for one pass over the records from the first: call it on each chunk of
+        raw records in turn; it returns the chunk's photons and markers as T3 events
+        (``time``: global sync count, ``dtime``, ``channel``: -1 for markers, ``marker``)."""
+        return _Decoder(self.family, self.period, self.first_sync, self.first_period,
+                        self.path)
+
+
+def _no_sync(header: dict[str, Any], path: str, family: str, n: int) -> ConfigError:
+    """The one line refusing a T2 file of ``n`` (0 or 1) sync records: what to record."""
+    where = ("on its input 0 (channel 0 of its T2 records)" if family == "t2-picoharp" else
+             "on its sync input (sync records)")
+    said = "no sync record" if n == 0 else "a single sync record"
+    return ConfigError(f"{path!r} holds T2 records ({header['record_type']}) with {said}: "
+                       f"absolute time tags, no code period to read the photons' delays from; "
+                       f"record the lidar in T3 mode, or record the code generator's sync in "
+                       f"T2 {where}")
+
+
+def open_t2(f: Any, header: dict[str, Any], family: str, n_records: int, chunk_records: int,
+            path: str) -> tuple[T2Records, dict[str, Any]]:
+    """A T2 file's records as the T3 reader reads them, and its header summary with the
+    sync period measured from its sync records.
+
+    Parameters
+    ----------
+    f : ptufile.PtuFile
+        The open file.
+    header : dict
+        Its header summary (:func:`spslidar.io.ptu_info`).
+    family : str
+        Its layout family (``"t2-picoharp"``, ``"t2-hydraharp1"``, ``"t2-hydraharp2"``).
+    n_records : int
+        The records to read.
+    chunk_records : int
+        Records per chunk read.
+    path : str
+        The file's path, for messages.
+
+    Returns
+    -------
+    records : T2Records
+    header : dict
+        A copy of ``header`` with ``sync_period_s`` (measured), ``resolution_s`` (the delay
+        unit: the time tag's), ``bins_per_period`` (the period in delay units) and
+        ``tdc_resolution_s`` (the header's ``MeasDesc_Resolution``).
+
+    Raises
+    ------
+    ConfigError
+        No time tag unit in the header; no sync record, or one; sync records that are not
+        periodic (a detector on the PicoHarp's input 0).
+    """
+    unit = header.get("time_unit_s") or 0.0
+    if not unit > 0:
+        raise ConfigError(f"{path!r}: its header gives no time tag unit "
+                          f"(MeasDesc_GlobalResolution) for its T2 records")
+    chunk_records = min(chunk_records, max(1, n_records))
+    base, syncs, first_event, n_syncs = 0, [], None, 0
+    for raw in _raw_chunks(f.filehandle, f.record_offset, n_records, chunk_records, path):
+        kind, t, _value, base = _times(raw, family, base)
+        s = t[kind == _SYNC]
+        if n_syncs == 0:  # (the events before the first sync: the earliest of them)
+            ev = t[(kind == _PHOTON) | (kind == _MARKER)]
+            ev = ev[ev < s[0]] if s.size else ev
+            if ev.size:
+                early = int(ev.min())
+                first_event = early if first_event is None else min(first_event, early)
+        n_syncs += int(s.size)
+        syncs.append(s[: _PERIOD_SYNCS + 1])
+        if sum(x.size for x in syncs) > _PERIOD_SYNCS:
+            break
+    s = np.concatenate(syncs)[: _PERIOD_SYNCS + 1] if syncs else np.zeros(0, np.int64)
+    if s.size < 2:
+        raise _no_sync(header, path, family, int(s.size))
+    gaps = np.diff(s).astype(np.float64)
+    median = float(np.median(gaps))
+    whole = np.round(gaps / median) if median > 0 else np.zeros_like(gaps)
+    off = (whole < 1) | (np.abs(gaps - whole * median) > SYNC_TOL * median)
+    if off.any():
+        k = int(np.flatnonzero(off)[0])
+        what = ("its input 0, read as the sync, " if family == "t2-picoharp" else
+                "its sync records ")
+        raise ConfigError(f"{path!r}: {what}are not periodic: {int(off.sum())} of the first "
+                          f"{gaps.size} intervals are more than {100 * SYNC_TOL:g} % of the "
+                          f"period ({median * unit:.6g} s) off a whole number of periods (the "
+                          f"first after sync {k}: {gaps[k] * unit:.6g} s): not the code "
+                          f"generator's sync (a detector on it?)")
+    period = float(gaps.sum() / whole.sum())
+    first_sync = int(s[0])
+    first_period = 0
+    if first_event is not None and first_event < first_sync:
+        first_period = int(math.ceil((first_sync - first_event) / period - 1e-12))
+    header = dict(header, sync_period_s=period * unit, resolution_s=unit,
+                  bins_per_period=period, tdc_resolution_s=header.get("resolution_s"))
+    return T2Records(f, family, period, first_sync, first_period, os.fspath(path)), header
