@@ -22,8 +22,8 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                    help="the mirror states shown, in marker order (0/1 or grey in [0, 1]): an "
                         "(M, N, N) .npy; a MATLAB .mat (N x N x M, or M x N^2 rows flattened "
                         "column-major; FILE.mat:NAME picks one array); a multi-page TIFF; or "
-                        "a folder of images, one per pattern in the natural order of their "
-                        "names (8-bit levels / 255)")
+                        "a folder of images, one per pattern in the order of their names "
+                        "(p2 before p10), each as displayed, binary images as 0/1")
     p.add_argument("--pattern-size", type=int, default=None, metavar="N",
                    help="the patterns' side where --patterns holds them finer (images at the "
                         "DMD's resolution, each pattern pixel a block of mirrors): each is "
