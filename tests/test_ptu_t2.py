@@ -393,3 +393,60 @@ def test_the_real_t2_file_without_sync_is_refused_in_one_line(wall, capsys):
     err = _one_line_refusal(capsys, wall, REAL / "libpicoquant_hh_v30_t2.ptu",
                             "--allow-binning")
     assert "holds T2 records (HydraHarp2T2) with no sync record" in err
+
+
+def test_a_picoharp_marker_at_its_syncs_tag_starts_that_period(t3_file, tmp_path):
+    """A PicoHarp T2 marker's tag lacks its low 4 bits: at its sync's tag, with the syncs off
+    multiples of 16 (4 ps tags under 100 ps bits), it was read a period early and every dwell
+    was one period off (an outside audit: 201 / 199 for 200); it reads as its T3 file."""
+    t2 = tmp_path / "b.ptu"
+    _as_t2(t3_file, t2, PH_T2, k=25, start=7)
+    ref = read_ptu_histograms(t3_file, L, bin_width=BW)
+    _same(read_ptu_histograms(t2, L, bin_width=BW, allow_binning=True), ref)
+    _same(read_ptu_histograms(t2, L, bin_width=BW, allow_binning=True, chunk_records=333), ref)
+
+
+def _syncs_file(path, sync_t, rectype=HH_T2_V2, sync_as_channel=None, seed=3):
+    """A T2 file of syncs at ``sync_t``, a marker at the first and 2000 photons between (on
+    channel 0), or with the syncs written as photons on ``sync_as_channel``."""
+    rng = np.random.default_rng(seed)
+    phot = np.sort(rng.integers(int(sync_t[0]), int(sync_t[-1]), 2000))
+    t = np.concatenate([sync_t, [sync_t[0]], phot])
+    kind = np.concatenate([np.full(sync_t.size, _SYNC if sync_as_channel is None else _PHOT),
+                           [_MARK], np.full(phot.size, _PHOT)])
+    value = np.concatenate([np.full(sync_t.size, sync_as_channel or 0), [1],
+                            np.zeros(phot.size, np.int64)])
+    order = np.lexsort((np.arange(t.size), kind, t))
+    rec = _encode(rectype, t[order], kind[order], value[order])
+    path.write_bytes(_header(rectype, rec.size, BW, BW) + rec.tobytes())
+
+
+def test_a_jittered_sync_on_coarse_tags_and_a_few_glitches_are_read(tmp_path):
+    """Syncs 127 tags apart, each moved by up to 2 tags (jitter and the tags' rounding: 1.6 %
+    of the period, over the 1 % share; refused as "a detector on it?", an outside audit), are
+    read, the period measured from them; a few glitches (an extra sync 40 tags after 3 of
+    them) are read with a warning, not refused."""
+    rng = np.random.default_rng(4)
+    n = np.arange(3000)
+    jittered = n * L + 50 + rng.integers(-2, 3, n.size)
+    _syncs_file(tmp_path / "j.ptu", jittered)
+    got = read_ptu_histograms(tmp_path / "j.ptu", L, bin_width=BW)
+    assert got.sync_period_s == pytest.approx(L * BW, rel=1e-4)
+    assert got.n_photons == 2000
+    glitched = np.sort(np.concatenate([n * L + 50, [100 * L + 90, 900 * L + 90,
+                                                    1500 * L + 90]]))
+    _syncs_file(tmp_path / "g.ptu", glitched)
+    with pytest.warns(RuntimeWarning, match="6 of the first 3002 intervals between its sync "
+                                            "records are off"):
+        got = read_ptu_histograms(tmp_path / "g.ptu", L, bin_width=BW)
+    assert got.sync_period_s == pytest.approx(L * BW, rel=1e-9)
+
+
+def test_a_sync_recorded_on_a_detector_input_is_named(tmp_path, capsys):
+    """No sync record, but channel 3 holds periodic events: the refusal names the channel
+    and the converter that takes it as the sync (the data hold it: an outside audit)."""
+    _syncs_file(tmp_path / "s.ptu", np.arange(3000) * L + 50, sync_as_channel=3)
+    with pytest.raises(ConfigError, match=r"with no sync record.*its channel 3 holds periodic "
+                                          r"events \(every 1\.27e-08 s\).*sync_channel") as info:
+        read_ptu_histograms(tmp_path / "s.ptu", L, bin_width=BW)
+    assert "\n" not in str(info.value)

@@ -101,14 +101,16 @@ def add_reconstruct_parser(sub) -> None:
     depths, _ = _choices("depth")
     S = argparse.SUPPRESS
     p = sub.add_parser(
-        "reconstruct", help="reconstruct a measured PicoQuant T3 PTU acquisition",
+        "reconstruct", help="reconstruct a measured PicoQuant PTU acquisition (T3, or T2 "
+                            "with sync records)",
         description="Read photon time tags (sync = code period start, a marker per DMD "
                     "pattern change), histogram them per pattern over the code period and run "
                     "the matched filter, QCR, solver and depth stages of 'run'; writes "
                     "metrics.json, depth.npy, reflectivity.npy, confidence.npy, points.ply, "
                     "depth.png (and depth2.npy from --depth guarded/evidence; truth.npy and "
                     "valid.npy with --truth) into --out (only when complete).")
-    _add_acquisition_args(p, "FILE.ptu", "T3 PTU file; or several, an acquisition saved one "
+    _add_acquisition_args(p, "FILE.ptu", "PTU file, T3 or T2 with the code's sync recorded; or "
+                                         "several, an acquisition saved one "
                                          "file per pass, each holding the sequence --repeats "
                                          "times, read in the order given and summed", many=True)
     p.add_argument("--frame", type=int, default=None, metavar="I",
@@ -196,10 +198,12 @@ def add_calibrate_parser(sub) -> None:
     p = sub.add_parser(
         "calibrate", help="measure the system delay and IRF from a flat target",
         description="Measure the instrument's system delay (sub-bin) and response (IRF) from a "
-                    "T3 PTU acquisition of a flat target at a known distance (any patterns) "
+                    "PTU acquisition (T3, or T2 with sync records) of a flat target at a "
+                    "known distance (any patterns) "
                     "and write them, with what they were measured from, to CAL.json for "
                     "'spslidar reconstruct --calibration'.")
-    _add_acquisition_args(p, "FLAT.ptu", "T3 PTU file of the target")
+    _add_acquisition_args(p, "FLAT.ptu", "PTU file of the target (T3, or T2 with sync "
+                                         "records)")
     p.add_argument("--distance", type=float, required=True, metavar="M",
                    help="the flat target's distance from the lidar (on the optical axis), "
                         "metres")
