@@ -103,6 +103,9 @@ def test_images_at_the_dmds_resolution(tmp_path):
         load_patterns(tmp_path / "fine", size=5)
     with pytest.raises(ConfigError, match="--pattern-size must be a whole number of 4"):
         load_patterns(tmp_path / "fine", size=2)
+    _save_folder(tmp_path / "wide", np.kron(pats, np.ones((4, 6), np.float32)))
+    with pytest.raises(ConfigError, match="is 48 x 32, not square: crop it"):
+        load_patterns(tmp_path / "wide", size=8)
 
 
 def test_low_sequency_patterns_keep_their_size(tmp_path):
@@ -159,6 +162,28 @@ def test_level_warnings(tmp_path):
     with pytest.warns(UserWarning, match="16-bit grey levels up to 409"):
         got = load_patterns(tmp_path / "g16")
     np.testing.assert_allclose(got, grey.reshape(4, -1) / 65535, rtol=1e-6)
+
+
+def test_tiff_memory_checked_before_its_pages_are_read(tmp_path, monkeypatch):
+    """A multi-page TIFF is refused in one line where its pages would not fit (as a folder
+    is), naming --pattern-size, before a page is decoded; PNM and PPM images are read."""
+    import tifffile
+
+    import spslidar.machine
+
+    pats = _pats(6)
+    tifffile.imwrite(tmp_path / "seq.tif", (pats * 255).astype(np.uint8))
+    monkeypatch.setattr(spslidar.machine, "available_memory", lambda: 1000)
+    with pytest.raises(ConfigError, match="more than the memory available: pages at the "
+                                          "DMD's resolution\\? --pattern-size N"):
+        load_patterns(tmp_path / "seq.tif")
+    monkeypatch.undo()
+    folder = tmp_path / "pnm"
+    folder.mkdir()
+    for i, p in enumerate(pats):
+        suffix = "ppm" if i % 2 else "pnm"
+        Image.fromarray((p * 255).astype(np.uint8)).save(folder / f"{i}.{suffix}")
+    np.testing.assert_array_equal(load_patterns(folder), pats.reshape(6, -1))
 
 
 def test_compressed_tiffs_without_imagecodecs(tmp_path):
@@ -241,15 +266,20 @@ def test_matlab_stack_and_sensing_matrix(tmp_path):
 
 
 def test_matlab_sensing_matrix_both_axes_square(tmp_path):
-    """16 patterns of 8 x 8: a 16 x 64 matrix and its 64 x 16 transpose both have square
-    axes; the pixels are the longer axis (fewer patterns than pixels), either way round."""
-    pats = _pats(16)
-    sensing = np.stack([p.ravel(order="F") for p in pats])
-    sio.savemat(tmp_path / "rows.mat", {"A": sensing})
-    sio.savemat(tmp_path / "cols.mat", {"A": sensing.T.copy()})
-    for name in ("rows", "cols"):
-        np.testing.assert_array_equal(load_patterns(tmp_path / f"{name}.mat"),
-                                      pats.reshape(16, -1), err_msg=name)
+    """16 patterns of 8 x 8 as a 16 x 64 matrix or its 64 x 16 transpose, and 64 patterns of
+    4 x 4 (more patterns than pixels: a review found them read as 16 of 8 x 8): both sides
+    squares, so which holds the pixels is refused in one line without --pattern-size, and
+    read right with it, either way round."""
+    for m, n in ((16, 8), (64, 4)):
+        pats = _pats(m, n)
+        sensing = np.stack([p.ravel(order="F") for p in pats])
+        sio.savemat(tmp_path / "rows.mat", {"A": sensing})
+        sio.savemat(tmp_path / "cols.mat", {"A": sensing.T.copy()})
+        for name in ("rows", "cols"):
+            with pytest.raises(ConfigError, match="both sides squares: its patterns may be"):
+                load_patterns(tmp_path / f"{name}.mat")
+            np.testing.assert_array_equal(load_patterns(tmp_path / f"{name}.mat", size=n),
+                                          pats.reshape(m, -1), err_msg=f"{name} {m}")
 
 
 def test_matlab_and_npz_name_one_of_several(tmp_path):
@@ -292,12 +322,22 @@ def test_code_text_comments_and_encodings(tmp_path, text, encoding):
     ("code\n0110100\n", "a header line? start it with #"),
     ("01101002\n", "a run of bits holds '2' at character 8 of 8"),
     ("".join(f"{b},{1 - b}\n" for b in [0, 1, 1, 0, 1, 0, 0, 1]), "2 columns on each of its 8"),
+    ("".join(f"{b} {1 - b}\n" for b in [0, 1, 1, 0, 1, 0, 0, 1]), "2 columns on each of its 8"),
+    ("".join(f"   {b:.7e}   {1 - b:.7e}\n" for b in [0, 1, 1, 0, 1, 0, 0, 1]),
+     "2 columns on each of its 8"),  # (MATLAB's save -ascii)
 ])
 def test_code_text_refused_with_the_cause(tmp_path, text, said):
     f = tmp_path / "code.txt"
     f.write_text(text)
     with pytest.raises(ConfigError, match=re.escape(said)):
         load_code(f)
+
+
+def test_a_wrapped_code_is_no_table(tmp_path):
+    """Runs of bits, two to a line, are a code wrapped, not a table of columns."""
+    f = tmp_path / "code.txt"
+    f.write_text("0110 1001\n" * 8)
+    assert load_code(f).size == 64
 
 
 def test_code_as_mat_and_bipolar_npy(tmp_path):

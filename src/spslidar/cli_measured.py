@@ -25,9 +25,11 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                         "a folder of images, one per pattern in the order of their names "
                         "(p2 before p10), each as displayed, binary images as 0/1")
     p.add_argument("--pattern-size", type=int, default=None, metavar="N",
-                   help="the patterns' side where --patterns holds them finer (images at the "
-                        "DMD's resolution, each pattern pixel a block of mirrors): each is "
-                        "read as N x N blocks, every block checked to hold one state")
+                   help="the patterns' side: where --patterns holds them finer (images at "
+                        "the DMD's resolution, each pattern pixel a block of mirrors), each is "
+                        "read as N x N blocks, every block checked to hold one state; for a "
+                        "MATLAB sensing matrix whose two sides are squares, it says which "
+                        "holds the pixels")
     p.add_argument("--code", required=True, metavar="CODE|FAMILY",
                    help="bits of one code period: a .npy, a text file (0110... or numbers, "
                         "0/1 or -1/+1), a .mat vector; or a code family's name (e.g. mseq, "

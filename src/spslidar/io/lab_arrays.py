@@ -18,15 +18,15 @@ Conventions (the ones a file of that kind carries):
 * **Images at the DMD's resolution**, each pattern pixel a block of mirrors (a 64 x 64
   pattern shown on 512 x 512 mirrors), are read as they are (the same map as their
   ``.npy``), with a warning naming ``--pattern-size N``, which reads any pattern file as
-  ``N x N`` blocks, each checked to hold one state. An image that is not square (the DMD's
-  whole frame around the region the scene is imaged through) is refused: crop it.
+  ``N x N`` square blocks, each checked to hold one state. An image that is not square (the
+  DMD's whole frame around the region the scene is imaged through) is refused: crop it.
 * **A MATLAB file** (``.mat``, versions 4-7; a 7.3 file is HDF5 and is refused with the
   save option that avoids it): ``P(:,:,k)``, an ``N x N x M`` array with the pattern index
   last, as MATLAB stacks images (``M x N x N`` is taken too; ``N x N x N`` is refused), or a
   sensing matrix ``A`` whose row ``m`` is pattern ``m`` flattened by MATLAB's column-major
-  ``P(:)'`` (``N^2 x M`` is taken where only its first axis is a square, or both are and it
-  is the longer: fewer patterns than pixels, as a compressive sequence has; a square
-  ``N^2 x N^2`` basis is refused, its rows and columns alike possible). Integer arrays
+  ``P(:)'`` (``N^2 x M`` is taken where only its first axis is a square; where both are,
+  ``--pattern-size N`` says which holds the pixels, and a square ``N^2 x N^2`` basis is
+  refused, its rows and columns alike possible). Integer arrays
   (``imread``'s uint8) are read as images are. Where the file holds several arrays,
   ``FILE.mat:NAME`` names one; a struct or cell is named, not opened.
 * **A code** as text (``.txt``, ``.csv``, ``.dat``, ``.tsv``; UTF-8 or UTF-16): the bits as
@@ -61,6 +61,7 @@ from .lab_images import (
     folder_patterns,
     memory_check,
     tiff_patterns,
+    to_states,
 )
 
 __all__ = ["CODE_TEXT_SUFFIXES", "IMAGE_SUFFIXES", "read_code_file", "read_patterns_file"]
@@ -178,7 +179,7 @@ def _pattern_shape(shape: tuple) -> bool:
         and min(shape) >= 2
 
 
-def _mat_patterns(arr: np.ndarray, p: Path, key: str) -> np.ndarray:
+def _mat_patterns(arr: np.ndarray, p: Path, key: str, size: int | None) -> np.ndarray:
     """A MATLAB array as ``(M, N, N)``: ``N x N x M`` (the pattern index last, as MATLAB
     stacks images) or ``M x N x N``; a sensing matrix ``M x N^2`` (or ``N^2 x M``) whose rows
     are patterns flattened column-major."""
@@ -202,9 +203,19 @@ def _mat_patterns(arr: np.ndarray, p: Path, key: str) -> np.ndarray:
                 f"its rows or its columns (or it is one {rows} x {rows} pattern): save them as "
                 f"an N x N x M stack, P = reshape(A', {n}, {n}, []) for patterns in rows, "
                 f"reshape(A, {n}, {n}, []) for patterns in columns")
-        # N^2 x M, one pattern per column: where only the first axis is a square, or both
-        # are and it is the longer (a compressive sequence has fewer patterns than pixels)
-        if _is_square(rows) and (not _is_square(cols) or rows > cols):
+        if _is_square(rows) and _is_square(cols):
+            # (both sides squares: 1024 x 256 is 1024 patterns of 16 x 16 or 256 of 32 x 32;
+            # the longer side taken as the pixels misread M = 4 N^2, and the block count's
+            # hint then led to --repeats, a review)
+            a, b = math.isqrt(cols), math.isqrt(rows)
+            if size is None or size not in (a, b):
+                raise ConfigError(
+                    f"--patterns {p}:{key} is a {rows} x {cols} matrix, both sides squares: "
+                    f"its patterns may be its {rows} rows of {a} x {a} or its {cols} columns "
+                    f"of {b} x {b}: give --pattern-size {a} (rows) or {b} (columns)")
+            if size == b:
+                arr = arr.T
+        elif _is_square(rows):  # N^2 x M: one pattern per column
             arr = arr.T
         m, nn = arr.shape
         if _is_square(nn):
@@ -227,7 +238,8 @@ def read_patterns_file(path: str | os.PathLike, size: int | None = None) -> np.n
     size : int, optional
         The patterns' side ``N`` where the file holds them at a finer resolution (images at
         the DMD's, each pattern pixel a block of mirrors): each pattern is read as ``N x N``
-        blocks, every block checked to hold one state (``--pattern-size``).
+        blocks, every block checked to hold one state (``--pattern-size``); for a MATLAB
+        sensing matrix whose two sides are squares, which of them holds the pixels.
 
     Raises
     ------
@@ -249,11 +261,9 @@ def read_patterns_file(path: str | os.PathLike, size: int | None = None) -> np.n
         shapes = _mat_arrays(p, "--patterns")
         key, shape = _pick(shapes, name, p, "--patterns", _pattern_shape)
         memory_check(float(np.prod(shape)), "--patterns", p)
-        arr = _mat_patterns(_load_mat(p, key, "--patterns"), p, key)
+        arr = _mat_patterns(_load_mat(p, key, "--patterns"), p, key, size)
         if arr.ndim == 3 and arr.dtype != bool and np.issubdtype(arr.dtype, np.integer):
-            from .lab_images import _to_states  # (imread's levels: uint8 0/255 as images)
-
-            arr = _to_states(list(arr), f"{p}:{key}")
+            arr = to_states(list(arr), f"{p}:{key}")  # (imread's uint8: levels as images)
     elif suffix == ".npz":
         arrays = _npz_arrays(p, "--patterns")
         arr = np.asarray(_pick(arrays, name, p, "--patterns", _pattern_shape)[1])
@@ -291,8 +301,12 @@ def _text_bits(p: Path) -> np.ndarray:
     if not packed:
         raise ConfigError(f"--code {p} holds no bits")
     lines = [ln for ln in body.splitlines() if ln.strip()]
-    fields = {len([t for t in re.split(r"[,;\t]+", ln.strip()) if t]) for ln in lines}
-    if len(lines) >= 8 and len(fields) == 1 and 2 <= min(fields) <= 4:
+    rows = [[t for t in re.split(r"[\s,;]+", ln.strip()) if t] for ln in lines]
+    fields = {len(r) for r in rows}
+    single = all(len(t) == 1 or not set(t) <= {"0", "1"} for r in rows for t in r)
+    if len(lines) >= 8 and len(fields) == 1 and 2 <= min(fields) <= 4 and single:
+        # (columns by spaces too, MATLAB's save -ascii: a review; runs of bits, "0110 1001",
+        # are a code wrapped, not a table)
         # (a table, bit and complement or index and bit, was read interleaved: an audit)
         raise ConfigError(f"--code {p} holds {min(fields)} columns on each of its "
                           f"{len(lines)} lines: give the code's bits alone, one column or "

@@ -39,11 +39,11 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["IMAGE_SUFFIXES", "block_reduce", "folder_patterns", "tiff_patterns"]
+__all__ = ["IMAGE_SUFFIXES", "block_reduce", "folder_patterns", "tiff_patterns", "to_states"]
 
 #: image files a folder of patterns may hold (lossless formats: a JPEG's blocks blur each
 #: mirror's state, so it is refused by name)
-IMAGE_SUFFIXES = (".png", ".bmp", ".tif", ".tiff", ".pbm", ".pgm", ".gif")
+IMAGE_SUFFIXES = (".png", ".bmp", ".tif", ".tiff", ".pbm", ".pgm", ".ppm", ".pnm", ".gif")
 #: lossy image formats, refused in a folder of patterns
 LOSSY_SUFFIXES = (".jpg", ".jpeg", ".jpe", ".webp")
 _TIFF = (".tif", ".tiff")
@@ -63,7 +63,10 @@ def block_reduce(img: np.ndarray, size: int, label: str) -> np.ndarray:
     """An ``(H, W)`` image of ``size x size`` blocks of mirrors, each at one state, as the
     ``(size, size)`` pattern (one value a block); one line where it is not."""
     h, w = img.shape[-2:]
-    if h % size or w % size:
+    if h != w:  # (a DMD's mirrors are square: rectangular blocks are a frame not cropped)
+        raise ConfigError(f"--pattern-size {size}: {label} is {w} x {h}, not square: crop it "
+                          f"to the square region the scene is imaged through")
+    if h % size:
         raise ConfigError(f"--pattern-size {size}: {label} is {w} x {h}, not {size} x {size} "
                           f"blocks of mirrors (crop it to the region the scene is imaged "
                           f"through)")
@@ -139,9 +142,10 @@ def _pil_pages(path: Path, label: str) -> list[np.ndarray]:
     return pages
 
 
-def _tiff_pages(path: Path, label: str) -> list[np.ndarray]:
+def _tiff_pages(path: Path, label: str, each=None) -> list[np.ndarray]:
     """Every page of a TIFF as displayed (a min-is-white page inverted), through tifffile,
-    or Pillow where tifffile needs ``imagecodecs`` for the compression."""
+    or Pillow where tifffile needs ``imagecodecs`` for the compression; ``each(page, i)``,
+    where given, is applied to each page as it is read (the memory is then its results')."""
     import logging
 
     import tifffile
@@ -152,7 +156,9 @@ def _tiff_pages(path: Path, label: str) -> list[np.ndarray]:
     try:
         with tifffile.TiffFile(path) as tif:
             pages = []
-            for page in tif.pages:
+            if each is not None and len(tif.pages):
+                each(None, len(tif.pages), tif.pages[0].shape)  # (the memory, before reading)
+            for i, page in enumerate(tif.pages):
                 arr = page.asarray()
                 if page.photometric == tifffile.PHOTOMETRIC.MINISWHITE:
                     if arr.dtype == bool:
@@ -163,12 +169,13 @@ def _tiff_pages(path: Path, label: str) -> list[np.ndarray]:
                         raise ConfigError(f"pattern image {label}: a min-is-white TIFF of "
                                           f"{arr.dtype} values is not read (save it "
                                           f"min-is-black)")
-                pages.append(arr)
+                pages.append(arr if each is None else each(arr, i))
     except ConfigError:
         raise
     except Exception as exc:
         if "imagecodecs" in str(exc):  # (LZW, CCITT: Pillow decodes them itself)
-            return _pil_pages(path, label)
+            pages = _pil_pages(path, label)
+            return pages if each is None else [each(pg, i) for i, pg in enumerate(pages)]
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise ConfigError(f"cannot read pattern image {label} as a TIFF: {reason[:120]}"
                           ) from None
@@ -196,7 +203,7 @@ def _full_scale(dtype: np.dtype) -> float:
     return float(np.iinfo(dtype).max) if dtype.itemsize <= 2 else 1.0
 
 
-def _to_states(images: list[np.ndarray], where: str) -> np.ndarray:
+def to_states(images: list[np.ndarray], where: str) -> np.ndarray:
     """Stored levels -> mirror states: binary images as 0/1 whatever their depth, grey levels
     over their type's full scale, floats as they are (checked later)."""
     levels = [_binary_level(img) for img in images]
@@ -290,25 +297,35 @@ def folder_patterns(folder: Path, size: int | None = None) -> np.ndarray:
                          "" if size else ": images at the DMD's resolution? --pattern-size N "
                                          "reads each as N x N blocks")
         images.append(img if size is None else block_reduce(img, size, f.name))
-    return _sized(_to_states(images, str(folder)), size, folder)
+    return _sized(to_states(images, str(folder)), size, folder)
 
 
 def tiff_patterns(p: Path, size: int | None = None) -> np.ndarray:
-    """One pattern per page of a multi-page TIFF, as :func:`folder_patterns` reads images."""
-    pages = _tiff_pages(p, p.name)
-    if len(pages) == 1:
+    """One pattern per page of a multi-page TIFF, as :func:`folder_patterns` reads images:
+    its memory checked before a page is decoded, each page reduced as it is read."""
+    first: list = []
+
+    def each(page, i, shape=None):
+        if page is None:  # (the page count and size, before any is decoded)
+            side = float(np.prod(shape[:2])) if size is None else float(size * size)
+            memory_check(side * i, "--patterns", p,
+                         "" if size else ": pages at the DMD's resolution? --pattern-size N "
+                                         "reads each as N x N blocks")
+            return None
+        img = _display_levels(page, f"{p.name} page {i}")
+        if not first:
+            first.append(img.shape)
+        elif img.shape != first[0]:
+            raise ConfigError(f"--patterns {p}: page {i} is {img.shape[1]} x {img.shape[0]}, "
+                              f"page 0 {first[0][1]} x {first[0][0]} (a preview page?): every "
+                              f"page must be a pattern of one size")
+        return img if size is None else block_reduce(img, size, f"{p.name} page {i}")
+
+    images = _tiff_pages(p, p.name, each)
+    if len(images) == 1:
         raise ConfigError(f"--patterns {p} is a TIFF of one page: give one page per pattern "
                           f"(a multi-page TIFF) or a folder of images")
-    images = [_display_levels(page, f"{p.name} page {i}") for i, page in enumerate(pages)]
-    if any(img.shape != images[0].shape for img in images):
-        bad = next(i for i, img in enumerate(images) if img.shape != images[0].shape)
-        raise ConfigError(f"--patterns {p}: page {bad} is {images[bad].shape[1]} x "
-                          f"{images[bad].shape[0]}, page 0 {images[0].shape[1]} x "
-                          f"{images[0].shape[0]} (a preview page?): every page must be a "
-                          f"pattern of one size")
-    if size is not None:
-        images = [block_reduce(img, size, f"{p.name} page {i}") for i, img in enumerate(images)]
-    return _sized(_to_states(images, str(p)), size, p)
+    return _sized(to_states(images, str(p)), size, p)
 
 
 def _sized(stack: np.ndarray, size: int | None, where: Path) -> np.ndarray:

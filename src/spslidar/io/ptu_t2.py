@@ -193,9 +193,12 @@ class _Decoder:
             i[marker] = np.searchsorted(grid & ~15, te[marker], side="right") - 1
         before = i < 0
         if self.n_syncs:  # (a marker's coarse tag before the syncs carried: the first's)
-            if np.any(before & (kind[ev] == _PHOTON)):
+            photon = kind[ev] == _PHOTON
+            if first > 0 and np.any(before & photon):  # (periods before the syncs carried)
                 raise self._backwards()
-            before[:] = False
+            # (before the file's first sync, recorded after it: placed back from it as the
+            # first chunk's are; it was refused at some chunk boundaries only, a review)
+            before &= photon
             i = np.maximum(i, 0)
         nsync = np.empty(ev.size, np.int64)
         dtime = np.empty(ev.size, np.int64)
@@ -330,22 +333,26 @@ def open_t2(f: Any, header: dict[str, Any], family: str, n_records: int, chunk_r
         raise ConfigError(f"{path!r}: its header gives no time tag unit "
                           f"(MeasDesc_GlobalResolution) for its T2 records")
     chunk_records = min(chunk_records, max(1, n_records))
-    base, syncs, first_event, n_syncs, probe = 0, [], None, 0, None
+    base, syncs, first_event, n_syncs, probe, first_tag = 0, [], None, 0, None, None
     for raw in _raw_chunks(f.filehandle, f.record_offset, n_records, chunk_records, path):
         kind, t, _value, base = _times(raw, family, base)
         if probe is None:  # (the first photons: a channel of periodic ones, where no sync)
             photon = kind == _PHOTON
             probe = (t[photon][:200_000], _value[photon][:200_000])
         s = t[kind == _SYNC]
-        if n_syncs == 0:  # (the events before the first sync: the earliest of them)
-            ev = t[(kind == _PHOTON) | (kind == _MARKER)]
-            if s.size:
-                first_s = np.where((kind[(kind == _PHOTON) | (kind == _MARKER)] == _MARKER)
-                                   & (family == "t2-picoharp"), s[0] & ~15, s[0])
-                ev = ev[ev < first_s]
-            if ev.size:
-                early = int(ev.min())
-                first_event = early if first_event is None else min(first_event, early)
+        if first_tag is None and s.size:
+            first_tag = int(s[0])
+        # (the events before the first sync, in whichever chunk they are recorded: the
+        # earliest of them)
+        evk = (kind == _PHOTON) | (kind == _MARKER)
+        ev = t[evk]
+        if first_tag is not None:
+            first_s = np.where((kind[evk] == _MARKER) & (family == "t2-picoharp"),
+                               first_tag & ~15, first_tag)
+            ev = ev[ev < first_s]
+        if ev.size:
+            early = int(ev.min())
+            first_event = early if first_event is None else min(first_event, early)
         n_syncs += int(s.size)
         syncs.append(s[: _PERIOD_SYNCS + 1])
         if sum(x.size for x in syncs) > _PERIOD_SYNCS:
