@@ -46,6 +46,7 @@ from .ptu_format import (
     _marker_input,
     _open_ptu,
     _positive_int,
+    raw_chunks,
 )
 from .ptu_t2 import T2Records, open_t2, t2_overflows
 
@@ -238,20 +239,8 @@ def _channels(channel: Any, family: str, record_type: str, path: str) -> np.ndar
 def _chunks(f, n_records: int, chunk_records: int, path: str):
     """The file's records, ``chunk_records`` at a time: ``(raw words, ptufile decode)``, or a
     T2 file's (:class:`~spslidar.io.ptu_t2.T2Records`) as T3 events with global syncs."""
-    fh = f.filehandle
-    fh.seek(f.record_offset)
     decode = f.decoder() if isinstance(f, T2Records) else f.decode_records
-    for done in range(0, n_records, chunk_records):
-        raw = np.empty(min(chunk_records, n_records - done), "<u4")
-        try:
-            got = fh.readinto(memoryview(raw).cast("B")) or 0
-        except OSError as exc:  # (said as "while writing --out", an audit of 2026-11-30)
-            raise ConfigError(f"cannot read the records of {path!r}: "
-                              f"{exc.strerror or exc}") from None
-        if got != raw.nbytes:
-            raise ConfigError(f"{path!r} is truncated: read {done + got // 4} of "
-                              f"{n_records} records")
-        raw = raw.astype(np.uint32, copy=False)
+    for raw in raw_chunks(f.filehandle, f.record_offset, n_records, chunk_records, path):
         yield raw, decode(raw)  # (T3: times restart at 0 in every chunk)
 
 

@@ -400,3 +400,21 @@ def _check_t3(f, header: dict[str, Any], path: str) -> tuple[str, int]:
                       f"(correct TTResult_NumberOfRecords to {whole})",
                       RuntimeWarning, stacklevel=3)
     return family, n_records
+
+
+def raw_chunks(fh, offset: int, n_records: int, chunk_records: int, path: str):
+    """A PTU file's raw 32-bit records from byte ``offset``, ``chunk_records`` at a time (the
+    T3 reader's and the T2 reader's one read loop); a read error or a file shorter than
+    ``n_records`` records is one line."""
+    fh.seek(offset)
+    for done in range(0, n_records, chunk_records):
+        raw = np.empty(min(chunk_records, n_records - done), "<u4")
+        try:
+            got = fh.readinto(memoryview(raw).cast("B")) or 0
+        except OSError as exc:  # (said as "while writing --out", an audit of 2026-11-30)
+            raise ConfigError(f"cannot read the records of {path!r}: "
+                              f"{exc.strerror or exc}") from None
+        if got != raw.nbytes:
+            raise ConfigError(f"{path!r} is truncated: read {done + got // 4} of "
+                              f"{n_records} records")
+        yield raw.astype(np.uint32, copy=False)

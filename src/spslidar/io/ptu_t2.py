@@ -63,6 +63,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from .ptu_blocks import BACK_SYNCS
+from .ptu_format import raw_chunks
 from .timestamps import SYNC_TOL
 
 __all__ = ["T2_WRAP", "T2Records", "open_t2", "t2_overflows"]
@@ -127,22 +128,6 @@ def _times(raw: np.ndarray, family: str, base: int) -> tuple[np.ndarray, ...]:
     wraps = np.cumsum(n_ofl) * T2_WRAP[family]
     t = base + wraps + tag
     return kind, t, value, base + (int(wraps[-1]) if wraps.size else 0)
-
-
-def _raw_chunks(fh, offset: int, n_records: int, chunk_records: int, path: str):
-    """The file's raw records, ``chunk_records`` at a time."""
-    fh.seek(offset)
-    for done in range(0, n_records, chunk_records):
-        raw = np.empty(min(chunk_records, n_records - done), "<u4")
-        try:
-            got = fh.readinto(memoryview(raw).cast("B")) or 0
-        except OSError as exc:
-            raise ConfigError(f"cannot read the records of {path!r}: "
-                              f"{exc.strerror or exc}") from None
-        if got != raw.nbytes:
-            raise ConfigError(f"{path!r} is truncated: read {done + got // 4} of "
-                              f"{n_records} records")
-        yield raw
 
 
 class _Decoder:
@@ -334,7 +319,7 @@ def open_t2(f: Any, header: dict[str, Any], family: str, n_records: int, chunk_r
                           f"(MeasDesc_GlobalResolution) for its T2 records")
     chunk_records = min(chunk_records, max(1, n_records))
     base, syncs, first_event, n_syncs, probe, first_tag = 0, [], None, 0, None, None
-    for raw in _raw_chunks(f.filehandle, f.record_offset, n_records, chunk_records, path):
+    for raw in raw_chunks(f.filehandle, f.record_offset, n_records, chunk_records, path):
         kind, t, _value, base = _times(raw, family, base)
         if probe is None:  # (the first photons: a channel of periodic ones, where no sync)
             photon = kind == _PHOTON
