@@ -57,9 +57,9 @@ from ..npyfile import check_npz_sizes, load_npy
 from .lab_images import (
     IMAGE_SUFFIXES,
     LOSSY_SUFFIXES,
-    block_reduce,
     folder_patterns,
     memory_check,
+    reduce_patterns,
     tiff_patterns,
     to_states,
 )
@@ -270,15 +270,7 @@ def read_patterns_file(path: str | os.PathLike, size: int | None = None) -> np.n
     else:
         arr = _npy_or_say(p, "patterns", ".npy, .npz, .mat, a multi-page .tif or a folder "
                                          "of images")
-    if size is not None:
-        if arr.ndim == 2 and arr.shape[0] >= 2 and _is_square(arr.shape[1]):
-            side = math.isqrt(arr.shape[1])
-            arr = arr.reshape(arr.shape[0], side, side)
-        if arr.ndim != 3:
-            raise ConfigError(f"--pattern-size {size}: --patterns {p} holds an array of shape "
-                              f"{arr.shape}, not (M, H, W) patterns")
-        arr = block_reduce(arr, size, f"--patterns {p}")
-    return arr
+    return arr if size is None else reduce_patterns(arr, size, f"--patterns {p}")
 
 
 def _text_bits(p: Path) -> np.ndarray:

@@ -39,7 +39,8 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["IMAGE_SUFFIXES", "block_reduce", "folder_patterns", "tiff_patterns", "to_states"]
+__all__ = ["IMAGE_SUFFIXES", "block_reduce", "folder_patterns", "reduce_patterns",
+           "tiff_patterns", "to_states"]
 
 #: image files a folder of patterns may hold (lossless formats: a JPEG's blocks blur each
 #: mirror's state, so it is refused by name)
@@ -81,6 +82,19 @@ def block_reduce(img: np.ndarray, size: int, label: str) -> np.ndarray:
                           f"({kw} x {kh} mirrors) holds two states, so the pattern is finer "
                           f"than {size} x {size}")
     return np.ascontiguousarray(lo)
+
+
+def reduce_patterns(arr: np.ndarray, size: int, label: str) -> np.ndarray:
+    """Patterns ``(M, H, W)``, or ``(M, H*W)`` whose rows are square images flattened
+    row-major, read as ``size x size`` blocks (:func:`block_reduce`): ``--pattern-size``
+    on a file's array or an array given to the API alike; one line for any other shape."""
+    if arr.ndim == 2 and arr.shape[0] >= 2 and math.isqrt(arr.shape[1]) ** 2 == arr.shape[1]:
+        side = math.isqrt(arr.shape[1])
+        arr = arr.reshape(arr.shape[0], side, side)
+    if arr.ndim != 3:
+        raise ConfigError(f"--pattern-size {size}: {label} holds an array of shape "
+                          f"{arr.shape}, not (M, H, W) patterns")
+    return block_reduce(arr, size, label)
 
 
 def _block_side(img: np.ndarray) -> int:

@@ -45,16 +45,9 @@ def patterns_in(patterns: Any, size: Any = None, distinct: bool = True) -> np.nd
         return load_patterns(patterns, distinct, size)
     size = check_pattern_size(size)
     if size is not None:
-        from ..io.lab_images import block_reduce
+        from ..io.lab_images import reduce_patterns
 
-        arr = _as_array(patterns, "patterns")
-        if arr.ndim == 2 and arr.shape[0] >= 2:
-            side = int(round(np.sqrt(arr.shape[1])))
-            arr = arr.reshape(arr.shape[0], side, side) if side * side == arr.shape[1] else arr
-        if arr.ndim != 3:
-            raise ConfigError(f"pattern_size {size}: the patterns have shape {arr.shape}, not "
-                              f"(M, H, W)")
-        patterns = block_reduce(arr, size, "patterns")
+        patterns = reduce_patterns(_as_array(patterns, "patterns"), size, "patterns")
     return check_patterns(patterns, distinct, "patterns")
 
 
