@@ -19,6 +19,12 @@ class SceneError(SpslidarError):
     """A scene that cannot be read or is physically invalid (NaN or negative depth...)."""
 
 
+def first_line(exc: BaseException) -> str:
+    """The first line of a library's exception message, or its type's name where it has
+    none: what a one-line refusal says of a reader's failure."""
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+
+
 def numbers_blanked(text: str) -> str:
     """``text`` with its numbers replaced by ``#``: what tells a warning that comes again with
     other numbers (a fixed point's relative change, per block) from another one."""

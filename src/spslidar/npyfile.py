@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ConfigError
+from .errors import ConfigError, first_line
 
 __all__ = ["check_npz_sizes", "load_npy"]
 
@@ -60,7 +60,7 @@ def load_npy(path: str | os.PathLike, what: str,
         raise
     except (ValueError, OSError, EOFError, OverflowError, SyntaxError, tokenize.TokenError,
             RecursionError) as exc:  # (the last three: a header whose literal does not parse)
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        msg = first_line(exc)
         if isinstance(exc, (SyntaxError, tokenize.TokenError, RecursionError)):
             msg = "its header does not parse (a corrupt .npy file)"
         try:

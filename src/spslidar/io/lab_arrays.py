@@ -52,7 +52,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, first_line
 from ..npyfile import check_npz_sizes, load_npy
 from .lab_images import (
     IMAGE_SUFFIXES,
@@ -120,9 +120,7 @@ def _mat_arrays(p: Path, what: str) -> dict[str, tuple]:
             warnings.simplefilter("ignore")
             listed = sio.whosmat(str(p))
     except Exception as exc:  # (scipy raises ValueError, TypeError, MatReadError ... on junk)
-        raise ConfigError(f"cannot read {what} {p} as a MATLAB file: "
-                          f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
-                          ) from None
+        raise ConfigError(f"cannot read {what} {p} as a MATLAB file: {first_line(exc)}") from None
     numeric = {"double", "single", "logical", "int8", "uint8", "int16", "uint16", "int32",
                "uint32", "int64", "uint64"}
     others = [f"{name} ({cls} {'x'.join(map(str, shape))})" for name, shape, cls in listed
@@ -149,8 +147,7 @@ def _load_mat(p: Path, name: str, what: str) -> np.ndarray:
             arr = sio.loadmat(str(p), variable_names=[name])[name]
     except Exception as exc:
         raise ConfigError(f"cannot read {what} {p}:{name} as a MATLAB array: "
-                          f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
-                          ) from None
+                          f"{first_line(exc)}") from None
     return np.asarray(arr)
 
 
@@ -160,9 +157,7 @@ def _npz_arrays(p: Path, what: str) -> dict[str, Any]:
         with np.load(p, allow_pickle=False) as z:
             return {k: z[k] for k in z.files}
     except Exception as exc:
-        raise ConfigError(f"cannot read {what} {p} as an .npz archive: "
-                          f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
-                          ) from None
+        raise ConfigError(f"cannot read {what} {p} as an .npz archive: {first_line(exc)}") from None
 
 
 def _is_square(n: int) -> bool:

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, first_line
 
 __all__ = ["IMAGE_SUFFIXES", "block_reduce", "folder_patterns", "reduce_patterns",
            "tiff_patterns", "to_states"]
@@ -149,7 +149,7 @@ def _pil_pages(path: Path, label: str) -> list[np.ndarray]:
                                         or page.mode == "PA" else "RGB")
                 pages.append(np.array(page))
     except (OSError, UnidentifiedImageError, ValueError, SyntaxError) as exc:
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        reason = first_line(exc)
         raise ConfigError(f"cannot read pattern image {label}: {reason[:120]}") from None
     if not pages or pages[0].size == 0:
         raise ConfigError(f"pattern image {label} holds no image")
@@ -190,7 +190,7 @@ def _tiff_pages(path: Path, label: str, each=None) -> list[np.ndarray]:
         if "imagecodecs" in str(exc):  # (LZW, CCITT: Pillow decodes them itself)
             pages = _pil_pages(path, label)
             return pages if each is None else [each(pg, i) for i, pg in enumerate(pages)]
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        reason = first_line(exc)
         raise ConfigError(f"cannot read pattern image {label} as a TIFF: {reason[:120]}"
                           ) from None
     finally:
