@@ -229,7 +229,13 @@ def test_pattern_files_other_tools_write_are_said_plainly(tmp_path):
 
     p = (np.random.default_rng(0).random((4, 4, 4)) < 0.5).astype(np.uint8)
     with pytest.raises(ConfigError, match="values from 0 to 255: 8-bit levels 0-255"):
-        check_patterns(p * 255)
+        check_patterns(p * 255.0)  # (floats are states: 255 is no level of a float)
+    # integers are stored levels, read as images are (as a .mat of imread's uint8 was,
+    # while the same array as a .npy was refused: an audit): binary 0/1, grey over 255
+    np.testing.assert_array_equal(check_patterns(p * 255), p.reshape(4, -1))
+    np.testing.assert_array_equal(check_patterns((p * 255).astype(np.int64)), p.reshape(4, -1))
+    grey = np.arange(64, dtype=np.uint8).reshape(4, 4, 4) * 4
+    np.testing.assert_allclose(check_patterns(grey), grey.reshape(4, -1) / 255.0, rtol=1e-6)
     with pytest.raises(ConfigError, match="give the two complementary patterns"):
         check_patterns(2.0 * p - 1)
     nan = p.astype(np.float32)

@@ -100,6 +100,13 @@ def test_calibration_measures_the_delay_and_irf(acquisitions):
     digest = hashlib.sha256((acquisitions / "wall.ptu").read_bytes()).hexdigest()
     assert src["ptu"] == "wall.ptu" and src["sha256"] == digest and src["photons"] > 0
     assert cal["distance_m"] == 25.0 and cal["code_length"] == 1023
+    # the patterns' and code's files, and hashes of what was read (as reconstruct records)
+    code = np.load(acquisitions / "wall_code.npy")
+    assert src["inputs"]["patterns"]["file"] == str(acquisitions / "wall_patterns.npy")
+    assert src["inputs"]["code"] == {
+        "file": str(acquisitions / "wall_code.npy"), "family": None, "bits": 1023,
+        "sha256": hashlib.sha256(code.astype(np.uint8).tobytes()).hexdigest()}
+    assert src["inputs"]["code"]["sha256"] == cal["code_sha256"]
 
 
 def test_calibrated_wall_reads_its_distance(acquisitions):

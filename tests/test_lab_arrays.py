@@ -371,6 +371,21 @@ def test_reconstruct_from_lab_files_equals_npy(tmp_path):
         depth[key] = np.load(tmp_path / f"out_{key}" / "depth.npy")
     for key in ("png", "mat", "mirrors"):
         np.testing.assert_array_equal(depth[key], depth["npy"], err_msg=key)
+    # metrics.json names each file as given and hashes what was read: alike over the formats
+    import json
+
+    inputs = {k: json.loads((tmp_path / f"out_{k}" / "metrics.json").read_text())["inputs"]
+              for k in runs}
+    for key, (p, c, extra) in runs.items():
+        assert inputs[key]["patterns"]["file"] == str(tmp_path / p)
+        assert inputs[key]["code"]["file"] == str(tmp_path / c)
+        assert inputs[key]["code"]["family"] is None
+        assert inputs[key]["patterns"]["pattern_size"] == (8 if extra else None)
+        assert (inputs[key]["patterns"]["n_patterns"], inputs[key]["patterns"]["side"]) == (
+            len(pats), 8)
+        for what in ("patterns", "code"):
+            assert inputs[key][what]["sha256"] == inputs["npy"][what]["sha256"], (key, what)
+    assert inputs["npy"]["code"]["bits"] == code.size
     # the API alike: an array given finer, pattern_size reading it as the patterns
     from spslidar.pipeline.inputs import patterns_in
 
@@ -459,3 +474,64 @@ def test_readers_return_arrays_unchecked(tmp_path):
     assert list(read_code_file(tmp_path / "c.txt")) == [1, 2, 1]
     with pytest.raises(ConfigError, match="must hold 0/1 bits"):
         load_code(tmp_path / "c.txt")
+
+
+def test_inputs_record_tells_patterns_and_codes_apart(tmp_path):
+    """The record's hashes differ where the patterns or the code do (one mirror, one bit),
+    and a code family given by name is recorded as such, its bits hashed as a file's."""
+    from argparse import Namespace
+
+    from spslidar.cli_measured import _code
+    from spslidar.codes import CODES
+    from spslidar.pipeline.inputs import input_record
+
+    pats = _pats().reshape(6, -1)
+    code = np.array([0, 1, 1, 0, 1, 0, 0], np.uint8)
+    base = input_record(tmp_path / "p.npy", pats, None, code, code)
+    assert base["patterns"]["file"] == str(tmp_path / "p.npy")
+    assert base["code"]["file"] is None  # (an array)
+    other = pats.copy()
+    other[2, 5] = 1 - other[2, 5]
+    assert input_record(None, other, None, code, code)["patterns"]["sha256"] != \
+        base["patterns"]["sha256"]
+    assert input_record(None, pats, None, code, code ^ 1)["code"]["sha256"] != \
+        base["code"]["sha256"]
+    assert input_record(None, pats, None, code, code)["patterns"]["sha256"] == \
+        base["patterns"]["sha256"]
+    bits, family = _code(Namespace(code="mseq", code_length=31, code_index=None))
+    assert family == {"name": "mseq", "length": 31,
+                      "index": CODES.get("mseq").defaults.get("index", 0)}
+    assert bits.size == 31
+    np.save(tmp_path / "c.npy", code)
+    assert _code(Namespace(code=str(tmp_path / "c.npy"), code_length=None,
+                           code_index=None)) == (str(tmp_path / "c.npy"), None)
+    np.savez(tmp_path / "c.npz", bits=code)
+    given = f"{tmp_path / 'c.npz'}:bits"
+    assert _code(Namespace(code=given, code_length=None, code_index=None)) == (given, None)
+
+
+@pytest.mark.parametrize("levels", ["binary", "grey", "sixteen"])
+def test_integer_arrays_read_alike_in_every_file(tmp_path, levels):
+    """An integer array is stored levels, read as an image's in a .npy, an .npz, a .mat and
+    in Python alike (a .mat of uint8 0/255 was read as 0/1 while the same .npy was refused
+    with "divide by 255": the audit of stop 66)."""
+    from spslidar.pipeline.inputs import check_patterns
+
+    pats = _pats()
+    if levels == "binary":
+        arr, want = (pats * 255).astype(np.uint8), pats
+    elif levels == "grey":
+        arr = np.random.default_rng(5).integers(0, 256, pats.shape).astype(np.uint8)
+        want = arr / 255.0
+    else:
+        arr = np.random.default_rng(6).integers(0, 65536, pats.shape).astype(np.uint16)
+        want = arr / 65535.0
+    np.save(tmp_path / "p.npy", arr)
+    np.savez(tmp_path / "p.npz", P=arr)
+    sio.savemat(tmp_path / "p.mat", {"P": np.moveaxis(arr, 0, -1)})
+    got = {f: load_patterns(tmp_path / f) for f in ("p.npy", "p.npz", "p.mat")}
+    got["python"] = check_patterns(arr)
+    for key, value in got.items():
+        # (float32 states: levels over 65535 kept to float32's 6e-8 relative step)
+        np.testing.assert_allclose(value, want.reshape(len(pats), -1), rtol=1e-6, atol=0,
+                                   err_msg=key)

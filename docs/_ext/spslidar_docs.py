@@ -401,6 +401,14 @@ METRICS: dict[str, str] = {
            "than at the first, and ``timing_drift_span_bins``, how far apart the eight "
            "groups of patterns read (null with fewer than 64 patterns or no return to "
            "time), and ``code_periods_per_sync`` (a sync divider folded).",
+    "inputs": "``reconstruct`` only: what the patterns and the code were read from: "
+              "``patterns`` (``file`` as given, null for an array; ``pattern_size``, "
+              "``--pattern-size``; ``n_patterns``, ``side``) and ``code`` (``file``; "
+              "``family``, the name, length and index of a named code family such as "
+              "``mseq``; ``bits``), each with the ``sha256`` of what was read (the patterns "
+              "as float32 rows, the code one byte a bit), the same whatever the file's "
+              "format, so that two results can be told to share their patterns and code. "
+              "``CAL.json`` holds the same record as ``measured_from.inputs``.",
     "calibration": "``reconstruct`` only: the calibration applied (``--calibration``: its file "
                    "and SHA-256, delay, lag shift and fraction, IRF width, the filter's "
                    "``spread``, the factor on the default ``lam_scale``, how the depths were read "

@@ -88,6 +88,25 @@ def _detector_args(args) -> dict:
     return {k: getattr(args, k) for k in DEAD_TIME_KEYS}
 
 
+def _code(args) -> tuple:
+    """``--code`` as the library takes it: a file's path (read there, and named in
+    ``metrics.json`` / ``CAL.json``), else a family's bits; and the family named, or None.
+    The options are checked here either way (``--code-index`` with a file is refused)."""
+    from pathlib import Path
+
+    from .codes import CODES
+    from .pipeline.inputs import load_code
+
+    bits = load_code(args.code, args.code_length, args.code_index)
+    name = str(args.code)
+    if Path(name).exists() or name.lower() not in {n.lower() for n in CODES.names()}:
+        return args.code, None  # (a file, FILE.npz:NAME among them, as load_code reads it)
+    name = CODES.canonical(name)
+    index = (CODES.get(name).defaults.get("index", 0) if args.code_index is None
+             else int(args.code_index))
+    return bits, {"name": name, "length": int(args.code_length), "index": index}
+
+
 def add_reconstruct_parser(sub) -> None:
     """``spslidar reconstruct``: a measured T3 PTU acquisition -> depth map."""
     from .cli_common import (
@@ -153,7 +172,7 @@ def cmd_reconstruct(args) -> int:
     """Run ``spslidar reconstruct``; return the exit status."""
     from .cli_common import _WRITTEN, _written, say_warnings
     from .outdir import check_output
-    from .pipeline.real import load_code, reconstruct_ptu
+    from .pipeline.real import reconstruct_ptu
 
     check_output(args.out, args.overwrite)  # refuse before any work
     from .pipeline.measurement import processing_keys
@@ -161,8 +180,8 @@ def cmd_reconstruct(args) -> int:
     # (with the options the solvers and estimators declare: a plugin's had no flag)
     processing = {k: getattr(args, k) for k in processing_keys() if hasattr(args, k)}
     ptu = args.ptu[0] if len(args.ptu) == 1 else args.ptu
-    result = reconstruct_ptu(ptu, args.patterns,
-                             load_code(args.code, args.code_length, args.code_index), args.bit_rate,
+    code, family = _code(args)
+    result = reconstruct_ptu(ptu, args.patterns, code, args.bit_rate,
                              tuple(args.range_gate), marker=args.marker, channel=args.channel,
                              allow_binning=args.allow_binning, truth=args.truth,
                              calibration=args.calibration, marker_edge=args.marker_edge,
@@ -170,6 +189,7 @@ def cmd_reconstruct(args) -> int:
                              sync_divider=args.sync_divider, frame=args.frame,
                              pattern_size=args.pattern_size, **_detector_args(args),
                              **processing)
+    result.metrics["inputs"]["code"]["family"] = family
     say_warnings(result.warnings)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
                       fov_deg=args.fov, option="--out", replace="--overwrite")
@@ -227,7 +247,6 @@ def cmd_calibrate(args) -> int:
     from .cli_common import _WRITTEN
     from .pipeline.calibration import calibrate_ptu
     from .pipeline.calibration_file import check_calibration_out, write_calibration
-    from .pipeline.real import load_code
 
     check_calibration_out(args.out, args.overwrite)  # refuse before any work
     if len(args.ptu) > 1:  # (a repeated --ptu kept the last alone, without a word)
@@ -235,15 +254,15 @@ def cmd_calibrate(args) -> int:
 
         raise ConfigError(f"calibrate reads one PTU file, got {len(args.ptu)} (--ptu given "
                           f"more than once?)")
-    cal = calibrate_ptu(args.ptu[0], args.patterns,
-                        load_code(args.code, args.code_length, args.code_index),
-                        args.bit_rate, args.distance,
+    code, family = _code(args)
+    cal = calibrate_ptu(args.ptu[0], args.patterns, code, args.bit_rate, args.distance,
                         marker=args.marker, channel=args.channel,
                         allow_binning=args.allow_binning, target=args.target,
                         fov_deg=args.fov, marker_edge=args.marker_edge,
                         settle=args.settle, repeats=args.repeats,
                         sync_divider=args.sync_divider, pattern_size=args.pattern_size,
                         **_detector_args(args))
+    cal["measured_from"]["inputs"]["code"]["family"] = family
     path = write_calibration(cal, args.out, args.overwrite)
     _WRITTEN.append(str(path))
     period_ns = cal["code_length"] / args.bit_rate * 1e9

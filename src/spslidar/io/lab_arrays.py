@@ -27,7 +27,8 @@ Conventions (the ones a file of that kind carries):
   ``P(:)'`` (``N^2 x M`` is taken where only its first axis is a square; where both are,
   ``--pattern-size N`` says which holds the pixels, and a square ``N^2 x N^2`` basis is
   refused, its rows and columns alike possible). Integer arrays
-  (``imread``'s uint8) are read as images are. Where the file holds several arrays,
+  (``imread``'s uint8) are read as images are, as they are in every format and in Python
+  (:func:`~spslidar.pipeline.inputs.check_patterns`). Where the file holds several arrays,
   ``FILE.mat:NAME`` names one; a struct or cell is named, not opened.
 * **A code** as text (``.txt``, ``.csv``, ``.dat``, ``.tsv``; UTF-8 or UTF-16): the bits as
   characters ``0110...`` (whitespace, commas and line breaks between them or not), or
@@ -258,7 +259,8 @@ def read_patterns_file(path: str | os.PathLike, size: int | None = None) -> np.n
         memory_check(float(np.prod(shape)), "--patterns", p)
         arr = _mat_patterns(_load_mat(p, key, "--patterns"), p, key, size)
         if arr.ndim == 3 and arr.dtype != bool and np.issubdtype(arr.dtype, np.integer):
-            arr = to_states(list(arr), f"{p}:{key}")  # (imread's uint8: levels as images)
+            # (imread's uint8: levels as images)
+            arr = to_states(list(arr), f"--patterns {p}:{key}")
     elif suffix == ".npz":
         arrays = _npz_arrays(p, "--patterns")
         arr = np.asarray(_pick(arrays, name, p, "--patterns", _pattern_shape)[1])

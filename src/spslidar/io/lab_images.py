@@ -219,7 +219,8 @@ def _full_scale(dtype: np.dtype) -> float:
 
 def to_states(images: list[np.ndarray], where: str) -> np.ndarray:
     """Stored levels -> mirror states: binary images as 0/1 whatever their depth, grey levels
-    over their type's full scale, floats as they are (checked later)."""
+    over their type's full scale, floats as they are (checked later); ``where`` names them
+    in a warning (``--patterns FILE``)."""
     levels = [_binary_level(img) for img in images]
     if all(lv is not None for lv in levels):
         stack = np.stack([img != 0 for img in images]).astype(np.float64)
@@ -230,7 +231,7 @@ def to_states(images: list[np.ndarray], where: str) -> np.ndarray:
         seen = max(kinds.values(), key=len, default=set())
         if len(seen) > 1:
             seen = sorted(seen)
-            warnings.warn(f"--patterns {where}: the images are binary at different levels "
+            warnings.warn(f"{where}: the images are binary at different levels "
                           f"({', '.join(map(str, seen[:4]))}{' ...' if len(seen) > 4 else ''})"
                           f": each is read as off and on", stacklevel=4)
         return stack
@@ -244,7 +245,7 @@ def to_states(images: list[np.ndarray], where: str) -> np.ndarray:
         else:
             out[i] = img
     if sixteen and max(sixteen) <= 4095:
-        warnings.warn(f"--patterns {where}: 16-bit grey levels up to {max(sixteen)}, read over "
+        warnings.warn(f"{where}: 16-bit grey levels up to {max(sixteen)}, read over "
                       f"65535 (levels of 12 bits or fewer stored in 16? the depths are the "
                       f"same; the reflectivity reads {65535 // 4095} or more times low)",
                       stacklevel=4)
@@ -311,7 +312,7 @@ def folder_patterns(folder: Path, size: int | None = None) -> np.ndarray:
                          "" if size else ": images at the DMD's resolution? --pattern-size N "
                                          "reads each as N x N blocks")
         images.append(img if size is None else block_reduce(img, size, f.name))
-    return _sized(to_states(images, str(folder)), size, folder)
+    return _sized(to_states(images, f"--patterns {folder}"), size, folder)
 
 
 def tiff_patterns(p: Path, size: int | None = None) -> np.ndarray:
@@ -339,7 +340,7 @@ def tiff_patterns(p: Path, size: int | None = None) -> np.ndarray:
     if len(images) == 1:
         raise ConfigError(f"--patterns {p} is a TIFF of one page: give one page per pattern "
                           f"(a multi-page TIFF) or a folder of images")
-    return _sized(to_states(images, str(p)), size, p)
+    return _sized(to_states(images, f"--patterns {p}"), size, p)
 
 
 def _sized(stack: np.ndarray, size: int | None, where: Path) -> np.ndarray:

@@ -424,8 +424,8 @@ def fwhm_bins(values: np.ndarray) -> float:
 
 
 def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLike,
-                  code: np.ndarray, bit_rate: float, distance: float, *, marker: int = 1,
-                  channel: int | None = None, pulse_width: float = 0.5,
+                  code: np.ndarray | str | os.PathLike, bit_rate: float, distance: float, *,
+                  marker: int = 1, channel: int | None = None, pulse_width: float = 0.5,
                   allow_binning: bool = False, target: str = "auto",
                   fov_deg: float | None = None, marker_edge: str = "start",
                   settle: float = 0.0, dead_time: float | None = None,
@@ -436,8 +436,9 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
     """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target
     (``patterns`` an array or the file or folder that holds them, as
     :func:`~spslidar.pipeline.real.load_patterns` reads it, ``pattern_size`` as
-    :func:`~spslidar.pipeline.real.reconstruct_ptu`'s), with what it was measured from
-    (file, hash, photons, patterns, bit rate, code);
+    :func:`~spslidar.pipeline.real.reconstruct_ptu`'s; ``code`` its bits or the file that
+    holds them), with what it was measured from (file, hash, photons, patterns, bit rate,
+    code; ``measured_from.inputs``: :func:`~spslidar.pipeline.inputs.input_record`);
     ``allow_binning``, ``marker_edge``, ``settle``, ``repeats``, ``sync_divider`` and the
     detector's ``dead_time`` and
     afterpulsing (each block's histogram corrected for pile-up before the response is read:
@@ -465,8 +466,8 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
         read_blocks,
     )
     from .deadtime import dead_time_model
+    from .inputs import code_in, input_record
     from .real import (
-        check_code,
         check_ptu_path,
         check_real_inputs,
         patterns_in,
@@ -476,9 +477,11 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
         raise ConfigError("calibrate reads one PTU file: a calibration is one acquisition of "
                           "the flat target")
     check_ptu_path(ptu)
+    patterns_given, code_given = patterns, code
     patterns = patterns_in(patterns, pattern_size, distinct=False)
     repeats = check_repeats(repeats)
-    code = check_code(code, None, "code")
+    code = code_in(code)
+    inputs = input_record(patterns_given, patterns, pattern_size, code_given, code)
     check_real_inputs(bit_rate, (0.0, 1.0), int(patterns.shape[1]), int(patterns.shape[0]),
                       int(code.size), repeats)
     shown, patterns = patterns, block_patterns(patterns, repeats)
@@ -558,7 +561,8 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
                               # and a calibration applied to another went unsaid, an audit)
                               "channel": None if channel is None else channels_read(data,
                                                                                     channel),
-                              "channels": channels_read(data, channel)}}
+                              "channels": channels_read(data, channel),
+                              "inputs": inputs}}
 
 
 def _check_target(target: Any, fov_deg: Any) -> float | None:

@@ -21,7 +21,7 @@ from ..constants import MAX_DEPTH_M
 from ..errors import ConfigError
 
 __all__ = ["check_code", "check_gate", "check_pattern_size", "check_patterns", "check_ptu_path",
-           "load_code", "load_patterns", "patterns_in"]
+           "code_in", "input_record", "load_code", "load_patterns", "patterns_in"]
 
 
 def load_patterns(path: str | os.PathLike, distinct: bool = True,
@@ -51,6 +51,39 @@ def patterns_in(patterns: Any, size: Any = None, distinct: bool = True) -> np.nd
     return check_patterns(patterns, distinct, "patterns")
 
 
+def code_in(code: Any) -> np.ndarray:
+    """The code a caller gives: a file's path read by :func:`load_code`, or an array checked
+    by :func:`check_code`."""
+    if isinstance(code, (str, os.PathLike)):
+        return load_code(code)
+    return check_code(code, None, "code")
+
+
+def input_record(patterns_given: Any, patterns: np.ndarray, pattern_size: int | None,
+                 code_given: Any, code: np.ndarray) -> dict[str, Any]:
+    """What a measured acquisition's patterns and code were read from, for ``metrics.json``
+    (``inputs``) and ``CAL.json`` (``measured_from.inputs``): each file as given (None for an
+    array), ``--pattern-size``, and the SHA-256 of what was read, the patterns as float32
+    ``(M, N*N)`` rows and the code as one byte a bit, so two runs can be told to have used
+    the same patterns and code whatever the files' formats (a folder of PNGs and its
+    ``.npy`` hash alike)."""
+    import hashlib
+
+    from .calibration_file import code_sha256
+
+    def given(value: Any) -> str | None:
+        return os.fspath(value) if isinstance(value, (str, os.PathLike)) else None
+
+    rows = np.ascontiguousarray(patterns, dtype=np.float32)
+    return {"patterns": {"file": given(patterns_given),
+                         "pattern_size": check_pattern_size(pattern_size),
+                         "n_patterns": int(rows.shape[0]),
+                         "side": int(round(np.sqrt(rows.shape[1]))),
+                         "sha256": hashlib.sha256(rows.tobytes()).hexdigest()},
+            "code": {"file": given(code_given), "family": None, "bits": int(np.size(code)),
+                     "sha256": code_sha256(code)}}
+
+
 def check_pattern_size(size: Any) -> int | None:
     """``--pattern-size`` as a whole number of 4 or more, or None; one line otherwise."""
     if size is None:
@@ -66,9 +99,11 @@ def check_pattern_size(size: Any) -> int | None:
 
 
 def check_patterns(patterns: Any, distinct: bool = True, what: str = "patterns") -> np.ndarray:
-    """Mirror states shown, ``(M, N, N)`` or ``(M, N*N)``, as float32 ``(M, N*N)``; refused in
-    one line (:class:`ConfigError`) where they cannot be (fewer than 2 patterns, fewer than
-    4 x 4 mirrors, not square, not real numbers in [0, 1]) or cannot form an image: every
+    """Mirror states shown, ``(M, N, N)`` or ``(M, N*N)``, as float32 ``(M, N*N)`` (integers
+    are stored levels, read as images are: :func:`spslidar.io.lab_images.to_states`, so
+    uint8 0/255 is 0/1 and 8-bit grey is divided by 255); refused in one line
+    (:class:`ConfigError`) where they cannot be (fewer than 2 patterns, fewer than 4 x 4
+    mirrors, not square, not real numbers in [0, 1]) or cannot form an image: every
     mirror off, or (with ``distinct``, a scene's reconstruction) M copies of one pattern. A
     calibration may show one pattern throughout (``distinct=False``)."""
     arr = _as_array(patterns, what)
@@ -80,6 +115,13 @@ def check_patterns(patterns: Any, distinct: bool = True, what: str = "patterns")
         raise ConfigError(f"{what} must be an (M, N, N) array (or (M, N*N)) with M >= 2 "
                           f"patterns of N x N >= 4 x 4 mirrors, got shape {arr.shape}")
     _real_numbers(arr, what)
+    if np.issubdtype(arr.dtype, np.integer):
+        # stored levels, read as an image's wherever they come from (a .mat of imread's
+        # uint8 was, while the same array as a .npy or in Python was refused: an audit):
+        # binary as 0/1 at any level, 8- and 16-bit grey over their full scale
+        from ..io.lab_images import to_states
+
+        arr = to_states(list(arr), what)
     arr = np.asarray(arr, dtype=np.float64)
     if not np.all(np.isfinite(arr)):
         bad = int(np.count_nonzero(~np.isfinite(arr)))

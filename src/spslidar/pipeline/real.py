@@ -47,6 +47,8 @@ from .inputs import (  # noqa: E402
     check_gate,
     check_patterns,
     check_ptu_path,
+    code_in,
+    input_record,
     load_code,
     load_patterns,
     patterns_in,
@@ -172,7 +174,7 @@ def calibrated_lam_scale(solver: str, spread: float) -> float:
 
 @keeping_warnings
 def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLike,
-                    code: np.ndarray,
+                    code: np.ndarray | str | os.PathLike,
                     bit_rate: float, range_gate: tuple[float, float], *, marker: int = 1,
                     channel: int | None = None,
                     truth: np.ndarray | str | os.PathLike | None = None,
@@ -197,8 +199,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     patterns : ndarray, shape (M, Q), or path
         The mirror states shown, one row per marker-delimited block, or the file (or folder
         of images) that holds them, read by :func:`load_patterns`.
-    code : ndarray, shape (L,)
-        Unipolar code bits of one period (sets the histogram length and the matched filter).
+    code : ndarray, shape (L,), or path
+        Unipolar code bits of one period (sets the histogram length and the matched filter),
+        or the file that holds them, read by :func:`load_code`.
     bit_rate : float
         Bits (TDC bins) per second; the file's resolution and sync period must agree with it.
     range_gate : (float, float)
@@ -256,7 +259,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     -------
     Result
         As :func:`spslidar.pipeline.run`, with ``metrics['ptu']`` (counts per pattern, the
-        background estimate, the file's bookkeeping).
+        background estimate, the file's bookkeeping) and ``metrics['inputs']`` (the patterns'
+        and code's files, ``pattern_size`` and the SHA-256 of what was read:
+        :func:`~spslidar.pipeline.inputs.input_record`).
 
     Notes
     -----
@@ -278,10 +283,12 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     files = check_ptu_path(ptu)
     ptu = files[0] if len(files) == 1 else files
     # (a file's reader warns, as of images read at their patterns' size: kept in metrics)
+    patterns_given, code_given = patterns, code
     patterns = patterns_in(patterns, pattern_size, distinct=True)
     repeats = check_repeats(repeats)
     frame = check_frame(frame, repeats * len(files))
-    code = check_code(code, None, "code")
+    code = code_in(code)
+    inputs = input_record(patterns_given, patterns, pattern_size, code_given, code)
     range_gate = check_gate(range_gate)
     check_processing_keys(processing, "reconstruct_ptu()",
                           f"reconstruct_ptu() takes processing keys only "
@@ -454,6 +461,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         "timing_drift_se_bins": None if solved.drift is None else solved.drift.se,
         "timing_drift_span_bins": None if solved.drift is None else solved.drift.span,
         "record_type": data.header.get("record_type"), "truth_file": truth_file}
+    result.metrics["inputs"] = inputs
     result.metrics["calibration"] = None if cal is None else {
         "file": cal.get("file"), "sha256": cal.get("file_sha256"), "delay_s": cal["delay_s"],
         "lag_shift": cal["lag_shift"], "lag_fraction": frac, "spread": spread,
