@@ -308,3 +308,20 @@ def test_calibrate_records_the_dead_time_and_reconstruct_compares(gmapd_file, ca
                         calibration=cal, dead_time=50e-9)
     assert any("times the calibration's" in w and "timing walks" in w for w in r.warnings)
 
+
+
+def test_gap_bins_are_the_search_over_the_edges():
+    """The reader's gap histogram bins a gap by its float's bits: exactly
+    ``searchsorted(GAP_EDGES_S, d, side="right")``, on every edge, just below one, at 0,
+    below 0 and beyond both ends."""
+    from spslidar.io.ptu_blocks import GAP_EDGES_S, gap_bins
+
+    rng = np.random.default_rng(11)
+    d = np.concatenate([rng.exponential(1e-6, 100_000), 10 ** rng.uniform(-12, 0, 100_000),
+                        GAP_EDGES_S, np.nextafter(GAP_EDGES_S, 0), np.nextafter(GAP_EDGES_S, 1),
+                        [0.0, -0.0, -1e-12, 5e-324, 1e-300, 1.0, 3e8]])
+    np.testing.assert_array_equal(gap_bins(d), np.searchsorted(GAP_EDGES_S, d, side="right"))
+    # 1/64 octave apart, from 58 ps to 1.95 ms: the dead times a detector may be given
+    step = np.diff(np.log2(GAP_EDGES_S))
+    assert step.max() < 1.6 / 64 and step.min() > 0.7 / 64
+    assert GAP_EDGES_S[0] < 1e-10 and GAP_EDGES_S[-1] > 1e-3

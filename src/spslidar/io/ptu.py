@@ -113,7 +113,7 @@ class PtuAcquisition:
         channel: ``{"shortest_s": float, "n": int, "counts": ndarray}``, ``counts`` a
         histogram of the gaps over :data:`~spslidar.io.ptu_blocks.GAP_EDGES_S`
         (``counts[i]`` holds the gaps from edge ``i - 1`` to edge ``i``; the first, those
-        under 0.1 ns; the last, those over 1 ms): a detector's dead time is the shortest gap
+        under 58 ps; the last, those over 1.95 ms): a detector's dead time is the shortest gap
         it lets through.
     periods_per_sync : int
         Code periods per sync record: the header's sync divider where the file's sync period

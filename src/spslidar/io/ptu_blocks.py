@@ -10,19 +10,38 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["BACK_SYNCS", "BOUNCE_TIME_S", "GAP_EDGES_S", "block_list", "twice_as_long"]
+__all__ = ["BACK_SYNCS", "BOUNCE_TIME_S", "GAP_EDGES_S", "block_list", "gap_bins",
+           "twice_as_long"]
 
 
-#: the histogram of the gaps between a channel's detections: edges spaced 1.2 % apart from
-#: 0.1 ns to 1 ms, the dead times a detector may be given (a linear 0.5 ns grid stopped at
-#: 4 us, and longer dead times went unchecked: a review)
-GAP_EDGES_S = np.logspace(-10, -3, 1401)
+#: the bits of a float64 below its first 6 mantissa bits: the edges below have them 0
+_GAP_SHIFT = 46
+#: the histogram of the gaps between a channel's detections: edges 1/64 of an octave apart
+#: (0.8-1.6 %) from 2^-34 s (58 ps) to 2^-9 s (1.95 ms), the dead times a detector may be
+#: given (a linear 0.5 ns grid stopped at 4 us, and longer dead times went unchecked: a
+#: review). Each edge is a float64 whose last 46 mantissa bits are 0, so a gap's bin is its
+#: bits shifted (:func:`gap_bins`); 1 401 edges spaced by ``np.logspace`` took
+#: ``searchsorted`` a third of a 2e7-photon file's reading
+GAP_EDGES_S = (2.0 ** np.arange(-34, -9)[:, None] * (1 + np.arange(64) / 64)).ravel()
+GAP_EDGES_S = np.append(GAP_EDGES_S, 2.0 ** -9)
+_GAP_KEY0 = int(GAP_EDGES_S[:1].view(np.int64)[0] >> _GAP_SHIFT)
 #: a marker repeated within this time of its pattern's is a bounce (a DMD trigger's ringing;
 #: :mod:`spslidar.pipeline.blocks` merges such blocks, where the time is at most a tenth of
 #: the typical dwell: a short code's periods are tens of nanoseconds, and a bounce three
 #: 255 ns periods late was taken as a pattern and the last pattern dropped, an outside audit
 #: of 2026-11-30)
 BOUNCE_TIME_S = 10e-6
+
+
+def gap_bins(gaps: np.ndarray) -> np.ndarray:
+    """How many of :data:`GAP_EDGES_S` each gap (seconds, float64) reaches,
+    ``np.searchsorted(GAP_EDGES_S, gaps, side="right")`` exactly, from the float's bits: a
+    positive float64's bits, as an integer, grow with it, and the edges' differ by one in
+    the bits above the last 46 (written here: 5-16 times faster than the search on
+    5e6 gaps, 2026-11-30). A gap of 0 or below reaches none."""
+    k = np.ascontiguousarray(gaps, dtype=np.float64).view(np.int64) >> _GAP_SHIFT
+    k -= _GAP_KEY0 - 1
+    return np.clip(k, 0, GAP_EDGES_S.size, out=k)
 
 
 class _Gaps:
@@ -40,9 +59,11 @@ class _Gaps:
         if not self.period > 0:
             return
         t = syncs.astype(np.float64) * self.period + dtime.astype(np.float64) * self.res
-        for c in np.unique(ch):
-            c = int(c)
-            tc = t[ch == c]
+        if not ch.size:
+            return
+        lo, hi = int(ch.min()), int(ch.max())  # (one channel, the common case: no masks)
+        for c in ([lo] if lo == hi else np.unique(ch).tolist()):
+            tc = t if lo == hi else t[ch == c]
             if c in self.last:
                 tc = np.concatenate(([self.last[c]], tc))
             self.last[c] = float(tc[-1])
@@ -51,8 +72,7 @@ class _Gaps:
                 continue
             self.n[c] = self.n.get(c, 0) + d.size
             self.shortest[c] = min(self.shortest.get(c, np.inf), float(d.min()))
-            h = np.bincount(np.searchsorted(GAP_EDGES_S, d, side="right"),
-                            minlength=GAP_EDGES_S.size + 1)
+            h = np.bincount(gap_bins(d), minlength=GAP_EDGES_S.size + 1)
             self.counts[c] = self.counts.get(c, 0) + h
 
     def result(self) -> dict[int, Any]:

@@ -205,7 +205,7 @@ def _check_gaps(gaps: dict, dead: float) -> None:
                           f"--channel at a time")
     for c in used:
         g = gaps[c]
-        # (the bins wholly below 97 % of the dead time: edges 1.2 % apart)
+        # (the bins wholly below 97 % of the dead time: edges 0.8-1.6 % apart)
         below = int(g["counts"][: np.searchsorted(GAP_EDGES_S, GAP_TOLERANCE * dead,
                                                   side="right")].sum())
         if below > GAP_SHARE * g["n"]:
