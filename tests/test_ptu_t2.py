@@ -93,14 +93,15 @@ def _t3_events(path) -> tuple[np.ndarray, ...]:
 
 def _as_t2(t3, path, rectype: int = HH_T2_V2, k: int = 1, start: int = 5, seed: int = 0,
            skip_first_sync: bool = False, syncs: bool = True, extra: float = 0.0,
-           drop: np.ndarray | None = None):
+           drop: np.ndarray | None = None, sync_as_channel: int | None = None):
     """Write the T3 file ``t3``'s events as a T2 file at ``path`` with tags of ``BW / k``: a
     sync at every period's start ``start + n * L * k``, each marker at its period's sync and
     each photon at ``dtime * k`` after it plus a random part of the bin. Returns the
     absolute tags of the syncs, photons and markers written, and their kinds. ``extra``
     lengthens the sync period by that many tags (a code clock off the tagger's: the syncs
     fall on ``round(start + n * (L * k + extra))``); the syncs of the periods ``drop`` are
-    not written."""
+    not written; ``sync_as_channel``: the syncs written as photons on that channel (the sync
+    on a detector input)."""
     nsync, dtime, channel, marker = _t3_events(t3)
     rng = np.random.default_rng(seed)
     period = L * k
@@ -118,6 +119,9 @@ def _as_t2(t3, path, rectype: int = HH_T2_V2, k: int = 1, start: int = 5, seed: 
     t, kind, value = (np.concatenate(x) for x in (times, kinds, values))
     order = np.lexsort((np.arange(t.size), kind, t))  # (stable within a kind, as written)
     t, kind, value = t[order], kind[order], value[order]
+    if sync_as_channel is not None:
+        value = np.where(kind == _SYNC, sync_as_channel, value)
+        kind = np.where(kind == _SYNC, _PHOT, kind)
     rec = _encode(rectype, t, kind, value)
     path.write_bytes(_header(rectype, rec.size, BW / k, BW / k) + rec.tobytes())
     return t, kind, value
@@ -325,6 +329,39 @@ def test_reconstruct_and_calibrate_read_t2_as_t3(wall, capsys):
         assert cal["t2.ptu"][key] == cal["scan.ptu"][key], key
 
 
+def test_reconstruct_with_the_sync_on_a_detector_input(wall, capsys):
+    """The same events with the sync recorded on detector channel 2: reconstruct and
+    calibrate with --sync-channel 2 give the T3 file's depth map and calibration, and
+    metrics.json names the channel; without it, one line and nothing written."""
+    import json
+
+    d = wall
+    _as_t2(d / "scan.ptu", d / "c2.ptu", HH_T2_V2, k=100, start=2**25 - 3000,
+           sync_as_channel=2)
+    assert _reconstruct(d, "scan.ptu", "s3") == 0
+    assert _reconstruct(d, "c2.ptu", "s2", "--allow-binning", "--sync-channel", "2") == 0
+    np.testing.assert_array_equal(np.load(d / "s2" / "depth.npy"), np.load(d / "s3" / "depth.npy"))
+    metrics = json.loads((d / "s2" / "metrics.json").read_text())
+    assert metrics["ptu"]["sync_channel"] == 2
+    assert json.loads((d / "s3" / "metrics.json").read_text())["ptu"]["sync_channel"] is None
+    capsys.readouterr()
+    assert _reconstruct(d, "c2.ptu", "s2b", "--allow-binning") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    # (33 syncs, one a pattern under run's sync divider: too few to name the channel, which
+    # the refusal does from 64 periodic events, test_the_sync_on_a_detector_input_read_...)
+    assert len(err) == 1 and "with no sync record" in err[0], err
+    assert not (d / "s2b").exists()
+    cal = []
+    for name, extra in (("scan.ptu", []), ("c2.ptu", ["--allow-binning", "--sync-channel", "2"])):
+        out = d / f"calc_{name}.json"
+        assert main(["calibrate", "--ptu", str(d / name), "--patterns",
+                     str(d / "scan_patterns.npy"), "--code", str(d / "scan_code.npy"),
+                     "--bit-rate", "10e9", "--distance", "1.2", "--out", str(out), *extra]) == 0
+        cal.append(json.loads(out.read_text()))
+    for key in ("delay_s", "lag_shift", "irf_offsets", "irf_values", "irf_fwhm_bins"):
+        assert cal[1][key] == cal[0][key], key
+
+
 def test_photons_after_a_missing_sync_are_said(wall):
     """A T2 file whose sync records miss a quarter of the periods (a sync input's trigger
     level): those periods' photons come past the code period, are left out, and the warning
@@ -447,9 +484,61 @@ def test_a_sync_recorded_on_a_detector_input_is_named(tmp_path, capsys):
     and the converter that takes it as the sync (the data hold it: an outside audit)."""
     _syncs_file(tmp_path / "s.ptu", np.arange(3000) * L + 50, sync_as_channel=3)
     with pytest.raises(ConfigError, match=r"with no sync record.*its channel 3 holds periodic "
-                                          r"events \(every 1\.27e-08 s\).*sync_channel") as info:
+                                          r"events \(every 1\.27e-08 s\).*--sync-channel 3 "
+                                          r"reads them as the sync") as info:
         read_ptu_histograms(tmp_path / "s.ptu", L, bin_width=BW)
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("rectype", [HH_T2_V2, HH_T2_V1, GENERIC_T2])
+def test_the_sync_on_a_detector_input_read_with_sync_channel(t3_file, tmp_path, rectype):
+    """The code generator's sync recorded on detector channel 5 (no sync records), read with
+    ``sync_channel=5``, is its T3 file exactly: the same histograms, dwells and photons
+    (channel 5's events are the syncs, not photons), in any chunking; the file's own sync
+    records, where it has them too, are not read."""
+    ref = read_ptu_histograms(t3_file, L, bin_width=BW)
+    t2 = tmp_path / "c5.ptu"
+    _as_t2(t3_file, t2, rectype, k=4, start=1000, sync_as_channel=5)
+    for chunk in (2**20, 777):
+        _same(read_ptu_histograms(t2, L, bin_width=BW, allow_binning=True, sync_channel=5,
+                                  chunk_records=chunk), ref)
+    with pytest.raises(ConfigError, match="its channel 5 holds periodic events"):
+        read_ptu_histograms(t2, L, bin_width=BW, allow_binning=True)
+    # sync records too, at another period (an idle input's): channel 5 is the sync
+    both = tmp_path / "both.ptu"
+    t, kind, value = _as_t2(t3_file, both, rectype, k=4, start=1000, sync_as_channel=5)
+    other = np.arange(5, int(t.max()), 3 * L * 4 + 7)
+    tt = np.concatenate([t, other])
+    kk = np.concatenate([kind, np.full(other.size, _SYNC)])
+    vv = np.concatenate([value, np.zeros(other.size, np.int64)])
+    order = np.lexsort((np.arange(tt.size), tt))
+    rec = _encode(rectype, tt[order], kk[order], vv[order])
+    both.write_bytes(_header(rectype, rec.size, BW / 4, BW / 4) + rec.tobytes())
+    _same(read_ptu_histograms(both, L, bin_width=BW, allow_binning=True, sync_channel=5), ref)
+
+
+def test_sync_channel_refusals(t3_file, tmp_path):
+    """--sync-channel on a T3 file, a PicoHarp T2 file, a channel no record holds, one
+    without events, one that is not periodic, or named as --channel too: one line each."""
+    t2 = tmp_path / "c5.ptu"
+    _as_t2(t3_file, t2, HH_T2_V2, sync_as_channel=5)
+    ph = tmp_path / "ph.ptu"
+    _as_t2(t3_file, ph, PH_T2, k=16, start=160)
+    cases = [(t3_file, 5, {}, "holds T3 records .* which count the syncs themselves"),
+             (ph, 1, {}, "PicoHarp T2 file, whose input 0 is read as the sync"),
+             (t2, 64, {}, "--sync-channel 64: HydraHarp2T2 records number detector channels "
+                          "0..63"),
+             (t2, -1, {}, "must be a detector channel number >= 0"),
+             (t2, True, {}, "must be a detector channel number >= 0"),
+             (t2, 7, {}, r"its channel 7 \(--sync-channel\) holds no event.*channels with "
+                         r"events: 0, 5\)"),
+             (t2, 0, {}, "its channel 0, read as the sync \\(--sync-channel\\), are not "
+                         "periodic"),
+             (t2, 5, {"channel": [0, 5]}, "--channel 5 is the --sync-channel")]
+    for path, c, extra, said in cases:
+        with pytest.raises(ConfigError, match=said) as info:
+            read_ptu_histograms(path, L, bin_width=BW, sync_channel=c, **extra)
+        assert "\n" not in str(info.value), said
 
 
 def test_a_photon_before_the_first_sync_in_any_chunking(tmp_path):

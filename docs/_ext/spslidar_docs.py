@@ -400,7 +400,9 @@ METRICS: dict[str, str] = {
            "``timing_drift_se_bins``): how much later the returns arrive at the last pattern "
            "than at the first, and ``timing_drift_span_bins``, how far apart the eight "
            "groups of patterns read (null with fewer than 64 patterns or no return to "
-           "time), and ``code_periods_per_sync`` (a sync divider folded).",
+           "time), ``code_periods_per_sync`` (a sync divider folded) and ``sync_channel`` "
+           "(``--sync-channel``: a T2 file's detector channel read as the sync; null for "
+           "the file's own sync).",
     "inputs": "``reconstruct`` only: what the patterns and the code were read from: "
               "``patterns`` (``file`` as given, null for an array; ``pattern_size``, "
               "``--pattern-size``; ``n_patterns``, ``side``) and ``code`` (``file``; "

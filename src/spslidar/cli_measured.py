@@ -68,6 +68,10 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                    help="code periods per sync record, where the file's header does not say "
                         "(a sync from the code generator every D periods; default: the "
                         "header's HWSync_Divider, or 1)")
+    p.add_argument("--sync-channel", type=int, default=None, metavar="C",
+                   help="a T2 file whose sync went to a detector input: channel C's events "
+                        "(numbered as --channel) are the code's syncs, not photons "
+                        "(HydraHarp, TimeHarp, MultiHarp)")
     p.add_argument("--dead-time", type=float, metavar="S",
                    help="the detector's (and TCSPC's) non-paralysable dead time, seconds: each "
                         "pattern's histogram is corrected for pile-up before the matched "
@@ -186,7 +190,8 @@ def cmd_reconstruct(args) -> int:
                              allow_binning=args.allow_binning, truth=args.truth,
                              calibration=args.calibration, marker_edge=args.marker_edge,
                              settle=args.settle, repeats=args.repeats,
-                             sync_divider=args.sync_divider, frame=args.frame,
+                             sync_divider=args.sync_divider,
+                             sync_channel=args.sync_channel, frame=args.frame,
                              pattern_size=args.pattern_size, **_detector_args(args),
                              **processing)
     result.metrics["inputs"]["code"]["family"] = family
@@ -260,7 +265,8 @@ def cmd_calibrate(args) -> int:
                         allow_binning=args.allow_binning, target=args.target,
                         fov_deg=args.fov, marker_edge=args.marker_edge,
                         settle=args.settle, repeats=args.repeats,
-                        sync_divider=args.sync_divider, pattern_size=args.pattern_size,
+                        sync_divider=args.sync_divider, sync_channel=args.sync_channel,
+                        pattern_size=args.pattern_size,
                         **_detector_args(args))
     cal["measured_from"]["inputs"]["code"]["family"] = family
     path = write_calibration(cal, args.out, args.overwrite)

@@ -48,7 +48,7 @@ from .ptu_format import (
     _positive_int,
     raw_chunks,
 )
-from .ptu_t2 import T2Records, open_t2, t2_overflows
+from .ptu_t2 import T2Records, check_sync_channel, open_t2, t2_overflows
 
 __all__ = ["PtuAcquisition", "ptu_info", "read_ptu_histograms"]
 
@@ -302,6 +302,7 @@ def read_ptu_histograms(
     check_sync_period: bool = True,
     settle_s: float = 0.0,
     sync_divider: int | None = None,
+    sync_channel: int | None = None,
 ) -> PtuAcquisition:
     """Read a T3 PTU file, or a T2 one with sync records, into per-pattern histograms.
 
@@ -405,6 +406,9 @@ def read_ptu_histograms(
         Code periods per sync record where the header does not say (its ``HWSync_Divider``):
         a sync from the code generator's frame output every D periods; given, it replaces
         the header's.
+    sync_channel : int, optional
+        A T2 file whose sync went to a detector input: that channel's events are the syncs
+        (:func:`~spslidar.io.ptu_t2.open_t2`; HydraHarp, TimeHarp, MultiHarp).
 
     Returns
     -------
@@ -464,9 +468,14 @@ def read_ptu_histograms(
     with _open_ptu(path) as f:
         header = _header_summary(f, path)
         family, n_records = _check_t3(f, header, spath)
+        sync_channel = check_sync_channel(sync_channel, family, header["record_type"], spath)
         if family.startswith("t2"):  # (read as T3 from its sync records: f is their reader)
-            f, header = open_t2(f, header, family, n_records, chunk_records, spath)
+            f, header = open_t2(f, header, family, n_records, chunk_records, spath,
+                                sync_channel)
         channels = _channels(channel, family, header["record_type"], spath)
+        if channels is not None and sync_channel in channels:
+            raise ConfigError(f"--channel {sync_channel} is the --sync-channel: its events are "
+                              f"the syncs, not photons")
         res, period = header["resolution_s"], header["sync_period_s"]
         binning, rebin = _check_resolution(res, bin_width, rtol, allow_binning, spath)
         width = res * binning if rebin is None else float(bin_width)

@@ -50,7 +50,10 @@ photons after it are its pattern's), and is given at least the code period of th
 recorded before it (its tag is coarser, and it may come late in the stream).
 
 A T2 file without any sync record is refused in one line: its photons have no code period to
-be read against (record in T3, or record the sync).
+be read against (record in T3, or record the sync), and where one of its detector channels
+holds periodic events, the line names it. **The sync on a detector input** (``--sync-channel
+C``, HydraHarp, TimeHarp and MultiHarp files) is read from that channel's events as from sync
+records: they are the syncs, and the file's own sync records, if any, are not read.
 """
 
 from __future__ import annotations
@@ -63,10 +66,10 @@ import numpy as np
 
 from ..errors import ConfigError
 from .ptu_blocks import BACK_SYNCS
-from .ptu_format import raw_chunks
+from .ptu_format import _FAMILY, raw_chunks
 from .timestamps import SYNC_TOL
 
-__all__ = ["T2_WRAP", "T2Records", "open_t2", "t2_overflows"]
+__all__ = ["T2_WRAP", "T2Records", "check_sync_channel", "open_t2", "t2_overflows"]
 
 #: time tag units per overflow, per layout family (:data:`~spslidar.io.ptu_format._T2_FAMILY`)
 T2_WRAP = {"t2-picoharp": 210698240, "t2-hydraharp1": 33552000, "t2-hydraharp2": 33554432}
@@ -86,9 +89,31 @@ SYNC_OFF_SHARE = 0.05
 _CARRY = BACK_SYNCS + 2
 
 
-def _fields(raw: np.ndarray, family: str) -> tuple[np.ndarray, ...]:
+def check_sync_channel(value: Any, family: str, record_type: str, path: str) -> int | None:
+    """``--sync-channel`` checked against the file: None, or a detector channel its T2
+    records can hold; one line otherwise (a T3 file's records count the syncs themselves)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
+        raise ConfigError(f"--sync-channel must be a detector channel number >= 0, got "
+                          f"{value!r}")
+    if not family.startswith("t2"):
+        raise ConfigError(f"{path!r} holds T3 records ({record_type}), which count the syncs "
+                          f"themselves: --sync-channel is for a T2 file whose sync went to a "
+                          f"detector input")
+    top = _FAMILY[family][2]
+    if value >= top:
+        raise ConfigError(f"--sync-channel {value}: {record_type} records number detector "
+                          f"channels 0..{top - 1}")
+    return int(value)
+
+
+def _fields(raw: np.ndarray, family: str, sync_channel: int | None = None
+            ) -> tuple[np.ndarray, ...]:
     """Per record: kind (:data:`_PHOTON`...), time tag (int64, before the overflows), channel
-    (0-based detector channel of a photon) or marker bits, and the overflows it adds."""
+    (0-based detector channel of a photon) or marker bits, and the overflows it adds; with
+    ``sync_channel`` (not for a PicoHarp), that channel's events are the syncs and the sync
+    records are not."""
     raw = raw.astype(np.uint32, copy=False)
     if family == "t2-picoharp":
         ch = (raw >> 28).astype(np.int64)
@@ -107,6 +132,9 @@ def _fields(raw: np.ndarray, family: str) -> tuple[np.ndarray, ...]:
     ofl = special & (ch == 63)
     kind = np.where(~special, _PHOTON, np.where(ch == 0, _SYNC, np.where(
         (ch >= 1) & (ch <= 15), _MARKER, _OTHER))).astype(np.int8)
+    if sync_channel is not None:  # (the sync on a detector input: --sync-channel)
+        kind[kind == _SYNC] = _OTHER
+        kind[(kind == _PHOTON) & (ch == sync_channel)] = _SYNC
     if family == "t2-hydraharp1":
         n_ofl = ofl.astype(np.int64)
     else:
@@ -122,9 +150,10 @@ def t2_overflows(raw: np.ndarray, family: str) -> int:
     return int(np.count_nonzero((raw >> 25) == 0x7F))
 
 
-def _times(raw: np.ndarray, family: str, base: int) -> tuple[np.ndarray, ...]:
+def _times(raw: np.ndarray, family: str, base: int, sync_channel: int | None = None
+           ) -> tuple[np.ndarray, ...]:
     """(kind, absolute time tags, channel or marker bits, the overflow base after the chunk)."""
-    kind, tag, value, n_ofl = _fields(raw, family)
+    kind, tag, value, n_ofl = _fields(raw, family, sync_channel)
     wraps = np.cumsum(n_ofl) * T2_WRAP[family]
     t = base + wraps + tag
     return kind, t, value, base + (int(wraps[-1]) if wraps.size else 0)
@@ -137,9 +166,10 @@ class _Decoder:
     the overflows and the last sync from chunk to chunk."""
 
     def __init__(self, family: str, period: float, first_sync: int, first_period: int,
-                 path: str):
+                 path: str, sync_channel: int | None = None):
         self.family, self.period, self.path = family, period, path
         self.first_sync, self.first_period = first_sync, first_period
+        self.sync_channel = sync_channel
         self.base = 0  # time tags of the overflows so far
         self.n_syncs = 0  # sync records so far
         self.recent = np.zeros(0, np.int64)  # the last syncs' time tags (at most _CARRY)
@@ -153,7 +183,7 @@ class _Decoder:
                            f"end, or a corrupt file")
 
     def __call__(self, raw: np.ndarray) -> dict[str, np.ndarray]:
-        kind, t, value, self.base = _times(raw, self.family, self.base)
+        kind, t, value, self.base = _times(raw, self.family, self.base, self.sync_channel)
         timed = (kind == _PHOTON) | (kind == _SYNC)  # (markers' tags are coarser: not checked)
         tt = t[timed]
         # (a photon a little earlier than a sync or photon on another input recorded before
@@ -215,9 +245,10 @@ class T2Records:
     one pass over its records."""
 
     def __init__(self, f: Any, family: str, period: float, first_sync: int, first_period: int,
-                 path: str):
+                 path: str, sync_channel: int | None = None):
         self.file, self.family, self.period = f, family, period
         self.first_sync, self.first_period, self.path = first_sync, first_period, path
+        self.sync_channel = sync_channel
 
     @property
     def filehandle(self) -> Any:
@@ -234,7 +265,7 @@ class T2Records:
         raw records in turn; it returns the chunk's photons and markers as T3 events
         (``time``: global sync count, ``dtime``, ``channel``: -1 for markers, ``marker``)."""
         return _Decoder(self.family, self.period, self.first_sync, self.first_period,
-                        self.path)
+                        self.path, self.sync_channel)
 
 
 def _periodic_channel(t: np.ndarray, ch: np.ndarray) -> tuple[int, float] | None:
@@ -257,10 +288,16 @@ def _periodic_channel(t: np.ndarray, ch: np.ndarray) -> tuple[int, float] | None
 
 
 def _no_sync(header: dict[str, Any], path: str, family: str, n: int,
-             probe: tuple[np.ndarray, np.ndarray] | None = None) -> ConfigError:
+             probe: tuple[np.ndarray, np.ndarray] | None = None,
+             sync_channel: int | None = None) -> ConfigError:
     """The one line refusing a T2 file of ``n`` (0 or 1) sync records: what to record, and,
     where ``probe`` (the first photons' tags and channels) holds a channel of periodic events,
-    that channel and the converter that reads it as the sync."""
+    that channel and the option that reads it as the sync."""
+    if sync_channel is not None:
+        return ConfigError(f"{path!r}: its channel {sync_channel} (--sync-channel) holds "
+                           f"{'no event' if n == 0 else 'a single event'}, so no code period "
+                           f"to read the photons' delays from (channels with events: "
+                           f"{', '.join(map(str, np.unique(probe[1]).tolist())) or 'none'})")
     where = ("on its input 0 (channel 0 of its T2 records)" if family == "t2-picoharp" else
              "on its sync input (sync records)")
     said = "no sync record" if n == 0 else "a single sync record"
@@ -270,9 +307,7 @@ def _no_sync(header: dict[str, Any], path: str, family: str, n: int,
         c, every = found
         unit = header.get("time_unit_s") or 0.0
         hint = (f"; its channel {c} holds periodic events (every {every * unit:.6g} s): the "
-                f"sync on a detector input? spslidar.io.write_ptu_from_timestamps(..., "
-                f"sync_channel=...) writes its time tags as a T3 file with that channel as "
-                f"the sync")
+                f"sync on a detector input? --sync-channel {c} reads them as the sync")
     return ConfigError(f"{path!r} holds T2 records ({header['record_type']}) with {said}: "
                        f"absolute time tags, no code period to read the photons' delays from; "
                        f"record the lidar in T3 mode, or record the code generator's sync in "
@@ -280,7 +315,7 @@ def _no_sync(header: dict[str, Any], path: str, family: str, n: int,
 
 
 def open_t2(f: Any, header: dict[str, Any], family: str, n_records: int, chunk_records: int,
-            path: str) -> tuple[T2Records, dict[str, Any]]:
+            path: str, sync_channel: int | None = None) -> tuple[T2Records, dict[str, Any]]:
     """A T2 file's records as the T3 reader reads them, and its header summary with the
     sync period measured from its sync records.
 
@@ -298,6 +333,10 @@ def open_t2(f: Any, header: dict[str, Any], family: str, n_records: int, chunk_r
         Records per chunk read.
     path : str
         The file's path, for messages.
+    sync_channel : int, optional
+        A detector channel (0-based, as ``--channel`` numbers them) whose events are the
+        code's syncs, where the sync went to a detector input (the file's own sync records,
+        if any, are then not read); not for a PicoHarp, whose input 0 is its sync.
 
     Returns
     -------
@@ -317,10 +356,14 @@ def open_t2(f: Any, header: dict[str, Any], family: str, n_records: int, chunk_r
     if not unit > 0:
         raise ConfigError(f"{path!r}: its header gives no time tag unit "
                           f"(MeasDesc_GlobalResolution) for its T2 records")
+    if sync_channel is not None and family == "t2-picoharp":
+        raise ConfigError(f"{path!r} is a PicoHarp T2 file, whose input 0 is read as the sync: "
+                          f"--sync-channel is for HydraHarp, TimeHarp and MultiHarp files "
+                          f"(connect the code generator's sync to input 0)")
     chunk_records = min(chunk_records, max(1, n_records))
     base, syncs, first_event, n_syncs, probe, first_tag = 0, [], None, 0, None, None
     for raw in raw_chunks(f.filehandle, f.record_offset, n_records, chunk_records, path):
-        kind, t, _value, base = _times(raw, family, base)
+        kind, t, _value, base = _times(raw, family, base, sync_channel)
         if probe is None:  # (the first photons: a channel of periodic ones, where no sync)
             photon = kind == _PHOTON
             probe = (t[photon][:200_000], _value[photon][:200_000])
@@ -344,7 +387,7 @@ def open_t2(f: Any, header: dict[str, Any], family: str, n_records: int, chunk_r
             break
     s = np.concatenate(syncs)[: _PERIOD_SYNCS + 1] if syncs else np.zeros(0, np.int64)
     if s.size < 2:
-        raise _no_sync(header, path, family, int(s.size), probe)
+        raise _no_sync(header, path, family, int(s.size), probe, sync_channel)
     gaps = np.diff(s).astype(np.float64)
     median = float(np.median(gaps))
     whole = np.round(gaps / median) if median > 0 else np.zeros_like(gaps)
@@ -355,7 +398,8 @@ def open_t2(f: Any, header: dict[str, Any], family: str, n_records: int, chunk_r
     if off.mean() > SYNC_OFF_SHARE:
         k = int(np.flatnonzero(off)[0])
         what = ("its input 0, read as the sync, " if family == "t2-picoharp" else
-                "its sync records ")
+                f"its channel {sync_channel}, read as the sync (--sync-channel), "
+                if sync_channel is not None else "its sync records ")
         raise ConfigError(f"{path!r}: {what}are not periodic: {int(off.sum())} of the first "
                           f"{gaps.size} intervals are more than {tol * unit:.3g} s off a whole "
                           f"number of periods ({median * unit:.6g} s; the first after sync "
@@ -375,4 +419,5 @@ def open_t2(f: Any, header: dict[str, Any], family: str, n_records: int, chunk_r
         first_period = int(math.ceil((first_sync - first_event) / period - 1e-12))
     header = dict(header, sync_period_s=period * unit, resolution_s=unit,
                   bins_per_period=period, tdc_resolution_s=header.get("resolution_s"))
-    return T2Records(f, family, period, first_sync, first_period, os.fspath(path)), header
+    return (T2Records(f, family, period, first_sync, first_period, os.fspath(path),
+                      sync_channel), header)

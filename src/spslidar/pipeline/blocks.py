@@ -502,7 +502,8 @@ def _lost_notes(data, marker: int, n_bins: int) -> list[str]:
 def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
                 channel: Any = None, allow_binning: bool = False,
                 marker_edge: str = "start", settle: float = 0.0,
-                repeats: int = 1, sync_divider: int | None = None) -> tuple[Any, list[str]]:
+                repeats: int = 1, sync_divider: int | None = None,
+                sync_channel: int | None = None) -> tuple[Any, list[str]]:
     """The ``m`` pattern blocks of a measured T3 file, and what to say about them.
 
     Parameters
@@ -525,6 +526,8 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
         Times the sequence was shown (``m`` is then its rows times this): named in a refusal.
     sync_divider : int, optional
         Code periods per sync record where the header does not say (the reader's).
+    sync_channel : int, optional
+        A T2 file's detector channel whose events are the syncs (the reader's).
 
     Returns
     -------
@@ -548,7 +551,8 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
             return read_ptu_histograms(ptu, n_bins, bin_width=bin_width, marker=marker,
                                        channel=channel, n_patterns=m, extra_blocks=extra,
                                        marker_edge=marker_edge, allow_binning=allow_binning,
-                                       settle_s=seconds, sync_divider=sync_divider)
+                                       settle_s=seconds, sync_divider=sync_divider,
+                                       sync_channel=sync_channel)
         except ConfigError as err:  # ("fewer than the 384 patterns" of 96 rows: say why)
             if repeats > 1 and "marker-delimited blocks" in str(err):
                 raise ConfigError(f"{err} (--repeats {repeats}: {m // repeats} pattern rows "

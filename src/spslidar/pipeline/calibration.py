@@ -431,7 +431,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
                   settle: float = 0.0, dead_time: float | None = None,
                   afterpulse_prob: float = 0.0,
                   afterpulse_delay: float = 0.0, repeats: int = 1,
-                  sync_divider: int | None = None,
+                  sync_divider: int | None = None, sync_channel: int | None = None,
                   pattern_size: int | None = None) -> dict[str, Any]:
     """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target
     (``patterns`` an array or the file or folder that holds them, as
@@ -439,7 +439,8 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
     :func:`~spslidar.pipeline.real.reconstruct_ptu`'s; ``code`` its bits or the file that
     holds them), with what it was measured from (file, hash, photons, patterns, bit rate,
     code; ``measured_from.inputs``: :func:`~spslidar.pipeline.inputs.input_record`);
-    ``allow_binning``, ``marker_edge``, ``settle``, ``repeats``, ``sync_divider`` and the
+    ``allow_binning``, ``marker_edge``, ``settle``, ``repeats``, ``sync_divider``,
+    ``sync_channel`` and the
     detector's ``dead_time`` and
     afterpulsing (each block's histogram corrected for pile-up before the response is read:
     uncorrected, a bright wall's response is read through the detector's dead time; the
@@ -502,7 +503,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
     data, notes = read_blocks(ptu, int(patterns.shape[0]), int(code.size), bin_width=bin_width,
                               marker=marker, channel=channel, allow_binning=allow_binning,
                               marker_edge=marker_edge, settle=settle, repeats=repeats,
-                              sync_divider=sync_divider)
+                              sync_divider=sync_divider, sync_channel=sync_channel)
     data, frozen, note = drop_frozen(data, ptu)
     if frozen:  # (blocks without a dwell: the file's syncs lost)
         patterns = patterns[: patterns.shape[0] - frozen]

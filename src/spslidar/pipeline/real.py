@@ -183,6 +183,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
                     settle: float = 0.0, dead_time: float | None = None,
                     afterpulse_prob: float = 0.0, afterpulse_delay: float = 0.0,
                     repeats: int = 1, sync_divider: int | None = None,
+                    sync_channel: int | None = None,
                     frame: int | None = None, pattern_size: int | None = None,
                     **processing: Any) -> Result:
     """Depth map from a measured T3 PTU acquisition.
@@ -244,6 +245,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         Code periods per sync record, where the file's header does not say (a sync from the
         code generator's frame output every D periods; default: the header's
         ``HWSync_Divider``, or 1).
+    sync_channel : int, optional
+        A T2 file whose code generator's sync went to a detector input: that channel's
+        events are the syncs (HydraHarp, TimeHarp, MultiHarp;
+        :func:`~spslidar.io.ptu_t2.open_t2`).
     frame : int, optional
         With ``repeats``: reconstruct that repeat of the sequence alone (from 0), a frame of
         a video whose scene moves between repeats (default: all repeats summed). Every
@@ -317,7 +322,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     solved = solved_rows(ptu, patterns, code, bin_width, detector=detector, marker=marker,
                          channel=channel, allow_binning=allow_binning,
                          marker_edge=marker_edge, settle=settle, repeats=repeats,
-                         sync_divider=sync_divider, frame=frame)
+                         sync_divider=sync_divider, sync_channel=sync_channel, frame=frame)
     data, hist, n_k, noise_totals = solved.data, solved.hist, solved.periods, solved.noise_totals
     patterns, rows, partial, pile = solved.patterns, solved.rows, solved.partial, solved.pile
     m = rows.size
@@ -456,7 +461,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         "marker_edge": marker_edge, "settle_s": float(settle),
         "channel": None if channel is None else channels_read(data, channel),
         "n_dropped_settling": int(data.n_dropped_settling),
-        "code_periods_per_sync": int(data.periods_per_sync),
+        "code_periods_per_sync": int(data.periods_per_sync), "sync_channel": sync_channel,
         "timing_drift_bins": None if solved.drift is None else solved.drift.bins,
         "timing_drift_se_bins": None if solved.drift is None else solved.drift.se,
         "timing_drift_span_bins": None if solved.drift is None else solved.drift.span,
