@@ -411,3 +411,20 @@ def test_streams_that_refuse_writes_leave_the_result_written(tmp_path, tail, env
     assert "Traceback" not in err and "Exception ignored" not in err and "error" not in err
     assert {p.name for p in (tmp_path / out).iterdir()} >= {"depth.npy", "metrics.json",
                                                             "points.ply"}
+
+
+def test_a_newline_in_a_path_keeps_the_error_on_one_line(tmp_path, capsys, monkeypatch):
+    """A path holding a newline split the one-line error over two lines (an audit of stop 60,
+    left then): it is written as ``\\n``, as Python writes it in a string; so is a carriage
+    return, also in an OSError's and argparse's lines."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "--scene", "no\nscene", "--out", "x"]) == 2
+    _one_line(capsys, "unknown scene 'no\\nscene'")
+    assert main(["reconstruct", "--ptu", "a.ptu", "--patterns", "p.npy", "--code", "c\r\n.npy",
+                 "--bit-rate", "1e10", "--range-gate", "1", "2", "--out", "o"]) == 2
+    _one_line(capsys, "c\\r\\n.npy")
+    with pytest.raises(SystemExit) as info:
+        main(["run", "--size", "x\ny"])
+    assert info.value.code == 2
+    _one_line(capsys, "x\\ny")
+    assert not (tmp_path / "x").exists() and not (tmp_path / "o").exists()

@@ -57,7 +57,8 @@ class _Parser(argparse.ArgumentParser):
                 r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|nan)$")
 
     def error(self, message):  # noqa: D401
-        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        self.exit(EXIT_BAD_INPUT,
+                  f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)\n")
 
 
 def _add_run_options(p: argparse.ArgumentParser) -> None:
@@ -454,6 +455,13 @@ def _load_plugins(argv: list[str]) -> list[str]:
     return rest
 
 
+def one_line(message: object) -> str:
+    """An error's text on one line: a newline or carriage return in it (a path holding one
+    split the one-line error over two lines, an audit of stop 60) written as ``\\n`` /
+    ``\\r``, as Python writes them in a string."""
+    return str(message).replace("\r", "\\r").replace("\n", "\\n")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 success, 2 bad input)."""
     if argv is not None:
@@ -498,7 +506,7 @@ def _main(argv: list[str] | None = None) -> int:
             SAID_AT_LOAD.update(said.first.values())
             parser = build_parser()  # (a plugin's option whose flag is taken: one line)
         except _Bad as exc:
-            print(f"spslidar: error: {exc}", file=sys.stderr)
+            print(f"spslidar: error: {one_line(exc)}", file=sys.stderr)
             return EXIT_BAD_INPUT
         args, extra = parser.parse_known_args(argv)
     except KeyboardInterrupt as exc:
@@ -561,7 +569,7 @@ def _main(argv: list[str] | None = None) -> int:
             stop_pool()
         return status
     except SpslidarError as exc:
-        print(f"spslidar {args.command}: error: {exc}", file=sys.stderr)
+        print(f"spslidar {args.command}: error: {one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as exc:
         where = exc.filename or ""
@@ -569,8 +577,8 @@ def _main(argv: list[str] | None = None) -> int:
         if not where and out:  # (a full disk said "File too large" and nothing more, an audit)
             where = (f"while writing --out {out} (written under a temporary name: what was "
                      f"there before is as it was)")
-        print(f"spslidar {args.command}: error: {exc.strerror or exc}: {where}".rstrip(": "),
-              file=sys.stderr)
+        print(one_line(f"spslidar {args.command}: error: {exc.strerror or exc}: "
+                       f"{where}".rstrip(": ")), file=sys.stderr)
         return EXIT_BAD_INPUT
     except MemoryError as exc:
         # (an allocation past what the machine had free was a NumPy traceback, exit 1: an
