@@ -402,7 +402,10 @@ METRICS: dict[str, str] = {
            "groups of patterns read (null with fewer than 64 patterns or no return to "
            "time), ``code_periods_per_sync`` (a sync divider folded) and ``sync_channel`` "
            "(``--sync-channel``: a T2 file's detector channel read as the sync; null for "
-           "the file's own sync).",
+           "the file's own sync), and ``channels`` where several detector channels were read "
+           "together: ``delays_bins``, each against the one with the most photons as the "
+           "histograms show them, and ``shifts_bins``, the whole bins each was moved by "
+           "(``--align-channels``, or the calibration's); null for one channel.",
     "inputs": "``reconstruct`` only: what the patterns and the code were read from: "
               "``patterns`` (``file`` as given, null for an array; ``pattern_size``, "
               "``--pattern-size``; ``n_patterns``, ``side``) and ``code`` (``file``; "

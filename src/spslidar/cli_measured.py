@@ -72,6 +72,11 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                    help="a T2 file whose sync went to a detector input: channel C's events "
                         "(numbered as --channel) are the code's syncs, not photons "
                         "(HydraHarp, TimeHarp, MultiHarp)")
+    p.add_argument("--align-channels", action="store_true",
+                   help="detector channels read together (no --channel) moved onto the one "
+                        "with the most photons by the delays their photons show (a cable "
+                        "between them; the file is read twice); a calibration made with it "
+                        "applies its own")
     p.add_argument("--dead-time", type=float, metavar="S",
                    help="the detector's (and TCSPC's) non-paralysable dead time, seconds: each "
                         "pattern's histogram is corrected for pile-up before the matched "
@@ -191,7 +196,8 @@ def cmd_reconstruct(args) -> int:
                              calibration=args.calibration, marker_edge=args.marker_edge,
                              settle=args.settle, repeats=args.repeats,
                              sync_divider=args.sync_divider,
-                             sync_channel=args.sync_channel, frame=args.frame,
+                             sync_channel=args.sync_channel,
+                             align_channels=args.align_channels, frame=args.frame,
                              pattern_size=args.pattern_size, **_detector_args(args),
                              **processing)
     result.metrics["inputs"]["code"]["family"] = family
@@ -266,6 +272,7 @@ def cmd_calibrate(args) -> int:
                         fov_deg=args.fov, marker_edge=args.marker_edge,
                         settle=args.settle, repeats=args.repeats,
                         sync_divider=args.sync_divider, sync_channel=args.sync_channel,
+                        align_channels=args.align_channels,
                         pattern_size=args.pattern_size,
                         **_detector_args(args))
     cal["measured_from"]["inputs"]["code"]["family"] = family

@@ -207,7 +207,7 @@ RESERVED_NAMES = frozenset({
     # option named as one (settle, new in stop 64) refused every command, run's too (a review)
     "allow_binning", "calibration", "channel", "distance", "marker", "marker_edge", "ptu",
     "frame", "pattern_size", "repeats", "settle", "sync_channel", "sync_divider", "target",
-    "truth"})
+    "truth", "align_channels"})
 
 
 def _declaration_fault(opt: Any) -> str:

@@ -29,13 +29,17 @@ import numpy as np
 from ..errors import ConfigError
 from .ptu_blocks import (
     BOUNCE_TIME_S,
+    _ChannelHists,
+    _channels,
     _check_forward,
     _check_resolution,
     _fitting_codes,
     _Gaps,
     _missed_note,
     _rebin,
+    _shift_table,
     _to_float32,
+    accumulate,
 )
 from .ptu_format import (
     _FAMILY,
@@ -119,6 +123,14 @@ class PtuAcquisition:
         Code periods per sync record: the header's sync divider where the file's sync period
         is that many code periods (each photon's TDC time is then folded into one code
         period, and ``periods_per_pattern`` counts code periods), else 1.
+    channel_histograms : dict of int to ndarray
+        Where the photons of several detector channels were read together: each channel's
+        kept photons over the code period (int64, every block summed; after any
+        ``channel_shifts``), from which their relative delays are read
+        (:mod:`spslidar.pipeline.skew`); empty for one channel, or a TDC bin split.
+    channel_shifts : dict of int to int
+        The ``channel_shifts`` applied (bins, ``0 <= k < n_bins``; channels not moved left
+        out).
     """
 
     histograms: np.ndarray
@@ -144,6 +156,8 @@ class PtuAcquisition:
     detection_gaps: dict[int, Any] = field(default_factory=dict)
     n_dropped_settling: int = 0
     settled_periods: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    channel_histograms: dict[int, np.ndarray] = field(default_factory=dict)
+    channel_shifts: dict[int, int] = field(default_factory=dict)
 
     @property
     def exposure_periods(self) -> np.ndarray:
@@ -219,23 +233,6 @@ def _check_histogram_memory(rows: int, n_bins: int, chunk_records: int, path: st
                           f"(the code length) and the marker input, or give n_patterns")
 
 
-def _channels(channel: Any, family: str, record_type: str, path: str) -> np.ndarray | None:
-    """The selected photon channels as a sorted int array (``None``: all)."""
-    if channel is None:
-        return None
-    values = np.atleast_1d(np.asarray(channel))
-    if values.size == 0 or values.ndim != 1 or values.dtype.kind not in "iu" or (
-            values.min() < 0):
-        raise ConfigError(f"channel must be a detector channel number >= 0 (in Python also a "
-                          f"list of them), got {channel!r}")
-    top = _FAMILY[family][2]
-    if values.max() >= top:  # no record of this type can hold it
-        raise ConfigError(
-            f"{path!r} has no photons on channel {int(values.max())}: {record_type} records "
-            f"number detector channels 0..{top - 1} (from 0; a PicoHarp's inputs 1-4 are 0-3)")
-    return np.unique(values).astype(np.int64)
-
-
 def _chunks(f, n_records: int, chunk_records: int, path: str):
     """The file's records, ``chunk_records`` at a time: ``(raw words, ptufile decode)``, or a
     T2 file's (:class:`~spslidar.io.ptu_t2.T2Records`) as T3 events with global syncs."""
@@ -266,20 +263,6 @@ def _first_marker_syncs(f, n_records: int, chunk_records: int, mask: int, family
     return found
 
 
-def _accumulate(hist: np.ndarray, blocks: np.ndarray, bins: np.ndarray) -> None:
-    """``hist[blocks[i], bins[i]] += 1`` for every photon of a chunk, in memory bounded by the
-    chunk (``blocks`` non-decreasing)."""
-    n_bins = hist.shape[1]
-    b0, b1 = int(blocks[0]), int(blocks[-1])
-    flat = (blocks - b0) * n_bins + bins
-    span = (b1 - b0 + 1) * n_bins
-    if span <= max(1 << 16, 4 * flat.size):  # dense: one bincount over the chunk's blocks
-        hist[b0 : b1 + 1] += np.bincount(flat, minlength=span).reshape(-1, n_bins)
-    else:  # sparse (a few photons over many blocks): add each occupied bin once
-        cells, counts = np.unique(flat, return_counts=True)
-        hist.reshape(-1)[b0 * n_bins + cells] += counts.astype(hist.dtype)
-
-
 #: photons read after which the histograms are counted in int64 (no bin of an int32 can
 #: wrap before: it holds at most every photon)
 WIDEN_AFTER = 2**31 - 1
@@ -303,6 +286,7 @@ def read_ptu_histograms(
     settle_s: float = 0.0,
     sync_divider: int | None = None,
     sync_channel: int | None = None,
+    channel_shifts: dict[int, int] | None = None,
 ) -> PtuAcquisition:
     """Read a T3 PTU file, or a T2 one with sync records, into per-pattern histograms.
 
@@ -409,6 +393,9 @@ def read_ptu_histograms(
     sync_channel : int, optional
         A T2 file whose sync went to a detector input: that channel's events are the syncs
         (:func:`~spslidar.io.ptu_t2.open_t2`; HydraHarp, TimeHarp, MultiHarp).
+    channel_shifts : dict of int to int, optional
+        Bins each channel's photons are moved earlier by, around the code period (a cable
+        delay: :mod:`spslidar.pipeline.skew`); not through a TDC bin split between bits.
 
     Returns
     -------
@@ -570,6 +557,8 @@ def read_ptu_histograms(
                 # histogram was scaled down by that dwell: a review)
                 first_sync = max(0, 2 * marks[0] + 1 - later[0])
         hist = np.zeros((rows, n_mid), np.int32)  # (int64 past 2^31 - 1 photons in all)
+        shifts = _shift_table(channel_shifts, rebin, n_bins, spath)
+        per_hist = _ChannelHists(n_mid)  # (each channel's photons over the period)
         starts = np.zeros(rows + 1, np.int64)  # marker syncs, and the next block's if any
         per_channel = np.zeros(128, np.int64)  # ptufile's channel is an int8
         gaps = _Gaps(period, res)
@@ -625,11 +614,15 @@ def read_ptu_histograms(
                     keep &= ~early
                 n_out += int(np.count_nonzero(keep & (bins >= n_mid)))
                 keep &= bins < n_mid
+                if shifts is not None:  # (a channel's cable delay taken out, bins < n_bins)
+                    bins = (bins - shifts[ch[photon].astype(np.int64)]) % n_mid
+                if keep.any() and rebin is None:
+                    per_hist.add(ch[photon][keep], bins[keep], hist)
                 if keep.any():
                     if n_photons >= WIDEN_AFTER and hist.dtype == np.int32:
                         # (past 2^31 - 1 photons one bin could wrap to -2^31: an audit)
                         hist = hist.astype(np.int64)
-                    _accumulate(hist, block[keep], bins[keep])
+                    accumulate(hist, block[keep], bins[keep])
             n_markers += k
             k_ofl, k_wraps = _overflows(raw, family)
             n_ofl += k_ofl
@@ -689,7 +682,10 @@ def read_ptu_histograms(
         header=header,
         periods_per_pattern=dwell,
         periods_per_sync=fold, detection_gaps=gaps.result(),
-        photons_per_channel={int(c): int(per_channel[c]) for c in np.flatnonzero(per_channel)})
+        photons_per_channel={int(c): int(per_channel[c]) for c in np.flatnonzero(per_channel)},
+        channel_histograms=per_hist.out,
+        channel_shifts={} if shifts is None else {
+            int(c): int(shifts[c]) for c in np.flatnonzero(shifts)})
     if marker_edge == "start" and n_markers == rows and acq.ends_in_empty_block:
         acq.warnings.append(f"the last of the {rows} marker blocks holds no photons and lasts "
                             f"{int(dwell[-1])} code period(s) (an end-of-acquisition marker?): "

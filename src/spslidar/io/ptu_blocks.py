@@ -9,8 +9,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
+from .ptu_format import _FAMILY
 
-__all__ = ["BACK_SYNCS", "BOUNCE_TIME_S", "GAP_EDGES_S", "block_list", "gap_bins",
+__all__ = ["BACK_SYNCS", "BOUNCE_TIME_S", "GAP_EDGES_S", "accumulate", "block_list", "gap_bins",
            "twice_as_long"]
 
 
@@ -31,6 +32,78 @@ _GAP_KEY0 = int(GAP_EDGES_S[:1].view(np.int64)[0] >> _GAP_SHIFT)
 #: 255 ns periods late was taken as a pattern and the last pattern dropped, an outside audit
 #: of 2026-11-30)
 BOUNCE_TIME_S = 10e-6
+
+
+def accumulate(hist: np.ndarray, blocks: np.ndarray, bins: np.ndarray) -> None:
+    """``hist[blocks[i], bins[i]] += 1`` for every photon of a chunk, in memory bounded by the
+    chunk (``blocks`` non-decreasing)."""
+    n_bins = hist.shape[1]
+    b0, b1 = int(blocks[0]), int(blocks[-1])
+    flat = (blocks - b0) * n_bins + bins
+    span = (b1 - b0 + 1) * n_bins
+    if span <= max(1 << 16, 4 * flat.size):  # dense: one bincount over the chunk's blocks
+        hist[b0 : b1 + 1] += np.bincount(flat, minlength=span).reshape(-1, n_bins)
+    else:  # sparse (a few photons over many blocks): add each occupied bin once
+        cells, counts = np.unique(flat, return_counts=True)
+        hist.reshape(-1)[b0 * n_bins + cells] += counts.astype(hist.dtype)
+
+
+def _channels(channel: Any, family: str, record_type: str, path: str) -> np.ndarray | None:
+    """The selected photon channels as a sorted int array (``None``: all)."""
+    if channel is None:
+        return None
+    values = np.atleast_1d(np.asarray(channel))
+    if values.size == 0 or values.ndim != 1 or values.dtype.kind not in "iu" or (
+            values.min() < 0):
+        raise ConfigError(f"channel must be a detector channel number >= 0 (in Python also a "
+                          f"list of them), got {channel!r}")
+    top = _FAMILY[family][2]
+    if values.max() >= top:  # no record of this type can hold it
+        raise ConfigError(
+            f"{path!r} has no photons on channel {int(values.max())}: {record_type} records "
+            f"number detector channels 0..{top - 1} (from 0; a PicoHarp's inputs 1-4 are 0-3)")
+    return np.unique(values).astype(np.int64)
+
+
+class _ChannelHists:
+    """Each detector channel's kept photons over the code period (the reader's
+    ``channel_histograms``): nothing is counted while every photon so far is of one channel
+    (the common case costs nothing); where a second one comes, the first's are the
+    histograms' sum so far, and each chunk is then counted by channel."""
+
+    def __init__(self, n_bins: int):
+        self.n_bins, self.only, self.out = n_bins, None, {}
+
+    def add(self, ch: np.ndarray, bins: np.ndarray, hist: np.ndarray) -> None:
+        """A chunk's kept photons (``hist``: the histograms before they are added)."""
+        lo, hi = int(ch.min()), int(ch.max())
+        if not self.out:
+            if lo == hi and self.only in (None, lo):
+                self.only = lo
+                return
+            if self.only is not None:
+                self.out[self.only] = hist.sum(axis=0, dtype=np.int64)
+        for c in ([lo] if lo == hi else np.unique(ch).tolist()):
+            h = np.bincount(bins if lo == hi else bins[ch == c], minlength=self.n_bins)
+            self.out[c] = self.out[c] + h if c in self.out else h.astype(np.int64)
+
+
+def _shift_table(shifts: Any, rebin: Any, n_bins: int, path: str) -> np.ndarray | None:
+    """``channel_shifts`` as a table by channel (bins, ``0 <= k < n_bins``), or None; one
+    line where it cannot apply (a TDC bin split between bits, or not whole bins)."""
+    if not shifts:
+        return None
+    if rebin is not None:
+        raise ConfigError(f"{path!r}: channels cannot be aligned through a TDC bin split between "
+                          f"the code's bits")
+    table = np.zeros(128, np.int64)
+    for c, k in dict(shifts).items():
+        if isinstance(k, bool) or not isinstance(k, int | np.integer) or not (
+                isinstance(c, int | np.integer) and 0 <= c < 128):
+            raise ConfigError(f"channel_shifts must map channel numbers to whole bins, got "
+                              f"{shifts!r}")
+        table[int(c)] = int(k) % n_bins
+    return table
 
 
 def gap_bins(gaps: np.ndarray) -> np.ndarray:

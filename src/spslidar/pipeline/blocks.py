@@ -503,7 +503,8 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
                 channel: Any = None, allow_binning: bool = False,
                 marker_edge: str = "start", settle: float = 0.0,
                 repeats: int = 1, sync_divider: int | None = None,
-                sync_channel: int | None = None) -> tuple[Any, list[str]]:
+                sync_channel: int | None = None,
+                align_channels: bool | dict[int, int] = False) -> tuple[Any, list[str]]:
     """The ``m`` pattern blocks of a measured T3 file, and what to say about them.
 
     Parameters
@@ -528,6 +529,12 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
         Code periods per sync record where the header does not say (the reader's).
     sync_channel : int, optional
         A T2 file's detector channel whose events are the syncs (the reader's).
+    align_channels : bool or dict
+        Detector channels read together moved onto the one with the most photons
+        (:mod:`~spslidar.pipeline.skew`): ``True``, by the delays the file's own photons
+        show (read twice: the delays, then the blocks); a dict, by those whole bins (a
+        calibration's, :func:`~spslidar.pipeline.skew.channel_shifts`); ``False``, merged
+        as recorded, a delay between them said.
 
     Returns
     -------
@@ -545,6 +552,18 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
     seconds = real_number(settle)  # (not a bool or text: as --dead-time is judged)
     if seconds is None or not (math.isfinite(seconds) and seconds >= 0):
         raise ConfigError(f"--settle must be a number of seconds >= 0, got {settle!r}")
+    if align_channels is True:  # the delays from the file's photons, then the blocks by them
+        from .skew import channel_delays, channel_shifts
+
+        options = dict(bin_width=bin_width, marker=marker, channel=channel,
+                       allow_binning=allow_binning, marker_edge=marker_edge, settle=settle,
+                       repeats=repeats, sync_divider=sync_divider, sync_channel=sync_channel)
+        data, notes = read_blocks(ptu, m, n_bins, **options)
+        shifts = channel_shifts(channel_delays(data.channel_histograms))
+        if not shifts:  # (aligned as recorded: no note of a skew was made)
+            return data, notes
+        return read_blocks(ptu, m, n_bins, **options, align_channels=shifts)
+    shifts = dict(align_channels) if align_channels else None
 
     def read(extra: int):
         try:
@@ -552,7 +571,7 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
                                        channel=channel, n_patterns=m, extra_blocks=extra,
                                        marker_edge=marker_edge, allow_binning=allow_binning,
                                        settle_s=seconds, sync_divider=sync_divider,
-                                       sync_channel=sync_channel)
+                                       sync_channel=sync_channel, channel_shifts=shifts)
         except ConfigError as err:  # ("fewer than the 384 patterns" of 96 rows: say why)
             if repeats > 1 and "marker-delimited blocks" in str(err):
                 raise ConfigError(f"{err} (--repeats {repeats}: {m // repeats} pattern rows "
@@ -586,6 +605,12 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
                           f"--channel, --marker and --bit-rate)")
     edge = _edge_note(data, marker, marker_edge)
     mixed = _channel_note(data) if channel is None else None
+    if data.channel_histograms:  # (channels read together: a cable delay between them)
+        from .skew import channel_delays, skew_note
+
+        skew = skew_note(channel_delays(data.channel_histograms), bin_width,
+                         after=bool(shifts))
+        mixed = skew if skew else mixed
     double = _double_note(data)
     return (data, notes + ([edge] if edge else []) + ([mixed] if mixed else [])
             + ([double] if double else []) + _lost_notes(data, marker, n_bins))

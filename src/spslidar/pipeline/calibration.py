@@ -432,6 +432,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
                   afterpulse_prob: float = 0.0,
                   afterpulse_delay: float = 0.0, repeats: int = 1,
                   sync_divider: int | None = None, sync_channel: int | None = None,
+                  align_channels: bool = False,
                   pattern_size: int | None = None) -> dict[str, Any]:
     """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target
     (``patterns`` an array or the file or folder that holds them, as
@@ -440,7 +441,8 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
     holds them), with what it was measured from (file, hash, photons, patterns, bit rate,
     code; ``measured_from.inputs``: :func:`~spslidar.pipeline.inputs.input_record`);
     ``allow_binning``, ``marker_edge``, ``settle``, ``repeats``, ``sync_divider``,
-    ``sync_channel`` and the
+    ``sync_channel``, ``align_channels`` (the shifts kept in the JSON's
+    ``channel_shifts_bins``, which ``reconstruct`` applies) and the
     detector's ``dead_time`` and
     afterpulsing (each block's histogram corrected for pile-up before the response is read:
     uncorrected, a bright wall's response is read through the detector's dead time; the
@@ -503,7 +505,8 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
     data, notes = read_blocks(ptu, int(patterns.shape[0]), int(code.size), bin_width=bin_width,
                               marker=marker, channel=channel, allow_binning=allow_binning,
                               marker_edge=marker_edge, settle=settle, repeats=repeats,
-                              sync_divider=sync_divider, sync_channel=sync_channel)
+                              sync_divider=sync_divider, sync_channel=sync_channel,
+                              align_channels=_aligning(align_channels))
     data, frozen, note = drop_frozen(data, ptu)
     if frozen:  # (blocks without a dwell: the file's syncs lost)
         patterns = patterns[: patterns.shape[0] - frozen]
@@ -549,6 +552,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
             "bin_width_s": bin_width,
             "bit_rate_hz": float(bit_rate), "code_length": int(code.size),
             "code_sha256": code_sha256(code), "code_bits": code_bits(code),
+            "channel_shifts_bins": {str(c): k for c, k in sorted(data.channel_shifts.items())},
             "pulse_width": float(pulse_width), "distance_m": float(distance),
             "detector": pile,
             "timing_drift_bins": None if drift is None else drift.bins,
@@ -564,6 +568,13 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
                                                                                     channel),
                               "channels": channels_read(data, channel),
                               "inputs": inputs}}
+
+
+def _aligning(value: Any) -> bool:
+    """``align_channels`` as a bool, or one line."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ConfigError(f"align_channels must be True or False, got {value!r}")
+    return bool(value)
 
 
 def _check_target(target: Any, fov_deg: Any) -> float | None:

@@ -278,7 +278,24 @@ def check_calibration(cal: dict, what: str, bit_rate: float, code: np.ndarray) -
     if int(cal["code_length"]) != int(np.asarray(code).size):
         raise ConfigError(f"{what} was measured with a code of "
                           f"{cal['code_length']} bits, not {np.asarray(code).size}")
+    calibration_shifts(cal, what)
     return cal
+
+
+def calibration_shifts(cal: dict, what: str = "the calibration") -> dict[int, int]:
+    """The whole bins each detector channel was moved by when the calibration was measured
+    (``channel_shifts_bins``, ``calibrate --align-channels``; empty where none was), which a
+    scan read through it must be moved by too; one line where the field is damaged."""
+    raw = cal.get("channel_shifts_bins") or {}
+    try:
+        out = {int(c): v for c, v in dict(raw).items()}
+    except (TypeError, ValueError):
+        out = None
+    if out is None or not all(isinstance(v, int) and not isinstance(v, bool)
+                              and 0 <= c < 128 for c, v in out.items()):
+        raise ConfigError(f"{what}: its channel_shifts_bins is damaged ({raw!r}); calibrate "
+                          f"again")
+    return out
 
 
 def _check_consistent(cal: dict, offsets: np.ndarray, values: np.ndarray, numbers: list,

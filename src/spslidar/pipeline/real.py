@@ -183,7 +183,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
                     settle: float = 0.0, dead_time: float | None = None,
                     afterpulse_prob: float = 0.0, afterpulse_delay: float = 0.0,
                     repeats: int = 1, sync_divider: int | None = None,
-                    sync_channel: int | None = None,
+                    sync_channel: int | None = None, align_channels: bool = False,
                     frame: int | None = None, pattern_size: int | None = None,
                     **processing: Any) -> Result:
     """Depth map from a measured T3 PTU acquisition.
@@ -249,6 +249,12 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         A T2 file whose code generator's sync went to a detector input: that channel's
         events are the syncs (HydraHarp, TimeHarp, MultiHarp;
         :func:`~spslidar.io.ptu_t2.open_t2`).
+    align_channels : bool
+        Detector channels read together moved onto the one with the most photons by the
+        delays their photons show (:mod:`~spslidar.pipeline.skew`; the file is read twice);
+        a calibration measured with them aligned applies its own shifts instead, and one
+        measured with several channels as recorded refuses it (default False: merged as
+        recorded, a delay between them said).
     frame : int, optional
         With ``repeats``: reconstruct that repeat of the sequence alone (from 0), a frame of
         a video whose scene moves between repeats (default: all repeats summed). Every
@@ -317,12 +323,21 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
 
     detector = dead_time_model(bin_width, dead_time, afterpulse_prob, afterpulse_delay)
     _check_solve_time(cfg, m, q, int(gate_lags(cfg.range_gate, bin_width).size), period)
+    cal = None
+    if calibration is not None:  # (before the file is read: its channel shifts apply there)
+        from .calibration_file import check_calibration, load_calibration
+
+        cal = (check_calibration(dict(calibration), "calibration", bit_rate, code)
+               if isinstance(calibration, dict)
+               else load_calibration(calibration, bit_rate, code))
+    align = _alignment(align_channels, cal)
     from .rows import solved_rows
 
     solved = solved_rows(ptu, patterns, code, bin_width, detector=detector, marker=marker,
                          channel=channel, allow_binning=allow_binning,
                          marker_edge=marker_edge, settle=settle, repeats=repeats,
-                         sync_divider=sync_divider, sync_channel=sync_channel, frame=frame)
+                         sync_divider=sync_divider, sync_channel=sync_channel,
+                         align_channels=align, frame=frame)
     data, hist, n_k, noise_totals = solved.data, solved.hist, solved.periods, solved.noise_totals
     patterns, rows, partial, pile = solved.patterns, solved.rows, solved.partial, solved.pile
     m = rows.size
@@ -343,20 +358,12 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     replica_kind = auto_replica(code) if cfg.replica == "auto" else cfg.replica
     replica = plain = make_replica(code, replica_kind)
     lags = gate_lags(cfg.range_gate, bin_width)
-    cal, shift, signal_code, frac, scale, spread = None, 0, code, 0.0, 1.0, 1.0
+    shift, signal_code, frac, scale, spread = 0, code, 0.0, 1.0, 1.0
     response, half_width = None, 0
-    if calibration is not None:
+    if cal is not None:
         from .calibrated import calibrated_filter
-        from .calibration_file import (
-            check_calibration,
-            code_note,
-            code_sha256,
-            load_calibration,
-        )
+        from .calibration_file import code_note, code_sha256
 
-        cal = (check_calibration(dict(calibration), "calibration", bit_rate, code)
-               if isinstance(calibration, dict)
-               else load_calibration(calibration, bit_rate, code))
         replica, signal_code, shift, frac, scale, spread, response, half_width = (
             calibrated_filter(code, replica, cal))
         if cfg.lam is None and cfg.lam_scale is None:
@@ -462,6 +469,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         "channel": None if channel is None else channels_read(data, channel),
         "n_dropped_settling": int(data.n_dropped_settling),
         "code_periods_per_sync": int(data.periods_per_sync), "sync_channel": sync_channel,
+        "channels": _channels_record(data),
         "timing_drift_bins": None if solved.drift is None else solved.drift.bins,
         "timing_drift_se_bins": None if solved.drift is None else solved.drift.se,
         "timing_drift_span_bins": None if solved.drift is None else solved.drift.span,
@@ -478,6 +486,36 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         "same_code": cal.get("code_sha256") == code_sha256(code),
         "measured_from": cal.get("measured_from")}
     return result
+
+
+def _alignment(align_channels: Any, cal: dict | None) -> bool | dict[int, int]:
+    """What :func:`~spslidar.pipeline.blocks.read_blocks` is told of the detector channels:
+    a calibration's channel shifts where it has them (its response was measured through
+    them), ``align_channels`` (checked) otherwise; one line where the two disagree (a
+    calibration of several channels merged as recorded cannot read them aligned)."""
+    if not isinstance(align_channels, (bool, np.bool_)):
+        raise ConfigError(f"align_channels must be True or False, got {align_channels!r}")
+    if cal is None:
+        return bool(align_channels)
+    from .calibration_file import calibration_shifts
+
+    shifts = calibration_shifts(cal)
+    if shifts:
+        return shifts
+    read = (cal.get("measured_from") or {}).get("channels")
+    if align_channels and isinstance(read, list) and len(read) > 1:
+        raise ConfigError(f"--align-channels: the calibration measured channels "
+                          f"{', '.join(map(str, read))} merged as recorded, so its response is "
+                          f"theirs unaligned; calibrate again with --align-channels")
+    return bool(align_channels)
+
+
+def _channels_record(data: Any) -> dict[str, Any] | None:
+    """``metrics.json``'s ``ptu.channels``: the delays between the channels read together as
+    the histograms show them (after any shift) and the shifts applied; None for one."""
+    from .skew import channel_delays, describe
+
+    return describe(channel_delays(data.channel_histograms), data.channel_shifts)
 
 
 #: share of a truth's known depths that must lie in the range gate (widened by its own length

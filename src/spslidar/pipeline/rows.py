@@ -72,7 +72,8 @@ class SolvedRows(NamedTuple):
 def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
                  detector: Any, marker: int, channel: Any, allow_binning: bool,
                  marker_edge: str, settle: float, repeats: int,
-                 sync_divider: Any, sync_channel: Any = None) -> _FileBlocks:
+                 sync_divider: Any, sync_channel: Any = None,
+                 align_channels: Any = False) -> _FileBlocks:
     """One file's blocks, read, screened and corrected for pile-up (:func:`solved_rows`)."""
     from .blocks import block_patterns, drop_frozen, read_blocks
     from .screen import measured_blocks
@@ -83,7 +84,8 @@ def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float
     data, notes = read_blocks(ptu, m, int(np.size(code)), bin_width=bin_width, marker=marker,
                               channel=channel, allow_binning=allow_binning,
                               marker_edge=marker_edge, settle=settle, repeats=repeats,
-                              sync_divider=sync_divider, sync_channel=sync_channel)
+                              sync_divider=sync_divider, sync_channel=sync_channel,
+                              align_channels=align_channels)
     n_blocks = data.n_patterns  # (the lost syncs' blocks too, for blocks_left_out)
     data, frozen, note = drop_frozen(data, ptu)
     if frozen:  # (the rows the file's lost syncs leave without a dwell)
@@ -175,7 +177,7 @@ def _joined(parts: list[_FileBlocks], step: int) -> Any:
 def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
                 detector: Any, marker: int, channel: Any, allow_binning: bool,
                 marker_edge: str, settle: float, repeats: int, sync_divider: Any,
-                sync_channel: Any = None,
+                sync_channel: Any = None, align_channels: Any = False,
                 frame: int | None) -> SolvedRows:
     """The rows of a measured acquisition that ``reconstruct`` solves (:class:`SolvedRows`).
 
@@ -195,7 +197,7 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
     detector : object
         The detector's dead-time model (:func:`~spslidar.pipeline.deadtime.dead_time_model`).
     marker, channel, allow_binning, marker_edge, settle, repeats, sync_divider, sync_channel,
-    frame
+    align_channels, frame
         As :func:`~spslidar.pipeline.real.reconstruct_ptu` takes them (checked; ``frame``
         counts the repeats through the files).
     """
@@ -206,7 +208,8 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
     m_rows = int(shown.shape[0])
     options = dict(detector=detector, marker=marker, channel=channel,
                    allow_binning=allow_binning, marker_edge=marker_edge, settle=settle,
-                   repeats=repeats, sync_divider=sync_divider, sync_channel=sync_channel)
+                   repeats=repeats, sync_divider=sync_divider, sync_channel=sync_channel,
+                   align_channels=align_channels)
     parts = _read_each(files, shown, code, bin_width, options)
     if len(parts) == 1:
         part = parts[0]
