@@ -498,16 +498,19 @@ def test_inputs_record_tells_patterns_and_codes_apart(tmp_path):
         base["code"]["sha256"]
     assert input_record(None, pats, None, code, code)["patterns"]["sha256"] == \
         base["patterns"]["sha256"]
-    bits, family = _code(Namespace(code="mseq", code_length=31, code_index=None))
-    assert family == {"name": "mseq", "length": 31,
-                      "index": CODES.get("mseq").defaults.get("index", 0)}
+    bits, source = _code(Namespace(code="mseq", code_length=31, code_index=None))
+    assert source == {"file": None, "family": {
+        "name": "mseq", "length": 31, "index": CODES.get("mseq").defaults.get("index", 0)}}
     assert bits.size == 31
     np.save(tmp_path / "c.npy", code)
-    assert _code(Namespace(code=str(tmp_path / "c.npy"), code_length=None,
-                           code_index=None)) == (str(tmp_path / "c.npy"), None)
+    bits, source = _code(Namespace(code=str(tmp_path / "c.npy"), code_length=None,
+                                   code_index=None))
+    np.testing.assert_array_equal(bits, code)
+    assert source == {"file": str(tmp_path / "c.npy"), "family": None}
     np.savez(tmp_path / "c.npz", bits=code)
     given = f"{tmp_path / 'c.npz'}:bits"
-    assert _code(Namespace(code=given, code_length=None, code_index=None)) == (given, None)
+    assert _code(Namespace(code=given, code_length=None, code_index=None))[1] == {
+        "file": given, "family": None}
 
 
 @pytest.mark.parametrize("levels", ["binary", "grey", "sixteen"])
@@ -535,3 +538,73 @@ def test_integer_arrays_read_alike_in_every_file(tmp_path, levels):
         # (float32 states: levels over 65535 kept to float32's 6e-8 relative step)
         np.testing.assert_allclose(value, want.reshape(len(pats), -1), rtol=1e-6, atol=0,
                                    err_msg=key)
+
+
+def test_the_code_is_read_once_and_a_family_is_not_shadowed(tmp_path, monkeypatch, capsys):
+    """--code given as a FIFO was read by the command line and again by the library, and
+    hung (an audit of stop 67): read once, it gives the file's map; a file (or folder) named
+    like a code family in the working folder is refused, not read for the family; the API
+    refuses a family's name, naming load_code."""
+    import json
+    import os
+    import threading
+
+    from spslidar.pipeline.inputs import code_in
+
+    ptu, pats, code, _, _ = _acquisition(tmp_path)
+    fifo = tmp_path / "code.txt"
+    os.mkfifo(fifo)
+    text = "".join(str(int(b)) for b in code) + "\n"
+    writer = threading.Thread(target=lambda: fifo.write_text(text), daemon=True)
+    writer.start()
+    assert main(["reconstruct", "--ptu", str(ptu), "--patterns", str(tmp_path / "patterns.npy"),
+                 "--code", str(fifo), "--bit-rate", "10e9", "--range-gate", "3.5", "4.8",
+                 "--no-figure", "--out", str(tmp_path / "fifo_out")]) == 0
+    writer.join(timeout=5)
+    assert not writer.is_alive()
+    metrics = json.loads((tmp_path / "fifo_out" / "metrics.json").read_text())
+    assert metrics["inputs"]["code"]["file"] == str(fifo)
+    monkeypatch.chdir(tmp_path)
+    np.save(tmp_path / "stale.npy", np.roll(code, 40))
+    os.replace(tmp_path / "stale.npy", tmp_path / "mseq")
+    (tmp_path / "gold").mkdir()
+    capsys.readouterr()
+    for name, kind in (("mseq", "file"), ("gold", "folder")):
+        assert main(["reconstruct", "--ptu", str(ptu), "--patterns", "patterns.npy",
+                     "--code", name, "--code-length", "127", "--bit-rate", "10e9",
+                     "--range-gate", "3.5", "4.8", "--out", f"o_{name}"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"names both the code family and a {kind}" in err[0], err
+        assert not (tmp_path / f"o_{name}").exists()
+    np.testing.assert_array_equal(load_code("./mseq"), np.roll(code, 40))  # (the file)
+    with pytest.raises(ConfigError, match=r"names a code family: give its bits, "
+                                          r"spslidar.pipeline.real.load_code\('Gold', L\)"):
+        code_in("Gold")  # (no file of that name here, unlike gold/)
+
+
+def test_integer_levels_that_cannot_be_read_alike_are_refused(tmp_path):
+    """0/1 patterns of an 8-bit type beside grey ones were read as 0 and 1/255 with exit 0
+    (a set with one 0..255 pattern: 0.44 m for 0.03 m; a stray 2 in 0/1 patterns: the
+    reflectivity 255 times high); a signed int16's 0..255 was read over 32767: each refused
+    in one line, in an array and in a folder of images (an audit of stop 67). A set of
+    binary patterns at two levels is still read as off and on, and said."""
+    from spslidar.pipeline.inputs import check_patterns
+
+    pats = (_pats() * 1).astype(np.uint8)
+    mixed = pats.copy()
+    mixed[-1] = np.random.default_rng(8).integers(0, 256, mixed[-1].shape)
+    stray = pats.copy()
+    stray[0, 0, 0] = 2
+    for arr in (mixed, stray):
+        with pytest.raises(ConfigError, match="hold only 0 and 1 as uint8, beside grey levels"):
+            check_patterns(arr)
+    with pytest.raises(ConfigError, match=r"values from 0 to \d+: 8-bit levels 0-255"):
+        check_patterns(mixed.astype(np.int16))
+    two = pats.copy()
+    two[1] *= 255
+    with pytest.warns(UserWarning, match=r"binary at different levels \(1, 255\)"):
+        np.testing.assert_array_equal(check_patterns(two), pats.reshape(len(pats), -1))
+    folder = _save_folder(tmp_path / "mixed", pats, scale=1)  # (0/1 PNGs of 8 bits)
+    Image.fromarray(mixed[-1]).save(folder / "pattern_009.png")
+    with pytest.raises(ConfigError, match="image 0 and others hold only 0 and 1 as uint8"):
+        load_patterns(folder)

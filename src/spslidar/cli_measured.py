@@ -98,22 +98,22 @@ def _detector_args(args) -> dict:
 
 
 def _code(args) -> tuple:
-    """``--code`` as the library takes it: a file's path (read there, and named in
-    ``metrics.json`` / ``CAL.json``), else a family's bits; and the family named, or None.
-    The options are checked here either way (``--code-index`` with a file is refused)."""
-    from pathlib import Path
-
+    """``--code``'s bits, read once (a FIFO given as the code hung when it was read here
+    and again by the library: an audit of stop 67), and what ``metrics.json`` /
+    ``CAL.json`` record of where they came from (``inputs.code``'s ``file`` and
+    ``family``): the file as given, or the family's name, length and index."""
     from .codes import CODES
-    from .pipeline.inputs import load_code
+    from .pipeline.inputs import is_family, load_code
 
     bits = load_code(args.code, args.code_length, args.code_index)
     name = str(args.code)
-    if Path(name).exists() or name.lower() not in {n.lower() for n in CODES.names()}:
-        return args.code, None  # (a file, FILE.npz:NAME among them, as load_code reads it)
+    if not is_family(name):
+        return bits, {"file": name, "family": None}
     name = CODES.canonical(name)
     index = (CODES.get(name).defaults.get("index", 0) if args.code_index is None
              else int(args.code_index))
-    return bits, {"name": name, "length": int(args.code_length), "index": index}
+    return bits, {"file": None,
+                  "family": {"name": name, "length": int(args.code_length), "index": index}}
 
 
 def add_reconstruct_parser(sub) -> None:
@@ -189,7 +189,7 @@ def cmd_reconstruct(args) -> int:
     # (with the options the solvers and estimators declare: a plugin's had no flag)
     processing = {k: getattr(args, k) for k in processing_keys() if hasattr(args, k)}
     ptu = args.ptu[0] if len(args.ptu) == 1 else args.ptu
-    code, family = _code(args)
+    code, source = _code(args)
     result = reconstruct_ptu(ptu, args.patterns, code, args.bit_rate,
                              tuple(args.range_gate), marker=args.marker, channel=args.channel,
                              allow_binning=args.allow_binning, truth=args.truth,
@@ -200,7 +200,7 @@ def cmd_reconstruct(args) -> int:
                              align_channels=args.align_channels, frame=args.frame,
                              pattern_size=args.pattern_size, **_detector_args(args),
                              **processing)
-    result.metrics["inputs"]["code"]["family"] = family
+    result.metrics["inputs"]["code"].update(source)
     say_warnings(result.warnings)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
                       fov_deg=args.fov, option="--out", replace="--overwrite")
@@ -265,7 +265,7 @@ def cmd_calibrate(args) -> int:
 
         raise ConfigError(f"calibrate reads one PTU file, got {len(args.ptu)} (--ptu given "
                           f"more than once?)")
-    code, family = _code(args)
+    code, source = _code(args)
     cal = calibrate_ptu(args.ptu[0], args.patterns, code, args.bit_rate, args.distance,
                         marker=args.marker, channel=args.channel,
                         allow_binning=args.allow_binning, target=args.target,
@@ -275,7 +275,7 @@ def cmd_calibrate(args) -> int:
                         align_channels=args.align_channels,
                         pattern_size=args.pattern_size,
                         **_detector_args(args))
-    cal["measured_from"]["inputs"]["code"]["family"] = family
+    cal["measured_from"]["inputs"]["code"].update(source)
     path = write_calibration(cal, args.out, args.overwrite)
     _WRITTEN.append(str(path))
     period_ns = cal["code_length"] / args.bit_rate * 1e9

@@ -260,7 +260,7 @@ def read_patterns_file(path: str | os.PathLike, size: int | None = None) -> np.n
         arr = _mat_patterns(_load_mat(p, key, "--patterns"), p, key, size)
         if arr.ndim == 3 and arr.dtype != bool and np.issubdtype(arr.dtype, np.integer):
             # (imread's uint8: levels as images)
-            arr = to_states(list(arr), f"--patterns {p}:{key}")
+            arr = to_states(arr, f"--patterns {p}:{key}")
     elif suffix == ".npz":
         arrays = _npz_arrays(p, "--patterns")
         arr = np.asarray(_pick(arrays, name, p, "--patterns", _pattern_shape)[1])

@@ -53,10 +53,25 @@ def patterns_in(patterns: Any, size: Any = None, distinct: bool = True) -> np.nd
 
 def code_in(code: Any) -> np.ndarray:
     """The code a caller gives: a file's path read by :func:`load_code`, or an array checked
-    by :func:`check_code`."""
+    by :func:`check_code` (a family's name is refused, naming how to get its bits: the API
+    has no ``code_length``)."""
     if isinstance(code, (str, os.PathLike)):
+        if is_family(code):
+            raise ConfigError(f"code={os.fspath(code)!r} names a code family: give its bits, "
+                              f"spslidar.pipeline.real.load_code({os.fspath(code)!r}, L) "
+                              f"for L bits")
         return load_code(code)
     return check_code(code, None, "code")
+
+
+def is_family(code: Any) -> bool:
+    """Whether ``--code`` names a registered code family (``mseq``, ``gold``, a plugin's)
+    rather than a file: its name, any case, and no file of that name (one there too is
+    refused by :func:`load_code`)."""
+    from ..codes import CODES
+
+    name = os.fspath(code) if isinstance(code, os.PathLike) else str(code)
+    return not Path(name).exists() and name.lower() in {n.lower() for n in CODES.names()}
 
 
 def input_record(patterns_given: Any, patterns: np.ndarray, pattern_size: int | None,
@@ -121,7 +136,7 @@ def check_patterns(patterns: Any, distinct: bool = True, what: str = "patterns")
         # binary as 0/1 at any level, 8- and 16-bit grey over their full scale
         from ..io.lab_images import to_states
 
-        arr = to_states(list(arr), what)
+        arr = to_states(arr, what)
     arr = np.asarray(arr, dtype=np.float64)
     if not np.all(np.isfinite(arr)):
         bad = int(np.count_nonzero(~np.isfinite(arr)))
@@ -215,7 +230,14 @@ def load_code(code: str | os.PathLike, code_length: int | None = None,
     from ..codes import CODES
 
     name = str(code)
-    if not Path(code).exists() and name.lower() in {n.lower() for n in CODES.names()}:
+    if Path(name).exists() and name.lower() in {n.lower() for n in CODES.names()}:
+        # (a file named mseq in the folder was read for the family without a word, a stale
+        # copy of the code 0.57 m off: an audit of stop 67)
+        raise ConfigError(f"--code {name} names both the code family and a "
+                          f"{'folder' if Path(name).is_dir() else 'file'} in this folder: "
+                          f"give ./{name} for the file, or run where there is none for the "
+                          f"family")
+    if is_family(name):
         name = CODES.canonical(name)
         if code_length is None:
             raise ConfigError(f"--code {name} needs --code-length L")
