@@ -64,6 +64,13 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                    help="times the pattern sequence was shown in a row: the file holds K x M "
                         "marker blocks, block r M + i showing pattern i; each pattern's blocks "
                         "are summed (default 1)")
+    p.add_argument("--first-pattern", type=int, default=None, metavar="I",
+                   help="a free-running DMD, looping its sequence while the recording started "
+                        "at some moment: the --patterns row (from 0) the file's first marker "
+                        "block shows; block b shows pattern (I + b) mod M, the file may hold "
+                        "any number of blocks from M on (the last cut anywhere), each "
+                        "pattern's summed (not with --repeats, --frame or several files; "
+                        "default: block b shows pattern b)")
     p.add_argument("--sync-divider", type=int, default=None, metavar="D",
                    help="code periods per sync record, where the file's header does not say "
                         "(a sync from the code generator every D periods; default: the "
@@ -168,7 +175,8 @@ def cmd_reconstruct(args) -> int:
                              calibration=args.calibration, marker_edge=args.marker_edge,
                              settle=args.settle, repeats=args.repeats,
                              sync_divider=args.sync_divider, frame=args.frame,
-                             pattern_size=args.pattern_size, **_detector_args(args),
+                             pattern_size=args.pattern_size,
+                             first_pattern=args.first_pattern, **_detector_args(args),
                              **processing)
     say_warnings(result.warnings)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
@@ -243,7 +251,7 @@ def cmd_calibrate(args) -> int:
                         fov_deg=args.fov, marker_edge=args.marker_edge,
                         settle=args.settle, repeats=args.repeats,
                         sync_divider=args.sync_divider, pattern_size=args.pattern_size,
-                        **_detector_args(args))
+                        first_pattern=args.first_pattern, **_detector_args(args))
     path = write_calibration(cal, args.out, args.overwrite)
     _WRITTEN.append(str(path))
     period_ns = cal["code_length"] / args.bit_rate * 1e9

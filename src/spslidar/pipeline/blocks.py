@@ -502,7 +502,8 @@ def _lost_notes(data, marker: int, n_bins: int) -> list[str]:
 def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
                 channel: Any = None, allow_binning: bool = False,
                 marker_edge: str = "start", settle: float = 0.0,
-                repeats: int = 1, sync_divider: int | None = None) -> tuple[Any, list[str]]:
+                repeats: int = 1, sync_divider: int | None = None,
+                free_running: bool = False) -> tuple[Any, list[str]]:
     """The ``m`` pattern blocks of a measured T3 file, and what to say about them.
 
     Parameters
@@ -525,6 +526,9 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
         Times the sequence was shown (``m`` is then its rows times this): named in a refusal.
     sync_divider : int, optional
         Code periods per sync record where the header does not say (the reader's).
+    free_running : bool
+        A DMD looping its sequence (``--first-pattern``): every block is read, ``m`` or more
+        (fewer refused), none left out as an arming or end marker's; bounces are merged.
 
     Returns
     -------
@@ -546,7 +550,8 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
     def read(extra: int):
         try:
             return read_ptu_histograms(ptu, n_bins, bin_width=bin_width, marker=marker,
-                                       channel=channel, n_patterns=m, extra_blocks=extra,
+                                       channel=channel, n_patterns=None if free_running else m,
+                                       extra_blocks=0 if free_running else extra,
                                        marker_edge=marker_edge, allow_binning=allow_binning,
                                        settle_s=seconds, sync_divider=sync_divider)
         except ConfigError as err:  # ("fewer than the 384 patterns" of 96 rows: say why)
@@ -556,6 +561,14 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
             raise
 
     data = read(2 + max(BOUNCE_EXTRA, m // BOUNCE_ROWS))
+    if free_running:  # (every block read: any number of passes, the last one cut anywhere)
+        data, notes = _merge_bounces(data, m, marker)
+        if data.n_patterns < m:
+            raise ConfigError(f"{os.fspath(ptu)!r} has {data.n_patterns} marker-delimited "
+                              f"blocks on input {marker}, fewer than the {m} rows of "
+                              f"--patterns: a free-running sequence (--first-pattern) must "
+                              f"show each pattern at least once")
+        return _said(data, ptu, notes, marker, channel, marker_edge, n_bins)
     if data.n_patterns < data.n_markers <= 2 * m + 2:  # (more markers than that, up to two
         # a pattern and the arming and end markers': every marker may have bounced, so read
         # them all; the last pattern lost all but its bounce's photons, a review)
@@ -569,6 +582,13 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
     elif data.n_patterns > m:
         data, note = _drop_extra_block(data, m, marker)
         notes += [note] if note else []
+    return _said(data, ptu, notes, marker, channel, marker_edge, n_bins)
+
+
+def _said(data, ptu, notes: list[str], marker: int, channel: Any, marker_edge: str,
+          n_bins: int) -> tuple[Any, list[str]]:
+    """:func:`read_blocks`' last word on the blocks kept: a file without a photon in them
+    refused, the notes on its marker edge, channels, missed markers and photons lost."""
     if not int(np.sum(data.counts_per_pattern)):
         # (exit 0 with an all-NaN map and "pass --marker-edge end" said of a file of markers
         # alone, while calibrate refused it: an outside audit of 2026-11-30)

@@ -182,7 +182,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
                     afterpulse_prob: float = 0.0, afterpulse_delay: float = 0.0,
                     repeats: int = 1, sync_divider: int | None = None,
                     frame: int | None = None, pattern_size: int | None = None,
-                    **processing: Any) -> Result:
+                    first_pattern: int | None = None, **processing: Any) -> Result:
     """Depth map from a measured T3 PTU acquisition.
 
     Parameters
@@ -245,6 +245,16 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         With ``repeats``: reconstruct that repeat of the sequence alone (from 0), a frame of
         a video whose scene moves between repeats (default: all repeats summed). Every
         block is still read, screened and checked for drift.
+    first_pattern : int, optional
+        A free-running DMD, looping its sequence while the recording started at some
+        moment: the ``--patterns`` row (from 0) the file's first marker block shows (the
+        block its first marker starts, or ends under ``marker_edge="end"``). Block ``b``
+        then shows pattern ``(first_pattern + b) mod M``, the file may hold any number
+        ``B >= M`` of blocks (the last cut by the recording's end, a short block summed
+        with its pattern's others), and each pattern's kept blocks are summed as under
+        ``repeats`` (:mod:`spslidar.pipeline.free_run`); ``metrics['ptu']`` gives it and
+        ``blocks_per_pattern``. Refused with ``repeats`` of 2 or more, ``frame`` or several
+        files. Default (None): block ``b`` shows pattern ``b``.
     pattern_size : int, optional
         The patterns' side ``N`` where they are given finer (images at the DMD's
         resolution, each pattern pixel a block of mirrors): each is read as ``N x N`` blocks,
@@ -269,6 +279,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     from ..patterns import as_patterns
     from ..scenes import Scene
     from .blocks import channels_read, check_frame, check_repeats
+    from .free_run import check_first_pattern
     from .measurement import check_processing_keys, processing_keys
 
     if {"backend", "device"} & set(processing):  # (it was told the acquisition sets them)
@@ -280,6 +291,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     # (a file's reader warns, as of images read at their patterns' size: kept in metrics)
     patterns = patterns_in(patterns, pattern_size, distinct=True)
     repeats = check_repeats(repeats)
+    first_pattern = check_first_pattern(first_pattern, int(patterns.shape[0]), repeats=repeats,
+                                        n_files=len(files), frame=frame)
     frame = check_frame(frame, repeats * len(files))
     code = check_code(code, None, "code")
     range_gate = check_gate(range_gate)
@@ -310,7 +323,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     solved = solved_rows(ptu, patterns, code, bin_width, detector=detector, marker=marker,
                          channel=channel, allow_binning=allow_binning,
                          marker_edge=marker_edge, settle=settle, repeats=repeats,
-                         sync_divider=sync_divider, frame=frame)
+                         sync_divider=sync_divider, frame=frame, first_pattern=first_pattern)
     data, hist, n_k, noise_totals = solved.data, solved.hist, solved.periods, solved.noise_totals
     patterns, rows, partial, pile = solved.patterns, solved.rows, solved.partial, solved.pile
     m = rows.size
@@ -438,7 +451,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
                  [os.fspath(f) for f in files]),
         "counts_per_pattern": solved.counts_kept.tolist(),
         "blocks_left_out": solved.blocks_left_out.tolist(),
-        "repeats": repeats, "frame": frame,
+        "repeats": repeats, "frame": frame, "first_pattern": first_pattern,
+        "blocks_per_pattern": (None if solved.blocks_per_pattern is None
+                               else solved.blocks_per_pattern.tolist()),
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":
         float(background.mean() / n_mean), "background_per_pattern": background.tolist(),
         "n_records": data.n_records, "n_photons": data.n_photons, "n_markers": data.n_markers,

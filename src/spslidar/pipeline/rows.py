@@ -67,24 +67,34 @@ class SolvedRows(NamedTuple):
     notes: list[str]
     #: how many of them the reading said (the rest come after: a caller's own go between)
     n_read: int = 0
+    #: under ``first_pattern``, each pattern's kept blocks (shape (M,), in ``--patterns``
+    #: order); else None
+    blocks_per_pattern: np.ndarray | None = None
 
 
 def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
                  detector: Any, marker: int, channel: Any, allow_binning: bool,
                  marker_edge: str, settle: float, repeats: int,
-                 sync_divider: Any) -> _FileBlocks:
+                 sync_divider: Any, first: int | None) -> _FileBlocks:
     """One file's blocks, read, screened and corrected for pile-up (:func:`solved_rows`)."""
     from .blocks import block_patterns, drop_frozen, read_blocks
+    from .free_run import block_numbers, free_block_patterns
     from .screen import measured_blocks
 
     m_rows = int(shown.shape[0])
     m = m_rows * repeats
-    patterns = block_patterns(shown, repeats)  # (each block's, as the screening reads it)
     data, notes = read_blocks(ptu, m, int(np.size(code)), bin_width=bin_width, marker=marker,
                               channel=channel, allow_binning=allow_binning,
                               marker_edge=marker_edge, settle=settle, repeats=repeats,
-                              sync_divider=sync_divider)
+                              sync_divider=sync_divider, free_running=first is not None)
     n_blocks = data.n_patterns  # (the lost syncs' blocks too, for blocks_left_out)
+    # each block's pattern, as the screening reads it (free-running: every block the file
+    # holds, block b showing pattern (first + b) mod M)
+    if first is None:
+        patterns = block_patterns(shown, repeats)
+    else:
+        m = n_blocks
+        patterns = free_block_patterns(shown, block_numbers(first, m, m_rows))
     data, frozen, note = drop_frozen(data, ptu)
     if frozen:  # (the rows the file's lost syncs leave without a dwell)
         m, patterns = m - frozen, patterns[: m - frozen]
@@ -120,7 +130,7 @@ def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float
     # share of returns outside the gate is read); pile-up corrected; the drift read (the
     # warnings name each block's pattern: under repeats, block r M + i is pattern i's)
     blocks = measured_blocks(hist, hist.sum(axis=1), n_k, patterns, code, data, detector,
-                             channel, bin_width, rows % m_rows)
+                             channel, bin_width, (rows + (first or 0)) % m_rows)
     if blocks.keep.size < m:
         n_k, rows = n_k[blocks.keep], rows[blocks.keep]
     return _FileBlocks(data, blocks.hist, n_k, blocks.noise_totals, rows, n_blocks,
@@ -175,7 +185,7 @@ def _joined(parts: list[_FileBlocks], step: int) -> Any:
 def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
                 detector: Any, marker: int, channel: Any, allow_binning: bool,
                 marker_edge: str, settle: float, repeats: int, sync_divider: Any,
-                frame: int | None) -> SolvedRows:
+                frame: int | None, first_pattern: int | None = None) -> SolvedRows:
     """The rows of a measured acquisition that ``reconstruct`` solves (:class:`SolvedRows`).
 
     Parameters
@@ -196,6 +206,9 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
     marker, channel, allow_binning, marker_edge, settle, repeats, sync_divider, frame
         As :func:`~spslidar.pipeline.real.reconstruct_ptu` takes them (checked; ``frame``
         counts the repeats through the files).
+    first_pattern : int, optional
+        A free-running sequence's first block's pattern (checked, one file, no repeats):
+        block ``b`` shows pattern ``(first_pattern + b) mod M``, each pattern's summed.
     """
     from .blocks import fold_repeats
     from .drift import drift_note, timing_drift
@@ -204,7 +217,7 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
     m_rows = int(shown.shape[0])
     options = dict(detector=detector, marker=marker, channel=channel,
                    allow_binning=allow_binning, marker_edge=marker_edge, settle=settle,
-                   repeats=repeats, sync_divider=sync_divider)
+                   repeats=repeats, sync_divider=sync_divider, first=first_pattern)
     parts = _read_each(files, shown, code, bin_width, options)
     if len(parts) == 1:
         part = parts[0]
@@ -255,14 +268,67 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
             f"the sequence was shown {total_repeats} times, summed here: a scene that moves "
             f"between the repeats reads as the drift above; --frame I reconstructs repeat I "
             f"alone")
+    elif first_pattern is not None and n_blocks > m_rows and drift_note(drift, bin_width):
+        notes.append(
+            f"the free-running sequence's {n_blocks} blocks ({n_blocks / m_rows:.3g} passes of "
+            f"the {m_rows} patterns) are summed here: a scene that moves between the passes "
+            f"reads as the drift above")
     read = np.arange(n_blocks)  # (the blocks asked for: a frame's, or every one)
     left_out = np.setdiff1d(read if frame is None else read[read // m_rows == frame], rows)
     counts_kept = data.counts_per_pattern[rows]
-    if total_repeats > 1:  # each pattern's kept blocks summed: the solve has one row a pattern
+    per_pattern = None
+    if first_pattern is not None:  # (the kept blocks of each pattern, in --patterns order)
+        per_pattern = np.bincount((rows + first_pattern) % m_rows, minlength=m_rows)
+    if total_repeats > 1 or first_pattern is not None:
+        # each pattern's kept blocks summed: the solve has one row a pattern
         rows, hist, n_k, noise_totals, counts_kept = fold_repeats(
-            rows % m_rows, hist, n_k, noise_totals, counts_kept)
+            (rows + (first_pattern or 0)) % m_rows, hist, n_k, noise_totals, counts_kept)
     # (the patterns themselves where every row is solved: no copy of a large set)
     every = rows.size == m_rows and np.array_equal(rows, np.arange(m_rows))
     return SolvedRows(data, hist, n_k, noise_totals, shown if every else shown[rows], rows,
                       counts_kept, left_out, any(p.partial for p in parts), pile, drift, notes,
-                      n_read)
+                      n_read, per_pattern)
+
+
+def calibration_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
+                     detector: Any, marker: int, channel: Any, allow_binning: bool,
+                     marker_edge: str, settle: float, repeats: int, sync_divider: Any,
+                     first: int | None) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray,
+                                                 dict, Any, list[str]]:
+    """The rows ``calibrate`` reads of a flat target's file (moved out of
+    :func:`~spslidar.pipeline.calibration.calibrate_ptu`): its blocks read, a lost sync's
+    left out, a dropout's left out, a gated detector said, pile-up corrected and the drift
+    read (which widens the response a wall's acquisition reads), as ``reconstruct`` does;
+    under ``repeats`` or ``first`` (checked) each pattern's blocks summed.
+
+    Returns
+    -------
+    data, keep, patterns, hists, pile, drift, notes
+        The file read (without a lost sync's blocks), the blocks kept, each row's pattern
+        ``(R, Q)`` and histogram, the pile-up record, the drift read and the warnings.
+    """
+    from .blocks import block_patterns, drop_frozen, fold_repeats, read_blocks
+    from .free_run import block_numbers, free_block_patterns
+    from .screen import measured_blocks
+
+    m_rows = int(shown.shape[0])
+    data, notes = read_blocks(ptu, m_rows * repeats, int(np.size(code)), bin_width=bin_width,
+                              marker=marker, channel=channel, allow_binning=allow_binning,
+                              marker_edge=marker_edge, settle=settle, repeats=repeats,
+                              sync_divider=sync_divider, free_running=first is not None)
+    patterns = (block_patterns(shown, repeats) if first is None else
+                free_block_patterns(shown, block_numbers(first, data.n_patterns, m_rows)))
+    data, frozen, note = drop_frozen(data, ptu)
+    if frozen:  # (blocks without a dwell: the file's syncs lost)
+        patterns = patterns[: patterns.shape[0] - frozen]
+        notes.append(note)
+    numbers = block_numbers(first, data.n_patterns, m_rows)
+    blocks = measured_blocks(data.histograms, data.counts_per_pattern,
+                             np.maximum(data.exposure_periods, 1), patterns, code, data,
+                             detector, channel, bin_width, numbers)
+    keep, hists = blocks.keep, blocks.hist
+    patterns = patterns[keep]
+    if repeats > 1 or first is not None:  # each pattern's blocks summed, as reconstruct does
+        rows, hists, *_ = fold_repeats(numbers[keep], hists)
+        patterns = shown[rows]
+    return data, keep, patterns, hists, blocks.pile, blocks.drift, notes + blocks.notes
