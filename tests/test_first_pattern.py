@@ -1,0 +1,233 @@
+"""A free-running DMD (``--first-pattern I``): the DMD loops its sequence while the time tagger
+records from some moment on, so the file's first whole marker block shows pattern ``I``, and
+the recording stops mid-sequence (``B`` blocks, no multiple of the ``M`` patterns). Block ``b``
+shows pattern ``(I + b) mod M`` and each pattern's blocks are summed. Files written with the
+project's own writer (``spslidar.io.write_ptu_t3``).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from spslidar.cli import main
+from spslidar.io import write_ptu_t3
+from spslidar.pipeline.free_run import block_numbers, check_first_pattern
+
+C = 299_792_458.0
+BIT_RATE = 10e9
+N, M, L, DWELL = 8, 64, 127, 400
+
+
+def _model(seed):
+    """The patterns (M distinct random binary 8x8), a balanced random code, the truth and
+    each pattern's photon rate per bin and code period (M, L)."""
+    rng = np.random.default_rng(seed)
+    depth = np.full((N, N), 1.5)
+    depth[:, :3] = 1.0
+    depth[2:6, 4:7] = 1.2
+    refl = np.full((N, N), 0.8)
+    code = np.zeros(L)
+    code[rng.permutation(L)[: L // 2 + 1]] = 1.0
+    pats = (rng.random((M, N, N)) < 0.5).astype(np.float32)
+    delay = np.rint(2 * depth.ravel() / (C / BIT_RATE)).astype(int)
+    amp = np.zeros((M, L))
+    w = pats.reshape(M, -1) * refl.ravel()[None, :]
+    for d in np.unique(delay):
+        amp[:, d % L] += w[:, delay == d].sum(axis=1)
+    spectrum = np.fft.ifft(np.fft.fft(amp, axis=1) * np.fft.fft(code)[None, :], axis=1).real
+    return pats, code, depth, np.clip(5e-4 * spectrum + 1e-3, 0, None), rng
+
+
+def _write(path, blocks, pre=None, rng=None):
+    """Blocks of (photon counts per bin (L,), dwell in periods), each opened by a marker,
+    in the order given; ``pre``: the counts of a block cut by the recording's start, before
+    the first marker (over DWELL // 2 periods). The last block's last photon is at its last
+    sync, so its dwell is the one given."""
+    rng = np.random.default_rng(0) if rng is None else rng
+    syncs, dtimes, marks = [], [], []
+    start = 0
+    if pre is not None:
+        t = np.repeat(np.arange(L), pre)
+        syncs.append(rng.integers(0, DWELL // 2, t.size))
+        dtimes.append(t)
+        marks.append(np.zeros(t.size, int))
+        start = DWELL // 2
+    for k, (counts, dwell) in enumerate(blocks):
+        t = np.repeat(np.arange(L), counts)
+        s = start + rng.integers(0, dwell, t.size)
+        if k == len(blocks) - 1 and s.size:
+            s[0] = start + dwell - 1
+        syncs += [np.array([start]), s]
+        dtimes += [np.zeros(1, int), t]
+        marks += [np.ones(1, int), np.zeros(t.size, int)]
+        start += dwell
+    sync, dtime, mark = (np.concatenate(a) for a in (syncs, dtimes, marks))
+    order = np.lexsort((-mark, sync))  # time order, a block's marker before its photons
+    write_ptu_t3(path, nsync=sync[order], dtime=dtime[order], marker=mark[order],
+                 resolution_s=1 / BIT_RATE, sync_rate_hz=BIT_RATE / L)
+
+
+def _free_run(path, seed, first, n_blocks, cut=0.3):
+    """A free-running acquisition (``path/free.ptu``): ``n_blocks`` blocks from pattern
+    ``first`` on, the last lasting ``cut`` of a dwell, a cut block before the first marker;
+    and the same photons written aligned (``path/aligned.ptu``): one block per pattern
+    holding its blocks' photons over their summed dwells. The truth."""
+    pats, code, depth, lam, rng = _model(seed)
+    dwells = np.full(n_blocks, DWELL)
+    dwells[-1] = int(cut * DWELL)
+    shown = block_numbers(first, n_blocks, M)
+    counts = rng.poisson(lam[shown] * dwells[:, None])
+    _write(path / "free.ptu", list(zip(counts, dwells, strict=True)),
+           pre=rng.poisson(lam[(first - 1) % M] * (DWELL // 2)), rng=rng)
+    summed = np.zeros((M, L), np.int64)
+    total = np.zeros(M, np.int64)
+    np.add.at(summed, shown, counts)
+    np.add.at(total, shown, dwells)
+    _write(path / "aligned.ptu", list(zip(summed, total, strict=True)), rng=rng)
+    np.save(path / "patterns.npy", pats)
+    np.save(path / "code.npy", code.astype(np.uint8))
+    return depth
+
+
+def _cli(path, name, capsys, *extra, command="reconstruct"):
+    tag = "_".join(a.strip("-") for a in extra).replace("/", "")[-40:]
+    out = path / f"out_{name}_{tag}"
+    args = ["--ptu", str(path / f"{name}.ptu"), "--patterns", str(path / "patterns.npy"),
+            "--code", str(path / "code.npy"), "--bit-rate", "10e9"]
+    if command == "reconstruct":
+        args = ["reconstruct", *args, "--range-gate", "0.7", "1.8", "--out", str(out),
+                "--no-figure", *extra]
+    else:
+        out = path / f"cal_{name}_{tag}.json"
+        args = ["calibrate", *args, "--distance", "1.5", "--out", str(out), *extra]
+    try:
+        rc = main(args)
+    except SystemExit as exc:  # (argparse's own refusal: one line, exit 2)
+        rc = exc.code
+    err = capsys.readouterr().err
+    if rc or command != "reconstruct":
+        return rc, out, err
+    return rc, (json.loads((out / "metrics.json").read_text()), np.load(out / "depth.npy")), err
+
+
+@pytest.fixture(scope="module")
+def cut(tmp_path_factory):
+    """B = 2.3 M blocks from pattern 37, and the same photons aligned."""
+    path = tmp_path_factory.mktemp("first_pattern")
+    return path, _free_run(path, seed=1, first=37, n_blocks=int(2.3 * M))
+
+
+def test_a_rotated_cut_acquisition_reads_as_its_aligned_photons(cut, capsys):
+    """Rotated by I = 37 and cut at 2.3 passes (the last block 0.3 of a dwell, a block cut
+    by the recording's start before the first marker): with --first-pattern 37 the depth map
+    is the aligned file's, bit for bit (each pattern's photons and dwell are the same
+    integers, summed), and it is a depth map (the truth within a few cm)."""
+    path, truth = cut
+    rc, (free, depth), err = _cli(path, "free", capsys, "--first-pattern", "37")
+    assert rc == 0, err
+    rc, (aligned, depth_aligned), err_aligned = _cli(path, "aligned", capsys)
+    assert rc == 0, err_aligned
+    np.testing.assert_array_equal(depth, depth_aligned)
+    assert np.nanmedian(np.abs(depth - truth)) < 0.03
+    ptu = free["ptu"]
+    assert ptu["first_pattern"] == 37 and aligned["ptu"]["first_pattern"] is None
+    assert ptu["patterns_solved"] == list(range(M))
+    assert ptu["counts_per_pattern"] == aligned["ptu"]["counts_per_pattern"]
+    assert ptu["periods_per_pattern"] == aligned["ptu"]["periods_per_pattern"]
+    b = int(2.3 * M)  # blocks 0..B-1 show 37, 38, ... : pattern p has 2 or 3 blocks
+    assert ptu["blocks_per_pattern"] == np.bincount(block_numbers(37, b, M)).tolist()
+    assert aligned["ptu"]["blocks_per_pattern"] is None
+    assert ptu["blocks_left_out"] == []
+    assert ptu["n_dropped_before_first_marker"] > 0  # (the block cut by the start)
+    # (without the flag the free-running file is refused, as before: its blocks match nothing)
+    rc, _, err = _cli(path, "free", capsys)
+    assert rc == 2 and f"has {b} marker-delimited blocks but --patterns has {M} rows" in err
+
+
+def test_calibrate_reads_a_free_running_file_as_its_aligned_photons(cut, capsys):
+    """calibrate --first-pattern: the same delay and response as the aligned file's."""
+    path, _ = cut
+    rc, out, err = _cli(path, "free", capsys, "--first-pattern", "37", command="calibrate")
+    assert rc == 0, err
+    rc, out_aligned, err = _cli(path, "aligned", capsys, command="calibrate")
+    assert rc == 0, err
+    cal, ref = (json.loads(p.read_text()) for p in (out, out_aligned))
+    assert cal["measured_from"]["first_pattern"] == 37
+    assert ref["measured_from"]["first_pattern"] is None
+    assert cal["delay_s"] == ref["delay_s"] and cal["irf_values"] == ref["irf_values"]
+
+
+def test_warnings_and_patterns_solved_are_in_patterns_numbering(tmp_path, capsys):
+    """One pass from pattern 5 (B = M), block 10 a dropout (no photon over a whole dwell)
+    and the last block cut to 0.3 of a dwell: the dropout is said as pattern 15 (block 10 in
+    blocks_left_out), the short dwell as pattern 4, and pattern 15 is the one not solved."""
+    pats, code, _, lam, rng = _model(2)
+    dwells = np.full(M, DWELL)
+    dwells[-1] = int(0.3 * DWELL)
+    shown = block_numbers(5, M, M)
+    counts = rng.poisson(lam[shown] * dwells[:, None])
+    counts[10] = 0
+    _write(tmp_path / "free.ptu", list(zip(counts, dwells, strict=True)), rng=rng)
+    np.save(tmp_path / "patterns.npy", pats)
+    np.save(tmp_path / "code.npy", code.astype(np.uint8))
+    rc, (metrics, _), err = _cli(tmp_path, "free", capsys, "--first-pattern", "5")
+    assert rc == 0, err
+    ptu = metrics["ptu"]
+    assert ptu["patterns_solved"] == [p for p in range(M) if p != 15]
+    assert ptu["blocks_left_out"] == [10]
+    assert ptu["blocks_per_pattern"] == [0 if p == 15 else 1 for p in range(M)]
+    said = " ".join(metrics["warnings"]) if isinstance(metrics["warnings"], list) else \
+        metrics["warnings"]
+    assert "pattern 15" in said and "pattern 10" not in said
+    assert "1 pattern(s) (first: 4) have less than half the median dwell" in said
+
+
+def _refused(capsys, path, *argv, command="reconstruct"):
+    rc, out, err = _cli(path, "free", capsys, *argv, command=command)
+    lines = err.strip().splitlines()
+    assert rc == 2 and len(lines) == 1, err
+    assert not out.exists()
+    return lines[0]
+
+
+@pytest.mark.parametrize("argv, said", [
+    (["--first-pattern", "-1"], "--first-pattern must be a row of --patterns, 0 to 63"),
+    (["--first-pattern", "64"], "--first-pattern must be a row of --patterns, 0 to 63"),
+    (["--first-pattern", "2.5"], "--first-pattern: invalid int value"),
+    (["--first-pattern", "3", "--repeats", "2"], "leave --repeats out"),
+    (["--first-pattern", "3", "--frame", "0"], "is summed over every pass"),
+])
+@pytest.mark.parametrize("command", ["reconstruct", "calibrate"])
+def test_bad_first_patterns_are_refused_in_one_line(cut, capsys, argv, said, command):
+    path, _ = cut
+    if command == "calibrate" and "--frame" in argv:
+        pytest.skip("calibrate has no --frame")
+    assert said in _refused(capsys, path, *argv, command=command)
+
+
+def test_several_files_and_too_few_blocks_are_refused(cut, tmp_path, capsys):
+    """Several --ptu files with it: one line; fewer blocks than patterns: one line saying
+    how many were found."""
+    path, _ = cut
+    line = _refused(capsys, path, "--first-pattern", "3", "--ptu", str(path / "aligned.ptu"))
+    assert "--first-pattern reads one PTU file" in line
+    pats, code, _, lam, rng = _model(3)
+    counts = rng.poisson(lam[:40] * DWELL)
+    _write(tmp_path / "free.ptu", [(c, DWELL) for c in counts], rng=rng)
+    np.save(tmp_path / "patterns.npy", pats)
+    np.save(tmp_path / "code.npy", code.astype(np.uint8))
+    for command in ("reconstruct", "calibrate"):
+        line = _refused(capsys, tmp_path, "--first-pattern", "0", command=command)
+        assert "has 40 marker-delimited blocks on input 1, fewer than the 64 rows" in line
+
+
+def test_check_first_pattern_refuses_what_is_no_row():
+    """The API's check: not a bool or text, a whole number, a row; None stays None."""
+    assert check_first_pattern(None, 4) is None
+    assert check_first_pattern(np.int64(3), 4) == 3 and check_first_pattern(2.0, 4) == 2
+    for bad in (True, "1", 1.5, float("nan"), -1, 4):
+        with pytest.raises(Exception, match="--first-pattern must be"):
+            check_first_pattern(bad, 4)
