@@ -41,36 +41,49 @@ def _model(seed):
     return pats, code, depth, np.clip(5e-4 * spectrum + 1e-3, 0, None), rng
 
 
-def _write(path, blocks, pre=None, rng=None):
-    """Blocks of (photon counts per bin (L,), dwell in periods), each opened by a marker,
-    in the order given; ``pre``: the counts of a block cut by the recording's start, before
-    the first marker (over DWELL // 2 periods). The last block's last photon is at its last
-    sync, so its dwell is the one given."""
+def _write(path, blocks, pre=None, rng=None, edge="start", end_marker=False):
+    """Blocks of (photon counts per bin (L,), dwell in periods), each opened by a marker
+    (``edge="end"``: closed by one, at its last sync after its photons), in the order given;
+    ``pre``: the counts of a block cut by the recording (over DWELL // 2 periods), before
+    the first marker (after the last under ``end``). The last block's last photon is at its
+    last sync, so its dwell is the one given; ``end_marker``: a marker after it (an end of
+    acquisition's)."""
     rng = np.random.default_rng(0) if rng is None else rng
     syncs, dtimes, marks = [], [], []
     start = 0
-    if pre is not None:
+
+    def cut_block(begin):
         t = np.repeat(np.arange(L), pre)
-        syncs.append(rng.integers(0, DWELL // 2, t.size))
+        syncs.append(begin + rng.integers(0, DWELL // 2, t.size))
         dtimes.append(t)
         marks.append(np.zeros(t.size, int))
-        start = DWELL // 2
+        return begin + DWELL // 2
+
+    if pre is not None and edge == "start":
+        start = cut_block(0)
     for k, (counts, dwell) in enumerate(blocks):
         t = np.repeat(np.arange(L), counts)
         s = start + rng.integers(0, dwell, t.size)
         if k == len(blocks) - 1 and s.size:
             s[0] = start + dwell - 1
-        syncs += [np.array([start]), s]
+        syncs += [np.array([start if edge == "start" else start + dwell - 1]), s]
         dtimes += [np.zeros(1, int), t]
         marks += [np.ones(1, int), np.zeros(t.size, int)]
         start += dwell
+    if pre is not None and edge == "end":
+        cut_block(start)
+    if end_marker:
+        syncs.append(np.array([start]))
+        dtimes.append(np.zeros(1, int))
+        marks.append(np.ones(1, int))
     sync, dtime, mark = (np.concatenate(a) for a in (syncs, dtimes, marks))
-    order = np.lexsort((-mark, sync))  # time order, a block's marker before its photons
+    # time order: a block's opening marker before its photons, a closing one after them
+    order = np.lexsort((-mark if edge == "start" else mark, sync))
     write_ptu_t3(path, nsync=sync[order], dtime=dtime[order], marker=mark[order],
                  resolution_s=1 / BIT_RATE, sync_rate_hz=BIT_RATE / L)
 
 
-def _free_run(path, seed, first, n_blocks, cut=0.3):
+def _free_run(path, seed, first, n_blocks, cut=0.3, **how):
     """A free-running acquisition (``path/free.ptu``): ``n_blocks`` blocks from pattern
     ``first`` on, the last lasting ``cut`` of a dwell, a cut block before the first marker;
     and the same photons written aligned (``path/aligned.ptu``): one block per pattern
@@ -80,8 +93,11 @@ def _free_run(path, seed, first, n_blocks, cut=0.3):
     dwells[-1] = int(cut * DWELL)
     shown = block_numbers(first, n_blocks, M)
     counts = rng.poisson(lam[shown] * dwells[:, None])
+    if how.get("edge") == "end":  # (the first block is cut by the start, the last whole)
+        dwells = dwells[::-1].copy()
+        counts = rng.poisson(lam[shown] * dwells[:, None])
     _write(path / "free.ptu", list(zip(counts, dwells, strict=True)),
-           pre=rng.poisson(lam[(first - 1) % M] * (DWELL // 2)), rng=rng)
+           pre=rng.poisson(lam[(first - 1) % M] * (DWELL // 2)), rng=rng, **how)
     summed = np.zeros((M, L), np.int64)
     total = np.zeros(M, np.int64)
     np.add.at(summed, shown, counts)
@@ -158,6 +174,7 @@ def test_calibrate_reads_a_free_running_file_as_its_aligned_photons(cut, capsys)
     assert cal["measured_from"]["first_pattern"] == 37
     assert ref["measured_from"]["first_pattern"] is None
     assert cal["delay_s"] == ref["delay_s"] and cal["irf_values"] == ref["irf_values"]
+    assert cal["target"] == ref["target"] and cal["measured_from"]["patterns"] == M
 
 
 def test_warnings_and_patterns_solved_are_in_patterns_numbering(tmp_path, capsys):
@@ -179,10 +196,33 @@ def test_warnings_and_patterns_solved_are_in_patterns_numbering(tmp_path, capsys
     assert ptu["patterns_solved"] == [p for p in range(M) if p != 15]
     assert ptu["blocks_left_out"] == [10]
     assert ptu["blocks_per_pattern"] == [0 if p == 15 else 1 for p in range(M)]
-    said = " ".join(metrics["warnings"]) if isinstance(metrics["warnings"], list) else \
-        metrics["warnings"]
+    said = " ".join(metrics["warnings"])
     assert "pattern 15" in said and "pattern 10" not in said
     assert "1 pattern(s) (first: 4) have less than half the median dwell" in said
+
+
+@pytest.mark.parametrize("how", [{"edge": "end"}, {"end_marker": True}])
+def test_marker_edge_end_and_an_end_marker(tmp_path, capsys, how):
+    """Markers that end their patterns (--marker-edge end): block 0 is the one the first
+    marker ends, cut by the recording's start, and it shows I; the photons after the last
+    marker are left out. An end-of-acquisition marker after a cut last block: its empty
+    block is left out. Either reads as the same photons aligned, bit for bit."""
+    _free_run(tmp_path, seed=4, first=9, n_blocks=int(1.6 * M), **how)
+    extra = ("--marker-edge", "end") if how.get("edge") else ()
+    rc, (free, depth), err = _cli(tmp_path, "free", capsys, "--first-pattern", "9", *extra)
+    assert rc == 0, err
+    rc, (aligned, depth_aligned), err = _cli(tmp_path, "aligned", capsys)
+    assert rc == 0, err
+    np.testing.assert_array_equal(depth, depth_aligned)
+    assert free["ptu"]["periods_per_pattern"] == aligned["ptu"]["periods_per_pattern"]
+    assert free["ptu"]["patterns_solved"] == list(range(M))
+    if how.get("end_marker"):
+        assert free["ptu"]["blocks_left_out"] == [int(1.6 * M)]
+        said = f"the last of the {int(1.6 * M) + 1} marker blocks holds no photons"
+        assert any(w.startswith(said) and w.endswith("it is left out")
+                   for w in free["warnings"])
+    else:
+        assert free["ptu"]["n_dropped_after_last_pattern"] > 0
 
 
 def _refused(capsys, path, *argv, command="reconstruct"):
@@ -193,18 +233,21 @@ def _refused(capsys, path, *argv, command="reconstruct"):
     return lines[0]
 
 
-@pytest.mark.parametrize("argv, said", [
+_BAD = [
     (["--first-pattern", "-1"], "--first-pattern must be a row of --patterns, 0 to 63"),
     (["--first-pattern", "64"], "--first-pattern must be a row of --patterns, 0 to 63"),
     (["--first-pattern", "2.5"], "--first-pattern: invalid int value"),
     (["--first-pattern", "3", "--repeats", "2"], "leave --repeats out"),
-    (["--first-pattern", "3", "--frame", "0"], "is summed over every pass"),
+]
+
+
+@pytest.mark.parametrize("command, argv, said", [
+    *[("reconstruct", a, s) for a, s in _BAD], *[("calibrate", a, s) for a, s in _BAD],
+    ("reconstruct", ["--first-pattern", "3", "--frame", "0"], "is summed over every pass"),
 ])
-@pytest.mark.parametrize("command", ["reconstruct", "calibrate"])
-def test_bad_first_patterns_are_refused_in_one_line(cut, capsys, argv, said, command):
+def test_bad_first_patterns_are_refused_in_one_line(cut, capsys, command, argv, said):
+    """Exit 2, one line on stderr, nothing written."""
     path, _ = cut
-    if command == "calibrate" and "--frame" in argv:
-        pytest.skip("calibrate has no --frame")
     assert said in _refused(capsys, path, *argv, command=command)
 
 

@@ -110,8 +110,10 @@ def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float
         # an end-of-acquisition marker read as a pattern: a row of zeros is no measurement
         notes.append(
             f"the last of the {m} marker blocks holds no photons and lasts {int(n_k[-1])} code "
-            f"period(s) (an end-of-acquisition marker?): its pattern row is left out of the "
-            f"solve (leave it out of --patterns to say so)")
+            f"period(s) (an end-of-acquisition marker?): "
+            + ("it is left out" if first is not None else  # (a free-running file's block)
+               "its pattern row is left out of the solve (leave it out of --patterns to say "
+               "so)"))
         m, n_k, hist, patterns, rows = m - 1, n_k[:-1], hist[:-1], patterns[:-1], rows[:-1]
     # any other row of zeros over less than half the median dwell is no measurement either:
     # scaled up to the mean dwell it stays 0 (an empty one-period first block under
