@@ -7,18 +7,26 @@ project's own writer (``spslidar.io.write_ptu_t3``).
 
 from __future__ import annotations
 
+import itertools
 import json
 
 import numpy as np
 import pytest
 
 from spslidar.cli import main
+from spslidar.errors import ConfigError
 from spslidar.io import write_ptu_t3
-from spslidar.pipeline.free_run import block_numbers, check_first_pattern
+from spslidar.pipeline.free_run import (
+    AUTO_MARGIN,
+    block_numbers,
+    check_first_pattern,
+    find_first_pattern,
+)
 
 C = 299_792_458.0
 BIT_RATE = 10e9
 N, M, L, DWELL = 8, 64, 127, 400
+_RUNS = itertools.count()  # (each run's own output, in a folder the module's tests share)
 
 
 def _model(seed):
@@ -109,7 +117,7 @@ def _free_run(path, seed, first, n_blocks, cut=0.3, **how):
 
 
 def _cli(path, name, capsys, *extra, command="reconstruct"):
-    tag = "_".join(a.strip("-") for a in extra).replace("/", "")[-40:]
+    tag = "_".join(a.strip("-") for a in extra).replace("/", "")[-40:] + f"_{next(_RUNS)}"
     out = path / f"out_{name}_{tag}"
     args = ["--ptu", str(path / f"{name}.ptu"), "--patterns", str(path / "patterns.npy"),
             "--code", str(path / "code.npy"), "--bit-rate", "10e9"]
@@ -236,7 +244,7 @@ def _refused(capsys, path, *argv, command="reconstruct"):
 _BAD = [
     (["--first-pattern", "-1"], "--first-pattern must be a row of --patterns, 0 to 63"),
     (["--first-pattern", "64"], "--first-pattern must be a row of --patterns, 0 to 63"),
-    (["--first-pattern", "2.5"], "--first-pattern: invalid int value"),
+    (["--first-pattern", "2.5"], "a whole number (a --patterns row) or auto, got '2.5'"),
     (["--first-pattern", "3", "--repeats", "2"], "leave --repeats out"),
 ]
 
@@ -274,3 +282,46 @@ def test_check_first_pattern_refuses_what_is_no_row():
     for bad in (True, "1", 1.5, float("nan"), -1, 4):
         with pytest.raises(Exception, match="--first-pattern must be"):
             check_first_pattern(bad, 4)
+
+
+def test_auto_finds_the_first_pattern_and_says_its_margin(cut, capsys):
+    """--first-pattern auto on the rotated, cut file: pattern 37, said with its margin over
+    the runner-up, and the map the explicit --first-pattern 37 gives."""
+    path, _ = cut
+    rc, (found, depth), err = _cli(path, "free", capsys, "--first-pattern", "auto")
+    assert rc == 0, err
+    rc, (given, depth_given), err = _cli(path, "free", capsys, "--first-pattern", "37")
+    assert rc == 0, err
+    np.testing.assert_array_equal(depth, depth_given)
+    assert found["ptu"]["first_pattern"] == 37 and found["ptu"]["first_pattern_found"]
+    assert given["ptu"]["first_pattern_found"] is False
+    said = [w for w in found["warnings"] if w.startswith("--first-pattern auto: the file's "
+                                                         "first block shows pattern 37")]
+    assert len(said) == 1 and f"{AUTO_MARGIN:g} needed" in said[0]
+    rc, out, err = _cli(path, "free", capsys, "--first-pattern", "auto", command="calibrate")
+    assert rc == 0, err
+    assert json.loads(out.read_text())["measured_from"]["first_pattern"] == 37
+
+
+def test_auto_refuses_where_it_cannot_tell(tmp_path, capsys):
+    """A file of background alone (no return to place the patterns by): every offset fits
+    as well, and auto is refused in one line that asks for the number; as with --repeats."""
+    pats, code, _, _, rng = _model(5)
+    counts = rng.poisson(np.full((M + 20, L), 0.4))
+    _write(tmp_path / "free.ptu", [(c, DWELL) for c in counts], rng=rng)
+    np.save(tmp_path / "patterns.npy", pats)
+    np.save(tmp_path / "code.npy", code.astype(np.uint8))
+    for command in ("reconstruct", "calibrate"):
+        line = _refused(capsys, tmp_path, "--first-pattern", "auto", command=command)
+        assert "--first-pattern auto cannot tell which of the 64 patterns" in line
+        assert "give the number, --first-pattern I" in line
+    line = _refused(capsys, tmp_path, "--first-pattern", "auto", "--repeats", "2")
+    assert "leave --repeats out" in line
+    line = _refused(capsys, tmp_path, "--first-pattern", "first")
+    assert "a whole number (a --patterns row) or auto, got 'first'" in line
+
+
+def test_auto_refuses_patterns_too_large_for_its_fit():
+    """Over AUTO_MAX pixels: refused before any fit (a dense (Q, Q) solve)."""
+    with pytest.raises(ConfigError, match="auto reads at most 4096 patterns"):
+        find_first_pattern(np.ones((3, 7)), np.ones(3), np.ones((2, 65 * 65)), np.ones(7))

@@ -432,7 +432,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
                   afterpulse_prob: float = 0.0,
                   afterpulse_delay: float = 0.0, repeats: int = 1,
                   sync_divider: int | None = None, pattern_size: int | None = None,
-                  first_pattern: int | None = None) -> dict[str, Any]:
+                  first_pattern: int | str | None = None) -> dict[str, Any]:
     """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target
     (``patterns`` an array or the file or folder that holds them, as
     :func:`~spslidar.pipeline.real.load_patterns` reads it, ``pattern_size`` as
@@ -440,7 +440,8 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
     (file, hash, photons, patterns, bit rate, code);
     ``allow_binning``, ``marker_edge``, ``settle``, ``repeats``, ``sync_divider``,
     ``first_pattern`` (a free-running DMD: block ``b`` shows pattern ``(first_pattern + b)
-    mod M``, any number of blocks, each pattern's summed) and the detector's ``dead_time`` and
+    mod M``, any number of blocks, each pattern's summed; ``"auto"`` finds it) and the
+    detector's ``dead_time`` and
     afterpulsing (each block's histogram corrected for pile-up before the response is read:
     uncorrected, a bright wall's response is read through the detector's dead time; the
     JSON's ``detector`` says which) as :func:`~spslidar.pipeline.real.reconstruct_ptu`.
@@ -494,7 +495,7 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
         wall_offsets((side, side), distance, fov, bin_width, int(code.size))
     from .rows import calibration_rows
 
-    data, keep, patterns, hists, pile, drift, notes = calibration_rows(
+    data, keep, patterns, hists, pile, drift, notes, first = calibration_rows(
         ptu, shown, code, bin_width, detector=detector, marker=marker, channel=channel,
         allow_binning=allow_binning, marker_edge=marker_edge, settle=settle, repeats=repeats,
         sync_divider=sync_divider, first=first)

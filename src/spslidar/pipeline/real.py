@@ -182,7 +182,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
                     afterpulse_prob: float = 0.0, afterpulse_delay: float = 0.0,
                     repeats: int = 1, sync_divider: int | None = None,
                     frame: int | None = None, pattern_size: int | None = None,
-                    first_pattern: int | None = None, **processing: Any) -> Result:
+                    first_pattern: int | str | None = None, **processing: Any) -> Result:
     """Depth map from a measured T3 PTU acquisition.
 
     Parameters
@@ -245,7 +245,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         With ``repeats``: reconstruct that repeat of the sequence alone (from 0), a frame of
         a video whose scene moves between repeats (default: all repeats summed). Every
         block is still read, screened and checked for drift.
-    first_pattern : int, optional
+    first_pattern : int or "auto", optional
         A free-running DMD, looping its sequence while the recording started at some
         moment: the ``--patterns`` row (from 0) the file's first marker block shows (the
         block its first marker starts, or ends under ``marker_edge="end"``). Block ``b``
@@ -254,7 +254,11 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         with its pattern's others), and each pattern's kept blocks are summed as under
         ``repeats`` (:mod:`spslidar.pipeline.free_run`); ``metrics['ptu']`` gives it and
         ``blocks_per_pattern``. Refused with ``repeats`` of 2 or more, ``frame`` or several
-        files. Default (None): block ``b`` shows pattern ``b``.
+        files. ``"auto"``: found from the data
+        (:func:`~spslidar.pipeline.free_run.find_first_pattern`), said in a warning with its
+        margin over the runner-up, and refused in one line where that margin is under
+        :data:`~spslidar.pipeline.free_run.AUTO_MARGIN`. Default (None): block ``b`` shows
+        pattern ``b``.
     pattern_size : int, optional
         The patterns' side ``N`` where they are given finer (images at the DMD's
         resolution, each pattern pixel a block of mirrors): each is read as ``N x N`` blocks,
@@ -451,7 +455,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
                  [os.fspath(f) for f in files]),
         "counts_per_pattern": solved.counts_kept.tolist(),
         "blocks_left_out": solved.blocks_left_out.tolist(),
-        "repeats": repeats, "frame": frame, "first_pattern": first_pattern,
+        "repeats": repeats, "frame": frame, "first_pattern": solved.first_pattern,
+        "first_pattern_found": first_pattern == "auto",
         "blocks_per_pattern": (None if solved.blocks_per_pattern is None
                                else solved.blocks_per_pattern.tolist()),
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":

@@ -35,6 +35,7 @@ class _FileBlocks(NamedTuple):
     drift: Any
     notes: list[str]
     n_read: int
+    first: int | None  # (the first block's pattern: given, or found under "auto")
 
 
 class SolvedRows(NamedTuple):
@@ -70,15 +71,17 @@ class SolvedRows(NamedTuple):
     #: under ``first_pattern``, each pattern's kept blocks (shape (M,), in ``--patterns``
     #: order); else None
     blocks_per_pattern: np.ndarray | None = None
+    #: the first block's pattern (given, or found under ``first_pattern="auto"``), or None
+    first_pattern: int | None = None
 
 
 def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
                  detector: Any, marker: int, channel: Any, allow_binning: bool,
                  marker_edge: str, settle: float, repeats: int,
-                 sync_divider: Any, first: int | None) -> _FileBlocks:
+                 sync_divider: Any, first: int | str | None) -> _FileBlocks:
     """One file's blocks, read, screened and corrected for pile-up (:func:`solved_rows`)."""
     from .blocks import block_patterns, drop_frozen, read_blocks
-    from .free_run import block_numbers, free_block_patterns
+    from .free_run import block_numbers, free_block_patterns, resolve_first
     from .screen import measured_blocks
 
     m_rows = int(shown.shape[0])
@@ -88,6 +91,8 @@ def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float
                               marker_edge=marker_edge, settle=settle, repeats=repeats,
                               sync_divider=sync_divider, free_running=first is not None)
     n_blocks = data.n_patterns  # (the lost syncs' blocks too, for blocks_left_out)
+    if first == "auto":  # (found from the blocks' photons, said, or refused)
+        first = resolve_first(data, shown, code, notes)
     # each block's pattern, as the screening reads it (free-running: every block the file
     # holds, block b showing pattern (first + b) mod M)
     if first is None:
@@ -136,7 +141,8 @@ def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float
     if blocks.keep.size < m:
         n_k, rows = n_k[blocks.keep], rows[blocks.keep]
     return _FileBlocks(data, blocks.hist, n_k, blocks.noise_totals, rows, n_blocks,
-                       blocks.partial, blocks.pile, blocks.drift, notes + blocks.notes, n_read)
+                       blocks.partial, blocks.pile, blocks.drift, notes + blocks.notes, n_read,
+                       first)
 
 
 def _read_each(files: list, shown: np.ndarray, code: np.ndarray, bin_width: float,
@@ -221,6 +227,7 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
                    allow_binning=allow_binning, marker_edge=marker_edge, settle=settle,
                    repeats=repeats, sync_divider=sync_divider, first=first_pattern)
     parts = _read_each(files, shown, code, bin_width, options)
+    first_pattern = parts[0].first  # (an "auto" resolved: one file under --first-pattern)
     if len(parts) == 1:
         part = parts[0]
         data, hist, n_k, noise_totals = part.data, part.hist, part.periods, part.noise_totals
@@ -289,14 +296,15 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
     every = rows.size == m_rows and np.array_equal(rows, np.arange(m_rows))
     return SolvedRows(data, hist, n_k, noise_totals, shown if every else shown[rows], rows,
                       counts_kept, left_out, any(p.partial for p in parts), pile, drift, notes,
-                      n_read, per_pattern)
+                      n_read, per_pattern, first_pattern)
 
 
 def calibration_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
                      detector: Any, marker: int, channel: Any, allow_binning: bool,
                      marker_edge: str, settle: float, repeats: int, sync_divider: Any,
-                     first: int | None) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray,
-                                                 dict, Any, list[str]]:
+                     first: int | str | None) -> tuple[Any, np.ndarray, np.ndarray,
+                                                       np.ndarray, dict, Any, list[str],
+                                                       int | None]:
     """The rows ``calibrate`` reads of a flat target's file (moved out of
     :func:`~spslidar.pipeline.calibration.calibrate_ptu`): its blocks read, a lost sync's
     left out, a dropout's left out, a gated detector said, pile-up corrected and the drift
@@ -305,12 +313,13 @@ def calibration_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: f
 
     Returns
     -------
-    data, keep, patterns, hists, pile, drift, notes
+    data, keep, patterns, hists, pile, drift, notes, first
         The file read (without a lost sync's blocks), the blocks kept, each row's pattern
-        ``(R, Q)`` and histogram, the pile-up record, the drift read and the warnings.
+        ``(R, Q)`` and histogram, the pile-up record, the drift read, the warnings and the
+        first block's pattern (given, or found under ``"auto"``; None without it).
     """
     from .blocks import block_patterns, drop_frozen, fold_repeats, read_blocks
-    from .free_run import block_numbers, free_block_patterns
+    from .free_run import block_numbers, free_block_patterns, resolve_first
     from .screen import measured_blocks
 
     m_rows = int(shown.shape[0])
@@ -318,6 +327,8 @@ def calibration_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: f
                               marker=marker, channel=channel, allow_binning=allow_binning,
                               marker_edge=marker_edge, settle=settle, repeats=repeats,
                               sync_divider=sync_divider, free_running=first is not None)
+    if first == "auto":  # (found from the blocks' photons, said, or refused)
+        first = resolve_first(data, shown, code, notes)
     patterns = (block_patterns(shown, repeats) if first is None else
                 free_block_patterns(shown, block_numbers(first, data.n_patterns, m_rows)))
     data, frozen, note = drop_frozen(data, ptu)
@@ -333,4 +344,5 @@ def calibration_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: f
     if repeats > 1 or first is not None:  # each pattern's blocks summed, as reconstruct does
         rows, hists, *_ = fold_repeats(numbers[keep], hists)
         patterns = shown[rows]
-    return data, keep, patterns, hists, blocks.pile, blocks.drift, notes + blocks.notes
+    return (data, keep, patterns, hists, blocks.pile, blocks.drift, notes + blocks.notes,
+            first)
