@@ -279,7 +279,8 @@ def test_check_first_pattern_refuses_what_is_no_row():
     """The API's check: not a bool or text, a whole number, a row; None stays None."""
     assert check_first_pattern(None, 4) is None
     assert check_first_pattern(np.int64(3), 4) == 3 and check_first_pattern(2.0, 4) == 2
-    for bad in (True, "1", 1.5, float("nan"), -1, 4):
+    assert check_first_pattern("auto", 4) == "auto"
+    for bad in (True, "1", "Auto", 1.5, float("nan"), -1, 4, np.array([1, 2])):
         with pytest.raises(Exception, match="--first-pattern must be"):
             check_first_pattern(bad, 4)
 

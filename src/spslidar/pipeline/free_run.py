@@ -35,7 +35,8 @@ def check_first_pattern(first: Any, m: int, *, repeats: int = 1, n_files: int = 
     from ..arrays import real_number
 
     value = real_number(first)
-    if first == "auto":
+    auto = isinstance(first, str) and first == "auto"  # (an array compared is no bool)
+    if auto:
         pass
     elif value is None or not (math.isfinite(value) and value == int(value)):
         raise ConfigError(f"--first-pattern must be a whole number, the --patterns row (from 0) "
@@ -53,7 +54,7 @@ def check_first_pattern(first: Any, m: int, *, repeats: int = 1, n_files: int = 
     if frame is not None:
         raise ConfigError("--frame picks one repeat of a sequence shown --repeats times; a "
                           "free-running sequence (--first-pattern) is summed over every pass")
-    return "auto" if first == "auto" else int(value)
+    return "auto" if auto else int(value)
 
 
 def block_numbers(first: int | None, n_blocks: int, m: int) -> np.ndarray:
