@@ -64,6 +64,14 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                    help="times the pattern sequence was shown in a row: the file holds K x M "
                         "marker blocks, block r M + i showing pattern i; each pattern's blocks "
                         "are summed (default 1)")
+    p.add_argument("--first-pattern", type=_first_pattern, default=None, metavar="I|auto",
+                   help="a free-running DMD, looping its sequence while the recording started "
+                        "at some moment: the --patterns row (from 0) the file's first marker "
+                        "block shows; block b shows pattern (I + b) mod M, the file may hold "
+                        "any number of blocks from M on (the last cut anywhere), each "
+                        "pattern's summed (not with --repeats, --frame or several files; "
+                        "default: block b shows pattern b). 'auto' finds I from the data, "
+                        "and refuses where it cannot tell")
     p.add_argument("--sync-divider", type=int, default=None, metavar="D",
                    help="code periods per sync record, where the file's header does not say "
                         "(a sync from the code generator every D periods; default: the "
@@ -88,6 +96,17 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
     p.add_argument("--afterpulse-delay", type=float, default=0.0, metavar="S",
                    help="mean afterpulse delay after re-arming, seconds (with "
                         "--afterpulse-prob)")
+
+
+def _first_pattern(text: str) -> int | str:
+    """``--first-pattern``: a whole number, or ``auto``."""
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a whole number (a --patterns row) or auto, "
+                                         f"got {text!r}") from None
 
 
 def _detector_args(args) -> dict:
@@ -198,7 +217,8 @@ def cmd_reconstruct(args) -> int:
                              sync_divider=args.sync_divider,
                              sync_channel=args.sync_channel,
                              align_channels=args.align_channels, frame=args.frame,
-                             pattern_size=args.pattern_size, **_detector_args(args),
+                             pattern_size=args.pattern_size,
+                             first_pattern=args.first_pattern, **_detector_args(args),
                              **processing)
     result.metrics["inputs"]["code"].update(source)
     say_warnings(result.warnings)
@@ -274,7 +294,7 @@ def cmd_calibrate(args) -> int:
                         sync_divider=args.sync_divider, sync_channel=args.sync_channel,
                         align_channels=args.align_channels,
                         pattern_size=args.pattern_size,
-                        **_detector_args(args))
+                        first_pattern=args.first_pattern, **_detector_args(args))
     cal["measured_from"]["inputs"]["code"].update(source)
     path = write_calibration(cal, args.out, args.overwrite)
     _WRITTEN.append(str(path))

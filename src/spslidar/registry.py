@@ -206,8 +206,8 @@ RESERVED_NAMES = frozenset({
     # reconstruct's and calibrate's own flags: the parser builds every command, so a plugin
     # option named as one (settle, new in stop 64) refused every command, run's too (a review)
     "allow_binning", "calibration", "channel", "distance", "marker", "marker_edge", "ptu",
-    "frame", "pattern_size", "repeats", "settle", "sync_channel", "sync_divider", "target",
-    "truth", "align_channels"})
+    "first_pattern", "frame", "pattern_size", "repeats", "settle", "sync_channel",
+    "sync_divider", "target", "truth", "align_channels"})
 
 
 def _declaration_fault(opt: Any) -> str:

@@ -504,7 +504,8 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
                 marker_edge: str = "start", settle: float = 0.0,
                 repeats: int = 1, sync_divider: int | None = None,
                 sync_channel: int | None = None,
-                align_channels: bool | dict[int, int] = False) -> tuple[Any, list[str]]:
+                align_channels: bool | dict[int, int] = False,
+                free_running: bool = False) -> tuple[Any, list[str]]:
     """The ``m`` pattern blocks of a measured T3 file, and what to say about them.
 
     Parameters
@@ -535,6 +536,9 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
         show (read twice: the delays, then the blocks); a dict, by those whole bins (a
         calibration's, :func:`~spslidar.pipeline.skew.channel_shifts`); ``False``, merged
         as recorded, a delay between them said.
+    free_running : bool
+        A DMD looping its sequence (``--first-pattern``): every block is read, ``m`` or more
+        (fewer refused), none left out as an arming or end marker's; bounces are merged.
 
     Returns
     -------
@@ -557,7 +561,8 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
 
         options = dict(bin_width=bin_width, marker=marker, channel=channel,
                        allow_binning=allow_binning, marker_edge=marker_edge, settle=settle,
-                       repeats=repeats, sync_divider=sync_divider, sync_channel=sync_channel)
+                       repeats=repeats, sync_divider=sync_divider, sync_channel=sync_channel,
+                       free_running=free_running)
         data, notes = read_blocks(ptu, m, n_bins, **options)
         shifts = channel_shifts(channel_delays(data.channel_histograms))
         if not shifts:  # (aligned as recorded: no note of a skew was made)
@@ -568,7 +573,8 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
     def read(extra: int):
         try:
             return read_ptu_histograms(ptu, n_bins, bin_width=bin_width, marker=marker,
-                                       channel=channel, n_patterns=m, extra_blocks=extra,
+                                       channel=channel, n_patterns=None if free_running else m,
+                                       extra_blocks=0 if free_running else extra,
                                        marker_edge=marker_edge, allow_binning=allow_binning,
                                        settle_s=seconds, sync_divider=sync_divider,
                                        sync_channel=sync_channel, channel_shifts=shifts)
@@ -579,6 +585,15 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
             raise
 
     data = read(2 + max(BOUNCE_EXTRA, m // BOUNCE_ROWS))
+    if free_running:  # (every block read: any number of passes, the last one cut anywhere)
+        data, notes = _merge_bounces(data, m, marker)
+        if data.n_patterns < m:
+            raise ConfigError(f"{os.fspath(ptu)!r} has {data.n_patterns} marker-delimited "
+                              f"blocks on input {marker}, fewer than the {m} rows of "
+                              f"--patterns: a free-running sequence (--first-pattern) must "
+                              f"show each pattern at least once")
+        return _said(data, ptu, notes, marker, channel, marker_edge, n_bins, bin_width,
+                     bool(shifts))
     if data.n_patterns < data.n_markers <= 2 * m + 2:  # (more markers than that, up to two
         # a pattern and the arming and end markers': every marker may have bounced, so read
         # them all; the last pattern lost all but its bounce's photons, a review)
@@ -592,6 +607,15 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
     elif data.n_patterns > m:
         data, note = _drop_extra_block(data, m, marker)
         notes += [note] if note else []
+    return _said(data, ptu, notes, marker, channel, marker_edge, n_bins, bin_width,
+                     bool(shifts))
+
+
+def _said(data, ptu, notes: list[str], marker: int, channel: Any, marker_edge: str,
+          n_bins: int, bin_width: float, shifted: bool) -> tuple[Any, list[str]]:
+    """:func:`read_blocks`' last word on the blocks kept: a file without a photon in them
+    refused, the notes on its marker edge, channels (``shifted``: moved by a calibration's
+    shifts), missed markers and photons lost."""
     if not int(np.sum(data.counts_per_pattern)):
         # (exit 0 with an all-NaN map and "pass --marker-edge end" said of a file of markers
         # alone, while calibrate refused it: an outside audit of 2026-11-30)
@@ -608,8 +632,7 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
     if data.channel_histograms:  # (channels read together: a cable delay between them)
         from .skew import channel_delays, skew_note
 
-        skew = skew_note(channel_delays(data.channel_histograms), bin_width,
-                         after=bool(shifts))
+        skew = skew_note(channel_delays(data.channel_histograms), bin_width, after=shifted)
         mixed = skew if skew else mixed
     double = _double_note(data)
     return (data, notes + ([edge] if edge else []) + ([mixed] if mixed else [])

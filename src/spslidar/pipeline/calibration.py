@@ -432,8 +432,8 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
                   afterpulse_prob: float = 0.0,
                   afterpulse_delay: float = 0.0, repeats: int = 1,
                   sync_divider: int | None = None, sync_channel: int | None = None,
-                  align_channels: bool = False,
-                  pattern_size: int | None = None) -> dict[str, Any]:
+                  align_channels: bool = False, pattern_size: int | None = None,
+                  first_pattern: int | str | None = None) -> dict[str, Any]:
     """The calibration (:func:`measure_response`) of a T3 PTU acquisition of a flat target
     (``patterns`` an array or the file or folder that holds them, as
     :func:`~spslidar.pipeline.real.load_patterns` reads it, ``pattern_size`` as
@@ -442,7 +442,9 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
     code; ``measured_from.inputs``: :func:`~spslidar.pipeline.inputs.input_record`);
     ``allow_binning``, ``marker_edge``, ``settle``, ``repeats``, ``sync_divider``,
     ``sync_channel``, ``align_channels`` (the shifts kept in the JSON's
-    ``channel_shifts_bins``, which ``reconstruct`` applies) and the
+    ``channel_shifts_bins``, which ``reconstruct`` applies), ``first_pattern`` (a
+    free-running DMD: block ``b`` shows pattern ``(first_pattern + b) mod M``, any number of
+    blocks, each pattern's summed; ``"auto"`` finds it) and the
     detector's ``dead_time`` and
     afterpulsing (each block's histogram corrected for pile-up before the response is read:
     uncorrected, a bright wall's response is read through the detector's dead time; the
@@ -460,15 +462,9 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
     ``(0, 180)`` degrees (or with ``target='range'``) raise a one-line
     :class:`~spslidar.errors.ConfigError`."""
     from ..version import __version__
-    from .blocks import (
-        block_patterns,
-        channels_read,
-        check_repeats,
-        drop_frozen,
-        fold_repeats,
-        read_blocks,
-    )
+    from .blocks import channels_read, check_repeats
     from .deadtime import dead_time_model
+    from .free_run import check_first_pattern
     from .inputs import code_in, input_record
     from .real import (
         check_ptu_path,
@@ -483,11 +479,12 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
     patterns_given, code_given = patterns, code
     patterns = patterns_in(patterns, pattern_size, distinct=False)
     repeats = check_repeats(repeats)
+    first = check_first_pattern(first_pattern, int(patterns.shape[0]), repeats=repeats)
     code = code_in(code)
     inputs = input_record(patterns_given, patterns, pattern_size, code_given, code)
     check_real_inputs(bit_rate, (0.0, 1.0), int(patterns.shape[1]), int(patterns.shape[0]),
                       int(code.size), repeats)
-    shown, patterns = patterns, block_patterns(patterns, repeats)
+    shown = patterns
     # every argument before the file is read, each in one line (a distance given as text
     # and a NaN pulse width were tracebacks, found by an audit)
     distance = _check_distance(distance)
@@ -502,29 +499,14 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
 
         side = int(round(np.sqrt(patterns.shape[1])))
         wall_offsets((side, side), distance, fov, bin_width, int(code.size))
-    data, notes = read_blocks(ptu, int(patterns.shape[0]), int(code.size), bin_width=bin_width,
-                              marker=marker, channel=channel, allow_binning=allow_binning,
-                              marker_edge=marker_edge, settle=settle, repeats=repeats,
-                              sync_divider=sync_divider, sync_channel=sync_channel,
-                              align_channels=_aligning(align_channels))
-    data, frozen, note = drop_frozen(data, ptu)
-    if frozen:  # (blocks without a dwell: the file's syncs lost)
-        patterns = patterns[: patterns.shape[0] - frozen]
-        notes.append(note)
-    from .screen import measured_blocks
+    from .rows import calibration_rows
 
-    # (a dropout's blocks left out, a gated detector said, pile-up corrected, the drift
-    # read, which widens the response a wall's acquisition reads: as reconstruct does)
-    blocks = measured_blocks(data.histograms, data.counts_per_pattern,
-                             np.maximum(data.exposure_periods, 1), patterns, code, data,
-                             detector, channel, bin_width,
-                             np.arange(data.n_patterns) % shown.shape[0])
-    keep, hists, pile, drift = blocks.keep, blocks.hist, blocks.pile, blocks.drift
-    patterns = patterns[keep]
-    if repeats > 1:  # each pattern's blocks summed, as reconstruct solves them
-        rows, hists, *_ = fold_repeats(keep % shown.shape[0], hists)
-        patterns = shown[rows]
-    for note in notes + blocks.notes:
+    data, keep, patterns, hists, pile, drift, notes, first = calibration_rows(
+        ptu, shown, code, bin_width, detector=detector, marker=marker, channel=channel,
+        allow_binning=allow_binning, marker_edge=marker_edge, settle=settle, repeats=repeats,
+        sync_divider=sync_divider, first=first, sync_channel=sync_channel,
+        align_channels=_aligning(align_channels))
+    for note in notes:
         warnings.warn(note, stacklevel=2)
     total = hists.astype(np.float64).sum(axis=0)
     with warnings.catch_warnings(record=True) as said:  # kept in the file, and said again
@@ -561,7 +543,8 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
                               "photons": int(data.counts_per_pattern[keep].sum()),
                               "photons_in_file": int(data.n_photons),
                               "patterns": int(patterns.shape[0]),
-                              "repeats": repeats, "settle_s": float(settle),
+                              "repeats": repeats, "first_pattern": first,
+                              "settle_s": float(settle),
                               # (the detector channels read: each has its own cable delay,
                               # and a calibration applied to another went unsaid, an audit)
                               "channel": None if channel is None else channels_read(data,

@@ -185,7 +185,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
                     repeats: int = 1, sync_divider: int | None = None,
                     sync_channel: int | None = None, align_channels: bool = False,
                     frame: int | None = None, pattern_size: int | None = None,
-                    **processing: Any) -> Result:
+                    first_pattern: int | str | None = None, **processing: Any) -> Result:
     """Depth map from a measured T3 PTU acquisition.
 
     Parameters
@@ -259,6 +259,20 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         With ``repeats``: reconstruct that repeat of the sequence alone (from 0), a frame of
         a video whose scene moves between repeats (default: all repeats summed). Every
         block is still read, screened and checked for drift.
+    first_pattern : int or "auto", optional
+        A free-running DMD, looping its sequence while the recording started at some
+        moment: the ``--patterns`` row (from 0) the file's first marker block shows (the
+        block its first marker starts, or ends under ``marker_edge="end"``). Block ``b``
+        then shows pattern ``(first_pattern + b) mod M``, the file may hold any number
+        ``B >= M`` of blocks (the last cut by the recording's end, a short block summed
+        with its pattern's others), and each pattern's kept blocks are summed as under
+        ``repeats`` (:mod:`spslidar.pipeline.free_run`); ``metrics['ptu']`` gives it and
+        ``blocks_per_pattern``. Refused with ``repeats`` of 2 or more, ``frame`` or several
+        files. ``"auto"``: found from the data
+        (:func:`~spslidar.pipeline.free_run.find_first_pattern`), said in a warning with its
+        margin over the runner-up, and refused in one line where that margin is under
+        :data:`~spslidar.pipeline.free_run.AUTO_MARGIN`. Default (None): block ``b`` shows
+        pattern ``b``.
     pattern_size : int, optional
         The patterns' side ``N`` where they are given finer (images at the DMD's
         resolution, each pattern pixel a block of mirrors): each is read as ``N x N`` blocks,
@@ -285,6 +299,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     from ..patterns import as_patterns
     from ..scenes import Scene
     from .blocks import channels_read, check_frame, check_repeats
+    from .free_run import check_first_pattern
     from .measurement import check_processing_keys, processing_keys
 
     if {"backend", "device"} & set(processing):  # (it was told the acquisition sets them)
@@ -297,6 +312,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     patterns_given, code_given = patterns, code
     patterns = patterns_in(patterns, pattern_size, distinct=True)
     repeats = check_repeats(repeats)
+    first_pattern = check_first_pattern(first_pattern, int(patterns.shape[0]), repeats=repeats,
+                                        n_files=len(files), frame=frame)
     frame = check_frame(frame, repeats * len(files))
     code = code_in(code)
     inputs = input_record(patterns_given, patterns, pattern_size, code_given, code)
@@ -337,7 +354,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
                          channel=channel, allow_binning=allow_binning,
                          marker_edge=marker_edge, settle=settle, repeats=repeats,
                          sync_divider=sync_divider, sync_channel=sync_channel,
-                         align_channels=align, frame=frame)
+                         align_channels=align, frame=frame, first_pattern=first_pattern)
     data, hist, n_k, noise_totals = solved.data, solved.hist, solved.periods, solved.noise_totals
     patterns, rows, partial, pile = solved.patterns, solved.rows, solved.partial, solved.pile
     m = rows.size
@@ -457,7 +474,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
                  [os.fspath(f) for f in files]),
         "counts_per_pattern": solved.counts_kept.tolist(),
         "blocks_left_out": solved.blocks_left_out.tolist(),
-        "repeats": repeats, "frame": frame,
+        "repeats": repeats, "frame": frame, "first_pattern": solved.first_pattern,
+        "first_pattern_found": first_pattern == "auto",
+        "blocks_per_pattern": (None if solved.blocks_per_pattern is None
+                               else solved.blocks_per_pattern.tolist()),
         "periods_per_pattern": n_k.tolist(), "background_per_bin_per_period":
         float(background.mean() / n_mean), "background_per_pattern": background.tolist(),
         "n_records": data.n_records, "n_photons": data.n_photons, "n_markers": data.n_markers,

@@ -35,6 +35,7 @@ class _FileBlocks(NamedTuple):
     drift: Any
     notes: list[str]
     n_read: int
+    first: int | None  # (the first block's pattern: given, or found under "auto")
 
 
 class SolvedRows(NamedTuple):
@@ -67,26 +68,40 @@ class SolvedRows(NamedTuple):
     notes: list[str]
     #: how many of them the reading said (the rest come after: a caller's own go between)
     n_read: int = 0
+    #: under ``first_pattern``, each pattern's kept blocks (shape (M,), in ``--patterns``
+    #: order); else None
+    blocks_per_pattern: np.ndarray | None = None
+    #: the first block's pattern (given, or found under ``first_pattern="auto"``), or None
+    first_pattern: int | None = None
 
 
 def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
                  detector: Any, marker: int, channel: Any, allow_binning: bool,
                  marker_edge: str, settle: float, repeats: int,
-                 sync_divider: Any, sync_channel: Any = None,
+                 sync_divider: Any, first: int | str | None, sync_channel: Any = None,
                  align_channels: Any = False) -> _FileBlocks:
     """One file's blocks, read, screened and corrected for pile-up (:func:`solved_rows`)."""
     from .blocks import block_patterns, drop_frozen, read_blocks
+    from .free_run import block_numbers, free_block_patterns, resolve_first
     from .screen import measured_blocks
 
     m_rows = int(shown.shape[0])
     m = m_rows * repeats
-    patterns = block_patterns(shown, repeats)  # (each block's, as the screening reads it)
     data, notes = read_blocks(ptu, m, int(np.size(code)), bin_width=bin_width, marker=marker,
                               channel=channel, allow_binning=allow_binning,
                               marker_edge=marker_edge, settle=settle, repeats=repeats,
-                              sync_divider=sync_divider, sync_channel=sync_channel,
-                              align_channels=align_channels)
+                              sync_divider=sync_divider, free_running=first is not None,
+                              sync_channel=sync_channel, align_channels=align_channels)
     n_blocks = data.n_patterns  # (the lost syncs' blocks too, for blocks_left_out)
+    if first == "auto":  # (found from the blocks' photons, said, or refused)
+        first = resolve_first(data, shown, code, notes)
+    # each block's pattern, as the screening reads it (free-running: every block the file
+    # holds, block b showing pattern (first + b) mod M)
+    if first is None:
+        patterns = block_patterns(shown, repeats)
+    else:
+        m = n_blocks
+        patterns = free_block_patterns(shown, block_numbers(first, m, m_rows))
     data, frozen, note = drop_frozen(data, ptu)
     if frozen:  # (the rows the file's lost syncs leave without a dwell)
         m, patterns = m - frozen, patterns[: m - frozen]
@@ -102,8 +117,10 @@ def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float
         # an end-of-acquisition marker read as a pattern: a row of zeros is no measurement
         notes.append(
             f"the last of the {m} marker blocks holds no photons and lasts {int(n_k[-1])} code "
-            f"period(s) (an end-of-acquisition marker?): its pattern row is left out of the "
-            f"solve (leave it out of --patterns to say so)")
+            f"period(s) (an end-of-acquisition marker?): "
+            + ("it is left out" if first is not None else  # (a free-running file's block)
+               "its pattern row is left out of the solve (leave it out of --patterns to say "
+               "so)"))
         m, n_k, hist, patterns, rows = m - 1, n_k[:-1], hist[:-1], patterns[:-1], rows[:-1]
     # any other row of zeros over less than half the median dwell is no measurement either:
     # scaled up to the mean dwell it stays 0 (an empty one-period first block under
@@ -122,11 +139,12 @@ def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float
     # share of returns outside the gate is read); pile-up corrected; the drift read (the
     # warnings name each block's pattern: under repeats, block r M + i is pattern i's)
     blocks = measured_blocks(hist, hist.sum(axis=1), n_k, patterns, code, data, detector,
-                             channel, bin_width, rows % m_rows)
+                             channel, bin_width, (rows + (first or 0)) % m_rows)
     if blocks.keep.size < m:
         n_k, rows = n_k[blocks.keep], rows[blocks.keep]
     return _FileBlocks(data, blocks.hist, n_k, blocks.noise_totals, rows, n_blocks,
-                       blocks.partial, blocks.pile, blocks.drift, notes + blocks.notes, n_read)
+                       blocks.partial, blocks.pile, blocks.drift, notes + blocks.notes, n_read,
+                       first)
 
 
 def _read_each(files: list, shown: np.ndarray, code: np.ndarray, bin_width: float,
@@ -178,7 +196,7 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
                 detector: Any, marker: int, channel: Any, allow_binning: bool,
                 marker_edge: str, settle: float, repeats: int, sync_divider: Any,
                 sync_channel: Any = None, align_channels: Any = False,
-                frame: int | None) -> SolvedRows:
+                frame: int | None, first_pattern: int | None = None) -> SolvedRows:
     """The rows of a measured acquisition that ``reconstruct`` solves (:class:`SolvedRows`).
 
     Parameters
@@ -200,6 +218,9 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
     align_channels, frame
         As :func:`~spslidar.pipeline.real.reconstruct_ptu` takes them (checked; ``frame``
         counts the repeats through the files).
+    first_pattern : int, optional
+        A free-running sequence's first block's pattern (checked, one file, no repeats):
+        block ``b`` shows pattern ``(first_pattern + b) mod M``, each pattern's summed.
     """
     from .blocks import fold_repeats
     from .drift import drift_note, timing_drift
@@ -208,9 +229,10 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
     m_rows = int(shown.shape[0])
     options = dict(detector=detector, marker=marker, channel=channel,
                    allow_binning=allow_binning, marker_edge=marker_edge, settle=settle,
-                   repeats=repeats, sync_divider=sync_divider, sync_channel=sync_channel,
-                   align_channels=align_channels)
+                   repeats=repeats, sync_divider=sync_divider, first=first_pattern,
+                   sync_channel=sync_channel, align_channels=align_channels)
     parts = _read_each(files, shown, code, bin_width, options)
+    first_pattern = parts[0].first  # (an "auto" resolved: one file under --first-pattern)
     if len(parts) == 1:
         part = parts[0]
         data, hist, n_k, noise_totals = part.data, part.hist, part.periods, part.noise_totals
@@ -260,14 +282,74 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
             f"the sequence was shown {total_repeats} times, summed here: a scene that moves "
             f"between the repeats reads as the drift above; --frame I reconstructs repeat I "
             f"alone")
+    elif first_pattern is not None and n_blocks > m_rows and drift_note(drift, bin_width):
+        notes.append(
+            f"the free-running sequence's {n_blocks} blocks ({n_blocks / m_rows:.3g} passes of "
+            f"the {m_rows} patterns) are summed here: a scene that moves between the passes "
+            f"reads as the drift above")
     read = np.arange(n_blocks)  # (the blocks asked for: a frame's, or every one)
     left_out = np.setdiff1d(read if frame is None else read[read // m_rows == frame], rows)
     counts_kept = data.counts_per_pattern[rows]
-    if total_repeats > 1:  # each pattern's kept blocks summed: the solve has one row a pattern
+    per_pattern = None
+    if first_pattern is not None:  # (the kept blocks of each pattern, in --patterns order)
+        per_pattern = np.bincount((rows + first_pattern) % m_rows, minlength=m_rows)
+    if total_repeats > 1 or first_pattern is not None:
+        # each pattern's kept blocks summed: the solve has one row a pattern
         rows, hist, n_k, noise_totals, counts_kept = fold_repeats(
-            rows % m_rows, hist, n_k, noise_totals, counts_kept)
+            (rows + (first_pattern or 0)) % m_rows, hist, n_k, noise_totals, counts_kept)
     # (the patterns themselves where every row is solved: no copy of a large set)
     every = rows.size == m_rows and np.array_equal(rows, np.arange(m_rows))
     return SolvedRows(data, hist, n_k, noise_totals, shown if every else shown[rows], rows,
                       counts_kept, left_out, any(p.partial for p in parts), pile, drift, notes,
-                      n_read)
+                      n_read, per_pattern, first_pattern)
+
+
+def calibration_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
+                     detector: Any, marker: int, channel: Any, allow_binning: bool,
+                     marker_edge: str, settle: float, repeats: int, sync_divider: Any,
+                     first: int | str | None, sync_channel: Any = None,
+                     align_channels: Any = False) -> tuple[Any, np.ndarray, np.ndarray,
+                                                       np.ndarray, dict, Any, list[str],
+                                                       int | None]:
+    """The rows ``calibrate`` reads of a flat target's file (moved out of
+    :func:`~spslidar.pipeline.calibration.calibrate_ptu`): its blocks read, a lost sync's
+    left out, a dropout's left out, a gated detector said, pile-up corrected and the drift
+    read (which widens the response a wall's acquisition reads), as ``reconstruct`` does;
+    under ``repeats`` or ``first`` (checked) each pattern's blocks summed.
+
+    Returns
+    -------
+    data, keep, patterns, hists, pile, drift, notes, first
+        The file read (without a lost sync's blocks), the blocks kept, each row's pattern
+        ``(R, Q)`` and histogram, the pile-up record, the drift read, the warnings and the
+        first block's pattern (given, or found under ``"auto"``; None without it).
+    """
+    from .blocks import block_patterns, drop_frozen, fold_repeats, read_blocks
+    from .free_run import block_numbers, free_block_patterns, resolve_first
+    from .screen import measured_blocks
+
+    m_rows = int(shown.shape[0])
+    data, notes = read_blocks(ptu, m_rows * repeats, int(np.size(code)), bin_width=bin_width,
+                              marker=marker, channel=channel, allow_binning=allow_binning,
+                              marker_edge=marker_edge, settle=settle, repeats=repeats,
+                              sync_divider=sync_divider, free_running=first is not None,
+                              sync_channel=sync_channel, align_channels=align_channels)
+    if first == "auto":  # (found from the blocks' photons, said, or refused)
+        first = resolve_first(data, shown, code, notes)
+    patterns = (block_patterns(shown, repeats) if first is None else
+                free_block_patterns(shown, block_numbers(first, data.n_patterns, m_rows)))
+    data, frozen, note = drop_frozen(data, ptu)
+    if frozen:  # (blocks without a dwell: the file's syncs lost)
+        patterns = patterns[: patterns.shape[0] - frozen]
+        notes.append(note)
+    numbers = block_numbers(first, data.n_patterns, m_rows)
+    blocks = measured_blocks(data.histograms, data.counts_per_pattern,
+                             np.maximum(data.exposure_periods, 1), patterns, code, data,
+                             detector, channel, bin_width, numbers)
+    keep, hists = blocks.keep, blocks.hist
+    patterns = patterns[keep]
+    if repeats > 1 or first is not None:  # each pattern's blocks summed, as reconstruct does
+        rows, hists, *_ = fold_repeats(numbers[keep], hists)
+        patterns = shown[rows]
+    return (data, keep, patterns, hists, blocks.pile, blocks.drift, notes + blocks.notes,
+            first)
