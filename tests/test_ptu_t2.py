@@ -532,8 +532,8 @@ def test_sync_channel_refusals(t3_file, tmp_path):
              (t2, True, {}, "must be a detector channel number >= 0"),
              (t2, 7, {}, r"its channel 7 \(--sync-channel\) holds no event.*channels with "
                          r"events: 0, 5\)"),
-             (t2, 0, {}, "its channel 0, read as the sync \\(--sync-channel\\), are not "
-                         "periodic"),
+             (t2, 0, {}, "the events of its channel 0, read as the sync "
+                         "\\(--sync-channel\\), are not periodic"),
              (t2, 5, {"channel": [0, 5]}, "--channel 5 is the --sync-channel")]
     for path, c, extra, said in cases:
         with pytest.raises(ConfigError, match=said) as info:

@@ -299,6 +299,17 @@ def test_refusals_are_one_line(name, match):
     assert "\n" not in str(info.value)
 
 
+def test_a_real_t2_files_detector_channel_is_no_sync():
+    """The real T2 file's only channel read as the sync (--sync-channel 0): its photons
+    are no code generator's clock, refused in one line with the share off the period."""
+    with pytest.raises(ConfigError, match=r"the events of its channel 0, read as the sync "
+                                          r"\(--sync-channel\), are not periodic: \d+ of the "
+                                          r"first 4096 intervals") as info:
+        read_ptu_histograms(REAL / "libpicoquant_hh_v30_t2.ptu", 100, sync_channel=0,
+                            check_sync_period=False)
+    assert "\n" not in str(info.value)
+
+
 @pytest.mark.parametrize("name,match", [
     ("libpicoquant_hh_v30_t2.ptu", "holds T2 records (HydraHarp2T2) with no sync record"),
     ("libpicoquant_hh_v20.ht3", "a legacy HydraHarp .ht3 file"),

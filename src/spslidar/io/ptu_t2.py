@@ -398,7 +398,8 @@ def open_t2(f: Any, header: dict[str, Any], family: str, n_records: int, chunk_r
     if off.mean() > SYNC_OFF_SHARE:
         k = int(np.flatnonzero(off)[0])
         what = ("its input 0, read as the sync, " if family == "t2-picoharp" else
-                f"its channel {sync_channel}, read as the sync (--sync-channel), "
+                f"the events of its channel {sync_channel}, read as the sync "
+                f"(--sync-channel), "
                 if sync_channel is not None else "its sync records ")
         raise ConfigError(f"{path!r}: {what}are not periodic: {int(off.sum())} of the first "
                           f"{gaps.size} intervals are more than {tol * unit:.3g} s off a whole "
