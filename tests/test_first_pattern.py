@@ -12,6 +12,7 @@ import json
 
 import numpy as np
 import pytest
+from test_screen_blocks import random_scan  # (tests/ is on sys.path under pytest)
 
 from spslidar.cli import main
 from spslidar.errors import ConfigError
@@ -37,15 +38,7 @@ def _model(seed):
     depth[:, :3] = 1.0
     depth[2:6, 4:7] = 1.2
     refl = np.full((N, N), 0.8)
-    code = np.zeros(L)
-    code[rng.permutation(L)[: L // 2 + 1]] = 1.0
-    pats = (rng.random((M, N, N)) < 0.5).astype(np.float32)
-    delay = np.rint(2 * depth.ravel() / (C / BIT_RATE)).astype(int)
-    amp = np.zeros((M, L))
-    w = pats.reshape(M, -1) * refl.ravel()[None, :]
-    for d in np.unique(delay):
-        amp[:, d % L] += w[:, delay == d].sum(axis=1)
-    spectrum = np.fft.ifft(np.fft.fft(amp, axis=1) * np.fft.fft(code)[None, :], axis=1).real
+    code, pats, spectrum = random_scan(rng, M, depth, refl, L)
     return pats, code, depth, np.clip(5e-4 * spectrum + 1e-3, 0, None), rng
 
 
@@ -259,17 +252,22 @@ def test_bad_first_patterns_are_refused_in_one_line(cut, capsys, command, argv, 
     assert said in _refused(capsys, path, *argv, command=command)
 
 
+def _free_file(folder, seed: int, counts_of) -> None:
+    """``free.ptu`` of the blocks ``counts_of(lam, rng)`` gives (one a row, each DWELL
+    periods long), with the patterns and code of ``_model(seed)`` beside it."""
+    pats, code, _, lam, rng = _model(seed)
+    _write(folder / "free.ptu", [(c, DWELL) for c in counts_of(lam, rng)], rng=rng)
+    np.save(folder / "patterns.npy", pats)
+    np.save(folder / "code.npy", code.astype(np.uint8))
+
+
 def test_several_files_and_too_few_blocks_are_refused(cut, tmp_path, capsys):
     """Several --ptu files with it: one line; fewer blocks than patterns: one line saying
     how many were found."""
     path, _ = cut
     line = _refused(capsys, path, "--first-pattern", "3", "--ptu", str(path / "aligned.ptu"))
     assert "--first-pattern reads one PTU file" in line
-    pats, code, _, lam, rng = _model(3)
-    counts = rng.poisson(lam[:40] * DWELL)
-    _write(tmp_path / "free.ptu", [(c, DWELL) for c in counts], rng=rng)
-    np.save(tmp_path / "patterns.npy", pats)
-    np.save(tmp_path / "code.npy", code.astype(np.uint8))
+    _free_file(tmp_path, 3, lambda lam, rng: rng.poisson(lam[:40] * DWELL))
     for command in ("reconstruct", "calibrate"):
         line = _refused(capsys, tmp_path, "--first-pattern", "0", command=command)
         assert "has 40 marker-delimited blocks on input 1, fewer than the 64 rows" in line
@@ -307,11 +305,7 @@ def test_auto_finds_the_first_pattern_and_says_its_margin(cut, capsys):
 def test_auto_refuses_where_it_cannot_tell(tmp_path, capsys):
     """A file of background alone (no return to place the patterns by): every offset fits
     as well, and auto is refused in one line that asks for the number; as with --repeats."""
-    pats, code, _, _, rng = _model(5)
-    counts = rng.poisson(np.full((M + 20, L), 0.4))
-    _write(tmp_path / "free.ptu", [(c, DWELL) for c in counts], rng=rng)
-    np.save(tmp_path / "patterns.npy", pats)
-    np.save(tmp_path / "code.npy", code.astype(np.uint8))
+    _free_file(tmp_path, 5, lambda lam, rng: rng.poisson(np.full((M + 20, L), 0.4)))
     for command in ("reconstruct", "calibrate"):
         line = _refused(capsys, tmp_path, "--first-pattern", "auto", command=command)
         assert "--first-pattern auto cannot tell which of the 64 patterns" in line

@@ -25,6 +25,23 @@ BIT_RATE = 10e9
 N, M, L, DWELL = 16, 192, 511, 2000
 
 
+def random_scan(rng, m: int, depth: np.ndarray, refl: np.ndarray, length: int | None = None):
+    """A balanced random code of ``length`` bits (default ``L``), ``m`` random binary
+    patterns of the scene's size, and each pattern's returns over the code period per unit
+    of signal, ``(m, length)``: the code circularly convolved with the patterns' light at
+    each pixel's delay (shared with ``test_first_pattern``)."""
+    length = L if length is None else length
+    code = np.zeros(length)
+    code[rng.permutation(length)[: length // 2 + 1]] = 1.0
+    pats = (rng.random((m,) + depth.shape) < 0.5).astype(np.float32)
+    delay = np.rint(2 * depth.ravel() / (C / BIT_RATE)).astype(int)
+    amp = np.zeros((m, length))
+    w = pats.reshape(m, -1) * refl.ravel()[None, :]
+    for d in np.unique(delay):
+        amp[:, d % length] += w[:, delay == d].sum(axis=1)
+    spectrum = np.fft.ifft(np.fft.fft(amp, axis=1) * np.fft.fft(code)[None, :], axis=1).real
+    return code, pats, spectrum
+
 def _scene():
     depth = np.full((N, N), 3.6)
     refl = np.full((N, N), 0.8)
@@ -47,15 +64,7 @@ def _acquire(path, case="ok", seed=0, wall=False, m=M, signal=6e-5):
     depth, refl = _scene()
     if wall:
         depth[:], refl[:] = 3.6, 0.8
-    code = np.zeros(L)
-    code[rng.permutation(L)[: L // 2 + 1]] = 1.0
-    pats = (rng.random((m, N, N)) < 0.5).astype(np.float32)
-    delay = np.rint(2 * depth.ravel() / (C / BIT_RATE)).astype(int)
-    amp = np.zeros((m, L))
-    w = pats.reshape(m, -1) * refl.ravel()[None, :]
-    for d in np.unique(delay):
-        amp[:, d % L] += w[:, delay == d].sum(axis=1)
-    spectrum = np.fft.ifft(np.fft.fft(amp, axis=1) * np.fft.fft(code)[None, :], axis=1).real
+    code, pats, spectrum = random_scan(rng, m, depth, refl)
     lam = np.clip(DWELL * (signal * spectrum + 2e-4), 0, None)
     counts = rng.poisson(lam)
     dwell = np.full(m, DWELL, np.int64)
