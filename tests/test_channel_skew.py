@@ -45,16 +45,26 @@ def _photons(seed: int = 0, signal: float = 0.02):
 
 
 def _write(path, events, shift: int = 0, split: bool = True, seed: int = 1,
-           first: int = 0) -> None:
+           first: int = 0, monitor: float = 0.0) -> None:
     """The photons as a T3 file, a marker per pattern; with ``split`` each photon on channel
     0 or 1 at random (from pattern ``first`` on), channel 1's ``shift`` bins later around
     the period (its cable)."""
     rng = np.random.default_rng(seed)
     ns, dt, ch, mk = [], [], [], []
+    code = make_code("mseq", L, 0.5).astype(bool)
     for k, (period, bins) in enumerate(events):
+        if monitor:  # (a laser monitor on channel 2: the code, alike in every pattern)
+            extra = rng.poisson(monitor * PERIODS * code / code.sum())
+            mon = np.repeat(np.arange(L), extra)
+            period = np.concatenate([period, rng.integers(0, PERIODS, mon.size)])
+            bins = np.concatenate([bins, mon])
+            tag = np.concatenate([np.zeros(bins.size - mon.size, bool), np.ones(mon.size, bool)])
+        else:
+            tag = np.zeros(bins.size, bool)
         order = np.argsort(period, kind="stable")
         c = (rng.random(bins.size) < 0.45).astype(np.int64) if split and k >= first else \
             np.zeros(bins.size, np.int64)
+        c[tag] = 2
         ns += [[k * PERIODS], k * PERIODS + period[order]]
         dt += [[0], ((bins + shift * c) % L)[order]]
         ch += [[0], c[order]]
@@ -72,6 +82,8 @@ def files(tmp_path_factory):
     _write(d / "skew.ptu", events, shift=23)
     _write(d / "even.ptu", events, shift=0)
     _write(d / "late.ptu", events, shift=23, first=30)
+    scene = sum(b.size for _, b in events) / len(events) / PERIODS  # (photons a period)
+    _write(d / "monitor.ptu", events, split=False, monitor=2.5 * scene)
     np.save(d / "patterns.npy", pats)
     np.save(d / "code.npy", code)
     np.save(d / "truth.npy", depth)
@@ -98,14 +110,17 @@ def test_the_delay_between_channels_is_read_and_taken_out_exactly(files):
                           .channel_histograms)
     assert abs(even[1]) < 0.2 and channel_shifts(even) == {}
     # a second channel that comes in a later chunk: the first's photons before it counted
+    spreads = []
     for chunk in (2**20, 500, 37):
         late = read_ptu_histograms(files / "late.ptu", L, bin_width=BW, chunk_records=chunk)
+        spreads.append(late.channel_spread)  # (each block's photons by channel, alike)
         np.testing.assert_array_equal(sum(late.channel_histograms.values()),
                                       late.histograms.sum(axis=0))
         assert late.channel_histograms[1].sum() < late.channel_histograms[0].sum()
         np.testing.assert_array_equal(read_ptu_histograms(
             files / "late.ptu", L, bin_width=BW, chunk_records=chunk,
             channel_shifts={1: 23}).histograms, one.histograms)
+    assert spreads[1] == spreads[0] and spreads[2] == spreads[0]
     # a shift of a whole period either way is none; one channel alone is read as it is
     np.testing.assert_array_equal(read_ptu_histograms(
         files / "skew.ptu", L, bin_width=BW, channel_shifts={1: 23 - 2 * L}).histograms,
@@ -136,11 +151,13 @@ def test_the_skew_is_said_with_what_to_do():
     note = skew_note({0: 0.0, 1: 23.04}, BW)
     assert "channel 1 +23.0 bins (+2.3 ns, +0.345 m)" in note and "--align-channels" in note
     assert "\n" not in note
-    assert skew_note({0: 0.0, 1: 1.2}, BW) is None  # (a merged return a bin wider)
+    assert skew_note({0: 0.0, 1: 0.6}, BW) is None  # (a merged return a bin wider)
+    assert "channel 1 +1.2 bins" in skew_note({0: 0.0, 1: 1.21}, BW)  # (an audit's 1.4 bins)
     assert "cables changed since the calibration" in skew_note({0: 0.0, 1: 23.0}, BW, after=True)
     assert skew_note({0: 0.0}, BW) is None
-    assert describe({0: 0.0, 1: 23.04}, {1: 23}) == {"delays_bins": {"0": 0.0, "1": 23.04},
-                                                      "shifts_bins": {"1": 23}}
+    assert describe({0: 0.0, 1: 23.04}, {1: 23}, {0: 30.0, 1: 20.0}) == {
+        "delays_bins": {"0": 0.0, "1": 23.04}, "shifts_bins": {"1": 23},
+        "rate_spread": {"0": 30.0, "1": 20.0}}
     assert describe({}, {}) is None
 
 
@@ -244,3 +261,28 @@ def test_a_damaged_channel_shift_field_is_refused(files):
     for bad in ([1, 2], {"x": 1}, {"1": 2.5}, {"1": True}, {"200": 1}, "23"):
         with pytest.raises(ConfigError, match="channel_shifts_bins is damaged"):
             check_calibration(dict(cal, channel_shifts_bins=bad), "cal", 10e9, code)
+
+
+def test_a_laser_monitor_is_no_cable_delay(files, capsys):
+    """A laser monitor on channel 2 (the code, alike in every pattern, 2.5 times the
+    scene's photons) was read as a 29.5-bin cable delay, and --align-channels, as the
+    warning advised, moved the scene 4.3 m (an outside audit of stop 67): its rate does not
+    follow the patterns, so it is named as such, given no delay and moves nothing."""
+    import json
+
+    data = read_ptu_histograms(files / "monitor.ptu", L, bin_width=BW)
+    assert data.channel_spread[2] < 2 and data.channel_spread[0] > 10
+    assert channel_delays(data.channel_histograms) != {}  # (read blind, the monitor has one)
+    assert channel_delays(data.channel_histograms, data.channel_spread) == {}
+    assert _run(files, "monitor.ptu", "m_plain") == 0
+    err = capsys.readouterr().err
+    assert "detector channel(s) 2 (" in err and "does not follow the patterns" in err
+    assert "--channel 0 reads the scene alone" in err and "do not arrive together" not in err
+    assert _run(files, "monitor.ptu", "m_aligned", "--align-channels") == 0
+    np.testing.assert_array_equal(np.load(files / "m_aligned" / "depth.npy"),
+                                  np.load(files / "m_plain" / "depth.npy"))
+    record = json.loads((files / "m_aligned" / "metrics.json").read_text())["ptu"]["channels"]
+    assert record["delays_bins"] == {} and record["shifts_bins"] == {}
+    assert record["rate_spread"]["2"] < 2 < record["rate_spread"]["0"]
+    truth = np.load(files / "truth.npy")
+    assert np.nanmedian(np.abs(np.load(files / "m_aligned" / "depth.npy") - truth)) < 0.03

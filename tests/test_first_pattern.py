@@ -320,3 +320,57 @@ def test_auto_refuses_patterns_too_large_for_its_fit():
     """Over AUTO_MAX pixels: refused before any fit (a dense (Q, Q) solve)."""
     with pytest.raises(ConfigError, match="auto reads at most 4096 patterns"):
         find_first_pattern(np.ones((3, 7)), np.ones(3), np.ones((2, 65 * 65)), np.ones(7))
+
+
+@pytest.mark.parametrize("lead", ["arming", "bounce"])
+def test_a_short_first_block_takes_no_pattern_number(tmp_path, capsys, lead):
+    """An arming marker 5 periods before the sequence (no photon), or the first marker's
+    bounce 2 periods after it (8 of its pattern's photons), made a short block 0 that took
+    pattern I, every block after it reading its neighbour's pattern, with exit 0 (an outside
+    audit of stop 67: median error 0.15 m against 0.037): it is left out and said, and the
+    map is the aligned photons' (exactly where the block held none); auto finds 37 too."""
+    pats, code, depth, lam, rng = _model(1)
+    n = int(2.3 * M)
+    dwells = np.full(n, DWELL)
+    shown = block_numbers(37, n, M)
+    counts = rng.poisson(lam[shown] * dwells[:, None])
+    short = np.zeros(L, np.int64)
+    if lead == "bounce":
+        short[rng.integers(0, L, 8)] += 1
+    _write(tmp_path / "free.ptu", [(short, 5 if lead == "arming" else 2)]
+           + list(zip(counts, dwells, strict=True)), rng=rng)
+    summed = np.zeros((M, L), np.int64)
+    total = np.zeros(M, np.int64)
+    np.add.at(summed, shown, counts)
+    np.add.at(total, shown, dwells)
+    _write(tmp_path / "aligned.ptu", list(zip(summed, total, strict=True)), rng=rng)
+    np.save(tmp_path / "patterns.npy", pats)
+    np.save(tmp_path / "code.npy", code.astype(np.uint8))
+    rc, (free, got), err = _cli(tmp_path, "free", capsys, "--first-pattern", "37")
+    assert rc == 0, err
+    assert "the first 1 marker block(s) on input 1 last under half a pattern's dwell" in err
+    rc, (_, want), err = _cli(tmp_path, "aligned", capsys)
+    assert rc == 0, err
+    if lead == "arming":
+        np.testing.assert_array_equal(got, want)
+    else:  # (the bounce's 8 photons left out of pattern 37's thousands)
+        assert np.nanmedian(np.abs(got - want)) < 1e-3
+    assert np.nanmedian(np.abs(got - depth)) < 0.03
+    rc, (found, _), err = _cli(tmp_path, "free", capsys, "--first-pattern", "auto")
+    assert rc == 0, err
+    assert found["ptu"]["first_pattern"] == 37
+
+
+def test_a_wrong_first_pattern_given_is_said(cut, capsys):
+    """--first-pattern 36 / 38 / 0 on the file that starts at 37 were read with exit 0 and
+    no word (median errors 0.15-0.94 m: an audit of stop 67): where another offset fits the
+    data better by the auto threshold, a warning names it; the right one says nothing."""
+    path, _ = cut
+    for wrong in (36, 38, 0):
+        rc, (metrics, _), err = _cli(path, "free", capsys, "--first-pattern", str(wrong))
+        assert rc == 0, err
+        said = [w for w in metrics["warnings"] if w.startswith(f"--first-pattern {wrong}: the "
+                                                               f"data fit pattern 37")]
+        assert len(said) == 1, metrics["warnings"]
+    rc, (metrics, _), err = _cli(path, "free", capsys, "--first-pattern", "37")
+    assert rc == 0 and not any("the data fit pattern" in w for w in metrics["warnings"])

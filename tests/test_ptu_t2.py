@@ -562,3 +562,15 @@ def test_a_photon_before_the_first_sync_in_any_chunking(tmp_path):
     assert ref.n_photons == 1001
     for chunk in (1, 2, 3, 97):
         _same(read_ptu_histograms(path, L, bin_width=BW, chunk_records=chunk), ref)
+
+
+def test_a_picoharps_sync_on_a_detector_input_is_told_to_go_to_input_0(tmp_path):
+    """A PicoHarp T2 file whose sync went to detector input 3 (channel 2): the refusal names
+    the channel and says to connect the sync to input 0, not --sync-channel, which a
+    PicoHarp file refuses (an outside audit of stop 67)."""
+    _syncs_file(tmp_path / "ph.ptu", (np.arange(3000) * L + 50) * 16, rectype=PH_T2,
+                sync_as_channel=2)
+    with pytest.raises(ConfigError, match=r"its channel 2 holds periodic events .*a PicoHarp "
+                                          r"reads its sync on input 0: connect it there") as info:
+        read_ptu_histograms(tmp_path / "ph.ptu", L, bin_width=BW)
+    assert "--sync-channel" not in str(info.value)

@@ -410,8 +410,10 @@ METRICS: dict[str, str] = {
            "(``--sync-channel``: a T2 file's detector channel read as the sync; null for "
            "the file's own sync), and ``channels`` where several detector channels were read "
            "together: ``delays_bins``, each against the one with the most photons as the "
-           "histograms show them, and ``shifts_bins``, the whole bins each was moved by "
-           "(``--align-channels``, or the calibration's); null for one channel.",
+           "histograms show them, ``shifts_bins``, the whole bins each was moved by "
+           "(``--align-channels``, or the calibration's), and ``rate_spread``, each "
+           "channel's photon rate over the blocks against a constant rate's spread (about 1 "
+           "for a laser monitor, which is given no delay); null for one channel.",
     "inputs": "``reconstruct`` only: what the patterns and the code were read from: "
               "``patterns`` (``file`` as given, null for an array; ``pattern_size``, "
               "``--pattern-size``; ``n_patterns``, ``side``) and ``code`` (``file``; "

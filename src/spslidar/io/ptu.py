@@ -131,6 +131,10 @@ class PtuAcquisition:
     channel_shifts : dict of int to int
         The ``channel_shifts`` applied (bins, ``0 <= k < n_bins``; channels not moved left
         out).
+    channel_spread : dict of int to float
+        With ``channel_histograms``: each channel's photon rate over the blocks, its
+        variance over a constant rate's Poisson variance (about 1 for a channel that does
+        not follow the patterns: a laser monitor).
     """
 
     histograms: np.ndarray
@@ -158,6 +162,7 @@ class PtuAcquisition:
     settled_periods: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     channel_histograms: dict[int, np.ndarray] = field(default_factory=dict)
     channel_shifts: dict[int, int] = field(default_factory=dict)
+    channel_spread: dict[int, float] = field(default_factory=dict)
 
     @property
     def exposure_periods(self) -> np.ndarray:
@@ -558,7 +563,7 @@ def read_ptu_histograms(
                 first_sync = max(0, 2 * marks[0] + 1 - later[0])
         hist = np.zeros((rows, n_mid), np.int32)  # (int64 past 2^31 - 1 photons in all)
         shifts = _shift_table(channel_shifts, rebin, n_bins, spath)
-        per_hist = _ChannelHists(n_mid)  # (each channel's photons over the period)
+        per_hist = _ChannelHists(n_mid, rows)  # (each channel's photons, period and blocks)
         starts = np.zeros(rows + 1, np.int64)  # marker syncs, and the next block's if any
         per_channel = np.zeros(128, np.int64)  # ptufile's channel is an int8
         gaps = _Gaps(period, res)
@@ -617,7 +622,7 @@ def read_ptu_histograms(
                 if shifts is not None:  # (a channel's cable delay taken out, bins < n_bins)
                     bins = (bins - shifts[ch[photon].astype(np.int64)]) % n_mid
                 if keep.any() and rebin is None:
-                    per_hist.add(ch[photon][keep], bins[keep], hist)
+                    per_hist.add(ch[photon][keep], bins[keep], block[keep], hist)
                 if keep.any():
                     if n_photons >= WIDEN_AFTER and hist.dtype == np.int32:
                         # (past 2^31 - 1 photons one bin could wrap to -2^31: an audit)
@@ -683,7 +688,7 @@ def read_ptu_histograms(
         periods_per_pattern=dwell,
         periods_per_sync=fold, detection_gaps=gaps.result(),
         photons_per_channel={int(c): int(per_channel[c]) for c in np.flatnonzero(per_channel)},
-        channel_histograms=per_hist.out,
+        channel_histograms=per_hist.out, channel_spread=per_hist.follow(dwell),
         channel_shifts={} if shifts is None else {
             int(c): int(shifts[c]) for c in np.flatnonzero(shifts)})
     if marker_edge == "start" and n_markers == rows and acq.ends_in_empty_block:

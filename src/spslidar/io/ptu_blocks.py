@@ -67,15 +67,19 @@ def _channels(channel: Any, family: str, record_type: str, path: str) -> np.ndar
 
 class _ChannelHists:
     """Each detector channel's kept photons over the code period (the reader's
-    ``channel_histograms``): nothing is counted while every photon so far is of one channel
-    (the common case costs nothing); where a second one comes, the first's are the
-    histograms' sum so far, and each chunk is then counted by channel."""
+    ``channel_histograms``) and in each block: nothing is counted while every photon so far
+    is of one channel (the common case costs nothing); where a second one comes, the first's
+    are the histograms' sums so far, and each chunk is then counted by channel."""
 
-    def __init__(self, n_bins: int):
-        self.n_bins, self.only, self.out = n_bins, None, {}
+    def __init__(self, n_bins: int, rows: int):
+        self.n_bins, self.rows, self.only = n_bins, rows, None
+        self.out: dict[int, np.ndarray] = {}
+        self.blocks: dict[int, np.ndarray] = {}
 
-    def add(self, ch: np.ndarray, bins: np.ndarray, hist: np.ndarray) -> None:
-        """A chunk's kept photons (``hist``: the histograms before they are added)."""
+    def add(self, ch: np.ndarray, bins: np.ndarray, block: np.ndarray,
+            hist: np.ndarray) -> None:
+        """A chunk's kept photons, their bins and blocks (``hist``: the histograms before
+        they are added)."""
         lo, hi = int(ch.min()), int(ch.max())
         if not self.out:
             if lo == hi and self.only in (None, lo):
@@ -83,9 +87,31 @@ class _ChannelHists:
                 return
             if self.only is not None:
                 self.out[self.only] = hist.sum(axis=0, dtype=np.int64)
+                self.blocks[self.only] = hist.sum(axis=1, dtype=np.int64)
         for c in ([lo] if lo == hi else np.unique(ch).tolist()):
-            h = np.bincount(bins if lo == hi else bins[ch == c], minlength=self.n_bins)
-            self.out[c] = self.out[c] + h if c in self.out else h.astype(np.int64)
+            mine = slice(None) if lo == hi else ch == c
+            h = np.bincount(bins[mine], minlength=self.n_bins).astype(np.int64)
+            b = np.bincount(block[mine], minlength=self.rows).astype(np.int64)
+            self.out[c] = self.out[c] + h if c in self.out else h
+            self.blocks[c] = self.blocks[c] + b if c in self.blocks else b
+
+    def follow(self, dwell: np.ndarray) -> dict[int, float]:
+        """Each channel's photon rate over the blocks, its spread against a constant rate's
+        (Poisson) spread: about 1 for a channel that does not follow the patterns (a laser
+        monitor, a reference), more for one that sees the scene through them; empty for one
+        channel."""
+        d = np.asarray(dwell, np.float64)
+        ok = d > 0
+        out = {}
+        for c, counts in self.blocks.items():
+            n = counts[: d.size][ok].astype(np.float64)
+            if n.size < 8 or not n.sum():
+                out[c] = 0.0
+                continue
+            rate = n / d[ok]
+            poisson = float(np.mean(n / d[ok] ** 2))
+            out[c] = float(np.var(rate) / poisson) if poisson > 0 else 0.0
+        return out
 
 
 def _shift_table(shifts: Any, rebin: Any, n_bins: int, path: str) -> np.ndarray | None:

@@ -307,7 +307,10 @@ def _no_sync(header: dict[str, Any], path: str, family: str, n: int,
         c, every = found
         unit = header.get("time_unit_s") or 0.0
         hint = (f"; its channel {c} holds periodic events (every {every * unit:.6g} s): the "
-                f"sync on a detector input? --sync-channel {c} reads them as the sync")
+                f"sync on a detector input? "
+                + ("a PicoHarp reads its sync on input 0: connect it there"
+                   if family == "t2-picoharp" else
+                   f"--sync-channel {c} reads them as the sync"))
     return ConfigError(f"{path!r} holds T2 records ({header['record_type']}) with {said}: "
                        f"absolute time tags, no code period to read the photons' delays from; "
                        f"record the lidar in T3 mode, or record the code generator's sync in "

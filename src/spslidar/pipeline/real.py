@@ -535,7 +535,8 @@ def _channels_record(data: Any) -> dict[str, Any] | None:
     the histograms show them (after any shift) and the shifts applied; None for one."""
     from .skew import channel_delays, describe
 
-    return describe(channel_delays(data.channel_histograms), data.channel_shifts)
+    return describe(channel_delays(data.channel_histograms, data.channel_spread),
+                    data.channel_shifts, data.channel_spread)
 
 
 #: share of a truth's known depths that must lie in the range gate (widened by its own length

@@ -82,7 +82,7 @@ def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float
                  align_channels: Any = False) -> _FileBlocks:
     """One file's blocks, read, screened and corrected for pile-up (:func:`solved_rows`)."""
     from .blocks import block_patterns, drop_frozen, read_blocks
-    from .free_run import block_numbers, free_block_patterns, resolve_first
+    from .free_run import block_numbers, check_given, free_block_patterns, resolve_first
     from .screen import measured_blocks
 
     m_rows = int(shown.shape[0])
@@ -95,6 +95,8 @@ def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float
     n_blocks = data.n_patterns  # (the lost syncs' blocks too, for blocks_left_out)
     if first == "auto":  # (found from the blocks' photons, said, or refused)
         first = resolve_first(data, shown, code, notes)
+    elif first is not None:  # (a number given: checked against the data where cheap)
+        check_given(data, shown, code, first, notes)
     # each block's pattern, as the screening reads it (free-running: every block the file
     # holds, block b showing pattern (first + b) mod M)
     if first is None:

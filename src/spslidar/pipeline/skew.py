@@ -26,19 +26,52 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["MIN_PHOTONS", "MIN_Z", "SKEW_BINS", "channel_delays", "channel_shifts",
-           "skew_note"]
+__all__ = ["FOLLOW_MIN", "MIN_PHOTONS", "MIN_Z", "SKEW_BINS", "channel_delays",
+           "channel_shifts", "monitor_note", "scene_channels", "skew_note"]
 
 #: photons a channel needs for its delay to be read
 MIN_PHOTONS = 1000
 #: how far the correlation's peak must stand above its other lags (robust deviations) for
 #: a delay to be read
 MIN_Z = 8.0
-#: a delay of at least this many bins is said (below it the merged return is a bin wider)
-SKEW_BINS = 1.5
+#: a delay of at least this many bins is said (an outside audit of stop 67 measured a
+#: 1.4-bin skew, read as 1.21 bins, taking a map from 100 % to 66 % within 5 cm at 1 ns
+#: bins, unsaid under the first threshold of 1.5)
+SKEW_BINS = 0.75
+#: a channel whose photon rate over the blocks spreads less than this many times a constant
+#: rate's Poisson spread does not follow the patterns (a laser monitor, a reference): it is
+#: given no delay and is no reference (an audit of stop 67: a monitor holding 71 % of the
+#: photons was read as a 29.5-bin cable delay, and --align-channels, as the warning advised,
+#: moved the scene 4.3 m)
+FOLLOW_MIN = 2.5
 
 
-def channel_delays(hists: dict[int, np.ndarray]) -> dict[int, float]:
+def scene_channels(spread: dict[int, float]) -> list[int]:
+    """The channels whose photon rate follows the patterns (the reader's ``channel_spread``
+    at :data:`FOLLOW_MIN` or more): those a delay is read between."""
+    return sorted(c for c, v in spread.items() if v >= FOLLOW_MIN)
+
+
+def monitor_note(spread: dict[int, float]) -> str | None:
+    """Where channels read together include some whose photon rate does not follow the
+    patterns beside some that do, the words naming them (merged, they add their photons to
+    every pattern alike); None otherwise."""
+    scene = scene_channels(spread)
+    other = sorted(c for c in spread if c not in scene)
+    if not scene or not other:
+        return None
+    said = ", ".join(f"{c} ({spread[c]:.3g})" for c in other)
+    seen = ", ".join(f"{c} ({spread[c]:.3g})" for c in scene)
+    return (f"the photon rate of detector channel(s) {said} does not follow the patterns, as "
+            f"that of {seen} does (the spread of each channel's rate over the blocks against "
+            f"a constant rate's): a laser monitor or a reference? merged, it adds the same "
+            f"photons to every pattern and is given no delay; --channel "
+            f"{scene[0] if len(scene) == 1 else '/'.join(map(str, scene))} reads the scene "
+            f"alone")
+
+
+def channel_delays(hists: dict[int, np.ndarray],
+                   spread: dict[int, float] | None = None) -> dict[int, float]:
     """Each channel's delay (bins, within half the period either way) against the channel
     with the most photons, read from the peak of their circular cross-correlation (a
     parabola through it and its two neighbours below a bin).
@@ -47,6 +80,9 @@ def channel_delays(hists: dict[int, np.ndarray]) -> dict[int, float]:
     ----------
     hists : dict of int to ndarray
         Each channel's photons over the code period (the reader's ``channel_histograms``).
+    spread : dict of int to float, optional
+        The reader's ``channel_spread``: only the channels that follow the patterns
+        (:func:`scene_channels`) are read, a monitor's photons being no return.
 
     Returns
     -------
@@ -55,6 +91,8 @@ def channel_delays(hists: dict[int, np.ndarray]) -> dict[int, float]:
         :data:`MIN_PHOTONS` photons or more whose correlation peak stands :data:`MIN_Z` robust
         deviations above its other lags. Empty for fewer than two channels.
     """
+    if spread is not None:
+        hists = {c: h for c, h in hists.items() if c in scene_channels(spread)}
     counts = {c: float(np.sum(h)) for c, h in hists.items()}
     if len(counts) < 2:
         return {}
@@ -111,10 +149,14 @@ def skew_note(delays: dict[int, float], bin_width: float, after: bool = False) -
             f"channel {ref}'s (or read one --channel at a time)")
 
 
-def describe(delays: dict[int, float], shifts: dict[int, int]) -> dict[str, Any] | None:
-    """What ``metrics.json`` records of the channels (``ptu.channel_delays_bins``), or None
-    for one channel."""
-    if len(delays) < 2 and not shifts:
+def describe(delays: dict[int, float], shifts: dict[int, int],
+             spread: dict[int, float] | None = None) -> dict[str, Any] | None:
+    """What ``metrics.json`` records of the channels read together (``ptu.channels``): the
+    delays read, the shifts applied and each channel's rate spread (the reader's
+    ``channel_spread``); None for one channel."""
+    spread = spread or {}
+    if len(delays) < 2 and not shifts and len(spread) < 2:
         return None
     return {"delays_bins": {str(c): d for c, d in sorted(delays.items())},
-            "shifts_bins": {str(c): k for c, k in sorted(shifts.items())}}
+            "shifts_bins": {str(c): k for c, k in sorted(shifts.items())},
+            "rate_spread": {str(c): v for c, v in sorted(spread.items())}}
