@@ -19,8 +19,9 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["AUTO_MARGIN", "CHECK_MAX", "auto_note", "block_numbers", "check_first_pattern",
-           "check_given", "find_first_pattern", "free_block_patterns", "resolve_first"]
+__all__ = ["AUTO_MARGIN", "AUTO_MAX", "AUTO_SMOOTH", "CHECK_MAX", "auto_note", "block_numbers",
+           "check_first_pattern", "check_given", "find_first_pattern", "free_block_patterns",
+           "resolve_first"]
 
 
 def check_first_pattern(first: Any, m: int, *, repeats: int = 1, n_files: int = 1,
