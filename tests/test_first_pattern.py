@@ -99,6 +99,13 @@ def _free_run(path, seed, first, n_blocks, cut=0.3, **how):
         counts = rng.poisson(lam[shown] * dwells[:, None])
     _write(path / "free.ptu", list(zip(counts, dwells, strict=True)),
            pre=rng.poisson(lam[(first - 1) % M] * (DWELL // 2)), rng=rng, **how)
+    _aligned(path, shown, counts, dwells, pats, code, rng)
+    return depth
+
+
+def _aligned(path, shown, counts, dwells, pats, code, rng) -> None:
+    """The free-running blocks' photons written aligned (``path/aligned.ptu``): one block per
+    pattern holding its blocks' photons over their summed dwells; the patterns and code."""
     summed = np.zeros((M, L), np.int64)
     total = np.zeros(M, np.int64)
     np.add.at(summed, shown, counts)
@@ -106,7 +113,6 @@ def _free_run(path, seed, first, n_blocks, cut=0.3, **how):
     _write(path / "aligned.ptu", list(zip(summed, total, strict=True)), rng=rng)
     np.save(path / "patterns.npy", pats)
     np.save(path / "code.npy", code.astype(np.uint8))
-    return depth
 
 
 def _cli(path, name, capsys, *extra, command="reconstruct"):
@@ -339,13 +345,7 @@ def test_a_short_first_block_takes_no_pattern_number(tmp_path, capsys, lead):
         short[rng.integers(0, L, 8)] += 1
     _write(tmp_path / "free.ptu", [(short, 5 if lead == "arming" else 2)]
            + list(zip(counts, dwells, strict=True)), rng=rng)
-    summed = np.zeros((M, L), np.int64)
-    total = np.zeros(M, np.int64)
-    np.add.at(summed, shown, counts)
-    np.add.at(total, shown, dwells)
-    _write(tmp_path / "aligned.ptu", list(zip(summed, total, strict=True)), rng=rng)
-    np.save(tmp_path / "patterns.npy", pats)
-    np.save(tmp_path / "code.npy", code.astype(np.uint8))
+    _aligned(tmp_path, shown, counts, dwells, pats, code, rng)
     rc, (free, got), err = _cli(tmp_path, "free", capsys, "--first-pattern", "37")
     assert rc == 0, err
     assert "the first 1 marker block(s) on input 1 last under half a pattern's dwell" in err
