@@ -65,6 +65,15 @@ def _channels(channel: Any, family: str, record_type: str, path: str) -> np.ndar
     return np.unique(values).astype(np.int64)
 
 
+def _by_channel(ch: np.ndarray) -> list[tuple[int, Any]]:
+    """Each channel of a chunk's photons and what selects its photons: the whole chunk where
+    it holds one channel (the common case: no mask), else a mask per channel."""
+    lo, hi = int(ch.min()), int(ch.max())
+    if lo == hi:
+        return [(lo, slice(None))]
+    return [(c, ch == c) for c in np.unique(ch).tolist()]
+
+
 class _ChannelHists:
     """Each detector channel's kept photons over the code period (the reader's
     ``channel_histograms``) and in each block: nothing is counted while every photon so far
@@ -80,16 +89,15 @@ class _ChannelHists:
             hist: np.ndarray) -> None:
         """A chunk's kept photons, their bins and blocks (``hist``: the histograms before
         they are added)."""
-        lo, hi = int(ch.min()), int(ch.max())
+        chunk = _by_channel(ch)
         if not self.out:
-            if lo == hi and self.only in (None, lo):
-                self.only = lo
+            if len(chunk) == 1 and self.only in (None, chunk[0][0]):
+                self.only = chunk[0][0]
                 return
             if self.only is not None:
                 self.out[self.only] = hist.sum(axis=0, dtype=np.int64)
                 self.blocks[self.only] = hist.sum(axis=1, dtype=np.int64)
-        for c in ([lo] if lo == hi else np.unique(ch).tolist()):
-            mine = slice(None) if lo == hi else ch == c
+        for c, mine in chunk:
             h = np.bincount(bins[mine], minlength=self.n_bins).astype(np.int64)
             b = np.bincount(block[mine], minlength=self.rows).astype(np.int64)
             self.out[c] = self.out[c] + h if c in self.out else h
@@ -160,9 +168,8 @@ class _Gaps:
         t = syncs.astype(np.float64) * self.period + dtime.astype(np.float64) * self.res
         if not ch.size:
             return
-        lo, hi = int(ch.min()), int(ch.max())  # (one channel, the common case: no masks)
-        for c in ([lo] if lo == hi else np.unique(ch).tolist()):
-            tc = t if lo == hi else t[ch == c]
+        for c, mine in _by_channel(ch):
+            tc = t[mine]
             if c in self.last:
                 tc = np.concatenate(([self.last[c]], tc))
             self.last[c] = float(tc[-1])
