@@ -500,12 +500,13 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
         side = int(round(np.sqrt(patterns.shape[1])))
         wall_offsets((side, side), distance, fov, bin_width, int(code.size))
     from .rows import calibration_rows
+    from .skew import check_align
 
     data, keep, patterns, hists, pile, drift, notes, first = calibration_rows(
         ptu, shown, code, bin_width, detector=detector, marker=marker, channel=channel,
         allow_binning=allow_binning, marker_edge=marker_edge, settle=settle, repeats=repeats,
         sync_divider=sync_divider, first=first, sync_channel=sync_channel,
-        align_channels=_aligning(align_channels))
+        align_channels=check_align(align_channels))
     for note in notes:
         warnings.warn(note, stacklevel=2)
     total = hists.astype(np.float64).sum(axis=0)
@@ -551,13 +552,6 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
                                                                                     channel),
                               "channels": channels_read(data, channel),
                               "inputs": inputs}}
-
-
-def _aligning(value: Any) -> bool:
-    """``align_channels`` as a bool, or one line."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise ConfigError(f"align_channels must be True or False, got {value!r}")
-    return bool(value)
 
 
 def _check_target(target: Any, fov_deg: Any) -> float | None:

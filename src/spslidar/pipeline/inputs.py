@@ -68,10 +68,15 @@ def is_family(code: Any) -> bool:
     """Whether ``--code`` names a registered code family (``mseq``, ``gold``, a plugin's)
     rather than a file: its name, any case, and no file of that name (one there too is
     refused by :func:`load_code`)."""
+    name = os.fspath(code) if isinstance(code, os.PathLike) else str(code)
+    return not Path(name).exists() and _names_family(name)
+
+
+def _names_family(name: str) -> bool:
+    """Whether ``name`` is a registered code family's, any case (a file of that name or not)."""
     from ..codes import CODES
 
-    name = os.fspath(code) if isinstance(code, os.PathLike) else str(code)
-    return not Path(name).exists() and name.lower() in {n.lower() for n in CODES.names()}
+    return name.lower() in {n.lower() for n in CODES.names()}
 
 
 def input_record(patterns_given: Any, patterns: np.ndarray, pattern_size: int | None,
@@ -230,7 +235,7 @@ def load_code(code: str | os.PathLike, code_length: int | None = None,
     from ..codes import CODES
 
     name = str(code)
-    if Path(name).exists() and name.lower() in {n.lower() for n in CODES.names()}:
+    if Path(name).exists() and _names_family(name):
         # (a file named mseq in the folder was read for the family without a word, a stale
         # copy of the code 0.57 m off: an audit of stop 67)
         raise ConfigError(f"--code {name} names both the code family and a "

@@ -513,11 +513,12 @@ def _alignment(align_channels: Any, cal: dict | None) -> bool | dict[int, int]:
     a calibration's channel shifts where it has them (its response was measured through
     them), ``align_channels`` (checked) otherwise; one line where the two disagree (a
     calibration of several channels merged as recorded cannot read them aligned)."""
-    if not isinstance(align_channels, (bool, np.bool_)):
-        raise ConfigError(f"align_channels must be True or False, got {align_channels!r}")
-    if cal is None:
-        return bool(align_channels)
     from .calibration_file import calibration_shifts
+    from .skew import check_align
+
+    align_channels = check_align(align_channels)
+    if cal is None:
+        return align_channels
 
     shifts = calibration_shifts(cal)
     if shifts:
@@ -527,7 +528,7 @@ def _alignment(align_channels: Any, cal: dict | None) -> bool | dict[int, int]:
         raise ConfigError(f"--align-channels: the calibration measured channels "
                           f"{', '.join(map(str, read))} merged as recorded, so its response is "
                           f"theirs unaligned; calibrate again with --align-channels")
-    return bool(align_channels)
+    return align_channels
 
 
 def _channels_record(data: Any) -> dict[str, Any] | None:

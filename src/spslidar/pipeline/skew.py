@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["FOLLOW_MIN", "MIN_PHOTONS", "MIN_Z", "SKEW_BINS", "channel_delays",
-           "channel_shifts", "monitor_note", "scene_channels", "skew_note"]
+           "channel_shifts", "check_align", "monitor_note", "scene_channels", "skew_note"]
 
 #: photons a channel needs for its delay to be read
 MIN_PHOTONS = 1000
@@ -44,6 +44,15 @@ SKEW_BINS = 0.75
 #: photons was read as a 29.5-bin cable delay, and --align-channels, as the warning advised,
 #: moved the scene 4.3 m)
 FOLLOW_MIN = 2.5
+
+
+def check_align(value: Any) -> bool:
+    """``align_channels`` (``--align-channels``) as a bool, or one line."""
+    if not isinstance(value, (bool, np.bool_)):
+        from ..errors import ConfigError
+
+        raise ConfigError(f"align_channels must be True or False, got {value!r}")
+    return bool(value)
 
 
 def scene_channels(spread: dict[int, float]) -> list[int]:
