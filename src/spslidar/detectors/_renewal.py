@@ -172,3 +172,60 @@ def _periodic_scan(c: np.ndarray, forcing: np.ndarray) -> np.ndarray:
     total = np.minimum(c, _MU_CLIP).sum(axis=1)
     x0 = x_end / -np.expm1(-total)
     return run(x0)[0]
+
+
+def _dots(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot products of two ``(B, n)`` arrays (batched BLAS)."""
+    return (a[:, None, :] @ b[:, :, None])[:, 0, 0]
+
+
+class _Anderson:
+    """Anderson mixing (type II, Walker & Ni 2011) of ``B`` independent fixed-point
+    iterations ``x -> out``, each row solving its own least-squares problem over the last
+    ``depth`` differences of iterates and residuals.
+
+    The Gram matrix of the residuals' differences is kept and updated by one new column per
+    iterate (``depth`` dot products of the state's length), not rebuilt from the stacked
+    history: at a state of 20 003 values per row (a dead time of 2 µs at 10 GHz) rebuilding
+    it cost 85 % of the renewal model's time (an audit, 2026-11-30). SciPy's
+    ``anderson`` solves one system, not a batch with per-row safeguards, hence by hand.
+    """
+
+    def __init__(self, depth: int):
+        self.depth = depth
+        self.clear()
+
+    def clear(self) -> None:
+        """Forget the history (a restart)."""
+        self.last: tuple[np.ndarray, np.ndarray] | None = None
+        self.d_x: list[np.ndarray] = []
+        self.d_r: list[np.ndarray] = []
+        self.gram = None
+
+    def push(self, out: np.ndarray, res: np.ndarray):
+        """Record the iterate ``out`` and its residual ``res``; return the per-row mixing
+        ``(coeffs (B, k), d_x)`` of the differences held (``k = 0`` on the first push), with
+        ``out - sum_i coeffs[:, i] d_x[i]`` the mixed iterate."""
+        if self.last is not None:
+            dr = res - self.last[1]
+            self.d_x.append(out - self.last[0])
+            cross = np.stack([_dots(v, dr) for v in self.d_r] + [_dots(dr, dr)], axis=1)
+            k = len(self.d_r) + 1
+            gram = np.empty((res.shape[0], k, k))
+            if k > 1:
+                gram[:, :-1, :-1] = self.gram
+            gram[:, -1, :], gram[:, :, -1] = cross, cross
+            self.d_r.append(dr)
+            if k > self.depth:
+                self.d_x.pop(0)
+                self.d_r.pop(0)
+                gram = gram[:, 1:, 1:]
+            self.gram = gram
+        self.last = (out, res)
+        if not self.d_r:
+            return np.zeros((res.shape[0], 0)), self.d_x
+        rhs = np.stack([_dots(v, res) for v in self.d_r], axis=1)
+        gram = self.gram
+        reg = 1e-10 * np.trace(gram, axis1=1, axis2=2)[:, None, None] + 1e-300
+        coeffs = np.linalg.solve(gram + reg * np.eye(gram.shape[1]), rhs[..., None])[..., 0]
+        return coeffs, self.d_x

@@ -50,8 +50,11 @@ Solving the periodic fixed point. (R2) is a first-order linear recurrence in ``a
 term is known, and the recurrence is summed in closed form with cumulative sums of ``mu``
 (no Python loop over bins). One *sweep* runs the chunks over one period (the unrolled time
 evolution of the expectation, history of ``d + 1`` bins carried across period boundaries, so
-``D`` longer or shorter than the period is the same code); sweeps repeat until the period's
-``h`` stops changing. Vectorised over rows.
+``D`` longer or shorter than the period is the same code), or over ``ceil((d + 1) / L)``
+periods where the dead time is longer than the period (the state is the ``d + 1``-bin history,
+so the mixing below costs that much per sweep: paid once per dead time, not once per period);
+sweeps repeat until the period's ``h`` stops changing, accelerated by Anderson mixing.
+Vectorised over rows.
 
 Jitter. The timing jitter (Gaussian, optionally plus an exponential tail) is applied to the
 photon flux by a circular convolution with the bin-integrated IRF
@@ -71,6 +74,7 @@ import numpy as np
 from scipy import fft as sfft
 
 from ._renewal import (
+    _Anderson,
     _chunks,
     _circular_window,
     _Coefficients,
@@ -190,8 +194,9 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
         Convergence: the largest change of a period's ``h`` between sweeps, relative to the
         row's largest ``h``.
     max_sweeps : int, optional
-        Cap on sweeps over the period (default: enough for ``4e6`` bins of unrolled time, at
-        least 200); a warning is issued if the fixed point has not converged.
+        Cap on sweeps (each over one period, or ``ceil((D + 1) / L)`` periods for a dead time
+        longer than the period; default: enough for ``4e6`` bins of unrolled time, at least
+        200); a warning is issued if the fixed point has not converged.
     anderson : int
         Depth of the Anderson acceleration of the sweeps (0: plain sweeps).
     return_info : bool
@@ -233,8 +238,13 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
         raise ValueError("the dead time must be 0 or at least one bin")
     d = int(np.floor(dead_bins))
     f = float(dead_bins - d)
+    # a dead time longer than the period: one sweep runs over as many periods as the state's
+    # history spans, so that the mixing's cost per sweep (the history's length) is paid once
+    # per dead time, not once per period (2 us at 10 GHz over 1 023 bins: 20 periods a sweep)
+    reps = max(1, -(-(d + 1) // period))
+    last = d + 1 + (reps - 1) * period  # the last period's h in hist
     if max_sweeps is None:
-        max_sweeps = max(200, int(np.ceil(4e6 / period)))
+        max_sweeps = max(200, int(np.ceil(4e6 / (period * reps))))
 
     chunks = _chunks(np.max(mu2 + rate, axis=0), min(d, period))
     p = -np.expm1(-mu2)
@@ -248,18 +258,18 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
         force_a = _phi(mu2)
         hcoef = _one_minus_phi(mu2)
 
-    # history: H[:, j] is h at unrolled time j - (d + 1) relative to the period's start
-    hist = np.empty((n_rows, d + 1 + period))
+    # history: H[:, j] is h at unrolled time j - (d + 1) relative to the sweep's start
+    hist = np.empty((n_rows, d + 1 + reps * period))
 
     def sweep(state: np.ndarray) -> np.ndarray:
-        """One period of (R2) from the boundary state ``[h_{-d-1} .. h_{-1}, alpha, gamma]``;
-        the period's ``h`` is left in ``hist[:, d + 1:]``."""
+        """``reps`` periods of (R2) from the boundary state ``[h_{-d-1} .. h_{-1}, alpha,
+        gamma]``; the last period's ``h`` is left in ``hist[:, last:]``."""
         hist[:, : d + 1] = state[:, : d + 1]
         alpha, gamma = state[:, d + 1], state[:, d + 2]
-        for k, e in chunks:
-            g = hist[:, k + 1 : e + 1]
+        for o, k, e in ((j * period, k, e) for j in range(reps) for k, e in chunks):
+            g = hist[:, o + k + 1 : o + e + 1]
             if f:
-                g = (1.0 - f) * g + f * hist[:, k:e]
+                g = (1.0 - f) * g + f * hist[:, o + k : o + e]
             if prob:
                 gnext = scan_g.run(k, e, g * coef.coef_gamma[:, k:e], gamma)
                 gcur = _shifted_left(gamma, gnext)
@@ -271,8 +281,9 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
                 anext = scan_a.run(k, e, g * force_a[:, k:e], alpha)
                 h = p[:, k:e] * _shifted_left(alpha, anext) + g * hcoef[:, k:e]
             alpha = anext[:, -1]
-            hist[:, d + 1 + k : d + 1 + e] = h
-        return np.concatenate((hist[:, period:], alpha[:, None], gamma[:, None]), axis=1)
+            hist[:, d + 1 + o + k : d + 1 + o + e] = h
+        return np.concatenate((hist[:, reps * period :], alpha[:, None], gamma[:, None]),
+                              axis=1)
 
     # start: the constant-flux solution h = mu / (1 + D mean(mu)), alpha = 1 - W exactly
     # (alpha + W is conserved by (R2), so an inconsistent start would scale the result)
@@ -301,8 +312,7 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
     # round-off its residual differences make the mixing's Gram matrix singular, and one such
     # row blew a 64-row batch up to 1e233), and a row whose residual grows past DIVERGED
     # times its best restarts from its best sweep.
-    xs: list[np.ndarray] = []
-    rs: list[np.ndarray] = []
+    mixer = _Anderson(anderson)
     best = np.full(n_rows, np.inf)
     best_state = state.copy()
     best_out = state.copy()
@@ -312,7 +322,7 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
     for sweeps in range(1, max_sweeps + 1):  # noqa: B007 - reported below
         out = sweep(state)
         res = out - state
-        scale_h = np.maximum(hist[:, d + 1 :].max(axis=1), 1e-300)
+        scale_h = np.maximum(hist[:, last:].max(axis=1), 1e-300)
         # h's change relative to its own scale, alpha's and gamma's (of order 1) as they are:
         # alpha's round-off (1e-16) over a histogram of 1e-13 never fell below the tolerance
         # (a GMAPD run at 1e-12 photons: 15 687 sweeps, 13.6 s, "not converged"; an audit)
@@ -336,29 +346,24 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
             break
         diverged = row_change > _DIVERGED * best
         if diverged.any():
-            xs.clear()
-            rs.clear()
+            mixer.clear()
             out[diverged] = best_out[diverged]
             state = out
             continue
-        xs.append(out)
-        rs.append(res)
-        if len(xs) > anderson + 1:
-            xs.pop(0)
-            rs.pop(0)
-        if len(xs) > 1:
-            d_r = np.stack([rs[i + 1] - rs[i] for i in range(len(rs) - 1)], axis=2)
-            d_x = np.stack([xs[i + 1] - xs[i] for i in range(len(xs) - 1)], axis=2)
-            gram = np.einsum("bni,bnj->bij", d_r, d_r)
-            rhs = np.einsum("bni,bn->bi", d_r, res)
-            reg = 1e-10 * np.trace(gram, axis1=1, axis2=2)[:, None, None] + 1e-300
-            coeffs = np.linalg.solve(gram + reg * np.eye(gram.shape[1]), rhs[..., None])
+        if not anderson:
+            state = out
+            continue
+        coeffs, d_x = mixer.push(out, res)
+        if coeffs.shape[1]:
             # no mixing for a converged row, nor where the mix is wild (nearly collinear
             # residuals: coefficients of 1e3 and more amplify round-off)
-            wild = ~np.isfinite(coeffs).all(axis=(1, 2))
-            wild |= np.abs(np.nan_to_num(coeffs)).sum(axis=(1, 2)) > _DIVERGED
+            wild = ~np.isfinite(coeffs).all(axis=1)
+            wild |= np.abs(np.nan_to_num(coeffs)).sum(axis=1) > _DIVERGED
             coeffs[wild | (row_change <= tol)] = 0.0
-            state = on_invariant(out - (d_x @ coeffs)[..., 0], out)
+            mixed = out.copy()
+            for i, v in enumerate(d_x):
+                mixed -= coeffs[:, i, None] * v
+            state = on_invariant(mixed, out)
         else:
             state = out
     if change > tol:
@@ -374,7 +379,7 @@ def renewal_detection(mu: np.ndarray, dead_bins: float, afterpulse_prob: float =
                if per_dead > 100.0 else "")
         warnings.warn(f"dead-time fixed point not converged after {max_sweeps} sweeps "
                       f"(relative change {change:.2e}){why}", RuntimeWarning, stacklevel=2)
-    h = hist[:, d + 1 :].copy()
+    h = hist[:, last:].copy()
     h = h[0] if one_d else h
     info = {"sweeps": sweeps, "change": change}
     return (h, info) if return_info else h
