@@ -33,6 +33,9 @@ BENCH = Path(__file__).resolve().parent.parent / "benchmarks"
     ("solvers.py", ["--quick", "--table1-size", "3"], "size 3"),
     ("ptu_read.py", ["--records", "0"], "--records"),
     ("ptu_read.py", ["--record-type", "PicoHarpT3", "--bins", "5000"], "below 4096"),
+    ("gmapd_model.py", ["--bins", "1000"], "2^n - 1"),
+    ("gmapd_model.py", ["--dead-times", "5e-8,1.5e-10"], "whole 100 ps bins"),
+    ("gmapd_model.py", ["--dead-times", "fast"], "--dead-times"),
 ])
 def test_a_bad_value_is_one_line_and_exit_2(script, args, said, tmp_path):
     if not BENCH.is_dir():
@@ -84,3 +87,16 @@ def test_ptu_read_benchmark_reads_what_the_peer_reads(tmp_path):
     assert "the histograms equal" in done.stdout
     assert "| spslidar `read_ptu_histograms` |" in done.stdout
     assert "| ptufile `decode_records` + NumPy |" in done.stdout
+
+
+def test_gmapd_model_benchmark_agrees_with_its_peer(tmp_path):
+    """The renewal model's benchmark on a short code: the model and the dense chain agree (the
+    script exits 1 with a line otherwise), one table row per dead time."""
+    if not BENCH.is_dir():
+        pytest.skip("the benchmarks are not in this checkout")
+    done = subprocess.run([sys.executable, str(BENCH / "gmapd_model.py"), "--bins", "127",
+                           "--rows", "2", "--dead-times", "5e-9,2e-7"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "the two agree" in done.stdout
+    assert "| 5 ns | 0.39 |" in done.stdout and "| 200 ns | 16 |" in done.stdout
