@@ -189,6 +189,31 @@ def test_a_dead_time_the_gaps_contradict_is_refused():
                       gaps=slow)
 
 
+def test_a_long_dead_time_the_gaps_show_is_said_at_its_own_loss():
+    """An InGaAs detector's 2 us dead time at 0.32 M photons/s loses 65 % of the photons; the
+    word was given only where a 100 ns dead time would lose 5 %, so a file of such a detector
+    was read uncorrected without a word (its reflectivity a third of the corrected one).
+    Without --dead-time the loss at the dead time the gaps show is said; at a rate where that
+    loses under 5 %, nothing."""
+    from spslidar.io.ptu_blocks import GAP_EDGES_S
+
+    rng = np.random.default_rng(0)
+    gaps = 2e-6 + rng.exponential(1 / 0.32e6 - 2e-6, 20_000)  # 0.32 M/s, none under 2 us
+    span = float(gaps.sum())
+    seen = {0: {"shortest_s": float(gaps.min()), "n": gaps.size, "counts": np.bincount(
+        np.searchsorted(GAP_EDGES_S, gaps, side="right"), minlength=GAP_EDGES_S.size + 1)}}
+    period = 1.6383e-6
+    periods = np.array([round(span / period)])
+    out, notes = pileup_report(np.array([float(gaps.size)]), periods, period, None, gaps=seen)
+    assert out["apparent_dead_time_s"] == pytest.approx(2e-6, rel=1e-3)
+    assert len(notes) == 1 and "the 2000 ns its detections show: 64 %" in notes[0]
+    assert "--dead-time 2e-06" in notes[0]
+    # the same detector at a twentieth of the rate (3 % lost): nothing to say
+    out, notes = pileup_report(np.array([float(gaps.size)]), 20 * periods, period, None,
+                               gaps=seen)
+    assert notes == [] and out["apparent_dead_time_s"] == pytest.approx(2e-6, rel=1e-3)
+
+
 @pytest.fixture(scope="module")
 def gmapd_file(tmp_path_factory):
     """A GMAPD acquisition written by ``--save-ptu`` (detection by detection) and its run."""

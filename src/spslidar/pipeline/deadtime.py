@@ -237,15 +237,15 @@ def pileup_report(counts: np.ndarray, periods: np.ndarray, period_s: float, dete
     dead time, and the warnings to give.
 
     Without a dead time given (``detector`` ``None``) a warning says what the longer
-    :data:`TYPICAL_DEAD_TIMES_S` would lose at this rate where that is at least
+    :data:`TYPICAL_DEAD_TIMES_S`, or the longer dead time the detections show
+    (:func:`apparent_dead_time`), would lose at this rate where that is at least
     :data:`LOSS_TO_WARN` of the photons and the rate is one a single detector can count
     (below :data:`MAX_DETECTOR_RATE_HZ`): the non-paralysable loss is ``r D`` of the photons
-    at a detected rate ``r``; and the dead time the detections show
-    (:func:`apparent_dead_time`) where they show one. With one, the GMAPD's own report
-    (detections and incident photons per dead time) and its word on saturation, after the
-    file's gaps between detections (``gaps``, the reader's ``detection_gaps``) are checked
-    against it. ``names``: each row's pattern number, for a refusal's words (default the
-    row).
+    at a detected rate ``r``; and it names the dead time the detections show. With one, the
+    GMAPD's own report (detections and incident photons per dead time) and its word on
+    saturation, after the file's gaps between detections (``gaps``, the reader's
+    ``detection_gaps``) are checked against it. ``names``: each row's pattern number, for a
+    refusal's words (default the row).
     """
     counts = np.asarray(counts, dtype=np.float64)
     dwell = float(np.maximum(np.asarray(periods, dtype=np.float64), 1).sum())
@@ -256,14 +256,20 @@ def pileup_report(counts: np.ndarray, periods: np.ndarray, period_s: float, dete
         out: dict[str, Any] = {"model": "measured", "count_rate_hz": rate,
                                "dead_time_s": None, "corrected": False,
                                "apparent_dead_time_s": seen}
-        lo, hi = (rate * d for d in TYPICAL_DEAD_TIMES_S)
-        if hi < LOSS_TO_WARN or rate >= MAX_DETECTOR_RATE_HZ:
+        # the loss at the longer typical dead time, or at the one the detections show where
+        # that is longer (an InGaAs detector's microseconds: 2 us at 0.32 M photons/s loses
+        # 65 %, which went unsaid because 100 ns would lose 3 %, and the reflectivity came out
+        # a third of the corrected one; found 2026-11-30)
+        longest = max(TYPICAL_DEAD_TIMES_S[-1], seen or 0.0)
+        if rate * longest < LOSS_TO_WARN or rate >= MAX_DETECTOR_RATE_HZ:
             return out, []
         per = rate * period_s
         where = f" on channel {channel}" if isinstance(channel, int | np.integer) else ""
         shares = "; ".join(f"{d * 1e9:g} ns: {rate * d * 100:.2g} %" if rate * d < 1 else
                            f"{d * 1e9:g} ns: more than it can record" for d in
                            TYPICAL_DEAD_TIMES_S)
+        if seen is not None and seen > TYPICAL_DEAD_TIMES_S[-1]:
+            shares += f"; the {seen * 1e9:.4g} ns its detections show: {rate * seen * 100:.2g} %"
         shown = ("" if seen is None else
                  f"; its detections are never closer than {seen * 1e9:.4g} ns, which a "
                  f"detector without a dead time would have undercut many times: that is its "
