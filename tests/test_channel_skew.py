@@ -14,6 +14,7 @@ from spslidar.io import read_ptu_histograms
 from spslidar.io.ptu_write import write_ptu_t3
 from spslidar.pipeline.skew import (
     MIN_PHOTONS,
+    align_note,
     channel_delays,
     channel_shifts,
     describe,
@@ -161,6 +162,20 @@ def test_the_skew_is_said_with_what_to_do():
     assert describe({}, {}) is None
 
 
+def test_what_align_channels_could_not_do_is_said():
+    """--align-channels on one channel's photons, beside a monitor, or on a channel whose
+    delay could not be read did nothing without a word (an outside audit of stop 67)."""
+    h = np.ones(8)
+    assert "are one detector channel's (one --channel is read, or the file has one)" in (
+        align_note({}, {}, {}))
+    assert "one detector channel's (0)" in align_note({0: h, 3: 0 * h}, None, {})  # (empty 3)
+    monitor = align_note({0: h, 1: h}, {0: 30.0, 1: 1.0}, {})
+    assert "only channel 0 of 0, 1 follows the patterns" in monitor and "monitor's" in monitor
+    lost = align_note({0: h, 2: h, 7: h}, None, {0: 0.0, 2: 7.5})
+    assert "the delay of channel(s) 7 could not be read" in lost and "\n" not in lost
+    assert align_note({0: h, 2: h}, {0: 30.0, 2: 20.0}, {0: 0.0, 2: 7.5}) is None
+
+
 def test_shifts_the_reader_refuses(files):
     for bad in ({1: 2.5}, {1: True}, {"a": 1}, {-1: 2}, {128: 1}):
         with pytest.raises(ConfigError, match="channel_shifts must map channel numbers"):
@@ -199,8 +214,13 @@ def test_reconstruct_says_the_skew_and_aligns_with_the_option(files, capsys):
     assert record["shifts_bins"] == {"1": 23} and abs(record["delays_bins"]["1"]) < 0.2
     merged = json.loads((files / "r_skew" / "metrics.json").read_text())["ptu"]["channels"]
     assert merged["shifts_bins"] == {} and merged["delays_bins"]["1"] == pytest.approx(23, abs=.1)
+    assert "--align-channels:" not in err
     assert _run(files, "one.ptu", "r_one2", "--align-channels") == 0  # (one channel: as is)
+    assert "--align-channels: the photons read are one detector" in capsys.readouterr().err
     np.testing.assert_array_equal(np.load(files / "r_one2" / "depth.npy"), one)
+    assert _run(files, "skew.ptu", "r_ch1", "--align-channels", "--channel", "0") == 0
+    assert "one --channel is read, or the file has one), so there is nothing to align" in (
+        capsys.readouterr().err)
     assert json.loads((files / "r_one2" / "metrics.json").read_text())["ptu"]["channels"] is None
 
 

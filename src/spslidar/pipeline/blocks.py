@@ -579,17 +579,20 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
     if seconds is None or not (math.isfinite(seconds) and seconds >= 0):
         raise ConfigError(f"--settle must be a number of seconds >= 0, got {settle!r}")
     if align_channels is True:  # the delays from the file's photons, then the blocks by them
-        from .skew import channel_delays, channel_shifts
+        from .skew import align_note, channel_delays, channel_shifts
 
         options = dict(bin_width=bin_width, marker=marker, channel=channel,
                        allow_binning=allow_binning, marker_edge=marker_edge, settle=settle,
                        repeats=repeats, sync_divider=sync_divider, sync_channel=sync_channel,
                        free_running=free_running)
         data, notes = read_blocks(ptu, m, n_bins, **options)
-        shifts = channel_shifts(channel_delays(data.channel_histograms, data.channel_spread))
-        if not shifts:  # (aligned as recorded: no note of a skew was made)
-            return data, notes
-        return read_blocks(ptu, m, n_bins, **options, align_channels=shifts)
+        delays = channel_delays(data.channel_histograms, data.channel_spread)
+        shifts = channel_shifts(delays)
+        note = align_note(data.channel_histograms, data.channel_spread, delays)
+        if shifts:
+            data, notes = read_blocks(ptu, m, n_bins, **options, align_channels=shifts)
+        # (aligned as recorded without shifts: no note of a skew was made)
+        return data, notes + ([note] if note else [])
     shifts = dict(align_channels) if align_channels else None
 
     def read(extra: int):

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["FOLLOW_MIN", "MIN_PHOTONS", "MIN_Z", "SKEW_BINS", "channel_delays",
+__all__ = ["FOLLOW_MIN", "MIN_PHOTONS", "MIN_Z", "SKEW_BINS", "align_note", "channel_delays",
            "channel_shifts", "check_align", "monitor_note", "scene_channels", "skew_note"]
 
 #: photons a channel needs for its delay to be read
@@ -134,6 +134,32 @@ def channel_shifts(delays: dict[int, float]) -> dict[int, int]:
     reader's ``channel_shifts``): its delay rounded; channels already within half a bin left
     out."""
     return {c: int(round(d)) for c, d in delays.items() if round(d) != 0}
+
+
+def align_note(hists: dict[int, np.ndarray], spread: dict[int, float] | None,
+               delays: dict[int, float]) -> str | None:
+    """What ``--align-channels`` could not do, in one line: a single channel holding the
+    scene's photons (one ``--channel`` read, or the others a monitor's) has nothing to be
+    aligned with, and a channel whose delay :func:`channel_delays` could not read is merged
+    as recorded (both were silent: an outside audit of stop 67). None where every channel
+    holding the scene's photons was read."""
+    held = sorted(c for c, h in hists.items() if float(np.sum(h)) > 0)
+    # (a channel without a rate spread, as one read alone has, is taken to follow them)
+    scene = [c for c in held if not spread or c not in spread or spread[c] >= FOLLOW_MIN]
+    if len(held) < 2:  # (the reader keeps no per-channel histograms of one channel)
+        which = f" ({held[0]})" if held else ""
+        return (f"--align-channels: the photons read are one detector channel's{which} (one "
+                f"--channel is read, or the file has one), so there is nothing to align")
+    if len(scene) < 2:
+        return (f"--align-channels: only channel {', '.join(map(str, scene)) or 'none'} of "
+                f"{', '.join(map(str, held))} follows the patterns (the others' photon rates "
+                f"do not: a monitor's), so there is nothing to align")
+    lost = [c for c in scene if c not in delays]
+    if not lost:
+        return None
+    return (f"--align-channels: the delay of channel(s) {', '.join(map(str, lost))} could not "
+            f"be read (under {MIN_PHOTONS} photons, or no correlation peak {MIN_Z:g} robust "
+            f"deviations above the other lags), so they are merged as recorded")
 
 
 def skew_note(delays: dict[int, float], bin_width: float, after: bool = False) -> str | None:
