@@ -194,6 +194,16 @@ def _run(files, ptu, out, *extra):
                  "--out", str(files / out), *extra])
 
 
+def _run_two(files, out):
+    """reconstruct of the skewed file and the one-channel file as two passes."""
+    from spslidar.cli import main
+
+    return main(["reconstruct", "--ptu", str(files / "skew.ptu"), str(files / "one.ptu"),
+                 "--patterns", str(files / "patterns.npy"), "--code", str(files / "code.npy"),
+                 "--bit-rate", "10e9", "--range-gate", "3.5", "4.8", "--no-figure",
+                 "--out", str(files / out)])
+
+
 def test_reconstruct_says_the_skew_and_aligns_with_the_option(files, capsys):
     """Merged as recorded, channel 1's 23 bins read as a second surface 0.34 m behind, and
     the warning says so with the option; --align-channels gives the one-channel file's map
@@ -218,6 +228,10 @@ def test_reconstruct_says_the_skew_and_aligns_with_the_option(files, capsys):
     assert _run(files, "one.ptu", "r_one2", "--align-channels") == 0  # (one channel: as is)
     assert "--align-channels: the photons read are one detector" in capsys.readouterr().err
     np.testing.assert_array_equal(np.load(files / "r_one2" / "depth.npy"), one)
+    # of two files, each one's record (the first one's stood for both: an audit of stop 67)
+    assert _run_two(files, "r_two") == 0
+    two = json.loads((files / "r_two" / "metrics.json").read_text())["ptu"]["channels"]
+    assert two[0]["delays_bins"]["1"] == pytest.approx(23, abs=.1) and two[1] is None
     assert _run(files, "skew.ptu", "r_ch1", "--align-channels", "--channel", "0") == 0
     assert "one --channel is read, or the file has one), so there is nothing to align" in (
         capsys.readouterr().err)

@@ -413,7 +413,8 @@ METRICS: dict[str, str] = {
            "histograms show them, ``shifts_bins``, the whole bins each was moved by "
            "(``--align-channels``, or the calibration's), and ``rate_spread``, each "
            "channel's photon rate over the blocks against a constant rate's spread (about 1 "
-           "for a laser monitor, which is given no delay); null for one channel.",
+           "for a laser monitor, which is given no delay); null for one channel; of "
+           "several files, a list of each file's (each aligned by its own delays).",
     "inputs": "``reconstruct`` only: what the patterns and the code were read from: "
               "``patterns`` (``file`` as given, null for an array; ``pattern_size``, "
               "``--pattern-size``; ``n_patterns``, ``side``) and ``code`` (``file``; "

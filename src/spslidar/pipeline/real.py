@@ -489,7 +489,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         "channel": None if channel is None else channels_read(data, channel),
         "n_dropped_settling": int(data.n_dropped_settling),
         "code_periods_per_sync": int(data.periods_per_sync), "sync_channel": sync_channel,
-        "channels": _channels_record(data),
+        "channels": solved.channels,
         "timing_drift_bins": None if solved.drift is None else solved.drift.bins,
         "timing_drift_se_bins": None if solved.drift is None else solved.drift.se,
         "timing_drift_span_bins": None if solved.drift is None else solved.drift.span,
@@ -529,15 +529,6 @@ def _alignment(align_channels: Any, cal: dict | None) -> bool | dict[int, int]:
                           f"{', '.join(map(str, read))} merged as recorded, so its response is "
                           f"theirs unaligned; calibrate again with --align-channels")
     return align_channels
-
-
-def _channels_record(data: Any) -> dict[str, Any] | None:
-    """``metrics.json``'s ``ptu.channels``: the delays between the channels read together as
-    the histograms show them (after any shift) and the shifts applied; None for one."""
-    from .skew import channel_delays, describe
-
-    return describe(channel_delays(data.channel_histograms, data.channel_spread),
-                    data.channel_shifts, data.channel_spread)
 
 
 #: share of a truth's known depths that must lie in the range gate (widened by its own length

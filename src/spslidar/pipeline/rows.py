@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["SolvedRows", "solved_rows"]
+__all__ = ["SolvedRows", "channels_record", "solved_rows"]
 
 
 class _FileBlocks(NamedTuple):
@@ -73,6 +73,9 @@ class SolvedRows(NamedTuple):
     blocks_per_pattern: np.ndarray | None = None
     #: the first block's pattern (given, or found under ``first_pattern="auto"``), or None
     first_pattern: int | None = None
+    #: ``metrics.json``'s ``ptu.channels`` (:func:`channels_record`); of several files, a list
+    #: of each one's (each aligned by its own delays), or None where none read several
+    channels: Any = None
 
 
 def _file_blocks(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
@@ -301,9 +304,23 @@ def solved_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float,
             (rows + (first_pattern or 0)) % m_rows, hist, n_k, noise_totals, counts_kept)
     # (the patterns themselves where every row is solved: no copy of a large set)
     every = rows.size == m_rows and np.array_equal(rows, np.arange(m_rows))
+    # (of several files the first one's was recorded as all of theirs: an audit of stop 67)
+    channels = [channels_record(p.data) for p in parts]
+    channels = channels[0] if len(parts) == 1 else (
+        None if all(c is None for c in channels) else channels)
     return SolvedRows(data, hist, n_k, noise_totals, shown if every else shown[rows], rows,
                       counts_kept, left_out, any(p.partial for p in parts), pile, drift, notes,
-                      n_read, per_pattern, first_pattern)
+                      n_read, per_pattern, first_pattern, channels)
+
+
+def channels_record(data: Any) -> dict[str, Any] | None:
+    """``metrics.json``'s ``ptu.channels`` of one file: the delays between the channels read
+    together as its histograms show them (after any shift), the shifts applied and each
+    channel's rate spread; None for one channel."""
+    from .skew import channel_delays, describe
+
+    return describe(channel_delays(data.channel_histograms, data.channel_spread),
+                    data.channel_shifts, data.channel_spread)
 
 
 def calibration_rows(ptu: Any, shown: np.ndarray, code: np.ndarray, bin_width: float, *,
