@@ -491,6 +491,27 @@ def test_a_sync_recorded_on_a_detector_input_is_named(tmp_path, capsys):
     assert "\n" not in str(info.value)
 
 
+def test_a_jittered_sync_channel_is_said(tmp_path):
+    """A sync on a detector input that jitters by a code bin (RMS) blurs every photon's delay
+    by as much; it was read without a word (an outside audit of stop 67). Steady syncs on the
+    same channel, their tags only rounded, are read without one."""
+    n = np.arange(3000)
+    rng = np.random.default_rng(5)
+    _syncs_file(tmp_path / "j.ptu", n * L + 50 + np.rint(rng.normal(0, 1.0, n.size)).astype(int),
+                sync_as_channel=3)
+    with pytest.warns(RuntimeWarning, match=r"the events of channel 3, read as the sync "
+                                            r"\(--sync-channel\), jitter by [\d.]+ ps RMS "
+                                            r"\((0\.9\d|1|1\.0\d) code bins\)"):
+        read_ptu_histograms(tmp_path / "j.ptu", L, bin_width=BW, sync_channel=3)
+    # (a period of 127.3 tags: the rounding alone moves each gap by up to a tag, a twelfth of
+    # a tag squared per sync, which is no jitter)
+    _syncs_file(tmp_path / "s.ptu", np.rint(n * (L + 0.3) + 50).astype(int), sync_as_channel=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_ptu_histograms(tmp_path / "s.ptu", L, bin_width=BW, sync_channel=3,
+                            check_sync_period=False)
+
+
 @pytest.mark.parametrize("rectype", [HH_T2_V2, HH_T2_V1, GENERIC_T2])
 def test_the_sync_on_a_detector_input_read_with_sync_channel(t3_file, tmp_path, rectype):
     """The code generator's sync recorded on detector channel 5 (no sync records), read with

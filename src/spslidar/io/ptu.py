@@ -463,7 +463,7 @@ def read_ptu_histograms(
         sync_channel = check_sync_channel(sync_channel, family, header["record_type"], spath)
         if family.startswith("t2"):  # (read as T3 from its sync records: f is their reader)
             f, header = open_t2(f, header, family, n_records, chunk_records, spath,
-                                sync_channel)
+                                sync_channel, n_bins)
         channels = _channels(channel, family, header["record_type"], spath)
         if channels is not None and sync_channel in channels:
             raise ConfigError(f"--channel {sync_channel} is the --sync-channel: its events are "
