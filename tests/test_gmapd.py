@@ -251,6 +251,11 @@ def test_unconverged_fixed_point_says_the_flux_and_what_to_do():
     with pytest.warns(RuntimeWarning, match="dead-time fixed point not converged") as caught:
         renewal_detection((0.02 * (0.5 + code))[None, :], 500, max_sweeps=1, tol=0.0)
     assert "photons per dead time" not in str(caught[0].message)
+    # the brightest row's flux, not the batch's mean (one bright row among dim ones got the
+    # bare message: an outside audit of stop 68)
+    batch = np.stack([40.0 * (0.5 + code)] + [0.02 * (0.5 + code)] * 9)
+    with pytest.warns(RuntimeWarning, match=r"at 2e\+04 photons per dead time"):
+        renewal_detection(batch, 500, max_sweeps=3)
 
 
 def test_fixed_point_of_a_flat_wall_is_its_plain_sweeps():

@@ -335,6 +335,27 @@ def test_save_ptu_refuses_a_bright_acquisition_before_the_solve(tmp_path, capsys
     assert not ptu.exists() and not (tmp_path / "o").exists()
 
 
+def test_save_ptu_of_a_gmapd_advises_a_shorter_dwell(monkeypatch):
+    """A GMAPD's flux per dead time is its operating point: the refusal told it to lower
+    --signal / --noise, which took it out of the 1-10 photons per dead time where it works
+    (an outside audit of stop 68); it says --periods."""
+    from types import SimpleNamespace
+
+    from spslidar.errors import ConfigError
+    from spslidar.pipeline.export import check_ptu_photons
+
+    def meas(detector):
+        return SimpleNamespace(
+            acq=SimpleNamespace(period=1023, n_periods=10**6),
+            sim={"noise_per_bin": np.full(4, 0.01), "signal_counts": np.full(4, 1e7)},
+            config=SimpleNamespace(detector=detector))
+
+    with pytest.raises(ConfigError, match=r"lower --periods \(the dwell: a GMAPD keeps its "):
+        check_ptu_photons(meas("gmapd"))
+    with pytest.raises(ConfigError, match=r"lower --periods, or --signal / --noise$"):
+        check_ptu_photons(meas("linear"))
+
+
 def test_a_librarys_notice_of_its_future_is_not_the_runs_warning(tmp_path, capsys,
                                                                    monkeypatch):
     """A library's deprecation or FutureWarning raised during a run (as a newer release may
