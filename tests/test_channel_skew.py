@@ -145,6 +145,15 @@ def test_delays_are_read_only_where_the_data_hold_them():
     back = channel_delays({0: hists[0], 1: rng.poisson(np.roll(smooth, -base.size // 2 + 3))})
     assert back[1] == pytest.approx(-base.size // 2 + 3, abs=0.25)
     assert channel_delays({0: hists[0]}) == {}
+    # where no channel's rate follows the patterns (two detectors at their dead-time limit
+    # count more evenly than Poisson: spreads 0.6-0.8), every channel is read; both were
+    # taken for monitors, their skew neither said nor aligned (an outside audit of stop 68)
+    even = {0: 0.7, 2: 0.6}
+    assert channel_delays({0: hists[0], 2: hists[2]}, even)[2] == pytest.approx(7.5, abs=0.25)
+    assert set(channel_delays({0: hists[0], 2: hists[2]}, {0: 30.0, 2: 0.6})) == set()
+    note = skew_note({0: 0.0, 2: 7.5}, BW, spread=even)
+    assert "a laser monitor cannot be told from a detector here" in note
+    assert "cannot be told" not in skew_note({0: 0.0, 2: 7.5}, BW, spread={0: 30.0, 2: 20.0})
     assert channel_delays({0: hists[7], 1: hists[7]}) == {}  # (too few photons in any)
 
 
@@ -174,6 +183,7 @@ def test_what_align_channels_could_not_do_is_said():
     lost = align_note({0: h, 2: h, 7: h}, None, {0: 0.0, 2: 7.5})
     assert "the delay of channel(s) 7 could not be read" in lost and "\n" not in lost
     assert align_note({0: h, 2: h}, {0: 30.0, 2: 20.0}, {0: 0.0, 2: 7.5}) is None
+    assert align_note({0: h, 2: h}, {0: 0.7, 2: 0.6}, {0: 0.0, 2: 7.5}) is None  # (both read)
 
 
 def test_shifts_the_reader_refuses(files):

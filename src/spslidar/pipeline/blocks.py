@@ -662,7 +662,7 @@ def _said(data, ptu, notes: list[str], marker: int, channel: Any, marker_edge: s
 
         monitor = monitor_note(data.channel_spread)
         skew = skew_note(channel_delays(data.channel_histograms, data.channel_spread),
-                         bin_width, after=shifted)
+                         bin_width, after=shifted, spread=data.channel_spread)
         mixed = "; and ".join(n for n in (monitor, skew) if n) or mixed
     double = _double_note(data)
     return (data, notes + ([edge] if edge else []) + ([mixed] if mixed else [])
