@@ -131,6 +131,15 @@ def check_runs(scenes: Iterable[str], size: int, settings: Iterable[dict[str, An
         Config(size=size, **setting)
 
 
+def emit(lines: Iterable[str], out: str | None) -> int:
+    """Print a benchmark's table (its lines) and, with ``--out``, write it there; exit 0."""
+    text = "\n".join(lines)
+    print(text)
+    if out:
+        Path(out).write_text(text + "\n", encoding="utf-8")
+    return 0
+
+
 def run(main: Callable[..., Any], argv: list[str] | None = None) -> int:
     """``main(argv)`` with a ``ValueError`` (spslidar's ``SpslidarError`` is one) printed as
     ``<script>: error: <message>`` on one line and exit status 2; ``main``'s own status

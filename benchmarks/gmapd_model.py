@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 import _cli
 import numpy as np
@@ -106,11 +105,7 @@ def main(argv=None) -> int:
                              f"{dead:g} s (by {np.abs(h - ref).max() / ref.max():.2g})")
         lines.append(f"| {dead * 1e9:g} ns | {d / args.bins:.2g} | {ours:.2f} "
                      f"({info['sweeps']}) | {peer:.2f} | {ours / peer:.3f} |")
-    text = "\n".join(lines)
-    print(text)
-    if args.out:
-        Path(args.out).write_text(text + "\n", encoding="utf-8")
-    return 0
+    return _cli.emit(lines, args.out)
 
 
 if __name__ == "__main__":

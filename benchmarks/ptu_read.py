@@ -132,11 +132,7 @@ def main(argv=None) -> int:
         f"| {peer[1]:.0f} |",
         f"| ratio (spslidar / ptufile) | {ours[0] / peer[0]:.2f} | | {ours[1] / peer[1]:.2f} |",
     ]
-    text = "\n".join(lines)
-    print(text)
-    if args.out:
-        Path(args.out).write_text(text + "\n", encoding="utf-8")
-    return 0
+    return _cli.emit(lines, args.out)
 
 
 if __name__ == "__main__":
