@@ -183,6 +183,11 @@ def test_what_align_channels_could_not_do_is_said():
     lost = align_note({0: h, 2: h, 7: h}, None, {0: 0.0, 2: 7.5})
     assert "the delay of channel(s) 7 could not be read" in lost and "\n" not in lost
     assert align_note({0: h, 2: h}, {0: 30.0, 2: 20.0}, {0: 0.0, 2: 7.5}) is None
+    # two channels read through a TDC bin split, where no channel's histogram is kept (a
+    # HydraHarp file's two channels were said to be one: found on a real file, 2026-11-30)
+    split = align_note({}, {}, {}, [0, 1])
+    assert "channels 0, 1 are read, but their delays are not read through a TDC bin" in split
+    assert "one detector channel's" in align_note({}, {}, {}, [0])
     assert align_note({0: h, 2: h}, {0: 0.7, 2: 0.6}, {0: 0.0, 2: 7.5}) is None  # (both read)
 
 

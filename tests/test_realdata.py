@@ -393,3 +393,15 @@ def test_ptu_info_of_a_t2_file_gives_no_sync_period():
     hz = REAL / "hazelnut_z1.ptu"
     if hz.exists():
         assert ptu_info(hz)["acquisition_time_s"] is None and ptu_info(hz)["sync_period_s"] > 0
+
+
+def test_align_channels_on_the_beads_files_two_channels_through_a_tdc_split():
+    """The HydraHarp beads file's two channels (16 ps TDC bins, split between 200 ps bits
+    under --allow-binning, where no channel's histogram is kept): --align-channels said they
+    were one channel's photons; it says why their delays are not read."""
+    from spslidar.pipeline.blocks import read_blocks
+
+    _, notes = read_blocks(REAL / "tttrlib_MT200_HH400_beads.ptu", 50, 125, bin_width=2e-10,
+                           marker=3, allow_binning=True, align_channels=True)
+    said = [n for n in notes if n.startswith("--align-channels")]
+    assert len(said) == 1 and "channels 0, 1 are read, but their delays are not read" in said[0]

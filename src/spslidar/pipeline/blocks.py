@@ -588,7 +588,8 @@ def read_blocks(ptu, m: int, n_bins: int, *, bin_width: float, marker: int = 1,
         data, notes = read_blocks(ptu, m, n_bins, **options)
         delays = channel_delays(data.channel_histograms, data.channel_spread)
         shifts = channel_shifts(delays)
-        note = align_note(data.channel_histograms, data.channel_spread, delays)
+        note = align_note(data.channel_histograms, data.channel_spread, delays,
+                          channels_read(data, channel))
         if shifts:
             data, notes = read_blocks(ptu, m, n_bins, **options, align_channels=shifts)
         # (aligned as recorded without shifts: no note of a skew was made)

@@ -148,13 +148,21 @@ def channel_shifts(delays: dict[int, float]) -> dict[int, int]:
 
 
 def align_note(hists: dict[int, np.ndarray], spread: dict[int, float] | None,
-               delays: dict[int, float]) -> str | None:
+               delays: dict[int, float], read: list[int] | None = None) -> str | None:
     """What ``--align-channels`` could not do, in one line: a single channel holding the
     scene's photons (one ``--channel`` read, or the others a monitor's) has nothing to be
     aligned with, and a channel whose delay :func:`channel_delays` could not read is merged
-    as recorded (both were silent: an outside audit of stop 67). None where every channel
-    holding the scene's photons was read."""
+    as recorded (both were silent: an outside audit of stop 67). ``read``: the channels whose
+    photons were read (:func:`~spslidar.pipeline.blocks.channels_read`), where the reader
+    kept no histogram of each (a TDC bin split between the code's bits). None where every
+    channel holding the scene's photons was read."""
     held = sorted(c for c, h in hists.items() if float(np.sum(h)) > 0)
+    if len(held) < 2 and read is not None and len(read) > 1:
+        # (said as "one detector channel's" of a HydraHarp file's two: found 2026-11-30)
+        return (f"--align-channels: channels {', '.join(map(str, read))} are read, but their "
+                f"delays are not read through a TDC bin split between the code's bits "
+                f"(--allow-binning), so they are merged as recorded (or read one --channel at "
+                f"a time)")
     if len(held) < 2:  # (the reader keeps no per-channel histograms of one channel)
         which = f" ({held[0]})" if held else ""
         return (f"--align-channels: the photons read are one detector channel's{which} (one "
