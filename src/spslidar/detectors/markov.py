@@ -16,8 +16,8 @@ detection is at bin ``a + k``, the unrolled bins wrapping over the period as man
 the detector stays armed without a photon (a geometric series of the period's survival
 ``S = e^{-sum mu}``), so each row of the matrix is in closed form; the stationary law ``pi``
 solves ``pi T = pi``, ``sum pi = 1`` (one dense solve), and the detections per period are
-``L`` over the mean bins between detections. SciPy and NumPy do the algebra; the matrix is
-this module's (no library builds this chain).
+``L`` over the mean bins between detections. NumPy does the algebra; the matrix is this
+module's (no library builds this chain).
 """
 
 from __future__ import annotations
@@ -38,19 +38,17 @@ def _chain(mu: np.ndarray, d: int) -> tuple[np.ndarray, np.ndarray]:
     k = np.arange(1, n + 1)
     # armed throughout bins a + 1 .. a + k - 1, detecting in bin a + k (k = 1 .. n: one pass)
     start = a[:, None] + 1
+    cols = (a[:, None] + k[None, :]) % n
     survive = np.exp(-(cum[start + k[None, :] - 1] - cum[start]))
-    p = -np.expm1(-mu)
-    v = survive * p[(a[:, None] + k[None, :]) % n]
-    s_full = np.exp(-mu.sum())
+    v = survive * -np.expm1(-mu[cols])
+    lost = -np.expm1(-mu.sum())  # 1 - S: a pass's chance of a detection
     phi_a = _phi(mu[a])
     t = np.zeros((n, n))
-    cols = (a[:, None] + k[None, :]) % n
     # every later pass repeats the first, scaled by S per pass
-    np.put_along_axis(t, cols, phi_a[:, None] * v / -np.expm1(-mu.sum()), axis=1)
+    np.put_along_axis(t, cols, phi_a[:, None] * v / lost, axis=1)
     t[np.arange(n), a] += _one_minus_phi(mu[a])
-    passes = s_full / -np.expm1(-mu.sum())
-    mean_k = phi_a * ((v * k).sum(axis=1) / -np.expm1(-mu.sum())
-                      + n * v.sum(axis=1) * passes / -np.expm1(-mu.sum()))
+    passes = np.exp(-mu.sum()) / lost  # S / (1 - S)
+    mean_k = phi_a * ((v * k).sum(axis=1) + n * v.sum(axis=1) * passes) / lost
     return t, d + mean_k
 
 

@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from typing import Any
 
 import numpy as np
@@ -333,8 +334,6 @@ def _say_jitter(resid: np.ndarray, code_bin: float, unit: float, path: str,
         return
     jitter = math.sqrt(max(float(np.var(resid)) / 2 - 1 / 12, 0.0))  # in tags
     if jitter > SYNC_JITTER_BINS * code_bin:
-        import warnings
-
         warnings.warn(f"{path!r}: the events of channel {channel}, read as the sync "
                       f"(--sync-channel), jitter by {jitter * unit * 1e12:.3g} ps RMS "
                       f"({jitter / code_bin:.2g} code bins) about a steady period, and every "
@@ -444,15 +443,11 @@ def open_t2(f: Any, header: dict[str, Any], family: str, n_records: int, chunk_r
                           f"{k}: {gaps[k] * unit:.6g} s): not the code generator's sync (a "
                           f"detector on it?)")
     if off.any():  # (a glitch on the sync input: the period it falls in is read from it)
-        import warnings
-
         warnings.warn(f"{path!r}: {int(off.sum())} of the first {gaps.size} intervals between "
                       f"its sync records are off a whole number of periods (glitches on the "
                       f"sync input?): the photons of a period that holds one have their "
                       f"delays read from it", RuntimeWarning, stacklevel=3)
     if n_own:  # (ignored without a word: an outside audit of stop 67)
-        import warnings
-
         warnings.warn(f"{path!r}: --sync-channel {sync_channel}: the file holds sync records "
                       f"of its own ({n_own} in its first {n_seen} records), which are ignored "
                       f"and the events of channel {sync_channel} read as the syncs instead; if "

@@ -112,7 +112,8 @@ def channel_delays(hists: dict[int, np.ndarray],
         deviations above its other lags. Empty for fewer than two channels.
     """
     if _followed(spread):  # (else every channel: none can be told for a monitor)
-        hists = {c: h for c, h in hists.items() if c in scene_channels(spread)}
+        scene = scene_channels(spread)
+        hists = {c: h for c, h in hists.items() if c in scene}
     counts = {c: float(np.sum(h)) for c, h in hists.items()}
     if len(counts) < 2:
         return {}
@@ -167,8 +168,8 @@ def align_note(hists: dict[int, np.ndarray], spread: dict[int, float] | None,
         which = f" ({held[0]})" if held else ""
         return (f"--align-channels: the photons read are one detector channel's{which} (one "
                 f"--channel is read, or the file has one), so there is nothing to align")
-    scene = ([c for c in held if c not in spread or spread[c] >= FOLLOW_MIN]
-             if _followed(spread) else held)
+    follow = scene_channels(spread) if _followed(spread) else held
+    scene = [c for c in held if c in follow or c not in spread]
     if len(scene) < 2:
         return (f"--align-channels: only channel {scene[0]} of {', '.join(map(str, held))} "
                 f"follows the patterns (the others' photon rates do not: a monitor's), so "
