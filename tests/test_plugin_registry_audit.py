@@ -180,26 +180,27 @@ def test_a_plugin_whose_option_clashes_is_one_line_at_the_command_line(tmp_path,
     assert len(err.splitlines()) == 1 and "collide.py:4" in err and "'noise'" in err
 
 
-def test_an_option_two_stages_of_two_kinds_declare_is_one_line_at_the_command_line(
+def test_an_option_two_stages_of_two_kinds_declare_is_refused_where_it_is_registered(
         medargmax, capsys):
     """A detector's ``window`` beside the estimator's ``window``, declared alike, made
-    ``spslidar run`` (every command, ``check`` too) argparse's traceback: a flag each."""
+    ``spslidar run`` (every command, ``check`` too) argparse's traceback: a flag each; then a
+    one-line refusal of every later ``Config()``, runs using neither stage too (an audit of
+    2026-12-01). Refused at registration now, in one line naming the other stage, and
+    nothing of it kept."""
     from spslidar.cli import main
     from spslidar.config import Config
     from spslidar.detectors import DETECTORS
     from spslidar.detectors.linear import LinearDetector
 
-    DETECTORS.add("windowed", LinearDetector, options=(WINDOW,))
-    try:
-        assert main(["run", "--help"]) == 2
-        err = capsys.readouterr().err.strip()
-        assert len(err.splitlines()) == 1 and "--window" in err and "windowed" in err, err
-        # and Config, as the command line: the one key fed both stages (an audit of stop 64)
-        with pytest.raises(ConfigError, match="--window is declared by .* and, alike, by "
-                                              "--(depth|detector) "):
-            Config(window=3)
-    finally:
-        DETECTORS.remove("windowed")
+    with pytest.raises(ValueError, match=r"option 'window' of detector model 'windowed': "
+                                         r"--depth medargmax declares it"):
+        DETECTORS.add("windowed", LinearDetector, options=(WINDOW,))
+    assert "windowed" not in DETECTORS.names()
+    with pytest.raises(SystemExit) as done:  # every command still builds
+        main(["run", "--help"])
+    assert done.value.code == 0
+    capsys.readouterr()
+    assert Config(depth="medargmax", window=3).window == 3  # the estimator's key
 
 
 @pytest.mark.parametrize("name", ["truth", "settle"])

@@ -366,8 +366,10 @@ METRICS: dict[str, str] = {
                 "``afterpulse_delay_s``.",
     "estimate": "The memory (GB) and time (s) estimated before a simulated run "
                 "(``time_s_at_floor`` where the weight met its floor and the run was priced "
-                "again with the floored iteration cap); empty for ``reconstruct``, whose "
-                "file is priced as it is read.",
+                "again with the floored iteration cap; ``time_s_reconstruct``, the solve "
+                "and depth stage priced again, where ``spslidar.reconstruct`` changed a "
+                "simulation's processing); empty for ``reconstruct``, whose file is priced "
+                "as it is read.",
     "warnings": "The warnings printed on stderr.",
     "timing_s": "Wall-clock seconds by stage (scene, setup, simulate, qcr, solve, depth, "
                 "metrics, write); ``total`` is the run up to the metrics, the time the "

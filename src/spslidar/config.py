@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from . import registry as _registry
 from .config_files import (  # noqa: F401  (re-exported: imported from here elsewhere)
     CLI_ONLY_KEYS,
     FILE_KEYS,
@@ -574,6 +575,9 @@ def registries() -> dict:
     from .solvers import SOLVERS
 
     return {r.option: r for r in (CODES, PATTERNS, DETECTORS, SOLVERS, ESTIMATORS)}
+
+
+_registry._CHOOSERS[:] = [registries]  # (a stage's option is checked where registered)
 
 
 #: whether validation checks what this machine has (the backend): not for a config file's

@@ -44,7 +44,8 @@ def depth_errors(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | No
     Parameters
     ----------
     estimate, truth : ndarray
-        Depth maps in metres (NaN in ``estimate`` = no return detected).
+        Depth maps in metres (NaN in ``estimate`` = no return detected; an infinite one is a
+        ``ValueError``).
     valid : ndarray of bool, optional
         Pixels whose truth is known (default: all finite truth pixels); 0/1 values are read as
         booleans, anything else or a size other than the maps' is a ``ValueError``.
@@ -66,6 +67,11 @@ def depth_errors(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray | No
     if est.size != np.size(truth) or not _same_grid(np.shape(estimate), np.shape(truth)):
         # ((2, 8) against (8, 2) scored 0.0, an audit: a map and its flat pixels still agree)
         raise ValueError(f"estimate {np.shape(estimate)} and truth {np.shape(truth)} differ")
+    if np.isinf(est).any():
+        # (dropped as "no return" like NaN, an estimator's overflow scored 0.1 m: an audit of
+        # 2026-12-01)
+        raise ValueError(f"estimate holds {int(np.isinf(est).sum())} infinite depth(s): a "
+                         f"depth is a number of metres, or NaN where there is no return")
     tru, ok = _known(truth, valid)
     have = ok & np.isfinite(est)
     n_valid = int(ok.sum())

@@ -63,7 +63,8 @@ def reflectivity_image(slices: np.ndarray, depth: np.ndarray, lags: np.ndarray,
     Returns
     -------
     ndarray, shape of ``depth``
-        ``sum_{|t - t_j| <= half_window} max(p_j(t), 0)``; NaN where ``depth`` is NaN.
+        ``sum_{|t - t_j| <= half_window} max(p_j(t), 0)``; NaN where ``depth`` is NaN or
+        its window holds none of the slices (a depth outside the gate).
     """
     from .forward import depth_to_delay
 
@@ -90,9 +91,14 @@ def reflectivity_image(slices: np.ndarray, depth: np.ndarray, lags: np.ndarray,
     have = np.isfinite(d)
     if lags.size == 0 or not have.any():
         return out.reshape(shape)
-    # index of the slice nearest to each depth's delay (lags are consecutive bins)
-    centre = np.rint(depth_to_delay(d[have], bin_width) - lags[0]).astype(np.int64)
-    centre = np.clip(centre, 0, lags.size - 1)
+    # index of the slice nearest to each depth's delay (lags are consecutive bins); a depth
+    # whose window holds no slice has no reflectivity here (it read the edge slice's value,
+    # an audit of 2026-12-01)
+    centre = np.rint(depth_to_delay(d, bin_width) - lags[0])
+    have &= (centre >= -half_window) & (centre <= lags.size - 1 + half_window)
+    if not have.any():
+        return out.reshape(shape)
+    centre = centre[have].astype(np.int64)
     pos = np.clip(slices[have], 0.0, None)
     total = np.zeros(centre.size)
     rows = np.arange(centre.size)
@@ -147,7 +153,8 @@ def point_cloud(depth: np.ndarray, fov_deg: float = DEFAULT_FOV_DEG,
     Returns
     -------
     points : ndarray, shape (P, 3)
-        ``x`` right, ``y`` down, ``z`` forward, metres, in row-major pixel order.
+        ``x`` right, ``y`` down, ``z`` forward, metres, in row-major pixel order (a
+        negative range, which no reconstruction gives, is a point behind the pinhole).
     values : ndarray, shape (P,)
         The intensity of each point (zeros if none given).
     """

@@ -25,7 +25,8 @@ from typing import Any
 
 from .errors import ConfigError
 
-__all__ = ["RESERVED_NAMES", "Entry", "Option", "Registry", "lazy_exports"]
+__all__ = ["RESERVED_NAMES", "Entry", "Option", "Registry", "lazy_exports",
+           "registrations"]
 
 
 @dataclass(frozen=True)
@@ -207,7 +208,28 @@ RESERVED_NAMES = frozenset({
     # option named as one (settle, new in stop 64) refused every command, run's too (a review)
     "allow_binning", "calibration", "channel", "distance", "marker", "marker_edge", "ptu",
     "first_pattern", "frame", "pattern_size", "repeats", "settle", "sync_channel",
-    "sync_divider", "target", "truth", "align_channels"})
+    "sync_divider", "target", "truth", "align_channels",
+    # the command line's own flags before the command (--plugin 2.5 was read as a module to
+    # import, an audit of 2026-12-01)
+    "plugin", "version"})
+
+#: how many times any registry's entries changed (:meth:`Registry.add`, :meth:`Registry.remove`):
+#: part of what identifies a simulated measurement that a process keeps
+#: (:func:`spslidar.pipeline.shared.simulation_key`), so that a code family registered again
+#: under its name simulates anew (``run_shared`` gave the earlier code's data, an audit of
+#: 2026-12-01)
+_CHANGES = [0]
+
+
+#: the function that gives the registries a config chooses among
+#: (:func:`spslidar.config.registries`), installed by the config when it is imported (this
+#: module imports nothing of the stages' or the config's: they import it)
+_CHOOSERS: list[Callable[[], dict]] = []
+
+
+def registrations() -> int:
+    """How many times any registry's entries were added or removed in this process."""
+    return _CHANGES[0]
 
 
 def _declaration_fault(opt: Any) -> str:
@@ -304,11 +326,26 @@ class Registry:
             raise ValueError(f"a {self.kind} declares no {what} (no config key or flag would "
                              f"reach them: {', '.join(map(str, refused))} of {name!r}): give "
                              f"its factory fixed values, or register one entry per setting")
+        import sys
+
+        # who registered it: the caller, past this module's own decorator (register)
+        frame = sys._getframe(1)
+        while frame is not None and frame.f_globals.get("__name__") == __name__:
+            frame = frame.f_back
+        origin = "" if frame is None else str(frame.f_globals.get("__name__", ""))
+        own = origin == "spslidar" or origin.startswith("spslidar.")
+        seen: set[str] = set()
         for opt in options:
             fault = _declaration_fault(opt)
+            if not fault and opt.name in seen:
+                # (the first won and the second was ignored without a word: an audit)
+                fault = "it is declared twice in this entry's options"
+            if not fault and not own:  # (spslidar's own stages: held by its tests)
+                fault = self._foreign(opt.name)
             if fault:
                 raise ValueError(f"option {getattr(opt, 'name', opt)!r} of {self.kind} "
                                  f"{name!r}: {fault}")
+            seen.add(opt.name)
             # (not the entry this one replaces: a notebook cell re-run with another default
             # was refused, with no way back but a new kernel, an audit of 2026-11-29)
             for other in (e for e in self._snapshot() if e.name != name):
@@ -317,13 +354,6 @@ class Registry:
                             opt.default, opt.kind, opt.lo, opt.hi):
                         raise ValueError(f"option {opt.name!r} of {self.kind} {name!r} differs "
                                          f"from {other.name!r}'s declaration")
-        import sys
-
-        # who registered it: the caller, past this module's own decorator (register)
-        frame = sys._getframe(1)
-        while frame is not None and frame.f_globals.get("__name__") == __name__:
-            frame = frame.f_back
-        origin = "" if frame is None else str(frame.f_globals.get("__name__", ""))
         from .plugins import importing
 
         entry = Entry(name, target, display or name, help, dict(defaults), validate,
@@ -339,7 +369,26 @@ class Registry:
         if old is not None and _built_in(old) and name not in self._replaced:
             self._replaced[name] = old  # (a plugin's own earlier versions are not kept)
         self._entries[name] = entry
+        _CHANGES[0] += 1
         return entry
+
+    def _foreign(self, option: str) -> str:
+        """Why ``option`` cannot be declared in this registry ('' where it can): another of
+        the registries a config chooses among declares it, and one config key and flag is
+        one stage kind's. Refused here, where it is registered: accepted, it made every later
+        ``Config()`` of the process a ConfigError, runs that used neither stage too (an
+        audit of 2026-12-01). Before :mod:`spslidar.config` is imported nothing is checked
+        here, and ``Config()`` refuses such a pair in one line instead."""
+        if not _CHOOSERS:  # (no config imported yet: Config() says it, in one line)
+            return ""
+        others = _CHOOSERS[0]()
+        if others.get(self.option) is not self:
+            return ""
+        for reg in others.values():
+            if reg is not self and option in reg.options():
+                return (f"--{reg.option} {', '.join(reg.owners(option))} declares it: one "
+                        f"config key and flag is one stage kind's, name it otherwise")
+        return ""
 
     def replaced(self, name: str) -> Entry | None:
         """The built-in entry that :meth:`add` replaced under ``name`` (None where none was),
@@ -359,6 +408,7 @@ class Registry:
                               f"(register another under its name to replace it)")
         else:
             del self._entries[name]
+        _CHANGES[0] += 1
         return entry
 
     def register(self, name: str, display: str = "", help: str = "",

@@ -333,6 +333,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     if not isinstance(meas, Measurement):
         raise ConfigError(f"reconstruct() takes a Measurement (from spslidar.measure()), got "
                           f"{type(meas).__name__}")
+    meas.check_unchanged()
     # a measurement key given at the value the measurement used changes nothing: taken
     same = unchanged_keys(meas.config, processing)
     processing = {k: v for k, v in processing.items() if k not in same}
@@ -376,6 +377,13 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         keep = with_reference(keep)
     if not sim.get("estimate") and not device:  # a measured acquisition: no config priced it
         _price_measured(cfg, patterns.shape[0], q, int(keep.sum()), int(meas.lags.size))
+    elif processing and not device:
+        # a simulation reconstructed otherwise than measure() priced it: its solve and depth
+        # stage priced again against the limits now given (reconstruct(m, iterations=20000,
+        # max_time=0.5) ran 21 s unchecked, and metrics kept measure()'s estimate: an audit
+        # of 2026-12-01)
+        rebuilt = _price_simulated(cfg, patterns.shape[0], q, int(keep.sum()),
+                                   int(meas.lags.size))
     eliminated = None
     if device:
         from ..backends import device as dev
@@ -426,6 +434,8 @@ def reconstruct(meas: Measurement, **processing) -> Result:
 
     iterations = cfg.iterations or solver_default(cfg.solver, "iterations")
     estimate: dict[str, float] = {}
+    if sim.get("estimate") and processing and not device:
+        estimate["time_s_reconstruct"] = rebuilt
     if floored and not cfg.iterations:
         iterations *= FLOORED_ITERATIONS
         # the run was priced at the solver's cap before the weight was known: price the
@@ -585,6 +595,38 @@ def _price_measured(cfg: Config, m: int, q: int, k: int, n_lags: int) -> None:
     check_time(reconstruction_seconds(cfg, m, q, k, n_lags), cfg.max_time,
                "this reconstruction", basis=f"its {k} slices with returns of {n_lags} gated",
                reduce="--iterations or the range gate")
+
+
+def _price_simulated(cfg: Config, m: int, q: int, k: int, n_lags: int) -> float:
+    """Price a simulated measurement's reconstruction with other processing than its
+    ``measure()`` was priced for (:func:`reconstruct` with ``iterations``, ``solver``,
+    ``depth``, ``max_time`` or ``max_memory``): the solve over the ``k`` solved slices and the
+    depth stage over the ``n_lags`` gated ones, against ``max_time`` (said when long), and
+    their arrays against ``max_memory``. Returns the seconds priced."""
+    from .budget import (
+        BASE_BYTES,
+        SLICE_BYTES,
+        SOLVER_BLOCKS,
+        Budget,
+        _slice_cost,
+        check_budget,
+        check_time,
+        config_solve_seconds,
+        depth_seconds,
+    )
+    from .plan import _dense_patterns
+
+    seconds = (config_solve_seconds(cfg, m, q, k, _dense_patterns(cfg))
+               + depth_seconds(cfg.depth, q, n_lags))
+    check_time(seconds, cfg.max_time, "this reconstruction",
+               basis=f"its {k} solved slices of {n_lags} gated",
+               reduce="iterations or the range gate")
+    item = 4 if cfg.dtype == "float32" else 8
+    parts = {"interpreter": BASE_BYTES, "solver": SOLVER_BLOCKS * float(q) * k * item,
+             "range slices": _slice_cost(cfg.depth, "slice_bytes", SLICE_BYTES) * float(q)
+             * n_lags}
+    check_budget(Budget(sum(parts.values()), seconds, parts), cfg.max_memory, cfg.patterns)
+    return seconds
 
 
 #: a TVAL3 weight this share of max |A^T y| or less is named too small where its solve

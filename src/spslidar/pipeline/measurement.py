@@ -103,11 +103,39 @@ class Measurement:
 
     def __post_init__(self) -> None:
         for name in _DELAYS:
-            setattr(self, name, _frozen(getattr(self, name)))
+            object.__setattr__(self, name, _frozen(getattr(self, name)))
+        # what it was simulated with, held against later edits (:meth:`check_unchanged`)
+        object.__setattr__(self, "_made", self.config.to_dict())
+        object.__setattr__(self, "_sealed", True)
+
+    def __setattr__(self, name: str, value) -> None:
+        # (`m.lags = m.lags + 5` moved every later depth by 7.5 cm without a word, an audit
+        # of 2026-12-01; the patterns stay assignable, as a test of their checks does)
+        if name in _SEALED and self.__dict__.get("_sealed"):
+            raise AttributeError(f"a measurement's {name} is what it was simulated with: "
+                                 f"simulate again with measure() to change it")
+        object.__setattr__(self, name, value)
 
     def __setstate__(self, state: dict) -> None:  # (pickle gives arrays back writable)
         self.__dict__.update(state)
         self.__post_init__()
+
+    def check_unchanged(self) -> None:
+        """A one-line :class:`~spslidar.errors.ConfigError` where the measurement's config
+        was edited after it was simulated (``m.config.noise = 7`` was reconstructed and
+        recorded as noise 7 for data simulated at 2, an audit of 2026-12-01): processing keys
+        are given to :func:`reconstruct` instead, anything else needs a new ``measure()``."""
+        from ..errors import ConfigError
+
+        now = self.config.to_dict()
+        changed = [k for k in sorted(set(now) | set(self._made))
+                   if now.get(k) != self._made.get(k)]
+        if changed:
+            what = ", ".join(f"{k} {self._made.get(k)!r} -> {now.get(k)!r}"
+                             for k in changed[:3])
+            raise ConfigError(f"this measurement's config was changed after it was simulated "
+                              f"({what}): give processing keys to reconstruct(), and "
+                              f"simulate again with measure() for anything else")
 
     def __repr__(self) -> str:
         c = self.config
@@ -117,6 +145,8 @@ class Measurement:
 
 
 _DELAYS = ("lags", "ulags", "inverse")
+#: what a measurement holds from its simulation and cannot be rebound once made
+_SEALED = ("config", "scene", "acq", "gate", *_DELAYS, "sim", "probe_seed")
 
 
 def _frozen(arr):

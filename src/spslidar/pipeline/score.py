@@ -232,7 +232,8 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         # metrics["detector"] edited the next's: an audit of 2026-11-30)
         "detector": copy.deepcopy(sim["pileup"]),
         # the configuration's estimate; with ``time_s_at_floor`` where the weight met its
-        # floor and the solve ran the floored cap (priced again then)
+        # floor and the solve ran the floored cap (priced again then), and with
+        # ``time_s_reconstruct`` where reconstruct() changed a simulation's processing
         "estimate": {**sim.get("estimate", {}), **(estimate or {})},
         "warnings": warns,
         "timing_s": dict(timing),

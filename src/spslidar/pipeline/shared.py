@@ -10,6 +10,7 @@ from collections import OrderedDict
 import numpy as np
 
 from ..config import Config
+from ..registry import registrations
 from . import chain as _chain
 from .measurement import Measurement, _resolve, processing_keys
 from .results import Result
@@ -26,7 +27,8 @@ _shared_lock = threading.Lock()
 def simulation_key(cfg: Config) -> str:
     """What identifies a simulated measurement: the config without its processing keys, and
     where the scene is a file, the file's size and modification time (a scene file edited
-    between two runs in one process gave the earlier file's measurement)."""
+    between two runs in one process gave the earlier file's measurement), and how many times
+    the process's registries changed (:func:`~spslidar.registry.registrations`)."""
     d = cfg.to_dict()
     for k in processing_keys():
         d.pop(k, None)
@@ -34,6 +36,9 @@ def simulation_key(cfg: Config) -> str:
     if os.path.isfile(scene):
         st = os.stat(scene)
         d["scene_file"] = [st.st_size, st.st_mtime_ns]
+    # a stage registered again under its name (a notebook cell re-run) is another stage: its
+    # measurement is simulated anew (an audit of 2026-12-01)
+    d["registrations"] = registrations()
     return json.dumps(d, sort_keys=True, default=repr)
 
 

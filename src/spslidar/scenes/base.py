@@ -25,6 +25,10 @@ _IMAGE_WINDOW = (20.0, 20.8)
 # Share of valid source pixels an output pixel needs to stay valid after resizing.
 _MASK_VALID_SHARE = 0.999
 
+#: the scene's arrays: read-only, and not to be rebound once it is built
+_ARRAYS = ("depth", "reflectivity", "valid")
+
+
 @dataclass(eq=False)
 class Scene:
     """A scene seen by the lidar.
@@ -103,12 +107,22 @@ class Scene:
             raise SceneError(f"scene {self.name!r}: {bad} reflectivity values lie outside [0, 1]")
         if self.has_truth and not self.valid.any():
             raise SceneError(f"scene {self.name!r}: no pixel has a valid ground-truth depth")
+        object.__setattr__(self, "_sealed", True)
+
+    def __setattr__(self, name: str, value) -> None:
+        # (the arrays were read-only but could be rebound: `r.scene.depth = r.scene.depth + 1`
+        # moved every later result's score, an audit of 2026-12-01)
+        if name in _ARRAYS and self.__dict__.get("_sealed"):
+            raise AttributeError(f"a scene's {name} is fixed once built: every result of its "
+                                 f"measurement is scored against it; build another with "
+                                 f"dataclasses.replace(scene, {name}=...)")
+        object.__setattr__(self, name, value)
 
     def __setstate__(self, state: dict) -> None:
         # (pickle and deepcopy give arrays back writable: a scene through joblib or a deepcopy
         # let a result's scene be written into, changing the next result's score, an audit)
         self.__dict__.update(state)
-        for name in ("depth", "reflectivity", "valid"):
+        for name in _ARRAYS:
             getattr(self, name).flags.writeable = False
 
     def __repr__(self) -> str:
