@@ -344,9 +344,9 @@ def test_save_ptu_of_a_gmapd_advises_a_shorter_dwell(monkeypatch):
     from spslidar.errors import ConfigError
     from spslidar.pipeline.export import check_ptu_photons
 
-    def meas(detector):
+    def meas(detector, periods=10**6):
         return SimpleNamespace(
-            acq=SimpleNamespace(period=1023, n_periods=10**6),
+            acq=SimpleNamespace(period=1023, n_periods=periods),
             sim={"noise_per_bin": np.full(4, 0.01), "signal_counts": np.full(4, 1e7)},
             config=SimpleNamespace(detector=detector))
 
@@ -354,6 +354,15 @@ def test_save_ptu_of_a_gmapd_advises_a_shorter_dwell(monkeypatch):
         check_ptu_photons(meas("gmapd"))
     with pytest.raises(ConfigError, match=r"lower --periods, or --signal / --noise$"):
         check_ptu_photons(meas("linear"))
+    # at one period (the default) there is no dwell to shorten: a shorter code or fewer
+    # patterns (the real-data page's advice was refused as "lower --periods", an audit of
+    # the docs of 2026-12-01)
+    with pytest.raises(ConfigError, match=r"; use a shorter --code-length or fewer patterns "
+                                          r"\(--compression, --size\) \(a GMAPD"):
+        check_ptu_photons(meas("gmapd", 1))
+    with pytest.raises(ConfigError, match=r"; lower --signal / --noise, or use a shorter "
+                                          r"--code-length or fewer patterns"):
+        check_ptu_photons(meas("linear", 1))
 
 
 def test_a_librarys_notice_of_its_future_is_not_the_runs_warning(tmp_path, capsys,

@@ -588,3 +588,23 @@ def test_files_joined_end_to_end_are_refused(tmp_path, capsys):
                  "--range-gate", "0.1", "1", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "files joined end to end" in err[0] and not out.exists()
+
+
+def test_the_wrong_edge_note_of_a_one_period_dwell_reads_as_words():
+    """A one-period dwell read with the wrong edge said "44946 photons over 0 code periods
+    came after the last marker ... (1 periods, ...) and the first block lasts 1" (an audit
+    of the docs of 2026-12-01)."""
+    from types import SimpleNamespace
+
+    from spslidar.pipeline.blocks import _edge_note
+
+    n = 8
+    data = SimpleNamespace(periods_per_pattern=np.ones(n, np.int64),
+                           counts_per_pattern=np.full(n, 5000),
+                           n_dropped_after_last_pattern=4900,
+                           pattern_start_sync=np.arange(n), last_sync=n - 1)
+    note = _edge_note(data, 1, "end")
+    assert note.startswith("4900 photons within a code period came after the last marker on "
+                           "input 1, about one pattern's (1 code period, 5000 photons), and "
+                           "the first block lasts 1 code period: "), note
+    assert note.endswith("pass --marker-edge start")

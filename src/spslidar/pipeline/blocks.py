@@ -373,6 +373,11 @@ def _merge_bounces(data, m: int, marker: int) -> tuple[Any, list[str]]:
     return data, notes
 
 
+def _periods(n: int) -> str:
+    """``n`` code periods, in words (one period, not "1 periods")."""
+    return "1 code period" if n == 1 else f"{n} code periods"
+
+
 def _edge_note(data, marker: int, edge: str) -> str | None:
     """The signature of a marker read at the wrong edge of its pattern: about one pattern's
     photons and periods outside the first (``start``) or last (``end``) block, and a short
@@ -401,9 +406,13 @@ def _edge_note(data, marker: int, edge: str) -> str | None:
             and typ_d - max(EDGE_SPAN * typ_d, 1.0) <= span <= typ_d
             and other <= EDGE_BLOCK_PERIODS):
         return None
-    return (f"{outside} photons over {span} code periods came {where} on input {marker}, about "
-            f"one pattern's ({typ_d:.0f} periods, {typ_c:.0f} photons), and the "
-            f"{'last' if edge == 'start' else 'first'} block lasts {int(other)}: a DMD whose "
+    # (a one-period dwell read "over 0 code periods ... (1 periods, ...) ... lasts 1", an
+    # audit of the docs of 2026-12-01)
+    over = "within a code period" if span < 1 else f"over {_periods(span)}"
+    return (f"{outside} photons {over} came {where} on input {marker}, about "
+            f"one pattern's ({_periods(round(typ_d))}, {typ_c:.0f} photons), and the "
+            f"{'last' if edge == 'start' else 'first'} block lasts {_periods(int(other))}: a "
+            f"DMD whose "
             f"marker {'ends' if edge == 'start' else 'starts'} each pattern gives this, and "
             f"read as {'starting' if edge == 'start' else 'ending'} them every pattern is paired "
             f"with its neighbour's photons; if so, pass --marker-edge {fix}")

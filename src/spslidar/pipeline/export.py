@@ -31,8 +31,16 @@ def check_ptu_photons(meas: Measurement, max_photons: float = 2e7) -> float:
         # (a GMAPD's flux per dead time is its operating point: fewer periods, not less
         # light; lowering --signal took it out of the 1-10 photons per dead time where it
         # works, an outside audit of stop 68)
-        how = ("lower --periods (the dwell: a GMAPD keeps its photons per dead time)"
-               if meas.config.detector == "gmapd" else "lower --periods, or --signal / --noise")
+        # (at one period, the default, "lower --periods" could not be done: a shorter code or
+        # fewer patterns can, an audit of the docs of 2026-12-01)
+        fewer = "a shorter --code-length or fewer patterns (--compression, --size)"
+        gmapd = meas.config.detector == "gmapd"
+        if meas.acq.n_periods > 1:
+            how = ("lower --periods (the dwell: a GMAPD keeps its photons per dead time)"
+                   if gmapd else "lower --periods, or --signal / --noise")
+        else:
+            how = (f"use {fewer} (a GMAPD keeps its photons per dead time)" if gmapd
+                   else f"lower --signal / --noise, or use {fewer}")
         raise ConfigError(f"--save-ptu writes photon by photon: {expected:.3g} expected photons "
                           f"exceed {max_photons:.3g}; {how}")
     return expected
