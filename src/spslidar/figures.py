@@ -17,6 +17,7 @@ import numpy as np
 
 from .metrics import mostly_noise, outside_gate
 from .metrics import percent as _percent
+from .patterns import pattern_share as _share
 from .patterns import realisation_note
 
 #: matplotlib's ``viridis`` and ``RdBu_r`` at 17 evenly spaced points (interpolated linearly)
@@ -247,7 +248,7 @@ def _title(result) -> str:
         light = (f"m_s={c.signal:g}, noiseless" if getattr(c, "noiseless", False)
                  else f"m_s={c.signal:g}, m_n={c.noise:g}")
         what = (f"{c.lidar.upper()} {m['code_description']}, {m['n_patterns']} {c.patterns} "
-                f"patterns ({100 * c.compression:g}%{realisation_note(c)}), {light}, "
+                f"patterns ({_share(m['n_patterns'], c.size)}%{realisation_note(c)}), {light}, "
                 f"{'QCR' if c.qcr else 'no QCR'}, {solve}, {c.depth} depth")
         # a simulated instrument, which run reads as an uncalibrated one
         inst = ([f"delay {1e9 * c.system_delay:g} ns (uncalibrated)"] if c.system_delay else []

@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from .base import PatternOperator
 
 __all__ = ["HADAMARD_KINDS", "HADAMARD_ORDERS", "HADAMARD_REALISATIONS", "PATTERNS",
-           "PATTERN_OPTIONS", "realisation_note",
+           "PATTERN_OPTIONS", "pattern_share", "realisation_note",
            "PATTERN_KINDS", "CentredPatterns", "DensePatterns", "PatternOperator",
            "as_patterns", "build_patterns", "make_patterns", "n_patterns_for"]
 
@@ -40,6 +40,14 @@ def realisation_note(cfg) -> str:
     the pattern kind alone, so that two runs of the same rows shown two ways read alike."""
     real = getattr(cfg, "hadamard_realisation", "shifted")
     return f", {real}" if cfg.patterns in HADAMARD_KINDS and real != "shifted" else ""
+
+
+def pattern_share(n_patterns: int, size: int) -> str:
+    """The patterns' share of the pixels, ``100 M / Q`` per cent to three digits, for the
+    summary line and the figure's title: they said the ``compression`` asked for, which
+    ``M = round(c Q)`` (at least 2) only nears (0.6 % for 2 patterns of 256, 0.78 %: an
+    outside audit of 2026-12-01)."""
+    return f"{100.0 * int(n_patterns) / max(int(size) ** 2, 1):.3g}"
 
 
 #: pattern kinds by name (the ``patterns`` config key / ``--patterns`` option)

@@ -21,7 +21,9 @@ __all__ = ["CentredPatterns", "PatternOperator"]
 
 
 class PatternOperator(LinearOperator):
-    """Base class of pattern sets: an ``(M, Q)`` operator with entries in [0, 1].
+    """Base class of pattern sets: an ``(M, Q)`` operator with entries in [0, 1] (the DMD's
+    transmittances; a differential Hadamard set's rows are the difference of its two frames,
+    in [-1, 1], and the frames it shows are its ``exposures()``).
 
     Subclasses implement ``_matvec``/``_rmatvec`` and may override the methods below with
     cheaper or exact forms.

@@ -16,6 +16,7 @@ from ..config import Config
 from ..metrics import mostly_noise, returns_phrase
 from ..metrics import percent as _percent
 from ..outdir import write_result_dir
+from ..patterns import pattern_share as _share
 from ..patterns import realisation_note
 
 
@@ -98,7 +99,7 @@ class Result:
         note = m.get("scene_note")
         scene = f"{self.scene.name} ({note})" if note else self.scene.name
         what = (f"{c.lidar} {m['code_description']}, scene {scene} {c.size}x{c.size}, "
-                f"{m['n_patterns']} {c.patterns} patterns ({100 * c.compression:g}%"
+                f"{m['n_patterns']} {c.patterns} patterns ({_share(m['n_patterns'], c.size)}%"
                 f"{realisation_note(c)}), "
                 f"{'QCR' if c.qcr else 'no QCR'}, {c.solver}")
         t = self.timing

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..config import Config
 from ..constants import SPEED_OF_LIGHT
+from ..correlate import window_response
 from ..depth.profile import (
     NOISE_BESIDE_MIN,
     NOISE_ONLY_MIN_SLICES,
@@ -111,6 +112,10 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
                    coverage=float(found.mean()))
         edge_corr = None
     reflectivity = reflectivity_image(slices, depth, meas.lags, acq.bin_width)
+    if sim.get("delay_response") is None:  # (a calibration's gain already holds the code's)
+        # the code's own sidelobes beside its peak, summed with the return (a Gold code's
+        # wall read 1.125 for 1, an outside audit of 2026-12-01)
+        reflectivity = reflectivity / window_response(acq.code, acq.replica)
     # the estimators' no-return rule is relative to the brightest pixels: an image of noise
     # (nothing in the gate, too little signal) would come out as a full depth map, silently
     # (a calibrated instrument's returns span its response: sim's response_half_width)
