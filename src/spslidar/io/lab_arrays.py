@@ -175,6 +175,29 @@ def _pattern_shape(shape: tuple) -> bool:
         and min(shape) >= 2
 
 
+def _scipy_note(p: Path, key: str, shape: tuple) -> None:
+    """Say where a 2-D pattern matrix comes from a ``.mat`` that SciPy wrote (its header's
+    platform is Python's ``posix`` or ``nt``, where MATLAB writes ``GLNXA64``, ``PCWIN64``,
+    ``MACI64``...): its rows are read as MATLAB's column-major ``P(:)'``, and a Python
+    user's rows, flattened row-major, give a transposed depth map without a word (an
+    outside audit of 2026-12-01: the same numbers as an ``.npy`` read right)."""
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(116)
+    except OSError:
+        return
+    if not head.startswith(b"MATLAB 5.0 MAT-file") or not (
+            b"Platform: posix" in head or b"Platform: nt" in head):
+        return
+    import warnings
+
+    warnings.warn(f"--patterns {p}:{key} was written by SciPy (its header), not MATLAB: its "
+                  f"{shape[0]} x {shape[1]} matrix is read as MATLAB stores one, each pattern "
+                  f"flattened column-major (P(:)'); patterns flattened in NumPy's row-major "
+                  f"order (P.reshape(M, -1)) give a transposed depth map: save those as an "
+                  f".npy, or as an N x N x M stack", stacklevel=2)
+
+
 def _mat_patterns(arr: np.ndarray, p: Path, key: str, size: int | None) -> np.ndarray:
     """A MATLAB array as ``(M, N, N)``: ``N x N x M`` (the pattern index last, as MATLAB
     stacks images) or ``M x N x N``; a sensing matrix ``M x N^2`` (or ``N^2 x M``) whose rows
@@ -189,6 +212,7 @@ def _mat_patterns(arr: np.ndarray, p: Path, key: str, size: int | None) -> np.nd
             return np.moveaxis(arr, -1, 0)
         return arr
     if arr.ndim == 2:
+        _scipy_note(p, key, arr.shape)
         rows, cols = arr.shape
         if rows == cols and _is_square(rows):
             # (a full basis, one pattern per row or per column, or one N x N pattern: a

@@ -329,6 +329,46 @@ def _order(files: list[Path], folder: Path) -> list[Path]:
     return ordered
 
 
+def _orientation(path: Path) -> int:
+    """The image's orientation tag (TIFF tag 274, or a PNG's or other file's EXIF one),
+    1 (as stored) where it has none; read from the header alone."""
+    try:
+        if path.suffix.lower() in _TIFF:
+            import tifffile
+
+            with tifffile.TiffFile(path) as tif:
+                tags = [page.tags.get(274) for page in tif.pages]
+            found = {int(t.value) for t in tags if t is not None}
+            return max(found - {1}, default=1)
+        from PIL import Image
+
+        with Image.open(path) as im:
+            return int(im.getexif().get(274, 1) or 1)
+    except Exception:  # (unreadable headers were refused by the reading itself)
+        return 1
+
+
+def _orientation_note(files: list[Path], where: Path) -> None:
+    """Say, once, that images carry an orientation tag that is not applied: a viewer that
+    honours it shows them turned or mirrored, and the depth map followed the stored rows
+    without a word (an outside audit of 2026-12-01: a TIFF tagged 3 read as the map turned
+    half a turn)."""
+    tagged = {}
+    for f in files:
+        value = _orientation(f)
+        if value != 1:
+            tagged.setdefault(value, []).append(f.name)
+    if tagged:
+        n = sum(len(v) for v in tagged.values())
+        values = ", ".join(str(v) for v in sorted(tagged))
+        warnings.warn(f"--patterns {where}: {n} of {len(files)} image files carry an "
+                      f"orientation tag ({values}; 1 is as stored) that asks a viewer to "
+                      f"turn or mirror them, e.g. {next(iter(tagged.values()))[0]}: they are "
+                      f"read as stored, row 0 the first row stored, as a DMD loader that "
+                      f"ignores the tag shows them; if yours applies it, turn the depth map "
+                      f"the same way", stacklevel=3)
+
+
 def folder_patterns(folder: Path, size: int | None = None) -> np.ndarray:
     """One pattern per image file of ``folder`` (the module's conventions), ``(M, N, N)``
     mirror states; each image reduced to ``size x size`` blocks as it is read."""
@@ -368,6 +408,7 @@ def folder_patterns(folder: Path, size: int | None = None) -> np.ndarray:
                          "" if size else ": images at the DMD's resolution? --pattern-size N "
                                          "reads each as N x N blocks")
         images.append(img if size is None else block_reduce(img, size, f.name))
+    _orientation_note(files, folder)
     return _sized(to_states(images, f"--patterns {folder}"), size, folder)
 
 
@@ -393,6 +434,7 @@ def tiff_patterns(p: Path, size: int | None = None) -> np.ndarray:
         return img if size is None else block_reduce(img, size, f"{p.name} page {i}")
 
     images = _tiff_pages(p, p.name, each)
+    _orientation_note([p], p)
     if len(images) == 1:
         raise ConfigError(f"--patterns {p} is a TIFF of one page: give one page per pattern "
                           f"(a multi-page TIFF) or a folder of images")
