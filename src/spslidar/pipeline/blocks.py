@@ -411,9 +411,9 @@ def _edge_note(data, marker: int, edge: str) -> str | None:
     over = "within a code period" if span < 1 else f"over {_periods(span)}"
     return (f"{outside} photons {over} came {where} on input {marker}, about "
             f"one pattern's ({_periods(round(typ_d))}, {typ_c:.0f} photons), and the "
-            f"{'last' if edge == 'start' else 'first'} block lasts {_periods(int(other))}: a "
-            f"DMD whose "
-            f"marker {'ends' if edge == 'start' else 'starts'} each pattern gives this, and "
+            f"{'last' if edge == 'start' else 'first'} block lasts {_periods(int(other))}: "
+            f"a DMD whose marker {'ends' if edge == 'start' else 'starts'} each pattern gives "
+            f"this, and "
             f"read as {'starting' if edge == 'start' else 'ending'} them every pattern is paired "
             f"with its neighbour's photons; if so, pass --marker-edge {fix}")
 

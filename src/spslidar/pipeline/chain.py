@@ -375,6 +375,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
                 f"misses the scene); only a sample of the noise was solved (--no-auto-gate "
                 f"solves every delay)")
         keep = with_reference(keep)
+    rebuilt = None  # (the reconstruction priced again: metrics' estimate.time_s_reconstruct)
     if not sim.get("estimate") and not device:  # a measured acquisition: no config priced it
         _price_measured(cfg, patterns.shape[0], q, int(keep.sum()), int(meas.lags.size))
     elif processing and not device:
@@ -434,7 +435,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
 
     iterations = cfg.iterations or solver_default(cfg.solver, "iterations")
     estimate: dict[str, float] = {}
-    if sim.get("estimate") and processing and not device:
+    if rebuilt is not None:
         estimate["time_s_reconstruct"] = rebuilt
     if floored and not cfg.iterations:
         iterations *= FLOORED_ITERATIONS
