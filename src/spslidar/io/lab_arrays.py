@@ -107,12 +107,18 @@ def _pick(arrays: dict[str, Any], name: str | None, p: Path, what: str, fits) ->
                       f"({', '.join(good)}): name one as {p}:{good[0]}")
 
 
+def _mat_header(p: Path) -> bytes:
+    """A MATLAB file's first 128 bytes: its 116-byte text (version, platform, date; or an
+    HDF5 signature) and its subsystem and version fields."""
+    with open(p, "rb") as fh:
+        return fh.read(128)
+
+
 def _mat_arrays(p: Path, what: str) -> dict[str, tuple]:
     """The numeric arrays of a MATLAB file, name -> shape, read from its directory (no data)."""
     from scipy import io as sio
 
-    with open(p, "rb") as fh:
-        head = fh.read(128)
+    head = _mat_header(p)
     if b"MATLAB 7.3" in head[:116] or head[:8] == b"\x89HDF\r\n\x1a\n":
         raise ConfigError(f"{what} {p} is a MATLAB 7.3 file (HDF5): save it with "
                           f"save(..., '-v7') in MATLAB, or as an .npy")
@@ -182,15 +188,12 @@ def _scipy_note(p: Path, key: str, shape: tuple) -> None:
     user's rows, flattened row-major, give a transposed depth map without a word (an
     outside audit of 2026-12-01: the same numbers as an ``.npy`` read right)."""
     try:
-        with open(p, "rb") as fh:
-            head = fh.read(116)
+        head = _mat_header(p)[:116]
     except OSError:
         return
     if not head.startswith(b"MATLAB 5.0 MAT-file") or not (
             b"Platform: posix" in head or b"Platform: nt" in head):
         return
-    import warnings
-
     warnings.warn(f"--patterns {p}:{key} was written by SciPy (its header), not MATLAB: its "
                   f"{shape[0]} x {shape[1]} matrix is read as MATLAB stores one, each pattern "
                   f"flattened column-major (P(:)'); patterns flattened in NumPy's row-major "

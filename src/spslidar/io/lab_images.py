@@ -136,12 +136,16 @@ def _display_levels(img: np.ndarray, label: str) -> np.ndarray:
     return img
 
 
-def _pil_pages(path: Path, label: str) -> list[np.ndarray]:
-    """Every page of an image file through Pillow, palettes applied."""
+def _pil_pages(path: Path, label: str, turned: dict[str, int] | None = None
+               ) -> list[np.ndarray]:
+    """Every page of an image file through Pillow, palettes applied; ``turned``, where
+    given, receives the file's EXIF orientation where it is not 1 (as stored)."""
     from PIL import Image, ImageSequence, UnidentifiedImageError
 
     try:
         with Image.open(path) as im:
+            if turned is not None:
+                _turned(turned, path, im.getexif().get(274))
             pages = []
             for page in ImageSequence.Iterator(im):
                 if page.mode in ("P", "PA", "CMYK", "YCbCr", "LAB", "HSV"):
@@ -156,10 +160,12 @@ def _pil_pages(path: Path, label: str) -> list[np.ndarray]:
     return pages
 
 
-def _tiff_pages(path: Path, label: str, each=None) -> list[np.ndarray]:
+def _tiff_pages(path: Path, label: str, each=None, turned: dict[str, int] | None = None
+                ) -> list[np.ndarray]:
     """Every page of a TIFF as displayed (a min-is-white page inverted), through tifffile,
     or Pillow where tifffile needs ``imagecodecs`` for the compression; ``each(page, i)``,
-    where given, is applied to each page as it is read (the memory is then its results')."""
+    where given, is applied to each page as it is read (the memory is then its results');
+    ``turned``, where given, receives the file's orientation tag where it is not 1."""
     import logging
 
     import tifffile
@@ -173,6 +179,9 @@ def _tiff_pages(path: Path, label: str, each=None) -> list[np.ndarray]:
             if each is not None and len(tif.pages):
                 each(None, len(tif.pages), tif.pages[0].shape)  # (the memory, before reading)
             for i, page in enumerate(tif.pages):
+                if turned is not None:
+                    tag = page.tags.get(274)
+                    _turned(turned, path, None if tag is None else tag.value)
                 arr = page.asarray()
                 if page.photometric == tifffile.PHOTOMETRIC.MINISWHITE:
                     if arr.dtype == bool:
@@ -188,7 +197,7 @@ def _tiff_pages(path: Path, label: str, each=None) -> list[np.ndarray]:
         raise
     except Exception as exc:
         if "imagecodecs" in str(exc):  # (LZW, CCITT: Pillow decodes them itself)
-            pages = _pil_pages(path, label)
+            pages = _pil_pages(path, label, turned)
             return pages if each is None else [each(pg, i) for i, pg in enumerate(pages)]
         reason = first_line(exc)
         raise ConfigError(f"cannot read pattern image {label} as a TIFF: {reason[:120]}"
@@ -329,41 +338,23 @@ def _order(files: list[Path], folder: Path) -> list[Path]:
     return ordered
 
 
-def _orientation(path: Path) -> int:
-    """The image's orientation tag (TIFF tag 274, or a PNG's or other file's EXIF one),
-    1 (as stored) where it has none; read from the header alone."""
-    try:
-        if path.suffix.lower() in _TIFF:
-            import tifffile
-
-            with tifffile.TiffFile(path) as tif:
-                tags = [page.tags.get(274) for page in tif.pages]
-            found = {int(t.value) for t in tags if t is not None}
-            return max(found - {1}, default=1)
-        from PIL import Image
-
-        with Image.open(path) as im:
-            return int(im.getexif().get(274, 1) or 1)
-    except Exception:  # (unreadable headers were refused by the reading itself)
-        return 1
+def _turned(turned: dict[str, int], path: Path, value) -> None:
+    """Note a file's orientation tag (TIFF tag 274, or an EXIF one) where it is not 1, the
+    image as stored."""
+    if value is not None and int(value) != 1:
+        turned.setdefault(path.name, int(value))
 
 
-def _orientation_note(files: list[Path], where: Path) -> None:
+def _orientation_note(turned: dict[str, int], n_files: int, where: Path) -> None:
     """Say, once, that images carry an orientation tag that is not applied: a viewer that
     honours it shows them turned or mirrored, and the depth map followed the stored rows
     without a word (an outside audit of 2026-12-01: a TIFF tagged 3 read as the map turned
-    half a turn)."""
-    tagged = {}
-    for f in files:
-        value = _orientation(f)
-        if value != 1:
-            tagged.setdefault(value, []).append(f.name)
-    if tagged:
-        n = sum(len(v) for v in tagged.values())
-        values = ", ".join(str(v) for v in sorted(tagged))
-        warnings.warn(f"--patterns {where}: {n} of {len(files)} image files carry an "
+    half a turn). ``turned``: file name -> tag, as :func:`_turned` noted them."""
+    if turned:
+        values = ", ".join(str(v) for v in sorted(set(turned.values())))
+        warnings.warn(f"--patterns {where}: {len(turned)} of {n_files} image files carry an "
                       f"orientation tag ({values}; 1 is as stored) that asks a viewer to "
-                      f"turn or mirror them, e.g. {next(iter(tagged.values()))[0]}: they are "
+                      f"turn or mirror them, e.g. {next(iter(turned))}: they are "
                       f"read as stored, row 0 the first row stored, as a DMD loader that "
                       f"ignores the tag shows them; if yours applies it, turn the depth map "
                       f"the same way", stacklevel=3)
@@ -390,8 +381,10 @@ def folder_patterns(folder: Path, size: int | None = None) -> np.ndarray:
     files = _order(named, folder)
     images: list[np.ndarray] = []
     first: tuple = ()
+    turned: dict[str, int] = {}
     for f in files:
-        pages = _tiff_pages(f, f.name) if f.suffix.lower() in _TIFF else _pil_pages(f, f.name)
+        pages = (_tiff_pages(f, f.name, turned=turned) if f.suffix.lower() in _TIFF
+                 else _pil_pages(f, f.name, turned))
         if len(pages) > 1:
             kind = "a multi-page TIFF: give its path" if f.suffix.lower() in _TIFF else \
                 "an image of several frames: give one image per pattern"
@@ -408,7 +401,7 @@ def folder_patterns(folder: Path, size: int | None = None) -> np.ndarray:
                          "" if size else ": images at the DMD's resolution? --pattern-size N "
                                          "reads each as N x N blocks")
         images.append(img if size is None else block_reduce(img, size, f.name))
-    _orientation_note(files, folder)
+    _orientation_note(turned, len(files), folder)
     return _sized(to_states(images, f"--patterns {folder}"), size, folder)
 
 
@@ -433,8 +426,9 @@ def tiff_patterns(p: Path, size: int | None = None) -> np.ndarray:
                               f"page must be a pattern of one size")
         return img if size is None else block_reduce(img, size, f"{p.name} page {i}")
 
-    images = _tiff_pages(p, p.name, each)
-    _orientation_note([p], p)
+    turned: dict[str, int] = {}
+    images = _tiff_pages(p, p.name, each, turned)
+    _orientation_note(turned, 1, p)
     if len(images) == 1:
         raise ConfigError(f"--patterns {p} is a TIFF of one page: give one page per pattern "
                           f"(a multi-page TIFF) or a folder of images")
