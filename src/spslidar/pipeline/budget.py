@@ -144,7 +144,6 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
     """
     q = cfg.size * cfg.size
     m = n_patterns
-    item = 4 if cfg.dtype == "float32" else 8
     k_solve = n_ulags if cfg.auto_gate is False else min(n_ulags, window_bins + 32)
     if cfg.auto_gate is None and n_ulags <= 256:
         k_solve = n_ulags
@@ -156,8 +155,7 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
                      if pattern_bytes_per_entry else 2.0 * m * shifts * 8),
         "simulation": threads * 3.0 * 64 * period * 4 + shifts * period * 4.0
         + q * shifts * 8.0 + 2.0 * m * n_ulags * 4,
-        "solver": SOLVER_BLOCKS * float(q) * k_solve * item,
-        "range slices": _slice_cost(cfg.depth, "slice_bytes", SLICE_BYTES) * float(q) * n_lags,
+        **reconstruction_parts(cfg, q, k_solve, n_lags),
     }
     # the solve at the solver's own cap (a floored weight's five-fold cap is priced again
     # once the weight is known)
@@ -208,11 +206,24 @@ def config_solve_seconds(cfg, m: int, q: int, k: int, dense: bool,
     return solve_seconds(m, q, k, dense, iterations, flop_rate(cfg.dtype))
 
 
-def reconstruction_seconds(cfg, m: int, q: int, k: int, n_lags: int) -> float:
-    """A measured acquisition's reconstruction, priced: :func:`config_solve_seconds` of ``k``
-    solved slices (dense patterns) and :func:`depth_seconds` over the ``n_lags`` gated ones
-    (``reconstruct``'s price before its file is read, and once its gate is known)."""
-    return config_solve_seconds(cfg, m, q, k, True) + depth_seconds(cfg.depth, q, n_lags)
+def reconstruction_parts(cfg, q: int, k: int, n_lags: int) -> dict[str, float]:
+    """The bytes of a reconstruction's own arrays (:func:`estimate_budget`'s ``solver`` and
+    ``range slices``): the solver's blocks over ``k`` solved slices and the depth stage's
+    over the ``n_lags`` gated ones."""
+    item = 4 if cfg.dtype == "float32" else 8
+    return {"solver": SOLVER_BLOCKS * float(q) * k * item,
+            "range slices": _slice_cost(cfg.depth, "slice_bytes", SLICE_BYTES) * float(q)
+            * n_lags}
+
+
+def reconstruction_seconds(cfg, m: int, q: int, k: int, n_lags: int,
+                           dense: bool = True) -> float:
+    """A reconstruction, priced: :func:`config_solve_seconds` of ``k`` solved slices (dense
+    patterns, as a measured acquisition's are, unless ``dense`` is False) and
+    :func:`depth_seconds` over the ``n_lags`` gated ones (``reconstruct``'s price before its
+    file is read, and once its gate is known; ``spslidar.reconstruct``'s of a simulation
+    reconstructed otherwise)."""
+    return config_solve_seconds(cfg, m, q, k, dense) + depth_seconds(cfg.depth, q, n_lags)
 
 
 #: a run estimated to take longer than this says so on stderr before it starts (seconds)

@@ -606,26 +606,19 @@ def _price_simulated(cfg: Config, m: int, q: int, k: int, n_lags: int) -> float:
     their arrays against ``max_memory``. Returns the seconds priced."""
     from .budget import (
         BASE_BYTES,
-        SLICE_BYTES,
-        SOLVER_BLOCKS,
         Budget,
-        _slice_cost,
         check_budget,
         check_time,
-        config_solve_seconds,
-        depth_seconds,
+        reconstruction_parts,
+        reconstruction_seconds,
     )
     from .plan import _dense_patterns
 
-    seconds = (config_solve_seconds(cfg, m, q, k, _dense_patterns(cfg))
-               + depth_seconds(cfg.depth, q, n_lags))
+    seconds = reconstruction_seconds(cfg, m, q, k, n_lags, dense=_dense_patterns(cfg))
     check_time(seconds, cfg.max_time, "this reconstruction",
                basis=f"its {k} solved slices of {n_lags} gated",
                reduce="iterations or the range gate")
-    item = 4 if cfg.dtype == "float32" else 8
-    parts = {"interpreter": BASE_BYTES, "solver": SOLVER_BLOCKS * float(q) * k * item,
-             "range slices": _slice_cost(cfg.depth, "slice_bytes", SLICE_BYTES) * float(q)
-             * n_lags}
+    parts = {"interpreter": BASE_BYTES, **reconstruction_parts(cfg, q, k, n_lags)}
     check_budget(Budget(sum(parts.values()), seconds, parts), cfg.max_memory, cfg.patterns)
     return seconds
 
