@@ -38,6 +38,7 @@ from spslidar.operators import MatrixOperator, Wavelet2D
 from spslidar.solvers import REGULARISERS, SOLVERS, Solver, StopRule, get_solver, progress
 from spslidar.solvers.fista import FISTA
 from spslidar.solvers.regularisers import L1, TV, Regulariser, Zero
+from spslidar.solvers.weighted_tv import EdgeWeightedTV
 from spslidar.testing import check_stage
 from spslidar.testing import solvers as kit
 
@@ -266,6 +267,15 @@ def _tight_tv(**kw) -> TV:
 
 
 #: examples of every Regulariser subclass of the package, on 8 x 8 images (64 rows)
+def _edge_weights() -> tuple[np.ndarray, np.ndarray]:
+    """Weights in [0, 2] with some edges cut (0), for :class:`EdgeWeightedTV`."""
+    rng = np.random.default_rng(11)
+    wy, wx = rng.uniform(0, 2, (7, 8)), rng.uniform(0, 2, (8, 7))
+    wy[rng.uniform(size=wy.shape) < 0.2] = 0.0
+    wx[:, 3] = 0.0
+    return wy, wx
+
+
 REG_EXAMPLES: dict[type, dict[str, Callable[[], Regulariser]]] = {
     TV: {"iso": _tight_tv, "aniso": lambda: _tight_tv(isotropic=False),
          "nonneg": lambda: _tight_tv(nonneg=True),
@@ -275,6 +285,11 @@ REG_EXAMPLES: dict[type, dict[str, Callable[[], Regulariser]]] = {
          "haar": lambda: L1(Wavelet2D((8, 8), "haar")),
          "db2": lambda: L1(Wavelet2D((8, 8), "db2"))},
     Zero: {"plain": Zero, "nonneg": lambda: Zero(nonneg=True)},
+    EdgeWeightedTV: {
+        "cut": lambda: EdgeWeightedTV((8, 8), _edge_weights()[0], _edge_weights()[1],
+                                      max_inner=3000),
+        "nonneg": lambda: EdgeWeightedTV((8, 8), *_edge_weights(), nonneg=True,
+                                         max_inner=3000)},
 }
 DISCOVERED = [c for c in _subclasses(Regulariser) if c.__module__.startswith("spslidar.")]
 REG_CASES = [pytest.param(make, id=f"{cls.__name__}-{label}")
