@@ -72,6 +72,11 @@ OPERATORS = {
     "hadamard-frames-centred": lambda: hadamard_patterns(
         "hadamard", 20, 8, np.random.default_rng(0), dtype=np.float32,
         realisation="differential").exposures()[0].centred(2.0, np.float32),
+    "placed-returns": lambda: __import__("spslidar.refit").refit.PlacedReturns(
+        MatrixOperator(_phi()), np.random.default_rng(2).uniform(0, 1, (64, 5))
+        * (np.random.default_rng(3).uniform(0, 1, (64, 5)) < 0.4)),
+    "placed-returns32": lambda: __import__("spslidar.refit").refit.PlacedReturns(
+        MatrixOperator(_phi(), dtype=np.float32), np.eye(64, 3)),
     "hadamard-centred": lambda: hadamard_patterns(
         "scrambled-hadamard", 20, 8, np.random.default_rng(0), dtype=np.float64).centred(
         3.0, np.float64),

@@ -341,6 +341,12 @@ METRICS: dict[str, str] = {
     "two_surface_fraction": "Share of the pixels with a second surface (``depth2.npy``), "
                             "where the estimator looks for one; else null.",
     "mean_reflectivity": "Mean of ``reflectivity.npy`` over the pixels with a return.",
+    "reflectivity_method": "How ``reflectivity.npy`` was read: ``refit`` (the return "
+                           "strengths refitted with the depth held, :mod:`spslidar.refit`, "
+                           "with its TV ``weight``, its ``iterations`` and the ``delays`` "
+                           "its returns touch) or ``window`` (each profile summed over its "
+                           "return's bins: a device's solve, a calibrated instrument, a "
+                           "unipolar replica's plateau).",
     "depth_info": "What the depth estimator reports (iterations, smoothness, pixels changed "
                   "from the argmax...); the keys depend on the estimator.",
     "lam": "Regularisation weight used by the solver.",
@@ -372,6 +378,7 @@ METRICS: dict[str, str] = {
                 "as it is read.",
     "warnings": "The warnings printed on stderr.",
     "timing_s": "Wall-clock seconds by stage (scene, setup, simulate, qcr, solve, depth, "
+                "reflectivity (the refit, where it ran), "
                 "metrics, write); ``total`` is the run up to the metrics, the time the "
                 "summary line prints, and leaves out ``write`` (the output folder), which is "
                 "timed after it.",

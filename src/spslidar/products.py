@@ -9,13 +9,16 @@ Both are read off a finished reconstruction and need no ground truth, so ``spsli
   strength ``p_j(tau)``: the matched filter divides by the gain ``G n m_s`` (eq. 5-6, with
   ``m_s`` the photons per pulse of a reflectivity-1 pixel), so for a simulation ``p_j`` reads
   ``alpha_j`` of eq. (8) spread over the bins the pulse overlaps, and for a measured
-  acquisition (no ``m_s`` known) detected photons per pulse. The pixel's intensity is the sum
-  of its profile over the estimated return's bins (the bin of the depth and one on each side,
-  which hold a half-bin RZ pulse wherever it falls, and most of a TV-smeared one), negative
-  values clipped. The regulariser shrinks it (noiseless, all patterns, the camera at 64x64:
-  a median 0.995 of alpha, 0.97-1.00 over 90 % of the pixels, at m_s = 5 as at 1, measured
-  2026-11-29; with noise a dark pixel reads high: README), so it is a relative image, not a
-  calibrated albedo.
+  acquisition (no ``m_s`` known) detected photons per pulse. :func:`reflectivity_image` sums
+  a pixel's profile over the estimated return's bins (the bin of the depth and one on each
+  side, which hold a half-bin RZ pulse wherever it falls), negative values clipped. The
+  pipeline's ``reflectivity.npy`` is that sum refitted with the depth held
+  (:mod:`spslidar.refit`), because the solve's per-slice TV spreads a slanted surface's
+  return into its neighbours and the sum then shows the depth's gradients (the camera's
+  uniform 1 read 0.58-1.20 over 5-95 % of its pixels at 64x64, m_n = 10; refitted 0.93-1.07,
+  seeds 0-1);
+  the sum is kept where the refit's model does not hold (``metrics.json``'s
+  ``reflectivity_method``). Either is a relative image, not a calibrated albedo.
 * **Point cloud.** A pinhole camera whose full field of view ``fov_deg`` spans the ``N``
   pixels: pixel ``(r, c)`` looks along ``(u, v, 1)`` with
   ``u = (c + 0.5 - N / 2) * 2 tan(fov / 2) / N`` (``v`` likewise, rows downwards). The lidar

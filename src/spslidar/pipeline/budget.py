@@ -162,6 +162,7 @@ def estimate_budget(cfg, *, n_patterns: int, period: int, n_lags: int, n_ulags: 
     seconds = (RUN_OVERHEAD_S + m * period * SECONDS_PER_BIN
                + m * q * shifts / flop_rate(cfg.dtype)
                + config_solve_seconds(cfg, m, q, k_solve, pattern_bytes_per_entry is not None)
+               + refit_seconds(cfg, m, q, k_solve, pattern_bytes_per_entry is not None)
                + depth_seconds(cfg.depth, q, n_lags))
     return Budget(sum(parts.values()), seconds, parts)
 
@@ -206,6 +207,18 @@ def config_solve_seconds(cfg, m: int, q: int, k: int, dense: bool,
     return solve_seconds(m, q, k, dense, iterations, flop_rate(cfg.dtype))
 
 
+def refit_seconds(cfg, m: int, q: int, k: int, dense: bool) -> float:
+    """The reflectivity refit's share (:func:`spslidar.refit.refit_reflectivity`): its
+    iterations and the product that takes other surfaces out, each a product with ``A`` and
+    its adjoint over at most the ``k`` solved slices (:func:`solve_seconds`); five times as
+    many iterations for noiseless data, whose weight is the floor."""
+    from ..refit import REFIT_ITERATIONS
+    from .weights import FLOORED_ITERATIONS
+
+    iterations = REFIT_ITERATIONS * (FLOORED_ITERATIONS if cfg.noiseless else 1)
+    return solve_seconds(m, q, k, dense, iterations + 1, flop_rate(cfg.dtype))
+
+
 def reconstruction_parts(cfg, q: int, k: int, n_lags: int) -> dict[str, float]:
     """The bytes of a reconstruction's own arrays (:func:`estimate_budget`'s ``solver`` and
     ``range slices``): the solver's blocks over ``k`` solved slices and the depth stage's
@@ -218,12 +231,13 @@ def reconstruction_parts(cfg, q: int, k: int, n_lags: int) -> dict[str, float]:
 
 def reconstruction_seconds(cfg, m: int, q: int, k: int, n_lags: int,
                            dense: bool = True) -> float:
-    """A reconstruction, priced: :func:`config_solve_seconds` of ``k`` solved slices (dense
-    patterns, as a measured acquisition's are, unless ``dense`` is False) and
-    :func:`depth_seconds` over the ``n_lags`` gated ones (``reconstruct``'s price before its
-    file is read, and once its gate is known; ``spslidar.reconstruct``'s of a simulation
-    reconstructed otherwise)."""
-    return config_solve_seconds(cfg, m, q, k, dense) + depth_seconds(cfg.depth, q, n_lags)
+    """A reconstruction, priced: :func:`config_solve_seconds` and :func:`refit_seconds` of
+    ``k`` solved slices (dense patterns, as a measured acquisition's are, unless ``dense`` is
+    False) and :func:`depth_seconds` over the ``n_lags`` gated ones (``reconstruct``'s price
+    before its file is read, and once its gate is known; ``spslidar.reconstruct``'s of a
+    simulation reconstructed otherwise)."""
+    return (config_solve_seconds(cfg, m, q, k, dense) + refit_seconds(cfg, m, q, k, dense)
+            + depth_seconds(cfg.depth, q, n_lags))
 
 
 #: a run estimated to take longer than this says so on stderr before it starts (seconds)

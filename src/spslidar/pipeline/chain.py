@@ -466,6 +466,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         # solvers now refuse such data, which the command line said as a traceback)
         raise ConfigError(f"the measurements are not finite in {cfg.dtype} (normalised to a "
                           f"signal of {cfg.signal:g} photons per pulse): raise --signal")
+    on_device = device  # (the refit below reads the host's problem)
     if device:
         x, finfo = dev.solve(be, A, y, (cfg.size, cfg.size), cfg.nonneg, lam, iterations,
                              cfg.tol, TV_INNER, isotropic=reg_kind == "tv")
@@ -572,6 +573,12 @@ def reconstruct(meas: Measurement, **processing) -> Result:
                 depth2 = refine_depth(depth2, seen, lags, bin_width, cfg.pulse_width)
     depth = np.asarray(depth).reshape(shape)
     timing["depth"] = time.perf_counter() - t0
+    refit = None
+    if not on_device and not unipolar and sim.get("delay_response") is None:
+        t0 = time.perf_counter()
+        refit = _refit(meas, cfg, A, y, x, keep, depth, slices, sigma_eff, info,
+                       reg_kind in TV_REGULARISERS)
+        timing["reflectivity"] = time.perf_counter() - t0
     if be is not None:
         t0 = time.perf_counter()
         slices, corr = _host(be, slices), _host(be, corr)
@@ -582,7 +589,40 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         confidence=confidence, low_confidence=low, depth_info=depth_info,
         lam=lam, lam_scale=lam_scale, sigma_eff=sigma_eff, info=info, iterations=iterations,
         timing=timing, warns=warns, lam_floored=floored, depth2=depth2,
-        low_confidence_threshold=threshold, estimate=estimate, noise_sample=noise_sample)
+        low_confidence_threshold=threshold, estimate=estimate, noise_sample=noise_sample,
+        refit=refit)
+
+
+def _refit(meas: Measurement, cfg: Config, A, y, x, keep: np.ndarray, depth: np.ndarray,
+           slices: np.ndarray, sigma_eff: float, info, tv: bool) -> tuple:
+    """The reflectivity refitted with the depth held (:func:`spslidar.refit.refit_reflectivity`)
+    on the solve's own problem ``A``, ``y`` and solution ``x`` (its ``keep`` delays of the
+    gate's unique ones), the shapes read off the gate's ``slices``, warm-started from the
+    window's sum; ``(r, info)``. ``tv``: the solve's regulariser is a TV (the other
+    surfaces' returns are then taken out of the data first). Pixels no pattern lights have
+    no return here, as the result says."""
+    from ..forward import depth_to_delay
+    from ..products import reflectivity_image
+    from ..refit import refit_reflectivity
+
+    lags = np.asarray(meas.lags, dtype=np.float64)
+    d = np.asarray(depth, dtype=np.float64).ravel()
+    have = np.isfinite(d)
+    unlit = meas.sim.get("unlit_pixels")
+    if unlit is not None:  # (finish_result clears them: not in the refit's TV either)
+        have &= ~np.asarray(unlit, dtype=bool).ravel()
+    centre = np.full(d.size, -1, dtype=np.int64)  # (the gate's delays are consecutive bins)
+    centre[have] = np.rint(depth_to_delay(d[have], meas.acq.bin_width) - lags[0])
+    column = np.cumsum(keep) - 1  # each unique delay's column among the solved ones
+    inverse = np.asarray(meas.inverse, dtype=np.int64)
+    columns = np.where(keep[inverse], column[inverse], -1)
+    start = reflectivity_image(slices, depth, meas.lags, meas.acq.bin_width)
+    op_norm_sq = info.extra.get("L") if cfg.solver == "fista" else None
+    return refit_reflectivity(A, np.asarray(y), np.asarray(x), slices, centre, have,
+                              (cfg.size, cfg.size), columns=columns,
+                              sigma_eff=0.0 if cfg.noiseless else sigma_eff,
+                              op_norm_sq=op_norm_sq, start=start, take_apart=tv,
+                              floor_share=LAM_FLOOR, floored_factor=FLOORED_ITERATIONS)
 
 
 def _price_measured(cfg: Config, m: int, q: int, k: int, n_lags: int) -> None:

@@ -57,8 +57,9 @@ class Result:
     #: per-pixel confidence of the depth estimate in [0, 1], and the low-confidence mask
     confidence: np.ndarray | None = None
     low_confidence: np.ndarray | None = None
-    #: per-pixel reflectivity (intensity) read off the reconstruction
-    #: (:func:`spslidar.products.reflectivity_image`): for a simulation an estimate of alpha
+    #: per-pixel reflectivity (intensity) read off the reconstruction, refitted with the
+    #: depth held (:mod:`spslidar.refit`; ``metrics['reflectivity_method']``, else the sum of
+    #: :func:`spslidar.products.reflectivity_image`): for a simulation an estimate of alpha
     #: (which lies in [0, 1]), itself >= 0 but not bounded by 1: noise and the reconstruction
     #: take it above 1 (1.16 on procedural:4 at 16 x 16, noise 5); detected photons per pulse
     #: for a measured acquisition; NaN without a return

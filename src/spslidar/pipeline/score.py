@@ -45,13 +45,16 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
                   lam_floored: bool = False, depth2: np.ndarray | None = None,
                   low_confidence_threshold: float | None = None,
                   estimate: dict[str, float] | None = None,
-                  noise_sample: np.ndarray | None = None) -> Result:
+                  noise_sample: np.ndarray | None = None,
+                  refit: tuple[np.ndarray, dict] | None = None) -> Result:
     """Score a reconstruction (eq. 19, Sobel edges) and assemble its :class:`Result` and
     ``metrics.json``: the last step of :func:`reconstruct` (on every backend) and of a
     measured acquisition's reconstruction, so all report the same keys. ``noise_sample``:
     an automatic gate's solved delays, its occupied ones and the noise's sample beside them
     (:func:`~spslidar.pipeline.gate.with_reference`), which the noise verdict reads in place
-    of ``slices``, where the delays not solved are zeros."""
+    of ``slices``, where the delays not solved are zeros. ``refit``: the reflectivity
+    refitted with the depth held and its record (:func:`spslidar.refit.refit_reflectivity`),
+    which replaces the window's sum wherever that has one."""
     scene, acq, sim = meas.scene, meas.acq, meas.sim
     warns.extend(w for w in replaced_stages(cfg) if w not in warns)
     bin_depth = SPEED_OF_LIGHT * acq.bin_width / 2.0
@@ -112,6 +115,14 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
                    coverage=float(found.mean()))
         edge_corr = None
     reflectivity = reflectivity_image(slices, depth, meas.lags, acq.bin_width)
+    refit_info = {"method": "window"}
+    if refit is not None and not empty:  # (an empty map: nothing refitted, NaN throughout)
+        # (a return on no solved delay keeps its window's sum: an automatic gate's, or a
+        # depth the estimators put outside the gate's delays)
+        fitted = refit[0].reshape(shape)
+        reflectivity = np.where(np.isfinite(reflectivity) & np.isfinite(fitted), fitted,
+                                reflectivity)
+        refit_info = {"method": "refit", **refit[1]}
     if sim.get("delay_response") is None:  # (a calibration's gain already holds the code's)
         # the code's own sidelobes beside its peak, summed with the return (a Gold code's
         # wall read 1.125 for 1, an outside audit of 2026-12-01)
@@ -227,6 +238,10 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
                                  else None),
         "mean_reflectivity": (float(np.nanmean(reflectivity)) if np.isfinite(reflectivity).any()
                               else None),
+        # how reflectivity.npy was read: refitted with the depth held (spslidar.refit), or the
+        # profile's sum over the return's window (a device's solve, a calibrated instrument,
+        # a unipolar replica's plateau)
+        "reflectivity_method": refit_info,
         **({"depth_info": depth_info} if depth_info else {}),
         "lam": lam,
         "lam_scale": lam_scale if cfg.lam is None else None,
