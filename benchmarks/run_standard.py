@@ -53,7 +53,9 @@ from spslidar.constants import SPEED_OF_LIGHT
 from spslidar.pipeline.chain import solver_default
 from spslidar.pipeline.weights import FLOORED_ITERATIONS, LAM_FLOOR
 
-STAGES = ("scene", "setup", "simulate", "qcr", "solve", "depth", "metrics")
+#: (``reflectivity``: spslidar's refit of the reflectivity with the depth held, since
+#: 2026-12-01; the plain pipeline reads no reflectivity, 0 there)
+STAGES = ("scene", "setup", "simulate", "qcr", "solve", "depth", "reflectivity", "metrics")
 
 
 # -- the plain-NumPy pipeline --------------------------------------------------------------------
@@ -215,6 +217,7 @@ def plain_pipeline(cfg: dict, seed: int) -> tuple[dict, float]:
     best = lags[np.argmax(x, axis=1)]
     depth = (best + 0.5 - w / 2.0) * bin_depth  # the pulse's leading edge in the peak bin
     t["depth"] = time.perf_counter() - t0
+    t["reflectivity"] = 0.0
 
     t0 = time.perf_counter()
     ok = scene.valid.ravel()
@@ -244,7 +247,7 @@ def spslidar_pipeline(cfg: dict, seed: int) -> tuple[dict, float]:
         Depth RMSE in metres.
     """
     r = spslidar.reconstruct(spslidar.measure(cfg, seed=seed))
-    return {k: r.timing[k] for k in (*STAGES, "total")}, r.depth_rmse
+    return {k: r.timing.get(k, 0.0) for k in (*STAGES, "total")}, r.depth_rmse
 
 
 def whole_process(seed: int) -> float:

@@ -243,9 +243,9 @@ API_SECTIONS: list[tuple[str, str, str, list[str]]] = [
      "guarded, MRF.",
      ["spslidar.depth", "spslidar.depth.*"]),
     ("metrics", "Metrics, products and figures",
-     "Depth RMSE (equation 19), coverage, edges; the reflectivity image and point cloud; the "
-     "library's figures.",
-     ["spslidar.metrics", "spslidar.products", "spslidar.figures"]),
+     "Depth RMSE (equation 19), coverage, edges; the reflectivity image (refitted with the "
+     "depth held) and point cloud; the library's figures.",
+     ["spslidar.metrics", "spslidar.products", "spslidar.refit", "spslidar.figures"]),
     ("pipeline", "Pipeline",
      "One acquisition and reconstruction end to end, measured acquisitions (PTU) and "
      "calibration, and the result folder.",
