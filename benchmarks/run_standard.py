@@ -307,12 +307,12 @@ def main(argv=None) -> dict:
           f"{cfg['code_length']}-bit m-sequence, m_s={cfg['signal']:g}, m_n={cfg['noise']:g}, "
           f"QCR, {cfg['solver']} x {cfg['iterations']}; median of {args.repeat} interleaved "
           f"runs, {cpus} CPUs")
-    print(f"{'stage':<10}{'spslidar [s]':>14}{'plain NumPy [s]':>17}{'plain / spslidar':>18}")
+    print(f"{'stage':<13}{'spslidar [s]':>14}{'plain NumPy [s]':>17}{'plain / spslidar':>18}")
     for k in (*STAGES, "total"):
         a, b = med["spslidar"][k], med["plain"][k]
         ratio = f"{b / a:.1f}x" if a > 0 else "-"
-        print(f"{k:<10}{a:>14.3f}{b:>17.3f}{ratio:>18}")
-    print(f"{'RMSE [m]':<10}{np.median(rmse['spslidar']):>14.4f}{np.median(rmse['plain']):>17.4f}"
+        print(f"{k:<13}{a:>14.3f}{b:>17.3f}{ratio:>18}")
+    print(f"{'RMSE [m]':<13}{np.median(rmse['spslidar']):>14.4f}{np.median(rmse['plain']):>17.4f}"
           f"{'(medians)':>18}")
     print("(the two use different random streams; the RMSE of one default run varies with the "
           "realisation, about 0.005-0.010 m over seeds)")
