@@ -90,6 +90,12 @@ def test_weighted_tv_refuses_bad_weights(bad):
         EdgeWeightedTV((5, 5), **bad)
 
 
+def test_weighted_tv_refuses_columns_of_another_size():
+    reg = EdgeWeightedTV((4, 5), *_ones(4, 5))
+    with pytest.raises(ValueError, match="edge-weighted TV on 4x5 images applied to 21 rows"):
+        reg.prox(np.ones(21), 0.1)
+
+
 def _problem(rng, n=12, m=200, k=8):
     """A random pattern operator and a cube of one return per pixel: strengths ``r``
     (piecewise constant), delays ``centre`` in two planes, shapes over 2-3 delays."""

@@ -59,6 +59,15 @@ def _float_dtype(x: np.ndarray) -> np.dtype:
     return x.dtype if x.dtype in (np.float32, np.float64) else np.dtype(np.float64)
 
 
+def image_cube(x: np.ndarray, image_shape: tuple[int, int], what: str = "TV") -> np.ndarray:
+    """A ``(Q, K)`` block as its ``(Ny, Nx, K)`` images; one clear error where ``Q`` is not
+    ``Ny * Nx`` (the TVs' shared check)."""
+    ny, nx = image_shape
+    if x.shape[0] != ny * nx:
+        raise ValueError(f"{what} on {ny}x{nx} images applied to {x.shape[0]} rows")
+    return x.reshape(ny, nx, x.shape[1])
+
+
 class Regulariser:
     """Base class: subclasses implement :meth:`values` and :meth:`_prox` on ``(Q, K)`` blocks.
 
@@ -400,10 +409,7 @@ class TV(Regulariser):
 
     # -- helpers on (Ny, Nx, K) / (2, Ny, Nx, K) arrays -------------------------------------
     def _cube(self, x: np.ndarray) -> np.ndarray:
-        ny, nx = self.image_shape
-        if x.shape[0] != ny * nx:
-            raise ValueError(f"TV on {ny}x{nx} images applied to {x.shape[0]} rows")
-        return x.reshape(ny, nx, x.shape[1])
+        return image_cube(x, self.image_shape)
 
     @staticmethod
     def _neg_div_rows(p: np.ndarray, a: int, e: int, out: np.ndarray,

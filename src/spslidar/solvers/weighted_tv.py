@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .regularisers import Regulariser
+from .regularisers import Regulariser, image_cube
 
 __all__ = ["EdgeWeightedTV"]
 
@@ -85,10 +85,7 @@ class EdgeWeightedTV(Regulariser):
         self._dual = None
 
     def _cube(self, x: np.ndarray) -> np.ndarray:
-        ny, nx = self.image_shape
-        if x.shape[0] != ny * nx:
-            raise ValueError(f"columns of {x.shape[0]} entries for {ny}x{nx} images")
-        return x.reshape(ny, nx, x.shape[1])
+        return image_cube(x, self.image_shape, "the edge-weighted TV")
 
     @staticmethod
     def _grad(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
