@@ -228,6 +228,9 @@ def test_pixels_no_pattern_lights_have_no_depth(tmp_path, capsys):
     conf = np.load(tmp_path / "rec_once" / "confidence.npy")
     refl = np.load(tmp_path / "rec_once" / "reflectivity.npy")
     assert (conf[:, 12:] == 0).all() and np.isnan(refl[:, 12:]).all()
+    # (refitted with the depth held, the unlit pixels left out of its TV)
+    assert m["reflectivity_method"]["method"] == "refit"
+    assert np.isfinite(refl[:, :12][np.isfinite(est[:, :12])]).all()
     assert m["coverage"] <= 0.75
     # the lit pixels keep the map (the rule changes no solve): most within 5 cm
     assert float(np.mean(np.abs(est[:, :12] - depth[:, :12]) < 0.05)) > 0.8
