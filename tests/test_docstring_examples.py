@@ -30,6 +30,7 @@ MODULES = [
     "spslidar.io.ptu",
     "spslidar.registry",
     "spslidar.snr.theory",
+    "spslidar.solvers.weighted_tv",
 ]
 
 FLAGS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
