@@ -58,6 +58,8 @@ class EdgeWeightedTV(Regulariser):
 
     def __init__(self, image_shape: tuple[int, int], weights_y: np.ndarray,
                  weights_x: np.ndarray, nonneg: bool = False, max_inner: int = 20):
+        from ..operators.image import Gradient2D
+
         ny, nx = (int(n) for n in image_shape)
         if ny < 1 or nx < 1:
             raise ValueError(f"image_shape must be positive, got {image_shape!r}")
@@ -73,9 +75,14 @@ class EdgeWeightedTV(Regulariser):
             raise ValueError(f"max_inner must be >= 1, got {max_inner}")
         self.image_shape = (ny, nx)
         self.weights_y, self.weights_x = wy, wx
+        # the weights in Gradient2D's layout (2, Ny, Nx): its Neumann boundary's differences
+        # are zero, and so are their weights
+        self._weights = np.zeros((2, ny, nx))
+        self._weights[0, :-1], self._weights[1, :, :-1] = wy, wx
+        self._grad = Gradient2D((ny, nx))
         self.nonneg = bool(nonneg)
         self.max_inner = int(max_inner)
-        self._dual: tuple[np.ndarray, np.ndarray] | None = None
+        self._dual: np.ndarray | None = None
 
     def __repr__(self) -> str:
         return (f"EdgeWeightedTV({self.image_shape}, nonneg={self.nonneg}, "
@@ -84,59 +91,37 @@ class EdgeWeightedTV(Regulariser):
     def reset(self) -> None:
         self._dual = None
 
-    def _cube(self, x: np.ndarray) -> np.ndarray:
-        return image_cube(x, self.image_shape, "the edge-weighted TV")
-
-    @staticmethod
-    def _grad(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return z[1:] - z[:-1], z[:, 1:] - z[:, :-1]
-
-    @staticmethod
-    def _grad_adjoint(py: np.ndarray, px: np.ndarray) -> np.ndarray:
-        """``D^T p``: the negative divergence of the forward differences' dual."""
-        ny, nx = py.shape[0] + 1, px.shape[1] + 1
-        out = np.zeros((ny, nx) + py.shape[2:], dtype=np.result_type(py, px))
-        out[:-1] -= py
-        out[1:] += py
-        out[:, :-1] -= px
-        out[:, 1:] += px
-        return out
-
     def _values(self, x):
-        gy, gx = self._grad(self._cube(x))
-        return (np.einsum("ij,ijk->k", self.weights_y, np.abs(gy))
-                + np.einsum("ij,ijk->k", self.weights_x, np.abs(gx)))
+        ny, nx = self.image_shape
+        image_cube(x, self.image_shape, "the edge-weighted TV")  # (the size, checked)
+        g = np.asarray(self._grad.matvec(x)).reshape(2, ny, nx, -1)
+        return np.einsum("aij,aijk->k", self._weights, np.abs(g))
 
     def _prox(self, v, t):
-        cube = self._cube(v).astype(np.float64)
+        ny, nx = self.image_shape
+        cube = image_cube(v, self.image_shape, "the edge-weighted TV").reshape(
+            ny * nx, -1).astype(np.float64)
         if t == 0.0:
             out = np.clip(cube, 0.0, None) if self.nonneg else cube
-            return out.reshape(v.shape).astype(v.dtype, copy=False)
-        ny, nx, k = cube.shape
-        by = (t * self.weights_y)[:, :, None]  # the dual's boxes, scaled by t: |p| <= t w
-        bx = (t * self.weights_x)[:, :, None]
+            return out.astype(v.dtype, copy=False)
+        k = cube.shape[1]
+        box = (t * self._weights).reshape(-1, 1)  # the dual's boxes, scaled by t: |p| <= t w
         dual = self._dual
-        if dual is None or dual[0].shape != (ny - 1, nx, k):
-            py, px = np.zeros((ny - 1, nx, k)), np.zeros((ny, nx - 1, k))
+        if dual is None or dual.shape != (2 * ny * nx, k):
+            p = np.zeros((2 * ny * nx, k))
         else:
-            py, px = np.clip(dual[0], -by, by), np.clip(dual[1], -bx, bx)
-        ry, rx, s = py, px, 1.0
+            p = np.clip(dual, -box, box)
+        r, s = p, 1.0
         step = 1.0 / 8.0  # 1 / ||D||^2 for the 2-D forward differences
 
-        def primal(qy, qx):
-            z = cube - self._grad_adjoint(qy, qx)
+        def primal(q):
+            z = cube - self._grad.rmatvec(q)
             return np.clip(z, 0.0, None) if self.nonneg else z
 
         for _ in range(self.max_inner):
-            gy, gx = self._grad(primal(ry, rx))
-            ny_, nx_ = np.clip(ry + step * gy, -by, by), np.clip(rx + step * gx, -bx, bx)
+            p_next = np.clip(r + step * self._grad.matvec(primal(r)), -box, box)
             s_next = (1.0 + np.sqrt(1.0 + 4.0 * s * s)) / 2.0
-            c = (s - 1.0) / s_next
-            ry, rx = ny_ + c * (ny_ - py), nx_ + c * (nx_ - px)
-            py, px, s = ny_, nx_, s_next
-        self._dual = (py, px)
-        return primal(py, px).reshape(v.shape).astype(_work(v), copy=False)
-
-
-def _work(v: np.ndarray) -> np.dtype:
-    return v.dtype if v.dtype in (np.float32, np.float64) else np.dtype(np.float64)
+            r = p_next + (s - 1.0) / s_next * (p_next - p)
+            p, s = p_next, s_next
+        self._dual = p
+        return primal(p).astype(v.dtype, copy=False)
