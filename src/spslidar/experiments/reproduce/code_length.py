@@ -232,7 +232,7 @@ def exp_fig4(ctx: Context) -> tuple[str, list[Claim]]:
             f_len, p_len, [(no[0], PAPER["fig4_noqcr_rmse_m"][1023]),
                            (no[-1], PAPER["fig4_noqcr_rmse_m"][32767])])
     else:  # (--quick's 16383 bits were scored against the paper's 32768: a review)
-        len_v = "consistent in direction" if math.isfinite(f_len) and f_len > 1 else (
+        len_v = "consistent in direction only" if math.isfinite(f_len) and f_len > 1 else (
             "not consistent" if math.isfinite(f_len) else "n/a")
         len_rule = (f" (factor and levels not compared: this run's lengths end at "
                     f"{lengths[0]} and {lengths[-1]} bits, the paper's at 1024 and 32768)")

@@ -41,9 +41,9 @@ from spslidar.experiments.reproduce.stats import (
     noise_clause,
     num,
     power_label,
+    resolved,
     safe_ratio,
     stat,
-    told_apart,
 )
 from spslidar.experiments.sweep import expand_grid
 
@@ -273,7 +273,7 @@ def _doll_vs_airplane(ctx: Context, rows: list[dict], findings: list[str]) -> Cl
     parts = []
     for k, m, c in pairs:
         r = safe_ratio(m.mean, c.mean)
-        told = told_apart(m, c)
+        told = resolved(m, c)
         smaller += told and m.mean < c.mean
         larger += told and m.mean > c.mean
         parts.append(f"{k}: {num(m.mean)} against {num(c.mean)} m (x{num(r, 2)}"
