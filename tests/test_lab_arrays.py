@@ -608,3 +608,54 @@ def test_integer_levels_that_cannot_be_read_alike_are_refused(tmp_path):
     Image.fromarray(mixed[-1]).save(folder / "pattern_009.png")
     with pytest.raises(ConfigError, match="image 0 and others hold only 0 and 1 as uint8"):
         load_patterns(folder)
+
+
+# -- layouts NumPy's order settles: said, not refused (an outside audit of 2026-12-01) --------
+
+
+def _layout_warnings(path, recwarn):
+    read_patterns_file(path)
+    return [str(w.message) for w in recwarn if "--patterns" in str(w.message)]
+
+
+def test_npy_layouts_numpy_settles_are_said(tmp_path, recwarn):
+    rng = np.random.default_rng(RNG_SEED)
+    basis = (rng.random((16, 16)) > 0.5).astype(np.float32)  # 16 patterns of 4 x 4, rows
+    np.save(tmp_path / "basis.npy", basis)
+    said = _layout_warnings(tmp_path / "basis.npy", recwarn)
+    assert len(said) == 1 and "one pattern per row" in said[0] and "(A.T)" in said[0]
+    recwarn.clear()
+    # a symmetric basis (Sylvester's Hadamard) reads the same either way: nothing to say
+    from scipy.linalg import hadamard
+
+    np.save(tmp_path / "sylvester.npy", ((hadamard(16) + 1) / 2).astype(np.float32))
+    assert _layout_warnings(tmp_path / "sylvester.npy", recwarn) == []
+    # an N x N x N stack: which axis counts the patterns is NumPy's order
+    np.save(tmp_path / "cube.npy", (rng.random((8, 8, 8)) > 0.5).astype(np.float32))
+    said = _layout_warnings(tmp_path / "cube.npy", recwarn)
+    assert len(said) == 1 and "np.moveaxis(P, -1, 0)" in said[0]
+    recwarn.clear()
+    # both sides squares, more rows than pixels: the columns may be the patterns
+    np.savez(tmp_path / "tall.npz", A=(rng.random((64, 16)) > 0.5).astype(np.float32))
+    said = _layout_warnings(tmp_path / "tall.npz", recwarn)
+    assert len(said) == 1 and "tall.npz:A" in said[0] and "its 16 columns of 8 x 8" in said[0]
+    recwarn.clear()
+    # what NumPy's order reads without doubt is not warned: (M, N, N), (M, N^2) with M < N^2
+    np.save(tmp_path / "stack.npy", (rng.random((6, 8, 8)) > 0.5).astype(np.float32))
+    np.save(tmp_path / "rows.npy", (rng.random((16, 64)) > 0.5).astype(np.float32))
+    assert _layout_warnings(tmp_path / "stack.npy", recwarn) == []
+    assert _layout_warnings(tmp_path / "rows.npy", recwarn) == []
+
+
+def test_patterns_in_columns_are_refused_with_the_transpose_named(tmp_path):
+    from spslidar.pipeline.inputs import check_patterns
+
+    rng = np.random.default_rng(RNG_SEED)
+    cols = (rng.random((64, 10)) > 0.5).astype(np.float32)  # 10 patterns of 8 x 8, columns
+    with pytest.raises(ConfigError, match=r"one pattern of 8 x 8 per column\? save its "
+                                          r"transpose \(A\.T\)"):
+        check_patterns(cols)
+    assert check_patterns(cols.T).shape == (10, 64)
+    with pytest.raises(ConfigError) as err:  # no square side: no transpose to name
+        check_patterns(np.ones((10, 7), np.float32))
+    assert "transpose" not in str(err.value)

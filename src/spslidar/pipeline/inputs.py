@@ -11,6 +11,7 @@ public home since they were written).
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -132,8 +133,15 @@ def check_patterns(patterns: Any, distinct: bool = True, what: str = "patterns")
         if side * side == arr.shape[1]:
             arr = arr.reshape(arr.shape[0], side, side)
     if arr.ndim != 3 or arr.shape[1] != arr.shape[2] or arr.shape[0] < 2 or arr.shape[1] < 4:
+        # (an N^2 x M matrix, one pattern per column, was refused without naming the
+        # transpose: an outside audit of 2026-12-01)
+        rows = arr.shape[0] if arr.ndim == 2 else 0
+        side = math.isqrt(rows)
+        hint = (f": one pattern of {side} x {side} per column? save its transpose (A.T)"
+                if arr.ndim == 2 and rows >= 16 and side * side == rows
+                and arr.shape[1] >= 2 else "")
         raise ConfigError(f"{what} must be an (M, N, N) array (or (M, N*N)) with M >= 2 "
-                          f"patterns of N x N >= 4 x 4 mirrors, got shape {arr.shape}")
+                          f"patterns of N x N >= 4 x 4 mirrors, got shape {arr.shape}{hint}")
     _real_numbers(arr, what)
     if np.issubdtype(arr.dtype, np.integer):
         # stored levels, read as an image's wherever they come from (a .mat of imread's
