@@ -767,3 +767,28 @@ def test_what_the_walk_on_from_a_hung_line_keeps(case):
     assert ok[rows, col].all() == (case in ("fill", "strong enough"))
     assert ok.sum() == (rows.size if case in ("fill", "strong enough") else 0)
     np.testing.assert_array_equal(z, z0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_hanging_lines_prefilter_changes_nothing(seed, monkeypatch):
+    """The anchors tested together before the loop (``_may_stretch``) are only those the loop
+    would reject whatever the labelling: the result is bit for bit the loop's alone, on
+    labellings of heavy-tailed noise (where lines do hang), a planted leg, and NaN evidence."""
+    from spslidar.depth import hang
+
+    rng = np.random.default_rng(seed)
+    n, k = 48, 30
+    z = rng.exponential(size=(n * n, k))
+    label = z.argmax(axis=1)
+    z[rng.integers(0, n * n, 40), rng.integers(0, k, 40)] = np.nan
+    leg_label, leg_z = _hanging_leg()
+    nu = float(np.nanmedian(np.nanmax(z, axis=1))) * 0.4  # low: many anchors near a stretch
+    cases = [(z, label, nu, (n, n)), (leg_z, leg_label.ravel(), NU, SHAPE)]
+    with np.errstate(invalid="ignore"):
+        fast = [hang.hang_lines(*c) for c in cases]
+        monkeypatch.setattr(hang, "_may_stretch",
+                            lambda z, ys, *a, **kw: np.ones(ys.size, dtype=bool))
+        loop = [hang.hang_lines(*c) for c in cases]
+    for (a, na), (b, nb) in zip(fast, loop, strict=True):
+        assert na == nb and np.array_equal(a, b)
+    assert loop[0][1] > 0 and loop[1][1] == 12  # lines were hung: the test compares something
