@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -153,8 +154,10 @@ def test_a_not_consistent_edge_score_says_which_map_leads(tmp_path, fake, monkey
     monkeypatch.setattr(edges, "best_verdict", against_qcr)
     assert reproduce.reproduce_main("fig5", tmp_path, quick=True, progress=False) == 0
     section = _section(tmp_path, "fig5")
-    assert "Edge correlation: not consistent, the highest is" in section
-    assert "Flat-area edges: not consistent, the smoothest is" in section
+    assert re.search(r"Edge correlation: not consistent, the highest is [0-9.]+ \(.+\) "
+                     r"against [0-9.]+ \(.+\)\.", section)
+    assert re.search(r"Flat-area edges: not consistent, the smoothest is [0-9.]+ mm \(.+\) "
+                     r"against [0-9.]+ mm \(.+\)\.", section)
 
 
 def test_the_factor_tag_keeps_its_limit_beside_it():

@@ -169,14 +169,14 @@ def edges_experiment(
         why += f" Edge correlation:{why_corr}"
     elif v_corr == "not consistent":
         best = leader("edge_correlation_truth", True)
-        why += (f" Edge correlation: not consistent, the highest is {best}'s ({corr(best)} "
-                f"against {corr(qcr_label)}).")
+        why += (f" Edge correlation: not consistent, the highest is {corr(best)} ({best}) "
+                f"against {corr(qcr_label)} ({qcr_label}).")
     if v_flat == "inconclusive":
         why += f" Flat-area edges:{why_flat}"
     elif v_flat == "not consistent":
         best = leader("spurious_edge_m", False)
-        why += (f" Flat-area edges: not consistent, the smoothest is {best}'s ({flat(best)} "
-                f"against {flat(qcr_label)} mm).")
+        why += (f" Flat-area edges: not consistent, the smoothest is {flat(best)} mm "
+                f"({best}) against {flat(qcr_label)} mm ({qcr_label}).")
 
     findings = [
         f"The paper finds the QCR edge map 'more robust to noise and much smoother' ({paper_fig})."
