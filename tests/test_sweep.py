@@ -524,6 +524,16 @@ def test_base_seed_allowed_with_one_trial(tmp_path):
     assert [row["seed"] for row in rows] == [4, 4]
 
 
+def test_a_top_level_seed_that_base_overrides_is_said(tmp_path):
+    # (an outside audit of 2026-12-01: seed = 9 beside [base] seed = 4 ran seed 4 unsaid)
+    path = tmp_path / "sweep.toml"
+    path.write_text("seed = 9\n[base]\nseed = 4\n[grid]\nx = [1, 2]\n")
+    with pytest.warns(UserWarning, match=r"the top-level seed = 9 is not used: \[base\] seed "
+                                         r"= 4 sets every point's seed"):
+        spec = load_sweep_config(path)
+    assert {p["seed"] for p in spec.points()} == {4}
+
+
 # ---------------------------------------------------------------------------------------------
 # write_csv and sweep_main
 # ---------------------------------------------------------------------------------------------
@@ -708,6 +718,31 @@ def test_an_option_the_configuration_ignores_shares_the_seed(tmp_path, capsys):
     assert rows[0]["seed"] == rows[1]["seed"]
     assert rows[0]["depth_rmse_m"] == rows[1]["depth_rmse_m"]
     assert "--rep-rate 1e+06 is ignored" in capsys.readouterr().err
+
+
+def test_a_hyphenated_key_is_the_key_a_run_reads(tmp_path):
+    """A grid over "lam-scale" drew another seed for each weight, where lam_scale pairs them,
+    and named its column as spelled (an outside audit of 2026-12-01)."""
+    path = tmp_path / "hyphens.toml"
+    path.write_text('[base]\ncode-length = 1023\n[grid]\n"lam-scale" = [0.2, 0.6]\n')
+    points = load_sweep_config(path).points()
+    assert all(p["lam_scale"] in (0.2, 0.6) and p["code_length"] == 1023 for p in points)
+    assert not any("lam-scale" in p or "code-length" in p for p in points)
+    path.write_text('[grid]\nlam_scale = [0.2]\n"lam-scale" = [0.6]\n')
+    with pytest.raises(ConfigError, match=r"grid: key 'lam_scale' given twice \('lam_scale' "
+                                          r"and 'lam-scale'\)"):
+        load_sweep_config(path)
+
+
+def test_a_hyphenated_grid_key_pairs_its_points_as_the_underscored_one(tmp_path):
+    runs = {}
+    for spelling in ("lam_scale", "lam-scale"):
+        failed, rows = _pipeline_sweep(tmp_path, f'"{spelling}" = [0.2, 0.6]',
+                                       name=spelling.replace("-", "h"))
+        assert failed == 0 and "lam-scale" not in rows[0]
+        runs[spelling] = [(r["lam_scale"], r["seed"], r["depth_rmse_m"]) for r in rows]
+    assert runs["lam_scale"] == runs["lam-scale"]
+    assert runs["lam_scale"][0][1] == runs["lam_scale"][1][1]  # one seed: paired
 
 
 def test_one_and_one_point_zero_are_one_point(tmp_path, capsys):

@@ -407,6 +407,23 @@ def one_line(text: str) -> str:
 MAX_RUNS = 10_000
 
 
+def _underscored(table: Mapping[str, Any], where: str) -> dict[str, Any]:
+    """``table`` with each key as the run's configuration reads it (``code-length`` is
+    ``code_length``, :meth:`spslidar.config.Config.from_dict`), and two spellings of one key
+    refused. A point's seed and its ``results.csv`` column are of the key as written: a grid
+    over ``"lam-scale"`` drew another seed for each weight (2361523904 and 2280320822 where
+    ``lam_scale`` shares 4221282710), so its comparison was of two noise draws, and its
+    column did not merge with another sweep's (an outside audit of 2026-12-01)."""
+    out: dict[str, Any] = {}
+    spelled: dict[str, str] = {}
+    for k, v in table.items():
+        key = str(k).replace("-", "_")
+        if key in out:
+            raise ConfigError(f"{where}: key {key!r} given twice ({spelled[key]!r} and {k!r})")
+        out[key], spelled[key] = v, str(k)
+    return out
+
+
 def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
     """Read a sweep configuration from a TOML file.
 
@@ -467,6 +484,7 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
     grid = data.get("grid", {})
     if not isinstance(grid, dict):
         raise ConfigError(f"{path}: grid must be a table ([grid]), got {grid!r}")
+    base, grid = _underscored(base, f"{path}: base"), _underscored(grid, f"{path}: grid")
     try:
         _check_grid(grid)
     except ConfigError as exc:
@@ -494,6 +512,12 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
         raise ConfigError(
             f"{path}: base.seed gives every trial the same noise; set the top-level seed instead"
         )
+    if SEED_KEY in base and SEED_KEY not in grid and SEED_KEY in data:
+        import warnings
+
+        # (an outside audit of 2026-12-01: seed = 9 with [base] seed = 4 ran seed 4 unsaid)
+        warnings.warn(f"{path}: the top-level seed = {seed} is not used: [base] seed = "
+                      f"{base[SEED_KEY]!r} sets every point's seed", UserWarning, stacklevel=2)
     if SEED_KEY in grid and trials > 1:  # (the trials of each seed were the same to the bit)
         raise ConfigError(
             f"{path}: grid.seed with trials = {trials} gives every trial of a seed the same "
