@@ -71,6 +71,24 @@ def test_mirrors_on_is_a_whole_number():
     assert mirrors_on(1.0, 5) == 25
 
 
+def test_a_realised_share_far_from_the_one_asked_is_said(recwarn):
+    """A pattern has whole mirrors and a code whole bits: --on-fraction 1e-300 ran with one
+    mirror on, --ones-ratio 1e-10 with a code of share 0.01, unsaid (an outside audit of
+    2026-12-01). Within 10 % nothing is said."""
+    with pytest.warns(UserWarning, match=r"--on-fraction 1e-06 of 4 x 4 mirrors is 1.6e-05 "
+                                         r"mirrors: 1 is on \(share 0.0625\)"):
+        assert mirrors_on(1e-6, 4) == 1
+    with pytest.warns(UserWarning, match=r"drew a 100-bit code with 1 one \(share 0.01\)"):
+        out = snr_simulated("random", 100, 1e-10, 5.0, 10.0, 8, 0.5, trials=20,
+                            rng=np.random.default_rng(0))
+    assert out["ones_ratio_actual"] == pytest.approx(0.01)
+    recwarn.clear()
+    assert mirrors_on(0.5, 64) == 2048 and mirrors_on(0.26, 4) == 4  # 4.16: 4 % off
+    snr_simulated("random", 1000, 0.3, 5.0, 10.0, 8, 0.5, trials=20,
+                  rng=np.random.default_rng(0))  # about 300 ones of 1000
+    assert not [w for w in recwarn if issubclass(w.category, UserWarning)]
+
+
 # ------------------------------------------------------------------------------ simulation
 
 
