@@ -432,7 +432,9 @@ def snr_simulated(
     check_time(estimate_seconds(period, k, method,
                                 n_boot if interval == "bootstrap" else 0),
                max_time, "this SNR simulation",
-               reduce="--trials or --code-length, use --method sum")
+               reduce="--trials or --code-length" + (
+                   ", use --method sum" if method != "sum" else "") + (
+                   ", use --interval delta" if interval == "bootstrap" else ""))
     lag = period // 3 if delay is None else as_integer(delay, "delay") % period
     ones = int(bits.sum())
     sig_bit = m2 * a * m_s
