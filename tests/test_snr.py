@@ -89,6 +89,12 @@ def test_a_realised_share_far_from_the_one_asked_is_said(recwarn):
     assert not [w for w in recwarn if issubclass(w.category, UserWarning)]
 
 
+def test_minus_zero_noise_is_zero(capsys):
+    assert main(["snr", "--noise=-0.0", "--size", "8", "--code-length", "127"]) == 0
+    out = capsys.readouterr().out
+    assert "m_n=0," in out and "m_n=-0" not in out
+
+
 # ------------------------------------------------------------------------------ simulation
 
 

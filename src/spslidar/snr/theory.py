@@ -83,7 +83,7 @@ def as_nonneg(value: Any, what: str) -> float:
     x = as_number(value, what)
     if x < 0:
         raise config_error(f"{what} must be non-negative, got {value!r}")
-    return x
+    return x + 0.0  # (-0.0 is 0.0: it was printed "m_n=-0", an audit)
 
 
 #: the largest ``N`` accepted: the simulation matches eq. (10) within its 95 % interval up to
