@@ -158,25 +158,19 @@ def edges_experiment(
     def flat(k: str) -> str:
         return num(1000 * over[k]["spurious_edge_m"].mean, 2)
 
-    def leader(key: str, higher: bool) -> str:
-        """The label with the best mean of ``key`` (which a "not consistent" rests on)."""
-        return sorted(labels, key=lambda k: over[k][key].mean, reverse=higher)[0]
-
     # each score's verdict says why it is not "consistent" (Fig. 5's "not consistent" rested
     # on the flat-area score, which the finding did not name: an outside review, 2026-12-01)
     why = ""
-    if v_corr == "inconclusive":
-        why += f" Edge correlation:{why_corr}"
-    elif v_corr == "not consistent":
-        best = leader("edge_correlation_truth", True)
-        why += (f" Edge correlation: not consistent, the highest is {corr(best)} ({best}) "
-                f"against {corr(qcr_label)} ({qcr_label}).")
-    if v_flat == "inconclusive":
-        why += f" Flat-area edges:{why_flat}"
-    elif v_flat == "not consistent":
-        best = leader("spurious_edge_m", False)
-        why += (f" Flat-area edges: not consistent, the smoothest is {flat(best)} mm "
-                f"({best}) against {flat(qcr_label)} mm ({qcr_label}).")
+    for name, key, higher, show, v, clause in (
+            ("Edge correlation", "edge_correlation_truth", True, corr, v_corr, why_corr),
+            ("Flat-area edges", "spurious_edge_m", False, lambda k: f"{flat(k)} mm", v_flat,
+             why_flat)):
+        if v == "inconclusive":
+            why += f" {name}:{clause}"
+        elif v == "not consistent":
+            best = sorted(labels, key=lambda k: over[k][key].mean, reverse=higher)[0]
+            why += (f" {name}: not consistent, the {'highest' if higher else 'smoothest'} is "
+                    f"{show(best)} ({best}) against {show(qcr_label)} ({qcr_label}).")
 
     findings = [
         f"The paper finds the QCR edge map 'more robust to noise and much smoother' ({paper_fig})."
