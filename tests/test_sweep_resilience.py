@@ -138,6 +138,22 @@ def test_max_time_leaves_out_the_cached_runs(tmp_path, capsys):
     assert "(2 cached, not counted; 1 to run) would take" in capsys.readouterr().err
 
 
+def test_max_time_says_the_runs_cached_by_other_code(tmp_path, capsys, monkeypatch):
+    # (an audit of 2026-12-01: every run cached by older code was priced, and the refusal
+    # said only "2 runs would take", as if the cache had not been read)
+    import spslidar.plugins
+
+    toml = tmp_path / "s.toml"
+    toml.write_text(SMALL + "[grid]\nnoise = [1, 2]\n")
+    args = ["sweep", str(toml), "--out", str(tmp_path / "o"), "--no-progress"]
+    assert main(args) == 0
+    capsys.readouterr()
+    monkeypatch.setattr(spslidar.plugins, "code_fingerprint", lambda: "0" * 16)
+    assert main([*args, "--max-time", "0.001"]) == 2
+    assert ("(0 cached, not counted; 2 to run, 2 of them cached by other code (spslidar or "
+            "its plugins changed)) would take") in capsys.readouterr().err
+
+
 # --- 3. a cluster's threads, not --jobs ------------------------------------------------------
 
 

@@ -282,7 +282,7 @@ def sweep_main(
         # --max-time 1s was refused as "would take ~14 s", so a 90 %-done 6 h sweep could not
         # be resumed under the default 1 h: an audit of 2026-11-29)
         code = code_fingerprint()
-        total, cached, keys = 0.0, 0, set()
+        total, cached, stale, keys = 0.0, 0, 0, set()
         for point, cost in zip(points, costs, strict=True):
             key, result = cached_point(Path(out_dir) / "runs", point, spec.seed, ignore, code)
             if key in keys:  # (run once, and cached once)
@@ -292,6 +292,10 @@ def sweep_main(
                 cached += 1
             else:
                 total += cost
+                # (a run cached by other code is priced, and the refusal said only "16 runs
+                # would take ~2.1 s" of a sweep whose 16 runs were all cached: an audit)
+                stale += code is not None and cached_point(
+                    Path(out_dir) / "runs", point, spec.seed, ignore, None)[1] is not None
         to_run = len(keys) - cached
         if scheduler is not None:
             # the cluster's threads run the points (the estimate was divided by --jobs, 1 by
@@ -313,9 +317,11 @@ def sweep_main(
             if to_run:
                 jobs = workers
         what = f"this sweep of {len(points)} runs"
-        if cached:
+        if cached or stale:
             what = (f"this sweep of {len(points)} runs ({cached} cached, not counted; "
-                    f"{to_run} to run)")
+                    f"{to_run} to run"
+                    + (f", {stale} of them cached by other code (spslidar or its plugins "
+                       f"changed)" if stale else "") + ")")
         check_time(total / max(1, min(max(to_run, 1), workers)), max_time, what)
         if unpriced:  # (a 3-point GMAPD sweep ran 70 s with nothing said, an audit)
             said = ", ".join(f"the {n} point{'s' if n > 1 else ''} through --detector {name}"
