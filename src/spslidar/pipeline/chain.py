@@ -482,6 +482,10 @@ def reconstruct(meas: Measurement, **processing) -> Result:
         stop = StopRule(max_iter=iterations, rtol=cfg.tol)
         x, info = get_solver(cfg.solver)(stop=stop, **chosen_stage_options(cfg, "solver")
                                          ).solve(A, y, reg, lam)
+        if info.solver != cfg.solver:
+            # the solver as registered, not its class's inherited name (a plugin's subclass of
+            # FISTA was recorded as "fista": an outside audit of 2026-12-01)
+            info.solver = cfg.solver
         if eliminated is not None:
             x = eliminated.recover(x, y_plain)
         stop_cap = stop.max_iter

@@ -240,4 +240,16 @@ def _jsonable(obj):
         obj = obj.item()
     if isinstance(obj, float) and not math.isfinite(obj):
         return None  # JSON has no NaN or infinity: null (what a reader without truth sees too)
+    if isinstance(obj, (set, frozenset)):  # (a plugin's info or report: see below)
+        items = [_jsonable(v) for v in obj]
+        try:
+            return sorted(items)
+        except TypeError:
+            return sorted(items, key=repr)
+    if obj is not None and not isinstance(obj, (str, int, float, bool)):
+        # what JSON cannot hold, from a plugin stage's info or report (a set, an object),
+        # is written as its text: it ended the run, its whole computation done, in json's
+        # "not JSON serializable" traceback with nothing written (an outside audit of
+        # 2026-12-01)
+        return str(obj)
     return obj

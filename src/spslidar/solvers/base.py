@@ -26,6 +26,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
+from ..errors import ConfigError
 from ..operators.base import LinearOperator
 from ..operators.parallel import parallel
 
@@ -357,7 +358,21 @@ class Solver:
         if self.monitor is None:
             raise RuntimeError(f"{type(self).__name__}.step() before setup()")
         self.it += 1
-        self.reason = self._step() or ""
+        reason = self._step()
+        if not isinstance(reason, str):
+            # (a plugin's _step without its return ran forever under --iterations and
+            # --max-time alike: an outside audit of 2026-12-01)
+            raise ConfigError(f"the solver {self.name!r} ({type(self).__module__}."
+                              f"{type(self).__qualname__}): its _step() returned {reason!r}, "
+                              f"where it must return self.monitor.check(...)'s reason to stop "
+                              f"('' to go on)")
+        stop = self.monitor.stop
+        if not reason and self.it >= stop.max_iter:  # (a _step that never asks the monitor)
+            reason = "max_iter"
+        elif not reason and stop.max_time is not None and \
+                time.perf_counter() - self.monitor.t0 >= stop.max_time:
+            reason = "max_time"
+        self.reason = reason
 
     def done(self) -> bool:
         """Whether a stopping rule has been met (see :class:`StopRule`)."""
@@ -395,6 +410,14 @@ class Solver:
         if self.monitor is None:
             raise RuntimeError(f"{type(self).__name__}.finish() before setup()")
         x = self._finish()
+        want = (self.A.shape[1], self.y.shape[1])
+        if np.shape(x) != want:
+            # (a plugin's (Q - 1, K) or (Q,) ended as a broadcast error's traceback deep in
+            # the depth stage: an outside audit of 2026-12-01)
+            raise ConfigError(f"the solver {self.name!r} ({type(self).__module__}."
+                              f"{type(self).__qualname__}): its _finish() returned an array of "
+                              f"shape {np.shape(x)}, where {want} (unknowns x columns) is "
+                              f"expected")
         info = self.monitor.finish(self.reason or "stopped")
         info.extra["threads"] = self._threads_used
         return (x[:, 0] if self._was_1d else x), info

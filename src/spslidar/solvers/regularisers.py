@@ -108,6 +108,14 @@ class Regulariser:
         vb, was_1d = _as_block(v)
         vb = vb.astype(_float_dtype(vb), copy=False)
         z = self._prox(vb, float(t))
+        if np.shape(z) != vb.shape:
+            # (a plugin's wrong shape ended as an operator's shape error in the solver's next
+            # product, a traceback: an outside audit of 2026-12-01)
+            from ..errors import ConfigError
+
+            raise ConfigError(f"the regulariser {type(self).__module__}."
+                              f"{type(self).__qualname__}: its _prox() returned an array of "
+                              f"shape {np.shape(z)} for one of {vb.shape}")
         return z[:, 0] if was_1d else z
 
     def reset(self) -> None:
