@@ -136,10 +136,15 @@ def test_entry_loads_a_solver_with_the_entry_defaults(name):
     cls = get_solver(name)
     assert isinstance(cls, type) and issubclass(cls, Solver) and cls.name == name
     assert SOLVERS.load(name) is cls and entry.display and entry.help
+    own = cls.__module__.startswith("spslidar.")
     for key in ("iterations", "lam_scale", "regulariser"):
         assert key in entry.defaults
-        assert getattr(cls, f"default_{key}") == entry.defaults[key]
-    assert entry.defaults["regulariser"] in ("tv", "tv-aniso", "l1", "wavelet")
+        if own:  # (the in-tree classes mirror their entries; a plugin registers its defaults
+            # on the entry, as the docs say, and may inherit another class's attributes)
+            assert getattr(cls, f"default_{key}") == entry.defaults[key]
+    # a registered regulariser, a plugin's too (a plugin solver defaulting to a plugin's "l2"
+    # failed a list of the built-ins here while it ran and passed `check`: an audit)
+    assert entry.defaults["regulariser"] in REGULARISERS.names()
     assert _accepts(name, entry.defaults["regulariser"])  # its default passes its own hook
 
 

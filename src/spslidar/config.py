@@ -236,7 +236,11 @@ class Config:
         for key, v in merged.items():
             if key not in names:
                 close = close_names(key, names)
-                hint = f" (did you mean {', '.join(close)}?)" if close else ""
+                # (a TOML of a plugin stage's options, read without the plugin, said only
+                # "unknown config key 'window'": an outside audit of 2026-12-01)
+                hint = (f" (did you mean {', '.join(close)}?)" if close else
+                        " (a plugin stage's option? load its plugin with --plugin MODULE or "
+                        "SPSLIDAR_PLUGINS)")
                 raise ConfigError(f"unknown config key {spelled[key]!r}{hint}")
             (extra if key in declared else clean)[key] = v
         return cls(**clean, extra=extra)

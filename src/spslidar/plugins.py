@@ -1,14 +1,14 @@
 """Stages of your own, from outside the package: ``--plugin MODULE`` or ``SPSLIDAR_PLUGINS``.
 
-A plugin is a Python module that registers stages when it is imported
-(``CODES.add(...)``, ``PATTERNS.add(...)``, ``DETECTORS.add(...)``, ``SOLVERS.add(...)``,
-``ESTIMATORS.add(...)``, ``SCENES.add(...)``, each with the object itself: see
+A plugin is a Python module that registers stages when it is imported (``CODES.add(...)``,
+``PATTERNS.add(...)``, ``DETECTORS.add(...)``, ``SOLVERS.add(...)``, ``ESTIMATORS.add(...)``,
+``REGULARISERS.add(...)``, ``SCENES.add(...)``, each with the object itself: see
 ``docs/architecture.md``). ``spslidar --plugin mystages run --solver mine ...`` imports it
 before the command line is read, so its stages are among the choices and their options have
 flags; ``SPSLIDAR_PLUGINS`` (modules or ``.py`` files, separated by commas) does the same, and
 ``--plugin`` sets it, so the worker processes of ``sweep --jobs N`` and ``reproduce --jobs N``
-import the plugins too (an audit of 2026-11-28 found no way to reach a plugin from the
-command line, and a sweep's workers without it: every point "unknown code").
+import the plugins too (an audit of 2026-11-28 found no way to reach a plugin from the command
+line, and a sweep's workers without it: every point "unknown code").
 
 Written here: entry points (``importlib.metadata``) would need the plugin installed as a
 distribution; a researcher's module beside their data needs only a name or a path.
