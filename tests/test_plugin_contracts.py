@@ -171,3 +171,15 @@ def test_an_unknown_key_without_a_near_name_names_the_plugin_option():
         Config.from_dict({"windowsize": 3})
     with pytest.raises(ConfigError, match=r"unknown config key 'nois' \(did you mean noise"):
         Config.from_dict({"nois": 3})
+
+
+def test_metrics_config_nulls_the_options_no_chosen_stage_declares():
+    # (a run recorded every declared option, those of stages it did not choose at their
+    # defaults: an outside audit of 2026-12-01)
+    r = spslidar.run(**SMALL)  # linear detector, FISTA, mrf
+    cfg = r.metrics["config"]
+    assert cfg["jitter"] is None and cfg["afterpulse_prob"] is None  # the GMAPD's
+    assert cfg["restart"] is False and cfg["monotone"] is False  # FISTA's own, given
+    g = spslidar.run(**SMALL, detector="gmapd", dead_time=20e-9, signal=1e-4, noise=1e-6,
+                     periods=200)
+    assert g.metrics["config"]["jitter"] == 0.0

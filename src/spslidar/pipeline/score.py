@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config import Config
+from ..config import Config, registries, stage_options
 from ..constants import SPEED_OF_LIGHT
 from ..correlate import window_response
 from ..depth.profile import (
@@ -314,4 +314,13 @@ def resolved_config(cfg: Config, acq: Acquisition, gate, auto_gate: bool, iterat
         d["nonneg"] = False  # the mean-eliminated plain problem has no sign constraint
     if d["regulariser"] == "wavelet":  # no closed-form prox under the bound (make_wavelet_l1)
         d["nonneg"] = False
+    # an option no chosen stage declares is not one the run used: null, as the README's rule
+    # has it (a linear detector's run recorded the GMAPD's dead_time 5e-08, and a plugin's
+    # options of stages not chosen at their defaults: an outside audit of 2026-12-01)
+    used = set()
+    for key, registry in registries().items():
+        used.update(opt.name for opt in registry.get(getattr(cfg, key)).options)
+    for name in stage_options():
+        if name not in used and name in d:
+            d[name] = None
     return d
