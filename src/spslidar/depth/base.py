@@ -233,8 +233,9 @@ def checked_slices(slices: Any, ctx: DepthContext) -> tuple[np.ndarray, np.ndarr
     return x, bad, scale
 
 
-#: how far (in bins) an estimator's depths may lie outside its slices' delays: a sub-bin
-#: refinement reaches half a bin past the first or last slice
+#: how far (in bins) an estimator's depths may lie outside its slices' depths (each read as
+#: :func:`~spslidar.depth.profile.index_to_depth` reads it): a sub-bin refinement reaches half
+#: a bin past the first or last slice
 GATE_SLACK_BINS = 2.0
 
 
@@ -266,7 +267,11 @@ def _checked_estimate(out: Any, q: int, who: str, ctx: DepthContext | None = Non
     if ctx is not None and ctx.lags.size:
         from ..forward import delay_to_depth
 
-        lo, hi = (float(delay_to_depth(ctx.lags[i] + s * GATE_SLACK_BINS, ctx.bin_width))
+        # (the slices' depths as index_to_depth reads them: a pulse of w bins puts a return
+        # at lag + 1/2 - w/2)
+        edge = 0.5 - float(ctx.pulse_width) / 2.0
+        lo, hi = (float(delay_to_depth(ctx.lags[i] + edge + s * GATE_SLACK_BINS,
+                                       ctx.bin_width))
                   for i, s in ((0, -1), (-1, 1)))
         for name in ("depth", "depth2"):
             d = getattr(out, name, None)
