@@ -99,7 +99,8 @@ def test_the_fingerprint_follows_the_plugin_and_its_helper(plugin_pair):
 
 def test_an_edited_plugin_sweeps_again(plugin_pair, tmp_path, capsys):
     """The CLI's sweep: the same TOML after the plugin's helper changed gives the new code's
-    rows (1 m further), on the same seeds."""
+    rows (1 cm further: within the slices' range, which an estimator's depths must keep),
+    on the same seeds."""
     mod, helper = plugin_pair
     toml = tmp_path / "s.toml"
     toml.write_text('seed = 3\n[base]\nsize = 8\ndepth = "shifted"\n[grid]\nnoise = [1, 5]\n')
@@ -112,12 +113,12 @@ def test_an_edited_plugin_sweeps_again(plugin_pair, tmp_path, capsys):
         return list(csv.DictReader((out / "results.csv").open()))
 
     before = sweep()
-    helper.write_text("SHIFT = 1.0\n")
+    helper.write_text("SHIFT = 0.01\n")
     after = sweep()
     assert [r["seed"] for r in after] == [r["seed"] for r in before]
     for b, a in zip(before, after, strict=True):
-        # every depth moved by the helper's metre (not read back from the cache)
-        assert float(a["depth_bias_m"]) == pytest.approx(float(b["depth_bias_m"]) + 1.0,
+        # every depth moved by the helper's centimetre (not read back from the cache)
+        assert float(a["depth_bias_m"]) == pytest.approx(float(b["depth_bias_m"]) + 0.01,
                                                            abs=1e-6)
 
 

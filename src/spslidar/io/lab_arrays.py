@@ -216,7 +216,7 @@ def _npy_layout_note(arr: np.ndarray, where: str) -> None:
     Sylvester Hadamard basis) reads the same either way and is not warned."""
     if arr.ndim == 3 and arr.shape[0] == arr.shape[1] == arr.shape[2] and arr.shape[0] >= 2:
         n = arr.shape[0]
-        warnings.warn(f"--patterns {where} is an {n} x {n} x {n} array: read as {n} patterns "
+        warnings.warn(f"--patterns {where} has shape ({n}, {n}, {n}): read as {n} patterns "
                       f"of {n} x {n}, the pattern index first (NumPy's order, as run "
                       f"--save-ptu writes); a stack with the pattern index last (N x N x M, as "
                       f"MATLAB stacks images) gives a wrong map without a word: save "
