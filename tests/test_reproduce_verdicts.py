@@ -158,6 +158,9 @@ def test_a_not_consistent_edge_score_says_which_map_leads(tmp_path, fake, monkey
                      r"against [0-9.]+ \(.+\)\.", section)
     assert re.search(r"Flat-area edges: not consistent, the smoothest is [0-9.]+ mm \(.+\) "
                      r"against [0-9.]+ mm \(.+\)\.", section)
+    # the claim is the experiment's (a loop's variable once named it "Flat-area edges")
+    claims = json.loads((tmp_path / "fig5" / "claims.json").read_text())
+    assert [c["experiment"] for c in claims] == ["fig5"]
 
 
 def test_the_factor_tag_keeps_its_limit_beside_it():

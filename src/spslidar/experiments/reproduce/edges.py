@@ -161,15 +161,15 @@ def edges_experiment(
     # each score's verdict says why it is not "consistent" (Fig. 5's "not consistent" rested
     # on the flat-area score, which the finding did not name: an outside review, 2026-12-01)
     why = ""
-    for name, key, higher, show, v, clause in (
+    for score, key, higher, show, v, clause in (
             ("Edge correlation", "edge_correlation_truth", True, corr, v_corr, why_corr),
             ("Flat-area edges", "spurious_edge_m", False, lambda k: f"{flat(k)} mm", v_flat,
              why_flat)):
         if v == "inconclusive":
-            why += f" {name}:{clause}"
+            why += f" {score}:{clause}"
         elif v == "not consistent":
             best = sorted(labels, key=lambda k: over[k][key].mean, reverse=higher)[0]
-            why += (f" {name}: not consistent, the {'highest' if higher else 'smoothest'} is "
+            why += (f" {score}: not consistent, the {'highest' if higher else 'smoothest'} is "
                     f"{show(best)} ({best}) against {show(qcr_label)} ({qcr_label}).")
 
     findings = [
