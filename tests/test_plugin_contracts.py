@@ -183,3 +183,8 @@ def test_metrics_config_nulls_the_options_no_chosen_stage_declares():
     g = spslidar.run(**SMALL, detector="gmapd", dead_time=20e-9, signal=1e-4, noise=1e-6,
                      periods=200)
     assert g.metrics["config"]["jitter"] == 0.0
+    # read back, a null is the option's default: a run's config round-trips
+    from spslidar.config import Config
+
+    again = Config.from_dict(cfg)
+    assert again.extra.get("jitter", 0.0) == 0.0 and again.detector == "linear"

@@ -79,7 +79,7 @@ def test_ply_extra_fields_read_by_an_independent_reader(tmp_path):
     ({"intensity": np.zeros(4)}, "property name"),
     ({"not a name": np.zeros(4)}, "property name"),
     ({"confidence": np.zeros(3)}, "4 points but 3"),
-    ({"return_number": np.array([0, 1, 2, 256])}, "0..255"),
+    ({"return_number": np.array([0, 1, 2, 65536])}, "0..65535"),
 ])
 def test_ply_refuses_bad_fields(tmp_path, fields, match):
     with pytest.raises(ValueError, match=match):
@@ -112,7 +112,17 @@ def test_second_surfaces_in_the_point_cloud(tmp_path):
     cloud = json.loads((out / "metrics.json").read_text())["point_cloud"]
     assert cloud["n_points"] == first.sum() + second.sum()
     assert cloud["n_second_surface"] == second.sum()
-    assert cloud["fields"] == ["x", "y", "z", "intensity", "confidence", "return_number"]
+    assert cloud["fields"] == ["x", "y", "z", "intensity", "confidence", "return_number",
+                               "row", "col"]
+    # each point's pixel, and the header says what the file is (an outside audit)
+    rows, cols = np.nonzero(first)
+    rows2, cols2 = np.nonzero(second)
+    np.testing.assert_array_equal(extra["row"], np.concatenate([rows, rows2]))
+    np.testing.assert_array_equal(extra["col"], np.concatenate([cols, cols2]))
+    head = (out / "points.ply").read_bytes().split(b"end_header")[0].decode("ascii")
+    assert "comment field of view 10 deg across the larger side of a 16 x 16 image" in head
+    assert "comment intensity: an estimate of the reflectivity (a simulation)" in head
+    assert "comment return_number 1: depth.npy, 2: depth2.npy (nearer or farther)" in head
 
 
 def test_reflectivity_window_sums_the_return():
@@ -198,3 +208,28 @@ def test_ply_keeps_far_points_to_the_bin(tmp_path):
     back, inten = read_ply(tmp_path / "p.ply")
     np.testing.assert_array_equal(back, pts)  # exact: float64 in, float64 out
     assert (tmp_path / "p.ply").read_bytes().count(b"property double") == 3
+
+
+def test_ply_ushort_fields_comments_and_unknown_intensity(tmp_path):
+    """A pixel's row at 512 x 512 needs a ushort; comments go into the header, one ASCII line
+    each; an unknown intensity stays NaN (it was written 0, read as dark: an outside audit)."""
+    plyfile = pytest.importorskip("plyfile")
+    depth = np.full((2, 3), 5.0)
+    depth[0, 1] = np.nan
+    inten = np.array([[0.5, 0.7, np.nan], [0.1, 0.2, 0.3]])
+    pts, vals = point_cloud(depth, 10.0, inten)
+    assert pts.shape == (5, 3) and np.isnan(vals[1]) and vals[0] == 0.5
+    row = np.array([0, 1, 300, 511, 65535])
+    path = write_ply(tmp_path / "p.ply", pts, vals, comments=["field of view 10 deg"],
+                     row=row)
+    vertex = plyfile.PlyData.read(str(path))["vertex"]
+    assert vertex["row"].dtype == np.uint16
+    np.testing.assert_array_equal(vertex["row"], row)
+    assert "field of view 10 deg" in plyfile.PlyData.read(str(path)).comments
+    _, back, extra = read_ply(path, fields=True)
+    np.testing.assert_array_equal(extra["row"], row)
+    np.testing.assert_array_equal(np.isnan(back), np.isnan(vals))
+    for bad in ("two\nlines", "é"):
+        with pytest.raises(ValueError, match="one line of ASCII"):
+            write_ply(tmp_path / "q.ply", pts, vals, comments=[bad])
+    assert point_cloud(np.zeros((0, 0)), 10.0)[0].shape == (0, 3)  # (no divide warning)

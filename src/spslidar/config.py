@@ -242,6 +242,10 @@ class Config:
                         " (a plugin stage's option? load its plugin with --plugin MODULE or "
                         "SPSLIDAR_PLUGINS)")
                 raise ConfigError(f"unknown config key {spelled[key]!r}{hint}")
+            if key in declared and v is None:
+                # a stage option no chosen stage used is null in metrics.json's config: read
+                # back, it is the default (a run's config then round-trips)
+                continue
             (extra if key in declared else clean)[key] = v
         return cls(**clean, extra=extra)
 

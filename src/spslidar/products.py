@@ -31,6 +31,7 @@ Both are read off a finished reconstruction and need no ground truth, so ``spsli
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -134,7 +135,7 @@ def pixel_rays(shape: tuple[int, int], fov_deg: float) -> tuple[np.ndarray, np.n
     """
     check_fov(fov_deg)
     rows, cols = (int(n) for n in shape)
-    scale = 2.0 * np.tan(np.radians(float(fov_deg)) / 2.0) / max(rows, cols)
+    scale = 2.0 * np.tan(np.radians(float(fov_deg)) / 2.0) / max(rows, cols, 1)  # (0 x 0)
     v, u = np.meshgrid((np.arange(rows) + 0.5 - rows / 2.0) * scale,
                        (np.arange(cols) + 0.5 - cols / 2.0) * scale, indexing="ij")
     return u, v
@@ -146,12 +147,14 @@ def point_cloud(depth: np.ndarray, fov_deg: float = DEFAULT_FOV_DEG,
 
     Parameters
     ----------
-    depth : ndarray, shape (N, N)
+    depth : ndarray, shape (rows, cols)
         Range along each pixel's ray, metres; NaN pixels give no point.
     fov_deg : float
-        Full field of view across the ``N`` columns (and rows), degrees, in (0, 180).
-    intensity : ndarray, shape (N, N), optional
-        Per-pixel value carried with each point (NaN read as 0).
+        Full field of view across the image's larger side, degrees, in (0, 180) (square
+        pixels: the other side spans less).
+    intensity : ndarray, shape (rows, cols), optional
+        Per-pixel value carried with each point (NaN where unknown, as given: it was read as
+        0, which a reader takes for dark; an outside audit of 2026-12-01).
 
     Returns
     -------
@@ -177,26 +180,28 @@ def point_cloud(depth: np.ndarray, fov_deg: float = DEFAULT_FOV_DEG,
                                                                and inten.shape != d.shape):
             raise ValueError(f"intensity of shape {inten.shape} for a depth of shape "
                              f"{d.shape}: one value per pixel")
-        values = np.nan_to_num(inten.reshape(d.shape)[have], nan=0.0)
+        values = inten.reshape(d.shape)[have]
     return points, values
 
 
-_PLY_TYPES = {"double": "<f8", "float": "<f4", "uchar": "u1"}
+_PLY_TYPES = {"double": "<f8", "float": "<f4", "uchar": "u1", "ushort": "<u2"}
 
 
 def write_ply(path: str | os.PathLike, points: np.ndarray, values: np.ndarray,
-              **fields: np.ndarray) -> Path:
+              comments: Sequence[str] = (), **fields: np.ndarray) -> Path:
     """Write points, their intensity and any further per-point scalars as a binary
     little-endian PLY file.
 
     The vertex element has ``double x, y, z`` (float64: as float32 a point at 1 000 km sat
     3.1 cm, two bins, off its depth; an audit of 2026-11-30) and ``float intensity``
     (float32), then one property per keyword in the order given: ``float`` for a float
-    array (NaN where unknown), ``uchar`` for an integer one (0-255; ``return_number``: 1
-    for a pixel's first surface, 2 for its second, as LAS numbers returns). Readable by
-    CloudCompare, MeshLab, Open3D, PDAL and ``plyfile`` (each extra property a scalar
-    field). Written by hand: the format is a short header and a packed array, and no
-    dependency the project has writes it.
+    array (NaN where unknown), ``uchar`` for an integer one within 0-255 and ``ushort`` for
+    one within 0-65535 (a pixel's ``row`` and ``col`` at 512 x 512). ``comments`` are
+    header lines after the frame's (``comment ...``: the field of view, the image's size,
+    what the intensity is), ASCII without line breaks. Readable by CloudCompare, MeshLab,
+    Open3D, PDAL and ``plyfile`` (each extra property a scalar field). Written by hand: the
+    format is a short header and a packed array, and no dependency the project has writes
+    it.
     """
     pts = real_array(points, "points").astype(np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3:
@@ -216,18 +221,23 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, values: np.ndarray,
         if a.size != n:
             raise ValueError(f"{n} points but {a.size} values of {name!r}")
         if np.issubdtype(a.dtype, np.integer) or a.dtype == bool:
-            if a.size and (a.min() < 0 or a.max() > 255):
-                raise ValueError(f"{name!r} must lie in 0..255 (a PLY uchar)")
-            kinds[name] = "uchar"
+            if a.size and (a.min() < 0 or a.max() > 65535):
+                raise ValueError(f"{name!r} must lie in 0..65535 (a PLY uchar or ushort)")
+            kinds[name] = "uchar" if not a.size or a.max() <= 255 else "ushort"
         else:
             kinds[name] = "float"
         columns[name] = a
+    lines = [str(c) for c in comments]
+    for c in lines:
+        if not c.isascii() or "\n" in c or "\r" in c:
+            raise ValueError(f"a PLY comment is one line of ASCII, got {c!r}")
     rec = np.empty(n, dtype=[(k, _PLY_TYPES[t]) for k, t in kinds.items()])
     for k, col in columns.items():
         rec[k] = col
     header = ("ply\nformat binary_little_endian 1.0\ncomment spslidar point cloud: x right, "
               "y down, z forward (m)\n"
-              f"element vertex {n}\n"
+              + "".join(f"comment {c}\n" for c in lines)
+              + f"element vertex {n}\n"
               + "".join(f"property {t} {k}\n" for k, t in kinds.items()) + "end_header\n")
     path = Path(path)
     with open(path, "wb") as fh:

@@ -38,7 +38,7 @@ class Result:
     ((256, 3), (256,))
     >>> points, intensity, fields = r.cloud()  # what points.ply holds
     >>> sorted(fields)
-    ['confidence', 'return_number']
+    ['col', 'confidence', 'return_number', 'row']
     >>> with tempfile.TemporaryDirectory() as tmp:
     ...     out = r.save(os.path.join(tmp, "run"), figure=False)
     ...     print(sorted(f.name for f in out.glob("*.npy")))
@@ -146,24 +146,33 @@ class Result:
               ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """The point cloud ``points.ply`` holds: each pixel's first surface with its
         reflectivity and confidence, then each second surface (:attr:`depth2`, where the
-        estimator found one) with NaN for both; ``fields`` holds ``confidence`` (float) and
-        ``return_number`` (1 or 2, as LAS numbers returns)."""
+        estimator found one) with NaN for both; ``fields`` holds ``confidence`` (float),
+        ``return_number`` and each point's pixel, ``row`` (0 at the top) and ``col``.
+        ``return_number`` is 1 for the estimator's depth (``depth.npy``) and 2 for its second
+        surface (``depth2.npy``), which may lie nearer or farther: not LAS's order of the
+        returns in time (an outside audit of 2026-12-01 found 28 of 426 second surfaces of
+        the fence nearer than the first)."""
         from ..products import DEFAULT_FOV_DEG, point_cloud
 
         fov = DEFAULT_FOV_DEG if fov_deg is None else fov_deg
         pts, intensity = self.points(fov)
         # the points are the finite depths in row-major order: their confidence the same way
-        # (NaN read as 0, as point_cloud reads the intensity)
-        conf = (np.nan_to_num(np.asarray(self.confidence, float)[np.isfinite(self.depth)])
+        # (NaN read as 0: the estimator's own rule, so return 1's is never NaN)
+        have = np.isfinite(self.depth)
+        conf = (np.nan_to_num(np.asarray(self.confidence, float)[have])
                 if self.confidence is not None else np.full(pts.shape[0], np.nan))
         number = np.ones(pts.shape[0], np.uint8)
+        row, col = np.nonzero(have)  # (row-major, as the points)
         if self.depth2 is not None and np.isfinite(self.depth2).any():
             pts2, _ = point_cloud(self.depth2, fov)
             nan = np.full(pts2.shape[0], np.nan)
             pts, intensity = np.concatenate([pts, pts2]), np.concatenate([intensity, nan])
             conf = np.concatenate([conf, nan])
             number = np.concatenate([number, np.full(pts2.shape[0], 2, np.uint8)])
-        return pts, intensity, {"confidence": conf, "return_number": number}
+            row2, col2 = np.nonzero(np.isfinite(self.depth2))
+            row, col = np.concatenate([row, row2]), np.concatenate([col, col2])
+        return pts, intensity, {"confidence": conf, "return_number": number,
+                                "row": row.astype(np.int64), "col": col.astype(np.int64)}
 
     def save(self, out_dir: str | os.PathLike, figure: bool = True,
              overwrite: bool = False, fov_deg: float | None = None, *,
@@ -208,7 +217,19 @@ class Result:
             if self.depth2 is not None:  # the estimator looked for a second surface
                 np.save(tmp / "depth2.npy", self.depth2)
             points, intensity, fields = self.cloud(fov)
-            write_ply(tmp / "points.ply", points, intensity, **fields)
+            rows, cols = np.shape(self.depth)
+            # what the file is, in its header (it said only the frame: an outside audit of
+            # 2026-12-01 could not tell the field of view, the image or the intensity's
+            # meaning from it)
+            what = ("detected photons per pulse (a measured acquisition)" if "ptu" in
+                    self.metrics else "an estimate of the reflectivity (a simulation)"
+                    if self.has_truth else "reflectivity.npy")
+            comments = [f"field of view {fov:g} deg across the larger side of a {rows} x "
+                        f"{cols} image (rows x cols; row 0 at the top, square pixels)",
+                        "depth is the range along each pixel's ray (metres)",
+                        f"intensity: {what}; NaN where unknown, and for return 2",
+                        "return_number 1: depth.npy, 2: depth2.npy (nearer or farther)"]
+            write_ply(tmp / "points.ply", points, intensity, comments=comments, **fields)
             second = int(np.sum(fields["return_number"] == 2))
             # what the folder adds to the metrics goes into the file, not into the result
             # (save() added both to the caller's result: an audit)
