@@ -57,6 +57,8 @@ def test_non_square_scene_is_cropped_with_a_warning(tmp_path, capsys):
     np.save(path, np.full((16, 20), 3.0))
     scene = load_scene(str(path), 16)
     assert scene.notes and "16x20" in scene.notes[0] and "centre 16x16" in scene.notes[0]
+    # the crop's field of view is not the file's (an outside audit of 2026-12-01)
+    assert "2 atan(tan(F/2) 16/20) in the crop, the --fov of the point cloud" in scene.notes[0]
     assert load_scene("camera", 16).notes == []
     out = tmp_path / "out"
     assert main(["run", *FAST, "--scene", str(path), "--out", str(out), "--no-figure"]) == 0

@@ -394,9 +394,13 @@ def _surface_note(name: str, side: int, size: int) -> str:
 
 
 def _crop_note(name: str, shape: tuple[int, ...], size: int) -> str:
-    side = min(shape)
+    side, long = min(shape), max(shape)
+    # (a field of view across the file's longer side is not the crop's: an outside audit of
+    # 2026-12-01)
     return (f"scene {name} is {shape[0]}x{shape[1]}: its centre {side}x{side} is used "
-            f"(resized to {size}x{size})")
+            f"(resized to {size}x{size}); its ranges seen through a field of view F across "
+            f"its {long} pixels span 2 atan(tan(F/2) {side}/{long}) in the crop, the --fov "
+            f"of the point cloud")
 
 
 def _finish(
