@@ -233,3 +233,15 @@ def test_ply_ushort_fields_comments_and_unknown_intensity(tmp_path):
         with pytest.raises(ValueError, match="one line of ASCII"):
             write_ply(tmp_path / "q.ply", pts, vals, comments=[bad])
     assert point_cloud(np.zeros((0, 0)), 10.0)[0].shape == (0, 3)  # (no divide warning)
+
+
+@pytest.mark.parametrize("fov, said", [("179.999", True), ("1e-300", True), ("60", False)])
+def test_a_field_of_view_no_lidar_has_is_said(tmp_path, capsys, fov, said):
+    # (--fov 179.999 put a 10 m wall's corners at 7e-8 m without a word: an outside audit)
+    from spslidar.cli import main
+
+    assert main(["run", "--size", "8", "--code-length", "127", "--scene", "steps",
+                 "--depth-min", "1", "--depth-max", "1.6", "--range-gate", "0.8", "1.8",
+                 "--fov", fov, "--no-figure", "--out", str(tmp_path / "o")]) == 0
+    err = capsys.readouterr().err
+    assert ("outside the 0.01-120 degrees a single-pixel lidar's optics span" in err) is said

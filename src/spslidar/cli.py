@@ -28,6 +28,7 @@ from .cli_common import (  # noqa: F401  (_memory: spslidar.cli._memory, as befo
     _Tolerant,
     _written,
     say_warnings,
+    warn_fov,
 )
 from .cli_measured import (
     add_calibrate_parser,
@@ -395,6 +396,7 @@ def _cmd_run(args) -> int:
     else:
         result = run(cfg)
     say_warnings(result.warnings)
+    warn_fov(args.fov)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
                       fov_deg=args.fov, option="--out", replace="--overwrite")
     _WRITTEN.append(f"{out}/")

@@ -117,6 +117,22 @@ def _fov(text: str) -> float:
     return value
 
 
+#: the fields of view (degrees) ``--fov`` takes without a warning
+FOV_SANE = (0.01, 120.0)
+
+
+def warn_fov(fov: float | None) -> None:
+    """Say a ``--fov`` outside :data:`FOV_SANE` (``--fov 179.999`` put a 10 m wall's corners
+    at 7e-8 m, and 1e-300 every point on the axis, without a word: an outside audit of
+    2026-12-01; a typo, most likely). Called by the commands, whose warnings are one line."""
+    if fov is not None and not FOV_SANE[0] <= fov <= FOV_SANE[1]:
+        import warnings
+
+        warnings.warn(f"--fov {fov:g} degrees is outside the {FOV_SANE[0]:g}-{FOV_SANE[1]:g} "
+                      f"degrees a single-pixel lidar's optics span: the point cloud is "
+                      f"written through it as given", UserWarning, stacklevel=2)
+
+
 def _add_fov_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fov", type=_fov, default=None, metavar="DEG",
                    help="full field of view across the image, degrees, for points.ply (default "

@@ -198,7 +198,7 @@ def add_reconstruct_parser(sub) -> None:
 
 def cmd_reconstruct(args) -> int:
     """Run ``spslidar reconstruct``; return the exit status."""
-    from .cli_common import _WRITTEN, _written, say_warnings
+    from .cli_common import _WRITTEN, _written, say_warnings, warn_fov
     from .outdir import check_output
     from .pipeline.real import reconstruct_ptu
 
@@ -222,6 +222,7 @@ def cmd_reconstruct(args) -> int:
                              **processing)
     result.metrics["inputs"]["code"].update(source)
     say_warnings(result.warnings)
+    warn_fov(args.fov)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,
                       fov_deg=args.fov, option="--out", replace="--overwrite")
     _WRITTEN.append(f"{out}/")
