@@ -181,8 +181,9 @@ def scatter_clause(a: Stat, b: Stat) -> str:
 #: 10.67 mm) is no finding whatever the trials say
 MARGIN = 0.05
 
-#: the ratio of two means that one trial each tells apart: beyond any trial-to-trial scatter
-#: these runs show (15 % in Fig. 3's five trials, x1.9 between a timing's identical runs)
+#: the ratio of two means that counts as a difference whatever the trials, one each
+#: included: beyond any trial-to-trial scatter these runs show (15 % in Fig. 3's five
+#: trials, x1.9 between a timing's identical runs)
 ONE_TRIAL_FACTOR = 2.0
 
 

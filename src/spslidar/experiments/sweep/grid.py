@@ -410,7 +410,7 @@ MAX_RUNS = 10_000
 def _underscored(table: Mapping[str, Any], where: str) -> dict[str, Any]:
     """``table`` with each key as the run's configuration reads it (``code-length`` is
     ``code_length``, :meth:`spslidar.config.Config.from_dict`), and two spellings of one key
-    refused. A point's seed and its ``results.csv`` column are of the key as written: a grid
+    refused. A point's seed and its ``results.csv`` column were of the key as written: a grid
     over ``"lam-scale"`` drew another seed for each weight (2361523904 and 2280320822 where
     ``lam_scale`` shares 4221282710), so its comparison was of two noise draws, and its
     column did not merge with another sweep's (an outside audit of 2026-12-01)."""
