@@ -315,8 +315,8 @@ def resolved_config(cfg: Config, acq: Acquisition, gate, auto_gate: bool, iterat
     if d["regulariser"] == "wavelet":  # no closed-form prox under the bound (make_wavelet_l1)
         d["nonneg"] = False
     # an option no chosen stage declares is not one the run used: null, as the README's rule
-    # has it (a linear detector's run recorded the GMAPD's dead_time 5e-08, and a plugin's
-    # options of stages not chosen at their defaults: an outside audit of 2026-12-01)
+    # has it (a linear detector's run recorded the GMAPD's jitter and afterpulsing, and a
+    # plugin's options of stages not chosen at their defaults: an outside audit of 2026-12-01)
     used = set()
     for key, registry in registries().items():
         used.update(opt.name for opt in registry.get(getattr(cfg, key)).options)
