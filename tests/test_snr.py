@@ -66,8 +66,10 @@ def test_theory_is_linear_in_length_and_ones_ratio():
 
 def test_mirrors_on_is_a_whole_number():
     assert mirrors_on(0.5, 64) == 2048
-    assert mirrors_on(0.3, 3) == 3  # round(2.7)
-    assert mirrors_on(1e-6, 4) == 1  # at least one mirror
+    with pytest.warns(UserWarning, match="2.7 mirrors: 3 are on"):
+        assert mirrors_on(0.3, 3) == 3  # round(2.7), 11 % off: said
+    with pytest.warns(UserWarning, match="1 is on"):
+        assert mirrors_on(1e-6, 4) == 1  # at least one mirror
     assert mirrors_on(1.0, 5) == 25
 
 
