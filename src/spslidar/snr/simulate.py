@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING, Any
 
 from spslidar.snr.theory import (
     MAX_TRIALS,
-    REALISED_TOLERANCE,
     SNR_INTERVALS,
     SNR_METHODS,
     as_integer,
@@ -31,6 +30,7 @@ from spslidar.snr.theory import (
     eq10,
     make_code_checked,
     mirrors_on,
+    realised_far,
 )
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -418,15 +418,14 @@ def snr_simulated(
     code_index = default_code_index(kind, code_index)
     bits = make_code_checked(kind, code_length, ones_ratio, gen, code_index)
     period = int(bits.size)
-    if kind == "random" and ones_ratio is not None:
-        share = float(bits.sum()) / period
-        if abs(share - float(ones_ratio)) > REALISED_TOLERANCE * float(ones_ratio):
-            # (--ones-ratio 1e-10 over 100 bits drew a code of share 0.01, and 0.01 over 2
-            # bits one of 0.5, unsaid: an outside audit of 2026-12-01)
-            ones = int(bits.sum())
-            warnings.warn(f"--ones-ratio {float(ones_ratio):g} drew a {period}-bit code with "
-                          f"{ones} one{'' if ones == 1 else 's'} (share {share:.3g}), which "
-                          f"the simulation and its eq. (10) use", UserWarning, stacklevel=2)
+    ones = int(bits.sum())
+    if kind == "random" and ones_ratio is not None and realised_far(
+            ones, float(ones_ratio) * period):
+        # (--ones-ratio 1e-10 over 100 bits drew a code of share 0.01, and 0.01 over 2 bits
+        # one of 0.5, unsaid: an outside audit of 2026-12-01)
+        warnings.warn(f"--ones-ratio {float(ones_ratio):g} drew a {period}-bit code with "
+                      f"{ones} one{'' if ones == 1 else 's'} (share {ones / period:.3g}), "
+                      f"which the simulation and its eq. (10) use", UserWarning, stacklevel=2)
     from ..pipeline.budget import check_time  # refuses beyond max_time, says over 30 s
 
     check_time(estimate_seconds(period, k, method,
@@ -436,7 +435,6 @@ def snr_simulated(
                    ", use --method sum" if method != "sum" else "") + (
                    ", use --interval delta" if interval == "bootstrap" else ""))
     lag = period // 3 if delay is None else as_integer(delay, "delay") % period
-    ones = int(bits.sum())
     sig_bit = m2 * a * m_s
     noise_bin = n * n * m_n
     theory = eq10(ones, m2, a, m_s, n, m_n)

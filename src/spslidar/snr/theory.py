@@ -147,6 +147,12 @@ def check_choice(value: Any, choices: Sequence[str], what: str) -> str:
 REALISED_TOLERANCE = 0.1
 
 
+def realised_far(realised: float, asked: float) -> bool:
+    """Whether a whole count ``realised`` lies more than :data:`REALISED_TOLERANCE` (relative)
+    from the ``asked`` one it rounds (mirrors on, a random code's ones)."""
+    return abs(realised - asked) > REALISED_TOLERANCE * asked
+
+
 def mirrors_on(on_fraction: float, size: int) -> int:
     """Number ``M_2`` of DMD mirrors switched on in a binary pattern.
 
@@ -174,7 +180,7 @@ def mirrors_on(on_fraction: float, size: int) -> int:
     f = check_on_fraction(on_fraction)
     n = check_size(size)
     m2 = max(1, int(round(f * n * n)))
-    if abs(m2 - f * n * n) > REALISED_TOLERANCE * f * n * n:
+    if realised_far(m2, f * n * n):
         import warnings
 
         # (--on-fraction 1e-300 at 8x8 ran with one mirror on, unsaid: an outside audit)

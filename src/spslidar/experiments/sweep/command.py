@@ -29,7 +29,7 @@ from spslidar.experiments.sweep.grid import (
     sha256_hex,
     with_scene_hashes,
 )
-from spslidar.experiments.sweep.store import cached_point, say_outcome, write_csv
+from spslidar.experiments.sweep.store import cached_point_state, say_outcome, write_csv
 
 __all__ = ["run_point", "sweep_main"]
 
@@ -284,7 +284,8 @@ def sweep_main(
         code = code_fingerprint()
         total, cached, stale, keys = 0.0, 0, 0, set()
         for point, cost in zip(points, costs, strict=True):
-            key, result = cached_point(Path(out_dir) / "runs", point, spec.seed, ignore, code)
+            key, result, old = cached_point_state(Path(out_dir) / "runs", point, spec.seed,
+                                                  ignore, code)
             if key in keys:  # (run once, and cached once)
                 continue
             keys.add(key)
@@ -294,8 +295,7 @@ def sweep_main(
                 total += cost
                 # (a run cached by other code is priced, and the refusal said only "16 runs
                 # would take ~2.1 s" of a sweep whose 16 runs were all cached: an audit)
-                stale += code is not None and cached_point(
-                    Path(out_dir) / "runs", point, spec.seed, ignore, None)[1] is not None
+                stale += old
         to_run = len(keys) - cached
         if scheduler is not None:
             # the cluster's threads run the points (the estimate was divided by --jobs, 1 by

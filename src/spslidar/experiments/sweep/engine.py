@@ -30,7 +30,7 @@ from spslidar.experiments.sweep.grid import (
     text_key,
     with_seed,
 )
-from spslidar.experiments.sweep.store import load_cached, store_run
+from spslidar.experiments.sweep.store import cached_state, store_run
 
 #: the table a sweep writes into its folder (known by its SHA-256 in the folder's marker)
 RESULTS_CSV = "results.csv"
@@ -534,14 +534,13 @@ def run_sweep(
         if key in seen:
             continue
         seen.add(key)
-        cached = load_cached(runs_dir / f"{key}.json", params_json[key], code)
+        cached, old = cached_state(runs_dir / f"{key}.json", params_json[key], code)
         if cached is not None:
             results[key] = cached
         else:
             tasks.append((len(tasks), full_params[i]))
             task_keys.append(key)
-            if code is not None and load_cached(runs_dir / f"{key}.json", params_json[key]):
-                stale += 1
+            stale += old
 
     n_unique = len(results) + len(tasks)
     if counts is not None:

@@ -35,6 +35,8 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_text",
     "cached_point",
+    "cached_point_state",
+    "cached_state",
     "load_cached",
     "store_run",
     "write_csv",
@@ -52,19 +54,27 @@ CACHE_FORMAT = 1
 def load_cached(path: Path, params_json: str, code: str | None = None) -> dict[str, Any] | None:
     """Return the cached result at ``path`` if it exists and was computed for these params
     (and, with ``code``, by that code: :func:`spslidar.plugins.code_fingerprint`)."""
+    return cached_state(path, params_json, code)[0]
+
+
+def cached_state(path: Path, params_json: str,
+                 code: str | None = None) -> tuple[dict[str, Any] | None, bool]:
+    """:func:`load_cached`'s result, and whether the record holds these params' result made by
+    other code than ``code`` (stale: run again, and said), from one read of the file (the
+    sweep read each uncached point's file twice to tell the two apart)."""
     from ...outwrite import read_json_record
 
     record = read_json_record(path)  # (None for a FIFO, a huge or a too deeply nested file)
     if not isinstance(record, dict) or not isinstance(record.get("result"), dict):
-        return None
-    if code is not None and record.get("code") != code:
-        return None
+        return None, False
     try:
         if canonical_json(record.get("params")) != params_json:
-            return None
+            return None, False
     except ConfigError:
-        return None
-    return record["result"]
+        return None, False
+    if code is not None and record.get("code") != code:
+        return None, True
+    return record["result"], False
 
 
 def cached_point(runs_dir: Path, point: Mapping[str, Any], seed: int,
@@ -73,9 +83,16 @@ def cached_point(runs_dir: Path, point: Mapping[str, Any], seed: int,
     record :func:`~spslidar.experiments.sweep.engine.run_sweep` names and reads, for the
     estimates that price only the runs not cached (``sweep --max-time`` and each batch of
     ``reproduce``, which had each written the key's derivation out again)."""
+    return cached_point_state(runs_dir, point, seed, ignore, code)[:2]
+
+
+def cached_point_state(runs_dir: Path, point: Mapping[str, Any], seed: int,
+                       ignore: Iterable[str], code: str | None
+                       ) -> tuple[str, dict[str, Any] | None, bool]:
+    """:func:`cached_point` and whether its record is stale (:func:`cached_state`)."""
     text = canonical_json(with_seed(point, seed, frozenset(ignore)))
     key = text_key(text)
-    return key, load_cached(Path(runs_dir) / f"{key}.json", text, code)
+    return (key, *cached_state(Path(runs_dir) / f"{key}.json", text, code))
 
 
 def store_run(path: Path, key: str, params: Any, result: dict[str, Any], elapsed: float,
