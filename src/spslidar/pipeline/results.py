@@ -163,13 +163,14 @@ class Result:
                 if self.confidence is not None else np.full(pts.shape[0], np.nan))
         number = np.ones(pts.shape[0], np.uint8)
         row, col = np.nonzero(have)  # (row-major, as the points)
-        if self.depth2 is not None and np.isfinite(self.depth2).any():
+        have2 = np.isfinite(self.depth2) if self.depth2 is not None else None
+        if have2 is not None and have2.any():
             pts2, _ = point_cloud(self.depth2, fov)
             nan = np.full(pts2.shape[0], np.nan)
             pts, intensity = np.concatenate([pts, pts2]), np.concatenate([intensity, nan])
             conf = np.concatenate([conf, nan])
             number = np.concatenate([number, np.full(pts2.shape[0], 2, np.uint8)])
-            row2, col2 = np.nonzero(np.isfinite(self.depth2))
+            row2, col2 = np.nonzero(have2)
             row, col = np.concatenate([row, row2]), np.concatenate([col, col2])
         return pts, intensity, {"confidence": conf, "return_number": number,
                                 "row": row.astype(np.int64), "col": col.astype(np.int64)}
