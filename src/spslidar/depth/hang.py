@@ -48,7 +48,7 @@ from __future__ import annotations
 import numpy as np
 
 from .lines import GAP, LO
-from .walk import BRIDGE_BEHIND, STRETCH_REACH, _across, _stretch
+from .walk import BRIDGE_BEHIND, STRETCH_LEVEL, STRETCH_REACH, STRETCH_TOTAL, _across, _stretch
 
 __all__ = ["HANG_FILL", "HANG_OWN", "hang_lines", "walk_on"]
 
@@ -167,8 +167,6 @@ def _may_stretch(z: np.ndarray, ys: np.ndarray, xs: np.ndarray, s: np.ndarray,
     against the loop alone). On a labelling of pure noise the loop went through every anchor
     in Python (7.8 s at 256x256, 2026-11-27); the anchors are now tested together, in chunks
     of ``chunk`` (16 x 3 evidence values each)."""
-    from .walk import STRETCH_LEVEL, STRETCH_TOTAL
-
     n1, n2 = shape
     dy, dx = d
     reach = np.arange(1, STRETCH_REACH + 1)
