@@ -218,14 +218,7 @@ class Config:
         if d is not None and not isinstance(d, Mapping):
             raise ConfigError(f"a configuration is a mapping of keys to values, got "
                               f"{type(d).__name__}")
-        merged: dict[str, Any] = {}
-        spelled: dict[str, str] = {}  # each key as the user wrote it
-        for k, v in (d or {}).items():
-            key = str(k).replace("-", "_")
-            if key in merged:  # code-length and code_length are one key: twice is a mistake
-                raise ConfigError(f"config key {key!r} given twice ({spelled[key]!r} and "
-                                  f"{k!r})")
-            merged[key], spelled[key] = v, str(k)
+        merged, spelled = underscored_keys(d or {})
         for k, v in kw.items():  # the keywords override the mapping
             key = str(k).replace("-", "_")
             merged[key], spelled[key] = v, str(k)
@@ -518,6 +511,23 @@ def close_names(key: str, names) -> list[str]:
 
 
 Config.__init__ = _init
+
+
+def underscored_keys(d: Mapping[str, Any], what: str = "config key"
+                     ) -> tuple[dict[str, Any], dict[str, str]]:
+    """``d`` with each key as a configuration reads it (``code-length`` is ``code_length``),
+    and each key as it was written; two spellings of one key are a mistake, refused in one
+    line (``{what} 'code_length' given twice ('code_length' and 'code-length')``). A sweep's
+    ``[base]`` and ``[grid]`` are read so too (their seeds and columns had followed the
+    spelling: an outside audit of 2026-12-01)."""
+    merged: dict[str, Any] = {}
+    spelled: dict[str, str] = {}
+    for k, v in d.items():
+        key = str(k).replace("-", "_")
+        if key in merged:
+            raise ConfigError(f"{what} {key!r} given twice ({spelled[key]!r} and {k!r})")
+        merged[key], spelled[key] = v, str(k)
+    return merged, spelled
 
 
 def stage_options() -> dict:

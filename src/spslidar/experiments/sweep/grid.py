@@ -407,23 +407,6 @@ def one_line(text: str) -> str:
 MAX_RUNS = 10_000
 
 
-def _underscored(table: Mapping[str, Any], where: str) -> dict[str, Any]:
-    """``table`` with each key as the run's configuration reads it (``code-length`` is
-    ``code_length``, :meth:`spslidar.config.Config.from_dict`), and two spellings of one key
-    refused. A point's seed and its ``results.csv`` column were of the key as written: a grid
-    over ``"lam-scale"`` drew another seed for each weight (2361523904 and 2280320822 where
-    ``lam_scale`` shares 4221282710), so its comparison was of two noise draws, and its
-    column did not merge with another sweep's (an outside audit of 2026-12-01)."""
-    out: dict[str, Any] = {}
-    spelled: dict[str, str] = {}
-    for k, v in table.items():
-        key = str(k).replace("-", "_")
-        if key in out:
-            raise ConfigError(f"{where}: key {key!r} given twice ({spelled[key]!r} and {k!r})")
-        out[key], spelled[key] = v, str(k)
-    return out
-
-
 def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
     """Read a sweep configuration from a TOML file.
 
@@ -448,7 +431,7 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
         If the file is missing or unreadable, is not valid TOML (the message names the file and
         line), has unknown top-level keys or tables, or holds invalid values.
     """
-    from spslidar.config import check_toml_bytes, read_config_bytes
+    from spslidar.config import check_toml_bytes, read_config_bytes, underscored_keys
 
     path = Path(path)
     raw = read_config_bytes(path, "sweep config")
@@ -484,7 +467,11 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
     grid = data.get("grid", {})
     if not isinstance(grid, dict):
         raise ConfigError(f"{path}: grid must be a table ([grid]), got {grid!r}")
-    base, grid = _underscored(base, f"{path}: base"), _underscored(grid, f"{path}: grid")
+    # each key as a run reads it, two spellings of one refused: a grid over "lam-scale" drew
+    # another seed for each weight (2361523904 and 2280320822 where lam_scale shares
+    # 4221282710), and named its results.csv column as spelled (an outside audit)
+    base = underscored_keys(base, f"{path}: base: key")[0]
+    grid = underscored_keys(grid, f"{path}: grid: key")[0]
     try:
         _check_grid(grid)
     except ConfigError as exc:
