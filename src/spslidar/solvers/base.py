@@ -153,6 +153,13 @@ class Monitor:
                 dx = _norm(step if step is not None else x - x_old)
             if dx <= stop.rtol * max(_norm(x), 1e-300):
                 return "rtol"
+        return self.limit(it)
+
+    def limit(self, it: int) -> str:
+        """The reason to stop at iteration ``it`` by the rules that need no iterate:
+        ``"max_time"``, ``"max_iter"`` or ``''`` (:meth:`check`'s last rules; a solver's
+        :meth:`Solver.step` applies them too where ``_step`` never asks)."""
+        stop = self.stop
         if stop.max_time is not None and time.perf_counter() - self.t0 >= stop.max_time:
             return "max_time"
         if it >= stop.max_iter:
@@ -366,13 +373,8 @@ class Solver:
                               f"{type(self).__qualname__}): its _step() returned {reason!r}, "
                               f"where it must return self.monitor.check(...)'s reason to stop "
                               f"('' to go on)")
-        stop = self.monitor.stop
-        if not reason and self.it >= stop.max_iter:  # (a _step that never asks the monitor)
-            reason = "max_iter"
-        elif not reason and stop.max_time is not None and \
-                time.perf_counter() - self.monitor.t0 >= stop.max_time:
-            reason = "max_time"
-        self.reason = reason
+        # (a _step that never asks the monitor still stops at the cap and the time limit)
+        self.reason = reason or self.monitor.limit(self.it)
 
     def done(self) -> bool:
         """Whether a stopping rule has been met (see :class:`StopRule`)."""
