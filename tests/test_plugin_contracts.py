@@ -105,6 +105,17 @@ def test_a_detector_that_returns_counts_alone_is_refused(registered):
                                           r"returned an array of shape \(\d+, \d+\) from its "
                                           r"detect\(\), where \(counts, totals\)"):
         spslidar.run(**SMALL, detector="countsonly")
+    # the array-API path's host stream (backends.rng, where a linear model's counts are drawn)
+    # had unpacked the model's return unchecked, a known limit of stop 71: the same check
+    from spslidar.backends import get_backend
+    from spslidar.backends.rng import Stream
+
+    stream = Stream(get_backend("numpy", "cpu"), np.random.SeedSequence(0))
+    with pytest.raises(ConfigError, match=r"'countsonly' \(CountsOnly\) returned an array"):
+        stream.poisson(np.ones((2, 8), np.float32), np.random.default_rng(0), CountsOnly())
+    counts, totals = stream.poisson(np.ones((2, 8), np.float32), np.random.default_rng(0),
+                                    LinearDetector())
+    assert counts.shape == (2, 8) and np.array_equal(totals, counts.sum(axis=1))
 
 
 @pytest.mark.parametrize("fault, match", [

@@ -93,7 +93,9 @@ class Stream:
         be, xp = self.be, self.be.xp
         if self.host:
             host = np.array(be.to_numpy(lam), dtype=np.float32)
-            counts, totals = detector.detect(host, child, n_periods, out=host)
+            from ..detectors.base import checked_detect
+
+            counts, totals = checked_detect(detector, host, child, n_periods, out=host)
             return be.asarray(counts), be.asarray(np.asarray(totals, dtype=np.float64))
         if be.name == "torch":
             import torch

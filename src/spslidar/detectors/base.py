@@ -16,8 +16,9 @@ from typing import Any
 import numpy as np
 
 from ..arrays import real_array
+from ..errors import ConfigError
 
-__all__ = ["DetectorModel"]
+__all__ = ["DetectorModel", "checked_detect"]
 
 
 def means_block(lam: Any) -> np.ndarray:
@@ -109,3 +110,19 @@ class DetectorModel:
         dict; ``noiseless``: the histograms are expected values, without counting noise),
         said as warnings by the run."""
         return []
+
+
+def checked_detect(detector, lam, rng, n_periods: int, out=None) -> tuple:
+    """``detector.detect(...)``'s ``(counts, totals)``, or a one-line ConfigError naming the
+    model where it returns anything else (a plugin's counts alone ended in "too many values
+    to unpack", a traceback: an outside audit of 2026-12-01). The host and the device
+    paths both call it."""
+    got = detector.detect(lam, rng, n_periods, out=out)
+    if not (isinstance(got, (tuple, list)) and len(got) == 2):
+        name = f"{getattr(detector, 'name', '?')!r} ({type(detector).__name__})"
+        what = (f"a {len(got)}-tuple" if isinstance(got, tuple) else
+                f"an array of shape {np.shape(got)}" if hasattr(got, "shape") else
+                type(got).__name__)
+        raise ConfigError(f"the detector model {name} returned {what} from its detect(), "
+                          f"where (counts, totals) is expected")
+    return got

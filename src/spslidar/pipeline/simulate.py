@@ -21,6 +21,7 @@ from ..correlate import (
     replica_matrix,
 )
 from ..detectors import DetectorModel
+from ..detectors.base import checked_detect
 from ..detectors.counting import MAX_MEAN, NoiseModel, check_means
 from ..errors import ConfigError
 from ..forward import expected_counts, shifted_codes
@@ -246,7 +247,7 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
                 check_means(lam)
             # the counts overwrite their own means (NumPy draws from a float64 copy)
             shape = lam.shape
-            lam, tot = _detect(detector, lam, children[b], acq.n_periods, out=lam)
+            lam, tot = checked_detect(detector, lam, children[b], acq.n_periods, out=lam)
             _check_counts(lam, shape, detector, totals=tot)  # (every model's: a plugin's)
             totals[rows] = tot
             if not detector.linear:
@@ -334,7 +335,7 @@ def _probe_row(patterns, weights, shifts, noise_bin, acq, detector, noiseless: b
                              expected=True)
             return True
         check_means(lam)
-        counts, _ = _detect(detector, lam, np.random.default_rng(0), acq.n_periods, out=lam)
+        counts, _ = checked_detect(detector, lam, np.random.default_rng(0), acq.n_periods, out=lam)
         detector.correct(counts, acq.n_periods)
     except ConfigError:
         return False
@@ -392,21 +393,6 @@ def _measured_block(block, detector, max_memory: float | None) -> int:
             f"{src}; lower the flux (--signal, --noise), --periods, --size or --code-length"
             + ("" if max_memory is None else ", or raise --max-memory"))
     return fit
-
-
-def _detect(detector, lam, rng, n_periods: int, out=None) -> tuple:
-    """``detector.detect(...)``'s ``(counts, totals)``, or a one-line ConfigError naming the
-    model where it returns anything else (a plugin's counts alone ended in "too many values
-    to unpack", a traceback: an outside audit of 2026-12-01)."""
-    got = detector.detect(lam, rng, n_periods, out=out)
-    if not (isinstance(got, (tuple, list)) and len(got) == 2):
-        name = f"{getattr(detector, 'name', '?')!r} ({type(detector).__name__})"
-        what = (f"a {len(got)}-tuple" if isinstance(got, tuple) else
-                f"an array of shape {np.shape(got)}" if hasattr(got, "shape") else
-                type(got).__name__)
-        raise ConfigError(f"the detector model {name} returned {what} from its detect(), "
-                          f"where (counts, totals) is expected")
-    return got
 
 
 def _check_counts(counts, shape: tuple, detector, what: str = "detect",
@@ -473,7 +459,7 @@ def _simulate_reference(patterns, weights, shifts, noise_bin, acq, detector, rep
             hist = detector.correct(hist, acq.n_periods, expected=True)
         else:
             check_means(lam)
-            hist, tot = _detect(detector, lam, children[b], acq.n_periods,
+            hist, tot = checked_detect(detector, lam, children[b], acq.n_periods,
                                 out=np.empty_like(lam))
             _check_counts(hist, lam.shape, detector, totals=tot)
             totals[rows] = tot
