@@ -34,6 +34,16 @@ def delay_to_depth(delay_bins, bin_width: float) -> np.ndarray:
     return real_array(delay_bins, "delay_bins").astype(np.float64) * width * SPEED_OF_LIGHT / 2.0
 
 
+def lag_to_depth(lag, bin_width: float, pulse_width: float) -> np.ndarray:
+    """Depth in metres of a return whose correlation peaks at (fractional) lag ``lag``:
+    eq. (3) at the pulse's leading edge, ``tau = lag + 1/2 - w/2`` for a pulse of ``w`` bins
+    (a return at delay ``tau`` spreads over ``[tau, tau + w)``, whose centre the bin
+    ``lag`` holds). The one statement of that offset: the argmax estimator, the profile's
+    slice depths, the calibrated cube's grid and the estimators' range check all call it."""
+    return delay_to_depth(np.asarray(lag, dtype=np.float64) + 0.5 - float(pulse_width) / 2.0,
+                          bin_width)
+
+
 def pulse_overlaps(delay: np.ndarray, pulse_width: float) -> tuple[np.ndarray, np.ndarray]:
     """Split each return pulse ``[delay, delay + pulse_width)`` over the integer TDC bins.
 

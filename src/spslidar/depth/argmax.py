@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..arrays import positive_number, real_array
-from ..forward import delay_to_depth
+from ..forward import lag_to_depth
 from .base import DepthContext, DepthEstimate, DepthEstimator, check_delays
 from .profile import ADJACENT_TOL, no_return, subbin_shift
 
@@ -125,7 +125,7 @@ def depth_from_peaks(idx: np.ndarray, peak: np.ndarray, below: np.ndarray | None
                            np.asarray(above, np.float64)], axis=1)
         present = np.stack([has_lo, np.ones_like(has_lo), has_hi], axis=1)
         pos = pos + subbin_shift(values, present, pulse_width)
-    depth = delay_to_depth(pos + 0.5 - pulse_width / 2.0, bin_width)
+    depth = lag_to_depth(pos, bin_width, pulse_width)
     depth[no_return(peak, min_peak_fraction)] = np.nan
     return depth
 

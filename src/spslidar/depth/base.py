@@ -265,13 +265,11 @@ def _checked_estimate(out: Any, q: int, who: str, ctx: DepthContext | None = Non
             arr = arr.astype(bool)
         setattr(out, name, arr.reshape(q))
     if ctx is not None and ctx.lags.size:
-        from ..forward import delay_to_depth
+        from ..forward import lag_to_depth
 
-        # (the slices' depths as index_to_depth reads them: a pulse of w bins puts a return
-        # at lag + 1/2 - w/2)
-        edge = 0.5 - float(ctx.pulse_width) / 2.0
-        lo, hi = (float(delay_to_depth(ctx.lags[i] + edge + s * GATE_SLACK_BINS,
-                                       ctx.bin_width))
+        # (the slices' depths as index_to_depth reads them)
+        lo, hi = (float(lag_to_depth(ctx.lags[i] + s * GATE_SLACK_BINS, ctx.bin_width,
+                                     ctx.pulse_width))
                   for i, s in ((0, -1), (-1, 1)))
         for name in ("depth", "depth2"):
             d = getattr(out, name, None)

@@ -13,7 +13,7 @@ import functools
 import numpy as np
 
 from ..errors import ConfigError
-from ..forward import delay_to_depth
+from ..forward import lag_to_depth
 from .base import DepthContext
 
 __all__ = ["ADJACENT_TOL", "NOISE_BESIDE_MIN", "NOISE_ONLY_MARGIN", "NOISE_ONLY_MIN_SLICES",
@@ -121,7 +121,7 @@ def index_to_depth(index: np.ndarray, ctx: DepthContext) -> np.ndarray:
     lags = np.asarray(ctx.lags, dtype=np.float64)
     index = np.asarray(index, dtype=np.float64)
     pos = np.interp(index, np.arange(lags.size), lags)
-    return delay_to_depth(pos + 0.5 - ctx.pulse_width / 2.0, ctx.bin_width)
+    return lag_to_depth(pos, ctx.bin_width, ctx.pulse_width)
 
 
 #: points of the grid of the pulse's leading edge over which :func:`subbin_offset` takes its

@@ -216,13 +216,13 @@ def refine_depth(depth: np.ndarray, seen: np.ndarray, lags: np.ndarray, bin_widt
     -------
     ndarray, shape (Q,)
     """
-    from ..forward import delay_to_depth
+    from ..forward import delay_to_depth, lag_to_depth
 
     depth = np.asarray(depth, dtype=np.float64).ravel()
     lags = np.asarray(lags, dtype=np.float64)
     if lags.size < 3 or not np.allclose(np.diff(lags), 1.0):
         return depth
-    grid = delay_to_depth(lags + 0.5 - pulse_width / 2.0, bin_width)
+    grid = lag_to_depth(lags, bin_width, pulse_width)
     ok = np.isfinite(depth)
     k = np.clip(np.searchsorted(grid, np.where(ok, depth, grid[0])), 1, lags.size - 1)
     k = np.where(np.abs(grid[k - 1] - depth) < np.abs(grid[k] - depth), k - 1, k)
