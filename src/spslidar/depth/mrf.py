@@ -194,6 +194,10 @@ class MRFDepth(DepthEstimator):
         behind filled) back to it where the evidence, relative to each surface's level
         nearby, holds it (:mod:`spslidar.depth.edges`; ``info['edge_pixels']``). Default
         True.
+    dots : bool
+        Last, keep the argmax of a pixel (or two) whose strong return no neighbour shares
+        where the MRF gave it the surface around it (:mod:`spslidar.depth.dots`;
+        ``info['dot_pixels']``). Default True.
     low_confidence : float
         Confidence below which a pixel is flagged.
 
@@ -248,7 +252,8 @@ class MRFDepth(DepthEstimator):
                  smoothness: float = SMOOTHNESS, truncation: float | None = None,
                  iterations: int = ITERATIONS,
                  subbin: bool | None = None, lines: bool = True, halo: bool = True,
-                 corners: bool = True, gaps: bool = True, edges: bool = True):
+                 corners: bool = True, gaps: bool = True, edges: bool = True,
+                 dots: bool = True):
         super().__init__(low_confidence)
         self.smoothness = option("smoothness", smoothness)
         self.truncation = None if truncation is None else option("truncation", truncation)
@@ -259,6 +264,7 @@ class MRFDepth(DepthEstimator):
         self.corners = bool(corners)
         self.gaps = bool(gaps)
         self.edges = bool(edges)
+        self.dots = bool(dots)
 
     def labelling(self, x: np.ndarray, z: np.ndarray, shape: tuple[int, int]
                   ) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -278,7 +284,8 @@ class MRFDepth(DepthEstimator):
         belief = belief.reshape(k, q).T
         mrf_label = label = np.argmin(belief, axis=1)
         thin = own = corner = gaps = 0
-        if self.lines or self.corners or self.edges:  # the block's typical noise maximum
+        if self.lines or self.corners or self.edges or self.dots:
+            # the block's typical noise maximum
             nu = float(np.median(noise_maxima(z)))
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
             from .hang import hang_lines, walk_on
@@ -319,10 +326,15 @@ class MRFDepth(DepthEstimator):
             from .edges import fill_edges
 
             label, edge = fill_edges(z, label, nu, shape)
+        dot = 0
+        if self.dots:  # a one- or two-pixel object's strong return (dots.py)
+            from .dots import keep_dots
+
+            label, dot = keep_dots(np.argmax(x, axis=1), label, z, nu, shape)
         return label, belief, {"sweeps": sweeps, "truncation": cap,
                                "thin_structure_pixels": thin, "own_surface_pixels": own,
                                "corner_pixels": corner, "gap_pixels": gaps,
-                               "edge_pixels": edge}
+                               "edge_pixels": edge, "dot_pixels": dot}
 
     def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:
         x = np.asarray(slices, dtype=np.float32)
