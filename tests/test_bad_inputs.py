@@ -59,6 +59,9 @@ def test_non_square_scene_is_cropped_with_a_warning(tmp_path, capsys):
     assert scene.notes and "16x20" in scene.notes[0] and "centre 16x16" in scene.notes[0]
     # the crop's field of view is not the file's (an outside audit of 2026-12-01)
     assert "2 atan(tan(F/2) 16/20) in the crop, the --fov of the point cloud" in scene.notes[0]
+    # nothing is resized at the crop's own size; at another size, what it is resized to
+    assert "resized" not in scene.notes[0]
+    assert "(resized to 8x8)" in load_scene(str(path), 8).notes[0]
     assert load_scene("camera", 16).notes == []
     out = tmp_path / "out"
     assert main(["run", *FAST, "--scene", str(path), "--out", str(out), "--no-figure"]) == 0

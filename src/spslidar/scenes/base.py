@@ -397,8 +397,11 @@ def _crop_note(name: str, shape: tuple[int, ...], size: int) -> str:
     side, long = min(shape), max(shape)
     # (a field of view across the file's longer side is not the crop's: an outside audit of
     # 2026-12-01)
-    return (f"scene {name} is {shape[0]}x{shape[1]}: its centre {side}x{side} is used "
-            f"(resized to {size}x{size}); its ranges seen through a field of view F across "
+    # (it said "resized to 48x48" of a 48x64 file at --size 48, where nothing is resized: an
+    # outside audit of 2026-12-01)
+    resized = f" (resized to {size}x{size})" if side != size else ""
+    return (f"scene {name} is {shape[0]}x{shape[1]}: its centre {side}x{side} is used"
+            f"{resized}; its ranges seen through a field of view F across "
             f"its {long} pixels span 2 atan(tan(F/2) {side}/{long}) in the crop, the --fov "
             f"of the point cloud")
 
