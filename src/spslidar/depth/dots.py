@@ -14,13 +14,14 @@ scene of the project's; 64 x 64, m_n 5 and 10, 25 % patterns, seeds 1-2): the MR
 
 :func:`keep_dots` keeps a pixel's argmax where the MRF moved it, its argmax belongs to a
 group of at most :data:`DOT_SIZE` pixels (4-neighbours joined where their argmax slices are
-within one of each other: a connected-components pass of :mod:`scipy.sparse.csgraph` over
-that graph), its evidence there reaches :data:`DOT_LEVEL` times the block's median noise
-maximum ``nu``, and it is at least the pixel's evidence at the MRF's label (the pixel's own
-profile prefers it). Half of the profiles' noise maxima are below ``nu``, so a dot stands
-six times above the typical one; a halo of a bright neighbour is at that neighbour's slice,
-so it is part of the neighbour's group, not a dot. The rule reads the evidence only: no
-library models the per-slice TV's spread around a dot.
+within one of each other: the line rules' grouping, :func:`.lines._groups`, a
+connected-components pass of :mod:`scipy.sparse.csgraph`), its evidence there reaches
+:data:`DOT_LEVEL` times the block's median noise maximum ``nu``, and it is at least the
+pixel's evidence at the MRF's label (the pixel's own profile prefers it). Half of the
+profiles' noise maxima are below ``nu``, so a dot stands six times above the typical one; a
+halo of a bright neighbour is at that neighbour's slice, so it is part of the neighbour's
+group, not a dot. The rule reads the evidence only: no library models the per-slice TV's
+spread around a dot.
 
 Chosen on 2026-12-02 (``benchmarks/depth_quality.py``'s cached slices; 64 x 64, m_n 5 and
 10, 25 and 50 % patterns) among group sizes 1-3, levels 2, 3, 4, 6 and 8 (of ``nu``, and of
@@ -71,21 +72,10 @@ def argmax_groups(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     -------
     ndarray of int, shape (Q,)
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    from .lines import _groups
 
-    n1, n2 = shape
-    grid = np.asarray(a).reshape(n1, n2).astype(np.int64)
-    index = np.arange(n1 * n2).reshape(n1, n2)
-    rows, cols = [], []
-    for here, there in (((slice(None), slice(0, -1)), (slice(None), slice(1, None))),
-                        ((slice(0, -1), slice(None)), (slice(1, None), slice(None)))):
-        joined = np.abs(grid[here] - grid[there]) <= 1
-        rows.append(index[here][joined])
-        cols.append(index[there][joined])
-    r, c = np.concatenate(rows), np.concatenate(cols)
-    graph = coo_matrix((np.ones(r.size, dtype=np.int8), (r, c)), shape=(n1 * n2, n1 * n2))
-    _, group = connected_components(graph, directed=False)
+    _, group, _ = _groups(np.ones(len(a), dtype=bool), np.asarray(a), shape, step=1,
+                          diagonals=False)
     return np.bincount(group)[group]
 
 

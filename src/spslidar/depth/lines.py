@@ -221,10 +221,10 @@ STRAIGHT_MIN = 4
 
 
 def _groups(cand: np.ndarray, a: np.ndarray, shape: tuple[int, int], step: int,
-            reach: int = 1) -> tuple[np.ndarray, np.ndarray, int]:
+            reach: int = 1, diagonals: bool = True) -> tuple[np.ndarray, np.ndarray, int]:
     """Candidates (flat indices), their group labels and the number of groups: candidates up
-    to ``reach`` pixels apart (in x and in y) joined where their argmax slices differ by at
-    most ``step``."""
+    to ``reach`` pixels apart (in x and in y; along a row or a column only without
+    ``diagonals``) joined where their argmax slices differ by at most ``step``."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -237,7 +237,7 @@ def _groups(cand: np.ndarray, a: np.ndarray, shape: tuple[int, int], step: int,
     rows, cols = [], []
     ys, xs = np.divmod(pix, n2)
     half = [(dy, dx) for dy in range(reach + 1) for dx in range(-reach, reach + 1)
-            if dy > 0 or dx > 0]  # each pair once
+            if (dy > 0 or dx > 0) and (diagonals or dy == 0 or dx == 0)]  # each pair once
     for dy, dx in half:
         y2, x2 = ys + dy, xs + dx
         ok = (y2 < n1) & (x2 >= 0) & (x2 < n2)

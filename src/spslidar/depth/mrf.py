@@ -287,13 +287,14 @@ class MRFDepth(DepthEstimator):
         if self.lines or self.corners or self.edges or self.dots:
             # the block's typical noise maximum
             nu = float(np.median(noise_maxima(z)))
+        if self.lines or self.dots:  # each pixel's own tallest slice
+            a = np.argmax(x, axis=1)
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
             from .hang import hang_lines, walk_on
             from .lines import extend_lines, thin_structures, track_lines
             from .own_surface import keep_own_surface
 
             rows = np.arange(q)
-            a = np.argmax(x, axis=1)
             za = z[rows, a]
             keep = thin_structures(a, label, za, nu, shape)
             label = np.where(keep, a, label)
@@ -330,7 +331,7 @@ class MRFDepth(DepthEstimator):
         if self.dots:  # a one- or two-pixel object's strong return (dots.py)
             from .dots import keep_dots
 
-            label, dot = keep_dots(np.argmax(x, axis=1), label, z, nu, shape)
+            label, dot = keep_dots(a, label, z, nu, shape)
         return label, belief, {"sweeps": sweeps, "truncation": cap,
                                "thin_structure_pixels": thin, "own_surface_pixels": own,
                                "corner_pixels": corner, "gap_pixels": gaps,
