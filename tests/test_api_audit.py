@@ -292,3 +292,28 @@ def test_the_solves_precision_does_not_change_the_patterns_shown():
     a, b = measure(**kw), measure(**kw, dtype="float64")
     ca, cb = (float(np.sum(m.sim["counts"])) for m in (a, b))
     assert abs(ca - cb) <= 1e-3 * ca, (ca, cb)
+
+
+def test_patterns_a_rounding_outside_0_1_are_taken_and_beyond_it_said_exactly():
+    """Grey levels computed in floating point (a pattern scaled by 1 + 1e-12, float32's
+    1.0000001, less 1e-9) were refused as "got values from 0 to 1" and "+1/-1 differences?"
+    (an outside audit of 2026-12-02): within ``PATTERN_ROUNDOFF`` they are clipped, beyond it
+    the values are printed to nine digits and the +1/-1 hint is kept for +1/-1 patterns."""
+    from spslidar.pipeline.inputs import PATTERN_ROUNDOFF
+    from spslidar.pipeline.real import check_patterns
+
+    p = (np.random.default_rng(2).random((4, 4, 4)) < 0.5).astype(np.float64)
+    p[0, 0, 0], p[0, 0, 1] = 1.0, 0.0
+    for near in (p * (1 + 1e-12), p - 1e-9, np.nextafter(p.astype(np.float32), np.float32(2)),
+                 p * (1 + 0.9 * PATTERN_ROUNDOFF)):
+        kept = near.copy()
+        out = check_patterns(near)
+        assert out.min() >= 0 and out.max() <= 1  # clipped, and within the rounding of 0/1:
+        np.testing.assert_allclose(out, p.reshape(4, -1), rtol=0, atol=PATTERN_ROUNDOFF)
+        np.testing.assert_array_equal(near, kept)  # the user's array untouched
+    with pytest.raises(ConfigError, match=r"values from 0 to 1\.00001\b") as exc:
+        check_patterns(p * 1.00001)
+    assert "+1/-1" not in str(exc.value)
+    with pytest.raises(ConfigError, match=r"values from -0\.001 to 0\.999\b") as exc:
+        check_patterns(p - 1e-3)
+    assert "+1/-1" not in str(exc.value)

@@ -107,3 +107,45 @@ def test_a_calibration_edited_by_hand_does_not_say_its_channels():
     for source in ("lab A", {"channels": ["a"]}, {"channels": [True]}, {"channels": 0}, None):
         assert channel_note({"measured_from": source}, Data(), 1) is None
     assert "channel 0" in channel_note({"measured_from": {"channels": [0]}}, Data(), 1)
+
+
+def test_a_calibrations_damaged_records_are_refused_in_one_line():
+    """A calibration edited by hand whose ``measured_from`` is not an object was an
+    AttributeError traceback in ``reconstruct``; channels that are no detector numbers
+    skipped the channel check, and a ``peak_to_noise`` of -5 was said as a response -5
+    deviations high (an outside audit of 2026-12-02). Each is one line now; the intact
+    records, and a calibration of an earlier version without them, are taken."""
+    import pytest
+
+    from spslidar.errors import ConfigError
+    from spslidar.pipeline.calibration_file import check_calibration
+
+    code = np.ones(31)
+    good = {"irf_offsets": [-1, 0, 1], "irf_values": [0.25, 0.5, 0.25], "bit_rate_hz": 1e10,
+            "delay_s": 0.0, "irf_fwhm_bins": 2.0, "code_length": 31, "lag_shift": 0,
+            "lag_fraction": 0.0, "peak_to_noise": 40.0, "warnings": ["a line"],
+            "detector": {"dead_time_s": 0.0}, "target": {"kind": "range"},
+            "measured_from": {"ptu": "wall.ptu", "channels": [0, 1], "channel": None}}
+    assert check_calibration(dict(good), "c", 1e10, code)["peak_to_noise"] == 40.0
+    old = {k: v for k, v in good.items()
+           if k not in ("peak_to_noise", "warnings", "detector", "target", "measured_from")}
+    check_calibration(old, "c", 1e10, code)
+    for key, value, said in (
+            ("measured_from", 5, "measured_from is damaged"),
+            ("measured_from", "lab wall 2024-05-01", "measured_from is damaged"),
+            ("measured_from", {"channels": 5}, "measured_from is damaged"),
+            ("measured_from", {"channels": ["a"]}, "measured_from is damaged"),
+            ("measured_from", {"channels": [True]}, "measured_from is damaged"),
+            ("measured_from", {"channels": [128]}, "measured_from is damaged"),
+            ("measured_from", {"channel": "1"}, "measured_from is damaged"),
+            ("peak_to_noise", -5, "peak_to_noise -5 is damaged"),
+            ("peak_to_noise", "40", "peak_to_noise '40' is damaged"),
+            ("peak_to_noise", float("nan"), "peak_to_noise nan is damaged"),
+            ("peak_to_noise", True, "peak_to_noise True is damaged"),
+            ("warnings", "one line", "warnings are damaged"),
+            ("warnings", [1], "warnings are damaged"),
+            ("detector", "SPAD", "detector record is damaged"),
+            ("target", [1], "target record is damaged")):
+        with pytest.raises(ConfigError, match="calibrate again") as exc:
+            check_calibration({**good, key: value}, "c", 1e10, code)
+        assert said in str(exc.value) and "\n" not in str(exc.value)

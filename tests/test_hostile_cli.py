@@ -458,3 +458,16 @@ def test_a_newline_in_a_path_keeps_the_error_on_one_line(tmp_path, capsys, monke
     assert info.value.code == 2
     _one_line(capsys, "x\\ny")
     assert not (tmp_path / "x").exists() and not (tmp_path / "o").exists()
+
+
+def test_a_calibration_out_named_as_a_folder_is_refused(tmp_path):
+    """``calibrate --out runs/newdir/`` wrote a plain file named ``newdir`` (Path drops the
+    trailing separator: an outside audit of 2026-12-02); a name that ends in a separator,
+    or is ``.`` or ``..``, names a folder and is refused before any work."""
+    from spslidar.pipeline.calibration_file import check_calibration_out
+
+    for out in (f"{tmp_path}/newdir/", f"{tmp_path}{os.sep}", f"{tmp_path}/.", "..", "."):
+        with pytest.raises(SpslidarError, match="is a folder; name the calibration file"):
+            check_calibration_out(out)
+    assert not (tmp_path / "newdir").exists()
+    assert check_calibration_out(tmp_path / "newdir" / "cal.json").name == "cal.json"

@@ -248,14 +248,39 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, values: np.ndarray,
 
 def read_ply(path: str | os.PathLike, fields: bool = False):
     """Read back a file of :func:`write_ply`: ``(points (P, 3), intensity (P,))``, and with
-    ``fields=True`` also a dict of its further properties (float64 or uint8 arrays)."""
+    ``fields=True`` also a dict of its further properties (float64 or uint8 arrays).
+
+    Raises
+    ------
+    ValueError
+        Naming the file, where it is not such a file (any other file was ``bytes.index``'s
+        bare "subsection not found": an outside audit of 2026-12-02).
+    """
     data = Path(path).read_bytes()
-    end = data.index(b"end_header\n") + len(b"end_header\n")
-    header = data[:end].decode("ascii").splitlines()
-    n = next(int(line.split()[2]) for line in header if line.startswith("element vertex"))
-    props = [line.split()[1:3] for line in header if line.startswith("property ")]
-    rec = np.frombuffer(data[end:], dtype=[(name, _PLY_TYPES[t]) for t, name in props],
-                        count=n)
+
+    def refuse(why: str) -> ValueError:
+        return ValueError(f"{path} is not a point cloud of spslidar's write_ply ({why})")
+
+    if not data.startswith(b"ply\n"):
+        raise refuse("it does not start with 'ply'")
+    end = data.find(b"end_header\n")
+    if end < 0:
+        raise refuse("no end_header")
+    end += len(b"end_header\n")
+    try:
+        header = data[:end].decode("ascii").splitlines()
+        if "format binary_little_endian 1.0" not in header:
+            raise ValueError("not binary little-endian")
+        n = next(int(line.split()[2]) for line in header if line.startswith("element vertex"))
+        props = [line.split()[1:3] for line in header if line.startswith("property ")]
+        dtype = np.dtype([(name, _PLY_TYPES[t]) for t, name in props])
+        if not {"x", "y", "z", "intensity"} <= set(dtype.names or ()):
+            raise ValueError("no x, y, z and intensity")
+        rec = np.frombuffer(data[end:], dtype=dtype, count=n)
+    except (UnicodeDecodeError, StopIteration, IndexError, KeyError, ValueError) as exc:
+        why = {UnicodeDecodeError: "its header is not text", StopIteration: "no vertices",
+               KeyError: f"a property of type {exc}"}.get(type(exc), str(exc) or "its header")
+        raise refuse(why) from None
     out = (np.stack([rec["x"], rec["y"], rec["z"]], axis=1).astype(np.float64),
            rec["intensity"].astype(np.float64))
     if not fields:

@@ -444,6 +444,10 @@ def write_ptu_from_timestamps(path: PathLike, times: ArrayLike, channels: ArrayL
     the file is :func:`~spslidar.io.write_ptu_t3`'s, its sync period the one read from the
     syncs, ``record_type`` (default ``"GenericT3"``: delays below 32768 units, 64 channels)
     and ``comment`` as there. Returns the events written (:class:`T3Events`).
+
+    As :func:`~spslidar.io.write_ptu_t3` (and :func:`numpy.save`), a file at ``path`` is
+    replaced: the library functions write where they are told; the commands (``run
+    --save-ptu``) are the ones that refuse to replace a file they did not write.
     """
     from .ptu_write import _record_type, write_ptu_t3
 

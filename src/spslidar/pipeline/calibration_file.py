@@ -10,6 +10,7 @@ import contextlib
 import errno
 import hashlib
 import json
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -57,7 +58,10 @@ def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Pa
     if out is None or not str(out).strip():
         raise SpslidarError("--out must name the calibration file (CAL.json)")
     path = Path(out)
-    if path.is_dir():
+    seps = (os.sep, os.altsep) if os.altsep else (os.sep,)
+    if path.is_dir() or str(out).endswith(seps) or path.name in ("", ".", ".."):
+        # (--out runs/newdir/ wrote a file named newdir: Path drops the trailing separator,
+        # an outside audit of 2026-12-02)
         raise SpslidarError(f"--out {out} is a folder; name the calibration file (CAL.json)")
     if path.is_symlink():
         # (exists() follows links: a dangling link or a loop was replaced by a file without
@@ -279,7 +283,38 @@ def check_calibration(cal: dict, what: str, bit_rate: float, code: np.ndarray) -
         raise ConfigError(f"{what} was measured with a code of "
                           f"{cal['code_length']} bits, not {np.asarray(code).size}")
     calibration_shifts(cal, what)
+    _check_records(cal, what)
     return cal
+
+
+def _check_records(cal: dict, what: str) -> None:
+    """The records ``reconstruct`` reads besides the numbers (where they are there): what it
+    was measured from, its detector channels, its response's height and its warnings (a file
+    edited by hand, ``"measured_from": 5``, was an AttributeError traceback; ``"channels": 5``
+    skipped the channel check, ``"peak_to_noise": -5`` was said as a response -5 deviations
+    high: an outside audit of 2026-12-02)."""
+    def channel_list(v: Any) -> bool:
+        return v is None or (isinstance(v, list) and all(
+            isinstance(c, int) and not isinstance(c, bool) and 0 <= c < 128 for c in v))
+
+    source = cal.get("measured_from")
+    if source is not None and not (isinstance(source, dict) and channel_list(
+            source.get("channels")) and channel_list(source.get("channel"))):
+        raise ConfigError(f"{what}: its measured_from is damaged (an object whose channels "
+                          f"are detector numbers 0-127); calibrate again")
+    ptn = cal.get("peak_to_noise")
+    if ptn is not None and not (isinstance(ptn, (int, float)) and not isinstance(ptn, bool)
+                                and math.isfinite(ptn) and ptn > 0):
+        raise ConfigError(f"{what}: its peak_to_noise {ptn!r} is damaged (a response's height "
+                          f"in noise deviations, above 0); calibrate again")
+    said = cal.get("warnings")
+    if said is not None and not (isinstance(said, list)
+                                 and all(isinstance(w, str) for w in said)):
+        raise ConfigError(f"{what}: its warnings are damaged (a list of lines); calibrate again")
+    for key in ("detector", "target"):
+        if cal.get(key) is not None and not isinstance(cal[key], dict):
+            raise ConfigError(f"{what}: its {key} record is damaged ({cal[key]!r}); calibrate "
+                              f"again")
 
 
 def calibration_shifts(cal: dict, what: str = "the calibration") -> dict[int, int]:

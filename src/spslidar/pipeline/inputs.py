@@ -119,6 +119,11 @@ def check_pattern_size(size: Any) -> int | None:
     return int(value)
 
 
+#: how far outside [0, 1] a pattern's values may lie and be taken as the rounding of grey
+#: levels computed in floating point (clipped): ten of float32's steps at 1
+PATTERN_ROUNDOFF = 1e-6
+
+
 def check_patterns(patterns: Any, distinct: bool = True, what: str = "patterns") -> np.ndarray:
     """Mirror states shown, ``(M, N, N)`` or ``(M, N*N)``, as float32 ``(M, N*N)`` (integers
     are stored levels, read as images are: :func:`spslidar.io.lab_images.to_states`, so
@@ -155,14 +160,21 @@ def check_patterns(patterns: Any, distinct: bool = True, what: str = "patterns")
         bad = int(np.count_nonzero(~np.isfinite(arr)))
         raise ConfigError(f"{what} holds {bad} NaN or infinite value(s): mirror states are "
                           f"numbers in [0, 1] (0/1 or grey levels)")
-    if arr.min() < 0 or arr.max() > 1:
-        # (a DMD bitplane saved as 0/255 uint8 was told only "must hold ... [0, 1]": an audit)
-        hint = (": 8-bit levels 0-255? divide by 255" if arr.min() >= 0 and arr.max() <= 255
-                and np.all(arr == np.round(arr)) else
-                ": +1/-1 differences? give the two complementary patterns as rows of their own"
-                if arr.min() >= -1 and arr.max() <= 1 else "")
-        raise ConfigError(f"{what} must hold mirror states in [0, 1] (0/1 or grey levels), got "
-                          f"values from {arr.min():g} to {arr.max():g}{hint}")
+    lo, hi = float(arr.min()), float(arr.max())
+    if lo < 0 or hi > 1:
+        if lo >= -PATTERN_ROUNDOFF and hi <= 1 + PATTERN_ROUNDOFF:
+            # grey levels computed in floating point: float32's 1.0000001, a pattern scaled
+            # by (1 + 1e-12) or less 1e-9 were refused as "got values from 0 to 1" and as
+            # "+1/-1 differences?" (an outside audit of 2026-12-02)
+            arr = np.clip(arr, 0.0, 1.0)
+        else:
+            # (a DMD bitplane saved as 0/255 uint8 was told only "must hold ... [0, 1]")
+            hint = (": 8-bit levels 0-255? divide by 255" if lo >= 0 and hi <= 255
+                    and np.all(arr == np.round(arr)) else
+                    ": +1/-1 differences? give the two complementary patterns as rows of "
+                    "their own" if -1 <= lo <= -0.5 and hi <= 1 else "")
+            raise ConfigError(f"{what} must hold mirror states in [0, 1] (0/1 or grey "
+                              f"levels), got values from {lo:.9g} to {hi:.9g}{hint}")
     flat = arr.reshape(arr.shape[0], -1)
     if not flat.any():
         raise ConfigError(f"{what}: every mirror of every pattern is off, so no light reaches "
