@@ -605,6 +605,19 @@ def _main(argv: list[str] | None = None) -> int:
         print(f"spslidar {args.command}: error: a plugin's stage raised "
               f"{type(exc).__name__}: {text}{place}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except SystemExit as exc:
+        # (a stage's `raise SystemExit(0)` or `sys.exit()` ended `run` with exit 0, writing
+        # nothing and saying nothing: an outside audit of 2026-12-02. No command of
+        # spslidar's exits this way, argparse's exits come before the command, so it is the
+        # stage's: a refusal of its work, said in one line)
+        from .errors import raised_text
+        from .plugins import raised_in_plugin, where
+
+        place = raised_in_plugin(exc)
+        who = "a stage" if place is None else "a plugin's stage"
+        print(f"spslidar {args.command}: error: {who} raised {raised_text(exc)}"
+              f"{where(exc) if place is None else place}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt as exc:
         # a sweep's result generator, held by this exception's traceback, is closed when the
         # exception goes; joblib then warns of the tasks it cancelled, after this command's

@@ -25,6 +25,17 @@ def first_line(exc: BaseException) -> str:
     return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
+def raised_text(exc: BaseException) -> str:
+    """What an exception a researcher's code raised says in a one-line refusal: its type and
+    first line (``RuntimeError: boom``), or for a ``SystemExit`` its exit code as Python writes
+    the call (``SystemExit(0)``: "SystemExit: 0" read as a message "0"; an outside audit of
+    2026-12-02 met ``raise SystemExit(0)`` in a plugin stage, a silent exit 0)."""
+    if isinstance(exc, SystemExit):
+        return f"SystemExit({exc.code!r})"
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    return f"{type(exc).__name__}: {text}"
+
+
 def numbers_blanked(text: str) -> str:
     """``text`` with its numbers replaced by ``#``: what tells a warning that comes again with
     other numbers (a fixed point's relative change, per block) from another one."""

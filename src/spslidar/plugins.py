@@ -23,7 +23,7 @@ import os
 import sys
 from pathlib import Path
 
-from .errors import ConfigError
+from .errors import ConfigError, raised_text
 
 __all__ = ["ENV", "code_fingerprint", "load_plugins", "plugin_specs", "raised_in_plugin", "where"]
 
@@ -159,9 +159,11 @@ def load_plugins(specs: list[str] | None = None, export: bool = False) -> list[s
             _LOADED[key] = _import(key if spec.endswith(".py") else spec)
         except ConfigError:
             raise
-        except Exception as exc:  # a plugin's own error: said in one line, with its type
-            raise ConfigError(f"plugin {spec} failed to import: {type(exc).__name__}: "
-                              f"{str(exc).splitlines()[0] if str(exc) else ''}"
+        except (Exception, SystemExit) as exc:  # a plugin's own error: one line, its type
+            # (a SystemExit too: `sys.exit(0)` at a plugin's import made every command a
+            # silent exit 0, and `import spslidar` under SPSLIDAR_PLUGINS ended the process;
+            # an outside audit of 2026-12-02)
+            raise ConfigError(f"plugin {spec} failed to import: {raised_text(exc)}"
                               f"{where(exc)}") from None
         finally:
             _IMPORTING.pop()

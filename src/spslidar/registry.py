@@ -160,6 +160,8 @@ class Entry:
     plugin : str
         The plugin (``--plugin``, ``SPSLIDAR_PLUGINS``) whose import registered it, also
         from a module that plugin imports; ``''`` outside a plugin's import.
+    kind : str
+        What it is (its registry's ``kind``: ``"depth estimator"``), for messages.
     """
 
     name: str
@@ -171,15 +173,36 @@ class Entry:
     options: tuple[Option, ...] = ()
     origin: str = ""
     plugin: str = ""
+    kind: str = ""
 
     def load(self) -> Any:
-        """The implementation (imported on first use)."""
+        """The implementation (imported on first use).
+
+        Raises
+        ------
+        ConfigError
+            A stage registered from outside the package whose ``"module:attribute"`` does
+            not import, in one line (``ESTIMATORS.add("x", "nonexistent.module:Thing")`` in a
+            plugin was a 42-line ModuleNotFoundError traceback from ``run --depth x``, where
+            ``check`` and ``sweep`` said it in one line: an outside audit of 2026-12-02). A
+            built-in stage's failure stays a traceback: it is spslidar's bug.
+        """
         if not isinstance(self.target, str):
             return self.target
         module, _, attr = self.target.partition(":")
-        obj = importlib.import_module(module)
-        for part in attr.split(".") if attr else ():
-            obj = getattr(obj, part)
+        try:
+            obj = importlib.import_module(module)
+            for part in attr.split(".") if attr else ():
+                obj = getattr(obj, part)
+        except Exception as exc:
+            if _built_in(self):
+                raise
+            from .errors import raised_text
+            from .plugins import where  # (the line of a module that fails in its own code)
+
+            what = f"{self.kind} {self.name!r}" if self.kind else repr(self.name)
+            raise ConfigError(f"{what}, registered as {self.target!r}, does not load: "
+                              f"{raised_text(exc)}{where(exc)}") from None
         return obj
 
     def check(self, cfg: Any) -> None:
@@ -357,7 +380,7 @@ class Registry:
         from .plugins import importing
 
         entry = Entry(name, target, display or name, help, dict(defaults), validate,
-                      tuple(options), origin, importing())
+                      tuple(options), origin, importing(), self.kind)
         old = self._entries.get(name)
         if old is not None and old.target != entry.target:
             # (a plugin's "fista" replaced the built-in without a word, and metrics.json still

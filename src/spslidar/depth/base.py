@@ -245,6 +245,13 @@ def _checked_estimate(out: Any, q: int, who: str, ctx: DepthContext | None = Non
     in [0, 1], NaN read as 0 and its depth flagged; a one-line ConfigError naming the
     estimator otherwise (a plugin's short depth array ended in a reshape traceback, a
     confidence in [-2, 4] was written to ``confidence.npy``; an audit)."""
+    if not hasattr(out, "depth"):
+        # (a plugin's estimate returning None was told it "returned depth of 1 entries for
+        # 256 pixels": an outside audit of 2026-12-02)
+        got = "None" if out is None else f"a {type(out).__name__}"
+        raise ConfigError(f"the depth estimator {who} returned {got}, not a DepthEstimate: "
+                          f"estimate(slices, ctx) returns spslidar.depth.DepthEstimate(depth, "
+                          f"confidence, peak, low_confidence) of one entry per pixel")
     for name in ("depth", "confidence", "peak", "low_confidence", "depth2"):
         value = getattr(out, name, None)
         if value is None and name == "depth2":

@@ -379,7 +379,20 @@ def _grey_to_scene(name: str, grey: np.ndarray, size: int, lo: float, hi: float,
         notes.append(_surface_note(name, min(grey.shape), size))
     grey = (_resize_surfaces if surfaces else _resize)(_center_crop(grey), size)
     valid = np.ones((size, size), dtype=bool)
-    depth = _remap(grey, valid, lo, hi)
+    if float(grey.max()) > float(grey.min()):
+        depth = _remap(grey, valid, lo, hi)
+    else:
+        # a uniform image has no darkest and brightest level to map onto the window: its
+        # grey level was taken as metres and clipped, so level 0 or 1 was a wall at the
+        # window's near end and 128-255 one at its far end, unsaid (an outside audit of
+        # 2026-12-02); a flat wall at the window's middle, said
+        mid = 0.5 * (lo + hi)
+        depth = np.full((size, size), mid)
+        notes.append(f"scene image {name} is uniform (grey level {float(grey.flat[0]):.4g} "
+                     f"everywhere at {size}x{size}): no range of grey "
+                     f"levels to map onto the depth window {lo:g}-{hi:g} m, so its depth is a "
+                     f"flat wall at {mid:g} m, the window's middle (--depth-min/--depth-max "
+                     f"move it; an .npy depth map gives any depth)")
     return Scene(name, depth, np.ones((size, size)), valid, notes)
 
 

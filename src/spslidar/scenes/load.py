@@ -66,7 +66,8 @@ def load_scene(
     *User files.* ``.npy`` holds depth in metres. ``.npz`` holds ``depth`` and optional
     ``reflectivity`` and ``valid``; depth may be NaN where ``valid`` is False. Grey images are
     mapped onto the window like ``camera`` (their own darkest to brightest level), with
-    reflectivity 1.
+    reflectivity 1; a uniform one has no such range and is a flat wall at the window's
+    middle, with a note that says so.
 
     *Resampling.* Non-square inputs are centre-cropped to a square, then resized. A user's
     file (and image): every pixel takes the depth of its footprint's median source pixel (up-
@@ -91,6 +92,15 @@ def load_scene(
         if kind in SCENES and (bool(sep) == bool(SCENES.get(kind).defaults.get("argument"))):
             make = SCENES.load(kind)
             made = make(size, lo, hi, arg) if sep else make(size, lo, hi)
+            if not isinstance(made, Scene):
+                # (a plugin's kind returning a plain depth array was told it "made a depth
+                # map of shape ()": an outside audit of 2026-12-02)
+                got = (f"a {made.dtype} array of shape {made.shape}"
+                       if hasattr(made, "shape") and hasattr(made, "dtype")
+                       else "None" if made is None else f"a {type(made).__name__}")
+                raise SceneError(f"scene kind {kind!r} returned {got}, not a Scene: a scene "
+                                 f"kind returns spslidar.scenes.Scene(name, depth, "
+                                 f"reflectivity, valid) of (size, size) arrays")
             shape = tuple(getattr(getattr(made, "depth", None), "shape", ()))
             if shape != (size, size):  # (a plugin's 15x15 at size 16 ended in a traceback)
                 raise SceneError(f"scene kind {kind!r} made a depth map of shape {shape} for "

@@ -346,11 +346,27 @@ def snr_point(params: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in rows[0].items() if k not in params}
 
 
-def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
+def snr_point_seconds(params: dict[str, Any]) -> float:
+    """The estimated time of one :func:`snr_point`: its simulation's, as ``spslidar snr``
+    prices it (:func:`spslidar.snr.simulate.estimate_seconds`, 6e-8 s per simulated TDC bin,
+    ``periods x code_length`` bins). The SNR experiment was priced at nothing, so
+    ``--max-time 1s`` ran its 11.5 s (an outside audit of 2026-12-02); on the 2-core machine
+    the estimate is 15.5 s for its 24 points (measured 9.9 s, 11.7 s for the command) and 1.5 s
+    for ``--quick``'s 16 (measured 1.7 s, 2.4 s for the command): the per-bin rate was
+    measured at 4.9e-8 s and rounded up, as the runs' budgets round up."""
+    from spslidar.snr.simulate import estimate_seconds
+
+    return estimate_seconds(int(params["code_length"]), int(params["periods"]),
+                            str(params["method"]))
+
+
+def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]],
+                      price: Callable[[dict[str, Any]], float] | None = None) -> None:
     """Refuse a batch of runs whose estimated time (each distinct configuration's budget,
-    :func:`spslidar.pipeline.preflight`, times its runs, over the workers), added to the
-    batches' before it in this command, exceeds ``ctx.max_time``; one over 30 s says its
-    estimate first. The experiments finished before a refusal keep their report sections."""
+    :func:`spslidar.pipeline.preflight`, or ``price(point)`` where given, times its runs,
+    over the workers), added to the batches' before it in this command, exceeds
+    ``ctx.max_time``; one over 30 s says its estimate first. The experiments finished before
+    a refusal keep their report sections."""
     from spslidar.experiments.sweep.grid import TRIAL_KEY
     from spslidar.experiments.sweep.store import cached_point
     from spslidar.pipeline import preflight
@@ -360,13 +376,17 @@ def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
     seconds: dict[str, float] = {}
     total = 0.0
     # (a plugin estimator's option is processing too: the static keys kept --window beside
-    # the default depth, refused, an audit of plugins)
-    processing = processing_keys()
+    # the default depth, refused, an audit of plugins); a priced point function's runs are
+    # seeded from all their parameters, as run_points runs them
+    processing = processing_keys() if price is None else frozenset()
     for params in points:
         # its cache record, as run_sweep names and reads it: a cached run costs nothing
         if cached_point(ctx.cache / "runs", params, ctx.seed, processing,
                         ctx.code)[1] is not None:
             continue  # (a resumed fig2 was refused for the run it had cached)
+        if price is not None:
+            total += price(params)
+            continue
         cfg = {k: v for k, v in params.items() if k != TRIAL_KEY and k not in processing}
         key = repr(sorted(cfg.items()))
         if key not in seconds:
@@ -381,7 +401,9 @@ def _check_batch_time(ctx: Context, points: Sequence[dict[str, Any]]) -> None:
     # the whole command's estimate, not each batch's (--max-time 10 ran 30 s of batches)
     check_time(ctx.estimated_s + total / workers, ctx.max_time,
                f"this reproduction (its earlier batches and this one of {len(points)} runs)",
-               reduce="the work with --quick or fewer --trials")
+               # (a priced point function, eq. (10)'s, reads no --trials)
+               reduce="the work with --quick" + (" or fewer --trials" if price is None
+                                                 else ""))
     ctx.estimated_s += total / workers
 
 
@@ -389,6 +411,7 @@ def run_points(
     ctx: Context,
     points: Sequence[dict[str, Any]],
     func: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
+    price: Callable[[dict[str, Any]], float] | None = None,
 ) -> list[dict[str, Any]]:
     """Run (or load from the cache) the points and count the failed ones in ``ctx.failed``.
 
@@ -404,6 +427,10 @@ def run_points(
         and whose every successful run must leave its depth map in ``ctx.maps`` (a cached run
         whose map is gone is run again here). Another function (e.g. :func:`snr_point`) is run
         as it is, seeded from all its parameters.
+    price : callable, optional
+        ``price(point)``: the estimated seconds of one of ``func``'s points (e.g.
+        :func:`snr_point_seconds`), which ``--max-time`` bounds as it bounds the runs'; a
+        ``func`` without one is not priced.
 
     Returns
     -------
@@ -416,8 +443,8 @@ def run_points(
     if len(points) > MAX_RUNS:
         raise ConfigError(f"this experiment has {len(points)} runs, more than the {MAX_RUNS} "
                           f"one batch takes; use fewer --trials")
-    if func is None and ctx.max_time is not None:
-        _check_batch_time(ctx, points)
+    if (func is None or price is not None) and ctx.max_time is not None:
+        _check_batch_time(ctx, points, price)
     if func is not None:
         rows = run_sweep(func, list(points), ctx.cache, seed=ctx.seed, jobs=ctx.jobs,
                          scheduler=ctx.scheduler, progress=ctx.progress, code=ctx.code)

@@ -10,7 +10,13 @@ from typing import Any
 import numpy as np
 
 from spslidar.experiments.report import Claim, md_table
-from spslidar.experiments.reproduce.context import Context, run_points, snr_point, write_rows
+from spslidar.experiments.reproduce.context import (
+    Context,
+    run_points,
+    snr_point,
+    snr_point_seconds,
+    write_rows,
+)
 from spslidar.experiments.reproduce.prose import section
 from spslidar.experiments.reproduce.stats import (
     consistent,
@@ -41,7 +47,7 @@ def exp_snr(ctx: Context) -> tuple[str, list[Claim]]:
         for r in (0.1, 0.3, 0.5):
             points.append({**base, "code": "random", "code_length": L, "ones_ratio": r})
         points.append({**base, "code": "mseq", "code_length": L, "ones_ratio": 0.5})
-    rows = run_points(ctx, points, func=snr_point)
+    rows = run_points(ctx, points, func=snr_point, price=snr_point_seconds)
     ok = ok_rows(rows)
     csv = write_rows(ctx, name, rows)
     png = ctx.folder(name) / f"{name}.png"
