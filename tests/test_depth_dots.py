@@ -9,7 +9,16 @@ import numpy as np
 import pytest
 
 from spslidar.depth import DepthContext
-from spslidar.depth.dots import DOT_LEVEL, DOT_SIZE, argmax_groups, keep_dots
+from spslidar.depth.dots import (
+    DOT_FDR,
+    DOT_LEVEL,
+    DOT_SIZE,
+    WEAK_DOT_COUNT,
+    argmax_groups,
+    expected_spikes,
+    keep_dots,
+    weak_dots,
+)
 from spslidar.depth.mrf import MRFDepth
 
 SHAPE = (12, 12)
@@ -127,3 +136,85 @@ def test_the_mrf_keeps_a_one_pixel_object_it_would_smooth_away():
     # kept: 22 slices (0.33 m at 100 ps) in front of the wall
     assert with_.depth[dot] == pytest.approx(with_.depth[dot + 1] - 22 * 0.015, abs=0.01)
     assert with_.info["dot_pixels"] == 1 and without.info["dot_pixels"] == 0
+
+
+# -- weaker dots, kept together against the profiles' own noise (weak_dots) ---------------------
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_expected_spikes_is_the_sum_over_pixels(seed):
+    """The sorted-prefix form of ``E(e) = sum_i S(max(e, r_i))`` against the sum itself
+    (ties included: the noise and returns drawn on a grid of values)."""
+    rng = np.random.default_rng(seed)
+    noise = rng.integers(0, 30, 200) / 10
+    r = rng.integers(0, 60, 200) / 10
+    e = np.sort(rng.integers(0, 50, 17) / 10)[::-1]
+
+    def brute(v):
+        return np.mean(noise[None, :] >= v[:, None], axis=1)
+
+    want = [brute(np.maximum(ek, r)).sum() for ek in e]
+    np.testing.assert_allclose(expected_spikes(noise, r, e), want, rtol=1e-12, atol=1e-12)
+
+
+def _dotted(n_dots, dot, wall, noise_sd, seed=0, shape=(24, 24)):
+    """A wall at slice WALL of evidence ``wall`` with noise (half-normal maxima around 1),
+    ``n_dots`` isolated pixels whose argmax is DOT at ``dot`` with the wall's spread at
+    ``0.8 dot`` there, labelled the wall (as the MRF gives them)."""
+    rng = np.random.default_rng(seed)
+    q = shape[0] * shape[1]
+    z = np.abs(rng.normal(0, noise_sd, (q, K)))
+    z[:, WALL] += wall
+    # dots on a lattice 3 pixels apart: no two are 4-neighbours
+    grid = [(y, x) for y in range(1, shape[0], 3) for x in range(1, shape[1], 3)]
+    idx = [y * shape[1] + x for y, x in grid[:n_dots]]
+    z[idx, WALL] = 0.8 * dot
+    z[idx, DOT] = dot
+    a = np.argmax(z, axis=1)
+    label = np.full(q, WALL)
+    nu = float(np.median(np.max(np.where(np.abs(np.arange(K) - a[:, None]) > 2, z, 0), 1)))
+    return z, a, label, nu, np.array(idx), shape
+
+
+def test_many_weak_dots_over_a_bright_wall_are_kept_one_is_not():
+    """Dots at 2.5 noise maxima (below DOT_LEVEL) on a wall whose returns stand far above
+    the noise: noise cannot give that many, so they are kept; one alone is not (an isolated
+    spike is kept by no count of one: WEAK_DOT_COUNT)."""
+    z, a, label, nu, idx, shape = _dotted(20, 0.0, 8.0, 0.4)
+    z[idx, DOT] = 2.5 * nu
+    z[idx, WALL] = 2.0 * nu
+    a = np.argmax(z, axis=1)
+    assert np.all(a[idx] == DOT)
+    assert 2.5 < DOT_LEVEL
+    keep = weak_dots(a, label, z, nu, shape)
+    assert set(np.nonzero(keep)[0]) == set(idx.tolist())
+    out, kept = keep_dots(a, label, z, nu, shape)
+    assert kept == 20 and np.all(out[idx] == DOT)
+    assert WEAK_DOT_COUNT == 5  # (chosen: with one, the street kept a single spike)
+    few = idx[:4]
+    z2 = z.copy()
+    z2[idx[4:], DOT] = 0.0
+    z2[idx[4:], WALL] = 8.0
+    a2 = np.argmax(z2, axis=1)
+    assert np.all(a2[few] == DOT)
+    assert not weak_dots(a2, label, z2, nu, shape).any()
+    # nor are they where each holds more evidence at the label than at its argmax (the
+    # argmax reads the raw profile, so it can differ from the evidence's tallest slice)
+    z3 = z.copy()
+    z3[idx, WALL] = 3.0 * nu
+    assert np.all(a[idx] == DOT)
+    assert not weak_dots(a, label, z3, nu, shape).any()
+
+
+def test_weak_dots_where_the_returns_are_as_weak_as_the_noise_are_left_to_the_mrf():
+    """The same 20 candidates on a dark wall whose returns are at the noise's level: noise
+    is expected to give as many argmaxes over them, so none is kept (the street's and the
+    room's overridden spikes stand at the same evidence as the dots kept above)."""
+    z, a, label, nu, idx, shape = _dotted(20, 0.0, 0.6, 0.4, seed=1)
+    z[idx, DOT] = 2.5 * nu
+    z[idx, WALL] = 2.0 * nu
+    a = np.argmax(z, axis=1)
+    candidates = (a != label) & (argmax_groups(a, shape) <= DOT_SIZE)
+    assert candidates.sum() >= 20  # the dots and noise's own argmaxes
+    e = np.sort(z[np.arange(a.size), a][candidates])[::-1]
+    assert np.all(expected_spikes(np.sort(z[:, :WALL - 3].max(1)), z[:, WALL], e[:20])
+                  > DOT_FDR * np.arange(1, 21))
+    assert not weak_dots(a, label, z, nu, shape).any()

@@ -196,7 +196,8 @@ class MRFDepth(DepthEstimator):
         True.
     dots : bool
         Last, keep the argmax of a pixel (or two) whose strong return no neighbour shares
-        where the MRF gave it the surface around it (:mod:`spslidar.depth.dots`;
+        where the MRF gave it the surface around it, and of weaker such dots where the
+        scene holds more of them than its noise can give (:mod:`spslidar.depth.dots`;
         ``info['dot_pixels']``). Default True.
     low_confidence : float
         Confidence below which a pixel is flagged.
@@ -328,7 +329,7 @@ class MRFDepth(DepthEstimator):
 
             label, edge = fill_edges(z, label, nu, shape)
         dot = 0
-        if self.dots:  # a one- or two-pixel object's strong return (dots.py)
+        if self.dots:  # one- and two-pixel objects' returns (dots.py)
             from .dots import keep_dots
 
             label, dot = keep_dots(a, label, z, nu, shape)
