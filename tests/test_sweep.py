@@ -332,6 +332,30 @@ def test_run_sweep_recomputes_mismatched_or_corrupt_cache(tmp_path):
     assert json.loads(files[1].read_text())["params"]["x"] == 1  # repaired
 
 
+def test_run_sweep_runs_again_a_record_whose_result_was_edited(tmp_path):
+    """A cached record's result edited by hand (``depth_rmse_m`` set to 123.0) was read back
+    into ``results.csv`` on resume (an outside audit of 2026-12-02): each record keeps its
+    result's checksum, and one that no longer matches is run again; a record of an earlier
+    version, without the checksum, is read as before."""
+    calls_dir = tmp_path / "calls"
+    func = functools.partial(counting, calls_dir=str(calls_dir))
+    points = expand_grid({}, {"x": [1, 2, 3]})
+    first = run_sweep(func, points, tmp_path, progress=False)
+    files = {json.loads(f.read_text())["params"]["x"]: f for f in (tmp_path / "runs").iterdir()}
+    assert all("result_sha256" in json.loads(f.read_text()) for f in files.values())
+    edited = json.loads(files[1].read_text())
+    edited["result"]["value"] = 123.0
+    files[1].write_text(json.dumps(edited))
+    older = json.loads(files[3].read_text())
+    del older["result_sha256"]
+    files[3].write_text(json.dumps(older))
+    for f in calls_dir.iterdir():
+        f.unlink()
+    second = run_sweep(func, points, tmp_path, progress=False)
+    assert [c["x"] for c in calls(calls_dir)] == [1]
+    assert second == first and 123.0 not in [r.get("value") for r in second]
+
+
 def test_run_sweep_duplicate_points_computed_once(tmp_path):
     calls_dir = tmp_path / "calls"
     func = functools.partial(counting, calls_dir=str(calls_dir))

@@ -72,9 +72,21 @@ def cached_state(path: Path, params_json: str,
             return None, False
     except ConfigError:
         return None, False
+    if "result_sha256" in record and record["result_sha256"] != result_sha256(record["result"]):
+        # (a record's depth_rmse_m edited to 123.0 was read back into results.csv on resume:
+        # an outside audit of 2026-12-02; it is run again, as a damaged record is)
+        return None, False
     if code is not None and record.get("code") != code:
         return None, True
     return record["result"], False
+
+
+def result_sha256(result: Any) -> str:
+    """The checksum a cache record keeps of its result (its JSON with sorted keys)."""
+    import hashlib
+
+    text = json.dumps(result, sort_keys=True, allow_nan=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def cached_point(runs_dir: Path, point: Mapping[str, Any], seed: int,
@@ -104,6 +116,8 @@ def store_run(path: Path, key: str, params: Any, result: dict[str, Any], elapsed
         "key": key,
         "params": params,
         "result": result,
+        # (of the result as it will be read back: JSON's own keys and numbers)
+        "result_sha256": result_sha256(json.loads(json.dumps(result, allow_nan=True))),
         "elapsed_s": round(elapsed, 6),
     }
     if code is not None:
