@@ -200,21 +200,95 @@ def test_many_weak_dots_over_a_bright_wall_are_kept_one_is_not():
     # argmax reads the raw profile, so it can differ from the evidence's tallest slice)
     z3 = z.copy()
     z3[idx, WALL] = 3.0 * nu
-    assert np.all(a[idx] == DOT)
     assert not weak_dots(a, label, z3, nu, shape).any()
 
 
-def test_weak_dots_where_the_returns_are_as_weak_as_the_noise_are_left_to_the_mrf():
-    """The same 20 candidates on a dark wall whose returns are at the noise's level: noise
-    is expected to give as many argmaxes over them, so none is kept (the street's and the
-    room's overridden spikes stand at the same evidence as the dots kept above)."""
+@pytest.mark.parametrize("how", ["near the label", "three pixels"])
+def test_weak_returns_by_the_surface_or_in_groups_are_no_dots(how):
+    """Returns within two slices of the label are the surface's own (a slanted surface's
+    next slice: a review made 275 such pixels "dots" on a surface sloping two slices a pixel),
+    and a group of three is a region: neither is a weaker dot, however many."""
+    z, a, label, nu, idx, shape = _dotted(20, 0.0, 8.0, 0.4)
+    z[idx, WALL] = 2.0 * nu
+    if how == "near the label":
+        z[idx, WALL + 2] = 2.5 * nu
+    else:
+        for i in idx:  # each dot with the pixels above and below it, alike
+            line = [i - shape[1], i, i + shape[1]]
+            z[line, DOT] = 2.5 * nu
+            z[line, WALL] = 2.0 * nu
+    a = np.argmax(z, axis=1)
+    assert np.all(a[idx] != WALL)
+    assert not weak_dots(a, label, z, nu, shape).any()
+
+
+def test_weak_dots_on_a_dark_wall_are_left_to_the_mrf():
+    """The same 20 candidates on a dark wall whose returns are at the noise's level keep
+    none: the noise sample holds the dots' own returns, so ``E(e_k) >= k W(e_k) / Q`` with
+    ``W`` the pixels whose label holds less than ``e_k`` (here nearly all), over
+    ``DOT_FDR * k`` at every ``k`` (what the test amounts to: dots are kept only where at
+    least 80 % of the pixels return more strongly)."""
+    from spslidar.depth.profile import noise_maxima
+
     z, a, label, nu, idx, shape = _dotted(20, 0.0, 0.6, 0.4, seed=1)
     z[idx, DOT] = 2.5 * nu
     z[idx, WALL] = 2.0 * nu
     a = np.argmax(z, axis=1)
-    candidates = (a != label) & (argmax_groups(a, shape) <= DOT_SIZE)
-    assert candidates.sum() >= 20  # the dots and noise's own argmaxes
-    e = np.sort(z[np.arange(a.size), a][candidates])[::-1]
-    assert np.all(expected_spikes(np.sort(z[:, :WALL - 3].max(1)), z[:, WALL], e[:20])
-                  > DOT_FDR * np.arange(1, 21))
+    rows = np.arange(a.size)
+    r = z[rows, label]
+    e = np.sort(z[idx, DOT])[::-1]
+    expected = expected_spikes(noise_maxima(z, 2, centre=label), r, e)
+    k = np.arange(1, e.size + 1)
+    weak = np.array([np.sum(r < ek) for ek in e])
+    assert np.all(expected >= k * weak / a.size - 1e-12)  # the bound, ...
+    assert np.all(expected > DOT_FDR * k)  # ... over the rate everywhere
     assert not weak_dots(a, label, z, nu, shape).any()
+
+
+@pytest.mark.parametrize("expected, count, kept", [
+    ([0, 0, 0, 5, 5, 5, 5, 5, 5, 5], 5, 0),  # three pass, fewer than the count
+    ([0, 0, 0, 5, 5, 5, 5, 5, 5, 5], 1, 3),
+    ([0, 0, 0, 0, 0, 0, 10, 10, 10, 10], 5, 6),  # the cut in the middle of the list
+    ([0, 9, 0, 0, 0, 0, 0.5, 10, 10, 10], 5, 7),  # step-up: the largest k that passes
+])
+def test_the_cut_is_benjamini_hochbergs_step_up(monkeypatch, expected, count, kept):
+    """The procedure itself, with the expected counts given: the ``k`` strongest are kept
+    for the largest ``k >= count`` with ``E(e_k) <= DOT_FDR k`` (0.2 here), whatever the
+    ``E`` of the ranks before it."""
+    import spslidar.depth.dots as dots
+
+    assert DOT_FDR == 0.2
+    z, a, label, nu, idx, shape = _dotted(10, 0.0, 8.0, 0.4)
+    z[idx, DOT] = np.linspace(5.0, 2.0, 10) * nu  # ten candidates, strongest first
+    z[idx, WALL] = 1.5 * nu
+    a = np.argmax(z, axis=1)
+    monkeypatch.setattr(dots, "expected_spikes",
+                        lambda noise, r, e: np.asarray(expected, dtype=float)[:len(e)])
+    keep = weak_dots(a, label, z, nu, shape, count=count)
+    assert set(np.nonzero(keep)[0]) == set(idx[:kept].tolist())
+
+
+def test_noise_maxima_in_blocks_and_about_a_given_centre(monkeypatch):
+    """The blocked form of the noise maxima is the one-pass form, about each pixel's tallest
+    slice or about a given centre (the dot step's label), at any block size."""
+    import spslidar.depth.profile as profile
+
+    rng = np.random.default_rng(4)
+    z = rng.normal(size=(301, 23))
+    centre = rng.integers(0, 23, 301)
+
+    def plain(c):
+        far = np.abs(np.arange(23)[None, :] - c[:, None]) > 2
+        return np.max(np.where(far, z, 0.0), axis=1)
+
+    for entries in (profile.NOISE_BLOCK_ENTRIES, 100, 23, 1):
+        monkeypatch.setattr(profile, "NOISE_BLOCK_ENTRIES", entries)
+        np.testing.assert_array_equal(profile.noise_maxima(z), plain(np.argmax(z, axis=1)))
+        np.testing.assert_array_equal(profile.noise_maxima(z, 2, centre=centre), plain(centre))
+
+
+def test_expected_spikes_refuses_what_it_cannot_count():
+    with pytest.raises(ValueError, match="at least one noise sample"):
+        expected_spikes([], [1.0], [1.0])
+    with pytest.raises(ValueError, match="finite"):
+        expected_spikes([1.0], [np.nan, 1.0], [1.0])

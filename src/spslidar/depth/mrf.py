@@ -196,8 +196,9 @@ class MRFDepth(DepthEstimator):
         True.
     dots : bool
         Last, keep the argmax of a pixel (or two) whose strong return no neighbour shares
-        where the MRF gave it the surface around it, and of weaker such dots where the
-        scene holds more of them than its noise can give (:mod:`spslidar.depth.dots`;
+        where the MRF gave it the surface around it, and of weaker such dots together where
+        most of the scene returns more strongly and its noise gives few such spikes
+        (:mod:`spslidar.depth.dots`;
         ``info['dot_pixels']``). Default True.
     low_confidence : float
         Confidence below which a pixel is flagged.

@@ -302,9 +302,9 @@ def _check_records(cal: dict, what: str) -> None:
             source.get("channels")) and channel_list(source.get("channel"))):
         raise ConfigError(f"{what}: its measured_from is damaged (an object whose channels "
                           f"are detector numbers 0-127); calibrate again")
-    ptn = cal.get("peak_to_noise")
+    ptn = cal.get("peak_to_noise")  # (+inf is calibrate's own where the side noise is 0)
     if ptn is not None and not (isinstance(ptn, (int, float)) and not isinstance(ptn, bool)
-                                and math.isfinite(ptn) and ptn > 0):
+                                and not math.isnan(ptn) and ptn > 0):
         raise ConfigError(f"{what}: its peak_to_noise {ptn!r} is damaged (a response's height "
                           f"in noise deviations, above 0); calibrate again")
     said = cal.get("warnings")

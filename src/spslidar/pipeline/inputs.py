@@ -120,7 +120,7 @@ def check_pattern_size(size: Any) -> int | None:
 
 
 #: how far outside [0, 1] a pattern's values may lie and be taken as the rounding of grey
-#: levels computed in floating point (clipped): ten of float32's steps at 1
+#: levels computed in floating point (clipped): about eight of float32's steps above 1
 PATTERN_ROUNDOFF = 1e-6
 
 
