@@ -197,8 +197,7 @@ class MRFDepth(DepthEstimator):
     dots : bool
         Last, keep the argmax of a pixel (or two) whose strong return no neighbour shares
         where the MRF gave it the surface around it, and of weaker such dots together where
-        most of the scene returns more strongly and its noise gives few such spikes
-        (:mod:`spslidar.depth.dots`;
+        noise cannot give as many (:mod:`spslidar.depth.dots`;
         ``info['dot_pixels']``). Default True.
     low_confidence : float
         Confidence below which a pixel is flagged.
