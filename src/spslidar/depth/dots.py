@@ -178,9 +178,9 @@ def weak_dots(a: np.ndarray, label: np.ndarray, z: np.ndarray, nu: float,
     scenes' dots it wrongly did at 1.8-5.1 and 1.1-2.9. Not a count of one
     (:data:`WEAK_DOT_COUNT`): with one, and the noise maxima read away from the argmax too,
     the street at m_n = 1, 50 % kept a single spike at 3.4 noise maxima beside its wall's 2.8
-    (0.0044 -> 0.0146 m). SciPy's ``false_discovery_control`` takes p-values, which this
-    empirical null gives only to its own sample size; the expected count is the procedure's
-    own quantity, so it is written here.
+    (0.0044 -> 0.0146 m). SciPy's ``false_discovery_control`` takes one p-value per test;
+    here what noise is expected to give at a level depends on every pixel's return, so the
+    step-up is written over the expected count itself.
 
     Parameters
     ----------
