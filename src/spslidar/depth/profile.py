@@ -354,7 +354,7 @@ def noise_maxima(z: np.ndarray, exclude: int = 2, centre: np.ndarray | None = No
     """Per pixel, the largest evidence outside +-``exclude`` slices of its tallest slice (or
     of ``centre``, a slice per pixel: the MRF's label in :mod:`.dots`): a sample of the noise
     maximum of a profile (the return itself left out); 0 where nothing is outside. In blocks
-    of at most :data:`NOISE_BLOCK_ENTRIES` entries (512 x 512 pixels of 142 slices were a
+    of at most ``NOISE_BLOCK_ENTRIES`` entries (512 x 512 pixels of 142 slices were a
     300 MB copy at once)."""
     q, k = z.shape
     if k == 0:

@@ -429,7 +429,7 @@ def run_points(
         as it is, seeded from all its parameters.
     price : callable, optional
         ``price(point)``: the estimated seconds of one of ``func``'s points (e.g.
-        :func:`snr_point_seconds`), which ``--max-time`` bounds as it bounds the runs'; a
+        ``snr_point_seconds``), which ``--max-time`` bounds as it bounds the runs'; a
         ``func`` without one is not priced.
 
     Returns
