@@ -595,25 +595,17 @@ def _main(argv: list[str] | None = None) -> int:
         print(f"spslidar {args.command}: error: out of memory ({what}): the machine has less "
               f"memory free than this needs; {less}{kept}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except Exception as exc:
-        from .plugins import raised_in_plugin
-
-        place = raised_in_plugin(exc)
-        if place is None:  # spslidar's own error: its traceback, for a bug report
-            raise
-        text = str(exc).splitlines()[0] if str(exc) else ""
-        print(f"spslidar {args.command}: error: a plugin's stage raised "
-              f"{type(exc).__name__}: {text}{place}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except SystemExit as exc:
-        # (a stage's `raise SystemExit(0)` or `sys.exit()` ended `run` with exit 0, writing
-        # nothing and saying nothing: an outside audit of 2026-12-02. No command of
-        # spslidar's exits this way, argparse's exits come before the command, so it is the
-        # stage's: a refusal of its work, said in one line)
+    except (Exception, SystemExit) as exc:
+        # a plugin's stage raising, in one line; a stage's `raise SystemExit(0)` or
+        # `sys.exit()` too, wherever it is (it ended `run` with exit 0, writing nothing and
+        # saying nothing: an outside audit of 2026-12-02; no command of spslidar's exits
+        # this way, argparse's exits come before the command)
         from .errors import raised_text
         from .plugins import raised_in_plugin, where
 
         place = raised_in_plugin(exc)
+        if place is None and not isinstance(exc, SystemExit):
+            raise  # spslidar's own error: its traceback, for a bug report
         who = "a stage" if place is None else "a plugin's stage"
         print(f"spslidar {args.command}: error: {who} raised {raised_text(exc)}"
               f"{where(exc) if place is None else place}", file=sys.stderr)
