@@ -138,8 +138,10 @@ def keep_dots(a: np.ndarray, label: np.ndarray, z: np.ndarray, nu: float,
     rows = np.arange(label.size)
     za = z[rows, a]
     moved = (label != a) & (za >= level * nu) & (za >= z[rows, label])
-    groups = argmax_groups(a, shape)
-    keep = moved & (groups <= size)
+    # (the grouping only where a dot moved: it ran on every MRF call, most with none; the
+    # weaker dots' step groups its own candidates where there are enough of them)
+    groups = argmax_groups(a, shape) if moved.any() else None
+    keep = moved & (groups <= size) if groups is not None else moved
     label = np.where(keep, a, label)
     weak = weak_dots(a, label, z, nu, shape, size, groups=groups)
     return np.where(weak, a, label), int(keep.sum() + weak.sum())
