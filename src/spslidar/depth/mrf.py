@@ -273,7 +273,11 @@ class MRFDepth(DepthEstimator):
         ``lines``; also the beliefs ``(Q, K)`` and numbers for ``info``. Shared by the
         estimators built on this MRF (``guarded``, ``evidence``)."""
         q, k = x.shape
-        cap = self.truncation if self.truncation is not None else auto_truncation(z)
+        later = self.lines or self.corners or self.edges or self.dots
+        # the block's noise maxima, once: the truncation's and the later steps' typical one
+        null = noise_maxima(z) if later or self.truncation is None else None
+        cap = (self.truncation if self.truncation is not None
+               else auto_truncation(z, null=null))
         if self.halo:  # the per-slice TV's halo around bright regions (halo.py)
             from .halo import halo_discount
 
@@ -285,9 +289,8 @@ class MRFDepth(DepthEstimator):
         belief = belief.reshape(k, q).T
         mrf_label = label = np.argmin(belief, axis=1)
         thin = own = corner = gaps = 0
-        if self.lines or self.corners or self.edges or self.dots:
-            # the block's typical noise maximum
-            nu = float(np.median(noise_maxima(z)))
+        if later:  # the block's typical noise maximum
+            nu = float(np.median(null))
         if self.lines or self.dots:  # each pixel's own tallest slice
             a = np.argmax(x, axis=1)
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
@@ -366,7 +369,8 @@ class MRFDepth(DepthEstimator):
         return y / np.float32(noise_scale(y))
 
 
-def auto_truncation(z: np.ndarray, exclude: int = 2) -> float:
+def auto_truncation(z: np.ndarray, exclude: int = 2, null: np.ndarray | None = None
+                    ) -> float:
     """Half the median, over the pixels, of the largest evidence outside each profile's
     tallest return (+-``exclude`` slices): the typical noise maximum of a profile, halved.
 
@@ -375,10 +379,11 @@ def auto_truncation(z: np.ndarray, exclude: int = 2) -> float:
     evidence beats the noise spikes of its own profile, while an isolated spike, paying
     ``4 T``, is outvoted unless it is twice as tall. The noise maximum grows with the number
     of slices (about 2.8 noise scales for 61 slices, 3.6 for 200 on the built-in scenes).
+    ``null``, where given, is ``noise_maxima(z, exclude)`` already computed.
     """
     if z.shape[1] <= 2 * exclude + 1:
         return 1.0
-    t = 0.5 * float(np.median(noise_maxima(z, exclude)))
+    t = 0.5 * float(np.median(noise_maxima(z, exclude) if null is None else null))
     return t if t > 0 else 1.0
 
 

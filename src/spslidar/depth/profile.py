@@ -361,7 +361,7 @@ def noise_maxima(z: np.ndarray, exclude: int = 2, centre: np.ndarray | None = No
         return np.zeros(q)
     idx = np.argmax(z, axis=1) if centre is None else np.asarray(centre)
     out = np.empty(q)
-    step = max(1, NOISE_BLOCK_ENTRIES // max(k, 1))
+    step = block_rows(k)
     lags = np.arange(k)[None, :]
     for i in range(0, q, step):
         j = slice(i, i + step)
@@ -375,6 +375,13 @@ def noise_maxima(z: np.ndarray, exclude: int = 2, centre: np.ndarray | None = No
 NOISE_BLOCK_ENTRIES = 2 ** 22
 
 
+def block_rows(k: int, block: int | None = None) -> int:
+    """Profiles of ``k`` slices a block holds: at most :data:`NOISE_BLOCK_ENTRIES` entries
+    (and at most ``block`` profiles where given), one at least."""
+    rows = NOISE_BLOCK_ENTRIES // max(int(k), 1)
+    return max(1, rows if block is None else min(int(block), rows))
+
+
 def _noise_stats(slices: np.ndarray, exclude: int = 2, corr_exclude: int = 3,
                  max_lag: int = 4, block: int = 65536) -> tuple[np.ndarray, float]:
     """One pass over the pulse-filtered profiles, ``block`` pixels at a time (and at most
@@ -385,7 +392,7 @@ def _noise_stats(slices: np.ndarray, exclude: int = 2, corr_exclude: int = 3,
     """
     x = np.asarray(slices)
     q, k = x.shape
-    step = max(1, min(block, NOISE_BLOCK_ENTRIES // max(k, 1)))
+    step = block_rows(k, block)
     return _block_stats((x[i:i + step] for i in range(0, q, step)), q, k, exclude,
                         corr_exclude, max_lag)
 
@@ -461,7 +468,7 @@ def _reference_blocks(k: int, pixels: int = 2048, seed: int = 0):
     blocks of at most :data:`NOISE_BLOCK_ENTRIES` entries drawn in turn from one generator
     (the same numbers as one ``(pixels, k)`` draw)."""
     rng = np.random.default_rng(seed)
-    step = max(1, NOISE_BLOCK_ENTRIES // max(int(k), 1))
+    step = block_rows(k)
     for start in range(0, pixels, step):
         yield np.maximum(rng.standard_normal((min(step, pixels - start), k)), 0.0)
 
