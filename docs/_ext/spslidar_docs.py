@@ -397,6 +397,8 @@ METRICS: dict[str, str] = {
                     "and of second-surface points among them, the per-point fields."),
     "ptu": "``reconstruct`` only: the PTU file read (a list of them, read in that order, "
            "where several were given: the counts are then summed over them), its photons "
+           "(``n_photons``: all the files' photons read, every repeat, where ``--frame`` "
+           "solves one; ``counts_per_pattern``: the photons solved) "
            "and code periods per pattern solved (``patterns_solved``: their rows of "
            "``--patterns``), the background, the blocks left out (``blocks_left_out``: a "
            "dropout or a stall, ``spslidar.pipeline.screen``; numbered through the repeats, "
