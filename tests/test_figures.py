@@ -11,10 +11,17 @@ from spslidar.figures import _PANEL, LOW_CONFIDENCE, NO_RETURN, NO_TRUTH, depth_
 def result():
     r = pipeline.run(scene="motorcycle", size=16, code_length=1023, noise=10, seed=0)
     # make every kind present: a pixel without return, and low-confidence ones
-    r.depth[0, 0] = np.nan
-    r.low_confidence = np.zeros(r.depth.shape, dtype=bool)
-    r.low_confidence[5, 5] = True
+    # (a result's arrays are read-only views: edited copies put in)
+    r.depth = _edited(r.depth, (0, 0), np.nan)
+    r.low_confidence = _edited(np.zeros(r.depth.shape, dtype=bool), (5, 5), True)
     return r
+
+
+def _edited(a, at, value):
+    """A writable copy of ``a`` with ``a[at] = value``."""
+    a = np.array(a)
+    a[at] = value
+    return a
 
 
 def _pixel(img, panel, row, col, n):
@@ -54,9 +61,9 @@ def test_estimate_outside_the_colour_range_is_marked(result, tmp_path):
     from spslidar.figures import OUT_OF_RANGE, _legend_items, _title
 
     r = result
-    saved = r.depth.copy()
+    saved = r.depth
     try:
-        r.depth[3, 3] = float(np.nanmax(r.truth)) + 5.0
+        r.depth = _edited(saved, (3, 3), float(np.nanmax(r.truth)) + 5.0)
         img = Image.open(depth_figure(r, tmp_path / "o.png")).convert("RGB")
         assert _pixel(img, 1, 3, 3, r.depth.shape[0]) == OUT_OF_RANGE
         outside = np.isfinite(r.depth) & (r.depth > np.nanmax(r.truth) + 1)
@@ -65,7 +72,7 @@ def test_estimate_outside_the_colour_range_is_marked(result, tmp_path):
         # the title names the solver with the regulariser it ran ('auto' resolved)
         assert f"{r.config.solver} + {r.metrics['config']['regulariser']}," in _title(r)
     finally:
-        r.depth[...] = saved
+        r.depth = saved
 
 
 def test_coverage_never_rounds_up_to_100_percent():
@@ -161,8 +168,8 @@ def test_errors_beyond_the_error_bar_are_crossed_and_counted(tmp_path):
 
     r = pipeline.run(scene="steps", size=16, code_length=1023, signal=50, seed=0)
     n = r.depth.shape[0]
-    r.depth[2, 2] = r.truth[2, 2] + 0.6
-    r.depth[9, 9] = r.truth[9, 9] + 0.004  # within the bar
+    r.depth = _edited(r.depth, (2, 2), r.truth[2, 2] + 0.6)
+    r.depth = _edited(r.depth, (9, 9), r.truth[9, 9] + 0.004)  # within the bar
     lim = _limits(r)[3]
     assert lim < 0.1
     title = [p[1] for p in _panels(r) if p[0] == "error"][0]
@@ -196,9 +203,9 @@ def test_second_surface_panel_marks_no_return_and_outliers(tmp_path):
     r = pipeline.run(scene="fence", size=16, code_length=1023, noise=1, compression=0.5,
                      depth="guarded", seed=0)
     n = r.depth.shape[0]
-    r.depth[0, 0] = np.nan
-    r.depth2[...] = np.nan
-    r.depth2[3, 3] = float(np.nanmax(r.truth)) + 5.0  # beyond the bar
+    r.depth = _edited(r.depth, (0, 0), np.nan)
+    r.depth2 = _edited(np.full(r.depth2.shape, np.nan), (3, 3),
+                       float(np.nanmax(r.truth)) + 5.0)  # beyond the bar
     one = np.argwhere(np.isfinite(r.depth) & ~np.isfinite(r.depth2))[0]
     img = Image.open(depth_figure(r, tmp_path / "d2.png")).convert("RGB")
     panel = 4  # truth, estimate, error, reflectivity, second surface
@@ -284,8 +291,8 @@ def test_the_confidence_panel_draws_no_return_black(result, tmp_path):
     from PIL import Image
 
     big = _big(result, 320)
-    big.depth[7, 7] = np.nan
-    big.confidence[7, 7] = 0.0
+    big.depth = _edited(big.depth, (7, 7), np.nan)
+    big.confidence = _edited(big.confidence, (7, 7), 0.0)
     img = Image.open(depth_figure(big, tmp_path / "c.png")).convert("RGB")
     panel = 2  # estimate | reflectivity | confidence
     x, y = 10 + panel * (320 + 70) + 7, 20 + 22 + 7
@@ -324,10 +331,10 @@ def test_without_a_truth_the_depth_bar_takes_in_the_depths_beside_it(result):
 
     big = _big(result, 320)
     ramp = np.linspace(10.0, 10.8, 320)[None, :] * np.ones((320, 1))
-    big.depth[...] = ramp
+    big.depth = ramp
     lo, hi = _limits(big)[:2]
     assert (lo, hi) == (10.0, 10.8) and not _outside(big, lo, hi).any()
-    big.depth[5, 5] = 14.0
+    big.depth = _edited(big.depth, (5, 5), 14.0)
     lo, hi = _limits(big)[:2]
     assert hi == 10.8 and _outside(big, lo, hi).sum() == 1
 

@@ -287,6 +287,13 @@ def matched_filter(
     # (0.7 bin read as 0, a NaN as an arbitrary lag, an audit of 2026-11-29)
     lags = np.mod(whole_numbers(lags, "lags"), period)
     gain = positive_number(gain, "gain")
+    try:  # (an int dtype truncated the correlations, 3.03 to 3: an outside audit of 2026-12-02)
+        floating = np.issubdtype(np.dtype(out_dtype), np.floating)
+    except TypeError:
+        floating = False
+    if not floating:
+        raise ValueError(f"out_dtype must be a real floating dtype (float32 or float64), got "
+                         f"{out_dtype!r}")
     if bank is not None and np.shape(bank) != (period, lags.size):
         # (a bank built for other lags was used as it was: 3 columns for 10 lags)
         raise ValueError(f"bank of shape {np.shape(bank)} for {lags.size} lags of a {period}-bin "
@@ -325,6 +332,9 @@ def correlation_noise_sigma(hist: np.ndarray, replica: np.ndarray, gain: float =
     returns spread over many lags.
     """
     hist = real_array(hist, "hist", ndim=2)
+    if np.ndim(replica) != 1 or np.size(replica) != hist.shape[1]:  # (taken: an audit)
+        raise ValueError(f"replica of shape {np.shape(replica)} for histograms of "
+                         f"{hist.shape[1]} bins")
     return noise_sigma_from_totals(hist.sum(axis=1, dtype=np.float64), replica, gain)
 
 

@@ -40,8 +40,10 @@ def lag_to_depth(lag, bin_width: float, pulse_width: float) -> np.ndarray:
     (a return at delay ``tau`` spreads over ``[tau, tau + w)``, whose centre the bin
     ``lag`` holds). The one statement of that offset: the argmax estimator, the profile's
     slice depths, the calibrated cube's grid and the estimators' range check all call it."""
-    return delay_to_depth(np.asarray(lag, dtype=np.float64) + 0.5 - float(pulse_width) / 2.0,
-                          bin_width)
+    # (a NaN width gave every pixel NaN, "no return"; a negative one shifted every depth:
+    # an outside audit of 2026-12-02)
+    width = positive_number(pulse_width, "pulse_width", unit="bins")
+    return delay_to_depth(np.asarray(lag, dtype=np.float64) + 0.5 - width / 2.0, bin_width)
 
 
 def pulse_overlaps(delay: np.ndarray, pulse_width: float) -> tuple[np.ndarray, np.ndarray]:
@@ -211,14 +213,24 @@ def expected_counts(
     >>> lam.shape, round(float(lam.sum()), 2)  # 4 pixels x 5 photons x 64 pulses + 12.7 noise
     ((1, 127), 1292.7)
     """
-    s = code_matrix if code_matrix is not None else shifted_codes(code, shifts, np.float64)
+    # (an outside audit of 2026-12-02: a matrix of a 127-bit code was used with a 255-bit
+    # code, bits of 0..126 and negative or NaN noise made means no photon count has, and a
+    # signal of [5.0] or None was a TypeError naming nothing)
+    bits = real_array(code, "code", ndim=1)
+    if not np.isin(bits, (0, 1)).all():
+        raise ValueError("code must hold bits, 0 or 1 (1 = a laser pulse in that bit)")
+    s = code_matrix if code_matrix is not None else shifted_codes(bits, shifts, np.float64)
+    if np.ndim(s) != 2 or np.shape(s)[1] != bits.size:
+        raise ValueError(f"code_matrix of shape {np.shape(s)} for a {bits.size}-bit code: "
+                         f"build it with shifted_codes(code, shifts)")
     amp = real_array(amp, "amp", ndim=2)
     if amp.shape[1] != s.shape[0]:
         raise ValueError(f"amp of shape {amp.shape} for {s.shape[0]} shifts: one column each")
     n_periods = positive_number(n_periods, "n_periods")
-    if not np.isfinite(signal) or signal < 0:
-        raise ValueError(f"signal must be a finite number >= 0, got {signal!r}")
+    signal = positive_number(signal, "signal", unit="photons per pulse", zero=True)
     noise = real_array(noise_per_bin, "noise_per_bin").astype(s.dtype, copy=False)
+    if not (np.isfinite(noise).all() and (noise >= 0).all()):
+        raise ValueError("noise_per_bin must be finite counts >= 0")
     if noise.ndim == 2 and noise.shape[1] == 1:  # (M, 1), one column: unambiguous
         noise = noise[:, 0]
     if noise.ndim > 1 or noise.size not in (1, amp.shape[0]):

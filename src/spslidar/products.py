@@ -106,7 +106,11 @@ def reflectivity_image(slices: np.ndarray, depth: np.ndarray, lags: np.ndarray,
     pos = np.clip(slices[have], 0.0, None)
     total = np.zeros(centre.size)
     rows = np.arange(centre.size)
-    for off in range(-half_window, half_window + 1):
+    # only the offsets that reach a slice (a half_window of 10**6 looped 2e6 times over 10
+    # slices, 10**12 did not end: an outside audit of 2026-12-02)
+    lo = max(-half_window, -int(centre.max()))
+    hi = min(half_window, lags.size - 1 - int(centre.min()))
+    for off in range(lo, hi + 1):
         idx = centre + off
         ok = (idx >= 0) & (idx < lags.size)
         total[ok] += pos[rows[ok], idx[ok]]
@@ -135,6 +139,8 @@ def pixel_rays(shape: tuple[int, int], fov_deg: float) -> tuple[np.ndarray, np.n
     """
     check_fov(fov_deg)
     rows, cols = (int(n) for n in shape)
+    if rows < 0 or cols < 0:  # (gave empty rays: an audit)
+        raise ValueError(f"shape must be (rows, cols) >= 0, got {tuple(shape)}")
     scale = 2.0 * np.tan(np.radians(float(fov_deg)) / 2.0) / max(rows, cols, 1)  # (0 x 0)
     v, u = np.meshgrid((np.arange(rows) + 0.5 - rows / 2.0) * scale,
                        (np.arange(cols) + 0.5 - cols / 2.0) * scale, indexing="ij")
@@ -167,6 +173,8 @@ def point_cloud(depth: np.ndarray, fov_deg: float = DEFAULT_FOV_DEG,
     d = real_array(depth, "depth").astype(np.float64)
     if d.ndim != 2:
         raise ValueError(f"depth must be a 2-D image, got shape {d.shape}")
+    if np.isinf(d).any():  # (dropped as if no return, where rmse refuses them: an audit)
+        raise ValueError("depth holds infinite values; NaN marks a pixel without a return")
     u, v = pixel_rays(d.shape, fov_deg)
     norm = np.sqrt(u * u + v * v + 1.0)
     have = np.isfinite(d)
@@ -198,10 +206,10 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, values: np.ndarray,
     array (NaN where unknown), ``uchar`` for an integer one within 0-255 and ``ushort`` for
     one within 0-65535 (a pixel's ``row`` and ``col`` at 512 x 512). ``comments`` are
     header lines after the frame's (``comment ...``: the field of view, the image's size,
-    what the intensity is), ASCII without line breaks. Readable by CloudCompare, MeshLab,
-    Open3D, PDAL and ``plyfile`` (each extra property a scalar field). Written by hand: the
-    format is a short header and a packed array, and no dependency the project has writes
-    it.
+    what the intensity is), ASCII without line breaks; a single string is one line.
+    Readable by CloudCompare, MeshLab, Open3D, PDAL and ``plyfile`` (each extra property a
+    scalar field). Written by hand: the format is a short header and a packed array, and no
+    dependency the project has writes it.
     """
     pts = real_array(points, "points").astype(np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3:
@@ -227,7 +235,8 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, values: np.ndarray,
         else:
             kinds[name] = "float"
         columns[name] = a
-    lines = [str(c) for c in comments]
+    # one string is one comment (it was written one header line per character: an audit)
+    lines = [comments] if isinstance(comments, str) else [str(c) for c in comments]
     for c in lines:
         if not c.isascii() or "\n" in c or "\r" in c:
             raise ValueError(f"a PLY comment is one line of ASCII, got {c!r}")

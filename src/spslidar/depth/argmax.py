@@ -160,6 +160,11 @@ class ArgmaxDepth(DepthEstimator):
 
     name = "argmax"
 
+    def __init__(self, low_confidence: float | None = None) -> None:
+        # no options: an unknown keyword is a TypeError, as the other built-ins' (the base
+        # class keeps a plugin's; ArgmaxDepth(foo=1) was taken without a word: an audit)
+        super().__init__(low_confidence)
+
     def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:
         depth, peak = ml_depth(slices, ctx.lags, ctx.bin_width, ctx.pulse_width,
                                subbin=ctx.subbin)

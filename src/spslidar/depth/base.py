@@ -55,7 +55,16 @@ class DepthContext:
                     value, (int, float, np.integer, np.floating)) or not (
                     np.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive number of {unit}, got {value!r}")
-        check_delays(self.lags)
+        # held as an array and a pair of whole numbers (a list of lags failed in estimate()
+        # on '.size', a shape of (16, 16, 1) as "too many values to unpack": an audit)
+        object.__setattr__(self, "lags", check_delays(self.lags))
+        shape = self.shape
+        if (np.ndim(shape) != 1 or len(shape) != 2 or any(
+                isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer))
+                or n < 0 for n in shape)):
+            raise ConfigError(f"shape must be (rows, cols), two whole numbers >= 0, got "
+                              f"{shape!r}")
+        object.__setattr__(self, "shape", (int(shape[0]), int(shape[1])))
 
 
 def check_delays(lags) -> np.ndarray:

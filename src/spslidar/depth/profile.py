@@ -12,6 +12,7 @@ import functools
 
 import numpy as np
 
+from ..arrays import positive_number
 from ..errors import ConfigError
 from ..forward import lag_to_depth
 from .base import DepthContext
@@ -584,7 +585,11 @@ def verdict_and_room(slices: np.ndarray, cap: float = 1000.0,
 
 def no_return(peak: np.ndarray, fraction: float = 0.05) -> np.ndarray:
     """Pixels without a detected return, by the rule of :func:`~.argmax.ml_depth`: a peak
-    that is not positive or below ``fraction`` of the 99th percentile of all peaks."""
+    that is not positive or below ``fraction`` (in [0, 1]) of the 99th percentile of all
+    peaks."""
+    f = positive_number(fraction, "min_peak_fraction", zero=True)
+    if f > 1:  # (2 gave an all-NaN map, NaN and -1 were taken: an outside audit)
+        raise ConfigError(f"min_peak_fraction must lie in [0, 1], got {fraction!r}")
     peak = np.asarray(peak, dtype=np.float64)
     ref = float(np.percentile(peak, 99)) if peak.size else 0.0
     return (peak <= 0) | (peak < fraction * ref)
