@@ -306,7 +306,8 @@ What a run returns: ``Result``
 ------------------------------
 
 :func:`spslidar.run` and :func:`spslidar.reconstruct` return a
-:class:`~spslidar.pipeline.results.Result`:
+:class:`~spslidar.pipeline.results.Result`. Its arrays are read-only views, so that what
+``save()`` writes agrees with its metrics; ``result.depth.copy()`` gives one to edit:
 
 .. list-table::
    :header-rows: 1
