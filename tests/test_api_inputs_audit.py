@@ -177,3 +177,13 @@ def test_expected_counts_refuses_means_no_photon_count_has():
     for signal in (None, [5.0], "5", -1.0, np.nan):
         with pytest.raises(ValueError, match="signal"):
             expected_counts(amp, shifts, code, signal, 0.1)
+
+
+@pytest.mark.parametrize("gate", [(20.0, 21.0, 99.0), "25", ("20", 21.0), (True, 21.0), [20.0]])
+def test_gate_lags_takes_two_numbers(gate):
+    """A 3-tuple's third value and a string were taken."""
+    from spslidar.correlate import gate_lags
+
+    assert gate_lags([20.0, 21.0], 1e-10).size == gate_lags((20.0, 21.0), 1e-10).size
+    with pytest.raises(ConfigError, match="range gate"):
+        gate_lags(gate, 1e-10)

@@ -157,7 +157,15 @@ def correlation_gain(code: np.ndarray, replica: np.ndarray) -> float:
 
 def gate_lags(gate: tuple[float, float], bin_width: float) -> np.ndarray:
     """Integer delay bins covered by a range gate ``(d_min, d_max)`` in metres."""
-    d0, d1 = float(gate[0]), float(gate[1])
+    # two numbers (a 3-tuple's third and a string "25" were taken: an audit of 2026-12-02)
+    if (isinstance(gate, (str, bytes)) or np.ndim(gate) != 1 or len(gate) != 2
+            or any(isinstance(v, (bool, np.bool_, str, bytes)) for v in gate)):
+        raise ConfigError(f"range gate must be two numbers (min, max) in metres, got {gate!r}")
+    try:
+        d0, d1 = float(gate[0]), float(gate[1])
+    except (TypeError, ValueError):
+        raise ConfigError(f"range gate must be two numbers (min, max) in metres, got "
+                          f"{gate!r}") from None
     if not (np.isfinite(d0) and np.isfinite(d1)) or d0 < 0 or d1 <= d0:
         raise ConfigError(f"range gate must satisfy 0 <= min < max, got {d0} {d1}")
     width = None
