@@ -187,3 +187,15 @@ def test_gate_lags_takes_two_numbers(gate):
     assert gate_lags([20.0, 21.0], 1e-10).size == gate_lags((20.0, 21.0), 1e-10).size
     with pytest.raises(ConfigError, match="range gate"):
         gate_lags(gate, 1e-10)
+
+
+@pytest.mark.parametrize("code", [[2, 2, 0], [1, -1, 1, -1], [0.5, 1, 0]])
+def test_replicas_refuse_a_code_that_is_not_bits(code):
+    """[2, 2, 0] was called balanced and given the bipolar replica."""
+    from spslidar.correlate import auto_replica, make_replica
+
+    assert auto_replica([1, 1, 0]) == "bipolar"
+    with pytest.raises(ValueError, match="bits"):
+        auto_replica(code)
+    with pytest.raises(ValueError, match="bits"):
+        make_replica(code)

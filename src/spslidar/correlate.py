@@ -37,6 +37,8 @@ def _code_bits(code: Any) -> np.ndarray:
     s = real_array(code, "code", ndim=1, finite=True)
     if not s.size:
         raise ValueError("code is empty: a replica needs one bit or more")
+    if not np.isin(s, (0, 1)).all():  # ([2, 2, 0] was called balanced: an audit of 2026-12-02)
+        raise ValueError("code must hold bits, 0 or 1 (a +-1 code is (c + 1) / 2)")
     return s
 
 
