@@ -56,9 +56,14 @@ def _check_rows(patterns, corr) -> np.ndarray:
 def qcr_delta(patterns, corr: np.ndarray) -> np.ndarray:
     """``Delta = Phi_c^T C_c / M`` (eq. 11, 16): the covariance of the measurements with each
     pixel's pattern values, shape ``(Q, K)``. ``patterns``: an ``(M, Q)`` array or a
-    :class:`~spslidar.patterns.PatternOperator`."""
+    :class:`~spslidar.patterns.PatternOperator`; an array's values are mirror transmittances
+    in [0, 1], as :func:`qcr_problem` takes them (zero-mean patterns were taken here and
+    refused there: an audit of 2026-12-02)."""
     if not hasattr(patterns, "rmatvec"):  # (a list had no 'rmatvec')
+        from .patterns import as_patterns
+
         patterns = real_array(patterns, "patterns", ndim=2, floating=True)
+        as_patterns(patterns, copy=False)  # the check of qcr_problem's (DensePatterns')
     corr = _check_rows(patterns, corr)
     if isinstance(patterns, np.ndarray):
         return centre(patterns).T @ centre(corr) / patterns.shape[0]

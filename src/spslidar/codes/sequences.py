@@ -33,6 +33,7 @@ from ..errors import ConfigError
 
 __all__ = [
     "CODE_KINDS",
+    "MAX_CODE_LENGTH",
     "MSEQ_DEGREES",
     "GOLD_DEGREES",
     "canonical_kind",
@@ -43,6 +44,7 @@ __all__ = [
     "gold_bound",
     "valid_lengths",
     "unambiguous_range",
+    "XCORR_EXACT_LIMIT",
 ]
 
 #: Canonical code kinds accepted by :func:`make_code`.
@@ -89,6 +91,17 @@ GOLD_DEGREES: tuple[int, ...] = tuple(sorted(_PREFERRED_PAIRS))
 
 # Largest degree for which :func:`gold_family` materialises the whole (T + 2, T) family.
 _GOLD_FAMILY_MAX_N = 13
+
+#: Longest random code :func:`make_code` draws, ``2**24`` bits (16 times the longest
+#: m-sequence; the configuration's own ``code_length`` cap): ``10**12`` bits asked numpy for
+#: 7.28 TiB of uniform draws and ended in a ``MemoryError`` (an audit of 2026-12-02).
+MAX_CODE_LENGTH = 2**24
+
+#: :func:`periodic_xcorr` refuses inputs whose correlations could reach this magnitude
+#: (``||a|| ||b|| >= 2**44``, about 1.8e13): its float64 FFTs round to the exact integer
+#: below it (an error under 0.01 measured at T = 65535), not far above it (0.5 at 2**50.5),
+#: and int64 overflows at 2**63 (``[2**40, 1]`` with itself read ``-2**63``: an audit).
+XCORR_EXACT_LIMIT = 2.0**44
 
 
 def canonical_kind(kind: str) -> str:
@@ -150,6 +163,9 @@ def _check_length(kind: str, length: int) -> int:
     if kind == "random":
         if length < 2:
             raise ConfigError(f"code length {length} is too short: random codes need length >= 2")
+        if length > MAX_CODE_LENGTH:
+            raise ConfigError(f"code length {length} is too long: random codes are at most "
+                              f"{MAX_CODE_LENGTH} (2^24) bits")
         return 0
     n = _degree_of(length)
     if kind == "mseq":
@@ -366,7 +382,7 @@ def make_code(
     length : int
         Code length ``T``. For m-sequences ``2^n - 1`` with ``n`` in 3..20; for Gold codes
         ``2^n - 1`` with ``n`` in 3..19 not divisible by 4 (e.g. 2047, 16383; not 255, 4095);
-        for random codes any ``T >= 2``.
+        for random codes any ``T`` in ``2..2**24`` (:data:`MAX_CODE_LENGTH`).
     ones_ratio : float, optional
         Probability ``R_a`` of a '1' bit for random codes, in the open interval (0, 1). It is
         checked for every kind but **ignored** by m-sequences and Gold codes, whose share of
@@ -484,8 +500,11 @@ def periodic_xcorr(a: np.ndarray, b: np.ndarray, bipolar: bool = True) -> np.nda
     Raises
     ------
     ConfigError
-        If the inputs are not 1-D arrays of the same non-zero length, or hold a non-finite or
-        fractional value.
+        If the inputs are not 1-D arrays of the same non-zero length, hold a non-finite or
+        fractional value, or values so large that a correlation could reach
+        :data:`XCORR_EXACT_LIMIT` (``2**44``: ``||a'|| ||b'||``, which bounds every ``|r[k]|``,
+        at or above it), past which the result would not be exact (and past ``2**63`` would
+        overflow int64).
 
     Notes
     -----
@@ -516,6 +535,11 @@ def periodic_xcorr(a: np.ndarray, b: np.ndarray, bipolar: bool = True) -> np.nda
                               "inputs hold other values (use bipolar=False for counts)")
         x = 2.0 * x - 1.0
         y = 2.0 * y - 1.0
+    bound = float(np.linalg.norm(x)) * float(np.linalg.norm(y))  # >= every |r[k]|
+    if not bound < XCORR_EXACT_LIMIT:
+        raise ConfigError(f"periodic_xcorr computes correlations below 2^44 exactly: its inputs "
+                          f"could reach {bound:.3g} (||a|| ||b||); scale them down, or "
+                          f"correlate them in floating point")
     period = x.size
     from scipy import fft as sp_fft  # imported on first use: a run needs no correlation here
 

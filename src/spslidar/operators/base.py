@@ -109,7 +109,7 @@ class LinearOperator:
 
     def __mul__(self, scalar):
         if np.isscalar(scalar):
-            return _Scaled(self, float(scalar))
+            return _Scaled(self, _scale(scalar))
         return NotImplemented
 
     __rmul__ = __mul__
@@ -143,6 +143,17 @@ class LinearOperator:
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.shape[0]}x{self.shape[1]} {self.dtype}>"
+
+
+def _scale(scalar) -> float:
+    """A scalar factor of an operator as a float, or one ``TypeError`` naming it: the string
+    ``"2"`` was taken as 2.0 (an audit of 2026-12-02), ``True`` as 1.0."""
+    from ..arrays import real_number
+
+    value = real_number(scalar)
+    if value is None or not np.isfinite(value):
+        raise TypeError(f"an operator is scaled by a finite real number, got {scalar!r}")
+    return value
 
 
 class _Adjoint(LinearOperator):
@@ -341,7 +352,7 @@ def dottest(
     ----------
     op : LinearOperator
     n_cols : int
-        Number of columns in the random test blocks (checks the batched path).
+        Number of columns in the random test blocks (checks the batched path), >= 1.
     rng : Generator or int or None
         Random source (``np.random.default_rng`` seed).
     rtol : float, optional
@@ -364,6 +375,10 @@ def dottest(
     >>> dottest(A.H @ A, n_cols=2) < 1e-10  # the batched path too
     True
     """
+    from ..arrays import positive_number
+
+    # (n_cols=0 compared empty blocks and passed: an audit of 2026-12-02)
+    n_cols = positive_number(n_cols, "n_cols", integer=True, unit="columns")
     rng = as_generator(rng)
     m, n = op.shape
     shape_x = (n,) if n_cols == 1 else (n, n_cols)
@@ -395,7 +410,13 @@ def power_norm(
     on a contrived spectrum of an audit). On the pipeline's operators (32 x 32 Gaussian
     patterns at 25 %, with QCR or the mean eliminated, whose two largest singular values are
     0.993 apart; Hadamard patterns) it returned 1.0055-1.01 x the norm from a dense SVD.
+
+    ``n_iter`` must be a whole number >= 1 (0 returned 0.0 without an iteration, so that a
+    ``1 / L`` step became infinite: an audit of 2026-12-02).
     """
+    from ..arrays import positive_number
+
+    n_iter = positive_number(n_iter, "n_iter", integer=True, unit="iterations")
     rng = as_generator(rng)
     x = rng.standard_normal(op.shape[1])
     x /= np.linalg.norm(x)

@@ -103,11 +103,16 @@ def fwht(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     ------
     ConfigError
         If ``Q`` is not a power of two.
+    ValueError
+        If ``x`` is 0-d or complex.
     """
     x = np.asarray(x)
     if np.iscomplexobj(x):  # (its imaginary part was dropped with numpy's warning: an audit)
         raise ValueError("fwht transforms real arrays: apply it to the real and imaginary "
                          "parts apart")
+    if x.ndim == 0:  # (an IndexError on x.shape[0]: an audit of 2026-12-02)
+        raise ValueError(f"fwht: x must be an array of shape (Q,) or (Q, K), got a 0-d "
+                         f"{x.dtype} {x.item()!r}")
     if not np.issubdtype(x.dtype, np.floating):
         x = x.astype(np.float64)
     q = x.shape[0]

@@ -73,6 +73,36 @@ class Gradient2D(LinearOperator):
         return out.reshape(ny * nx, k)
 
 
+def no_level_message(shape: tuple[int, int], what: str, becomes: str) -> str:
+    """The warning that a wavelet transform of ``shape`` images has no periodized level (an
+    odd side), so that ``what`` is ``becomes``: said by :class:`Wavelet2D` (the identity) and by
+    :func:`~spslidar.solvers.regularisers.make_wavelet_l1` (the pixel l1), one wording.
+
+    Parameters
+    ----------
+    shape : (Ny, Nx)
+    what : str
+        What needs the even side (``"Wavelet2D"``, ``"the wavelet regulariser"``).
+    becomes : str
+        What it is instead.
+
+    Returns
+    -------
+    str
+    """
+    return (f"{what} needs an even image side: at {shape[0]}x{shape[1]} it has no level and is "
+            f"{becomes}")
+
+
+def periodized_levels(ny: int, nx: int) -> int:
+    """The periodized levels ``Ny x Nx`` images allow (sides divisible by ``2**level``), at
+    most 4: 0 where a side is odd."""
+    levels = 0
+    while levels < 4 and ny % 2 ** (levels + 1) == 0 and nx % 2 ** (levels + 1) == 0:
+        levels += 1
+    return levels
+
+
 class Wavelet2D(LinearOperator):
     """Orthonormal 2-D discrete wavelet transform (PyWavelets, periodization mode).
 
@@ -88,7 +118,8 @@ class Wavelet2D(LinearOperator):
         Decomposition depth, a whole number >= 0 (0: the identity); default: as deep as the
         image sides allow periodized levels (at most 4), but no deeper than PyWavelets'
         ``dwtn_max_level`` for the filter's length (a 16 x 16 image: 4 levels of ``haar``, 2
-        of ``db2``, 1 of ``db8``).
+        of ``db2``, 1 of ``db8``). An odd side allows none: the default is then the identity,
+        with a ``UserWarning`` (pass ``level=0`` to ask for it without one).
     dtype : numpy dtype
         The operator's dtype (default float64).
 
@@ -118,11 +149,14 @@ class Wavelet2D(LinearOperator):
         w = pywt.Wavelet(wavelet)
         if not w.orthogonal:
             raise ValueError(f"wavelet {wavelet!r} is not orthogonal")
-        max_level = 0
-        while max_level < 4 and ny % 2 ** (max_level + 1) == 0 and nx % 2 ** (max_level + 1) == 0:
-            max_level += 1
+        max_level = periodized_levels(ny, nx)
         if level is None:
             level = max(1, min(max_level, pywt.dwtn_max_level((ny, nx), w))) if max_level else 0
+            if not max_level:  # (it was silently the identity: an audit of 2026-12-02)
+                import warnings
+
+                warnings.warn(no_level_message((ny, nx), "Wavelet2D", "the identity (pass "
+                                               "level=0 to ask for it)"), stacklevel=2)
         if level > max_level:
             raise ValueError(f"image {ny}x{nx} allows at most {max_level} periodized levels")
         self.image_shape = (ny, nx)

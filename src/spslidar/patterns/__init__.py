@@ -76,6 +76,36 @@ def _check_side(cfg: Any) -> None:
                           f"for the fast transform), got {n}: use {lo} or {2 * lo}")
 
 
+def pattern_count(value: Any, name: str) -> int:
+    """``value`` as a whole number >= 1 (a count of patterns, a side in mirrors), or a
+    one-line :class:`~spslidar.errors.ConfigError` naming ``name``.
+
+    Parameters
+    ----------
+    value : int
+        An integer (``bool`` and fractions are refused).
+    name : str
+        The argument's name, for the message.
+
+    Returns
+    -------
+    int
+    """
+    import operator
+
+    from ..errors import ConfigError
+
+    try:
+        number = operator.index(value)
+    except TypeError:
+        raise ConfigError(f"{name} must be an integer, got {value!r}") from None
+    if isinstance(value, bool):
+        raise ConfigError(f"{name} must be an integer, got {value!r}")
+    if number < 1:
+        raise ConfigError(f"{name} must be an integer >= 1, got {value!r}")
+    return int(number)
+
+
 def build_patterns(kind: str, n_patterns: int, n_side: int, rng: Any,
                    dtype: Any = "float32", **options) -> PatternOperator:
     """The pattern set of a registered kind: ``M`` patterns over ``N x N`` mirrors, drawn
@@ -84,26 +114,21 @@ def build_patterns(kind: str, n_patterns: int, n_side: int, rng: Any,
     ``dtype`` may be any NumPy dtype spelling (``"float32"``, ``np.float32``,
     ``np.dtype("float32")``): the same seed gives the same patterns for each (the string, this
     function's default, drew other patterns than the pipeline's ``np.float32``).
-    ``n_patterns`` and ``n_side`` must be integers (a ``ConfigError`` otherwise).
+    ``n_patterns`` and ``n_side`` must be integers >= 1 (a ``ConfigError`` otherwise: an
+    ``n_side`` of -2 made ``(-2)**2 = 4`` pixels, an audit of 2026-12-02).
     ``options`` are the factories' keywords (:data:`PATTERN_OPTIONS`, and those a kind
     declares); a kind ignores the ones that are not its own (the pipeline gives each kind
     every one), but a keyword no kind takes is refused (``pattern_sigma=``, the config's key
     for ``sigma=``, and typos were dropped without a word: an audit of 2026-11-29).
     """
     import difflib
-    import operator
 
     import numpy as np
 
     from ..errors import ConfigError
 
     for name, value in (("n_patterns", n_patterns), ("n_side", n_side)):
-        try:
-            operator.index(value)
-        except TypeError:
-            raise ConfigError(f"{name} must be an integer, got {value!r}") from None
-        if isinstance(value, bool):
-            raise ConfigError(f"{name} must be an integer, got {value!r}")
+        pattern_count(value, name)
     factory = PATTERNS.load(kind)
     # the built-in keywords, every declared option's config key and keyword (a plugin's
     # Option(param=...) was refused, a review of 2026-11-29) and the factory's own keywords

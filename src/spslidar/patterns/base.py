@@ -15,9 +15,34 @@ from typing import Any
 import numpy as np
 
 from ..arrays import real_array
+from ..errors import ConfigError
 from ..operators import LinearOperator
 
-__all__ = ["CentredPatterns", "PatternOperator"]
+__all__ = ["CentredPatterns", "PatternOperator", "pattern_dtype"]
+
+
+def pattern_dtype(dtype: Any) -> np.dtype:
+    """``dtype`` as the real floating type patterns are held in, or a one-line
+    :class:`~spslidar.errors.ConfigError` naming ``dtype``: what every built-in pattern kind
+    takes (an integer dtype made Gaussian patterns of all zeros; Hadamard patterns took ``int``
+    and ``complex`` and failed at their first product: audits).
+
+    Parameters
+    ----------
+    dtype : numpy dtype
+        Any NumPy spelling (``"float32"``, ``np.float32``...).
+
+    Returns
+    -------
+    numpy.dtype
+    """
+    dtype = np.dtype(dtype)
+    if not np.issubdtype(dtype, np.floating):
+        held = ("holds none but 0 and 1" if dtype.kind in "biu"
+                else "is not a real floating type")
+        raise ConfigError(f"patterns are mirror states in [0, 1]: dtype {dtype} {held}; use "
+                          f"float32 or float64")
+    return dtype
 
 
 class PatternOperator(LinearOperator):

@@ -15,7 +15,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..operators.base import _product, float_matrix
 from ..randomness import as_generator
-from .base import PatternOperator
+from .base import PatternOperator, pattern_dtype
 
 PATTERN_KINDS = ("gaussian", "bernoulli")
 
@@ -68,10 +68,9 @@ def make_patterns(
     non-negative patterns carry a large common (DC) component, which QCR removes (eq. 11).
     """
     rng = as_generator(rng)
-    dtype = np.dtype(dtype)  # a string "float32" drew float64 normals: other patterns
-    if not np.issubdtype(dtype, np.floating):  # (int: gaussian patterns of all zeros, an audit)
-        raise ConfigError(f"patterns are mirror states in [0, 1]: dtype {dtype} holds none but "
-                          f"0 and 1; use float32 or float64")
+    # (a string "float32" drew float64 normals: other patterns; int: gaussian patterns of all
+    # zeros, an audit)
+    dtype = pattern_dtype(dtype)
     if n_patterns < 1 or n_pixels < 1:
         raise ConfigError("need at least one pattern and one pixel")
     if kind == "gaussian":
@@ -175,7 +174,11 @@ class DensePatterns(PatternOperator):
 def dense_patterns(kind: str, n_patterns: int, n_side: int, rng: np.random.Generator,
                    dtype=np.float32, sigma: float = 0.25, on_fraction: float = 0.5,
                    **_: object) -> DensePatterns:
-    """The registry's factory for ``gaussian`` and ``bernoulli`` pattern sets."""
+    """The registry's factory for ``gaussian`` and ``bernoulli`` pattern sets (``n_side``
+    a whole number >= 1: -2 made ``(-2)**2 = 4`` pixels, an audit)."""
+    from . import pattern_count
+
+    n_side = pattern_count(n_side, "n_side")
     return DensePatterns(make_patterns(kind, n_patterns, n_side * n_side, rng, sigma=sigma,
                                        on_fraction=on_fraction, dtype=dtype), kind, copy=False)
 
@@ -193,7 +196,7 @@ def centred_patterns(patterns: np.ndarray, norm: float = 1.0, dtype=np.float32) 
     norm : float
         Divides the centred patterns (``sqrt(M)`` for the centred data term).
     dtype : numpy dtype
-        Output precision.
+        Output precision, a real floating type.
 
     Returns
     -------
@@ -201,7 +204,20 @@ def centred_patterns(patterns: np.ndarray, norm: float = 1.0, dtype=np.float32) 
         Bitwise the values of ``(centre(patterns.astype(float64)) / norm).astype(dtype)``,
         without its full-size float64 temporaries: the work is done in float64 a block of rows
         at a time.
+
+    Raises
+    ------
+    ValueError
+        Where ``norm`` is not a finite positive number, or ``dtype`` not a real floating type
+        (an integer dtype gave all zeros, a norm of 0 infinities: an audit of 2026-12-02).
     """
+    from ..arrays import positive_number
+
+    norm = positive_number(norm, "norm")
+    dtype = np.dtype(dtype)
+    if dtype.kind != "f":
+        raise ValueError(f"dtype must be a real floating type for centred patterns (values "
+                         f"either side of 0), got {dtype}")
     phi = np.asarray(patterns)
     mean = phi.mean(axis=0, dtype=np.float64, keepdims=True)
     out = np.empty(phi.shape, dtype=dtype)

@@ -59,7 +59,7 @@ from ..operators.base import LinearOperator
 from ..operators.hadamard import fwht, is_power_of_two
 from ..randomness import as_generator
 from . import HADAMARD_ORDERS, HADAMARD_REALISATIONS
-from .base import PatternOperator
+from .base import PatternOperator, pattern_dtype
 
 __all__ = ["CentredHadamard", "HadamardPatterns", "hadamard_order", "hadamard_patterns",
            "walsh_sequency"]
@@ -160,10 +160,11 @@ class HadamardPatterns(PatternOperator):
         measurements) or the differential frames ``(1 + h)/2, (1 - h)/2`` interleaved
         (2M rows, on a DMD).
     flips : ndarray of +-1, shape (M,), optional
-        A sign per shown row (the ``complementary`` realisation): row ``i`` of ``h`` is
+        A real sign per shown row (the ``complementary`` realisation): row ``i`` of ``h`` is
         ``f_i`` times the Hadamard row, so ``(1 + h)/2`` shows its complement where
         ``f_i = -1``.
     dtype : numpy dtype
+        A real floating type (as the dense kinds: ``int`` and ``complex`` are refused).
     kind : str
         The registered pattern kind.
     time_share : float
@@ -196,6 +197,7 @@ class HadamardPatterns(PatternOperator):
                  kind: str = "hadamard", time_share: float = 1.0,
                  flips: np.ndarray | None = None):
         check_side(n_side)
+        dtype = pattern_dtype(dtype)  # (int and complex failed at the first product, an audit)
         if mode not in MODES:
             raise ConfigError(f"unknown Hadamard pattern mode {mode!r}; choose one of "
                               f"{', '.join(MODES)}")
@@ -248,11 +250,14 @@ class HadamardPatterns(PatternOperator):
         self.time_share = float(time_share)
         self.flips = None
         if flips is not None:
-            flips = np.asarray(flips)
+            try:  # (a complex 1j passed |flip| == 1 and was cast to 0: an audit of 2026-12-02)
+                flips = real_array(flips, "flips")
+            except SpslidarError as err:
+                raise ConfigError(str(err)) from None
             if flips.shape != rows.shape:
                 raise ConfigError(f"flips must be one +-1 sign per row ({rows.size}), got "
                                   f"shape {flips.shape}")
-            bad = np.flatnonzero(np.abs(flips) != 1)
+            bad = np.flatnonzero((flips != 1) & (flips != -1))
             if bad.size:  # (said as a shape where the values were wrong: a review)
                 raise ConfigError(f"flips must be +1 or -1, got {flips[bad[0]]!r} at row "
                                   f"{bad[0]}")

@@ -31,6 +31,64 @@ from ..operators.base import LinearOperator
 from ..operators.parallel import parallel
 
 
+def real_scalar(value: Any, name: str, *, low: float | None = 0.0,
+                finite: bool = False) -> float:
+    """``value`` as a real number (for the check only: callers keep their own value, so that
+    a NumPy scalar computes as before), or a one-line :class:`~spslidar.errors.ConfigError`
+    naming ``name``.
+
+    Strings, ``None``, booleans, complex numbers and arrays other than 0-d real ones are
+    refused (``lam="0.1"`` and ``StopRule(rtol="1e-3")`` failed in a comparison naming no
+    argument: an audit of 2026-12-02), and so are NaN, values below ``low`` (unless ``None``)
+    and, with ``finite``, infinities.
+
+    Parameters
+    ----------
+    value : float
+    name : str
+        The argument's name, for the message.
+    low : float or None
+        The least value taken.
+    finite : bool
+        Refuse infinities too.
+
+    Returns
+    -------
+    float
+    """
+    from ..arrays import real_number
+
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    x = real_number(value)
+    if x is None or np.isnan(x) or (low is not None and x < low) or (finite
+                                                                     and np.isinf(x)):
+        if low is None:
+            want = "a finite real number" if finite else "a real number, not NaN"
+        else:
+            bound = "non-negative" if low == 0 else f">= {low:g}"
+            want = f"finite and {bound}" if finite else f"a {bound} number"
+        raise ConfigError(f"{name} must be {want}, got {value!r}")
+    return x
+
+
+def as_operator(A: Any) -> Any:
+    """``A`` as the solvers take it: a :class:`~spslidar.operators.LinearOperator` (or an
+    object with ``shape``, ``matvec`` and ``rmatvec``) as it is, an ndarray as a
+    :class:`~spslidar.operators.MatrixOperator` sharing it; anything else a one-line
+    :class:`~spslidar.errors.ConfigError` naming ``A`` (a list was an ``AttributeError``: an
+    audit of 2026-12-02)."""
+    if isinstance(A, np.ndarray):  # (a matrix: an AttributeError on 'rmatvec', an audit)
+        from ..operators import MatrixOperator
+
+        return MatrixOperator(A, copy=False)  # (for this solve only)
+    if not (hasattr(A, "shape") and callable(getattr(A, "matvec", None))
+            and callable(getattr(A, "rmatvec", None))):
+        raise ConfigError(f"A must be a LinearOperator (spslidar.operators) or an (m, n) "
+                          f"ndarray, got {type(A).__name__}")
+    return A
+
+
 @dataclass
 class StopRule:
     """Stopping rules shared by all solvers; the first one met stops the iteration.
@@ -67,14 +125,15 @@ class StopRule:
                 or self.max_iter < 1):  # (5.5 was taken, an audit)
             raise ValueError(f"max_iter must be a whole number >= 1, got {self.max_iter!r}")
         self.max_iter = int(self.max_iter)
-        if not self.rtol >= 0 or (self.obj_rtol is not None and not self.obj_rtol >= 0):
-            raise ValueError("tolerances must be non-negative numbers")  # (NaN was taken)
-        for name in ("target", "max_time"):
-            value = getattr(self, name)
-            if value is not None and np.isnan(value):
-                raise ValueError(f"{name} must be a number, got NaN")
-        if self.max_time is not None and self.max_time < 0:
-            raise ValueError(f"max_time must be >= 0 seconds, got {self.max_time!r}")
+        # (NaN was taken; a string failed in a comparison naming no field: audits). Checked,
+        # not cast: a NumPy scalar tolerance computes as it did
+        real_scalar(self.rtol, "rtol")
+        if self.obj_rtol is not None:
+            real_scalar(self.obj_rtol, "obj_rtol")
+        if self.target is not None:
+            real_scalar(self.target, "target", low=None)
+        if self.max_time is not None:
+            real_scalar(self.max_time, "max_time")
 
 
 @dataclass
@@ -294,9 +353,11 @@ class Solver:
 
     def __init__(self, stop: StopRule | None = None, threads: int | None = None, **options):
         self.stop = stop if stop is not None else StopRule()
-        if threads is not None and int(threads) < 1:
-            raise ValueError("threads must be >= 1")
-        self.threads = None if threads is None else int(threads)
+        if threads is not None:  # (1.5 was taken as 1: an audit of 2026-12-02)
+            from ..arrays import positive_number
+
+            threads = positive_number(threads, "threads", integer=True)
+        self.threads = threads
         self.options = options
         self.monitor: Monitor | None = None
         self.it = 0
@@ -322,12 +383,10 @@ class Solver:
         x0 : ndarray, shape (n,) or (n, K), optional
             Starting point (default zeros); one column starts every column of ``y`` there.
         """
-        if not 0 <= lam < np.inf:  # NaN returned NaN, inf a ZeroDivisionError in TVAL3
-            raise ValueError(f"lam must be finite and non-negative, got {lam}")
-        if isinstance(A, np.ndarray):  # (a matrix: an AttributeError on 'rmatvec', an audit)
-            from ..operators import MatrixOperator
-
-            A = MatrixOperator(A, copy=False)  # (for this solve only)
+        # (NaN returned NaN, inf a ZeroDivisionError in TVAL3, a string or None a comparison's
+        # TypeError: audits)
+        real_scalar(lam, "lam", finite=True)
+        A = as_operator(A)
         if not callable(getattr(reg, "prox", None)):
             # (None: "'NoneType' object has no attribute 'values'", an audit of 2026-11-29)
             raise ValueError(f"reg must be a regulariser (with a prox: "
@@ -344,6 +403,9 @@ class Solver:
             raise ValueError(f"data has {yb.shape[0]} rows, operator expects {A.shape[0]}")
         if x0 is not None:
             x0, _ = as_block(x0)
+            if np.iscomplexobj(x0) or x0.dtype.kind not in "biuf":
+                # (a complex x0 was cast to its real part with numpy's warning: an audit)
+                raise ValueError(f"x0 must be real numbers, got dtype {x0.dtype}")
             if x0.shape[0] != A.shape[1] or x0.shape[1] not in (1, yb.shape[1]):
                 raise ValueError(f"x0 of shape {np.shape(x0)} for {A.shape[1]} unknowns and "
                                  f"{yb.shape[1]} column(s): give ({A.shape[1]},) or "
@@ -433,6 +495,7 @@ class Solver:
         :meth:`setup`, :meth:`run` (with ``callback``) and :meth:`finish` in one parallel
         context (for large problems, see ``threads``).
         """
+        A = as_operator(A)
         yb, _ = as_block(y)
         with self.parallel_context(A, yb):
             self.setup(A, y, reg, lam, x0)
@@ -564,12 +627,16 @@ def available_solvers() -> list[str]:
 def get_solver(name: str) -> type[Solver]:
     """The solver class registered under ``name`` (its module imported on first use).
 
+    The name is read case-insensitively where that is one entry (``"FISTA"``), as
+    :func:`spslidar.reconstruct`'s ``solver`` and the configuration read it.
+
     Raises
     ------
     ConfigError
         (a ``ValueError``) for an unknown name, listing the registered ones.
     """
-    return _registry().load(name)
+    registry = _registry()
+    return registry.load(registry.canonical(name))
 
 
 def solve(A: LinearOperator, y: np.ndarray, reg, lam: float,

@@ -20,11 +20,13 @@ from typing import Any
 
 import numpy as np
 
+from ..arrays import positive_number, real_array
 from ..capture import carried
 from ..operators import parallel as _parallel
 from ..operators.base import LinearOperator
 from ..operators.image import Gradient2D, forward_differences_into
 from .base import as_block as _as_block
+from .base import real_scalar
 
 __all__ = ["Regulariser", "TV", "L1", "Zero", "make_tv", "make_tv_aniso", "make_l1",
            "make_wavelet_l1"]
@@ -95,16 +97,23 @@ class Regulariser:
         ----------
         v : ndarray, shape (Q,) or (Q, K)
         t : float
-            Non-negative threshold (``lam * step`` inside a proximal-gradient solver).
+            Finite non-negative threshold (``lam * step`` inside a proximal-gradient solver).
 
         Returns
         -------
         ndarray
             Same shape as ``v``; float32 or float64 as ``v`` (any other dtype, float16 or
             integers, in float64).
+
+        Raises
+        ------
+        ValueError
+            For a ``t`` that is not a finite non-negative number, or a ``v`` that is not real
+            (a NaN ``t`` gave all NaN, a complex ``v`` was cast to its real part with numpy's
+            warning: an audit of 2026-12-02).
         """
-        if t < 0:
-            raise ValueError("prox threshold t must be non-negative")
+        real_scalar(t, "prox threshold t", finite=True)
+        v = real_array(v, "v")
         vb, was_1d = _as_block(v)
         vb = vb.astype(_float_dtype(vb), copy=False)
         z = self._prox(vb, float(t))
@@ -232,11 +241,12 @@ class TV(Regulariser):
     nonneg : bool
         Constrain the prox output to ``z >= 0`` (Beck & Teboulle's constrained variant).
     max_inner : int
-        Maximum number of FGP iterations per prox call.
+        Maximum number of FGP iterations per prox call (a whole number >= 1).
     inner_tol : float
-        FGP stops when ``||p_k - p_{k-1}|| <= inner_tol * ||p_k||`` for the dual iterate ``p``
-        (norms over the whole block: the columns stop together, so a column's prox depends a
-        little on the others' when the test fires before ``max_inner``).
+        Finite, non-negative: FGP stops when ``||p_k - p_{k-1}|| <= inner_tol * ||p_k||``
+        for the dual iterate ``p`` (norms over the whole block: the columns stop together, so
+        a column's prox depends a little on the others' when the test fires before
+        ``max_inner``).
     warm_start : bool
         Start each prox from the dual variable of the previous call when the shapes match.
     threads : int or None
@@ -320,17 +330,18 @@ class TV(Regulariser):
         warm_start: bool = True,
         threads: int | None = None,
     ):
-        self.image_shape = (int(image_shape[0]), int(image_shape[1]))
+        from ..operators.base import _shape2
+
+        # (a shape of (4.7, 4) was taken as 4 x 4, inner_tol NaN or -1 and threads 1.5 (as 1)
+        # were taken: an audit of 2026-12-02)
+        self.image_shape = _shape2(image_shape, "TV's image_shape", 1)
         self.isotropic = bool(isotropic)
         self.nonneg = bool(nonneg)
-        if int(max_inner) < 1:
-            raise ValueError("max_inner must be >= 1")
-        self.max_inner = int(max_inner)
-        self.inner_tol = float(inner_tol)
+        self.max_inner = positive_number(max_inner, "max_inner", integer=True)
+        self.inner_tol = real_scalar(inner_tol, "inner_tol", finite=True)
         self.warm_start = bool(warm_start)
-        if threads is not None and int(threads) < 1:
-            raise ValueError("threads must be >= 1")
-        self.threads = None if threads is None else int(threads)
+        self.threads = (None if threads is None
+                        else positive_number(threads, "threads", integer=True))
         self.gradient = Gradient2D(self.image_shape, dtype=np.float32)
         self.last_inner_iterations = 0
         # FGP state kept between calls: work buffers and the (normalised) dual of the last call
@@ -660,10 +671,13 @@ def make_wavelet_l1(shape: tuple[int, int], nonneg: bool = False, max_inner: int
     wavelet l1 norm under a non-negativity constraint has no closed form: ``nonneg`` is
     ignored (it applies to the TV and pixel-l1 regularisers only)."""
     from ..operators import Wavelet2D
+    from ..operators.base import _shape2
+    from ..operators.image import no_level_message, periodized_levels
 
-    w = Wavelet2D(shape, "haar")
+    # (its own warning, not Wavelet2D's: it is the pixel l1 here, not an identity)
+    ny, nx = _shape2(shape, "Wavelet2D's image shape", 1)
+    w = Wavelet2D(shape, "haar", level=None if periodized_levels(ny, nx) else 0)
     if w.level == 0:  # it was silently the pixel l1
-        warnings.warn(f"the wavelet regulariser needs an even image side: at {shape[0]}x"
-                      f"{shape[1]} it has no level and is the pixel l1 (--regulariser l1)",
-                      stacklevel=2)
+        warnings.warn(no_level_message(shape, "the wavelet regulariser",
+                                       "the pixel l1 (--regulariser l1)"), stacklevel=2)
     return L1(w)
