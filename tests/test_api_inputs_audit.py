@@ -199,3 +199,17 @@ def test_replicas_refuse_a_code_that_is_not_bits(code):
         auto_replica(code)
     with pytest.raises(ValueError, match="bits"):
         make_replica(code)
+
+
+def test_a_bit_rate_of_true_and_a_fractional_weighted_tv_shape_are_refused():
+    from spslidar.codes import unambiguous_range
+    from spslidar.solvers.weighted_tv import EdgeWeightedTV
+
+    assert unambiguous_range(1023, 10e9) == pytest.approx(15.33, abs=0.01)
+    with pytest.raises(ConfigError, match="bit rate"):
+        unambiguous_range(1023, True)
+    EdgeWeightedTV((4, 4), np.ones((3, 4)), np.ones((4, 3)))
+    with pytest.raises(ValueError, match="image_shape"):
+        EdgeWeightedTV((4.7, 4), np.ones((3, 4)), np.ones((4, 3)))
+    with pytest.raises(ValueError, match="max_inner"):
+        EdgeWeightedTV((4, 4), np.ones((3, 4)), np.ones((4, 3)), max_inner=2.5)

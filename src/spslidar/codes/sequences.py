@@ -629,7 +629,9 @@ def unambiguous_range(length: int, bit_rate: float) -> float:
     length = _as_int(length, "code length")
     if length < 1:
         raise ConfigError(f"code length must be positive, got {length}")
-    try:
+    try:  # (True was taken as 1 bit/s, 1.5e11 m: an audit of 2026-12-02)
+        if isinstance(bit_rate, (bool, np.bool_, str, bytes)):
+            raise TypeError
         rate = float(bit_rate)
     except (TypeError, ValueError):
         raise ConfigError(f"bit rate must be a positive number, got {bit_rate!r}") from None
