@@ -94,6 +94,37 @@ def real_number(value: Any) -> float | None:
     return float(value)
 
 
+def real_scalar(value: Any, name: str, *, low: float | None = None,
+                finite: bool = False) -> float:
+    """``value`` as a float where it is a real number (a Python or NumPy integer or float, or
+    a 0-d array of one), or a one-line :class:`~spslidar.errors.ConfigError` naming ``name``.
+
+    Text, ``None``, booleans, complex numbers and arrays are refused (``lam="0.1"``,
+    ``StopRule(rtol="1e-3")``, ``efficiency="0.5"`` failed in a comparison or a ufunc naming
+    no argument, and ``float(True)`` is 1: an outside audit of 2026-12-02). Where ``low`` is
+    given, NaN and values below it are refused too, and with ``finite`` infinities; without
+    ``low`` only the type is checked and the caller checks the range in its own words.
+    Callers that need their own value (a NumPy scalar computing as before) keep it and use
+    this as a check.
+    """
+    from .errors import ConfigError
+
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    if low is None:
+        want = "a finite number" if finite else "a number"
+    elif low == -np.inf:  # any number but NaN
+        want = "a finite number" if finite else "a number, not NaN"
+    else:
+        bound = "non-negative" if low == 0 else f">= {low:g}"
+        want = f"finite and {bound}" if finite else f"a {bound} number"
+    x = real_number(value)
+    if x is None or (low is not None and (np.isnan(x) or x < low)) or (
+            finite and not np.isfinite(x)):
+        raise ConfigError(f"{name} must be {want}, got {value!r}")
+    return x
+
+
 def same_length(a: np.ndarray, n: int, what: str, of: str) -> None:
     """Refuse (one line) ``a`` whose length is not ``n``, the length of ``of``: numpy's
     broadcast and matmul errors named neither argument."""

@@ -15,10 +15,32 @@ from typing import Any
 
 import numpy as np
 
-from ..arrays import real_array
+from ..arrays import real_array, real_number
 from ..errors import ConfigError
 
-__all__ = ["DetectorModel", "checked_detect"]
+__all__ = ["DetectorModel", "check_periods", "checked_detect"]
+
+
+def check_periods(n_periods: Any, whole: bool = False) -> None:
+    """Refuse, in one :class:`~spslidar.errors.ConfigError` naming it, an ``n_periods`` that
+    is not a positive finite number of code periods (with ``whole``, a whole one): what
+    every detector model's :meth:`~DetectorModel.detect`, :meth:`~DetectorModel.expected`
+    and pile-up correction take.
+
+    0 was a ZeroDivisionError, -1 a silent negative histogram after a long computation, and
+    ``"2"`` a NumPy ufunc error naming nothing (audits of 2026-11-29 and of the Python API);
+    half a period is a differential frame's, without dead time, so fractions pass unless
+    ``whole`` (a detector with a dead time draws whole periods: 1.5 periods gave 68 % of the
+    expected counts, half a period none).
+    """
+    x = real_number(n_periods[()] if isinstance(n_periods, np.ndarray) and n_periods.ndim == 0
+                    else n_periods)
+    if x is None or not (np.isfinite(x) and x > 0):
+        raise ConfigError(f"n_periods must be a positive number of code periods, got "
+                          f"{n_periods!r}")
+    if whole and not x.is_integer():
+        raise ConfigError(f"a GMAPD with a dead time draws whole code periods: n_periods "
+                          f"must be a whole number, got {n_periods!r}")
 
 
 def means_block(lam: Any) -> np.ndarray:

@@ -44,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from ..arrays import real_scalar
 from ..constants import MAX_COUNT_MEAN
 from ..errors import ConfigError
 
@@ -70,7 +71,13 @@ class NoiseModel:
     ambient : {'paper', 'modulated'}
         How B1 enters (see module docstring).
     background_rate, dark_count_rate : float
-        Extra background and dark counts in counts per second (physical units), added on top.
+        Extra background and dark counts in counts per second (physical units), added on top;
+        finite and non-negative.
+
+    Raises
+    ------
+    ConfigError
+        For a value that is not a number (text, a bool), or is out of its range, naming it.
     """
 
     m_n: float = 10.0
@@ -80,16 +87,24 @@ class NoiseModel:
     dark_count_rate: float = 0.0
 
     def __post_init__(self):
-        if not np.isfinite(self.m_n) or self.m_n < 0:
+        # (m_n="1" failed in np.isfinite, naming nothing; NaN and infinite rates were taken:
+        # an outside audit of the Python API)
+        if not np.isfinite(real_scalar(self.m_n, "noise (m_n)")) or self.m_n < 0:
             raise ConfigError(f"noise (m_n) must be a non-negative number, got {self.m_n}")
-        s = np.asarray(self.split, dtype=float)
-        if s.shape != (3,) or np.any(s < 0) or not np.isclose(s.sum(), 1.0):
+        if np.ndim(self.split) != 1 or np.size(self.split) != 3:
+            raise ConfigError(f"noise_split must be three non-negative shares summing to 1, "
+                              f"got {self.split!r}")
+        s = np.array([real_scalar(v, "noise_split") for v in self.split], dtype=float)
+        if np.any(s < 0) or not np.isclose(s.sum(), 1.0):
             raise ConfigError(f"noise_split must be three non-negative shares summing to 1, "
                               f"got {list(self.split)}")
         if self.ambient not in AMBIENT_MODELS:
             raise ConfigError(f"unknown ambient model {self.ambient!r}; choose paper or modulated")
-        if self.background_rate < 0 or self.dark_count_rate < 0:
-            raise ConfigError("background and dark count rates must be non-negative")
+        for key in ("background_rate", "dark_count_rate"):
+            rate = real_scalar(getattr(self, key), key)
+            if not (np.isfinite(rate) and rate >= 0):
+                raise ConfigError(f"{key} must be a finite, non-negative number of counts per "
+                                  f"second, got {getattr(self, key)!r}")
 
     def per_bin(self, patterns: Any, reflectivity: np.ndarray,
                 bin_width: float, modulation: np.ndarray | None = None) -> np.ndarray:
@@ -103,7 +118,16 @@ class NoiseModel:
         Notes
         -----
         Eq. (9): ``N^2 m_n^(1) + m_n^(2) + m_n^(3)`` with each term per pixel (so x N^2).
+
+        Raises
+        ------
+        ConfigError
+            For a ``bin_width`` that is not a positive finite number of seconds (-1e-3 gave
+            -1000 counts per bin at 1e6 counts per second: an outside audit).
         """
+        width = real_scalar(bin_width, "bin_width")
+        if not (np.isfinite(width) and width > 0):
+            raise ConfigError(f"bin_width must be a positive time in seconds, got {bin_width!r}")
         m, q = patterns.shape
         f1, f2, f3 = (float(v) for v in self.split)
         base = q * self.m_n * (f2 + f3) + (self.background_rate + self.dark_count_rate) * bin_width
@@ -129,16 +153,17 @@ def too_many_counts(per_bin: float) -> str:
             f"saturates at about one count per dead time)")
 
 
-def check_rates(lam) -> None:
-    """A detector's expected photons per bin: finite and non-negative, or one ``ValueError``
-    (NaN read "lam value too large" from NumPy's sampler, and a GMAPD took negative means:
-    an audit of 2026-11-29). Two reductions, as :func:`check_means` reads its means (whose
-    bound on float32 counts a GMAPD's flux does not have)."""
+def check_rates(lam, what: str = "lam (a detector's expected photons per bin)") -> None:
+    """A detector's expected photons per bin (or its counts): finite and non-negative, or one
+    :class:`~spslidar.errors.ConfigError` (a ``ValueError``) naming ``what`` (NaN read "lam
+    value too large" from NumPy's sampler, and a GMAPD took negative means: an audit of
+    2026-11-29; its ``expected`` took 13-30 s to return negative or NaN means: an audit of
+    the Python API). Two reductions, as :func:`check_means` reads its means (whose bound on
+    float32 counts a GMAPD's flux does not have)."""
     a = np.asarray(lam)
     # NaN fails every comparison, so the two reductions check finiteness and sign at once
     if a.size and not (a.min() >= 0 and a.max() < np.inf):
-        raise ValueError("a detector's expected photons per bin must be finite and "
-                         "non-negative")
+        raise ConfigError(f"{what} must be finite and non-negative")
 
 
 def check_means(lam: np.ndarray) -> None:
@@ -255,10 +280,12 @@ class PhotonCountingDetector:
     efficiency: float = 1.0
 
     def __post_init__(self):
-        if not self.dead_time >= 0:
-            raise ConfigError("dead_time must be non-negative")
-        if not 0 < self.efficiency <= 1:
-            raise ConfigError("efficiency must be in (0, 1]")
+        # (efficiency="0.5" failed in a comparison naming nothing: an outside audit)
+        if not np.isfinite(real_scalar(self.dead_time, "dead_time")) or not self.dead_time >= 0:
+            raise ConfigError(f"dead_time must be a finite, non-negative time in seconds, got "
+                              f"{self.dead_time!r}")
+        if not 0 < real_scalar(self.efficiency, "efficiency") <= 1:
+            raise ConfigError(f"efficiency must be in (0, 1], got {self.efficiency!r}")
 
     def count(self, lam: np.ndarray, rng, parallel: bool = True) -> np.ndarray:
         """Photon counts per bin: Poisson(efficiency * lam)."""

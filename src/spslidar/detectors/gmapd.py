@@ -32,8 +32,9 @@ from typing import Any
 
 import numpy as np
 
+from ..arrays import real_array, real_scalar
 from ..errors import ConfigError
-from .base import DetectorModel, means_block
+from .base import DetectorModel, check_periods, means_block
 from .counting import check_rates
 from .jitter import convolve_periodic, jitter_kernel
 from .pileup import auto_oversample, coates_correction, renewal_detection
@@ -59,9 +60,28 @@ SATURATED_FLUX_PER_BIN = 1.0
 SATURATED_PER_DEAD_TIME = 100.0
 
 
+#: the fields that are numbers (``oversample`` too, where it is not None)
+_NUMBERS = ("dead_time", "bin_width", "efficiency", "dark_count_rate", "jitter", "jitter_tail",
+            "jitter_tail_weight", "afterpulse_prob", "afterpulse_delay", "tol")
+#: the words ``correction`` takes besides a bool (``--pileup-correction``'s)
+_SWITCH = {"on": True, "true": True, "off": False, "false": False}
+
+
 def _check(ok: bool, message: str) -> None:
     if not ok:
         raise ConfigError(message)
+
+
+def _switch(value: Any, what: str) -> bool:
+    """``value`` as a bool where it is one (Python's or NumPy's, kept as given) or one of the
+    words ``on``, ``off``, ``true``, ``false`` in any case; else a one-line ConfigError naming
+    ``what`` (``correction="no"`` was truthy, so the correction stayed on: an outside
+    audit)."""
+    if isinstance(value, bool | np.bool_):
+        return value
+    if isinstance(value, str) and value.lower() in _SWITCH:
+        return _SWITCH[value.lower()]
+    raise ConfigError(f"{what} must be True or False (or 'on' / 'off'), got {value!r}")
 
 
 @dataclass
@@ -96,9 +116,16 @@ class GMAPD(DetectorModel):
         more than 0.15 photon per period).
     tol : float
         Relative tolerance of the renewal fixed point.
-    correction : bool
+    correction : bool or {'on', 'off', 'true', 'false'}
         Correct each histogram for pile-up before the matched filter (:meth:`correct`;
-        ``--pileup-correction``); without it the distorted counts go on as measured.
+        ``--pileup-correction``); without it the distorted counts go on as measured. A word
+        is read as ``--pileup-correction`` reads it, in any case; anything else is refused.
+
+    Raises
+    ------
+    ConfigError
+        For a parameter that is not a number (text, a bool), or is out of its range, naming
+        it.
 
     Examples
     --------
@@ -136,6 +163,10 @@ class GMAPD(DetectorModel):
     linear = False
 
     def __post_init__(self):
+        # (bin_width="1e-10" failed in np.isfinite, naming nothing: an outside audit)
+        for key in _NUMBERS + (("oversample",) if self.oversample is not None else ()):
+            real_scalar(getattr(self, key), key)
+        self.correction = _switch(self.correction, "correction")
         _check(np.isfinite(self.bin_width) and self.bin_width > 0,
                f"bin_width must be a positive time in seconds, got {self.bin_width}")
         _check(np.isfinite(self.dead_time) and self.dead_time >= 0,
@@ -198,8 +229,36 @@ class GMAPD(DetectorModel):
         return mu
 
     def detection_probability(self, lam: np.ndarray, n_periods: int = 1) -> np.ndarray:
-        """``q_t``: mean detections per bin per period (steady state), float64 (B, L)."""
-        return self._model(np.atleast_2d(np.asarray(lam, dtype=np.float64)), n_periods)[0]
+        """``q_t``: mean detections per bin per period (steady state), float64 (B, L).
+
+        Parameters
+        ----------
+        lam : ndarray, shape (B, L) or (L,)
+            Expected photons per bin over ``n_periods`` periods: finite and non-negative.
+        n_periods : int
+            Code periods accumulated: a positive number.
+
+        Raises
+        ------
+        ConfigError
+            For ``lam`` or ``n_periods`` out of range, at once, as :meth:`detect` refuses
+            them (negative or NaN means, -1 or 0 periods ran the model for 13-30 s and
+            returned negative or NaN means, or divided by zero: an outside audit).
+        """
+        return self._model(self._means(lam, n_periods), n_periods)[0]
+
+    @staticmethod
+    def _means(lam: Any, n_periods: Any) -> np.ndarray:
+        """``lam`` as float64 ``(B, L)`` means (a row: one pattern's), checked as
+        :meth:`detect` checks them, and ``n_periods`` checked (one line for either)."""
+        check_periods(n_periods)
+        arr = real_array(lam, "lam")
+        if arr.ndim > 2:
+            raise ConfigError(f"lam must be (B, L) means, one row per pattern, got shape "
+                              f"{arr.shape}")
+        arr = np.atleast_2d(arr.astype(np.float64, copy=False))
+        check_rates(arr)
+        return arr
 
     def _model(self, lam: np.ndarray, n_periods: int):
         """:meth:`detection_probability` of the float64 ``(B, L)`` ``lam``, with the flux per
@@ -254,9 +313,9 @@ class GMAPD(DetectorModel):
                         dtype=np.int64)
 
     def check_flux(self, lam: np.ndarray, n_periods: int = 1) -> None:
-        """:meth:`_check_flux` of the means ``lam`` (the detector base's hook)."""
-        self._check_flux(self.flux(np.atleast_2d(np.asarray(lam, dtype=np.float64)),
-                                   n_periods))
+        """:meth:`_check_flux` of the means ``lam`` (the detector base's hook; ``lam`` and
+        ``n_periods`` checked as :meth:`detection_probability` checks them)."""
+        self._check_flux(self.flux(self._means(lam, n_periods), n_periods))
 
     def _check_flux(self, mu: np.ndarray) -> None:
         """Refuse a flux that saturates the detector beyond use (:data:`SATURATED_FLUX_PER_BIN`
@@ -282,7 +341,8 @@ class GMAPD(DetectorModel):
         """Mean detected counts per bin over ``n_periods`` periods, ``n_periods * q_t``.
 
         ``lam`` (B, L) is accumulated over the ``n_periods`` periods (the contract of
-        :class:`~spslidar.detectors.base.DetectorModel`)."""
+        :class:`~spslidar.detectors.base.DetectorModel`); both are checked as
+        :meth:`detection_probability` checks them."""
         return n_periods * self.detection_probability(lam, n_periods)
 
     def variance(self, lam: np.ndarray, n_periods: int = 1) -> np.ndarray:
@@ -290,7 +350,8 @@ class GMAPD(DetectorModel):
         ``n q (1 - q)`` (a sum of ``n`` Bernoulli detections; the real detector's differs
         where the period is shorter than the dead time's memory: 1.08-1.16 times this at a
         period of 3.2 dead times and 8 photons per dead time, an audit's event-level reference
-        of 2026-11-29; nothing in the chain reads it)."""
+        of 2026-11-29; nothing in the chain reads it). ``lam`` and ``n_periods`` are checked
+        as :meth:`detection_probability` checks them."""
         q = self.detection_probability(lam, n_periods)
         if self.dead_bins == 0:
             return n_periods * q
@@ -319,16 +380,8 @@ class GMAPD(DetectorModel):
         from ..randomness import as_generator
 
         rng = as_generator(rng)
-        if isinstance(n_periods, bool) or not (np.isfinite(n_periods) and n_periods > 0):
-            # (0 was a ZeroDivisionError, an audit of 2026-11-29; half a period is a
-            # differential frame's, without dead time)
-            raise ValueError(f"n_periods must be a positive number of code periods, got "
-                             f"{n_periods!r}")
-        if self.dead_bins and not float(n_periods).is_integer():
-            # (the dead-time sampler draws whole periods of lam / n_periods each: 1.5 periods
-            # gave 68 % of the expected counts, half a period none; an audit of 2026-11-29)
-            raise ValueError(f"a GMAPD with a dead time draws whole code periods: n_periods "
-                             f"must be a whole number, got {n_periods!r}")
+        # (the dead-time sampler draws whole periods of lam / n_periods each)
+        check_periods(n_periods, whole=bool(self.dead_bins))
         lam = means_block(lam).astype(np.float64, copy=False)
         check_rates(lam)
         q, mu, subs = self._model(lam, n_periods)
@@ -363,7 +416,18 @@ class GMAPD(DetectorModel):
         within a bin is taken as uniform, or as linear when the jitter is at least half a bin
         wide (:func:`~spslidar.detectors.pileup.sub_bin_profile`). ``expected``: ``counts`` is
         :meth:`expected`'s histogram (a noiseless run), inverted without the bounds that
-        apply to counts (at one period they zeroed every bin)."""
+        apply to counts (at one period they zeroed every bin).
+
+        Raises
+        ------
+        ConfigError
+            For ``counts`` that are not finite and non-negative, or an ``n_periods`` that is
+            not a positive number (negative counts were corrected to zeros, 0 periods was a
+            ZeroDivisionError and -5 was taken: an outside audit), with or without the
+            correction.
+        """
+        check_periods(n_periods)
+        check_rates(real_array(counts, "counts"), "counts (detections per bin)")
         if not self.correction:
             return counts
         smooth = max(self.jitter, self.jitter_tail * (self.jitter_tail_weight > 0))

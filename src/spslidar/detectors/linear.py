@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from .base import DetectorModel, means_block
+from .base import DetectorModel, check_periods, means_block
 from .counting import PhotonCountingDetector, poisson_rows
 
 __all__ = ["LinearDetector"]
@@ -45,10 +45,14 @@ class LinearDetector(PhotonCountingDetector, DetectorModel):
                n_periods: int = 1, out: np.ndarray | None = None
                ) -> tuple[np.ndarray, np.ndarray]:
         """Poisson counts of the detected means, with each row's total
-        (:meth:`~spslidar.detectors.base.DetectorModel.detect`)."""
+        (:meth:`~spslidar.detectors.base.DetectorModel.detect`; ``n_periods`` does not
+        change the counts, but is refused, as the GMAPD refuses it, where it is not a
+        positive number of code periods: 0 and -1 were taken without a word, an outside
+        audit)."""
         from ..randomness import as_generator
 
         rng = as_generator(rng)
+        check_periods(n_periods)
         lam = self.detected_means(means_block(lam))  # (an AxisError deep inside, an audit)
         if out is None:  # (the counts were written over the caller's means, an audit)
             out = np.empty(np.shape(lam), dtype=np.result_type(np.asarray(lam).dtype,
@@ -57,9 +61,15 @@ class LinearDetector(PhotonCountingDetector, DetectorModel):
         return out, totals
 
     def expected(self, lam: np.ndarray, n_periods: int = 1) -> np.ndarray:
-        """The detected means, ``efficiency * lam``
-        (:meth:`~spslidar.detectors.base.DetectorModel.expected`)."""
-        return self.detected_means(lam)
+        """The detected means, ``efficiency * lam``, as a new array
+        (:meth:`~spslidar.detectors.base.DetectorModel.expected`).
+
+        At an efficiency of 1 this was ``lam`` itself, so a caller editing the result edited
+        its own means (an outside audit); ``n_periods`` is checked as :meth:`detect` checks
+        it."""
+        check_periods(n_periods)
+        means = self.detected_means(lam)
+        return np.array(means, copy=True) if means is lam else means
 
     def report(self, counts_per_period: float, period_s: float,
                pulsed: bool = False, incident_per_period: float | None = None

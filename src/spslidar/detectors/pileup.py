@@ -73,6 +73,8 @@ import warnings
 import numpy as np
 from scipy import fft as sfft
 
+from ..arrays import real_array, real_scalar
+from ..errors import ConfigError
 from ._renewal import (
     _Anderson,
     _chunks,
@@ -85,6 +87,8 @@ from ._renewal import (
     _Scan,
     _shifted_left,
 )
+from .base import check_periods
+from .counting import check_rates
 from .jitter import convolve_periodic, jitter_antiderivative, jitter_kernel
 
 __all__ = [
@@ -458,6 +462,16 @@ def coates_correction(hist: np.ndarray, n_periods: int, dead_time_bins: float,
         ``n_periods * mu_t``: the mean photons (plus dark counts) per bin that a detector
         without dead time would have counted (efficiency and jitter are not undone).
 
+    Raises
+    ------
+    ConfigError
+        For an argument out of its range, before any work, naming it: ``hist`` not finite
+        and non-negative, ``n_periods`` not a positive number, ``dead_time_bins`` neither 0
+        nor a finite number >= 1, ``afterpulse_prob`` outside [0, 1), ``oversample``
+        neither None nor a whole number >= 1, an unknown ``profile`` (negative counts were
+        corrected to zeros, a NaN dead time failed in a cast to an integer: an outside
+        audit).
+
     Notes
     -----
     Coates (J. Phys. E 1, 878, 1968) for a synchronous TCSPC: ``mu_t = -log(1 - h_t / N_t)``
@@ -479,7 +493,8 @@ def coates_correction(hist: np.ndarray, n_periods: int, dead_time_bins: float,
     ceiling (the most the counts can resolve), or half way to it where the ceiling is under a
     count (a few periods: the cap was ``log(1) = 0`` there, which erased every bin).
     """
-    h = np.asarray(hist, dtype=np.float64)
+    h = _checked_inputs(hist, n_periods, dead_time_bins, afterpulse_prob,
+                        afterpulse_delay_bins, oversample, profile)
     one_d = h.ndim == 1
     h = np.atleast_2d(h) / float(n_periods)
     if dead_time_bins == 0:
@@ -492,8 +507,6 @@ def coates_correction(hist: np.ndarray, n_periods: int, dead_time_bins: float,
         # afterpulses, +5 % of the photons at P = 0.1, an outside audit)
         out = mu * n_periods
         return out[0] if one_d else out
-    if dead_time_bins < 1:
-        raise ValueError("the dead time must be 0 or at least one bin")
     args = (float(n_periods), dead_time_bins, float(afterpulse_prob),
             float(afterpulse_delay_bins), max_iter, tol, bool(expected))
     mu = _coates_bins(h, *args)
@@ -505,6 +518,34 @@ def coates_correction(hist: np.ndarray, n_periods: int, dead_time_bins: float,
         mu[rows] = _defect_correction(h[rows], mu[rows], int(sub), profile, args)
     out = mu * n_periods
     return out[0] if one_d else out
+
+
+def _checked_inputs(hist, n_periods, dead_time_bins, afterpulse_prob, afterpulse_delay_bins,
+                    oversample, profile) -> np.ndarray:
+    """:func:`coates_correction`'s ``hist`` as float64, its other arguments checked (one
+    :class:`~spslidar.errors.ConfigError` naming the first one out of range)."""
+    check_periods(n_periods)
+    dead = real_scalar(dead_time_bins, "dead_time_bins")
+    if not (dead == 0 or (np.isfinite(dead) and dead >= 1)):
+        raise ConfigError(f"dead_time_bins must be 0 or a finite number of TDC bins >= 1, got "
+                          f"{dead_time_bins!r}")
+    prob = real_scalar(afterpulse_prob, "afterpulse_prob")
+    if not 0 <= prob < 1:
+        raise ConfigError(f"afterpulse_prob must be in [0, 1), got {afterpulse_prob!r}")
+    delay = real_scalar(afterpulse_delay_bins, "afterpulse_delay_bins")
+    if not (np.isfinite(delay) and (delay > 0 if prob else delay >= 0)):
+        raise ConfigError(f"afterpulse_delay_bins must be a finite number of TDC bins >= 0 (> 0 "
+                          f"where afterpulse_prob > 0), got {afterpulse_delay_bins!r}")
+    if oversample is not None:
+        sub = real_scalar(oversample, "oversample")
+        if not (sub >= 1 and sub.is_integer()):
+            raise ConfigError(f"oversample must be None or a whole number >= 1, got "
+                              f"{oversample!r}")
+    if not (isinstance(profile, str) and profile in ("uniform", "linear")):
+        raise ConfigError(f"unknown sub-bin profile {profile!r}; use 'uniform' or 'linear'")
+    h = real_array(hist, "hist").astype(np.float64, copy=False)
+    check_rates(h, "hist (detected counts per bin)")
+    return h
 
 
 def sub_bin_profile(mu: np.ndarray, sub: int, profile: str = "uniform") -> np.ndarray:

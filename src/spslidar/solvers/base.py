@@ -26,50 +26,10 @@ from typing import Any, TextIO
 
 import numpy as np
 
+from ..arrays import real_scalar
 from ..errors import ConfigError
 from ..operators.base import LinearOperator
 from ..operators.parallel import parallel
-
-
-def real_scalar(value: Any, name: str, *, low: float | None = 0.0,
-                finite: bool = False) -> float:
-    """``value`` as a real number (for the check only: callers keep their own value, so that
-    a NumPy scalar computes as before), or a one-line :class:`~spslidar.errors.ConfigError`
-    naming ``name``.
-
-    Strings, ``None``, booleans, complex numbers and arrays other than 0-d real ones are
-    refused (``lam="0.1"`` and ``StopRule(rtol="1e-3")`` failed in a comparison naming no
-    argument: an audit of 2026-12-02), and so are NaN, values below ``low`` (unless ``None``)
-    and, with ``finite``, infinities.
-
-    Parameters
-    ----------
-    value : float
-    name : str
-        The argument's name, for the message.
-    low : float or None
-        The least value taken.
-    finite : bool
-        Refuse infinities too.
-
-    Returns
-    -------
-    float
-    """
-    from ..arrays import real_number
-
-    if isinstance(value, np.ndarray) and value.ndim == 0:
-        value = value[()]
-    x = real_number(value)
-    if x is None or np.isnan(x) or (low is not None and x < low) or (finite
-                                                                     and np.isinf(x)):
-        if low is None:
-            want = "a finite real number" if finite else "a real number, not NaN"
-        else:
-            bound = "non-negative" if low == 0 else f">= {low:g}"
-            want = f"finite and {bound}" if finite else f"a {bound} number"
-        raise ConfigError(f"{name} must be {want}, got {value!r}")
-    return x
 
 
 def as_operator(A: Any) -> Any:
@@ -127,13 +87,13 @@ class StopRule:
         self.max_iter = int(self.max_iter)
         # (NaN was taken; a string failed in a comparison naming no field: audits). Checked,
         # not cast: a NumPy scalar tolerance computes as it did
-        real_scalar(self.rtol, "rtol")
+        real_scalar(self.rtol, "rtol", low=0.0)
         if self.obj_rtol is not None:
-            real_scalar(self.obj_rtol, "obj_rtol")
+            real_scalar(self.obj_rtol, "obj_rtol", low=0.0)
         if self.target is not None:
-            real_scalar(self.target, "target", low=None)
+            real_scalar(self.target, "target", low=-np.inf)
         if self.max_time is not None:
-            real_scalar(self.max_time, "max_time")
+            real_scalar(self.max_time, "max_time", low=0.0)
 
 
 @dataclass
@@ -385,7 +345,7 @@ class Solver:
         """
         # (NaN returned NaN, inf a ZeroDivisionError in TVAL3, a string or None a comparison's
         # TypeError: audits)
-        real_scalar(lam, "lam", finite=True)
+        real_scalar(lam, "lam", low=0.0, finite=True)
         A = as_operator(A)
         if not callable(getattr(reg, "prox", None)):
             # (None: "'NoneType' object has no attribute 'values'", an audit of 2026-11-29)

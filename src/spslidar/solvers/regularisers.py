@@ -20,13 +20,12 @@ from typing import Any
 
 import numpy as np
 
-from ..arrays import positive_number, real_array
+from ..arrays import positive_number, real_array, real_scalar
 from ..capture import carried
 from ..operators import parallel as _parallel
 from ..operators.base import LinearOperator
 from ..operators.image import Gradient2D, forward_differences_into
 from .base import as_block as _as_block
-from .base import real_scalar
 
 __all__ = ["Regulariser", "TV", "L1", "Zero", "make_tv", "make_tv_aniso", "make_l1",
            "make_wavelet_l1"]
@@ -112,7 +111,7 @@ class Regulariser:
             (a NaN ``t`` gave all NaN, a complex ``v`` was cast to its real part with numpy's
             warning: an audit of 2026-12-02).
         """
-        real_scalar(t, "prox threshold t", finite=True)
+        real_scalar(t, "prox threshold t", low=0.0, finite=True)
         v = real_array(v, "v")
         vb, was_1d = _as_block(v)
         vb = vb.astype(_float_dtype(vb), copy=False)
@@ -338,7 +337,7 @@ class TV(Regulariser):
         self.isotropic = bool(isotropic)
         self.nonneg = bool(nonneg)
         self.max_inner = positive_number(max_inner, "max_inner", integer=True)
-        self.inner_tol = real_scalar(inner_tol, "inner_tol", finite=True)
+        self.inner_tol = real_scalar(inner_tol, "inner_tol", low=0.0, finite=True)
         self.warm_start = bool(warm_start)
         self.threads = (None if threads is None
                         else positive_number(threads, "threads", integer=True))
