@@ -213,3 +213,67 @@ def test_a_bit_rate_of_true_and_a_fractional_weighted_tv_shape_are_refused():
         EdgeWeightedTV((4.7, 4), np.ones((3, 4)), np.ones((4, 3)))
     with pytest.raises(ValueError, match="max_inner"):
         EdgeWeightedTV((4, 4), np.ones((3, 4)), np.ones((4, 3)), max_inner=2.5)
+
+
+def test_reflectivity_image_of_a_depth_far_beyond_the_gate_ends_and_agrees():
+    """One pixel 3e7 bins beyond the gate, inside a window of 1e8 bins, kept a loop of 3e7
+    turns (a review); both passes give the same sums as a plain reference."""
+    from spslidar.forward import delay_to_depth
+    from spslidar.products import reflectivity_image
+
+    rng = np.random.default_rng(4)
+    slices = rng.random((3, 10)) - 0.2
+    lags = np.arange(1000, 1010)
+    depth = delay_to_depth(np.array([1003.0, 1000.0 + 3e7, 1008.0]), 1e-10)  # slices 3, -, 8
+    got = reflectivity_image(slices, depth, lags, 1e-10, half_window=10 ** 8)
+    assert np.allclose(got, np.clip(slices, 0, None).sum(axis=1))
+    narrow = reflectivity_image(slices, depth, lags, 1e-10, half_window=1)
+    pos = np.clip(slices, 0, None)
+    assert np.isclose(narrow[0], pos[0, 2:5].sum()) and np.isnan(narrow[1])
+    assert np.isclose(narrow[2], pos[2, 7:10].sum())
+
+
+def test_a_subclass_of_argmax_keeps_its_registered_options():
+    """ArgmaxDepth's own refusal of options broke a plugin's subclass that declares one (the
+    registry's documented pattern; a review)."""
+    from spslidar.depth.argmax import ArgmaxDepth
+
+    class Smooth(ArgmaxDepth):
+        name = "smooth-argmax"
+
+    assert Smooth(window=3).options == {"window": 3}
+    with pytest.raises(TypeError, match="no options"):
+        ArgmaxDepth(window=3)
+
+
+def test_a_copied_or_unpickled_result_is_read_only_too(result):
+    import copy
+    import pickle
+
+    for r in (copy.deepcopy(result), pickle.loads(pickle.dumps(result))):
+        assert not r.depth.flags.writeable and not r.slices.flags.writeable
+        np.testing.assert_array_equal(r.depth, result.depth)
+
+
+def test_expected_counts_refuses_an_empty_code_as_the_replicas_do():
+    from spslidar.correlate import make_replica
+    from spslidar.forward import expected_counts
+
+    for call in (lambda: make_replica([]),
+                 lambda: expected_counts(np.ones((1, 1)), [0], [], 1.0, 0.1)):
+        with pytest.raises(ValueError, match="code is empty"):
+            call()
+
+
+@pytest.mark.parametrize("shape", [(True, 4), (4.7, 4), (2.7, 3)])
+def test_image_shapes_are_read_alike_everywhere(shape):
+    """TV took (True, 4) as (1, 4); pixel_rays (2.7, 3) as (2, 3); DepthContext refused
+    both (a review)."""
+    from spslidar.depth import DepthContext
+    from spslidar.products import pixel_rays
+    from spslidar.solvers.regularisers import TV
+
+    for call in (lambda: TV(shape), lambda: pixel_rays(shape, 10.0),
+                 lambda: DepthContext(np.arange(3), 1e-10, shape=shape)):
+        with pytest.raises(ConfigError, match="pair of whole numbers"):
+            call()

@@ -88,10 +88,49 @@ def real_number(value: Any) -> float | None:
     ``float()`` takes: ``dead_time=False`` read as 0 and ``'1e-7'`` was taken, an outside
     audit of 2026-11-30), else ``None``: the caller says what it wanted, in its own words
     (``--dead-time``, ``--settle``)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:  # a 0-d array is its number
+        value = value[()]
     if isinstance(value, bool | np.bool_) or not isinstance(value, int | float | np.integer
                                                               | np.floating):
         return None
     return float(value)
+
+
+def pair_shape(shape: Any, what: str, least: int) -> tuple[int, int]:
+    """``shape`` as two whole numbers of at least ``least``; one clear ``ValueError``
+    otherwise (an int for a pair was "'int' object is not subscriptable", an audit; a bool
+    was read as 1 and 4.7 as 4, a review of 2026-12-02). The image shapes of the operators,
+    the regularisers, the depth estimators' context and the point cloud's rays."""
+    from .errors import ConfigError
+
+    try:
+        a, b = shape
+        if isinstance(a, (bool, np.bool_, str, bytes)) or isinstance(b, (bool, np.bool_, str,
+                                                                          bytes)):
+            raise TypeError
+        out = (int(a), int(b))
+    except (TypeError, ValueError):
+        raise ConfigError(f"{what} must be a pair of whole numbers, got {shape!r}") from None
+    if out != (a, b) or min(out) < least:
+        raise ConfigError(f"{what} must be a pair of whole numbers >= {least}, got {shape!r}")
+    return out
+
+
+def floating_dtype(dtype: Any, name: str = "dtype", why: str = "") -> np.dtype:
+    """``dtype`` as a real floating NumPy dtype, or one line naming ``name`` (``why``: what
+    the caller needs it for). The check of the patterns', the centred patterns', a matrix
+    operator's and the matched filter's dtypes (an integer one truncated or zeroed them, a
+    complex one failed at the first product: audits)."""
+    from .errors import ConfigError
+
+    try:
+        dt = np.dtype(dtype)
+    except TypeError:
+        dt = None
+    if dt is None or dt.kind != "f":
+        raise ConfigError(f"{name} must be a real floating type (float32 or float64){why}, "
+                          f"got {dtype if dt is None else dt}")
+    return dt
 
 
 def real_scalar(value: Any, name: str, *, low: float | None = None,
@@ -109,8 +148,6 @@ def real_scalar(value: Any, name: str, *, low: float | None = None,
     """
     from .errors import ConfigError
 
-    if isinstance(value, np.ndarray) and value.ndim == 0:
-        value = value[()]
     if low is None:
         want = "a finite number" if finite else "a number"
     elif low == -np.inf:  # any number but NaN

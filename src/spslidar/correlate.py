@@ -24,28 +24,18 @@ from typing import Any
 
 import numpy as np
 
-from .arrays import positive_number, real_array, whole_numbers
+from .arrays import floating_dtype, positive_number, real_array, whole_numbers
+from .codes.sequences import code_bits
 from .constants import MAX_GATE_BINS, SPEED_OF_LIGHT
 from .errors import ConfigError
 
 REPLICAS = ("bipolar", "zero-mean", "unipolar")
 
 
-def _code_bits(code: Any) -> np.ndarray:
-    """``code`` as a real, finite, non-empty 1-D array, or one line (an empty code leaked
-    "Mean of empty slice", a NaN one was called balanced: an audit of 2026-11-29)."""
-    s = real_array(code, "code", ndim=1, finite=True)
-    if not s.size:
-        raise ValueError("code is empty: a replica needs one bit or more")
-    if not np.isin(s, (0, 1)).all():  # ([2, 2, 0] was called balanced: an audit of 2026-12-02)
-        raise ValueError("code must hold bits, 0 or 1 (a +-1 code is (c + 1) / 2)")
-    return s
-
-
 def make_replica(code: np.ndarray, kind: str = "bipolar") -> np.ndarray:
     """The receiver's code replica ``f`` (float64): ``bipolar`` ``2s - 1``, ``zero-mean``
     ``s - mean(s)`` or ``unipolar`` ``s``."""
-    s = _code_bits(code).astype(np.float64)
+    s = code_bits(code).astype(np.float64)
     if kind == "bipolar":
         return 2.0 * s - 1.0
     if kind == "zero-mean":
@@ -67,7 +57,7 @@ def auto_replica(code: np.ndarray) -> str:
     code's off-peak correlation is zero on average; for an m-sequence ``2s - 1`` is exact
     (off-peak sum 0) where ``s - mean(s)`` leaves ``-(T + 1) / 4T``.
     """
-    s = _code_bits(code)
+    s = code_bits(code)
     return "bipolar" if abs(2 * int(np.count_nonzero(s)) - s.size) <= 1 else "zero-mean"
 
 
@@ -129,7 +119,7 @@ def window_response(code: np.ndarray, kind: str, half: int = 1) -> float:
     2026-12-01: a noiseless wall of reflectivity 1 read 1.125 through the default Gold
     member at 1023 bits, 1.000 through an m-sequence).
     """
-    s = _code_bits(code).astype(np.float64)
+    s = code_bits(code).astype(np.float64)
     if s.size < 2:
         return 1.0
     f = make_replica(s, kind)
@@ -297,13 +287,8 @@ def matched_filter(
     # (0.7 bin read as 0, a NaN as an arbitrary lag, an audit of 2026-11-29)
     lags = np.mod(whole_numbers(lags, "lags"), period)
     gain = positive_number(gain, "gain")
-    try:  # (an int dtype truncated the correlations, 3.03 to 3: an outside audit of 2026-12-02)
-        floating = np.issubdtype(np.dtype(out_dtype), np.floating)
-    except TypeError:
-        floating = False
-    if not floating:
-        raise ValueError(f"out_dtype must be a real floating dtype (float32 or float64), got "
-                         f"{out_dtype!r}")
+    # (an int dtype truncated the correlations, 3.03 to 3: an outside audit of 2026-12-02)
+    floating_dtype(out_dtype, "out_dtype")
     if bank is not None and np.shape(bank) != (period, lags.size):
         # (a bank built for other lags was used as it was: 3 columns for 10 lags)
         raise ValueError(f"bank of shape {np.shape(bank)} for {lags.size} lags of a {period}-bin "

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from .arrays import positive_number, real_array, same_length, whole_numbers
+from .codes.sequences import code_bits
 from .constants import SPEED_OF_LIGHT
 
 
@@ -216,21 +217,22 @@ def expected_counts(
     # (an outside audit of 2026-12-02: a matrix of a 127-bit code was used with a 255-bit
     # code, bits of 0..126 and negative or NaN noise made means no photon count has, and a
     # signal of [5.0] or None was a TypeError naming nothing)
-    bits = real_array(code, "code", ndim=1)
-    if not np.isin(bits, (0, 1)).all():
-        raise ValueError("code must hold bits, 0 or 1 (1 = a laser pulse in that bit)")
-    s = code_matrix if code_matrix is not None else shifted_codes(bits, shifts, np.float64)
-    if np.ndim(s) != 2 or np.shape(s)[1] != bits.size:
-        raise ValueError(f"code_matrix of shape {np.shape(s)} for a {bits.size}-bit code: "
-                         f"build it with shifted_codes(code, shifts)")
-    amp = real_array(amp, "amp", ndim=2)
-    if amp.shape[1] != s.shape[0]:
-        raise ValueError(f"amp of shape {amp.shape} for {s.shape[0]} shifts: one column each")
+    # (the scalar checks before the (L, L) code matrix is built: a review)
+    bits = code_bits(code)
     n_periods = positive_number(n_periods, "n_periods")
     signal = positive_number(signal, "signal", unit="photons per pulse", zero=True)
-    noise = real_array(noise_per_bin, "noise_per_bin").astype(s.dtype, copy=False)
+    noise = real_array(noise_per_bin, "noise_per_bin")
     if not (np.isfinite(noise).all() and (noise >= 0).all()):
         raise ValueError("noise_per_bin must be finite counts >= 0")
+    amp = real_array(amp, "amp", ndim=2)
+    if code_matrix is not None and (np.ndim(code_matrix) != 2
+                                    or np.shape(code_matrix)[1] != bits.size):
+        raise ValueError(f"code_matrix of shape {np.shape(code_matrix)} for a {bits.size}-bit "
+                         f"code: build it with shifted_codes(code, shifts)")
+    s = code_matrix if code_matrix is not None else shifted_codes(bits, shifts, np.float64)
+    if amp.shape[1] != s.shape[0]:
+        raise ValueError(f"amp of shape {amp.shape} for {s.shape[0]} shifts: one column each")
+    noise = noise.astype(s.dtype, copy=False)
     if noise.ndim == 2 and noise.shape[1] == 1:  # (M, 1), one column: unambiguous
         noise = noise[:, 0]
     if noise.ndim > 1 or noise.size not in (1, amp.shape[0]):

@@ -33,6 +33,7 @@ from ..errors import ConfigError
 
 __all__ = [
     "CODE_KINDS",
+    "code_bits",
     "MAX_CODE_LENGTH",
     "MSEQ_DEGREES",
     "GOLD_DEGREES",
@@ -102,6 +103,23 @@ MAX_CODE_LENGTH = 2**24
 #: below it (an error under 0.01 measured at T = 65535), not far above it (0.5 at 2**50.5),
 #: and int64 overflows at 2**63 (``[2**40, 1]`` with itself read ``-2**63``: an audit).
 XCORR_EXACT_LIMIT = 2.0**44
+
+
+def code_bits(code) -> np.ndarray:
+    """``code`` as a real, finite, non-empty 1-D array of bits (0 or 1), or one line: the
+    check of every consumer of a code's bits (the replicas, the expected counts). An empty
+    code leaked "Mean of empty slice" and a NaN one was called balanced (an audit of
+    2026-11-29); ``[2, 2, 0]`` was called balanced and a code matrix of ``0..126`` made means
+    no photon count has (an audit of 2026-12-02)."""
+    from ..arrays import real_array
+
+    s = real_array(code, "code", ndim=1, finite=True)
+    if not s.size:
+        raise ConfigError("code is empty: a replica needs one bit or more")
+    if not np.isin(s, (0, 1)).all():
+        raise ConfigError("code must hold bits, 0 or 1 (1 = a laser pulse; a +-1 code is "
+                          "(c + 1) / 2)")
+    return s
 
 
 def canonical_kind(kind: str) -> str:

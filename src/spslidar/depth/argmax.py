@@ -71,6 +71,7 @@ def ml_depth(
                          f"{np.shape(lags)}")
     check_delays(lags)
     positive_number(bin_width, "bin_width", unit="seconds")
+    no_return(np.ones(1), min_peak_fraction)  # its check, before the work (a review)
     missing = np.isnan(x)
     if missing.any():  # a NaN slice is no evidence: never the tallest
         x = np.where(missing, -np.inf, x)
@@ -160,10 +161,13 @@ class ArgmaxDepth(DepthEstimator):
 
     name = "argmax"
 
-    def __init__(self, low_confidence: float | None = None) -> None:
-        # no options: an unknown keyword is a TypeError, as the other built-ins' (the base
-        # class keeps a plugin's; ArgmaxDepth(foo=1) was taken without a word: an audit)
-        super().__init__(low_confidence)
+    def __init__(self, low_confidence: float | None = None, **options) -> None:
+        # no options of its own: an unknown keyword is a TypeError, as the other built-ins'
+        # (ArgmaxDepth(foo=1) was taken without a word: an audit); a subclass's registered
+        # options pass to the base class as before (a plugin's, a review)
+        if options and type(self) is ArgmaxDepth:
+            raise TypeError(f"ArgmaxDepth takes no options, got {', '.join(options)}")
+        super().__init__(low_confidence, **options)
 
     def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:
         depth, peak = ml_depth(slices, ctx.lags, ctx.bin_width, ctx.pulse_width,

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from ..arrays import pair_shape
 from ..errors import ConfigError
 
 __all__ = ["DepthContext", "DepthEstimate", "DepthEstimator", "checked_slices"]
@@ -58,13 +59,7 @@ class DepthContext:
         # held as an array and a pair of whole numbers (a list of lags failed in estimate()
         # on '.size', a shape of (16, 16, 1) as "too many values to unpack": an audit)
         object.__setattr__(self, "lags", check_delays(self.lags))
-        shape = self.shape
-        if (np.ndim(shape) != 1 or len(shape) != 2 or any(
-                isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer))
-                or n < 0 for n in shape)):
-            raise ConfigError(f"shape must be (rows, cols), two whole numbers >= 0, got "
-                              f"{shape!r}")
-        object.__setattr__(self, "shape", (int(shape[0]), int(shape[1])))
+        object.__setattr__(self, "shape", pair_shape(self.shape, "shape (rows, cols)", 0))
 
 
 def check_delays(lags) -> np.ndarray:

@@ -33,8 +33,7 @@ def check_periods(n_periods: Any, whole: bool = False) -> None:
     ``whole`` (a detector with a dead time draws whole periods: 1.5 periods gave 68 % of the
     expected counts, half a period none).
     """
-    x = real_number(n_periods[()] if isinstance(n_periods, np.ndarray) and n_periods.ndim == 0
-                    else n_periods)
+    x = real_number(n_periods)
     if x is None or not (np.isfinite(x) and x > 0):
         raise ConfigError(f"n_periods must be a positive number of code periods, got "
                           f"{n_periods!r}")

@@ -74,7 +74,8 @@ def _check(ok: bool, message: str) -> None:
 
 def _switch(value: Any, what: str) -> bool:
     """``value`` as a bool where it is one (Python's or NumPy's, kept as given) or one of the
-    words ``on``, ``off``, ``true``, ``false`` in any case; else a one-line ConfigError naming
+    words ``on``, ``off``, ``true``, ``false`` in any case (the command line's
+    ``--pileup-correction`` takes ``on`` / ``off``); else a one-line ConfigError naming
     ``what`` (``correction="no"`` was truthy, so the correction stayed on: an outside
     audit)."""
     if isinstance(value, bool | np.bool_):

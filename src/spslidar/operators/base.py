@@ -15,21 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..arrays import floating_dtype, pair_shape
 from ..randomness import as_generator
 from . import parallel as _parallel
-
-
-def _shape2(shape, what: str, least: int) -> tuple[int, int]:
-    """``shape`` as two whole numbers of at least ``least``; one clear ``ValueError``
-    otherwise (an int for a pair was "'int' object is not subscriptable", an audit)."""
-    try:
-        a, b = shape
-        out = (int(a), int(b))
-    except (TypeError, ValueError):
-        raise ValueError(f"{what} must be a pair of whole numbers, got {shape!r}") from None
-    if out != (a, b) or min(out) < least:
-        raise ValueError(f"{what} must be a pair of whole numbers >= {least}, got {shape!r}")
-    return out
 
 
 class LinearOperator:
@@ -64,7 +52,7 @@ class LinearOperator:
     """
 
     def __init__(self, shape: tuple[int, int], dtype=np.float64):
-        self.shape = _shape2(shape, "shape", 0)  # (Identity(-1) was taken, an audit)
+        self.shape = pair_shape(shape, "shape", 0)  # (Identity(-1) was taken, an audit)
         self.dtype = np.dtype(dtype)
 
     # -- to implement --------------------------------------------------------------------
@@ -287,8 +275,8 @@ def float_matrix(a, what: str = "matrix", values: str = "entries", dtype=None,
     afterwards gave products and adjoints of two matrices); without, it is shared. All
     audits of 2026-11-29."""
     given = a
-    if dtype is not None and np.dtype(dtype).kind != "f":
-        raise ValueError(f"dtype must be a real floating type, got {np.dtype(dtype)}")
+    if dtype is not None:
+        floating_dtype(dtype)
     if np.iscomplexobj(a):
         raise ValueError(f"{what} must be real: the operators are real linear maps, whose "
                          f"adjoint is their transpose")

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..arrays import pair_shape
 from . import parallel as _parallel
 from .base import LinearOperator
 
@@ -48,9 +49,8 @@ class Gradient2D(LinearOperator):
     """
 
     def __init__(self, shape: tuple[int, int], dtype=np.float64):
-        from .base import _shape2
 
-        self.image_shape = _shape2(shape, "Gradient2D's image shape", 1)
+        self.image_shape = pair_shape(shape, "Gradient2D's image shape", 1)
         q = self.image_shape[0] * self.image_shape[1]
         super().__init__((2 * q, q), dtype)
 
@@ -136,11 +136,10 @@ class Wavelet2D(LinearOperator):
                  dtype=np.float64):
         import pywt
 
-        from .base import _shape2
 
         # (a shape of (8.9, 8.9) was taken as 8 x 8, where Gradient2D refused it; level=1.7
         # was a raw TypeError and level=-1 pywt's own error: an audit of 2026-11-30)
-        ny, nx = _shape2(shape, "Wavelet2D's image shape", 1)
+        ny, nx = pair_shape(shape, "Wavelet2D's image shape", 1)
         if level is not None:
             from ..arrays import positive_number
 

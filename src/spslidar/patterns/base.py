@@ -14,8 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..arrays import real_array
-from ..errors import ConfigError
+from ..arrays import floating_dtype, real_array
 from ..operators import LinearOperator
 
 __all__ = ["CentredPatterns", "PatternOperator", "pattern_dtype"]
@@ -36,12 +35,7 @@ def pattern_dtype(dtype: Any) -> np.dtype:
     -------
     numpy.dtype
     """
-    dtype = np.dtype(dtype)
-    if not np.issubdtype(dtype, np.floating):
-        held = ("holds none but 0 and 1" if dtype.kind in "biu"
-                else "is not a real floating type")
-        raise ConfigError(f"patterns are mirror states in [0, 1]: dtype {dtype} {held}; use "
-                          f"float32 or float64")
+    dtype = floating_dtype(dtype, why=" (patterns are mirror states in [0, 1])")
     return dtype
 
 

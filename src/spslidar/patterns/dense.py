@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..arrays import floating_dtype
 from ..errors import ConfigError
 from ..operators.base import _product, float_matrix
 from ..randomness import as_generator
@@ -214,10 +215,7 @@ def centred_patterns(patterns: np.ndarray, norm: float = 1.0, dtype=np.float32) 
     from ..arrays import positive_number
 
     norm = positive_number(norm, "norm")
-    dtype = np.dtype(dtype)
-    if dtype.kind != "f":
-        raise ValueError(f"dtype must be a real floating type for centred patterns (values "
-                         f"either side of 0), got {dtype}")
+    dtype = floating_dtype(dtype, why=" for centred patterns (values either side of 0)")
     phi = np.asarray(patterns)
     mean = phi.mean(axis=0, dtype=np.float64, keepdims=True)
     out = np.empty(phi.shape, dtype=dtype)

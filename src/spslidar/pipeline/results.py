@@ -84,6 +84,12 @@ class Result:
             value.flags.writeable = False
         object.__setattr__(self, name, value)
 
+    def __setstate__(self, state: dict) -> None:
+        # a copy or an unpickled result holds read-only views too (its state was put back
+        # past __setattr__: a review)
+        for name, value in state.items():
+            setattr(self, name, value)
+
     @property
     def truth(self) -> np.ndarray:
         """The ground-truth depth, NaN where the scene has none (its ``valid`` mask is False,

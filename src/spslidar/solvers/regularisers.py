@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ..arrays import positive_number, real_array, real_scalar
+from ..arrays import pair_shape, positive_number, real_array, real_scalar
 from ..capture import carried
 from ..operators import parallel as _parallel
 from ..operators.base import LinearOperator
@@ -329,11 +329,10 @@ class TV(Regulariser):
         warm_start: bool = True,
         threads: int | None = None,
     ):
-        from ..operators.base import _shape2
 
         # (a shape of (4.7, 4) was taken as 4 x 4, inner_tol NaN or -1 and threads 1.5 (as 1)
         # were taken: an audit of 2026-12-02)
-        self.image_shape = _shape2(image_shape, "TV's image_shape", 1)
+        self.image_shape = pair_shape(image_shape, "TV's image_shape", 1)
         self.isotropic = bool(isotropic)
         self.nonneg = bool(nonneg)
         self.max_inner = positive_number(max_inner, "max_inner", integer=True)
@@ -670,11 +669,10 @@ def make_wavelet_l1(shape: tuple[int, int], nonneg: bool = False, max_inner: int
     wavelet l1 norm under a non-negativity constraint has no closed form: ``nonneg`` is
     ignored (it applies to the TV and pixel-l1 regularisers only)."""
     from ..operators import Wavelet2D
-    from ..operators.base import _shape2
     from ..operators.image import no_level_message, periodized_levels
 
     # (its own warning, not Wavelet2D's: it is the pixel l1 here, not an identity)
-    ny, nx = _shape2(shape, "Wavelet2D's image shape", 1)
+    ny, nx = pair_shape(shape, "make_wavelet_l1's shape", 1)
     w = Wavelet2D(shape, "haar", level=None if periodized_levels(ny, nx) else 0)
     if w.level == 0:  # it was silently the pixel l1
         warnings.warn(no_level_message(shape, "the wavelet regulariser",

@@ -58,12 +58,11 @@ class EdgeWeightedTV(Regulariser):
 
     def __init__(self, image_shape: tuple[int, int], weights_y: np.ndarray,
                  weights_x: np.ndarray, nonneg: bool = False, max_inner: int = 20):
-        from ..arrays import positive_number
-        from ..operators.base import _shape2
+        from ..arrays import pair_shape, positive_number
         from ..operators.image import Gradient2D
 
         # (4.7 was taken as 4, as TV's was: an audit of 2026-12-02)
-        ny, nx = _shape2(image_shape, "EdgeWeightedTV's image_shape", 1)
+        ny, nx = pair_shape(image_shape, "EdgeWeightedTV's image_shape", 1)
         wy = np.asarray(weights_y, dtype=np.float64)
         wx = np.asarray(weights_x, dtype=np.float64)
         if wy.shape != (ny - 1, nx) or wx.shape != (ny, nx - 1):
