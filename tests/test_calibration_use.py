@@ -61,11 +61,18 @@ def test_a_wide_irf_is_not_said_to_be_noise(tmp_path, capsys):
     # (a wall at one range: its 10-bin response let a 6-bin plane fit 0.55 deviations
     # better, which is said but not removed; removed, the delay moved 1.3 bins)
     assert json.loads(cal.read_text())["target"]["model"] == "range"
-    assert "may be a flat wall" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "may be a flat wall" in err
+    # a response this wide loses surfaces before brighter ones: said by both commands, kept
+    # in the file (an outside audit of 2026-12-02 lost a step before a wall without a word)
+    assert "bins wide (FWHM)" in err
+    assert any("bins wide (FWHM)" in w for w in json.loads(cal.read_text())["warnings"])
     scene = _acquire(tmp_path, "scene", 12.3, wide)
     capsys.readouterr()
     m = _reconstruct(tmp_path, scene, cal)
-    assert "mostly noise" not in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "mostly noise" not in err and "bins wide (FWHM)" in err
+    assert any("bins wide (FWHM)" in w for w in m["warnings"])
     assert m["peak_to_noise_p90"] > 2 * m["peak_to_noise_floor"]
     depth = np.load(tmp_path / "rec" / "depth.npy")
     assert np.nanmedian(np.abs(depth - 12.3)) < 0.015  # a bin: the map is good
@@ -232,3 +239,18 @@ def test_a_response_wider_than_a_quarter_period_is_said_to_be_cut():
     with pytest.warns(RuntimeWarning, match="still stands above the background"):
         measure_response(hist, code, 1e-10, 0.0)
 
+
+
+@pytest.mark.parametrize("fwhm, said", [(1.73, False), (2.49, False), (2.5, True), (3.3, True),
+                                        ("3.3", False), (None, False), (True, False)])
+def test_a_wide_response_is_said_from_its_width(fwhm, said):
+    """The README's instrument (1.73 bins, where the calibrated depths were measured) is not
+    warned of; about 3 bins, where the audit lost a step before a wall, is."""
+    from spslidar.pipeline.calibrated import WIDE_RESPONSE_BINS, wide_response_note
+    from spslidar.pipeline.real import calibration_warnings
+
+    assert WIDE_RESPONSE_BINS == 2.5
+    note = wide_response_note(fwhm)
+    assert (note is not None) == said
+    warned = calibration_warnings({"irf_fwhm_bins": fwhm, "peak_to_noise": 100.0})
+    assert warned == ([note] if said else [])

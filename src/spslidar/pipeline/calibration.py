@@ -516,6 +516,11 @@ def calibrate_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.PathLi
                                               target, fov_deg, pulse_width)
         cal = measure_response(total, code, bin_width, distance, pulse_width,
                                response=response, phase=geometry.get("phase_bins"))
+        from .calibrated import wide_response_note
+
+        wide = wide_response_note(cal["irf_fwhm_bins"])
+        if wide:  # (surfaces were lost through such responses without a word: an audit)
+            warnings.warn(wide, stacklevel=2)
         merged = channels_read(data, channel) if channel is None else []
         if len(merged) > 1 and any("holds a second return" in str(w.message) for w in said):
             # (two detectors cabled 1.5 ns apart were told of a second surface or the

@@ -587,13 +587,17 @@ def inverted_code_note(corr: np.ndarray, sigma: np.ndarray) -> str | None:
 def calibration_warnings(cal: dict[str, Any]) -> list[str]:
     """What ``reconstruct`` says of the calibration it applies: a response read through the
     noise (under :data:`~.calibrated.WEAK_RESPONSE` deviations; ``calibrate`` said so, but
-    only once, and an audit's map was 25 times worse through it without a word here)."""
-    from .calibrated import WEAK_RESPONSE
+    only once, and an audit's map was 25 times worse through it without a word here), and a
+    response too wide for the depths to hold (:func:`~.calibrated.wide_response_note`)."""
+    from .calibrated import WEAK_RESPONSE, wide_response_note
 
+    out = []
     ptn = cal.get("peak_to_noise")
     if isinstance(ptn, (int, float)) and not isinstance(ptn, bool) and ptn < WEAK_RESPONSE:
         where = cal.get("file") or "the calibration"
-        return [f"{where} was measured from a response {ptn:.3g} noise standard deviations "
-                f"high: its IRF is read through the noise, and the depths through it may be "
-                f"worse than uncalibrated ones; calibrate on a longer acquisition"]
-    return []
+        out.append(f"{where} was measured from a response {ptn:.3g} noise standard "
+                   f"deviations high: its IRF is read through the noise, and the depths "
+                   f"through it may be worse than uncalibrated ones; calibrate on a longer "
+                   f"acquisition")
+    wide = wide_response_note(cal.get("irf_fwhm_bins"))  # (said at calibrate, and here)
+    return out + ([wide] if wide else [])
