@@ -128,8 +128,8 @@ def floating_dtype(dtype: Any, name: str = "dtype", why: str = "") -> np.dtype:
     except TypeError:
         dt = None
     if dt is None or dt.kind != "f":
-        raise ConfigError(f"{name} must be a real floating type (float32 or float64){why}, "
-                          f"got {dtype if dt is None else dt}")
+        raise ConfigError(f"{name} must be a real floating type{why}, got "
+                          f"{dtype if dt is None else dt}; use float32 or float64")
     return dt
 
 
