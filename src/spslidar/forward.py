@@ -216,8 +216,8 @@ def expected_counts(
     """
     # (an outside audit of 2026-12-02: a matrix of a 127-bit code was used with a 255-bit
     # code, bits of 0..126 and negative or NaN noise made means no photon count has, and a
-    # signal of [5.0] or None was a TypeError naming nothing)
-    # (the scalar checks before the (L, L) code matrix is built: a review)
+    # signal of [5.0] or None was a TypeError naming nothing; every check comes before the
+    # (L, L) code matrix is built: a review)
     bits = code_bits(code)
     n_periods = positive_number(n_periods, "n_periods")
     signal = positive_number(signal, "signal", unit="photons per pulse", zero=True)

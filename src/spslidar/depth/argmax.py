@@ -17,7 +17,7 @@ import numpy as np
 from ..arrays import positive_number, real_array
 from ..forward import lag_to_depth
 from .base import DepthContext, DepthEstimate, DepthEstimator, check_delays
-from .profile import ADJACENT_TOL, no_return, subbin_shift
+from .profile import ADJACENT_TOL, check_peak_fraction, no_return, subbin_shift
 
 
 def ml_depth(
@@ -71,7 +71,7 @@ def ml_depth(
                          f"{np.shape(lags)}")
     check_delays(lags)
     positive_number(bin_width, "bin_width", unit="seconds")
-    no_return(np.ones(1), min_peak_fraction)  # its check, before the work (a review)
+    check_peak_fraction(min_peak_fraction)  # before the work (a review)
     missing = np.isnan(x)
     if missing.any():  # a NaN slice is no evidence: never the tallest
         x = np.where(missing, -np.inf, x)

@@ -583,14 +583,22 @@ def verdict_and_room(slices: np.ndarray, cap: float = 1000.0,
             null), room
 
 
+def check_peak_fraction(fraction: float) -> float:
+    """``fraction`` of :func:`no_return` (``ml_depth``'s ``min_peak_fraction``) as a float
+    in [0, 1], or one line (2 gave an all-NaN map, NaN and -1 were taken: an outside
+    audit)."""
+    f = positive_number(fraction, "the peak fraction (min_peak_fraction)", zero=True)
+    if f > 1:
+        raise ConfigError(f"the peak fraction (min_peak_fraction) must lie in [0, 1], got "
+                          f"{fraction!r}")
+    return f
+
+
 def no_return(peak: np.ndarray, fraction: float = 0.05) -> np.ndarray:
     """Pixels without a detected return, by the rule of :func:`~.argmax.ml_depth`: a peak
     that is not positive or below ``fraction`` (in [0, 1]) of the 99th percentile of all
     peaks."""
-    f = positive_number(fraction, "the peak fraction (min_peak_fraction)", zero=True)
-    if f > 1:  # (2 gave an all-NaN map, NaN and -1 were taken: an outside audit)
-        raise ConfigError(f"the peak fraction (min_peak_fraction) must lie in [0, 1], got "
-                          f"{fraction!r}")
+    check_peak_fraction(fraction)
     peak = np.asarray(peak, dtype=np.float64)
     ref = float(np.percentile(peak, 99)) if peak.size else 0.0
     return (peak <= 0) | (peak < fraction * ref)

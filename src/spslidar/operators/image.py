@@ -49,7 +49,6 @@ class Gradient2D(LinearOperator):
     """
 
     def __init__(self, shape: tuple[int, int], dtype=np.float64):
-
         self.image_shape = pair_shape(shape, "Gradient2D's image shape", 1)
         q = self.image_shape[0] * self.image_shape[1]
         super().__init__((2 * q, q), dtype)
@@ -135,7 +134,6 @@ class Wavelet2D(LinearOperator):
     def __init__(self, shape: tuple[int, int], wavelet: str = "haar", level: int | None = None,
                  dtype=np.float64):
         import pywt
-
 
         # (a shape of (8.9, 8.9) was taken as 8 x 8, where Gradient2D refused it; level=1.7
         # was a raw TypeError and level=-1 pywt's own error: an audit of 2026-11-30)

@@ -35,8 +35,7 @@ def pattern_dtype(dtype: Any) -> np.dtype:
     -------
     numpy.dtype
     """
-    dtype = floating_dtype(dtype, why=" (patterns are mirror states in [0, 1])")
-    return dtype
+    return floating_dtype(dtype, why=" (patterns are mirror states in [0, 1])")
 
 
 class PatternOperator(LinearOperator):

@@ -329,7 +329,6 @@ class TV(Regulariser):
         warm_start: bool = True,
         threads: int | None = None,
     ):
-
         # (a shape of (4.7, 4) was taken as 4 x 4, inner_tol NaN or -1 and threads 1.5 (as 1)
         # were taken: an audit of 2026-12-02)
         self.image_shape = pair_shape(image_shape, "TV's image_shape", 1)
