@@ -30,6 +30,7 @@ from .cli_common import (  # noqa: F401  (_memory: spslidar.cli._memory, as befo
     say_warnings,
     warn_fov,
 )
+from .cli_inspect import add_inspect_parser, cmd_inspect
 from .cli_measured import (
     add_calibrate_parser,
     add_reconstruct_parser,
@@ -268,6 +269,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_snr_parser(sub)
     add_reconstruct_parser(sub)
     add_calibrate_parser(sub)
+    add_inspect_parser(sub)
     add_check_parser(sub)
 
     from .experiments.reproduce import ALL, EXPERIMENT_REGISTRY
@@ -430,7 +432,7 @@ def _cmd_sweep(args) -> int:
 
 
 COMMANDS = {"run": _cmd_run, "reconstruct": cmd_reconstruct, "calibrate": cmd_calibrate,
-            "snr": cmd_snr, "check": cmd_check,
+            "snr": cmd_snr, "check": cmd_check, "inspect": cmd_inspect,
             "reproduce": _cmd_reproduce, "sweep": _cmd_sweep}
 
 

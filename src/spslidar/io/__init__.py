@@ -4,7 +4,8 @@
 the code period and writes simulated acquisitions as T3 PTU files. Reading decodes records with
 the ``ptufile`` package (a core dependency of spslidar); writing needs only NumPy. A T2 file
 that recorded the code's sync is read as its T3 file would be (:mod:`spslidar.io.ptu_t2`,
-which decodes T2 records itself).
+which decodes T2 records itself). :func:`~spslidar.io.ptu_scan.scan_ptu` counts what a file
+holds before any option is chosen (``spslidar inspect``).
 :mod:`spslidar.io.timestamps` turns another vendor's time tagger's absolute timestamps into
 T3 events and a PTU file.
 """
@@ -12,6 +13,7 @@ T3 events and a PTU file.
 from __future__ import annotations
 
 from .ptu import PtuAcquisition, ptu_info, read_ptu_histograms
+from .ptu_scan import scan_ptu
 from .ptu_write import write_acquisition_ptu, write_ptu_t3, write_ptu_t3_stream
 from .timestamps import T3Events, t3_from_timestamps, write_ptu_from_timestamps
 
@@ -20,6 +22,7 @@ __all__ = [
     "T3Events",
     "ptu_info",
     "read_ptu_histograms",
+    "scan_ptu",
     "t3_from_timestamps",
     "write_acquisition_ptu",
     "write_ptu_from_timestamps",

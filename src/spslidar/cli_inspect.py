@@ -1,0 +1,215 @@
+"""``spslidar inspect``: what a PTU file holds, and the ``reconstruct`` options it asks for,
+before any is guessed (:func:`spslidar.io.ptu_scan.scan_ptu`); the sub-command's parser and
+its command, as :mod:`spslidar.cli` registers them."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from typing import Any
+
+__all__ = ["add_inspect_parser", "cmd_inspect", "describe", "suggestions"]
+
+
+def add_inspect_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add the ``inspect`` sub-command to ``add_subparsers()``.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-command registry of the ``spslidar`` parser.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The new sub-parser; :func:`cmd_inspect` runs it.
+    """
+    p = subparsers.add_parser(
+        "inspect", help="say what a PTU file holds and which reconstruct options it asks for",
+        description="Read a PicoQuant PTU file (T3, or T2) once and say what it holds: its "
+                    "header (hardware, TDC bin, sync period), the photons on each detector "
+                    "channel (--channel), the markers on each marker input (--marker) and the "
+                    "blocks they cut (length, photons), the count rate against pile-up, and "
+                    "the options of 'spslidar reconstruct' that follow from them. Writes "
+                    "nothing.")
+    p.add_argument("ptu", nargs="+", metavar="FILE.ptu", help="PTU file(s)")
+    p.add_argument("--json", action="store_true",
+                   help="print the counts as JSON (one object per file, in a list) instead "
+                        "of sentences")
+    return p
+
+
+def _si(seconds: float) -> str:
+    """A time with its unit (ps, ns, us, ms, s)."""
+    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9), ("ps", 1e-12)):
+        if abs(seconds) >= scale or unit == "ps":
+            return f"{seconds / scale:.4g} {unit}"
+    return f"{seconds:g} s"  # pragma: no cover
+
+
+def _n(value: float) -> str:
+    """A count with thin thousands separators, as the README writes them."""
+    return f"{int(value):,}".replace(",", " ")
+
+
+def _blocks_text(k: int, b: dict[str, Any]) -> str:
+    if "dwell_s" not in b:
+        return f"--marker {k}: one marker, at {_si(b['first_s'])}"
+    d, ph = b["dwell_s"], b["photons_per_block"]
+    text = (f"--marker {k}: {_n(b['markers'])} markers, blocks of {_si(d['median'])} "
+            f"({_si(d['min'])} to {_si(d['max'])}) holding {_n(ph['median'])} photons "
+            f"(median; {_n(ph['min'])} to {_n(ph['max'])})")
+    extra = []
+    if b["empty_blocks"]:
+        extra.append(f"{_n(b['empty_blocks'])} empty")
+    if b["irregular_blocks"]:
+        extra.append(f"{_n(b['irregular_blocks'])} over 1.5 times the median length or under "
+                     f"its two thirds (a marker missed, or a bounce)")
+    extra.append(f"{_n(b['photons_before_first'])} photons before the first marker, "
+                 f"{_n(b['photons_after_last'])} after the last")
+    return text + "; " + "; ".join(extra)
+
+
+def describe(scan: dict[str, Any], name: str) -> list[str]:
+    """The sentences ``spslidar inspect`` prints for one :func:`~spslidar.io.ptu_scan.scan_ptu`
+    result."""
+    h = scan["header"]
+    # (a creation time ptufile could not read stays a number: left out)
+    made = ", ".join(v for v in (h.get("hardware"), h.get("creator"), h.get("created"))
+                     if isinstance(v, str) and v)
+    lines = [f"{name}: {h['record_type']} records ({scan['mode']})"
+             + (f"; {made}" if made else "")]
+    if scan["mode"] == "T3":
+        div = h.get("sync_divider")
+        period = h["sync_period_s"] or 0.0
+        lines.append(
+            f"  TDC bin {_si(h['resolution_s'])}; sync period {_si(period)}"
+            + (f" (sync divider {div})" if isinstance(div, int) and div > 1 else "")
+            + (f", {h['bins_per_period']:.6g} TDC bins" if h.get("bins_per_period") else "")
+            + (f"; photons in TDC bins up to {scan['dtime_max']}"
+               if scan["dtime_max"] is not None else ""))
+    else:
+        sp = scan.get("sync_period_s")
+        lines.append(f"  time tag unit {_si(h['time_unit_s'] or 0.0)}; {_n(scan['sync_records'])}"
+                     f" sync records" + (f", every {_si(sp)}" if sp else ""))
+    n_ph, n_mk = sum(scan["photons"].values()), sum(scan["markers"].values())
+    lines.append(f"  {_n(scan['n_records'])} records over {_si(scan['span_s'])}: "
+                 f"{_n(n_ph)} photons, {_n(n_mk)} marker records, "
+                 f"{_n(scan['overflow_records'])} overflow records")
+    span = scan["span_s"]
+    if scan["photons"]:
+        lines.append("  photons per --channel (from 0): " + ", ".join(
+            f"{c}: {_n(n)}" + (f" ({n / span:.3g}/s)" if span > 0 else "")
+            for c, n in scan["photons"].items()))
+    else:
+        lines.append("  no photons")
+    if scan["markers"]:
+        lines.append("  markers per --marker input: " + ", ".join(
+            f"{k}: {_n(n)}" for k, n in scan["markers"].items()))
+        lines += [f"  {_blocks_text(k, b)}" for k, b in scan["blocks"].items()]
+    else:
+        lines.append("  no marker records")
+    return lines
+
+
+def _dead_times(scan: dict[str, Any]) -> list[str]:
+    """Channels whose shortest gap between detections shows a dead time (a detector without
+    one would have undercut it :data:`~spslidar.pipeline.deadtime.GAP_EVIDENCE` times)."""
+    from .pipeline.deadtime import GAP_EVIDENCE
+
+    out, span = [], scan["span_s"]
+    for c, g in scan["gaps"].items():
+        n, shortest = g["n"], g["shortest_s"]
+        if span > 0 and shortest > 0 and n * -math.expm1(-n / span * shortest) >= GAP_EVIDENCE:
+            out.append(f"channel {c}: no two detections closer than {_si(shortest)}, where a "
+                       f"detector without a dead time would have given "
+                       f"{n * -math.expm1(-n / span * shortest):.3g} closer gaps: its dead "
+                       f"time (--dead-time, read one --channel at a time)")
+    return out
+
+
+def suggestions(scan: dict[str, Any]) -> list[str]:
+    """What ``reconstruct`` needs that the counts say, one sentence each."""
+    from .pipeline.deadtime import LOSS_TO_WARN, MAX_DETECTOR_RATE_HZ, TYPICAL_DEAD_TIMES_S
+
+    h, out = scan["header"], []
+    if scan["mode"] == "T2":
+        if (scan["sync_records"] or 0) < 2:
+            per = scan["periodic_channel"]
+            out.append("no sync records: reconstruct reads a T2 file from the code's sync, "
+                       "recorded on the sync input"
+                       + (f"; channel {per['channel']}'s events come every "
+                          f"{_si(per['period_s'])}, as a sync's would: --sync-channel "
+                          f"{per['channel']}" if per else ""))
+    else:
+        from .io.ptu_blocks import _fitting_codes
+
+        res, bpp = h["resolution_s"] or 0.0, h.get("bins_per_period")
+        if res > 0:
+            text = f"--bit-rate {1 / res:.6g} reads one TDC bin per code bit"
+            if bpp:
+                text += f"; {_fitting_codes(bpp, res, 0.5)}"
+            div = h.get("sync_divider")
+            if bpp and isinstance(div, int) and div > 1:
+                text += (f"; or, as the header's sync divider says, each sync spans {div} "
+                         f"code periods of {bpp / div:.6g} bins")
+            out.append(text + "; a code clocked k times slower than the TDC: its own "
+                              "--bit-rate with --allow-binning")
+    if not scan["markers"]:
+        out.append("no marker records: reconstruct splits the photons into patterns at the "
+                   "DMD's markers (its trigger output on a marker input)")
+    else:
+        most = max(scan["markers"].values())
+        top = [k for k, n in scan["markers"].items() if n == most]
+        if len(top) == 1:
+            out.append(f"--marker {top[0]}: {_n(most)} marker{'s' if most != 1 else ''}, "
+                       f"as many patterns (or the "
+                       f"sequence --repeats times)")
+        else:
+            out.append(f"inputs {', '.join(map(str, top))} hold {_n(most)} "
+                       f"marker{'s' if most != 1 else ''} each (one "
+                       f"may start each pattern, another end it): --marker {top[0]}, or "
+                       f"--marker {top[-1]} --marker-edge end")
+    span, longest = scan["span_s"], max(TYPICAL_DEAD_TIMES_S)
+    for c, n in scan["photons"].items():
+        load = (n / span if span > 0 else 0.0) * longest  # (photons per dead time)
+        if load / longest >= MAX_DETECTOR_RATE_HZ:
+            out.append(f"channel {c} counts {load / longest:.3g} photons/s, more than a "
+                       f"single-photon detector can: a simulated linear counter, or the "
+                       f"photons of several detectors on one channel")
+        elif load >= LOSS_TO_WARN:
+            out.append(f"channel {c} counts {load / longest:.3g} photons/s: a detector with "
+                       f"a {_si(longest)} dead time loses {100 * load / (1 + load):.2g} % of "
+                       f"them to pile-up: give its --dead-time")
+    out += _dead_times(scan)
+    if len(scan["photons"]) > 1:
+        out.append(f"{len(scan['photons'])} detector channels hold photons: all are read "
+                   f"together unless --channel picks one (--align-channels moves them onto "
+                   f"one where cables of different lengths delay them)")
+    return out
+
+
+def _jsonable(scan: dict[str, Any]) -> dict[str, Any]:
+    """The scan with string keys, as JSON writes them."""
+    return json.loads(json.dumps(scan, default=str))
+
+
+def cmd_inspect(args: argparse.Namespace) -> int:
+    """Run ``spslidar inspect``; return the exit status (0, or 2 for a file it cannot read,
+    said in one line before anything is printed)."""
+    from .io.ptu_scan import scan_ptu
+
+    scans = [(path, scan_ptu(path)) for path in args.ptu]  # (every file read before a word)
+    if args.json:
+        print(json.dumps([dict(_jsonable(s), path=p) for p, s in scans], indent=1))
+        return 0
+    for i, (path, scan) in enumerate(scans):
+        if i:
+            print()
+        print("\n".join(describe(scan, path)))
+        said = suggestions(scan)
+        if said:
+            print("for 'spslidar reconstruct':")
+            print("\n".join(f"  - {s}" for s in said))
+    return 0

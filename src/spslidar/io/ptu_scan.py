@@ -1,0 +1,271 @@
+"""What a PTU file holds, before any option is chosen: one pass over its records counting the
+photons on each detector channel, the markers on each marker input, the blocks those markers
+cut (their length and photons), the overflows and the gaps between detections
+(``spslidar inspect``; :func:`scan_ptu`).
+
+A lab's first question of a new file is which ``--marker`` input its DMD drove, which
+``--channel`` holds the detector, whether the time tags fit the code's bit rate and whether
+pile-up matters: ``reconstruct`` refuses a wrong guess in one line, naming what the file holds,
+but only one guess at a time. The header alone (:func:`~spslidar.io.ptu_info`) says none of
+it, since it does not count records. ``ptufile`` decodes the T3 records (as the reader does);
+T2 records, which ``ptufile`` reads only as whole files, are decoded here by
+:mod:`spslidar.io.ptu_t2`'s layouts, so memory is one chunk whatever the file's length.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from .ptu import _overflows
+from .ptu_blocks import _Gaps
+from .ptu_format import _FAMILY, PathLike, _check_t3, _header_summary, _open_ptu, raw_chunks
+from .ptu_t2 import _MARKER, _PHOTON, _SYNC, _periodic_channel, _times
+
+__all__ = ["MARKER_INPUTS", "scan_ptu"]
+
+#: marker inputs a record's marker bits can name (bit ``k - 1`` is input ``k``; a HydraHarp,
+#: TimeHarp or MultiHarp has four, a PicoHarp four)
+MARKER_INPUTS = (1, 2, 3, 4)
+#: photons of a T2 file kept to look for a channel of periodic events (a sync recorded on a
+#: detector input): the first ones, as ``reconstruct`` looks
+_PROBE_PHOTONS = 65536
+
+
+class _Markers:
+    """Per marker input: the time of each of its markers (seconds from the file's first
+    event) and the photons read before it, chunk by chunk."""
+
+    def __init__(self) -> None:
+        self.times: dict[int, list[np.ndarray]] = {k: [] for k in MARKER_INPUTS}
+        self.before: dict[int, list[np.ndarray]] = {k: [] for k in MARKER_INPUTS}
+
+    def add(self, bits: np.ndarray, t: np.ndarray, photons_before: np.ndarray) -> None:
+        for k in MARKER_INPUTS:
+            on = (bits & (1 << (k - 1))) != 0
+            if on.any():
+                self.times[k].append(t[on])
+                self.before[k].append(photons_before[on])
+
+    def blocks(self, total: int, end_s: float) -> dict[int, dict[str, Any]]:
+        """Each input's markers, the blocks between them and the photons outside them."""
+        out: dict[int, dict[str, Any]] = {}
+        for k in MARKER_INPUTS:
+            if not self.times[k]:
+                continue
+            t = np.concatenate(self.times[k])
+            before = np.concatenate(self.before[k]).astype(np.int64)
+            dwell = np.diff(t)
+            photons = np.diff(before)
+            info: dict[str, Any] = {
+                "markers": int(t.size),
+                "first_s": float(t[0]),
+                "photons_before_first": int(before[0]),
+                "photons_after_last": int(total - before[-1]),
+                "seconds_after_last": float(max(end_s - t[-1], 0.0)),
+            }
+            if dwell.size:
+                info["dwell_s"] = _spread(dwell)
+                info["photons_per_block"] = _spread(photons)
+                info["empty_blocks"] = int(np.count_nonzero(photons == 0))
+                # blocks far from the typical length: a marker missed (twice as long) or a
+                # bounce (a sliver), which reconstruct reads as patterns
+                med = float(np.median(dwell))
+                info["irregular_blocks"] = int(np.count_nonzero(
+                    (dwell > 1.5 * med) | (dwell < med / 1.5))) if med > 0 else 0
+            out[k] = info
+        return out
+
+
+def _spread(v: np.ndarray) -> dict[str, float]:
+    return {"median": float(np.median(v)), "min": float(v.min()), "max": float(v.max())}
+
+
+def scan_ptu(path: PathLike, *, chunk_records: int = 2**20) -> dict[str, Any]:
+    """Count what a PTU file holds, in one pass over its records.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A PicoQuant PTU file, T3 or T2 (PicoHarp, HydraHarp, TimeHarp 260, MultiHarp,
+        PicoHarp 330).
+    chunk_records : int
+        Records read at a time (memory: about 40 bytes each); the result does not depend on it.
+
+    Returns
+    -------
+    dict
+        ``header`` (:func:`~spslidar.io.ptu_info`'s summary), ``mode`` (``"T3"`` / ``"T2"``),
+        ``n_records`` (read), ``photons`` (per detector channel, numbered from 0 as
+        ``--channel``), ``markers`` (per marker input 1-4, as ``--marker``),
+        ``overflow_records``, ``sync_records`` (T2: the sync input's records, whose period is
+        ``sync_period_s``, measured; T3: None, its records count the syncs), ``span_s``
+        (first to last event, seconds), ``syncs_spanned`` (T3), ``dtime_max`` (T3: the
+        highest TDC bin a photon took, in units of the resolution), ``blocks`` (per marker
+        input that holds markers: ``markers``, ``dwell_s`` and ``photons_per_block``
+        (median / min / max over the blocks between consecutive markers), ``empty_blocks``,
+        ``irregular_blocks`` (lasting over 1.5 times the median, or under its 1/1.5),
+        ``photons_before_first``, ``photons_after_last``, ``seconds_after_last``), ``gaps``
+        (per channel: the shortest gap between consecutive detections, seconds, and their
+        number; what a dead time shows), ``periodic_channel`` (T2: a channel whose events come
+        at whole numbers of one period, a sync recorded on a detector input, and that
+        period in seconds; else None).
+
+    Raises
+    ------
+    ConfigError
+        Not a PTU file, an unsupported record type, or a header that contradicts itself
+        (one line, as :func:`~spslidar.io.read_ptu_histograms` says them).
+    """
+    if isinstance(chunk_records, bool) or not isinstance(chunk_records, int | np.integer) \
+            or chunk_records < 1:
+        raise ConfigError(f"chunk_records must be a whole number >= 1, got {chunk_records!r}")
+    if not isinstance(path, (str, os.PathLike)):
+        raise ConfigError(f"path must be the path of a PTU file, got {type(path).__name__}")
+    spath = os.fspath(path)
+    with _open_ptu(path) as f:
+        header = _header_summary(f, path)
+        family, n_records = _check_t3(f, header, spath)
+        chunks = raw_chunks(f.filehandle, f.record_offset, n_records, int(chunk_records), spath)
+        if family.startswith("t2"):
+            out = _scan_t2(chunks, family, header)
+        else:
+            out = _scan_t3(chunks, f.decode_records, family, header)
+    out["header"] = header
+    out["n_records"] = int(n_records)
+    return out
+
+
+def _scan_t3(chunks, decode, family: str, header: dict[str, Any]) -> dict[str, Any]:
+    period = float(header["sync_period_s"] or 0.0)
+    res = float(header["resolution_s"] or 0.0)
+    wrap = _FAMILY[family][0]
+    per_channel = np.zeros(128, np.int64)
+    markers = _Markers()
+    gaps = _Gaps(period, res)
+    n_photons = n_ofl = carry = 0
+    first = last = None
+    dtime_max = -1
+    for raw in chunks:
+        dec = decode(raw)
+        ch, mk = dec["channel"], dec["marker"]
+        sync = dec["time"].astype(np.int64) + carry
+        n_ofl_chunk, wraps = _overflows(raw, family)
+        n_ofl += n_ofl_chunk
+        carry += wraps * wrap
+        photon = ch >= 0
+        event = photon | (mk != 0)
+        if event.any():
+            ev = sync[event]
+            first = int(ev[0]) if first is None else first
+            last = int(ev[-1])
+        if photon.any():
+            per_channel += np.bincount(ch[photon].astype(np.int64), minlength=128)[:128]
+            dtime_max = max(dtime_max, int(dec["dtime"][photon].max()))
+            gaps.add(sync[photon], dec["dtime"][photon], ch[photon])
+        is_mark = ~photon & (mk != 0)
+        if is_mark.any():
+            before = n_photons + np.cumsum(photon)[is_mark]
+            markers.add(mk[is_mark].astype(np.int64), (sync[is_mark] - (first or 0)) * period,
+                        before)
+        n_photons += int(np.count_nonzero(photon))
+    span_syncs = 0 if first is None else last - first
+    blocks = markers.blocks(n_photons, span_syncs * period)
+    return {
+        "mode": "T3",
+        "photons": _nonzero(per_channel),
+        "markers": {k: v["markers"] for k, v in blocks.items()},
+        "overflow_records": int(n_ofl),
+        "sync_records": None,
+        "syncs_spanned": int(span_syncs),
+        "span_s": float(span_syncs * period),
+        "dtime_max": None if dtime_max < 0 else dtime_max,
+        "blocks": blocks,
+        "gaps": _gaps(gaps),
+        "periodic_channel": None,
+    }
+
+
+def _scan_t2(chunks, family: str, header: dict[str, Any]) -> dict[str, Any]:
+    unit = float(header["time_unit_s"] or 0.0)
+    per_channel = np.zeros(128, np.int64)
+    markers = _Markers()
+    gaps = _Gaps(unit, 0.0)  # (a T2 time tag is its "sync"; no dtime)
+    n_photons = n_ofl = n_sync = base = 0
+    first = last = None
+    probe_t: list[np.ndarray] = []
+    probe_c: list[np.ndarray] = []
+    probed = 0
+    sync_first = sync_last = None
+    for raw in chunks:
+        kind, t, value, base_after = _times(raw, family, base)
+        n_ofl += int(np.count_nonzero(_overflow_t2(raw, family)))
+        base = base_after
+        photon = kind == _PHOTON
+        event = photon | (kind == _SYNC) | (kind == _MARKER)
+        if event.any():
+            ev = t[event]
+            first = int(ev[0]) if first is None else first
+            last = int(ev[-1])
+        is_sync = kind == _SYNC
+        if is_sync.any():
+            st = t[is_sync]
+            sync_first = int(st[0]) if sync_first is None else sync_first
+            sync_last = int(st[-1])
+            n_sync += int(st.size)
+        if photon.any():
+            c = value[photon]
+            per_channel += np.bincount(c, minlength=128)[:128]
+            gaps.add(t[photon], np.zeros(c.size, np.int64), c)
+            if probed < _PROBE_PHOTONS:
+                take = min(_PROBE_PHOTONS - probed, int(c.size))
+                probe_t.append(t[photon][:take])
+                probe_c.append(c[:take])
+                probed += take
+        is_mark = kind == _MARKER
+        if is_mark.any():
+            before = n_photons + np.cumsum(photon)[is_mark]
+            markers.add(value[is_mark], (t[is_mark] - (first or 0)) * unit, before)
+        n_photons += int(np.count_nonzero(photon))
+    span = 0 if first is None else last - first
+    periodic = None
+    if n_sync < 2 and probe_t:
+        found = _periodic_channel(np.concatenate(probe_t), np.concatenate(probe_c))
+        if found is not None:
+            periodic = {"channel": int(found[0]), "period_s": float(found[1] * unit)}
+    sync_period = (float((sync_last - sync_first) / (n_sync - 1) * unit)
+                   if n_sync >= 2 else None)
+    blocks = markers.blocks(n_photons, span * unit)
+    return {
+        "mode": "T2",
+        "photons": _nonzero(per_channel),
+        "markers": {k: v["markers"] for k, v in blocks.items()},
+        "overflow_records": int(n_ofl),
+        "sync_records": int(n_sync),
+        "sync_period_s": sync_period,
+        "syncs_spanned": None,
+        "span_s": float(span * unit),
+        "dtime_max": None,
+        "blocks": blocks,
+        "gaps": _gaps(gaps),
+        "periodic_channel": periodic,
+    }
+
+
+def _overflow_t2(raw: np.ndarray, family: str) -> np.ndarray:
+    raw = raw.astype(np.uint32, copy=False)
+    if family == "t2-picoharp":
+        return ((raw >> 28) == 15) & ((raw & 15) == 0)
+    return (raw >> 25) == 0x7F
+
+
+def _nonzero(per_channel: np.ndarray) -> dict[int, int]:
+    return {int(c): int(per_channel[c]) for c in np.flatnonzero(per_channel)}
+
+
+def _gaps(gaps: _Gaps) -> dict[int, dict[str, Any]]:
+    return {int(c): {"shortest_s": float(g["shortest_s"]), "n": int(g["n"])}
+            for c, g in sorted(gaps.result().items())}
