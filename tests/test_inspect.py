@@ -218,3 +218,16 @@ def test_empty_and_irregular_blocks_are_counted(tmp_path, capsys):
     assert main(["inspect", str(tmp_path / "b.ptu")]) == 0
     out = capsys.readouterr().out
     assert "1 empty; 2 over 1.5 times the median length or under its two thirds" in out
+
+
+@pytest.mark.parametrize("m,said", [
+    (12, "cuts 12 blocks: one per pattern"), (6, "cuts 12 blocks: --repeats 2"),
+    (4, "--repeats 3"), (11, "one per pattern and one more (an arming or end"),
+    (5, "--repeats 2, and two more"), (7, "no whole number of sequences"),
+    (20, "fewer blocks than patterns"),
+])
+def test_blocks_against_the_patterns(acquisition, tmp_path, capsys, m, said):
+    np.save(tmp_path / "p.npy", np.zeros((m, 4, 4)))
+    assert main(["inspect", str(acquisition[0]), "--patterns", str(tmp_path / "p.npy")]) == 0
+    out = capsys.readouterr().out
+    assert f"--patterns holds {m} patterns and --marker 2 cuts 12 blocks" in out and said in out

@@ -34,6 +34,10 @@ def add_inspect_parser(subparsers: argparse._SubParsersAction) -> argparse.Argum
                     "the options of 'spslidar reconstruct' that follow from them. Writes "
                     "nothing.")
     p.add_argument("ptu", nargs="+", metavar="FILE.ptu", help="PTU file(s)")
+    p.add_argument("--patterns", metavar="PATTERNS",
+                   help="the pattern file reconstruct will be given (any format it reads): "
+                        "its number of patterns is set against the blocks the markers cut "
+                        "(--repeats, an extra marker, a free-running DMD)")
     p.add_argument("--json", action="store_true",
                    help="print the counts as JSON (one object per file, in a list) instead "
                         "of sentences")
@@ -129,8 +133,30 @@ def _dead_times(scan: dict[str, Any]) -> list[str]:
     return out
 
 
-def suggestions(scan: dict[str, Any]) -> list[str]:
-    """What ``reconstruct`` needs that the counts say, one sentence each."""
+def _against_patterns(blocks: int, m: int, k: int) -> str:
+    """What ``blocks`` marker blocks on input ``k`` say against ``m`` patterns."""
+    head = f"--patterns holds {_n(m)} pattern{'s' if m != 1 else ''} and --marker {k} cuts "
+    head += f"{_n(blocks)} block{'s' if blocks != 1 else ''}"
+    if blocks == m:
+        return head + ": one per pattern"
+    if blocks < m:
+        return (head + ": fewer blocks than patterns (another --marker input, markers "
+                       "missed, or an acquisition cut short)")
+    for extra, what in ((0, ""), (1, ", and one more (an arming or end-of-acquisition "
+                                      "marker's, which reconstruct leaves out and says)"),
+                        (2, ", and two more (an arming and an end marker's)")):
+        if (blocks - extra) % m == 0:
+            r = (blocks - extra) // m
+            if r == 1:
+                return head + what.replace(", and", ": one per pattern and", 1)
+            return head + f": --repeats {r}{what}"
+    return (head + ": no whole number of sequences (a DMD looping its sequence while the "
+                   "recording started: --first-pattern auto; or a marker missed or added)")
+
+
+def suggestions(scan: dict[str, Any], n_patterns: int | None = None) -> list[str]:
+    """What ``reconstruct`` needs that the counts say, one sentence each; with
+    ``n_patterns``, the blocks set against the patterns."""
     from .pipeline.deadtime import LOSS_TO_WARN, MAX_DETECTOR_RATE_HZ, TYPICAL_DEAD_TIMES_S
 
     h, out = scan["header"], []
@@ -171,6 +197,8 @@ def suggestions(scan: dict[str, Any]) -> list[str]:
                        f"marker{'s' if most != 1 else ''} each (one "
                        f"may start each pattern, another end it): --marker {top[0]}, or "
                        f"--marker {top[-1]} --marker-edge end")
+        if n_patterns is not None:
+            out.append(_against_patterns(most, n_patterns, top[0]))
     span, longest = scan["span_s"], max(TYPICAL_DEAD_TIMES_S)
     for c, n in scan["photons"].items():
         load = (n / span if span > 0 else 0.0) * longest  # (photons per dead time)
@@ -200,6 +228,11 @@ def cmd_inspect(args: argparse.Namespace) -> int:
     said in one line before anything is printed)."""
     from .io.ptu_scan import scan_ptu
 
+    m = None
+    if args.patterns is not None:
+        from .io.lab_arrays import read_patterns_file
+
+        m = int(read_patterns_file(args.patterns).shape[0])
     scans = [(path, scan_ptu(path)) for path in args.ptu]  # (every file read before a word)
     if args.json:
         print(json.dumps([dict(_jsonable(s), path=p) for p, s in scans], indent=1))
@@ -208,7 +241,7 @@ def cmd_inspect(args: argparse.Namespace) -> int:
         if i:
             print()
         print("\n".join(describe(scan, path)))
-        said = suggestions(scan)
+        said = suggestions(scan, m)
         if said:
             print("for 'spslidar reconstruct':")
             print("\n".join(f"  - {s}" for s in said))
