@@ -46,7 +46,7 @@ from scipy.ndimage import correlate, maximum_filter1d
 
 from .base import option
 from .guarded import GuardedDepth
-from .profile import noise_maxima
+from .profile import noise_maxima, typical_noise_maximum
 
 __all__ = ["EvidenceDepth", "line_evidence", "neighbour_share"]
 
@@ -150,9 +150,7 @@ class EvidenceDepth(GuardedDepth):
         if q == 0:
             return smooth, np.zeros(0, bool), {"noise_max": 0.0}
         own = np.argmax(x, axis=1)
-        nu = float(np.median(noise_maxima(z)))
-        if not nu > 0:
-            nu = 1.0
+        nu = typical_noise_maximum(noise_maxima(z))
         differ = own != smooth
         z_own = z[np.arange(q), own].astype(np.float64)
         strong = z_own >= self.strong * nu

@@ -40,6 +40,7 @@ from .profile import (
     noise_scale,
     pulse_filter,
     refine_subbin,
+    typical_noise_maximum,
 )
 
 __all__ = ["MRFDepth", "min_sum_bp", "truncated_linear_envelope"]
@@ -290,7 +291,7 @@ class MRFDepth(DepthEstimator):
         mrf_label = label = np.argmin(belief, axis=1)
         thin = own = corner = gaps = 0
         if later:  # the block's typical noise maximum
-            nu = float(np.median(null))
+            nu = typical_noise_maximum(null)
         if self.lines or self.dots:  # each pixel's own tallest slice
             a = np.argmax(x, axis=1)
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
@@ -372,7 +373,8 @@ class MRFDepth(DepthEstimator):
 def auto_truncation(z: np.ndarray, exclude: int = 2, null: np.ndarray | None = None
                     ) -> float:
     """Half the median, over the pixels, of the largest evidence outside each profile's
-    tallest return (+-``exclude`` slices): the typical noise maximum of a profile, halved.
+    tallest return (+-``exclude`` slices): the typical noise maximum of a profile, halved
+    (:func:`~.profile.typical_noise_maximum`: over the profiles that hold noise).
 
     A one-pixel-wide structure pays the truncation ``T`` on its two sides, an isolated pixel
     on four. With ``2 T`` at the typical noise maximum, a thin line survives wherever its
@@ -383,8 +385,7 @@ def auto_truncation(z: np.ndarray, exclude: int = 2, null: np.ndarray | None = N
     """
     if z.shape[1] <= 2 * exclude + 1:
         return 1.0
-    t = 0.5 * float(np.median(noise_maxima(z, exclude) if null is None else null))
-    return t if t > 0 else 1.0
+    return 0.5 * typical_noise_maximum(noise_maxima(z, exclude) if null is None else null)
 
 
 def _pseudo_marginal(belief: np.ndarray, label: np.ndarray, half: int = 1) -> np.ndarray:
