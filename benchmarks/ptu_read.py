@@ -6,7 +6,10 @@ take to read the file, and how much memory? The peer is what a user would write 
 a record), then histogram each marker block's photons over the code period with NumPy.
 spslidar's reader (:func:`spslidar.io.read_ptu_histograms`) decodes in chunks and adds each
 chunk to the histograms, so its memory is the histograms' and one chunk's, whatever the
-file's length. Both must give the same histograms (checked, exactly).
+file's length. Both must give the same histograms (checked, exactly). Then ``spslidar
+inspect``'s pass (:func:`spslidar.io.scan_ptu`: photons per channel, markers per input, the
+blocks and the gaps between detections) against the same ``decode_records`` counted in NumPy,
+the counts checked equal.
 
 The file is written here (``write_ptu_t3_stream``, in chunks): ``--patterns`` marker blocks of
 equal dwell, photons spread uniformly over each block's syncs and over the code's
@@ -30,7 +33,7 @@ from pathlib import Path
 import _cli
 import numpy as np
 
-from spslidar.io import read_ptu_histograms, write_ptu_t3_stream
+from spslidar.io import read_ptu_histograms, scan_ptu, write_ptu_t3_stream
 
 BIT_RATE = 10e9
 
@@ -77,6 +80,27 @@ def read_ptufile(path: Path, n_bins: int) -> np.ndarray:
     return np.bincount(flat, minlength=starts.size * n_bins).reshape(starts.size, n_bins)
 
 
+def scan_spslidar(path: Path, n_bins: int) -> dict:
+    """``spslidar inspect``'s one pass: photons per channel, markers per input, blocks."""
+    got = scan_ptu(path)
+    return {"photons": got["photons"], "markers": got["markers"]}
+
+
+def scan_ptufile(path: Path, n_bins: int) -> dict:
+    """The peer: every record decoded by ptufile, then the photons per channel and the
+    markers per input counted in NumPy."""
+    import ptufile
+
+    with ptufile.PtuFile(path) as f:
+        rec = f.decode_records()
+    ch = rec["channel"]
+    per = np.bincount(ch[ch >= 0].astype(np.int64))
+    mk = rec["marker"][(ch < 0) & (rec["marker"] != 0)]
+    markers = {k: int(np.count_nonzero(mk & (1 << (k - 1)))) for k in (1, 2, 3, 4)}
+    return {"photons": {int(c): int(n) for c, n in enumerate(per) if n},
+            "markers": {k: n for k, n in markers.items() if n}}
+
+
 def measure(fn, path: Path, n_bins: int, repeat: int) -> tuple[float, float, np.ndarray]:
     """(seconds, the faster of ``repeat`` reads; peak traced MB; the histograms)."""
     best, peak, out = float("inf"), 0.0, None
@@ -118,8 +142,12 @@ def main(argv=None) -> int:
         size = path.stat().st_size / 1e6
         ours = measure(read_spslidar, path, args.bins, args.repeat)
         peer = measure(read_ptufile, path, args.bins, args.repeat)
+        scan = measure(scan_spslidar, path, args.bins, args.repeat)
+        scan_peer = measure(scan_ptufile, path, args.bins, args.repeat)
     if not np.array_equal(np.asarray(ours[2], dtype=np.int64), peer[2]):
         raise SystemExit("ptu_read.py: the two readers' histograms differ")
+    if scan[2] != scan_peer[2]:
+        raise SystemExit("ptu_read.py: the two scans' counts differ")
     rate = n_rec / ours[0] / 1e6
     lines = [
         f"{args.record_type}, {n_rec:,} records ({size:.0f} MB; written in {wrote:.1f} s), "
@@ -131,6 +159,17 @@ def main(argv=None) -> int:
         f"| ptufile `decode_records` + NumPy | {peer[0]:.2f} | {n_rec / peer[0] / 1e6:.0f} M "
         f"| {peer[1]:.0f} |",
         f"| ratio (spslidar / ptufile) | {ours[0] / peer[0]:.2f} | | {ours[1] / peer[1]:.2f} |",
+        "",
+        "What a file holds (`spslidar inspect`), the counts equal:",
+        "",
+        "| scan | time [s] | records / s | peak memory [MB] |",
+        "| --- | --- | --- | --- |",
+        f"| spslidar `scan_ptu` | {scan[0]:.2f} | {n_rec / scan[0] / 1e6:.0f} M | "
+        f"{scan[1]:.0f} |",
+        f"| ptufile `decode_records` + NumPy counts | {scan_peer[0]:.2f} | "
+        f"{n_rec / scan_peer[0] / 1e6:.0f} M | {scan_peer[1]:.0f} |",
+        f"| ratio (spslidar / ptufile) | {scan[0] / scan_peer[0]:.2f} | | "
+        f"{scan[1] / scan_peer[1]:.2f} |",
     ]
     return _cli.emit(lines, args.out)
 
