@@ -9,7 +9,10 @@ import json
 import math
 from typing import Any
 
-__all__ = ["add_inspect_parser", "cmd_inspect", "describe", "suggestions"]
+import numpy as np
+
+__all__ = ["add_inspect_parser", "cmd_inspect", "describe", "returns_in_file",
+           "suggestions"]
 
 
 def add_inspect_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -38,6 +41,17 @@ def add_inspect_parser(subparsers: argparse._SubParsersAction) -> argparse.Argum
                    help="the pattern file reconstruct will be given (any format it reads): "
                         "its number of patterns is set against the blocks the markers cut "
                         "(--repeats, an extra marker, a free-running DMD)")
+    p.add_argument("--code", metavar="CODE|FAMILY",
+                   help="the code's bits of one period, as reconstruct takes them (a file, "
+                        "or a family's name with --code-length): with --bit-rate, the "
+                        "photons of every block and channel are correlated with it and the "
+                        "delays that hold returns are said, with a --range-gate around them")
+    p.add_argument("--code-length", type=int, metavar="L",
+                   help="bits per code period of a named family (as reconstruct)")
+    p.add_argument("--code-index", type=int, metavar="I",
+                   help="member of the named family (as reconstruct)")
+    p.add_argument("--bit-rate", type=float, metavar="HZ",
+                   help="the code's bits per second (with --code)")
     p.add_argument("--json", action="store_true",
                    help="print the counts as JSON (one object per file, in a list) instead "
                         "of sentences")
@@ -218,9 +232,124 @@ def suggestions(scan: dict[str, Any], n_patterns: int | None = None) -> list[str
     return out
 
 
+#: a delay holds a return where the whole acquisition's correlation rises this many
+#: standard deviations above its median (:data:`spslidar.pipeline.gate.AUTO_GATE_SIGMAS`'s
+#: rule, on the photons of every block summed)
+RETURN_SIGMAS = 5.0
+#: bins of margin on each side of the delays that hold returns, in the range gate said
+GATE_MARGIN_BINS = 3
+
+
+def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
+                    ) -> dict[str, Any]:
+    """Where a T3 file's returns are, before any pattern is read: the photons of every block
+    and channel summed per code bit, correlated with the code's replica (eq. 5-6), and the
+    delays that rise :data:`RETURN_SIGMAS` standard deviations (their Poisson noise,
+    :func:`~spslidar.correlate.correlation_noise_sigma`) above the median, a code's
+    sidelobes cleaned as the automatic range gate cleans them
+    (:func:`~spslidar.pipeline.gate.occupied_lags`).
+
+    Returns
+    -------
+    dict
+        ``ok`` False with ``why`` (a sentence) where the file cannot be read with this code
+        and bit rate (T2, a TDC bin that is no whole fraction of the bit, a sync period the
+        code does not fill); else ``peaks`` (up to five runs of delays that hold returns,
+        strongest first: ``lag`` (bits), ``range_m`` (c lag / 2 bit_rate: the delay the
+        photons show, cables and electronics included), ``sigmas``), ``gate_m`` (a range
+        gate over every run, :data:`GATE_MARGIN_BINS` bits beyond each end) and
+        ``unambiguous_m``.
+    """
+    from .constants import SPEED_OF_LIGHT
+    from .correlate import auto_replica, correlation_noise_sigma, make_replica
+    from .pipeline.gate import code_sidelobes, occupied_lags
+
+    h = scan["header"]
+    counts = scan.get("dtime_counts")
+    if scan["mode"] != "T3" or counts is None:
+        return {"ok": False, "why": "a T2 file's delays are read from its syncs by "
+                                    "reconstruct; inspect reads them from T3 records only"}
+    n = int(np.size(code))
+    res, period = float(h["resolution_s"] or 0.0), float(h["sync_period_s"] or 0.0)
+    width = 1.0 / bit_rate
+    k = width / res if res > 0 else 0.0
+    if not (round(k) >= 1 and abs(k - round(k)) <= 1e-3 * k):
+        return {"ok": False, "why": f"the TDC bin ({_si(res)}) is no whole fraction of the "
+                                    f"code's bit ({_si(width)}): reconstruct splits it "
+                                    f"between bits (--allow-binning); inspect does not"}
+    k = int(round(k))
+    div = h.get("sync_divider")
+    fold = [d for d in {1, div if isinstance(div, int) and div > 1 else 1}
+            if period > 0 and abs(period - d * n * width) <= 0.5 * width]
+    if not fold:
+        return {"ok": False, "why": f"the sync period ({_si(period)}) is not {n} bits at "
+                                    f"{bit_rate:.6g} Hz: reconstruct says what fits"}
+    bits = np.bincount((np.arange(counts.size) // k) % n, weights=counts, minlength=n)[:n]
+    if not bits.sum() > 0:
+        return {"ok": False, "why": "the file holds no photons"}
+    kind = auto_replica(code)
+    replica = make_replica(code, kind)
+    corr = np.fft.irfft(np.fft.rfft(bits) * np.conj(np.fft.rfft(replica)), n=n)
+    sigma = correlation_noise_sigma(bits[None, :], replica)
+    lags = np.arange(n)
+    hit = occupied_lags(corr[None, :], sigma, RETURN_SIGMAS, 0, lags,
+                        code_sidelobes(code, replica))
+    metres = SPEED_OF_LIGHT * width / 2
+    out: dict[str, Any] = {"ok": True, "unambiguous_m": n * metres, "replica": kind,
+                           "peaks": [], "gate_m": None}
+    if not hit.any():
+        return out
+    if hit.mean() > 0.5:  # (no scene fills half the code's period: not this code's photons)
+        return {"ok": False, "why": f"{100 * hit.mean():.0f} % of the delays stand above the "
+                                    f"background: the photons do not follow this code (the "
+                                    f"wrong code or --bit-rate, or no PSST acquisition)"}
+    # runs of occupied delays around the period (a run may wrap past its end)
+    start = int(np.flatnonzero(~hit)[-1]) + 1 if (~hit).any() else 0
+    order = (start + lags) % n
+    runs, cur = [], []
+    for i in order:
+        if hit[i]:
+            cur.append(int(i))
+        elif cur:
+            runs.append(cur)
+            cur = []
+    if cur:
+        runs.append(cur)
+    base = float(np.median(corr))
+    peaks = []
+    for r in runs:
+        top = max(r, key=lambda i: corr[i])
+        peaks.append({"lag": top, "range_m": top * metres,
+                      "sigmas": float((corr[top] - base) / sigma[0])})
+    peaks.sort(key=lambda p: -p["sigmas"])
+    out["peaks"] = peaks[:5]
+    first = runs[0][0]
+    span = (runs[-1][-1] - first) % n  # (the runs in order from the first after a gap)
+    lo = first - GATE_MARGIN_BINS
+    out["gate_m"] = (lo * metres, (lo + span + 2 * GATE_MARGIN_BINS) * metres)
+    return out
+
+
+def _returns_text(found: dict[str, Any]) -> list[str]:
+    if not found["ok"]:
+        return [f"no range said: {found['why']}"]
+    if not found["peaks"]:
+        return [f"no delay holds a return {RETURN_SIGMAS:g} standard deviations above the "
+                f"background, over the whole {found['unambiguous_m']:.4g} m of the code's "
+                f"period: a scene too dark, the wrong code, or the wrong --bit-rate"]
+    peaks = "; ".join(f"{p['range_m']:.4g} m ({p['sigmas']:.3g} sigma)"
+                      for p in found["peaks"])
+    lo, hi = found["gate_m"]
+    return [f"returns (the photons of every block, correlated with the code): {peaks}; "
+            f"--range-gate {max(lo, 0.0):.4g} {hi:.4g} holds them (the delays the photons "
+            f"show, cables included: with --calibration, the calibrated delay's range less; "
+            f"ranges are modulo the code's {found['unambiguous_m']:.4g} m)"]
+
+
 def _jsonable(scan: dict[str, Any]) -> dict[str, Any]:
-    """The scan with string keys, as JSON writes them."""
-    return json.loads(json.dumps(scan, default=str))
+    """The scan with string keys, as JSON writes them (the per-bin counts left out)."""
+    return json.loads(json.dumps({k: v for k, v in scan.items() if k != "dtime_counts"},
+                                 default=str))
 
 
 def cmd_inspect(args: argparse.Namespace) -> int:
@@ -233,15 +362,32 @@ def cmd_inspect(args: argparse.Namespace) -> int:
         from .io.lab_arrays import read_patterns_file
 
         m = int(read_patterns_file(args.patterns).shape[0])
+    code = None
+    if args.code is not None or args.bit_rate is not None:
+        from .errors import ConfigError
+
+        if args.code is None or args.bit_rate is None:
+            raise ConfigError("--code and --bit-rate go together: the range of the returns "
+                              "needs both")
+        if not (math.isfinite(args.bit_rate) and args.bit_rate > 0):
+            raise ConfigError(f"--bit-rate must be a positive number of bits per second, got "
+                              f"{args.bit_rate!r}")
+        from .cli_measured import _code
+
+        code = _code(args)[0]
     scans = [(path, scan_ptu(path)) for path in args.ptu]  # (every file read before a word)
+    found = ([returns_in_file(s, code, args.bit_rate) for _, s in scans] if code is not None
+             else [None] * len(scans))
     if args.json:
-        print(json.dumps([dict(_jsonable(s), path=p) for p, s in scans], indent=1))
+        print(json.dumps([dict(_jsonable(s), path=p, **({"returns": f} if f else {}))
+                          for (p, s), f in zip(scans, found, strict=True)], indent=1,
+                         default=str))
         return 0
-    for i, (path, scan) in enumerate(scans):
+    for i, ((path, scan), f) in enumerate(zip(scans, found, strict=True)):
         if i:
             print()
         print("\n".join(describe(scan, path)))
-        said = suggestions(scan, m)
+        said = suggestions(scan, m) + (_returns_text(f) if f is not None else [])
         if said:
             print("for 'spslidar reconstruct':")
             print("\n".join(f"  - {s}" for s in said))

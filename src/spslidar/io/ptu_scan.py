@@ -104,7 +104,9 @@ def scan_ptu(path: PathLike, *, chunk_records: int = 2**20) -> dict[str, Any]:
         ``overflow_records``, ``sync_records`` (T2: the sync input's records, whose period is
         ``sync_period_s``, measured; T3: None, its records count the syncs), ``span_s``
         (first to last event, seconds), ``syncs_spanned`` (T3), ``dtime_max`` (T3: the
-        highest TDC bin a photon took, in units of the resolution), ``blocks`` (per marker
+        highest TDC bin a photon took, in units of the resolution), ``dtime_counts`` (T3:
+        the photons in each TDC bin, all channels and blocks together, an int64 array; None
+        for T2), ``blocks`` (per marker
         input that holds markers: ``markers``, ``dwell_s`` and ``photons_per_block``
         (median / min / max over the blocks between consecutive markers), ``empty_blocks``,
         ``irregular_blocks`` (lasting over 1.5 times the median, or under its 1/1.5),
@@ -149,6 +151,7 @@ def _scan_t3(chunks, decode, family: str, header: dict[str, Any]) -> dict[str, A
     n_photons = n_ofl = carry = 0
     first = last = None
     dtime_max = -1
+    dtime_counts = np.zeros(0, np.int64)
     for raw in chunks:
         dec = decode(raw)
         ch, mk = dec["channel"], dec["marker"]
@@ -165,6 +168,11 @@ def _scan_t3(chunks, decode, family: str, header: dict[str, Any]) -> dict[str, A
         if photon.any():
             per_channel += np.bincount(ch[photon].astype(np.int64), minlength=128)[:128]
             dtime_max = max(dtime_max, int(dec["dtime"][photon].max()))
+            h = np.bincount(dec["dtime"][photon].astype(np.int64))
+            if h.size > dtime_counts.size:
+                dtime_counts = np.concatenate(
+                    [dtime_counts, np.zeros(h.size - dtime_counts.size, np.int64)])
+            dtime_counts[: h.size] += h
             gaps.add(sync[photon], dec["dtime"][photon], ch[photon])
         is_mark = ~photon & (mk != 0)
         if is_mark.any():
@@ -183,6 +191,7 @@ def _scan_t3(chunks, decode, family: str, header: dict[str, Any]) -> dict[str, A
         "syncs_spanned": int(span_syncs),
         "span_s": float(span_syncs * period),
         "dtime_max": None if dtime_max < 0 else dtime_max,
+        "dtime_counts": dtime_counts,
         "blocks": blocks,
         "gaps": _gaps(gaps),
         "periodic_channel": None,
@@ -249,6 +258,7 @@ def _scan_t2(chunks, family: str, header: dict[str, Any]) -> dict[str, Any]:
         "syncs_spanned": None,
         "span_s": float(span * unit),
         "dtime_max": None,
+        "dtime_counts": None,
         "blocks": blocks,
         "gaps": _gaps(gaps),
         "periodic_channel": periodic,
