@@ -60,6 +60,10 @@ def test_nothing_depends_on_the_chunk_size(acquisition):
     path = acquisition[0]
     a, b = scan_ptu(path, chunk_records=97), scan_ptu(path)
     np.testing.assert_array_equal(a.pop("dtime_counts"), b.pop("dtime_counts"))
+    for k, (d, c) in b.pop("block_arrays").items():
+        np.testing.assert_allclose(a["block_arrays"][k][0], d, rtol=1e-12)
+        np.testing.assert_array_equal(a["block_arrays"][k][1], c)
+    del a["block_arrays"]
     assert a == b
 
 
@@ -197,12 +201,13 @@ def test_a_dead_time_and_pile_up_are_said(tmp_path, capsys):
     assert main(["inspect", str(tmp_path / "dead.ptu")]) == 0
     out = capsys.readouterr().out
     assert "channel 0: no two detections closer than 40" in out
-    assert "to pile-up: give its --dead-time" in out
+    assert "of the photons to pile-up: --dead-time 4e-08 (one --channel at a time)" in out
     free = scan_ptu(tmp_path / "free.ptu")
     assert 0 < free["gaps"][0]["shortest_s"] < 2e-9
     assert main(["inspect", str(tmp_path / "free.ptu")]) == 0
     out = capsys.readouterr().out
-    assert "no two detections closer" not in out and "loses 18 % of them to pile-up" in out
+    assert "no two detections closer" not in out
+    assert "a detector with a dead time of 20 ns to 100 ns lost 4.4 to 22 % of the" in out
 
 
 def test_empty_and_irregular_blocks_are_counted(tmp_path, capsys):
@@ -224,74 +229,153 @@ def test_empty_and_irregular_blocks_are_counted(tmp_path, capsys):
 
 @pytest.mark.parametrize("m,said", [
     (12, "cuts 12 blocks: one per pattern"), (6, "cuts 12 blocks: --repeats 2"),
-    (4, "--repeats 3"), (11, "one per pattern and one more (an arming or end"),
-    (5, "--repeats 2, and two more"), (7, "no whole number of sequences"),
+    (4, "--repeats 3"),
+    (11, "one per pattern, and neither end is short or empty (first block 380 code periods "
+         "with"),
+    (5, "--repeats 2, and 2 blocks more"), (7, "no whole number of sequences"),
     (20, "fewer blocks than patterns"),
 ])
 def test_blocks_against_the_patterns(acquisition, tmp_path, capsys, m, said):
-    np.save(tmp_path / "p.npy", np.zeros((m, 4, 4)))
+    """The blocks on the busiest input against the patterns, as reconstruct reads the same
+    file with them (an extra block at either end by its own rule)."""
+    rng = np.random.default_rng(m)
+    np.save(tmp_path / "p.npy", (rng.random((m, 4, 4)) < 0.5).astype(np.uint8))
     assert main(["inspect", str(acquisition[0]), "--patterns", str(tmp_path / "p.npy")]) == 0
     out = capsys.readouterr().out
     assert f"--patterns holds {m} patterns and --marker 2 cuts 12 blocks" in out and said in out
 
 
-# -- where the returns are --------------------------------------------------------------------
+def test_patterns_read_as_reconstruct_reads_them(acquisition, tmp_path, capsys):
+    """A code's bits given as --patterns were "127 patterns" (an audit): refused in one line,
+    as reconstruct refuses them."""
+    np.save(tmp_path / "c.npy", np.ones(127))
+    assert main(["inspect", str(acquisition[0]), "--patterns", str(tmp_path / "c.npy")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--patterns" in err
 
-def _psst_file(path: Path, code: np.ndarray, lags: list[int], k: int = 1, seed: int = 0,
-               signal: int = 3000, background: int = 3000) -> None:
-    """8 blocks of a PSST acquisition: ``signal`` photons per block at each of ``lags`` (bits),
-    each in a bit where the code delayed by the lag is 1, and ``background`` uniform ones;
-    TDC bins of 1/``k`` bit."""
+
+# -- the advice followed literally reads the file right (an outside audit of 2026-12-02) ----
+
+DW, PER_BLOCK = 20, 300  # code periods and photons per pattern
+
+
+def _marked(path: Path, starts: list[int], marks: dict[int, list[int]], seed: int = 0,
+            **tags) -> Path:
+    """Blocks of DW code periods from each of ``starts``, PER_BLOCK photons each; marker
+    records on input k at the syncs ``marks[k]`` (each before its sync's photons)."""
+    from spslidar.io import write_ptu_t3
+
     rng = np.random.default_rng(seed)
-    on = np.flatnonzero(code)
-    events = []
-    for _ in range(8):
-        bits = np.concatenate([(rng.choice(on, signal) + d) % code.size for d in lags]
-                              + [rng.integers(0, code.size, background)])
-        dt = bits * k + rng.integers(0, k, bits.size)
-        events.append(np.column_stack([np.sort(rng.integers(0, 200, dt.size)), dt]))
-    write_acquisition_ptu(path, events, code.size * k, BW / k, periods_per_pattern=200)
+    ev = [(int(s), 1, int(rng.integers(0, L)), 0) for s0 in starts
+          for s in rng.integers(s0, s0 + DW, PER_BLOCK)]
+    ev += [(int(s), 0, 0, 1 << (k - 1)) for k, syncs in marks.items() for s in syncs]
+    a = np.array(sorted(ev))
+    write_ptu_t3(path, nsync=a[:, 0], dtime=a[:, 2], marker=a[:, 3], resolution_s=BW,
+                 sync_rate_hz=1 / (L * BW), extra_tags=tags or None)
+    return path
 
 
-@pytest.mark.parametrize("k", [1, 4])
-def test_the_returns_delays_and_a_gate_around_them(tmp_path, k):
-    """Two returns at bits 40 and 90 of a 127-bit m-sequence (one TDC bin a bit, or four):
-    both found at their bits, the gate holding both and little more."""
-    from spslidar.cli_inspect import GATE_MARGIN_BINS, returns_in_file
-    from spslidar.codes.sequences import make_code
-
-    code = make_code("mseq", L)
-    _psst_file(tmp_path / "r.ptu", code, [40, 90], k)
-    found = returns_in_file(scan_ptu(tmp_path / "r.ptu"), code, 1 / BW)
-    metre = 299_792_458.0 * BW / 2
-    assert found["ok"] and sorted(p["lag"] for p in found["peaks"]) == [40, 90]
-    assert min(p["sigmas"] for p in found["peaks"]) > 20
-    lo, hi = found["gate_m"]
-    assert lo == pytest.approx((40 - GATE_MARGIN_BINS) * metre, abs=1e-9)
-    assert hi == pytest.approx((90 + GATE_MARGIN_BINS) * metre, abs=1e-9)
-    assert found["unambiguous_m"] == pytest.approx(L * metre)
+def _said(capsys, *argv: str) -> str:
+    assert main(["inspect", *argv]) == 0
+    return capsys.readouterr().out
 
 
-def test_returns_refused_where_they_cannot_be_read(tmp_path, capsys):
-    """A bit rate whose bit is no whole number of TDC bins, a code period the sync's is not,
-    and --code without --bit-rate. (Another code of the same length is not told apart: a
-    strong return correlated with it stands out too, 27 standard deviations here.)"""
-    from spslidar.cli_inspect import returns_in_file
-    from spslidar.codes.sequences import make_code
+def test_start_and_end_inputs_by_their_order_not_their_numbers(tmp_path, capsys):
+    """Start markers on input 3 and end markers on input 2: "--marker 2, or --marker 3
+    --marker-edge end" read every pattern with its neighbour's photons."""
+    starts = [DW * k for k in range(8)]
+    f = _marked(tmp_path / "a.ptu", starts, {3: starts, 2: [s + DW - 1 for s in starts]})
+    out = _said(capsys, str(f))
+    assert "input 3's first: one starts each pattern and another ends it: --marker 3, or " \
+           "--marker 2 --marker-edge end" in out
 
-    code = make_code("mseq", L)
-    _psst_file(tmp_path / "r.ptu", code, [40])
-    scan = scan_ptu(tmp_path / "r.ptu")
-    assert "no whole fraction" in returns_in_file(scan, code, 1 / (2.5 * BW))["why"]
-    assert "is not 255 bits" in returns_in_file(scan, make_code("mseq", 255), 1 / BW)["why"]
-    np.save(tmp_path / "c.npy", code)
-    assert main(["inspect", str(tmp_path / "r.ptu"), "--code", str(tmp_path / "c.npy")]) == 2
-    assert "--code and --bit-rate go together" in capsys.readouterr().err
-    assert main(["inspect", str(tmp_path / "r.ptu"), "--code", str(tmp_path / "c.npy"),
-                 "--bit-rate", "10e9"]) == 0
-    assert "returns (the photons of every block, correlated with the code): 0.5996 m (" in (
-        capsys.readouterr().out)
-    assert main(["inspect", str(tmp_path / "r.ptu"), "--code", "mseq", "--code-length", "127",
-                 "--bit-rate", "10e9", "--json"]) == 0
-    (got,) = json.loads(capsys.readouterr().out)
-    assert got["returns"]["peaks"][0]["lag"] == 40 and "dtime_counts" not in got
+
+def test_one_input_that_ends_its_patterns(tmp_path, capsys):
+    starts = [DW * k for k in range(8)]
+    f = _marked(tmp_path / "e.ptu", starts, {1: [s + DW - 1 for s in starts]})
+    out = _said(capsys, str(f))
+    assert "--marker 1 --marker-edge end: 8 markers, with 285 photons before the first " \
+           "(about a block's) and 14 after the last: its marker ends each pattern" in out
+    assert "--marker 1: 8 markers, blocks of 254 ns" in out
+
+
+def test_an_arming_marker_as_reconstruct_reads_it(tmp_path, capsys):
+    """An arming marker two patterns' dwell before the first pattern: said left out, as
+    reconstruct now leaves it out; with an end marker too, both."""
+    starts = [2 * DW + DW * k for k in range(8)]
+    rng = np.random.default_rng(1)
+    np.save(tmp_path / "p.npy", (rng.random((8, 4, 4)) < 0.5).astype(np.uint8))
+    f = _marked(tmp_path / "a.ptu", starts, {1: [0, *starts]})
+    out = _said(capsys, str(f), "--patterns", str(tmp_path / "p.npy"))
+    assert "one per pattern, and the first block, short or empty, is an arming marker's " \
+           "(first block 40 code periods with 0 photons" in out
+    g = _marked(tmp_path / "b.ptu", starts, {1: [0, *starts, starts[-1] + DW]})
+    assert "and an arming and an end marker's block (first block 40 code periods with 0 " \
+           "photons" in _said(capsys, str(g), "--patterns", str(tmp_path / "p.npy"))
+
+
+@pytest.mark.skipif(not REAL.is_dir(), reason="../shared/realdata is absent")
+def test_another_input_that_fits_the_patterns(tmp_path, capsys):
+    """Five patterns against the hazelnut's 1 280 line markers and 5 frame markers: input
+    3's five blocks are named."""
+    rng = np.random.default_rng(2)
+    np.save(tmp_path / "p.npy", (rng.random((5, 4, 4)) < 0.5).astype(np.uint8))
+    out = _said(capsys, str(REAL / "hazelnut_z1.ptu"), "--patterns", str(tmp_path / "p.npy"))
+    assert "input 3 fits the patterns better: --patterns holds 5 patterns and --marker 3 " \
+           "cuts 5 blocks: one per pattern" in out
+
+
+def test_headers_reconstruct_refuses_and_files_run_backwards(tmp_path, capsys):
+    starts = [DW * k for k in range(4)]
+    f = _marked(tmp_path / "r.ptu", starts, {1: starts})
+    data = bytearray(f.read_bytes())  # (the writer refuses to set it: patched in place)
+    at = data.index(b"MeasDesc_Resolution\0") + 40
+    data[at:at + 8] = struct.pack("<d", 0.0)
+    f.write_bytes(bytes(data))
+    out = _said(capsys, str(f))
+    assert "the header gives no TDC bin a TDC has (MeasDesc_Resolution 0.0): reconstruct " \
+           "refuses the file" in out and "0 ps" not in out and "--bit-rate" not in out
+    from spslidar.io import write_ptu_t3
+
+    # two files joined end to end, each counting its syncs from 0
+    write_ptu_t3(tmp_path / "j.ptu", nsync=[0, 50, 100], dtime=[1, 2, 3], resolution_s=BW,
+                 sync_rate_hz=1 / (L * BW))
+    data = bytearray((tmp_path / "j.ptu").read_bytes())
+    data += data[-12:]  # (its three records again)
+    at = data.index(b"TTResult_NumberOfRecords\0") + 40
+    data[at:at + 8] = struct.pack("<q", 6)
+    (tmp_path / "j.ptu").write_bytes(bytes(data))
+    assert main(["inspect", str(tmp_path / "j.ptu")]) == 2
+    assert "its sync count runs backwards" in capsys.readouterr().err
+
+
+def test_marker_records_photons_past_the_period_plurals_and_json(tmp_path, capsys):
+    """A marker record that sets four inputs is one record; photons in bins past the sync
+    period are said; one of anything is singular; the JSON holds the advice."""
+    from spslidar.io import write_ptu_t3
+
+    write_ptu_t3(tmp_path / "m.ptu", nsync=[0, 3, 5], dtime=[0, 200, 0],
+                 marker=[15, 0, 0], resolution_s=BW, sync_rate_hz=1 / (L * BW))
+    out = _said(capsys, str(tmp_path / "m.ptu"))
+    assert "3 records over" in out and "2 photons, 1 marker record, 0 overflow records" in out
+    assert "1 photon (50 %) lie in TDC bins past the sync period's 127" in out
+    assert "1 photons" not in out and "1 markers" not in out
+    (got,) = json.loads(_said(capsys, "--json", str(tmp_path / "m.ptu")))
+    assert got["marker_records"] == 1 and got["markers"] == {"1": 1, "2": 1, "3": 1, "4": 1}
+    assert any("--bit-rate 1e+10" in a for a in got["advice"])
+    assert got["blocks"]["1"]["dwell_s"] is None and "block_arrays" not in got
+
+
+def test_t2_advice_binning_and_the_sync_channel_is_no_detector(tmp_path, capsys):
+    rng = np.random.default_rng(3)
+    sync = np.arange(2000) * 12700 + 50
+    phot = np.sort(rng.integers(0, int(sync[-1]), 3000))
+    t = np.concatenate([sync, phot])
+    kind = np.zeros(t.size, int)
+    value = np.concatenate([np.full(sync.size, 3), np.zeros(phot.size, int)])
+    order = np.argsort(t, kind="stable")
+    _t2_file(tmp_path / "s.ptu", t[order], kind[order], value[order])
+    out = _said(capsys, str(tmp_path / "s.ptu"))
+    assert "--sync-channel 3" in out and "with --allow-binning, which merges" in out
+    assert "channel 3" not in out.split("--sync-channel 3")[1]
+    assert "detector channels hold photons" not in out

@@ -608,3 +608,25 @@ def test_the_wrong_edge_note_of_a_one_period_dwell_reads_as_words():
                            "input 1, about one pattern's (1 code period, 5000 photons), and "
                            "the first block lasts 1 code period: "), note
     assert note.endswith("pass --marker-edge start")
+
+
+@pytest.mark.parametrize("lead", [2 * DWELL, 5 * DWELL])
+def test_an_arming_marker_long_before_the_sequence_is_left_out(tmp_path, lead):
+    """An arming marker two or five patterns' dwell before the first pattern, its block
+    without a photon: it was not short, so it was kept as pattern 0 and the last pattern
+    dropped (every pattern paired with its neighbour's photons; an outside audit of
+    2026-12-02). With an end marker too (M + 2 blocks) it was refused."""
+    rng = np.random.default_rng(4)
+    starts = [lead + DWELL * k for k in range(M)]
+    one = _write(tmp_path / "one.ptu", *_events(rng, starts, [0, *starts]))
+    data, notes = read_blocks(one, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M)) and data.n_patterns == M
+    assert len(notes) == 1 and "its first block" in notes[0] and "is left out" in notes[0]
+    both = _write(tmp_path / "both.ptu", *_events(rng, starts, [0, *starts, lead + DWELL * M]))
+    data, notes = read_blocks(both, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M)) and data.n_patterns == M
+    # a first block holding a pattern's photons, however long, is a pattern: the last of
+    # M + 1 patterns' blocks is left out (a row missing from --patterns?)
+    slow = _write(tmp_path / "slow.ptu", *_events(rng, [0, *starts], [0, *starts]))
+    data, notes = read_blocks(slow, M, L, bin_width=RES)
+    assert _peaks(data) == list(range(M)) and "is a row missing" in notes[0]

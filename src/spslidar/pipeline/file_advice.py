@@ -1,0 +1,389 @@
+"""What a measured file asks of ``reconstruct``, from one pass over it
+(:func:`spslidar.io.scan_ptu`): the marker input and edge, the blocks against the patterns as
+:mod:`.blocks` will read them, the bit rate and code lengths the TDC and sync fit, pile-up and
+a dead time, and where the returns are (``spslidar inspect``).
+
+Each sentence follows a rule ``reconstruct`` applies itself (the arming and end markers'
+blocks by :func:`.blocks._short`, the sync period by the reader's half-bin tolerance, pile-up
+by :mod:`.deadtime`'s 5 % rule, the returns by the automatic gate's
+:func:`.gate.occupied_lags`), so that advice followed literally reads the file as
+``reconstruct`` would have read it right (an outside audit of 2026-12-02 followed the first
+version's advice into wrong maps on four layouts).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+__all__ = ["GATE_MARGIN_BINS", "RETURN_SIGMAS", "advice", "count", "returns_in_file",
+           "returns_text", "si"]
+
+#: a delay holds a return where the whole acquisition's correlation rises this many
+#: standard deviations above its median (:data:`.gate.AUTO_GATE_SIGMAS`'s rule, on the
+#: photons of every block summed)
+RETURN_SIGMAS = 5.0
+#: bins of margin on each side of the delays that hold returns, in the range gate said
+GATE_MARGIN_BINS = 3
+#: a marker input reads as ending its patterns where at least this share of a block's
+#: photons come before its first marker and at most :data:`END_AFTER` after its last
+END_BEFORE, END_AFTER = 0.5, 0.1
+#: TDC bins and sync periods a header can give (outside them: no instrument's)
+RESOLUTION_S = (1e-15, 1e-3)
+
+
+def si(seconds: float) -> str:
+    """A time with its unit (ps, ns, us, ms, s), 4 significant digits."""
+    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9), ("ps", 1e-12)):
+        # (a value that rounds to 1000 of a unit is one of the next: "1000 ps", an audit)
+        if abs(seconds) >= scale * (1 - 5e-5) or unit == "ps":
+            return f"{seconds / scale:.4g} {unit}"
+    return f"{seconds:g} s"  # pragma: no cover
+
+
+def count(n: float, word: str, plural: str | None = None) -> str:
+    """``n word(s)`` with thin thousands separators, as the README writes counts."""
+    text = f"{int(n):,}".replace(",", " ")
+    return f"{text} {word if int(n) == 1 else plural or word + 's'}"
+
+
+def _header_ok(scan: dict[str, Any]) -> list[str]:
+    """The header's timing, where ``reconstruct`` refuses it: one sentence, or none."""
+    h = scan["header"]
+    lo, hi = RESOLUTION_S
+    if scan["mode"] == "T3":
+        res, period = h["resolution_s"], h["sync_period_s"]
+        if not (isinstance(res, float) and lo <= res <= hi):
+            return [f"the header gives no TDC bin a TDC has (MeasDesc_Resolution {res!r}): "
+                    f"reconstruct refuses the file"]
+        if not (isinstance(period, float) and lo <= period <= 1.0):
+            return [f"the header gives no sync period (MeasDesc_GlobalResolution {period!r}): "
+                    f"reconstruct refuses the file"]
+    else:
+        unit = h["time_unit_s"]
+        if not (isinstance(unit, float) and lo <= unit <= hi):
+            return [f"the header gives no time tag unit (MeasDesc_GlobalResolution {unit!r}): "
+                    f"reconstruct refuses the file"]
+    return []
+
+
+def _bits(scan: dict[str, Any]) -> list[str]:
+    """The bit rate and code lengths the TDC bin and the sync period fit."""
+    from ..io.ptu_blocks import _fitting_codes
+
+    h = scan["header"]
+    if scan["mode"] == "T2":
+        return [f"a T2 file's delays are counted in its time tags ({si(h['time_unit_s'])}): "
+                f"give the code's --bit-rate with --allow-binning, which merges (or splits) "
+                f"them into bits"]
+    res, bpp = h["resolution_s"], h.get("bins_per_period")
+    text = f"--bit-rate {1 / res:.6g} reads one TDC bin per code bit"
+    if bpp:
+        text += f"; {_fitting_codes(bpp, res, 0.5)}"
+        div = h.get("sync_divider")
+        if (isinstance(div, int) and not isinstance(div, bool) and div > 1
+                and abs(bpp - div * round(bpp / div)) <= 0.5):  # (the reader's tolerance)
+            text += (f"; or, as the header's sync divider says, each sync spans {div} code "
+                     f"periods of {round(bpp / div)} bits")
+    out = [text + "; a code clocked k times slower than the TDC: its own --bit-rate with "
+                  "--allow-binning"]
+    counts = scan.get("dtime_counts")
+    if bpp and counts is not None and counts.size > math.ceil(bpp + 0.5):
+        past = int(counts[math.ceil(bpp + 0.5):].sum())
+        total = int(counts.sum())
+        if past:
+            out.append(f"{count(past, 'photon')} ({100 * past / max(total, 1):.3g} %) lie in TDC "
+                       f"bins past the sync period's {bpp:.6g}: reconstruct leaves them out "
+                       f"(a sync every few code periods that the header does not say? "
+                       f"--sync-divider)")
+    return out
+
+
+def _edge(b: dict[str, Any]) -> str:
+    """``"end"`` where an input's photons before its first marker are about a block's and
+    none come after its last (its marker ends each pattern), else ``"start"``."""
+    ph = b["photons_per_block"]
+    if ph is None or not ph["median"] > 0:
+        return "start"
+    if (b["photons_before_first"] >= END_BEFORE * ph["median"]
+            and b["photons_after_last"] <= END_AFTER * ph["median"]):
+        return "end"
+    return "start"
+
+
+def _markers(scan: dict[str, Any]) -> list[str]:
+    """Which ``--marker`` input, at which edge."""
+    if not scan["markers"]:
+        return ["no marker records: reconstruct splits the photons into patterns at the "
+                "DMD's markers (its trigger output on a marker input)"]
+    most = max(scan["markers"].values())
+    top = [k for k, n in scan["markers"].items() if n == most]
+    blocks = scan["blocks"]
+    if len(top) == 1:
+        k = top[0]
+        if _edge(blocks[k]) == "end":
+            b = blocks[k]
+            return [f"--marker {k} --marker-edge end: {count(most, 'marker')}, with "
+                    f"{count(b['photons_before_first'], 'photon')} before the first (about a "
+                    f"block's) and {b['photons_after_last']} after the last: its marker ends "
+                    f"each pattern"]
+        return [f"--marker {k}: {count(most, 'marker')}, as many patterns (or the sequence "
+                f"--repeats times)"]
+    # inputs of as many markers: one starts each pattern, another ends it; the start's
+    # markers come first (an audit: numbered the other way round, both readings were wrong)
+    first = sorted(top, key=lambda k: blocks[k]["first_s"])
+    s, e = first[0], first[-1]
+    return [f"inputs {', '.join(map(str, top))} hold {count(most, 'marker')} each, input "
+            f"{s}'s first: one starts each pattern and another ends it: --marker {s}, or "
+            f"--marker {e} --marker-edge end"]
+
+
+def _extra_block(d: np.ndarray, c: np.ndarray, m: int) -> str:
+    """Which of ``m + 1`` or ``m + 2`` blocks ``reconstruct`` leaves out (:mod:`.blocks`'
+    rules on the same dwells and photons)."""
+    from .blocks import _short
+
+    inner = slice(1, -1) if d.size > 2 else slice(None)
+    typ_d, typ_c = float(np.median(d[inner])), float(np.median(c[inner]))
+    first = _short(d[0], c[0], typ_d, typ_c)
+    last = _short(d[-1], c[-1], typ_d, typ_c)
+    ends = (f"first block {count(round(d[0]), 'code period')} with "
+            f"{count(c[0], 'photon')}, last {count(round(d[-1]), 'code period')} with "
+            f"{count(c[-1], 'photon')}, a pattern's {count(round(typ_d), 'code period')} "
+            f"with {count(typ_c, 'photon')}")
+    if d.size == m + 2:
+        if first and last:
+            return f"and an arming and an end marker's block ({ends}): both left out"
+        return (f"and two more, not both short of a pattern's or empty ({ends}): reconstruct "
+                f"refuses the file with these patterns")
+    if first and not last:
+        return f"and the first block, short or empty, is an arming marker's ({ends}): left out"
+    if last:
+        return f"and the last block is an end marker's ({ends}): left out"
+    return (f"and neither end is short or empty ({ends}): reconstruct leaves out the last, "
+            f"and asks whether a row is missing from --patterns")
+
+
+def _against(k: int, blocks: int, m: int, arrays: tuple | None) -> tuple[int, str]:
+    """How well ``blocks`` blocks on input ``k`` fit ``m`` patterns (0 best) and in words."""
+    head = (f"--patterns holds {count(m, 'pattern')} and --marker {k} cuts "
+            f"{count(blocks, 'block')}")
+    if blocks == m:
+        return 0, head + ": one per pattern"
+    if blocks < m:
+        return 3, (head + ": fewer blocks than patterns (another --marker input, markers "
+                          "missed, or an acquisition cut short)")
+    if blocks % m == 0:
+        return 1, head + f": --repeats {blocks // m}"
+    if blocks - m in (1, 2) and arrays is not None:
+        return 1, f"{head}: one per pattern, {_extra_block(*arrays, m)}"
+    for extra in (1, 2):
+        if (blocks - extra) % m == 0:
+            return 2, (head + f": --repeats {(blocks - extra) // m}, and "
+                              f"{count(extra, 'block')} more (an arming or end marker's)")
+    return 2, (head + ": no whole number of sequences (a DMD looping its sequence while the "
+                      "recording started: --first-pattern auto; or a marker missed or "
+                      "added)")
+
+
+def _patterns(scan: dict[str, Any], m: int) -> list[str]:
+    """The blocks of the busiest input against ``m`` patterns, and another input's where it
+    fits them better."""
+    period = scan.get("sync_period_s")
+
+    def arrays(k: int) -> tuple | None:  # (dwells in code periods, as .blocks reads them)
+        a = scan["block_arrays"].get(k)
+        return None if a is None or not period else (a[0] / period, a[1])
+
+    verdicts = {k: _against(k, n, m, arrays(k)) for k, n in scan["markers"].items()}
+    most = max(scan["markers"].values())
+    top = min(k for k, n in scan["markers"].items() if n == most)
+    out = [verdicts[top][1]]
+    better = [k for k in verdicts if verdicts[k][0] < verdicts[top][0]]
+    if better:
+        k = min(better, key=lambda k: verdicts[k][0])
+        out.append(f"input {k} fits the patterns better: {verdicts[k][1]}")
+    return out
+
+
+def _rates(scan: dict[str, Any], sync_channel: int | None) -> list[str]:
+    """Pile-up and a dead time, per detector channel."""
+    from .deadtime import GAP_EVIDENCE, LOSS_TO_WARN, MAX_DETECTOR_RATE_HZ, TYPICAL_DEAD_TIMES_S
+
+    out, span = [], scan["span_s"]
+    lo, hi = min(TYPICAL_DEAD_TIMES_S), max(TYPICAL_DEAD_TIMES_S)
+    for c, n in scan["photons"].items():
+        if c == sync_channel or not span > 0:
+            continue
+        r = n / span
+        g = scan["gaps"].get(c)
+        seen = None
+        if g and g["shortest_s"] > 0:
+            shorter = g["n"] * -math.expm1(-g["n"] / span * g["shortest_s"])
+            if shorter >= GAP_EVIDENCE:
+                seen = g["shortest_s"]
+        if r >= MAX_DETECTOR_RATE_HZ:
+            out.append(f"channel {c} counts {r:.3g} photons/s, more than a single-photon "
+                       f"detector can: a simulated linear counter, or the photons of several "
+                       f"detectors on one channel")
+        elif seen is not None:
+            # (the share a non-paralysable detector lost of what arrived is r D, r the rate
+            # it recorded: load / (1 + load) on the recorded rate was wrong, an audit)
+            lost = r * seen
+            out.append(f"channel {c}: no two detections closer than {si(seen)}, where a "
+                       f"detector without a dead time would have given more than "
+                       f"{GAP_EVIDENCE:g} closer gaps: its dead time"
+                       + (f", at which it lost {100 * lost:.2g} % of the photons to pile-up: "
+                          f"--dead-time {seen:.3g} (one --channel at a time)"
+                          if lost >= LOSS_TO_WARN else " (pile-up under 5 %)"))
+        elif r * hi >= 1:
+            out.append(f"channel {c} counts {r:.3g} photons/s, more than a detector with a "
+                       f"{si(hi)} dead time records: its dead time, if it has one, is under "
+                       f"{si(1 / r)}")
+        elif r * hi >= LOSS_TO_WARN:
+            out.append(f"channel {c} counts {r:.3g} photons/s: a detector with a dead time of "
+                       f"{si(lo)} to {si(hi)} lost {100 * r * lo:.2g} to {100 * r * hi:.2g} % "
+                       f"of the photons to pile-up: give its --dead-time")
+    detectors = [c for c in scan["photons"] if c != sync_channel]
+    if len(detectors) > 1:
+        out.append(f"{len(detectors)} detector channels hold photons: all are read together "
+                   f"unless --channel picks one (--align-channels moves them onto one where "
+                   f"cables of different lengths delay them)")
+    return out
+
+
+def advice(scan: dict[str, Any], n_patterns: int | None = None) -> list[str]:
+    """What ``reconstruct`` needs that a :func:`~spslidar.io.scan_ptu` result says, one
+    sentence each; with ``n_patterns`` (the rows of ``--patterns``), the blocks set against
+    them."""
+    bad = _header_ok(scan)
+    if bad:
+        return bad
+    out: list[str] = []
+    sync_channel = None
+    if scan["mode"] == "T2" and (scan["sync_records"] or 0) < 2:
+        per = scan["periodic_channel"]
+        out.append("no sync records: reconstruct reads a T2 file from the code's sync, "
+                   "recorded on the sync input"
+                   + (f"; channel {per['channel']}'s events come every {si(per['period_s'])}, "
+                      f"as a sync's would: --sync-channel {per['channel']}" if per else ""))
+        sync_channel = per["channel"] if per else None
+    out += _bits(scan)
+    out += _markers(scan)
+    if n_patterns is not None and scan["markers"]:
+        out += _patterns(scan, int(n_patterns))
+    out += _rates(scan, sync_channel)
+    return out
+
+
+def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
+                    ) -> dict[str, Any]:
+    """Where a T3 file's returns are, before any pattern is read: the photons of every block
+    and channel summed per code bit, correlated with the code's replica (eq. 5-6), and the
+    delays that rise :data:`RETURN_SIGMAS` standard deviations (their Poisson noise,
+    :func:`~spslidar.correlate.correlation_noise_sigma`) above the median, a code's
+    sidelobes cleaned as the automatic range gate cleans them
+    (:func:`~spslidar.pipeline.gate.occupied_lags`).
+
+    Returns
+    -------
+    dict
+        ``ok`` False with ``why`` (a sentence) where the file cannot be read with this code
+        and bit rate (T2, a TDC bin that is no whole fraction of the bit, a sync period the
+        code does not fill, more than half the delays standing out); else ``peaks`` (up to
+        five runs of delays that hold returns, strongest first: ``lag`` (bits), ``range_m``
+        (c lag / 2 bit_rate: the delay the photons show, cables and electronics included),
+        ``sigmas``), ``gate_m`` (a range gate over every run, :data:`GATE_MARGIN_BINS` bits
+        beyond each end; None where no delay stands out), ``unambiguous_m`` and ``replica``.
+        A code of the same length that is not the one sent is not told apart: a strong
+        return correlated with it stands out too.
+    """
+    from ..constants import SPEED_OF_LIGHT
+    from ..correlate import auto_replica, correlation_noise_sigma, make_replica
+    from .gate import code_sidelobes, occupied_lags
+
+    h = scan["header"]
+    counts = scan.get("dtime_counts")
+    if scan["mode"] != "T3" or counts is None:
+        return {"ok": False, "why": "a T2 file's delays are read from its syncs by "
+                                    "reconstruct; inspect reads them from T3 records only"}
+    if _header_ok(scan):
+        return {"ok": False, "why": _header_ok(scan)[0]}
+    n = int(np.size(code))
+    res, period = float(h["resolution_s"]), float(h["sync_period_s"])
+    width = 1.0 / bit_rate
+    k = width / res
+    if not (round(k) >= 1 and abs(k - round(k)) <= 1e-3 * k):
+        return {"ok": False, "why": f"the TDC bin ({si(res)}) is no whole fraction of the "
+                                    f"code's bit ({si(width)}): reconstruct splits it "
+                                    f"between bits (--allow-binning); inspect does not"}
+    k = int(round(k))
+    div = h.get("sync_divider")
+    folds = {1} | ({div} if isinstance(div, int) and not isinstance(div, bool) and div > 1
+                   else set())
+    if not any(abs(period - d * n * width) <= 0.5 * width for d in folds):
+        return {"ok": False, "why": f"the sync period ({si(period)}) is not {n} bits at "
+                                    f"{bit_rate:.6g} Hz: reconstruct says what fits"}
+    bits = np.bincount((np.arange(counts.size) // k) % n, weights=counts, minlength=n)[:n]
+    if not bits.sum() > 0:
+        return {"ok": False, "why": "the file holds no photons"}
+    kind = auto_replica(code)
+    replica = make_replica(code, kind)
+    corr = np.fft.irfft(np.fft.rfft(bits) * np.conj(np.fft.rfft(replica)), n=n)
+    sigma = correlation_noise_sigma(bits[None, :], replica)
+    lags = np.arange(n)
+    hit = occupied_lags(corr[None, :], sigma, RETURN_SIGMAS, 0, lags,
+                        code_sidelobes(code, replica))
+    metres = SPEED_OF_LIGHT * width / 2
+    out: dict[str, Any] = {"ok": True, "unambiguous_m": n * metres, "replica": kind,
+                           "peaks": [], "gate_m": None}
+    if not hit.any():
+        return out
+    if hit.mean() > 0.5:  # (no scene fills half the code's period: not this code's photons)
+        return {"ok": False, "why": f"{100 * hit.mean():.0f} % of the delays stand above the "
+                                    f"background: the photons do not follow this code (the "
+                                    f"wrong code or --bit-rate, or no PSST acquisition)"}
+    # runs of occupied delays around the period, from the first after a gap (a run may wrap
+    # past the period's end)
+    start = int(np.flatnonzero(~hit)[-1]) + 1
+    runs, cur = [], []
+    for i in (start + lags) % n:
+        if hit[i]:
+            cur.append(int(i))
+        elif cur:
+            runs.append(cur)
+            cur = []
+    if cur:
+        runs.append(cur)
+    base = float(np.median(corr))
+    peaks = []
+    for r in runs:
+        top = max(r, key=lambda i: corr[i])
+        peaks.append({"lag": top, "range_m": top * metres,
+                      "sigmas": float((corr[top] - base) / sigma[0])})
+    peaks.sort(key=lambda p: -p["sigmas"])
+    out["peaks"] = peaks[:5]
+    first = runs[0][0]
+    span = (runs[-1][-1] - first) % n
+    lo = first - GATE_MARGIN_BINS
+    out["gate_m"] = (lo * metres, (lo + span + 2 * GATE_MARGIN_BINS) * metres)
+    return out
+
+
+def returns_text(found: dict[str, Any]) -> list[str]:
+    """:func:`returns_in_file`'s result in words."""
+    if not found["ok"]:
+        return [f"no range said: {found['why']}"]
+    if not found["peaks"]:
+        return [f"no delay holds a return {RETURN_SIGMAS:g} standard deviations above the "
+                f"background, over the whole {found['unambiguous_m']:.4g} m of the code's "
+                f"period: a scene too dark, the wrong code, or the wrong --bit-rate"]
+    peaks = "; ".join(f"{p['range_m']:.4g} m ({p['sigmas']:.3g} sigma)"
+                      for p in found["peaks"])
+    lo, hi = found["gate_m"]
+    return [f"returns (the photons of every block, correlated with the code): {peaks}; "
+            f"--range-gate {max(lo, 0.0):.4g} {hi:.4g} holds them (the delays the photons "
+            f"show, cables included: with --calibration, the calibrated delay's range less; "
+            f"ranges are modulo the code's {found['unambiguous_m']:.4g} m)"]
