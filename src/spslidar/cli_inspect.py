@@ -38,15 +38,12 @@ def add_inspect_parser(subparsers: argparse._SubParsersAction) -> argparse.Argum
                    help="the pattern file reconstruct will be given (any format it reads): "
                         "its number of patterns is set against the blocks the markers cut "
                         "(--repeats, an extra marker, a free-running DMD)")
-    p.add_argument("--code", metavar="CODE|FAMILY",
-                   help="the code's bits of one period, as reconstruct takes them (a file, "
-                        "or a family's name with --code-length): with --bit-rate, the "
-                        "photons of every block and channel are correlated with it and the "
-                        "delays that hold returns are said, with a --range-gate around them")
-    p.add_argument("--code-length", type=int, metavar="L",
-                   help="bits per code period of a named family (as reconstruct)")
-    p.add_argument("--code-index", type=int, metavar="I",
-                   help="member of the named family (as reconstruct)")
+    from .cli_measured import add_code_args
+
+    add_code_args(p, required=False,
+                  more="; with --bit-rate, the photons of every block and channel are "
+                       "correlated with it and the delays that hold returns are said, with "
+                       "a --range-gate around them")
     p.add_argument("--bit-rate", type=float, metavar="HZ",
                    help="the code's bits per second (with --code)")
     p.add_argument("--json", action="store_true",

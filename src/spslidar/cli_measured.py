@@ -11,6 +11,21 @@ __all__ = ["add_calibrate_parser", "add_reconstruct_parser", "cmd_calibrate",
            "cmd_reconstruct"]
 
 
+def add_code_args(p: argparse.ArgumentParser, required: bool = True, more: str = "") -> None:
+    """``--code``, ``--code-length`` and ``--code-index`` as the measured paths read them
+    (reconstruct, calibrate, inspect); ``more``: what the command does with the code."""
+    p.add_argument("--code", required=required, metavar="CODE|FAMILY",
+                   help="bits of one code period: a .npy, a text file (0110... or numbers, "
+                        "0/1 or -1/+1), a .mat vector; or a code family's name (e.g. mseq, "
+                        "gold: one whose bits a name, length and index fix) with "
+                        "--code-length, as run makes it" + more)
+    p.add_argument("--code-length", type=int, metavar="L",
+                   help="bits per code period of a named family (2^n - 1 for mseq/gold)")
+    p.add_argument("--code-index", type=int, metavar="I",
+                   help="member of the named family (gold: default 2) / cyclic shift of the "
+                        "m-sequence (default 0), as run --code-index")
+
+
 def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help: str,
                           many: bool = False) -> None:
     """The flags that describe a measured acquisition (reconstruct, calibrate); ``many``:
@@ -30,16 +45,7 @@ def _add_acquisition_args(p: argparse.ArgumentParser, ptu_metavar: str, ptu_help
                         "read as N x N blocks, every block checked to hold one state; for a "
                         "MATLAB sensing matrix whose two sides are squares, it says which "
                         "holds the pixels")
-    p.add_argument("--code", required=True, metavar="CODE|FAMILY",
-                   help="bits of one code period: a .npy, a text file (0110... or numbers, "
-                        "0/1 or -1/+1), a .mat vector; or a code family's name (e.g. mseq, "
-                        "gold: one whose bits a name, length and index fix) with "
-                        "--code-length, as run makes it")
-    p.add_argument("--code-length", type=int, metavar="L",
-                   help="bits per code period of a named family (2^n - 1 for mseq/gold)")
-    p.add_argument("--code-index", type=int, metavar="I",
-                   help="member of the named family (gold: default 2) / cyclic shift of the "
-                        "m-sequence (default 0), as run --code-index")
+    add_code_args(p)
     p.add_argument("--bit-rate", type=float, required=True, metavar="HZ",
                    help="bits (TDC bins) per second; must match the file's resolution")
     p.add_argument("--marker", type=int, default=1, metavar="K",

@@ -201,24 +201,23 @@ def _scan_t3(chunks, decode, family: str, header: dict[str, Any], path: str
                         before)
         n_photons += int(np.count_nonzero(photon))
     span_syncs = 0 if first is None else last - first
-    blocks, arrays = markers.blocks(n_photons, span_syncs * period)
-    return {
-        "mode": "T3",
-        "photons": _nonzero(per_channel),
-        "markers": {k: v["markers"] for k, v in blocks.items()},
-        "marker_records": int(n_mark),
-        "overflow_records": int(n_ofl),
-        "sync_records": None,
-        "sync_period_s": period,
-        "syncs_spanned": int(span_syncs),
-        "span_s": float(span_syncs * period),
-        "dtime_max": None if dtime_max < 0 else dtime_max,
-        "dtime_counts": dtime_counts,
-        "blocks": blocks,
-        "block_arrays": arrays,
-        "gaps": _gaps(gaps),
-        "periodic_channel": None,
-    }
+    return _result("T3", per_channel, markers, n_photons, span_syncs * period, n_mark, n_ofl,
+                   gaps, sync_records=None, sync_period_s=period,
+                   syncs_spanned=int(span_syncs),
+                   dtime_max=None if dtime_max < 0 else dtime_max,
+                   dtime_counts=dtime_counts, periodic_channel=None)
+
+
+def _result(mode: str, per_channel: np.ndarray, markers: _Markers, n_photons: int,
+            span_s: float, n_mark: int, n_ofl: int, gaps: _Gaps, **more: Any
+            ) -> dict[str, Any]:
+    """A scan's result, T3 or T2 alike (:func:`scan_ptu` names the keys)."""
+    blocks, arrays = markers.blocks(n_photons, span_s)
+    return {"mode": mode, "photons": _nonzero(per_channel),
+            "markers": {k: v["markers"] for k, v in blocks.items()},
+            "marker_records": int(n_mark), "overflow_records": int(n_ofl),
+            "span_s": float(span_s), "blocks": blocks, "block_arrays": arrays,
+            "gaps": _gaps(gaps), **more}
 
 
 def _scan_t2(chunks, family: str, header: dict[str, Any]) -> dict[str, Any]:
@@ -271,24 +270,9 @@ def _scan_t2(chunks, family: str, header: dict[str, Any]) -> dict[str, Any]:
             periodic = {"channel": int(found[0]), "period_s": float(found[1] * unit)}
     sync_period = (float((sync_last - sync_first) / (n_sync - 1) * unit)
                    if n_sync >= 2 else None)
-    blocks, arrays = markers.blocks(n_photons, span * unit)
-    return {
-        "mode": "T2",
-        "photons": _nonzero(per_channel),
-        "markers": {k: v["markers"] for k, v in blocks.items()},
-        "marker_records": int(n_mark),
-        "overflow_records": int(n_ofl),
-        "sync_records": int(n_sync),
-        "sync_period_s": sync_period,
-        "syncs_spanned": None,
-        "span_s": float(span * unit),
-        "dtime_max": None,
-        "dtime_counts": None,
-        "blocks": blocks,
-        "block_arrays": arrays,
-        "gaps": _gaps(gaps),
-        "periodic_channel": periodic,
-    }
+    return _result("T2", per_channel, markers, n_photons, span * unit, n_mark, n_ofl, gaps,
+                   sync_records=int(n_sync), sync_period_s=sync_period, syncs_spanned=None,
+                   dtime_max=None, dtime_counts=None, periodic_channel=periodic)
 
 
 def _overflow_t2(raw: np.ndarray, family: str) -> np.ndarray:
