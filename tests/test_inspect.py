@@ -60,6 +60,10 @@ def test_nothing_depends_on_the_chunk_size(acquisition):
     path = acquisition[0]
     a, b = scan_ptu(path, chunk_records=97), scan_ptu(path)
     np.testing.assert_array_equal(a.pop("dtime_counts"), b.pop("dtime_counts"))
+    pa, pb = a.pop("channel_dtime_counts"), b.pop("channel_dtime_counts")
+    assert pa.keys() == pb.keys()
+    for c in pa:
+        np.testing.assert_array_equal(pa[c], pb[c])
     for k, (d, c) in b.pop("block_arrays").items():
         np.testing.assert_allclose(a["block_arrays"][k][0], d, rtol=1e-12)
         np.testing.assert_array_equal(a["block_arrays"][k][1], c)
@@ -379,3 +383,161 @@ def test_t2_advice_binning_and_the_sync_channel_is_no_detector(tmp_path, capsys)
     assert "--sync-channel 3" in out and "with --allow-binning, which merges" in out
     assert "channel 3" not in out.split("--sync-channel 3")[1]
     assert "detector channels hold photons" not in out
+
+
+# -- where the returns are --------------------------------------------------------------------
+
+def _psst_file(path: Path, code: np.ndarray, lags: list[int], k: int = 1, seed: int = 0,
+               signal: int = 3000, background: int = 3000) -> None:
+    """8 blocks of a PSST acquisition: ``signal`` photons per block at each of ``lags`` (bits),
+    each in a bit where the code delayed by the lag is 1, and ``background`` uniform ones;
+    TDC bins of 1/``k`` bit."""
+    rng = np.random.default_rng(seed)
+    on = np.flatnonzero(code)
+    events = []
+    for _ in range(8):
+        bits = np.concatenate([(rng.choice(on, signal) + d) % code.size for d in lags]
+                              + [rng.integers(0, code.size, background)])
+        dt = bits * k + rng.integers(0, k, bits.size)
+        events.append(np.column_stack([np.sort(rng.integers(0, 200, dt.size)), dt]))
+    write_acquisition_ptu(path, events, code.size * k, BW / k, periods_per_pattern=200)
+
+
+@pytest.mark.parametrize("k", [1, 4])
+def test_the_returns_delays_and_a_gate_around_them(tmp_path, k):
+    """Two returns at bits 40 and 90 of a 127-bit m-sequence (one TDC bin a bit, or four):
+    both found at their bits, the gate holding both and little more."""
+    from spslidar.codes.sequences import make_code
+    from spslidar.pipeline.file_advice import GATE_MARGIN_BINS, returns_in_file
+
+    code = make_code("mseq", L)
+    _psst_file(tmp_path / "r.ptu", code, [40, 90], k)
+    found = returns_in_file(scan_ptu(tmp_path / "r.ptu"), code, 1 / BW)
+    metre = 299_792_458.0 * BW / 2
+    assert found["ok"] and sorted(p["lag"] for p in found["peaks"]) == [40, 90]
+    assert min(p["sigmas"] for p in found["peaks"]) > 20
+    lo, hi = found["gate_m"]
+    assert lo == pytest.approx((40 - GATE_MARGIN_BINS) * metre, abs=1e-9)
+    assert hi == pytest.approx((90 + GATE_MARGIN_BINS) * metre, abs=1e-9)
+    assert found["unambiguous_m"] == pytest.approx(L * metre)
+
+
+def test_returns_refused_where_they_cannot_be_read(tmp_path, capsys):
+    """A bit rate whose bit is no whole number of TDC bins, a code period the sync's is not,
+    and --code without --bit-rate. (Another code of the same length is not told apart: a
+    strong return correlated with it stands out too, 27 standard deviations here.)"""
+    from spslidar.codes.sequences import make_code
+    from spslidar.pipeline.file_advice import returns_in_file
+
+    code = make_code("mseq", L)
+    _psst_file(tmp_path / "r.ptu", code, [40])
+    scan = scan_ptu(tmp_path / "r.ptu")
+    assert "no whole fraction" in returns_in_file(scan, code, 1 / (2.5 * BW))["why"]
+    got = returns_in_file(scan, make_code("mseq", 255), 1 / BW)
+    assert "no whole number of 255-bit periods" in got["why"]
+    np.save(tmp_path / "c.npy", code)
+    assert main(["inspect", str(tmp_path / "r.ptu"), "--code", str(tmp_path / "c.npy")]) == 2
+    assert "--code and --bit-rate go together" in capsys.readouterr().err
+    assert main(["inspect", str(tmp_path / "r.ptu"), "--code", str(tmp_path / "c.npy"),
+                 "--bit-rate", "10e9"]) == 0
+    assert "returns (the photons of every block, correlated with the code): 0.5996 m (" in (
+        capsys.readouterr().out)
+    assert main(["inspect", str(tmp_path / "r.ptu"), "--code", "mseq", "--code-length", "127",
+                 "--bit-rate", "10e9", "--json"]) == 0
+    (got,) = json.loads(capsys.readouterr().out)
+    assert got["returns"]["peaks"][0]["lag"] == 40 and "dtime_counts" not in got
+
+
+# -- the second audit's layouts (2026-12-02) -------------------------------------------------
+
+def test_the_gate_covers_the_scenes_arc_across_the_periods_end(tmp_path, capsys):
+    """Returns at bits 122 and 3 of 127: the scene's arc wraps past the period's end, and the
+    gate is that arc (from the array's end it spanned the empty part between)."""
+    from spslidar.codes.sequences import make_code
+    from spslidar.pipeline.file_advice import GATE_MARGIN_BINS, returns_in_file
+
+    code = make_code("mseq", L)
+    _psst_file(tmp_path / "w.ptu", code, [122, 3])
+    found = returns_in_file(scan_ptu(tmp_path / "w.ptu"), code, 1 / BW)
+    metre = 299_792_458.0 * BW / 2
+    lo, hi = found["gate_m"]
+    assert lo == pytest.approx((122 - GATE_MARGIN_BINS) * metre)
+    assert hi == pytest.approx((127 + 3 + GATE_MARGIN_BINS) * metre)
+    np.save(tmp_path / "c.npy", code)
+    out = _said(capsys, str(tmp_path / "w.ptu"), "--code", str(tmp_path / "c.npy"),
+                "--bit-rate", "1e10")
+    assert f"--range-gate {lo:.4g} {hi:.4g} holds them" in out
+    assert f"(one: --range-gate {lo + L * metre:.4g} {hi + L * metre:.4g})" in out
+
+
+def test_a_sync_divider_the_header_does_not_say(tmp_path, capsys):
+    """A sync every two code periods: the code's returns read in the folded period, and
+    --sync-divider 2 named (reconstruct refuses the file without it)."""
+    from spslidar.codes.sequences import make_code
+
+    code = make_code("mseq", L)
+    _psst_file(tmp_path / "d.ptu", np.tile(code, 2), [40])
+    np.save(tmp_path / "c.npy", code)
+    out = _said(capsys, str(tmp_path / "d.ptu"), "--code", str(tmp_path / "c.npy"),
+                "--bit-rate", "1e10")
+    assert "which the header does not say: --sync-divider 2" in out
+    assert "returns (the photons of every block, correlated with the code): 0.5996 m" in out
+
+
+def _blocks_file(path: Path, blocks: list[tuple[int, int, int]], marks: list[int],
+                 channel_shift: int = 0, seed: int = 0) -> Path:
+    """Blocks ``(first sync, code periods, photons)``; markers on input 1 at ``marks``;
+    each photon on channel 0, or also channel 1 ``channel_shift`` bins later."""
+    from spslidar.io import write_ptu_t3
+
+    rng = np.random.default_rng(seed)
+    ev = []
+    for s0, dw, n in blocks:
+        for s, b in zip(rng.integers(s0, s0 + dw, n), rng.integers(0, L - 8, n), strict=True):
+            ev.append((int(s), 1, int(b), 0, 0))
+            if channel_shift:
+                ev.append((int(s), 1, int(b) + channel_shift, 0, 1))
+    ev += [(int(s), 0, 0, 1, 0) for s in marks]
+    a = np.array(sorted(ev))
+    write_ptu_t3(path, nsync=a[:, 0], dtime=a[:, 2], marker=a[:, 3], channel=a[:, 4],
+                 resolution_s=BW, sync_rate_hz=1 / (L * BW))
+    return path
+
+
+def test_an_arming_block_with_light_is_said(tmp_path, capsys):
+    """Light before the sequence under an arming marker (40 code periods at a tenth of a
+    pattern's rate): reconstruct keeps it as pattern 0, and inspect says so."""
+    starts = [40 + DW * k for k in range(8)]
+    f = _blocks_file(tmp_path / "a.ptu", [(0, 40, 60)] + [(s, DW, PER_BLOCK) for s in starts],
+                     [0, *starts])
+    rng = np.random.default_rng(0)
+    np.save(tmp_path / "p.npy", (rng.random((8, 4, 4)) < 0.5).astype(np.uint8))
+    out = _said(capsys, str(f), "--patterns", str(tmp_path / "p.npy"))
+    assert "the first block's photon rate, 0.1 of a pattern's, is the lowest of all: an " \
+           "arming marker's block with light before the sequence?" in out
+
+
+def test_end_markers_and_an_end_of_acquisition_marker_with_light_after(tmp_path, capsys):
+    ends = [DW * (k + 1) - 1 for k in range(8)]
+    f = _blocks_file(tmp_path / "e.ptu", [(DW * k, DW, PER_BLOCK) for k in range(8)]
+                     + [(8 * DW, 30, 45)], [*ends, 8 * DW + 10])
+    assert "--marker 1 --marker-edge end" in _said(capsys, str(f))
+
+
+def test_a_delay_between_two_channels_is_named(tmp_path, capsys):
+    f = _blocks_file(tmp_path / "c.ptu", [(DW * k, DW, PER_BLOCK) for k in range(8)],
+                     [DW * k for k in range(8)], channel_shift=3)
+    out = _said(capsys, str(f))
+    assert "against channel 0's photons, channel 1 +3 bins (+0.3 ns): cables of different " \
+           "lengths? --align-channels moves each onto channel 0" in out
+
+
+def test_bounces_in_short_patterns_are_said(tmp_path, capsys):
+    starts = [DW * k for k in range(8)]
+    f = _blocks_file(tmp_path / "b.ptu", [(s, DW, PER_BLOCK) for s in starts],
+                     sorted([*starts, starts[2] + 2, starts[5] + 2, starts[6] + 1]))
+    rng = np.random.default_rng(0)
+    np.save(tmp_path / "p.npy", (rng.random((8, 4, 4)) < 0.5).astype(np.uint8))
+    out = _said(capsys, str(f), "--patterns", str(tmp_path / "p.npy"))
+    assert "3 blocks of them under a third of a pattern's" in out
+    assert "where patterns last 50 or more, which these do not" in out

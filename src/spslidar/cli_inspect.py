@@ -128,7 +128,8 @@ def _jsonable(scan: dict[str, Any]) -> dict[str, Any]:
     """The scan with string keys, as JSON writes them (the per-bin counts and per-block
     arrays left out)."""
     return json.loads(json.dumps({k: v for k, v in scan.items()
-                                  if k not in ("dtime_counts", "block_arrays")}, default=str))
+                                  if k not in ("dtime_counts", "channel_dtime_counts",
+                                               "block_arrays")}, default=str))
 
 
 def cmd_inspect(args: argparse.Namespace) -> int:

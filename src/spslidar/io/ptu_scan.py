@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from .ptu import _overflows
-from .ptu_blocks import _check_forward, _Gaps
+from .ptu_blocks import _by_channel, _check_forward, _Gaps
 from .ptu_format import _FAMILY, PathLike, _check_t3, _header_summary, _open_ptu, raw_chunks
 from .ptu_t2 import _MARKER, _PHOTON, _SYNC, _periodic_channel, _times
 
@@ -118,7 +118,7 @@ def scan_ptu(path: PathLike, *, chunk_records: int = 2**16) -> dict[str, Any]:
         (first to last event, seconds), ``syncs_spanned`` (T3), ``dtime_max`` (T3: the
         highest TDC bin a photon took, in units of the resolution), ``dtime_counts`` (T3:
         the photons in each TDC bin, all channels and blocks together, an int64 array; None
-        for T2), ``blocks`` (per marker
+        for T2), ``channel_dtime_counts`` (T3: the same per channel), ``blocks`` (per marker
         input that holds markers: ``markers``, ``dwell_s`` and ``photons_per_block``
         (median / min / max over the blocks between consecutive markers), ``empty_blocks``,
         ``irregular_blocks`` (lasting over 1.5 times the median, or under its 1/1.5),
@@ -168,7 +168,7 @@ def _scan_t3(chunks, decode, family: str, header: dict[str, Any], path: str
     first = last = None
     behind = -1
     dtime_max = -1
-    dtime_counts = np.zeros(0, np.int64)
+    per_dtime: dict[int, np.ndarray] = {}
     for raw in chunks:
         dec = decode(raw)
         ch, mk = dec["channel"], dec["marker"]
@@ -187,11 +187,9 @@ def _scan_t3(chunks, decode, family: str, header: dict[str, Any], path: str
         if photon.any():
             per_channel += np.bincount(ch[photon].astype(np.int64), minlength=128)[:128]
             dtime_max = max(dtime_max, int(dec["dtime"][photon].max()))
-            h = np.bincount(dec["dtime"][photon].astype(np.int64))
-            if h.size > dtime_counts.size:
-                dtime_counts = np.concatenate(
-                    [dtime_counts, np.zeros(h.size - dtime_counts.size, np.int64)])
-            dtime_counts[: h.size] += h
+            for c, mine in _by_channel(ch[photon]):
+                h = np.bincount(dec["dtime"][photon][mine].astype(np.int64))
+                per_dtime[c] = _add(per_dtime.get(c, np.zeros(0, np.int64)), h)
             gaps.add(sync[photon], dec["dtime"][photon], ch[photon])
         is_mark = ~photon & (mk != 0)
         n_mark += int(np.count_nonzero(is_mark))
@@ -205,7 +203,24 @@ def _scan_t3(chunks, decode, family: str, header: dict[str, Any], path: str
                    gaps, sync_records=None, sync_period_s=period,
                    syncs_spanned=int(span_syncs),
                    dtime_max=None if dtime_max < 0 else dtime_max,
-                   dtime_counts=dtime_counts, periodic_channel=None)
+                   dtime_counts=_total(per_dtime), channel_dtime_counts=per_dtime,
+                   periodic_channel=None)
+
+
+def _add(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a + b`` of two count arrays of any lengths (the shorter read as 0 past its end)."""
+    if b.size > a.size:
+        a, b = b, a
+    a = a.copy()
+    a[: b.size] += b
+    return a
+
+
+def _total(per: dict[int, np.ndarray]) -> np.ndarray:
+    out = np.zeros(0, np.int64)
+    for h in per.values():
+        out = _add(out, h)
+    return out
 
 
 def _result(mode: str, per_channel: np.ndarray, markers: _Markers, n_photons: int,
@@ -272,7 +287,8 @@ def _scan_t2(chunks, family: str, header: dict[str, Any]) -> dict[str, Any]:
                    if n_sync >= 2 else None)
     return _result("T2", per_channel, markers, n_photons, span * unit, n_mark, n_ofl, gaps,
                    sync_records=int(n_sync), sync_period_s=sync_period, syncs_spanned=None,
-                   dtime_max=None, dtime_counts=None, periodic_channel=periodic)
+                   dtime_max=None, dtime_counts=None, channel_dtime_counts=None,
+                   periodic_channel=periodic)
 
 
 def _overflow_t2(raw: np.ndarray, family: str) -> np.ndarray:

@@ -28,8 +28,9 @@ RETURN_SIGMAS = 5.0
 #: bins of margin on each side of the delays that hold returns, in the range gate said
 GATE_MARGIN_BINS = 3
 #: a marker input reads as ending its patterns where at least this share of a block's
-#: photons come before its first marker and at most :data:`END_AFTER` after its last
-END_BEFORE, END_AFTER = 0.5, 0.1
+#: photons come before its first marker and at most :data:`END_AFTER` of those after its
+#: last
+END_BEFORE, END_AFTER = 0.5, 0.5
 #: TDC bins and sync periods a header can give (outside them: no instrument's)
 RESOLUTION_S = (1e-15, 1e-3)
 
@@ -107,8 +108,10 @@ def _edge(b: dict[str, Any]) -> str:
     ph = b["photons_per_block"]
     if ph is None or not ph["median"] > 0:
         return "start"
-    if (b["photons_before_first"] >= END_BEFORE * ph["median"]
-            and b["photons_after_last"] <= END_AFTER * ph["median"]):
+    before, after = b["photons_before_first"], b["photons_after_last"]
+    # (about a block's photons before the first marker and fewer after the last: the light
+    # after an end-of-acquisition marker is no pattern's, an audit)
+    if before >= END_BEFORE * ph["median"] and after <= END_AFTER * before:
         return "end"
     return "start"
 
@@ -162,6 +165,15 @@ def _extra_block(d: np.ndarray, c: np.ndarray, m: int) -> str:
         return f"and the first block, short or empty, is an arming marker's ({ends}): left out"
     if last:
         return f"and the last block is an end marker's ({ends}): left out"
+    rates = c / np.maximum(d, 1.0)
+    lowest = float(np.min(rates[1:-1])) if d.size > 2 else np.inf
+    if rates[0] < lowest:  # (light before the sequence under an arming marker, an audit)
+        return (f"and neither end is short or empty ({ends}); the first block's photon rate, "
+                f"{rates[0] / max(typ_c / max(typ_d, 1.0), 1e-300):.2g} of a pattern's, is "
+                f"the lowest of all: an arming marker's block with light before the "
+                f"sequence? reconstruct keeps it as pattern 0 and leaves out the last block "
+                f"(no option leaves out the first: record the arming marker just before the "
+                f"sequence, or without light)")
     return (f"and neither end is short or empty ({ends}): reconstruct leaves out the last, "
             f"and asks whether a row is missing from --patterns")
 
@@ -177,12 +189,30 @@ def _against(k: int, blocks: int, m: int, arrays: tuple | None) -> tuple[int, st
                           "missed, or an acquisition cut short)")
     if blocks % m == 0:
         return 1, head + f": --repeats {blocks // m}"
-    if blocks - m in (1, 2) and arrays is not None:
+    if blocks - m in (1, 2) and arrays is None:  # (read at its end edge: reconstruct's own)
+        return 1, (f"{head}: one per pattern and {count(blocks - m, 'block')} more, which "
+                   f"reconstruct leaves out and says")
+    if blocks - m in (1, 2):
         return 1, f"{head}: one per pattern, {_extra_block(*arrays, m)}"
     for extra in (1, 2):
         if (blocks - extra) % m == 0:
             return 2, (head + f": --repeats {(blocks - extra) // m}, and "
                               f"{count(extra, 'block')} more (an arming or end marker's)")
+    if arrays is not None:
+        from .blocks import BOUNCE_MIN_DWELL, BOUNCE_PERIODS
+
+        d = arrays[0]
+        typ = float(np.median(d))
+        slivers = int(np.count_nonzero(d[1:-1] < typ / 3))
+        if slivers and any((blocks - slivers - e) % m == 0 for e in (0, 1, 2)):
+            return 2, (head + f", {count(slivers, 'block')} of them under a third of a "
+                              f"pattern's {count(round(typ), 'code period')} (markers that "
+                              f"bounced?): reconstruct merges a bounce of up to "
+                              f"{BOUNCE_PERIODS} code periods where patterns last "
+                              f"{BOUNCE_MIN_DWELL} or more"
+                              + ("" if typ >= BOUNCE_MIN_DWELL else
+                                 ", which these do not: longer dwells or a debounced "
+                                 "trigger"))
     return 2, (head + ": no whole number of sequences (a DMD looping its sequence while the "
                       "recording started: --first-pattern auto; or a marker missed or "
                       "added)")
@@ -197,9 +227,13 @@ def _patterns(scan: dict[str, Any], m: int) -> list[str]:
         a = scan["block_arrays"].get(k)
         return None if a is None or not period else (a[0] / period, a[1])
 
-    verdicts = {k: _against(k, n, m, arrays(k)) for k, n in scan["markers"].items()}
+    blocks = scan["blocks"]
+    verdicts = {k: _against(k, n, m, arrays(k) if _edge(blocks[k]) == "start" else None)
+                for k, n in scan["markers"].items()}
     most = max(scan["markers"].values())
-    top = min(k for k, n in scan["markers"].items() if n == most)
+    # (of inputs with as many markers, the one that starts the patterns: an audit)
+    top = min((k for k, n in scan["markers"].items() if n == most),
+              key=lambda k: blocks[k]["first_s"])
     out = [verdicts[top][1]]
     better = [k for k in verdicts if verdicts[k][0] < verdicts[top][0]]
     if better:
@@ -249,9 +283,32 @@ def _rates(scan: dict[str, Any], sync_channel: int | None) -> list[str]:
     detectors = [c for c in scan["photons"] if c != sync_channel]
     if len(detectors) > 1:
         out.append(f"{len(detectors)} detector channels hold photons: all are read together "
-                   f"unless --channel picks one (--align-channels moves them onto one where "
-                   f"cables of different lengths delay them)")
+                   f"unless --channel picks one" + _delays(scan))
     return out
+
+
+def _delays(scan: dict[str, Any]) -> str:
+    """The channels' delays against the busiest one's, as ``reconstruct`` reads them
+    (:func:`.skew.channel_delays` on each channel's photons over the TDC bins), in words."""
+    from .skew import SKEW_BINS, channel_delays
+
+    per = scan.get("channel_dtime_counts")
+    res = scan["header"]["resolution_s"]
+    if not per or len(per) < 2:
+        return ("; --align-channels moves them onto one where cables of different lengths "
+                "delay them")
+    n = max(h.size for h in per.values())
+    hists = {c: np.pad(h, (0, n - h.size)) for c, h in per.items()}
+    delays = channel_delays(hists)
+    late = {c: d for c, d in delays.items() if abs(d) >= SKEW_BINS}
+    if not late:
+        return ("; their photons arrive together (no delay of "
+                f"{SKEW_BINS:g} TDC bins or more between them)")
+    ref = next(c for c, d in delays.items() if d == 0.0)
+    said = ", ".join(f"channel {c} {d:+.3g} bins ({d * res * 1e9:+.3g} ns)"
+                     for c, d in late.items())
+    return (f"; against channel {ref}'s photons, {said}: cables of different lengths? "
+            f"--align-channels moves each onto channel {ref}")
 
 
 def advice(scan: dict[str, Any], n_patterns: int | None = None) -> list[str]:
@@ -321,11 +378,12 @@ def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
                                     f"between bits (--allow-binning); inspect does not"}
     k = int(round(k))
     div = h.get("sync_divider")
-    folds = {1} | ({div} if isinstance(div, int) and not isinstance(div, bool) and div > 1
-                   else set())
-    if not any(abs(period - d * n * width) <= 0.5 * width for d in folds):
-        return {"ok": False, "why": f"the sync period ({si(period)}) is not {n} bits at "
-                                    f"{bit_rate:.6g} Hz: reconstruct says what fits"}
+    declared = div if isinstance(div, int) and not isinstance(div, bool) and div > 1 else 1
+    fold = max(1, round(period / (n * width)))
+    if abs(period - fold * n * width) > 0.5 * width:
+        return {"ok": False, "why": f"the sync period ({si(period)}) is no whole number of "
+                                    f"{n}-bit periods at {bit_rate:.6g} Hz: reconstruct says "
+                                    f"what fits"}
     bits = np.bincount((np.arange(counts.size) // k) % n, weights=counts, minlength=n)[:n]
     if not bits.sum() > 0:
         return {"ok": False, "why": "the file holds no photons"}
@@ -338,16 +396,21 @@ def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
                         code_sidelobes(code, replica))
     metres = SPEED_OF_LIGHT * width / 2
     out: dict[str, Any] = {"ok": True, "unambiguous_m": n * metres, "replica": kind,
-                           "peaks": [], "gate_m": None}
+                           "peaks": [], "gate_m": None,
+                           # (a sync every few code periods the header does not say: the
+                           # --sync-divider reconstruct needs, an audit)
+                           "sync_divider": fold if fold > 1 and fold != declared else None}
     if not hit.any():
         return out
     if hit.mean() > 0.5:  # (no scene fills half the code's period: not this code's photons)
         return {"ok": False, "why": f"{100 * hit.mean():.0f} % of the delays stand above the "
                                     f"background: the photons do not follow this code (the "
                                     f"wrong code or --bit-rate, or no PSST acquisition)"}
-    # runs of occupied delays around the period, from the first after a gap (a run may wrap
-    # past the period's end)
-    start = int(np.flatnonzero(~hit)[-1]) + 1
+    # runs of occupied delays around the period, from the first after the longest gap (the
+    # scene's arc: from the array's end, the gate spanned the empty part, an audit)
+    occ = np.flatnonzero(hit)
+    gaps = np.diff(np.append(occ, occ[0] + n))  # (from each occupied delay to the next)
+    start = int(occ[(int(np.argmax(gaps)) + 1) % occ.size])
     runs, cur = [], []
     for i in (start + lags) % n:
         if hit[i]:
@@ -368,6 +431,7 @@ def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
     first = runs[0][0]
     span = (runs[-1][-1] - first) % n
     lo = first - GATE_MARGIN_BINS
+    lo += n if lo < 0 else 0  # (a gate in metres from 0: the same delays a period on)
     out["gate_m"] = (lo * metres, (lo + span + 2 * GATE_MARGIN_BINS) * metres)
     return out
 
@@ -383,7 +447,13 @@ def returns_text(found: dict[str, Any]) -> list[str]:
     peaks = "; ".join(f"{p['range_m']:.4g} m ({p['sigmas']:.3g} sigma)"
                       for p in found["peaks"])
     lo, hi = found["gate_m"]
-    return [f"returns (the photons of every block, correlated with the code): {peaks}; "
-            f"--range-gate {max(lo, 0.0):.4g} {hi:.4g} holds them (the delays the photons "
-            f"show, cables included: with --calibration, the calibrated delay's range less; "
-            f"ranges are modulo the code's {found['unambiguous_m']:.4g} m)"]
+    u = found["unambiguous_m"]
+    out = [f"returns (the photons of every block, correlated with the code): {peaks}; "
+           f"--range-gate {lo:.4g} {hi:.4g} holds them: the delays the photons show, cables "
+           f"included (with --calibration, less the calibrated delay's range), modulo the "
+           f"code's {u:.4g} m: add the whole number of {u:.4g} m your scene's distance needs "
+           f"to both ends (one: --range-gate {lo + u:.4g} {hi + u:.4g})"]
+    if found.get("sync_divider"):
+        out.append(f"the sync period is {found['sync_divider']} periods of this code, which "
+                   f"the header does not say: --sync-divider {found['sync_divider']}")
+    return out
