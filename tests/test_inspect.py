@@ -541,3 +541,20 @@ def test_bounces_in_short_patterns_are_said(tmp_path, capsys):
     out = _said(capsys, str(f), "--patterns", str(tmp_path / "p.npy"))
     assert "3 blocks of them under a third of a pattern's" in out
     assert "where patterns last 50 or more, which these do not" in out
+
+
+def test_inspect_names_the_block_reconstruct_leaves_out(tmp_path, capsys):
+    """Both ends short (an arming marker 5 code periods ahead, the recording stopped 8 code
+    periods into the last pattern): inspect's sentence names the block read_blocks drops."""
+    from spslidar.pipeline.blocks import read_blocks
+
+    starts = [5 + DW * k for k in range(8)]
+    f = _blocks_file(tmp_path / "s.ptu", [(0, 5, 2)] + [(s, DW, PER_BLOCK) for s in starts[:-1]]
+                     + [(starts[-1], 8, 40)], [0, *starts])
+    data, notes = read_blocks(f, 8, L, bin_width=BW)
+    dropped = "first" if data.n_dropped_before_first_marker else "last"
+    rng = np.random.default_rng(0)
+    np.save(tmp_path / "p.npy", (rng.random((8, 4, 4)) < 0.5).astype(np.uint8))
+    out = _said(capsys, str(f), "--patterns", str(tmp_path / "p.npy"))
+    assert "both ends are short or empty" in out and f"the {dropped}, of the lower" in out
+    assert dropped == "first" and "the first, at" in notes[0]  # (the arming block's)

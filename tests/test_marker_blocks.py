@@ -630,3 +630,30 @@ def test_an_arming_marker_long_before_the_sequence_is_left_out(tmp_path, lead):
     slow = _write(tmp_path / "slow.ptu", *_events(rng, [0, *starts], [0, *starts]))
     data, notes = read_blocks(slow, M, L, bin_width=RES)
     assert _peaks(data) == list(range(M)) and "is a row missing" in notes[0]
+
+
+def test_a_dark_pattern_at_either_end_stays_a_pattern(tmp_path):
+    """An all-off frame (no photon) of a pattern's dwell at the start or the end, and an
+    end-of-acquisition or arming marker's short block at the other: the dark frame is a
+    pattern, the short block is left out (a review of 2026-12-02 found the rule for empty
+    arming blocks taking a dark pattern for one, 12 of 20 seeds shifted)."""
+    rng = np.random.default_rng(6)
+    starts = [DWELL * k for k in range(M)]
+    nsync, dtime, marker = _events(rng, starts, [*starts, DWELL * M],
+                                   extra=[(DWELL * M + int(s), 5) for s in
+                                          rng.integers(0, 10, 30)])
+    dark = ~((nsync < DWELL) & (marker == 0))  # pattern 0's photons taken away
+    f = _write(tmp_path / "first.ptu", nsync[dark], dtime[dark], marker[dark])
+    data, _ = read_blocks(f, M, L, bin_width=RES)
+    assert data.n_patterns == M and data.counts_per_pattern[0] == 0
+    assert list(np.argmax(data.histograms[1:], axis=1) - 3) == list(range(1, M))
+    # (a dark last pattern's dwell shows only in the light after its marker: here a
+    # background of a photon every 40 code periods throughout)
+    starts = [10 + DWELL * k for k in range(M)]
+    nsync, dtime, marker = _events(rng, starts, [0, *starts],
+                                   extra=[(int(s), 29) for s in range(3, DWELL * M + 10, 40)])
+    dark = ~((nsync >= starts[-1]) & (marker == 0) & (dtime != 29))  # its pattern's photons
+    g = _write(tmp_path / "last.ptu", nsync[dark], dtime[dark], marker[dark])
+    data, _ = read_blocks(g, M, L, bin_width=RES)
+    assert data.n_patterns == M and data.counts_per_pattern[-1] == 5
+    assert list(np.argmax(data.histograms[:-1], axis=1) - 3) == list(range(M - 1))

@@ -46,6 +46,9 @@ def add_inspect_parser(subparsers: argparse._SubParsersAction) -> argparse.Argum
                        "a --range-gate around them")
     p.add_argument("--bit-rate", type=float, metavar="HZ",
                    help="the code's bits per second (with --code)")
+    p.add_argument("--pattern-size", type=int, default=None, metavar="N",
+                   help="the patterns' side, as reconstruct --pattern-size (images at the "
+                        "DMD's resolution; a MATLAB matrix whose two sides are squares)")
     p.add_argument("--json", action="store_true",
                    help="print the counts as JSON (one object per file, in a list) instead "
                         "of sentences")
@@ -77,8 +80,7 @@ def describe(scan: dict[str, Any], name: str) -> list[str]:
     """The sentences ``spslidar inspect`` prints for one :func:`~spslidar.io.scan_ptu`
     result (what the file holds; :func:`~spslidar.pipeline.file_advice.advice` says what
     follows)."""
-    from .pipeline.file_advice import _header_ok as advice_header
-    from .pipeline.file_advice import count, si
+    from .pipeline.file_advice import count, header_refusal, si
 
     h = scan["header"]
     # (a creation time ptufile could not read stays a number: left out)
@@ -86,7 +88,7 @@ def describe(scan: dict[str, Any], name: str) -> list[str]:
                      if isinstance(v, str) and v)
     lines = [f"{name}: {h['record_type']} records ({scan['mode']})"
              + (f"; {made}" if made else "")]
-    timed = not advice_header(scan)
+    timed = not header_refusal(scan)
     if scan["mode"] == "T3" and timed:
         div = h.get("sync_divider")
         lines.append(
@@ -143,7 +145,7 @@ def cmd_inspect(args: argparse.Namespace) -> int:
         # patterns", an audit)
         from .pipeline.inputs import load_patterns
 
-        m = int(load_patterns(args.patterns).shape[0])
+        m = int(load_patterns(args.patterns, size=args.pattern_size).shape[0])
     code = None
     if args.code is not None or args.bit_rate is not None:
         from .errors import ConfigError

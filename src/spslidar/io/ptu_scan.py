@@ -148,7 +148,7 @@ def scan_ptu(path: PathLike, *, chunk_records: int = 2**16) -> dict[str, Any]:
         family, n_records = _check_t3(f, header, spath)
         chunks = raw_chunks(f.filehandle, f.record_offset, n_records, int(chunk_records), spath)
         if family.startswith("t2"):
-            out = _scan_t2(chunks, family, header)
+            out = _scan_t2(chunks, family, header, spath)
         else:
             out = _scan_t3(chunks, f.decode_records, family, header, spath)
     out["header"] = header
@@ -235,12 +235,14 @@ def _result(mode: str, per_channel: np.ndarray, markers: _Markers, n_photons: in
             "gaps": _gaps(gaps), **more}
 
 
-def _scan_t2(chunks, family: str, header: dict[str, Any]) -> dict[str, Any]:
+def _scan_t2(chunks, family: str, header: dict[str, Any], path: str) -> dict[str, Any]:
     unit = float(header["time_unit_s"] or 0.0)
     per_channel = np.zeros(128, np.int64)
     markers = _Markers()
     gaps = _Gaps(unit, 0.0)  # (a T2 time tag is its "sync"; no dtime)
     n_photons = n_ofl = n_sync = base = n_mark = 0
+    latest = -(2**62)
+    back = int(1e-6 / unit) if unit > 0 else 0  # (a microsecond of tags: no reordering)
     first = last = None
     probe_t: list[np.ndarray] = []
     probe_c: list[np.ndarray] = []
@@ -254,6 +256,15 @@ def _scan_t2(chunks, family: str, header: dict[str, Any]) -> dict[str, Any]:
         event = photon | (kind == _SYNC) | (kind == _MARKER)
         if event.any():
             ev = t[event]
+            timed = t[photon | (kind == _SYNC)]  # (markers' tags are coarser: not checked)
+            if timed.size:
+                ahead = np.maximum.accumulate(np.concatenate([[latest], timed]))
+                if np.any(timed < ahead[:-1] - back):
+                    raise ConfigError(f"{path!r}: its time tags run backwards (an event "
+                                      f"more than 1 us before one recorded ahead of it), "
+                                      f"which no acquisition records: files joined end to "
+                                      f"end, or a corrupt file")
+                latest = int(ahead[-1])
             first = int(ev[0]) if first is None else first
             last = int(ev[-1])
         is_sync = kind == _SYNC

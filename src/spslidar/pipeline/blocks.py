@@ -255,46 +255,63 @@ def _rows(data, keep: slice, before: int = 0, after: int = 0):
         warnings=said)
 
 
-#: a block of any length whose photon rate is under this share of a pattern's is no
-#: pattern's (an arming marker recorded long before the sequence: its empty block of two
-#: patterns' dwell was kept as pattern 0 and the last pattern dropped, an outside audit of
-#: 2026-12-02); a real file's darkest line holds 7 % of the typical rate (hazelnut_z1)
+#: a block over :data:`LONG_BLOCK` patterns' dwell whose photon rate is under this share of a
+#: pattern's is no pattern's (an arming marker recorded long before the sequence: its empty
+#: block of two patterns' dwell was kept as pattern 0 and the last pattern dropped, an
+#: outside audit of 2026-12-02); a real file's darkest line holds 7 % of the typical rate
+#: (hazelnut_z1). A block of a pattern's dwell stays a pattern however dark (an all-off
+#: frame, a pattern that sees no target: taken for an arming block, a review found the wrong
+#: end dropped)
 EMPTY_RATE = 0.02
+LONG_BLOCK = 1.5
 
 
 def _short(dwell: float, photons: float, typical_dwell: float, typical_photons: float) -> bool:
     """A block that is no pattern's: shorter than :data:`SHORT_BLOCK` of a pattern's dwell
-    and as poor in photons, or of any length at under :data:`EMPTY_RATE` of its photon
-    rate."""
+    and as poor in photons, or longer than :data:`LONG_BLOCK` dwells at under
+    :data:`EMPTY_RATE` of a pattern's photon rate."""
     if photons >= SHORT_BLOCK * typical_photons:
         return False
+    if dwell < SHORT_BLOCK * typical_dwell:
+        return True
     rate = typical_photons / max(typical_dwell, 1.0)
-    return dwell < SHORT_BLOCK * typical_dwell or photons / max(dwell, 1.0) < EMPTY_RATE * rate
+    return dwell > LONG_BLOCK * typical_dwell and photons / max(dwell, 1.0) < EMPTY_RATE * rate
+
+
+def extra_block(d: np.ndarray, c: np.ndarray) -> tuple[str, bool, bool, float, float]:
+    """Of ``m + 1`` blocks (their dwells ``d`` in code periods and photons ``c``), the one
+    that is no pattern: ``"first"`` where it is short or empty (:func:`_short`) and the last
+    is not, or where both are and it has the lower photon rate; else ``"last"``. Also
+    whether each end is short, and a pattern's dwell and photons (the inner blocks'
+    medians). ``reconstruct`` and ``inspect`` read a file's ends by this one rule."""
+    d = np.asarray(d, np.float64)
+    c = np.asarray(c, np.float64)
+    inner = slice(1, -1) if d.size > 2 else slice(None)
+    typ_d, typ_c = float(np.median(d[inner])), float(np.median(c[inner]))
+    first = _short(d[0], c[0], typ_d, typ_c)
+    last = _short(d[-1], c[-1], typ_d, typ_c)
+    # both ends short: an arming marker's block and a pattern cut short, or a cut pattern and
+    # an end marker's; the one without a pattern's photon rate is no pattern (the last was
+    # always left out, which kept an arming block as pattern 0: a review)
+    drop_first = first and (not last or c[0] / max(d[0], 1.0) < c[-1] / max(d[-1], 1.0))
+    return "first" if drop_first else "last", first, last, typ_d, typ_c
 
 
 def _drop_extra_block(data, m: int, marker: int) -> tuple[Any, str | None]:
-    """Of ``m + 1`` blocks, the ``m`` that are patterns: the first left out where it is short
-    and poor in photons while the last is not (an arming marker), else the last."""
-    d, c, typ_d, typ_c = _typical(data)
-    first = _short(d[0], c[0], typ_d, typ_c)
-    last = _short(d[-1], c[-1], typ_d, typ_c)
+    """Of ``m + 1`` blocks, the ``m`` that are patterns (:func:`extra_block`)."""
+    d, c = data.periods_per_pattern, data.counts_per_pattern
+    which, first, last, typ_d, typ_c = extra_block(d, c)
     head = (f"the file holds {m + 1} marker-delimited blocks on input {marker} for {m} "
             f"pattern rows")
     if first and last:
-        # both ends short: an arming marker's block and a pattern cut short, or a cut pattern
-        # and an end marker's; the one without a pattern's photon rate is no pattern (the
-        # last was always left out, which kept an arming block as pattern 0: a review)
         rate = typ_c / max(typ_d, 1.0)
-        r0, r1 = c[0] / max(d[0], 1.0), c[-1] / max(d[-1], 1.0)
-        drop_first = r0 < r1
-        which = "first" if drop_first else "last"
-        k = 0 if drop_first else -1
+        k = 0 if which == "first" else -1
         note = (f"{head}, and both its first ({int(d[0])} code periods, {int(c[0])} photons) "
-                f"and its last block ({int(d[-1])}, {int(c[-1])}) are shorter than a pattern "
+                f"and its last block ({int(d[-1])}, {int(c[-1])}) are no pattern's "
                 f"({typ_d:.0f} periods, {typ_c:.0f} photons): the {which}, at "
                 f"{c[k] / max(d[k], 1.0) / max(rate, 1e-300):.2g} of a pattern's photon rate, "
                 f"is left out as no pattern")
-        if drop_first:
+        if which == "first":
             return _rows(data, slice(1, None), before=int(c[0])), note
         return _rows(data, slice(0, m), after=int(c[-1])), note
     if first:

@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["GATE_MARGIN_BINS", "RETURN_SIGMAS", "advice", "count", "returns_in_file",
-           "returns_text", "si"]
+__all__ = ["GATE_MARGIN_BINS", "RETURN_SIGMAS", "advice", "count", "header_refusal",
+           "returns_in_file", "returns_text", "si"]
 
 #: a delay holds a return where the whole acquisition's correlation rises this many
 #: standard deviations above its median (:data:`.gate.AUTO_GATE_SIGMAS`'s rule, on the
@@ -31,6 +31,8 @@ GATE_MARGIN_BINS = 3
 #: photons come before its first marker and at most :data:`END_AFTER` of those after its
 #: last
 END_BEFORE, END_AFTER = 0.5, 0.5
+#: photons a channel needs before its rate is said
+MIN_RATE_PHOTONS = 100
 #: TDC bins and sync periods a header can give (outside them: no instrument's)
 RESOLUTION_S = (1e-15, 1e-3)
 
@@ -50,7 +52,7 @@ def count(n: float, word: str, plural: str | None = None) -> str:
     return f"{text} {word if int(n) == 1 else plural or word + 's'}"
 
 
-def _header_ok(scan: dict[str, Any]) -> list[str]:
+def header_refusal(scan: dict[str, Any]) -> list[str]:
     """The header's timing, where ``reconstruct`` refuses it: one sentence, or none."""
     h = scan["header"]
     lo, hi = RESOLUTION_S
@@ -91,8 +93,8 @@ def _bits(scan: dict[str, Any]) -> list[str]:
     out = [text + "; a code clocked k times slower than the TDC: its own --bit-rate with "
                   "--allow-binning"]
     counts = scan.get("dtime_counts")
-    if bpp and counts is not None and counts.size > math.ceil(bpp + 0.5):
-        past = int(counts[math.ceil(bpp + 0.5):].sum())
+    if bpp and counts is not None and counts.size > round(bpp):
+        past = int(counts[round(bpp):].sum())  # (the reader drops bins >= the code's length)
         total = int(counts.sum())
         if past:
             out.append(f"{count(past, 'photon')} ({100 * past / max(total, 1):.3g} %) lie in TDC "
@@ -144,14 +146,11 @@ def _markers(scan: dict[str, Any]) -> list[str]:
 
 
 def _extra_block(d: np.ndarray, c: np.ndarray, m: int) -> str:
-    """Which of ``m + 1`` or ``m + 2`` blocks ``reconstruct`` leaves out (:mod:`.blocks`'
-    rules on the same dwells and photons)."""
-    from .blocks import _short
+    """Which of ``m + 1`` or ``m + 2`` blocks ``reconstruct`` leaves out, by its own rule
+    (:func:`.blocks.extra_block`; :func:`.blocks._short` for both ends of ``m + 2``)."""
+    from .blocks import extra_block
 
-    inner = slice(1, -1) if d.size > 2 else slice(None)
-    typ_d, typ_c = float(np.median(d[inner])), float(np.median(c[inner]))
-    first = _short(d[0], c[0], typ_d, typ_c)
-    last = _short(d[-1], c[-1], typ_d, typ_c)
+    which, first, last, typ_d, typ_c = extra_block(d, c)
     ends = (f"first block {count(round(d[0]), 'code period')} with "
             f"{count(c[0], 'photon')}, last {count(round(d[-1]), 'code period')} with "
             f"{count(c[-1], 'photon')}, a pattern's {count(round(typ_d), 'code period')} "
@@ -161,7 +160,10 @@ def _extra_block(d: np.ndarray, c: np.ndarray, m: int) -> str:
             return f"and an arming and an end marker's block ({ends}): both left out"
         return (f"and two more, not both short of a pattern's or empty ({ends}): reconstruct "
                 f"refuses the file with these patterns")
-    if first and not last:
+    if first and last:
+        return (f"and both ends are short or empty ({ends}): the {which}, of the lower "
+                f"photon rate, is left out")
+    if first:
         return f"and the first block, short or empty, is an arming marker's ({ends}): left out"
     if last:
         return f"and the last block is an end marker's ({ends}): left out"
@@ -249,8 +251,8 @@ def _rates(scan: dict[str, Any], sync_channel: int | None) -> list[str]:
     out, span = [], scan["span_s"]
     lo, hi = min(TYPICAL_DEAD_TIMES_S), max(TYPICAL_DEAD_TIMES_S)
     for c, n in scan["photons"].items():
-        if c == sync_channel or not span > 0:
-            continue
+        if c == sync_channel or not span > 0 or n < MIN_RATE_PHOTONS:
+            continue  # (3 photons in 25 ns read as 1.2e8 per second: a rate needs counts)
         r = n / span
         g = scan["gaps"].get(c)
         seen = None
@@ -315,7 +317,7 @@ def advice(scan: dict[str, Any], n_patterns: int | None = None) -> list[str]:
     """What ``reconstruct`` needs that a :func:`~spslidar.io.scan_ptu` result says, one
     sentence each; with ``n_patterns`` (the rows of ``--patterns``), the blocks set against
     them."""
-    bad = _header_ok(scan)
+    bad = header_refusal(scan)
     if bad:
         return bad
     out: list[str] = []
@@ -328,6 +330,8 @@ def advice(scan: dict[str, Any], n_patterns: int | None = None) -> list[str]:
                       f"as a sync's would: --sync-channel {per['channel']}" if per else ""))
         sync_channel = per["channel"] if per else None
     out += _bits(scan)
+    if not any(c != sync_channel for c in scan["photons"]):
+        return out + ["no detector photons: reconstruct refuses the file"]
     out += _markers(scan)
     if n_patterns is not None and scan["markers"]:
         out += _patterns(scan, int(n_patterns))
@@ -366,8 +370,8 @@ def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
     if scan["mode"] != "T3" or counts is None:
         return {"ok": False, "why": "a T2 file's delays are read from its syncs by "
                                     "reconstruct; inspect reads them from T3 records only"}
-    if _header_ok(scan):
-        return {"ok": False, "why": _header_ok(scan)[0]}
+    if header_refusal(scan):
+        return {"ok": False, "why": header_refusal(scan)[0]}
     n = int(np.size(code))
     res, period = float(h["resolution_s"]), float(h["sync_period_s"])
     width = 1.0 / bit_rate
