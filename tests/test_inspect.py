@@ -157,6 +157,12 @@ def test_t2_sync_on_a_detector_input_is_named(tmp_path, capsys):
     assert got["photons"] == {0: 3000, 3: 2000} and got["markers"] == {1: 2}
     assert got["periodic_channel"]["channel"] == 3
     assert got["periodic_channel"]["period_s"] == pytest.approx(12.7e-9, rel=1e-6)
+    # the block between the two markers holds channel 0's photons, not the sync's events
+    assert got["blocks"][1]["photons_per_block"]["median"] == np.count_nonzero(
+        (phot >= 60) & (phot < 12760))
+    small = scan_ptu(tmp_path / "s.ptu", chunk_records=101)
+    assert small["blocks"] == got["blocks"] and small["periodic_channel"] == got[
+        "periodic_channel"]
     assert main(["inspect", str(tmp_path / "s.ptu")]) == 0
     assert "--sync-channel 3" in capsys.readouterr().out
 

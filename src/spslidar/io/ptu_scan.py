@@ -14,6 +14,7 @@ T2 records, which ``ptufile`` reads only as whole files, are decoded here by
 
 from __future__ import annotations
 
+import itertools
 import os
 from typing import Any
 
@@ -244,11 +245,29 @@ def _scan_t2(chunks, family: str, header: dict[str, Any], path: str) -> dict[str
     latest = -(2**62)
     back = int(1e-6 / unit) if unit > 0 else 0  # (a microsecond of tags: no reordering)
     first = last = None
-    probe_t: list[np.ndarray] = []
-    probe_c: list[np.ndarray] = []
-    probed = 0
     sync_first = sync_last = None
-    for raw in chunks:
+    # a sync recorded on a detector input: found in the first chunk's photons (as reconstruct
+    # looks), so that the blocks' photon counts leave its events out (they counted them, a
+    # review)
+    # chunks, whatever their size (the result may not depend on it)
+    chunks = iter(chunks)
+    head: list[np.ndarray] = []
+    probe_t, probe_c, seen_sync, tags = [], [], False, 0
+    while sum(x.size for x in probe_t) < _PROBE_PHOTONS:
+        raw = next(chunks, None)
+        if raw is None:
+            break
+        head.append(raw)
+        kind, t, value, tags = _times(raw, family, tags)
+        seen_sync |= bool(np.any(kind == _SYNC))
+        probe_t.append(t[kind == _PHOTON])
+        probe_c.append(value[kind == _PHOTON])
+    sync_ch = None
+    if not seen_sync and probe_t:
+        found = _periodic_channel(np.concatenate(probe_t)[:_PROBE_PHOTONS],
+                                  np.concatenate(probe_c)[:_PROBE_PHOTONS])
+        sync_ch = None if found is None else (int(found[0]), float(found[1] * unit))
+    for raw in itertools.chain(head, chunks):
         kind, t, value, base_after = _times(raw, family, base)
         n_ofl += int(np.count_nonzero(_overflow_t2(raw, family)))
         base = base_after
@@ -277,23 +296,16 @@ def _scan_t2(chunks, family: str, header: dict[str, Any], path: str) -> dict[str
             c = value[photon]
             per_channel += np.bincount(c, minlength=128)[:128]
             gaps.add(t[photon], np.zeros(c.size, np.int64), c)
-            if probed < _PROBE_PHOTONS:
-                take = min(_PROBE_PHOTONS - probed, int(c.size))
-                probe_t.append(t[photon][:take])
-                probe_c.append(c[:take])
-                probed += take
+        counted = photon if sync_ch is None else photon & (value != sync_ch[0])
         is_mark = kind == _MARKER
         n_mark += int(np.count_nonzero(is_mark))
         if is_mark.any():
-            before = n_photons + np.cumsum(photon)[is_mark]
+            before = n_photons + np.cumsum(counted)[is_mark]
             markers.add(value[is_mark], (t[is_mark] - (first or 0)) * unit, before)
-        n_photons += int(np.count_nonzero(photon))
+        n_photons += int(np.count_nonzero(counted))
     span = 0 if first is None else last - first
-    periodic = None
-    if n_sync < 2 and probe_t:
-        found = _periodic_channel(np.concatenate(probe_t), np.concatenate(probe_c))
-        if found is not None:
-            periodic = {"channel": int(found[0]), "period_s": float(found[1] * unit)}
+    periodic = (None if sync_ch is None or n_sync >= 2 else
+                {"channel": sync_ch[0], "period_s": sync_ch[1]})
     sync_period = (float((sync_last - sync_first) / (n_sync - 1) * unit)
                    if n_sync >= 2 else None)
     return _result("T2", per_channel, markers, n_photons, span * unit, n_mark, n_ofl, gaps,
