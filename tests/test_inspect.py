@@ -564,3 +564,34 @@ def test_inspect_names_the_block_reconstruct_leaves_out(tmp_path, capsys):
     out = _said(capsys, str(f), "--patterns", str(tmp_path / "p.npy"))
     assert "both ends are short or empty" in out and f"the {dropped}, of the lower" in out
     assert dropped == "first" and "the first, at" in notes[0]  # (the arming block's)
+
+
+def test_a_t2_files_returns_from_its_sync_records(tmp_path, capsys):
+    """A T2 file (1 ps tags) whose sync input recorded the code's period: each photon's delay
+    since its sync, in tags, correlated with the code as a T3 file's TDC bins are."""
+    from spslidar.codes.sequences import make_code
+    from spslidar.pipeline.file_advice import returns_in_file
+
+    code = make_code("mseq", L)
+    rng = np.random.default_rng(8)
+    k = 100  # tags per bit
+    periods = 2500
+    sync = np.arange(periods) * L * k + 7
+    on = np.flatnonzero(code)
+    n = 6000
+    p = rng.integers(0, periods - 1, n)
+    bits = np.concatenate([(rng.choice(on, n) + 40) % L, rng.integers(0, L, 2000)])
+    p = np.concatenate([p, rng.integers(0, periods - 1, 2000)])
+    phot = sync[p] + bits * k + rng.integers(0, k, bits.size)
+    t = np.concatenate([sync, phot])
+    kind = np.concatenate([np.ones(sync.size, int), np.zeros(phot.size, int)])
+    order = np.argsort(t, kind="stable")
+    _t2_file(tmp_path / "p.ptu", t[order], kind[order], np.zeros(t.size, int)[order])
+    scan = scan_ptu(tmp_path / "p.ptu")
+    assert scan["dtime_counts"].sum() == phot.size
+    found = returns_in_file(scan, code, 1 / BW)
+    assert found["ok"] and found["peaks"][0]["lag"] == 40 and len(found["peaks"]) == 1
+    np.save(tmp_path / "c.npy", code)
+    assert "returns (the photons of every block, correlated with the code): 0.5996 m" in \
+        _said(capsys, str(tmp_path / "p.ptu"), "--code", str(tmp_path / "c.npy"),
+              "--bit-rate", "1e10")

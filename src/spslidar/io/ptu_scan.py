@@ -31,6 +31,9 @@ __all__ = ["MARKER_INPUTS", "scan_ptu"]
 #: marker inputs a record's marker bits can name (bit ``k - 1`` is input ``k``; a HydraHarp,
 #: TimeHarp or MultiHarp has four, a PicoHarp four)
 MARKER_INPUTS = (1, 2, 3, 4)
+#: a T2 photon's delay since its sync is histogrammed up to this many time tags (4 M: 4 us
+#: of 1 ps tags; a longer sync period's later delays are left out of ``dtime_counts``)
+_MAX_DELAY_TAGS = 2**22
 #: photons of a T2 file kept to look for a channel of periodic events (a sync recorded on a
 #: detector input): the first ones, as ``reconstruct`` looks
 _PROBE_PHOTONS = 65536
@@ -117,10 +120,12 @@ def scan_ptu(path: PathLike, *, chunk_records: int = 2**16) -> dict[str, Any]:
         records count the syncs), ``sync_period_s`` (T2: measured from the sync records, None
         under two; T3: the header's), ``span_s``
         (first to last event, seconds), ``syncs_spanned`` (T3), ``dtime_max`` (T3: the
-        highest TDC bin a photon took, in units of the resolution), ``dtime_counts`` (T3:
-        the photons in each TDC bin, all channels and blocks together, an int64 array; None
-        for T2), ``channel_dtime_counts`` (T3: the same per channel), ``blocks`` (per marker
-        input that holds markers: ``markers``, ``dwell_s`` and ``photons_per_block``
+        highest TDC bin a photon took, in units of the resolution; T2: the longest delay
+        since a sync record, in time tags), ``dtime_counts`` (T3: the photons in each TDC
+        bin, all channels and blocks together, an int64 array; T2 with sync records: in each
+        time tag since the last sync, up to 2^22 tags; else None), ``channel_dtime_counts``
+        (T3: the same per channel), ``blocks`` (per marker input that holds markers:
+        ``markers``, ``dwell_s`` and ``photons_per_block``
         (median / min / max over the blocks between consecutive markers), ``empty_blocks``,
         ``irregular_blocks`` (lasting over 1.5 times the median, or under its 1/1.5),
         ``photons_before_first``, ``photons_after_last``, ``seconds_after_last``; the spreads
@@ -246,6 +251,7 @@ def _scan_t2(chunks, family: str, header: dict[str, Any], path: str) -> dict[str
     back = int(1e-6 / unit) if unit > 0 else 0  # (a microsecond of tags: no reordering)
     first = last = None
     sync_first = sync_last = None
+    delays = np.zeros(0, np.int64)
     # a sync recorded on a detector input: found in the first chunk's photons (as reconstruct
     # looks), so that the blocks' photon counts leave its events out (they counted them, a
     # review)
@@ -287,15 +293,28 @@ def _scan_t2(chunks, family: str, header: dict[str, Any], path: str) -> dict[str
             first = int(ev[0]) if first is None else first
             last = int(ev[-1])
         is_sync = kind == _SYNC
-        if is_sync.any():
-            st = t[is_sync]
+        st = t[is_sync]
+        if st.size:
             sync_first = int(st[0]) if sync_first is None else sync_first
-            sync_last = int(st[-1])
             n_sync += int(st.size)
         if photon.any():
             c = value[photon]
             per_channel += np.bincount(c, minlength=128)[:128]
             gaps.add(t[photon], np.zeros(c.size, np.int64), c)
+            # each photon's delay since the last sync record, in tags (as a T3 file's dtime)
+            pt = t[photon]
+            before = -1 if sync_last is None else sync_last
+            if st.size:
+                i = np.searchsorted(st, pt, side="right") - 1
+                prev = np.where(i >= 0, st[np.maximum(i, 0)], before)
+            else:
+                prev = np.full(pt.size, before)
+            d = (pt - prev)[prev >= 0]
+            d = d[d < _MAX_DELAY_TAGS]
+            if d.size:
+                delays = _add(delays, np.bincount(d))
+        if st.size:
+            sync_last = int(st[-1])
         counted = photon if sync_ch is None else photon & (value != sync_ch[0])
         is_mark = kind == _MARKER
         n_mark += int(np.count_nonzero(is_mark))
@@ -310,7 +329,8 @@ def _scan_t2(chunks, family: str, header: dict[str, Any], path: str) -> dict[str
                    if n_sync >= 2 else None)
     return _result("T2", per_channel, markers, n_photons, span * unit, n_mark, n_ofl, gaps,
                    sync_records=int(n_sync), sync_period_s=sync_period, syncs_spanned=None,
-                   dtime_max=None, dtime_counts=None, channel_dtime_counts=None,
+                   dtime_max=int(delays.size - 1) if delays.size else None,
+                   dtime_counts=delays if n_sync >= 2 else None, channel_dtime_counts=None,
                    periodic_channel=periodic)
 
 

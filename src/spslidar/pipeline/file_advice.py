@@ -367,13 +367,16 @@ def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
 
     h = scan["header"]
     counts = scan.get("dtime_counts")
-    if scan["mode"] != "T3" or counts is None:
-        return {"ok": False, "why": "a T2 file's delays are read from its syncs by "
-                                    "reconstruct; inspect reads them from T3 records only"}
     if header_refusal(scan):
         return {"ok": False, "why": header_refusal(scan)[0]}
+    if counts is None:
+        return {"ok": False, "why": "a T2 file without sync records holds no delays (its "
+                                    "sync on a detector input: reconstruct --sync-channel)"}
     n = int(np.size(code))
-    res, period = float(h["resolution_s"]), float(h["sync_period_s"])
+    if scan["mode"] == "T3":
+        res, period = float(h["resolution_s"]), float(h["sync_period_s"])
+    else:  # (a T2 file's delays are counted in its time tags since each sync record)
+        res, period = float(h["time_unit_s"]), float(scan["sync_period_s"])
     width = 1.0 / bit_rate
     k = width / res
     if not (round(k) >= 1 and abs(k - round(k)) <= 1e-3 * k):
