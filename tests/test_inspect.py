@@ -368,7 +368,7 @@ def test_marker_records_photons_past_the_period_plurals_and_json(tmp_path, capsy
                  marker=[15, 0, 0], resolution_s=BW, sync_rate_hz=1 / (L * BW))
     out = _said(capsys, str(tmp_path / "m.ptu"))
     assert "3 records over" in out and "2 photons, 1 marker record, 0 overflow records" in out
-    assert "1 photon (50 %) lie in TDC bins past the sync period's 127" in out
+    assert "1 photon (50 %) lies in TDC bins past the sync period's 127" in out
     assert "1 photons" not in out and "1 markers" not in out
     (got,) = json.loads(_said(capsys, "--json", str(tmp_path / "m.ptu")))
     assert got["marker_records"] == 1 and got["markers"] == {"1": 1, "2": 1, "3": 1, "4": 1}

@@ -56,15 +56,14 @@ def add_inspect_parser(subparsers: argparse._SubParsersAction) -> argparse.Argum
 
 
 def _blocks_text(k: int, b: dict[str, Any]) -> str:
-    from .pipeline.file_advice import count, si
+    from .pipeline.file_advice import count, num, si
 
     if b["dwell_s"] is None:
         return f"--marker {k}: one marker, at {si(b['first_s'])}"
     d, ph = b["dwell_s"], b["photons_per_block"]
     text = (f"--marker {k}: {count(b['markers'], 'marker')}, blocks of {si(d['median'])} "
             f"({si(d['min'])} to {si(d['max'])}) holding {count(ph['median'], 'photon')} "
-            f"(median; {count(ph['min'], '')[:-1].strip()} to "
-            f"{count(ph['max'], '')[:-1].strip()})")
+            f"(median; {num(ph['min'])} to {num(ph['max'])})")
     extra = []
     if b["empty_blocks"]:
         extra.append(f"{b['empty_blocks']} empty")
@@ -80,7 +79,7 @@ def describe(scan: dict[str, Any], name: str) -> list[str]:
     """The sentences ``spslidar inspect`` prints for one :func:`~spslidar.io.scan_ptu`
     result (what the file holds; :func:`~spslidar.pipeline.file_advice.advice` says what
     follows)."""
-    from .pipeline.file_advice import count, header_refusal, si
+    from .pipeline.file_advice import count, header_refusal, num, si
 
     h = scan["header"]
     # (a creation time ptufile could not read stays a number: left out)
@@ -111,14 +110,13 @@ def describe(scan: dict[str, Any], name: str) -> list[str]:
     span = scan["span_s"] if timed else 0.0
     if scan["photons"]:
         lines.append("  photons per --channel (from 0): " + ", ".join(
-            f"{c}: {count(n, 'photon')[:-7].rstrip()}" + (f" ({n / span:.3g}/s)" if span > 0
-                                                          else "")
+            f"{c}: {num(n)}" + (f" ({n / span:.3g}/s)" if span > 0 else "")
             for c, n in scan["photons"].items()))
     else:
         lines.append("  no photons")
     if scan["markers"]:
         lines.append("  markers per --marker input: " + ", ".join(
-            f"{k}: {n}" for k, n in scan["markers"].items()))
+            f"{k}: {num(n)}" for k, n in scan["markers"].items()))
         if timed:
             lines += [f"  {_blocks_text(k, b)}" for k, b in scan["blocks"].items()]
     else:

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["GATE_MARGIN_BINS", "RETURN_SIGMAS", "advice", "count", "header_refusal",
+__all__ = ["GATE_MARGIN_BINS", "RETURN_SIGMAS", "advice", "count", "header_refusal", "num",
            "returns_in_file", "returns_text", "si"]
 
 #: a delay holds a return where the whole acquisition's correlation rises this many
@@ -31,6 +31,8 @@ GATE_MARGIN_BINS = 3
 #: photons come before its first marker and at most :data:`END_AFTER` of those after its
 #: last
 END_BEFORE, END_AFTER = 0.5, 0.5
+#: the share of the photons in TDC bins past the sync period from which they are said
+PAST_SHARE = 1e-3
 #: photons a channel needs before its rate is said
 MIN_RATE_PHOTONS = 100
 #: TDC bins and sync periods a header can give (outside them: no instrument's)
@@ -46,10 +48,14 @@ def si(seconds: float) -> str:
     return f"{seconds:g} s"  # pragma: no cover
 
 
+def num(n: float) -> str:
+    """A whole number with thin thousands separators, as the README writes counts."""
+    return f"{int(n):,}".replace(",", " ")
+
+
 def count(n: float, word: str, plural: str | None = None) -> str:
-    """``n word(s)`` with thin thousands separators, as the README writes counts."""
-    text = f"{int(n):,}".replace(",", " ")
-    return f"{text} {word if int(n) == 1 else plural or word + 's'}"
+    """``n word(s)``, the number as :func:`num` writes it."""
+    return f"{num(n)} {word if int(n) == 1 else plural or word + 's'}"
 
 
 def header_refusal(scan: dict[str, Any]) -> list[str]:
@@ -96,11 +102,11 @@ def _bits(scan: dict[str, Any]) -> list[str]:
     if bpp and counts is not None and counts.size > round(bpp):
         past = int(counts[round(bpp):].sum())  # (the reader drops bins >= the code's length)
         total = int(counts.sum())
-        if past:
-            out.append(f"{count(past, 'photon')} ({100 * past / max(total, 1):.3g} %) lie in TDC "
-                       f"bins past the sync period's {bpp:.6g}: reconstruct leaves them out "
-                       f"(a sync every few code periods that the header does not say? "
-                       f"--sync-divider)")
+        if past >= PAST_SHARE * total and past:  # (a stray photon or two is no divider)
+            out.append(f"{count(past, 'photon')} ({100 * past / max(total, 1):.3g} %) "
+                       f"{'lies' if past == 1 else 'lie'} in TDC bins past the sync period's "
+                       f"{bpp:.6g}: reconstruct leaves them out (a sync every few code "
+                       f"periods that the header does not say? --sync-divider)")
     return out
 
 
