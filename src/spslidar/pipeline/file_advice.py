@@ -124,8 +124,9 @@ def _edge(b: dict[str, Any]) -> str:
     return "start"
 
 
-def _markers(scan: dict[str, Any]) -> list[str]:
-    """Which ``--marker`` input, at which edge."""
+def _markers(scan: dict[str, Any], patterns: bool = False) -> list[str]:
+    """Which ``--marker`` input, at which edge (``patterns``: the blocks are set against
+    them in a sentence of their own)."""
     if not scan["markers"]:
         return ["no marker records: reconstruct splits the photons into patterns at the "
                 "DMD's markers (its trigger output on a marker input)"]
@@ -140,8 +141,8 @@ def _markers(scan: dict[str, Any]) -> list[str]:
                     f"{count(b['photons_before_first'], 'photon')} before the first (about a "
                     f"block's) and {b['photons_after_last']} after the last: its marker ends "
                     f"each pattern"]
-        return [f"--marker {k}: {count(most, 'marker')}, as many patterns (or the sequence "
-                f"--repeats times)"]
+        return [f"--marker {k}: {count(most, 'marker')}" + ("" if patterns else
+                ", as many patterns (or the sequence --repeats times)")]
     # inputs of as many markers: one starts each pattern, another ends it; the start's
     # markers come first (an audit: numbered the other way round, both readings were wrong)
     first = sorted(top, key=lambda k: blocks[k]["first_s"])
@@ -338,7 +339,7 @@ def advice(scan: dict[str, Any], n_patterns: int | None = None) -> list[str]:
     out += _bits(scan)
     if not any(c != sync_channel for c in scan["photons"]):
         return out + ["no detector photons: reconstruct refuses the file"]
-    out += _markers(scan)
+    out += _markers(scan, n_patterns is not None)
     if n_patterns is not None and scan["markers"]:
         out += _patterns(scan, int(n_patterns))
     out += _rates(scan, sync_channel)
