@@ -192,10 +192,15 @@ def drop_frozen(data, ptu) -> tuple[Any, int, str | None]:
 
 
 def _typical(data) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """Each block's dwell and photons, and the median of the blocks between the two ends (of
-    all of them where there are no more than two): what a pattern's look like."""
-    d = data.periods_per_pattern.astype(np.float64)
-    c = data.counts_per_pattern.astype(np.float64)
+    """:func:`_typical_of` a read's blocks."""
+    return _typical_of(data.periods_per_pattern, data.counts_per_pattern)
+
+
+def _typical_of(d: Any, c: Any) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Each block's dwell and photons (float64), and the median of the blocks between the two
+    ends (of all of them where there are no more than two): what a pattern's look like."""
+    d = np.asarray(d, np.float64)
+    c = np.asarray(c, np.float64)
     inner = slice(1, -1) if d.size > 2 else slice(None)
     return d, c, float(np.median(d[inner])), float(np.median(c[inner]))
 
@@ -284,10 +289,7 @@ def extra_block(d: np.ndarray, c: np.ndarray) -> tuple[str, bool, bool, float, f
     is not, or where both are and it has the lower photon rate; else ``"last"``. Also
     whether each end is short, and a pattern's dwell and photons (the inner blocks'
     medians). ``reconstruct`` and ``inspect`` read a file's ends by this one rule."""
-    d = np.asarray(d, np.float64)
-    c = np.asarray(c, np.float64)
-    inner = slice(1, -1) if d.size > 2 else slice(None)
-    typ_d, typ_c = float(np.median(d[inner])), float(np.median(c[inner]))
+    d, c, typ_d, typ_c = _typical_of(d, c)
     first = _short(d[0], c[0], typ_d, typ_c)
     last = _short(d[-1], c[-1], typ_d, typ_c)
     # both ends short: an arming marker's block and a pattern cut short, or a cut pattern and

@@ -13,7 +13,6 @@ version's advice into wrong maps on four layouts).
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -112,7 +111,8 @@ def _bits(scan: dict[str, Any]) -> list[str]:
 
 def _edge(b: dict[str, Any]) -> str:
     """``"end"`` where an input's photons before its first marker are about a block's and
-    none come after its last (its marker ends each pattern), else ``"start"``."""
+    under half as many come after its last (its marker ends each pattern), else
+    ``"start"``."""
     ph = b["photons_per_block"]
     if ph is None or not ph["median"] > 0:
         return "start"
@@ -253,7 +253,13 @@ def _patterns(scan: dict[str, Any], m: int) -> list[str]:
 
 def _rates(scan: dict[str, Any], sync_channel: int | None) -> list[str]:
     """Pile-up and a dead time, per detector channel."""
-    from .deadtime import GAP_EVIDENCE, LOSS_TO_WARN, MAX_DETECTOR_RATE_HZ, TYPICAL_DEAD_TIMES_S
+    from .deadtime import (
+        GAP_EVIDENCE,
+        LOSS_TO_WARN,
+        MAX_DETECTOR_RATE_HZ,
+        TYPICAL_DEAD_TIMES_S,
+        apparent_dead_time,
+    )
 
     out, span = [], scan["span_s"]
     lo, hi = min(TYPICAL_DEAD_TIMES_S), max(TYPICAL_DEAD_TIMES_S)
@@ -261,12 +267,8 @@ def _rates(scan: dict[str, Any], sync_channel: int | None) -> list[str]:
         if c == sync_channel or not span > 0 or n < MIN_RATE_PHOTONS:
             continue  # (3 photons in 25 ns read as 1.2e8 per second: a rate needs counts)
         r = n / span
-        g = scan["gaps"].get(c)
-        seen = None
-        if g and g["shortest_s"] > 0:
-            shorter = g["n"] * -math.expm1(-g["n"] / span * g["shortest_s"])
-            if shorter >= GAP_EVIDENCE:
-                seen = g["shortest_s"]
+        g = scan["gaps"].get(c)  # (the dead time reconstruct reads from the same gaps)
+        seen = apparent_dead_time({c: g}, span) if g else None
         if r >= MAX_DETECTOR_RATE_HZ:
             out.append(f"channel {c} counts {r:.3g} photons/s, more than a single-photon "
                        f"detector can: a simulated linear counter, or the photons of several "
@@ -374,8 +376,9 @@ def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
 
     h = scan["header"]
     counts = scan.get("dtime_counts")
-    if header_refusal(scan):
-        return {"ok": False, "why": header_refusal(scan)[0]}
+    refused = header_refusal(scan)
+    if refused:
+        return {"ok": False, "why": refused[0]}
     if counts is None:
         return {"ok": False, "why": "a T2 file without sync records holds no delays (its "
                                     "sync on a detector input: reconstruct --sync-channel)"}
