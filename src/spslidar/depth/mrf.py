@@ -200,6 +200,12 @@ class MRFDepth(DepthEstimator):
         where the MRF gave it the surface around it, and of weaker such dots together where
         noise cannot give as many (:mod:`spslidar.depth.dots`;
         ``info['dot_pixels']``). Default True.
+    holes : bool
+        Last, keep the argmax of a pixel (or up to four together) that returns nothing at any
+        of its neighbours' surfaces, though they return strongly, where the MRF filled that
+        hole with the surface around it (an object in front whose own return is weak), the
+        holes' argmaxes kept together where noise cannot give as many
+        (:mod:`spslidar.depth.holes`; ``info['hole_pixels']``). Default True.
     low_confidence : float
         Confidence below which a pixel is flagged.
 
@@ -255,7 +261,7 @@ class MRFDepth(DepthEstimator):
                  iterations: int = ITERATIONS,
                  subbin: bool | None = None, lines: bool = True, halo: bool = True,
                  corners: bool = True, gaps: bool = True, edges: bool = True,
-                 dots: bool = True):
+                 dots: bool = True, holes: bool = True):
         super().__init__(low_confidence)
         self.smoothness = option("smoothness", smoothness)
         self.truncation = None if truncation is None else option("truncation", truncation)
@@ -267,6 +273,7 @@ class MRFDepth(DepthEstimator):
         self.gaps = bool(gaps)
         self.edges = bool(edges)
         self.dots = bool(dots)
+        self.holes = bool(holes)
 
     def labelling(self, x: np.ndarray, z: np.ndarray, shape: tuple[int, int]
                   ) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -274,7 +281,7 @@ class MRFDepth(DepthEstimator):
         ``lines``; also the beliefs ``(Q, K)`` and numbers for ``info``. Shared by the
         estimators built on this MRF (``guarded``, ``evidence``)."""
         q, k = x.shape
-        later = self.lines or self.corners or self.edges or self.dots
+        later = self.lines or self.corners or self.edges or self.dots or self.holes
         # the block's noise maxima, once: the truncation's and the later steps' typical one
         null = noise_maxima(z) if later or self.truncation is None else None
         cap = (self.truncation if self.truncation is not None
@@ -292,7 +299,7 @@ class MRFDepth(DepthEstimator):
         thin = own = corner = gaps = 0
         if later:  # the block's typical noise maximum
             nu = typical_noise_maximum(null)
-        if self.lines or self.dots:  # each pixel's own tallest slice
+        if self.lines or self.dots or self.holes:  # each pixel's own tallest slice
             a = np.argmax(x, axis=1)
         if self.lines:  # lines of argmax returns in front of the MRF's surface (lines.py)
             from .hang import hang_lines, walk_on
@@ -337,10 +344,17 @@ class MRFDepth(DepthEstimator):
             from .dots import keep_dots
 
             label, dot = keep_dots(a, label, z, nu, shape)
+        hole = 0
+        if self.holes:  # holes in the neighbours' surfaces the MRF filled (holes.py)
+            from .holes import hole_dots
+
+            kept = hole_dots(a, label, z, nu, shape)
+            label, hole = np.where(kept, a, label), int(kept.sum())
         return label, belief, {"sweeps": sweeps, "truncation": cap,
                                "thin_structure_pixels": thin, "own_surface_pixels": own,
                                "corner_pixels": corner, "gap_pixels": gaps,
-                               "edge_pixels": edge, "dot_pixels": dot}
+                               "edge_pixels": edge, "dot_pixels": dot,
+                               "hole_pixels": hole}
 
     def estimate(self, slices: np.ndarray, ctx: DepthContext) -> DepthEstimate:
         x = np.asarray(slices, dtype=np.float32)
