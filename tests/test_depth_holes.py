@@ -181,3 +181,28 @@ def test_an_image_without_neighbours_has_no_hole():
     z[0, WALL] = 9.0
     assert not holes(np.array([WALL]), z, NU, (1, 1)).any()
     assert not hole_dots(np.array([DOT]), np.array([WALL]), z, NU, (1, 1)).any()
+
+
+def test_the_noise_is_counted_over_the_holes_only():
+    """A weak object (2 noise maxima) in a hole of a bright half-image is kept, though the
+    dark half (no holes: its neighbours return weakly too) holds hundreds of noise argmaxes
+    at that level: counted over every pixel, noise would be expected to give many such
+    argmaxes and none would be kept."""
+    rng = np.random.default_rng(4)
+    shape = (24, 24)
+    q = shape[0] * shape[1]
+    z = np.abs(rng.normal(0.0, 0.6, (q, K)))
+    z[:, WALL] = np.where(np.arange(q) % shape[1] < shape[1] // 2, 8.0, 0.3)
+    obj = 10 * shape[1] + 5  # in the bright half
+    z[obj, WALL], z[obj, DOT] = 0.5, 2.0
+    z[obj, np.arange(K) != DOT] = np.minimum(z[obj, np.arange(K) != DOT], 0.5)
+    nu = 1.0
+    a = np.argmax(z, axis=1)
+    label = np.full(q, WALL)
+    from spslidar.depth.dots import expected_spikes
+    from spslidar.depth.profile import noise_maxima
+
+    every = expected_spikes(noise_maxima(z, 2, centre=label), z[:, WALL], np.array([2.0]))
+    assert every[0] > 5  # (the dark half alone: counted so, the object is not kept)
+    keep = hole_dots(a, label, z, nu, shape)
+    assert np.flatnonzero(keep).tolist() == [obj]
