@@ -206,3 +206,38 @@ def test_the_noise_is_counted_over_the_holes_only():
     assert every[0] > 5  # (the dark half alone: counted so, the object is not kept)
     keep = hole_dots(a, label, z, nu, shape)
     assert np.flatnonzero(keep).tolist() == [obj]
+
+
+def test_a_dark_pole_the_label_holds_is_no_hole():
+    """A one-pixel column of a dark pole (its returns 1.8 at its own slice) before a bright
+    wall (10), labelled right; one pole pixel holds a noise spike of 2.6 elsewhere. Half its
+    neighbours are the wall, so its return is under 0.6 of their median: a hole by that
+    test, but its pole neighbours return as weakly at the same label, and that is their own
+    tallest return: a dim structure the label holds, so the spike is not kept (room seed 267
+    at m_n = 5, 50 % lost a lamp-pole pixel so, 0.0078 -> 0.0114 m, to a first version)."""
+    pole, spike = 20, 3
+    z = np.zeros(SHAPE + (K,))
+    z[..., WALL] = 10.0
+    z[:, 6, WALL] = 0.3
+    z[:, 6, pole] = 1.8
+    z[5, 6, spike] = 2.6
+    z = z.reshape(-1, K)
+    label = np.full(z.shape[0], WALL)
+    label[np.arange(SHAPE[0]) * SHAPE[1] + 6] = pole
+    a = np.argmax(z, axis=1)
+    i = 5 * SHAPE[1] + 6
+    assert a[i] == spike and holes(label, z, NU, SHAPE)[i]
+    assert not hole_dots(a, label, z, NU, SHAPE).any()
+
+
+@pytest.mark.parametrize("at_wall, dot, below", [(1.15, 1.5, 5.9),  # a dimmer wall pixel
+                                                 (5.0, 6.0, 8.0)])  # a well filled hole
+def test_a_dimmer_wall_neighbour_does_not_make_a_hole_a_dim_structure(at_wall, dot, below):
+    """A dot in a hole of a wall at 13 whose pixel below returns less (a slanted surface's
+    slice varies so: the ramp with dots at m_n = 5, 50 % held such a dot, 5.86 against
+    11.7-14.6): that neighbour is not as dim as the hole (more than 1/0.6 of its return),
+    or not dim against the surroundings (over 0.6 of their median), so the dot is kept."""
+    z, a, label = _wall(dot=dot, at_wall=at_wall, wall=13.0)
+    z[6 * SHAPE[1] + 5, WALL] = below
+    keep = hole_dots(a, label, z, NU, SHAPE)
+    assert np.flatnonzero(keep).tolist() == [5 * SHAPE[1] + 5]
