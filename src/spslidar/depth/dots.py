@@ -68,7 +68,7 @@ import numpy as np
 from .profile import noise_maxima
 
 __all__ = ["DOT_FDR", "DOT_LEVEL", "DOT_SIZE", "WEAK_DOT_COUNT", "WEAK_DOT_LEVEL",
-           "argmax_groups", "expected_spikes", "keep_dots", "weak_dots"]
+           "argmax_groups", "expected_spikes", "keep_dots", "step_up", "weak_dots"]
 
 #: the most pixels a group of argmax returns may hold and still be a dot
 DOT_SIZE = 2
@@ -217,13 +217,40 @@ def weak_dots(a: np.ndarray, label: np.ndarray, z: np.ndarray, nu: float,
     cand &= (argmax_groups(a, shape) if groups is None else groups) <= size
     if np.count_nonzero(cand) < count:
         return keep
+    return step_up(za, cand, noise_maxima(z, exclude, centre=label), r, fdr, count)
+
+
+def step_up(za: np.ndarray, cand: np.ndarray, noise: np.ndarray, r: np.ndarray,
+            fdr: float, count: int = 1) -> np.ndarray:
+    """The Benjamini-Hochberg step-up over candidates' evidence against the noise's expected
+    argmaxes: the candidates sorted by evidence ``e_1 >= e_2 >= ...``, the ``k`` strongest
+    kept for the largest ``k >= count`` with ``E(e_k) <= fdr * k``
+    (:func:`expected_spikes` over the noise maxima ``noise`` and the returns ``r``).
+
+    Parameters
+    ----------
+    za : ndarray, shape (Q,)
+        Each pixel's evidence at its argmax.
+    cand : ndarray of bool, shape (Q,)
+        The candidates (at least one).
+    noise, r : ndarray
+        As :func:`expected_spikes`' ``noise`` and ``r``.
+    fdr : float
+        The false-discovery rate.
+    count : int
+        The fewest candidates kept together.
+
+    Returns
+    -------
+    ndarray of bool, shape (Q,)
+    """
     e = np.sort(za[cand])[::-1]
-    expected = expected_spikes(noise_maxima(z, exclude, centre=label), r, e)
+    expected = expected_spikes(noise, r, e)
     ranks = np.arange(1, e.size + 1)
     ok = np.nonzero((expected <= fdr * ranks) & (ranks >= count))[0]
-    if ok.size:
-        keep = cand & (za >= e[ok[-1]])
-    return keep
+    if not ok.size:
+        return np.zeros(za.shape, dtype=bool)
+    return cand & (za >= e[ok[-1]])
 
 
 def expected_spikes(noise: np.ndarray, r: np.ndarray, e: np.ndarray,

@@ -51,7 +51,7 @@ import warnings
 
 import numpy as np
 
-from .dots import DOT_FDR, argmax_groups, expected_spikes
+from .dots import DOT_FDR, argmax_groups, step_up
 from .profile import noise_maxima
 
 __all__ = ["HALO_SHARE", "HOLE_DOT_LEVEL", "HOLE_LEVEL", "HOLE_SHARE", "HOLE_SIZE",
@@ -109,19 +109,30 @@ def holes(label: np.ndarray, z: np.ndarray, nu: float, shape: tuple[int, int],
     """
     q, k = z.shape
     rows = np.arange(q)
-    own = z[rows, label]
-    around = np.full((len(_FOUR), q), np.nan)
+    own, typical = _surroundings(label, z, shape)
     seen = own.copy()  # the pixel's evidence at its own label and near each neighbour's
-    for t, (dy, dx) in enumerate(_FOUR):
+    for dy, dx in _FOUR:
         nb, inside = _neighbours(shape, dy, dx)
-        around[t] = np.where(inside, own[nb], np.nan)
         for o in range(-near, near + 1):
             at = np.clip(label[nb] + o, 0, k - 1)
             seen = np.where(inside, np.maximum(seen, z[rows, at]), seen)
+    return np.isfinite(typical) & (typical >= level * nu) & (seen <= share * typical)
+
+
+def _surroundings(label: np.ndarray, z: np.ndarray, shape: tuple[int, int]
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Each pixel's evidence at its label, and the median of its 4-neighbours' (NaN where
+    it has none)."""
+    q = z.shape[0]
+    own = z[np.arange(q), label]
+    around = np.full((len(_FOUR), q), np.nan)
+    for t, (dy, dx) in enumerate(_FOUR):
+        nb, inside = _neighbours(shape, dy, dx)
+        around[t] = np.where(inside, own[nb], np.nan)
     with warnings.catch_warnings():  # (a 1 x 1 image has no neighbour: no hole)
         warnings.simplefilter("ignore", RuntimeWarning)
         typical = np.nanmedian(around, axis=0)
-    return np.isfinite(typical) & (typical >= level * nu) & (seen <= share * typical)
+    return own, typical
 
 
 def _dim_alike(a: np.ndarray, label: np.ndarray, z: np.ndarray, shape: tuple[int, int],
@@ -132,17 +143,8 @@ def _dim_alike(a: np.ndarray, label: np.ndarray, z: np.ndarray, shape: tuple[int
     (within ``exclude`` slices): a dim structure the label holds (a dark pole before a
     bright wall, whose pixels return at the pole), not an object's hole (whose pixels'
     argmaxes are the object's)."""
-    q = z.shape[0]
-    rows = np.arange(q)
-    own = z[rows, label]
-    around = np.full((len(_FOUR), q), np.nan)
-    for t, (dy, dx) in enumerate(_FOUR):
-        nb, inside = _neighbours(shape, dy, dx)
-        around[t] = np.where(inside, own[nb], np.nan)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        typical = np.nanmedian(around, axis=0)
-    alike = np.zeros(q, dtype=bool)
+    own, typical = _surroundings(label, z, shape)
+    alike = np.zeros(own.size, dtype=bool)
     for dy, dx in _FOUR:
         nb, inside = _neighbours(shape, dy, dx)
         alike |= (inside & (np.abs(label[nb] - label) <= near) & (own[nb] <= share * typical)
@@ -196,10 +198,4 @@ def hole_dots(a: np.ndarray, label: np.ndarray, z: np.ndarray, nu: float,
     cand &= ~_dim_alike(a, label, z, shape, HOLE_SHARE)
     if not cand.any():
         return cand
-    e = np.sort(za[cand])[::-1]
-    expected = expected_spikes(noise_maxima(z, exclude, centre=label), r[hole], e)
-    ok = np.nonzero(expected <= fdr * np.arange(1, e.size + 1))[0]
-    keep = np.zeros(q, dtype=bool)
-    if ok.size:
-        keep = cand & (za >= e[ok[-1]])
-    return keep
+    return step_up(za, cand, noise_maxima(z, exclude, centre=label), r[hole], fdr)
