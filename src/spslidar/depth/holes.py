@@ -37,7 +37,7 @@ than the MRF before), the seven built-ins (28, unchanged) and procedural seeds 1
 better, 2 worse by 0.3-0.4 %). Held out: the five kinds at seed 13 and two kinds written after
 the choice (28: 10 -> 7 more than 5 % worse, worst 4.25 -> 1.62, none worse than before) and
 procedural seeds 100-124 (100: none more than 5 % worse either way; 3 better, 2 worse by at
-most 1.3 %). A pixel on a dim structure the label holds is no hole (:func:`_dim_alike`:
+most 1.3 %). A pixel on a dim structure the label holds is no hole (``_dim_alike``:
 without it the room's dark lamp pole lost a pixel to a noise spike, seed 267 at m_n = 5, 50 %,
 0.0078 -> 0.0114 m; the room's seeds 256-287 and the camera and motorcycle at m_n = 10 are
 unchanged with it). The user guide's ``depth.md``, "Holes in a surface", has the table and what is
