@@ -156,7 +156,11 @@ def test_npz_round_trip(tmp_path: Path):
     np.testing.assert_array_equal(sc.valid, valid)
     assert np.isfinite(sc.depth).all()
     small = load_scene(path, 16)
-    assert (~small.valid).sum() >= 4 and small.valid.sum() > 200
+    # a user's file: a pixel is scored where at least half its 2x2 footprint is valid (all of
+    # it before an outside audit of 2026-12-03, which lost 43 % of a file 95 % valid)
+    share = valid.reshape(16, 2, 16, 2).mean(axis=(1, 3))
+    np.testing.assert_array_equal(small.valid, share >= 0.5)
+    assert (~small.valid).sum() == 1
 
 
 def test_npz_depth_only(tmp_path: Path):

@@ -264,7 +264,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--save-ptu", default=argparse.SUPPRESS, metavar="FILE.ptu",
                    help="also write the simulated acquisition photon by photon as a T3 PTU "
                         "file (sync = code period, a marker per pattern; low flux only), for "
-                        "'spslidar reconstruct'")
+                        "'spslidar reconstruct': the same scene, patterns and code, its "
+                        "photons drawn afresh (another realisation of the run's noise)")
     _add_run_options(p)
     add_snr_parser(sub)
     add_reconstruct_parser(sub)

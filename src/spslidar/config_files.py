@@ -82,11 +82,17 @@ def read_toml(path: str | Path) -> dict[str, Any]:
             raise ConfigError(f"config file {p}: {', '.join(both)} given both at the top and "
                               f"in [run]")
         data = {**rest, **data["run"]}
+    elif "grid" in data and isinstance(data["grid"], dict):
+        # (a sweep's file given to run --config said "unknown config key 'base' (a plugin
+        # stage's option? ...)": an outside audit of 2026-12-03)
+        raise ConfigError(f"config file {p} is a sweep's file (its [grid] table): run it with "
+                          f"'spslidar sweep {p} --out DIR'")
     unknown = sorted(k for k in data if k.replace("-", "_") in CLI_ONLY_KEYS)
     if unknown:
-        what = "is a command-line option" if len(unknown) == 1 else "are command-line options"
+        what, it = (("is a command-line option", "it") if len(unknown) == 1 else
+                    ("are command-line options", "them"))
         raise ConfigError(f"config file {p}: {', '.join(unknown)} {what} (of the output, not "
-                          f"of the run): give it on the command line")
+                          f"of the run): give {it} on the command line")
     return resolve_file_paths(data, p.parent)
 
 
@@ -105,8 +111,11 @@ def resolve_file_paths(data: dict[str, Any], base: Path) -> dict[str, Any]:
     response in another folder)."""
     out = dict(data)
     for key, value in data.items():
-        if names_a_file(key, value) and not Path(value).is_absolute():
-            out[key] = str(base / value)
+        if names_a_file(key, value):
+            # (`~/odd.npy` was read as `<toml folder>/~/odd.npy`: an outside audit of
+            # 2026-12-03; the shell expands it on the command line, a TOML has no shell)
+            path = Path(value).expanduser()
+            out[key] = str(path if path.is_absolute() else base / path)
     return out
 
 

@@ -92,14 +92,16 @@ def check_files(paths, overwrite: bool = False, option: str = "--save-ptu",
     present = [p for p in paths if p.exists() or p.is_symlink()]
     if not present:
         return
-    if not overwrite:
-        raise SpslidarError(f"{option}: {present[0]} exists; use --overwrite to replace it")
+    # (whose files they are said first: "use --overwrite" was said of a user's file, which
+    # --overwrite then refused, an outside audit of 2026-12-03)
     for p in present:
         if not p.is_file() or sha256_file(p) not in sums.get(p.name, set()):
             why = ("or it changed since" if marker.exists() else
                    f"no marker {marker.name} beside it; spslidar before 0.2.0 wrote none")
             raise SpslidarError(f"{option}: {p} exists and is not a file spslidar wrote ({why}); "
                                 f"refusing to replace it, even with --overwrite")
+    if not overwrite:
+        raise SpslidarError(f"{option}: {present[0]} exists; use --overwrite to replace it")
 
 
 def write_files(paths, write: Callable[[list[Path]], None], overwrite: bool = False,
@@ -144,10 +146,16 @@ def write_files(paths, write: Callable[[list[Path]], None], overwrite: bool = Fa
             raise
         for a in asides:
             a.unlink(missing_ok=True)
-    except BaseException:
+    except BaseException as exc:
         for t in tmps:
             try:
                 t.unlink()
             except OSError:
                 pass
+        if isinstance(exc, OSError) and not exc.filename:
+            # (a full disk under --save-ptu was said as "while writing --out DIR", a folder
+            # on another disk with room: an outside audit of 2026-12-03)
+            raise OSError(exc.errno, exc.strerror or str(exc),
+                          f"while writing {option} {paths[0]} (nothing of it was left, and "
+                          f"what was there before is as it was)") from exc
         raise

@@ -83,8 +83,8 @@ def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Pa
             raise SpslidarError(f"--out {out}: {folder} is a symbolic link to {why}; choose "
                                 f"another path")
     if path.exists():
-        if not overwrite:
-            raise SpslidarError(f"--out {out} exists; use --overwrite to replace it")
+        # (whose file it is said first: "use --overwrite" was said of a user's file, which
+        # --overwrite then refused, an outside audit of 2026-12-03)
         try:
             # (a FIFO hung the command, /dev/zero ran out of memory, a deeply nested file
             # ended in a RecursionError: an audit of 2026-11-29)
@@ -101,6 +101,8 @@ def check_calibration_out(out: str | os.PathLike, overwrite: bool = False) -> Pa
             raise SpslidarError(f"--out {out} was edited since spslidar calibrate wrote it; "
                                 f"refusing to replace it (move it away, or choose another "
                                 f"name)")
+        if not overwrite:
+            raise SpslidarError(f"--out {out} exists; use --overwrite to replace it")
     if path.parent.exists() and not path.parent.is_dir():
         raise SpslidarError(f"--out {out}: {path.parent} is a file, not a folder")
     from ..outdir import _check_writable

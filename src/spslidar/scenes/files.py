@@ -142,6 +142,20 @@ def _load_npz(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return depth, refl, valid, notes
 
 
+def _tiff_pages(path: Path) -> int:
+    """How many pages a TIFF holds (1 for any other file, or one tifffile cannot open:
+    the image reader then says why)."""
+    if path.suffix.lower() not in (".tif", ".tiff"):
+        return 1
+    try:
+        import tifffile
+
+        with tifffile.TiffFile(path) as tif:
+            return max(1, len(tif.pages))
+    except Exception:
+        return 1
+
+
 def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype, tuple[float, float]]:
     import logging
 
@@ -150,6 +164,17 @@ def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype, tuple[flo
 
     quiet = logging.getLogger("tifffile")  # (it logged "invalid offset to first page" on a
     level = quiet.level                     # damaged file, beside the refusal: an audit)
+    quiet.setLevel(logging.CRITICAL)
+    try:
+        pages = _tiff_pages(path)
+    finally:
+        quiet.setLevel(level)
+    if pages > 1:
+        # (a 3- or 4-page TIFF was read as one RGB(A) image, its pages mixed into one grey
+        # map by the luminance weights, silently: an outside audit of 2026-12-03)
+        raise SceneError(f"scene image {label} is a TIFF of {pages} pages: a scene is one "
+                         f"image; save the page you mean on its own (or give a .npy depth "
+                         f"map)")
     quiet.setLevel(logging.CRITICAL)
     try:
         with warnings.catch_warnings():  # imageio warns while probing plugins on bad files
@@ -175,6 +200,8 @@ def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype, tuple[flo
     # said to be "(float64, 0 .. 1)", a float TIFF or 16-bit PNG, an audit)
     kind = img.dtype
     span = (float(np.nanmin(img)), float(np.nanmax(img))) if img.size else (0.0, 0.0)
+    if img.ndim == 3 and img.shape[-1] == 2:  # grey + alpha: the alpha dropped, as RGBA's
+        img = img[..., 0]
     if img.ndim == 3 and img.shape[-1] in (3, 4):
         if img.shape[-1] == 4:
             img = img[..., :3]
