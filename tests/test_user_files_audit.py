@@ -139,3 +139,21 @@ def test_a_full_disk_under_save_ptu_is_named_as_that_file(tmp_path):
     assert info.value.errno == errno.ENOSPC
     assert f"--save-ptu {target}" in info.value.filename
     assert list(tmp_path.iterdir()) == []  # nothing left, not even the temporary file
+
+
+def test_npy_patterns_at_the_dmds_resolution_get_the_pattern_size_hint(tmp_path):
+    """As a folder of images did: 16 x 16 patterns saved as 64 x 64 blocks of 4 x 4."""
+    from spslidar.io.lab_arrays import read_patterns_file
+
+    rng = np.random.default_rng(0)
+    p = (rng.random((40, 16, 16)) > 0.5).astype(np.float32)
+    np.save(tmp_path / "dmd.npy", np.kron(p, np.ones((1, 4, 4), np.float32)))
+    np.save(tmp_path / "p16.npy", p)
+    with pytest.warns(UserWarning, match="4 x 4 blocks.*--pattern-size 16"):
+        read_patterns_file(tmp_path / "dmd.npy")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_patterns_file(tmp_path / "p16.npy")  # (its own resolution: no hint)
+    np.testing.assert_array_equal(read_patterns_file(tmp_path / "dmd.npy", 16), p)

@@ -333,6 +333,13 @@ def read_patterns_file(path: str | os.PathLike, size: int | None = None) -> np.n
         arr = _npy_or_say(p, "patterns", ".npy, .npz, .mat, a multi-page .tif or a folder "
                                          "of images")
         _npy_layout_note(arr, str(p))
+    if size is None and arr.ndim == 3 and (np.issubdtype(arr.dtype, np.number)
+                                           or arr.dtype == bool):
+        # (patterns at the DMD's resolution got the hint as images, not as an .npy: an
+        # outside audit of 2026-12-03)
+        from .lab_images import block_hint
+
+        block_hint(arr, p, "pattern", stacklevel=3)
     return arr if size is None else reduce_patterns(arr, size, f"--patterns {p}")
 
 

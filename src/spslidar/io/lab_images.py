@@ -435,18 +435,27 @@ def tiff_patterns(p: Path, size: int | None = None) -> np.ndarray:
     return _sized(to_states(images, f"--patterns {p}"), size, p)
 
 
+def block_hint(stack: np.ndarray, where, what: str = "image", stacklevel: int = 3) -> None:
+    """Warn where every pattern of ``stack`` (``(M, H, W)``, at least 8 x 8) is made of K x K
+    blocks of one state, K > 1: ``--pattern-size`` reads them as the patterns they show, the
+    same information in a map K^2 times smaller to solve."""
+    if stack.ndim != 3 or stack.shape[1] < 8 or stack.shape[0] == 0:
+        return
+    k = _block_side(stack)
+    if k > 1 and stack.shape[1] // k >= 4 and stack.shape[2] // k >= 4:
+        warnings.warn(f"--patterns {where}: every {what} is made of {k} x {k} blocks of "
+                      f"mirrors at one state: --pattern-size "
+                      f"{stack.shape[1] // k if stack.shape[1] == stack.shape[2] else '...'} "
+                      f"reads them as the patterns they show ({stack.shape[2] // k} x "
+                      f"{stack.shape[1] // k}), the same information in a map "
+                      f"{k * k} times smaller to solve", stacklevel=stacklevel)
+
+
 def _sized(stack: np.ndarray, size: int | None, where: Path) -> np.ndarray:
     """Images read at their own size: a warning where they are blocks of one state (the
     size that holds the same information), one line where they are not square."""
-    if size is None and stack.shape[1] >= 8:
-        k = _block_side(stack)
-        if k > 1 and stack.shape[1] // k >= 4 and stack.shape[2] // k >= 4:
-            warnings.warn(f"--patterns {where}: every image is made of {k} x {k} blocks of "
-                          f"mirrors at one state: --pattern-size "
-                          f"{stack.shape[1] // k if stack.shape[1] == stack.shape[2] else '...'} "
-                          f"reads them as the patterns they show ({stack.shape[2] // k} x "
-                          f"{stack.shape[1] // k}), the same information in a map "
-                          f"{k * k} times smaller to solve", stacklevel=3)
+    if size is None:
+        block_hint(stack, where, "image", stacklevel=4)
     if stack.shape[1] != stack.shape[2]:
         raise ConfigError(f"--patterns {where}: the images are {stack.shape[2]} x "
                           f"{stack.shape[1]}, not square: crop them to the square region "
