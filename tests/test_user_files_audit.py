@@ -157,3 +157,16 @@ def test_npy_patterns_at_the_dmds_resolution_get_the_pattern_size_hint(tmp_path)
         warnings.simplefilter("error")
         read_patterns_file(tmp_path / "p16.npy")  # (its own resolution: no hint)
     np.testing.assert_array_equal(read_patterns_file(tmp_path / "dmd.npy", 16), p)
+
+
+def test_messages_read_as_written():
+    """A ratio under its floor is not said equal to it; a TOML's true is said as true."""
+    from spslidar.config import Config
+    from spslidar.errors import ConfigError
+    from spslidar.pipeline.score import _apart
+
+    a, b = _apart(2.066, 2.07)
+    assert a != b and float(a) < float(b)
+    assert _apart(1.5, 2.07) == ("1.50", "2.07")
+    with pytest.raises(ConfigError, match=r"--size must be a number, got true \("):
+        Config(size=True)

@@ -310,7 +310,10 @@ class Config:
                 return
             opt = name.replace("_", "-")
             if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise ConfigError(f"--{opt} must be a number, got {v!r}")
+                # (a TOML's `size = true` was said as "got True", Python's spelling: an
+                # outside audit of 2026-12-03)
+                got = f"{str(v).lower()} (a true/false value)" if isinstance(v, bool) else repr(v)
+                raise ConfigError(f"--{opt} must be a number, got {got}")
             try:  # a NaN, an infinity or an integer beyond any float is none of these
                 finite = math.isfinite(float(v))
             except OverflowError:

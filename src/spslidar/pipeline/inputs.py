@@ -217,11 +217,11 @@ def _check_truth(truth: Any, n: int) -> np.ndarray:
         raise ConfigError("--truth holds booleans (a mask?): a depth map in metres is expected, "
                           "NaN where the depth is unknown")
     if arr.dtype.kind not in "iuf":
-        raise ConfigError(f"--truth must be an ({n}, {n}) depth map in metres of real numbers, "
+        raise ConfigError(f"--truth must be a ({n}, {n}) depth map in metres of real numbers, "
                           f"got dtype {arr.dtype}")
     arr = arr.astype(np.float64)
     if arr.shape != (n, n):
-        raise ConfigError(f"--truth must be an ({n}, {n}) depth map, got {arr.shape}")
+        raise ConfigError(f"--truth must be a ({n}, {n}) depth map, got {arr.shape}")
     known = ~np.isnan(arr)
     if not known.any():  # (refused after the file was read, naming the PTU as a "scene")
         raise ConfigError("--truth holds no depth (every pixel is NaN): give the depths in "

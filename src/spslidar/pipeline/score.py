@@ -157,7 +157,8 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         warns.append(
             f"the depth map is mostly noise: at most a tenth of the pixels hold a return above "
             f"it (the 90th percentile of each pixel's peak over its own profile's noise maximum "
-            f"is {peak_ratio:.2f}, under the {peak_floor:.2f} a return stands at; noise alone "
+            f"is {_apart(peak_ratio, peak_floor)[0]}, under the "
+            f"{_apart(peak_ratio, peak_floor)[1]} a return stands at; noise alone "
             f"gives {null:.2f} here, {n_seen}): check that the range gate "
             f"{gate_text(meas.gate)} m holds the scene, the signal level, or "
             f"acquire longer")
@@ -324,3 +325,14 @@ def resolved_config(cfg: Config, acq: Acquisition, gate, auto_gate: bool, iterat
         if name not in used and name in d:
             d[name] = None
     return d
+
+
+
+def _apart(value: float, floor: float) -> tuple[str, str]:
+    """``value`` and ``floor`` with the digits (2 to 6) that tell them apart: "2.07, under the
+    2.07" was said of 2.066 under 2.07 (an outside audit of 2026-12-03)."""
+    for digits in range(2, 7):
+        a, b = f"{value:.{digits}f}", f"{floor:.{digits}f}"
+        if a != b:
+            break
+    return a, b
