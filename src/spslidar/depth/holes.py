@@ -139,7 +139,8 @@ def _dim_alike(a: np.ndarray, label: np.ndarray, z: np.ndarray, shape: tuple[int
                share: float, near: int = 1, exclude: int = 2) -> np.ndarray:
     """Pixels with a 4-neighbour at their own label (within ``near`` slices) whose return
     there is as weak as theirs against the same surroundings (at most ``share`` of the
-    median of the pixel's neighbours' returns) and whose own tallest return is that label
+    median of the pixel's neighbours' returns, and at most ``1 / share`` times the pixel's
+    own) and whose own tallest return is that label
     (within ``exclude`` slices): a dim structure the label holds (a dark pole before a
     bright wall, whose pixels return at the pole), not an object's hole (whose pixels'
     argmaxes are the object's)."""
