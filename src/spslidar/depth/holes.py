@@ -52,7 +52,7 @@ import warnings
 import numpy as np
 
 from .dots import DOT_FDR, argmax_groups, step_up
-from .profile import noise_maxima
+from .profile import noise_maxima, shift2d
 
 __all__ = ["HALO_SHARE", "HOLE_DOT_LEVEL", "HOLE_LEVEL", "HOLE_SHARE", "HOLE_SIZE",
            "hole_dots", "holes"]
@@ -73,14 +73,29 @@ _FOUR = ((0, 1), (0, -1), (1, 0), (-1, 0))
 _EIGHT = tuple((dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx)
 
 
-def _neighbours(shape: tuple[int, int], dy: int, dx: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each pixel's neighbour at ``(dy, dx)`` (row-major index, clipped) and whether it is
-    inside the image."""
-    n1, n2 = shape
-    ii, jj = np.indices(shape)
-    ni, nj = ii + dy, jj + dx
-    inside = ((ni >= 0) & (ni < n1) & (nj >= 0) & (nj < n2)).ravel()
-    return (np.clip(ni, 0, n1 - 1) * n2 + np.clip(nj, 0, n2 - 1)).ravel(), inside
+def _neighbours(shape: tuple[int, int], offsets) -> list[tuple[np.ndarray, np.ndarray]]:
+    """For each ``(dy, dx)`` of ``offsets``: each pixel's neighbour there (row-major index;
+    the pixel's own outside the image) and whether it is inside (the index image moved by
+    :func:`~.profile.shift2d`)."""
+    index = np.arange(shape[0] * shape[1]).reshape(shape)
+    out = []
+    for dy, dx in offsets:
+        nb = shift2d(index, dy, dx, fill=-1).ravel()
+        inside = nb >= 0
+        out.append((np.where(inside, nb, index.ravel()), inside))
+    return out
+
+
+def _surroundings(label: np.ndarray, z: np.ndarray, four: list
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Each pixel's evidence at its label, and the median of its 4-neighbours' (``four``,
+    :func:`_neighbours` of :data:`_FOUR`; NaN where it has none)."""
+    own = z[np.arange(z.shape[0]), label]
+    around = np.array([np.where(inside, own[nb], np.nan) for nb, inside in four])
+    with warnings.catch_warnings():  # (a 1 x 1 image has no neighbour: no hole)
+        warnings.simplefilter("ignore", RuntimeWarning)
+        typical = np.nanmedian(around, axis=0)
+    return own, typical
 
 
 def holes(label: np.ndarray, z: np.ndarray, nu: float, shape: tuple[int, int],
@@ -107,36 +122,26 @@ def holes(label: np.ndarray, z: np.ndarray, nu: float, shape: tuple[int, int],
     -------
     ndarray of bool, shape (Q,)
     """
+    four = _neighbours(shape, _FOUR)
+    return _holes(label, z, nu, four, *_surroundings(label, z, four), share, level, near)
+
+
+def _holes(label: np.ndarray, z: np.ndarray, nu: float, four: list, own: np.ndarray,
+           typical: np.ndarray, share: float, level: float, near: int) -> np.ndarray:
+    """:func:`holes` on the neighbours and surroundings already computed."""
     q, k = z.shape
     rows = np.arange(q)
-    own, typical = _surroundings(label, z, shape)
     seen = own.copy()  # the pixel's evidence at its own label and near each neighbour's
-    for dy, dx in _FOUR:
-        nb, inside = _neighbours(shape, dy, dx)
+    for nb, inside in four:
         for o in range(-near, near + 1):
             at = np.clip(label[nb] + o, 0, k - 1)
             seen = np.where(inside, np.maximum(seen, z[rows, at]), seen)
     return np.isfinite(typical) & (typical >= level * nu) & (seen <= share * typical)
 
 
-def _surroundings(label: np.ndarray, z: np.ndarray, shape: tuple[int, int]
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Each pixel's evidence at its label, and the median of its 4-neighbours' (NaN where
-    it has none)."""
-    q = z.shape[0]
-    own = z[np.arange(q), label]
-    around = np.full((len(_FOUR), q), np.nan)
-    for t, (dy, dx) in enumerate(_FOUR):
-        nb, inside = _neighbours(shape, dy, dx)
-        around[t] = np.where(inside, own[nb], np.nan)
-    with warnings.catch_warnings():  # (a 1 x 1 image has no neighbour: no hole)
-        warnings.simplefilter("ignore", RuntimeWarning)
-        typical = np.nanmedian(around, axis=0)
-    return own, typical
-
-
-def _dim_alike(a: np.ndarray, label: np.ndarray, z: np.ndarray, shape: tuple[int, int],
-               share: float, near: int = 1, exclude: int = 2) -> np.ndarray:
+def _dim_alike(a: np.ndarray, label: np.ndarray, four: list, own: np.ndarray,
+               typical: np.ndarray, share: float, near: int = 1, exclude: int = 2
+               ) -> np.ndarray:
     """Pixels with a 4-neighbour at their own label (within ``near`` slices) whose return
     there is as weak as theirs against the same surroundings (at most ``share`` of the
     median of the pixel's neighbours' returns, and at most ``1 / share`` times the pixel's
@@ -144,10 +149,8 @@ def _dim_alike(a: np.ndarray, label: np.ndarray, z: np.ndarray, shape: tuple[int
     (within ``exclude`` slices): a dim structure the label holds (a dark pole before a
     bright wall, whose pixels return at the pole), not an object's hole (whose pixels'
     argmaxes are the object's)."""
-    own, typical = _surroundings(label, z, shape)
     alike = np.zeros(own.size, dtype=bool)
-    for dy, dx in _FOUR:
-        nb, inside = _neighbours(shape, dy, dx)
+    for nb, inside in four:
         alike |= (inside & (np.abs(label[nb] - label) <= near) & (own[nb] <= share * typical)
                   & (share * own[nb] <= own) & (np.abs(a[nb] - label[nb]) <= exclude))
     return alike
@@ -182,21 +185,21 @@ def hole_dots(a: np.ndarray, label: np.ndarray, z: np.ndarray, nu: float,
         The pixels to give their argmax.
     """
     q = z.shape[0]
-    rows = np.arange(q)
-    za, r = z[rows, a], z[rows, label]
-    hole = holes(label, z, nu, shape)
+    za = z[np.arange(q), a]
+    four = _neighbours(shape, _FOUR)
+    r, typical = _surroundings(label, z, four)  # (r: each pixel's evidence at its label)
+    hole = _holes(label, z, nu, four, r, typical, HOLE_SHARE, HOLE_LEVEL, 1)
     cand = hole & (np.abs(a - label) > exclude) & (za >= level * nu) & (za >= r)
     if not cand.any():
         return cand
     brighter = np.zeros(q)  # the tallest 8-neighbour at the pixel's argmax, argmax there too
-    for dy, dx in _EIGHT:
-        nb, inside = _neighbours(shape, dy, dx)
+    for nb, inside in _neighbours(shape, _EIGHT):
         there = inside & (np.abs(a[nb] - a) <= 1)
         brighter = np.maximum(brighter, np.where(there, z[nb, a], 0.0))
     cand &= (za >= halo * brighter) & (argmax_groups(a, shape) <= size)
     if not cand.any():
         return cand
-    cand &= ~_dim_alike(a, label, z, shape, HOLE_SHARE)
+    cand &= ~_dim_alike(a, label, four, r, typical, HOLE_SHARE)
     if not cand.any():
         return cand
     return step_up(za, cand, noise_maxima(z, exclude, centre=label), r[hole], fdr)
