@@ -154,11 +154,11 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
             f"pixel's peak repeats every {acq.unambiguous_range:.4g} m (see the range-gate "
             f"warning)")
     elif verdict is not None and peak_ratio < peak_floor:
+        ratio_text, floor_text = _apart(peak_ratio, peak_floor)
         warns.append(
             f"the depth map is mostly noise: at most a tenth of the pixels hold a return above "
             f"it (the 90th percentile of each pixel's peak over its own profile's noise maximum "
-            f"is {_apart(peak_ratio, peak_floor)[0]}, under the "
-            f"{_apart(peak_ratio, peak_floor)[1]} a return stands at; noise alone "
+            f"is {ratio_text}, under the {floor_text} a return stands at; noise alone "
             f"gives {null:.2f} here, {n_seen}): check that the range gate "
             f"{gate_text(meas.gate)} m holds the scene, the signal level, or "
             f"acquire longer")

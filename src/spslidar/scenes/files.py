@@ -142,7 +142,7 @@ def _load_npz(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return depth, refl, valid, notes
 
 
-def _tiff_pages(path: Path) -> int:
+def _tiff_page_count(path: Path) -> int:
     """How many pages a TIFF holds (1 for any other file, or one tifffile cannot open:
     the image reader then says why)."""
     if path.suffix.lower() not in (".tif", ".tiff"):
@@ -166,22 +166,13 @@ def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype, tuple[flo
     level = quiet.level                     # damaged file, beside the refusal: an audit)
     quiet.setLevel(logging.CRITICAL)
     try:
-        pages = _tiff_pages(path)
-    finally:
-        quiet.setLevel(level)
-    if pages > 1:
-        # (a 3- or 4-page TIFF was read as one RGB(A) image, its pages mixed into one grey
-        # map by the luminance weights, silently: an outside audit of 2026-12-03)
-        raise SceneError(f"scene image {label} is a TIFF of {pages} pages: a scene is one "
-                         f"image; save the page you mean on its own (or give a .npy depth "
-                         f"map)")
-    quiet.setLevel(logging.CRITICAL)
-    try:
-        with warnings.catch_warnings():  # imageio warns while probing plugins on bad files
-            warnings.simplefilter("ignore")
-            img = np.asarray(io.imread(path))
-        if img.size == 0:  # (a TIFF with no page read as an empty array: "shape (0,)")
-            raise ValueError("no image in it")
+        pages = _tiff_page_count(path)
+        if pages == 1:
+            with warnings.catch_warnings():  # imageio warns while probing plugins on bad files
+                warnings.simplefilter("ignore")
+                img = np.asarray(io.imread(path))
+            if img.size == 0:  # (a TIFF with no page read as an empty array: "shape (0,)")
+                raise ValueError("no image in it")
     except Exception as exc:
         reason = _reason(exc)
         reason = reason if len(reason) <= 120 else reason[:117] + "..."
@@ -191,6 +182,12 @@ def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype, tuple[flo
         ) from None
     finally:
         quiet.setLevel(level)
+    if pages > 1:
+        # (a 3- or 4-page TIFF was read as one RGB(A) image, its pages mixed into one grey
+        # map by the luminance weights, silently: an outside audit of 2026-12-03)
+        raise SceneError(f"scene image {label} is a TIFF of {pages} pages: a scene is one "
+                         f"image; save the page you mean on its own (or give a .npy depth "
+                         f"map)")
     if np.iscomplexobj(img) or not (np.issubdtype(img.dtype, np.number)
                                     or img.dtype == bool):
         # a complex TIFF (e.g. a saved FFT) has no grey level to map onto depth
