@@ -430,8 +430,7 @@ def test_the_returns_delays_and_a_gate_around_them(tmp_path, k):
 
 def test_returns_refused_where_they_cannot_be_read(tmp_path, capsys):
     """A bit rate whose bit is no whole number of TDC bins, a code period the sync's is not,
-    and --code without --bit-rate. (Another code of the same length is not told apart: a
-    strong return correlated with it stands out too, 27 standard deviations here.)"""
+    and --code without --bit-rate. (Another code of the same length: below.)"""
     from spslidar.codes.sequences import make_code
     from spslidar.pipeline.file_advice import returns_in_file
 
@@ -595,3 +594,108 @@ def test_a_t2_files_returns_from_its_sync_records(tmp_path, capsys):
     assert "returns (the photons of every block, correlated with the code): 0.5996 m" in \
         _said(capsys, str(tmp_path / "p.ptu"), "--code", str(tmp_path / "c.npy"),
               "--bit-rate", "1e10")
+
+
+# -- the code sent, told from another of its length (2026-12-03) -------------------------------
+
+def test_an_unrelated_codes_share_is_the_gaussian_tails(tmp_path):
+    """:func:`unrelated_share` against a Monte-Carlo of its own premise: the top ``q`` of
+    a million Gaussian values by magnitude hold that share of their squares (the sampling
+    error of each share is under 1e-3 at this size)."""
+    from spslidar.pipeline.file_advice import unrelated_share
+
+    z2 = np.sort(np.random.default_rng(0).standard_normal(1_000_000) ** 2)[::-1]
+    for q in (0.01, 0.05, 0.2, 0.5, 0.9):
+        top = z2[:int(q * z2.size)].sum() / z2.sum()
+        assert unrelated_share(q) == pytest.approx(top, abs=3e-3)
+    assert unrelated_share(0.0) == 0.0 and unrelated_share(1.0) == pytest.approx(1.0)
+
+
+def test_the_code_sent_explains_its_photons(tmp_path):
+    """Noiseless counts made of a background and the code delayed to three bits are
+    explained whole through the code at those bits (a least-squares fit, exact here), and
+    half-explained with one of them left out; flat Poisson counts vary too little to judge."""
+    from spslidar.codes.sequences import make_code
+    from spslidar.pipeline.file_advice import explained_share
+
+    code = make_code("gold", 127, index=2)
+    bits = 40.0 + sum(a * np.roll(code.astype(float), lag)
+                      for lag, a in ((5, 300.0), (60, 200.0), (61, 100.0)))
+    occupied = np.zeros(127, bool)
+    occupied[[5, 60, 61]] = True
+    assert explained_share(bits, code, occupied) == pytest.approx(1.0, abs=1e-9)
+    occupied[5] = False
+    assert 0.2 < explained_share(bits, code, occupied) < 0.8
+    flat = np.random.default_rng(1).poisson(50.0, 127).astype(float)
+    assert explained_share(flat, code, occupied) is None
+
+
+@pytest.mark.parametrize("other", ["random", "gold"])
+def test_another_code_of_the_same_length_is_said(tmp_path, capsys, other):
+    """Two returns through a 127-bit m-sequence, read through another 127-bit code (a random
+    one, or a Gold code): it shows returns at many delays, but they explain less of the
+    counts than as many delays of an unrelated code would, and inspect says so first; the
+    code sent explains nearly all and nothing is said (a stronger, single return through
+    the code sent, and the same file's photons cut to a tenth, likewise)."""
+    from spslidar.codes.sequences import make_code
+    from spslidar.pipeline.file_advice import returns_in_file
+
+    code = make_code("mseq", L)
+    wrong = (make_code("random", L, rng=3) if other == "random"
+             else make_code("gold", L, index=5))
+    _psst_file(tmp_path / "r.ptu", code, [40, 90])
+    scan = scan_ptu(tmp_path / "r.ptu")
+    sent = returns_in_file(scan, code, 1 / BW)
+    assert sent["code_share"] > 0.99 and not sent["code_doubt"]
+    got = returns_in_file(scan, wrong, 1 / BW)
+    assert got["ok"] and len(got["peaks"]) >= 3 and got["code_doubt"]
+    assert got["code_share"] < got["unrelated_share"]
+    np.save(tmp_path / "w.npy", wrong)
+    np.save(tmp_path / "c.npy", code)
+    out = _said(capsys, str(tmp_path / "r.ptu"), "--code", str(tmp_path / "w.npy"),
+                "--bit-rate", "1e10")
+    said = out.split("for 'spslidar reconstruct':")[1].split("\n  - ")
+    assert said[-2].startswith("the photons do not follow this code: the returns it shows")
+    assert said[-1].startswith("returns (the photons of every block")
+    assert "do not follow" not in _said(capsys, str(tmp_path / "r.ptu"), "--code",
+                                        str(tmp_path / "c.npy"), "--bit-rate", "1e10")
+    _psst_file(tmp_path / "s.ptu", code, [7], signal=30000)
+    assert not returns_in_file(scan_ptu(tmp_path / "s.ptu"), code, 1 / BW)["code_doubt"]
+    _psst_file(tmp_path / "d.ptu", code, [40, 90], signal=300)
+    dim = returns_in_file(scan_ptu(tmp_path / "d.ptu"), code, 1 / BW)
+    assert not dim.get("code_doubt")
+
+
+def test_a_tailed_return_and_one_too_weak_to_judge(tmp_path):
+    """A return with an exponential tail (each photon 0, 1, 2 ... bits late with odds 0.7,
+    an IRF's) through the code sent: its delays above the threshold leave a tenth of the
+    counts' variation unexplained, still far from an unrelated code's share, so not doubted;
+    a single return at 8 standard deviations varies the counts too little to judge (None)."""
+    from spslidar.codes.sequences import make_code
+    from spslidar.pipeline.file_advice import returns_in_file
+
+    code = make_code("mseq", L)
+    rng = np.random.default_rng(0)
+    on, events = np.flatnonzero(code), []
+    for _ in range(8):
+        late = rng.geometric(0.3, 1000) - 1
+        bits = np.concatenate([(rng.choice(on, 1000) + 40 + late) % L,
+                               rng.integers(0, L, 3000)])
+        events.append(np.column_stack([np.sort(rng.integers(0, 200, bits.size)), bits]))
+    write_acquisition_ptu(tmp_path / "t.ptu", events, L, BW, periods_per_pattern=200)
+    got = returns_in_file(scan_ptu(tmp_path / "t.ptu"), code, 1 / BW)
+    assert 0.8 < got["code_share"] < 0.95 and not got["code_doubt"]
+    _psst_file(tmp_path / "w.ptu", code, [40], signal=200)
+    weak = returns_in_file(scan_ptu(tmp_path / "w.ptu"), code, 1 / BW)
+    assert len(weak["peaks"]) == 1 and weak["code_share"] is None
+
+
+@pytest.mark.skipif(not REAL.is_dir(), reason="../shared/realdata is absent")
+def test_a_flim_file_read_through_a_made_up_code_is_said(tmp_path, capsys):
+    """The real hazelnut FLIM file (no PSST acquisition) read through a made-up 132-bit code
+    at the bit rate its sync fits: five "returns" at 44-388 standard deviations, said not to
+    follow the code."""
+    np.save(tmp_path / "c.npy", (np.random.default_rng(1).random(132) < 0.5).astype(np.int8))
+    out = _said(capsys, str(REAL / "hazelnut_z10.ptu"), "--code", str(tmp_path / "c.npy"),
+                "--bit-rate", "10.3125e9")
+    assert "the photons do not follow this code" in out
