@@ -19,6 +19,7 @@ from ..depth.profile import (
     NOISE_ONLY_MIN_SLICES,
     verdict_and_room,
 )
+from ..instrument import window_share
 from ..metrics import (
     chance_rmse,
     depth_errors,
@@ -33,6 +34,7 @@ from ..version import __version__
 from .acquisition import Acquisition
 from .gate import gate_text
 from .measurement import Measurement
+from .plan import detector_options
 from .results import Result
 from .weights import regulariser_kind
 
@@ -127,6 +129,12 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         # the code's own sidelobes beside its peak, summed with the return (a Gold code's
         # wall read 1.125 for 1, an outside audit of 2026-12-01)
         reflectivity = reflectivity / window_response(acq.code, acq.replica)
+        # and the simulated instrument's IRF and jitter beyond that window (a tailed IRF's
+        # wall read 0.74-0.79 of its reflectivity, an outside audit of 2026-12-03)
+        share = window_share(cfg, acq.bin_width, acq.period, detector_options(cfg))
+        if share != 1.0:  # (said where an instrument spreads its returns)
+            reflectivity = reflectivity / share
+            refit_info = {**refit_info, "instrument_window_share": share}
     # the estimators' no-return rule is relative to the brightest pixels: an image of noise
     # (nothing in the gate, too little signal) would come out as a full depth map, silently
     # (a calibrated instrument's returns span its response: sim's response_half_width)
