@@ -311,6 +311,12 @@ def test_settle_refusals(tmp_path, capsys):
                  marker=np.array([1, 0, 0, 1, 0]), resolution_s=1e-10, sync_rate_hz=1e10 / 31)
     with pytest.raises(ConfigError, match="as long as the blocks' median dwell of 6.5 syncs"):
         read_ptu_histograms(path, 31, bin_width=1e-10, settle_s=31e-10 * 8)
+    # a time under a sync is left out as one whole sync, and said so (an audit of 2026-12-03)
+    write_ptu_t3(tmp_path / "one.ptu", nsync=np.array([0, 1, 1, 2, 2]),
+                 dtime=np.array([0, 2, 3, 0, 4]), marker=np.array([1, 0, 1, 1, 0]),
+                 resolution_s=1e-10, sync_rate_hz=1e10 / 31)
+    with pytest.raises(ConfigError, match=r"1e-10 s \(rounded up to 1 whole sync of 3.1e-09 s\)"):
+        read_ptu_histograms(tmp_path / "one.ptu", 31, bin_width=1e-10, settle_s=1e-10)
     assert read_ptu_histograms(path, 31, bin_width=1e-10,
                                settle_s=31e-10 * 1.5).n_dropped_settling == 1
     np.save(tmp_path / "p.npy", np.stack([np.eye(4), 1 - np.eye(4)]))

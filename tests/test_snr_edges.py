@@ -161,11 +161,29 @@ def test_the_trials_the_warning_names_resolve_it():
 def test_the_floor_is_trials_times_snr_of_4():
     from spslidar.snr.simulate import _unresolved
 
-    c = np.array([3.0, 5.0, 4.0, 6.0])  # four trials with a variance
+    c = np.array([3.0, 5.0, 4.0, 6.0, 3.0, 5.0, 4.0, 6.0, 3.0, 5.0])  # ten, with a variance
     finite = (1.0, 0.1, 0.5, 1.5)
-    assert _unresolved(c, 1.0, 1.0, finite) is None  # 4 x 1 = 4: resolved
-    why = _unresolved(c, 0.99, 1.0, finite)
-    assert why and "trials x SNR = 3.96, under 4" in why and "use --trials 5 or more" in why
+    assert _unresolved(c, 0.4, 1.0, finite) is None  # 10 x 0.4 = 4: resolved
+    why = _unresolved(c, 0.396, 1.0, finite)
+    assert why and "trials x SNR = 3.96, under 4" in why and "use --trials 11 or more" in why
+
+
+def test_too_few_trials_for_a_variance(capsys):
+    """Under ten periods the counts' variance is no estimate, however high eq. (10)'s SNR
+    (3 periods printed simulated/theory = 6.87 from an interval of 0 to 1.4e6, unflagged: an
+    outside audit of 2026-12-03); ten are read."""
+    from spslidar.snr.simulate import MIN_TRIALS, _unresolved
+
+    c = np.array([3.0, 5.0, 4.0, 6.0, 3.0, 5.0, 4.0, 6.0, 3.0, 5.0])
+    finite = (1.0, 0.1, 0.5, 1.5)
+    assert MIN_TRIALS == 10 and _unresolved(c, 1e4, 1.0, finite) is None
+    why = _unresolved(c[:9], 1e4, 1.0, finite)
+    assert why and "a variance from 9 periods is no estimate" in why
+    assert "use --trials 10 or more" in why
+    assert main(["snr", "--code-length", "1023", "--size", "16", "--method", "histogram",
+                 "--trials", "3"]) == 0
+    out = capsys.readouterr()
+    assert "simulated/theory = unresolved" in out.out and "from 3 periods" in out.err
 
 
 def test_a_resolvable_low_snr_still_gets_its_ratio(capsys):

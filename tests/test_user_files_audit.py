@@ -170,3 +170,26 @@ def test_messages_read_as_written():
     assert _apart(1.5, 2.07) == ("1.50", "2.07")
     with pytest.raises(ConfigError, match=r"--size must be a number, got true \("):
         Config(size=True)
+
+
+# -- a second audit of the commands' bad inputs (2026-12-03) ----------------------------------
+
+def test_empty_files_are_said_to_be_empty(tmp_path, capsys):
+    """A 0-byte PTU file and a 0-byte scene image: one line each saying the file is empty
+    (they read "is not a PtuFile magic=b''" and imageio's plugin list cut mid-word), status
+    2, nothing written; a longer reason is cut at a word."""
+    (tmp_path / "e.ptu").write_bytes(b"")
+    assert main(["inspect", str(tmp_path / "e.ptu")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is empty (0 bytes): not a PicoQuant PTU file" in err
+    (tmp_path / "e.png").write_bytes(b"")
+    assert main(["run", "--scene", str(tmp_path / "e.png"), "--size", "16", "--out",
+                 str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "cannot read scene image e.png: the file is empty (0 bytes)" in err
+    assert not (tmp_path / "o").exists()
+    (tmp_path / "b.png").write_bytes(b"not a png at all, but long enough to be read " * 4)
+    assert main(["run", "--scene", str(tmp_path / "b.png"), "--size", "16", "--out",
+                 str(tmp_path / "o")]) == 2
+    reason = capsys.readouterr().err.split("(", 1)[1].split("): use a grey", 1)[0]
+    assert len(reason) <= 120 and (not reason.endswith("...") or reason.endswith(" ..."))

@@ -38,7 +38,8 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
                     "period, eq. (10) of Shen et al., with a simulation of Poisson photon "
                     "counts and the unipolar replica. Prints theory and simulation (with a "
                     "95% interval). Where the periods cannot resolve the SNR (periods x SNR "
-                    "under 4, or no variance in their counts) the ratio reads 'unresolved' and "
+                    "under 4, fewer than 10 periods, or no variance in their counts) the ratio "
+                    "reads 'unresolved' and "
                     "a warning names the --trials that would.")
     p.add_argument("--code", choices=CODES.names(), type=CODES.canonical, default="mseq",
                    help=f"code family: {CODES.help_text()}")
@@ -105,7 +106,8 @@ def cmd_snr(args: argparse.Namespace) -> int:
     object ``{"theory", "simulated", "stderr", "ci95", "ratio", "resolved", "params"}``.
 
     Where the trials cannot resolve the SNR (:func:`~spslidar.snr.snr_simulated`'s
-    RuntimeWarning, printed as one line on stderr: ``trials x SNR`` below 4, or no variance in
+    RuntimeWarning, printed as one line on stderr: ``trials x SNR`` below 4, fewer than 10
+    trials, or no variance in
     the counts) the ratio reads ``unresolved`` (``null`` and ``"resolved": false`` in JSON),
     and so does any simulated number that is not finite; the status stays 0, since eq. (10)
     and the simulation's bound are still printed and the options are valid. A signal or a

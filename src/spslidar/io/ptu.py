@@ -671,7 +671,11 @@ def read_ptu_histograms(
     settled = np.zeros(0, np.int64)
     if settle:
         if np.median(dwell) <= settle:
-            raise ConfigError(f"{spath!r}: the settling time {settle_s:g} s ({settle} syncs) "
+            # (the time is left out in whole syncs: 1 ns read as "(1 syncs)" beside a 102 ns
+            # sync, as if the user had given a sync's length, an audit of 2026-12-03)
+            whole = (f"rounded up to {settle} whole sync{'s' if settle != 1 else ''} of "
+                     f"{period:.4g} s")
+            raise ConfigError(f"{spath!r}: the settling time {settle_s:g} s ({whole}) "
                               f"is as long as the blocks' median dwell of "
                               f"{float(np.median(dwell)):.4g} syncs: no photon would be left")
         settled = np.minimum(dwell, settle) * fold

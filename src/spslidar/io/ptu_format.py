@@ -219,6 +219,8 @@ def _open_ptu(path: PathLike):
     if not os.path.isfile(path):
         raise ConfigError(f"{os.fspath(path)!r} is not a PTU file (a folder or a device, not a "
                           f"regular file)")
+    if os.path.getsize(path) == 0:  # (ptufile's "is not a PtuFile magic=b''", an audit)
+        raise ConfigError(f"{os.fspath(path)!r} is empty (0 bytes): not a PicoQuant PTU file")
     try:
         _walk_header(path)
     except OSError as exc:  # (/proc/self/mem: "while writing --out", an audit of 2026-11-30)

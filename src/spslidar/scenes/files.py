@@ -162,6 +162,8 @@ def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype, tuple[flo
     from skimage import io
     from skimage.color import rgb2gray
 
+    if path.is_file() and path.stat().st_size == 0:  # (imageio's plugin list, cut: an audit)
+        raise SceneError(f"cannot read scene image {label}: the file is empty (0 bytes)")
     quiet = logging.getLogger("tifffile")  # (it logged "invalid offset to first page" on a
     level = quiet.level                     # damaged file, beside the refusal: an audit)
     quiet.setLevel(logging.CRITICAL)
@@ -175,7 +177,8 @@ def _load_image(path: Path, label: str) -> tuple[np.ndarray, np.dtype, tuple[flo
                 raise ValueError("no image in it")
     except Exception as exc:
         reason = _reason(exc)
-        reason = reason if len(reason) <= 120 else reason[:117] + "..."
+        # (cut at a word, not inside one: "Based on the extension, the fo...", an audit)
+        reason = reason if len(reason) <= 120 else reason[:117].rsplit(" ", 1)[0] + " ..."
         raise SceneError(
             f"cannot read scene image {label} ({reason}): use a grey or RGB "
             f"{'/'.join(_IMAGE_SUFFIXES)} image"
