@@ -193,3 +193,21 @@ def test_empty_files_are_said_to_be_empty(tmp_path, capsys):
                  str(tmp_path / "o")]) == 2
     reason = capsys.readouterr().err.split("(", 1)[1].split("): use a grey", 1)[0]
     assert len(reason) <= 120 and (not reason.endswith("...") or reason.endswith(" ..."))
+
+
+def test_inspect_checks_as_reconstruct_does(tmp_path, capsys):
+    """``inspect``'s --bit-rate in reconstruct's range, said as reconstruct says it, and
+    --pattern-size checked without --patterns too (0 passed silently: an audit of
+    2026-12-03)."""
+    from spslidar.io import write_acquisition_ptu
+
+    events = [np.array([[0, 3], [1, 5]])]
+    write_acquisition_ptu(tmp_path / "a.ptu", events, 31, 1e-10, periods_per_pattern=4)
+    np.save(tmp_path / "c.npy", (np.arange(31) % 2).astype(np.uint8))
+    for rate in ("0", "1e3", "1e14"):
+        assert main(["inspect", str(tmp_path / "a.ptu"), "--code", str(tmp_path / "c.npy"),
+                     "--bit-rate", rate]) == 2
+        assert "--bit-rate must be in [1e6, 1e13] bits (TDC bins) per second" in (
+            capsys.readouterr().err)
+    assert main(["inspect", str(tmp_path / "a.ptu"), "--pattern-size", "0"]) == 2
+    assert "--pattern-size" in capsys.readouterr().err
