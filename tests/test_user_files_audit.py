@@ -211,3 +211,19 @@ def test_inspect_checks_as_reconstruct_does(tmp_path, capsys):
             capsys.readouterr().err)
     assert main(["inspect", str(tmp_path / "a.ptu"), "--pattern-size", "0"]) == 2
     assert "--pattern-size" in capsys.readouterr().err
+
+
+def test_numpys_short_write_is_said_as_a_full_disk(tmp_path, monkeypatch, capsys):
+    """NumPy's own message for a short write ("1024 requested and 496 written", no errno) is
+    said as the full disk it is, in one line, nothing left in --out (an audit of 2026-12-03)."""
+    def short(*args, **kwargs):
+        raise OSError("1024 requested and 496 written")
+
+    monkeypatch.setattr(np, "save", short)
+    assert main(["run", "--scene", "steps", "--size", "8", "--code-length", "127",
+                 "--no-figure", "--out", str(tmp_path / "o")]) == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if "error:" in line]
+    assert len(errors) == 1  # (the run's warnings come before it)
+    assert ("error: the disk is full (1024 requested and 496 written): while writing --out"
+            in errors[0])
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())

@@ -582,7 +582,12 @@ def _main(argv: list[str] | None = None) -> int:
         if not where and out:  # (a full disk said "File too large" and nothing more, an audit)
             where = (f"while writing --out {out} (written under a temporary name: what was "
                      f"there before is as it was)")
-        print(one_line(f"spslidar {args.command}: error: {exc.strerror or exc}: "
+        why = exc.strerror or str(exc)
+        if exc.errno is None and " requested and " in why and " written" in why:
+            # (NumPy's short write on a full disk: "1024 requested and 496 written", an audit
+            # of 2026-12-03)
+            why = f"the disk is full ({why})"
+        print(one_line(f"spslidar {args.command}: error: {why}: "
                        f"{where}".rstrip(": ")), file=sys.stderr)
         return EXIT_BAD_INPUT
     except MemoryError as exc:
