@@ -699,3 +699,25 @@ def test_a_flim_file_read_through_a_made_up_code_is_said(tmp_path, capsys):
     out = _said(capsys, str(REAL / "hazelnut_z10.ptu"), "--code", str(tmp_path / "c.npy"),
                 "--bit-rate", "10.3125e9")
     assert "the photons do not follow this code" in out
+
+
+def test_reconstruct_says_a_code_the_photons_do_not_follow(tmp_path, capsys):
+    """``reconstruct`` through another code of the file's length warns first that the
+    photons do not follow it (read through a random code, a 127-bit m-sequence's scan read
+    as a map of noise without saying why); through the code sent it does not."""
+    from spslidar.codes.sequences import make_code
+
+    acq = tmp_path / "acq.ptu"
+    assert main(["run", "--scene", "steps", "--size", "8", "--code-length", "127",
+                 "--compression", "1", "--signal", "2", "--noise", "0.05", "--range-gate",
+                 "9.5", "11", "--no-figure", "--save-ptu", str(acq), "--out",
+                 str(tmp_path / "run")]) == 0
+    capsys.readouterr()
+    np.save(tmp_path / "w.npy", make_code("random", 127, rng=3))
+    common = ["reconstruct", "--ptu", str(acq), "--patterns", str(tmp_path / "acq_patterns.npy"),
+              "--bit-rate", "10e9", "--range-gate", "9.5", "11"]
+    assert main([*common, "--code", str(tmp_path / "acq_code.npy"), "--out",
+                 str(tmp_path / "a")]) == 0
+    assert "do not follow --code" not in capsys.readouterr().err
+    assert main([*common, "--code", str(tmp_path / "w.npy"), "--out", str(tmp_path / "b")]) == 0
+    assert "the photons do not follow --code" in capsys.readouterr().err

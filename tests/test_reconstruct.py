@@ -160,7 +160,7 @@ def test_run_save_ptu_round_trip(tmp_path):
 
 @pytest.mark.parametrize("change,match", [
     ({"--ptu": "trunc"}, "truncated or corrupt"),
-    ({"--ptu": "empty"}, "not a readable PicoQuant PTU"),
+    ({"--ptu": "empty"}, "is empty (0 bytes): not a PicoQuant PTU file"),
     ({"--patterns": "huge"}, "cannot read patterns"),
     ({"--patterns": "two"}, "marker-delimited blocks but --patterns has 2 rows"),
     ({"--code": "zeros"}, "needs both 0 and 1 bits"),

@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 
 __all__ = ["CODE_DOUBT", "GATE_MARGIN_BINS", "RETURN_SIGMAS", "advice", "count",
-           "explained_share", "header_refusal", "num", "returns_in_file", "returns_text", "si",
+           "code_doubt_note", "explained_share", "header_refusal",
+           "judge_code", "occupied_delays", "num", "returns_in_file", "returns_text", "si",
            "unrelated_share"]
 
 #: a delay holds a return where the whole acquisition's correlation rises this many
@@ -387,8 +388,6 @@ def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
         enough to tell.
     """
     from ..constants import SPEED_OF_LIGHT
-    from ..correlate import auto_replica, correlation_noise_sigma, make_replica
-    from .gate import code_sidelobes, occupied_lags
 
     h = scan["header"]
     counts = scan.get("dtime_counts")
@@ -420,13 +419,8 @@ def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
     bits = np.bincount((np.arange(counts.size) // k) % n, weights=counts, minlength=n)[:n]
     if not bits.sum() > 0:
         return {"ok": False, "why": "the file holds no photons"}
-    kind = auto_replica(code)
-    replica = make_replica(code, kind)
-    corr = np.fft.irfft(np.fft.rfft(bits) * np.conj(np.fft.rfft(replica)), n=n)
-    sigma = correlation_noise_sigma(bits[None, :], replica)
+    kind, corr, sigma, hit = occupied_delays(bits, code)
     lags = np.arange(n)
-    hit = occupied_lags(corr[None, :], sigma, RETURN_SIGMAS, 0, lags,
-                        code_sidelobes(code, replica))
     metres = SPEED_OF_LIGHT * width / 2
     out: dict[str, Any] = {"ok": True, "unambiguous_m": n * metres, "replica": kind,
                            "peaks": [], "gate_m": None,
@@ -461,19 +455,69 @@ def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
                       "sigmas": float((corr[top] - base) / sigma[0])})
     peaks.sort(key=lambda p: -p["sigmas"])
     out["peaks"] = peaks[:5]
-    share = explained_share(bits, code, hit)
-    out["code_share"] = share
-    if share is not None:
-        chance = unrelated_share(hit.mean())
-        out["occupied_share"] = float(hit.mean())
-        out["unrelated_share"] = chance
-        out["code_doubt"] = (1 - share) > CODE_DOUBT * (1 - chance)
+    out.update(judge_code(bits, code, hit))
     first = runs[0][0]
     span = (runs[-1][-1] - first) % n
     lo = first - GATE_MARGIN_BINS
     lo += n if lo < 0 else 0  # (a gate in metres from 0: the same delays a period on)
     out["gate_m"] = (lo * metres, (lo + span + 2 * GATE_MARGIN_BINS) * metres)
     return out
+
+
+def occupied_delays(bits: np.ndarray, code: np.ndarray
+                    ) -> tuple[str, np.ndarray, np.ndarray, np.ndarray]:
+    """The photons of a whole acquisition summed per code bit, correlated with the code's
+    replica (eq. 5-6), and the delays that rise :data:`RETURN_SIGMAS` standard deviations
+    above the median, a code's sidelobes cleaned (:func:`~spslidar.pipeline.gate.
+    occupied_lags`): ``(replica kind, correlation, its noise sigma, occupied mask)``."""
+    from ..correlate import auto_replica, correlation_noise_sigma, make_replica
+    from .gate import code_sidelobes, occupied_lags
+
+    bits = np.asarray(bits, dtype=np.float64)
+    n = bits.size
+    kind = auto_replica(code)
+    replica = make_replica(code, kind)
+    corr = np.fft.irfft(np.fft.rfft(bits) * np.conj(np.fft.rfft(replica)), n=n)
+    sigma = correlation_noise_sigma(bits[None, :], replica)
+    hit = occupied_lags(corr[None, :], sigma, RETURN_SIGMAS, 0, np.arange(n),
+                        code_sidelobes(code, replica))
+    return kind, corr, sigma, hit
+
+
+def judge_code(bits: np.ndarray, code: np.ndarray, hit: np.ndarray) -> dict[str, Any]:
+    """Whether the photons follow ``code``: ``code_share`` (:func:`explained_share`; None
+    where the counts do not vary enough to tell) and, where it is known, ``occupied_share``,
+    ``unrelated_share`` and ``code_doubt`` (the returns leave more than :data:`CODE_DOUBT`
+    of what as many delays of an unrelated code would leave unexplained)."""
+    share = explained_share(bits, code, hit) if hit.any() else None
+    out: dict[str, Any] = {"code_share": share}
+    if share is not None:
+        chance = unrelated_share(float(hit.mean()))
+        out.update(occupied_share=float(hit.mean()), unrelated_share=chance,
+                   code_doubt=bool((1 - share) > CODE_DOUBT * (1 - chance)))
+    return out
+
+
+def code_doubt_note(bits: np.ndarray, code: np.ndarray) -> str | None:
+    """``reconstruct``'s warning where the photons summed over every pattern, per code bit,
+    do not follow ``code`` (:func:`judge_code`); None where they do or cannot be judged (no
+    delay stands out, or more than half of them do: the noise verdict speaks then)."""
+    bits = np.asarray(bits, dtype=np.float64)
+    if bits.ndim != 1 or bits.size != np.size(code) or not bits.sum() > 0:
+        return None
+    hit = occupied_delays(bits, code)[3]
+    if not hit.any() or hit.mean() > 0.5:
+        return None
+    said = judge_code(bits, code, hit)
+    if not said.get("code_doubt"):
+        return None
+    return (f"the photons do not follow --code: the returns it shows, at "
+            f"{100 * said['occupied_share']:.0f} % of its delays, explain "
+            f"{100 * said['code_share']:.0f} % of how the counts summed over the patterns vary "
+            f"over its bits, no more than as many delays of a code unrelated to them would "
+            f"(about {100 * said['unrelated_share']:.0f} %; the code sent explains nearly "
+            f"all): check --code (its family, length, --code-index, a file's bit order) and "
+            f"--bit-rate; the depth map is read through a code the photons do not follow")
 
 
 def explained_share(bits: np.ndarray, code: np.ndarray, occupied: np.ndarray

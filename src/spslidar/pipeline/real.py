@@ -409,6 +409,12 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     inverted = inverted_code_note(corr, sigma)
     if inverted:
         dwell_warning.append(inverted)
+    else:  # (a code the photons do not follow: its returns scattered over the period, read
+        # as a map of noise or of wrong depths, an audit of 2026-12-03)
+        from .file_advice import code_doubt_note
+
+        doubt = code_doubt_note(hist.sum(axis=0), code)
+        dwell_warning += [doubt] if doubt else []
     # (a calibrated instrument's return is its code through the response: signal_code)
     signal, _ = split_counts(corr, sigma, totals, ulags, signal_code, replica, gain)
     # (with the plain code and replica, then the response taken out: a return through any
