@@ -413,7 +413,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         # as a map of noise or of wrong depths, an audit of 2026-12-03)
         from .file_advice import code_doubt_note
 
-        doubt = code_doubt_note(hist.sum(axis=0), code)
+        seen = pile.get("dead_time_s") or pile.get("apparent_dead_time_s") or 0.0
+        doubt = code_doubt_note(hist.sum(axis=0), code,
+                                float(pile.get("count_rate_hz") or 0.0) * float(seen))
         dwell_warning += [doubt] if doubt else []
     # (a calibrated instrument's return is its code through the response: signal_code)
     signal, _ = split_counts(corr, sigma, totals, ulags, signal_code, replica, gain)
