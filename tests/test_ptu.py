@@ -480,7 +480,7 @@ def test_empty_and_cut_files_are_one_line(tmp_path):
     write_acquisition_ptu(good, [np.array([[0, 1]])], L, BW)
     empty = tmp_path / "empty.ptu"
     empty.write_bytes(b"")
-    _raises("not a readable PicoQuant PTU file", empty, L)
+    _raises(r"is empty \(0 bytes\): not a PicoQuant PTU file", empty, L)
     cut = tmp_path / "cut.ptu"
     cut.write_bytes(good.read_bytes()[:12])
     _raises("truncated or corrupt PTU tag header", cut, L)
