@@ -65,7 +65,8 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
     p.add_argument("--reflectivity", type=float, default=1.0, metavar="A",
                    help="reflectivity of the pixels, in (0, 1] (default 1)")
     p.add_argument("--trials", type=int, default=200, metavar="K",
-                   help="code periods simulated, >= 2 (default 200)")
+                   help="code periods simulated, >= 2 (default 200; under 10 no ratio is "
+                        "read: a variance from fewer is no estimate)")
     p.add_argument("--method", choices=SNR_METHODS, default="sum",
                    help="sum: one Poisson draw of the correlator's 'on' bins (default); "
                         "histogram: full TDC histograms and the matched filter")
