@@ -378,7 +378,8 @@ def test_a_sweeps_time_is_shared_by_the_cores_not_by_jobs(tmp_path, capsys, monk
                      "--max-time", "0.001"]) == 2
         lines = capsys.readouterr().err.strip().splitlines()
         if jobs == "1000":  # the clamp is said first (it was silent here: an audit)
-            assert lines[0] == "spslidar: --jobs 1000 clamped to 2 (10 runs to do, 2 cores)"
+            assert lines[0] == ("spslidar sweep: warning: --jobs 1000 clamped to 2 (10 runs to "
+                                "do, 2 cores)")
             lines = lines[1:]
         assert len(lines) == 1, lines
         said.append(float(_re.search(r"take ~([0-9.]+) s", lines[0]).group(1)))

@@ -241,7 +241,8 @@ def test_a_clamp_of_jobs_is_said(tmp_path, capsys, monkeypatch):
     toml.write_text(SMALL + "[grid]\nnoise = [1]\n")
     assert main(["sweep", str(toml), "--out", str(tmp_path / "o"), "--jobs", "8",
                  "--no-progress"]) == 0
-    assert "spslidar: --jobs 8 clamped to 1 (1 runs to do, 2 cores)" in capsys.readouterr().err
+    assert ("spslidar sweep: warning: --jobs 8 clamped to 1 (1 runs to do, 2 cores)"
+            in capsys.readouterr().err)
 
 
 def test_a_garbled_loky_cpu_count_is_one_line_and_leaves_no_folder(tmp_path, monkeypatch,

@@ -420,14 +420,17 @@ def _cmd_sweep(args) -> int:
     """``spslidar sweep``: exit status 0 when every run succeeded, 1 when the work did not
     complete (some runs failed, or a worker process was killed), 2 on bad input."""
     from .experiments.sweep import sweep_main
+    from .experiments.sweep.command import SweepIncomplete
     from .experiments.sweep.engine import WorkerLost
 
     try:
         return 1 if sweep_main(args.config, args.out, jobs=args.jobs, scheduler=args.scheduler,
                                progress=not args.no_progress, max_time=args.max_time,
                                overwrite=args.overwrite) else 0
-    except WorkerLost as exc:  # (a killed worker was joblib's 30-line traceback: an audit
-        # of 2026-11-29) one line; the work did not complete, as where runs failed
+    except (WorkerLost, SweepIncomplete) as exc:  # (a killed worker was joblib's 30-line
+        # traceback: an audit of 2026-11-29; a results.csv a full disk refused exited 2, as
+        # bad input: an outside audit of 2026-12-03) one line; the work did not complete, as
+        # where runs failed
         print(f"spslidar sweep: {exc}", file=sys.stderr)
         return 1
 

@@ -329,7 +329,15 @@ def preflight(config: Config | dict | None = None, **overrides):
     cfg = _resolve(config, overrides)
     _check_pattern_floor(cfg)
     scene = load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
-    return _plan(cfg, scene, [], announce=False).budget
+    return preflight_plan(cfg, scene).budget
+
+
+def preflight_plan(cfg: Config, scene) -> Any:
+    """:func:`preflight`'s checks of ``cfg`` on a scene already loaded, returning the whole
+    plan (its acquisition's code period and bin width, which a check of the IRF needs, and
+    its budget): a sweep loads each distinct scene once for all its points."""
+    _check_pattern_floor(cfg)
+    return _plan(cfg, scene, [], announce=False)
 
 
 def _check_pattern_floor(cfg: Config) -> None:

@@ -14,7 +14,8 @@ The engine
 * records a point whose function raises as a row with an ``error`` column and carries on
   (failed points are not cached: a rerun retries them), a ``SystemExit`` included;
 * raises :class:`WorkerLost`, one line naming the runs cached, where a local worker process
-  is killed under it (a Dask cluster runs a lost worker's points again).
+  is killed under it (a Dask cluster runs a lost worker's points again), and
+  :class:`SweepIncomplete` where ``results.csv`` cannot be written (a full disk).
 
 Sweep configurations are TOML files (:func:`load_sweep_config`)::
 
@@ -46,7 +47,7 @@ spslidar runs its points again; a call without ``code`` keys on the parameters a
 changing ``func``, use a fresh ``out_dir`` or pass ``code``).
 """
 
-from spslidar.experiments.sweep.command import run_point, sweep_main
+from spslidar.experiments.sweep.command import SweepIncomplete, run_point, sweep_main
 from spslidar.experiments.sweep.engine import WorkerLost, run_sweep
 from spslidar.experiments.sweep.grid import (
     ERROR_KEY,
@@ -68,6 +69,7 @@ __all__ = [
     "SEED_BOUND",
     "SEED_KEY",
     "TRIAL_KEY",
+    "SweepIncomplete",
     "SweepSpec",
     "WorkerLost",
     "atomic_write_bytes",

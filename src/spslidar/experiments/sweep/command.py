@@ -24,6 +24,7 @@ from spslidar.experiments.sweep.grid import (
     canonical_json,
     derive_seed,
     load_sweep_config,
+    one_line,
     resolve_point_files,
     same_value,
     sha256_hex,
@@ -31,7 +32,7 @@ from spslidar.experiments.sweep.grid import (
 )
 from spslidar.experiments.sweep.store import cached_point_state, say_outcome, write_csv
 
-__all__ = ["run_point", "sweep_main"]
+__all__ = ["SweepIncomplete", "run_point", "sweep_main"]
 
 
 
@@ -132,6 +133,55 @@ def _seeded(points: Sequence[Mapping[str, Any]], ignored: list[dict[str, str]],
     return out
 
 
+#: the run keys that set the photon flux alone (the noise model's and the pulses' photon
+#: number): a point's plan (scene, code, range gate, memory and time estimate) does not
+#: depend on them, so it is made once for all their values (a grid of 90 noise by 100
+#: signal values planned each of its 9 000 points, 6 min 44 s before its --max-time
+#: refusal: an outside audit of 2026-12-03)
+FLUX_KEYS = frozenset({"signal", "noise", "noise_split", "ambient", "background_rate",
+                       "dark_count_rate"})
+
+
+def _preflight(cfg: Any, scenes: dict[str, Any]) -> Any:
+    """:func:`spslidar.pipeline.preflight` of ``cfg``, with the scene read once per distinct
+    scene, size and depth window (``scenes`` holds them: loading it was nearly all of the
+    check's time), and the instrument checked as a run checks it once the plan is known: the
+    IRF through :func:`~spslidar.instrument.irf_kernel` at the code's period (a ``.npy`` of
+    NaN or a file that is no array passed the check and failed every run, exit 1 with a
+    folder written, where ``run --irf`` refuses it: an outside audit of 2026-12-03) and the
+    detector model built with its options.
+
+    Parameters
+    ----------
+    cfg : Config
+        One point's configuration.
+    scenes : dict[str, Any]
+        The scenes loaded so far, by their arguments' canonical JSON; filled here.
+
+    Returns
+    -------
+    Budget
+        The run's memory and time estimate.
+
+    Raises
+    ------
+    ConfigError
+        Where the run would refuse the configuration.
+    """
+    from spslidar.detectors import build_detector
+    from spslidar.instrument import irf_kernel, parse_irf
+    from spslidar.pipeline.plan import detector_options, preflight_plan
+    from spslidar.scenes import load_scene
+
+    where = canonical_json([cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max], "scene")
+    if where not in scenes:
+        scenes[where] = load_scene(cfg.scene, cfg.size, cfg.depth_min, cfg.depth_max)
+    plan = preflight_plan(cfg, scenes[where])
+    irf_kernel(parse_irf(cfg.irf), plan.acq.bin_width, plan.acq.period)
+    build_detector(cfg.detector, **detector_options(cfg))
+    return plan.budget
+
+
 def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
                          ignored: list[dict[str, str]] | None = None,
                          unpriced: dict[str, int] | None = None,
@@ -145,40 +195,66 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
     detector model whose cost depends on the flux (not ``linear``: the GMAPD's dead-time
     model, which a run prices from its first block of patterns as it runs, not before),
     ``memory`` each point's estimated bytes with its ``max_memory`` (GB, or None), ``costs``
-    each point's estimated seconds."""
+    each point's estimated seconds.
+
+    Each point's configuration is validated (:class:`~spslidar.config.Config`, its noise
+    model); the plan, the instrument and the estimate (:func:`_preflight`) once per distinct
+    configuration but its seed and :data:`FLUX_KEYS`, processing keys included (they were
+    left out, and a grid over solvers was priced, and its memory checked, at its first
+    solver's).
+    """
     from spslidar.config import Config
     from spslidar.detectors import DETECTORS
-    from spslidar.pipeline import preflight
-    from spslidar.pipeline.measurement import processing_keys
+    from spslidar.detectors.counting import NoiseModel
     from spslidar.pipeline.plan import ignored_keys
 
     seconds: dict[str, float] = {}
     peak: dict[str, float] = {}
+    scenes: dict[str, Any] = {}
+    linear: dict[str, bool] = {}
+    noises: set[str] = set()
+    #: each distinct point's (ignored options, plan key, max_memory, detector): a sweep's
+    #: trials are one configuration, checked once
+    done: dict[str, tuple[dict[str, str], str, Any, str]] = {}
     total = 0.0
-    processing = processing_keys()
     for params in points:
         config = {key: value for key, value in params.items()
                   if key not in (TRIAL_KEY, SCENE_HASH_KEY, IRF_HASH_KEY)}
         try:
-            cfg = Config.from_dict(config)
-            if ignored is not None:
-                ignored.append(ignored_keys(cfg))
-            # the scene loads and the memory fits: once per simulated configuration
-            key = canonical_json({k: v for k, v in cfg.to_dict().items()
-                                  if k not in processing and k != "seed"})
-            if key not in seconds:
-                budget = preflight(cfg)
-                seconds[key], peak[key] = budget.seconds, budget.bytes
-            total += seconds[key]
-            if costs is not None:
-                costs.append(seconds[key])
-            if memory is not None:
-                memory.append((peak[key], cfg.max_memory))
-            if unpriced is not None and not getattr(DETECTORS.load(cfg.detector), "linear",
-                                                    True):
-                unpriced[cfg.detector] = unpriced.get(cfg.detector, 0) + 1
+            text = canonical_json(config)
+            if text not in done:
+                cfg = Config.from_dict(config)
+                # the noise model as the run builds it, once per split, ambient model and
+                # rates (its check of m_n is Config's, and building it was a sixth of the
+                # check's time)
+                noise = canonical_json([list(cfg.noise_split), cfg.ambient,
+                                        cfg.background_rate, cfg.dark_count_rate])
+                if noise not in noises:
+                    NoiseModel(cfg.noise, tuple(cfg.noise_split), cfg.ambient,
+                               cfg.background_rate, cfg.dark_count_rate)
+                    noises.add(noise)
+                # (of the point as given, a function of which its Config is: to_dict's deep
+                # copy was a third of the check's time)
+                key = canonical_json({k: v for k, v in config.items()
+                                      if k.replace("-", "_") not in FLUX_KEYS and k != "seed"})
+                if key not in seconds:
+                    budget = _preflight(cfg, scenes)
+                    seconds[key], peak[key] = budget.seconds, budget.bytes
+                if cfg.detector not in linear:
+                    linear[cfg.detector] = getattr(DETECTORS.load(cfg.detector), "linear", True)
+                done[text] = (ignored_keys(cfg), key, cfg.max_memory, cfg.detector)
         except (ConfigError, SpslidarError) as exc:
             raise ConfigError(f"{where}: {exc}") from None
+        skip, key, max_memory, detector = done[text]
+        if ignored is not None:
+            ignored.append(dict(skip))
+        total += seconds[key]
+        if costs is not None:
+            costs.append(seconds[key])
+        if memory is not None:
+            memory.append((peak[key], max_memory))
+        if unpriced is not None and not linear[detector]:
+            unpriced[detector] = unpriced.get(detector, 0) + 1
     return total
 
 
@@ -257,6 +333,9 @@ def sweep_main(
     WorkerLost
         Where a local worker process was killed under the sweep: the finished runs are
         cached, and the same call again resumes.
+    SweepIncomplete
+        Where the runs ran but ``results.csv`` could not be written (a full disk): the
+        finished runs stay cached in ``out_dir/runs``, and the same call again writes it.
     """
     from spslidar.plugins import code_fingerprint
 
@@ -310,8 +389,10 @@ def sweep_main(
         else:
             # local workers are at most the cores (--jobs 1000 divided a 9 h sweep into 31 s),
             # said as run_sweep says it (--jobs 8 on 2 cores was clamped to 2 without a word
-            # here: an audit of 2026-11-29)
-            workers = engine.clamp_jobs(jobs, to_run) if to_run else 1
+            # here: an audit of 2026-11-29), as a warning of the sweep's (an outside audit
+            # of 2026-12-03)
+            workers = (engine.clamp_jobs(jobs, to_run, prefix="spslidar sweep: warning")
+                       if to_run else 1)
             if workers > 1:
                 workers = _jobs_that_fit(memory, workers)
             if to_run:
@@ -341,6 +422,7 @@ def sweep_main(
 
     if isinstance(scheduler, str):
         engine._probe_scheduler(scheduler)  # before the folder is made
+    _check_marker_readable(out_dir)
     existed = Path(out_dir).exists()
     folder = claim_folder(out_dir, "sweep")  # new, empty or an earlier sweep's: never a user's
     # the sweep's identity: its points with their seeds, as the TOML gives them (a second
@@ -380,10 +462,98 @@ def sweep_main(
 
     with folder_lock(folder):  # (two sweeps into one folder: checked again as it is written)
         _check_replaceable(folder, out_dir, identity, overwrite, after=True)
-        with journal(folder, [RESULTS_CSV]):  # its SHA-256 in the marker before it is in place
-            csv_path = write_csv(rows, Path(out_dir) / RESULTS_CSV)
-        record_outputs(folder, [RESULTS_CSV], extra={"sweep_points": identity})
+        csv_path = None
+        try:
+            with journal(folder, [RESULTS_CSV]):  # its SHA-256 in the marker before in place
+                csv_path = write_csv(rows, Path(out_dir) / RESULTS_CSV)
+            record_outputs(folder, [RESULTS_CSV], extra={"sweep_points": identity})
+        except OSError as exc:
+            # the runs ran: a full disk here is work that did not complete, not bad input
+            # (it exited 2 and said nothing of the runs it left cached: an outside audit of
+            # 2026-12-03)
+            raise SweepIncomplete(_unwritten(out_dir, rows, exc, csv_path is not None)) \
+                from None
     return say_outcome(rows, [*spec.grid, TRIAL_KEY], csv_path, counts)
+
+
+class SweepIncomplete(RuntimeError):
+    """The sweep's runs ran but its ``results.csv`` could not be written (a full disk): one
+    line naming the folder left and what it holds; the command line gives it with exit
+    status 1, the work did not complete."""
+
+
+def _unwritten(out_dir: str | os.PathLike[str], rows: Sequence[Mapping[str, Any]],
+               exc: OSError, written: bool = False) -> str:
+    """:class:`SweepIncomplete`'s line: why ``results.csv`` was not written, the folder left
+    and the cached runs in it that the same command reuses.
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+        The sweep's ``--out``.
+    rows : Sequence[Mapping[str, Any]]
+        Its rows, from :func:`~spslidar.experiments.sweep.engine.run_sweep`.
+    exc : OSError
+        What the write raised.
+    written : bool, default False
+        Whether ``results.csv`` was in place, and the marker's record of it failed.
+
+    Returns
+    -------
+    str
+        One line.
+    """
+    from spslidar.experiments.sweep.grid import ERROR_KEY
+
+    why = exc.strerror or one_line(exc) or type(exc).__name__
+    runs = Path(out_dir) / "runs"
+    try:
+        cached = sum(1 for p in runs.glob("*.json") if p.is_file())
+    except OSError:
+        cached = 0
+    failed = sum(1 for row in rows if ERROR_KEY in row)
+    held = (f"{cached} finished run{'s' if cached != 1 else ''} cached in {runs}" if cached
+            else f"no finished run ({runs} is empty)")
+    if failed:
+        held += (f" ({failed} failed run{'s are' if failed != 1 else ' is'} not cached: "
+                 f"{'they run' if failed != 1 else 'it runs'} again)")
+    what = (f"{RESULTS_CSV} was written into {out_dir} but the folder's marker could not "
+            f"record it" if written else f"{RESULTS_CSV} could not be written into {out_dir}")
+    return (f"{what} ({why}): the folder is left holding {held}; free some space and run the "
+            f"same command with --out {out_dir} again: it reads the cached runs instead of "
+            f"running them and writes {RESULTS_CSV}")
+
+
+def _check_marker_readable(out_dir: str | os.PathLike[str]) -> None:
+    """Refuse, in one line, a folder whose spslidar marker is there but cannot be read (not
+    JSON, or not a marker's fields): it was said to hold "no spslidar marker", which sent the
+    user looking for a file that is there (an outside audit of 2026-12-03). Nothing is
+    changed: the folder may hold an earlier sweep's cached runs.
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+        The sweep's ``--out``.
+
+    Raises
+    ------
+    ConfigError
+        Where ``out_dir/.spslidar-output.json`` exists and :func:`~spslidar.outdir.read_marker`
+        cannot read it.
+    """
+    from spslidar.outdir import MARKER, read_marker
+
+    folder = Path(out_dir)
+    try:
+        there = (folder / MARKER).exists() or (folder / MARKER).is_symlink()
+    except OSError:  # (an unreadable folder is claim_folder's to say)
+        return
+    if there and folder.is_dir() and read_marker(folder) is None:
+        raise ConfigError(
+            f"--out {out_dir}: its spslidar marker {MARKER} is there but unreadable (damaged "
+            f"or edited: not a marker's JSON), so the folder cannot be known as the output of "
+            f"an earlier 'spslidar sweep' (which it would resume); refusing to write into it, "
+            f"nothing was changed (choose a new or empty folder)")
 
 
 def _check_replaceable(folder: Path, out_dir, identity: str, overwrite: bool,

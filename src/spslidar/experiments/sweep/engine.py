@@ -406,11 +406,14 @@ def _cores() -> int:
         os.cpu_count() or 1)
 
 
-def clamp_jobs(jobs: int, n_tasks: int) -> int:
+def clamp_jobs(jobs: int, n_tasks: int, prefix: str = "spslidar") -> int:
     """The worker processes worth starting: at most one per task, per core and per what the
     process limit (``ulimit -u``) leaves room for (``-1``: the cores); a clamp is said on
-    stderr (``--jobs 1000`` for 3 runs started a 1000-process pool, and where the process
-    limit was low it ended in a traceback). 1 means run in this process, without a pool."""
+    stderr after ``prefix`` (``--jobs 1000`` for 3 runs started a 1000-process pool, and where
+    the process limit was low it ended in a traceback). 1 means run in this process, without
+    a pool. The ``spslidar sweep`` command passes ``"spslidar sweep: warning"``, the prefix
+    of its other warnings (it said "spslidar: --jobs 999 clamped to 2": an outside audit of
+    2026-12-03)."""
     cores = _cores()
     want = cores if jobs == -1 else jobs
     use = max(1, min(want, cores, max(1, n_tasks)))
@@ -424,7 +427,7 @@ def clamp_jobs(jobs: int, n_tasks: int) -> int:
             why = (f"the process limit, ulimit -u {limit} with {used} in use, leaves room for "
                    f"{'no worker pool' if fit < 2 else f'{fit} workers'}")
     if use < want:
-        print(f"spslidar: --jobs {jobs} clamped to {use} ({why})", file=sys.stderr)
+        print(f"{prefix}: --jobs {jobs} clamped to {use} ({why})", file=sys.stderr)
     return use
 
 

@@ -407,6 +407,39 @@ def one_line(text: str) -> str:
 MAX_RUNS = 10_000
 
 
+def _check_misplaced(path: Path, base: Mapping[str, Any], grid: Mapping[str, Any]) -> None:
+    """Refuse, in one line of the kind a misplaced ``base = [1, 2]`` gets, a sweep key
+    (``base``, ``grid``, ``trials``) written after the ``[base]`` or ``[grid]`` header, which
+    TOML reads as a key of that table: ``grid = 3`` under ``[base]`` said "[grid] is empty and
+    trials = 1, so there is nothing to sweep" (an outside audit of 2026-12-03).
+
+    Parameters
+    ----------
+    path : Path
+        The sweep TOML, for the message.
+    base, grid : Mapping[str, Any]
+        Its ``[base]`` and ``[grid]`` tables, as read.
+
+    Raises
+    ------
+    ConfigError
+        Where either table holds one of those keys.
+    """
+    for where, table in (("base", base), ("grid", grid)):
+        for key in ("base", "grid", "trials"):
+            if key not in table:
+                continue
+            value = table[key]
+            read = (f"written after the [{where}] header, it is read as {where}.{key}: a "
+                    f"TOML key belongs to the table above it")
+            if key != "trials" and not isinstance(value, dict):
+                raise ConfigError(f"{path}: {key} must be a table ([{key}]), got {value!r} "
+                                  f"({read})")
+            raise ConfigError(f"{path}: {where}.{key} is not a run key ({read}; write "
+                              + ("trials before the first table)" if key == "trials" else
+                                 f"[{key}] as a table of its own)"))
+
+
 def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
     """Read a sweep configuration from a TOML file.
 
@@ -467,6 +500,7 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
     grid = data.get("grid", {})
     if not isinstance(grid, dict):
         raise ConfigError(f"{path}: grid must be a table ([grid]), got {grid!r}")
+    _check_misplaced(path, base, grid)
     # each key as a run reads it, two spellings of one refused: a grid over "lam-scale" drew
     # another seed for each weight (2361523904 and 2280320822 where lam_scale shares
     # 4221282710), and named its results.csv column as spelled (an outside audit)
