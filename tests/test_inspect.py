@@ -666,6 +666,19 @@ def test_another_code_of_the_same_length_is_said(tmp_path, capsys, other):
     assert not dim.get("code_doubt")
 
 
+def _tailed_file(path: Path, code: np.ndarray, odds: float) -> None:
+    """8 blocks of 1000 photons of a return at bit 40, each a geometric number of bits late
+    (success ``odds``: an IRF's tail), and 3000 background photons."""
+    rng = np.random.default_rng(0)
+    on, events = np.flatnonzero(code), []
+    for _ in range(8):
+        late = rng.geometric(odds, 1000) - 1
+        bits = np.concatenate([(rng.choice(on, 1000) + 40 + late) % L,
+                               rng.integers(0, L, 3000)])
+        events.append(np.column_stack([np.sort(rng.integers(0, 200, bits.size)), bits]))
+    write_acquisition_ptu(path, events, L, BW, periods_per_pattern=200)
+
+
 def test_a_tailed_return_and_one_too_weak_to_judge(tmp_path):
     """A return with an exponential tail (each photon 0, 1, 2 ... bits late with odds 0.7,
     an IRF's) through the code sent: its delays above the threshold leave a tenth of the
@@ -675,14 +688,7 @@ def test_a_tailed_return_and_one_too_weak_to_judge(tmp_path):
     from spslidar.pipeline.file_advice import returns_in_file
 
     code = make_code("mseq", L)
-    rng = np.random.default_rng(0)
-    on, events = np.flatnonzero(code), []
-    for _ in range(8):
-        late = rng.geometric(0.3, 1000) - 1
-        bits = np.concatenate([(rng.choice(on, 1000) + 40 + late) % L,
-                               rng.integers(0, L, 3000)])
-        events.append(np.column_stack([np.sort(rng.integers(0, 200, bits.size)), bits]))
-    write_acquisition_ptu(tmp_path / "t.ptu", events, L, BW, periods_per_pattern=200)
+    _tailed_file(tmp_path / "t.ptu", code, 0.3)
     got = returns_in_file(scan_ptu(tmp_path / "t.ptu"), code, 1 / BW)
     assert 0.8 < got["code_share"] < 0.95 and not got["code_doubt"]
     _psst_file(tmp_path / "w.ptu", code, [40], signal=200)
@@ -739,14 +745,7 @@ def test_a_long_tail_through_the_code_sent_is_no_doubt(tmp_path):
     )
 
     code = make_code("mseq", L)
-    rng = np.random.default_rng(0)
-    on, events = np.flatnonzero(code), []
-    for _ in range(8):
-        late = rng.geometric(0.1, 1000) - 1
-        bits = np.concatenate([(rng.choice(on, 1000) + 40 + late) % L,
-                               rng.integers(0, L, 3000)])
-        events.append(np.column_stack([np.sort(rng.integers(0, 200, bits.size)), bits]))
-    write_acquisition_ptu(tmp_path / "t.ptu", events, L, BW, periods_per_pattern=200)
+    _tailed_file(tmp_path / "t.ptu", code, 0.1)
     scan = scan_ptu(tmp_path / "t.ptu")
     counts = np.bincount(np.arange(scan["dtime_counts"].size) % L,
                          weights=scan["dtime_counts"], minlength=L)[:L]
