@@ -17,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["CODE_DOUBT", "GATE_MARGIN_BINS", "RETURN_SIGMAS", "advice", "code_doubt_note",
+__all__ = ["CODE_DOUBT", "CODE_SHARE_SIGMAS", "GATE_MARGIN_BINS", "PILE_UP_NO_JUDGE",
+           "RETURN_SIGMAS", "TAIL_SHARE", "advice", "code_doubt_note",
            "count", "doubt_text", "explained_share", "header_refusal", "judge_code", "num",
            "occupied_delays", "pile_up_loss", "returns_in_file", "returns_text", "si",
            "unrelated_share"]
@@ -477,9 +478,10 @@ def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
 def occupied_delays(bits: np.ndarray, code: np.ndarray
                     ) -> tuple[str, np.ndarray, np.ndarray, np.ndarray]:
     """The photons of a whole acquisition summed per code bit, correlated with the code's
-    replica (eq. 5-6), and the delays that rise :data:`RETURN_SIGMAS` standard deviations
-    above the median, a code's sidelobes cleaned (:func:`~spslidar.pipeline.gate.
-    occupied_lags`): ``(replica kind, correlation, its noise sigma, occupied mask)``."""
+    replica (eq. 5-6), and the delays that rise
+    :data:`~spslidar.pipeline.file_advice.RETURN_SIGMAS` standard deviations above the
+    median, a code's sidelobes cleaned (:func:`~spslidar.pipeline.gate.occupied_lags`):
+    ``(replica kind, correlation, its noise sigma, occupied mask)``."""
     from ..correlate import auto_replica, correlation_noise_sigma, make_replica
     from .gate import code_sidelobes, occupied_lags
 
