@@ -201,3 +201,17 @@ def test_a_clamp_of_jobs_is_a_sweep_warning(tmp_path, capsys, monkeypatch):
     assert lines[0] == "spslidar sweep: warning: --jobs 999 clamped to 2 (2 runs to do, 2 cores)"
     assert len(lines) == 2 and "more than --max-time" in lines[1], lines
     assert not out.exists()
+
+
+def test_reproduce_says_an_unreadable_marker_too(tmp_path, capsys):
+    """The same folder claim (:func:`spslidar.outdir.claim_folder`) serves ``reproduce``:
+    its damaged marker is said as such, and nothing there is changed."""
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / ".spslidar-output.json").write_text("{\n")
+    (out / "notes.txt").write_text("mine")
+    assert main(["reproduce", "fig4", "--quick", "--out", str(out)]) == 2
+    lines = _err_lines(capsys)
+    assert len(lines) == 1 and "marker .spslidar-output.json is there but unreadable" in lines[0]
+    assert (out / "notes.txt").read_text() == "mine"
+    assert (out / ".spslidar-output.json").read_text() == "{\n"

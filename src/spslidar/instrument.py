@@ -149,12 +149,7 @@ def irf_kernel(irf: IRF | None, bin_width: float, period: int):
     from .detectors.jitter import jitter_kernel
 
     sigma, tail = _widths(irf, bin_width, period)
-    kern = jitter_kernel(period, sigma, tail, irf.weight)
-    idx = np.flatnonzero(kern > 1e-7 * kern.max())
-    offsets = np.where(idx > period // 2, idx - period, idx)
-    values = kern[idx]
-    order = np.argsort(offsets)
-    return offsets[order], values[order] / values.sum()
+    return _compact(jitter_kernel(period, sigma, tail, irf.weight))
 
 
 def apply_kernel(shifts, weights, kernel, period: int):
@@ -268,7 +263,8 @@ def instrument_weights(scene, acq, cfg):
 
 def _compact(kern):
     """A periodic kernel as ``(offsets, values)`` about offset 0 (values over 1e-7 of its
-    peak), as :func:`irf_kernel` gives a parametric IRF's."""
+    peak, summing to 1): a parametric IRF's (:func:`irf_kernel`) and a detector's jitter
+    (:func:`window_share`)."""
     import numpy as np
 
     idx = np.flatnonzero(kern > 1e-7 * kern.max())

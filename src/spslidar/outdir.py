@@ -557,6 +557,14 @@ def claim_folder(out: str | os.PathLike, kind: str, option: str = "--out") -> Pa
         atomic_write_text(path / MARKER, json.dumps(meta, indent=1) + "\n")
         return path
     meta = read_marker(path)
+    if meta is None and ((path / MARKER).exists() or (path / MARKER).is_symlink()):
+        # (a damaged marker was said to be none, which sent the user looking for a file that
+        # is there: an outside audit of 2026-12-03)
+        raise ConfigError(
+            f"{option} {out}: its spslidar marker {MARKER} is there but unreadable (damaged "
+            f"or edited: not a marker's JSON), so the folder cannot be told to be an earlier "
+            f"'spslidar {kind}''s, which it would resume; refusing to write into it, nothing "
+            f"was changed (choose a new or empty folder)")
     if meta is None or meta["kind"] != kind:
         what = ("no spslidar marker (outputs of spslidar before 0.2.0 have none)"
                 if meta is None else f"a spslidar {meta['kind']}")

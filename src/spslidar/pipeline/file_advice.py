@@ -427,7 +427,6 @@ def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
     if not bits.sum() > 0:
         return {"ok": False, "why": "the file holds no photons"}
     kind, corr, sigma, hit = occupied_delays(bits, code)
-    lags = np.arange(n)
     metres = SPEED_OF_LIGHT * width / 2
     out: dict[str, Any] = {"ok": True, "unambiguous_m": n * metres, "replica": kind,
                            "peaks": [], "gate_m": None,
@@ -440,20 +439,7 @@ def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
         return {"ok": False, "why": f"{100 * hit.mean():.0f} % of the delays stand above the "
                                     f"background: the photons do not follow this code (the "
                                     f"wrong code or --bit-rate, or no PSST acquisition)"}
-    # runs of occupied delays around the period, from the first after the longest gap (the
-    # scene's arc: from the array's end, the gate spanned the empty part, an audit)
-    occ = np.flatnonzero(hit)
-    gaps = np.diff(np.append(occ, occ[0] + n))  # (from each occupied delay to the next)
-    start = int(occ[(int(np.argmax(gaps)) + 1) % occ.size])
-    runs, cur = [], []
-    for i in (start + lags) % n:
-        if hit[i]:
-            cur.append(int(i))
-        elif cur:
-            runs.append(cur)
-            cur = []
-    if cur:
-        runs.append(cur)
+    runs = _runs(hit)
     base = float(np.median(corr))
     peaks = []
     for r in runs:
@@ -464,7 +450,7 @@ def returns_in_file(scan: dict[str, Any], code: np.ndarray, bit_rate: float
     out["peaks"] = peaks[:5]
     if pile_up_loss(scan) < PILE_UP_NO_JUDGE:  # (pile-up distorts the code's bits: the
         # code sent read 0.38-0.54 of them at 95 % lost, a review of 2026-12-03)
-        out.update(judge_code(bits, code, hit))
+        out.update(judge_code(bits, code, hit, corr))
     else:
         out["code_share"] = None
     first = runs[0][0]
@@ -502,26 +488,47 @@ def _doubt(share: float, chance: float) -> bool:
     return bool((1 - share) > CODE_DOUBT * (1 - chance))
 
 
-def _with_tails(bits: np.ndarray, code: np.ndarray, hit: np.ndarray) -> np.ndarray:
-    """``hit`` with the :data:`TAIL_SHARE` of the period after each of the five strongest
-    runs of occupied delays added: a response's tail, below the threshold delay by delay
-    (an IRF's diffusion tail of 5-8 ns at 10 GHz through a 1023-bit code explained 0.47 of
-    the counts at its occupied delays alone, a review of 2026-12-03)."""
+def _runs(hit: np.ndarray) -> list[list[int]]:
+    """The runs of occupied delays around the period, in order from the first after the
+    longest gap (the scene's arc: read from the array's end, a gate spanned the empty part,
+    an audit), a run across the period's end kept whole; none where nothing is occupied."""
     n = hit.size
-    corr = occupied_delays(bits, code)[1]
     occ = np.flatnonzero(hit)
-    breaks = np.flatnonzero(np.diff(occ) > 1)
-    runs = np.split(occ, breaks + 1)
-    runs.sort(key=lambda r: -float(corr[r].max()))
+    if not occ.size:
+        return []
+    gaps = np.diff(np.append(occ, occ[0] + n))  # (from each occupied delay to the next)
+    start = int(occ[(int(np.argmax(gaps)) + 1) % occ.size])
+    runs, cur = [], []
+    for i in (start + np.arange(n)) % n:
+        if hit[i]:
+            cur.append(int(i))
+        elif cur:
+            runs.append(cur)
+            cur = []
+    if cur:
+        runs.append(cur)
+    return runs
+
+
+def _with_tails(hit: np.ndarray, corr: np.ndarray) -> np.ndarray:
+    """``hit`` with the :data:`TAIL_SHARE` of the period after each of the five strongest
+    runs of occupied delays (:func:`_runs`, by their ``corr`` peak) added: a response's tail,
+    below the threshold delay by delay (an IRF's diffusion tail of 5-8 ns at 10 GHz through
+    a 1023-bit code explained 0.47 of the counts at its occupied delays alone, a review of
+    2026-12-03)."""
+    n = hit.size
+    runs = sorted(_runs(hit), key=lambda r: -float(corr[r].max()))
     out = hit.copy()
     reach = max(1, int(TAIL_SHARE * n))
     for r in runs[:5]:
-        out[(int(r[-1]) + 1 + np.arange(reach)) % n] = True
+        out[(r[-1] + 1 + np.arange(reach)) % n] = True
     return out
 
 
-def judge_code(bits: np.ndarray, code: np.ndarray, hit: np.ndarray) -> dict[str, Any]:
-    """Whether the photons follow ``code``: ``code_share`` (:func:`explained_share`; None
+def judge_code(bits: np.ndarray, code: np.ndarray, hit: np.ndarray, corr: np.ndarray
+               ) -> dict[str, Any]:
+    """Whether the photons follow ``code``, from its occupied delays ``hit`` and correlation
+    ``corr`` (:func:`occupied_delays`): ``code_share`` (:func:`explained_share`; None
     where the counts do not vary enough to tell) and, where it is known, ``occupied_share``,
     ``unrelated_share`` and ``code_doubt`` (:func:`_doubt`: the returns' share lies nearer
     an unrelated code's than the code sent's), False where the returns with a tail after
@@ -533,7 +540,7 @@ def judge_code(bits: np.ndarray, code: np.ndarray, hit: np.ndarray) -> dict[str,
         doubt = _doubt(share, chance)
         if doubt:  # (the tails' delays are chosen by place, not height: the chance share
             # of as many delays chosen by height, the larger, is the bar, as above)
-            tailed = _with_tails(bits, code, hit)
+            tailed = _with_tails(hit, corr)
             wide = explained_share(bits, code, tailed)
             doubt = wide is not None and _doubt(wide, unrelated_share(float(tailed.mean())))
         out.update(occupied_share=float(hit.mean()), unrelated_share=chance,
@@ -576,10 +583,10 @@ def code_doubt_note(bits: np.ndarray, code: np.ndarray, lost: float = 0.0) -> st
     if (bits.ndim != 1 or bits.size != np.size(code) or not bits.sum() > 0
             or lost >= PILE_UP_NO_JUDGE):
         return None
-    hit = occupied_delays(bits, code)[3]
+    _, corr, _, hit = occupied_delays(bits, code)
     if not hit.any() or hit.mean() > 0.5:
         return None
-    said = judge_code(bits, code, hit)
+    said = judge_code(bits, code, hit, corr)
     if not said.get("code_doubt"):
         return None
     return doubt_text(said, "--code") + "; the depth map is read through it"

@@ -422,7 +422,6 @@ def sweep_main(
 
     if isinstance(scheduler, str):
         engine._probe_scheduler(scheduler)  # before the folder is made
-    _check_marker_readable(out_dir)
     existed = Path(out_dir).exists()
     folder = claim_folder(out_dir, "sweep")  # new, empty or an earlier sweep's: never a user's
     # the sweep's identity: its points with their seeds, as the TOML gives them (a second
@@ -522,38 +521,6 @@ def _unwritten(out_dir: str | os.PathLike[str], rows: Sequence[Mapping[str, Any]
     return (f"{what} ({why}): the folder is left holding {held}; free some space and run the "
             f"same command with --out {out_dir} again: it reads the cached runs instead of "
             f"running them and writes {RESULTS_CSV}")
-
-
-def _check_marker_readable(out_dir: str | os.PathLike[str]) -> None:
-    """Refuse, in one line, a folder whose spslidar marker is there but cannot be read (not
-    JSON, or not a marker's fields): it was said to hold "no spslidar marker", which sent the
-    user looking for a file that is there (an outside audit of 2026-12-03). Nothing is
-    changed: the folder may hold an earlier sweep's cached runs.
-
-    Parameters
-    ----------
-    out_dir : str or os.PathLike
-        The sweep's ``--out``.
-
-    Raises
-    ------
-    ConfigError
-        Where ``out_dir/.spslidar-output.json`` exists and :func:`~spslidar.outdir.read_marker`
-        cannot read it.
-    """
-    from spslidar.outdir import MARKER, read_marker
-
-    folder = Path(out_dir)
-    try:
-        there = (folder / MARKER).exists() or (folder / MARKER).is_symlink()
-    except OSError:  # (an unreadable folder is claim_folder's to say)
-        return
-    if there and folder.is_dir() and read_marker(folder) is None:
-        raise ConfigError(
-            f"--out {out_dir}: its spslidar marker {MARKER} is there but unreadable (damaged "
-            f"or edited: not a marker's JSON), so the folder cannot be known as the output of "
-            f"an earlier 'spslidar sweep' (which it would resume); refusing to write into it, "
-            f"nothing was changed (choose a new or empty folder)")
 
 
 def _check_replaceable(folder: Path, out_dir, identity: str, overwrite: bool,
