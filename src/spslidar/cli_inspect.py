@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from typing import Any
 
 __all__ = ["add_inspect_parser", "cmd_inspect", "describe"]
@@ -137,7 +136,7 @@ def cmd_inspect(args: argparse.Namespace) -> int:
     said in one line before anything is printed)."""
     from .io.ptu_scan import scan_ptu
     from .pipeline.file_advice import advice, returns_in_file, returns_text
-    from .pipeline.inputs import check_pattern_size
+    from .pipeline.inputs import check_bit_rate, check_pattern_size
 
     check_pattern_size(args.pattern_size)  # (without --patterns too: 0 passed, an audit)
     m = None
@@ -153,10 +152,7 @@ def cmd_inspect(args: argparse.Namespace) -> int:
         if args.code is None or args.bit_rate is None:
             raise ConfigError("--code and --bit-rate go together: the range of the returns "
                               "needs both")
-        if not (math.isfinite(args.bit_rate) and 1e6 <= args.bit_rate <= 1e13):
-            # (the range reconstruct and run take: "a positive number" here, an audit)
-            raise ConfigError(f"--bit-rate must be in [1e6, 1e13] bits (TDC bins) per second, "
-                              f"got {args.bit_rate!r}")
+        check_bit_rate(args.bit_rate)  # (as reconstruct checks it)
         from .cli_measured import _code
 
         code = _code(args)[0]

@@ -21,8 +21,9 @@ import numpy as np
 from ..constants import MAX_DEPTH_M
 from ..errors import ConfigError
 
-__all__ = ["check_code", "check_gate", "check_pattern_size", "check_patterns", "check_ptu_path",
-           "code_in", "input_record", "load_code", "load_patterns", "patterns_in"]
+__all__ = ["check_bit_rate", "check_code", "check_gate", "check_pattern_size", "check_patterns",
+           "check_ptu_path", "code_in", "input_record", "load_code", "load_patterns",
+           "patterns_in"]
 
 
 def load_patterns(path: str | os.PathLike, distinct: bool = True,
@@ -333,6 +334,22 @@ def check_ptu_path(ptu: Any) -> list:
                               f"{os.fspath(seen[key])!r} too): each pass once")
         seen[key] = f
     return files
+
+
+def check_bit_rate(bit_rate: Any) -> float:
+    """A measured file's ``--bit-rate`` as a float of bits (TDC bins) per second in [1e6,
+    1e13], the range ``run`` takes, or one line (``reconstruct``, ``calibrate`` and
+    ``inspect`` say it alike: ``inspect`` said "a positive number", an audit)."""
+    if isinstance(bit_rate, (str, bytes, bool, np.bool_)):  # (float('10e9') was taken)
+        raise ConfigError(f"--bit-rate must be a number of bits per second, got {bit_rate!r}")
+    try:
+        rate = float(bit_rate)
+    except (TypeError, ValueError):
+        raise ConfigError(f"--bit-rate must be a number, got {bit_rate!r}") from None
+    if not (math.isfinite(rate) and 1e6 <= rate <= 1e13):
+        raise ConfigError(f"--bit-rate must be in [1e6, 1e13] bits (TDC bins) per second, got "
+                          f"{bit_rate!r}")
+    return rate
 
 
 def check_gate(range_gate: Any) -> tuple[float, float]:

@@ -43,6 +43,7 @@ __all__ = ["FILTER_LAM_SCALE", "calibrated_lam_scale", "check_code", "check_gate
 from .export import write_measurement_ptu  # noqa: E402
 from .inputs import (  # noqa: E402
     _check_truth,
+    check_bit_rate,
     check_code,
     check_gate,
     check_patterns,
@@ -68,19 +69,9 @@ def check_real_inputs(bit_rate: float, range_gate, n_pixels: int, n_patterns: in
     float32 counts, their rescaled float64 copy and a float32 one for the matched filter),
     and a range gate whose slices would not
     fit (``--range-gate 0 100000`` reached 6.9 GB, then a MemoryError)."""
-    import math
-
     from ..machine import _gb, available_memory
 
-    if isinstance(bit_rate, (str, bytes, bool, np.bool_)):  # (float('10e9') was taken)
-        raise ConfigError(f"--bit-rate must be a number of bits per second, got {bit_rate!r}")
-    try:
-        rate = float(bit_rate)
-    except (TypeError, ValueError):
-        raise ConfigError(f"--bit-rate must be a number, got {bit_rate!r}") from None
-    if not (math.isfinite(rate) and 1e6 <= rate <= 1e13):
-        raise ConfigError(f"--bit-rate must be in [1e6, 1e13] bits (TDC bins) per second, got "
-                          f"{bit_rate!r}")
+    rate = check_bit_rate(bit_rate)
     lo, hi = check_gate(range_gate)
     n_lags = (hi - lo) * 2.0 * rate / 299792458.0 + 2
     # (the reader's histograms are a block's each: the sequence's repeats times the patterns)
