@@ -215,3 +215,29 @@ def test_reproduce_says_an_unreadable_marker_too(tmp_path, capsys):
     assert len(lines) == 1 and "marker .spslidar-output.json is there but unreadable" in lines[0]
     assert (out / "notes.txt").read_text() == "mine"
     assert (out / ".spslidar-output.json").read_text() == "{\n"
+
+
+def test_a_dead_time_grid_of_the_linear_counter_shares_its_seeds(tmp_path, capsys):
+    """The linear counter's dead time sets only its pile-up report: a grid over it drew other
+    noise at each point, an effect of a dead time it does not model (an outside audit of
+    2026-12-03). Its points share their seed and depth now, the report differs, and the
+    sweep says so; the GMAPD's points, which it changes, keep their own seeds."""
+    import csv
+
+    def sweep(detector: str, flux: str = "") -> list[dict]:
+        toml = tmp_path / f"{detector}.toml"
+        toml.write_text(f'[base]\nsize = 8\ncode_length = 63\ndetector = "{detector}"\n{flux}'
+                        f"[grid]\ndead_time = [5e-8, 2e-7]\n")
+        out = tmp_path / detector
+        assert main(["sweep", str(toml), "--out", str(out), "--no-progress"]) == 0
+        with open(out / "results.csv", newline="") as fh:
+            return list(csv.DictReader(fh))
+
+    rows = sweep("linear")
+    err = capsys.readouterr().err
+    assert "--dead-time 2e-07 changes only the pile-up report of --detector linear" in err
+    assert rows[0]["seed"] == rows[1]["seed"]
+    assert rows[0]["depth_rmse_m"] == rows[1]["depth_rmse_m"]
+    rows = sweep("gmapd", "signal = 1e-5\nnoise = 2e-5\n")  # a GMAPD's flux
+    assert "changes only the pile-up report" not in capsys.readouterr().err
+    assert rows[0]["seed"] != rows[1]["seed"]

@@ -40,6 +40,9 @@ class LinearDetector(PhotonCountingDetector, DetectorModel):
 
     name = "linear"
     linear = True
+    #: options that change only :meth:`report`, not the counts (a sweep over them shares
+    #: its seeds: :func:`spslidar.pipeline.plan.report_only_keys`)
+    report_only = ("dead_time",)
 
     def detect(self, lam: np.ndarray, rng: np.random.Generator | int | None,
                n_periods: int = 1, out: np.ndarray | None = None

@@ -225,6 +225,29 @@ def ignored_keys(cfg: Config) -> dict[str, str]:
     return out
 
 
+def report_only_keys(cfg: Config) -> dict[str, str]:
+    """The chosen detector's options set away from their defaults that change only its
+    report, not its counts (the class's ``report_only``: the linear counter's
+    ``dead_time``, which sets its pile-up flag), each with its warning. Not said by a run,
+    whose pile-up report is what the option is for; a sweep's points that differ only in
+    them share their seed and are said (a grid over ``dead_time`` of the linear counter drew
+    other noise at each point, an effect of dead time that it does not model: an outside
+    audit of 2026-12-03)."""
+    from ..config import stage_options
+    from ..detectors import DETECTORS
+
+    own = stage_options()
+    out: dict[str, str] = {}
+    for name in getattr(DETECTORS.load(cfg.detector), "report_only", ()):
+        default = own[name][1].default if name in own else None
+        value = cfg.extra.get(name, default)
+        if value != default:
+            out[name] = (f"--{name.replace('_', '-')} {value:g} changes only the pile-up "
+                         f"report of --detector {cfg.detector}, not its counts "
+                         f"(--detector gmapd models a dead time)")
+    return out
+
+
 def _power_ignored(cfg: Config, changed) -> dict[str, str]:
     """The code options a conventional lidar under ``--fairness power`` ignores: it takes
     only the code's count of ones (its pulses share the PSST's photons), which a cyclic shift

@@ -206,7 +206,7 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
     from spslidar.config import Config
     from spslidar.detectors import DETECTORS
     from spslidar.detectors.counting import NoiseModel
-    from spslidar.pipeline.plan import ignored_keys
+    from spslidar.pipeline.plan import ignored_keys, report_only_keys
 
     seconds: dict[str, float] = {}
     peak: dict[str, float] = {}
@@ -242,7 +242,8 @@ def _validate_run_points(points: Sequence[Mapping[str, Any]], where: Any,
                     seconds[key], peak[key] = budget.seconds, budget.bytes
                 if cfg.detector not in linear:
                     linear[cfg.detector] = getattr(DETECTORS.load(cfg.detector), "linear", True)
-                done[text] = (ignored_keys(cfg), key, cfg.max_memory, cfg.detector)
+                done[text] = ({**ignored_keys(cfg), **report_only_keys(cfg)}, key,
+                              cfg.max_memory, cfg.detector)
         except (ConfigError, SpslidarError) as exc:
             raise ConfigError(f"{where}: {exc}") from None
         skip, key, max_memory, detector = done[text]
