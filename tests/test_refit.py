@@ -204,9 +204,10 @@ def test_pipeline_reflectivity_of_a_uniform_scene():
     assert 0.9 < lo and hi < 1.1, (lo, hi)
 
 
-def test_calibrated_and_unipolar_keep_the_window():
+def test_a_unipolar_replica_keeps_the_window():
     """Where the refit's model does not hold (a unipolar replica's plateau under every
-    profile), the window's sum is kept and said."""
+    profile), the window's sum is kept and said (a calibrated instrument is refitted:
+    tests/test_calibration.py)."""
     m = spslidar.measure(scene="steps", size=16, code_length=1023, noise=1, seed=0,
                          replica="unipolar")
     r = spslidar.reconstruct(m)

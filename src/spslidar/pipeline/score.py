@@ -248,8 +248,9 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         "mean_reflectivity": (float(np.nanmean(reflectivity)) if np.isfinite(reflectivity).any()
                               else None),
         # how reflectivity.npy was read: refitted with the depth held (spslidar.refit), or the
-        # profile's sum over the return's window (a device's solve, a calibrated instrument,
-        # a unipolar replica's plateau)
+        # profile's sum over the return's window (a device's solve, a unipolar replica's
+        # plateau; a calibrated instrument is refitted as the ideal one is, an audit of
+        # 2026-12-03)
         "reflectivity_method": refit_info,
         **({"depth_info": depth_info} if depth_info else {}),
         "lam": lam,
