@@ -99,6 +99,7 @@ def test_geometry_finds_a_walls_spread_and_one_range():
     flat = _histograms(phi, code, irf, np.zeros(256), delay=100, rng=rng, photons=4e5)
     one = measure_geometry(flat, phi, code, bin_width, 25.0, (16, 16))
     assert one["model"] == "range" and one["spread_bins"] == 0.0 and one["offsets"] is None
+    assert one["fov_deg"] is None  # (not the rejected plane's)
     given = measure_geometry(hist, phi, code, bin_width, 25.0, (16, 16), fov_deg=16.0)
     assert given["model"] == "plane" and given["z"] is None
     np.testing.assert_allclose(given["offsets"], off)
@@ -180,6 +181,7 @@ def test_one_pattern_shown_throughout_reads_as_one_range():
                        photons=4e5)
     geo = measure_geometry(hist, phi, code, 1e-10, 25.0, (16, 16))
     assert geo["model"] == "range" and geo["offsets"] is None
+    assert geo["fov_deg"] is None and geo["spread_bins"] == 0.0  # (the 16 degrees unread)
 
 
 def test_geometry_fits_a_tilted_wall_that_no_facing_wall_fits():

@@ -625,7 +625,7 @@ def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
                           RuntimeWarning, stacklevel=3)
             why = (f"one range: the plane fitted ({spread:g} bins, {z:.2g} deviations) leaves "
                    f"a response {plane:.3g} deviations high, one range's {one:.3g}")
-            return {"model": "range", "fov_deg": geo.get("fov_deg"), "spread_bins": 0.0,
+            return {"model": "range", "fov_deg": None, "spread_bins": 0.0,
                     "z": z, "phase_bins": None, "reason": why}, None
     if band is not None and fitted is not None:
         ends = [read(range_free_response(hists, patterns, code, off, width=pulse_width))

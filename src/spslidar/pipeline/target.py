@@ -515,11 +515,11 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     Returns
     -------
     dict
-        ``model`` ('plane' or 'range'), ``fov_deg`` (given or fitted), ``spread_bins`` (the
-        pixels' span of round trips), ``z`` (the plane's residual below one range's, in
-        deviations; None where not scanned), ``phase_bins`` (None, or where the axis's pulse
-        starts in its bin for a response narrower than a bin), ``reason`` (one line), and
-        ``offsets`` (per-pixel ``s_p``, bins, or None; not for the JSON).
+        ``model`` ('plane' or 'range'), ``fov_deg`` (given or fitted; None for one range),
+        ``spread_bins`` (the pixels' span of round trips), ``z`` (the plane's residual below
+        one range's, in deviations; None where not scanned), ``phase_bins`` (None, or where
+        the axis's pulse starts in its bin for a response narrower than a bin), ``reason``
+        (one line), and ``offsets`` (per-pixel ``s_p``, bins, or None; not for the JSON).
 
     Raises
     ------
@@ -618,7 +618,9 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     if target != "plane" and not (z >= Z_PLANE and spreads[j] >= MIN_SPREAD_BINS):
         out["reason"] = (f"one range: a plane fits no better (best spread {spreads[j]:g} bins, "
                          f"{z:.2g} deviations)")
-        out["spread_bins"] = 0.0
+        # (and no field of view: the rejected plane's was kept beside a spread of 0, an
+        # outside audit of 2026-12-03; one range has none, as --target range says)
+        out["spread_bins"], out["fov_deg"] = 0.0, None
         if z >= Z_HINT and spreads[j] >= MIN_SPREAD_BINS:
             warnings.warn(f"the calibration target may be a flat wall whose pixels spread over "
                           f"{spreads[j]:g} bins of round trip (a {fov:.3g} degree field of "
