@@ -334,3 +334,21 @@ def test_a_replica_whose_plateau_no_step_undoes_is_said(kw, said, fix):
     advised = pipeline.run(**base, **{**kw, **fix})
     assert advised.depth_rmse < 0.005
     assert not any("pedestal" in w or "prior shrinks" in w for w in advised.warnings)
+
+
+def test_a_code_too_short_for_any_replica_is_told_to_be_longer():
+    """A 3-bit code (one bit on) leaves a pedestal of -1.00 through the bipolar replica that
+    --replica auto itself takes, and -0.50 through the zero-mean one: the advice named the
+    replica in use; it names the code's length now (about 21 bits puts the zero-mean
+    replica's pedestal under 0.05 of the return)."""
+    r = pipeline.run(scene="steps", size=8, code="random", code_length=3, seed=0,
+                     noiseless=True)
+    said = [w for w in r.warnings if "pedestal" in w]
+    assert len(said) == 1 and "--replica auto takes" not in said[0], said
+    assert ("no replica avoids it for a code of 3 bits (the zero-mean one leaves -0.50): "
+            "use a code of at least 21 bits (--code-length)") in said[0]
+    from spslidar.correlate import PLATEAU_SHARE, replica_plateau
+
+    bits = np.zeros(21)
+    bits[:10] = 1  # 10 of 21: the zero-mean replica's pedestal is -1 / 20, at the line
+    assert replica_plateau(bits, "zero-mean") == pytest.approx(-PLATEAU_SHARE)

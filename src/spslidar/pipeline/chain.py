@@ -271,10 +271,20 @@ def _plateau_notes(acq, plateau: float, unipolar: bool, reg_kind: str) -> list[s
         code = np.asarray(acq.code)
         ones = f"{int(np.count_nonzero(code > 0))} of its {code.size} bits ones"
         auto = "unipolar" if acq.lidar == "conventional" else auto_replica(code)
+        fix = f"--replica auto takes the {auto} replica for such a code"
+        if acq.lidar != "conventional":
+            # (a code this short leaves a pedestal through every replica that sums to zero:
+            # the advice named the replica in use, a 3-bit code's bipolar one, -1.00)
+            best = min(("zero-mean", "bipolar"), key=lambda k: -replica_plateau(code, k))
+            low = replica_plateau(code, best)
+            if auto == acq.replica or low <= -PLATEAU_SHARE:
+                shortest = int(np.ceil(1.0 + 1.0 / PLATEAU_SHARE))
+                fix = (f"no replica avoids it for a code of {code.size} bits (the {best} "
+                       f"one leaves {low:+.2f}): use a code of at least {shortest} bits "
+                       f"(--code-length)")
         notes.append(f"the {acq.replica} replica of this code ({ones}) leaves every "
                      f"profile on a pedestal of {plateau:+.2f} times its return, which the "
-                     f"solve's non-negativity clips: depths can be lost or wrong; --replica "
-                     f"auto takes the {auto} replica for such a code")
+                     f"solve's non-negativity clips: depths can be lost or wrong; {fix}")
     if unipolar and reg_kind not in TV_REGULARISERS:
         notes.append(f"the unipolar replica leaves {plateau:.2f} times each return at every "
                      f"delay, which the {reg_kind} prior shrinks as it would noise before "
