@@ -436,8 +436,8 @@ def split_counts(corr: np.ndarray, sigma: np.ndarray, totals: np.ndarray, lags: 
     returns : ndarray, shape (K,)
         The patterns' mean correlation that the returns at each delay account for, the
         code's sidelobes taken out (:func:`_clean` down to ``sigmas`` of its noise
-        level); 0 where no return is seen. The sum runs over these delays and one
-        either side.
+        level); 0 where no return is seen. The sum runs over these delays and those either
+        side that a return's response reaches (one for the plain code; :func:`_reach`).
 
     Notes
     -----
@@ -491,9 +491,15 @@ def split_counts(corr: np.ndarray, sigma: np.ndarray, totals: np.ndarray, lags: 
     core = weight > 0
     if not core.any():
         return np.zeros_like(totals), weight
-    support = core.copy()  # and one delay either side: a return read over two
-    support[:-1] |= core[1:]
-    support[1:] |= core[:-1]
+    # and the delays either side that the return's response reaches: a return read over two
+    # delays (one either side), or over its response's width (a return at another sub-bin
+    # phase than the calibration's has another sampled shape, which CLEAN's whole-delay beams
+    # fit only at the peak: summed over one delay either side, it read 1.6-2.6 % more signal
+    # through a 1.7-bin response, the background 16-33 % low; an outside audit of stop 80)
+    support = core.copy()
+    for step in range(1, _reach(beam) + 1):
+        support[:-step] |= core[step:]
+        support[step:] |= core[:-step]
     held = np.zeros(period)
     held[lags[support]] = 1.0
     big_g = np.fft.irfft(np.fft.rfft(held) * np.conj(np.fft.rfft(g)), period)
@@ -504,6 +510,27 @@ def split_counts(corr: np.ndarray, sigma: np.ndarray, totals: np.ndarray, lags: 
     inside = corr[:, support].sum(axis=1)
     signal = (inside - totals * floor_share) / (per_count - floor_share)
     return np.clip(signal, 0.0, totals), weight
+
+
+def _reach(beam: np.ndarray, share: float = 0.1) -> int:
+    """The delays either side of a return's peak that its correlation reaches: one past the
+    farther side's last delay still above ``share`` of the periodic ``beam``'s peak (lag 0),
+    walking out from it on each side. A return between two delays spreads its response one
+    delay further than the beam's own reach: the plain code's beam is one delay wide, so a
+    return is read over two (1); through a response, over its width and one more (the
+    :data:`spslidar.pipeline.calibrated.HALF_WIDTH_SHARE` share). Summed over that reach, a
+    return's correlations hardly depend on its sub-bin phase; summed one delay either side
+    through a 1.7-bin response they did, its sampled peak not being a mix of two
+    whole-delay ones (an outside audit of stop 80)."""
+    b = np.asarray(beam, np.float64)
+    period, top = b.size, float(b[0])
+    reach = 0
+    for step in (1, -1):
+        lag = 0
+        while abs(lag) < period // 2 and b[(lag + step) % period] > share * top:
+            lag += step
+        reach = max(reach, abs(lag))
+    return reach + 1
 
 
 #: :func:`returns_outside` reads every delay of the period: a return there stands this many
