@@ -161,6 +161,41 @@ def test_what_continues_no_structure_is_left_alone(case):
     assert not _extend(a, label, s).any()
 
 
+def _leg_with_an_offset_run(candidates: int = 2):
+    # the room's table leg (held-out seed 287, m_n = 5, 50 %): the MRF labels it on rows
+    # 14-20 but two of those rows 8 slices nearer, and gives its top rows the wall behind,
+    # whose argmax is the leg's slice; a Theil-Sen line through the group holds 7 of 9
+    a, s = _blank()
+    label = np.full(SHAPE, WALL)
+    top = 14 - candidates
+    label[14:21, 10] = 120
+    label[14:16, 10] = 112
+    a[top:21, 10] = 120
+    s[top:14, 10] = 1.5 * NU
+    return a, s, label, top
+
+
+def test_a_leg_whose_labels_are_off_on_a_few_rows_is_still_continued():
+    from spslidar.depth import lines
+
+    a, s, label, top = _leg_with_an_offset_run()
+    keep = _extend(a, label, s)
+    assert keep[top:14, 10].all() and keep.sum() == 14 - top
+    # the share of all members on the line is what lets it through (7 of 9 here)
+    saved = lines.EXTEND_SHARE
+    try:
+        lines.EXTEND_SHARE = 0.8
+        assert not _extend(a, label, s).any()
+    finally:
+        lines.EXTEND_SHARE = saved
+
+
+def test_candidates_off_the_line_of_an_offset_leg_are_not_kept():
+    a, s, label, top = _leg_with_an_offset_run(3)
+    a[top:14, 10] = [120, 131, 109]  # two of the three 11 slices off the line
+    assert not _extend(a, label, s).any()
+
+
 def test_one_pixel_wide():
     from spslidar.depth.lines import one_pixel_wide
 
