@@ -241,8 +241,9 @@ def report_only_keys(cfg: Config) -> dict[str, str]:
     for name in getattr(DETECTORS.load(cfg.detector), "report_only", ()):
         default = own[name][1].default if name in own else None
         value = cfg.extra.get(name, default)
-        if value != default:
-            out[name] = (f"--{name.replace('_', '-')} {value:g} changes only the pile-up "
+        if value != default:  # (a plugin's option need not be a number)
+            text = f"{value:g}" if isinstance(value, (int, float)) else str(value)
+            out[name] = (f"--{name.replace('_', '-')} {text} changes only the pile-up "
                          f"report of --detector {cfg.detector}, not its counts "
                          f"(--detector gmapd models a dead time)")
     return out
