@@ -512,25 +512,32 @@ def split_counts(corr: np.ndarray, sigma: np.ndarray, totals: np.ndarray, lags: 
     return np.clip(signal, 0.0, totals), weight
 
 
-def _reach(beam: np.ndarray, share: float = 0.1) -> int:
-    """The delays either side of a return's peak that its correlation reaches: one past the
-    farther side's last delay still above ``share`` of the periodic ``beam``'s peak (lag 0),
-    walking out from it on each side. A return between two delays spreads its response one
-    delay further than the beam's own reach: the plain code's beam is one delay wide, so a
-    return is read over two (1); through a response, over its width and one more (the
-    :data:`spslidar.pipeline.calibrated.HALF_WIDTH_SHARE` share). Summed over that reach, a
-    return's correlations hardly depend on its sub-bin phase; summed one delay either side
-    through a 1.7-bin response they did, its sampled peak not being a mix of two
-    whole-delay ones (an outside audit of stop 80)."""
-    b = np.asarray(beam, np.float64)
-    period, top = b.size, float(b[0])
+def peak_reach(response: np.ndarray, share: float) -> int:
+    """Delays from a periodic ``response``'s peak (lag 0) to the farther side's last delay
+    still above ``share`` of it, walking out from the peak on each side (at most half the
+    period): how far a return's correlation reaches (:func:`_reach`; a calibrated filter's
+    ``half_width``, :func:`spslidar.pipeline.calibrated.calibrated_filter`)."""
+    r = np.asarray(response, np.float64)
+    period, level = r.size, share * float(r[0])
     reach = 0
     for step in (1, -1):
         lag = 0
-        while abs(lag) < period // 2 and b[(lag + step) % period] > share * top:
+        while abs(lag) < period // 2 and r[(lag + step) % period] > level:
             lag += step
         reach = max(reach, abs(lag))
-    return reach + 1
+    return reach
+
+
+def _reach(beam: np.ndarray, share: float = 0.1) -> int:
+    """The delays either side of a return's peak that its correlation reaches: one past
+    :func:`peak_reach` of the periodic ``beam`` at ``share`` of its peak. A return between
+    two delays spreads its response one delay further than the beam's own reach: the plain
+    code's beam is one delay wide, so a return is read over two (1); through a response,
+    over its width and one more (the :data:`spslidar.pipeline.calibrated.HALF_WIDTH_SHARE`
+    share). Summed over that reach, a return's correlations hardly depend on its sub-bin
+    phase; summed one delay either side through a 1.7-bin response they did, its sampled
+    peak not being a mix of two whole-delay ones (an outside audit of stop 80)."""
+    return peak_reach(beam, share) + 1
 
 
 #: :func:`returns_outside` reads every delay of the period: a return there stands this many

@@ -164,15 +164,10 @@ HALF_WIDTH_SHARE = 0.1
 
 def _half_width(resp: np.ndarray) -> int:
     """Lags from the peak (lag 0, value 1) to the farther side's last lag still above
-    :data:`HALF_WIDTH_SHARE`, walking out from the peak on each side."""
-    period = resp.size
-    widths = []
-    for step in (1, -1):
-        lag = 0
-        while abs(lag) < period // 2 and resp[(lag + step) % period] > HALF_WIDTH_SHARE:
-            lag += step
-        widths.append(abs(lag))
-    return int(max(widths))
+    :data:`HALF_WIDTH_SHARE` (:func:`spslidar.correlate.peak_reach`)."""
+    from ..correlate import peak_reach
+
+    return peak_reach(resp, HALF_WIDTH_SHARE)
 
 
 def delay_filter(slices: np.ndarray, lags: np.ndarray, response: np.ndarray) -> np.ndarray:
