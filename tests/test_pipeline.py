@@ -352,3 +352,18 @@ def test_a_code_too_short_for_any_replica_is_told_to_be_longer():
     bits = np.zeros(21)
     bits[:10] = 1  # 10 of 21: the zero-mean replica's pedestal is -1 / 20, at the line
     assert replica_plateau(bits, "zero-mean") == pytest.approx(-PLATEAU_SHARE)
+
+
+def test_a_short_code_whose_auto_replica_leaves_a_pedestal_is_told_the_one_that_does_not():
+    """A 31-bit code of 15 ones takes the bipolar replica under --replica auto (balanced to
+    a bit), a pedestal of -2 / 30; the zero-mean one leaves -1 / 30, under the 0.05 line:
+    that one is named, not "use a longer code" (the review's first version said so)."""
+    from types import SimpleNamespace
+
+    from spslidar.pipeline.chain import _plateau_notes
+
+    code = np.zeros(31)
+    code[:15] = 1
+    acq = SimpleNamespace(code=code, lidar="psst", replica="bipolar")
+    said = _plateau_notes(acq, -2 / 30, False, "tv")
+    assert len(said) == 1 and said[0].endswith("; --replica zero-mean leaves -0.03"), said

@@ -275,13 +275,15 @@ def _plateau_notes(acq, plateau: float, unipolar: bool, reg_kind: str) -> list[s
         if acq.lidar != "conventional":
             # (a code this short leaves a pedestal through every replica that sums to zero:
             # the advice named the replica in use, a 3-bit code's bipolar one, -1.00)
-            best = min(("zero-mean", "bipolar"), key=lambda k: -replica_plateau(code, k))
-            low = replica_plateau(code, best)
-            if auto == acq.replica or low <= -PLATEAU_SHARE:
+            plateaus = {k: replica_plateau(code, k) for k in ("zero-mean", "bipolar")}
+            best = max(plateaus, key=plateaus.get)
+            if plateaus[best] <= -PLATEAU_SHARE:
                 shortest = int(np.ceil(1.0 + 1.0 / PLATEAU_SHARE))
                 fix = (f"no replica avoids it for a code of {code.size} bits (the {best} "
-                       f"one leaves {low:+.2f}): use a code of at least {shortest} bits "
-                       f"(--code-length)")
+                       f"one leaves {plateaus[best]:+.2f}): use a code of at least "
+                       f"{shortest} bits (--code-length)")
+            elif auto == acq.replica:  # (auto's own choice: name the one that avoids it)
+                fix = f"--replica {best} leaves {plateaus[best]:+.2f}"
         notes.append(f"the {acq.replica} replica of this code ({ones}) leaves every "
                      f"profile on a pedestal of {plateau:+.2f} times its return, which the "
                      f"solve's non-negativity clips: depths can be lost or wrong; {fix}")
