@@ -355,7 +355,7 @@ def _line_keep(member: np.ndarray, lag: np.ndarray, z: np.ndarray, shape: tuple[
                beside: np.ndarray | None = None) -> np.ndarray:
     """The passes and tests of the module docstring over the pixels ``member`` at slices
     ``lag`` with evidence ``z`` (in ``nu``); with ``robust`` a group whose depths are not all
-    linear keeps the inliers of a robust line (:func:`_robust_inliers`); with
+    linear keeps the inliers of a robust line (:func:`_theil_inliers`); with
     ``extend = (cand, axis)`` only groups holding
     a candidate count, and only their candidates within ``axis`` of the group's line are
     kept."""
@@ -383,10 +383,10 @@ def _line_keep(member: np.ndarray, lag: np.ndarray, z: np.ndarray, shape: tuple[
             if not inlier.all():
                 if robust is None:
                     continue
-                inlier = _robust_inliers(t, depth, residual, robust)
+                line = _theil_inliers(t, depth, residual)
+                inlier = line if line.mean() >= robust else np.zeros_like(line)
                 if extend is not None and not inlier.any() and EXTEND_SHARE is not None:
-                    inlier = _extension_inliers(t, depth, residual, robust,
-                                                extend[0][members])
+                    inlier = _extension_inliers(line, robust, extend[0][members])
                 if inlier.sum() < min_pixels:
                     if beside is None:
                         continue
@@ -424,33 +424,26 @@ def _straight_inliers(yx: np.ndarray, depth: np.ndarray, label: np.ndarray) -> n
     return inlier
 
 
-def _extension_inliers(t: np.ndarray, depth: np.ndarray, residual: float, share: float,
-                       cand: np.ndarray) -> np.ndarray:
+def _extension_inliers(line: np.ndarray, share: float, cand: np.ndarray) -> np.ndarray:
+    """The members on a group's Theil-Sen line (``line``: :func:`_theil_inliers`) where
+    ``share`` of its candidates and :data:`EXTEND_SHARE` of all its members are, or none:
+    the anchors are pixels the labelling already holds as a one-pixel structure, and a run
+    of them a few slices off (a table leg the MRF labelled 8 slices nearer on two rows of
+    nine, held out room seed 287, m_n = 5, 50 %) does not make the candidates that continue
+    it on its line noise."""
+    if line[cand].mean() >= share and line.mean() >= EXTEND_SHARE:
+        return line
+    return np.zeros_like(line)
+
+
+def _theil_inliers(t: np.ndarray, depth: np.ndarray, residual: float) -> np.ndarray:
     """Members within ``residual`` slices of the Theil-Sen line through a group's depths
-    where ``share`` of its candidates and :data:`EXTEND_SHARE` of all its members are, or
-    none: the anchors are pixels the labelling already holds as a one-pixel structure, and
-    a run of them a few slices off (a table leg the MRF labelled 8 slices nearer on two rows
-    of nine, held out room seed 287, m_n = 5, 50 %) does not make the candidates that
-    continue it on its line noise."""
+    (:func:`scipy.stats.theilslopes`: one wrong argmax of a dozen does not move it); a group
+    keeps them where ``ROBUST`` of it are (:func:`_line_keep`)."""
     from scipy.stats import theilslopes
 
     slope, intercept = theilslopes(depth, t)[:2]
-    inlier = np.abs(intercept + slope * t - depth) <= residual
-    if inlier[cand].mean() >= share and inlier.mean() >= EXTEND_SHARE:
-        return inlier
-    return np.zeros_like(inlier)
-
-
-def _robust_inliers(t: np.ndarray, depth: np.ndarray, residual: float,
-                    share: float) -> np.ndarray:
-    """Members within ``residual`` slices of the Theil-Sen line through a group's depths
-    (:func:`scipy.stats.theilslopes`: one wrong argmax of a dozen does not move it), or none
-    when fewer than ``share`` of the group are."""
-    from scipy.stats import theilslopes
-
-    slope, intercept = theilslopes(depth, t)[:2]
-    inlier = np.abs(intercept + slope * t - depth) <= residual
-    return inlier if inlier.mean() >= share else np.zeros_like(inlier)
+    return np.abs(intercept + slope * t - depth) <= residual
 
 
 def track_lines(z: np.ndarray, label: np.ndarray, nu: float, shape: tuple[int, int], *,
