@@ -220,8 +220,9 @@ def test_reproduce_says_an_unreadable_marker_too(tmp_path, capsys):
 def test_a_dead_time_grid_of_the_linear_counter_shares_its_seeds(tmp_path, capsys):
     """The linear counter's dead time sets only its pile-up report: a grid over it drew other
     noise at each point, an effect of a dead time it does not model (an outside audit of
-    2026-12-03). Its points share their seed and depth now, the report differs, and the
-    sweep says so; the GMAPD's points, which it changes, keep their own seeds."""
+    2026-12-03). Its points share their seed and depth now (only a run's pile-up report
+    reads the value), and the sweep says so; the GMAPD's points, which it changes, keep
+    their own seeds."""
     import csv
 
     def sweep(detector: str, flux: str = "") -> list[dict]:
