@@ -43,8 +43,13 @@ def acquisitions(tmp_path_factory):
     return d
 
 
+def _next_out(d):
+    """The folder :func:`_reconstruct` writes next."""
+    return d / f"rec{len(list(d.glob('rec*')))}"
+
+
 def _reconstruct(d, ptu="scene", *extra, gate=("24", "26")):
-    out = d / f"rec{len(list(d.glob('rec*')))}"
+    out = _next_out(d)
     assert main(["reconstruct", "--ptu", str(d / f"{ptu}.ptu"), "--patterns",
                  str(d / f"{ptu}_patterns.npy"), "--code", str(d / f"{ptu}_code.npy"),
                  "--bit-rate", "10e9", "--range-gate", *gate, "--out", str(out),
@@ -674,7 +679,7 @@ def test_calibrated_reflectivity_is_refitted_with_the_depth_held(acquisitions):
     median 0.86-0.93 of the ideal's over seeds 0-2 (0.78-0.82 by the window), so 0.84 is
     the line between the two, with 0.02 for another release's float order."""
     def reflectivity(ptu, *extra):
-        out = acquisitions / f"rec{len(list(acquisitions.glob('rec*')))}"
+        out = _next_out(acquisitions)
         m, depth = _reconstruct(acquisitions, ptu, *extra)
         good = np.abs(depth - _scene()) < 0.03
         return m, np.load(out / "reflectivity.npy")[good]
