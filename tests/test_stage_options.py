@@ -102,3 +102,32 @@ def test_declarations_must_agree():
     with pytest.raises(ValueError, match="differs"):
         DETECTORS.add("bad", LinearDetector, options=(Option("dead_time", 1e-9),))
     assert "bad" not in DETECTORS
+
+
+@dataclass
+class _LabelledDetector(LinearDetector):
+    """A linear counter with a ``label`` that only its report reads."""
+
+    label: float = 0.0
+    name = "labelled"
+    report_only = ("label",)
+
+
+def test_a_plugins_report_only_option_is_said_in_its_own_words(tmp_path):
+    """A detector's ``report_only`` may be a sequence of names (then "its report") or a
+    mapping to what each sets; the words were the linear counter's pile-up report for any
+    detector's option (a review of 2026-12-03)."""
+    from spslidar.pipeline.plan import report_only_keys
+
+    DETECTORS.add("labelled", _LabelledDetector, "labelled", "a counter with a label",
+                  options=(Option("label", 0.0, "a number its report carries"),))
+    try:
+        said = report_only_keys(Config(detector="labelled", label=2.0))
+        assert said == {"label": "--label 2 of --detector labelled changes only its report, "
+                                 "not its counts"}
+        assert report_only_keys(Config(detector="labelled")) == {}  # at its default: quiet
+    finally:
+        DETECTORS._entries.pop("labelled")
+    said = report_only_keys(Config(dead_time=2e-7))
+    assert said["dead_time"].startswith("--dead-time 2e-07 of --detector linear changes only "
+                                        "its pile-up report (--detector gmapd models")

@@ -236,9 +236,9 @@ def test_a_dead_time_grid_of_the_linear_counter_shares_its_seeds(tmp_path, capsy
 
     rows = sweep("linear")
     err = capsys.readouterr().err
-    assert "--dead-time 2e-07 changes only the pile-up report of --detector linear" in err
+    assert "--dead-time 2e-07 of --detector linear changes only its pile-up report" in err
     assert rows[0]["seed"] == rows[1]["seed"]
     assert rows[0]["depth_rmse_m"] == rows[1]["depth_rmse_m"]
     rows = sweep("gmapd", "signal = 1e-5\nnoise = 2e-5\n")  # a GMAPD's flux
-    assert "changes only the pile-up report" not in capsys.readouterr().err
+    assert "changes only its pile-up report" not in capsys.readouterr().err
     assert rows[0]["seed"] != rows[1]["seed"]

@@ -40,9 +40,10 @@ class LinearDetector(PhotonCountingDetector, DetectorModel):
 
     name = "linear"
     linear = True
-    #: options that change only :meth:`report`, not the counts (a sweep over them shares
-    #: its seeds: :func:`spslidar.pipeline.plan.report_only_keys`)
-    report_only = ("dead_time",)
+    #: options that change only :meth:`report`, not the counts, each with what it sets (a
+    #: sweep over them shares its seeds and says so in these words:
+    #: :func:`spslidar.pipeline.plan.report_only_keys`)
+    report_only = {"dead_time": "its pile-up report (--detector gmapd models a dead time)"}
 
     def detect(self, lam: np.ndarray, rng: np.random.Generator | int | None,
                n_periods: int = 1, out: np.ndarray | None = None

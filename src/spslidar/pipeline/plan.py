@@ -227,25 +227,27 @@ def ignored_keys(cfg: Config) -> dict[str, str]:
 
 def report_only_keys(cfg: Config) -> dict[str, str]:
     """The chosen detector's options set away from their defaults that change only its
-    report, not its counts (the class's ``report_only``: the linear counter's
-    ``dead_time``, which sets its pile-up flag), each with its warning. Not said by a run,
-    whose pile-up report is what the option is for; a sweep's points that differ only in
-    them share their seed and are said (a grid over ``dead_time`` of the linear counter drew
-    other noise at each point, an effect of dead time that it does not model: an outside
-    audit of 2026-12-03)."""
+    report, not its counts (the class's ``report_only``, a mapping from each option to what
+    it sets, or a sequence of names: the linear counter's ``dead_time``, which sets its
+    pile-up flag), each with its warning. Not said by a run, whose report is what the option
+    is for; a sweep's points that differ only in them share their seed and are said (a grid
+    over ``dead_time`` of the linear counter drew other noise at each point, an effect of
+    dead time that it does not model: an outside audit of 2026-12-03). The words are the
+    class's (they named the pile-up report for any detector's option: a review)."""
     from ..config import stage_options
     from ..detectors import DETECTORS
 
     own = stage_options()
+    declared = getattr(DETECTORS.load(cfg.detector), "report_only", ())
+    sets = declared if isinstance(declared, dict) else dict.fromkeys(declared, "its report")
     out: dict[str, str] = {}
-    for name in getattr(DETECTORS.load(cfg.detector), "report_only", ()):
+    for name, what in sets.items():
         default = own[name][1].default if name in own else None
         value = cfg.extra.get(name, default)
         if value != default:  # (a plugin's option need not be a number)
             text = f"{value:g}" if isinstance(value, (int, float)) else str(value)
-            out[name] = (f"--{name.replace('_', '-')} {text} changes only the pile-up "
-                         f"report of --detector {cfg.detector}, not its counts "
-                         f"(--detector gmapd models a dead time)")
+            out[name] = (f"--{name.replace('_', '-')} {text} of --detector {cfg.detector} "
+                         f"changes only {what}, not its counts")
     return out
 
 
