@@ -355,15 +355,41 @@ def test_a_code_too_short_for_any_replica_is_told_to_be_longer():
 
 
 def test_a_short_code_whose_auto_replica_leaves_a_pedestal_is_told_the_one_that_does_not():
-    """A 31-bit code of 15 ones takes the bipolar replica under --replica auto (balanced to
-    a bit), a pedestal of -2 / 30; the zero-mean one leaves -1 / 30, under the 0.05 line:
+    """A 7-bit code of 5 ones takes the zero-mean replica under --replica auto, a pedestal
+    of -1 / 6; the bipolar one leaves a plateau of +2 / 6 that is taken out, not clipped:
     that one is named, not "use a longer code" (the review's first version said so)."""
     from types import SimpleNamespace
 
+    from spslidar.correlate import auto_replica, replica_plateau
     from spslidar.pipeline.chain import _plateau_notes
 
-    code = np.zeros(31)
+    code = np.zeros(7)
+    code[:5] = 1
+    assert auto_replica(code) == "zero-mean"
+    acq = SimpleNamespace(code=code, lidar="psst", replica="zero-mean")
+    said = _plateau_notes(acq, replica_plateau(code, "zero-mean"), False, "tv")
+    assert len(said) == 1 and said[0].endswith("; --replica bipolar leaves +0.33"), said
+
+
+def test_auto_takes_the_more_level_replica_of_a_code_one_bit_short_of_balance():
+    """A 31-bit code of 15 ones was taken as balanced (``|2k - T| <= 1``) and given the
+    bipolar replica, whose pedestal (-2 / 30) is twice the zero-mean one's (-1 / 30): auto
+    takes the zero-mean one now, and says nothing; one more one (an m-sequence's count) keeps
+    the bipolar replica, level to the bit (a review of 2026-12-03)."""
+    from types import SimpleNamespace
+
+    from spslidar.correlate import auto_replica, replica_plateau
+    from spslidar.pipeline.chain import _plateau_notes
+
+    for ones, kind, level in ((15, "zero-mean", -1 / 30), (16, "bipolar", 0.0)):
+        code = np.zeros(31)
+        code[:ones] = 1
+        assert auto_replica(code) == kind
+        assert replica_plateau(code, kind) == pytest.approx(level, abs=1e-12)
+        acq = SimpleNamespace(code=code, lidar="psst", replica=kind)
+        assert _plateau_notes(acq, replica_plateau(code, kind), False, "tv") == []
+    code = np.zeros(30)  # an even count: half the bits ones ties, bipolar kept
     code[:15] = 1
-    acq = SimpleNamespace(code=code, lidar="psst", replica="bipolar")
-    said = _plateau_notes(acq, -2 / 30, False, "tv")
-    assert len(said) == 1 and said[0].endswith("; --replica zero-mean leaves -0.03"), said
+    assert auto_replica(code) == "bipolar"
+    assert replica_plateau(code, "bipolar") == pytest.approx(
+        replica_plateau(code, "zero-mean"), abs=1e-12)

@@ -46,8 +46,9 @@ def make_replica(code: np.ndarray, kind: str = "bipolar") -> np.ndarray:
 
 
 def auto_replica(code: np.ndarray) -> str:
-    """The PSST lidar's default replica for this code: ``bipolar`` for a balanced code (as
-    many ones as zeros, to one bit: m-sequences), ``zero-mean`` otherwise.
+    """The PSST lidar's default replica for this code: ``bipolar`` for a balanced code (``k``
+    ones of ``T`` bits with ``0 <= 2k - T <= 1``: half the bits, or one more than half of an
+    odd count, as an m-sequence's), ``zero-mean`` otherwise.
 
     ``2s - 1`` sums to zero only over a balanced code: for a Bernoulli code of ones ratio
     R_a its correlation with the code delayed off the peak is ``R_a (2 R_a - 1) T``, a
@@ -56,9 +57,15 @@ def auto_replica(code: np.ndarray) -> str:
     ``s - mean(s)`` sums to zero for any code, so a constant background cancels and a random
     code's off-peak correlation is zero on average; for an m-sequence ``2s - 1`` is exact
     (off-peak sum 0) where ``s - mean(s)`` leaves ``-(T + 1) / 4T``.
+
+    The off-peak means as shares of the peak (:func:`replica_plateau`) are ``(2k - T - 1) /
+    (T - 1)`` for ``2s - 1`` and ``-1 / (T - 1)`` for ``s - mean(s)``, so the balanced
+    codes above are where the bipolar one is at least as level; a code one bit short of
+    balance (``2k - T = -1``, taken as balanced before) has twice the zero-mean's pedestal
+    under it: a 31-bit code of 15 ones -2/30 against -1/30 (a review of 2026-12-03).
     """
     s = code_bits(code)
-    return "bipolar" if abs(2 * int(np.count_nonzero(s)) - s.size) <= 1 else "zero-mean"
+    return "bipolar" if 0 <= 2 * int(np.count_nonzero(s)) - s.size <= 1 else "zero-mean"
 
 
 #: a replica whose off-peak correlation with the code is at least this share of its peak
