@@ -137,6 +137,10 @@ def test_calibrate_removes_a_flat_walls_spread(plane_wall, capsys):
     assert main(["calibrate", *files, "--target", "range", "--out", str(path / "r.json")]) == 0
     one = json.loads((path / "r.json").read_text())
     assert one["delay_s"] - delay > 3e-10 and one["irf_fwhm_bins"] > 6.0  # what it mends
+    # the record of one range asked for has the keys of one range found (it held only
+    # model and reason: a review of 2026-12-03)
+    assert one["target"] == {"model": "range", "fov_deg": None, "spread_bins": 0.0, "z": None,
+                             "phase_bins": None, "reason": "--target range"}
     assert main(["calibrate", *files, "--fov", "10", "--out", str(path / "fov.json")]) == 0
     given = json.loads((path / "fov.json").read_text())
     assert given["target"]["model"] == "plane" and given["target"]["z"] is None

@@ -582,12 +582,14 @@ def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     """What the calibration target's pixels see (:mod:`~spslidar.pipeline.target`): its
     geometry for the JSON, and the response of one range where it is a plane (else None:
     the patterns' sum is read)."""
-    from .target import measure_geometry, range_free_response
+    from .target import measure_geometry, one_range, range_free_response
 
     fov_deg = _check_target(target, fov_deg)
     distance = _check_distance(distance)
     if target == "range":
-        return {"model": "range", "reason": "--target range"}, None
+        geo = one_range("--target range")
+        geo.pop("offsets")
+        return geo, None
     n = int(round(np.sqrt(patterns.shape[1])))
     geo = measure_geometry(hists, patterns, code, bin_width, distance, (n, n), fov_deg, target,
                            pulse_width)
@@ -625,8 +627,9 @@ def _target_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
                           RuntimeWarning, stacklevel=3)
             why = (f"one range: the plane fitted ({spread:g} bins, {z:.2g} deviations) leaves "
                    f"a response {plane:.3g} deviations high, one range's {one:.3g}")
-            return {"model": "range", "fov_deg": None, "spread_bins": 0.0,
-                    "z": z, "phase_bins": None, "reason": why}, None
+            geo = one_range(why, z)
+            geo.pop("offsets")
+            return geo, None
     if band is not None and fitted is not None:
         ends = [read(range_free_response(hists, patterns, code, off, width=pulse_width))
                 for _, _, off in band]

@@ -471,6 +471,17 @@ def _maybe_tilted(tilt: dict[str, Any]) -> None:
                   stacklevel=4)
 
 
+def one_range(reason: str, z: float | None = None) -> dict[str, Any]:
+    """The geometry of a target read as one range (the keys of :func:`measure_geometry`'s
+    answer): no field of view, no spread, no per-pixel offsets. One builder for every path
+    that reads one (it was written out at each, and ``--target range`` wrote a record
+    without ``fov_deg`` and ``spread_bins``, which every other target's record holds: a
+    review of 2026-12-03)."""
+    return {"model": "range", "fov_deg": None, "spread_bins": 0.0,
+            "z": None if z is None else round(float(z), 3), "phase_bins": None,
+            "offsets": None, "reason": reason}
+
+
 def _tilt_geometry(found: dict[str, Any], fov_deg: float | None) -> dict[str, Any]:
     """The geometry of a tilted target (:func:`_tilt_scan`'s best round trips, with
     ``fov_deg`` given on the facing wall's through it)."""
@@ -530,8 +541,7 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
     tau_d = 2.0 * float(distance) / (SPEED_OF_LIGHT * bin_width)
     n = int(shape[0])
     if tau_d <= 0:  # a target at the lidar: every pixel at one range
-        return {"model": "range", "fov_deg": None, "spread_bins": 0.0, "z": None,
-                "offsets": None, "reason": "one range: a target at distance 0"}
+        return one_range("one range: a target at distance 0")
     m = patterns.shape[0]
     pick = np.unique(np.linspace(0, m - 1, min(m, SCAN_PATTERNS)).round().astype(int))
     period = int(np.asarray(code).size)
@@ -613,14 +623,11 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
         if found is not None:
             return _tilt_geometry(found, None)
         _maybe_tilted(tilt)
-    out = {"model": "range", "fov_deg": round(fov, 4), "spread_bins": float(spreads[j]),
-           "z": round(z, 3), "phase_bins": None, "offsets": None}
     if target != "plane" and not (z >= Z_PLANE and spreads[j] >= MIN_SPREAD_BINS):
-        out["reason"] = (f"one range: a plane fits no better (best spread {spreads[j]:g} bins, "
-                         f"{z:.2g} deviations)")
         # (and no field of view: the rejected plane's was kept beside a spread of 0, an
         # outside audit of 2026-12-03; one range has none, as --target range says)
-        out["spread_bins"], out["fov_deg"] = 0.0, None
+        out = one_range(f"one range: a plane fits no better (best spread {spreads[j]:g} "
+                        f"bins, {z:.2g} deviations)", z)
         if z >= Z_HINT and spreads[j] >= MIN_SPREAD_BINS:
             warnings.warn(f"the calibration target may be a flat wall whose pixels spread over "
                           f"{spreads[j]:g} bins of round trip (a {fov:.3g} degree field of "
@@ -630,11 +637,14 @@ def measure_geometry(hists: np.ndarray, patterns: np.ndarray, code: np.ndarray,
                           f"with --target plane --fov (your optics' field of view)",
                           RuntimeWarning, stacklevel=3)
         return out
+    out = {"model": "plane", "fov_deg": round(fov, 4), "spread_bins": float(spreads[j]),
+           "z": round(z, 3)}
+
     def wall(spread: float) -> np.ndarray:
         f = _fov_of_spread(spread, tau_d, n)
         return plane_offsets(shape, distance, f, bin_width) if f > 0 else np.zeros(n * n)
 
-    out.update(model="plane", phase_bins=phase, offsets=wall(spreads[j]),
+    out.update(phase_bins=phase, offsets=wall(spreads[j]),
                reason=f"a wall facing the lidar, fitted: its pixels over {spreads[j]:g} bins "
                       f"of round trip (a {fov:.3g} degree field of view), {z:.2g} deviations "
                       f"below one range's residual")
