@@ -270,6 +270,12 @@ def test_reconstruct_corrects_the_files_pile_up(gmapd_file):
     assert any("never closer than 50 ns" in w and "--dead-time 5e-08" in w
                for w in raw.warnings)
     assert raw.metrics["detector"]["apparent_dead_time_s"] == pytest.approx(50e-9, rel=1e-6)
+    # the pile-up's dips read as returns a dead time (7.5 m) before the scene's: named as
+    # such, not only "widen --range-gate" (an outside audit of 2026-12-03); none corrected
+    outside = [w for w in raw.warnings if "outside the range gate" in w]
+    assert len(outside) == 1 and "the pile-up of the detector's dead time" in outside[0]
+    assert "(50 ns, 7.495 m)" in outside[0] and "give its --dead-time first" in outside[0]
+    assert not any("outside the range gate" in w for w in fixed.warnings)
     assert not any("M photons/s" in w for w in fixed.warnings)
     said = fixed.metrics["detector"]
     assert said["corrected"] is True and said["dead_time_s"] == 50e-9

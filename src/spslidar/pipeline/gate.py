@@ -176,7 +176,8 @@ def unique_lags(lags: np.ndarray, period: int) -> tuple[np.ndarray, np.ndarray]:
 
 def outside_note(counts: np.ndarray, replica: np.ndarray, gain: float,
                  signal_code: np.ndarray, ulags: np.ndarray, shift: int, lags: np.ndarray,
-                 bin_width: float, gate, response=None) -> tuple[float, list[str]]:
+                 bin_width: float, gate, response=None,
+                 dead_time_seen: float | None = None) -> tuple[float, list[str]]:
     """The share of a measured acquisition's returns outside its range gate, and a warning
     where it is more than :data:`~spslidar.correlate.OUTSIDE_SHARE` of them
     (:func:`spslidar.correlate.returns_outside`), naming where they are: the pixels whose
@@ -184,7 +185,11 @@ def outside_note(counts: np.ndarray, replica: np.ndarray, gain: float,
     delays correlated (the returns' arrival, ``shift`` bins after their time of flight for a
     calibrated instrument); ``lags``: the gate's own delays; ``response``: a calibrated
     instrument's ``(offsets, values)``, read with the plain code and replica
-    (:func:`~spslidar.correlate.returns_outside`)."""
+    (:func:`~spslidar.correlate.returns_outside`). ``dead_time_seen``: a dead time the
+    detections show and nothing corrected (seconds), whose pile-up reads as returns a dead
+    time from the scene's: the warning names it first (a GMAPD file read without
+    ``--dead-time`` was told of 14 % of its returns at 17.5-18.8 m, its scene at 25 m and
+    its dead time 7.5 m long, and to widen the gate: an outside audit of 2026-12-03)."""
     from ..correlate import OUTSIDE_SHARE, returns_outside
     from ..forward import delay_to_depth
 
@@ -205,7 +210,14 @@ def outside_note(counts: np.ndarray, replica: np.ndarray, gain: float,
              delay_to_depth(flight[flight >= centre], bin_width))
     spans = [f"{side.min():.4g}-{side.max():.4g} m" if side.max() > side.min()
              else f"{side.min():.4g} m" for side in sides if side.size]
-    return share, [
-        f"about {share:.0%} of the returns lie outside the range gate {gate_text(gate)} m, at "
-        f"{' and '.join(spans)} (modulo the code's {ambiguity:.4g} m): their pixels are given "
-        f"depths inside the gate, which are noise; widen --range-gate"]
+    where = (f"about {share:.0%} of the returns lie outside the range gate {gate_text(gate)} "
+             f"m, at {' and '.join(spans)} (modulo the code's {ambiguity:.4g} m)")
+    if dead_time_seen:
+        reach = float(delay_to_depth(dead_time_seen / bin_width, bin_width))
+        return share, [
+            f"{where}: these may be the pile-up of the detector's dead time, which its "
+            f"detections show ({dead_time_seen * 1e9:.4g} ns, {reach:.4g} m) and nothing "
+            f"corrects: give its --dead-time first; if they stay, their pixels are given "
+            f"depths inside the gate, which are noise: widen --range-gate"]
+    return share, [f"{where}: their pixels are given depths inside the gate, which are "
+                   f"noise; widen --range-gate"]

@@ -429,7 +429,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
                               / max(float(counts.sum()), 1e-300))
         outside, notes = outside_note(counts, plain,
                                       correlation_gain(code, plain) * n_mean, code, ulags,
-                                      shift, lags, bin_width, cfg.range_gate, irf)
+                                      shift, lags, bin_width, cfg.range_gate, irf,
+                                      None if pile.get("corrected")
+                                      else pile.get("apparent_dead_time_s"))
     dwell_warning += notes
     background = np.maximum(totals - signal, 0.0) / period
     sim = {"corr": corr, "sigma": sigma,
