@@ -558,6 +558,23 @@ def test_a_top_level_seed_that_base_overrides_is_said(tmp_path):
     assert {p["seed"] for p in spec.points()} == {4}
 
 
+def test_a_top_level_seed_that_the_grid_overrides_is_said(tmp_path):
+    # (an outside audit of 2026-12-03: seed = 1 beside [grid] seed = [0, 1] ran seeds 0
+    # and 1 unsaid); without the top-level key, nothing is said
+    import warnings
+
+    path = tmp_path / "sweep.toml"
+    path.write_text("seed = 1\n[grid]\nseed = [0, 2]\nx = [1]\n")
+    with pytest.warns(UserWarning, match=r"the top-level seed = 1 is not used: \[grid\] seed "
+                                         r"sets every point's seed"):
+        spec = load_sweep_config(path)
+    assert sorted(p["seed"] for p in spec.points()) == [0, 2]
+    path.write_text("[grid]\nseed = [0, 2]\nx = [1]\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_sweep_config(path)
+
+
 # ---------------------------------------------------------------------------------------------
 # write_csv and sweep_main
 # ---------------------------------------------------------------------------------------------

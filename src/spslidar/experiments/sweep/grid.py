@@ -539,6 +539,13 @@ def load_sweep_config(path: str | os.PathLike[str]) -> SweepSpec:
         # (an outside audit of 2026-12-01: seed = 9 with [base] seed = 4 ran seed 4 unsaid)
         warnings.warn(f"{path}: the top-level seed = {seed} is not used: [base] seed = "
                       f"{base[SEED_KEY]!r} sets every point's seed", UserWarning, stacklevel=2)
+    if SEED_KEY in grid and SEED_KEY in data:
+        import warnings
+
+        # (an outside audit of 2026-12-03: seed = 1 with [grid] seed = [0, 1] ran seeds 0
+        # and 1 unsaid, where [base] seed was said)
+        warnings.warn(f"{path}: the top-level seed = {seed} is not used: [grid] seed sets "
+                      f"every point's seed", UserWarning, stacklevel=2)
     if SEED_KEY in grid and trials > 1:  # (the trials of each seed were the same to the bit)
         raise ConfigError(
             f"{path}: grid.seed with trials = {trials} gives every trial of a seed the same "
