@@ -295,9 +295,11 @@ def test_check_stages_keeps_failures_and_selects_plugins(broken):
 
 
 def test_check_command(broken, capsys):
-    assert main(["check", "depth:argmax", "code:mseq"]) == 0
+    # (names in any case, as the registries read them; each stage once: an outside audit)
+    assert main(["check", "depth:argmax", "CODE:MSeq", "depth:argmax"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("ok    depth argmax (5 contracts, ")
+    assert out[1].startswith("ok    code mseq (")
     assert out[-1] == ("2 of 2 stages pass their contracts (each built with its options at "
                        "their defaults)")
     assert main(["check", "--plugins-only", "depth"]) == 1

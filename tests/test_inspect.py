@@ -443,6 +443,10 @@ def test_returns_refused_where_they_cannot_be_read(tmp_path, capsys):
     np.save(tmp_path / "c.npy", code)
     assert main(["inspect", str(tmp_path / "r.ptu"), "--code", str(tmp_path / "c.npy")]) == 2
     assert "--code and --bit-rate go together" in capsys.readouterr().err
+    # a family's length without the family was ignored without a word (an outside audit)
+    assert main(["inspect", str(tmp_path / "r.ptu"), "--code-length", "127"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "--code-length name a code of a --code family" in err
     assert main(["inspect", str(tmp_path / "r.ptu"), "--code", str(tmp_path / "c.npy"),
                  "--bit-rate", "10e9"]) == 0
     assert "returns (the photons of every block, correlated with the code): 0.5996 m (" in (

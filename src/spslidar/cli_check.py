@@ -45,21 +45,27 @@ def add_check_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
 
 
 def _selection(specs: list[str]) -> list[tuple[str, str | None]]:
-    """``KIND[:NAME]`` arguments as ``(kind, name or None)``; unknown ones are ConfigErrors."""
+    """``KIND[:NAME]`` arguments as ``(kind, name or None)``, in any case as the registries
+    read names (``DEPTH:MRF``), each stage once (``depth:mrf depth:mrf``, or ``depth
+    depth:mrf``, checked it twice and counted it twice: an outside audit of 2026-12-03);
+    unknown ones are ConfigErrors."""
     from .errors import ConfigError
     from .testing import STAGE_KINDS, registry_of
 
-    out = []
+    out: list[tuple[str, str | None]] = []
     for spec in specs:
         kind, _, name = spec.partition(":")
+        kind = kind.lower() if kind.lower() in STAGE_KINDS else kind
         if kind not in STAGE_KINDS:
             raise ConfigError(f"unknown stage kind {kind!r} in {spec!r}; choose one of "
                               f"{', '.join(STAGE_KINDS)}")
+        name = registry_of(kind).canonical(name) if name else name
         if name and name not in registry_of(kind):
             raise ConfigError(f"unknown {registry_of(kind).kind} {name!r}; choose one of "
                               f"{', '.join(registry_of(kind).names())}")
         out.append((kind, name or None))
-    return out
+    whole = {k for k, n in out if n is None}
+    return list(dict.fromkeys((k, n) for k, n in out if n is None or k not in whole))
 
 
 def cmd_check(args: argparse.Namespace) -> int:

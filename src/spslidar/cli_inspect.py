@@ -70,7 +70,7 @@ def _blocks_text(k: int, b: dict[str, Any]) -> str:
         extra.append(f"{b['irregular_blocks']} over 1.5 times the median length or under "
                      f"its two thirds (a marker missed, or a bounce)")
     extra.append(f"{count(b['photons_before_first'], 'photon')} before the first marker, "
-                 f"{b['photons_after_last']} after the last")
+                 f"{num(b['photons_after_last'])} after the last")
     return text + "; " + "; ".join(extra)
 
 
@@ -146,6 +146,13 @@ def cmd_inspect(args: argparse.Namespace) -> int:
 
         m = int(load_patterns(args.patterns, size=args.pattern_size).shape[0])
     code = None
+    loose = [f for f, v in (("--code-length", args.code_length),
+                            ("--code-index", args.code_index)) if v is not None]
+    if args.code is None and loose:  # (ignored without a word before: an outside audit)
+        from .errors import ConfigError
+
+        raise ConfigError(f"{' and '.join(loose)} name a code of a --code family (mseq, "
+                          f"gold, random), with --bit-rate: give both, or neither")
     if args.code is not None or args.bit_rate is not None:
         from .errors import ConfigError
 

@@ -158,7 +158,7 @@ def _markers(scan: dict[str, Any], patterns: bool = False) -> list[str]:
             b = blocks[k]
             return [f"--marker {k} --marker-edge end: {count(most, 'marker')}, with "
                     f"{count(b['photons_before_first'], 'photon')} before the first (about a "
-                    f"block's) and {b['photons_after_last']} after the last: its marker ends "
+                    f"block's) and {num(b['photons_after_last'])} after the last: its marker ends "
                     f"each pattern"]
         return [f"--marker {k}: {count(most, 'marker')}" + ("" if patterns else
                 ", as many patterns (or the sequence --repeats times)")]
