@@ -317,3 +317,21 @@ def test_patterns_a_rounding_outside_0_1_are_taken_and_beyond_it_said_exactly():
     with pytest.raises(ConfigError, match=r"values from -0\.001 to 0\.999\b") as exc:
         check_patterns(p - 1e-3)
     assert "+1/-1" not in str(exc.value)
+
+
+def test_run_takes_a_runs_toml_file_as_its_configuration(tmp_path):
+    """``spslidar.run("myrun.toml")`` reads the file as ``run --config`` does (it was taken
+    for a scene's name, "unknown scene": an outside audit of 2026-12-03), keywords over it;
+    a TOML file given as the scene says what it is."""
+    import spslidar
+    from spslidar.errors import SceneError
+
+    path = tmp_path / "myrun.toml"
+    path.write_text('scene = "steps"\nsize = 8\ncode_length = 255\nnoise = 1\n')
+    got = spslidar.measure(path, seed=3)
+    want = spslidar.measure(scene="steps", size=8, code_length=255, noise=1, seed=3)
+    assert got.config == want.config
+    assert spslidar.measure(str(path), noise=2).config.noise == 2  # (a str path too)
+    with pytest.raises(SceneError, match=r"is a TOML file, a run's configuration, not a "
+                                         r"scene: spslidar.run\('x.toml'\)"):
+        spslidar.measure(scene="x.toml")

@@ -12,6 +12,7 @@ changing e.g. the noise level does not change the patterns.
 from __future__ import annotations
 
 import functools
+import os
 import time
 import warnings
 from dataclasses import replace
@@ -121,7 +122,8 @@ def keeping_warnings(fn):
 
 @keeping_warnings
 @one_blas_thread
-def measure(config: Config | dict | None = None, **overrides) -> Measurement:
+def measure(config: Config | dict | str | os.PathLike | None = None,
+            **overrides) -> Measurement:
     """Simulate one acquisition: scene, code, patterns, photon counts and matched filter.
 
     The result can be reconstructed several times (other solvers, weights, with and without
@@ -132,8 +134,9 @@ def measure(config: Config | dict | None = None, **overrides) -> Measurement:
 
     Parameters
     ----------
-    config : Config or dict, optional
-        The acquisition's configuration (defaults: the paper's default experiment).
+    config : Config, dict, str or path, optional
+        The acquisition's configuration (defaults: the paper's default experiment), as
+        :func:`run` takes it (a run's TOML file, or a scene's name or path, too).
     **overrides
         Config keys to change, e.g. ``measure(scene="motorcycle", noise=5)``.
 
@@ -692,13 +695,16 @@ def _host(be, a):
     return a if be is None or isinstance(a, np.ndarray) else be.to_numpy(a)
 
 
-def run(config: Config | dict | None = None, **overrides) -> Result:
+def run(config: Config | dict | str | os.PathLike | None = None, **overrides) -> Result:
     """Simulate one acquisition and reconstruct it: ``reconstruct(measure(config))``.
 
     Parameters
     ----------
-    config : Config or dict, optional
-        The run's configuration (defaults: the paper's default experiment).
+    config : Config, dict, str or path, optional
+        The run's configuration (defaults: the paper's default experiment): a
+        :class:`~spslidar.config.Config`, a dict of its keys, a run's TOML file
+        (``run('myrun.toml')``, as ``spslidar run --config``) or a scene
+        (``run('camera')``).
     **overrides
         Config keys to change, e.g. ``run(noise=5, solver='twist')``.
 

@@ -160,10 +160,14 @@ def _frozen(arr):
 
 def _resolve(config, overrides) -> Config:
     """The config of ``run(config, **overrides)``: a :class:`Config`, a mapping of its keys,
-    None (the defaults) or a scene (a built-in name or a file path: ``run('camera')``)."""
+    None (the defaults), a run's TOML file (``run('myrun.toml')``, as ``spslidar run
+    --config``; it was read as a scene's name, "unknown scene": an outside audit of
+    2026-12-03) or a scene (a built-in name or a file path: ``run('camera')``)."""
     import os
     from collections.abc import Mapping
 
+    if isinstance(config, (str, os.PathLike)) and os.fspath(config).lower().endswith(".toml"):
+        return Config.from_toml(config, **overrides)
     if isinstance(config, (str, os.PathLike)):
         config, overrides = None, {"scene": os.fspath(config), **overrides}
     if config is None:

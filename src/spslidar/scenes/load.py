@@ -112,6 +112,11 @@ def load_scene(
             raise SceneError(f"scene {scene!r}: write {kind}:{spec}" if spec else
                              f"scene {scene!r}: {kind} takes no argument")
         path = Path(scene)
+        if path.suffix.lower() == ".toml":  # (a run's configuration read as a scene's name:
+            # spslidar.run("myrun.toml") said "unknown scene", an outside audit of 2026-12-03)
+            raise SceneError(f"scene {scene!r} is a TOML file, a run's configuration, not a "
+                             f"scene: spslidar.run({scene!r}), or spslidar run --config "
+                             f"{scene}")
         if path.suffix.lower() not in SCENE_FILE_SUFFIXES and not path.exists():
             raise SceneError(
                 f"unknown scene {scene!r}: use a built-in ({', '.join(_scene_names())}) or a "
