@@ -352,6 +352,11 @@ def test_save_ptu_of_a_gmapd_advises_a_shorter_dwell(monkeypatch):
 
     with pytest.raises(ConfigError, match=r"lower --periods \(the dwell: a GMAPD keeps its "):
         check_ptu_photons(meas("gmapd"))
+    # (the photons reaching it, which it draws one by one, not the file's detections: an
+    # outside audit of 2026-12-03 read them as the file's)
+    with pytest.raises(ConfigError, match=r"expected photons reaching the detector \(each "
+                                          r"drawn, though its dead time records fewer\)"):
+        check_ptu_photons(meas("gmapd"))
     with pytest.raises(ConfigError, match=r"lower --periods, or --signal / --noise$"):
         check_ptu_photons(meas("linear"))
     # at one period (the default) there is no dwell to shorten: a shorter code or fewer

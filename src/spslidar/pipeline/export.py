@@ -41,7 +41,12 @@ def check_ptu_photons(meas: Measurement, max_photons: float = 2e7) -> float:
         else:
             how = (f"use {fewer} (a GMAPD keeps its photons per dead time)" if gmapd
                    else f"lower --signal / --noise, or use {fewer}")
-        raise ConfigError(f"--save-ptu writes photon by photon: {expected:.3g} expected photons "
+        # (a GMAPD's file holds fewer detections, but every photon reaching it is drawn one
+        # by one before its dead time keeps them: "expected photons" read as the file's, an
+        # outside audit of 2026-12-03)
+        what = ("expected photons reaching the detector (each drawn, though its dead time "
+                "records fewer)" if gmapd else "expected photons")
+        raise ConfigError(f"--save-ptu writes photon by photon: {expected:.3g} {what} "
                           f"exceed {max_photons:.3g}; {how}")
     return expected
 
