@@ -361,13 +361,13 @@ def test_a_short_code_whose_auto_replica_leaves_a_pedestal_is_told_the_one_that_
     from types import SimpleNamespace
 
     from spslidar.correlate import auto_replica, replica_plateau
-    from spslidar.pipeline.chain import _plateau_notes
+    from spslidar.pipeline.plan import plateau_notes
 
     code = np.zeros(7)
     code[:5] = 1
     assert auto_replica(code) == "zero-mean"
     acq = SimpleNamespace(code=code, lidar="psst", replica="zero-mean")
-    said = _plateau_notes(acq, replica_plateau(code, "zero-mean"), False, "tv")
+    said = plateau_notes(acq, replica_plateau(code, "zero-mean"), False, "tv")
     assert len(said) == 1 and said[0].endswith("; --replica bipolar leaves +0.33"), said
 
 
@@ -379,7 +379,7 @@ def test_auto_takes_the_more_level_replica_of_a_code_one_bit_short_of_balance():
     from types import SimpleNamespace
 
     from spslidar.correlate import auto_replica, replica_plateau
-    from spslidar.pipeline.chain import _plateau_notes
+    from spslidar.pipeline.plan import plateau_notes
 
     for ones, kind, level in ((15, "zero-mean", -1 / 30), (16, "bipolar", 0.0)):
         code = np.zeros(31)
@@ -387,7 +387,7 @@ def test_auto_takes_the_more_level_replica_of_a_code_one_bit_short_of_balance():
         assert auto_replica(code) == kind
         assert replica_plateau(code, kind) == pytest.approx(level, abs=1e-12)
         acq = SimpleNamespace(code=code, lidar="psst", replica=kind)
-        assert _plateau_notes(acq, replica_plateau(code, kind), False, "tv") == []
+        assert plateau_notes(acq, replica_plateau(code, kind), False, "tv") == []
     code = np.zeros(30)  # an even count: half the bits ones ties, bipolar kept
     code[:15] = 1
     assert auto_replica(code) == "bipolar"

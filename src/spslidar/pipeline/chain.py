@@ -49,7 +49,7 @@ from .measurement import (
     check_processing_keys,
     unchanged_keys,
 )
-from .plan import _check_pattern_floor, _plan, detector_options, preflight, timeline
+from .plan import _check_pattern_floor, _plan, detector_options, plateau_notes, preflight, timeline
 from .results import Result
 from .score import finish_result, resolved_config
 from .simulate import BLOCK, simulate_correlations
@@ -258,45 +258,6 @@ def measure(config: Config | dict | str | os.PathLike | None = None,
     timing["simulate"] = time.perf_counter() - t0
     return Measurement(cfg, scene, acq, gate, lags, ulags, inverse, patterns, sim, seq_probe,
                        warns, timing)
-
-
-def _plateau_notes(acq, plateau: float, unipolar: bool, reg_kind: str) -> list[str]:
-    """What a replica's plateau (:func:`~spslidar.correlate.replica_plateau`) does that no
-    step undoes, in one line each: a pedestal below zero, which the non-negative solve
-    clips, and a unipolar plateau under a sparsity prior, which shrinks it before it is
-    taken out (both exit 0 without a word before: a noiseless 16x16 scene read 0.29-0.31 m
-    with 28-34 % of its pixels lost, and 0.22 m against TV's 0.0015 m; an outside audit of
-    2026-11-30, options paired)."""
-    notes = []
-    if plateau <= -PLATEAU_SHARE:
-        from ..correlate import auto_replica
-
-        code = np.asarray(acq.code)
-        ones = f"{int(np.count_nonzero(code > 0))} of its {code.size} bits ones"
-        auto = "unipolar" if acq.lidar == "conventional" else auto_replica(code)
-        fix = f"--replica auto takes the {auto} replica for such a code"
-        if acq.lidar != "conventional":
-            # (a code this short leaves a pedestal through every replica that sums to zero:
-            # the advice named the replica in use, a 3-bit code's bipolar one, -1.00)
-            plateaus = {k: replica_plateau(code, k) for k in ("zero-mean", "bipolar")}
-            best = max(plateaus, key=plateaus.get)
-            if plateaus[best] <= -PLATEAU_SHARE:
-                shortest = int(np.ceil(1.0 + 1.0 / PLATEAU_SHARE))
-                fix = (f"no replica avoids it for a code of {code.size} bits (the {best} "
-                       f"one leaves {plateaus[best]:+.2f}): use a code of at least "
-                       f"{shortest} bits (--code-length)")
-            elif auto == acq.replica:  # (auto's own choice: name the one that avoids it)
-                fix = f"--replica {best} leaves {plateaus[best]:+.2f}"
-        notes.append(f"the {acq.replica} replica of this code ({ones}) leaves every "
-                     f"profile on a pedestal of {plateau:+.2f} times its return, which the "
-                     f"solve's non-negativity clips: depths can be lost or wrong; {fix}")
-    if unipolar and reg_kind not in TV_REGULARISERS:
-        notes.append(f"the unipolar replica leaves {plateau:.2f} times each return at every "
-                     f"delay, which the {reg_kind} prior shrinks as it would noise before "
-                     f"it is taken out: depths can be lost or wrong; use --regulariser tv "
-                     f"(with a solver that takes it: fista, twist, tval3) or another "
-                     f"--replica")
-    return notes
 
 
 @keeping_warnings
@@ -529,7 +490,7 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     noise_sample = None
     plateau = replica_plateau(meas.acq.code, meas.acq.replica)
     unipolar = PLATEAU_SHARE <= plateau < 1.0  # (--replica unipolar: profiles ride on q x peak)
-    warns.extend(_plateau_notes(meas.acq, plateau, unipolar, reg_kind))
+    warns.extend(plateau_notes(meas.acq, plateau, unipolar, reg_kind))
     if unipolar and auto:
         # an automatic gate's plateau is read over the delays solved, before its noise
         # sample is taken (the delays not solved are zeros, no plateau: read over the whole
