@@ -548,28 +548,24 @@ def test_base_seed_allowed_with_one_trial(tmp_path):
     assert [row["seed"] for row in rows] == [4, 4]
 
 
-def test_a_top_level_seed_that_base_overrides_is_said(tmp_path):
+@pytest.mark.parametrize(("table", "said", "seeds"), [
     # (an outside audit of 2026-12-01: seed = 9 beside [base] seed = 4 ran seed 4 unsaid)
-    path = tmp_path / "sweep.toml"
-    path.write_text("seed = 9\n[base]\nseed = 4\n[grid]\nx = [1, 2]\n")
-    with pytest.warns(UserWarning, match=r"the top-level seed = 9 is not used: \[base\] seed "
-                                         r"= 4 sets every point's seed"):
-        spec = load_sweep_config(path)
-    assert {p["seed"] for p in spec.points()} == {4}
-
-
-def test_a_top_level_seed_that_the_grid_overrides_is_said(tmp_path):
-    # (an outside audit of 2026-12-03: seed = 1 beside [grid] seed = [0, 1] ran seeds 0
-    # and 1 unsaid); without the top-level key, nothing is said
+    ("[base]\nseed = 4\n[grid]\nx = [1, 2]\n", r"\[base\] seed = 4 sets", [4, 4]),
+    # (one of 2026-12-03: beside [grid] seed = [0, 2], seeds 0 and 2 ran unsaid)
+    ("[grid]\nseed = [0, 2]\nx = [1]\n", r"\[grid\] seed sets", [0, 2]),
+])
+def test_a_top_level_seed_that_a_table_overrides_is_said(tmp_path, table, said, seeds):
+    """A top-level seed that [base] or [grid] overrides is said unused; without the
+    top-level key, nothing is said."""
     import warnings
 
     path = tmp_path / "sweep.toml"
-    path.write_text("seed = 1\n[grid]\nseed = [0, 2]\nx = [1]\n")
-    with pytest.warns(UserWarning, match=r"the top-level seed = 1 is not used: \[grid\] seed "
-                                         r"sets every point's seed"):
+    path.write_text("seed = 9\n" + table)
+    with pytest.warns(UserWarning, match=r"the top-level seed = 9 is not used: " + said
+                      + r" every point's seed"):
         spec = load_sweep_config(path)
-    assert sorted(p["seed"] for p in spec.points()) == [0, 2]
-    path.write_text("[grid]\nseed = [0, 2]\nx = [1]\n")
+    assert sorted(p["seed"] for p in spec.points()) == seeds
+    path.write_text(table)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         load_sweep_config(path)
