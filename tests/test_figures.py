@@ -354,3 +354,74 @@ def test_a_title_with_a_newline_is_written_on_its_lines(result, tmp_path, monkey
 
     monkeypatch.setattr(figs, "_title", lambda r: "measured wall\nday2.ptu: no ground truth")
     assert depth_figure(result, tmp_path / "n.png").stat().st_size > 1000
+
+
+def test_a_map_mostly_outside_the_truths_range_keeps_its_own_on_the_bar(result):
+    """An uncalibrated instrument's map 2.06 m farther than its scene was drawn all end
+    colour and crosses (an outside audit of 2026-12-03): where most of the estimate lies
+    outside the truth's range, the bar takes in the estimate's 1st-99th percentile; a few
+    outliers do not move it."""
+    from spslidar.figures import _limits, _outside
+
+    r = result
+    saved, truth = r.depth, r.truth
+    lo0, hi0 = float(np.min(truth[r.scene.valid])), float(np.max(truth[r.scene.valid]))
+    try:
+        r.depth = np.where(r.scene.valid, truth + 5.0, np.nan)  # (all beyond its range)
+        lo, hi = _limits(r)[:2]
+        assert lo == pytest.approx(lo0) and hi == pytest.approx(
+            np.percentile(r.depth[r.scene.valid], 99))
+        assert _outside(r, lo, hi).mean() < 0.02  # (the estimate's own top percent)
+        r.depth = _edited(truth, (3, 3), hi0 + 5.0)  # one outlier: the truth's range
+        assert _limits(r)[:2] == (lo0, hi0)
+    finally:
+        r.depth = saved
+
+
+def test_the_title_says_what_lies_outside_the_gate_beside_mostly_noise(result):
+    """A measured file's returns outside the gate were not said where the map was also
+    mostly noise, and a run's scene pixels beyond its gate never (an outside audit of
+    2026-12-03): both notes are said, the gate's first."""
+    from spslidar.figures import _title
+
+    m = dict(result.metrics)
+    r = result
+    saved = r.metrics
+    try:
+        r.metrics = {**m, "returns_outside_gate_fraction": 1.0, "peak_to_noise_p90": 1.0,
+                     "peak_to_noise_floor": 2.0, "ptu": {"file": "x.ptu",
+                                                         "counts_per_pattern": [1, 2]}}
+        assert _title(r).endswith("; 100% of the returns outside the range gate; MOSTLY "
+                                  "NOISE: at most a tenth of the pixels hold a return (see "
+                                  "the warnings)")
+    finally:
+        r.metrics = saved
+    gated = pipeline.run(scene="steps", size=16, code_length=1023, range_gate=(10.0, 10.3),
+                         seed=0)
+    beyond = int(np.count_nonzero((gated.truth < 10.0) | (gated.truth > 10.3)))
+    assert 0 < beyond < gated.truth.size  # (the steps lie at 10-10.8 m: their far ones)
+    assert f"; {beyond} pixels of the scene outside the range gate" in _title(gated)
+    assert "outside the range gate" not in _title(result)
+
+
+def test_a_gmapd_runs_title_names_its_detector():
+    """A GMAPD run's title read as a linear counter's (an outside audit of 2026-12-03)."""
+    from spslidar.figures import _title
+
+    r = pipeline.run(scene="steps", depth_min=24.5, depth_max=25.5, size=8, code_length=255,
+                     compression=1, detector="gmapd", dead_time=50e-9, signal=1e-4,
+                     noise=1e-6, periods=200, range_gate=(24.0, 26.0), seed=0)
+    assert "GMAPD (dead time 50 ns, 200 periods, pile-up corrected)" in _title(r)
+    assert "GMAPD" not in _title(pipeline.run(size=8, code_length=255, seed=0))
+
+
+def test_the_summary_line_says_the_gate_beside_mostly_noise():
+    """The summary line's returns phrase, as the title (an outside audit of 2026-12-03)."""
+    from spslidar.metrics import returns_phrase
+
+    noise = {"peak_to_noise_p90": 1.0, "peak_to_noise_floor": 2.0}
+    assert returns_phrase(noise, 1.0) == ("a depth in 100% of pixels, mostly noise (see the "
+                                          "warning)")
+    both = {**noise, "returns_outside_gate_fraction": 0.8}
+    assert returns_phrase(both, 1.0) == ("a depth in 100% of pixels, mostly noise, 80% of the "
+                                         "returns outside the range gate (see the warnings)")

@@ -188,13 +188,22 @@ def _legend_items(result, outside: np.ndarray, beyond: np.ndarray | None = None,
 def _limits(result):
     """Colour range of the depth panels, the masked error map and its symmetric range.
 
-    With a ground truth the depth range is the truth's (an estimate outside it is marked);
-    without one it is the estimate's 1st to 99th percentile, widened to the depths within a
-    quarter of that span beyond either end."""
+    With a ground truth the depth range is the truth's (an estimate outside it is marked),
+    and takes in the estimate's 1st to 99th percentile where most of the estimate lies
+    outside it (an uncalibrated instrument's map 2.06 m farther than its scene was all end
+    colour and crosses: an outside audit of 2026-12-03); without one it is the estimate's
+    1st to 99th percentile, widened to the depths within a quarter of that span beyond
+    either end."""
     valid = _classes(result)[0] == 0
     truth = result.truth
     if valid.any():
         lo, hi = float(np.min(truth[valid])), float(np.max(truth[valid]))
+        d = np.asarray(result.depth, dtype=np.float64)[valid]
+        d = d[np.isfinite(d)]
+        tol = float(result.metrics.get("bin_depth_m", 0.0))
+        if d.size and np.mean((d < lo - tol) | (d > hi + tol)) > 0.5:
+            p1, p99 = (float(v) for v in np.percentile(d, [1, 99]))
+            lo, hi = min(lo, p1), max(hi, p99)
     elif np.isfinite(result.depth).any():
         d = np.asarray(result.depth, dtype=np.float64)
         d = d[np.isfinite(d)]
@@ -255,12 +264,20 @@ def _title(result) -> str:
                 ) + ([f"IRF {c.irf}"] if c.irf else [])
         if inst:
             what += f", instrument: {', '.join(inst)}"
-    # the no-return rule is relative: "returns in 100 % of pixels" of an image of noise
-    noise = ""
+        if c.detector != "linear":  # (a GMAPD's run read as a linear counter's: an audit)
+            what += f", {_detector_words(c, m)}"
+    # the no-return rule is relative: "returns in 100 % of pixels" of an image of noise;
+    # the returns outside the gate said too, where they are why (they were hidden behind
+    # MOSTLY NOISE, a gate that missed the whole scene: an outside audit of 2026-12-03)
+    notes = []
+    if outside_gate(m) is not None:
+        notes.append(f"{outside_gate(m):.0%} of the returns outside the range gate")
+    elif "ptu" not in m and _truth_outside_gate(result):
+        notes.append(f"{_pixels(_truth_outside_gate(result))} of the scene outside the range "
+                     f"gate")
     if mostly_noise(m):
-        noise = "; MOSTLY NOISE: at most a tenth of the pixels hold a return (see the warnings)"
-    elif outside_gate(m) is not None:
-        noise = f"; {outside_gate(m):.0%} of the returns outside the range gate (see the warnings)"
+        notes.append("MOSTLY NOISE: at most a tenth of the pixels hold a return")
+    noise = f"; {'; '.join(notes)} (see the warnings)" if notes else ""
     if m.get("depth_rmse_m") is None:
         # (not "returns in 97% of pixels" beside MOSTLY NOISE, as the summary line says it)
         found = "a depth" if noise else "returns"
@@ -270,6 +287,33 @@ def _title(result) -> str:
         return f"{what}: no depth to score, no pixel with a truth holds a return{noise}"
     return (f"{what}: RMSE = {m['depth_rmse_m']:.4f} m over {_percent(m['coverage'])} "
             f"of pixels{noise}")
+
+
+def _truth_outside_gate(result) -> int:
+    """A simulated run's scene pixels (with a truth) beyond its range gate, whose returns
+    alias into it or are lost (the run warns of them; its figure did not)."""
+    gate = result.metrics.get("range_gate_m")
+    valid = ~_classes(result)[0]
+    if not gate or not valid.any():
+        return 0
+    truth = np.asarray(result.truth, dtype=np.float64)[valid]
+    return int(np.count_nonzero((truth < gate[0]) | (truth > gate[1])))
+
+
+def _detector_words(c, m: dict) -> str:
+    """A simulated detector other than the linear counter, with its dead time and dwell
+    where it has them: ``GMAPD (dead time 50 ns, 5000 periods, pile-up corrected)``."""
+    det = m.get("detector") or {}
+    parts = []
+    dead = det.get("dead_time_s", getattr(c, "dead_time", None))
+    if dead:
+        parts.append(f"dead time {1e9 * float(dead):g} ns")
+    if int(getattr(c, "periods", 1) or 1) > 1:
+        parts.append(f"{int(c.periods)} periods")
+    if det.get("corrected") or (getattr(c, "pileup_correction", False) and dead):
+        parts.append("pile-up corrected")
+    name = c.detector.upper() if c.detector == "gmapd" else c.detector
+    return f"{name} ({', '.join(parts)})" if parts else name
 
 
 def _reflectivity_range(result) -> tuple[float, float]:

@@ -204,9 +204,14 @@ def returns_phrase(metrics: dict, share: float) -> str:
     """``returns in 97% of pixels``, or, where the map is mostly noise (:func:`mostly_noise`),
     ``a depth in 97% of pixels, mostly noise`` (the summary said "returns in 100% of pixels"
     right after the warning that the map is noise, an audit)."""
-    if mostly_noise(metrics):
-        return f"a depth in {percent(share)} of pixels, mostly noise (see the warning)"
     outside = outside_gate(metrics)
+    if mostly_noise(metrics):
+        # (and the returns outside the gate, where they are why: a gate that missed the
+        # scene was said only to be noise, an outside audit of 2026-12-03)
+        gate = ("" if outside is None else
+                f", {outside:.0%} of the returns outside the range gate")
+        return (f"a depth in {percent(share)} of pixels, mostly noise{gate} (see the "
+                f"warning{'s' if gate else ''})")
     if outside is not None:
         # (the pixels whose return lies beyond the gate are given depths in it: not returns)
         return (f"a depth in {percent(share)} of pixels, {outside:.0%} of the returns outside "
