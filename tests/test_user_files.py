@@ -283,3 +283,25 @@ def test_overwrite_keeps_a_file_someone_edited_in_a_previous_result(tmp_path, ca
     assert (out / "depth.npy").read_bytes() == mine
     (out / "depth.npy").unlink()  # moved away: the result is replaced
     assert main([*args, "--overwrite"]) == 0
+
+
+@pytest.mark.parametrize("hashes", [True, False])
+def test_overwrite_keeps_a_file_its_marker_lists_without_a_checksum(tmp_path, capsys, hashes):
+    """A file the marker lists without a SHA-256 cannot be told from a user's: --overwrite
+    deleted a user's notes.txt added to the list, and with the marker's hashes gone (an
+    earlier version's, or one written by hand) any listed file (an outside audit of
+    2026-12-03). Refused in one line, the file kept."""
+    out = tmp_path / "r"
+    args = ["run", "--size", "8", "--code-length", "63", "--no-figure", "--out", str(out)]
+    assert main(args) == 0
+    capsys.readouterr()
+    (out / "notes.txt").write_text("mine")
+    meta = json.loads((out / MARKER).read_text())
+    meta["files"].append("notes.txt")
+    if not hashes:
+        del meta["sha256"]
+    (out / MARKER).write_text(json.dumps(meta))
+    assert main([*args, "--overwrite"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "notes.txt" in err[0] and "records no checksum" in err[0], err
+    assert (out / "notes.txt").read_text() == "mine"

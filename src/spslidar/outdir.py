@@ -102,18 +102,20 @@ def _marker_text(kind: str, files, run_id: str | None = None,
 
 def _changed_files(folder: Path) -> list[str]:
     """The files of a previous result that differ from what spslidar wrote (the SHA-256 its
-    marker records, or while a replacement was moving files in, the previous result's too; a
-    marker written before the hashes were kept has none to compare)."""
+    marker records, or while a replacement was moving files in, the previous result's too),
+    and those its marker lists without a SHA-256 (a marker of an earlier version, or edited:
+    such a file cannot be told from a user's, and ``--overwrite`` deleted a user's
+    ``notes.txt`` added to the list, an outside audit of 2026-12-03)."""
     meta = read_marker(folder) or {}
     sums = meta.get("sha256")
-    if not isinstance(sums, dict):
-        return []
-    both = {name: _hashes(value) for name, value in sums.items()}
+    both = ({name: _hashes(value) for name, value in sums.items()}
+            if isinstance(sums, dict) else {})
     previous = meta.get("previous_sha256")
     if isinstance(previous, dict):  # a replacement cut short (power lost) during its moves
         for name, value in previous.items():
             both.setdefault(name, set()).update(_hashes(value))
-    return changed_files(folder, sorted(both), both)
+    listed = {n for n in meta.get("files", ()) if isinstance(n, str)}
+    return changed_files(folder, sorted(listed | set(both)), both)
 
 
 def _entries(folder: Path) -> set[str]:
@@ -212,8 +214,9 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
             if changed:  # (a user's depth.npy copied over the result's was replaced)
                 raise SpslidarError(
                     f"{option} {out}: {', '.join(changed)} changed since spslidar wrote "
-                    f"{'it' if len(changed) == 1 else 'them'}; refusing to replace a file "
-                    f"someone edited (move it away, or choose a new folder)")
+                    f"{'it' if len(changed) == 1 else 'them'} (or its marker records no "
+                    f"checksum of {'it' if len(changed) == 1 else 'them'}); refusing to "
+                    f"replace a file someone edited (move it away, or choose a new folder)")
         # the files are written and moved in it: a read-only folder failed only after the
         # work, naming a temporary path; its parent is not written (a writable empty folder
         # in a read-only one is accepted)
