@@ -256,6 +256,20 @@ def test_sweep_interrupted_before_any_run_leaves_no_folder(tmp_path, monkeypatch
     assert main(["sweep", str(config), "--out", str(empty), "--no-progress"]) == 130
     assert list(empty.iterdir()) == []  # the user's empty folder stays, empty
     assert "nothing was written" in capsys.readouterr().err
+    # a folder of the user's files, interrupted before the sweep read it: not a cache (the
+    # line said "the runs that finished are cached", an outside audit of 2026-12-03)
+    from spslidar.experiments.sweep import command as sweep_command
+
+    def checking(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep_command, "_validate_run_points", checking)
+    theirs = tmp_path / "theirs"
+    theirs.mkdir()
+    (theirs / "notes.txt").write_text("mine")
+    assert main(["sweep", str(config), "--out", str(theirs), "--no-progress"]) == 130
+    assert "nothing was written" in capsys.readouterr().err
+    assert [p.name for p in theirs.iterdir()] == ["notes.txt"]
 
 
 # --------------------------------------------------------------------------------------------

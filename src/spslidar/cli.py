@@ -545,12 +545,15 @@ def _main(argv: list[str] | None = None) -> int:
     def line(terminated: bool) -> str:
         if args.command in ("sweep", "reproduce"):
             # (a sweep stopped before its first run removes the folder it made, or leaves
-            # a user's empty folder empty: the line said runs were cached)
+            # a user's empty folder empty: the line said runs were cached; and a folder of
+            # the user's files it had not claimed, its marker absent, was called a cache:
+            # an outside audit of 2026-12-03)
             from .outdir import MARKER
+            from .outwrite import read_marker
 
             out = Path(args.out)
-            kept = out.is_dir() and any(f.is_file() and f.name != MARKER
-                                        for f in out.rglob("*"))
+            kept = (out.is_dir() and read_marker(out) is not None
+                    and any(f.is_file() and f.name != MARKER for f in out.rglob("*")))
             done = ("the runs that finished are cached: run it again to resume" if kept
                     else "nothing was written")
         elif _WRITTEN:  # (--save-ptu's files were written, and the line said nothing was)
