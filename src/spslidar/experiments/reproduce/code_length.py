@@ -177,7 +177,9 @@ def exp_fig4(ctx: Context) -> tuple[str, list[Claim]]:
     ax.set_xlabel("code length [bits]", fontsize=8)
     ax.set_ylabel("depth RMSE [m]", fontsize=8)
     ax.legend(fontsize=6, loc="lower left")
-    ax.set_title(f"({next(letters)}) RMSE vs code length ({trials} trial(s), ± std)", fontsize=8)
+    # (one trial has no spread to show: "1 trial(s), ± std" read as error bars, an audit)
+    spread = f"{trials} trials, ± std" if trials > 1 else "1 trial, no spread"
+    ax.set_title(f"({next(letters)}) RMSE vs code length ({spread})", fontsize=8)
     png = save_figure(
         ctx,
         name,
