@@ -145,17 +145,15 @@ def cmd_inspect(args: argparse.Namespace) -> int:
         from .pipeline.inputs import load_patterns
 
         m = int(load_patterns(args.patterns, size=args.pattern_size).shape[0])
+    from .errors import ConfigError
+
     code = None
     loose = [f for f, v in (("--code-length", args.code_length),
                             ("--code-index", args.code_index)) if v is not None]
     if args.code is None and loose:  # (ignored without a word before: an outside audit)
-        from .errors import ConfigError
-
         raise ConfigError(f"{' and '.join(loose)} name a code of a --code family (mseq, "
                           f"gold, random), with --bit-rate: give both, or neither")
     if args.code is not None or args.bit_rate is not None:
-        from .errors import ConfigError
-
         if args.code is None or args.bit_rate is None:
             raise ConfigError("--code and --bit-rate go together: the range of the returns "
                               "needs both")

@@ -198,11 +198,9 @@ def _limits(result):
     truth = result.truth
     if valid.any():
         lo, hi = float(np.min(truth[valid])), float(np.max(truth[valid]))
-        d = np.asarray(result.depth, dtype=np.float64)[valid]
-        d = d[np.isfinite(d)]
-        tol = float(result.metrics.get("bin_depth_m", 0.0))
-        if d.size and np.mean((d < lo - tol) | (d > hi + tol)) > 0.5:
-            p1, p99 = (float(v) for v in np.percentile(d, [1, 99]))
+        found = valid & np.isfinite(result.depth)
+        if found.any() and _outside(result, lo, hi)[found].mean() > 0.5:
+            p1, p99 = (float(v) for v in np.percentile(result.depth[found], [1, 99]))
             lo, hi = min(lo, p1), max(hi, p99)
     elif np.isfinite(result.depth).any():
         d = np.asarray(result.depth, dtype=np.float64)
@@ -270,11 +268,12 @@ def _title(result) -> str:
     # the returns outside the gate said too, where they are why (they were hidden behind
     # MOSTLY NOISE, a gate that missed the whole scene: an outside audit of 2026-12-03)
     notes = []
-    if outside_gate(m) is not None:
-        notes.append(f"{outside_gate(m):.0%} of the returns outside the range gate")
-    elif "ptu" not in m and _truth_outside_gate(result):
-        notes.append(f"{_pixels(_truth_outside_gate(result))} of the scene outside the range "
-                     f"gate")
+    share = outside_gate(m)
+    beyond = 0 if share is not None or "ptu" in m else _truth_outside_gate(result)
+    if share is not None:
+        notes.append(f"{share:.0%} of the returns outside the range gate")
+    elif beyond:
+        notes.append(f"{_pixels(beyond)} of the scene outside the range gate")
     if mostly_noise(m):
         notes.append("MOSTLY NOISE: at most a tenth of the pixels hold a return")
     noise = f"; {'; '.join(notes)} (see the warnings)" if notes else ""

@@ -166,9 +166,9 @@ def _resolve(config, overrides) -> Config:
     import os
     from collections.abc import Mapping
 
-    if isinstance(config, (str, os.PathLike)) and os.fspath(config).lower().endswith(".toml"):
-        return Config.from_toml(config, **overrides)
     if isinstance(config, (str, os.PathLike)):
+        if os.fspath(config).lower().endswith(".toml"):
+            return Config.from_toml(config, **overrides)
         config, overrides = None, {"scene": os.fspath(config), **overrides}
     if config is None:
         cfg = Config.from_dict(overrides)
