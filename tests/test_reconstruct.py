@@ -290,3 +290,26 @@ def test_cli_code_by_name_and_index(tmp_path, capsys):
     assert main([*base, "--code", "random", "--code-length", "127", "--out",
                  str(tmp_path / "r")]) == 2
     assert "draws its bits from a seed" in capsys.readouterr().err
+
+
+def test_reconstruct_takes_every_processing_option_run_takes(tmp_path):
+    """A warning of reconstruct's sampled gate advised --no-auto-gate, which only 'run' had
+    (an outside audit: "unrecognized arguments"); --lam, --tol, --qcr-form, --nonneg and
+    --max-memory were the Python API's only. Every processing key has its flag, and
+    --no-auto-gate reaches the solve (every slice of the gate solved)."""
+    from spslidar.cli import build_parser
+    from spslidar.pipeline.measurement import processing_keys
+
+    sub = next(a for a in build_parser()._actions if a.__class__.__name__ ==
+               "_SubParsersAction")
+    dests = {a.dest for a in sub.choices["reconstruct"]._actions}
+    assert set(processing_keys()) <= dests, set(processing_keys()) - dests
+    _acquisition(tmp_path)
+    args = ["reconstruct", "--ptu", str(tmp_path / "acq.ptu"), "--patterns",
+            str(tmp_path / "patterns.npy"), "--code", str(tmp_path / "code.npy"),
+            "--bit-rate", "10e9", "--range-gate", "3.5", "4.8", "--no-figure"]
+    for flag, out in (("--auto-gate", "a"), ("--no-auto-gate", "b")):
+        assert main([*args, flag, "--out", str(tmp_path / out)]) == 0
+    a, b = (json.loads((tmp_path / o / "metrics.json").read_text()) for o in "ab")
+    assert a["auto_gate"] is True and b["auto_gate"] is False
+    assert b["n_slices_solved"] == b["n_slices"] > a["n_slices_solved"]

@@ -149,6 +149,7 @@ def add_reconstruct_parser(sub) -> None:
         _add_stage_options,
         _choices,
         _duration,
+        _memory,
         _stage_name,
     )
 
@@ -180,19 +181,36 @@ def add_reconstruct_parser(sub) -> None:
     p.add_argument("--truth", metavar="TRUTH.npy",
                    help="(N, N) true depth in metres (NaN where unknown), only to score the "
                         "result: without it every metric that needs no truth is given")
+    p.add_argument("--auto-gate", action=argparse.BooleanOptionalAction, default=S,
+                   help="drop the range slices without returns before solving (default: on "
+                        "for gates over 256 slices; --no-auto-gate solves every slice, as "
+                        "the warning on a sampled gate says)")
     _add_fov_option(p)
     p.add_argument("--solver", choices=solvers, type=_stage_name("solver"), default=S)
     _add_stage_options(p, "solver")
     _add_regulariser_option(p)
     p.add_argument("--depth", choices=depths, type=_stage_name("depth"), default=S)
     _add_stage_options(p, "depth")
+    p.add_argument("--lam", type=float, default=S, metavar="W",
+                   help="regularisation weight (default: --lam-scale times the noise level "
+                        "estimated from the measurements, as in 'run')")
     p.add_argument("--lam-scale", type=float, default=S, metavar="K")
     p.add_argument("--iterations", type=int, default=S, metavar="K")
+    p.add_argument("--tol", type=float, default=S,
+                   help="relative-change stopping tolerance (default 1e-4)")
     p.add_argument("--qcr", action=argparse.BooleanOptionalAction, default=S)
+    p.add_argument("--qcr-form", choices=("centred", "covariance"), default=S,
+                   help="centred least squares (default) or the paper's literal ||Delta - Hp||")
+    p.add_argument("--nonneg", action=argparse.BooleanOptionalAction, default=S,
+                   help="non-negative return strengths (default on, as in 'run')")
     p.add_argument("--subbin", action=argparse.BooleanOptionalAction, default=S,
                    help="place each return below a bin from its peak and the two beside it, "
                         "with the pulse's shape (with --calibration the calibrated "
                         "response's own sub-bin step applies, whatever this says)")
+    p.add_argument("--max-memory", type=_memory, default=S, metavar="GB",
+                   help="refuse a reconstruction whose estimated peak memory exceeds this: "
+                        "gigabytes, or with a unit (500MB, 2GB; default: the memory available "
+                        "now)")
     p.add_argument("--max-time", type=_duration, default=S, metavar="TIME",
                    help="refuse a reconstruction whose estimated solve time exceeds this: "
                         "seconds, or with a unit (90s, 10min, 2h; default 1h)")
