@@ -731,6 +731,13 @@ def test_reconstruct_says_a_code_the_photons_do_not_follow(tmp_path, capsys):
     assert "do not follow --code" not in capsys.readouterr().err
     assert main([*common, "--code", str(tmp_path / "w.npy"), "--out", str(tmp_path / "b")]) == 0
     assert "the photons do not follow --code" in capsys.readouterr().err
+    # the signal/background split reads returns through the code: through one the photons
+    # do not follow it is null (it read every photon as signal, 0 background: an audit)
+    a, b = (json.loads((tmp_path / d / "metrics.json").read_text()) for d in "ab")
+    assert a["mean_signal_counts_per_pattern"] > 0 and a["ptu"]["background_per_pattern"][0] > 0
+    assert b["mean_signal_counts_per_pattern"] is None
+    assert b["mean_noise_counts_per_pattern"] is None
+    assert b["ptu"]["background_per_bin_per_period"] is None
 
 
 def test_a_long_tail_through_the_code_sent_is_no_doubt(tmp_path):

@@ -397,7 +397,7 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     totals = hist.sum(axis=1)
     sigma = noise_sigma_from_totals(totals if noise_totals is None else noise_totals,
                                     replica, gain)
-    inverted = inverted_code_note(corr, sigma)
+    inverted, doubt = inverted_code_note(corr, sigma), None
     if inverted:
         dwell_warning.append(inverted)
     else:  # (a code the photons do not follow: its returns scattered over the period, read
@@ -410,6 +410,10 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         dwell_warning += [doubt] if doubt else []
     # (a calibrated instrument's return is its code through the response: signal_code)
     signal, _ = split_counts(corr, sigma, totals, ulags, signal_code, replica, gain)
+    if doubt:  # the split reads the returns through the code: through one
+        # the photons do not follow it is no split (a FLIM file through a made-up code read
+        # every photon as signal, 0 background, beside the warning; an outside audit)
+        signal = np.full_like(signal, np.nan, dtype=np.float64)
     # (with the plain code and replica, then the response taken out: a return through any
     # response is exactly a few of the plain code's)
     irf = ((np.asarray(cal["irf_offsets"], int), np.asarray(cal["irf_values"], float))
