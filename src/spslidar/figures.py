@@ -401,7 +401,12 @@ def _panels(result):
         panels.append(("depth2", f"second surface ({100 * np.isfinite(depth2).mean():.1f}% "
                                  "of pixels)", depth2, lo, hi, _VIRIDIS, "m"))
     if not getattr(result, "has_truth", True) and result.confidence is not None:
-        panels.append(("confidence", "confidence", result.confidence, 0.0, 1.0, _VIRIDIS, ""))
+        # (each pixel's confidence reads its profile against its own noise: a map the
+        # verdict calls noise showed 93 % of its pixels confident under MOSTLY NOISE, an
+        # outside audit; the title says the pixels' confidence is not the map's)
+        title = ("confidence (per pixel; the map is mostly noise)"
+                 if mostly_noise(getattr(result, "metrics", None) or {}) else "confidence")
+        panels.append(("confidence", title, result.confidence, 0.0, 1.0, _VIRIDIS, ""))
     return panels
 
 
