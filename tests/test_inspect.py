@@ -815,3 +815,24 @@ def test_reconstructs_note_words_and_its_pile_up_bar(tmp_path):
     assert "nearer the" in note and "than the nearly 100 % of the code sent" in note
     assert code_doubt_note(counts, code) is None
     assert code_doubt_note(counts, wrong, lost=PILE_UP_NO_JUDGE) is None
+
+
+def test_one_unreadable_file_among_several_leaves_the_others_described(tmp_path, capsys):
+    """``inspect`` over a lab folder: one file it cannot read hid every other file's report
+    (an outside audit); each readable file is described, each unreadable one said in its
+    line, and the exit is 2. Alone, such a file is refused before any word, as before."""
+    from spslidar.codes.sequences import make_code
+
+    _psst_file(tmp_path / "good.ptu", make_code("mseq", L), [40])
+    (tmp_path / "empty.ptu").write_bytes(b"")
+    assert main(["inspect", str(tmp_path / "empty.ptu"), str(tmp_path / "good.ptu")]) == 2
+    out, err = capsys.readouterr()
+    assert out.startswith(f"{tmp_path / 'good.ptu'}: ") and "empty.ptu" not in out
+    assert err.count("\n") == 1 and "error:" in err and "empty.ptu" in err
+    assert main(["inspect", "--json", str(tmp_path / "good.ptu"),
+                 str(tmp_path / "empty.ptu")]) == 2
+    out, err = capsys.readouterr()
+    assert [d["path"] for d in json.loads(out)] == [str(tmp_path / "good.ptu")]
+    assert main(["inspect", str(tmp_path / "empty.ptu")]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1

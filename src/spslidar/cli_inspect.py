@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from typing import Any
 
 __all__ = ["add_inspect_parser", "cmd_inspect", "describe"]
@@ -133,7 +134,8 @@ def _jsonable(scan: dict[str, Any]) -> dict[str, Any]:
 
 def cmd_inspect(args: argparse.Namespace) -> int:
     """Run ``spslidar inspect``; return the exit status (0, or 2 for a file it cannot read,
-    said in one line before anything is printed)."""
+    said in one line: before anything is printed where it is the only file; among several,
+    each other file is still described)."""
     from .io.ptu_scan import scan_ptu
     from .pipeline.file_advice import advice, returns_in_file, returns_text
     from .pipeline.inputs import check_bit_rate, check_pattern_size
@@ -161,15 +163,34 @@ def cmd_inspect(args: argparse.Namespace) -> int:
         from .cli_measured import _code
 
         code = _code(args)[0]
-    scans = [(path, scan_ptu(path)) for path in args.ptu]  # (every file read before a word)
+    from .errors import SpslidarError
+
+    scans, bad = [], []
+    for path in args.ptu:  # (every file read before a word)
+        try:
+            scans.append((path, scan_ptu(path)))
+        except SpslidarError as exc:
+            if len(args.ptu) == 1:
+                raise
+            # (one file it cannot read among several: the others are still described, the
+            # refusal said in its line and the exit 2; one such file among a lab folder's
+            # hid every other file's report, an outside audit)
+            bad.append(exc)
     found = ([returns_in_file(s, code, args.bit_rate) for _, s in scans] if code is not None
              else [None] * len(scans))
+    status = 0
+    if bad:
+        from .cli import one_line
+
+        for exc in bad:
+            print(f"spslidar inspect: error: {one_line(exc)}", file=sys.stderr)
+        status = 2
     if args.json:  # (the advice too: a script could not get --repeats, an audit)
         print(json.dumps([dict(_jsonable(s), path=p, advice=advice(s, m),
                                **({"returns": f} if f else {}))
                           for (p, s), f in zip(scans, found, strict=True)], indent=1,
                          default=str))
-        return 0
+        return status
     for i, ((path, scan), f) in enumerate(zip(scans, found, strict=True)):
         if i:
             print()
@@ -178,4 +199,4 @@ def cmd_inspect(args: argparse.Namespace) -> int:
         if said:
             print("for 'spslidar reconstruct':")
             print("\n".join(f"  - {s}" for s in said))
-    return 0
+    return status
