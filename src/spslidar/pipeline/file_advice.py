@@ -674,7 +674,8 @@ def returns_text(found: dict[str, Any]) -> list[str]:
     u = found["unambiguous_m"]
     out = doubt + [f"returns (the photons of every block, correlated with the code): {peaks}; "
            f"--range-gate {lo:.4g} {hi:.4g} holds them: the delays the photons show, cables "
-           f"included (with --calibration, less the calibrated delay's range), modulo the "
+           f"included (reconstruct's --calibration takes the gate in true metres: less "
+           f"the calibrated delay's range, c x delay / 2), modulo the "
            f"code's {u:.4g} m: add the whole number of {u:.4g} m your scene's distance needs "
            f"to both ends (one: --range-gate {lo + u:.4g} {hi + u:.4g})"]
     if found.get("sync_divider"):
