@@ -388,3 +388,30 @@ def test_a_plugin_stage_that_raises_is_one_line(tmp_path, capsys, monkeypatch):
         assert not (tmp_path / "o").exists()
     finally:
         SCENES._entries.pop("disc", None)
+
+
+def _strict_patterns(kind, m, n, rng, dtype, density=0.5):
+    """The docs' factory ``make(kind, M, N, rng, dtype, **options)`` with its own option
+    only, no ``**kwargs``."""
+    from spslidar.patterns.dense import DensePatterns
+
+    SEEN["strict"] = density
+    return DensePatterns((rng.random((m, n * n)) < density).astype(dtype))
+
+
+def test_a_pattern_factory_without_kwargs_gets_its_own_options_only():
+    """A factory written to the docs, its own option and no ``**kwargs``, raised TypeError
+    ("unexpected keyword argument 'sigma'"): every factory was given the built-in kinds'
+    keywords (an outside audit). It gets the keywords it names; ``check`` passes it."""
+    from spslidar.testing import check_stage
+
+    PATTERNS.add("strict", _strict_patterns, "strict", "Bernoulli of --density",
+                 options=(Option("density", 0.5, "share of mirrors on", lo=0, hi=1,
+                                 lo_open=True),), dense=True)
+    try:
+        SEEN.clear()
+        spslidar.run(**SMALL, patterns="strict", density=0.3)
+        assert SEEN == {"strict": 0.3}
+        assert "adjoint" in check_stage("patterns", "strict")  # (raises where one fails)
+    finally:
+        PATTERNS._entries.pop("strict", None)

@@ -134,11 +134,14 @@ def build_patterns(kind: str, n_patterns: int, n_side: int, rng: Any,
     # Option(param=...) was refused, a review of 2026-11-29) and the factory's own keywords
     known = set(PATTERN_OPTIONS) | {n for o in PATTERNS.options().values()
                                     for n in (o.name, o.param or o.name)}
+    own, takes_any = None, True
     try:
         import inspect
 
-        known |= {p.name for p in inspect.signature(factory).parameters.values()
-                  if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+        params = inspect.signature(factory).parameters.values()
+        own = {p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+        takes_any = any(p.kind is p.VAR_KEYWORD for p in params)
+        known |= own
     except (TypeError, ValueError):  # pragma: no cover - a factory without a signature
         pass
     known -= {"kind", "n_patterns", "n_side", "rng", "dtype"}
@@ -151,6 +154,10 @@ def build_patterns(kind: str, n_patterns: int, n_side: int, rng: Any,
             raise ConfigError(f"build_patterns() takes no option {key!r}"
                               + (f": did you mean {near!r}?" if near else "")
                               + f" (it takes {', '.join(sorted(known))})")
+    if not takes_any:  # (a plugin's factory written to the docs, its own options only,
+        # was given the built-in kinds' sigma, on_fraction... and raised TypeError, an
+        # outside audit: a factory without **kwargs gets the keywords it names)
+        options = {k: v for k, v in options.items() if k in own}
     return factory(kind, int(n_patterns), int(n_side), rng, dtype=np.dtype(dtype), **options)
 
 
