@@ -199,3 +199,49 @@ def test_metrics_config_nulls_the_options_no_chosen_stage_declares():
 
     again = Config.from_dict(cfg)
     assert again.extra.get("jitter", 0.0) == 0.0 and again.detector == "linear"
+
+
+class _BadNoise(LinearDetector):
+    """A non-linear model (correct() the identity) whose noise totals are ``how``."""
+
+    linear = False
+
+    def __init__(self, how):
+        super().__init__()
+        self.how = how
+
+    def noise_totals(self, counts, totals, n_periods=1, corrected=None):
+        n = np.shape(totals)[0]
+        return -np.ones(n) if self.how == "negative" else np.ones(n + 1)
+
+
+class _Complex(LinearDetector):
+    def detect(self, lam, rng, n_periods=1, out=None):
+        counts, totals = super().detect(lam, rng, n_periods)
+        return np.asarray(counts).astype(complex), totals
+
+
+@pytest.mark.parametrize("how, said", [
+    ("negative", r"returned noise totals that are negative or not finite from its "
+                 r"noise_totals\(\)"),
+    ("shape", r"returned noise totals of shape \(\d+,\) and dtype float64 from its "
+              r"noise_totals\(\) for \d+ patterns"),
+    ("complex", r"returned histograms of dtype complex128 from its detect\(\)")])
+def test_a_detectors_bad_noise_totals_or_complex_counts_are_refused(registered, how, said):
+    """A plugin's negative or mis-shaped noise totals passed ``check`` and ended a run in a
+    traceback from the matched filter's noise level; complex counts passed ``check`` (the
+    imaginary part cast away with a warning) and ended a run in "hist holds complex numbers",
+    the model unnamed (an outside audit of a plugin developer). Each is one line naming the
+    model, in the run and in ``check``."""
+    from spslidar.testing import check_stage
+
+    cls = _Complex if how == "complex" else _BadNoise
+    name = f"bad{how}"
+    registered(DETECTORS, name, lambda **kw: cls() if how == "complex" else cls(how))
+    with pytest.raises(ConfigError, match=rf"the detector model '{name}' \((_BadNoise|_Complex)"
+                                          rf"\) {said}"):
+        spslidar.run(**SMALL, detector=name)
+    with pytest.raises(AssertionError, match=said.split(" from")[0].replace("returned",
+                                                                              "(returned|gave)")
+                       if how != "complex" else r"detect gave counts of dtype complex128"):
+        check_stage("detector", name)

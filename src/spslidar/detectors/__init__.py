@@ -79,8 +79,17 @@ DETECTORS.add("gmapd", "spslidar.detectors.gmapd:GMAPD", "GMAPD",
 
 
 def build_detector(name: str, **options) -> DetectorModel:
-    """The detector model registered under ``name``, built with ``options``."""
-    return DETECTORS.load(name)(**options)
+    """The detector model registered under ``name``, built with ``options``; its ``name``
+    is the registered one (a plugin's subclass that forgot its own was recorded and named in
+    its errors as its base's, ``linear``, an outside audit; as solvers are recorded)."""
+    det = DETECTORS.load(name)(**options)
+    name = DETECTORS.canonical(name)
+    if getattr(det, "name", None) != name:
+        try:
+            det.name = name
+        except AttributeError:  # (a read-only name: kept as the model says it)
+            pass
+    return det
 
 
 def __dir__() -> list[str]:

@@ -253,8 +253,8 @@ def _simulate_fast(patterns, weights, shifts, noise_bin, acq, detector, replica,
             if not detector.linear:
                 fixed = detector.correct(lam, acq.n_periods)
                 _check_counts(fixed, shape, detector, "correct")
-                noise_tot[rows] = detector.noise_totals(lam, totals[rows], acq.n_periods,
-                                                        corrected=fixed)
+                noise_tot[rows] = checked_noise_totals(detector, lam, totals[rows],
+                                                       acq.n_periods, fixed)
                 lam = fixed
         corr[rows] = matched_filter(lam, replica, lags, gain, bank=bank)
 
@@ -408,6 +408,10 @@ def _check_counts(counts, shape: tuple, detector, what: str = "detect",
     fraction of its Poisson draws."""
     arr = np.asarray(counts)
     name = f"{getattr(detector, 'name', '?')!r} ({type(detector).__name__})"
+    if arr.dtype.kind not in "biuf":  # (complex counts ended in the matched filter's "hist
+        # holds complex numbers", the model unnamed: an outside audit of plugins)
+        raise ConfigError(f"the detector model {name} returned histograms of dtype "
+                          f"{arr.dtype} from its {what}(): counts are real numbers")
     if arr.shape != shape:
         raise ConfigError(f"the detector model {name} returned histograms of shape "
                           f"{arr.shape} from its {what}() for {shape} (patterns x bins)")
@@ -427,6 +431,25 @@ def _check_counts(counts, shape: tuple, detector, what: str = "detect",
     if tot.size and not (np.isfinite(tot).all() and tot.min() >= 0):
         raise ConfigError(f"the detector model {name} returned totals that are negative or "
                           f"not finite from its {what}(): a row's total is 0 or more")
+
+
+def checked_noise_totals(detector, counts, totals, n_periods: int, corrected) -> np.ndarray:
+    """``detector.noise_totals(...)``: one finite, non-negative variance per row, or a
+    one-line ConfigError naming the model (a plugin's negative or mis-shaped noise totals
+    ended in a traceback from the matched filter's noise level, an outside audit of
+    plugins)."""
+    got = np.asarray(detector.noise_totals(counts, totals, n_periods, corrected=corrected))
+    name = f"{getattr(detector, 'name', '?')!r} ({type(detector).__name__})"
+    rows = np.shape(totals)[:1]
+    if got.dtype.kind not in "biuf" or got.shape != rows:
+        raise ConfigError(f"the detector model {name} returned noise totals of shape "
+                          f"{got.shape} and dtype {got.dtype} from its noise_totals() for "
+                          f"{rows[0]} patterns (one real variance per row)")
+    if got.size and not (np.isfinite(got).all() and got.min() >= 0):
+        raise ConfigError(f"the detector model {name} returned noise totals that are "
+                          f"negative or not finite from its noise_totals(): a variance is 0 "
+                          f"or more")
+    return got
 
 
 def _simulate_reference(patterns, weights, shifts, noise_bin, acq, detector, replica, lags, gain,
@@ -464,8 +487,8 @@ def _simulate_reference(patterns, weights, shifts, noise_bin, acq, detector, rep
             _check_counts(hist, lam.shape, detector, totals=tot)
             totals[rows] = tot
             fixed = detector.correct(hist, acq.n_periods)
-            noise_tot[rows] = detector.noise_totals(hist, totals[rows], acq.n_periods,
-                                                    corrected=fixed)
+            noise_tot[rows] = checked_noise_totals(detector, hist, totals[rows],
+                                                   acq.n_periods, fixed)
             hist = fixed
         # C(tau) = sum_t h(t) f(t - tau) at every tau (eq. 5-6), then the gated lags
         full = np.fft.irfft(np.fft.rfft(hist, axis=1) * rep_f, n=period, axis=1)

@@ -207,6 +207,11 @@ def check_detector(name: str) -> list[str]:
     lam = np.full((reps, period), 0.02 * n_periods)
     lam[:, 10] = 0.3 * n_periods  # a return over a background
     counts, totals = det.detect(lam.copy(), rng, n_periods)
+    for got, label in ((counts, "counts"), (totals, "totals")):
+        if np.asarray(got).dtype.kind not in "biuf":  # (complex counts passed, their
+            # imaginary part cast away with a warning, an outside audit of plugins)
+            raise _fail(what, f"detect gave {label} of dtype {np.asarray(got).dtype}: counts "
+                              f"are real numbers")
     c = np.asarray(counts, np.float64)
     totals = np.asarray(totals, np.float64)
     if c.shape != lam.shape or totals.shape != (reps,):
@@ -260,8 +265,21 @@ def check_detector(name: str) -> list[str]:
         if not (coef[0] > 0 and np.allclose(back.ravel(), fit, rtol=1e-4, atol=0)):
             raise _fail(what, "correct(expected(lam)) is not linear in lam at low flux (rtol "
                               "1e-4): it does not undo the model's pile-up")
-    return ["counts finite and non-negative", "detect's totals", "mean of detect is expected",
+    done = ["counts finite and non-negative", "detect's totals", "mean of detect is expected",
             "correct undoes the non-linearity"]
+    if not getattr(det, "linear", True):
+        # (the matched filter's noise level is built from them: a plugin's negative or
+        # mis-shaped ones passed here and ended a run in a traceback, an outside audit)
+        from ..errors import ConfigError
+        from ..pipeline.simulate import checked_noise_totals
+
+        fixed = np.asarray(det.correct(c.copy(), 5000), np.float64)
+        try:
+            checked_noise_totals(det, c, c.sum(axis=1), 5000, fixed)
+        except ConfigError as exc:
+            raise AssertionError(str(exc)) from None  # (it names the model)
+        done.append("noise totals: one variance per row")
+    return done
 
 
 def depth_problem(n: int = 12, bins: int = 40):
