@@ -225,15 +225,27 @@ class _Cold(FISTA):
         super()._setup(A, y, reg, lam, None)
 
 
+class _Zeroes(FISTA):
+    """FISTA that zeroes its data in place (an outside audit's plugin: ``check`` blamed the
+    reference, "the reference did not converge", scored on the zeroed data)."""
+
+    name = "zeroes"
+
+    def _setup(self, A, y, reg, lam, x0):
+        y *= 0.0
+        super()._setup(A, y, reg, lam, x0)
+
+
 @pytest.fixture
 def broken_solvers():
-    for name, cls in (("early", _Early), ("sticky", _Sticky), ("cold", _Cold)):
+    for name, cls in (("early", _Early), ("sticky", _Sticky), ("cold", _Cold),
+                      ("zeroes", _Zeroes)):
         SOLVERS.add(name, cls, name, "broken", iterations=60, lam_scale=0.45,
                     regulariser="tv")
     try:
         yield
     finally:
-        for name in ("early", "sticky", "cold"):
+        for name in ("early", "sticky", "cold", "zeroes"):
             SOLVERS._entries.pop(name, None)
 
 
@@ -244,6 +256,9 @@ def test_solver_checks_fail_on_broken_solvers(broken_solvers, problems):
         kit.check_behaviour("sticky", "tv")
     with pytest.raises(AssertionError, match="is x0 ignored"):
         check_stage("solver", "cold")
+    with pytest.raises(AssertionError, match="the solve changed the data y it was given"):
+        check_stage("solver", "zeroes")
+    check_stage("solver", "fista")  # (the shared problems' data were left as they were)
 
 
 def test_progress_callback():
