@@ -213,10 +213,11 @@ def test_stage_names_are_read_in_any_case():
     from spslidar.pipeline.real import load_code
 
     assert load_code("MSEQ", 127).size == 127  # reconstruct's --code MSEQ was read as a file
-    reg = Registry("thing", "thing")  # two entries differing only in case stay exact
-    reg.add("a", object)
-    reg.add("A", dict)
-    assert reg.canonical("a") == "a" and reg.canonical("A") == "A"
+    reg = Registry("thing", "thing")  # two entries differing only in case are refused
+    reg.add("a", object)  # (since an outside audit registered "MRF" beside "mrf")
+    with pytest.raises(ValueError, match="only in case"):
+        reg.add("A", dict)
+    assert reg.canonical("a") == "a" and reg.canonical("A") == "a"
     with pytest.raises(ConfigError, match="unknown thing"):
         reg.get(reg.canonical("b"))
 

@@ -126,7 +126,8 @@ def test_a_toml_options_boolean_is_refused_and_the_cli_still_reads_numbers(medar
     (Option("win_c", 3.5, kind=int), "default 3.5 .*must be an integer"),
     (Option("win_f", True, kind=float), "default True .*must be a number"),
     (Option("win_s", "fast", kind=str, choices=("slow",)), "default 'fast' .*one of slow"),
-    (Option("win-d", 3, kind=int), "'win-d'.*identifier"),
+    (Option("win-d", 3, kind=int), "'win-d'.*snake_case"),
+    (Option("halfWidth", 3, kind=int), "'halfWidth'.*snake_case"),
     (Option("win_k", 3, kind=complex), "kind.*float, int, bool or str"),
 ])
 def test_an_options_declaration_is_checked_where_it_is_registered(option, says):
@@ -357,3 +358,17 @@ def test_a_numpy_bool_is_no_number_and_a_declaration_is_an_option():
     with pytest.raises(ValueError, match="is not an Option"):
         ESTIMATORS.add("undeclared", MedArgmax, options=("window",))
     assert "undeclared" not in ESTIMATORS.names()
+
+
+@pytest.mark.parametrize("name, says", [
+    ("my est", "letters, digits"), ("--mrf", "not starting with a sign"),
+    ("MRF", "differs from the registered 'mrf' only in case")])
+def test_a_stage_name_that_no_flag_can_give_is_refused(name, says):
+    """"my est", "--mrf" (``--depth --mrf`` is argparse's "expected one argument") and "MRF"
+    beside the built-in "mrf" were registered and passed ``check`` (an outside audit of a
+    plugin developer): refused at registration, in one line."""
+    with pytest.raises(ValueError, match=says) as err:
+        ESTIMATORS.add(name, MedArgmax)
+    assert name not in ESTIMATORS and "\n" not in str(err.value)
+    ESTIMATORS.add("my-est.2+", MedArgmax)  # (what the built-in names use, and more)
+    ESTIMATORS.remove("my-est.2+")

@@ -19,6 +19,7 @@ distributions and would need a reinstall for every change of an in-tree stage.
 from __future__ import annotations
 
 import importlib
+import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -261,9 +262,10 @@ def _declaration_fault(opt: Any) -> str:
     stages too (an audit of plugins)."""
     if not isinstance(opt, Option):
         return f"{opt!r} is not an Option"
-    if not isinstance(opt.name, str) or not opt.name.isidentifier():
-        return (f"its name must be a Python identifier (snake_case: the flag --a-b is made "
-                f"from the key a_b), got {opt.name!r}")
+    if not isinstance(opt.name, str) or not re.fullmatch(r"[a-z][a-z0-9_]*", opt.name):
+        # (isidentifier() let "halfWidth" through, a flag --halfWidth: an outside audit)
+        return (f"its name must be snake_case, lower-case letters, digits and _ (the flag "
+                f"--a-b is made from the key a_b), got {opt.name!r}")
     if opt.name in RESERVED_NAMES:
         return "the name is one of spslidar's own config keys or flags: name it otherwise"
     if opt.kind not in (float, int, bool, str):
@@ -342,6 +344,15 @@ class Registry:
         """
         if not name or not isinstance(name, str):
             raise ValueError(f"a {self.kind} needs a non-empty name")
+        if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.+-]*", name):
+            # ("my est" and "--mrf" were registered: the second cannot be given as
+            # "--depth --mrf", an outside audit of a plugin developer)
+            raise ValueError(f"a {self.kind}'s name is letters, digits, '_', '-', '.' or "
+                             f"'+', not starting with a sign or a dot: {name!r}")
+        twin = [n for n in tuple(self._entries) if n != name and n.casefold() == name.casefold()]
+        if twin:  # ("MRF" beside "mrf": which one --depth MRF means depends on the spelling)
+            raise ValueError(f"a {self.kind} {name!r} differs from the registered {twin[0]!r} "
+                             f"only in case (names are read in any case): name it otherwise")
         refused = ([getattr(o, "name", o) for o in options] if not self.takes_options
                    else []) + (list(defaults) if not self.takes_defaults else [])
         if refused:
@@ -480,7 +491,7 @@ class Registry:
     def canonical(self, name: Any) -> Any:
         """``name`` as registered where it differs only in case (``"FISTA"`` -> ``"fista"``,
         as scene names already were read), else ``name`` unchanged, for :meth:`get` to take
-        or refuse. Two entries that differ only in case keep their exact spellings."""
+        or refuse. (:meth:`add` refuses a name that differs from another only in case.)"""
         if not isinstance(name, str) or name in self._entries:
             return name
         same = [n for n in tuple(self._entries) if n.casefold() == name.casefold()]
