@@ -385,3 +385,26 @@ def test_a_stage_registered_in_this_process_only_is_not_checked_afresh(broken):
     from spslidar.testing.process import fresh_digest
 
     assert fresh_digest("scene", "near-only") is None
+
+
+def test_check_says_a_plugin_that_replaces_a_built_in(capsys):
+    """A plugin's own ``argmax`` was checked as "ok    depth argmax", the replacement unsaid
+    where ``run`` warns of it (an outside audit of a plugin developer); taken back, the
+    built-in is checked as before."""
+    from spslidar.depth import ESTIMATORS
+    from spslidar.depth.argmax import ArgmaxDepth
+
+    class Mine(ArgmaxDepth):
+        name = "argmax"
+
+    with pytest.warns(RuntimeWarning, match="is replaced by"):
+        ESTIMATORS.add("argmax", Mine, "argmax", "a plugin's")
+    try:
+        assert main(["check", "depth:argmax"]) == 0
+        line = capsys.readouterr().out.splitlines()[0]
+        assert line.startswith("ok    depth argmax (") and \
+            ", a plugin's, replacing the built-in spslidar.depth.argmax:ArgmaxDepth)" in line
+    finally:
+        ESTIMATORS.remove("argmax")
+    assert main(["check", "depth:argmax"]) == 0
+    assert "replacing" not in capsys.readouterr().out
