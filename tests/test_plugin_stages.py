@@ -415,3 +415,33 @@ def test_a_pattern_factory_without_kwargs_gets_its_own_options_only():
         assert "adjoint" in check_stage("patterns", "strict")  # (raises where one fails)
     finally:
         PATTERNS._entries.pop("strict", None)
+
+
+def _held_bits(kind, length, ones_ratio, rng=None, index=0, run_len=1):
+    """Random bits, each held for ``run_len`` bits."""
+    SEEN["run_len"] = run_len
+    rng = np.random.default_rng(rng)
+    bits = (rng.random(-(-length // run_len)) < 0.5).astype(np.uint8)
+    return np.repeat(bits, run_len)[:length]
+
+
+def test_snr_takes_a_plugin_code_familys_option(capsys):
+    """``snr --help`` listed a plugin family, but its option was "unrecognized arguments" and
+    the family ran at its default without a word (an outside audit of a plugin developer):
+    the option reaches the family; another family's refuses it in one line."""
+    from spslidar.codes import CODES
+
+    CODES.add("held", _held_bits, "held", "bits held --run-len",
+              options=(Option("run_len", 1, "bits each draw is held", kind=int, lo=1, hi=64),))
+    try:
+        args = ["snr", "--code", "held", "--code-length", "127", "--trials", "20", "--size",
+                "8", "--json"]
+        assert main([*args, "--run-len", "4"]) == 0 and SEEN["run_len"] == 4
+        assert main(args) == 0 and SEEN["run_len"] == 1
+        capsys.readouterr()
+        assert main(["snr", "--code", "mseq", "--code-length", "127", "--run-len", "4"]) == 2
+        err = capsys.readouterr().err
+        assert "--run-len is not an option of --code mseq" in err and err.count("\n") == 1
+        assert main([*args, "--run-len", "0"]) == 2
+    finally:
+        CODES._entries.pop("held", None)

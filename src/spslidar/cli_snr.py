@@ -43,6 +43,11 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
                     "a warning names the --trials that would.")
     p.add_argument("--code", choices=CODES.names(), type=CODES.canonical, default="mseq",
                    help=f"code family: {CODES.help_text()}")
+    from .cli_common import _add_stage_options
+
+    # (a plugin family's options: listed in --help, their flags unknown, the family run at
+    # its defaults without a word, an outside audit of a plugin developer)
+    _add_stage_options(p, "code")
     p.add_argument("--code-length", type=int, default=16383, metavar="L",
                    help="code length T in bits; 2^n - 1 for mseq/gold (default 16383)")
     p.add_argument("--ones-ratio", type=float, default=0.5, metavar="R",
@@ -80,6 +85,14 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
                    help='print {"theory", "simulated", "stderr", "ci95", "ratio", "resolved", '
                         '"params"} as JSON (null for a number that is not resolved)')
     return p
+
+
+def _code_options(args: argparse.Namespace) -> dict:
+    """The code families' options given on the command line (their flags default to
+    nothing: a family's own defaults apply)."""
+    from .codes import CODES
+
+    return {k: getattr(args, k) for k in CODES.options() if hasattr(args, k)}
 
 
 def cmd_snr(args: argparse.Namespace) -> int:
@@ -127,7 +140,7 @@ def cmd_snr(args: argparse.Namespace) -> int:
     r = snr_simulated(args.code, args.code_length, args.ones_ratio, args.signal, args.noise,
                       args.size, args.on_fraction, args.reflectivity, args.trials, seed,
                       method=args.method, interval=args.interval, code_index=args.code_index,
-                      max_time=args.max_time)
+                      max_time=args.max_time, code_options=_code_options(args))
     params = {key: r[key] for key in (
         "code", "code_length", "code_index", "ones_ratio", "ones", "ones_ratio_actual", "signal",
         "noise", "size", "on_fraction", "mirrors_on", "reflectivity", "trials", "method",

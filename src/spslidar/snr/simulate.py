@@ -284,6 +284,7 @@ def snr_simulated(
     delay: int | None = None,
     n_boot: int = 2000,
     max_time: float | None = 3600.0,
+    code_options: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Measure the output SNR of eq. (10) by Monte Carlo, with its standard error.
 
@@ -342,6 +343,9 @@ def snr_simulated(
         Refuse (SpslidarError) a simulation estimated (:func:`estimate_seconds`) to take longer
         than this many seconds, before any draw; one over 30 s says its estimate on stderr
         first (default 3600; None: no limit).
+    code_options : dict, optional
+        The options the code family declares (a plugin family's, as ``run``'s flags give
+        them), each checked by its declaration; the family's defaults where not given.
 
     Returns
     -------
@@ -427,7 +431,8 @@ def snr_simulated(
 
     gen = as_generator(rng)
     code_index = default_code_index(kind, code_index)
-    bits = make_code_checked(kind, code_length, ones_ratio, gen, code_index)
+    bits = make_code_checked(kind, code_length, ones_ratio, gen, code_index,
+                             options=code_options)
     period = int(bits.size)
     ones = int(bits.sum())
     if kind == "random" and ones_ratio is not None and realised_far(
