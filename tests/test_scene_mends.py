@@ -110,7 +110,9 @@ def test_reconstruct_takes_measurement_keys_at_their_value(meas):
     plain = spslidar.reconstruct(meas).depth_rmse
     same = spslidar.reconstruct(meas, noise=5, size=16.0, scene="procedural:4", seed=0)
     assert same.depth_rmse == plain
-    for key, value in (("noise", 6), ("noise", -1), ("size", 32), ("scene", "procedural:5")):
+    # (a stage's option too: dead_time was "unknown key", an outside audit)
+    for key, value in (("noise", 6), ("noise", -1), ("size", 32), ("scene", "procedural:5"),
+                       ("dead_time", 1e-7)):
         with pytest.raises(ConfigError, match=f"cannot change {key}"):
             spslidar.reconstruct(meas, **{key: value})
 

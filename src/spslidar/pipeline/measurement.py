@@ -43,9 +43,12 @@ def check_processing_keys(processing: dict[str, Any], caller: str, fixed: str) -
         return
     from dataclasses import fields
 
-    from ..config import close_names
+    from ..config import close_names, stage_options
 
-    unknown = sorted(bad - {f.name for f in fields(Config)})
+    # (a stage's option, a detector's dead_time or a plugin code's, is the measurement's
+    # key too: it was "unknown key 'dead_time'" where noise=5 was "cannot change", an
+    # outside audit of a plugin developer)
+    unknown = sorted(bad - {f.name for f in fields(Config)} - set(stage_options()))
     if unknown:
         said = ", ".join(
             f"{k!r}" + (f" (did you mean {' or '.join(map(repr, close))}?)"
