@@ -4,11 +4,13 @@ through the noise, an IRF ten bins wide, a code other than the one calibrated wi
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pytest
 
 from spslidar.cli import main
+from spslidar.errors import ConfigError
 
 COMMON = ["--size", "8", "--code-length", "1023", "--compression", "0.5",
           "--system-delay", "3.3e-9", "--range-gate", "1", "14", "--no-figure"]
@@ -238,6 +240,38 @@ def test_a_response_wider_than_a_quarter_period_is_said_to_be_cut():
     hist = np.random.default_rng(0).poisson(hist).astype(float)
     with pytest.warns(RuntimeWarning, match="still stands above the background"):
         measure_response(hist, code, 1e-10, 0.0)
+
+
+@pytest.mark.filterwarnings("ignore:the calibration.s response holds a second return")
+@pytest.mark.filterwarnings("ignore:the calibration's response stands")
+def test_a_fluorescence_decay_through_a_short_pulse_code_is_said_or_refused():
+    """A decay through a one-pulse code of 132 bits (the real hazelnut FLIM file read as a
+    calibration, an outside audit): its first 40-bin window already reaches past a quarter
+    of the period and was not said; a slower decay, read as noise inside itself, was refused
+    as "no clear return ... acquire longer". Both are said to be broader than a flat
+    target's; a narrow response through the same code is not."""
+    from spslidar.pipeline.calibration import measure_response
+
+    rng = np.random.default_rng(0)
+    for n, tau, peak, background, refused in ((132, 12.0, 13_500, 30, False),
+                                              (1563, 400.0, 5_000, 160, True)):
+        code = np.zeros(n)
+        code[0] = 1.0
+        t = np.arange(float(n))
+        hist = rng.poisson(peak * np.exp(-t / tau) + background).astype(float)
+        if refused:  # (the real beads file's shape: 5 000 over 160 in 16 ps bins)
+            with pytest.raises(ConfigError, match="still stands above the background .* a "
+                                                  "flat target's response is narrower"):
+                measure_response(hist, code, 1.6e-11, 0.0)
+        else:
+            with pytest.warns(RuntimeWarning, match="still stands above the background 40 "
+                                                    "bins after its peak"):
+                measure_response(hist, code, 1e-10, 0.0)
+        narrow = rng.poisson(peak * np.exp(-0.5 * ((t - 20) / 0.8) ** 2)
+                             + background).astype(float)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            measure_response(narrow, code, 1e-10, 0.0)
 
 
 

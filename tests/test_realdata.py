@@ -405,3 +405,19 @@ def test_align_channels_on_the_beads_files_two_channels_through_a_tdc_split():
                            marker=3, allow_binning=True, align_channels=True)
     said = [n for n in notes if n.startswith("--align-channels")]
     assert len(said) == 1 and "channels 0, 1 are read, but their delays are not read" in said[0]
+
+
+def test_a_fluorescence_file_read_as_a_calibration_is_said_to_be_no_flat_target(tmp_path):
+    """The hazelnut FLIM scan through a one-pulse 132-bit code (its sync period at
+    10.3125 GHz) was written as a calibration with only its width warned of: its decay still
+    stands 40 bins after the peak, past a quarter of the period, which is said now (an
+    outside audit of a lab's real files)."""
+    from spslidar.pipeline.calibration import calibrate_ptu
+
+    code = np.zeros(132, np.uint8)
+    code[0] = 1
+    pats = (np.random.default_rng(0).random((1280, 16, 16)) < 0.5).astype(np.uint8)
+    with pytest.warns(RuntimeWarning) as said:
+        calibrate_ptu(REAL / "hazelnut_z1.ptu", pats, code, 1.03125e10, 1.0, marker=1)
+    assert any("still stands above the background 40 bins after its peak" in str(w.message)
+               and "a flat target's response is narrower" in str(w.message) for w in said)
