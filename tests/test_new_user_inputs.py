@@ -367,3 +367,26 @@ def test_a_key_in_both_base_and_grid_is_said(tmp_path):
     with pytest.warns(UserWarning, match=r"noise is in both \[base\] and \[grid\]"):
         spec = load_sweep_config(cfg)
     assert [p["noise"] for p in spec.points()] == [1, 2]
+
+
+@pytest.mark.parametrize("extra, said", [
+    (["--no-qcr", "--nonneg"], "--nonneg is not applied with --no-qcr"),
+    (["--solver", "gpsr", "--nonneg"], "--nonneg is not applied with --regulariser wavelet "
+                                       "(gpsr's default)"),
+    (["--no-qcr"], None), (["--nonneg"], None)])
+def test_an_explicit_nonneg_that_is_not_applied_is_said(tmp_path, capsys, extra, said):
+    """``--no-qcr --nonneg`` and ``--no-qcr --no-nonneg`` gave the same map without a word
+    (an outside audit of options that have no effect): where --nonneg is asked for and not
+    applied it is said; the default's bound, dropped in every such run, is not."""
+    from spslidar.cli import main
+
+    out = tmp_path / "o"
+    assert main(["run", "--scene", "steps", "--size", "8", "--code-length", "127",
+                 "--no-figure", *extra, "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    m = json.loads((out / "metrics.json").read_text())
+    if said is None:
+        assert "--nonneg is not applied" not in err
+    else:
+        assert err.count(said) == 1 and m["config"]["nonneg"] is False
+        assert any(said in w for w in m["warnings"])

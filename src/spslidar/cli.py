@@ -199,7 +199,9 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="constrain the reconstructed return strengths to be non-negative "
                         "(default on; physical, since photon returns cannot be negative; "
                         "not with --regulariser wavelet, gpsr's default, whose prox has no "
-                        "closed form under the bound: metrics.json's config says which)")
+                        "closed form under the bound, nor with --no-qcr, whose "
+                        "mean-eliminated problem has no sign constraint: said where "
+                        "--nonneg is given, and metrics.json's config says which)")
     g.add_argument("--depth", choices=depths, type=_stage_name("depth"), default=S,
                    help=f"depth estimator: {depths_help}")
     _add_stage_options(g, "depth")
@@ -355,6 +357,12 @@ def _cmd_run(args) -> int:
     base = read_toml(args.config) if args.config else {}
     cfg = Config.from_dict(base, **opts)  # (a TOML's code-length, overridden by --code-length)
     check_overridden(base, opts, args.config)  # (after: the run's own errors said as such)
+    from .pipeline.plan import nonneg_dropped
+
+    # (an explicit --nonneg under --no-qcr ran without the bound, unsaid: an outside audit;
+    # only where it was asked for, as the default's bound is dropped in every such run)
+    dropped = (nonneg_dropped(cfg) if opts.get("nonneg", base.get("nonneg")) is True
+               else None)
     if save_ptu and "hadamard" in cfg.patterns and cfg.hadamard_realisation == "differential":
         from .errors import ConfigError
 
@@ -398,6 +406,11 @@ def _cmd_run(args) -> int:
               f"the patterns shown and the code in {ptu_files[1]} and {ptu_files[2]}")
     else:
         result = run(cfg)
+    if dropped:
+        result.warnings.append(dropped)
+        said = result.metrics.setdefault("warnings", [])
+        if said is not result.warnings:
+            said.append(dropped)
     say_warnings(result.warnings)
     warn_fov(args.fov)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,

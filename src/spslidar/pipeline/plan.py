@@ -226,6 +226,28 @@ def ignored_keys(cfg: Config) -> dict[str, str]:
     return out
 
 
+def nonneg_dropped(cfg: Config) -> str | None:
+    """Why ``cfg``'s non-negativity bound is not applied, where it is asked for and dropped
+    (:func:`~spslidar.pipeline.score.resolved_config` records ``nonneg`` false then): without
+    QCR under a TV regulariser (the mean-eliminated problem has no sign constraint), or
+    under the wavelet regulariser (its prox has no closed form under the bound); else None."""
+    from ..solvers.entries import TV_REGULARISERS
+    from .weights import regulariser_kind
+
+    if not cfg.nonneg:
+        return None
+    kind = regulariser_kind(cfg)
+    if not cfg.qcr and kind in TV_REGULARISERS:
+        return ("--nonneg is not applied with --no-qcr: the mean-eliminated problem it "
+                "solves has no sign constraint (metrics.json's config says nonneg false)")
+    if kind == "wavelet":
+        return (f"--nonneg is not applied with --regulariser wavelet"
+                f"{' (gpsr' + chr(39) + 's default)' if cfg.solver == 'gpsr' else ''}: its "
+                f"prox has no closed form under the bound (metrics.json's config says "
+                f"nonneg false)")
+    return None
+
+
 def report_only_keys(cfg: Config) -> dict[str, str]:
     """The chosen detector's options set away from their defaults that change only its
     report, not its counts (the class's ``report_only``, a mapping from each option to what
