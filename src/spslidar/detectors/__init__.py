@@ -71,7 +71,8 @@ DETECTORS.add("gmapd", "spslidar.detectors.gmapd:GMAPD", "GMAPD",
                          lo=0.0, hi=1.0),
                   Option("afterpulse_prob", 0.0, "probability that an avalanche causes an "
                          "afterpulse", lo=0.0, hi=1.0, hi_open=True),
-                  Option("afterpulse_delay", 0.0, "mean afterpulse delay after re-arming", "s",
+                  Option("afterpulse_delay", 0.0, "mean afterpulse delay after re-arming, "
+                         "required (> 0) with --afterpulse-prob", "s",
                          lo=0.0, hi=1e-3, why="afterpulses follow within microseconds"),
                   Option("pileup_correction", True, "correct each histogram for pile-up "
                          "before the matched filter", kind=bool, param="correction"),
