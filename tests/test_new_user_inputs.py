@@ -390,3 +390,25 @@ def test_an_explicit_nonneg_that_is_not_applied_is_said(tmp_path, capsys, extra,
     else:
         assert err.count(said) == 1 and m["config"]["nonneg"] is False
         assert any(said in w for w in m["warnings"])
+
+
+def test_the_command_lines_stage_leaves_out_the_files_options_of_the_one_it_replaces(
+        tmp_path, capsys):
+    """A file's ``detector = "gmapd"`` and ``jitter = 1e-10`` run with ``--detector linear``
+    were refused as "--jitter is an option of --detector gmapd", a flag the user never typed,
+    where the command line overrides the file (an outside audit): the file's option of the
+    replaced stage is left out, said in one line; one the new stage takes too is kept."""
+    from spslidar.cli import main
+
+    cfg = tmp_path / "gm.toml"
+    cfg.write_text('scene = "steps"\nsize = 8\ncode_length = 127\ndetector = "gmapd"\n'
+                   'jitter = 1e-10\ndead_time = 2e-8\n')
+    out = tmp_path / "o"
+    assert main(["run", "--config", str(cfg), "--detector", "linear", "--no-figure",
+                 "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert err.count("'s jitter (an option of --detector gmapd) is left out: --detector "
+                     "linear on the command line replaces its gmapd") == 1
+    assert "dead_time (an option" not in err
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["config"]["detector"] == "linear" and m["config"]["dead_time"] == 2e-8

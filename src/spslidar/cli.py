@@ -355,6 +355,9 @@ def _cmd_run(args) -> int:
         check_files(ptu_files, args.overwrite, outside=args.out)  # refuse before any work
     check_output(args.out, args.overwrite)  # refuse before any work
     base = read_toml(args.config) if args.config else {}
+    from .config import unchosen_options
+
+    base, unchosen = unchosen_options(base, opts, str(args.config))
     cfg = Config.from_dict(base, **opts)  # (a TOML's code-length, overridden by --code-length)
     check_overridden(base, opts, args.config)  # (after: the run's own errors said as such)
     from .pipeline.plan import nonneg_dropped
@@ -406,11 +409,11 @@ def _cmd_run(args) -> int:
               f"the patterns shown and the code in {ptu_files[1]} and {ptu_files[2]}")
     else:
         result = run(cfg)
-    if dropped:
-        result.warnings.append(dropped)
+    for note in [*unchosen, *([dropped] if dropped else [])]:
+        result.warnings.append(note)
         said = result.metrics.setdefault("warnings", [])
         if said is not result.warnings:
-            said.append(dropped)
+            said.append(note)
     say_warnings(result.warnings)
     warn_fov(args.fov)
     out = result.save(args.out, figure=not args.no_figure, overwrite=args.overwrite,

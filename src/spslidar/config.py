@@ -607,6 +607,34 @@ _ENVIRONMENT: contextvars.ContextVar[bool] = contextvars.ContextVar("spslidar_en
                                                                      default=True)
 
 
+def unchosen_options(base: dict[str, Any], overrides: dict[str, Any],
+                     source: str) -> tuple[dict[str, Any], list[str]]:
+    """A config file's keys less the options of a stage the command line replaced, and a
+    warning for each left out: a file's ``detector = "gmapd"`` and ``jitter = 1e-10`` run
+    with ``--detector linear`` were refused as "--jitter is an option of --detector gmapd",
+    a flag the user never typed, where the command line is to override the file (an outside
+    audit). An option the new stage declares too (``dead_time``) is kept."""
+    given = {str(k).replace("-", "_"): v for k, v in overrides.items() if v is not None}
+    own = {str(k).replace("-", "_"): k for k in base}
+    out, notes = dict(base), []
+    for key, reg in registries().items():
+        if key not in given or key not in own:
+            continue
+        old, new = base[own[key]], given[key]
+        if not isinstance(old, str) or not isinstance(new, str):
+            continue
+        old, new = reg.canonical(old), reg.canonical(new)
+        if old == new or old not in reg or new not in reg:
+            continue
+        keep = {o.name for o in reg.get(new).options}
+        for opt in reg.get(old).options:
+            if opt.name in own and opt.name not in keep and opt.name not in given:
+                out.pop(own[opt.name])
+                notes.append(f"{source}'s {opt.name} (an option of --{key} {old}) is left "
+                             f"out: --{key} {new} on the command line replaces its {old}")
+    return out, notes
+
+
 def check_overridden(base: dict[str, Any], overrides: dict[str, Any], source: str) -> None:
     """Refuse, in one line, a config file's value that the command line overrides but that is
     invalid in itself (not a number, out of its range, an unknown name): ``size = 16.5``
