@@ -108,12 +108,12 @@ def test_the_signed_afterpulse_correction_stays_bounded_inside_a_bright_return()
 
 
 def test_an_option_is_not_taken_for_a_prefix_of_another(tmp_path, capsys):
-    """``reconstruct --lam 0.1`` (it has no --lam) was read as --lam-scale 0.1, a weight 134
-    times smaller than asked, with exit 0."""
+    """``reconstruct --lam 0.1`` (it had no --lam) was read as --lam-scale 0.1, a weight 134
+    times smaller than asked, with exit 0 (it has --lam now: --iter is the prefix here)."""
     for args, said in ((["run", "--siz", "16"], "--siz 16"),
                        (["reconstruct", "--ptu", "x.ptu", "--patterns", "p.npy", "--code",
-                         "c.npy", "--bit-rate", "10e9", "--range-gate", "1", "2", "--lam",
-                         "0.1"], "--lam 0.1")):
+                         "c.npy", "--bit-rate", "10e9", "--range-gate", "1", "2", "--iter",
+                         "5"], "--iter 5")):
         with pytest.raises(SystemExit) as stop:
             main([*args, "--out", str(tmp_path / "o")])
         assert stop.value.code == 2

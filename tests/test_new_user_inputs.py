@@ -412,3 +412,21 @@ def test_the_command_lines_stage_leaves_out_the_files_options_of_the_one_it_repl
     assert "dead_time (an option" not in err
     m = json.loads((out / "metrics.json").read_text())
     assert m["config"]["detector"] == "linear" and m["config"]["dead_time"] == 2e-8
+
+
+def test_an_option_the_run_says_it_ignores_is_recorded_null():
+    """``--fairness power`` of a PSST lidar, ``--pattern-sigma`` of Hadamard rows and
+    ``--lam-scale`` beside ``--lam`` were recorded in metrics.json's config as applied,
+    each beside its "is ignored" warning (an outside audit of options): null, as the
+    outputs page says of options that do not apply; applied, they are recorded."""
+    import spslidar
+
+    small = dict(scene="steps", size=8, code_length=127, seed=0)
+    r = spslidar.run(**small, fairness="power", patterns="hadamard", pattern_sigma=0.1,
+                     lam=0.01, lam_scale=2.0)
+    cfg = r.metrics["config"]
+    assert cfg["fairness"] is None and cfg["pattern_sigma"] is None
+    assert cfg["lam_scale"] is None and cfg["lam"] == 0.01
+    assert sum("is ignored" in w for w in r.warnings) == 3
+    used = spslidar.run(**small, pattern_sigma=0.1).metrics["config"]
+    assert used["pattern_sigma"] == 0.1 and used["fairness"] == "energy"

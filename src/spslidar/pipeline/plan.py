@@ -231,7 +231,6 @@ def nonneg_dropped(cfg: Config) -> str | None:
     (:func:`~spslidar.pipeline.score.resolved_config` records ``nonneg`` false then): without
     QCR under a TV regulariser (the mean-eliminated problem has no sign constraint), or
     under the wavelet regulariser (its prox has no closed form under the bound); else None."""
-    from ..solvers.entries import TV_REGULARISERS
     from .weights import regulariser_kind
 
     if not cfg.nonneg:

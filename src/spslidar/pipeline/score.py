@@ -324,6 +324,13 @@ def resolved_config(cfg: Config, acq: Acquisition, gate, auto_gate: bool, iterat
         d["nonneg"] = False  # the mean-eliminated plain problem has no sign constraint
     if d["regulariser"] == "wavelet":  # no closed-form prox under the bound (make_wavelet_l1)
         d["nonneg"] = False
+    from .plan import ignored_keys
+
+    # an option set where the rest gives it no effect (each said in a warning) is not one
+    # the run used: null (--fairness power of a PSST lidar was recorded as applied, an
+    # outside audit of options)
+    for key in ignored_keys(cfg):
+        d[key] = None
     # an option no chosen stage declares is not one the run used: null, as the README's rule
     # has it (a linear detector's run recorded the GMAPD's jitter and afterpulsing, and a
     # plugin's options of stages not chosen at their defaults: an outside audit of 2026-12-01)
