@@ -396,3 +396,17 @@ def test_the_confidence_panel_of_a_map_of_noise_says_it_is_per_pixel(tmp_path, c
         titles[signal] = next(p[1] for p in _panels(r) if p[0] == "confidence")
     assert titles == {"0.003": "confidence (per pixel; the map is mostly noise)",
                       "1": "confidence"}
+
+
+def test_pixels_beyond_a_given_gate_are_said_to_read_ghost_depths(tmp_path):
+    """A 5-60 m ramp through a 20-40 m gate: 458 of its 672 pixels outside the gate were given
+    depths inside it with a median confidence of 0.95 (an outside audit of scenes), under a
+    warning that said only that their returns "alias into the gate or are lost". It says
+    that such pixels may read depths the confidence does not flag."""
+    np.save(tmp_path / "wide.npy", np.tile(np.linspace(5, 60, 16), (16, 1)))
+    r = spslidar.run(scene=str(tmp_path / "wide.npy"), size=16, code_length=2047,
+                     range_gate=(20, 40), seed=0)
+    (said,) = [w for w in r.warnings if "lie outside the range gate" in w]
+    assert "depths inside the gate all the same" in said and "widen the gate" in said
+    outside = (r.truth < 20) | (r.truth > 40)
+    assert np.isfinite(r.depth[outside]).mean() > 0.3  # (what the warning says may happen)
