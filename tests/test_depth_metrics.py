@@ -179,3 +179,22 @@ def test_sobel_edges_match_skimage_and_handle_nan():
     # a flat map has no edge: the correlation is undefined (NaN, null in metrics.json), not 0
     flat = np.full_like(d, 5.0)
     assert np.isnan(edge_agreement(sobel_edges(flat), sobel_edges(d)))
+
+
+def test_the_median_error_and_the_share_off_by_5_cm_are_given():
+    """The median absolute error and the share off by more than 5 cm (the README's tables
+    and issue 20's targets) were a user's own computation (an outside audit): given over
+    the pixels the RMSE is over, by hand on four of them."""
+    from spslidar.metrics import depth_errors
+
+    est = np.array([[1.0, 1.02], [1.2, np.nan]])
+    truth = np.array([[1.0, 1.0], [1.0, 1.0]])
+    e = depth_errors(est, truth)
+    assert e["depth_median_abs_error_m"] == pytest.approx(0.02)
+    assert e["off_5cm_fraction"] == pytest.approx(1 / 3)
+    import spslidar
+
+    r = spslidar.run(scene="steps", size=8, code_length=127, seed=0)
+    err = np.abs(r.depth - r.truth)[np.isfinite(r.depth)]
+    assert r.metrics["off_5cm_fraction"] == pytest.approx(np.mean(err > 0.05))
+    assert r.metrics["depth_median_abs_error_m"] == pytest.approx(np.median(err))

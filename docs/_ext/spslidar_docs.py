@@ -269,6 +269,9 @@ METRICS: dict[str, str] = {
     "depth_mae_m": "Mean absolute depth error over the same pixels, metres.",
     "depth_bias_m": "Mean signed depth error (estimate minus truth), metres.",
     "depth_max_abs_error_m": "Largest absolute depth error, metres.",
+    "depth_median_abs_error_m": "Median absolute depth error over the same pixels, metres.",
+    "off_5cm_fraction": "Share of the same pixels whose depth is off by more than 5 cm (what "
+                        "the depth benchmarks quote).",
     "depth_rmse_bins": "The RMSE in TDC bins (``bin_depth_m``).",
     "chance_rmse_m": "The RMSE of depths drawn at random, uniformly over the range gate (its "
                      "first unambiguous range where it is longer), on the pixels the RMSE is "

@@ -112,7 +112,8 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
     else:  # a measured acquisition: only what needs no truth
         found = np.isfinite(depth)
         err = {key: None for key in ("depth_rmse_m", "depth_mae_m", "depth_bias_m",
-                                     "depth_max_abs_error_m", "chance_rmse_m")}
+                                     "depth_max_abs_error_m", "depth_median_abs_error_m",
+                                     "off_5cm_fraction", "chance_rmse_m")}
         err.update(n_valid=0, missing_fraction=float(1.0 - found.mean()),
                    coverage=float(found.mean()))
         edge_corr = None
