@@ -167,3 +167,16 @@ def test_the_cli_writes_nan_truth_and_scores_the_same(tmp_path):
     t = np.load(tmp_path / "o" / "truth.npy")
     m = json.loads((tmp_path / "o" / "metrics.json").read_text())
     assert np.isnan(t).sum() == 4 and m["n_valid"] == 252
+
+
+def test_a_jpeg_scene_is_said_to_be_lossy(tmp_path):
+    """A JPEG was taken as a scene without a word while the help named only PNG and TIFF (an
+    outside audit): its compression moves grey levels, so it is said; a PNG is not."""
+    import imageio.v3 as iio
+
+    img = (np.tile(np.arange(16), (16, 1)) * 16).astype(np.uint8)
+    for name in ("s.jpg", "s.png"):
+        iio.imwrite(tmp_path / name, img)
+        r = spslidar.run(scene=str(tmp_path / name), size=16, code_length=1023, seed=0)
+        said = [w for w in r.warnings if "is a JPEG" in w]
+        assert len(said) == (name.endswith(".jpg"))

@@ -77,7 +77,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help=f"built-in scene ({SCENES.help_text()}) or a file: .npy depth in "
                         "metres (the range along each pixel's ray, which a lidar measures, not "
                         "a z-buffer), .npz with 'depth' (+ 'reflectivity', 'valid'), .png/.tif "
-                        "grey image mapped into [--depth-min, --depth-max]")
+                        "grey image (.jpg too, said to be lossy) mapped into [--depth-min, "
+                        "--depth-max]")
     g.add_argument("--size", type=int, default=S, metavar="N", help="N x N pixels (default 64)")
     g.add_argument("--depth-min", type=float, default=S, metavar="M",
                    help="rescale the scene's depth into [MIN, MAX] metres")

@@ -233,6 +233,11 @@ def _load_file(path: Path, size: int, depth_min: float | None, depth_max: float 
                 f"scene image {label} ({kind}, {span[0]:.4g} .. {span[1]:.4g}) is read as grey "
                 f"levels mapped onto {lo:g}-{hi:g} m (--depth-min/--depth-max), not as "
                 f"distances: a depth map in metres belongs in an .npy or .npz")
+        if suffix in (".jpg", ".jpeg"):  # (taken without a word, an outside audit)
+            scene.notes.append(
+                f"scene image {label} is a JPEG, whose lossy compression moves grey levels "
+                f"(blocks, ringing at edges) and with them the depths they map to: a PNG or "
+                f"TIFF keeps them as drawn")
         return scene
     if suffix == ".npy":
         depth, refl, valid, notes = _load_npy(path, label)
