@@ -150,6 +150,9 @@ def test_a_result_folder_with_a_users_file_names_the_file(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "files spslidar did not write: user.txt" in err[0]
     assert "not of a run" not in err[0]
+    # (nor "is not a spslidar result (it holds a spslidar result ...)", an outside audit)
+    assert "holds files besides a spslidar result" in err[0]
+    assert "not a spslidar result" not in err[0]
     assert (out / "user.txt").read_text() == "mine"
 
 

@@ -204,9 +204,13 @@ def check_output(out: str | os.PathLike, overwrite: bool = False, option: str = 
                        f"it is the folder of a 'spslidar {other}', not of a run"
                        if isinstance(other, str) and other else
                        "it holds files spslidar did not write")
+                # (not "is not a spslidar result (it holds a spslidar result and ...)",
+                # which read as a contradiction, an outside audit)
+                what = ("holds files besides a spslidar result" if other == "result" and extra
+                        else "is not empty and is not a spslidar result")
                 raise SpslidarError(
-                    f"{option} {out}: the folder is not empty and is not a spslidar result "
-                    f"({why}); refusing to write into it (choose a new or empty folder)")
+                    f"{option} {out}: the folder {what} ({why}); refusing to write into it "
+                    f"(choose a new or empty folder)")
             if not overwrite:
                 raise SpslidarError(f"{option} {out}: holds a previous spslidar result; pass "
                                     f"{replace} to replace it, or choose a new folder")
