@@ -445,3 +445,31 @@ def test_snr_takes_a_plugin_code_familys_option(capsys):
         assert main([*args, "--run-len", "0"]) == 2
     finally:
         CODES._entries.pop("held", None)
+
+
+def _burst(kind, length, ones_ratio, rng=None, index=0, method="block"):
+    SEEN["method"] = method
+    return _held_bits(kind, length, ones_ratio, rng, index, 2)
+
+
+def test_a_code_familys_option_named_as_an_snr_flag_leaves_every_command_working(capsys):
+    """A plugin family's option ``method`` (snr's own --method) made every command a
+    traceback, ``run --help`` too, once snr took the families' options (a review): snr keeps
+    its own flag and runs the family at its default; ``run`` takes the family's."""
+    from spslidar.codes import CODES
+
+    CODES.add("burst", _burst, "burst", "bits in pairs",
+              options=(Option("method", "block", "how", kind=str, choices=("block", "spread")),))
+    try:
+        with pytest.raises(SystemExit) as done:
+            main(["run", "--help"])
+        assert done.value.code == 0 and "--method" in capsys.readouterr().out
+        SEEN.clear()
+        assert main(["snr", "--code", "burst", "--code-length", "127", "--trials", "20",
+                     "--size", "8", "--method", "histogram", "--json"]) == 0
+        assert SEEN["method"] == "block"  # (snr's --method is its own)
+        SEEN.clear()
+        spslidar.run(**{**SMALL, "code": "burst"}, method="spread")
+        assert SEEN["method"] == "spread"
+    finally:
+        CODES._entries.pop("burst", None)

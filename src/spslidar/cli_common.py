@@ -55,11 +55,14 @@ def _add_regulariser_option(g) -> None:
                    help=f"auto: the solver's default; {REGULARISERS.help_text()}")
 
 
-def _add_stage_options(g, option: str) -> None:
+def _add_stage_options(g, option: str, skip_taken: bool = False) -> None:
     """The flags of the options that the stages of one registry declare
     (:class:`~spslidar.registry.Option`): type, help, unit and default from the declaration,
     the stages that take each named in its help (every registry's: only the detectors' had
-    flags, so a plugin solver's or estimator's option had none, an audit)."""
+    flags, so a plugin solver's or estimator's option had none, an audit). ``skip_taken``:
+    an option whose flag the command already has is left without one (``snr``'s --method
+    beside a plugin code family's ``method``: it runs at its default there), where otherwise
+    a taken flag is a one-line error."""
     from .config import registries
 
     reg = registries()[option]
@@ -73,6 +76,8 @@ def _add_stage_options(g, option: str) -> None:
             g.add_argument(opt.flag, default=argparse.SUPPRESS, **extra,
                            help=f"{owners}: {opt.describe()}")
         except argparse.ArgumentError:  # (argparse's traceback, exit 1, an audit of plugins)
+            if skip_taken:  # (a command that only borrows the stage: its own flag kept)
+                continue
             from .errors import ConfigError
 
             other = [f"--{r.option} {', '.join(r.owners(name))}"

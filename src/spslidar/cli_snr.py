@@ -43,11 +43,6 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
                     "a warning names the --trials that would.")
     p.add_argument("--code", choices=CODES.names(), type=CODES.canonical, default="mseq",
                    help=f"code family: {CODES.help_text()}")
-    from .cli_common import _add_stage_options
-
-    # (a plugin family's options: listed in --help, their flags unknown, the family run at
-    # its defaults without a word, an outside audit of a plugin developer)
-    _add_stage_options(p, "code")
     p.add_argument("--code-length", type=int, default=16383, metavar="L",
                    help="code length T in bits; 2^n - 1 for mseq/gold (default 16383)")
     p.add_argument("--ones-ratio", type=float, default=0.5, metavar="R",
@@ -84,15 +79,29 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
     p.add_argument("--json", action="store_true",
                    help='print {"theory", "simulated", "stderr", "ci95", "ratio", "resolved", '
                         '"params"} as JSON (null for a number that is not resolved)')
+    from .cli_common import _add_stage_options
+
+    # (a plugin family's options: listed in --help, their flags unknown, the family run at
+    # its defaults without a word, an outside audit of a plugin developer; added after
+    # snr's own flags, one of which a family's option may share: a plugin's --method made
+    # every command a traceback, a review)
+    _add_stage_options(p, "code", skip_taken=True)
     return p
+
+
+#: snr's own flags' keys: a code family's option of one of these names has no flag here
+_OWN_KEYS = frozenset({"code", "code_length", "ones_ratio", "code_index", "signal", "noise",
+                       "size", "on_fraction", "reflectivity", "trials", "method", "interval",
+                       "seed", "max_time", "json", "command", "func"})
 
 
 def _code_options(args: argparse.Namespace) -> dict:
     """The code families' options given on the command line (their flags default to
-    nothing: a family's own defaults apply)."""
+    nothing: a family's own defaults apply; one named as snr's own flag is not read)."""
     from .codes import CODES
 
-    return {k: getattr(args, k) for k in CODES.options() if hasattr(args, k)}
+    return {k: getattr(args, k) for k in CODES.options()
+            if k not in _OWN_KEYS and hasattr(args, k)}
 
 
 def cmd_snr(args: argparse.Namespace) -> int:
