@@ -364,7 +364,8 @@ def _cmd_run(args) -> int:
     from .pipeline.plan import nonneg_dropped
 
     # (an explicit --nonneg under --no-qcr ran without the bound, unsaid: an outside audit;
-    # only where it was asked for, as the default's bound is dropped in every such run)
+    # only where it was asked for, as the default's bound is dropped in every such run; the
+    # Config handed to run() holds no record of what was asked, so it is said here)
     dropped = (nonneg_dropped(cfg) if opts.get("nonneg", base.get("nonneg")) is True
                else None)
     if save_ptu and "hadamard" in cfg.patterns and cfg.hadamard_realisation == "differential":
@@ -411,6 +412,8 @@ def _cmd_run(args) -> int:
     else:
         result = run(cfg)
     for note in [*unchosen, *([dropped] if dropped else [])]:
+        if note in result.warnings:
+            continue
         result.warnings.append(note)
         said = result.metrics.setdefault("warnings", [])
         if said is not result.warnings:

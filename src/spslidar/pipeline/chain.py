@@ -171,6 +171,11 @@ def measure(config: Config | dict | str | os.PathLike | None = None,
         be = get_backend(cfg.backend, cfg.device)
     timing: dict[str, float] = {}
     warns: list[str] = []
+    from .measurement import asked_keys
+    from .plan import nonneg_dropped
+
+    if asked_keys(config, overrides).get("nonneg") is True:  # (asked for, and dropped)
+        warns += [n for n in (nonneg_dropped(cfg),) if n]
 
     t0 = time.perf_counter()
     if be is None:  # a device holds its own patterns: the host's memory floor is NumPy's
@@ -320,6 +325,9 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     cfg = meas.config.replace(**processing)
     timing = dict(meas.timing)
     warns = list(meas.warnings)
+    from .plan import asked_notes
+
+    warns += asked_notes(cfg, processing, warns)  # (what it ignores of what was asked)
     acq, sim, patterns = meas.acq, meas.sim, meas.patterns
     ulags, lags = meas.ulags, meas.lags
     bin_width = acq.bin_width

@@ -161,6 +161,24 @@ def _frozen(arr):
     return arr
 
 
+def asked_keys(config, overrides) -> dict[str, Any]:
+    """The keys a user set for ``run(config, **overrides)``: the overrides and, where the
+    config is a mapping or a TOML file, its keys (a :class:`Config` holds no record of which
+    of its values were asked for: {})."""
+    import os
+    from collections.abc import Mapping
+
+    from ..config import read_toml
+
+    base: dict[str, Any] = {}
+    if isinstance(config, Mapping):
+        base = dict(config)
+    elif isinstance(config, (str, os.PathLike)) and os.fspath(config).lower().endswith(
+            ".toml"):
+        base = read_toml(config)
+    return {str(k).replace("-", "_"): v for k, v in {**base, **overrides}.items()}
+
+
 def _resolve(config, overrides) -> Config:
     """The config of ``run(config, **overrides)``: a :class:`Config`, a mapping of its keys,
     None (the defaults), a run's TOML file (``run('myrun.toml')``, as ``spslidar run

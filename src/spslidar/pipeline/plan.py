@@ -237,21 +237,38 @@ def nonneg_dropped(cfg: Config) -> str | None:
     """Why ``cfg``'s non-negativity bound is not applied, where it is asked for and dropped
     (:func:`~spslidar.pipeline.score.resolved_config` records ``nonneg`` false then): without
     QCR under a TV regulariser (the mean-eliminated problem has no sign constraint), or
-    under the wavelet regulariser (its prox has no closed form under the bound); else None."""
+    under the wavelet regulariser (its prox has no closed form under the bound); else None.
+    Said only where the bound was asked for (:func:`asked_notes`): the default's is dropped
+    in every such run."""
     from .weights import regulariser_kind
 
     if not cfg.nonneg:
         return None
     kind = regulariser_kind(cfg)
     if not cfg.qcr and kind in TV_REGULARISERS:
-        return ("--nonneg is not applied with --no-qcr: the mean-eliminated problem it "
-                "solves has no sign constraint (metrics.json's config says nonneg false)")
+        return ("the non-negativity bound asked for (--nonneg, nonneg = true) is not applied "
+                "with --no-qcr: the mean-eliminated problem it solves has no sign constraint "
+                "(metrics.json's config says nonneg false)")
     if kind == "wavelet":
-        return (f"--nonneg is not applied with --regulariser wavelet"
+        return (f"the non-negativity bound asked for (--nonneg, nonneg = true) is not applied "
+                f"with --regulariser wavelet"
                 f"{' (gpsr' + chr(39) + 's default)' if cfg.solver == 'gpsr' else ''}: its "
                 f"prox has no closed form under the bound (metrics.json's config says "
                 f"nonneg false)")
     return None
+
+
+def asked_notes(cfg: Config, given, said=()) -> list[str]:
+    """The warnings of the keys ``given`` (what a user set: a reconstruction's processing
+    keys, a run's overrides) that ``cfg`` ignores (:func:`ignored_keys`) or whose bound it
+    drops (:func:`nonneg_dropped`), less those already ``said``: ``reconstruct(meas,
+    lam=0.1, lam_scale=0.3)`` recorded ``lam_scale`` null without a word, and ``--nonneg``
+    through ``reconstruct --no-qcr`` ran without the bound unsaid (a review of 2026-12-03)."""
+    keys = {str(k).replace("-", "_"): v for k, v in dict(given).items()}
+    notes = [text for key, text in ignored_keys(cfg).items() if key in keys]
+    if keys.get("nonneg") is True:
+        notes += [n for n in (nonneg_dropped(cfg),) if n]
+    return [n for n in dict.fromkeys(notes) if n not in said]
 
 
 def report_only_keys(cfg: Config) -> dict[str, str]:

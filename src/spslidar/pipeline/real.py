@@ -352,6 +352,9 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     # (the truth's word after the reading's, before the screening's: where it was said)
     dwell_warning = (solved.notes[:solved.n_read] + ([truth_note] if truth_note else [])
                      + solved.notes[solved.n_read:])
+    from .plan import asked_notes
+
+    dwell_warning += asked_notes(cfg, processing, dwell_warning)  # (--lam-scale by --lam...)
     n_mean = float(n_k.mean())
     short = np.flatnonzero(n_k < 0.5 * np.median(n_k))
     if short.size:
