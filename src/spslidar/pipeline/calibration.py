@@ -323,12 +323,16 @@ def _tail_end(g: np.ndarray, p0: int, start: int = IRF_BEFORE) -> tuple[int, boo
     by 40 bins is read as before. Also whether the response still stood above the noise
     where it was cut."""
     period = g.size
+    wide = NOISE_AFTER
+    if IRF_AFTER + 1 + wide > period - start - 2 * IRF_BEFORE:
+        # (the first window past the tail wraps onto the background read before the peak,
+        # or onto the peak: a narrow IRF through a 63-bit code was said to be cut, a review)
+        return IRF_AFTER, False
     before = g[np.arange(p0 - start - 2 * IRF_BEFORE, p0 - start) % period]
     # against the background before the peak, not against 0: the median taken off a weak
     # response's skewed noise leaves its mean above 0, which read as a tail to the end
     sd = float(np.std(before))
     error = 3.0 * sd * np.sqrt(2.0 / before.size)
-    wide = NOISE_AFTER
     error_wide = 3.0 * sd * np.sqrt(1.0 / before.size + 1.0 / wide)
 
     def stands(n: int) -> bool:
