@@ -236,16 +236,28 @@ class _Zeroes(FISTA):
         super()._setup(A, y, reg, lam, x0)
 
 
+class _WarmZeroes(FISTA):
+    """FISTA that zeroes its data in place on a warm start only (check_optimum's copy does
+    not see it; the shared problem was left zeroed for the next solver, a review)."""
+
+    name = "warmzeroes"
+
+    def _setup(self, A, y, reg, lam, x0):
+        if x0 is not None:
+            y *= 0.0
+        super()._setup(A, y, reg, lam, x0)
+
+
 @pytest.fixture
 def broken_solvers():
     for name, cls in (("early", _Early), ("sticky", _Sticky), ("cold", _Cold),
-                      ("zeroes", _Zeroes)):
+                      ("zeroes", _Zeroes), ("warmzeroes", _WarmZeroes)):
         SOLVERS.add(name, cls, name, "broken", iterations=60, lam_scale=0.45,
                     regulariser="tv")
     try:
         yield
     finally:
-        for name in ("early", "sticky", "cold", "zeroes"):
+        for name in ("early", "sticky", "cold", "zeroes", "warmzeroes"):
             SOLVERS._entries.pop(name, None)
 
 
@@ -259,6 +271,9 @@ def test_solver_checks_fail_on_broken_solvers(broken_solvers, problems):
     with pytest.raises(AssertionError, match="the solve changed the data y it was given"):
         check_stage("solver", "zeroes")
     check_stage("solver", "fista")  # (the shared problems' data were left as they were)
+    with pytest.raises(AssertionError, match="a solve changed the data y it was given"):
+        check_stage("solver", "warmzeroes")
+    check_stage("solver", "fista")  # (restored after it)
 
 
 def test_progress_callback():
