@@ -388,9 +388,11 @@ def test_figure_title_names_the_calibration(acquisitions):
                         calibration=d / "cal.json")
     title = _title(r)
     assert "calibrated (cal.json: delay 13.7" in title and "IRF FWHM" in title
+    # (a calibration's depths are placed below a bin whatever subbin says: a review)
+    assert "depth (sub-bin)" in title and not r.config.subbin
     plain = reconstruct_ptu(d / "ideal.ptu", load_patterns(d / "ideal_patterns.npy"),
                             load_code(d / "ideal_code.npy"), 10e9, (24, 26))
-    assert "calibrated" not in _title(plain)
+    assert "calibrated" not in _title(plain) and "sub-bin" not in _title(plain)
 
 
 def test_a_gate_without_the_scene_is_said_to_be_noise(acquisitions):

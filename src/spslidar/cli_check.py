@@ -79,8 +79,12 @@ def cmd_check(args: argparse.Namespace) -> int:
     def say(r) -> None:
         # (a plugin's stage under a built-in's name was checked as "ok depth argmax", the
         # replacement unsaid, where run warns of it: an outside audit of a plugin developer)
-        old = registry_of(r.kind).replaced(r.name)
-        mine = (f", a plugin's, replacing the built-in {old.target}" if old is not None
+        reg = registry_of(r.kind)
+        old = reg.replaced(r.name)
+        # (as run says it: where the implementation differs, not a re-registration of the
+        # built-in's own with other defaults, a review)
+        mine = (f", a plugin's, replacing the built-in {old.target}"
+                if old is not None and r.name in reg and reg.get(r.name).target != old.target
                 else "")
         if r.ok:
             # (a contract that could not run is said, not counted passed, an audit of plugins)

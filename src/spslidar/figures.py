@@ -240,7 +240,8 @@ def _title(result) -> str:
                 f" (shown {total} times, summed)" if total > 1 else "")
         what = (f"measured {name}: {m['n_patterns']} patterns{reps}, "
                 f"{int(sum(m['ptu']['counts_per_pattern']))} photons, "
-                f"{'QCR' if c.qcr else 'no QCR'}, {solve}, {_depth_words(c)}")
+                f"{'QCR' if c.qcr else 'no QCR'}, {solve}, "
+                f"{_depth_words(c, bool(m.get('calibration')))}")
         cal = m.get("calibration")
         if cal:  # which instrument calibration the depths are corrected by
             name = f"{Path(cal['file']).name}: " if cal.get("file") else ""
@@ -291,10 +292,12 @@ def _title(result) -> str:
             f"of pixels{noise}")
 
 
-def _depth_words(c) -> str:
+def _depth_words(c, calibrated: bool = False) -> str:
     """``mrf depth``, with ``sub-bin`` where the depths were placed below a bin (it moves
-    them; no label said it, an outside audit)."""
-    return f"{c.depth} depth{' (sub-bin)' if getattr(c, 'subbin', False) else ''}"
+    them; no label said it, an outside audit): ``subbin``, or a calibration, whose
+    response's own sub-bin step applies whatever ``subbin`` says."""
+    sub = getattr(c, "subbin", False) or calibrated
+    return f"{c.depth} depth{' (sub-bin)' if sub else ''}"
 
 
 def _truth_outside_gate(result) -> int:

@@ -39,7 +39,9 @@ def _validate_fixed_ratio(cfg) -> None:
     near 1/2, so a ``ones_ratio`` other than the default is a mistake, not a setting."""
     _validate_length(cfg)
     if cfg.ones_ratio != 0.5 and getattr(cfg, "lidar", "psst") != "conventional":  # (warned)
-        raise ConfigError(f"--ones-ratio {cfg.ones_ratio:g} applies to --code random only: "
+        shown = (f"{cfg.ones_ratio:g}" if isinstance(cfg.ones_ratio, (int, float))
+                 else repr(cfg.ones_ratio))  # (None was a TypeError here, a review)
+        raise ConfigError(f"--ones-ratio {shown} applies to --code random only: "
                           f"{_fixed_ones_text(cfg)}")
 
 
