@@ -36,6 +36,7 @@ BENCH = Path(__file__).resolve().parent.parent / "benchmarks"
     ("gmapd_model.py", ["--bins", "1000"], "2^n - 1"),
     ("gmapd_model.py", ["--dead-times", "5e-8,1.5e-10"], "whole 100 ps bins"),
     ("gmapd_model.py", ["--dead-times", "fast"], "--dead-times"),
+    ("depth_quality.py", ["--plugin", "nosuch_plugin_module"], "nosuch_plugin_module"),
 ])
 def test_a_bad_value_is_one_line_and_exit_2(script, args, said, tmp_path):
     if not BENCH.is_dir():
@@ -73,6 +74,25 @@ def test_depth_quality_caches_inside_its_folder_by_the_scenes_content(tmp_path):
     assert argmax_rmse("--cache", str(cache)) == argmax_rmse()  # the new content's, not cached
     assert sorted(p.name for p in scene.parent.iterdir()) == ["plane.npy"]
     assert len(list(cache.iterdir())) == 2  # one case per content
+
+
+def test_depth_quality_takes_a_users_estimator_by_plugin(tmp_path):
+    """A user's own estimator had no way into the benchmark but SPSLIDAR_PLUGINS, which
+    nothing said (an outside audit): --plugin makes it a choice, ranked against argmax."""
+    if not BENCH.is_dir():
+        pytest.skip("the benchmarks are not in this checkout")
+    (tmp_path / "mine.py").write_text(
+        "from spslidar.depth import ESTIMATORS\n"
+        "from spslidar.depth.argmax import ArgmaxDepth\n\n\n"
+        "class Mine(ArgmaxDepth):\n    name = 'mine'\n\n\n"
+        "ESTIMATORS.add('mine', Mine, 'mine', 'argmax under another name')\n")
+    done = subprocess.run(
+        [sys.executable, str(BENCH / "depth_quality.py"), "--plugin", str(tmp_path / "mine.py"),
+         "--size", "8", "--scenes", "steps", "--noise", "1", "--compression", "0.5",
+         "--estimators", "mine"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    row = next(ln for ln in done.stdout.splitlines() if "| mine |" in ln)
+    assert "| 1.000 | 1.000 (steps) |" in row  # (argmax under another name: ratio 1)
 
 
 def test_ptu_read_benchmark_reads_what_the_peer_reads(tmp_path):
