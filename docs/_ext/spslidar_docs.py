@@ -270,6 +270,10 @@ METRICS: dict[str, str] = {
     "depth_bias_m": "Mean signed depth error (estimate minus truth), metres.",
     "depth_max_abs_error_m": "Largest absolute depth error, metres.",
     "depth_median_abs_error_m": "Median absolute depth error over the same pixels, metres.",
+    "ignored_options": "The options set where the rest of the configuration gives them no "
+                       "effect (``--fairness`` of a PSST lidar, ``--lam-scale`` beside "
+                       "``--lam``...), each with the warning the run gave; ``config`` keeps "
+                       "them as given.",
     "off_5cm_fraction": "Share of the same pixels whose depth is off by more than 5 cm (what "
                         "the depth benchmarks quote).",
     "depth_rmse_bins": "The RMSE in TDC bins (``bin_depth_m``).",

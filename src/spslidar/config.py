@@ -235,10 +235,9 @@ class Config:
                         " (a plugin stage's option? load its plugin with --plugin MODULE or "
                         "SPSLIDAR_PLUGINS)")
                 raise ConfigError(f"unknown config key {spelled[key]!r}{hint}")
-            if v is None and (key in declared or key in NULL_WHEN_IGNORED):
-                # a stage option no chosen stage used, or an option the run said it ignored,
-                # is null in metrics.json's config: read back, it is the default (a run's
-                # config then round-trips; "unknown fairness None" did, a review)
+            if key in declared and v is None:
+                # a stage option no chosen stage used is null in metrics.json's config: read
+                # back, it is the default (a run's config then round-trips)
                 continue
             (extra if key in declared else clean)[key] = v
         return cls(**clean, extra=extra)
@@ -606,14 +605,6 @@ _registry._CHOOSERS[:] = [registries]  # (a stage's option is checked where regi
 #: values that the command line overrides (:func:`check_overridden`)
 _ENVIRONMENT: contextvars.ContextVar[bool] = contextvars.ContextVar("spslidar_environment",
                                                                      default=True)
-
-
-#: the keys :func:`spslidar.pipeline.plan.ignored_keys` may name, which metrics.json's config
-#: records null where the run ignored them; :meth:`Config.from_dict` reads such a null back
-#: as the default
-NULL_WHEN_IGNORED = frozenset({"rep_rate", "hadamard_order", "hadamard_realisation",
-                               "qcr_form", "noise_split", "pattern_sigma", "fairness", "code",
-                               "code_index", "ones_ratio", "lam_scale"})
 
 
 def unchosen_options(base: dict[str, Any], overrides: dict[str, Any],
