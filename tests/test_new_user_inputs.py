@@ -415,35 +415,29 @@ def test_the_command_lines_stage_leaves_out_the_files_options_of_the_one_it_repl
     assert m["config"]["detector"] == "linear" and m["config"]["dead_time"] == 2e-8
 
 
-def test_an_option_the_run_says_it_ignores_is_recorded_null():
+def test_an_option_the_run_says_it_ignores_is_listed_and_the_config_reads_back():
     """``--fairness power`` of a PSST lidar, ``--pattern-sigma`` of Hadamard rows and
-    ``--lam-scale`` beside ``--lam`` were recorded in metrics.json's config as applied,
-    each beside its "is ignored" warning (an outside audit of options): null, as the
-    outputs page says of options that do not apply; applied, they are recorded."""
+    ``--lam-scale`` beside ``--lam`` were recorded in metrics.json's config as if applied
+    (an outside audit of options); written null there, the config no longer read back into a
+    Config ("unknown fairness None", a review). They are kept as given and listed in
+    ``ignored_options`` with their warnings; the config reads back."""
     import spslidar
+    from spslidar import Config
 
     small = dict(scene="steps", size=8, code_length=127, seed=0)
     r = spslidar.run(**small, fairness="power", patterns="hadamard", pattern_sigma=0.1,
                      lam=0.01, lam_scale=2.0)
-    cfg = r.metrics["config"]
-    assert cfg["fairness"] is None and cfg["pattern_sigma"] is None
-    assert cfg["lam_scale"] is None and cfg["lam"] == 0.01
-    assert sum("is ignored" in w for w in r.warnings) == 3
-    used = spslidar.run(**small, pattern_sigma=0.1).metrics["config"]
-    assert used["pattern_sigma"] == 0.1 and used["fairness"] == "energy"
-    # read back, a null is the default: the config round-trips ("unknown fairness None",
-    # a review of 2026-12-03), and the keys the plan may null are those read so
-    from spslidar import Config
-    from spslidar.config import NULL_WHEN_IGNORED
-    from spslidar.pipeline.plan import ignored_keys
-
+    ignored = r.metrics["ignored_options"]
+    assert set(ignored) == {"fairness", "pattern_sigma", "lam_scale"}
+    assert all(text in r.warnings for text in ignored.values())
+    assert r.metrics["config"]["fairness"] == "power"
+    assert spslidar.run(**small, pattern_sigma=0.1).metrics["ignored_options"] == {}
     for extra in (dict(fairness="power", patterns="hadamard", pattern_sigma=0.1),
                   dict(qcr=False, qcr_form="covariance"), dict(noise_split=[0.2, 0.3, 0.5]),
                   dict(lidar="conventional", code="gold", code_length=1023)):
         r = spslidar.run(**{**small, **extra})
         back = Config.from_dict(r.metrics["config"])
-        assert back.lidar == r.config.lidar and back.patterns == r.config.patterns
-        assert set(ignored_keys(r.config)) <= NULL_WHEN_IGNORED
+        assert all(getattr(back, k) == getattr(r.config, k) for k in (*extra, "lidar"))
 
 
 def test_what_a_reconstruction_is_asked_and_ignores_is_said_in_every_path(tmp_path, capsys):
@@ -461,9 +455,27 @@ def test_what_a_reconstruction_is_asked_and_ignores_is_said_in_every_path(tmp_pa
     meas = spslidar.measure(**small)
     r = spslidar.reconstruct(meas, lam=0.1, lam_scale=0.3)
     assert sum("--lam-scale 0.3 is ignored" in w for w in r.warnings) == 1
-    assert r.metrics["config"]["lam_scale"] is None
+    assert "lam_scale" in r.metrics["ignored_options"]
     r = spslidar.reconstruct(meas, qcr=False, nonneg=True)
     assert sum(bound in w for w in r.warnings) == 1
+    # (a second review: asked with the measurement, said where the reconstruction drops it
+    # and not where it applies it; an array's True is asked too; a sweep's shared run says
+    # only what its point asked)
+    m2 = spslidar.measure(**small, qcr=False, nonneg=True)
+    assert sum(bound in w for w in spslidar.reconstruct(m2).warnings) == 1
+    assert not any(bound in w for w in spslidar.reconstruct(m2, qcr=True).warnings)
+    m3 = spslidar.measure(**small, nonneg=True)
+    assert sum(bound in w for w in spslidar.reconstruct(m3, qcr=False).warnings) == 1
+    assert sum(bound in w for w in spslidar.run(**small, qcr=False,
+                                                  nonneg=np.True_).warnings) == 1
+    from spslidar.pipeline.shared import run_shared
+
+    assert not any(bound in w for w in run_shared(dict(small, qcr=False)).warnings)
+    assert sum(bound in w for w in run_shared(dict(small, qcr=False, nonneg=True)).warnings) == 1
+    r = run_shared(dict(small, lam=0.1, lam_scale=0.3))  # (the shared measurement's note
+    r = run_shared(dict(small, lam=0.1, lam_scale=0.5))  # is not carried to the next point)
+    assert [w for w in r.warnings if "is ignored" in w] == [
+        "--lam-scale 0.5 is ignored: --lam 0.1 sets the weight itself"]
     ptu = tmp_path / "a.ptu"
     assert main(["run", *("--scene steps --size 8 --code-length 127 --no-figure".split()),
                  "--save-ptu", str(ptu), "--out", str(tmp_path / "r")]) == 0

@@ -171,11 +171,6 @@ def measure(config: Config | dict | str | os.PathLike | None = None,
         be = get_backend(cfg.backend, cfg.device)
     timing: dict[str, float] = {}
     warns: list[str] = []
-    from .measurement import asked_keys
-    from .plan import nonneg_dropped
-
-    if asked_keys(config, overrides).get("nonneg") is True:  # (asked for, and dropped)
-        warns += [n for n in (nonneg_dropped(cfg),) if n]
 
     t0 = time.perf_counter()
     if be is None:  # a device holds its own patterns: the host's memory floor is NumPy's
@@ -261,13 +256,17 @@ def measure(config: Config | dict | str | os.PathLike | None = None,
     warns.extend(detector.notes_after(pile, noiseless=cfg.noiseless))
     sim["estimate"] = {"memory_gb": budget.bytes / 1e9, "time_s": budget.seconds}
     timing["simulate"] = time.perf_counter() - t0
+    from .measurement import PROCESSING_KEYS, asked_keys
+
     return Measurement(cfg, scene, acq, gate, lags, ulags, inverse, patterns, sim, seq_probe,
-                       warns, timing)
+                       warns, timing,
+                       {k: v for k, v in asked_keys(config, overrides).items()
+                        if k in PROCESSING_KEYS})
 
 
 @keeping_warnings
 @one_blas_thread
-def reconstruct(meas: Measurement, **processing) -> Result:
+def reconstruct(meas: Measurement, *, _asked: dict | None = None, **processing) -> Result:
     """Range gate, QCR, compressive reconstruction, ML depth and metrics of a measurement.
 
     Parameters
@@ -327,7 +326,10 @@ def reconstruct(meas: Measurement, **processing) -> Result:
     warns = list(meas.warnings)
     from .plan import asked_notes
 
-    warns += asked_notes(cfg, processing, warns)  # (what it ignores of what was asked)
+    # (what it ignores of what was asked: run_shared says what its point asked, as it
+    # passes every processing key; a review)
+    asked = _asked if _asked is not None else {**meas.asked, **processing}
+    warns += asked_notes(cfg, asked, warns)
     acq, sim, patterns = meas.acq, meas.sim, meas.patterns
     ulags, lags = meas.ulags, meas.lags
     bin_width = acq.bin_width

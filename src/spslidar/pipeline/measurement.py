@@ -4,7 +4,7 @@ config keys that change only its processing, and how a config is resolved.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -103,6 +103,9 @@ class Measurement:
     probe_seed: np.random.SeedSequence
     warnings: list[str]
     timing: dict[str, float]
+    #: the processing keys the user asked for with the measurement (``measure(nonneg=True)``):
+    #: what :func:`~spslidar.pipeline.plan.asked_notes` reads, beside reconstruct's own
+    asked: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for name in _DELAYS:

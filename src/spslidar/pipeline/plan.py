@@ -258,15 +258,19 @@ def nonneg_dropped(cfg: Config) -> str | None:
     return None
 
 
-def asked_notes(cfg: Config, given, said=()) -> list[str]:
-    """The warnings of the keys ``given`` (what a user set: a reconstruction's processing
-    keys, a run's overrides) that ``cfg`` ignores (:func:`ignored_keys`) or whose bound it
-    drops (:func:`nonneg_dropped`), less those already ``said``: ``reconstruct(meas,
-    lam=0.1, lam_scale=0.3)`` recorded ``lam_scale`` null without a word, and ``--nonneg``
-    through ``reconstruct --no-qcr`` ran without the bound unsaid (a review of 2026-12-03)."""
-    keys = {str(k).replace("-", "_"): v for k, v in dict(given).items()}
-    notes = [text for key, text in ignored_keys(cfg).items() if key in keys]
-    if keys.get("nonneg") is True:
+def asked_notes(cfg: Config, asked, said=()) -> list[str]:
+    """What a reconstruction with ``cfg`` says of its processing keys, less what is already
+    ``said``: each processing key it ignores (:func:`ignored_keys`: ``lam_scale`` beside
+    ``lam``, ``qcr_form`` without QCR), and the non-negativity bound where it was ``asked``
+    for (the user's own keys: :attr:`~.measurement.Measurement.asked` and reconstruct's) and
+    dropped (:func:`nonneg_dropped`). ``reconstruct(meas, lam=0.1, lam_scale=0.3)`` recorded
+    its weight factor without a word, and ``--nonneg`` through ``reconstruct --no-qcr`` ran
+    without the bound unsaid (a review of 2026-12-03)."""
+    from .measurement import PROCESSING_KEYS
+
+    notes = [text for key, text in ignored_keys(cfg).items() if key in PROCESSING_KEYS]
+    wanted = dict(asked).get("nonneg")
+    if wanted is not None and not isinstance(wanted, str) and bool(wanted):  # (np.True_ too)
         notes += [n for n in (nonneg_dropped(cfg),) if n]
     return [n for n in dict.fromkeys(notes) if n not in said]
 
@@ -321,7 +325,13 @@ def ignored_options(cfg: Config) -> list[str]:
     """A warning for each option set away from its default where the rest of the
     configuration gives it no effect (:func:`ignored_keys`), and for natural-order Hadamard
     rows below full sampling (legal, but they alias)."""
-    out = list(dict.fromkeys(ignored_keys(cfg).values()))
+    from .measurement import PROCESSING_KEYS
+
+    # (a processing key's, --lam-scale beside --lam, is said by reconstruct from the
+    # configuration it solves with: said here, a sweep's shared measurement carried one
+    # point's note to the next, a review)
+    out = list(dict.fromkeys(text for key, text in ignored_keys(cfg).items()
+                             if key not in PROCESSING_KEYS))
     if cfg.patterns == "hadamard" and cfg.hadamard_order == "natural" and cfg.compression < 1:
         # legal, kept as the reference ordering, but a trap (found by a sweep of unusual
         # regimes: the steps at 32x32, 25 %, 0.25 m against cake-cutting's 0.0015 m, no word)

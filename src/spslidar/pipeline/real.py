@@ -352,9 +352,6 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
     # (the truth's word after the reading's, before the screening's: where it was said)
     dwell_warning = (solved.notes[:solved.n_read] + ([truth_note] if truth_note else [])
                      + solved.notes[solved.n_read:])
-    from .plan import asked_notes
-
-    dwell_warning += asked_notes(cfg, processing, dwell_warning)  # (--lam-scale by --lam...)
     n_mean = float(n_k.mean())
     short = np.flatnonzero(n_k < 0.5 * np.median(n_k))
     if short.size:
@@ -459,7 +456,8 @@ def reconstruct_ptu(ptu: str | os.PathLike, patterns: np.ndarray | str | os.Path
         scene = Scene(str(files[0]), np.where(valid, truth, 0.0), np.ones((n, n)), valid)
     meas = Measurement(cfg, scene, acq, tuple(cfg.range_gate), lags, ulags, inverse,
                        as_patterns(patterns, copy=False), sim, np.random.SeedSequence(cfg.seed), [],
-                       {"simulate": 0.0})
+                       {"simulate": 0.0}, dict(processing))  # (what was asked: reconstruct says
+    # what of it the configuration ignores)
     meas.warnings.extend(dwell_warning)
     if lags.size > period:  # as run's plan: the gate is longer than the code's period
         from .plan import gate_alias_warning

@@ -71,7 +71,12 @@ def run_shared(config: Config | dict | None = None, **overrides) -> Result:
                 _shared[key] = meas
                 while len(_shared) > SHARED_MEASUREMENTS:
                     _shared.popitem(last=False)
-    result = _chain.reconstruct(meas, **{k: getattr(cfg, k) for k in processing_keys()})
+    from .measurement import asked_keys
+
+    # (every processing key is passed, so what the point asked is said: the default
+    # nonneg of a qcr=false point was said to be "asked for", a review)
+    result = _chain.reconstruct(meas, _asked=asked_keys(config, overrides),
+                                **{k: getattr(cfg, k) for k in processing_keys()})
     result.metrics["measurement_reused"] = reused
     return result
 
