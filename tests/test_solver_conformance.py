@@ -248,16 +248,30 @@ class _WarmZeroes(FISTA):
         super()._setup(A, y, reg, lam, x0)
 
 
+class _ZeroesThenRaises(FISTA):
+    """FISTA that zeroes its data, then raises (a ValueError left the shared data zeroed:
+    only an AssertionError was caught to restore them, a second review)."""
+
+    name = "zeroesraises"
+
+    def _setup(self, A, y, reg, lam, x0):
+        if x0 is not None:  # (a warm start's data are the shared problem's own)
+            y *= 0.0
+            raise ValueError("a plugin's own failure")
+        super()._setup(A, y, reg, lam, x0)
+
+
 @pytest.fixture
 def broken_solvers():
     for name, cls in (("early", _Early), ("sticky", _Sticky), ("cold", _Cold),
-                      ("zeroes", _Zeroes), ("warmzeroes", _WarmZeroes)):
+                      ("zeroes", _Zeroes), ("warmzeroes", _WarmZeroes),
+                      ("zeroesraises", _ZeroesThenRaises)):
         SOLVERS.add(name, cls, name, "broken", iterations=60, lam_scale=0.45,
                     regulariser="tv")
     try:
         yield
     finally:
-        for name in ("early", "sticky", "cold", "zeroes", "warmzeroes"):
+        for name in ("early", "sticky", "cold", "zeroes", "warmzeroes", "zeroesraises"):
             SOLVERS._entries.pop(name, None)
 
 
@@ -274,6 +288,9 @@ def test_solver_checks_fail_on_broken_solvers(broken_solvers, problems):
     with pytest.raises(AssertionError, match="a solve changed the data y it was given"):
         check_stage("solver", "warmzeroes")
     check_stage("solver", "fista")  # (restored after it)
+    with pytest.raises(AssertionError, match="a solve changed the data y it was given"):
+        check_stage("solver", "zeroesraises")
+    check_stage("solver", "fista")
 
 
 def test_progress_callback():

@@ -324,9 +324,9 @@ def _tail_end(g: np.ndarray, p0: int, start: int = IRF_BEFORE) -> tuple[int, boo
     where it was cut."""
     period = g.size
     wide = NOISE_AFTER
-    if IRF_AFTER + 1 + wide > period - start - 2 * IRF_BEFORE:
-        # (the first window past the tail wraps onto the background read before the peak,
-        # or onto the peak: a narrow IRF through a 63-bit code was said to be cut, a review)
+    if IRF_AFTER + 1 + wide > period - start:
+        # (the first window past the tail wraps onto the response itself: a narrow IRF
+        # through a 63-bit code was said to be cut in every seed, a review)
         return IRF_AFTER, False
     before = g[np.arange(p0 - start - 2 * IRF_BEFORE, p0 - start) % period]
     # against the background before the peak, not against 0: the median taken off a weak
