@@ -436,9 +436,11 @@ def test_snr_takes_a_plugin_code_familys_option(capsys):
     try:
         args = ["snr", "--code", "held", "--code-length", "127", "--trials", "20", "--size",
                 "8", "--json"]
-        assert main([*args, "--run-len", "4"]) == 0 and SEEN["run_len"] == 4
-        assert main(args) == 0 and SEEN["run_len"] == 1
         capsys.readouterr()
+        assert main([*args, "--run-len", "4"]) == 0 and SEEN["run_len"] == 4
+        assert json.loads(capsys.readouterr().out)["params"]["code_options"] == {"run_len": 4}
+        assert main(args) == 0 and SEEN["run_len"] == 1
+        assert json.loads(capsys.readouterr().out)["params"]["code_options"] == {"run_len": 1}
         assert main(["snr", "--code", "mseq", "--code-length", "127", "--run-len", "4"]) == 2
         err = capsys.readouterr().err
         assert "--run-len is not an option of --code mseq" in err and err.count("\n") == 1

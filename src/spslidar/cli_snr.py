@@ -153,7 +153,7 @@ def cmd_snr(args: argparse.Namespace) -> int:
     params = {key: r[key] for key in (
         "code", "code_length", "code_index", "ones_ratio", "ones", "ones_ratio_actual", "signal",
         "noise", "size", "on_fraction", "mirrors_on", "reflectivity", "trials", "method",
-        "interval", "replica", "delay")}
+        "interval", "replica", "delay", "code_options")}
     params["seed"] = seed
     resolved = math.isfinite(r["ratio"])  # (NaN where snr_simulated warned it is not)
     if args.json:

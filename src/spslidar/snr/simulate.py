@@ -266,6 +266,17 @@ def _unresolved(c: np.ndarray, theory: float, noise: float, interval: tuple[floa
             f"{'; and '.join(reasons)}: {advice}")
 
 
+def _code_options_used(kind: str, given: dict[str, Any] | None) -> dict[str, Any]:
+    """The declared options of code family ``kind`` as :func:`make_code_checked` made the code
+    with them: ``given``, each checked, the others at their defaults."""
+    from ..codes import CODES
+    from .theory import code_family
+
+    given = dict(given or {})
+    return {o.name: o.check(given[o.name]) if o.name in given else o.default
+            for o in CODES.get(code_family(kind)).options}
+
+
 def snr_simulated(
     code: str,
     code_length: int,
@@ -355,7 +366,8 @@ def snr_simulated(
         a RuntimeWarning, where the trials cannot resolve the SNR: see Notes); the counts'
         ``mean_counts`` and ``var_counts`` over the trials and their theoretical
         ``signal_mean`` (eq. 8), ``noise_mean`` and ``variance`` (eq. 9); and every parameter:
-        ``code``, ``code_length``, ``code_index``, ``ones_ratio`` (the requested share for
+        ``code``, ``code_length``, ``code_index``, ``code_options`` (the family's declared
+        options as the code was made), ``ones_ratio`` (the requested share for
         random codes, the code's share for mseq/gold), ``ones``, ``ones_ratio_actual``,
         ``signal``, ``noise``, ``size``, ``on_fraction``, ``mirrors_on``, ``reflectivity``,
         ``trials``, ``method``, ``interval``, ``replica`` (``'unipolar'``), ``delay``.
@@ -474,6 +486,9 @@ def snr_simulated(
         "code": kind,
         "code_length": period,
         "code_index": int(code_index),
+        # the family's declared options as the code was made (a plugin's; {} for the
+        # built-ins): the --json params left them out, a review
+        "code_options": _code_options_used(kind, code_options),
         "ones_ratio": float(ones_ratio) if kind == "random" else ones / period,
         "ones": ones,
         "ones_ratio_actual": ones / period,
