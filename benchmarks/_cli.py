@@ -141,13 +141,16 @@ def emit(lines: Iterable[str], out: str | None) -> int:
 
 
 def run(main: Callable[..., Any], argv: list[str] | None = None) -> int:
-    """``main(argv)`` with a ``ValueError`` (spslidar's ``SpslidarError`` is one) printed as
-    ``<script>: error: <message>`` on one line and exit status 2; ``main``'s own status
-    otherwise (0 when it returns something that is not an int)."""
+    """``main(argv)`` with a ``ValueError`` (spslidar's ``SpslidarError`` is one) or an
+    ``OSError`` (a file or folder that cannot be written) printed as ``<script>: error:
+    <message>`` on one line and exit status 2; ``main``'s own status otherwise (0 when it
+    returns something that is not an int)."""
     prog = os.path.basename(sys.argv[0]) or "benchmark"
     try:
         rc = main(argv)
-    except ValueError as exc:
+    except (ValueError, OSError) as exc:
+        # (an OSError too: a --cache folder on a path the checks let through, /proc/x as
+        # root, ended the run in a traceback after its work; an outside audit)
         msg = " ".join(str(exc).split()) or type(exc).__name__
         print(f"{prog}: error: {msg}", file=sys.stderr, flush=True)
         return 2

@@ -37,6 +37,9 @@ BENCH = Path(__file__).resolve().parent.parent / "benchmarks"
     ("gmapd_model.py", ["--dead-times", "5e-8,1.5e-10"], "whole 100 ps bins"),
     ("gmapd_model.py", ["--dead-times", "fast"], "--dead-times"),
     ("depth_quality.py", ["--plugin", "nosuch_plugin_module"], "nosuch_plugin_module"),
+    # (a cache folder that cannot be made: a traceback after the work, as root; an audit)
+    ("depth_quality.py", ["--size", "8", "--scenes", "steps", "--noise", "1", "--compression",
+                          "0.5", "--estimators", "argmax", "--cache", "/proc/x"], "/proc"),
 ])
 def test_a_bad_value_is_one_line_and_exit_2(script, args, said, tmp_path):
     if not BENCH.is_dir():
