@@ -361,13 +361,6 @@ def _cmd_run(args) -> int:
     base, unchosen = unchosen_options(base, opts, str(args.config))
     cfg = Config.from_dict(base, **opts)  # (a TOML's code-length, overridden by --code-length)
     check_overridden(base, opts, args.config)  # (after: the run's own errors said as such)
-    from .pipeline.plan import nonneg_dropped
-
-    # (an explicit --nonneg under --no-qcr ran without the bound, unsaid: an outside audit;
-    # only where it was asked for, as the default's bound is dropped in every such run; the
-    # Config handed to run() holds no record of what was asked, so it is said here)
-    dropped = (nonneg_dropped(cfg) if opts.get("nonneg", base.get("nonneg")) is True
-               else None)
     if save_ptu and "hadamard" in cfg.patterns and cfg.hadamard_realisation == "differential":
         from .errors import ConfigError
 
@@ -385,7 +378,7 @@ def _cmd_run(args) -> int:
             write_measurement_ptu,
         )
 
-        meas = measure(cfg)
+        meas = measure(base, **opts)  # (the file's keys and the flags: what was asked)
         check_ptu_photons(meas)  # before the solve
         result = reconstruct(meas)
         if cfg.detector not in ("linear", "gmapd"):  # (its dead time and jitter were
@@ -410,10 +403,10 @@ def _cmd_run(args) -> int:
         print(f"wrote {save_ptu}: {info['photons']} photons, {info['records']} T3 records; "
               f"the patterns shown and the code in {ptu_files[1]} and {ptu_files[2]}")
     else:
-        result = run(cfg)
-    for note in [*unchosen, *([dropped] if dropped else [])]:
-        if note in result.warnings:
-            continue
+        # (given as the file's keys and the flags, as cfg was made: the pipeline then knows
+        # what was asked, an explicit --nonneg it drops said there, as for any caller)
+        result = run(base, **opts)
+    for note in unchosen:
         result.warnings.append(note)
         said = result.metrics.setdefault("warnings", [])
         if said is not result.warnings:
