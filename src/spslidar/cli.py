@@ -38,6 +38,7 @@ from .cli_measured import (
     cmd_reconstruct,
 )
 from .cli_snr import add_snr_parser, cmd_snr  # noqa: F401  (re-exported: spslidar.cli.cmd_snr)
+from .errors import one_line  # (spslidar.cli.one_line, as before)
 
 EXIT_BAD_INPUT = 2
 
@@ -476,11 +477,6 @@ def _load_plugins(argv: list[str]) -> list[str]:
     return rest
 
 
-def one_line(message: object) -> str:
-    """An error's text on one line: a newline or carriage return in it (a path holding one
-    split the one-line error over two lines, an audit of stop 60) written as ``\\n`` /
-    ``\\r``, as Python writes them in a string."""
-    return str(message).replace("\r", "\\r").replace("\n", "\\n")
 
 
 def main(argv: list[str] | None = None) -> int:

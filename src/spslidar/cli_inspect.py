@@ -180,10 +180,10 @@ def cmd_inspect(args: argparse.Namespace) -> int:
              else [None] * len(scans))
     status = 0
     if bad:
-        for exc in bad:  # (one line, as the command line's own errors: cli.one_line, which
-            # this module cannot import, cli importing it)
-            text = str(exc).replace("\r", "\\r").replace("\n", "\\n")
-            print(f"spslidar inspect: error: {text}", file=sys.stderr)
+        from .errors import one_line
+
+        for exc in bad:  # (one line each, as the command line's own errors)
+            print(f"spslidar inspect: error: {one_line(exc)}", file=sys.stderr)
         status = 2
     if args.json:  # (the advice too: a script could not get --repeats, an audit)
         print(json.dumps([dict(_jsonable(s), path=p, advice=advice(s, m),

@@ -19,6 +19,14 @@ class SceneError(SpslidarError):
     """A scene that cannot be read or is physically invalid (NaN or negative depth...)."""
 
 
+def one_line(message: object) -> str:
+    """An error's text on one line: a newline or carriage return in it (a path holding one
+    split the one-line error over two lines, an audit of stop 60) written as ``\\n`` /
+    ``\\r``, as Python writes them in a string (the command line's refusals: ``cli`` and
+    ``cli_inspect``)."""
+    return str(message).replace("\r", "\\r").replace("\n", "\\n")
+
+
 def first_line(exc: BaseException) -> str:
     """The first line of a library's exception message, or its type's name where it has
     none: what a one-line refusal says of a reader's failure."""
