@@ -55,17 +55,18 @@ def _add_regulariser_option(g) -> None:
                    help=f"auto: the solver's default; {REGULARISERS.help_text()}")
 
 
-def _add_stage_options(g, option: str, skip_taken: bool = False) -> None:
+def _add_stage_options(g, option: str, skip_taken: bool = False) -> list[str]:
     """The flags of the options that the stages of one registry declare
     (:class:`~spslidar.registry.Option`): type, help, unit and default from the declaration,
     the stages that take each named in its help (every registry's: only the detectors' had
     flags, so a plugin solver's or estimator's option had none, an audit). ``skip_taken``:
     an option whose flag the command already has is left without one (``snr``'s --method
     beside a plugin code family's ``method``: it runs at its default there), where otherwise
-    a taken flag is a one-line error."""
+    a taken flag is a one-line error. Returns the config keys given a flag."""
     from .config import registries
 
     reg = registries()[option]
+    added = []
     for name, opt in reg.options().items():
         owners = ", ".join(reg.owners(name))
         kind = {"float": float, "int": int}.get(opt.kind.__name__)
@@ -75,6 +76,7 @@ def _add_stage_options(g, option: str, skip_taken: bool = False) -> None:
         try:
             g.add_argument(opt.flag, default=argparse.SUPPRESS, **extra,
                            help=f"{owners}: {opt.describe()}")
+            added.append(name)
         except argparse.ArgumentError:  # (argparse's traceback, exit 1, an audit of plugins)
             if skip_taken:  # (a command that only borrows the stage: its own flag kept)
                 continue
@@ -86,6 +88,7 @@ def _add_stage_options(g, option: str, skip_taken: bool = False) -> None:
             raise ConfigError(f"{opt.flag}, an option of --{option} {owners}, is already a "
                               f"flag of this command ({whose}): the stage must name it "
                               f"otherwise") from None
+    return added
 
 
 def _duration(text: str) -> float:

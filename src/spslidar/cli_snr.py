@@ -85,23 +85,16 @@ def add_snr_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentP
     # its defaults without a word, an outside audit of a plugin developer; added after
     # snr's own flags, one of which a family's option may share: a plugin's --method made
     # every command a traceback, a review)
-    _add_stage_options(p, "code", skip_taken=True)
+    p.set_defaults(code_option_keys=tuple(_add_stage_options(p, "code", skip_taken=True)))
     return p
 
 
-#: snr's own flags' keys: a code family's option of one of these names has no flag here
-_OWN_KEYS = frozenset({"code", "code_length", "ones_ratio", "code_index", "signal", "noise",
-                       "size", "on_fraction", "reflectivity", "trials", "method", "interval",
-                       "seed", "max_time", "json", "command", "func"})
-
-
 def _code_options(args: argparse.Namespace) -> dict:
-    """The code families' options given on the command line (their flags default to
-    nothing: a family's own defaults apply; one named as snr's own flag is not read)."""
-    from .codes import CODES
-
-    return {k: getattr(args, k) for k in CODES.options()
-            if k not in _OWN_KEYS and hasattr(args, k)}
+    """The code families' options given on the command line: those given a flag here
+    (``code_option_keys``; one named as snr's own flag has none), and only where given (a
+    family's own defaults apply otherwise)."""
+    return {k: getattr(args, k) for k in getattr(args, "code_option_keys", ())
+            if hasattr(args, k)}
 
 
 def cmd_snr(args: argparse.Namespace) -> int:

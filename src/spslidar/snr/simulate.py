@@ -24,6 +24,7 @@ from spslidar.snr.theory import (
     check_choice,
     check_size,
     check_trials,
+    chosen_code_options,
     code_family,
     config_error,
     default_code_index,
@@ -266,17 +267,6 @@ def _unresolved(c: np.ndarray, theory: float, noise: float, interval: tuple[floa
             f"{'; and '.join(reasons)}: {advice}")
 
 
-def _code_options_used(kind: str, given: dict[str, Any] | None) -> dict[str, Any]:
-    """The declared options of code family ``kind`` as :func:`make_code_checked` made the code
-    with them: ``given``, each checked, the others at their defaults."""
-    from ..codes import CODES
-    from .theory import code_family
-
-    given = dict(given or {})
-    return {o.name: o.check(given[o.name]) if o.name in given else o.default
-            for o in CODES.get(code_family(kind)).options}
-
-
 def snr_simulated(
     code: str,
     code_length: int,
@@ -443,6 +433,7 @@ def snr_simulated(
 
     gen = as_generator(rng)
     code_index = default_code_index(kind, code_index)
+    code_options = chosen_code_options(kind, code_options)  # (the result says them)
     bits = make_code_checked(kind, code_length, ones_ratio, gen, code_index,
                              options=code_options)
     period = int(bits.size)
@@ -488,7 +479,7 @@ def snr_simulated(
         "code_index": int(code_index),
         # the family's declared options as the code was made (a plugin's; {} for the
         # built-ins): the --json params left them out, a review
-        "code_options": _code_options_used(kind, code_options),
+        "code_options": code_options,
         "ones_ratio": float(ones_ratio) if kind == "random" else ones / period,
         "ones": ones,
         "ones_ratio_actual": ones / period,

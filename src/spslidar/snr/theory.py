@@ -222,21 +222,13 @@ def default_code_index(kind: str, index: Any = None) -> int:
     return int(CODES.get(code_family(kind)).defaults.get("index", 0))
 
 
-def make_code_checked(kind: str, length: Any, ones_ratio: Any, rng, index: Any = None,
-                      options: dict[str, Any] | None = None):
-    """The code (uint8 0/1) of a registered family, built by its registry entry after the
-    entry's own checks (the lengths it can have; a ones ratio only where the family has one),
-    so ``snr`` takes exactly the codes ``run`` takes, with the same default member
-    (:func:`~spslidar.snr.theory.default_code_index`) and the options the family declares
-    (``options``: each checked by its declaration, the others at their defaults; one the
-    family does not declare refused); ConfigError on bad input."""
-    from types import SimpleNamespace
-
+def chosen_code_options(kind: str, options: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The options code family ``kind`` declares, as a code is made with them: those in
+    ``options``, each checked by its declaration, the others at their defaults; one the
+    family does not declare is a ConfigError."""
     from ..codes import CODES
 
     name = code_family(kind)
-    length = as_integer(length, "code length")
-    index = default_code_index(name, index)
     entry = CODES.get(name)
     declared = {o.name: o for o in entry.options}
     given = dict(options or {})
@@ -245,7 +237,25 @@ def make_code_checked(kind: str, length: Any, ones_ratio: Any, rng, index: Any =
             raise config_error(f"--{key.replace('_', '-')} is not an option of --code {name}"
                                + (f" (it takes {', '.join(o.flag for o in entry.options)})"
                                   if entry.options else " (it takes none)"))
-    chosen = {k: o.check(given[k]) if k in given else o.default for k, o in declared.items()}
+    return {k: o.check(given[k]) if k in given else o.default for k, o in declared.items()}
+
+
+def make_code_checked(kind: str, length: Any, ones_ratio: Any, rng, index: Any = None,
+                      options: dict[str, Any] | None = None):
+    """The code (uint8 0/1) of a registered family, built by its registry entry after the
+    entry's own checks (the lengths it can have; a ones ratio only where the family has one),
+    so ``snr`` takes exactly the codes ``run`` takes, with the same default member
+    (:func:`~spslidar.snr.theory.default_code_index`) and the options the family declares
+    (:func:`chosen_code_options`); ConfigError on bad input."""
+    from types import SimpleNamespace
+
+    from ..codes import CODES
+
+    name = code_family(kind)
+    length = as_integer(length, "code length")
+    index = default_code_index(name, index)
+    entry = CODES.get(name)
+    chosen = chosen_code_options(name, options)
     entry.check(SimpleNamespace(code=name, code_length=length, ones_ratio=ones_ratio,
                                 code_index=index, **chosen))
     return entry.load()(name, length, ones_ratio, rng, index, **chosen)
