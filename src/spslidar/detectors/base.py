@@ -133,6 +133,12 @@ class DetectorModel:
         return []
 
 
+def model_words(detector) -> str:
+    """A detector model as its one-line refusals name it: ``'gmapd' (GMAPD)``, its registered
+    name and its class."""
+    return f"{getattr(detector, 'name', '?')!r} ({type(detector).__name__})"
+
+
 def checked_detect(detector, lam, rng, n_periods: int, out=None) -> tuple:
     """``detector.detect(...)``'s ``(counts, totals)``, or a one-line ConfigError naming the
     model where it returns anything else (a plugin's counts alone ended in "too many values
@@ -140,7 +146,7 @@ def checked_detect(detector, lam, rng, n_periods: int, out=None) -> tuple:
     paths both call it."""
     got = detector.detect(lam, rng, n_periods, out=out)
     if not (isinstance(got, (tuple, list)) and len(got) == 2):
-        name = f"{getattr(detector, 'name', '?')!r} ({type(detector).__name__})"
+        name = model_words(detector)
         what = (f"a {len(got)}-tuple" if isinstance(got, tuple) else
                 f"an array of shape {np.shape(got)}" if hasattr(got, "shape") else
                 type(got).__name__)

@@ -21,7 +21,7 @@ from ..correlate import (
     replica_matrix,
 )
 from ..detectors import DetectorModel
-from ..detectors.base import checked_detect
+from ..detectors.base import checked_detect, model_words
 from ..detectors.counting import MAX_MEAN, NoiseModel, check_means
 from ..errors import ConfigError
 from ..forward import expected_counts, shifted_codes
@@ -407,7 +407,7 @@ def _check_counts(counts, shape: tuple, detector, what: str = "detect",
     2026-11-30). Two reductions of the block (its min and max, which NaN reaches too), a
     fraction of its Poisson draws."""
     arr = np.asarray(counts)
-    name = f"{getattr(detector, 'name', '?')!r} ({type(detector).__name__})"
+    name = model_words(detector)
     if arr.dtype.kind not in "biuf":  # (complex counts ended in the matched filter's "hist
         # holds complex numbers", the model unnamed: an outside audit of plugins)
         raise ConfigError(f"the detector model {name} returned histograms of dtype "
@@ -439,7 +439,7 @@ def checked_noise_totals(detector, counts, totals, n_periods: int, corrected) ->
     ended in a traceback from the matched filter's noise level, an outside audit of
     plugins)."""
     got = np.asarray(detector.noise_totals(counts, totals, n_periods, corrected=corrected))
-    name = f"{getattr(detector, 'name', '?')!r} ({type(detector).__name__})"
+    name = model_words(detector)
     rows = np.shape(totals)[:1]
     if got.dtype.kind not in "biuf" or got.shape != rows:
         raise ConfigError(f"the detector model {name} returned noise totals of shape "
