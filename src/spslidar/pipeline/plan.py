@@ -250,11 +250,10 @@ def nonneg_dropped(cfg: Config) -> str | None:
                 "with --no-qcr: the mean-eliminated problem it solves has no sign constraint "
                 "(metrics.json's config says nonneg false)")
     if kind == "wavelet":
+        whose = " (gpsr's default)" if cfg.solver == "gpsr" else ""
         return (f"the non-negativity bound asked for (--nonneg, nonneg = true) is not applied "
-                f"with --regulariser wavelet"
-                f"{' (gpsr' + chr(39) + 's default)' if cfg.solver == 'gpsr' else ''}: its "
-                f"prox has no closed form under the bound (metrics.json's config says "
-                f"nonneg false)")
+                f"with --regulariser wavelet{whose}: its prox has no closed form under the "
+                f"bound (metrics.json's config says nonneg false)")
     return None
 
 

@@ -34,7 +34,7 @@ from ..version import __version__
 from .acquisition import Acquisition
 from .gate import gate_text
 from .measurement import Measurement
-from .plan import detector_options
+from .plan import detector_options, ignored_keys
 from .results import Result
 from .weights import regulariser_kind
 
@@ -273,7 +273,7 @@ def finish_result(meas: Measurement, cfg: Config, *, depth: np.ndarray, slices: 
         # with its warning: config keeps them as given, so it reads back into a Config
         # (--fairness power of a PSST lidar read as applied there, an outside audit of
         # options; written null, the config no longer read back, a review)
-        "ignored_options": _ignored(cfg),
+        "ignored_options": ignored_keys(cfg),
         "seed": cfg.seed,
         "version": __version__,
         # what ran: the plugins loaded and the code's fingerprint (a plugin's "argmax" ran
@@ -312,13 +312,6 @@ def replaced_stages(cfg: Config) -> list[str]:
     return out
 
 
-def _ignored(cfg: Config) -> dict[str, str]:
-    """:func:`~spslidar.pipeline.plan.ignored_keys` of ``cfg`` (``metrics['ignored_options']``)."""
-    from .plan import ignored_keys
-
-    return dict(ignored_keys(cfg))
-
-
 def resolved_config(cfg: Config, acq: Acquisition, gate, auto_gate: bool, iterations: int,
                     lam_scale: float) -> dict[str, Any]:
     """The config with every ``auto``/unset key replaced by the value the run used, so a
@@ -337,7 +330,6 @@ def resolved_config(cfg: Config, acq: Acquisition, gate, auto_gate: bool, iterat
         d["nonneg"] = False  # the mean-eliminated plain problem has no sign constraint
     if d["regulariser"] == "wavelet":  # no closed-form prox under the bound (make_wavelet_l1)
         d["nonneg"] = False
-
     # an option no chosen stage declares is not one the run used: null, as the README's rule
     # has it (a linear detector's run recorded the GMAPD's jitter and afterpulsing, and a
     # plugin's options of stages not chosen at their defaults: an outside audit of 2026-12-01)
