@@ -83,16 +83,17 @@ def cmd_check(args: argparse.Namespace) -> int:
         old = reg.replaced(r.name)
         # (as run says it: where the implementation differs, not a re-registration of the
         # built-in's own with other defaults, a review)
-        mine = (f", a plugin's, replacing the built-in {old.target}"
+        mine = (f"a plugin's, replacing the built-in {old.target}"
                 if old is not None and r.name in reg and reg.get(r.name).target != old.target
                 else "")
         if r.ok:
             # (a contract that could not run is said, not counted passed, an audit of plugins)
             skipped = "".join(f"; skipped: {c}" for c in r.skipped)
             print(f"ok    {r.kind} {r.name} ({len(r.passed)} contracts, {r.seconds:.1f} s"
-                  f"{skipped}{mine})", flush=True)
+                  f"{skipped}{', ' + mine if mine else ''})", flush=True)
         else:
-            print(f"FAIL  {r.kind} {r.name}{mine and f' ({mine[2:]})'}: {r.error}", flush=True)
+            print(f"FAIL  {r.kind} {r.name}{f' ({mine})' if mine else ''}: {r.error}",
+                  flush=True)
 
     results = []
     for kind, name in chosen:
