@@ -246,7 +246,7 @@ def make_code_checked(kind: str, length: Any, ones_ratio: Any, rng, index: Any =
     entry's own checks (the lengths it can have; a ones ratio only where the family has one),
     so ``snr`` takes exactly the codes ``run`` takes, with the same default member
     (:func:`~spslidar.snr.theory.default_code_index`) and the options the family declares
-    (:func:`chosen_code_options`); ConfigError on bad input."""
+    (``chosen_code_options`` of this module); ConfigError on bad input."""
     from types import SimpleNamespace
 
     from ..codes import CODES
