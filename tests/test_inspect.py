@@ -832,10 +832,16 @@ def test_one_unreadable_file_among_several_leaves_the_others_described(tmp_path,
     out, err = capsys.readouterr()
     assert out.startswith(f"{tmp_path / 'good.ptu'}: ") and "empty.ptu" not in out
     assert err.count("\n") == 1 and "error:" in err and "empty.ptu" in err
-    assert main(["inspect", "--json", str(tmp_path / "good.ptu"),
+    # (with --json, the refused file is an object with its refusal, in the files' order, so
+    # a script's i-th object is its i-th file: the list left it out, stop 82's note)
+    assert main(["inspect", "--json", str(tmp_path / "empty.ptu"), str(tmp_path / "good.ptu"),
                  str(tmp_path / "empty.ptu")]) == 2
     out, err = capsys.readouterr()
-    assert [d["path"] for d in json.loads(out)] == [str(tmp_path / "good.ptu")]
+    got = json.loads(out)
+    assert [d["path"] for d in got] == [str(tmp_path / n) for n in
+                                        ("empty.ptu", "good.ptu", "empty.ptu")]
+    assert got[0] == got[2] and set(got[0]) == {"path", "error"}
+    assert got[0]["error"] in err and "error" not in got[1] and got[1]["photons"]
     assert main(["inspect", str(tmp_path / "empty.ptu")]) == 2
     out, err = capsys.readouterr()
     assert out == "" and err.count("\n") == 1

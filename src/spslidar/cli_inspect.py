@@ -50,7 +50,8 @@ def add_inspect_parser(subparsers: argparse._SubParsersAction) -> argparse.Argum
                    help="the patterns' side, as reconstruct --pattern-size (images at the "
                         "DMD's resolution; a MATLAB matrix whose two sides are squares)")
     p.add_argument("--json", action="store_true",
-                   help="print the counts as JSON (one object per file, in a list) instead "
+                   help="print the counts as JSON (one object per file, in a list; a file it "
+                        "cannot read is {\"path\", \"error\"}) instead "
                         "of sentences")
     return p
 
@@ -175,21 +176,25 @@ def cmd_inspect(args: argparse.Namespace) -> int:
             # (one file it cannot read among several: the others are still described, the
             # refusal said in its line and the exit 2; one such file among a lab folder's
             # hid every other file's report, an outside audit)
-            bad.append(exc)
+            bad.append((len(scans) + len(bad), path, exc))
     found = ([returns_in_file(s, code, args.bit_rate) for _, s in scans] if code is not None
              else [None] * len(scans))
     status = 0
     if bad:
         from .errors import one_line
 
-        for exc in bad:  # (one line each, as the command line's own errors)
+        for _, _, exc in bad:  # (one line each, as the command line's own errors)
             print(f"spslidar inspect: error: {one_line(exc)}", file=sys.stderr)
         status = 2
     if args.json:  # (the advice too: a script could not get --repeats, an audit)
-        print(json.dumps([dict(_jsonable(s), path=p, advice=advice(s, m),
-                               **({"returns": f} if f else {}))
-                          for (p, s), f in zip(scans, found, strict=True)], indent=1,
-                         default=str))
+        read = iter([dict(_jsonable(s), path=p, advice=advice(s, m),
+                          **({"returns": f} if f else {}))
+                     for (p, s), f in zip(scans, found, strict=True)])
+        # (a file it could not read is an object with its refusal, in the files' order: the
+        # list left it out, so a script's i-th object was not its i-th file, stop 82's note)
+        refused = {i: {"path": p, "error": one_line(e)} for i, p, e in bad}
+        print(json.dumps([refused[i] if i in refused else next(read)
+                          for i in range(len(args.ptu))], indent=1, default=str))
         return status
     for i, ((path, scan), f) in enumerate(zip(scans, found, strict=True)):
         if i:
