@@ -70,6 +70,31 @@ def test_run_says_what_a_simulated_delay_does_to_its_own_depths(acquisitions):
     assert not any("--system-delay" in w for w in ideal)
 
 
+def test_a_delayed_return_the_gate_reads_is_not_called_outside_it(tmp_path):
+    """The gate's lags are its ends rounded outward, so a wall 3 m away delayed by 1 ns
+    (3.15 m) is read right by the last lag of the default 2.865-3.135 m gate: the warning
+    called its 256 pixels outside the gate while the map gave them 3.15 m (an outside
+    audit). At 1.23 ns (3.184 m) the returns do lie beyond the last lag, and it says so."""
+    from spslidar import run
+    from spslidar.pipeline.plan import read_span
+
+    np.savez(tmp_path / "wall.npz", depth=np.full((8, 8), 3.0),
+             reflectivity=np.full((8, 8), 0.5))
+    kw = dict(scene=str(tmp_path / "wall.npz"), size=8, code_length=127, noiseless=True,
+              depth="argmax", compression=1, patterns="hadamard")
+    r = run(**kw, system_delay=1e-9)
+    said = [w for w in r.warnings if w.startswith("--system-delay")]
+    assert len(said) == 1 and "outside" not in said[0]
+    # (the bin convention: the leading edge at 2 D / (c dt) + 10 bins reads its bin + 0.25)
+    assert np.allclose(r.depth, 3.1516, atol=1e-4)
+    r = run(**kw, system_delay=1.23e-9)
+    assert "64 pixels' delayed returns fall outside the range gate" in " ".join(r.warnings)
+    # the span: lag b reads leading edges within half a bin of its depth
+    lo, hi = read_span(np.array([10, 20]), 1e-10, 0.5)
+    bin_m = 299792458 * 1e-10 / 2
+    assert (lo, hi) == pytest.approx((9.75 * bin_m, 20.75 * bin_m), rel=1e-12)
+
+
 def test_figure_title_names_the_simulated_instrument():
     """depth.png's title of a run through a simulated instrument says its delay (read
     uncalibrated) and IRF; an ideal run's says neither."""

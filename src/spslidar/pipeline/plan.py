@@ -12,6 +12,7 @@ import numpy as np
 from ..config import Config
 from ..constants import SPEED_OF_LIGHT
 from ..correlate import PLATEAU_SHARE, auto_replica, gate_lags, replica_plateau
+from ..forward import lag_to_depth
 from ..patterns import HADAMARD_KINDS, PATTERNS, n_patterns_for
 from ..scenes import load_scene
 from ..solvers.entries import TV_REGULARISERS
@@ -65,7 +66,8 @@ def timeline(cfg: Config, scene, warns: list[str]):
         # reconstruct and not by run: an audit)
         warns.append(gate_beyond_warning(gate, acq.unambiguous_range, acq.description))
     warns.extend(rep_rate_warnings(cfg, acq))
-    outside = (scene.depth < gate[0]) | (scene.depth > gate[1])
+    span = read_span(lags, bin_width, cfg.pulse_width)
+    outside = (scene.depth < span[0]) | (scene.depth >= span[1])
     if np.any(outside & scene.valid):
         # (most of them are given a depth inside the gate all the same, the solve's faint
         # ghosts of the scene, with a confidence of 0.8-1.0: 458 of 672 on a 5-60 m ramp
@@ -85,7 +87,7 @@ def timeline(cfg: Config, scene, warns: list[str]):
         warns.append(f"{int(unscored.sum())} pixels without a ground truth (not scored) have "
                      f"surfaces outside the range gate {gate_text(gate)} m: their returns "
                      f"alias into the gate or are lost")
-    warns.extend(delay_warnings(cfg, scene, gate, acq.unambiguous_range))
+    warns.extend(delay_warnings(cfg, scene, gate, acq.unambiguous_range, span))
     return seq_pat, seq_counts, seq_probe, acq, gate, lags, ulags, inverse
 
 
@@ -139,23 +141,38 @@ def rep_rate_warnings(cfg: Config, acq: Acquisition) -> list[str]:
             f"the lidar runs at {used:.6g} Hz ({100 * (used / cfg.rep_rate - 1):+.3g} %)"]
 
 
+def read_span(lags: np.ndarray, bin_width: float, pulse_width: float) -> tuple[float, float]:
+    """The depths ``[lo, hi)`` whose returns a gate's delays ``lags`` read where they are:
+    the gate's lags are its ends rounded outward, and lag ``b`` holds the returns whose
+    leading edge lies within half a bin of its :func:`~spslidar.forward.lag_to_depth`, so a
+    wall 1.7 cm past a 3.13 m gate's far end was read right at 3.15 m while the warnings,
+    which compared with the gate itself, called it outside (an outside audit of
+    2026-12-03)."""
+    half = SPEED_OF_LIGHT * bin_width / 4.0  # half a bin of depth
+    ends = lag_to_depth(np.array([lags[0], lags[-1]]), bin_width, pulse_width)
+    return float(ends[0] - half), float(ends[1] + half)
+
+
 def delay_warnings(cfg: Config, scene, gate: tuple[float, float],
-                   unambiguous: float | None = None) -> list[str]:
+                   unambiguous: float | None = None,
+                   span: tuple[float, float] | None = None) -> list[str]:
     """What a simulated ``system_delay`` does to ``run``'s own depths: ``run`` reconstructs
     as an uncalibrated instrument would, so every return reads ``c delay / 2`` too far, and
     with the default gate (set from the scene's true depths) the returns fall beyond it and
     the depth map is noise (measured: the camera with 13.74 ns, RMSE 0.34 m and no warning).
     The delay is for ``--save-ptu`` acquisitions that ``spslidar calibrate`` and
-    ``reconstruct --calibration`` remove it from."""
+    ``reconstruct --calibration`` remove it from. ``span`` is the depths the gate's delays
+    read (:func:`read_span`; the gate itself where not given)."""
     if not cfg.system_delay > 0:
         return []
     shift = SPEED_OF_LIGHT * float(cfg.system_delay) / 2.0
     seen = scene.depth + shift
     ru = unambiguous if unambiguous and shift >= unambiguous * (1 - 1e-9) else None
+    lo, hi = span if span is not None else gate
     if ru:  # the returns wrap with the code (a delay of one period read the true depths)
-        inside = gate[0] + np.mod(seen - gate[0], ru) <= gate[1]
+        inside = lo + np.mod(seen - lo, ru) < hi
     else:
-        inside = (seen >= gate[0]) & (seen <= gate[1])
+        inside = (seen >= lo) & (seen < hi)
     beyond = int(np.sum(~inside & scene.valid))
     where = (f"; {beyond} pixels' delayed returns fall outside the range gate "
              f"{gate_text(gate)} m" if beyond else "")
